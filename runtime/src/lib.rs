@@ -1,0 +1,18 @@
+//! dhoit runtime: scenes, the CPU reference of every pass, compositing and budgets.
+//!
+//! The CPU path is the reference the GPU renderer is held to: [`raster`] turns a [`scene`] into
+//! per-pixel fragment lists, [`frame`] allocates slots under a [`budget`] and composites with
+//! [`composite`]; [`dump`] writes the fragment dump contract.
+
+pub mod budget;
+pub mod composite;
+pub mod dump;
+pub mod error;
+pub mod frame;
+pub mod image_io;
+pub mod raster;
+pub mod rng;
+pub mod scene;
+pub mod tensors;
+
+pub use error::{Error, Result};

@@ -1,0 +1,382 @@
+//! CPU rasterizer: every fragment of every triangle, both faces, no depth test, into per-pixel
+//! fragment lists (an A-buffer in CSR form).
+//!
+//! Conventions follow Vulkan (and so wgpu), so that the GPU renderer agrees pixel for pixel:
+//! - window coordinates: x right, y down, origin at the top-left corner; NDC y = +1 is the top
+//!   row; window depth `z_clip / w_clip` in [0, 1];
+//! - vertices snapped to a 1/256-pixel grid ([`SUBPIXEL_BITS`] = 8), edge functions evaluated
+//!   exactly in integers, so shared edges are watertight;
+//! - a pixel is covered when its centre (x + 0.5, y + 0.5) lies inside the triangle, or on an
+//!   edge that is a top edge (horizontal, interior below) or a left edge (interior to the right);
+//! - depth interpolated linearly in screen space, colour perspective-correctly;
+//! - triangles are clipped against the near and far planes in clip space.
+//!
+//! Shading is fixed: a headlight Lambert term on the base colour,
+//! `rgb = vertex_rgb * (AMBIENT + (1 - AMBIENT) |n . v|)` with `n` the triangle's geometric
+//! normal and `v` the camera's forward direction; alpha is the vertex alpha. Each fragment keeps
+//! `|n . v|` (`facing`, for the Fresnel importance) and its triangle's submission index.
+//!
+//! Within a pixel, fragments are listed in submission order. Work is split into bands of rows
+//! processed in parallel; the result does not depend on the number of threads.
+
+use crate::error::{Error, Result};
+use crate::scene::{Camera, Scene};
+use glam::{Vec3, Vec4};
+use rayon::prelude::*;
+
+pub const SUBPIXEL_BITS: u32 = 8;
+const SUB: i64 = 1 << SUBPIXEL_BITS;
+/// Ambient share of the headlight shading.
+pub const AMBIENT: f32 = 0.3;
+const BAND_ROWS: u32 = 8;
+/// Largest accepted width or height.
+pub const MAX_DIM: u32 = 16384;
+
+/// Per-pixel fragment lists: pixel `p = y * width + x` owns `offsets[p]..offsets[p + 1]`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FragmentLists {
+    pub width: u32,
+    pub height: u32,
+    pub offsets: Vec<u32>,
+    /// Window depth in [0, 1].
+    pub depth: Vec<f32>,
+    /// Non-premultiplied linear RGBA.
+    pub rgba: Vec<[f32; 4]>,
+    /// Submission index of the fragment's triangle.
+    pub primitive: Vec<u32>,
+    /// `|n . v|` of the fragment's triangle.
+    pub facing: Vec<f32>,
+}
+
+impl FragmentLists {
+    pub fn pixel_count(&self) -> usize {
+        (self.width * self.height) as usize
+    }
+    pub fn fragment_count(&self) -> usize {
+        self.depth.len()
+    }
+    pub fn range(&self, p: usize) -> std::ops::Range<usize> {
+        self.offsets[p] as usize..self.offsets[p + 1] as usize
+    }
+    /// n(p): the depth complexity of pixel p.
+    pub fn count(&self, p: usize) -> u32 {
+        self.offsets[p + 1] - self.offsets[p]
+    }
+    pub fn counts(&self) -> Vec<u32> {
+        self.offsets.windows(2).map(|w| w[1] - w[0]).collect()
+    }
+    pub fn max_depth_complexity(&self) -> u32 {
+        self.offsets
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .max()
+            .unwrap_or(0)
+    }
+    pub fn covered_pixels(&self) -> usize {
+        self.offsets.windows(2).filter(|w| w[1] > w[0]).count()
+    }
+}
+
+/// Parses `WxH` and checks it is a possible resolution.
+pub fn parse_resolution(s: &str) -> Result<(u32, u32)> {
+    let bad = |m: &str| Error::Resolution(s.to_string(), m.to_string());
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| bad("expected WIDTHxHEIGHT, such as 640x480"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .map_err(|_| bad("width is not a whole number"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .map_err(|_| bad("height is not a whole number"))?;
+    check_resolution(w, h)?;
+    Ok((w, h))
+}
+
+pub fn check_resolution(w: u32, h: u32) -> Result<()> {
+    if w == 0 || h == 0 || w > MAX_DIM || h > MAX_DIM {
+        return Err(Error::Resolution(
+            format!("{w}x{h}"),
+            format!("width and height must be between 1 and {MAX_DIM}"),
+        ));
+    }
+    Ok(())
+}
+
+/// A triangle after clipping and the viewport transform.
+#[derive(Clone, Copy)]
+struct ScreenTri {
+    /// Fixed-point window x, y (1/256 pixel).
+    xy: [[i64; 2]; 3],
+    z: [f32; 3],
+    inv_w: [f32; 3],
+    rgba: [Vec4; 3],
+    facing: f32,
+    prim: u32,
+    y_range: (u32, u32),
+}
+
+#[derive(Clone, Copy)]
+struct ClipVertex {
+    pos: Vec4,
+    rgba: Vec4,
+}
+
+fn lerp_vertex(a: &ClipVertex, b: &ClipVertex, t: f32) -> ClipVertex {
+    ClipVertex {
+        pos: a.pos + (b.pos - a.pos) * t,
+        rgba: a.rgba + (b.rgba - a.rgba) * t,
+    }
+}
+
+/// Sutherland-Hodgman against `z >= 0` and `z <= w`.
+fn clip_polygon(poly: Vec<ClipVertex>) -> Vec<ClipVertex> {
+    let planes: [fn(&Vec4) -> f32; 2] = [|p| p.z, |p| p.w - p.z];
+    let mut poly = poly;
+    for dist in planes {
+        if poly.iter().all(|v| dist(&v.pos) >= 0.0) {
+            continue;
+        }
+        let mut out = Vec::with_capacity(poly.len() + 1);
+        for i in 0..poly.len() {
+            let a = &poly[i];
+            let b = &poly[(i + 1) % poly.len()];
+            let (da, db) = (dist(&a.pos), dist(&b.pos));
+            if da >= 0.0 {
+                out.push(*a);
+            }
+            if (da >= 0.0) != (db >= 0.0) {
+                out.push(lerp_vertex(a, b, da / (da - db)));
+            }
+        }
+        poly = out;
+        if poly.len() < 3 {
+            return Vec::new();
+        }
+    }
+    poly
+}
+
+fn orient(a: [i64; 2], b: [i64; 2], c: [i64; 2]) -> i64 {
+    (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+}
+
+/// Whether a pixel centre exactly on edge a -> b (of a positively oriented triangle) is covered.
+fn top_left(a: [i64; 2], b: [i64; 2]) -> bool {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    dy < 0 || (dy == 0 && dx > 0)
+}
+
+fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Vec<ScreenTri> {
+    let (w, h) = (width as f32, height as f32);
+    let limit = (1i64 << 24) * SUB;
+    (0..scene.triangle_count())
+        .into_par_iter()
+        .flat_map_iter(|t| {
+            let p = &scene.positions[3 * t..3 * t + 3];
+            let n = face_normal(p);
+            let facing = n.dot(cam.forward).abs();
+            let shade = AMBIENT + (1.0 - AMBIENT) * facing;
+            let verts: Vec<ClipVertex> = (0..3)
+                .map(|i| {
+                    let c = scene.colors[3 * t + i];
+                    ClipVertex {
+                        pos: cam.view_proj * p[i].extend(1.0),
+                        rgba: Vec4::new(c[0] * shade, c[1] * shade, c[2] * shade, c[3]),
+                    }
+                })
+                .collect();
+            let poly = clip_polygon(verts);
+            let screen: Vec<([i64; 2], f32, f32, Vec4)> = poly
+                .iter()
+                .map(|v| {
+                    let inv_w = 1.0 / v.pos.w;
+                    let xw = (v.pos.x * inv_w + 1.0) * 0.5 * w;
+                    let yw = (1.0 - v.pos.y * inv_w) * 0.5 * h;
+                    let fx = ((xw as f64) * SUB as f64).round() as i64;
+                    let fy = ((yw as f64) * SUB as f64).round() as i64;
+                    let z = (v.pos.z * inv_w).clamp(0.0, 1.0);
+                    (
+                        [fx.clamp(-limit, limit), fy.clamp(-limit, limit)],
+                        z,
+                        inv_w,
+                        v.rgba,
+                    )
+                })
+                .collect();
+            let mut out = Vec::new();
+            for i in 2..screen.len() {
+                let v = [screen[0], screen[i - 1], screen[i]];
+                let area = orient(v[0].0, v[1].0, v[2].0);
+                if area == 0 {
+                    continue;
+                }
+                // Both faces: make every triangle positively oriented.
+                let v = if area < 0 { [v[0], v[2], v[1]] } else { v };
+                let ymin = v.iter().map(|q| q.0[1]).min().unwrap();
+                let ymax = v.iter().map(|q| q.0[1]).max().unwrap();
+                // Rows whose centre (y + 0.5) lies in [ymin, ymax].
+                let r0 = ((ymin - SUB / 2 + SUB - 1).div_euclid(SUB)).max(0);
+                let r1 = ((ymax - SUB / 2).div_euclid(SUB)).min(height as i64 - 1);
+                if r0 > r1 {
+                    continue;
+                }
+                out.push(ScreenTri {
+                    xy: [v[0].0, v[1].0, v[2].0],
+                    z: [v[0].1, v[1].1, v[2].1],
+                    inv_w: [v[0].2, v[1].2, v[2].2],
+                    rgba: [v[0].3, v[1].3, v[2].3],
+                    facing,
+                    prim: t as u32,
+                    y_range: (r0 as u32, r1 as u32),
+                });
+            }
+            out
+        })
+        .collect()
+}
+
+struct BandOut {
+    counts: Vec<u32>,
+    depth: Vec<f32>,
+    rgba: Vec<[f32; 4]>,
+    primitive: Vec<u32>,
+    facing: Vec<f32>,
+}
+
+struct Frag {
+    pixel: u32,
+    depth: f32,
+    rgba: [f32; 4],
+    prim: u32,
+    facing: f32,
+}
+
+fn raster_band(tris: &[ScreenTri], ids: &[u32], width: u32, y0: u32, y1: u32) -> BandOut {
+    let mut frags: Vec<Frag> = Vec::new();
+    for &id in ids {
+        let t = &tris[id as usize];
+        let [a, b, c] = t.xy;
+        let area = orient(a, b, c);
+        let inv_area = 1.0 / area as f64;
+        let xmin = a[0].min(b[0]).min(c[0]);
+        let xmax = a[0].max(b[0]).max(c[0]);
+        let c0 = ((xmin - SUB / 2 + SUB - 1).div_euclid(SUB)).max(0);
+        let c1 = ((xmax - SUB / 2).div_euclid(SUB)).min(width as i64 - 1);
+        if c0 > c1 {
+            continue;
+        }
+        let bias = [top_left(b, c), top_left(c, a), top_left(a, b)];
+        let ry0 = t.y_range.0.max(y0);
+        let ry1 = t.y_range.1.min(y1 - 1);
+        for y in ry0..=ry1 {
+            let py = y as i64 * SUB + SUB / 2;
+            for x in c0..=c1 {
+                let p = [x * SUB + SUB / 2, py];
+                let w = [orient(b, c, p), orient(c, a, p), orient(a, b, p)];
+                let inside = (0..3).all(|i| w[i] > 0 || (w[i] == 0 && bias[i]));
+                if !inside {
+                    continue;
+                }
+                let l = w.map(|wi| (wi as f64 * inv_area) as f32);
+                let depth = (l[0] * t.z[0] + l[1] * t.z[1] + l[2] * t.z[2]).clamp(0.0, 1.0);
+                let pw = [l[0] * t.inv_w[0], l[1] * t.inv_w[1], l[2] * t.inv_w[2]];
+                let norm = 1.0 / (pw[0] + pw[1] + pw[2]);
+                let rgba = (t.rgba[0] * pw[0] + t.rgba[1] * pw[1] + t.rgba[2] * pw[2]) * norm;
+                let rgba = rgba.clamp(Vec4::ZERO, Vec4::ONE);
+                frags.push(Frag {
+                    pixel: (y - y0) * width + x as u32,
+                    depth,
+                    rgba: rgba.to_array(),
+                    prim: t.prim,
+                    facing: t.facing,
+                });
+            }
+        }
+    }
+    // Stable counting sort by pixel keeps submission order within each pixel.
+    let npix = ((y1 - y0) * width) as usize;
+    let mut counts = vec![0u32; npix];
+    for f in &frags {
+        counts[f.pixel as usize] += 1;
+    }
+    let mut start = vec![0usize; npix];
+    let mut acc = 0;
+    for p in 0..npix {
+        start[p] = acc;
+        acc += counts[p] as usize;
+    }
+    let n = frags.len();
+    let mut out = BandOut {
+        counts,
+        depth: vec![0.0; n],
+        rgba: vec![[0.0; 4]; n],
+        primitive: vec![0; n],
+        facing: vec![0.0; n],
+    };
+    for f in frags {
+        let i = start[f.pixel as usize];
+        start[f.pixel as usize] += 1;
+        out.depth[i] = f.depth;
+        out.rgba[i] = f.rgba;
+        out.primitive[i] = f.prim;
+        out.facing[i] = f.facing;
+    }
+    out
+}
+
+/// Rasterizes every triangle of `scene` seen by `cam` into per-pixel fragment lists.
+pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result<FragmentLists> {
+    check_resolution(width, height)?;
+    let tris = setup(scene, cam, width, height);
+    let bands = height.div_ceil(BAND_ROWS);
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); bands as usize];
+    for (i, t) in tris.iter().enumerate() {
+        for b in t.y_range.0 / BAND_ROWS..=t.y_range.1 / BAND_ROWS {
+            bins[b as usize].push(i as u32);
+        }
+    }
+    let outs: Vec<BandOut> = bins
+        .par_iter()
+        .enumerate()
+        .map(|(b, ids)| {
+            let y0 = b as u32 * BAND_ROWS;
+            raster_band(&tris, ids, width, y0, (y0 + BAND_ROWS).min(height))
+        })
+        .collect();
+    let total: usize = outs.iter().map(|o| o.depth.len()).sum();
+    if total > u32::MAX as usize {
+        return Err(Error::Invalid(format!(
+            "{total} fragments exceed the 2^32 a fragment list can index; lower the resolution"
+        )));
+    }
+    let mut fl = FragmentLists {
+        width,
+        height,
+        offsets: Vec::with_capacity((width * height) as usize + 1),
+        depth: Vec::with_capacity(total),
+        rgba: Vec::with_capacity(total),
+        primitive: Vec::with_capacity(total),
+        facing: Vec::with_capacity(total),
+    };
+    let mut acc = 0u32;
+    fl.offsets.push(0);
+    for o in outs {
+        for c in o.counts {
+            acc += c;
+            fl.offsets.push(acc);
+        }
+        fl.depth.extend(o.depth);
+        fl.rgba.extend(o.rgba);
+        fl.primitive.extend(o.primitive);
+        fl.facing.extend(o.facing);
+    }
+    Ok(fl)
+}
+
+/// The geometric unit normal of a triangle (zero when degenerate).
+pub fn face_normal(p: &[Vec3]) -> Vec3 {
+    (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero()
+}

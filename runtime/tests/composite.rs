@@ -1,0 +1,153 @@
+//! Property tests of exact, hybrid and MLAB compositing on single pixels.
+
+use dhoit_runtime::composite::{Fragment, exact_pixel, hybrid_pixel, mlab_pixel};
+use proptest::prelude::*;
+
+fn fragment() -> impl Strategy<Value = Fragment> {
+    (
+        0.0f32..=1.0,
+        prop::array::uniform4(0.0f32..=1.0),
+        any::<u32>(),
+    )
+        .prop_map(|(depth, rgba, primitive)| Fragment {
+            depth,
+            rgba,
+            primitive,
+        })
+}
+
+fn fragments(max: usize) -> impl Strategy<Value = Vec<Fragment>> {
+    prop::collection::vec(fragment(), 0..max)
+}
+
+fn close(a: [f32; 3], b: [f32; 3], tol: f32) -> bool {
+    (0..3).all(|i| (a[i] - b[i]).abs() <= tol)
+}
+
+fn finite_unit(c: [f32; 3]) -> bool {
+    c.iter()
+        .all(|v| v.is_finite() && (-1e-5..=1.0 + 1e-5).contains(v))
+}
+
+const BG: [f32; 3] = [0.2, 0.5, 0.9];
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    #[test]
+    fn hybrid_with_all_fragments_in_the_core_is_exact(f in fragments(64)) {
+        let n = f.len();
+        prop_assert_eq!(hybrid_pixel(&f, n, BG), exact_pixel(&f, BG));
+        // A k larger than n is clamped to n.
+        prop_assert_eq!(hybrid_pixel(&f, n + 5, BG), exact_pixel(&f, BG));
+    }
+
+    #[test]
+    fn one_colour_one_opacity_is_exact_for_every_k(
+        n in 1usize..300, rgb in prop::array::uniform3(0.0f32..=1.0), a in 0.0f32..=1.0,
+        depths in prop::collection::vec(0.0f32..=1.0, 300),
+    ) {
+        let f: Vec<Fragment> = (0..n)
+            .map(|i| Fragment { depth: depths[i], rgba: [rgb[0], rgb[1], rgb[2], a], primitive: i as u32 })
+            .collect();
+        let exact = exact_pixel(&f, BG);
+        for k in 0..=n {
+            let h = hybrid_pixel(&f, k, BG);
+            prop_assert!(close(h, exact, 2e-5), "k = {k}: hybrid {h:?} exact {exact:?}");
+        }
+    }
+
+    #[test]
+    fn exact_does_not_depend_on_input_order(f in fragments(64), seed in any::<u64>()) {
+        let mut g = f.clone();
+        let perm = dhoit_runtime::rng::Rng::new(seed).permutation(g.len());
+        g = perm.iter().map(|&i| f[i]).collect();
+        let (a, b) = (exact_pixel(&f, BG), exact_pixel(&g, BG));
+        prop_assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits));
+    }
+
+    #[test]
+    fn mlab_with_enough_rows_is_exact(f in fragments(24), extra in 0usize..4) {
+        let m = f.len().max(1) + extra;
+        let (a, b) = (mlab_pixel(&f, m, BG), exact_pixel(&f, BG));
+        prop_assert!(close(a, b, 1e-5), "mlab {a:?} exact {b:?}");
+    }
+
+    #[test]
+    fn every_method_stays_finite_at_the_extremes(
+        n in 0usize..3000,
+        alphas in prop::collection::vec(prop::sample::select(vec![0.0f32, 1e-7, 1.0, 0.5, 1.0 - 1e-7]), 3000),
+        equal_depths in any::<bool>(), k in 0usize..3000, m in 1usize..8,
+    ) {
+        let f: Vec<Fragment> = (0..n)
+            .map(|i| Fragment {
+                depth: if equal_depths { 0.5 } else { (i % 97) as f32 / 97.0 },
+                rgba: [(i % 3) as f32 / 2.0, 0.3, 1.0, alphas[i]],
+                primitive: i as u32,
+            })
+            .collect();
+        prop_assert!(finite_unit(exact_pixel(&f, BG)));
+        prop_assert!(finite_unit(hybrid_pixel(&f, k, BG)));
+        prop_assert!(finite_unit(mlab_pixel(&f, m, BG)));
+    }
+}
+
+#[test]
+fn empty_and_zero_opacity_tails_show_the_background() {
+    assert_eq!(hybrid_pixel(&[], 0, BG), BG);
+    let clear = Fragment {
+        depth: 0.3,
+        rgba: [1.0, 0.0, 0.0, 0.0],
+        primitive: 0,
+    };
+    assert_eq!(hybrid_pixel(&[clear; 5], 0, BG), BG);
+    assert_eq!(hybrid_pixel(&[clear; 5], 2, BG), BG);
+    assert_eq!(mlab_pixel(&[clear; 5], 1, BG), BG);
+}
+
+#[test]
+fn an_opaque_front_fragment_hides_everything_behind() {
+    let f = [
+        Fragment {
+            depth: 0.9,
+            rgba: [0.0, 1.0, 0.0, 0.5],
+            primitive: 0,
+        },
+        Fragment {
+            depth: 0.1,
+            rgba: [1.0, 0.0, 0.0, 1.0],
+            primitive: 1,
+        },
+        Fragment {
+            depth: 0.5,
+            rgba: [0.0, 0.0, 1.0, 0.7],
+            primitive: 2,
+        },
+    ];
+    assert_eq!(exact_pixel(&f, BG), [1.0, 0.0, 0.0]);
+    for k in 1..=3 {
+        assert_eq!(hybrid_pixel(&f, k, BG), [1.0, 0.0, 0.0]);
+    }
+    assert_eq!(mlab_pixel(&f, 1, BG), [1.0, 0.0, 0.0]);
+}
+
+#[test]
+fn two_layer_exact_value_by_hand() {
+    // Front red at 0.5 over back blue at 0.5 over black: 0.5 red + 0.25 blue.
+    let f = [
+        Fragment {
+            depth: 0.8,
+            rgba: [0.0, 0.0, 1.0, 0.5],
+            primitive: 0,
+        },
+        Fragment {
+            depth: 0.2,
+            rgba: [1.0, 0.0, 0.0, 0.5],
+            primitive: 1,
+        },
+    ];
+    assert_eq!(exact_pixel(&f, [0.0; 3]), [0.5, 0.0, 0.25]);
+    // With k = 0 the tail averages the colours: C_tail = (0.5, 0, 0.5) / 1, a_tail = 0.75.
+    let h = hybrid_pixel(&f, 0, [0.0; 3]);
+    assert!(close(h, [0.375, 0.0, 0.375], 1e-6), "{h:?}");
+}

@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Runs every test of the workspace (release profile) and closes with one summary line over all
+# test binaries, so the total is visible at the end of a long log.
+set -uo pipefail
+log=$(mktemp)
+cargo test --release --workspace --all-targets "$@" 2>&1 | tee "$log"
+status=${PIPESTATUS[0]}
+read -r passed failed < <(awk '/^test result:/ { for (i = 1; i < NF; i++) { if ($(i+1) ~ /^passed/) p += $i; if ($(i+1) ~ /^failed/) f += $i } } END { print p + 0, f + 0 }' "$log")
+rm -f "$log"
+echo
+echo "dhoit: ${passed:-0} passed, ${failed:-0} failed"
+if [ "${passed:-0}" -eq 0 ] && [ "$status" -eq 0 ]; then
+  echo "no test ran" >&2
+  exit 1
+fi
+exit "$status"

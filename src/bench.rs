@@ -1,0 +1,90 @@
+//! `dhoit bench`: throughput of the CPU reference passes, as JSON.
+
+use anyhow::Result;
+use clap::Args;
+use dhoit_runtime::budget::Budget;
+use dhoit_runtime::frame::{self, Method};
+use dhoit_runtime::raster;
+use dhoit_runtime::scene::{self, Camera, Opacity};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct BenchArgs {
+    /// Built-in scenes to measure (comma separated); all by default.
+    #[arg(long, value_delimiter = ',')]
+    scenes: Vec<String>,
+    /// Resolution WIDTHxHEIGHT.
+    #[arg(long, default_value = "640x480")]
+    res: String,
+    /// Timed repetitions per measurement; the fastest is reported.
+    #[arg(long, default_value_t = 3)]
+    repeat: usize,
+    /// Budget for the fixed k-buffer and MLAB measurements.
+    #[arg(long, default_value = "2fpp")]
+    budget: String,
+    /// Also write the JSON here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// Fastest of `n` runs of `f`, in seconds, with the last result.
+fn best<T>(n: usize, mut f: impl FnMut() -> Result<T>) -> Result<(f64, T)> {
+    let mut best = f64::INFINITY;
+    let mut last = None;
+    for _ in 0..n.max(1) {
+        let t = Instant::now();
+        let v = f()?;
+        best = best.min(t.elapsed().as_secs_f64());
+        last = Some(v);
+    }
+    Ok((best, last.expect("at least one run")))
+}
+
+pub fn run(a: BenchArgs) -> Result<()> {
+    let (w, h) = raster::parse_resolution(&a.res)?;
+    let budget = Budget::parse(&a.budget)?;
+    let names: Vec<String> = if a.scenes.is_empty() {
+        scene::procedural::BUILTIN
+            .iter()
+            .map(|s| s.0.to_string())
+            .collect()
+    } else {
+        a.scenes.clone()
+    };
+    let mut results = Vec::new();
+    for name in &names {
+        let s = scene::load(name, Opacity::default())?;
+        let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
+        let (t_raster, fl) = best(a.repeat, || Ok(raster::rasterize(&s, &cam, w, h)?))?;
+        let frags = fl.fragment_count() as f64;
+        let mut entry = serde_json::json!({
+            "scene": name, "triangles": s.triangle_count(), "width": w, "height": h,
+            "fragments": fl.fragment_count(), "max_depth_complexity": fl.max_depth_complexity(),
+            "raster_ms": t_raster * 1e3, "raster_fragments_per_s": frags / t_raster,
+        });
+        for m in Method::ALL {
+            let (t, _) = best(a.repeat, || Ok(frame::render(&fl, m, budget, [1.0; 3])?))?;
+            entry[format!("{}_ms", m.name())] = (t * 1e3).into();
+            entry[format!("{}_fragments_per_s", m.name())] = (frags / t).into();
+        }
+        eprintln!(
+            "{name}: {} fragments, raster {:.0} ms",
+            fl.fragment_count(),
+            t_raster * 1e3
+        );
+        results.push(entry);
+    }
+    let report = serde_json::json!({
+        "threads": rayon::current_num_threads(),
+        "budget": budget.to_string(),
+        "repeat": a.repeat,
+        "cpu": results,
+    });
+    let text = serde_json::to_string_pretty(&report)?;
+    println!("{text}");
+    if let Some(path) = &a.out {
+        dhoit_runtime::tensors::write_atomic(path, text.as_bytes())?;
+    }
+    Ok(())
+}

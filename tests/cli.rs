@@ -1,0 +1,231 @@
+//! End-to-end checks of the `dhoit` command: dumps, order independence, errors.
+
+use dhoit_runtime::budget::Budget;
+use dhoit_runtime::frame::{self, Method};
+use dhoit_runtime::raster::rasterize;
+use dhoit_runtime::scene::{self, Camera, Opacity};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn dhoit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_dhoit"))
+        .args(args)
+        .output()
+        .expect("run dhoit")
+}
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("dhoit-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn the_dump_round_trips() {
+    let dir = temp("dump");
+    let out = dir.join("img.png");
+    let o = dhoit(&[
+        "render",
+        "--scene",
+        "spheres",
+        "--res",
+        "96x64",
+        "--method",
+        "fkb",
+        "--budget",
+        "2fpp",
+        "--background",
+        "0.1,0.2,0.3",
+        "--out",
+        out.to_str().unwrap(),
+        "--dump",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.is_file());
+    let d = dhoit_runtime::dump::read(&dir).unwrap();
+    // The same frame computed here.
+    let s = scene::load("spheres", Opacity::default()).unwrap();
+    let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, 96, 64);
+    let fl = rasterize(&s, &cam, 96, 64).unwrap();
+    let f = frame::render(
+        &fl,
+        Method::Fkb,
+        Budget::SlotsPerPixel(2.0),
+        [0.1, 0.2, 0.3],
+    )
+    .unwrap();
+    assert_eq!(d.fragments.offsets, fl.offsets);
+    assert_eq!(d.fragments.depth, fl.depth);
+    assert_eq!(d.fragments.rgba, fl.rgba);
+    assert_eq!(d.fragments.primitive, fl.primitive);
+    assert_eq!(d.k, f.k);
+    assert_eq!(d.image, f.image);
+    assert_eq!(d.method, "fkb");
+    assert_eq!(d.budget_fragments, 2 * 96 * 64);
+    assert_eq!(d.budget_bytes, f.budget_bytes);
+    assert_eq!(d.background, [0.1, 0.2, 0.3]);
+    // Written and read back again, the dump is unchanged.
+    let again = temp("dump2");
+    dhoit_runtime::dump::write(&again, &d).unwrap();
+    assert_eq!(dhoit_runtime::dump::read(&again).unwrap(), d);
+}
+
+#[test]
+fn a_corrupt_dump_is_a_clear_error() {
+    let dir = temp("corrupt");
+    let path = dir.join(dhoit_runtime::dump::FILE_NAME);
+    std::fs::write(&path, b"\x10\x00\x00\x00\x00\x00\x00\x00{not json}").unwrap();
+    let e = dhoit_runtime::dump::read(&dir).unwrap_err().to_string();
+    assert!(e.contains("not a safetensors file"), "{e}");
+}
+
+#[test]
+fn shuffled_submission_gives_bit_identical_abuffer_and_fkb_images() {
+    for name in ["spheres", "particles", "plates"] {
+        let s = scene::load(name, Opacity::default()).unwrap();
+        let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, 80, 60);
+        let images = |seed: Option<u64>| {
+            let sc = seed.map_or_else(|| s.clone(), |x| s.shuffled(x));
+            let fl = rasterize(&sc, &cam, 80, 60).unwrap();
+            [Method::Abuffer, Method::Fkb].map(|m| {
+                let f = frame::render(&fl, m, Budget::SlotsPerPixel(1.5), [1.0; 3]).unwrap();
+                f.image
+                    .data
+                    .iter()
+                    .flatten()
+                    .map(|v| v.to_bits())
+                    .collect::<Vec<u32>>()
+            })
+        };
+        let base = images(None);
+        for seed in [1, 2] {
+            assert_eq!(images(Some(seed)), base, "{name}, shuffle {seed}");
+        }
+    }
+    // Through the command line too: two seeds, identical PNGs.
+    let dir = temp("shuffle");
+    for method in ["abuffer", "fkb"] {
+        let pngs: Vec<Vec<u8>> = ["3", "4"]
+            .iter()
+            .map(|seed| {
+                let out = dir.join(format!("{method}-{seed}.png"));
+                let o = dhoit(&[
+                    "render",
+                    "--scene",
+                    "foliage",
+                    "--res",
+                    "64x48",
+                    "--method",
+                    method,
+                    "--shuffle",
+                    seed,
+                    "--out",
+                    out.to_str().unwrap(),
+                ]);
+                assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+                std::fs::read(&out).unwrap()
+            })
+            .collect();
+        assert_eq!(pngs[0], pngs[1], "{method}");
+    }
+}
+
+fn expect_failure(args: &[&str], needle: &str, out: &Path) {
+    let o = dhoit(args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{args:?} should fail");
+    assert!(
+        err.contains(needle),
+        "{args:?}: stderr '{err}' should contain '{needle}'"
+    );
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    assert!(!out.exists(), "{args:?} left {} behind", out.display());
+}
+
+#[test]
+fn bad_input_fails_cleanly_and_writes_nothing() {
+    let dir = temp("bad");
+    let out = dir.join("never.png");
+    let o = out.to_str().unwrap();
+    let base = |extra: &[&'static str]| {
+        let mut v = vec!["render", "--res", "64x48", "--out"];
+        v.push(o);
+        v.extend_from_slice(extra);
+        v
+    };
+    expect_failure(&base(&["--scene", "no-such-scene"]), "unknown scene", &out);
+    expect_failure(
+        &base(&["--scene", "/nonexistent/x.glb"]),
+        "cannot read /nonexistent/x.glb",
+        &out,
+    );
+    expect_failure(
+        &base(&["--scene", "shells", "--budget", "12 parsecs"]),
+        "invalid budget",
+        &out,
+    );
+    expect_failure(
+        &base(&["--scene", "shells", "--budget", "0fpp"]),
+        "invalid budget",
+        &out,
+    );
+    expect_failure(
+        &base(&["--scene", "shells", "--method", "fkb", "--budget", "1KB"]),
+        "needs",
+        &out,
+    );
+    expect_failure(
+        &base(&["--scene", "shells", "--method", "magic"]),
+        "unknown method",
+        &out,
+    );
+    expect_failure(
+        &base(&["--scene", "shells", "--view", "9"]),
+        "view 9 does not exist",
+        &out,
+    );
+    expect_failure(
+        &base(&["--scene", "shells", "--opacity", "1.5"]),
+        "opacity",
+        &out,
+    );
+    expect_failure(
+        &base(&["--scene", "shells", "--device", "tpu"]),
+        "device 'tpu'",
+        &out,
+    );
+    let o2 = dhoit(&["render", "--scene", "shells", "--res", "0x48", "--out", o]);
+    assert!(
+        !o2.status.success() && String::from_utf8_lossy(&o2.stderr).contains("invalid resolution")
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn compare_prints_a_table_and_writes_a_report() {
+    let dir = temp("compare");
+    let o = dhoit(&[
+        "compare",
+        "--scene",
+        "shells",
+        "--res",
+        "64x48",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    for m in ["abuffer", "fkb", "mlab"] {
+        assert!(stdout.contains(m), "{stdout}");
+        assert!(dir.join(format!("{m}.png")).is_file());
+    }
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
+    let records = report.as_array().unwrap();
+    assert_eq!(records.len(), 3);
+    assert_eq!(records[0]["method"], "abuffer");
+    assert_eq!(records[0]["mse"], 0.0);
+    assert!(records.iter().all(|r| r["mse"].as_f64().unwrap() >= 0.0));
+}
