@@ -2,8 +2,9 @@
 
 use anyhow::Result;
 use clap::Args;
+use dhoit_runtime::alloc;
 use dhoit_runtime::budget::Budget;
-use dhoit_runtime::frame::{self, Method};
+use dhoit_runtime::frame::{Method, Options, Renderer};
 use dhoit_runtime::raster;
 use dhoit_runtime::scene::{self, Camera, Opacity};
 use std::path::PathBuf;
@@ -63,8 +64,10 @@ pub fn run(a: BenchArgs) -> Result<()> {
             "fragments": fl.fragment_count(), "max_depth_complexity": fl.max_depth_complexity(),
             "raster_ms": t_raster * 1e3, "raster_fragments_per_s": frags / t_raster,
         });
-        for m in Method::ALL {
-            let (t, _) = best(a.repeat, || Ok(frame::render(&fl, m, budget, [1.0; 3])?))?;
+        for m in [Method::Abuffer, Method::Fkb, Method::Vkb, Method::Mlab] {
+            let (t, _) = best(a.repeat, || {
+                Ok(Renderer::new(&fl, Options::new(budget, [1.0; 3])).render(m)?)
+            })?;
             entry[format!("{}_ms", m.name())] = (t * 1e3).into();
             entry[format!("{}_fragments_per_s", m.name())] = (frags / t).into();
         }
@@ -75,11 +78,42 @@ pub fn run(a: BenchArgs) -> Result<()> {
         );
         results.push(entry);
     }
+    // The optimal allocation on the deepest scene measured, at two resolutions.
+    let deepest = results
+        .iter()
+        .max_by_key(|r| r["max_depth_complexity"].as_u64().unwrap_or(0))
+        .map(|r| r["scene"].as_str().unwrap_or("particles").to_string())
+        .unwrap_or_else(|| "particles".into());
+    let mut optimal = Vec::new();
+    for (w, h) in [(640u32, 480u32), (1430, 960)] {
+        let s = scene::load(&deepest, Opacity::default())?;
+        let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
+        let fl = raster::rasterize(&s, &cam, w, h)?;
+        let frags = fl.fragment_count() as f64;
+        let (_, f) = budget.resolve(&dhoit_runtime::budget::OPT, (w * h) as u64)?;
+        let (t_curves, curves) = best(a.repeat, || Ok(alloc::error_curves(&fl, [1.0; 3])))?;
+        let (t_opt, (_, rep)) = best(a.repeat, || Ok(alloc::optimal(&curves, f)))?;
+        eprintln!(
+            "optimal allocation, {deepest} {w}x{h}: {} fragments, curves {:.0} ms + solve {:.0} ms",
+            fl.fragment_count(),
+            t_curves * 1e3,
+            t_opt * 1e3
+        );
+        optimal.push(serde_json::json!({
+            "scene": deepest, "width": w, "height": h, "fragments": fl.fragment_count(),
+            "budget_fragments": f, "error_curves_ms": t_curves * 1e3, "solve_ms": t_opt * 1e3,
+            "total_ms": (t_curves + t_opt) * 1e3, "fragments_per_s": frags / (t_curves + t_opt),
+            "chosen": rep.chosen, "total_error": rep.total, "lower_bound": rep.lower_bound,
+            "gap": rep.gap(), "greedy_paper_total": rep.greedy_paper_total,
+            "greedy_increase_total": rep.greedy_increase_total, "hull_total": rep.hull_total,
+        }));
+    }
     let report = serde_json::json!({
         "threads": rayon::current_num_threads(),
         "budget": budget.to_string(),
         "repeat": a.repeat,
         "cpu": results,
+        "optimal_allocation": optimal,
     });
     let text = serde_json::to_string_pretty(&report)?;
     println!("{text}");

@@ -3,15 +3,19 @@
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use dhoit_runtime::budget::{Budget, format_bytes};
-use dhoit_runtime::composite::Image;
-use dhoit_runtime::frame::{self, Frame, Method};
+use dhoit_runtime::dump;
+use dhoit_runtime::frame::{Frame, Method, Options, Renderer};
+use dhoit_runtime::image_io::{self, Montage};
+use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::raster::{self, FragmentLists};
 use dhoit_runtime::scene::{self, Camera, Opacity, Scene};
-use dhoit_runtime::{dump, image_io};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 mod bench;
+
+/// Where `make train` puts the default weights; used by DKB when no --weights is given.
+pub const DEFAULT_WEIGHTS: &str = "data/weights.safetensors";
 
 #[derive(Parser)]
 #[command(
@@ -20,8 +24,11 @@ mod bench;
     about = "Deep hybrid order-independent transparency",
     long_about = "Deep hybrid order-independent transparency.\n\n\
         Renders many overlapping transparent surfaces with a k-buffer whose per-pixel k is \
-        decided within a fixed memory budget, beside the exact A-buffer and the baselines \
-        (fixed k-buffer, MLAB).\n\n\
+        decided within a fixed memory budget, beside the exact A-buffer and the baselines.\n\n\
+        Methods: abuffer (exact reference), fkb (fixed k-buffer), vkb (importance-map variable \
+        k-buffer), dkb (deep k-buffer: the network's importance), optimal (the optimal \
+        allocation), greedy-paper and greedy-increase (the paper's backward greedy, two heap \
+        keys), mlab (multi-layer alpha blending).\n\n\
         Budgets are bytes with units (20MB, 40MiB) or average fragment slots per pixel (2fpp).\n\
         Scenes are built-in names (see `dhoit scenes`) or paths to .gltf/.glb files."
 )]
@@ -36,26 +43,22 @@ enum Command {
     Scenes,
     /// Render one view of a scene with one method.
     Render(RenderArgs),
-    /// Render one view with every method, print a quality table and write images + report.json.
+    /// Render scenes x views x budgets with several methods: a quality table, images, side-by-side
+    /// pictures, report.json and report.md.
+    #[command(alias = "eval")]
     Compare(CompareArgs),
-    /// Measure CPU rasterization and compositing throughput; prints JSON.
+    /// Measure CPU rasterization, compositing and allocation throughput; prints JSON.
     Bench(bench::BenchArgs),
 }
 
 #[derive(Args, Clone)]
-struct SceneArgs {
-    /// Built-in scene name (optionally `name:seed`) or path to a .gltf/.glb file.
-    #[arg(long, default_value = "particles")]
-    scene: String,
-    /// Which orbit view to render.
-    #[arg(long, default_value_t = 0)]
-    view: usize,
-    /// Number of orbit views around the scene (view I is at angle I/N of a turn).
-    #[arg(long, default_value_t = scene::DEFAULT_VIEWS)]
-    views: usize,
+struct ViewArgs {
     /// Resolution WIDTHxHEIGHT.
     #[arg(long, default_value = "640x480")]
     res: String,
+    /// Number of orbit views around the scene (view I is at angle I/N of a turn).
+    #[arg(long, default_value_t = scene::DEFAULT_VIEWS)]
+    views: usize,
     /// Uniform opacity of every surface (the reference uses 0.33).
     #[arg(long, default_value_t = 0.33, conflicts_with = "material_alpha")]
     opacity: f32,
@@ -68,13 +71,22 @@ struct SceneArgs {
     /// Background colour, linear R,G,B in [0, 1].
     #[arg(long, default_value = "1,1,1", value_parser = parse_rgb)]
     background: [f32; 3],
+    /// Network weights for dkb (default: data/weights.safetensors when it exists).
+    #[arg(long)]
+    weights: Option<PathBuf>,
 }
 
 #[derive(Args)]
 struct RenderArgs {
+    /// Built-in scene name (optionally `name:seed`) or path to a .gltf/.glb file.
+    #[arg(long, default_value = "particles")]
+    scene: String,
+    /// Which orbit view to render.
+    #[arg(long, default_value_t = 0)]
+    view: usize,
     #[command(flatten)]
-    scene: SceneArgs,
-    /// Method: abuffer (exact reference), fkb (fixed k-buffer) or mlab.
+    common: ViewArgs,
+    /// Method (see `dhoit --help`).
     #[arg(long, default_value = "abuffer")]
     method: String,
     /// Where to run: cpu (the reference renderer). The GPU renderer is not built yet.
@@ -89,19 +101,43 @@ struct RenderArgs {
     /// Also write the fragment dump (fragments.safetensors) into this directory.
     #[arg(long)]
     dump: Option<PathBuf>,
-    /// Also write a heat map of the per-pixel k.
+    /// Also write a heat map of the per-pixel k actually used (min(k, n)).
     #[arg(long)]
     kmap: Option<PathBuf>,
 }
 
 #[derive(Args)]
 struct CompareArgs {
+    /// Scenes, comma separated: built-in names or .gltf/.glb paths.
+    #[arg(
+        long = "scene",
+        alias = "scenes",
+        value_delimiter = ',',
+        default_value = "particles"
+    )]
+    scenes: Vec<String>,
+    /// Views to render, comma separated.
+    #[arg(
+        long = "view",
+        alias = "view-list",
+        value_delimiter = ',',
+        default_value = "0"
+    )]
+    view_list: Vec<usize>,
+    /// Budgets, comma separated: bytes (20MB, 40MiB) or slots per pixel (2fpp).
+    #[arg(
+        long = "budget",
+        alias = "budgets",
+        value_delimiter = ',',
+        default_value = "2fpp"
+    )]
+    budgets: Vec<String>,
+    /// Methods, comma separated (dkb only when weights are found); all by default.
+    #[arg(long, value_delimiter = ',')]
+    methods: Vec<String>,
     #[command(flatten)]
-    scene: SceneArgs,
-    /// Memory budget: bytes (20MB, 40MiB) or slots per pixel (2fpp).
-    #[arg(long, default_value = "2fpp")]
-    budget: String,
-    /// Directory for the images and report.json.
+    common: ViewArgs,
+    /// Directory for images, report.json and report.md.
     #[arg(long, default_value = "out/compare")]
     out: PathBuf,
 }
@@ -120,56 +156,58 @@ fn parse_rgb(s: &str) -> std::result::Result<[f32; 3], String> {
     }
 }
 
-/// A scene seen from one view, rasterized.
-struct Prepared {
-    scene: Scene,
-    fragments: FragmentLists,
-    raster_ms: f64,
-}
-
-fn prepare(a: &SceneArgs) -> Result<Prepared> {
-    let (w, h) = raster::parse_resolution(&a.res)?;
+fn load_scene(name: &str, a: &ViewArgs) -> Result<Scene> {
     let opacity = if a.material_alpha {
         Opacity::Material
     } else {
         Opacity::Uniform(a.opacity)
     };
-    let mut scene = scene::load(&a.scene, opacity)?;
+    let mut scene = scene::load(name, opacity)?;
     if let Some(seed) = a.shuffle {
         scene = scene.shuffled(seed);
     }
-    if a.views == 0 || a.view >= a.views {
+    Ok(scene)
+}
+
+fn rasterize_view(scene: &Scene, view: usize, a: &ViewArgs) -> Result<(FragmentLists, f64)> {
+    let (w, h) = raster::parse_resolution(&a.res)?;
+    if a.views == 0 || view >= a.views {
         bail!(
-            "view {} does not exist: there are {} views (0..{})",
-            a.view,
+            "view {view} does not exist: there are {} views (0..{})",
             a.views,
             a.views
         );
     }
-    let cam = Camera::orbit(&scene, a.view, a.views, w, h);
+    let cam = Camera::orbit(scene, view, a.views, w, h);
     let t = Instant::now();
-    let fragments = raster::rasterize(&scene, &cam, w, h)?;
-    let raster_ms = t.elapsed().as_secs_f64() * 1e3;
+    let fl = raster::rasterize(scene, &cam, w, h)?;
+    let ms = t.elapsed().as_secs_f64() * 1e3;
     eprintln!(
-        "{}: {} triangles, view {}/{}, {}x{}: {} fragments, max depth complexity {} ({:.0} ms)",
+        "{}: {} triangles, view {view}/{}, {w}x{h}: {} fragments, max depth complexity {} ({ms:.0} ms)",
         scene.name,
         scene.triangle_count(),
-        a.view,
         a.views,
-        w,
-        h,
-        fragments.fragment_count(),
-        fragments.max_depth_complexity(),
-        raster_ms
+        fl.fragment_count(),
+        fl.max_depth_complexity(),
     );
-    Ok(Prepared {
-        scene,
-        fragments,
-        raster_ms,
-    })
+    Ok((fl, ms))
 }
 
-fn write_kmap(path: &Path, fl: &FragmentLists, k: &[u32]) -> Result<()> {
+/// The weights DKB uses: --weights, else the default file when present.
+fn load_weights(a: &ViewArgs, required: bool) -> Result<Option<Mlp>> {
+    let path = match &a.weights {
+        Some(p) => p.clone(),
+        None if Path::new(DEFAULT_WEIGHTS).is_file() => PathBuf::from(DEFAULT_WEIGHTS),
+        None if required => bail!(
+            "dkb needs network weights: pass --weights FILE (or train the default ones with `make train`)"
+        ),
+        None => return Ok(None),
+    };
+    Ok(Some(Mlp::load(&path)?))
+}
+
+/// min(k, n) per pixel as a heat map tile, scaled by its maximum.
+fn kmap_rgb8(fl: &FragmentLists, k: &[u32]) -> (Vec<u8>, u32) {
     let counts = fl.counts();
     let covered: Vec<bool> = counts.iter().map(|&n| n > 0).collect();
     let used: Vec<f32> = k
@@ -178,8 +216,7 @@ fn write_kmap(path: &Path, fl: &FragmentLists, k: &[u32]) -> Result<()> {
         .map(|(&k, &n)| k.min(n) as f32)
         .collect();
     let max = used.iter().copied().fold(0.0, f32::max);
-    image_io::write_heatmap(path, fl.width, fl.height, &used, &covered, max)?;
-    Ok(())
+    (image_io::heat_rgb8(&used, &covered, max), max as u32)
 }
 
 fn render(a: RenderArgs) -> Result<()> {
@@ -191,8 +228,14 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     let method = Method::parse(&a.method)?;
     let budget = Budget::parse(&a.budget)?;
-    let p = prepare(&a.scene)?;
-    let f = frame::render(&p.fragments, method, budget, a.scene.background)?;
+    let weights = load_weights(&a.common, method == Method::Dkb)?;
+    let scene = load_scene(&a.scene, &a.common)?;
+    let (fl, _) = rasterize_view(&scene, a.view, &a.common)?;
+    let options = Options {
+        weights: weights.as_ref(),
+        ..Options::new(budget, a.common.background)
+    };
+    let f = Renderer::new(&fl, options).render(method)?;
     image_io::write_png(&a.out, &f.image)?;
     println!(
         "{}: k up to {}, {:.1}% of {} fragments captured, F(M) = {}, budget {}, allocated {} -> {}",
@@ -205,18 +248,32 @@ fn render(a: RenderArgs) -> Result<()> {
         format_bytes(f.allocated_bytes),
         a.out.display()
     );
+    if let Some(rep) = &f.optimal {
+        println!(
+            "optimal: total error {:.6e} ({}), lower bound {:.6e}, gap {:.3e}; greedy as printed {:.6e}, \
+             increase-keyed {:.6e}",
+            rep.total,
+            rep.chosen,
+            rep.lower_bound,
+            rep.gap(),
+            rep.greedy_paper_total,
+            rep.greedy_increase_total
+        );
+    }
     if let Some(path) = &a.kmap {
-        write_kmap(path, &p.fragments, &f.k)?;
+        let (rgb, max) = kmap_rgb8(&fl, &f.k);
+        image_io::write_rgb8(path, fl.width, fl.height, &rgb)?;
+        println!("k map (0..{max}) -> {}", path.display());
     }
     if let Some(dir) = &a.dump {
         let d = dump::Dump {
-            fragments: p.fragments,
+            fragments: fl,
             k: f.k,
             image: f.image,
             method: method.name().into(),
             budget_bytes: f.budget_bytes,
             budget_fragments: f.budget_fragments,
-            background: a.scene.background,
+            background: a.common.background,
         };
         let path = dump::write(dir, &d)?;
         println!("dump -> {}", path.display());
@@ -224,61 +281,185 @@ fn render(a: RenderArgs) -> Result<()> {
     Ok(())
 }
 
+/// A file-name-safe label for a scene (its file stem for paths).
+fn scene_label(name: &str) -> String {
+    let stem = Path::new(name)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| name.to_string());
+    stem.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
 fn compare(a: CompareArgs) -> Result<()> {
-    let budget = Budget::parse(&a.budget)?;
-    let p = prepare(&a.scene)?;
+    let budgets: Vec<Budget> = a
+        .budgets
+        .iter()
+        .map(|b| Budget::parse(b))
+        .collect::<Result<_, _>>()?;
+    let mut methods: Vec<Method> = if a.methods.is_empty() {
+        Method::ALL.to_vec()
+    } else {
+        a.methods
+            .iter()
+            .map(|m| Method::parse(m))
+            .collect::<Result<_, _>>()?
+    };
+    if !methods.contains(&Method::Abuffer) {
+        methods.insert(0, Method::Abuffer);
+    }
+    let weights = load_weights(
+        &a.common,
+        !a.methods.is_empty() && methods.contains(&Method::Dkb),
+    )?;
+    if weights.is_none() && methods.contains(&Method::Dkb) {
+        eprintln!("note: no weights found ({DEFAULT_WEIGHTS} or --weights), dkb left out");
+        methods.retain(|&m| m != Method::Dkb);
+    }
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
-    let mut frames: Vec<Frame> = Vec::new();
-    for m in Method::ALL {
-        frames.push(frame::render(&p.fragments, m, budget, a.scene.background)?);
-    }
-    let reference: Image = frames[0].image.clone();
-    println!(
-        "\n{} ({} triangles), view {}, {}x{}, budget {}: {} fragments, max depth {}\n",
-        p.scene.name,
-        p.scene.triangle_count(),
-        a.scene.view,
-        p.fragments.width,
-        p.fragments.height,
-        budget,
-        p.fragments.fragment_count(),
-        p.fragments.max_depth_complexity()
-    );
-    println!(
-        "{:<8} {:>12} {:>10} {:>12} {:>12} {:>10}",
-        "method", "MSE", "captured", "F(M)", "allocated", "time ms"
-    );
     let mut records = Vec::new();
-    for f in &frames {
-        let mse = f.image.mse(&reference);
-        let captured = f.fragments_captured as f64 / f.fragments_total.max(1) as f64;
-        println!(
-            "{:<8} {:>12.3e} {:>9.1}% {:>12} {:>12} {:>10.1}",
-            f.method.name(),
-            mse,
-            100.0 * captured,
-            f.budget_fragments,
-            format_bytes(f.allocated_bytes),
-            f.allocation_ms + f.composite_ms
-        );
-        let png = a.out.join(format!("{}.png", f.method.name()));
-        image_io::write_png(&png, &f.image)?;
-        records.push(serde_json::json!({
-            "scene": p.scene.name, "view": a.scene.view, "width": p.fragments.width,
-            "height": p.fragments.height, "budget": budget.to_string(), "method": f.method.name(),
-            "mse": mse, "fragments_total": f.fragments_total, "fragments_captured": f.fragments_captured,
-            "budget_fragments": f.budget_fragments, "budget_bytes": f.budget_bytes,
-            "allocated_bytes": f.allocated_bytes, "raster_ms": p.raster_ms,
-            "allocation_ms": f.allocation_ms, "composite_ms": f.composite_ms,
-        }));
+    let mut md =
+        String::from("# dhoit comparison\n\nMSE against the A-buffer image (linear RGB).\n");
+    for name in &a.scenes {
+        let scene = load_scene(name, &a.common)?;
+        let label = scene_label(name);
+        for &view in &a.view_list {
+            let (fl, raster_ms) = rasterize_view(&scene, view, &a.common)?;
+            for budget in &budgets {
+                let options = Options {
+                    weights: weights.as_ref(),
+                    ..Options::new(*budget, a.common.background)
+                };
+                let renderer = Renderer::new(&fl, options);
+                let frames: Vec<Frame> = methods
+                    .iter()
+                    .map(|&m| renderer.render(m))
+                    .collect::<Result<_, _>>()?;
+                let reference = frames[0].image.clone();
+                let title = format!(
+                    "{} view {view}, {}x{}, budget {budget}: {} fragments, max depth {}",
+                    scene.name,
+                    fl.width,
+                    fl.height,
+                    fl.fragment_count(),
+                    fl.max_depth_complexity()
+                );
+                println!("\n{title}\n");
+                let header = format!(
+                    "{:<16} {:>11} {:>9} {:>10} {:>10} {:>11} {:>9}",
+                    "method", "MSE", "captured", "F(M)", "used", "allocated", "ms"
+                );
+                println!("{header}");
+                md += &format!(
+                    "\n## {title}\n\n| method | MSE | captured | F(M) | sum k / F | allocated | ms |\n|---|---|---|---|---|---|---|\n"
+                );
+                let tag = format!("{label}_v{view}_{}", budget.to_string().replace(' ', ""));
+                let counts = fl.counts();
+                let covered: Vec<bool> = counts.iter().map(|&n| n > 0).collect();
+                let mut montage = Montage::new(fl.width, fl.height, frames.len() as u32, 3);
+                let errors: Vec<Vec<f32>> = frames
+                    .iter()
+                    .map(|f| {
+                        f.image
+                            .data
+                            .iter()
+                            .zip(&reference.data)
+                            .map(|(x, r)| (0..3).map(|i| (x[i] - r[i]).powi(2)).sum::<f32>())
+                            .collect()
+                    })
+                    .collect();
+                let err_max = errors.iter().flatten().copied().fold(0.0f32, f32::max);
+                for (col, f) in frames.iter().enumerate() {
+                    let mse = f.image.mse(&reference);
+                    let captured = f.fragments_captured as f64 / f.fragments_total.max(1) as f64;
+                    let used =
+                        f.k.iter()
+                            .zip(&counts)
+                            .map(|(&k, &n)| k.min(n) as u64)
+                            .sum::<u64>() as f64
+                            / f.budget_fragments.max(1) as f64;
+                    let ms = f.allocation_ms + f.composite_ms;
+                    println!(
+                        "{:<16} {:>11.4e} {:>8.1}% {:>10} {:>9.1}% {:>11} {:>9.1}",
+                        f.method.name(),
+                        mse,
+                        100.0 * captured,
+                        f.budget_fragments,
+                        100.0 * used,
+                        format_bytes(f.allocated_bytes),
+                        ms
+                    );
+                    md += &format!(
+                        "| {} | {:.4e} | {:.1}% | {} | {:.1}% | {} | {:.1} |\n",
+                        f.method.name(),
+                        mse,
+                        100.0 * captured,
+                        f.budget_fragments,
+                        100.0 * used,
+                        format_bytes(f.allocated_bytes),
+                        ms
+                    );
+                    image_io::write_png(
+                        &a.out.join(format!("{tag}_{}.png", f.method.name())),
+                        &f.image,
+                    )?;
+                    montage.put(col as u32, 0, &image_io::to_srgb8(&f.image));
+                    montage.put(col as u32, 1, &kmap_rgb8(&fl, &f.k).0);
+                    montage.put(
+                        col as u32,
+                        2,
+                        &image_io::heat_rgb8(&errors[col], &covered, err_max.sqrt()),
+                    );
+                    let mut rec = serde_json::json!({
+                        "scene": scene.name, "view": view, "width": fl.width, "height": fl.height,
+                        "budget": budget.to_string(), "method": f.method.name(), "mse": mse,
+                        "fragments_total": f.fragments_total, "fragments_captured": f.fragments_captured,
+                        "budget_fragments": f.budget_fragments, "budget_bytes": f.budget_bytes,
+                        "allocated_bytes": f.allocated_bytes,
+                        "ms": {"raster": raster_ms, "allocation": f.allocation_ms, "composite": f.composite_ms},
+                    });
+                    if let Some(rep) = &f.optimal {
+                        rec["optimal"] = serde_json::to_value(rep)?;
+                        rec["optimal"]["gap"] = rep.gap().into();
+                    }
+                    records.push(rec);
+                }
+                if let Some(rep) = frames.iter().find_map(|f| f.optimal) {
+                    let line = format!(
+                        "optimal allocation: total error {:.4e} ({}), certified gap {:.2e} ({:.2}% of the total)",
+                        rep.total,
+                        rep.chosen,
+                        rep.gap(),
+                        100.0 * rep.gap() / rep.total.max(1e-300)
+                    );
+                    println!("{line}");
+                    md += &format!("\n{line}\n");
+                }
+                let pic = format!("{tag}_montage.png");
+                montage.write(&a.out.join(&pic))?;
+                let order: Vec<&str> = frames.iter().map(|f| f.method.name()).collect();
+                md += &format!(
+                    "\n![{tag}]({pic})\n\nColumns: {}. Rows: image; k(p) used (dark blue 0 to yellow max); squared error.\n",
+                    order.join(", ")
+                );
+            }
+        }
     }
-    let report = a.out.join("report.json");
-    dhoit_runtime::tensors::write_atomic(
-        &report,
-        serde_json::to_string_pretty(&records)?.as_bytes(),
-    )?;
-    println!("\nimages and report.json -> {}", a.out.display());
+    let text = serde_json::to_string_pretty(&records)?;
+    dhoit_runtime::tensors::write_atomic(&a.out.join("report.json"), text.as_bytes())?;
+    dhoit_runtime::tensors::write_atomic(&a.out.join("report.md"), md.as_bytes())?;
+    println!(
+        "\nimages, side-by-side montages, report.json and report.md -> {}",
+        a.out.display()
+    );
     Ok(())
 }
 

@@ -1,7 +1,8 @@
 //! End-to-end checks of the `dhoit` command: dumps, order independence, errors.
 
 use dhoit_runtime::budget::Budget;
-use dhoit_runtime::frame::{self, Method};
+use dhoit_runtime::frame::{self, Method, Options};
+use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::{self, Camera, Opacity};
 use std::path::{Path, PathBuf};
@@ -52,8 +53,7 @@ fn the_dump_round_trips() {
     let f = frame::render(
         &fl,
         Method::Fkb,
-        Budget::SlotsPerPixel(2.0),
-        [0.1, 0.2, 0.3],
+        Options::new(Budget::SlotsPerPixel(2.0), [0.1, 0.2, 0.3]),
     )
     .unwrap();
     assert_eq!(d.fragments.offsets, fl.offsets);
@@ -83,14 +83,23 @@ fn a_corrupt_dump_is_a_clear_error() {
 
 #[test]
 fn shuffled_submission_gives_bit_identical_abuffer_and_fkb_images() {
+    let mlp = Mlp::random(8);
     for name in ["spheres", "particles", "plates"] {
         let s = scene::load(name, Opacity::default()).unwrap();
         let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, 80, 60);
         let images = |seed: Option<u64>| {
             let sc = seed.map_or_else(|| s.clone(), |x| s.shuffled(x));
             let fl = rasterize(&sc, &cam, 80, 60).unwrap();
-            [Method::Abuffer, Method::Fkb].map(|m| {
-                let f = frame::render(&fl, m, Budget::SlotsPerPixel(1.5), [1.0; 3]).unwrap();
+            [
+                Method::Abuffer,
+                Method::Fkb,
+                Method::Vkb,
+                Method::Dkb,
+                Method::Optimal,
+            ]
+            .map(|m| {
+                let f = frame::render(&fl, m, opts(Budget::SlotsPerPixel(1.5), [1.0; 3], &mlp))
+                    .unwrap();
                 f.image
                     .data
                     .iter()
@@ -130,6 +139,104 @@ fn shuffled_submission_gives_bit_identical_abuffer_and_fkb_images() {
             .collect();
         assert_eq!(pngs[0], pngs[1], "{method}");
     }
+}
+
+fn opts<'a>(b: Budget, bg: [f32; 3], mlp: &'a Mlp) -> Options<'a> {
+    Options {
+        weights: Some(mlp),
+        ..Options::new(b, bg)
+    }
+}
+
+#[test]
+fn allocation_methods_render_from_the_command_line() {
+    let dir = temp("methods");
+    let weights = dir.join("w.safetensors");
+    Mlp::random(2).save(&weights, &Default::default()).unwrap();
+    for method in [
+        "vkb",
+        "optimal",
+        "dkb",
+        "greedy-paper",
+        "greedy-increase",
+        "mlab",
+    ] {
+        let out = dir.join(format!("{method}.png"));
+        let kmap = dir.join(format!("{method}-k.png"));
+        let o = dhoit(&[
+            "render",
+            "--scene",
+            "hair",
+            "--res",
+            "64x48",
+            "--method",
+            method,
+            "--budget",
+            "1.5fpp",
+            "--weights",
+            weights.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--kmap",
+            kmap.to_str().unwrap(),
+            "--dump",
+            dir.to_str().unwrap(),
+        ]);
+        assert!(
+            o.status.success(),
+            "{method}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(out.is_file() && kmap.is_file());
+        let d = dhoit_runtime::dump::read(&dir).unwrap();
+        assert_eq!(d.method, method);
+        if method != "mlab" {
+            let counts = d.fragments.counts();
+            let sum: u64 = d.k.iter().map(|&k| k as u64).sum();
+            assert_eq!(
+                sum,
+                d.budget_fragments.min(d.fragments.fragment_count() as u64),
+                "{method}"
+            );
+            assert!(
+                d.k.iter().zip(&counts).all(|(k, n)| k <= n),
+                "{method}: k <= n"
+            );
+        }
+    }
+    let o = dhoit(&[
+        "render",
+        "--scene",
+        "hair",
+        "--res",
+        "64x48",
+        "--method",
+        "optimal",
+        "--out",
+        dir.join("o.png").to_str().unwrap(),
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("lower bound"));
+    // Weights that are not weights: a clear error.
+    let bad = dir.join("bad.safetensors");
+    std::fs::write(&bad, b"nope").unwrap();
+    let out = dir.join("never.png");
+    expect_failure(
+        &[
+            "render",
+            "--scene",
+            "hair",
+            "--res",
+            "64x48",
+            "--method",
+            "dkb",
+            "--weights",
+            bad.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "not a safetensors file",
+        &out,
+    );
 }
 
 fn expect_failure(args: &[&str], needle: &str, out: &Path) {
@@ -217,14 +324,29 @@ fn compare_prints_a_table_and_writes_a_report() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let stdout = String::from_utf8_lossy(&o.stdout);
-    for m in ["abuffer", "fkb", "mlab"] {
+    for m in [
+        "abuffer",
+        "fkb",
+        "vkb",
+        "optimal",
+        "greedy-paper",
+        "greedy-increase",
+        "mlab",
+    ] {
         assert!(stdout.contains(m), "{stdout}");
-        assert!(dir.join(format!("{m}.png")).is_file());
+        assert!(dir.join(format!("shells_v0_2fpp_{m}.png")).is_file(), "{m}");
     }
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
     let records = report.as_array().unwrap();
-    assert_eq!(records.len(), 3);
+    assert_eq!(records.len(), 7, "the A-buffer reference and six methods");
+    assert!(dir.join("report.md").is_file());
+    assert!(std::fs::read_dir(&dir).unwrap().any(|e| {
+        e.unwrap()
+            .file_name()
+            .to_string_lossy()
+            .ends_with("montage.png")
+    }));
     assert_eq!(records[0]["method"], "abuffer");
     assert_eq!(records[0]["mse"], 0.0);
     assert!(records.iter().all(|r| r["mse"].as_f64().unwrap() >= 0.0));

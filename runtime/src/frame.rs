@@ -1,10 +1,14 @@
 //! One frame on the CPU: fragment lists in, a method's per-pixel k and image out, with the
 //! budget and memory figures every method reports.
 
+use crate::alloc::{self, ErrorCurves, GreedyKey, OptimalReport};
 use crate::budget::{self, Budget, Layout};
 use crate::composite::{self, Image, Method as Composite};
 use crate::error::{Error, Result};
+use crate::importance::{self, VkbParams};
+use crate::mlp::Mlp;
 use crate::raster::FragmentLists;
+use std::sync::OnceLock;
 use std::time::Instant;
 
 /// Rendering methods.
@@ -14,17 +18,41 @@ pub enum Method {
     Abuffer,
     /// Fixed k-buffer: one k for every pixel.
     Fkb,
-    /// Multi-layer alpha blending at the same bytes per pixel.
+    /// Variable k-buffer with the importance maps of paper 002.
+    Vkb,
+    /// Deep k-buffer: k from the network's importance.
+    Dkb,
+    /// The optimal allocation (quality ceiling of any k-buffer allocation).
+    Optimal,
+    /// The paper's backward greedy as printed (heap keyed by the new error).
+    GreedyPaper,
+    /// The backward greedy keyed by the error increase.
+    GreedyIncrease,
+    /// Multi-layer alpha blending with as many rows per pixel as FKB has slots.
     Mlab,
 }
 
 impl Method {
-    pub const ALL: [Method; 3] = [Method::Abuffer, Method::Fkb, Method::Mlab];
+    pub const ALL: [Method; 8] = [
+        Method::Abuffer,
+        Method::Fkb,
+        Method::Vkb,
+        Method::Dkb,
+        Method::Optimal,
+        Method::GreedyPaper,
+        Method::GreedyIncrease,
+        Method::Mlab,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             Method::Abuffer => "abuffer",
             Method::Fkb => "fkb",
+            Method::Vkb => "vkb",
+            Method::Dkb => "dkb",
+            Method::Optimal => "optimal",
+            Method::GreedyPaper => "greedy-paper",
+            Method::GreedyIncrease => "greedy-increase",
             Method::Mlab => "mlab",
         }
     }
@@ -42,10 +70,14 @@ impl Method {
             })
     }
 
+    /// The buffers the method's GPU pipeline creates.
     pub fn layout(self) -> Layout {
         match self {
             Method::Abuffer => budget::ABUFFER,
             Method::Fkb => budget::FKB,
+            Method::Vkb => budget::VKB,
+            Method::Dkb => budget::DKB,
+            Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => budget::OPT,
             Method::Mlab => budget::MLAB,
         }
     }
@@ -68,68 +100,141 @@ pub struct Frame {
     pub fragments_total: u64,
     /// Fragments composited exactly (kept in a slot).
     pub fragments_captured: u64,
-    /// Milliseconds spent on allocation and on compositing.
+    /// Milliseconds spent on allocation (features, importance, k) and on compositing.
     pub allocation_ms: f64,
     pub composite_ms: f64,
+    /// Totals of the optimal allocation and the greedies (optimal method only).
+    pub optimal: Option<OptimalReport>,
 }
 
-/// Renders `fl` with `method` under `budget` over the background.
-pub fn render(
-    fl: &FragmentLists,
-    method: Method,
-    budget: Budget,
-    background: [f32; 3],
-) -> Result<Frame> {
-    let pixels = fl.pixel_count() as u64;
-    let counts = fl.counts();
-    let total = fl.fragment_count() as u64;
-    let layout = method.layout();
-    let t0 = Instant::now();
-    let (budget_bytes, budget_fragments, k) = match method {
-        Method::Abuffer => (layout.allocated_bytes(pixels, total), total, counts.clone()),
-        Method::Fkb | Method::Mlab => {
-            let (m, f) = budget.resolve(&layout, pixels)?;
-            let per = f / pixels.max(1);
-            if per == 0 {
-                let need = layout.allocated_bytes(pixels, pixels);
+/// Settings shared by every method of a frame.
+#[derive(Clone, Copy, Debug)]
+pub struct Options<'a> {
+    pub budget: Budget,
+    pub background: [f32; 3],
+    /// Network weights, needed by DKB.
+    pub weights: Option<&'a Mlp>,
+    pub vkb: VkbParams,
+}
+
+impl Options<'_> {
+    pub fn new(budget: Budget, background: [f32; 3]) -> Options<'static> {
+        Options {
+            budget,
+            background,
+            weights: None,
+            vkb: VkbParams::default(),
+        }
+    }
+}
+
+/// Renders one frame's fragment lists with any method, computing the error curves once.
+pub struct Renderer<'a> {
+    pub fragments: &'a FragmentLists,
+    pub options: Options<'a>,
+    curves: OnceLock<ErrorCurves>,
+}
+
+impl<'a> Renderer<'a> {
+    pub fn new(fragments: &'a FragmentLists, options: Options<'a>) -> Self {
+        Renderer {
+            fragments,
+            options,
+            curves: OnceLock::new(),
+        }
+    }
+
+    /// Error curves of every pixel against the exact image (computed on first use).
+    pub fn curves(&self) -> &ErrorCurves {
+        self.curves
+            .get_or_init(|| alloc::error_curves(self.fragments, self.options.background))
+    }
+
+    pub fn render(&self, method: Method) -> Result<Frame> {
+        let fl = self.fragments;
+        let opts = &self.options;
+        let pixels = fl.pixel_count() as u64;
+        let counts = fl.counts();
+        let total = fl.fragment_count() as u64;
+        let layout = method.layout();
+        let t0 = Instant::now();
+        let (budget_bytes, f) = match method {
+            Method::Abuffer => (layout.allocated_bytes(pixels, total), total),
+            _ => opts.budget.resolve(&layout, pixels)?,
+        };
+        let uniform_k = |what: &str| -> Result<Vec<u32>> {
+            let k = alloc::fixed(pixels as usize, f);
+            if k.first().is_some_and(|&k| k == 0) {
                 return Err(Error::Budget(
-                    budget.to_string(),
+                    opts.budget.to_string(),
                     format!(
-                        "{} needs one slot for every pixel: at least {} at {}x{}",
-                        method.name(),
-                        budget::format_bytes(need),
+                        "{what} needs one slot for every pixel: at least {} at {}x{}",
+                        budget::format_bytes(layout.allocated_bytes(pixels, pixels)),
                         fl.width,
                         fl.height
                     ),
                 ));
             }
-            (m, f, vec![per.min(u32::MAX as u64) as u32; pixels as usize])
-        }
-    };
-    let allocation_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let slots: u64 = k.iter().map(|&x| x as u64).sum();
-    let captured: u64 = k.iter().zip(&counts).map(|(&a, &b)| a.min(b) as u64).sum();
-    let t1 = Instant::now();
-    let image = match method {
-        Method::Abuffer => composite::composite(fl, Composite::Exact, background),
-        Method::Fkb => composite::composite(fl, Composite::Hybrid(&k), background),
-        Method::Mlab => composite::composite(
-            fl,
-            Composite::Mlab(k.first().copied().unwrap_or(1) as usize),
-            background,
-        ),
-    };
-    let composite_ms = t1.elapsed().as_secs_f64() * 1e3;
-    Ok(Frame {
-        method,
-        image,
-        allocated_bytes: layout.allocated_bytes(pixels, slots),
-        k,
-        budget_bytes,
-        budget_fragments,
-        fragments_total: total,
-        fragments_captured: captured,
-        allocation_ms,
-        composite_ms,
-    })
+            Ok(k)
+        };
+        let mut optimal = None;
+        let k = match method {
+            Method::Abuffer => counts.clone(),
+            Method::Fkb => uniform_k("fkb")?,
+            Method::Mlab => uniform_k("mlab")?,
+            Method::Vkb => {
+                let imp = importance::vkb_importance(fl, &opts.vkb);
+                alloc::from_importance(&imp, &counts, f)
+            }
+            Method::Dkb => {
+                let mlp = opts.weights.ok_or_else(|| {
+                    Error::Invalid("dkb needs network weights (--weights FILE)".into())
+                })?;
+                let feats = importance::features(fl, f);
+                let imp = mlp.importance(&feats, &counts);
+                alloc::from_importance(&imp, &counts, f)
+            }
+            Method::Optimal => {
+                let (k, rep) = alloc::optimal(self.curves(), f);
+                optimal = Some(rep);
+                k
+            }
+            Method::GreedyPaper => alloc::greedy(self.curves(), f, GreedyKey::NewError),
+            Method::GreedyIncrease => alloc::greedy(self.curves(), f, GreedyKey::Increase),
+        };
+        let allocation_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let slots: u64 = k.iter().map(|&x| x as u64).sum();
+        let captured: u64 = k.iter().zip(&counts).map(|(&a, &b)| a.min(b) as u64).sum();
+        let t1 = Instant::now();
+        let bg = opts.background;
+        let image = match method {
+            Method::Abuffer => composite::composite(fl, Composite::Exact, bg),
+            Method::Mlab => composite::composite(fl, Composite::Mlab(k[0] as usize), bg),
+            _ => composite::composite(fl, Composite::Hybrid(&k), bg),
+        };
+        let composite_ms = t1.elapsed().as_secs_f64() * 1e3;
+        // FKB and MLAB allocate their k for every pixel; the others exactly sum k.
+        let allocated_slots = match method {
+            Method::Fkb | Method::Mlab => k[0] as u64 * pixels,
+            _ => slots,
+        };
+        Ok(Frame {
+            method,
+            image,
+            allocated_bytes: layout.allocated_bytes(pixels, allocated_slots),
+            k,
+            budget_bytes,
+            budget_fragments: f,
+            fragments_total: total,
+            fragments_captured: captured,
+            allocation_ms,
+            composite_ms,
+            optimal,
+        })
+    }
+}
+
+/// Renders `fl` with one method (see [`Renderer`] to share work between methods).
+pub fn render(fl: &FragmentLists, method: Method, options: Options) -> Result<Frame> {
+    Renderer::new(fl, options).render(method)
 }

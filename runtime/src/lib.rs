@@ -4,12 +4,15 @@
 //! per-pixel fragment lists, [`frame`] allocates slots under a [`budget`] and composites with
 //! [`composite`]; [`dump`] writes the fragment dump contract.
 
+pub mod alloc;
 pub mod budget;
 pub mod composite;
 pub mod dump;
 pub mod error;
 pub mod frame;
 pub mod image_io;
+pub mod importance;
+pub mod mlp;
 pub mod raster;
 pub mod rng;
 pub mod scene;

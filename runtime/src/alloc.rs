@@ -1,0 +1,649 @@
+//! Per-pixel allocations of fragment slots: error curves, the optimal allocation (the training
+//! target and quality ceiling), the paper's backward greedy, and k(p) from an importance map.
+//!
+//! Every allocation gives covered pixels (n(p) > 0) `lo <= k(p) <= n(p)` and uncovered pixels 0,
+//! with `sum k = min(F, sum n)` exactly. Normally `lo = 1`; when F is smaller than the number of
+//! covered pixels, one slot each cannot be given, so `lo = 0`: pixels with k = 0 are composited
+//! entirely as tail, and which pixels keep a slot is decided by the same rule as the rest
+//! (importance, or error for the optimal allocation).
+//!
+//! # Error curves
+//! For a pixel with fragments sorted front to back, `e(k) = |C_exact - C_hybrid(k)|^2` (summed
+//! over RGB) for k = 0..=n, computed in O(n) after the sort: prefix sums give the core colour and
+//! transmittance, suffix sums the tail's `sum C a`, `sum a` and count. Computed in f64, so
+//! `e(n) = 0` exactly.
+//!
+//! # Optimal allocation
+//! Minimise `sum_p e_p(k_p)` subject to `sum k_p = min(F, sum n)`, `lo <= k_p <= n_p`: a
+//! multiple-choice knapsack. Each curve is replaced by its lower convex hull; hull segments of all
+//! pixels are taken in order of decreasing gain per slot, which solves the relaxation exactly and
+//! gives a lower bound on the true optimum (the one segment only partly taken is interpolated).
+//! The integer answer takes whole segments while they fit, fills the remainder with later
+//! segments that fit, then repairs the neighbourhood of the critical gain with an exact dynamic
+//! program on the true curves. The paper's backward greedy (Algorithm 1, keyed by the new error
+//! as printed, and keyed by the error increase) is run too, and the best of the three is
+//! returned, so the result is never worse than either greedy; all totals and the certified gap
+//! (total minus lower bound) are reported.
+
+use crate::composite::{Fragment, sort_front_to_back};
+use crate::raster::FragmentLists;
+use rayon::prelude::*;
+use std::cmp::{Ordering, Reverse};
+use std::collections::BinaryHeap;
+
+/// Error curves of every pixel: pixel p's e(0..=n_p) is `values[start[p]..start[p + 1]]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ErrorCurves {
+    pub start: Vec<usize>,
+    pub values: Vec<f64>,
+}
+
+impl ErrorCurves {
+    pub fn curve(&self, p: usize) -> &[f64] {
+        &self.values[self.start[p]..self.start[p + 1]]
+    }
+    pub fn pixels(&self) -> usize {
+        self.start.len() - 1
+    }
+    /// n(p) for every pixel.
+    pub fn counts(&self) -> Vec<u32> {
+        self.start
+            .windows(2)
+            .map(|w| (w[1] - w[0] - 1) as u32)
+            .collect()
+    }
+    /// Total error of an allocation.
+    pub fn total(&self, k: &[u32]) -> f64 {
+        (0..self.pixels())
+            .map(|p| self.curve(p)[k[p] as usize])
+            .sum()
+    }
+}
+
+/// One pixel's error curve e(0..=n) from fragments sorted front to back, in O(n).
+pub fn error_curve_sorted(frags: &[Fragment], bg: [f32; 3], out: &mut [f64]) {
+    let n = frags.len();
+    debug_assert_eq!(out.len(), n + 1);
+    let bg = bg.map(f64::from);
+    // Suffix sums of the tail: for k, fragments k..n (0-based) form the tail.
+    let mut sca = [0.0f64; 3];
+    let mut sa = 0.0f64;
+    let mut behind = vec![[0.0f64; 3]; n + 1];
+    behind[n] = bg;
+    for k in (0..n).rev() {
+        let f = &frags[k];
+        let a = f.rgba[3] as f64;
+        for i in 0..3 {
+            sca[i] += f.rgba[i] as f64 * a;
+        }
+        sa += a;
+        let t = (n - k) as i32;
+        behind[k] = if sa <= 0.0 {
+            bg
+        } else {
+            let a_tail = 1.0 - (1.0 - (sa / t as f64).min(1.0)).powi(t);
+            std::array::from_fn(|i| a_tail * sca[i] / sa + (1.0 - a_tail) * bg[i])
+        };
+    }
+    // Prefix: core colour and transmittance after k fragments.
+    let mut core = [0.0f64; 3];
+    let mut tr = 1.0f64;
+    let mut hybrid = vec![[0.0f64; 3]; n + 1];
+    for k in 0..=n {
+        hybrid[k] = std::array::from_fn(|i| core[i] + tr * behind[k][i]);
+        if k < n {
+            let f = &frags[k];
+            let a = f.rgba[3] as f64;
+            for i in 0..3 {
+                core[i] += tr * a * f.rgba[i] as f64;
+            }
+            tr *= 1.0 - a;
+        }
+    }
+    let exact = hybrid[n];
+    for k in 0..=n {
+        out[k] = (0..3).map(|i| (exact[i] - hybrid[k][i]).powi(2)).sum();
+    }
+}
+
+/// Error curves of every pixel of a frame.
+pub fn error_curves(fl: &FragmentLists, bg: [f32; 3]) -> ErrorCurves {
+    let pixels = fl.pixel_count();
+    let start: Vec<usize> = (0..=pixels).map(|p| fl.offsets[p] as usize + p).collect();
+    let mut values = vec![0.0f64; start[pixels]];
+    // Split the output into per-row slices so rows run in parallel.
+    let w = fl.width as usize;
+    let mut rows: Vec<(usize, &mut [f64])> = Vec::with_capacity(fl.height as usize);
+    let mut rest: &mut [f64] = &mut values;
+    for y in 0..fl.height as usize {
+        let len = start[(y + 1) * w] - start[y * w];
+        let (head, tail) = rest.split_at_mut(len);
+        rows.push((y, head));
+        rest = tail;
+    }
+    rows.into_par_iter()
+        .for_each_init(Vec::new, |scratch: &mut Vec<Fragment>, (y, row)| {
+            let base = start[y * w];
+            for p in y * w..(y + 1) * w {
+                scratch.clear();
+                scratch.extend(fl.range(p).map(|i| Fragment {
+                    depth: fl.depth[i],
+                    rgba: fl.rgba[i],
+                    primitive: fl.primitive[i],
+                }));
+                sort_front_to_back(scratch);
+                error_curve_sorted(scratch, bg, &mut row[start[p] - base..start[p + 1] - base]);
+            }
+        });
+    ErrorCurves { start, values }
+}
+
+/// The smallest k a covered pixel may get for F slots: 1 when every covered pixel can have one.
+pub fn min_k(counts: &[u32], f: u64) -> u32 {
+    let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
+    u32::from(f >= covered)
+}
+
+/// `min(F, sum n)`: the slots an allocation hands out.
+pub fn slots_to_allocate(counts: &[u32], f: u64) -> u64 {
+    f.min(counts.iter().map(|&n| n as u64).sum())
+}
+
+/// Totals of the optimal allocation and of the greedies, side by side.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct OptimalReport {
+    /// Total error of the returned allocation.
+    pub total: f64,
+    /// Lower bound from the convex-hull relaxation.
+    pub lower_bound: f64,
+    /// Total of the hull allocation after fill and repair (before taking the best).
+    pub hull_total: f64,
+    /// Paper's Algorithm 1 as printed (heap keyed by the new error).
+    pub greedy_paper_total: f64,
+    /// Algorithm 1 with the heap keyed by the error increase.
+    pub greedy_increase_total: f64,
+    /// Which one was returned: "hull", "greedy-paper" or "greedy-increase".
+    pub chosen: &'static str,
+}
+
+impl OptimalReport {
+    /// Certified gap: the returned total minus the lower bound (>= 0 up to rounding).
+    pub fn gap(&self) -> f64 {
+        self.total - self.lower_bound
+    }
+}
+
+/// Which heap key the backward greedy uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GreedyKey {
+    /// The pixel's error after removing its farthest fragment (Algorithm 1 as printed).
+    NewError,
+    /// The increase in the pixel's error that removal causes.
+    Increase,
+}
+
+#[derive(PartialEq)]
+struct HeapItem(f64, u32);
+impl Eq for HeapItem {}
+impl PartialOrd for HeapItem {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for HeapItem {
+    fn cmp(&self, o: &Self) -> Ordering {
+        self.0.total_cmp(&o.0).then(self.1.cmp(&o.1))
+    }
+}
+
+fn greedy_key(curves: &ErrorCurves, key: GreedyKey, p: usize, kp: u32) -> f64 {
+    let c = curves.curve(p);
+    match key {
+        GreedyKey::NewError => c[kp as usize - 1],
+        GreedyKey::Increase => c[kp as usize - 1] - c[kp as usize],
+    }
+}
+
+/// The paper's backward greedy (Algorithm 1) with a min-heap, as written: start from k = n and
+/// repeatedly remove the fragment whose removal has the smallest key (ties: lower pixel index),
+/// until `sum k = min(F, sum n)`. [`greedy`] gives the same answer faster.
+pub fn greedy_heap(curves: &ErrorCurves, f: u64, key: GreedyKey) -> Vec<u32> {
+    let counts = curves.counts();
+    let lo = min_k(&counts, f);
+    let mut k = counts.clone();
+    let total: u64 = counts.iter().map(|&n| n as u64).sum();
+    let mut to_remove = total - slots_to_allocate(&counts, f);
+    let mut heap: BinaryHeap<Reverse<HeapItem>> = (0..counts.len())
+        .filter(|&p| counts[p] > lo)
+        .map(|p| Reverse(HeapItem(greedy_key(curves, key, p, counts[p]), p as u32)))
+        .collect();
+    while to_remove > 0 {
+        let Some(Reverse(HeapItem(_, p))) = heap.pop() else {
+            break;
+        };
+        let p = p as usize;
+        k[p] -= 1;
+        to_remove -= 1;
+        if k[p] > lo {
+            heap.push(Reverse(HeapItem(
+                greedy_key(curves, key, p, k[p]),
+                p as u32,
+            )));
+        }
+    }
+    k
+}
+
+/// The backward greedy without the heap. A pixel's removals become available one after another,
+/// so the heap pops removal j of pixel p exactly in the order of (the running maximum of the
+/// pixel's keys up to j, p, j): a removal whose key is below that maximum is popped right after
+/// its predecessor. Selecting the first `sum n - min(F, sum n)` removals in that order (linear
+/// time) gives the heap's allocation.
+pub fn greedy(curves: &ErrorCurves, f: u64, key: GreedyKey) -> Vec<u32> {
+    let counts = curves.counts();
+    let lo = min_k(&counts, f);
+    let total: u64 = counts.iter().map(|&n| n as u64).sum();
+    let to_remove = (total - slots_to_allocate(&counts, f)) as usize;
+    let mut k = counts.clone();
+    if to_remove == 0 {
+        return k;
+    }
+    #[derive(Clone, Copy)]
+    struct Removal {
+        order: f64,
+        pixel: u32,
+        j: u32,
+    }
+    let mut removals: Vec<Removal> = (0..counts.len())
+        .into_par_iter()
+        .fold(Vec::new, |mut v, p| {
+            let mut running = f64::NEG_INFINITY;
+            for (j, kp) in (lo + 1..=counts[p]).rev().enumerate() {
+                let key = greedy_key(curves, key, p, kp);
+                if key.total_cmp(&running) == Ordering::Greater {
+                    running = key;
+                }
+                v.push(Removal {
+                    order: running,
+                    pixel: p as u32,
+                    j: j as u32,
+                });
+            }
+            v
+        })
+        .reduce(Vec::new, |mut a, mut b| {
+            a.append(&mut b);
+            a
+        });
+    let cmp = |a: &Removal, b: &Removal| {
+        a.order
+            .total_cmp(&b.order)
+            .then(a.pixel.cmp(&b.pixel))
+            .then(a.j.cmp(&b.j))
+    };
+    if to_remove < removals.len() {
+        removals.select_nth_unstable_by(to_remove - 1, cmp);
+    }
+    for r in &removals[..to_remove] {
+        k[r.pixel as usize] -= 1;
+    }
+    k
+}
+
+/// A lower-hull segment of one pixel's curve: from k to k + len, gain per slot.
+#[derive(Clone, Copy, Debug)]
+struct Segment {
+    gain: f64,
+    pixel: u32,
+    k: u32,
+    len: u32,
+}
+
+/// Lower convex hull of (k, e(k)) for k in lo..=n, as segments in increasing k.
+fn hull_segments(curve: &[f64], lo: usize, pixel: u32, out: &mut Vec<Segment>) {
+    let n = curve.len() - 1;
+    if n <= lo {
+        return;
+    }
+    let mut hull: Vec<usize> = Vec::with_capacity(8);
+    for k in lo..=n {
+        while hull.len() >= 2 {
+            let (a, b) = (hull[hull.len() - 2], hull[hull.len() - 1]);
+            // Drop b if it is not strictly below the line from a to k.
+            let cross =
+                (curve[b] - curve[a]) * (k - a) as f64 - (curve[k] - curve[a]) * (b - a) as f64;
+            if cross >= 0.0 {
+                hull.pop();
+            } else {
+                break;
+            }
+        }
+        hull.push(k);
+    }
+    for w in hull.windows(2) {
+        let len = (w[1] - w[0]) as u32;
+        out.push(Segment {
+            gain: (curve[w[0]] - curve[w[1]]) / len as f64,
+            pixel,
+            k: w[0] as u32,
+            len,
+        });
+    }
+}
+
+/// Exact DP over a few pixels: choose k_q in ranges[q] with sum = budget minimising the true
+/// error. Returns None when no choice fits.
+fn repair_dp(
+    curves: &ErrorCurves,
+    pixels: &[usize],
+    ranges: &[(u32, u32)],
+    budget: u64,
+) -> Option<Vec<u32>> {
+    let base: u64 = ranges.iter().map(|r| r.0 as u64).sum();
+    if budget < base {
+        return None;
+    }
+    let cap = (budget - base) as usize;
+    let inf = f64::INFINITY;
+    // best[j][c]: minimal error of the first j pixels using c extra slots.
+    let mut best = vec![inf; cap + 1];
+    best[0] = 0.0;
+    let mut choice: Vec<Vec<u32>> = Vec::with_capacity(pixels.len());
+    for (q, &p) in pixels.iter().enumerate() {
+        let (lo, hi) = ranges[q];
+        let curve = curves.curve(p);
+        let mut next = vec![inf; cap + 1];
+        let mut pick = vec![0u32; cap + 1];
+        for c in 0..=cap {
+            if best[c] == inf {
+                continue;
+            }
+            for extra in 0..=(hi - lo) as usize {
+                let c2 = c + extra;
+                if c2 > cap {
+                    break;
+                }
+                let v = best[c] + curve[lo as usize + extra];
+                if v < next[c2] {
+                    next[c2] = v;
+                    pick[c2] = extra as u32;
+                }
+            }
+        }
+        best = next;
+        choice.push(pick);
+    }
+    if best[cap] == inf {
+        return None;
+    }
+    let mut out = vec![0u32; pixels.len()];
+    let mut c = cap;
+    for q in (0..pixels.len()).rev() {
+        let e = choice[q][c];
+        out[q] = ranges[q].0 + e;
+        c -= e as usize;
+    }
+    Some(out)
+}
+
+/// The convex-hull allocation with fill and repair, and its lower bound.
+fn hull_allocation(curves: &ErrorCurves, f: u64) -> (Vec<u32>, f64) {
+    let counts = curves.counts();
+    let lo = min_k(&counts, f);
+    let mut k: Vec<u32> = counts.iter().map(|&n| if n > 0 { lo } else { 0 }).collect();
+    let base: u64 = k.iter().map(|&x| x as u64).sum();
+    let mut rem = slots_to_allocate(&counts, f) - base;
+    let start_total: f64 = curves.total(&k);
+    let mut segs: Vec<Segment> = (0..counts.len())
+        .into_par_iter()
+        .fold(Vec::new, |mut v, p| {
+            if counts[p] > 0 {
+                hull_segments(curves.curve(p), lo as usize, p as u32, &mut v);
+            }
+            v
+        })
+        .reduce(Vec::new, |mut a, mut b| {
+            a.append(&mut b);
+            a
+        });
+    segs.par_sort_unstable_by(|a, b| {
+        b.gain
+            .total_cmp(&a.gain)
+            .then(a.pixel.cmp(&b.pixel))
+            .then(a.k.cmp(&b.k))
+    });
+    // Whole segments while they fit; the first that does not is the critical one.
+    let mut bound_gain = 0.0f64;
+    let mut critical = segs.len();
+    for (i, s) in segs.iter().enumerate() {
+        if s.len as u64 <= rem {
+            k[s.pixel as usize] += s.len;
+            rem -= s.len as u64;
+            bound_gain += s.gain * s.len as f64;
+        } else {
+            critical = i;
+            bound_gain += s.gain * rem as f64;
+            break;
+        }
+    }
+    let lower_bound = (start_total - bound_gain).max(0.0);
+    if rem == 0 || critical == segs.len() {
+        return (k, lower_bound);
+    }
+    // Fill: later segments that fit, in gain order, each only when its pixel's earlier
+    // segments are taken (k equals the segment's start).
+    let mut filled = Vec::new();
+    for (i, s) in segs.iter().enumerate().skip(critical) {
+        if rem == 0 {
+            break;
+        }
+        if s.len as u64 <= rem && k[s.pixel as usize] == s.k {
+            k[s.pixel as usize] += s.len;
+            rem -= s.len as u64;
+            filled.push(i);
+        }
+    }
+    // Repair: exact DP over the pixels whose segments are nearest the critical gain.
+    const WINDOW: usize = 24;
+    let lo_i = critical.saturating_sub(WINDOW);
+    let hi_i = (critical + WINDOW).min(segs.len());
+    let mut pixels: Vec<usize> = segs[lo_i..hi_i].iter().map(|s| s.pixel as usize).collect();
+    pixels.sort_unstable();
+    pixels.dedup();
+    let ranges: Vec<(u32, u32)> = pixels
+        .iter()
+        .map(|&p| {
+            // Anything between the pixel's k before its window segments and after them.
+            let mut a = k[p];
+            let mut b = k[p];
+            for s in segs[lo_i..hi_i].iter().filter(|s| s.pixel as usize == p) {
+                a = a.min(s.k);
+                b = b.max(s.k + s.len);
+            }
+            (a.max(if counts[p] > 0 { lo } else { 0 }), b.min(counts[p]))
+        })
+        .collect();
+    let budget: u64 = pixels.iter().map(|&p| k[p] as u64).sum::<u64>() + rem;
+    let span: u64 = ranges.iter().map(|r| (r.1 - r.0) as u64).sum();
+    // The DP costs about pixels x span^2; skip it where that is too much (rare, long segments).
+    if span > 0
+        && span * span * pixels.len() as u64 <= 50_000_000
+        && let Some(best) = repair_dp(curves, &pixels, &ranges, budget)
+    {
+        let before: f64 = pixels.iter().map(|&p| curves.curve(p)[k[p] as usize]).sum();
+        let after: f64 = pixels
+            .iter()
+            .zip(&best)
+            .map(|(&p, &kp)| curves.curve(p)[kp as usize])
+            .sum();
+        if after <= before || rem > 0 {
+            for (&p, &kp) in pixels.iter().zip(&best) {
+                k[p] = kp;
+            }
+            rem = 0;
+        }
+    }
+    // Whatever is still left (no repair possible) goes one slot at a time to the pixels where
+    // it lowers the true error most.
+    while rem > 0 {
+        let mut best: Option<(f64, usize)> = None;
+        for p in 0..counts.len() {
+            if k[p] < counts[p] {
+                let c = curves.curve(p);
+                let gain = c[k[p] as usize] - c[k[p] as usize + 1];
+                if best.is_none_or(|b| gain > b.0) {
+                    best = Some((gain, p));
+                }
+            }
+        }
+        let Some((_, p)) = best else { break };
+        k[p] += 1;
+        rem -= 1;
+    }
+    (k, lower_bound)
+}
+
+/// The optimal allocation (see the module docs) with the report of every total.
+pub fn optimal(curves: &ErrorCurves, f: u64) -> (Vec<u32>, OptimalReport) {
+    let ((hull_k, lower_bound), (paper, increase)) = rayon::join(
+        || hull_allocation(curves, f),
+        || {
+            rayon::join(
+                || greedy(curves, f, GreedyKey::NewError),
+                || greedy(curves, f, GreedyKey::Increase),
+            )
+        },
+    );
+    let totals = [
+        (curves.total(&hull_k), "hull"),
+        (curves.total(&paper), "greedy-paper"),
+        (curves.total(&increase), "greedy-increase"),
+    ];
+    // Best total; ties prefer the hull answer, then the printed greedy.
+    let (i, &(total, chosen)) = totals
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.0.total_cmp(&b.1.0).then(a.0.cmp(&b.0)))
+        .expect("three totals");
+    let k = match i {
+        0 => hull_k,
+        1 => paper,
+        _ => increase,
+    };
+    let report = OptimalReport {
+        total,
+        lower_bound: lower_bound.min(total),
+        hull_total: totals[0].0,
+        greedy_paper_total: totals[1].0,
+        greedy_increase_total: totals[2].0,
+        chosen,
+    };
+    (k, report)
+}
+
+/// Fixed k-buffer: the same k = floor(F / |P|) for every pixel (its capacity, not capped by n).
+pub fn fixed(pixels: usize, f: u64) -> Vec<u32> {
+    let k = (f / pixels.max(1) as u64).min(u32::MAX as u64) as u32;
+    vec![k; pixels]
+}
+
+/// k(p) from an importance map: `floor(F I(p) / sum I)` clamped to `[lo, n(p)]`, then the slots
+/// the floor and the clamps leave over (or overspend) are handed out (or taken back) so that
+/// `sum k = min(F, sum n)` exactly. Importance of uncovered pixels is ignored; negative or
+/// non-finite importance counts as 0; when every covered pixel has importance 0, all count as
+/// equally important. Leftover slots go round by round to the pixels with room, most important
+/// first (ties: lower pixel index); overspent slots are taken back least important first.
+pub fn from_importance(importance: &[f32], counts: &[u32], f: u64) -> Vec<u32> {
+    assert_eq!(importance.len(), counts.len(), "one importance per pixel");
+    let target = slots_to_allocate(counts, f);
+    let lo = min_k(counts, f);
+    let imp: Vec<f64> = importance
+        .iter()
+        .zip(counts)
+        .map(|(&i, &n)| {
+            if n > 0 && i.is_finite() && i > 0.0 {
+                i as f64
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let covered: Vec<usize> = (0..counts.len()).filter(|&p| counts[p] > 0).collect();
+    let mut sum: f64 = imp.iter().sum();
+    let imp: Vec<f64> = if sum > 0.0 {
+        imp
+    } else {
+        sum = covered.len() as f64;
+        counts
+            .iter()
+            .map(|&n| if n > 0 { 1.0 } else { 0.0 })
+            .collect()
+    };
+    // Priority: most important first, then lower index.
+    let mut order = covered.clone();
+    order.sort_by(|&a, &b| imp[b].total_cmp(&imp[a]).then(a.cmp(&b)));
+    let mut k = vec![0u32; counts.len()];
+    if lo == 0 {
+        // Fewer slots than covered pixels: the most important pixels get one each.
+        for &p in order.iter().take(target as usize) {
+            k[p] = 1;
+        }
+        return k;
+    }
+    let ff = f as f64;
+    let mut given: u64 = 0;
+    for &p in &covered {
+        let share = (ff * imp[p] / sum).floor().min(counts[p] as f64) as u32;
+        k[p] = share.max(lo);
+        given += k[p] as u64;
+    }
+    if given < target {
+        let mut left = target - given;
+        while left > 0 {
+            // Proportional share of what is left among pixels with room, then one each.
+            let room_sum: f64 = order
+                .iter()
+                .filter(|&&p| k[p] < counts[p])
+                .map(|&p| imp[p])
+                .sum();
+            let mut handed = 0u64;
+            if room_sum > 0.0 {
+                let pool = left as f64;
+                for &p in &order {
+                    let room = (counts[p] - k[p]) as u64;
+                    if room == 0 || handed >= left {
+                        continue;
+                    }
+                    let share = ((pool * imp[p] / room_sum).floor() as u64)
+                        .min(room)
+                        .min(left - handed);
+                    k[p] += share as u32;
+                    handed += share;
+                }
+            }
+            if handed == 0 {
+                for &p in &order {
+                    if handed == left {
+                        break;
+                    }
+                    if k[p] < counts[p] {
+                        k[p] += 1;
+                        handed += 1;
+                    }
+                }
+            }
+            left -= handed;
+        }
+    } else if given > target {
+        let mut excess = given - target;
+        for &p in order.iter().rev() {
+            if excess == 0 {
+                break;
+            }
+            let take = ((k[p] - lo) as u64).min(excess);
+            k[p] -= take as u32;
+            excess -= take;
+        }
+    }
+    k
+}

@@ -1,0 +1,289 @@
+//! Error curves and allocations: against direct computation and exhaustive search.
+
+use dhoit_runtime::alloc::{self, ErrorCurves, GreedyKey};
+use dhoit_runtime::composite::{Fragment, hybrid_sorted, sort_front_to_back};
+use dhoit_runtime::raster::FragmentLists;
+use dhoit_runtime::rng::Rng;
+use proptest::prelude::*;
+
+const BG: [f32; 3] = [1.0, 0.9, 0.8];
+
+/// Hybrid colour with k core fragments, from scratch in f64 (O(n) per k, O(n^2) per curve).
+fn direct_hybrid(f: &[Fragment], k: usize) -> [f64; 3] {
+    let bg = BG.map(f64::from);
+    let mut c = [0.0; 3];
+    let mut t = 1.0;
+    for x in &f[..k] {
+        let a = x.rgba[3] as f64;
+        for i in 0..3 {
+            c[i] += t * a * x.rgba[i] as f64;
+        }
+        t *= 1.0 - a;
+    }
+    let tail = &f[k..];
+    let sa: f64 = tail.iter().map(|x| x.rgba[3] as f64).sum();
+    let behind = if tail.is_empty() || sa <= 0.0 {
+        bg
+    } else {
+        let a_tail = 1.0 - (1.0 - sa / tail.len() as f64).powi(tail.len() as i32);
+        std::array::from_fn(|i| {
+            let sca: f64 = tail
+                .iter()
+                .map(|x| x.rgba[i] as f64 * x.rgba[3] as f64)
+                .sum();
+            a_tail * sca / sa + (1.0 - a_tail) * bg[i]
+        })
+    };
+    std::array::from_fn(|i| c[i] + t * behind[i])
+}
+
+fn random_fragments(rng: &mut Rng, n: usize) -> Vec<Fragment> {
+    (0..n)
+        .map(|i| Fragment {
+            depth: rng.f32(),
+            rgba: [
+                rng.f32(),
+                rng.f32(),
+                rng.f32(),
+                [0.33, rng.f32(), 1.0, 0.0, 0.9][rng.below(5)],
+            ],
+            primitive: i as u32,
+        })
+        .collect()
+}
+
+#[test]
+fn error_curves_match_direct_computation() {
+    let mut rng = Rng::new(11);
+    for trial in 0..300 {
+        let n = rng.below(if trial < 250 { 12 } else { 200 });
+        let mut f = random_fragments(&mut rng, n);
+        sort_front_to_back(&mut f);
+        let mut curve = vec![0.0; n + 1];
+        alloc::error_curve_sorted(&f, BG, &mut curve);
+        let exact = direct_hybrid(&f, n);
+        assert_eq!(curve[n], 0.0);
+        for k in 0..=n {
+            let h = direct_hybrid(&f, k);
+            let e: f64 = (0..3).map(|i| (exact[i] - h[i]).powi(2)).sum();
+            assert!(
+                (curve[k] - e).abs() <= 1e-12 + 1e-9 * e,
+                "n {n} k {k}: {} vs {e}",
+                curve[k]
+            );
+            // And the f32 compositor agrees on the colour difference.
+            let h32 = hybrid_sorted(&f, k, BG);
+            let x32 = hybrid_sorted(&f, n, BG);
+            let d32: f64 = (0..3)
+                .map(|i| ((x32[i] - h32[i]) as f64).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(
+                (d32 - e.sqrt()).abs() < 2e-5,
+                "n {n} k {k}: f32 {d32} f64 {}",
+                e.sqrt()
+            );
+        }
+    }
+}
+
+/// A frame of `pixels` pixels (one row) with the given fragment lists.
+fn frame_of(lists: &[Vec<Fragment>]) -> FragmentLists {
+    let mut fl = FragmentLists {
+        width: lists.len() as u32,
+        height: 1,
+        offsets: vec![0],
+        ..Default::default()
+    };
+    for l in lists {
+        for f in l {
+            fl.depth.push(f.depth);
+            fl.rgba.push(f.rgba);
+            fl.primitive.push(f.primitive);
+            fl.facing.push(1.0);
+        }
+        fl.offsets.push(fl.depth.len() as u32);
+    }
+    fl
+}
+
+/// Exhaustive optimum by dynamic programming over pixels and slots.
+fn exhaustive(curves: &ErrorCurves, f: u64) -> f64 {
+    let counts = curves.counts();
+    let lo = alloc::min_k(&counts, f);
+    let target = alloc::slots_to_allocate(&counts, f) as usize;
+    let mut best = vec![f64::INFINITY; target + 1];
+    best[0] = 0.0;
+    for (p, &n) in counts.iter().enumerate() {
+        let mut next = vec![f64::INFINITY; target + 1];
+        let range = if n == 0 { 0..=0 } else { lo..=n };
+        for used in 0..=target {
+            if best[used].is_infinite() {
+                continue;
+            }
+            for kp in range.clone() {
+                let u = used + kp as usize;
+                if u <= target {
+                    next[u] = next[u].min(best[used] + curves.curve(p)[kp as usize]);
+                }
+            }
+        }
+        best = next;
+    }
+    best[target]
+}
+
+fn check_bounds(k: &[u32], counts: &[u32], f: u64) {
+    let lo = alloc::min_k(counts, f);
+    assert_eq!(
+        k.iter().map(|&x| x as u64).sum::<u64>(),
+        alloc::slots_to_allocate(counts, f)
+    );
+    for (&kp, &n) in k.iter().zip(counts) {
+        if n == 0 {
+            assert_eq!(kp, 0);
+        } else {
+            assert!(kp >= lo && kp <= n, "k {kp} outside [{lo}, {n}]");
+        }
+    }
+}
+
+#[test]
+fn optimal_against_exhaustive_search_and_the_greedies() {
+    let mut rng = Rng::new(5);
+    let (mut instances, mut dist_sum, mut exact_hits) = (0usize, 0.0f64, 0usize);
+    let mut greedy_worse = [0usize; 2];
+    let mut hull_worse = 0usize;
+    for trial in 0..400 {
+        let pixels = 1 + rng.below(match trial {
+            0..300 => 6,
+            300..380 => 24,
+            _ => 150,
+        });
+        let lists: Vec<Vec<Fragment>> = (0..pixels)
+            .map(|_| {
+                let n = rng.below(match trial {
+                    0..300 => 6,
+                    300..380 => 14,
+                    _ => 40,
+                });
+                random_fragments(&mut rng, n)
+            })
+            .collect();
+        let fl = frame_of(&lists);
+        let curves = alloc::error_curves(&fl, BG);
+        let counts = curves.counts();
+        let total_n: u64 = counts.iter().map(|&n| n as u64).sum();
+        for f in [
+            1,
+            2,
+            pixels as u64 / 2 + 1,
+            pixels as u64,
+            (pixels as u64 * 3) / 2,
+            2 * pixels as u64,
+            total_n,
+            total_n + 3,
+        ] {
+            let (k, rep) = alloc::optimal(&curves, f);
+            check_bounds(&k, &counts, f);
+            let opt = exhaustive(&curves, f);
+            let eps = 1e-12 + 1e-9 * opt;
+            assert!((curves.total(&k) - rep.total).abs() <= eps);
+            assert!(
+                rep.total >= opt - eps,
+                "below the exhaustive optimum: {} < {opt}",
+                rep.total
+            );
+            assert!(
+                rep.total <= rep.greedy_paper_total + eps
+                    && rep.total <= rep.greedy_increase_total + eps
+            );
+            assert!(
+                rep.lower_bound <= opt + eps,
+                "bound {} above optimum {opt}",
+                rep.lower_bound
+            );
+            assert!(
+                rep.total - opt <= rep.gap() + eps,
+                "outside the certified gap"
+            );
+            for (i, key) in [GreedyKey::NewError, GreedyKey::Increase]
+                .into_iter()
+                .enumerate()
+            {
+                let g = alloc::greedy(&curves, f, key);
+                check_bounds(&g, &counts, f);
+                assert_eq!(
+                    g,
+                    alloc::greedy_heap(&curves, f, key),
+                    "selection greedy = heap greedy"
+                );
+                if curves.total(&g) > opt + eps {
+                    greedy_worse[i] += 1;
+                }
+            }
+            if rep.hull_total > opt + eps {
+                hull_worse += 1;
+            }
+            instances += 1;
+            if opt > 0.0 {
+                dist_sum += (rep.total - opt) / opt;
+            }
+            if rep.total <= opt + eps {
+                exact_hits += 1;
+            }
+        }
+    }
+    eprintln!(
+        "{instances} instances: optimal allocation exact in {exact_hits}, mean relative excess over exhaustive {:.3e}; \
+         hull answer alone above it in {hull_worse}; printed greedy above the optimum in {}, increase-keyed greedy in {}",
+        dist_sum / instances as f64,
+        greedy_worse[0],
+        greedy_worse[1]
+    );
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(400))]
+
+    #[test]
+    fn importance_allocations_hold_sum_and_bounds(
+        counts in prop::collection::vec(prop_oneof![Just(0u32), 1u32..40], 1..60),
+        kind in 0usize..5,
+        seed in any::<u64>(),
+        f_pick in 0usize..6,
+    ) {
+        let mut rng = Rng::new(seed);
+        let p = counts.len();
+        let importance: Vec<f32> = match kind {
+            0 => vec![0.0; p],
+            1 => { let mut v = vec![0.0; p]; v[rng.below(p)] = 1.0; v }
+            2 => (0..p).map(|_| rng.f32()).collect(),
+            3 => (0..p).map(|i| if i % 3 == 0 { f32::NAN } else if i % 3 == 1 { -1.0 } else { rng.f32() * 1e-30 }).collect(),
+            _ => (0..p).map(|_| rng.f32().powi(8) * 1e6).collect(),
+        };
+        let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
+        let total: u64 = counts.iter().map(|&n| n as u64).sum();
+        let f = [1, covered.saturating_sub(1).max(1), covered.max(1), (covered + total) / 2 + 1, total.max(1), total * 3 + 7][f_pick];
+        let k = alloc::from_importance(&importance, &counts, f);
+        check_bounds(&k, &counts, f);
+        // Deterministic.
+        prop_assert_eq!(k, alloc::from_importance(&importance, &counts, f));
+    }
+}
+
+#[test]
+fn importance_allocation_follows_the_importance() {
+    let counts = vec![10u32; 4];
+    let k = alloc::from_importance(&[1.0, 2.0, 3.0, 4.0], &counts, 20);
+    assert_eq!(k, vec![2, 4, 6, 8]);
+    // Caps redistribute: pixel 3 wants 16 but has 10 fragments.
+    let k = alloc::from_importance(&[1.0, 1.0, 1.0, 13.0], &counts, 16);
+    assert_eq!(k.iter().sum::<u32>(), 16);
+    assert_eq!(k[3], 10);
+    // Fewer slots than covered pixels: the most important pixels keep one.
+    let k = alloc::from_importance(&[0.1, 0.9, 0.5, 0.2], &counts, 2);
+    assert_eq!(k, vec![0, 1, 1, 0]);
+    // Fixed: one k for all.
+    assert_eq!(alloc::fixed(4, 9), vec![2; 4]);
+}

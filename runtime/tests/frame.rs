@@ -1,0 +1,175 @@
+//! Whole frames: every method under a full budget is exact, budgets hold, features and VKB.
+
+use dhoit_runtime::budget::Budget;
+use dhoit_runtime::frame::{Method, Options, Renderer};
+use dhoit_runtime::importance::{self, VkbParams};
+use dhoit_runtime::mlp::Mlp;
+use dhoit_runtime::raster::{FragmentLists, rasterize};
+use dhoit_runtime::scene::{self, Camera, Opacity};
+
+fn frame(name: &str, w: u32, h: u32) -> FragmentLists {
+    let s = scene::load(name, Opacity::default()).unwrap();
+    rasterize(&s, &Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h), w, h).unwrap()
+}
+
+#[test]
+fn with_every_fragment_in_budget_the_allocations_are_exact() {
+    let mlp = Mlp::random(3);
+    for name in ["spheres", "plates"] {
+        let fl = frame(name, 64, 48);
+        let total = fl.fragment_count() as f64;
+        let pixels = fl.pixel_count() as f64;
+        let opts = Options {
+            weights: Some(&mlp),
+            ..Options::new(
+                Budget::SlotsPerPixel(total / pixels + 0.01),
+                [0.2, 0.3, 0.4],
+            )
+        };
+        let r = Renderer::new(&fl, opts);
+        let exact = r.render(Method::Abuffer).unwrap().image;
+        for m in [
+            Method::Vkb,
+            Method::Dkb,
+            Method::Optimal,
+            Method::GreedyPaper,
+            Method::GreedyIncrease,
+        ] {
+            let f = r.render(m).unwrap();
+            assert_eq!(f.k, fl.counts(), "{name} {}: k = n", m.name());
+            assert_eq!(f.image, exact, "{name} {}", m.name());
+        }
+        // FKB with the same slots is not exact: its k is below the deepest pixel...
+        let fkb = r.render(Method::Fkb).unwrap();
+        assert!(fkb.k[0] < fl.max_depth_complexity());
+        assert!(fkb.image.mse(&exact) > 0.0);
+        // ...until its k reaches the deepest pixel.
+        let deep = Options::new(
+            Budget::SlotsPerPixel(fl.max_depth_complexity() as f64),
+            [0.2, 0.3, 0.4],
+        );
+        let fkb = Renderer::new(&fl, deep).render(Method::Fkb).unwrap();
+        assert_eq!(fkb.image, exact, "{name} fkb at k = max n");
+    }
+}
+
+#[test]
+fn allocations_spend_exactly_the_budget_and_never_more_bytes() {
+    let mlp = Mlp::random(9);
+    let fl = frame("foliage", 80, 60);
+    let counts = fl.counts();
+    for budget in ["0.05fpp", "1fpp", "2fpp", "3.7fpp", "100fpp", "60KB", "2MB"] {
+        let b = Budget::parse(budget).unwrap();
+        let opts = Options {
+            weights: Some(&mlp),
+            ..Options::new(b, [1.0; 3])
+        };
+        let r = Renderer::new(&fl, opts);
+        for m in [
+            Method::Vkb,
+            Method::Dkb,
+            Method::Optimal,
+            Method::GreedyPaper,
+            Method::GreedyIncrease,
+        ] {
+            let f = match r.render(m) {
+                Ok(f) => f,
+                Err(e) => {
+                    assert!(budget == "60KB", "{budget} {}: {e}", m.name());
+                    continue;
+                }
+            };
+            let sum: u64 = f.k.iter().map(|&k| k as u64).sum();
+            assert_eq!(
+                sum,
+                f.budget_fragments.min(fl.fragment_count() as u64),
+                "{budget} {}",
+                m.name()
+            );
+            assert!(f.k.iter().zip(&counts).all(|(&k, &n)| k <= n));
+            assert!(f.allocated_bytes <= f.budget_bytes, "{budget} {}", m.name());
+        }
+    }
+}
+
+#[test]
+fn features_match_their_definitions() {
+    let fl = frame("shells", 40, 30);
+    let f_budget = 1234u64;
+    let feats = importance::features(&fl, f_budget);
+    let total = fl.fragment_count() as f32;
+    let covered: Vec<usize> = (0..fl.pixel_count()).filter(|&p| fl.count(p) > 0).collect();
+    let gmin = covered
+        .iter()
+        .map(|&p| fl.range(p).map(|i| fl.depth[i]).fold(1.0, f32::min))
+        .fold(1.0, f32::min);
+    let gmax = covered
+        .iter()
+        .map(|&p| fl.range(p).map(|i| fl.depth[i]).fold(0.0, f32::max))
+        .fold(0.0, f32::max);
+    for &p in &covered {
+        let r = fl.range(p);
+        let x = &feats[p];
+        let n = r.len() as f32;
+        assert_eq!(x[0], n / total);
+        let nearest = r
+            .clone()
+            .min_by(|&a, &b| fl.depth[a].total_cmp(&fl.depth[b]))
+            .unwrap();
+        assert_eq!(x[1], fl.depth[nearest]);
+        assert_eq!(x[2], r.clone().map(|i| fl.depth[i]).fold(0.0, f32::max));
+        for c in 0..3 {
+            // RGBA8 of the nearest fragment, fixed-point mean.
+            assert!((x[3 + c] - fl.rgba[nearest][c]).abs() <= 0.5 / 255.0 + 1e-6);
+            let mean = r.clone().map(|i| fl.rgba[i][c]).sum::<f32>() / n;
+            assert!((x[6 + c] - mean).abs() <= 0.5 / importance::COLOR_SUM_SCALE + 1e-6);
+        }
+        assert_eq!(x[9], f_budget as f32 / total);
+        assert_eq!((x[10], x[11]), (gmin, gmax));
+    }
+}
+
+#[test]
+fn vkb_importance_follows_its_factors() {
+    let fl = frame("particles", 64, 48);
+    let quiet = VkbParams {
+        noise: 0.0,
+        ..VkbParams::default()
+    };
+    let imp = importance::vkb_importance(&fl, &quiet);
+    for p in 0..fl.pixel_count() {
+        if fl.count(p) == 0 {
+            assert_eq!(imp[p], 0.0);
+        } else {
+            assert!(imp[p] > 0.0 && imp[p] <= 1.0, "{}", imp[p]);
+        }
+    }
+    // The noise term moves importance by at most lambda / 2.
+    let noisy = importance::vkb_importance(&fl, &VkbParams::default());
+    let diff = imp
+        .iter()
+        .zip(&noisy)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f32::max);
+    assert!(
+        diff > 0.0 && diff <= 0.05 + 1e-6,
+        "noise within lambda / 2: {diff}"
+    );
+    // Deterministic, and the noise hash spreads over [0, 1).
+    assert_eq!(
+        noisy,
+        importance::vkb_importance(&fl, &VkbParams::default())
+    );
+    let xs: Vec<f32> = (0..10_000).map(|p| importance::pixel_noise(p, 0)).collect();
+    let mean = xs.iter().sum::<f32>() / xs.len() as f32;
+    assert!((mean - 0.5).abs() < 0.02 && xs.iter().all(|x| (0.0..1.0).contains(x)));
+}
+
+#[test]
+fn dkb_without_weights_is_a_clear_error() {
+    let fl = frame("shells", 16, 12);
+    let e = Renderer::new(&fl, Options::new(Budget::SlotsPerPixel(2.0), [1.0; 3]))
+        .render(Method::Dkb)
+        .unwrap_err();
+    assert!(e.to_string().contains("weights"), "{e}");
+}

@@ -1,0 +1,150 @@
+//! The MLP's CPU twin and the weights contract.
+
+use dhoit_runtime::mlp::{H1, H2, Mlp};
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("dhoit-mlp-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// The same network as matrix products in f64: an independent implementation.
+fn reference(m: &Mlp, f: &[f32; 12]) -> f64 {
+    let x: Vec<f64> = (0..12)
+        .map(|i| ((f[i] - m.mean[i]) / m.std[i]) as f64)
+        .collect();
+    let layer = |x: &[f64], w: &[f32], b: &[f32], out: usize| -> Vec<f64> {
+        (0..out)
+            .map(|j| {
+                (b[j] as f64
+                    + x.iter()
+                        .enumerate()
+                        .map(|(i, v)| v * w[i * out + j] as f64)
+                        .sum::<f64>())
+                .max(0.0)
+            })
+            .collect()
+    };
+    let h1 = layer(&x, &m.w1, &m.b1, H1);
+    let h2 = layer(&h1, &m.w2, &m.b2, H2);
+    let z = m.b3 as f64
+        + h2.iter()
+            .zip(&m.w3)
+            .map(|(a, b)| a * *b as f64)
+            .sum::<f64>();
+    1.0 / (1.0 + (-z).exp())
+}
+
+#[test]
+fn forward_matches_an_independent_implementation() {
+    let mut m = Mlp::random(1);
+    m.mean = [0.1; 12];
+    m.std = [0.5; 12];
+    let mut rng = dhoit_runtime::rng::Rng::new(2);
+    for _ in 0..500 {
+        let f: [f32; 12] = std::array::from_fn(|_| rng.range(-2.0, 2.0));
+        let (a, b) = (m.forward(&f) as f64, reference(&m, &f));
+        assert!((a - b).abs() < 1e-5, "{a} vs {b}");
+    }
+}
+
+#[test]
+fn weights_round_trip_through_the_contract() {
+    let mut m = Mlp::random(4);
+    m.mean = std::array::from_fn(|i| i as f32 * 0.01);
+    m.std = std::array::from_fn(|i| 1.0 + i as f32);
+    let path = temp("roundtrip.safetensors");
+    m.save(
+        &path,
+        &HashMap::from([("note".to_string(), "test".to_string())]),
+    )
+    .unwrap();
+    assert_eq!(Mlp::load(&path).unwrap(), m);
+}
+
+/// Writes a weights file with one tensor or metadata entry changed.
+fn broken(
+    name: &str,
+    edit: impl Fn(&mut Vec<(String, Vec<usize>, Vec<f32>)>, &mut HashMap<String, String>),
+) -> PathBuf {
+    let m = Mlp::random(5);
+    let path = temp(&format!("{name}.safetensors"));
+    m.save(&path, &HashMap::new()).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let st = safetensors::SafeTensors::deserialize(&bytes).unwrap();
+    let (_, meta) = safetensors::SafeTensors::read_metadata(&bytes).unwrap();
+    let mut meta = meta.metadata().clone().unwrap();
+    let mut tensors: Vec<(String, Vec<usize>, Vec<f32>)> = st
+        .tensors()
+        .into_iter()
+        .map(|(n, v)| {
+            let data = v
+                .data()
+                .chunks_exact(4)
+                .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                .collect();
+            (n, v.shape().to_vec(), data)
+        })
+        .collect();
+    edit(&mut tensors, &mut meta);
+    let entries: Vec<dhoit_runtime::tensors::Entry> = tensors
+        .iter()
+        .map(|(n, s, d)| dhoit_runtime::tensors::Entry::f32(n, s.clone(), d))
+        .collect();
+    dhoit_runtime::tensors::write(&path, &entries, meta).unwrap();
+    path
+}
+
+fn expect(path: PathBuf, needle: &str) {
+    let e = Mlp::load(&path).unwrap_err().to_string();
+    assert!(e.contains(needle), "'{e}' should mention '{needle}'");
+    assert!(e.contains(&path.display().to_string()), "{e}");
+}
+
+#[test]
+fn wrong_weights_are_rejected_with_the_reason() {
+    expect(
+        broken("nan", |t, _| {
+            t.iter_mut().find(|x| x.0 == "fc2.weight").unwrap().2[7] = f32::NAN
+        }),
+        "non-finite value",
+    );
+    expect(
+        broken("shape", |t, _| {
+            let x = t.iter_mut().find(|x| x.0 == "fc1.weight").unwrap();
+            x.1 = vec![128, 12];
+        }),
+        "shape [128, 12], expected [12, 128]",
+    );
+    expect(
+        broken("name", |t, _| t.retain(|x| x.0 != "out.bias")),
+        "missing tensor 'out.bias'",
+    );
+    expect(
+        broken("std", |_, m| {
+            m.insert("input_std".into(), "[1,1,1,1,1,1,0,1,1,1,1,1]".into());
+        }),
+        "input_std[6]",
+    );
+    expect(
+        broken("format", |_, m| {
+            m.insert("format".into(), "other".into());
+        }),
+        "format 'other'",
+    );
+    expect(
+        broken("features", |_, m| {
+            m.insert("features".into(), "[\"a\"]".into());
+        }),
+        "features",
+    );
+    let garbage = temp("garbage.safetensors");
+    std::fs::write(&garbage, b"not a weights file").unwrap();
+    expect(garbage, "not a safetensors file");
+    let e = Mlp::load(&temp("absent.safetensors"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("cannot read"), "{e}");
+}
