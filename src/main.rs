@@ -14,8 +14,17 @@ use std::time::Instant;
 
 mod bench;
 
-/// Where `make train` puts the default weights; used by DKB when no --weights is given.
-pub const DEFAULT_WEIGHTS: &str = "data/weights.safetensors";
+/// The default weights (`make train` writes them): looked up in the working directory, then in
+/// the source tree this binary was built from.
+fn default_weights() -> Option<PathBuf> {
+    let rel = Path::new(dhoit_train::cli::DEFAULT_WEIGHTS);
+    [
+        rel.to_path_buf(),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(rel),
+    ]
+    .into_iter()
+    .find(|p| p.is_file())
+}
 
 #[derive(Parser)]
 #[command(
@@ -47,7 +56,13 @@ enum Command {
     /// pictures, report.json and report.md.
     #[command(alias = "eval")]
     Compare(CompareArgs),
-    /// Measure CPU rasterization, compositing and allocation throughput; prints JSON.
+    /// Generate a training dataset: features and optimal-allocation targets from scenes.
+    Dataset(dhoit_train::cli::DatasetArgs),
+    /// Train the importance network on the CPU (burn) and export safetensors weights.
+    Train(dhoit_train::cli::TrainArgs),
+    /// Predict importance for a features file with burn inference.
+    Predict(dhoit_train::cli::PredictArgs),
+    /// Measure CPU rasterization, compositing, allocation and training throughput; prints JSON.
     Bench(bench::BenchArgs),
 }
 
@@ -197,11 +212,13 @@ fn rasterize_view(scene: &Scene, view: usize, a: &ViewArgs) -> Result<(FragmentL
 fn load_weights(a: &ViewArgs, required: bool) -> Result<Option<Mlp>> {
     let path = match &a.weights {
         Some(p) => p.clone(),
-        None if Path::new(DEFAULT_WEIGHTS).is_file() => PathBuf::from(DEFAULT_WEIGHTS),
-        None if required => bail!(
-            "dkb needs network weights: pass --weights FILE (or train the default ones with `make train`)"
-        ),
-        None => return Ok(None),
+        None => match default_weights() {
+            Some(p) => p,
+            None if required => bail!(
+                "dkb needs network weights: pass --weights FILE (or train the default ones with `make train`)"
+            ),
+            None => return Ok(None),
+        },
     };
     Ok(Some(Mlp::load(&path)?))
 }
@@ -320,7 +337,10 @@ fn compare(a: CompareArgs) -> Result<()> {
         !a.methods.is_empty() && methods.contains(&Method::Dkb),
     )?;
     if weights.is_none() && methods.contains(&Method::Dkb) {
-        eprintln!("note: no weights found ({DEFAULT_WEIGHTS} or --weights), dkb left out");
+        eprintln!(
+            "note: no weights found ({} or --weights), dkb left out",
+            dhoit_train::cli::DEFAULT_WEIGHTS
+        );
         methods.retain(|&m| m != Method::Dkb);
     }
     std::fs::create_dir_all(&a.out)
@@ -372,7 +392,7 @@ fn compare(a: CompareArgs) -> Result<()> {
                             .data
                             .iter()
                             .zip(&reference.data)
-                            .map(|(x, r)| (0..3).map(|i| (x[i] - r[i]).powi(2)).sum::<f32>())
+                            .map(|(x, r)| (0..3).map(|i| (x[i] - r[i]).powi(2)).sum::<f32>().sqrt())
                             .collect()
                     })
                     .collect();
@@ -416,7 +436,7 @@ fn compare(a: CompareArgs) -> Result<()> {
                     montage.put(
                         col as u32,
                         2,
-                        &image_io::heat_rgb8(&errors[col], &covered, err_max.sqrt()),
+                        &image_io::heat_rgb8(&errors[col], &covered, err_max),
                     );
                     let mut rec = serde_json::json!({
                         "scene": scene.name, "view": view, "width": fl.width, "height": fl.height,
@@ -447,7 +467,7 @@ fn compare(a: CompareArgs) -> Result<()> {
                 montage.write(&a.out.join(&pic))?;
                 let order: Vec<&str> = frames.iter().map(|f| f.method.name()).collect();
                 md += &format!(
-                    "\n![{tag}]({pic})\n\nColumns: {}. Rows: image; k(p) used (dark blue 0 to yellow max); squared error.\n",
+                    "\n![{tag}]({pic})\n\nColumns: {}. Rows: image; k(p) used (dark blue 0 to yellow: the method's max); colour error |C - C_exact| (one scale for the row).\n",
                     order.join(", ")
                 );
             }
@@ -507,6 +527,9 @@ fn main() {
         Command::Scenes => scenes(),
         Command::Render(a) => render(a),
         Command::Compare(a) => compare(a),
+        Command::Dataset(a) => dhoit_train::cli::dataset(a).map_err(Into::into),
+        Command::Train(a) => dhoit_train::cli::train(a).map_err(Into::into),
+        Command::Predict(a) => dhoit_train::cli::predict(a).map_err(Into::into),
         Command::Bench(a) => bench::run(a),
     };
     if let Err(e) = result {

@@ -1,9 +1,11 @@
 //! The importance network's CPU twin: a 12-128-64-1 MLP (ReLU, ReLU, sigmoid) with input
 //! standardisation, read from the weights contract. No burn here: plain loops, written like
-//! the shader so the two read side by side.
+//! the shader so the two read side by side. Smaller hidden layers (`dhoit train --hidden`) load
+//! too, up to [`MAX_PARAMETERS`], the size the GPU's uniform buffer and the budget account for.
 //!
-//! Weights file (safetensors): `fc1.weight` [12,128], `fc1.bias` [128], `fc2.weight` [128,64],
-//! `fc2.bias` [64], `out.weight` [64,1], `out.bias` [1], all f32, weights stored [in, out] as
+//! Weights file (safetensors): `fc1.weight` [12,H1], `fc1.bias` [H1], `fc2.weight` [H1,H2],
+//! `fc2.bias` [H2], `out.weight` [H2,1], `out.bias` [1] (H1 = 128, H2 = 64 by default), all
+//! f32, weights stored [in, out] as
 //! burn's `Linear` keeps them (row i holds input i's weights to every output). Metadata:
 //! `format` = "dhoit-mlp-1", `features` (JSON list of the 12 names, in order), `input_mean` and
 //! `input_std` (JSON lists of 12 numbers), `layout` = "linear-in-out".
@@ -17,11 +19,20 @@ use std::path::Path;
 
 pub const FORMAT: &str = "dhoit-mlp-1";
 pub const LAYOUT: &str = "linear-in-out";
+/// Default hidden layer sizes.
 pub const H1: usize = 128;
 pub const H2: usize = 64;
+/// Largest parameter count accepted: the default network's.
+pub const MAX_PARAMETERS: usize = parameter_count(H1, H2);
+
+pub const fn parameter_count(h1: usize, h2: usize) -> usize {
+    FEATURES * h1 + h1 + h1 * h2 + h2 + h2 + 1
+}
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mlp {
+    pub h1: usize,
+    pub h2: usize,
     /// [FEATURES][H1], row-major [in, out].
     pub w1: Vec<f32>,
     pub b1: Vec<f32>,
@@ -36,19 +47,26 @@ pub struct Mlp {
 }
 
 impl Mlp {
-    /// Seeded random weights (He-style scale), identity standardisation: for tests.
+    /// Seeded random weights (He-style scale) of the default size, identity standardisation.
     pub fn random(seed: u64) -> Mlp {
+        Self::random_sized(seed, H1, H2)
+    }
+
+    /// Seeded random weights with the given hidden sizes.
+    pub fn random_sized(seed: u64, h1: usize, h2: usize) -> Mlp {
         let mut rng = Rng::new(seed);
         let mut init = |n: usize, fan_in: usize| -> Vec<f32> {
             let s = (2.0 / fan_in as f32).sqrt();
             (0..n).map(|_| rng.normal() * s).collect()
         };
         Mlp {
-            w1: init(FEATURES * H1, FEATURES),
-            b1: init(H1, H1).iter().map(|v| v * 0.1).collect(),
-            w2: init(H1 * H2, H1),
-            b2: init(H2, H2).iter().map(|v| v * 0.1).collect(),
-            w3: init(H2, H2),
+            h1,
+            h2,
+            w1: init(FEATURES * h1, FEATURES),
+            b1: init(h1, h1).iter().map(|v| v * 0.1).collect(),
+            w2: init(h1 * h2, h1),
+            b2: init(h2, h2).iter().map(|v| v * 0.1).collect(),
+            w3: init(h2, h2),
             b3: 0.0,
             mean: [0.0; FEATURES],
             std: [1.0; FEATURES],
@@ -57,28 +75,35 @@ impl Mlp {
 
     /// The network on one feature vector: importance in (0, 1).
     pub fn forward(&self, f: &[f32; FEATURES]) -> f32 {
+        self.forward_with(f, &mut Vec::new())
+    }
+
+    /// [`Mlp::forward`] with a reusable scratch buffer for the hidden activations.
+    pub fn forward_with(&self, f: &[f32; FEATURES], scratch: &mut Vec<f32>) -> f32 {
+        let (n1, n2) = (self.h1, self.h2);
+        scratch.clear();
+        scratch.resize(n1 + n2, 0.0);
+        let (h1, h2) = scratch.split_at_mut(n1);
         let mut x = [0.0f32; FEATURES];
         for i in 0..FEATURES {
             x[i] = (f[i] - self.mean[i]) / self.std[i];
         }
-        let mut h1 = [0.0f32; H1];
-        for j in 0..H1 {
+        for j in 0..n1 {
             let mut acc = self.b1[j];
             for i in 0..FEATURES {
-                acc += x[i] * self.w1[i * H1 + j];
+                acc += x[i] * self.w1[i * n1 + j];
             }
             h1[j] = acc.max(0.0);
         }
-        let mut h2 = [0.0f32; H2];
-        for j in 0..H2 {
+        for j in 0..n2 {
             let mut acc = self.b2[j];
-            for i in 0..H1 {
-                acc += h1[i] * self.w2[i * H2 + j];
+            for i in 0..n1 {
+                acc += h1[i] * self.w2[i * n2 + j];
             }
             h2[j] = acc.max(0.0);
         }
         let mut acc = self.b3;
-        for i in 0..H2 {
+        for i in 0..n2 {
             acc += h2[i] * self.w3[i];
         }
         1.0 / (1.0 + (-acc).exp())
@@ -90,7 +115,13 @@ impl Mlp {
         features
             .par_iter()
             .zip(counts)
-            .map(|(f, &n)| if n > 0 { self.forward(f) } else { 0.0 })
+            .map_init(Vec::new, |scratch, (f, &n)| {
+                if n > 0 {
+                    self.forward_with(f, scratch)
+                } else {
+                    0.0
+                }
+            })
             .collect()
     }
 
@@ -148,12 +179,45 @@ impl Mlp {
             }
             Ok(v)
         };
+        // Hidden sizes come from the first two weight matrices; every other shape must agree.
+        let shape = |name: &str| -> std::result::Result<Vec<usize>, String> {
+            Ok(file
+                .tensors
+                .tensor(name)
+                .map_err(|_| format!("missing tensor '{name}'"))?
+                .shape()
+                .to_vec())
+        };
+        let s1 = shape("fc1.weight")?;
+        let s2 = shape("fc2.weight")?;
+        let (h1, h2) = match (&s1[..], &s2[..]) {
+            ([FEATURES, a], [b, c]) if a == b && *a > 0 && *c > 0 => (*a, *c),
+            ([FEATURES, _], _) => {
+                return Err(format!(
+                    "tensor 'fc2.weight' has shape {s2:?}, expected [{}, H2]",
+                    s1[1]
+                ));
+            }
+            _ => {
+                return Err(format!(
+                    "tensor 'fc1.weight' has shape {s1:?}, expected [{FEATURES}, {H1}]"
+                ));
+            }
+        };
+        if parameter_count(h1, h2) > MAX_PARAMETERS {
+            return Err(format!(
+                "hidden sizes {h1},{h2} give {} parameters; at most {MAX_PARAMETERS} fit the GPU's uniform buffer",
+                parameter_count(h1, h2)
+            ));
+        }
         Ok(Mlp {
-            w1: get("fc1.weight", &[FEATURES, H1])?,
-            b1: get("fc1.bias", &[H1])?,
-            w2: get("fc2.weight", &[H1, H2])?,
-            b2: get("fc2.bias", &[H2])?,
-            w3: get("out.weight", &[H2, 1])?,
+            h1,
+            h2,
+            w1: get("fc1.weight", &[FEATURES, h1])?,
+            b1: get("fc1.bias", &[h1])?,
+            w2: get("fc2.weight", &[h1, h2])?,
+            b2: get("fc2.bias", &[h2])?,
+            w3: get("out.weight", &[h2, 1])?,
             b3: get("out.bias", &[1])?[0],
             mean,
             std,
@@ -162,12 +226,13 @@ impl Mlp {
 
     /// Writes the weights contract (atomically); `extra` adds metadata (training config...).
     pub fn save(&self, path: &Path, extra: &HashMap<String, String>) -> Result<()> {
+        let (h1, h2) = (self.h1, self.h2);
         let entries = [
-            Entry::f32("fc1.weight", vec![FEATURES, H1], &self.w1),
-            Entry::f32("fc1.bias", vec![H1], &self.b1),
-            Entry::f32("fc2.weight", vec![H1, H2], &self.w2),
-            Entry::f32("fc2.bias", vec![H2], &self.b2),
-            Entry::f32("out.weight", vec![H2, 1], &self.w3),
+            Entry::f32("fc1.weight", vec![FEATURES, h1], &self.w1),
+            Entry::f32("fc1.bias", vec![h1], &self.b1),
+            Entry::f32("fc2.weight", vec![h1, h2], &self.w2),
+            Entry::f32("fc2.bias", vec![h2], &self.b2),
+            Entry::f32("out.weight", vec![h2, 1], &self.w3),
             Entry::f32("out.bias", vec![1], &[self.b3]),
         ];
         let mut meta = extra.clone();

@@ -1,0 +1,311 @@
+//! Command-line front ends of the trainer, shared by `dhoit` and `dhoit-train`.
+
+use crate::dataset::{self, DatasetConfig, Level};
+use crate::model;
+use crate::plot;
+use crate::trainer::{self, TrainConfig};
+use crate::{Error, Result};
+use clap::Args;
+use dhoit_runtime::importance::FEATURES;
+use dhoit_runtime::mlp::Mlp;
+use dhoit_runtime::tensors::{self, Entry};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// Where the default dataset is generated (ignored by git).
+pub const DEFAULT_DATA: &str = "data/generated/dataset";
+pub const DEFAULT_WEIGHTS: &str = "data/weights.safetensors";
+
+#[derive(Args, Clone, Debug)]
+pub struct DatasetArgs {
+    /// Output directory (shards + manifest.json).
+    #[arg(long, default_value = DEFAULT_DATA)]
+    pub out: PathBuf,
+    /// Scenes, comma separated: built-in names or .gltf/.glb paths (default: every built-in).
+    #[arg(long, value_delimiter = ',')]
+    pub scenes: Vec<String>,
+    /// Resolution WIDTHxHEIGHT.
+    #[arg(long, default_value = "320x240")]
+    pub res: String,
+    /// Orbit views per scene.
+    #[arg(long, default_value_t = 4)]
+    pub views: usize,
+    /// Budget levels, comma separated: slots per pixel (2fpp) or `all` (every fragment).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1fpp,1.5fpp,2fpp,3fpp,all"
+    )]
+    pub budgets: Vec<String>,
+    /// Share of covered pixels sampled.
+    #[arg(long, default_value_t = 0.2)]
+    pub sample: f64,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+impl DatasetArgs {
+    pub fn config(&self) -> Result<DatasetConfig> {
+        let (width, height) = dhoit_runtime::raster::parse_resolution(&self.res)?;
+        let mut c = DatasetConfig {
+            width,
+            height,
+            views: self.views,
+            levels: self
+                .budgets
+                .iter()
+                .map(|b| Level::parse(b))
+                .collect::<Result<_>>()?,
+            sample: self.sample,
+            seed: self.seed,
+            ..DatasetConfig::default()
+        };
+        if !self.scenes.is_empty() {
+            c.scenes = self.scenes.clone();
+        }
+        Ok(c)
+    }
+}
+
+fn bar(len: u64, what: &str) -> ProgressBar {
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{msg:>10} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta}",
+        )
+        .expect("template")
+        .progress_chars("=> "),
+    );
+    pb.set_message(what.to_string());
+    pb
+}
+
+/// `dhoit dataset`.
+pub fn dataset(a: DatasetArgs) -> Result<()> {
+    let config = a.config()?;
+    generate(&config, &a.out)?;
+    Ok(())
+}
+
+fn generate(config: &DatasetConfig, out: &Path) -> Result<dataset::Manifest> {
+    let frames = config.scenes.len() * config.views;
+    eprintln!(
+        "dataset: {} scenes x {} views x {} budgets at {}x{} -> {}",
+        config.scenes.len(),
+        config.views,
+        config.levels.len(),
+        config.width,
+        config.height,
+        out.display()
+    );
+    let pb = bar(frames as u64, "frames");
+    let m = dataset::generate(config, out, &|done, _| pb.set_position(done as u64))?;
+    pb.finish_and_clear();
+    eprintln!(
+        "dataset: {} samples in {} shards, {:.1} s -> {}",
+        m.samples,
+        m.shards.len(),
+        m.seconds,
+        out.display()
+    );
+    Ok(m)
+}
+
+#[derive(Args, Clone, Debug)]
+pub struct TrainArgs {
+    /// Dataset directory; the default dataset is generated there when missing.
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    /// Weights file to write (config.json and loss.png go beside it).
+    #[arg(long, default_value = DEFAULT_WEIGHTS)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = TrainConfig::default().epochs)]
+    pub epochs: usize,
+    /// SGD learning rate.
+    #[arg(long, default_value_t = TrainConfig::default().lr)]
+    pub lr: f64,
+    #[arg(long, default_value_t = TrainConfig::default().batch)]
+    pub batch: usize,
+    /// L1 coefficient on the first hidden layer's weights.
+    #[arg(long, default_value_t = TrainConfig::default().l1)]
+    pub l1: f64,
+    /// L2 coefficient on the second hidden layer's weights.
+    #[arg(long, default_value_t = TrainConfig::default().l2)]
+    pub l2: f64,
+    /// Hidden layer sizes, H1,H2.
+    #[arg(long, value_delimiter = ',', default_value = "128,64")]
+    pub hidden: Vec<usize>,
+    /// SGD momentum (0 = plain SGD).
+    #[arg(long, default_value_t = TrainConfig::default().momentum)]
+    pub momentum: f64,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Scenes held out for validation, comma separated.
+    #[arg(long, value_delimiter = ',', default_value = "spheres,plates")]
+    pub validation: Vec<String>,
+}
+
+/// `dhoit train`.
+pub fn train(a: TrainArgs) -> Result<()> {
+    let [h1, h2] = a.hidden[..] else {
+        return Err(Error::Config(format!(
+            "--hidden takes two sizes, such as 128,64 (got {:?})",
+            a.hidden
+        )));
+    };
+    let config = TrainConfig {
+        epochs: a.epochs,
+        lr: a.lr,
+        batch: a.batch,
+        l1: a.l1,
+        l2: a.l2,
+        hidden: [h1, h2],
+        momentum: a.momentum,
+        seed: a.seed,
+        validation_scenes: a.validation.clone(),
+    };
+    let data_dir = match &a.data {
+        Some(d) => d.clone(),
+        None => {
+            let d = PathBuf::from(DEFAULT_DATA);
+            let default = DatasetConfig::default();
+            let fresh = dataset::load(&d)
+                .map(|(m, _)| m.config == default)
+                .unwrap_or(false);
+            if !fresh {
+                generate(&default, &d)?;
+            }
+            d
+        }
+    };
+    let (manifest, samples) = dataset::load(&data_dir)?;
+    eprintln!(
+        "train: {} samples from {} ({} scenes)",
+        samples.len(),
+        data_dir.display(),
+        samples.scenes.len()
+    );
+    let pb = bar(config.epochs as u64, "epochs");
+    let trained = trainer::train(&config, &samples, &mut |e, _| {
+        pb.suspend(|| {
+            eprintln!(
+                "epoch {:>3}: train mse {:.4e} (+ reg {:.2e}), validation mse {:.4e}, {:.1} s",
+                e.epoch, e.train_mse, e.train_reg, e.validation_mse, e.seconds
+            )
+        });
+        pb.inc(1);
+    })?;
+    pb.finish_and_clear();
+    let best = &trained.history[trained.best_epoch];
+    let summary = serde_json::json!({
+        "train": config,
+        "dataset": {"dir": data_dir, "config": manifest.config, "samples": manifest.samples},
+        "best_epoch": trained.best_epoch,
+        "best": best,
+        "history": trained.history,
+        "train_samples": trained.train_samples,
+        "validation_samples": trained.validation_samples,
+        "seconds": trained.seconds,
+        "samples_per_second": trained.samples_per_second,
+    });
+    let meta: HashMap<String, String> = [
+        (
+            "train_config".to_string(),
+            serde_json::to_string(&config).expect("config"),
+        ),
+        ("best_epoch".to_string(), trained.best_epoch.to_string()),
+        (
+            "validation_mse".to_string(),
+            best.validation_mse.to_string(),
+        ),
+    ]
+    .into_iter()
+    .collect();
+    trained.mlp.save(&a.out, &meta)?;
+    let dir = a
+        .out
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    tensors::write_atomic(
+        &dir.join("config.json"),
+        serde_json::to_string_pretty(&summary)
+            .expect("json")
+            .as_bytes(),
+    )?;
+    plot::loss_curve(&dir.join("loss.png"), &trained.history, trained.best_epoch)?;
+    eprintln!(
+        "train: best epoch {} (validation mse {:.4e}, train mse {:.4e}); {:.1} s, {:.0} samples/s -> {} (+ config.json, loss.png)",
+        trained.best_epoch,
+        best.validation_mse,
+        best.train_mse,
+        trained.seconds,
+        trained.samples_per_second,
+        a.out.display()
+    );
+    Ok(())
+}
+
+#[derive(Args, Clone, Debug)]
+pub struct PredictArgs {
+    /// Weights file (safetensors, the weights contract).
+    #[arg(long)]
+    pub weights: PathBuf,
+    /// Features file: safetensors with `features` f32 [N,12].
+    #[arg(long)]
+    pub input: PathBuf,
+    /// Output file: safetensors with `importance` f32 [N].
+    #[arg(long)]
+    pub output: PathBuf,
+    /// Where inference runs: cpu (burn, NdArray backend).
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
+}
+
+/// Reads a features file (`features` f32 [N,12], finite).
+pub fn read_features(path: &Path) -> Result<Vec<[f32; FEATURES]>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bad = |message: String| Error::Features {
+        path: path.to_path_buf(),
+        message,
+    };
+    let file = tensors::File::parse(&bytes).map_err(bad)?;
+    let (shape, v) = file.f32("features", None).map_err(bad)?;
+    if shape.len() != 2 || shape[1] != FEATURES {
+        return Err(bad(format!(
+            "tensor 'features' has shape {shape:?}, expected [N, {FEATURES}]"
+        )));
+    }
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(bad(format!(
+            "non-finite feature at row {}, column {}",
+            i / FEATURES,
+            i % FEATURES
+        )));
+    }
+    Ok(v.chunks_exact(FEATURES)
+        .map(|c| c.try_into().expect("12"))
+        .collect())
+}
+
+/// `dhoit predict`.
+pub fn predict(a: PredictArgs) -> Result<()> {
+    if a.device != "cpu" {
+        return Err(Error::Config(format!(
+            "device '{}' is not available for predict: use --device cpu",
+            a.device
+        )));
+    }
+    let mlp = Mlp::load(&a.weights)?;
+    let rows = read_features(&a.input)?;
+    let imp = model::predict(&mlp, &rows);
+    let meta = HashMap::from([("weights".to_string(), a.weights.display().to_string())]);
+    tensors::write(
+        &a.output,
+        &[Entry::f32("importance", vec![imp.len()], &imp)],
+        meta,
+    )?;
+    eprintln!("predict: {} rows -> {}", imp.len(), a.output.display());
+    Ok(())
+}

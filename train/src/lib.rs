@@ -1,0 +1,43 @@
+//! dhoit trainer: datasets from scenes, the importance MLP in burn on the CPU, export to the
+//! weights contract the runtime reads.
+//!
+//! The network is 12-128-64-1 (ReLU, ReLU, sigmoid) on standardised features, trained with MSE,
+//! L1 on the first hidden layer's weights, L2 on the second's, and SGD (paper 001). burn runs on
+//! its NdArray CPU backend with autodiff.
+
+pub mod cli;
+pub mod dataset;
+pub mod model;
+pub mod plot;
+pub mod trainer;
+
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error(transparent)]
+    Runtime(#[from] dhoit_runtime::Error),
+    #[error("cannot read or write {path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("dataset: {0}")]
+    Dataset(String),
+    #[error("{0}")]
+    Config(String),
+    #[error("features {path}: {message}")]
+    Features { path: PathBuf, message: String },
+}
+
+impl Error {
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}
+
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,209 @@
+//! The trainer: datasets, the loss, reproducibility, and the weights contract end to end.
+
+use burn::prelude::*;
+use burn::tensor::TensorData;
+use dhoit_runtime::importance::FEATURES;
+use dhoit_runtime::mlp::Mlp;
+use dhoit_runtime::rng::Rng;
+use dhoit_train::dataset::{self, DatasetConfig, Level};
+use dhoit_train::model::{self, ImportanceNet, cpu_device};
+use dhoit_train::trainer::{self, TrainConfig};
+use std::path::PathBuf;
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("dhoit-train-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn small_config() -> DatasetConfig {
+    DatasetConfig {
+        scenes: vec!["shells".into(), "foliage".into(), "spheres".into()],
+        width: 64,
+        height: 48,
+        views: 2,
+        levels: vec![
+            Level::SlotsPerPixel(1.0),
+            Level::SlotsPerPixel(2.0),
+            Level::All,
+        ],
+        sample: 0.5,
+        seed: 3,
+        opacity: 0.33,
+    }
+}
+
+#[test]
+fn datasets_are_deterministic_and_complete() {
+    let (a, b) = (temp("ds-a"), temp("ds-b"));
+    let cfg = small_config();
+    let ma = dataset::generate(&cfg, &a, &|_, _| {}).unwrap();
+    let mb = dataset::generate(&cfg, &b, &|_, _| {}).unwrap();
+    assert_eq!(ma.shards, mb.shards);
+    assert_eq!(ma.shards.len(), 3 * 2 * 3);
+    for s in &ma.shards {
+        // Same tensors and metadata (the header's key order is not fixed by safetensors).
+        let (fa, fb) = (
+            std::fs::read(a.join(&s.file)).unwrap(),
+            std::fs::read(b.join(&s.file)).unwrap(),
+        );
+        let (ta, tb) = (
+            dhoit_runtime::tensors::File::parse(&fa).unwrap(),
+            dhoit_runtime::tensors::File::parse(&fb).unwrap(),
+        );
+        assert!(
+            ta.f32("features", None).unwrap() == tb.f32("features", None).unwrap(),
+            "{}",
+            s.file
+        );
+        assert!(
+            ta.f32("target", None).unwrap() == tb.f32("target", None).unwrap(),
+            "{}",
+            s.file
+        );
+        assert!(ta.metadata == tb.metadata, "{}", s.file);
+        // About half of the covered pixels are sampled.
+        let share = s.samples as f64 / s.covered_pixels as f64;
+        assert!((0.3..0.7).contains(&share), "{share}");
+    }
+    let (_, samples) = dataset::load(&a).unwrap();
+    assert_eq!(samples.len(), ma.samples);
+    assert!(samples.target.iter().all(|t| (0.0..=1.0).contains(t)));
+    // With every fragment in budget the target is n / max n.
+    let all = ma.shards.iter().find(|s| s.budget == "all").unwrap();
+    assert_eq!(all.budget_fragments, all.fragments);
+    // A directory without a manifest is refused.
+    std::fs::remove_file(a.join(dataset::MANIFEST)).unwrap();
+    let e = dataset::load(&a).unwrap_err().to_string();
+    assert!(e.contains("manifest.json"), "{e}");
+}
+
+fn tiny_data(seed: u64, n: usize) -> dataset::Samples {
+    let mut rng = Rng::new(seed);
+    let mut s = dataset::Samples {
+        scenes: vec!["a".into(), "b".into()],
+        ..Default::default()
+    };
+    for i in 0..n {
+        let f: [f32; FEATURES] = std::array::from_fn(|_| rng.f32());
+        // A learnable target: a smooth function of two features.
+        s.target.push((0.2 + 0.6 * f[0] * f[3]).clamp(0.0, 1.0));
+        s.features.push(f);
+        s.scene.push((i % 4 == 0) as u16);
+    }
+    s
+}
+
+fn quick(seed: u64, epochs: usize) -> TrainConfig {
+    TrainConfig {
+        epochs,
+        lr: 0.05,
+        batch: 64,
+        momentum: 0.9,
+        hidden: [32, 16],
+        seed,
+        validation_scenes: vec!["b".into()],
+        ..TrainConfig::default()
+    }
+}
+
+#[test]
+fn seeded_training_is_reproducible_and_the_loss_falls() {
+    let data = tiny_data(1, 2000);
+    let a = trainer::train(&quick(7, 6), &data, &mut |_, _| {}).unwrap();
+    let b = trainer::train(&quick(7, 6), &data, &mut |_, _| {}).unwrap();
+    assert_eq!(a.mlp, b.mlp, "same seed, same weights");
+    assert_eq!(
+        a.history.iter().map(|e| e.train_mse).collect::<Vec<_>>(),
+        b.history.iter().map(|e| e.train_mse).collect::<Vec<_>>()
+    );
+    let c = trainer::train(&quick(8, 6), &data, &mut |_, _| {}).unwrap();
+    assert_ne!(a.mlp, c.mlp, "another seed, other weights");
+    let first = a.history.first().unwrap().train_mse;
+    let last = a.history.last().unwrap().train_mse;
+    assert!(last < 0.5 * first, "training loss falls: {first} -> {last}");
+    assert!(a.history[a.best_epoch].validation_mse <= a.history[0].validation_mse);
+    assert_eq!(a.validation_samples, 500);
+}
+
+#[test]
+fn l1_and_l2_terms_follow_their_formulas() {
+    // A tiny model with known weights: fc1 [12,2], fc2 [2,2], out [2,1].
+    let mut m = Mlp::random_sized(3, 2, 2);
+    m.w1 = (0..24).map(|i| (i as f32 - 11.5) * 0.1).collect();
+    m.w2 = vec![0.5, -1.5, 2.0, -0.25];
+    let device = cpu_device(true);
+    let net = ImportanceNet::from_mlp(&m, &device);
+    let x = Tensor::<2>::from_data(
+        TensorData::new(vec![0.3f32; 2 * FEATURES], [2, FEATURES]),
+        &device,
+    );
+    let y = Tensor::<2>::from_data(TensorData::new(vec![0.25f32, 0.75], [2, 1]), &device);
+    let value = |t: Tensor<1>| t.into_data().try_into_vec::<f32>().unwrap()[0] as f64;
+    let (base, mse0, reg0) = trainer::loss(&net, x.clone(), y.clone(), 0.0, 0.0);
+    let (l1_only, _, _) = trainer::loss(&net, x.clone(), y.clone(), 0.01, 0.0);
+    let (both, mse, reg) = trainer::loss(&net, x.clone(), y.clone(), 0.01, 0.1);
+    let (base, mse0, reg0) = (value(base), value(mse0), value(reg0));
+    let (l1_only, both, mse, reg) = (value(l1_only), value(both), value(mse), value(reg));
+    // By hand: sum |W1| = 0.1 * 2 * (0.5 + 1.5 + ... + 11.5) = 14.4; sum W2^2 = 6.5625.
+    let sum_abs_w1: f64 = (0..24).map(|i| ((i as f64 - 11.5) * 0.1).abs()).sum();
+    assert!((sum_abs_w1 - 14.4).abs() < 1e-9);
+    let sum_sq_w2 = 0.25 + 2.25 + 4.0 + 0.0625;
+    assert_eq!(reg0, 0.0);
+    assert!((l1_only - base - 0.01 * sum_abs_w1).abs() < 1e-5);
+    assert!((both - base - 0.01 * sum_abs_w1 - 0.1 * sum_sq_w2).abs() < 1e-5);
+    assert!((reg - (0.01 * sum_abs_w1 + 0.1 * sum_sq_w2)).abs() < 1e-5);
+    assert_eq!(mse, mse0);
+    // And the MSE is the mean over the batch of (prediction - target)^2, by the runtime twin.
+    let p: Vec<f32> = (0..2).map(|_| m.forward(&[0.3; FEATURES])).collect();
+    let hand = ((p[0] - 0.25).powi(2) + (p[1] - 0.75).powi(2)) as f64 / 2.0;
+    assert!((mse0 - hand).abs() < 1e-6, "{mse0} vs {hand}");
+}
+
+#[test]
+fn trained_weights_load_in_the_runtime_and_agree_with_burn() {
+    let data = tiny_data(2, 1500);
+    let t = trainer::train(&quick(1, 3), &data, &mut |_, _| {}).unwrap();
+    let dir = temp("export");
+    let path = dir.join("w.safetensors");
+    t.mlp.save(&path, &Default::default()).unwrap();
+    let loaded = Mlp::load(&path).unwrap();
+    assert_eq!(loaded, t.mlp);
+    // Names, shapes and metadata per the contract.
+    let bytes = std::fs::read(&path).unwrap();
+    let st = safetensors::SafeTensors::deserialize(&bytes).unwrap();
+    let mut names = st.names();
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            "fc1.bias",
+            "fc1.weight",
+            "fc2.bias",
+            "fc2.weight",
+            "out.bias",
+            "out.weight"
+        ]
+    );
+    assert_eq!(st.tensor("fc1.weight").unwrap().shape(), [12, 32]);
+    assert_eq!(st.tensor("fc2.weight").unwrap().shape(), [32, 16]);
+    assert_eq!(st.tensor("out.weight").unwrap().shape(), [16, 1]);
+    let (_, meta) = safetensors::SafeTensors::read_metadata(&bytes).unwrap();
+    let meta = meta.metadata().clone().unwrap();
+    for key in ["format", "layout", "features", "input_mean", "input_std"] {
+        assert!(meta.contains_key(key), "{key}");
+    }
+    // Runtime twin vs burn inference on random features, including out-of-range ones.
+    let mut rng = Rng::new(4);
+    let rows: Vec<[f32; FEATURES]> = (0..3000)
+        .map(|_| std::array::from_fn(|_| rng.range(-1.0, 2.0)))
+        .collect();
+    let burn = model::predict(&loaded, &rows);
+    let max = rows
+        .iter()
+        .zip(&burn)
+        .map(|(r, b)| (loaded.forward(r) - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(max <= 1e-6, "max abs difference {max}");
+}
