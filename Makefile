@@ -6,7 +6,7 @@ RUN := $(CARGO) run --release --quiet --
 # Real glTF scenes for tests and evaluation, read in place (never copied into the repository).
 export DHOIT_SCENES ?= $(abspath ../shared/scenes)
 
-.PHONY: all setup demo test fmt lint check bench build
+.PHONY: all setup demo test fmt lint check bench build train golden eval
 
 all: demo
 
@@ -16,9 +16,26 @@ setup:
 build: setup
 	$(CARGO) build --release
 
-## The main job on built-in data: render a built-in scene with every CPU method, print a table.
+## The main job on built-in data: train the default network (when data/weights.safetensors is
+## missing), then render a built-in scene with it beside every baseline and print a table.
 demo: setup
-	$(RUN) compare --scene particles --res 640x480 --budget 2fpp --out out/demo
+	@test -f data/weights.safetensors || $(MAKE) train
+	$(RUN) compare --scene particles --res 640x480 --budget 1fpp,2fpp --out out/demo
+
+## Train the default network from the built-in scenes: data/weights.safetensors, data/config.json,
+## data/loss.png (the dataset is generated into data/generated/, which git ignores).
+train: build
+	$(CARGO) run --release --quiet -p dhoit-train
+
+## Regression data for the committed weights: a small features file and its predictions.
+golden: build
+	$(RUN) features --scene hair --view 2 --res 160x120 --budget 2fpp --limit 512 --out data/golden/features.safetensors
+	$(RUN) predict --weights data/weights.safetensors --input data/golden/features.safetensors --output data/golden/predictions.safetensors
+
+## Quality table on scenes never used for training: the built-ins (seed 1) and ../shared/scenes.
+EVAL_SCENES := spheres,plates,particles,hair,foliage,shells,$(DHOIT_SCENES)/StanfordBunny/StanfordBunny.glb,$(DHOIT_SCENES)/GlassVaseFlowers/GlassVaseFlowers.glb,$(DHOIT_SCENES)/FlightHelmet/glTF/FlightHelmet.gltf,$(DHOIT_SCENES)/ToyCar/glTF/ToyCar.gltf,$(DHOIT_SCENES)/TransmissionTest/TransmissionTest.glb
+eval: build
+	$(RUN) compare --scene $(EVAL_SCENES) --view 1,3 --res 320x240 --budget 0.25fpp,0.5fpp,1fpp,2fpp,4fpp --methods fkb,vkb,dkb,optimal,mlab --out out/eval
 
 fmt:
 	$(CARGO) fmt --all -- --check

@@ -62,6 +62,8 @@ enum Command {
     Train(dhoit_train::cli::TrainArgs),
     /// Predict importance for a features file with burn inference.
     Predict(dhoit_train::cli::PredictArgs),
+    /// Export the 12 network features of one view's covered pixels (for predict).
+    Features(FeaturesArgs),
     /// Measure CPU rasterization, compositing, allocation and training throughput; prints JSON.
     Bench(bench::BenchArgs),
 }
@@ -119,6 +121,26 @@ struct RenderArgs {
     /// Also write a heat map of the per-pixel k actually used (min(k, n)).
     #[arg(long)]
     kmap: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct FeaturesArgs {
+    /// Built-in scene name (optionally `name:seed`) or path to a .gltf/.glb file.
+    #[arg(long, default_value = "particles")]
+    scene: String,
+    #[arg(long, default_value_t = 0)]
+    view: usize,
+    #[command(flatten)]
+    common: ViewArgs,
+    /// Budget the features describe (feature 9 is F / sum n), for the DKB layout.
+    #[arg(long, default_value = "2fpp")]
+    budget: String,
+    /// Keep at most this many covered pixels, evenly spaced (all by default).
+    #[arg(long)]
+    limit: Option<usize>,
+    /// Output: safetensors with `features` f32 [N,12] and `pixel` u32 [N].
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(Args)]
@@ -298,6 +320,46 @@ fn render(a: RenderArgs) -> Result<()> {
     Ok(())
 }
 
+fn features(a: FeaturesArgs) -> Result<()> {
+    let budget = Budget::parse(&a.budget)?;
+    let scene = load_scene(&a.scene, &a.common)?;
+    let (fl, _) = rasterize_view(&scene, a.view, &a.common)?;
+    let (_, f) = budget.resolve(&dhoit_runtime::budget::DKB, fl.pixel_count() as u64)?;
+    let feats = dhoit_runtime::importance::features(&fl, f);
+    let covered: Vec<usize> = (0..fl.pixel_count()).filter(|&p| fl.count(p) > 0).collect();
+    let keep: Vec<usize> = match a.limit {
+        Some(l) if l > 0 && l < covered.len() => {
+            (0..l).map(|i| covered[i * covered.len() / l]).collect()
+        }
+        Some(0) => bail!("--limit must be positive"),
+        _ => covered,
+    };
+    let rows: Vec<f32> = keep.iter().flat_map(|&p| feats[p]).collect();
+    let pixels: Vec<u32> = keep.iter().map(|&p| p as u32).collect();
+    let meta = std::collections::HashMap::from([
+        ("scene".to_string(), scene.name.clone()),
+        ("view".to_string(), a.view.to_string()),
+        ("width".to_string(), fl.width.to_string()),
+        ("height".to_string(), fl.height.to_string()),
+        ("budget_fragments".to_string(), f.to_string()),
+    ]);
+    use dhoit_runtime::tensors::{self, Entry};
+    tensors::write(
+        &a.out,
+        &[
+            Entry::f32(
+                "features",
+                vec![keep.len(), dhoit_runtime::importance::FEATURES],
+                &rows,
+            ),
+            Entry::u32("pixel", vec![keep.len()], &pixels),
+        ],
+        meta,
+    )?;
+    println!("{} pixels' features -> {}", keep.len(), a.out.display());
+    Ok(())
+}
+
 /// A file-name-safe label for a scene (its file stem for paths).
 fn scene_label(name: &str) -> String {
     let stem = Path::new(name)
@@ -473,6 +535,38 @@ fn compare(a: CompareArgs) -> Result<()> {
             }
         }
     }
+    // Summary: mean MSE of each method per budget over every frame.
+    let mut summary = String::from("\nmean MSE over all frames\n");
+    let mut md_sum = String::from("\n## Summary: mean MSE over all frames\n\n| budget |");
+    let names: Vec<&str> = methods
+        .iter()
+        .filter(|&&m| m != Method::Abuffer)
+        .map(|m| m.name())
+        .collect();
+    summary += &format!("{:<10}", "budget");
+    for n in &names {
+        summary += &format!(" {n:>16}");
+        md_sum += &format!(" {n} |");
+    }
+    md_sum += &format!("\n|---|{}\n", "---|".repeat(names.len()));
+    for budget in &budgets {
+        let b = budget.to_string();
+        summary += &format!("\n{b:<10}");
+        md_sum += &format!("| {b} |");
+        for n in &names {
+            let v: Vec<f64> = records
+                .iter()
+                .filter(|r| r["budget"] == b.as_str() && r["method"] == *n)
+                .filter_map(|r| r["mse"].as_f64())
+                .collect();
+            let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+            summary += &format!(" {mean:>16.4e}");
+            md_sum += &format!(" {mean:.4e} |");
+        }
+        md_sum += "\n";
+    }
+    println!("{summary}");
+    md += &md_sum;
     let text = serde_json::to_string_pretty(&records)?;
     dhoit_runtime::tensors::write_atomic(&a.out.join("report.json"), text.as_bytes())?;
     dhoit_runtime::tensors::write_atomic(&a.out.join("report.md"), md.as_bytes())?;
@@ -530,6 +624,7 @@ fn main() {
         Command::Dataset(a) => dhoit_train::cli::dataset(a).map_err(Into::into),
         Command::Train(a) => dhoit_train::cli::train(a).map_err(Into::into),
         Command::Predict(a) => dhoit_train::cli::predict(a).map_err(Into::into),
+        Command::Features(a) => features(a),
         Command::Bench(a) => bench::run(a),
     };
     if let Err(e) = result {

@@ -160,6 +160,7 @@ fn allocation_methods_render_from_the_command_line() {
         "greedy-paper",
         "greedy-increase",
         "mlab",
+        "dkb",
     ] {
         let out = dir.join(format!("{method}.png"));
         let kmap = dir.join(format!("{method}-k.png"));
@@ -332,6 +333,7 @@ fn compare_prints_a_table_and_writes_a_report() {
         "greedy-paper",
         "greedy-increase",
         "mlab",
+        "dkb",
     ] {
         assert!(stdout.contains(m), "{stdout}");
         assert!(dir.join(format!("shells_v0_2fpp_{m}.png")).is_file(), "{m}");
@@ -339,7 +341,11 @@ fn compare_prints_a_table_and_writes_a_report() {
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
     let records = report.as_array().unwrap();
-    assert_eq!(records.len(), 7, "the A-buffer reference and six methods");
+    assert_eq!(
+        records.len(),
+        8,
+        "every method, dkb with the committed default weights"
+    );
     assert!(dir.join("report.md").is_file());
     assert!(std::fs::read_dir(&dir).unwrap().any(|e| {
         e.unwrap()

@@ -47,6 +47,7 @@ pub const DKB: Layout = Layout {
         ("features.far", 4),
         ("features.nearest_color", 8),
         ("features.color_sum", 12),
+        ("features.luma_sums", 8),
         ("oit.importance", 4),
         ("oit.k", 4),
         ("oit.offsets", 4),
@@ -58,7 +59,7 @@ pub const DKB: Layout = Layout {
     fixed: &[
         ("mlp.weights", MLP_UNIFORM_BYTES),
         ("params", PARAMS_BYTES),
-        ("features.totals", 16),
+        ("features.totals", 24),
     ],
     scan: true,
 };

@@ -7,7 +7,7 @@ use crate::raster::FragmentLists;
 
 /// Names of the network's inputs, in order.
 pub const FEATURE_NAMES: [&str; 12] = [
-    "count_share",
+    "count_rel",
     "near_depth",
     "far_depth",
     "near_r",
@@ -17,8 +17,8 @@ pub const FEATURE_NAMES: [&str; 12] = [
     "mean_g",
     "mean_b",
     "budget_share",
-    "frame_min_depth",
-    "frame_max_depth",
+    "log2_count",
+    "luma_std",
 ];
 pub const FEATURES: usize = 12;
 
@@ -43,6 +43,14 @@ pub struct PixelStats {
     pub nearest_primitive: u32,
     /// Sum of the fragments' RGB in fixed point.
     pub color_sum: [u32; 3],
+    /// Sums of the fragments' luminance and squared luminance in fixed point.
+    pub luma_sum: u32,
+    pub luma_sq_sum: u32,
+}
+
+/// Rec. 709 luminance of a linear colour.
+pub fn luma(c: [f32; 4]) -> f32 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
 
 /// The features pass: per-pixel statistics (CPU twin of the geometry pass with atomics).
@@ -68,6 +76,9 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
                 for c in 0..3 {
                     s.color_sum[c] = s.color_sum[c].wrapping_add(to_fixed(fl.rgba[i][c]));
                 }
+                let l = luma(fl.rgba[i]);
+                s.luma_sum = s.luma_sum.wrapping_add(to_fixed(l));
+                s.luma_sq_sum = s.luma_sq_sum.wrapping_add(to_fixed(l * l));
             }
             if s.count == 0 {
                 s.near = 0.0;
@@ -77,42 +88,50 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
         .collect()
 }
 
-/// Frame totals (the reduction pass): sum of n, min nearest depth, max farthest depth over
-/// covered pixels.
+/// Frame totals (the reduction pass): sum of n, covered pixels and max n.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Totals {
     pub fragments: u64,
-    pub min_depth: f32,
-    pub max_depth: f32,
+    pub covered: u64,
     pub max_count: u32,
 }
 
 pub fn totals(stats: &[PixelStats]) -> Totals {
     let mut t = Totals {
         fragments: 0,
-        min_depth: 1.0,
-        max_depth: 0.0,
+        covered: 0,
         max_count: 0,
     };
     for s in stats.iter().filter(|s| s.count > 0) {
         t.fragments += s.count as u64;
-        t.min_depth = t.min_depth.min(s.near);
-        t.max_depth = t.max_depth.max(s.far);
+        t.covered += 1;
         t.max_count = t.max_count.max(s.count);
     }
     t
 }
 
-/// The 12 features of one covered pixel (DESIGN.md order): `n / sum n`, nearest and farthest
-/// depth, nearest fragment RGB (RGBA8, as the key stores it), mean fragment RGB, `F / sum n`,
-/// the frame's min nearest depth and max farthest depth.
+/// The 12 features of one covered pixel, in order:
+/// 0 `n / mean n` over covered pixels (relative depth complexity, the same at every
+/// resolution); 1, 2 nearest and farthest window depth; 3-5 the nearest fragment's RGB (RGBA8,
+/// as the capture key stores it); 6-8 the mean fragment RGB; 9 `F / sum n` (the budget's
+/// share of the frame's fragments); 10 `log2 n`; 11 the standard deviation of the fragments'
+/// luminance.
+///
+/// The paper's list has `n / sum n` first and the frame's min and max depth last. `n / sum n`
+/// shrinks with resolution and, with the frame depth range, tells the network nothing about
+/// the absolute depth complexity or how much the fragments differ, which decide how many of
+/// them a pixel needs (the hybrid error of fragments that share one colour is zero); the
+/// replacements carry that, and measured better (see the README).
 pub fn pixel_features(s: &PixelStats, t: &Totals, budget_fragments: u64) -> [f32; FEATURES] {
     let total = t.fragments.max(1) as f32;
     let near = unpack_rgba8(s.nearest_key as u32);
     let n = s.count.max(1) as f32;
     let mean = s.color_sum.map(|c| c as f32 / COLOR_SUM_SCALE / n);
+    let mean_n = total / t.covered.max(1) as f32;
+    let luma_mean = s.luma_sum as f32 / COLOR_SUM_SCALE / n;
+    let luma_var = (s.luma_sq_sum as f32 / COLOR_SUM_SCALE / n - luma_mean * luma_mean).max(0.0);
     [
-        s.count as f32 / total,
+        s.count as f32 / mean_n,
         s.near,
         s.far,
         near[0],
@@ -122,8 +141,8 @@ pub fn pixel_features(s: &PixelStats, t: &Totals, budget_fragments: u64) -> [f32
         mean[1],
         mean[2],
         budget_fragments as f32 / total,
-        t.min_depth,
-        t.max_depth,
+        n.log2(),
+        luma_var.sqrt(),
     ]
 }
 

@@ -18,6 +18,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 pub const FORMAT: &str = "dhoit-mlp-1";
+
 pub const LAYOUT: &str = "linear-in-out";
 /// Default hidden layer sizes.
 pub const H1: usize = 128;

@@ -99,19 +99,12 @@ fn features_match_their_definitions() {
     let feats = importance::features(&fl, f_budget);
     let total = fl.fragment_count() as f32;
     let covered: Vec<usize> = (0..fl.pixel_count()).filter(|&p| fl.count(p) > 0).collect();
-    let gmin = covered
-        .iter()
-        .map(|&p| fl.range(p).map(|i| fl.depth[i]).fold(1.0, f32::min))
-        .fold(1.0, f32::min);
-    let gmax = covered
-        .iter()
-        .map(|&p| fl.range(p).map(|i| fl.depth[i]).fold(0.0, f32::max))
-        .fold(0.0, f32::max);
+    let mean_n = total / covered.len() as f32;
     for &p in &covered {
         let r = fl.range(p);
         let x = &feats[p];
         let n = r.len() as f32;
-        assert_eq!(x[0], n / total);
+        assert_eq!(x[0], n / mean_n);
         let nearest = r
             .clone()
             .min_by(|&a, &b| fl.depth[a].total_cmp(&fl.depth[b]))
@@ -125,7 +118,11 @@ fn features_match_their_definitions() {
             assert!((x[6 + c] - mean).abs() <= 0.5 / importance::COLOR_SUM_SCALE + 1e-6);
         }
         assert_eq!(x[9], f_budget as f32 / total);
-        assert_eq!((x[10], x[11]), (gmin, gmax));
+        assert_eq!(x[10], n.log2());
+        let lum: Vec<f32> = r.clone().map(|i| importance::luma(fl.rgba[i])).collect();
+        let lm = lum.iter().sum::<f32>() / n;
+        let sd = (lum.iter().map(|l| (l - lm).powi(2)).sum::<f32>() / n).sqrt();
+        assert!((x[11] - sd).abs() < 0.02, "luminance std {} vs {sd}", x[11]);
     }
 }
 

@@ -22,7 +22,8 @@ pub struct DatasetArgs {
     /// Output directory (shards + manifest.json).
     #[arg(long, default_value = DEFAULT_DATA)]
     pub out: PathBuf,
-    /// Scenes, comma separated: built-in names or .gltf/.glb paths (default: every built-in).
+    /// Scenes, comma separated: built-in names (with a seed: `particles:7`) or .gltf/.glb
+    /// paths. Default: every built-in generator at seeds 2, 3 (training) and 4 (validation).
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<String>,
     /// Resolution WIDTHxHEIGHT.
@@ -136,13 +137,13 @@ pub struct TrainArgs {
     /// Hidden layer sizes, H1,H2.
     #[arg(long, value_delimiter = ',', default_value = "128,64")]
     pub hidden: Vec<usize>,
-    /// SGD momentum (0 = plain SGD).
+    /// SGD momentum (0 = plain SGD, as in the paper).
     #[arg(long, default_value_t = TrainConfig::default().momentum)]
     pub momentum: f64,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Scenes held out for validation, comma separated.
-    #[arg(long, value_delimiter = ',', default_value = "spheres,plates")]
+    /// Scenes held out for validation, comma separated (default: the seed-4 built-ins).
+    #[arg(long, value_delimiter = ',')]
     pub validation: Vec<String>,
 }
 
@@ -163,7 +164,11 @@ pub fn train(a: TrainArgs) -> Result<()> {
         hidden: [h1, h2],
         momentum: a.momentum,
         seed: a.seed,
-        validation_scenes: a.validation.clone(),
+        validation_scenes: if a.validation.is_empty() {
+            dataset::default_validation()
+        } else {
+            a.validation.clone()
+        },
     };
     let data_dir = match &a.data {
         Some(d) => d.clone(),

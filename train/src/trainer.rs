@@ -32,7 +32,8 @@ pub struct TrainConfig {
     pub l2: f64,
     /// Hidden layer sizes (128, 64 in the paper).
     pub hidden: [usize; 2],
-    /// SGD momentum (0: plain SGD as in the paper).
+    /// SGD momentum. The paper uses plain SGD (0); 0.9 reached a lower loss in the same epochs
+    /// and beat VKB on held-out scenes where plain SGD did not (README).
     pub momentum: f64,
     pub seed: u64,
     /// Scenes held out for validation (never trained on).
@@ -42,15 +43,15 @@ pub struct TrainConfig {
 impl Default for TrainConfig {
     fn default() -> Self {
         TrainConfig {
-            epochs: 30,
+            epochs: 40,
             lr: 1e-3,
             batch: 512,
             l1: 1e-6,
             l2: 1e-5,
             hidden: [mlp::H1, mlp::H2],
-            momentum: 0.0,
+            momentum: 0.9,
             seed: 0,
-            validation_scenes: vec!["spheres".into(), "plates".into()],
+            validation_scenes: crate::dataset::default_validation(),
         }
     }
 }

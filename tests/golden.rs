@@ -1,0 +1,130 @@
+//! Regression of the committed default weights: their predictions on the committed golden
+//! features must not change, through the runtime's twin, burn, and the `predict` command.
+
+use dhoit_runtime::mlp::Mlp;
+use dhoit_runtime::tensors::{self, Entry};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn golden() -> (Mlp, Vec<[f32; 12]>, Vec<f32>) {
+    let mlp =
+        Mlp::load(&root().join("data/weights.safetensors")).expect("committed default weights");
+    let rows =
+        dhoit_train::cli::read_features(&root().join("data/golden/features.safetensors")).unwrap();
+    let bytes = std::fs::read(root().join("data/golden/predictions.safetensors")).unwrap();
+    let file = tensors::File::parse(&bytes).unwrap();
+    let (_, pred) = file.f32("importance", Some(&[rows.len()])).unwrap();
+    assert!(
+        rows.len() >= 256,
+        "a golden set worth the name: {} rows",
+        rows.len()
+    );
+    (mlp, rows, pred)
+}
+
+fn max_diff(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn the_runtime_twin_reproduces_the_golden_predictions() {
+    let (mlp, rows, pred) = golden();
+    let twin: Vec<f32> = rows.iter().map(|r| mlp.forward(r)).collect();
+    let d = max_diff(&twin, &pred);
+    assert!(d <= 1e-6, "runtime twin differs from golden by {d}");
+    // The predictions are not degenerate: they spread over a range.
+    let (lo, hi) = pred
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    assert!(hi - lo > 0.05, "golden predictions span {lo}..{hi}");
+}
+
+#[test]
+fn burn_reproduces_the_golden_predictions() {
+    let (mlp, rows, pred) = golden();
+    let d = max_diff(&dhoit_train::model::predict(&mlp, &rows), &pred);
+    assert!(d <= 1e-6, "burn differs from golden by {d}");
+}
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("dhoit-golden-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn the_predict_command_reproduces_them_and_refuses_bad_features() {
+    let (_, rows, pred) = golden();
+    let dir = temp("predict");
+    let out = dir.join("pred.safetensors");
+    let run = |input: &Path, out: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_dhoit"))
+            .args(["predict", "--weights"])
+            .arg(root().join("data/weights.safetensors"))
+            .arg("--input")
+            .arg(input)
+            .arg("--output")
+            .arg(out)
+            .args(["--device", "cpu"])
+            .output()
+            .unwrap()
+    };
+    let o = run(&root().join("data/golden/features.safetensors"), &out);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let bytes = std::fs::read(&out).unwrap();
+    let (_, got) = tensors::File::parse(&bytes)
+        .unwrap()
+        .f32("importance", Some(&[rows.len()]))
+        .unwrap();
+    assert!(max_diff(&got, &pred) <= 1e-6);
+    // Non-finite and misshapen features: a clear error, no output.
+    let mut flat: Vec<f32> = rows.iter().flatten().copied().collect();
+    flat[5] = f32::NAN;
+    let nan = dir.join("nan.safetensors");
+    tensors::write(
+        &nan,
+        &[Entry::f32("features", vec![rows.len(), 12], &flat)],
+        Default::default(),
+    )
+    .unwrap();
+    let never = dir.join("never.safetensors");
+    let o = run(&nan, &never);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("non-finite feature at row 0, column 5"));
+    let shape = dir.join("shape.safetensors");
+    tensors::write(
+        &shape,
+        &[Entry::f32("features", vec![rows.len() * 2, 6], &flat)],
+        Default::default(),
+    )
+    .unwrap();
+    let o = run(&shape, &never);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("expected [N, 12]"));
+    assert!(!never.exists());
+}
+
+#[test]
+fn dkb_renders_with_the_default_weights() {
+    let dir = temp("dkb");
+    let out = dir.join("dkb.png");
+    let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
+        .current_dir(root())
+        .args([
+            "render", "--scene", "hair", "--res", "96x72", "--method", "dkb", "--budget", "1fpp",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.is_file());
+}
