@@ -108,8 +108,22 @@ pub fn run(a: BenchArgs) -> Result<()> {
             "greedy_increase_total": rep.greedy_increase_total, "hull_total": rep.hull_total,
         }));
     }
+    // The network: a training step at batch 512, burn inference, the runtime's plain-Rust twin.
+    let train_sps = dhoit_train::trainer::bench_training(512, 50);
+    let burn_sps = dhoit_train::trainer::bench_inference(200_000);
+    let twin = dhoit_runtime::mlp::Mlp::random(3);
+    let feats = vec![[0.5f32; 12]; 200_000];
+    let counts = vec![1u32; feats.len()];
+    let (t_twin, _) = best(a.repeat, || Ok(twin.importance(&feats, &counts)))?;
+    eprintln!("network: training {train_sps:.0} samples/s, burn inference {burn_sps:.0} samples/s");
+    let network = serde_json::json!({
+        "training_samples_per_s_batch_512": train_sps,
+        "burn_inference_samples_per_s": burn_sps,
+        "cpu_twin_inference_samples_per_s": feats.len() as f64 / t_twin,
+    });
     let report = serde_json::json!({
         "threads": rayon::current_num_threads(),
+        "network": network,
         "budget": budget.to_string(),
         "repeat": a.repeat,
         "cpu": results,

@@ -421,10 +421,19 @@ fn compare(a: CompareArgs) -> Result<()> {
                     ..Options::new(*budget, a.common.background)
                 };
                 let renderer = Renderer::new(&fl, options);
-                let frames: Vec<Frame> = methods
-                    .iter()
-                    .map(|&m| renderer.render(m))
-                    .collect::<Result<_, _>>()?;
+                // A method the budget cannot hold (FKB and MLAB need a slot for every pixel) is
+                // reported and left out of this frame; any other error stops the run.
+                let mut frames: Vec<Frame> = Vec::new();
+                let mut skipped: Vec<String> = Vec::new();
+                for &m in &methods {
+                    match renderer.render(m) {
+                        Ok(f) => frames.push(f),
+                        Err(e @ dhoit_runtime::Error::Budget(..)) if m != Method::Abuffer => {
+                            skipped.push(format!("{}: {e}", m.name()));
+                        }
+                        Err(e) => return Err(e.into()),
+                    }
+                }
                 let reference = frames[0].image.clone();
                 let title = format!(
                     "{} view {view}, {}x{}, budget {budget}: {} fragments, max depth {}",
@@ -514,6 +523,10 @@ fn compare(a: CompareArgs) -> Result<()> {
                     }
                     records.push(rec);
                 }
+                for sk in &skipped {
+                    println!("not run: {sk}");
+                    md += &format!("\nnot run: {sk}\n");
+                }
                 if let Some(rep) = frames.iter().find_map(|f| f.optimal) {
                     let line = format!(
                         "optimal allocation: total error {:.4e} ({}), certified gap {:.2e} ({:.2}% of the total)",
@@ -559,7 +572,12 @@ fn compare(a: CompareArgs) -> Result<()> {
                 .filter(|r| r["budget"] == b.as_str() && r["method"] == *n)
                 .filter_map(|r| r["mse"].as_f64())
                 .collect();
-            let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+            if v.is_empty() {
+                summary += &format!(" {:>16}", "n/a");
+                md_sum += " n/a |";
+                continue;
+            }
+            let mean = v.iter().sum::<f64>() / v.len() as f64;
             summary += &format!(" {mean:>16.4e}");
             md_sum += &format!(" {mean:.4e} |");
         }

@@ -248,3 +248,44 @@ pub fn train(
         samples_per_second: (train_set.len() * config.epochs) as f64 / seconds,
     })
 }
+
+/// Training throughput: samples per second of `steps` SGD steps at `batch` (forward, loss,
+/// backward, optimiser step) on random features, after one warm-up step.
+pub fn bench_training(batch: usize, steps: usize) -> f64 {
+    let mut rng = Rng::new(1);
+    let device = cpu_device(true);
+    let m = Mlp::random(1);
+    let mut net = ImportanceNet::from_mlp(&m, &device);
+    let mut optim = SgdConfig::new()
+        .with_momentum(Some(MomentumConfig::new().with_momentum(0.9)))
+        .init();
+    let rows: Vec<[f32; FEATURES]> = (0..batch)
+        .map(|_| std::array::from_fn(|_| rng.f32()))
+        .collect();
+    let ys: Vec<f32> = (0..batch).map(|_| rng.f32()).collect();
+    let mut start = Instant::now();
+    for step in 0..=steps {
+        if step == 1 {
+            start = Instant::now();
+        }
+        let x = input_tensor(&rows, &m.mean, &m.std, &device);
+        let y = Tensor::from_data(TensorData::new(ys.clone(), [batch, 1]), &device);
+        let (total, mse, _) = loss(&net, x, y, 1e-6, 1e-5);
+        let grads = GradientsParams::from_grads(total.backward(), &net);
+        net = optim.step(1e-3, net, grads);
+        scalar(mse);
+    }
+    (batch * steps) as f64 / start.elapsed().as_secs_f64()
+}
+
+/// burn inference throughput: samples per second of [`predict`] over `n` random rows.
+pub fn bench_inference(n: usize) -> f64 {
+    let mut rng = Rng::new(2);
+    let m = Mlp::random(2);
+    let rows: Vec<[f32; FEATURES]> = (0..n).map(|_| std::array::from_fn(|_| rng.f32())).collect();
+    predict(&m, &rows[..n.min(1024)]);
+    let start = Instant::now();
+    let out = predict(&m, &rows);
+    assert_eq!(out.len(), n);
+    n as f64 / start.elapsed().as_secs_f64()
+}
