@@ -60,10 +60,21 @@ impl Image {
     }
 }
 
+/// A channel in [0, 1] as an 8-bit unorm, rounding half up (`floor(v 255 + 0.5)`, which WGSL
+/// computes identically; Rust's `round` and WGSL's `round` disagree on halves).
+pub fn to_unorm8(v: f32) -> u32 {
+    (v.clamp(0.0, 1.0) * 255.0 + 0.5).floor() as u32
+}
+
+/// A channel rounded to the nearest 8-bit value: fragment colours are stored as RGBA8, as the
+/// capture key holds them, so every method sees the same colours on the CPU and the GPU.
+pub fn quantize(v: f32) -> f32 {
+    to_unorm8(v) as f32 / 255.0
+}
+
 /// Packs non-premultiplied RGBA in [0, 1] into RGBA8 (R in the low byte).
 pub fn pack_rgba8(c: [f32; 4]) -> u32 {
-    let q = |v: f32| ((v.clamp(0.0, 1.0) * 255.0).round() as u32) & 0xff;
-    q(c[0]) | q(c[1]) << 8 | q(c[2]) << 16 | q(c[3]) << 24
+    to_unorm8(c[0]) | to_unorm8(c[1]) << 8 | to_unorm8(c[2]) << 16 | to_unorm8(c[3]) << 24
 }
 
 pub fn unpack_rgba8(v: u32) -> [f32; 4] {
@@ -115,32 +126,37 @@ pub fn exact_pixel(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
     exact_sorted(&v, bg)
 }
 
-/// Running sums of a hybrid tail: `sum C_i a_i`, `sum a_i` and the fragment count.
+/// Running sums of a hybrid tail in integers, exactly as the GPU's atomics add them: with
+/// 8-bit colour `c8` and alpha `a8`, `sum c8 a8` (units of 1/255^2), `sum a8` (units of 1/255)
+/// and the fragment count. Integer sums are exact and the same in every order; they hold up to
+/// [`crate::raster::MAX_FRAGMENTS_PER_PIXEL`] fragments.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Tail {
-    pub sum_ca: [f32; 3],
-    pub sum_a: f32,
+    pub sum_ca: [u32; 3],
+    pub sum_a: u32,
     pub count: u32,
 }
 
 impl Tail {
     pub fn add(&mut self, rgba: [f32; 4]) {
+        let a = to_unorm8(rgba[3]);
         for i in 0..3 {
-            self.sum_ca[i] += rgba[i] * rgba[3];
+            self.sum_ca[i] = self.sum_ca[i].wrapping_add(to_unorm8(rgba[i]) * a);
         }
-        self.sum_a += rgba[3];
+        self.sum_a = self.sum_a.wrapping_add(a);
         self.count += 1;
     }
 
-    /// The tail seen over the background: `a_tail C_tail + (1 - a_tail) C_bg`.
+    /// The tail seen over the background: `a_tail C_tail + (1 - a_tail) C_bg` with
+    /// `C_tail = sum C a / sum a`, `a_avg = sum a / t`, `a_tail = 1 - (1 - a_avg)^t`.
     pub fn over(&self, bg: [f32; 3]) -> [f32; 3] {
-        if self.count == 0 || self.sum_a <= 0.0 {
+        if self.count == 0 || self.sum_a == 0 {
             return bg;
         }
-        let a_avg = (self.sum_a / self.count as f32).min(1.0);
-        let a_tail = 1.0 - (1.0 - a_avg).powi(self.count.min(i32::MAX as u32) as i32);
-        let inv = 1.0 / self.sum_a;
-        std::array::from_fn(|i| a_tail * self.sum_ca[i] * inv + (1.0 - a_tail) * bg[i])
+        let a_avg = (self.sum_a as f32 / (255.0 * self.count as f32)).min(1.0);
+        let a_tail = 1.0 - (1.0 - a_avg).powf(self.count as f32);
+        let inv = 1.0 / (255.0 * self.sum_a as f32);
+        std::array::from_fn(|i| a_tail * (self.sum_ca[i] as f32 * inv) + (1.0 - a_tail) * bg[i])
     }
 }
 

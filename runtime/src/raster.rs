@@ -13,12 +13,14 @@
 //!
 //! Shading is fixed: a headlight Lambert term on the base colour,
 //! `rgb = vertex_rgb * (AMBIENT + (1 - AMBIENT) |n . v|)` with `n` the triangle's geometric
-//! normal and `v` the camera's forward direction; alpha is the vertex alpha. Each fragment keeps
+//! normal and `v` the camera's forward direction; alpha is the vertex alpha. Fragment colours
+//! are rounded to 8 bits per channel, the precision the capture key stores. Each fragment keeps
 //! `|n . v|` (`facing`, for the Fresnel importance) and its triangle's submission index.
 //!
 //! Within a pixel, fragments are listed in submission order. Work is split into bands of rows
 //! processed in parallel; the result does not depend on the number of threads.
 
+use crate::composite::quantize;
 use crate::error::{Error, Result};
 use crate::scene::{Camera, Scene};
 use glam::{Vec3, Vec4};
@@ -31,6 +33,9 @@ pub const AMBIENT: f32 = 0.3;
 const BAND_ROWS: u32 = 8;
 /// Largest accepted width or height.
 pub const MAX_DIM: u32 = 16384;
+/// Most fragments one pixel may hold: the tail's 32-bit integer sums add up to 255^2 per
+/// fragment.
+pub const MAX_FRAGMENTS_PER_PIXEL: u32 = 65_535;
 
 /// Per-pixel fragment lists: pixel `p = y * width + x` owns `offsets[p]..offsets[p + 1]`.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -285,11 +290,11 @@ fn raster_band(tris: &[ScreenTri], ids: &[u32], width: u32, y0: u32, y1: u32) ->
                 let pw = [l[0] * t.inv_w[0], l[1] * t.inv_w[1], l[2] * t.inv_w[2]];
                 let norm = 1.0 / (pw[0] + pw[1] + pw[2]);
                 let rgba = (t.rgba[0] * pw[0] + t.rgba[1] * pw[1] + t.rgba[2] * pw[2]) * norm;
-                let rgba = rgba.clamp(Vec4::ZERO, Vec4::ONE);
+                let rgba = rgba.clamp(Vec4::ZERO, Vec4::ONE).to_array().map(quantize);
                 frags.push(Frag {
                     pixel: (y - y0) * width + x as u32,
                     depth,
-                    rgba: rgba.to_array(),
+                    rgba,
                     prim: t.prim,
                     facing: t.facing,
                 });
@@ -347,6 +352,15 @@ pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result
         })
         .collect();
     let total: usize = outs.iter().map(|o| o.depth.len()).sum();
+    for (b, o) in outs.iter().enumerate() {
+        if let Some(i) = o.counts.iter().position(|&c| c > MAX_FRAGMENTS_PER_PIXEL) {
+            let (x, y) = (i as u32 % width, b as u32 * BAND_ROWS + i as u32 / width);
+            return Err(Error::Invalid(format!(
+                "pixel ({x}, {y}) has {} fragments; at most {MAX_FRAGMENTS_PER_PIXEL} fit one pixel",
+                o.counts[i]
+            )));
+        }
+    }
     if total > u32::MAX as usize {
         return Err(Error::Invalid(format!(
             "{total} fragments exceed the 2^32 a fragment list can index; lower the resolution"

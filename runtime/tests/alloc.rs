@@ -41,12 +41,14 @@ fn random_fragments(rng: &mut Rng, n: usize) -> Vec<Fragment> {
     (0..n)
         .map(|i| Fragment {
             depth: rng.f32(),
+            // Colours as the pipeline stores them: 8 bits a channel.
             rgba: [
                 rng.f32(),
                 rng.f32(),
                 rng.f32(),
                 [0.33, rng.f32(), 1.0, 0.0, 0.9][rng.below(5)],
-            ],
+            ]
+            .map(dhoit_runtime::composite::quantize),
             primitive: i as u32,
         })
         .collect()

@@ -3,17 +3,19 @@
 use dhoit_runtime::composite::{Fragment, exact_pixel, hybrid_pixel, mlab_pixel};
 use proptest::prelude::*;
 
+/// A channel as the pipeline stores it: 8 bits.
+fn unorm8() -> impl Strategy<Value = f32> {
+    (0u32..=255).prop_map(|v| v as f32 / 255.0)
+}
+
 fn fragment() -> impl Strategy<Value = Fragment> {
-    (
-        0.0f32..=1.0,
-        prop::array::uniform4(0.0f32..=1.0),
-        any::<u32>(),
-    )
-        .prop_map(|(depth, rgba, primitive)| Fragment {
+    (0.0f32..=1.0, prop::array::uniform4(unorm8()), any::<u32>()).prop_map(
+        |(depth, rgba, primitive)| Fragment {
             depth,
             rgba,
             primitive,
-        })
+        },
+    )
 }
 
 fn fragments(max: usize) -> impl Strategy<Value = Vec<Fragment>> {
@@ -44,7 +46,7 @@ proptest! {
 
     #[test]
     fn one_colour_one_opacity_is_exact_for_every_k(
-        n in 1usize..300, rgb in prop::array::uniform3(0.0f32..=1.0), a in 0.0f32..=1.0,
+        n in 1usize..300, rgb in prop::array::uniform3(unorm8()), a in unorm8(),
         depths in prop::collection::vec(0.0f32..=1.0, 300),
     ) {
         let f: Vec<Fragment> = (0..n)
@@ -76,7 +78,7 @@ proptest! {
     #[test]
     fn every_method_stays_finite_at_the_extremes(
         n in 0usize..3000,
-        alphas in prop::collection::vec(prop::sample::select(vec![0.0f32, 1e-7, 1.0, 0.5, 1.0 - 1e-7]), 3000),
+        alphas in prop::collection::vec(prop::sample::select(vec![0.0f32, 1e-7, 1.0, 0.5, 1.0 - 1e-7, 1.0 / 255.0]), 3000),
         equal_depths in any::<bool>(), k in 0usize..3000, m in 1usize..8,
     ) {
         let f: Vec<Fragment> = (0..n)
@@ -133,21 +135,22 @@ fn an_opaque_front_fragment_hides_everything_behind() {
 
 #[test]
 fn two_layer_exact_value_by_hand() {
-    // Front red at 0.5 over back blue at 0.5 over black: 0.5 red + 0.25 blue.
+    // Front red at 0.4 over back blue at 0.4 over black (0.4 = 102/255, exact in 8 bits):
+    // 0.4 red + 0.6 x 0.4 = 0.24 blue.
     let f = [
         Fragment {
             depth: 0.8,
-            rgba: [0.0, 0.0, 1.0, 0.5],
+            rgba: [0.0, 0.0, 1.0, 0.4],
             primitive: 0,
         },
         Fragment {
             depth: 0.2,
-            rgba: [1.0, 0.0, 0.0, 0.5],
+            rgba: [1.0, 0.0, 0.0, 0.4],
             primitive: 1,
         },
     ];
-    assert_eq!(exact_pixel(&f, [0.0; 3]), [0.5, 0.0, 0.25]);
-    // With k = 0 the tail averages the colours: C_tail = (0.5, 0, 0.5) / 1, a_tail = 0.75.
+    assert!(close(exact_pixel(&f, [0.0; 3]), [0.4, 0.0, 0.24], 1e-6));
+    // With k = 0 the tail averages the colours: C_tail = (0.5, 0, 0.5), a_tail = 1 - 0.6^2.
     let h = hybrid_pixel(&f, 0, [0.0; 3]);
-    assert!(close(h, [0.375, 0.0, 0.375], 1e-6), "{h:?}");
+    assert!(close(h, [0.32, 0.0, 0.32], 1e-6), "{h:?}");
 }
