@@ -13,8 +13,6 @@ use crate::error::{Error, Result};
 
 /// Bytes of one fragment slot: a 64-bit key, window depth bits high and RGBA8 low.
 pub const SLOT_BYTES: u64 = 8;
-/// Pixels per workgroup of the prefix-sum pass; one u32 of scratch per workgroup.
-pub const SCAN_BLOCK: u64 = 256;
 /// Bytes of the MLP's uniform buffer: 9,985 weights and 24 standardisation floats, in vec4s.
 pub const MLP_UNIFORM_BYTES: u64 = (9985u64 + 24).div_ceil(4) * 16;
 /// Bytes of the per-frame parameter uniform (resolution, budget, background, totals).
@@ -24,24 +22,30 @@ pub const PARAMS_BYTES: u64 = 256;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Layout {
     pub method: &'static str,
+    /// Bytes of one fragment slot (the A-buffer stores whole fragments).
+    pub slot_bytes: u64,
     /// Per-pixel buffers: (label, bytes per pixel).
     pub per_pixel: &'static [(&'static str, u64)],
     /// Fixed buffers: (label, bytes).
     pub fixed: &'static [(&'static str, u64)],
-    /// Whether a prefix sum over pixels (with per-workgroup scratch) is part of the pipeline.
+    /// Whether a prefix sum over pixels is part of the pipeline (it needs no scratch: one
+    /// workgroup carries the running sum).
     pub scan: bool,
 }
 
-const HYBRID_TAIL: [(&str, u64); 3] = [
-    ("oit.tail.color", 12),
-    ("oit.tail.alpha", 4),
-    ("oit.tail.count", 4),
-];
+/// The tail's integer sums: sum c8 a8 for r, g, b, sum a8, count (five u32 a pixel).
+const HYBRID_TAIL: (&str, u64) = ("oit.tail", 20);
+/// The geometry passes' render target (R8, never written): rasterization needs one.
+const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
+/// The prefix sums' final entry (offsets hold pixels + 1 values).
+const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 
 /// Deep k-buffer: network features, importance, k, offsets, tail, output.
 pub const DKB: Layout = Layout {
     method: "dkb",
+    slot_bytes: SLOT_BYTES,
     per_pixel: &[
+        RASTER_TARGET,
         ("features.count", 4),
         ("features.near", 4),
         ("features.far", 4),
@@ -51,15 +55,14 @@ pub const DKB: Layout = Layout {
         ("oit.importance", 4),
         ("oit.k", 4),
         ("oit.offsets", 4),
-        HYBRID_TAIL[0],
-        HYBRID_TAIL[1],
-        HYBRID_TAIL[2],
+        HYBRID_TAIL,
         ("oit.image", 16),
     ],
     fixed: &[
         ("mlp.weights", MLP_UNIFORM_BYTES),
         ("params", PARAMS_BYTES),
         ("features.totals", 24),
+        OFFSETS_END,
     ],
     scan: true,
 };
@@ -67,62 +70,72 @@ pub const DKB: Layout = Layout {
 /// Optimal allocation uploaded as k: the same capture and resolve as DKB, no network.
 pub const OPT: Layout = Layout {
     method: "optimal",
+    slot_bytes: SLOT_BYTES,
     per_pixel: &[
+        RASTER_TARGET,
         ("oit.k", 4),
         ("oit.offsets", 4),
-        HYBRID_TAIL[0],
-        HYBRID_TAIL[1],
-        HYBRID_TAIL[2],
+        HYBRID_TAIL,
         ("oit.image", 16),
     ],
-    fixed: &[("params", PARAMS_BYTES)],
+    fixed: &[("params", PARAMS_BYTES), OFFSETS_END],
     scan: true,
 };
 
 /// Variable k-buffer with importance maps (paper 002).
 pub const VKB: Layout = Layout {
     method: "vkb",
+    slot_bytes: SLOT_BYTES,
     per_pixel: &[
+        RASTER_TARGET,
         ("vkb.count", 4),
         ("vkb.nearest", 8),
         ("oit.importance", 4),
         ("oit.k", 4),
         ("oit.offsets", 4),
-        HYBRID_TAIL[0],
-        HYBRID_TAIL[1],
-        HYBRID_TAIL[2],
+        HYBRID_TAIL,
         ("oit.image", 16),
     ],
-    fixed: &[("params", PARAMS_BYTES), ("vkb.totals", 16)],
+    fixed: &[("params", PARAMS_BYTES), ("vkb.totals", 16), OFFSETS_END],
     scan: true,
 };
 
 /// Fixed k-buffer: k slots for every pixel, tail, output.
 pub const FKB: Layout = Layout {
     method: "fkb",
-    per_pixel: &[
-        HYBRID_TAIL[0],
-        HYBRID_TAIL[1],
-        HYBRID_TAIL[2],
-        ("oit.image", 16),
+    slot_bytes: SLOT_BYTES,
+    per_pixel: &[RASTER_TARGET, HYBRID_TAIL, ("oit.image", 16)],
+    // The capture and resolve passes bind a per-pixel k and offsets that FKB never reads.
+    fixed: &[
+        ("params", PARAMS_BYTES),
+        ("fkb.unused_k", 16),
+        ("fkb.unused_offsets", 16),
     ],
-    fixed: &[("params", PARAMS_BYTES)],
     scan: false,
 };
 
 /// MLAB: m rows of 8 bytes (RGB8 premultiplied, transmittance 8 bits, depth 32 bits), output.
 pub const MLAB: Layout = Layout {
     method: "mlab",
-    per_pixel: &[("oit.image", 16)],
+    slot_bytes: SLOT_BYTES,
+    per_pixel: &[RASTER_TARGET, ("oit.image", 16)],
     fixed: &[("params", PARAMS_BYTES)],
     scan: false,
 };
 
-/// A-buffer: counts, offsets, every fragment, output (not budgeted: exact memory).
+/// A-buffer: counts, offsets, store cursors, every fragment (depth, RGBA8, submission index,
+/// padding: 16 bytes), output. Not budgeted: exact memory.
 pub const ABUFFER: Layout = Layout {
     method: "abuffer",
-    per_pixel: &[("abuf.count", 4), ("abuf.offsets", 4), ("oit.image", 16)],
-    fixed: &[("params", PARAMS_BYTES)],
+    slot_bytes: 16,
+    per_pixel: &[
+        RASTER_TARGET,
+        ("abuf.count", 4),
+        ("abuf.offsets", 4),
+        ("abuf.cursor", 4),
+        ("oit.image", 16),
+    ],
+    fixed: &[("params", PARAMS_BYTES), OFFSETS_END],
     scan: true,
 };
 
@@ -133,21 +146,16 @@ impl Layout {
     }
     /// Bytes that do not depend on the number of slots: `|P| S_p + S_i` (scan scratch included).
     pub fn fixed_bytes(&self, pixels: u64) -> u64 {
-        let scan = if self.scan {
-            4 * pixels.div_ceil(SCAN_BLOCK)
-        } else {
-            0
-        };
-        pixels * self.per_pixel_bytes() + self.fixed.iter().map(|b| b.1).sum::<u64>() + scan
+        pixels * self.per_pixel_bytes() + self.fixed.iter().map(|b| b.1).sum::<u64>()
     }
     /// Bytes allocated with `slots` fragment slots.
     pub fn allocated_bytes(&self, pixels: u64, slots: u64) -> u64 {
-        self.fixed_bytes(pixels) + slots * SLOT_BYTES
+        self.fixed_bytes(pixels) + slots * self.slot_bytes
     }
     /// F(M): the fragment slots a budget of `bytes` leaves, or an error saying what is needed.
     pub fn fragment_budget(&self, bytes: u64, pixels: u64) -> Result<u64> {
         let fixed = self.fixed_bytes(pixels);
-        if bytes < fixed + pixels.min(1) * SLOT_BYTES {
+        if bytes < fixed + pixels.min(1) * self.slot_bytes {
             return Err(Error::Budget(
                 format_bytes(bytes),
                 format!(
@@ -158,11 +166,11 @@ impl Layout {
                     pixels,
                     self.per_pixel_bytes(),
                     format_bytes(fixed - pixels * self.per_pixel_bytes()),
-                    format_bytes(fixed + pixels * SLOT_BYTES)
+                    format_bytes(fixed + pixels * self.slot_bytes)
                 ),
             ));
         }
-        Ok((bytes - fixed) / SLOT_BYTES)
+        Ok((bytes - fixed) / self.slot_bytes)
     }
 }
 

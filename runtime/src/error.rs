@@ -27,6 +27,8 @@ pub enum Error {
     Dump { path: PathBuf, message: String },
     #[error("weights {path}: {message}")]
     Weights { path: PathBuf, message: String },
+    #[error("GPU: {0}")]
+    Gpu(String),
     #[error("image {path}: {message}")]
     Image { path: PathBuf, message: String },
 }

@@ -10,6 +10,7 @@ pub mod composite;
 pub mod dump;
 pub mod error;
 pub mod frame;
+pub mod gpu;
 pub mod image_io;
 pub mod importance;
 pub mod mlp;

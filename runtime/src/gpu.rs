@@ -1,0 +1,710 @@
+//! The wgpu renderer: the A-buffer and the k-buffer capture/resolve passes on any Vulkan, Metal
+//! or DX12 device (here Mesa's lavapipe), each pass the twin of a CPU function that the tests
+//! hold it to.
+//!
+//! Passes (shaders in `shaders/`, one file a pass, `common.wgsl` and, for geometry passes,
+//! `geometry.wgsl` prepended):
+//! - A-buffer: `abuffer_count` (geometry) -> `scan` (offsets) -> `abuffer_store` (geometry, exact
+//!   memory: the fragment pool is sized from the count) -> `abuffer_resolve` (sort and blend).
+//! - k-buffer: per-pixel k uploaded (or one k for all), `scan` (slot bases) -> `capture`
+//!   (geometry, lock-free 64-bit insertion, evicted fragments to integer tail sums) -> `resolve`.
+//!
+//! Every buffer a method's frame allocates is labelled after the [`crate::budget::Layout`] entry
+//! it realises and counted, so [`GpuFrame::allocated_bytes`] is what the device really holds.
+
+use crate::composite::Image;
+use crate::error::{Error, Result};
+use crate::raster::FragmentLists;
+use crate::scene::{Camera, Scene};
+use wgpu::util::DeviceExt;
+
+/// WGSL sources, embedded at build time.
+pub mod shaders {
+    pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+    pub const GEOMETRY: &str = include_str!("../../shaders/geometry.wgsl");
+    /// (name, source, is a geometry pass)
+    pub const PASSES: [(&str, &str, bool); 6] = [
+        (
+            "abuffer_count",
+            include_str!("../../shaders/abuffer_count.wgsl"),
+            true,
+        ),
+        ("scan", include_str!("../../shaders/scan.wgsl"), false),
+        (
+            "abuffer_store",
+            include_str!("../../shaders/abuffer_store.wgsl"),
+            true,
+        ),
+        (
+            "abuffer_resolve",
+            include_str!("../../shaders/abuffer_resolve.wgsl"),
+            false,
+        ),
+        ("capture", include_str!("../../shaders/capture.wgsl"), true),
+        ("resolve", include_str!("../../shaders/resolve.wgsl"), false),
+    ];
+
+    /// The full source of a pass: common code, the vertex stage for geometry passes, the pass.
+    pub fn source(name: &str) -> Option<String> {
+        let (_, src, geometry) = PASSES.iter().find(|p| p.0 == name)?;
+        Some(if *geometry {
+            format!("{COMMON}\n{GEOMETRY}\n{src}")
+        } else {
+            format!("{COMMON}\n{src}")
+        })
+    }
+}
+
+/// Features the pipeline cannot run without.
+pub fn required_features() -> wgpu::Features {
+    wgpu::Features::SHADER_INT64
+        | wgpu::Features::SHADER_INT64_ATOMIC_ALL_OPS
+        | wgpu::Features::TIMESTAMP_QUERY
+}
+
+/// A device and queue with the pipeline's features, and the compiled passes.
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    /// "name (backend, device type, driver)".
+    pub adapter: String,
+    timestamp_period: f32,
+    pipelines: Pipelines,
+}
+
+struct Pipelines {
+    count: wgpu::RenderPipeline,
+    store: wgpu::RenderPipeline,
+    capture: wgpu::RenderPipeline,
+    scan: wgpu::ComputePipeline,
+    abuffer_resolve: wgpu::ComputePipeline,
+    resolve: wgpu::ComputePipeline,
+}
+
+const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
+
+/// The per-frame uniform (matches `Params` in common.wgsl; padded to 256 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    view_proj: [[f32; 4]; 4],
+    forward: [f32; 4],
+    background: [f32; 4],
+    width: u32,
+    height: u32,
+    k_uniform: u32,
+    pixels: u32,
+    _pad: [u32; 36],
+}
+
+impl Gpu {
+    /// Opens the first adapter that has every required feature; the error names what the
+    /// adapters lack.
+    pub fn new() -> Result<Gpu> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        if adapters.is_empty() {
+            return Err(Error::Gpu(
+                "no GPU adapter found (on Debian, `apt-get install mesa-vulkan-drivers` provides lavapipe)".into(),
+            ));
+        }
+        let need = required_features();
+        let mut lacking = Vec::new();
+        let adapter = adapters.into_iter().find(|a| {
+            let missing = need - a.features();
+            if !missing.is_empty() {
+                lacking.push(format!("{} lacks {missing:?}", a.get_info().name));
+            }
+            missing.is_empty()
+        });
+        let Some(adapter) = adapter else {
+            return Err(Error::Gpu(format!(
+                "no adapter has the features dhoit needs: {}",
+                lacking.join("; ")
+            )));
+        };
+        let info = adapter.get_info();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("dhoit"),
+            required_features: need,
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .map_err(|e| Error::Gpu(format!("cannot open {}: {e}", info.name)))?;
+        let adapter_name = format!(
+            "{} ({:?}, {:?}, {} {})",
+            info.name, info.backend, info.device_type, info.driver, info.driver_info
+        );
+        let pipelines = Pipelines::new(&device)?;
+        Ok(Gpu {
+            timestamp_period: queue.get_timestamp_period(),
+            device,
+            queue,
+            adapter: adapter_name,
+            pipelines,
+        })
+    }
+}
+
+fn module(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
+    let src = shaders::source(name).expect("known pass");
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(name),
+        source: wgpu::ShaderSource::Wgsl(src.into()),
+    })
+}
+
+impl Pipelines {
+    fn new(device: &wgpu::Device) -> Result<Pipelines> {
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let geometry = |name: &str| {
+            let m = module(device, name);
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(name),
+                layout: None,
+                vertex: wgpu::VertexState {
+                    module: &m,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: None,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &m,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: TARGET_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::empty(),
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let compute = |name: &str| {
+            let m = module(device, name);
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: None,
+                module: &m,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let p = Pipelines {
+            count: geometry("abuffer_count"),
+            store: geometry("abuffer_store"),
+            capture: geometry("capture"),
+            scan: compute("scan"),
+            abuffer_resolve: compute("abuffer_resolve"),
+            resolve: compute("resolve"),
+        };
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(Error::Gpu(format!("shader or pipeline rejected: {e}")));
+        }
+        Ok(p)
+    }
+}
+
+/// How the k-buffer gets its k.
+#[derive(Clone, Copy, Debug)]
+pub enum Slots<'a> {
+    /// One k for every pixel (FKB).
+    Uniform(u32),
+    /// k per pixel, computed elsewhere (the optimal allocation, or any CPU allocation).
+    PerPixel(&'a [u32]),
+}
+
+/// What a GPU frame produced, read back.
+#[derive(Clone, Debug)]
+pub struct GpuFrame {
+    pub image: Image,
+    /// Milliseconds of each pass, from timestamp queries, in order.
+    pub pass_ms: Vec<(&'static str, f64)>,
+    /// Bytes of every buffer and target the method allocated for this frame.
+    pub allocated_bytes: u64,
+    /// A-buffer: the GPU's own fragments (sorted front to back within each pixel).
+    pub fragments: Option<FragmentLists>,
+    /// k-buffer: the slots (capture keys, front to back; `u64::MAX` where empty), their bases
+    /// (`pixels + 1` entries) and the tail sums (five per pixel).
+    pub slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
+}
+
+struct FrameBuffers<'a> {
+    gpu: &'a Gpu,
+    allocated: u64,
+}
+
+impl FrameBuffers<'_> {
+    fn storage(&mut self, label: &str, size: u64, counted: bool) -> wgpu::Buffer {
+        let size = size.max(16).next_multiple_of(4);
+        if counted {
+            self.allocated += size;
+        }
+        self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+    fn init(
+        &mut self,
+        label: &str,
+        bytes: &[u8],
+        usage: wgpu::BufferUsages,
+        counted: bool,
+    ) -> wgpu::Buffer {
+        if counted {
+            self.allocated += bytes.len() as u64;
+        }
+        self.gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: usage | wgpu::BufferUsages::COPY_SRC,
+            })
+    }
+}
+
+fn read_back(gpu: &Gpu, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>> {
+    let size = bytes.max(4).next_multiple_of(4);
+    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("readback"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    enc.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+    gpu.queue.submit([enc.finish()]);
+    let slice = staging.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |_| {});
+    gpu.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
+    let data = slice
+        .get_mapped_range()
+        .map_err(|e| Error::Gpu(format!("reading back: {e}")))?
+        .to_vec();
+    Ok(data[..bytes as usize].to_vec())
+}
+
+fn u32s(bytes: &[u8]) -> Vec<u32> {
+    bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
+}
+
+/// Timestamp queries around each pass.
+struct Timer {
+    set: wgpu::QuerySet,
+    names: std::cell::RefCell<Vec<&'static str>>,
+}
+
+impl Timer {
+    fn new(gpu: &Gpu, passes: u32) -> Timer {
+        Timer {
+            set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2 * passes,
+            }),
+            names: Default::default(),
+        }
+    }
+    fn next(&self, name: &'static str) -> (u32, u32) {
+        let mut names = self.names.borrow_mut();
+        names.push(name);
+        let i = 2 * (names.len() as u32 - 1);
+        (i, i + 1)
+    }
+    fn read(&self, gpu: &Gpu) -> Result<Vec<(&'static str, f64)>> {
+        let names = self.names.borrow();
+        let n = 2 * names.len() as u64;
+        let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("timestamps.resolve"),
+            size: 8 * n,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        enc.resolve_query_set(&self.set, 0..n as u32, &buf, 0);
+        gpu.queue.submit([enc.finish()]);
+        let raw = read_back(gpu, &buf, 8 * n)?;
+        let ticks: Vec<u64> = raw
+            .chunks_exact(8)
+            .map(|c| u64::from_le_bytes(c.try_into().expect("8")))
+            .collect();
+        Ok(names
+            .iter()
+            .enumerate()
+            .map(|(i, &name)| {
+                let dt = ticks[2 * i + 1].saturating_sub(ticks[2 * i]);
+                (name, dt as f64 * gpu.timestamp_period as f64 / 1e6)
+            })
+            .collect())
+    }
+}
+
+impl Gpu {
+    fn geometry_pass(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::RenderPipeline,
+        groups: [&wgpu::BindGroup; 2],
+        target: &wgpu::TextureView,
+        vertices: u32,
+        ts: (&wgpu::QuerySet, (u32, u32)),
+    ) {
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: None,
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                    store: wgpu::StoreOp::Discard,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: Some(wgpu::RenderPassTimestampWrites {
+                query_set: ts.0,
+                beginning_of_pass_write_index: Some(ts.1.0),
+                end_of_pass_write_index: Some(ts.1.1),
+            }),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, groups[0], &[]);
+        pass.set_bind_group(1, groups[1], &[]);
+        pass.draw(0..vertices, 0..1);
+    }
+
+    fn compute_pass(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::ComputePipeline,
+        group: &wgpu::BindGroup,
+        workgroups: u32,
+        ts: (&wgpu::QuerySet, (u32, u32)),
+    ) {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: None,
+            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                query_set: ts.0,
+                beginning_of_pass_write_index: Some(ts.1.0),
+                end_of_pass_write_index: Some(ts.1.1),
+            }),
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[]);
+        pass.dispatch_workgroups(workgroups, 1, 1);
+    }
+
+    fn bind(&self, layout: &wgpu::BindGroupLayout, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout,
+            entries: &entries,
+        })
+    }
+
+    /// Renders one frame: the A-buffer when `slots` is None, else the k-buffer.
+    pub fn render(
+        &self,
+        scene: &Scene,
+        cam: &Camera,
+        width: u32,
+        height: u32,
+        background: [f32; 3],
+        slots: Option<Slots>,
+    ) -> Result<GpuFrame> {
+        crate::raster::check_resolution(width, height)?;
+        let pixels = width * height;
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let mut fb = FrameBuffers {
+            gpu: self,
+            allocated: 0,
+        };
+        let k_uniform = match slots {
+            Some(Slots::Uniform(k)) => k.max(1),
+            _ => 0,
+        };
+        let params = Params {
+            view_proj: cam.view_proj.to_cols_array_2d(),
+            forward: cam.forward.extend(0.0).to_array(),
+            background: [background[0], background[1], background[2], 1.0],
+            width,
+            height,
+            k_uniform,
+            pixels,
+            _pad: [0; 36],
+        };
+        let params_buf = fb.init(
+            "params",
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        );
+        let pos: Vec<[f32; 4]> = scene
+            .positions
+            .iter()
+            .map(|p| p.extend(1.0).to_array())
+            .collect();
+        let col: Vec<[f32; 4]> = scene.colors.clone();
+        let positions = fb.init(
+            "scene.positions",
+            bytemuck::cast_slice(&pos),
+            wgpu::BufferUsages::STORAGE,
+            false,
+        );
+        let colors = fb.init(
+            "scene.colors",
+            bytemuck::cast_slice(&col),
+            wgpu::BufferUsages::STORAGE,
+            false,
+        );
+        fb.allocated += pixels as u64; // the R8 render target
+        let target = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("raster.target"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: TARGET_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        let view = target.create_view(&Default::default());
+        let vertices = scene.positions.len() as u32;
+        let p = &self.pipelines;
+        let timer = Timer::new(self, 4);
+        let image_buf = fb.storage("oit.image", 16 * pixels as u64, true);
+        let groups = (pixels.div_ceil(64)).min(65535);
+        if groups * 64 < pixels {
+            return Err(Error::Gpu(format!(
+                "{pixels} pixels exceed one dispatch (4,194,240)"
+            )));
+        }
+        let result = match slots {
+            None => {
+                let counts = fb.storage("abuf.count", 4 * pixels as u64, true);
+                let offsets = fb.storage("abuf.offsets", 4 * (pixels as u64 + 1), true);
+                let cursor = fb.storage("abuf.cursor", 4 * pixels as u64, true);
+                let g0 = self.bind(
+                    &p.count.get_bind_group_layout(0),
+                    &[&params_buf, &positions, &colors],
+                );
+                let g1 = self.bind(&p.count.get_bind_group_layout(1), &[&counts]);
+                let mut enc = self.device.create_command_encoder(&Default::default());
+                self.geometry_pass(
+                    &mut enc,
+                    &p.count,
+                    [&g0, &g1],
+                    &view,
+                    vertices,
+                    (&timer.set, timer.next("count")),
+                );
+                let gs = self.bind(
+                    &p.scan.get_bind_group_layout(0),
+                    &[&params_buf, &counts, &offsets],
+                );
+                self.compute_pass(
+                    &mut enc,
+                    &p.scan,
+                    &gs,
+                    1,
+                    (&timer.set, timer.next("prefix sum")),
+                );
+                self.queue.submit([enc.finish()]);
+                let total = u32s(&read_back(self, &offsets, 4 * (pixels as u64 + 1))?)
+                    [pixels as usize] as u64;
+                let fragments = fb.storage("abuf.fragments", 16 * total, true);
+                let g0 = self.bind(
+                    &p.store.get_bind_group_layout(0),
+                    &[&params_buf, &positions, &colors],
+                );
+                let g1 = self.bind(
+                    &p.store.get_bind_group_layout(1),
+                    &[&offsets, &cursor, &fragments],
+                );
+                let mut enc = self.device.create_command_encoder(&Default::default());
+                self.geometry_pass(
+                    &mut enc,
+                    &p.store,
+                    [&g0, &g1],
+                    &view,
+                    vertices,
+                    (&timer.set, timer.next("store")),
+                );
+                let gr = self.bind(
+                    &p.abuffer_resolve.get_bind_group_layout(0),
+                    &[&params_buf, &offsets, &fragments, &image_buf],
+                );
+                self.compute_pass(
+                    &mut enc,
+                    &p.abuffer_resolve,
+                    &gr,
+                    groups,
+                    (&timer.set, timer.next("sort and blend")),
+                );
+                self.queue.submit([enc.finish()]);
+                let off = u32s(&read_back(self, &offsets, 4 * (pixels as u64 + 1))?);
+                let raw = u32s(&read_back(self, &fragments, 16 * total)?);
+                let mut fl = FragmentLists {
+                    width,
+                    height,
+                    offsets: off,
+                    ..Default::default()
+                };
+                for f in raw.chunks_exact(4) {
+                    fl.depth.push(f32::from_bits(f[0]));
+                    fl.rgba.push(crate::composite::unpack_rgba8(f[1]));
+                    fl.primitive.push(f[2]);
+                }
+                (Some(fl), None)
+            }
+            Some(s) => {
+                let (k_of, base, slot_count) = match s {
+                    Slots::Uniform(k) => {
+                        // FKB reads neither buffer, but the shared capture layout binds both.
+                        let dummy = fb.storage("fkb.unused_k", 16, true);
+                        let dummy2 = fb.storage("fkb.unused_offsets", 16, true);
+                        (dummy, dummy2, k.max(1) as u64 * pixels as u64)
+                    }
+                    Slots::PerPixel(k) => {
+                        if k.len() != pixels as usize {
+                            return Err(Error::Invalid(format!(
+                                "{} k values for {pixels} pixels",
+                                k.len()
+                            )));
+                        }
+                        let k_of = fb.init(
+                            "oit.k",
+                            bytemuck::cast_slice(k),
+                            wgpu::BufferUsages::STORAGE,
+                            true,
+                        );
+                        let base = fb.storage("oit.offsets", 4 * (pixels as u64 + 1), true);
+                        let total: u64 = k.iter().map(|&x| x as u64).sum();
+                        (k_of, base, total)
+                    }
+                };
+                let slots_buf = fb.storage("oit.slots", 8 * slot_count, true);
+                let tail = fb.storage("oit.tail", 20 * pixels as u64, true);
+                let mut enc = self.device.create_command_encoder(&Default::default());
+                if let Slots::PerPixel(_) = s {
+                    let gs = self.bind(
+                        &p.scan.get_bind_group_layout(0),
+                        &[&params_buf, &k_of, &base],
+                    );
+                    self.compute_pass(
+                        &mut enc,
+                        &p.scan,
+                        &gs,
+                        1,
+                        (&timer.set, timer.next("prefix sum")),
+                    );
+                }
+                let g0 = self.bind(
+                    &p.capture.get_bind_group_layout(0),
+                    &[&params_buf, &positions, &colors],
+                );
+                let g1 = self.bind(
+                    &p.capture.get_bind_group_layout(1),
+                    &[&k_of, &base, &slots_buf, &tail],
+                );
+                self.geometry_pass(
+                    &mut enc,
+                    &p.capture,
+                    [&g0, &g1],
+                    &view,
+                    vertices,
+                    (&timer.set, timer.next("capture")),
+                );
+                let gr = self.bind(
+                    &p.resolve.get_bind_group_layout(0),
+                    &[&params_buf, &k_of, &base, &slots_buf, &tail, &image_buf],
+                );
+                self.compute_pass(
+                    &mut enc,
+                    &p.resolve,
+                    &gr,
+                    groups,
+                    (&timer.set, timer.next("resolve")),
+                );
+                self.queue.submit([enc.finish()]);
+                let raw = read_back(self, &slots_buf, 8 * slot_count)?;
+                let keys: Vec<u64> = raw
+                    .chunks_exact(8)
+                    .map(|c| !u64::from_le_bytes(c.try_into().expect("8")))
+                    .collect();
+                let bases = match s {
+                    Slots::Uniform(k) => (0..=pixels).map(|p| p * k.max(1)).collect(),
+                    Slots::PerPixel(_) => u32s(&read_back(self, &base, 4 * (pixels as u64 + 1))?),
+                };
+                let tails = u32s(&read_back(self, &tail, 20 * pixels as u64)?);
+                (None, Some((keys, bases, tails)))
+            }
+        };
+        let img = u32s(&read_back(self, &image_buf, 16 * pixels as u64)?);
+        let pass_ms = timer.read(self)?;
+        if let Some(e) = pollster::block_on(oom.pop()) {
+            return Err(Error::Gpu(format!("out of device memory: {e}")));
+        }
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(Error::Gpu(format!("the device rejected a command: {e}")));
+        }
+        let image = Image {
+            width,
+            height,
+            data: img
+                .chunks_exact(4)
+                .map(|c| {
+                    [
+                        f32::from_bits(c[0]),
+                        f32::from_bits(c[1]),
+                        f32::from_bits(c[2]),
+                    ]
+                })
+                .collect(),
+        };
+        Ok(GpuFrame {
+            image,
+            pass_ms,
+            allocated_bytes: fb.allocated,
+            fragments: result.0,
+            slots: result.1,
+        })
+    }
+}

@@ -1,0 +1,41 @@
+// A-buffer pass 3 (compute, one invocation a pixel): sort the pixel's fragments front to back
+// in place (insertion sort by capture key, then submission index) and blend them exactly over
+// the background, as composite::exact_sorted.
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> offsets: array<u32>;
+@group(0) @binding(2) var<storage, read_write> fragments: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
+
+fn before(a: vec4<u32>, b: vec4<u32>) -> bool {
+    let ka = fragment_key(bitcast<f32>(a.x), a.y);
+    let kb = fragment_key(bitcast<f32>(b.x), b.y);
+    return ka < kb || (ka == kb && a.z < b.z);
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = gid.x;
+    if (p >= params.pixels) {
+        return;
+    }
+    let start = offsets[p];
+    let end = offsets[p + 1u];
+    for (var i = start + 1u; i < end; i++) {
+        let f = fragments[i];
+        var j = i;
+        while (j > start && before(f, fragments[j - 1u])) {
+            fragments[j] = fragments[j - 1u];
+            j--;
+        }
+        fragments[j] = f;
+    }
+    var c = vec3<f32>(0.0);
+    var t = 1.0;
+    for (var i = start; i < end; i++) {
+        let rgba = unpack_rgba8(fragments[i].y);
+        c += t * rgba.a * rgba.rgb;
+        t *= 1.0 - rgba.a;
+    }
+    image[p] = vec4<f32>(c + t * params.background.rgb, 1.0);
+}

@@ -1,0 +1,49 @@
+// Shared by every pass (prepended to each pass's source): frame parameters, the geometry
+// vertex stage and fragment helpers. Mirrors runtime/src/raster.rs and composite.rs.
+
+struct Params {
+    view_proj: mat4x4<f32>,
+    // xyz: unit vector from the eye towards the scene (the headlight); w unused.
+    forward: vec4<f32>,
+    // rgb: linear background colour; a unused.
+    background: vec4<f32>,
+    width: u32,
+    height: u32,
+    // FKB: slots per pixel; 0 when k comes from the per-pixel buffer.
+    k_uniform: u32,
+    pixels: u32,
+};
+
+const AMBIENT: f32 = 0.3;
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) color: vec4<f32>,
+    @location(1) @interpolate(flat) primitive: u32,
+};
+
+// 8-bit unorm with rounding half up, as composite::to_unorm8.
+fn to_unorm8(v: f32) -> u32 {
+    return u32(floor(clamp(v, 0.0, 1.0) * 255.0 + 0.5));
+}
+
+fn pack_rgba8(c: vec4<f32>) -> u32 {
+    return to_unorm8(c.r) | (to_unorm8(c.g) << 8u) | (to_unorm8(c.b) << 16u) | (to_unorm8(c.a) << 24u);
+}
+
+fn unpack_rgba8(v: u32) -> vec4<f32> {
+    return vec4<f32>(
+        f32(v & 0xffu), f32((v >> 8u) & 0xffu), f32((v >> 16u) & 0xffu), f32(v >> 24u)
+    ) / 255.0;
+}
+
+// The 64-bit capture key: window depth bits high (non-negative floats order like their bits),
+// RGBA8 low, as composite::fragment_key.
+fn fragment_key(depth: f32, rgba8: u32) -> u64 {
+    let d = select(0.0, depth, depth > 0.0);
+    return (u64(bitcast<u32>(d)) << 32u) | u64(rgba8);
+}
+
+fn pixel_index(frag_coord: vec4<f32>, width: u32) -> u32 {
+    return u32(frag_coord.y) * width + u32(frag_coord.x);
+}

@@ -1,0 +1,29 @@
+// Vertex stage of every geometry pass: positions and colours come from storage buffers indexed
+// by vertex_index (three vertices per triangle, in submission order), so the stage can read its
+// triangle's other vertices for the face normal of the headlight shading.
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> colors: array<vec4<f32>>;
+
+@vertex
+fn vs_main(@builtin(vertex_index) vid: u32) -> VertexOut {
+    let tri = vid / 3u;
+    let p0 = positions[3u * tri].xyz;
+    let p1 = positions[3u * tri + 1u].xyz;
+    let p2 = positions[3u * tri + 2u].xyz;
+    let n = normalize(cross(p1 - p0, p2 - p0));
+    let facing = abs(dot(n, params.forward.xyz));
+    let shade = AMBIENT + (1.0 - AMBIENT) * facing;
+    let c = colors[vid];
+    var out: VertexOut;
+    out.clip = params.view_proj * vec4<f32>(positions[vid].xyz, 1.0);
+    out.color = vec4<f32>(c.rgb * shade, c.a);
+    out.primitive = tri;
+    return out;
+}
+
+// The fragment's colour as the pipeline stores it: clamped, 8 bits a channel.
+fn fragment_rgba8(color: vec4<f32>) -> u32 {
+    return pack_rgba8(clamp(color, vec4<f32>(0.0), vec4<f32>(1.0)));
+}
