@@ -106,7 +106,8 @@ struct RenderArgs {
     /// Method (see `dhoit --help`).
     #[arg(long, default_value = "abuffer")]
     method: String,
-    /// Where to run: cpu (the reference renderer). The GPU renderer is not built yet.
+    /// Where to run: cpu (the reference renderer) or gpu (wgpu; abuffer, fkb, optimal and the
+    /// greedy allocations so far, their k computed on the CPU).
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Memory budget: bytes (20MB, 40MiB) or slots per pixel (2fpp).
@@ -259,13 +260,18 @@ fn kmap_rgb8(fl: &FragmentLists, k: &[u32]) -> (Vec<u8>, u32) {
 }
 
 fn render(a: RenderArgs) -> Result<()> {
-    if a.device != "cpu" {
+    let method = Method::parse(&a.method)?;
+    let on_gpu = match a.device.as_str() {
+        "cpu" => false,
+        "gpu" => true,
+        d => bail!("device '{d}' is not available: use --device cpu or --device gpu"),
+    };
+    if on_gpu && matches!(method, Method::Vkb | Method::Dkb | Method::Mlab) {
         bail!(
-            "device '{}' is not available: only the CPU reference renderer (--device cpu) exists so far",
-            a.device
+            "{} does not run on the GPU yet (its importance and allocation passes are CPU only): use --device cpu",
+            method.name()
         );
     }
-    let method = Method::parse(&a.method)?;
     let budget = Budget::parse(&a.budget)?;
     let weights = load_weights(&a.common, method == Method::Dkb)?;
     let scene = load_scene(&a.scene, &a.common)?;
@@ -274,7 +280,36 @@ fn render(a: RenderArgs) -> Result<()> {
         weights: weights.as_ref(),
         ..Options::new(budget, a.common.background)
     };
-    let f = Renderer::new(&fl, options).render(method)?;
+    let mut f = Renderer::new(&fl, options).render(method)?;
+    let mut gpu_fragments = None;
+    if on_gpu {
+        let gpu = dhoit_runtime::gpu::Gpu::new()?;
+        eprintln!("GPU: {}", gpu.adapter);
+        let (w, h) = (fl.width, fl.height);
+        let cam = Camera::orbit(&scene, a.view, a.common.views, w, h);
+        let slots = match method {
+            Method::Abuffer => None,
+            Method::Fkb => Some(dhoit_runtime::gpu::Slots::Uniform(f.k[0])),
+            _ => Some(dhoit_runtime::gpu::Slots::PerPixel(&f.k)),
+        };
+        let g = gpu.render(&scene, &cam, w, h, a.common.background, slots)?;
+        let passes: Vec<String> = g
+            .pass_ms
+            .iter()
+            .map(|(n, ms)| format!("{n} {ms:.2} ms"))
+            .collect();
+        println!("GPU passes: {}", passes.join(", "));
+        f.image = g.image;
+        f.allocated_bytes = g.allocated_bytes;
+        gpu_fragments = match g.fragments {
+            Some(fr) => Some(fr),
+            None if a.dump.is_some() => {
+                gpu.render(&scene, &cam, w, h, a.common.background, None)?
+                    .fragments
+            }
+            None => None,
+        };
+    }
     image_io::write_png(&a.out, &f.image)?;
     println!(
         "{}: k up to {}, {:.1}% of {} fragments captured, F(M) = {}, budget {}, allocated {} -> {}",
@@ -306,7 +341,7 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     if let Some(dir) = &a.dump {
         let d = dump::Dump {
-            fragments: fl,
+            fragments: gpu_fragments.unwrap_or(fl),
             k: f.k,
             image: f.image,
             method: method.name().into(),

@@ -357,3 +357,66 @@ fn compare_prints_a_table_and_writes_a_report() {
     assert_eq!(records[0]["mse"], 0.0);
     assert!(records.iter().all(|r| r["mse"].as_f64().unwrap() >= 0.0));
 }
+
+#[test]
+fn the_gpu_renders_from_the_command_line() {
+    if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") {
+        eprintln!("SKIPPED (DHOIT_SKIP_GPU=1): GPU command-line test");
+        return;
+    }
+    let dir = temp("gpu");
+    for method in ["abuffer", "fkb", "optimal"] {
+        let out = dir.join(format!("{method}.png"));
+        let dump_dir = dir.join(method);
+        let o = dhoit(&[
+            "render",
+            "--scene",
+            "plates",
+            "--res",
+            "64x48",
+            "--method",
+            method,
+            "--device",
+            "gpu",
+            "--out",
+            out.to_str().unwrap(),
+            "--dump",
+            dump_dir.to_str().unwrap(),
+        ]);
+        assert!(
+            o.status.success(),
+            "{method}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(String::from_utf8_lossy(&o.stdout).contains("GPU passes"));
+        let d = dhoit_runtime::dump::read(&dump_dir).unwrap();
+        assert_eq!(
+            (d.fragments.width, d.fragments.height, d.method.as_str()),
+            (64, 48, method)
+        );
+        assert!(
+            d.image
+                .data
+                .iter()
+                .flatten()
+                .all(|v| v.is_finite() && (0.0..=1.0 + 1e-6).contains(v))
+        );
+    }
+    let o = dhoit(&[
+        "render",
+        "--scene",
+        "plates",
+        "--res",
+        "64x48",
+        "--method",
+        "vkb",
+        "--device",
+        "gpu",
+        "--out",
+        dir.join("x.png").to_str().unwrap(),
+    ]);
+    assert!(
+        !o.status.success()
+            && String::from_utf8_lossy(&o.stderr).contains("does not run on the GPU yet")
+    );
+}
