@@ -176,7 +176,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
             let d = PathBuf::from(DEFAULT_DATA);
             let default = DatasetConfig::default();
             let fresh = dataset::load(&d)
-                .map(|(m, _)| m.config == default)
+                .map(|(m, _)| m.config == default && m.generator == dataset::GENERATOR)
                 .unwrap_or(false);
             if !fresh {
                 generate(&default, &d)?;

@@ -24,6 +24,9 @@ use std::time::Instant;
 
 pub const MANIFEST: &str = "manifest.json";
 pub const FORMAT: &str = "dhoit-dataset-1";
+/// What produced a dataset: change it whenever the features, targets or fragments change, so a
+/// cached default dataset is regenerated rather than reused stale.
+pub const GENERATOR: &str = "features-v2 rgba8-fragments";
 
 /// A budget level of the dataset: average slots per pixel, or every fragment.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -137,6 +140,8 @@ pub struct Shard {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
     pub format: String,
+    #[serde(default)]
+    pub generator: String,
     pub config: DatasetConfig,
     pub shards: Vec<Shard>,
     pub samples: usize,
@@ -287,6 +292,7 @@ pub fn generate(
     let shards: Vec<Shard> = shards.into_iter().flatten().collect();
     let manifest = Manifest {
         format: FORMAT.into(),
+        generator: GENERATOR.into(),
         config: config.clone(),
         samples: shards.iter().map(|s| s.samples).sum(),
         shards,
