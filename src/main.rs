@@ -106,8 +106,8 @@ struct RenderArgs {
     /// Method (see `dhoit --help`).
     #[arg(long, default_value = "abuffer")]
     method: String,
-    /// Where to run: cpu (the reference renderer) or gpu (wgpu; abuffer, fkb, optimal and the
-    /// greedy allocations so far, their k computed on the CPU).
+    /// Where to run: cpu (the reference renderer) or gpu (wgpu: abuffer, fkb, mlab from the
+    /// A-buffer, and optimal and the greedy allocations with their k computed on the CPU).
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Memory budget: bytes (20MB, 40MiB) or slots per pixel (2fpp).
@@ -266,7 +266,7 @@ fn render(a: RenderArgs) -> Result<()> {
         "gpu" => true,
         d => bail!("device '{d}' is not available: use --device cpu or --device gpu"),
     };
-    if on_gpu && matches!(method, Method::Vkb | Method::Dkb | Method::Mlab) {
+    if on_gpu && matches!(method, Method::Vkb | Method::Dkb) {
         bail!(
             "{} does not run on the GPU yet (its importance and allocation passes are CPU only): use --device cpu",
             method.name()
@@ -290,6 +290,8 @@ fn render(a: RenderArgs) -> Result<()> {
         let slots = match method {
             Method::Abuffer => None,
             Method::Fkb => Some(dhoit_runtime::gpu::Slots::Uniform(f.k[0])),
+            // MLAB on the GPU blends from the A-buffer (exact memory, not the budget's rows).
+            Method::Mlab => Some(dhoit_runtime::gpu::Slots::Mlab(f.k[0])),
             _ => Some(dhoit_runtime::gpu::Slots::PerPixel(&f.k)),
         };
         let g = gpu.render(&scene, &cam, w, h, a.common.background, slots)?;

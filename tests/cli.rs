@@ -365,7 +365,7 @@ fn the_gpu_renders_from_the_command_line() {
         return;
     }
     let dir = temp("gpu");
-    for method in ["abuffer", "fkb", "optimal"] {
+    for method in ["abuffer", "fkb", "optimal", "mlab"] {
         let out = dir.join(format!("{method}.png"));
         let dump_dir = dir.join(method);
         let o = dhoit(&[

@@ -8,6 +8,8 @@
 //!   memory: the fragment pool is sized from the count) -> `abuffer_resolve` (sort and blend).
 //! - k-buffer: per-pixel k uploaded (or one k for all), `scan` (slot bases) -> `capture`
 //!   (geometry, lock-free 64-bit insertion, evicted fragments to integer tail sums) -> `resolve`.
+//! - MLAB: the A-buffer's count, scan and store, then `mlab_resolve` (fragments in submission
+//!   order into m blending rows).
 //!
 //! Every buffer a method's frame allocates is labelled after the [`crate::budget::Layout`] entry
 //! it realises and counted, so [`GpuFrame::allocated_bytes`] is what the device really holds.
@@ -23,7 +25,7 @@ pub mod shaders {
     pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
     pub const GEOMETRY: &str = include_str!("../../shaders/geometry.wgsl");
     /// (name, source, is a geometry pass)
-    pub const PASSES: [(&str, &str, bool); 6] = [
+    pub const PASSES: [(&str, &str, bool); 7] = [
         (
             "abuffer_count",
             include_str!("../../shaders/abuffer_count.wgsl"),
@@ -42,6 +44,11 @@ pub mod shaders {
         ),
         ("capture", include_str!("../../shaders/capture.wgsl"), true),
         ("resolve", include_str!("../../shaders/resolve.wgsl"), false),
+        (
+            "mlab_resolve",
+            include_str!("../../shaders/mlab_resolve.wgsl"),
+            false,
+        ),
     ];
 
     /// The full source of a pass: common code, the vertex stage for geometry passes, the pass.
@@ -79,6 +86,7 @@ struct Pipelines {
     scan: wgpu::ComputePipeline,
     abuffer_resolve: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
+    mlab_resolve: wgpu::ComputePipeline,
 }
 
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
@@ -208,6 +216,7 @@ impl Pipelines {
             scan: compute("scan"),
             abuffer_resolve: compute("abuffer_resolve"),
             resolve: compute("resolve"),
+            mlab_resolve: compute("mlab_resolve"),
         };
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(Error::Gpu(format!("shader or pipeline rejected: {e}")));
@@ -223,7 +232,13 @@ pub enum Slots<'a> {
     Uniform(u32),
     /// k per pixel, computed elsewhere (the optimal allocation, or any CPU allocation).
     PerPixel(&'a [u32]),
+    /// MLAB with this many rows (at most [`MLAB_MAX_ROWS`]), blended from the A-buffer's
+    /// fragments taken in submission order.
+    Mlab(u32),
 }
+
+/// Most MLAB rows the GPU blends (a private array in the shader).
+pub const MLAB_MAX_ROWS: u32 = 16;
 
 /// What a GPU frame produced, read back.
 #[derive(Clone, Debug)]
@@ -454,6 +469,14 @@ impl Gpu {
         };
         let k_uniform = match slots {
             Some(Slots::Uniform(k)) => k.max(1),
+            Some(Slots::Mlab(m)) => {
+                if m == 0 || m > MLAB_MAX_ROWS {
+                    return Err(Error::Invalid(format!(
+                        "MLAB on the GPU takes 1 to {MLAB_MAX_ROWS} rows, not {m}"
+                    )));
+                }
+                m
+            }
             _ => 0,
         };
         let params = Params {
@@ -517,7 +540,7 @@ impl Gpu {
             )));
         }
         let result = match slots {
-            None => {
+            None | Some(Slots::Mlab(_)) => {
                 let counts = fb.storage("abuf.count", 4 * pixels as u64, true);
                 let offsets = fb.storage("abuf.offsets", 4 * (pixels as u64 + 1), true);
                 let cursor = fb.storage("abuf.cursor", 4 * pixels as u64, true);
@@ -567,16 +590,20 @@ impl Gpu {
                     vertices,
                     (&timer.set, timer.next("store")),
                 );
+                let (resolve, label) = match slots {
+                    Some(_) => (&p.mlab_resolve, "mlab blend"),
+                    None => (&p.abuffer_resolve, "sort and blend"),
+                };
                 let gr = self.bind(
-                    &p.abuffer_resolve.get_bind_group_layout(0),
+                    &resolve.get_bind_group_layout(0),
                     &[&params_buf, &offsets, &fragments, &image_buf],
                 );
                 self.compute_pass(
                     &mut enc,
-                    &p.abuffer_resolve,
+                    resolve,
                     &gr,
                     groups,
-                    (&timer.set, timer.next("sort and blend")),
+                    (&timer.set, timer.next(label)),
                 );
                 self.queue.submit([enc.finish()]);
                 let off = u32s(&read_back(self, &offsets, 4 * (pixels as u64 + 1))?);
@@ -596,6 +623,7 @@ impl Gpu {
             }
             Some(s) => {
                 let (k_of, base, slot_count) = match s {
+                    Slots::Mlab(_) => unreachable!("MLAB resolves from the A-buffer"),
                     Slots::Uniform(k) => {
                         // FKB reads neither buffer, but the shared capture layout binds both.
                         let dummy = fb.storage("fkb.unused_k", 16, true);
@@ -671,7 +699,7 @@ impl Gpu {
                     .collect();
                 let bases = match s {
                     Slots::Uniform(k) => (0..=pixels).map(|p| p * k.max(1)).collect(),
-                    Slots::PerPixel(_) => u32s(&read_back(self, &base, 4 * (pixels as u64 + 1))?),
+                    _ => u32s(&read_back(self, &base, 4 * (pixels as u64 + 1))?),
                 };
                 let tails = u32s(&read_back(self, &tail, 20 * pixels as u64)?);
                 (None, Some((keys, bases, tails)))

@@ -240,3 +240,48 @@ fn allocated_bytes_never_exceed_the_budget() {
         }
     }
 }
+
+#[test]
+fn mlab_matches_the_cpu_in_submission_order() {
+    let Some(g) = gpu() else { return };
+    for (name, m) in [("particles", 2u32), ("foliage", 4)] {
+        let (w, h) = (64, 48);
+        let (s, cam) = frame(name, 1, w, h);
+        let gfl = g
+            .render(&s, &cam, w, h, BG, None)
+            .unwrap()
+            .fragments
+            .unwrap();
+        let f = g.render(&s, &cam, w, h, BG, Some(Slots::Mlab(m))).unwrap();
+        // The CPU twin takes each pixel's fragments in submission order.
+        let twin: Vec<[f32; 3]> = (0..gfl.pixel_count())
+            .map(|p| {
+                let mut v = pixel_fragments(&gfl, p);
+                v.sort_by_key(|x| x.primitive);
+                composite::mlab_pixel(&v, m as usize, BG)
+            })
+            .collect();
+        let d = f
+            .image
+            .data
+            .iter()
+            .zip(&twin)
+            .flat_map(|(a, b)| (0..3).map(move |i| (a[i] - b[i]).abs()))
+            .fold(0.0f32, f32::max);
+        assert!(
+            d <= 1e-5,
+            "{name} m={m}: GPU MLAB differs from the CPU twin by {d}"
+        );
+    }
+    assert!(
+        g.render(
+            &frame("shells", 0, 8, 8).0,
+            &frame("shells", 0, 8, 8).1,
+            8,
+            8,
+            BG,
+            Some(Slots::Mlab(40))
+        )
+        .is_err()
+    );
+}

@@ -1,0 +1,66 @@
+// MLAB from the A-buffer (compute, one invocation a pixel): the pixel's stored fragments are
+// sorted into submission order (insertion sort by submission index), then inserted one by one
+// into m blending rows of premultiplied colour, transmittance and depth key (a bubble pass into
+// m + 1 rows, then the last two merged), and the rows blended over the background, as
+// composite::mlab_pixel.
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> offsets: array<u32>;
+@group(0) @binding(2) var<storage, read_write> fragments: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
+
+const MAX_ROWS: u32 = 16u;
+
+struct Row {
+    a: vec3<f32>,
+    t: f32,
+    z: u64,
+};
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = gid.x;
+    if (p >= params.pixels) {
+        return;
+    }
+    let start = offsets[p];
+    let end = offsets[p + 1u];
+    for (var i = start + 1u; i < end; i++) {
+        let f = fragments[i];
+        var j = i;
+        while (j > start && f.z < fragments[j - 1u].z) {
+            fragments[j] = fragments[j - 1u];
+            j--;
+        }
+        fragments[j] = f;
+    }
+    let m = clamp(params.k_uniform, 1u, MAX_ROWS);
+    var rows: array<Row, 17>;
+    for (var r = 0u; r <= m; r++) {
+        rows[r] = Row(vec3<f32>(0.0), 1.0, 0xfffffffffffffffflu);
+    }
+    for (var i = start; i < end; i++) {
+        let f = fragments[i];
+        let rgba = unpack_rgba8(f.y);
+        var cur = Row(rgba.rgb * rgba.a, 1.0 - rgba.a, fragment_key(bitcast<f32>(f.x), f.y));
+        for (var r = 0u; r < m; r++) {
+            if (cur.z <= rows[r].z) {
+                let tmp = rows[r];
+                rows[r] = cur;
+                cur = tmp;
+            }
+        }
+        rows[m] = cur;
+        let front = rows[m - 1u];
+        let back = rows[m];
+        rows[m - 1u] = Row(front.a + back.a * front.t, front.t * back.t, front.z);
+        rows[m] = Row(vec3<f32>(0.0), 1.0, 0xfffffffffffffffflu);
+    }
+    var c = vec3<f32>(0.0);
+    var t = 1.0;
+    for (var r = 0u; r < m; r++) {
+        c += t * rows[r].a;
+        t *= rows[r].t;
+    }
+    image[p] = vec4<f32>(c + t * params.background.rgb, 1.0);
+}
