@@ -12,6 +12,8 @@ struct Params {
     // FKB: slots per pixel; 0 when k comes from the per-pixel buffer.
     k_uniform: u32,
     pixels: u32,
+    // F(M), saturated to 32 bits.
+    budget_fragments: u32,
 };
 
 const AMBIENT: f32 = 0.3;

@@ -547,103 +547,131 @@ pub fn fixed(pixels: usize, f: u64) -> Vec<u32> {
     vec![k; pixels]
 }
 
-/// k(p) from an importance map: `floor(F I(p) / sum I)` clamped to `[lo, n(p)]`, then the slots
-/// the floor and the clamps leave over (or overspend) are handed out (or taken back) so that
-/// `sum k = min(F, sum n)` exactly. Importance of uncovered pixels is ignored; negative or
-/// non-finite importance counts as 0; when every covered pixel has importance 0, all count as
-/// equally important. Leftover slots go round by round to the pixels with room, most important
-/// first (ties: lower pixel index); overspent slots are taken back least important first.
+/// Fixed-point scale of importance in the allocation (20 fractional bits): integer sums are
+/// exact and the same in every order, on the CPU and in the GPU's allocation pass.
+pub const IMPORTANCE_SCALE: f32 = 1_048_576.0;
+
+/// An importance value in fixed point; negative, non-finite or huge values are clamped.
+pub fn importance_fixed(i: f32) -> u32 {
+    if i.is_finite() && i > 0.0 {
+        (i.min(2047.0) * IMPORTANCE_SCALE + 0.5).floor() as u32
+    } else {
+        0
+    }
+}
+
+/// k(p) from an importance map (CPU twin of `shaders/allocate.wgsl`). With q(p) the fixed-point
+/// importance of covered pixels (all 1 when every one is 0) and S their sum:
+/// `k(p) = clamp(floor(F q(p) / S), lo, n(p))`, then, while `sum k` differs from
+/// `min(F, sum n)`, rounds that hand out (or take back) slots: when the pixels with room (or
+/// with slots above lo) are no more than what is missing (or extra), each gets (gives)
+/// `max(1, missing / those pixels)` within its room; otherwise the pixels are chosen by
+/// importance, most important first when giving and least important first when taking, ties
+/// to the lower pixel index. `sum k = min(F, sum n)` exactly; uncovered pixels get 0. When F
+/// is below the number of covered pixels, lo = 0 and the F most important pixels get one slot.
 pub fn from_importance(importance: &[f32], counts: &[u32], f: u64) -> Vec<u32> {
     assert_eq!(importance.len(), counts.len(), "one importance per pixel");
     let target = slots_to_allocate(counts, f);
     let lo = min_k(counts, f);
-    let imp: Vec<f64> = importance
+    let mut q: Vec<u32> = importance
         .iter()
         .zip(counts)
-        .map(|(&i, &n)| {
-            if n > 0 && i.is_finite() && i > 0.0 {
-                i as f64
+        .map(|(&i, &n)| if n > 0 { importance_fixed(i) } else { 0 })
+        .collect();
+    if q.iter().all(|&x| x == 0) {
+        for (x, &n) in q.iter_mut().zip(counts) {
+            *x = u32::from(n > 0);
+        }
+    }
+    let sum: u64 = q.iter().map(|&x| x as u64).sum();
+    let ff = f.min(u32::MAX as u64);
+    let mut k: Vec<u32> = (0..counts.len())
+        .map(|p| {
+            if counts[p] == 0 || lo == 0 {
+                0
             } else {
-                0.0
+                ((ff * q[p] as u64) / sum.max(1)).clamp(lo as u64, counts[p] as u64) as u32
             }
         })
         .collect();
-    let covered: Vec<usize> = (0..counts.len()).filter(|&p| counts[p] > 0).collect();
-    let mut sum: f64 = imp.iter().sum();
-    let imp: Vec<f64> = if sum > 0.0 {
-        imp
-    } else {
-        sum = covered.len() as f64;
-        counts
-            .iter()
-            .map(|&n| if n > 0 { 1.0 } else { 0.0 })
-            .collect()
-    };
-    // Priority: most important first, then lower index.
-    let mut order = covered.clone();
-    order.sort_by(|&a, &b| imp[b].total_cmp(&imp[a]).then(a.cmp(&b)));
-    let mut k = vec![0u32; counts.len()];
-    if lo == 0 {
-        // Fewer slots than covered pixels: the most important pixels get one each.
-        for &p in order.iter().take(target as usize) {
-            k[p] = 1;
-        }
-        return k;
-    }
-    let ff = f as f64;
-    let mut given: u64 = 0;
-    for &p in &covered {
-        let share = (ff * imp[p] / sum).floor().min(counts[p] as f64) as u32;
-        k[p] = share.max(lo);
-        given += k[p] as u64;
-    }
-    if given < target {
-        let mut left = target - given;
-        while left > 0 {
-            // Proportional share of what is left among pixels with room, then one each.
-            let room_sum: f64 = order
-                .iter()
-                .filter(|&&p| k[p] < counts[p])
-                .map(|&p| imp[p])
-                .sum();
-            let mut handed = 0u64;
-            if room_sum > 0.0 {
-                let pool = left as f64;
-                for &p in &order {
-                    let room = (counts[p] - k[p]) as u64;
-                    if room == 0 || handed >= left {
-                        continue;
-                    }
-                    let share = ((pool * imp[p] / room_sum).floor() as u64)
-                        .min(room)
-                        .min(left - handed);
-                    k[p] += share as u32;
-                    handed += share;
+    let mut total: u64 = k.iter().map(|&x| x as u64).sum();
+    while total < target {
+        let missing = target - total;
+        let open = |p: usize, k: &[u32]| counts[p] > 0 && k[p] < counts[p];
+        let n_open = (0..k.len()).filter(|&p| open(p, &k)).count() as u64;
+        if n_open <= missing {
+            let d = (missing / n_open.max(1)).max(1) as u32;
+            for p in 0..k.len() {
+                if open(p, &k) {
+                    let add = d.min(counts[p] - k[p]);
+                    k[p] += add;
+                    total += add as u64;
                 }
             }
-            if handed == 0 {
-                for &p in &order {
-                    if handed == left {
-                        break;
-                    }
-                    if k[p] < counts[p] {
-                        k[p] += 1;
-                        handed += 1;
-                    }
+        } else {
+            for p in select(&q, |p| open(p, &k), missing, true) {
+                k[p] += 1;
+            }
+            total = target;
+        }
+    }
+    while total > target {
+        let extra = total - target;
+        let spare = |p: usize, k: &[u32]| counts[p] > 0 && k[p] > lo;
+        let n_spare = (0..k.len()).filter(|&p| spare(p, &k)).count() as u64;
+        if n_spare <= extra {
+            let d = (extra / n_spare.max(1)).max(1) as u32;
+            for p in 0..k.len() {
+                if spare(p, &k) {
+                    let take = d.min(k[p] - lo);
+                    k[p] -= take;
+                    total -= take as u64;
                 }
             }
-            left -= handed;
-        }
-    } else if given > target {
-        let mut excess = given - target;
-        for &p in order.iter().rev() {
-            if excess == 0 {
-                break;
+        } else {
+            for p in select(&q, |p| spare(p, &k), extra, false) {
+                k[p] -= 1;
             }
-            let take = ((k[p] - lo) as u64).min(excess);
-            k[p] -= take as u32;
-            excess -= take;
+            total = target;
         }
     }
     k
+}
+
+/// The `count` eligible pixels with the highest (`highest`) or lowest fixed-point importance,
+/// ties to the lower index: a threshold found by bisection over the 32-bit values, then the
+/// pixels at the threshold in index order (as the GPU pass selects them).
+fn select(q: &[u32], eligible: impl Fn(usize) -> bool, count: u64, highest: bool) -> Vec<usize> {
+    // Rank value: larger is chosen first.
+    let rank = |p: usize| if highest { q[p] } else { u32::MAX - q[p] };
+    let at_least = |t: u32| {
+        (0..q.len())
+            .filter(|&p| eligible(p) && rank(p) >= t)
+            .count() as u64
+    };
+    // Largest t with at_least(t) >= count.
+    let (mut lo_t, mut hi_t) = (0u64, u32::MAX as u64 + 1);
+    while hi_t - lo_t > 1 {
+        let mid = (lo_t + hi_t) / 2;
+        if at_least(mid as u32) >= count {
+            lo_t = mid;
+        } else {
+            hi_t = mid;
+        }
+    }
+    let t = lo_t as u32;
+    let mut chosen: Vec<usize> = (0..q.len())
+        .filter(|&p| eligible(p) && rank(p) > t)
+        .collect();
+    let mut left = count - chosen.len() as u64;
+    for p in 0..q.len() {
+        if left == 0 {
+            break;
+        }
+        if eligible(p) && rank(p) == t {
+            chosen.push(p);
+            left -= 1;
+        }
+    }
+    chosen
 }

@@ -25,7 +25,7 @@ pub mod shaders {
     pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
     pub const GEOMETRY: &str = include_str!("../../shaders/geometry.wgsl");
     /// (name, source, is a geometry pass)
-    pub const PASSES: [(&str, &str, bool); 7] = [
+    pub const PASSES: [(&str, &str, bool); 8] = [
         (
             "abuffer_count",
             include_str!("../../shaders/abuffer_count.wgsl"),
@@ -47,6 +47,11 @@ pub mod shaders {
         (
             "mlab_resolve",
             include_str!("../../shaders/mlab_resolve.wgsl"),
+            false,
+        ),
+        (
+            "allocate",
+            include_str!("../../shaders/allocate.wgsl"),
             false,
         ),
     ];
@@ -87,6 +92,7 @@ struct Pipelines {
     abuffer_resolve: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
     mlab_resolve: wgpu::ComputePipeline,
+    allocate: wgpu::ComputePipeline,
 }
 
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
@@ -102,7 +108,8 @@ struct Params {
     height: u32,
     k_uniform: u32,
     pixels: u32,
-    _pad: [u32; 36],
+    budget_fragments: u32,
+    _pad: [u32; 35],
 }
 
 impl Gpu {
@@ -217,6 +224,7 @@ impl Pipelines {
             abuffer_resolve: compute("abuffer_resolve"),
             resolve: compute("resolve"),
             mlab_resolve: compute("mlab_resolve"),
+            allocate: compute("allocate"),
         };
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(Error::Gpu(format!("shader or pipeline rejected: {e}")));
@@ -235,6 +243,9 @@ pub enum Slots<'a> {
     /// MLAB with this many rows (at most [`MLAB_MAX_ROWS`]), blended from the A-buffer's
     /// fragments taken in submission order.
     Mlab(u32),
+    /// Per-pixel importance (computed elsewhere) and F(M): the GPU counts fragments, allocates
+    /// k (`allocate.wgsl`, the twin of `alloc::from_importance`), then captures and resolves.
+    Importance(&'a [f32], u64),
 }
 
 /// Most MLAB rows the GPU blends (a private array in the shader).
@@ -467,6 +478,10 @@ impl Gpu {
             gpu: self,
             allocated: 0,
         };
+        let budget_fragments = match slots {
+            Some(Slots::Importance(_, f)) => f,
+            _ => 0,
+        };
         let k_uniform = match slots {
             Some(Slots::Uniform(k)) => k.max(1),
             Some(Slots::Mlab(m)) => {
@@ -487,7 +502,8 @@ impl Gpu {
             height,
             k_uniform,
             pixels,
-            _pad: [0; 36],
+            budget_fragments: budget_fragments.min(u32::MAX as u64) as u32,
+            _pad: [0; 35],
         };
         let params_buf = fb.init(
             "params",
@@ -531,7 +547,7 @@ impl Gpu {
         let view = target.create_view(&Default::default());
         let vertices = scene.positions.len() as u32;
         let p = &self.pipelines;
-        let timer = Timer::new(self, 4);
+        let timer = Timer::new(self, 6);
         let image_buf = fb.storage("oit.image", 16 * pixels as u64, true);
         let groups = (pixels.div_ceil(64)).min(65535);
         if groups * 64 < pixels {
@@ -622,6 +638,7 @@ impl Gpu {
                 (Some(fl), None)
             }
             Some(s) => {
+                let mut enc = self.device.create_command_encoder(&Default::default());
                 let (k_of, base, slot_count) = match s {
                     Slots::Mlab(_) => unreachable!("MLAB resolves from the A-buffer"),
                     Slots::Uniform(k) => {
@@ -644,7 +661,78 @@ impl Gpu {
                             true,
                         );
                         let base = fb.storage("oit.offsets", 4 * (pixels as u64 + 1), true);
+                        let gs = self.bind(
+                            &p.scan.get_bind_group_layout(0),
+                            &[&params_buf, &k_of, &base],
+                        );
+                        self.compute_pass(
+                            &mut enc,
+                            &p.scan,
+                            &gs,
+                            1,
+                            (&timer.set, timer.next("prefix sum")),
+                        );
                         let total: u64 = k.iter().map(|&x| x as u64).sum();
+                        (k_of, base, total)
+                    }
+                    Slots::Importance(imp, _) => {
+                        if imp.len() != pixels as usize {
+                            return Err(Error::Invalid(format!(
+                                "{} importance values for {pixels} pixels",
+                                imp.len()
+                            )));
+                        }
+                        let counts = fb.storage("count", 4 * pixels as u64, true);
+                        let importance = fb.init(
+                            "oit.importance",
+                            bytemuck::cast_slice(imp),
+                            wgpu::BufferUsages::STORAGE,
+                            true,
+                        );
+                        let k_of = fb.storage("oit.k", 4 * pixels as u64, true);
+                        let base = fb.storage("oit.offsets", 4 * (pixels as u64 + 1), true);
+                        let g0 = self.bind(
+                            &p.count.get_bind_group_layout(0),
+                            &[&params_buf, &positions, &colors],
+                        );
+                        let g1 = self.bind(&p.count.get_bind_group_layout(1), &[&counts]);
+                        self.geometry_pass(
+                            &mut enc,
+                            &p.count,
+                            [&g0, &g1],
+                            &view,
+                            vertices,
+                            (&timer.set, timer.next("count")),
+                        );
+                        let ga = self.bind(
+                            &p.allocate.get_bind_group_layout(0),
+                            &[&params_buf, &counts, &importance, &k_of],
+                        );
+                        self.compute_pass(
+                            &mut enc,
+                            &p.allocate,
+                            &ga,
+                            1,
+                            (&timer.set, timer.next("allocation")),
+                        );
+                        let gs = self.bind(
+                            &p.scan.get_bind_group_layout(0),
+                            &[&params_buf, &k_of, &base],
+                        );
+                        self.compute_pass(
+                            &mut enc,
+                            &p.scan,
+                            &gs,
+                            1,
+                            (&timer.set, timer.next("prefix sum")),
+                        );
+                        self.queue.submit([std::mem::replace(
+                            &mut enc,
+                            self.device.create_command_encoder(&Default::default()),
+                        )
+                        .finish()]);
+                        let total = u32s(&read_back(self, &base, 4 * (pixels as u64 + 1))?)
+                            [pixels as usize] as u64;
                         (k_of, base, total)
                     }
                 };

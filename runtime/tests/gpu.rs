@@ -285,3 +285,72 @@ fn mlab_matches_the_cpu_in_submission_order() {
         .is_err()
     );
 }
+
+#[test]
+fn the_allocation_pass_matches_its_cpu_twin() {
+    let Some(g) = gpu() else { return };
+    let (w, h) = (64, 48);
+    let (s, cam) = frame("hair", 2, w, h);
+    let gfl = g
+        .render(&s, &cam, w, h, BG, None)
+        .unwrap()
+        .fragments
+        .unwrap();
+    let counts = gfl.counts();
+    let pixels = counts.len();
+    let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
+    let total = gfl.fragment_count() as u64;
+    let mut rng = dhoit_runtime::rng::Rng::new(3);
+    let random: Vec<f32> = (0..pixels).map(|_| rng.f32()).collect();
+    let skewed: Vec<f32> = (0..pixels).map(|_| rng.f32().powi(6) * 3.0).collect();
+    let mut one_hot = vec![0.0f32; pixels];
+    one_hot[counts.iter().position(|&n| n > 3).unwrap()] = 1.0;
+    let odd: Vec<f32> = (0..pixels)
+        .map(|p| [f32::NAN, -1.0, 0.5, f32::INFINITY, 1e-9][p % 5])
+        .collect();
+    // DKB's own importance, from the features of the GPU's fragments.
+    let mlp = dhoit_runtime::mlp::Mlp::random(5);
+    let dkb = mlp.importance(
+        &dhoit_runtime::importance::features(&gfl, 2 * pixels as u64),
+        &counts,
+    );
+    let maps = [
+        ("random", random),
+        ("skewed", skewed),
+        ("one-hot", one_hot),
+        ("zero", vec![0.0; pixels]),
+        ("odd", odd),
+        ("dkb", dkb),
+    ];
+    for (label, imp) in &maps {
+        for f in [
+            covered / 2,
+            covered,
+            (1.5 * pixels as f64) as u64,
+            3 * pixels as u64,
+            total,
+            total + 100,
+        ] {
+            let frame = g
+                .render(&s, &cam, w, h, BG, Some(Slots::Importance(imp, f)))
+                .unwrap();
+            let (keys, bases, tails) = frame.slots.unwrap();
+            let k_gpu: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
+            let k_cpu = alloc::from_importance(imp, &counts, f);
+            assert!(
+                k_gpu == k_cpu,
+                "{label}, F = {f}: GPU allocation differs from the CPU twin"
+            );
+            let (twin_keys, twin_tails) = twin_capture(&gfl, &k_cpu);
+            assert!(
+                keys == twin_keys && tails == twin_tails,
+                "{label}, F = {f}: capture differs"
+            );
+            let twin = composite::composite(&gfl, composite::Method::Hybrid(&k_cpu), BG);
+            assert!(
+                frame.image.max_abs_diff(&twin) <= 1e-5,
+                "{label}, F = {f}: image"
+            );
+        }
+    }
+}
