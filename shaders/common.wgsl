@@ -14,6 +14,11 @@ struct Params {
     pixels: u32,
     // F(M), saturated to 32 bits.
     budget_fragments: u32,
+    // Variable k-buffer parameters (importance::VkbParams).
+    vkb_alpha: f32,
+    vkb_exponent: f32,
+    vkb_noise: f32,
+    vkb_seed: u32,
 };
 
 const AMBIENT: f32 = 0.3;
@@ -22,6 +27,8 @@ struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) color: vec4<f32>,
     @location(1) @interpolate(flat) primitive: u32,
+    // |n . v| of the triangle (for the Fresnel importance).
+    @location(2) @interpolate(flat) facing: f32,
 };
 
 // 8-bit unorm with rounding half up, as composite::to_unorm8.

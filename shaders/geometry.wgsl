@@ -20,6 +20,7 @@ fn vs_main(@builtin(vertex_index) vid: u32) -> VertexOut {
     out.clip = params.view_proj * vec4<f32>(positions[vid].xyz, 1.0);
     out.color = vec4<f32>(c.rgb * shade, c.a);
     out.primitive = tri;
+    out.facing = facing;
     return out;
 }
 

@@ -151,6 +151,16 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
         }
     };
     eprintln!("GPU: {}", gpu.adapter);
+    // The committed default weights when found, else seeded random ones (same cost).
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/weights.safetensors");
+    let (mlp, weights) = match dhoit_runtime::mlp::Mlp::load(&path) {
+        Ok(m) => (m, path.display().to_string()),
+        Err(_) => (
+            dhoit_runtime::mlp::Mlp::random(1),
+            "random (default weights not found)".to_string(),
+        ),
+    };
+    let mlp = &mlp;
     let mut scenes = Vec::new();
     for name in names {
         let run = || -> Result<serde_json::Value> {
@@ -161,10 +171,14 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             let (k_opt, _) = alloc::optimal(&alloc::error_curves(&fl, [1.0; 3]), f);
             let k_fkb = (f / (w * h) as u64).max(1) as u32;
             let mut methods = serde_json::Map::new();
+            let (_, f_dkb) = budget.resolve(&dhoit_runtime::budget::DKB, (w * h) as u64)?;
+            let (_, f_vkb) = budget.resolve(&dhoit_runtime::budget::VKB, (w * h) as u64)?;
             for (label, slots) in [
                 ("abuffer", None),
                 ("fkb", Some(Slots::Uniform(k_fkb))),
                 ("optimal", Some(Slots::PerPixel(&k_opt))),
+                ("vkb", Some(Slots::Vkb(Default::default(), f_vkb))),
+                ("dkb", Some(Slots::Dkb(mlp, f_dkb))),
             ] {
                 // Fastest frame by GPU time: (GPU ms, wall ms, frame).
                 let mut best: Option<(f64, f64, dhoit_runtime::gpu::GpuFrame)> = None;
@@ -188,15 +202,17 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     serde_json::json!({"passes_ms": per, "frame_gpu_ms": passes, "frame_wall_ms": wall, "allocated_bytes": bytes}),
                 );
             }
-            eprintln!("GPU {name}: done");
-            Ok(
-                serde_json::json!({"scene": name, "fragments": fl.fragment_count(), "methods": methods}),
-            )
+            let ratio = methods["dkb"]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN)
+                / methods["vkb"]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
+            eprintln!("GPU {name}: DKB/VKB frame time {ratio:.2}");
+            Ok(serde_json::json!({
+                "scene": name, "fragments": fl.fragment_count(), "dkb_over_vkb": ratio, "methods": methods,
+            }))
         };
         match run() {
             Ok(v) => scenes.push(v),
             Err(e) => scenes.push(serde_json::json!({"scene": name, "error": e.to_string()})),
         }
     }
-    serde_json::json!({"adapter": gpu.adapter, "width": w, "height": h, "budget": budget.to_string(), "scenes": scenes})
+    serde_json::json!({"adapter": gpu.adapter, "width": w, "height": h, "budget": budget.to_string(), "weights": weights, "scenes": scenes})
 }

@@ -106,8 +106,8 @@ struct RenderArgs {
     /// Method (see `dhoit --help`).
     #[arg(long, default_value = "abuffer")]
     method: String,
-    /// Where to run: cpu (the reference renderer) or gpu (wgpu: abuffer, fkb, mlab from the
-    /// A-buffer, and optimal and the greedy allocations with their k computed on the CPU).
+    /// Where to run: cpu (the reference renderer) or gpu (wgpu; every method: optimal and the
+    /// greedy allocations have their k computed on the CPU, MLAB blends from the A-buffer).
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Memory budget: bytes (20MB, 40MiB) or slots per pixel (2fpp).
@@ -266,12 +266,6 @@ fn render(a: RenderArgs) -> Result<()> {
         "gpu" => true,
         d => bail!("device '{d}' is not available: use --device cpu or --device gpu"),
     };
-    if on_gpu && matches!(method, Method::Vkb | Method::Dkb) {
-        bail!(
-            "{} does not run on the GPU yet (its importance and allocation passes are CPU only): use --device cpu",
-            method.name()
-        );
-    }
     let budget = Budget::parse(&a.budget)?;
     let weights = load_weights(&a.common, method == Method::Dkb)?;
     let scene = load_scene(&a.scene, &a.common)?;
@@ -292,6 +286,14 @@ fn render(a: RenderArgs) -> Result<()> {
             Method::Fkb => Some(dhoit_runtime::gpu::Slots::Uniform(f.k[0])),
             // MLAB on the GPU blends from the A-buffer (exact memory, not the budget's rows).
             Method::Mlab => Some(dhoit_runtime::gpu::Slots::Mlab(f.k[0])),
+            Method::Vkb => Some(dhoit_runtime::gpu::Slots::Vkb(
+                options.vkb,
+                f.budget_fragments,
+            )),
+            Method::Dkb => Some(dhoit_runtime::gpu::Slots::Dkb(
+                weights.as_ref().expect("dkb loaded its weights"),
+                f.budget_fragments,
+            )),
             _ => Some(dhoit_runtime::gpu::Slots::PerPixel(&f.k)),
         };
         let g = gpu.render(&scene, &cam, w, h, a.common.background, slots)?;
@@ -303,6 +305,9 @@ fn render(a: RenderArgs) -> Result<()> {
         println!("GPU passes: {}", passes.join(", "));
         f.image = g.image;
         f.allocated_bytes = g.allocated_bytes;
+        if let Some((_, bases, _)) = &g.slots {
+            f.k = bases.windows(2).map(|b| b[1] - b[0]).collect();
+        }
         gpu_fragments = match g.fragments {
             Some(fr) => Some(fr),
             None if a.dump.is_some() => {

@@ -13,8 +13,9 @@ use crate::error::{Error, Result};
 
 /// Bytes of one fragment slot: a 64-bit key, window depth bits high and RGBA8 low.
 pub const SLOT_BYTES: u64 = 8;
-/// Bytes of the MLP's uniform buffer: 9,985 weights and 24 standardisation floats, in vec4s.
-pub const MLP_UNIFORM_BYTES: u64 = (9985u64 + 24).div_ceil(4) * 16;
+/// Bytes of the MLP's uniform buffer: a 4-float header, 24 standardisation floats and the
+/// default network's 9,985 weights, in vec4s (`importance_dkb.wgsl` declares 2,504).
+pub const MLP_UNIFORM_BYTES: u64 = (4u64 + 24 + 9985).div_ceil(4) * 16;
 /// Bytes of the per-frame parameter uniform (resolution, budget, background, totals).
 pub const PARAMS_BYTES: u64 = 256;
 

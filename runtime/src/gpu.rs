@@ -14,8 +14,11 @@
 //! Every buffer a method's frame allocates is labelled after the [`crate::budget::Layout`] entry
 //! it realises and counted, so [`GpuFrame::allocated_bytes`] is what the device really holds.
 
+use crate::budget;
 use crate::composite::Image;
 use crate::error::{Error, Result};
+use crate::importance::{PixelStats, VkbParams};
+use crate::mlp::Mlp;
 use crate::raster::FragmentLists;
 use crate::scene::{Camera, Scene};
 use wgpu::util::DeviceExt;
@@ -25,7 +28,7 @@ pub mod shaders {
     pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
     pub const GEOMETRY: &str = include_str!("../../shaders/geometry.wgsl");
     /// (name, source, is a geometry pass)
-    pub const PASSES: [(&str, &str, bool); 8] = [
+    pub const PASSES: [(&str, &str, bool); 13] = [
         (
             "abuffer_count",
             include_str!("../../shaders/abuffer_count.wgsl"),
@@ -52,6 +55,27 @@ pub mod shaders {
         (
             "allocate",
             include_str!("../../shaders/allocate.wgsl"),
+            false,
+        ),
+        (
+            "features",
+            include_str!("../../shaders/features.wgsl"),
+            true,
+        ),
+        ("totals", include_str!("../../shaders/totals.wgsl"), false),
+        (
+            "importance_dkb",
+            include_str!("../../shaders/importance_dkb.wgsl"),
+            false,
+        ),
+        (
+            "vkb_count",
+            include_str!("../../shaders/vkb_count.wgsl"),
+            true,
+        ),
+        (
+            "importance_vkb",
+            include_str!("../../shaders/importance_vkb.wgsl"),
             false,
         ),
     ];
@@ -93,6 +117,11 @@ struct Pipelines {
     resolve: wgpu::ComputePipeline,
     mlab_resolve: wgpu::ComputePipeline,
     allocate: wgpu::ComputePipeline,
+    features: wgpu::RenderPipeline,
+    totals: wgpu::ComputePipeline,
+    importance_dkb: wgpu::ComputePipeline,
+    vkb_count: wgpu::RenderPipeline,
+    importance_vkb: wgpu::ComputePipeline,
 }
 
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
@@ -109,7 +138,11 @@ struct Params {
     k_uniform: u32,
     pixels: u32,
     budget_fragments: u32,
-    _pad: [u32; 35],
+    vkb_alpha: f32,
+    vkb_exponent: f32,
+    vkb_noise: f32,
+    vkb_seed: u32,
+    _pad: [u32; 31],
 }
 
 impl Gpu {
@@ -225,6 +258,11 @@ impl Pipelines {
             resolve: compute("resolve"),
             mlab_resolve: compute("mlab_resolve"),
             allocate: compute("allocate"),
+            features: geometry("features"),
+            totals: compute("totals"),
+            importance_dkb: compute("importance_dkb"),
+            vkb_count: geometry("vkb_count"),
+            importance_vkb: compute("importance_vkb"),
         };
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(Error::Gpu(format!("shader or pipeline rejected: {e}")));
@@ -246,6 +284,28 @@ pub enum Slots<'a> {
     /// Per-pixel importance (computed elsewhere) and F(M): the GPU counts fragments, allocates
     /// k (`allocate.wgsl`, the twin of `alloc::from_importance`), then captures and resolves.
     Importance(&'a [f32], u64),
+    /// The variable k-buffer, every pass on the GPU: count and nearest fragment, totals, paper
+    /// 002's importance, allocation, capture, resolve.
+    Vkb(VkbParams, u64),
+    /// The deep k-buffer, every pass on the GPU: features, totals, the network's importance,
+    /// allocation, capture, resolve.
+    Dkb(&'a Mlp, u64),
+}
+
+/// The network's weights as the uniform `importance_dkb.wgsl` reads: h1, h2, 0, 0, mean, std,
+/// fc1 weight and bias, fc2 weight and bias, out weight and bias, zero-padded.
+pub fn mlp_uniform(m: &Mlp) -> Vec<f32> {
+    let mut v = vec![m.h1 as f32, m.h2 as f32, 0.0, 0.0];
+    v.extend(m.mean);
+    v.extend(m.std);
+    v.extend(&m.w1);
+    v.extend(&m.b1);
+    v.extend(&m.w2);
+    v.extend(&m.b2);
+    v.extend(&m.w3);
+    v.push(m.b3);
+    v.resize((budget::MLP_UNIFORM_BYTES / 4) as usize, 0.0);
+    v
 }
 
 /// Most MLAB rows the GPU blends (a private array in the shader).
@@ -264,11 +324,20 @@ pub struct GpuFrame {
     /// k-buffer: the slots (capture keys, front to back; `u64::MAX` where empty), their bases
     /// (`pixels + 1` entries) and the tail sums (five per pixel).
     pub slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
+    /// VKB and DKB: the importance the GPU computed (uploaded importance: after allocation's
+    /// fixed-point conversion is not returned).
+    pub importance: Option<Vec<f32>>,
+    /// DKB: the features pass's per-pixel statistics (`nearest_primitive` unknown: u32::MAX).
+    pub stats: Option<Vec<PixelStats>>,
+    /// VKB: per pixel the count and the nearest fragment's `|n . e|`.
+    pub vkb_nearest: Option<(Vec<u32>, Vec<f32>)>,
 }
 
 struct FrameBuffers<'a> {
     gpu: &'a Gpu,
     allocated: u64,
+    /// The per-pixel counts of an importance-driven frame, for reading statistics back.
+    extra_counts: Option<wgpu::Buffer>,
 }
 
 impl FrameBuffers<'_> {
@@ -335,6 +404,16 @@ fn u32s(bytes: &[u8]) -> Vec<u32> {
         .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
         .collect()
 }
+
+/// What a frame's branch returns: A-buffer fragments, k-buffer slots, importance, DKB stats,
+/// VKB nearest.
+type Readback = (
+    Option<FragmentLists>,
+    Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
+    Option<Vec<f32>>,
+    Option<Vec<PixelStats>>,
+    Option<(Vec<u32>, Vec<f32>)>,
+);
 
 /// Timestamp queries around each pass.
 struct Timer {
@@ -460,6 +539,352 @@ impl Gpu {
         })
     }
 
+    /// The k-buffer branch of [`Gpu::render`]: k from `s` (uniform, uploaded, or computed by
+    /// the allocation pass from uploaded or GPU-computed importance), capture, resolve.
+    #[allow(clippy::too_many_arguments)]
+    fn kbuffer(
+        &self,
+        fb: &mut FrameBuffers,
+        timer: &Timer,
+        params_buf: &wgpu::Buffer,
+        geometry: [&wgpu::Buffer; 2],
+        view: &wgpu::TextureView,
+        image_buf: &wgpu::Buffer,
+        pixels: u32,
+        s: Slots,
+    ) -> Result<Readback> {
+        let p = &self.pipelines;
+        let px = pixels as u64;
+        let vertices = (self.device_vertices(geometry[0])) as u32;
+        let groups = pixels.div_ceil(64);
+        let g0_for = |pl: &wgpu::RenderPipeline| {
+            self.bind(
+                &pl.get_bind_group_layout(0),
+                &[params_buf, geometry[0], geometry[1]],
+            )
+        };
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        let mut importance_buf = None;
+        let mut stats_bufs = None;
+        let mut vkb_bufs = None;
+        let (k_of, base, slot_count) = match s {
+            Slots::Mlab(_) => unreachable!("MLAB resolves from the A-buffer"),
+            Slots::Uniform(k) => {
+                // FKB reads neither buffer, but the shared capture layout binds both.
+                let dummy = fb.storage("fkb.unused_k", 16, true);
+                let dummy2 = fb.storage("fkb.unused_offsets", 16, true);
+                (dummy, dummy2, k.max(1) as u64 * px)
+            }
+            Slots::PerPixel(k) => {
+                if k.len() != pixels as usize {
+                    return Err(Error::Invalid(format!(
+                        "{} k values for {pixels} pixels",
+                        k.len()
+                    )));
+                }
+                let k_of = fb.init(
+                    "oit.k",
+                    bytemuck::cast_slice(k),
+                    wgpu::BufferUsages::STORAGE,
+                    true,
+                );
+                let base = fb.storage("oit.offsets", 4 * (px + 1), true);
+                let gs = self.bind(
+                    &p.scan.get_bind_group_layout(0),
+                    &[params_buf, &k_of, &base],
+                );
+                self.compute_pass(
+                    &mut enc,
+                    &p.scan,
+                    &gs,
+                    1,
+                    (&timer.set, timer.next("prefix sum")),
+                );
+                (k_of, base, k.iter().map(|&x| x as u64).sum())
+            }
+            Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..) => {
+                let (counts, importance) = match s {
+                    Slots::Importance(imp, _) => {
+                        if imp.len() != pixels as usize {
+                            return Err(Error::Invalid(format!(
+                                "{} importance values for {pixels} pixels",
+                                imp.len()
+                            )));
+                        }
+                        let counts = fb.storage("count", 4 * px, true);
+                        let importance = fb.init(
+                            "oit.importance",
+                            bytemuck::cast_slice(imp),
+                            wgpu::BufferUsages::STORAGE,
+                            true,
+                        );
+                        let g1 = self.bind(&p.count.get_bind_group_layout(1), &[&counts]);
+                        let g0 = g0_for(&p.count);
+                        self.geometry_pass(
+                            &mut enc,
+                            &p.count,
+                            [&g0, &g1],
+                            view,
+                            vertices,
+                            (&timer.set, timer.next("count")),
+                        );
+                        (counts, importance)
+                    }
+                    Slots::Vkb(..) => {
+                        let counts = fb.storage("vkb.count", 4 * px, true);
+                        let nearest = fb.storage("vkb.nearest", 8 * px, true);
+                        let totals = fb.storage("vkb.totals", 16, true);
+                        let importance = fb.storage("oit.importance", 4 * px, true);
+                        let g1 =
+                            self.bind(&p.vkb_count.get_bind_group_layout(1), &[&counts, &nearest]);
+                        let g0 = g0_for(&p.vkb_count);
+                        self.geometry_pass(
+                            &mut enc,
+                            &p.vkb_count,
+                            [&g0, &g1],
+                            view,
+                            vertices,
+                            (&timer.set, timer.next("count")),
+                        );
+                        let gt = self.bind(
+                            &p.totals.get_bind_group_layout(0),
+                            &[params_buf, &counts, &totals],
+                        );
+                        self.compute_pass(
+                            &mut enc,
+                            &p.totals,
+                            &gt,
+                            groups,
+                            (&timer.set, timer.next("totals")),
+                        );
+                        let gi = self.bind(
+                            &p.importance_vkb.get_bind_group_layout(0),
+                            &[params_buf, &counts, &nearest, &totals, &importance],
+                        );
+                        self.compute_pass(
+                            &mut enc,
+                            &p.importance_vkb,
+                            &gi,
+                            groups,
+                            (&timer.set, timer.next("importance")),
+                        );
+                        vkb_bufs = Some(nearest);
+                        (counts, importance)
+                    }
+                    Slots::Dkb(mlp, _) => {
+                        let weights = fb.init(
+                            "mlp.weights",
+                            bytemuck::cast_slice(&mlp_uniform(mlp)),
+                            wgpu::BufferUsages::UNIFORM,
+                            true,
+                        );
+                        let counts = fb.storage("features.count", 4 * px, true);
+                        let near = fb.storage("features.near", 4 * px, true);
+                        let far = fb.storage("features.far", 4 * px, true);
+                        let nearest = fb.storage("features.nearest_color", 8 * px, true);
+                        let sums = fb.storage("features.sums", 20 * px, true);
+                        let totals = fb.storage("features.totals", 24, true);
+                        let importance = fb.storage("oit.importance", 4 * px, true);
+                        let g1 = self.bind(
+                            &p.features.get_bind_group_layout(1),
+                            &[&counts, &near, &far, &nearest, &sums],
+                        );
+                        let g0 = g0_for(&p.features);
+                        self.geometry_pass(
+                            &mut enc,
+                            &p.features,
+                            [&g0, &g1],
+                            view,
+                            vertices,
+                            (&timer.set, timer.next("features")),
+                        );
+                        let gt = self.bind(
+                            &p.totals.get_bind_group_layout(0),
+                            &[params_buf, &counts, &totals],
+                        );
+                        self.compute_pass(
+                            &mut enc,
+                            &p.totals,
+                            &gt,
+                            groups,
+                            (&timer.set, timer.next("totals")),
+                        );
+                        let gi = self.bind(
+                            &p.importance_dkb.get_bind_group_layout(0),
+                            &[
+                                params_buf,
+                                &weights,
+                                &counts,
+                                &near,
+                                &far,
+                                &nearest,
+                                &sums,
+                                &totals,
+                                &importance,
+                            ],
+                        );
+                        self.compute_pass(
+                            &mut enc,
+                            &p.importance_dkb,
+                            &gi,
+                            groups,
+                            (&timer.set, timer.next("importance")),
+                        );
+                        stats_bufs = Some((near, far, nearest, sums));
+                        (counts, importance)
+                    }
+                    _ => unreachable!(),
+                };
+                // Keep the computed importance for inspection (a readback copy, like the staging
+                // buffers not counted): the allocation pass overwrites it with q.
+                let copy = matches!(s, Slots::Vkb(..) | Slots::Dkb(..)).then(|| {
+                    let b = fb.storage("importance.readback", 4 * px, false);
+                    enc.copy_buffer_to_buffer(&importance, 0, &b, 0, 4 * px);
+                    b
+                });
+                importance_buf = copy;
+                let k_of = fb.storage("oit.k", 4 * px, true);
+                let base = fb.storage("oit.offsets", 4 * (px + 1), true);
+                let ga = self.bind(
+                    &p.allocate.get_bind_group_layout(0),
+                    &[params_buf, &counts, &importance, &k_of],
+                );
+                self.compute_pass(
+                    &mut enc,
+                    &p.allocate,
+                    &ga,
+                    1,
+                    (&timer.set, timer.next("allocation")),
+                );
+                let gs = self.bind(
+                    &p.scan.get_bind_group_layout(0),
+                    &[params_buf, &k_of, &base],
+                );
+                self.compute_pass(
+                    &mut enc,
+                    &p.scan,
+                    &gs,
+                    1,
+                    (&timer.set, timer.next("prefix sum")),
+                );
+                self.queue.submit([std::mem::replace(
+                    &mut enc,
+                    self.device.create_command_encoder(&Default::default()),
+                )
+                .finish()]);
+                let total = u32s(&read_back(self, &base, 4 * (px + 1))?)[pixels as usize] as u64;
+                // The counts are needed to read the statistics back.
+                fb.extra_counts = Some(counts);
+                (k_of, base, total)
+            }
+        };
+        let slots_buf = fb.storage("oit.slots", 8 * slot_count, true);
+        let tail = fb.storage("oit.tail", 20 * px, true);
+        let g0 = g0_for(&p.capture);
+        let g1 = self.bind(
+            &p.capture.get_bind_group_layout(1),
+            &[&k_of, &base, &slots_buf, &tail],
+        );
+        self.geometry_pass(
+            &mut enc,
+            &p.capture,
+            [&g0, &g1],
+            view,
+            vertices,
+            (&timer.set, timer.next("capture")),
+        );
+        let gr = self.bind(
+            &p.resolve.get_bind_group_layout(0),
+            &[params_buf, &k_of, &base, &slots_buf, &tail, image_buf],
+        );
+        self.compute_pass(
+            &mut enc,
+            &p.resolve,
+            &gr,
+            groups,
+            (&timer.set, timer.next("resolve")),
+        );
+        self.queue.submit([enc.finish()]);
+        let keys: Vec<u64> = read_back(self, &slots_buf, 8 * slot_count)?
+            .chunks_exact(8)
+            .map(|c| !u64::from_le_bytes(c.try_into().expect("8")))
+            .collect();
+        let bases = match s {
+            Slots::Uniform(k) => (0..=pixels).map(|p| p * k.max(1)).collect(),
+            _ => u32s(&read_back(self, &base, 4 * (px + 1))?),
+        };
+        let tails = u32s(&read_back(self, &tail, 20 * px)?);
+        let importance = match &importance_buf {
+            Some(b) => Some(
+                u32s(&read_back(self, b, 4 * px)?)
+                    .into_iter()
+                    .map(f32::from_bits)
+                    .collect(),
+            ),
+            None => None,
+        };
+        let counts = match &fb.extra_counts {
+            Some(c) => Some(u32s(&read_back(self, c, 4 * px)?)),
+            None => None,
+        };
+        let stats = match (&stats_bufs, &counts) {
+            (Some((near, far, nearest, sums)), Some(counts)) => {
+                let near = u32s(&read_back(self, near, 4 * px)?);
+                let far = u32s(&read_back(self, far, 4 * px)?);
+                let nearest: Vec<u64> = read_back(self, nearest, 8 * px)?
+                    .chunks_exact(8)
+                    .map(|c| !u64::from_le_bytes(c.try_into().expect("8")))
+                    .collect();
+                let sums = u32s(&read_back(self, sums, 20 * px)?);
+                Some(
+                    (0..pixels as usize)
+                        .map(|q| PixelStats {
+                            count: counts[q],
+                            near: if counts[q] > 0 {
+                                f32::from_bits(!near[q])
+                            } else {
+                                0.0
+                            },
+                            far: f32::from_bits(far[q]),
+                            nearest_key: nearest[q],
+                            nearest_primitive: u32::MAX,
+                            color_sum: [sums[5 * q], sums[5 * q + 1], sums[5 * q + 2]],
+                            luma_sum: sums[5 * q + 3],
+                            luma_sq_sum: sums[5 * q + 4],
+                        })
+                        .collect(),
+                )
+            }
+            _ => None,
+        };
+        let vkb_nearest = match (&vkb_bufs, &counts) {
+            (Some(nearest), Some(counts)) => {
+                let facing: Vec<f32> = read_back(self, nearest, 8 * px)?
+                    .chunks_exact(8)
+                    .map(|c| f32::from_bits((!u64::from_le_bytes(c.try_into().expect("8"))) as u32))
+                    .collect();
+                let facing = facing
+                    .iter()
+                    .zip(counts)
+                    .map(|(&f, &c)| if c > 0 { f } else { 1.0 })
+                    .collect();
+                Some((counts.clone(), facing))
+            }
+            _ => None,
+        };
+        Ok((
+            None,
+            Some((keys, bases, tails)),
+            importance,
+            stats,
+            vkb_nearest,
+        ))
+    }
+
+    fn device_vertices(&self, positions: &wgpu::Buffer) -> u64 {
+        positions.size() / 16
+    }
+
     /// Renders one frame: the A-buffer when `slots` is None, else the k-buffer.
     pub fn render(
         &self,
@@ -477,10 +902,15 @@ impl Gpu {
         let mut fb = FrameBuffers {
             gpu: self,
             allocated: 0,
+            extra_counts: None,
         };
         let budget_fragments = match slots {
-            Some(Slots::Importance(_, f)) => f,
+            Some(Slots::Importance(_, f) | Slots::Vkb(_, f) | Slots::Dkb(_, f)) => f,
             _ => 0,
+        };
+        let vkb = match slots {
+            Some(Slots::Vkb(v, _)) => v,
+            _ => VkbParams::default(),
         };
         let k_uniform = match slots {
             Some(Slots::Uniform(k)) => k.max(1),
@@ -503,7 +933,11 @@ impl Gpu {
             k_uniform,
             pixels,
             budget_fragments: budget_fragments.min(u32::MAX as u64) as u32,
-            _pad: [0; 35],
+            vkb_alpha: vkb.alpha,
+            vkb_exponent: vkb.periphery_exponent,
+            vkb_noise: vkb.noise,
+            vkb_seed: vkb.seed,
+            _pad: [0; 31],
         };
         let params_buf = fb.init(
             "params",
@@ -547,7 +981,7 @@ impl Gpu {
         let view = target.create_view(&Default::default());
         let vertices = scene.positions.len() as u32;
         let p = &self.pipelines;
-        let timer = Timer::new(self, 6);
+        let timer = Timer::new(self, 8);
         let image_buf = fb.storage("oit.image", 16 * pixels as u64, true);
         let groups = (pixels.div_ceil(64)).min(65535);
         if groups * 64 < pixels {
@@ -635,163 +1069,18 @@ impl Gpu {
                     fl.rgba.push(crate::composite::unpack_rgba8(f[1]));
                     fl.primitive.push(f[2]);
                 }
-                (Some(fl), None)
+                (Some(fl), None, None, None, None)
             }
-            Some(s) => {
-                let mut enc = self.device.create_command_encoder(&Default::default());
-                let (k_of, base, slot_count) = match s {
-                    Slots::Mlab(_) => unreachable!("MLAB resolves from the A-buffer"),
-                    Slots::Uniform(k) => {
-                        // FKB reads neither buffer, but the shared capture layout binds both.
-                        let dummy = fb.storage("fkb.unused_k", 16, true);
-                        let dummy2 = fb.storage("fkb.unused_offsets", 16, true);
-                        (dummy, dummy2, k.max(1) as u64 * pixels as u64)
-                    }
-                    Slots::PerPixel(k) => {
-                        if k.len() != pixels as usize {
-                            return Err(Error::Invalid(format!(
-                                "{} k values for {pixels} pixels",
-                                k.len()
-                            )));
-                        }
-                        let k_of = fb.init(
-                            "oit.k",
-                            bytemuck::cast_slice(k),
-                            wgpu::BufferUsages::STORAGE,
-                            true,
-                        );
-                        let base = fb.storage("oit.offsets", 4 * (pixels as u64 + 1), true);
-                        let gs = self.bind(
-                            &p.scan.get_bind_group_layout(0),
-                            &[&params_buf, &k_of, &base],
-                        );
-                        self.compute_pass(
-                            &mut enc,
-                            &p.scan,
-                            &gs,
-                            1,
-                            (&timer.set, timer.next("prefix sum")),
-                        );
-                        let total: u64 = k.iter().map(|&x| x as u64).sum();
-                        (k_of, base, total)
-                    }
-                    Slots::Importance(imp, _) => {
-                        if imp.len() != pixels as usize {
-                            return Err(Error::Invalid(format!(
-                                "{} importance values for {pixels} pixels",
-                                imp.len()
-                            )));
-                        }
-                        let counts = fb.storage("count", 4 * pixels as u64, true);
-                        let importance = fb.init(
-                            "oit.importance",
-                            bytemuck::cast_slice(imp),
-                            wgpu::BufferUsages::STORAGE,
-                            true,
-                        );
-                        let k_of = fb.storage("oit.k", 4 * pixels as u64, true);
-                        let base = fb.storage("oit.offsets", 4 * (pixels as u64 + 1), true);
-                        let g0 = self.bind(
-                            &p.count.get_bind_group_layout(0),
-                            &[&params_buf, &positions, &colors],
-                        );
-                        let g1 = self.bind(&p.count.get_bind_group_layout(1), &[&counts]);
-                        self.geometry_pass(
-                            &mut enc,
-                            &p.count,
-                            [&g0, &g1],
-                            &view,
-                            vertices,
-                            (&timer.set, timer.next("count")),
-                        );
-                        let ga = self.bind(
-                            &p.allocate.get_bind_group_layout(0),
-                            &[&params_buf, &counts, &importance, &k_of],
-                        );
-                        self.compute_pass(
-                            &mut enc,
-                            &p.allocate,
-                            &ga,
-                            1,
-                            (&timer.set, timer.next("allocation")),
-                        );
-                        let gs = self.bind(
-                            &p.scan.get_bind_group_layout(0),
-                            &[&params_buf, &k_of, &base],
-                        );
-                        self.compute_pass(
-                            &mut enc,
-                            &p.scan,
-                            &gs,
-                            1,
-                            (&timer.set, timer.next("prefix sum")),
-                        );
-                        self.queue.submit([std::mem::replace(
-                            &mut enc,
-                            self.device.create_command_encoder(&Default::default()),
-                        )
-                        .finish()]);
-                        let total = u32s(&read_back(self, &base, 4 * (pixels as u64 + 1))?)
-                            [pixels as usize] as u64;
-                        (k_of, base, total)
-                    }
-                };
-                let slots_buf = fb.storage("oit.slots", 8 * slot_count, true);
-                let tail = fb.storage("oit.tail", 20 * pixels as u64, true);
-                let mut enc = self.device.create_command_encoder(&Default::default());
-                if let Slots::PerPixel(_) = s {
-                    let gs = self.bind(
-                        &p.scan.get_bind_group_layout(0),
-                        &[&params_buf, &k_of, &base],
-                    );
-                    self.compute_pass(
-                        &mut enc,
-                        &p.scan,
-                        &gs,
-                        1,
-                        (&timer.set, timer.next("prefix sum")),
-                    );
-                }
-                let g0 = self.bind(
-                    &p.capture.get_bind_group_layout(0),
-                    &[&params_buf, &positions, &colors],
-                );
-                let g1 = self.bind(
-                    &p.capture.get_bind_group_layout(1),
-                    &[&k_of, &base, &slots_buf, &tail],
-                );
-                self.geometry_pass(
-                    &mut enc,
-                    &p.capture,
-                    [&g0, &g1],
-                    &view,
-                    vertices,
-                    (&timer.set, timer.next("capture")),
-                );
-                let gr = self.bind(
-                    &p.resolve.get_bind_group_layout(0),
-                    &[&params_buf, &k_of, &base, &slots_buf, &tail, &image_buf],
-                );
-                self.compute_pass(
-                    &mut enc,
-                    &p.resolve,
-                    &gr,
-                    groups,
-                    (&timer.set, timer.next("resolve")),
-                );
-                self.queue.submit([enc.finish()]);
-                let raw = read_back(self, &slots_buf, 8 * slot_count)?;
-                let keys: Vec<u64> = raw
-                    .chunks_exact(8)
-                    .map(|c| !u64::from_le_bytes(c.try_into().expect("8")))
-                    .collect();
-                let bases = match s {
-                    Slots::Uniform(k) => (0..=pixels).map(|p| p * k.max(1)).collect(),
-                    _ => u32s(&read_back(self, &base, 4 * (pixels as u64 + 1))?),
-                };
-                let tails = u32s(&read_back(self, &tail, 20 * pixels as u64)?);
-                (None, Some((keys, bases, tails)))
-            }
+            Some(s) => self.kbuffer(
+                &mut fb,
+                &timer,
+                &params_buf,
+                [&positions, &colors],
+                &view,
+                &image_buf,
+                pixels,
+                s,
+            )?,
         };
         let img = u32s(&read_back(self, &image_buf, 16 * pixels as u64)?);
         let pass_ms = timer.read(self)?;
@@ -821,6 +1110,9 @@ impl Gpu {
             allocated_bytes: fb.allocated,
             fragments: result.0,
             slots: result.1,
+            importance: result.2,
+            stats: result.3,
+            vkb_nearest: result.4,
         })
     }
 }

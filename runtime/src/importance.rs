@@ -27,7 +27,7 @@ pub const FEATURES: usize = 12;
 pub const COLOR_SUM_SCALE: f32 = 4096.0;
 
 pub fn to_fixed(c: f32) -> u32 {
-    (c.clamp(0.0, 1.0) * COLOR_SUM_SCALE).round() as u32
+    (c.clamp(0.0, 1.0) * COLOR_SUM_SCALE + 0.5).floor() as u32
 }
 
 /// What the features pass accumulates per pixel.
@@ -209,38 +209,52 @@ pub fn pixel_noise(p: u32, seed: u32) -> f32 {
 ///
 /// Uncovered pixels get 0.
 pub fn vkb_importance(fl: &FragmentLists, params: &VkbParams) -> Vec<f32> {
-    let stats = pixel_stats(fl);
-    let t = totals(&stats);
-    let (w, h) = (fl.width as f32, fl.height as f32);
+    let counts = fl.counts();
+    let facing: Vec<f32> = (0..fl.pixel_count())
+        .map(|p| nearest_facing(fl, p))
+        .collect();
+    vkb_importance_from(&counts, &facing, fl.width, fl.height, params)
+}
+
+/// VKB importance from per-pixel counts and nearest-fragment `|n . e|` (the twin of
+/// `importance_vkb.wgsl`, which gets them from its count pass).
+pub fn vkb_importance_from(
+    counts: &[u32],
+    facing: &[f32],
+    width: u32,
+    height: u32,
+    params: &VkbParams,
+) -> Vec<f32> {
+    let (w, h) = (width as f32, height as f32);
     let half_diag = 0.5 * (w * w + h * h).sqrt();
-    let limit = t.max_count.max(1) as f32;
-    stats
-        .iter()
-        .enumerate()
-        .map(|(p, s)| {
-            if s.count == 0 {
+    let limit = counts.iter().copied().max().unwrap_or(0).max(1) as f32;
+    (0..counts.len())
+        .map(|p| {
+            if counts[p] == 0 {
                 return 0.0;
             }
-            let i_d = params.alpha + (1.0 - params.alpha) * (s.count as f32 / limit).min(1.0);
-            let x = (p as u32 % fl.width) as f32 + 0.5 - 0.5 * w;
-            let y = (p as u32 / fl.width) as f32 + 0.5 - 0.5 * h;
+            let i_d = params.alpha + (1.0 - params.alpha) * (counts[p] as f32 / limit).min(1.0);
+            let x = (p as u32 % width) as f32 + 0.5 - 0.5 * w;
+            let y = (p as u32 / width) as f32 + 0.5 - 0.5 * h;
             let r = ((x * x + y * y).sqrt() / half_diag).min(1.0);
             let i_per = 1.0 - r.powf(params.periphery_exponent);
-            let facing = nearest_facing(fl, p, s);
-            let i_f = 1.0 - (1.0 - facing).powi(5) * 0.5;
+            let i_f = 1.0 - (1.0 - facing[p]).powi(5) * 0.5;
             let xi = pixel_noise(p as u32, params.seed);
             (i_per * i_f * i_d + params.noise * (xi - 0.5)).max(0.0)
         })
         .collect()
 }
 
-/// `|n . e|` of a pixel's nearest fragment.
-fn nearest_facing(fl: &FragmentLists, p: usize, s: &PixelStats) -> f32 {
+/// `|n . e|` of a pixel's nearest fragment: the one with the smallest (depth bits, facing
+/// bits), as the GPU's 64-bit atomic keeps it (1 when the pixel has none or no facing).
+pub fn nearest_facing(fl: &FragmentLists, p: usize) -> f32 {
     fl.range(p)
-        .find(|&i| {
-            fl.primitive[i] == s.nearest_primitive
-                && fragment_key(fl.depth[i], fl.rgba[i]) == s.nearest_key
+        .filter_map(|i| {
+            let d = if fl.depth[i] > 0.0 { fl.depth[i] } else { 0.0 };
+            fl.facing
+                .get(i)
+                .map(|&f| ((d.to_bits() as u64) << 32 | f.to_bits() as u64, f))
         })
-        .and_then(|i| fl.facing.get(i).copied())
-        .unwrap_or(1.0)
+        .min_by_key(|x| x.0)
+        .map_or(1.0, |x| x.1)
 }

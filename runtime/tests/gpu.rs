@@ -196,8 +196,18 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
     let (w, h) = (64, 48);
     let (s, cam) = frame("spheres", 1, w, h);
     let k: Vec<u32> = (0..w * h).map(|p| 1 + p % 3).collect();
+    let mlp = dhoit_runtime::mlp::Mlp::random(4);
+    let f = (1.5 * (w * h) as f64) as u64;
+    let vkb = dhoit_runtime::importance::VkbParams::default();
     let images = |sc: &Scene| {
-        [None, Some(Slots::Uniform(2)), Some(Slots::PerPixel(&k))].map(|slots| {
+        [
+            None,
+            Some(Slots::Uniform(2)),
+            Some(Slots::PerPixel(&k)),
+            Some(Slots::Vkb(vkb, f)),
+            Some(Slots::Dkb(&mlp, f)),
+        ]
+        .map(|slots| {
             g.render(sc, &cam, w, h, BG, slots)
                 .unwrap()
                 .image
@@ -353,4 +363,123 @@ fn the_allocation_pass_matches_its_cpu_twin() {
             );
         }
     }
+}
+
+#[test]
+fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
+    use dhoit_runtime::importance::{self, VkbParams};
+    let Some(g) = gpu() else { return };
+    let mlp = dhoit_runtime::mlp::Mlp::load(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../data/weights.safetensors"
+    )))
+    .unwrap_or_else(|_| dhoit_runtime::mlp::Mlp::random(11));
+    for (name, view) in [("particles", 0), ("plates", 3)] {
+        let (w, h) = (72, 54);
+        let (s, cam) = frame(name, view, w, h);
+        let gfl = g
+            .render(&s, &cam, w, h, BG, None)
+            .unwrap()
+            .fragments
+            .unwrap();
+        let pixels = gfl.pixel_count();
+        for fpp in [0.5, 1.0, 2.0] {
+            let f = (fpp * pixels as f64) as u64;
+            // DKB: the features pass against pixel_stats on the GPU's own fragments.
+            let d = g
+                .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f)))
+                .unwrap();
+            let stats = d.stats.clone().unwrap();
+            let twin = importance::pixel_stats(&gfl);
+            for (p, (a, b)) in stats.iter().zip(&twin).enumerate() {
+                assert_eq!(
+                    (a.count, a.nearest_key, a.color_sum),
+                    (b.count, b.nearest_key, b.color_sum),
+                    "{name} pixel {p}"
+                );
+                if a.count > 0 {
+                    assert_eq!((a.near, a.far), (b.near, b.far), "{name} pixel {p}");
+                    assert!(
+                        a.luma_sum.abs_diff(b.luma_sum) <= a.count
+                            && a.luma_sq_sum.abs_diff(b.luma_sq_sum) <= a.count
+                    );
+                }
+            }
+            // Importance: the network on the GPU's statistics, within 1e-5.
+            let t = importance::totals(&stats);
+            let feats: Vec<[f32; 12]> = stats
+                .iter()
+                .map(|st| {
+                    if st.count > 0 {
+                        importance::pixel_features(st, &t, f)
+                    } else {
+                        [0.0; 12]
+                    }
+                })
+                .collect();
+            let counts: Vec<u32> = stats.iter().map(|st| st.count).collect();
+            let imp_twin = mlp.importance(&feats, &counts);
+            let imp = d.importance.clone().unwrap();
+            let diff = imp
+                .iter()
+                .zip(&imp_twin)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0f32, f32::max);
+            assert!(
+                diff <= 1e-5,
+                "{name} {fpp}fpp: DKB importance differs by {diff}"
+            );
+            check_allocation_and_capture(&gfl, &d, &imp, f, &format!("{name} dkb {fpp}fpp"));
+            let expect = budget::DKB
+                .allocated_bytes(pixels as u64, d.slots.as_ref().unwrap().1[pixels] as u64);
+            assert_eq!(d.allocated_bytes, expect, "{name} dkb bytes");
+            // VKB.
+            let params = VkbParams::default();
+            let v = g
+                .render(&s, &cam, w, h, BG, Some(Slots::Vkb(params, f)))
+                .unwrap();
+            let (vc, facing) = v.vkb_nearest.clone().unwrap();
+            assert_eq!(vc, gfl.counts(), "{name} vkb counts");
+            let imp_twin = importance::vkb_importance_from(&vc, &facing, w, h, &params);
+            let imp = v.importance.clone().unwrap();
+            let diff = imp
+                .iter()
+                .zip(&imp_twin)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0f32, f32::max);
+            assert!(
+                diff <= 1e-5,
+                "{name} {fpp}fpp: VKB importance differs by {diff}"
+            );
+            check_allocation_and_capture(&gfl, &v, &imp, f, &format!("{name} vkb {fpp}fpp"));
+            let expect = budget::VKB
+                .allocated_bytes(pixels as u64, v.slots.as_ref().unwrap().1[pixels] as u64);
+            assert_eq!(v.allocated_bytes, expect, "{name} vkb bytes");
+        }
+    }
+}
+
+/// k from the GPU's importance equals the CPU allocation of it; slots, tail and image equal the
+/// CPU capture and resolve.
+fn check_allocation_and_capture(
+    gfl: &FragmentLists,
+    f: &dhoit_runtime::gpu::GpuFrame,
+    imp: &[f32],
+    budget: u64,
+    label: &str,
+) {
+    let (keys, bases, tails) = f.slots.clone().unwrap();
+    let k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
+    assert!(
+        k == alloc::from_importance(imp, &gfl.counts(), budget),
+        "{label}: allocation differs"
+    );
+    let (twin_keys, twin_tails) = twin_capture(gfl, &k);
+    assert!(
+        keys == twin_keys && tails == twin_tails,
+        "{label}: capture differs"
+    );
+    let twin = composite::composite(gfl, composite::Method::Hybrid(&k), BG);
+    let d = f.image.max_abs_diff(&twin);
+    assert!(d <= 1e-5, "{label}: image differs by {d}");
 }

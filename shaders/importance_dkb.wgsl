@@ -1,0 +1,84 @@
+// DKB importance (compute, one invocation a pixel): the 12 features of
+// importance::pixel_features from the features pass and the totals, standardised, through the
+// MLP (ReLU, ReLU, sigmoid) whose weights sit in a uniform buffer, as mlp::Mlp::forward.
+// Layout of the weights (floats): h1, h2, unused, unused, mean[12], std[12], fc1.weight
+// [12][h1], fc1.bias[h1], fc2.weight[h1][h2], fc2.bias[h2], out.weight[h2], out.bias.
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<uniform> weights: array<vec4<f32>, 2504>;
+@group(0) @binding(2) var<storage, read> count: array<u32>;
+@group(0) @binding(3) var<storage, read> near_inv: array<u32>;
+@group(0) @binding(4) var<storage, read> far: array<u32>;
+@group(0) @binding(5) var<storage, read> nearest_inv: array<u64>;
+@group(0) @binding(6) var<storage, read> sums: array<u32>;
+@group(0) @binding(7) var<storage, read> totals: array<u32>;
+@group(0) @binding(8) var<storage, read_write> importance: array<f32>;
+
+const MAX_H1: u32 = 768u;
+const MAX_H2: u32 = 128u;
+
+fn w(i: u32) -> f32 {
+    return weights[i >> 2u][i & 3u];
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = gid.x;
+    if (p >= params.pixels) {
+        return;
+    }
+    let c = count[p];
+    if (c == 0u) {
+        importance[p] = 0.0;
+        return;
+    }
+    let total = f32(max(totals[0], 1u));
+    let mean_n = total / f32(max(totals[1], 1u));
+    let n = f32(c);
+    let near = unpack_rgba8(u32((~nearest_inv[p]) & 0xfffffffflu));
+    let scale = 4096.0;
+    let luma_mean = f32(sums[5u * p + 3u]) / scale / n;
+    let luma_var = max(f32(sums[5u * p + 4u]) / scale / n - luma_mean * luma_mean, 0.0);
+    var x = array<f32, 12>(
+        n / mean_n,
+        bitcast<f32>(~near_inv[p]),
+        bitcast<f32>(far[p]),
+        near.r,
+        near.g,
+        near.b,
+        f32(sums[5u * p]) / scale / n,
+        f32(sums[5u * p + 1u]) / scale / n,
+        f32(sums[5u * p + 2u]) / scale / n,
+        f32(params.budget_fragments) / total,
+        log2(n),
+        sqrt(luma_var),
+    );
+    let h1 = u32(w(0u));
+    let h2 = u32(w(1u));
+    for (var i = 0u; i < 12u; i++) {
+        x[i] = (x[i] - w(4u + i)) / w(16u + i);
+    }
+    let w1 = 28u;
+    let b1 = w1 + 12u * h1;
+    let w2 = b1 + h1;
+    let b2 = w2 + h1 * h2;
+    let w3 = b2 + h2;
+    let b3 = w3 + h2;
+    var a1: array<f32, MAX_H1>;
+    for (var j = 0u; j < h1; j++) {
+        var acc = w(b1 + j);
+        for (var i = 0u; i < 12u; i++) {
+            acc += x[i] * w(w1 + i * h1 + j);
+        }
+        a1[j] = max(acc, 0.0);
+    }
+    var out = w(b3);
+    for (var j = 0u; j < h2; j++) {
+        var acc = w(b2 + j);
+        for (var i = 0u; i < h1; i++) {
+            acc += a1[i] * w(w2 + i * h2 + j);
+        }
+        out += max(acc, 0.0) * w(w3 + j);
+    }
+    importance[p] = 1.0 / (1.0 + exp(-out));
+}

@@ -1,0 +1,43 @@
+// VKB importance (compute, one invocation a pixel), as importance::vkb_importance:
+// I = max(0, I_per I_f I_d + lambda (xi - 0.5)) with depth complexity, periphery, the Fresnel
+// term of the nearest fragment and per-pixel hash noise.
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> count: array<u32>;
+@group(0) @binding(2) var<storage, read> nearest_inv: array<u64>;
+@group(0) @binding(3) var<storage, read> totals: array<u32>;
+@group(0) @binding(4) var<storage, read_write> importance: array<f32>;
+
+fn pcg_hash(v: u32) -> u32 {
+    let state = v * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = gid.x;
+    if (p >= params.pixels) {
+        return;
+    }
+    let c = count[p];
+    if (c == 0u) {
+        importance[p] = 0.0;
+        return;
+    }
+    let limit = f32(max(totals[2], 1u));
+    let alpha = params.vkb_alpha;
+    let i_d = alpha + (1.0 - alpha) * min(f32(c) / limit, 1.0);
+    let w = f32(params.width);
+    let h = f32(params.height);
+    let half_diag = 0.5 * sqrt(w * w + h * h);
+    let x = f32(p % params.width) + 0.5 - 0.5 * w;
+    let y = f32(p / params.width) + 0.5 - 0.5 * h;
+    let r = min(sqrt(x * x + y * y) / half_diag, 1.0);
+    let i_per = 1.0 - pow(r, params.vkb_exponent);
+    let facing = bitcast<f32>(u32((~nearest_inv[p]) & 0xfffffffflu));
+    let g = 1.0 - facing;
+    let i_f = 1.0 - g * g * g * g * g * 0.5;
+    let xi = f32(pcg_hash(p ^ pcg_hash(params.vkb_seed)) >> 8u) / 16777216.0;
+    importance[p] = max(i_per * i_f * i_d + params.vkb_noise * (xi - 0.5), 0.0);
+}

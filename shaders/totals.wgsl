@@ -1,0 +1,21 @@
+// Frame totals (compute, one invocation a pixel): sum of n, covered pixels and the largest n,
+// with integer atomics (importance::totals).
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> count: array<u32>;
+// fragments, covered, max count, unused
+@group(0) @binding(2) var<storage, read_write> totals: array<atomic<u32>>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = gid.x;
+    if (p >= params.pixels) {
+        return;
+    }
+    let c = count[p];
+    if (c > 0u) {
+        atomicAdd(&totals[0], c);
+        atomicAdd(&totals[1], 1u);
+        atomicMax(&totals[2], c);
+    }
+}
