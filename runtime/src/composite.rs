@@ -272,3 +272,33 @@ pub fn composite(fl: &FragmentLists, method: Method, bg: [f32; 3]) -> Image {
         });
     img
 }
+
+/// The CPU twin of the GPU capture pass: per pixel the `k[p]` nearest capture keys in front-to-
+/// back order (`u64::MAX` for an empty slot), and the tail's integer sums of the rest
+/// (`sum c8 a8` for r, g, b, `sum a8`, count: five a pixel).
+pub fn capture(fl: &FragmentLists, k: &[u32]) -> (Vec<u64>, Vec<u32>) {
+    let mut keys = Vec::with_capacity(k.iter().map(|&x| x as usize).sum());
+    let mut tails = Vec::with_capacity(5 * fl.pixel_count());
+    let mut frags = Vec::new();
+    for p in 0..fl.pixel_count() {
+        frags.clear();
+        frags.extend(fl.range(p).map(|i| Fragment {
+            depth: fl.depth[i],
+            rgba: fl.rgba[i],
+            primitive: fl.primitive[i],
+        }));
+        sort_front_to_back(&mut frags);
+        let kp = k[p] as usize;
+        keys.extend((0..kp).map(|i| {
+            frags
+                .get(i)
+                .map_or(u64::MAX, |f| fragment_key(f.depth, f.rgba))
+        }));
+        let mut t = Tail::default();
+        for f in frags.iter().skip(kp) {
+            t.add(f.rgba);
+        }
+        tails.extend([t.sum_ca[0], t.sum_ca[1], t.sum_ca[2], t.sum_a, t.count]);
+    }
+    (keys, tails)
+}

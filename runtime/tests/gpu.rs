@@ -3,7 +3,7 @@
 
 use dhoit_runtime::alloc;
 use dhoit_runtime::budget::{self, Budget};
-use dhoit_runtime::composite::{self, Fragment, Tail, fragment_key, sort_front_to_back};
+use dhoit_runtime::composite::{self, Fragment, sort_front_to_back};
 use dhoit_runtime::gpu::{Gpu, Slots, shaders};
 use dhoit_runtime::raster::{FragmentLists, rasterize};
 use dhoit_runtime::scene::{self, Camera, Opacity, Scene};
@@ -58,8 +58,24 @@ fn every_shader_validates_and_translates_without_a_gpu() {
     eprintln!("naga back ends accepting each pass: {accepted:?}");
 }
 
+/// One real scene among the GPU tests: the flight helmet from ../shared/scenes (or $DHOIT_SCENES).
+const REAL: &str = "real:FlightHelmet/glTF/FlightHelmet.gltf";
+
 fn frame(name: &str, view: usize, w: u32, h: u32) -> (Scene, Camera) {
-    let s = scene::load(name, Opacity::default()).unwrap();
+    let s = match name.strip_prefix("real:") {
+        Some(rel) => {
+            let dir = std::env::var_os("DHOIT_SCENES")
+                .map(std::path::PathBuf::from)
+                .unwrap_or_else(|| {
+                    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes")
+                });
+            let path = dir.join(rel);
+            scene::load(path.to_str().unwrap(), Opacity::default()).unwrap_or_else(|e| {
+                panic!("the real scene for the GPU tests: {e} (set DHOIT_SCENES)")
+            })
+        }
+        None => scene::load(name, Opacity::default()).unwrap(),
+    };
     let cam = Camera::orbit(&s, view, scene::DEFAULT_VIEWS, w, h);
     (s, cam)
 }
@@ -83,7 +99,7 @@ const BG: [f32; 3] = [0.9, 0.8, 1.0];
 #[test]
 fn abuffer_matches_the_cpu_on_its_own_fragments() {
     let Some(g) = gpu() else { return };
-    for (name, view) in [("shells", 0), ("plates", 1), ("particles", 2)] {
+    for (name, view) in [("shells", 0), ("plates", 1), ("particles", 2), (REAL, 1)] {
         let (w, h) = (96, 72);
         let (s, cam) = frame(name, view, w, h);
         let f = g.render(&s, &cam, w, h, BG, None).unwrap();
@@ -119,33 +135,15 @@ fn abuffer_matches_the_cpu_on_its_own_fragments() {
     }
 }
 
-/// The CPU twin of capture: the k nearest keys of each pixel, and the tail's integer sums.
+/// The CPU twin of the capture pass.
 fn twin_capture(fl: &FragmentLists, k: &[u32]) -> (Vec<u64>, Vec<u32>) {
-    let mut keys = Vec::new();
-    let mut tails = Vec::new();
-    for p in 0..fl.pixel_count() {
-        let frags = pixel_fragments(fl, p);
-        let kp = k[p] as usize;
-        for i in 0..kp {
-            keys.push(
-                frags
-                    .get(i)
-                    .map_or(u64::MAX, |f| fragment_key(f.depth, f.rgba)),
-            );
-        }
-        let mut t = Tail::default();
-        for f in frags.iter().skip(kp) {
-            t.add(f.rgba);
-        }
-        tails.extend([t.sum_ca[0], t.sum_ca[1], t.sum_ca[2], t.sum_a, t.count]);
-    }
-    (keys, tails)
+    composite::capture(fl, k)
 }
 
 #[test]
 fn kbuffers_match_the_cpu_slot_for_slot() {
     let Some(g) = gpu() else { return };
-    for (name, view) in [("hair", 0), ("particles", 1)] {
+    for (name, view) in [("hair", 0), ("particles", 1), (REAL, 2)] {
         let (w, h) = (80, 60);
         let (s, cam) = frame(name, view, w, h);
         let gfl = g
@@ -228,27 +226,56 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
 fn allocated_bytes_never_exceed_the_budget() {
     let Some(g) = gpu() else { return };
     let (s, _) = frame("foliage", 0, 8, 8);
+    let mlp = dhoit_runtime::mlp::Mlp::random(2);
+    let mut checked = [0usize; 3];
     for (w, h) in [(32u32, 24u32), (50, 37), (64, 48)] {
         let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
-        for b in ["30KB", "100KB", "1fpp", "2.5fpp"] {
+        let px = (w * h) as u64;
+        for b in ["30KB", "100KB", "200KB", "1MB", "1fpp", "2.5fpp"] {
             let budget = Budget::parse(b).unwrap();
-            let Ok((m, f)) = budget.resolve(&budget::FKB, (w * h) as u64) else {
-                continue;
-            };
-            let k = (f / (w * h) as u64) as u32;
-            if k == 0 {
-                continue;
+            if let Ok((m, f)) = budget.resolve(&budget::FKB, px)
+                && f >= px
+            {
+                let frame = g
+                    .render(&s, &cam, w, h, BG, Some(Slots::Uniform((f / px) as u32)))
+                    .unwrap();
+                assert!(
+                    frame.allocated_bytes <= m,
+                    "{w}x{h} {b} fkb: {} > {m}",
+                    frame.allocated_bytes
+                );
+                checked[0] += 1;
             }
-            let frame = g
-                .render(&s, &cam, w, h, BG, Some(Slots::Uniform(k)))
-                .unwrap();
-            assert!(
-                frame.allocated_bytes <= m,
-                "{w}x{h} {b}: {} > {m}",
-                frame.allocated_bytes
-            );
+            if let Ok((m, f)) = budget.resolve(&budget::VKB, px) {
+                let frame = g
+                    .render(&s, &cam, w, h, BG, Some(Slots::Vkb(Default::default(), f)))
+                    .unwrap();
+                assert!(
+                    frame.allocated_bytes <= m,
+                    "{w}x{h} {b} vkb: {} > {m}",
+                    frame.allocated_bytes
+                );
+                checked[1] += 1;
+            }
+            if let Ok((m, f)) = budget.resolve(&budget::DKB, px) {
+                let frame = g
+                    .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f)))
+                    .unwrap();
+                assert!(
+                    frame.allocated_bytes <= m,
+                    "{w}x{h} {b} dkb: {} > {m}",
+                    frame.allocated_bytes
+                );
+                checked[2] += 1;
+            }
         }
     }
+    // Budgets too small for a method are errors before anything is allocated; every method
+    // was held to some budgets.
+    assert!(
+        checked.iter().all(|&c| c >= 6),
+        "frames checked (fkb, vkb, dkb): {checked:?}"
+    );
 }
 
 #[test]
