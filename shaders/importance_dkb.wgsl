@@ -14,7 +14,7 @@
 @group(0) @binding(7) var<storage, read> totals: array<u32>;
 @group(0) @binding(8) var<storage, read_write> importance: array<f32>;
 
-const MAX_H1: u32 = 768u;
+// Largest second hidden layer the pass holds (mlp::MAX_H2).
 const MAX_H2: u32 = 128u;
 
 fn w(i: u32) -> f32 {
@@ -64,21 +64,28 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let b2 = w2 + h1 * h2;
     let w3 = b2 + h2;
     let b3 = w3 + h2;
-    var a1: array<f32, MAX_H1>;
-    for (var j = 0u; j < h1; j++) {
-        var acc = w(b1 + j);
-        for (var i = 0u; i < 12u; i++) {
-            acc += x[i] * w(w1 + i * h1 + j);
+    // One hidden unit of the first layer at a time, accumulated straight into the second
+    // layer's sums: a private array of h2 floats instead of h1 (the order of the sums per
+    // output unit is the same as the CPU twin's).
+    var acc2: array<f32, MAX_H2>;
+    for (var j = 0u; j < h2; j++) {
+        acc2[j] = w(b2 + j);
+    }
+    for (var i = 0u; i < h1; i++) {
+        var acc = w(b1 + i);
+        for (var f = 0u; f < 12u; f++) {
+            acc += x[f] * w(w1 + f * h1 + i);
         }
-        a1[j] = max(acc, 0.0);
+        let a = max(acc, 0.0);
+        if (a != 0.0) {
+            for (var j = 0u; j < h2; j++) {
+                acc2[j] += a * w(w2 + i * h2 + j);
+            }
+        }
     }
     var out = w(b3);
     for (var j = 0u; j < h2; j++) {
-        var acc = w(b2 + j);
-        for (var i = 0u; i < h1; i++) {
-            acc += a1[i] * w(w2 + i * h2 + j);
-        }
-        out += max(acc, 0.0) * w(w3 + j);
+        out += max(acc2[j], 0.0) * w(w3 + j);
     }
     importance[p] = 1.0 / (1.0 + exp(-out));
 }

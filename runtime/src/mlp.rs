@@ -25,6 +25,8 @@ pub const H1: usize = 128;
 pub const H2: usize = 64;
 /// Largest parameter count accepted: the default network's.
 pub const MAX_PARAMETERS: usize = parameter_count(H1, H2);
+/// Largest second hidden layer accepted (the GPU pass keeps its sums in a private array).
+pub const MAX_H2: usize = 128;
 
 pub const fn parameter_count(h1: usize, h2: usize) -> usize {
     FEATURES * h1 + h1 + h1 * h2 + h2 + h2 + 1
@@ -205,6 +207,11 @@ impl Mlp {
                 ));
             }
         };
+        if h2 > MAX_H2 {
+            return Err(format!(
+                "the second hidden layer has {h2} units; at most {MAX_H2} are supported"
+            ));
+        }
         if parameter_count(h1, h2) > MAX_PARAMETERS {
             return Err(format!(
                 "hidden sizes {h1},{h2} give {} parameters; at most {MAX_PARAMETERS} fit the GPU's uniform buffer",
