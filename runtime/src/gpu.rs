@@ -336,8 +336,6 @@ pub struct GpuFrame {
 struct FrameBuffers<'a> {
     gpu: &'a Gpu,
     allocated: u64,
-    /// The per-pixel counts of an importance-driven frame, for reading statistics back.
-    extra_counts: Option<wgpu::Buffer>,
 }
 
 impl FrameBuffers<'_> {
@@ -405,16 +403,6 @@ fn u32s(bytes: &[u8]) -> Vec<u32> {
         .collect()
 }
 
-/// What a frame's branch returns: A-buffer fragments, k-buffer slots, importance, DKB stats,
-/// VKB nearest.
-type Readback = (
-    Option<FragmentLists>,
-    Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
-    Option<Vec<f32>>,
-    Option<Vec<PixelStats>>,
-    Option<(Vec<u32>, Vec<f32>)>,
-);
-
 /// Timestamp queries around each pass.
 struct Timer {
     set: wgpu::QuerySet,
@@ -466,20 +454,34 @@ impl Timer {
     }
 }
 
-impl Gpu {
-    fn geometry_pass(
+/// The frame's shared bindings and the pass timer: every pass is one call.
+struct Passes<'a> {
+    gpu: &'a Gpu,
+    timer: &'a Timer,
+    /// params, positions, colours: group 0 of every geometry pass.
+    geometry: [&'a wgpu::Buffer; 3],
+    target: &'a wgpu::TextureView,
+    vertices: u32,
+}
+
+impl Passes<'_> {
+    /// A geometry pass over every triangle, `buffers` bound as group 1.
+    fn draw(
         &self,
         enc: &mut wgpu::CommandEncoder,
         pipeline: &wgpu::RenderPipeline,
-        groups: [&wgpu::BindGroup; 2],
-        target: &wgpu::TextureView,
-        vertices: u32,
-        ts: (&wgpu::QuerySet, (u32, u32)),
+        buffers: &[&wgpu::Buffer],
+        name: &'static str,
     ) {
+        let g0 = self
+            .gpu
+            .bind(&pipeline.get_bind_group_layout(0), &self.geometry);
+        let g1 = self.gpu.bind(&pipeline.get_bind_group_layout(1), buffers);
+        let (b, e) = self.timer.next(name);
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: None,
+            label: Some(name),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: target,
+                view: self.target,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
@@ -489,40 +491,64 @@ impl Gpu {
             })],
             depth_stencil_attachment: None,
             timestamp_writes: Some(wgpu::RenderPassTimestampWrites {
-                query_set: ts.0,
-                beginning_of_pass_write_index: Some(ts.1.0),
-                end_of_pass_write_index: Some(ts.1.1),
+                query_set: &self.timer.set,
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: Some(e),
             }),
             occlusion_query_set: None,
             multiview_mask: None,
         });
         pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, groups[0], &[]);
-        pass.set_bind_group(1, groups[1], &[]);
-        pass.draw(0..vertices, 0..1);
+        pass.set_bind_group(0, &g0, &[]);
+        pass.set_bind_group(1, &g1, &[]);
+        pass.draw(0..self.vertices, 0..1);
     }
 
-    fn compute_pass(
+    /// A compute pass, `buffers` bound as group 0 in binding order.
+    fn dispatch(
         &self,
         enc: &mut wgpu::CommandEncoder,
         pipeline: &wgpu::ComputePipeline,
-        group: &wgpu::BindGroup,
+        buffers: &[&wgpu::Buffer],
         workgroups: u32,
-        ts: (&wgpu::QuerySet, (u32, u32)),
+        name: &'static str,
     ) {
+        let g = self.gpu.bind(&pipeline.get_bind_group_layout(0), buffers);
+        let (b, e) = self.timer.next(name);
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: None,
+            label: Some(name),
             timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
-                query_set: ts.0,
-                beginning_of_pass_write_index: Some(ts.1.0),
-                end_of_pass_write_index: Some(ts.1.1),
+                query_set: &self.timer.set,
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: Some(e),
             }),
         });
         pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, group, &[]);
+        pass.set_bind_group(0, &g, &[]);
         pass.dispatch_workgroups(workgroups, 1, 1);
     }
 
+    /// Submits what is recorded and starts a new encoder.
+    fn submit(&self, enc: &mut wgpu::CommandEncoder) {
+        let done = std::mem::replace(
+            enc,
+            self.gpu.device.create_command_encoder(&Default::default()),
+        );
+        self.gpu.queue.submit([done.finish()]);
+    }
+}
+
+fn read_u64s(gpu: &Gpu, b: &wgpu::Buffer, n: u64, invert: bool) -> Result<Vec<u64>> {
+    Ok(read_back(gpu, b, 8 * n)?
+        .chunks_exact(8)
+        .map(|c| {
+            let v = u64::from_le_bytes(c.try_into().expect("8"));
+            if invert { !v } else { v }
+        })
+        .collect())
+}
+
+impl Gpu {
     fn bind(&self, layout: &wgpu::BindGroupLayout, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
@@ -539,353 +565,7 @@ impl Gpu {
         })
     }
 
-    /// The k-buffer branch of [`Gpu::render`]: k from `s` (uniform, uploaded, or computed by
-    /// the allocation pass from uploaded or GPU-computed importance), capture, resolve.
-    #[allow(clippy::too_many_arguments)]
-    fn kbuffer(
-        &self,
-        fb: &mut FrameBuffers,
-        timer: &Timer,
-        params_buf: &wgpu::Buffer,
-        geometry: [&wgpu::Buffer; 2],
-        view: &wgpu::TextureView,
-        image_buf: &wgpu::Buffer,
-        pixels: u32,
-        s: Slots,
-    ) -> Result<Readback> {
-        let p = &self.pipelines;
-        let px = pixels as u64;
-        let vertices = (self.device_vertices(geometry[0])) as u32;
-        let groups = pixels.div_ceil(64);
-        let g0_for = |pl: &wgpu::RenderPipeline| {
-            self.bind(
-                &pl.get_bind_group_layout(0),
-                &[params_buf, geometry[0], geometry[1]],
-            )
-        };
-        let mut enc = self.device.create_command_encoder(&Default::default());
-        let mut importance_buf = None;
-        let mut stats_bufs = None;
-        let mut vkb_bufs = None;
-        let (k_of, base, slot_count) = match s {
-            Slots::Mlab(_) => unreachable!("MLAB resolves from the A-buffer"),
-            Slots::Uniform(k) => {
-                // FKB reads neither buffer, but the shared capture layout binds both.
-                let dummy = fb.storage("fkb.unused_k", 16, true);
-                let dummy2 = fb.storage("fkb.unused_offsets", 16, true);
-                (dummy, dummy2, k.max(1) as u64 * px)
-            }
-            Slots::PerPixel(k) => {
-                if k.len() != pixels as usize {
-                    return Err(Error::Invalid(format!(
-                        "{} k values for {pixels} pixels",
-                        k.len()
-                    )));
-                }
-                let k_of = fb.init(
-                    "oit.k",
-                    bytemuck::cast_slice(k),
-                    wgpu::BufferUsages::STORAGE,
-                    true,
-                );
-                let base = fb.storage("oit.offsets", 4 * (px + 1), true);
-                let gs = self.bind(
-                    &p.scan.get_bind_group_layout(0),
-                    &[params_buf, &k_of, &base],
-                );
-                self.compute_pass(
-                    &mut enc,
-                    &p.scan,
-                    &gs,
-                    1,
-                    (&timer.set, timer.next("prefix sum")),
-                );
-                (k_of, base, k.iter().map(|&x| x as u64).sum())
-            }
-            Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..) => {
-                let (counts, importance) = match s {
-                    Slots::Importance(imp, _) => {
-                        if imp.len() != pixels as usize {
-                            return Err(Error::Invalid(format!(
-                                "{} importance values for {pixels} pixels",
-                                imp.len()
-                            )));
-                        }
-                        let counts = fb.storage("count", 4 * px, true);
-                        let importance = fb.init(
-                            "oit.importance",
-                            bytemuck::cast_slice(imp),
-                            wgpu::BufferUsages::STORAGE,
-                            true,
-                        );
-                        let g1 = self.bind(&p.count.get_bind_group_layout(1), &[&counts]);
-                        let g0 = g0_for(&p.count);
-                        self.geometry_pass(
-                            &mut enc,
-                            &p.count,
-                            [&g0, &g1],
-                            view,
-                            vertices,
-                            (&timer.set, timer.next("count")),
-                        );
-                        (counts, importance)
-                    }
-                    Slots::Vkb(..) => {
-                        let counts = fb.storage("vkb.count", 4 * px, true);
-                        let nearest = fb.storage("vkb.nearest", 8 * px, true);
-                        let totals = fb.storage("vkb.totals", 16, true);
-                        let importance = fb.storage("oit.importance", 4 * px, true);
-                        let g1 =
-                            self.bind(&p.vkb_count.get_bind_group_layout(1), &[&counts, &nearest]);
-                        let g0 = g0_for(&p.vkb_count);
-                        self.geometry_pass(
-                            &mut enc,
-                            &p.vkb_count,
-                            [&g0, &g1],
-                            view,
-                            vertices,
-                            (&timer.set, timer.next("count")),
-                        );
-                        let gt = self.bind(
-                            &p.totals.get_bind_group_layout(0),
-                            &[params_buf, &counts, &totals],
-                        );
-                        self.compute_pass(
-                            &mut enc,
-                            &p.totals,
-                            &gt,
-                            groups,
-                            (&timer.set, timer.next("totals")),
-                        );
-                        let gi = self.bind(
-                            &p.importance_vkb.get_bind_group_layout(0),
-                            &[params_buf, &counts, &nearest, &totals, &importance],
-                        );
-                        self.compute_pass(
-                            &mut enc,
-                            &p.importance_vkb,
-                            &gi,
-                            groups,
-                            (&timer.set, timer.next("importance")),
-                        );
-                        vkb_bufs = Some(nearest);
-                        (counts, importance)
-                    }
-                    Slots::Dkb(mlp, _) => {
-                        let weights = fb.init(
-                            "mlp.weights",
-                            bytemuck::cast_slice(&mlp_uniform(mlp)),
-                            wgpu::BufferUsages::UNIFORM,
-                            true,
-                        );
-                        let counts = fb.storage("features.count", 4 * px, true);
-                        let near = fb.storage("features.near", 4 * px, true);
-                        let far = fb.storage("features.far", 4 * px, true);
-                        let nearest = fb.storage("features.nearest_color", 8 * px, true);
-                        let sums = fb.storage("features.sums", 20 * px, true);
-                        let totals = fb.storage("features.totals", 24, true);
-                        let importance = fb.storage("oit.importance", 4 * px, true);
-                        let g1 = self.bind(
-                            &p.features.get_bind_group_layout(1),
-                            &[&counts, &near, &far, &nearest, &sums],
-                        );
-                        let g0 = g0_for(&p.features);
-                        self.geometry_pass(
-                            &mut enc,
-                            &p.features,
-                            [&g0, &g1],
-                            view,
-                            vertices,
-                            (&timer.set, timer.next("features")),
-                        );
-                        let gt = self.bind(
-                            &p.totals.get_bind_group_layout(0),
-                            &[params_buf, &counts, &totals],
-                        );
-                        self.compute_pass(
-                            &mut enc,
-                            &p.totals,
-                            &gt,
-                            groups,
-                            (&timer.set, timer.next("totals")),
-                        );
-                        let gi = self.bind(
-                            &p.importance_dkb.get_bind_group_layout(0),
-                            &[
-                                params_buf,
-                                &weights,
-                                &counts,
-                                &near,
-                                &far,
-                                &nearest,
-                                &sums,
-                                &totals,
-                                &importance,
-                            ],
-                        );
-                        self.compute_pass(
-                            &mut enc,
-                            &p.importance_dkb,
-                            &gi,
-                            groups,
-                            (&timer.set, timer.next("importance")),
-                        );
-                        stats_bufs = Some((near, far, nearest, sums));
-                        (counts, importance)
-                    }
-                    _ => unreachable!(),
-                };
-                // Keep the computed importance for inspection (a readback copy, like the staging
-                // buffers not counted): the allocation pass overwrites it with q.
-                let copy = matches!(s, Slots::Vkb(..) | Slots::Dkb(..)).then(|| {
-                    let b = fb.storage("importance.readback", 4 * px, false);
-                    enc.copy_buffer_to_buffer(&importance, 0, &b, 0, 4 * px);
-                    b
-                });
-                importance_buf = copy;
-                let k_of = fb.storage("oit.k", 4 * px, true);
-                let base = fb.storage("oit.offsets", 4 * (px + 1), true);
-                let ga = self.bind(
-                    &p.allocate.get_bind_group_layout(0),
-                    &[params_buf, &counts, &importance, &k_of],
-                );
-                self.compute_pass(
-                    &mut enc,
-                    &p.allocate,
-                    &ga,
-                    1,
-                    (&timer.set, timer.next("allocation")),
-                );
-                let gs = self.bind(
-                    &p.scan.get_bind_group_layout(0),
-                    &[params_buf, &k_of, &base],
-                );
-                self.compute_pass(
-                    &mut enc,
-                    &p.scan,
-                    &gs,
-                    1,
-                    (&timer.set, timer.next("prefix sum")),
-                );
-                self.queue.submit([std::mem::replace(
-                    &mut enc,
-                    self.device.create_command_encoder(&Default::default()),
-                )
-                .finish()]);
-                let total = u32s(&read_back(self, &base, 4 * (px + 1))?)[pixels as usize] as u64;
-                // The counts are needed to read the statistics back.
-                fb.extra_counts = Some(counts);
-                (k_of, base, total)
-            }
-        };
-        let slots_buf = fb.storage("oit.slots", 8 * slot_count, true);
-        let tail = fb.storage("oit.tail", 20 * px, true);
-        let g0 = g0_for(&p.capture);
-        let g1 = self.bind(
-            &p.capture.get_bind_group_layout(1),
-            &[&k_of, &base, &slots_buf, &tail],
-        );
-        self.geometry_pass(
-            &mut enc,
-            &p.capture,
-            [&g0, &g1],
-            view,
-            vertices,
-            (&timer.set, timer.next("capture")),
-        );
-        let gr = self.bind(
-            &p.resolve.get_bind_group_layout(0),
-            &[params_buf, &k_of, &base, &slots_buf, &tail, image_buf],
-        );
-        self.compute_pass(
-            &mut enc,
-            &p.resolve,
-            &gr,
-            groups,
-            (&timer.set, timer.next("resolve")),
-        );
-        self.queue.submit([enc.finish()]);
-        let keys: Vec<u64> = read_back(self, &slots_buf, 8 * slot_count)?
-            .chunks_exact(8)
-            .map(|c| !u64::from_le_bytes(c.try_into().expect("8")))
-            .collect();
-        let bases = match s {
-            Slots::Uniform(k) => (0..=pixels).map(|p| p * k.max(1)).collect(),
-            _ => u32s(&read_back(self, &base, 4 * (px + 1))?),
-        };
-        let tails = u32s(&read_back(self, &tail, 20 * px)?);
-        let importance = match &importance_buf {
-            Some(b) => Some(
-                u32s(&read_back(self, b, 4 * px)?)
-                    .into_iter()
-                    .map(f32::from_bits)
-                    .collect(),
-            ),
-            None => None,
-        };
-        let counts = match &fb.extra_counts {
-            Some(c) => Some(u32s(&read_back(self, c, 4 * px)?)),
-            None => None,
-        };
-        let stats = match (&stats_bufs, &counts) {
-            (Some((near, far, nearest, sums)), Some(counts)) => {
-                let near = u32s(&read_back(self, near, 4 * px)?);
-                let far = u32s(&read_back(self, far, 4 * px)?);
-                let nearest: Vec<u64> = read_back(self, nearest, 8 * px)?
-                    .chunks_exact(8)
-                    .map(|c| !u64::from_le_bytes(c.try_into().expect("8")))
-                    .collect();
-                let sums = u32s(&read_back(self, sums, 20 * px)?);
-                Some(
-                    (0..pixels as usize)
-                        .map(|q| PixelStats {
-                            count: counts[q],
-                            near: if counts[q] > 0 {
-                                f32::from_bits(!near[q])
-                            } else {
-                                0.0
-                            },
-                            far: f32::from_bits(far[q]),
-                            nearest_key: nearest[q],
-                            nearest_primitive: u32::MAX,
-                            color_sum: [sums[5 * q], sums[5 * q + 1], sums[5 * q + 2]],
-                            luma_sum: sums[5 * q + 3],
-                            luma_sq_sum: sums[5 * q + 4],
-                        })
-                        .collect(),
-                )
-            }
-            _ => None,
-        };
-        let vkb_nearest = match (&vkb_bufs, &counts) {
-            (Some(nearest), Some(counts)) => {
-                let facing: Vec<f32> = read_back(self, nearest, 8 * px)?
-                    .chunks_exact(8)
-                    .map(|c| f32::from_bits((!u64::from_le_bytes(c.try_into().expect("8"))) as u32))
-                    .collect();
-                let facing = facing
-                    .iter()
-                    .zip(counts)
-                    .map(|(&f, &c)| if c > 0 { f } else { 1.0 })
-                    .collect();
-                Some((counts.clone(), facing))
-            }
-            _ => None,
-        };
-        Ok((
-            None,
-            Some((keys, bases, tails)),
-            importance,
-            stats,
-            vkb_nearest,
-        ))
-    }
-
-    fn device_vertices(&self, positions: &wgpu::Buffer) -> u64 {
-        positions.size() / 16
-    }
-
-    /// Renders one frame: the A-buffer when `slots` is None, else the k-buffer.
+    /// Renders one frame: the A-buffer when `slots` is None, else as `slots` says.
     pub fn render(
         &self,
         scene: &Scene,
@@ -897,32 +577,32 @@ impl Gpu {
     ) -> Result<GpuFrame> {
         crate::raster::check_resolution(width, height)?;
         let pixels = width * height;
+        let px = pixels as u64;
+        let groups = pixels.div_ceil(64);
+        if groups > 65535 {
+            return Err(Error::Gpu(format!(
+                "{pixels} pixels exceed one dispatch (4,194,240)"
+            )));
+        }
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let mut fb = FrameBuffers {
             gpu: self,
             allocated: 0,
-            extra_counts: None,
         };
-        let budget_fragments = match slots {
-            Some(Slots::Importance(_, f) | Slots::Vkb(_, f) | Slots::Dkb(_, f)) => f,
-            _ => 0,
-        };
-        let vkb = match slots {
-            Some(Slots::Vkb(v, _)) => v,
-            _ => VkbParams::default(),
-        };
-        let k_uniform = match slots {
-            Some(Slots::Uniform(k)) => k.max(1),
+        let (budget_fragments, vkb, k_uniform) = match slots {
+            Some(Slots::Importance(_, f) | Slots::Dkb(_, f)) => (f, VkbParams::default(), 0),
+            Some(Slots::Vkb(v, f)) => (f, v, 0),
+            Some(Slots::Uniform(k)) => (0, VkbParams::default(), k.max(1)),
             Some(Slots::Mlab(m)) => {
                 if m == 0 || m > MLAB_MAX_ROWS {
                     return Err(Error::Invalid(format!(
                         "MLAB on the GPU takes 1 to {MLAB_MAX_ROWS} rows, not {m}"
                     )));
                 }
-                m
+                (0, VkbParams::default(), m)
             }
-            _ => 0,
+            Some(Slots::PerPixel(_)) | None => (0, VkbParams::default(), 0),
         };
         let params = Params {
             view_proj: cam.view_proj.to_cols_array_2d(),
@@ -950,7 +630,6 @@ impl Gpu {
             .iter()
             .map(|p| p.extend(1.0).to_array())
             .collect();
-        let col: Vec<[f32; 4]> = scene.colors.clone();
         let positions = fb.init(
             "scene.positions",
             bytemuck::cast_slice(&pos),
@@ -959,11 +638,11 @@ impl Gpu {
         );
         let colors = fb.init(
             "scene.colors",
-            bytemuck::cast_slice(&col),
+            bytemuck::cast_slice(&scene.colors),
             wgpu::BufferUsages::STORAGE,
             false,
         );
-        fb.allocated += pixels as u64; // the R8 render target
+        fb.allocated += px; // the R8 render target
         let target = self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("raster.target"),
             size: wgpu::Extent3d {
@@ -979,140 +658,347 @@ impl Gpu {
             view_formats: &[],
         });
         let view = target.create_view(&Default::default());
-        let vertices = scene.positions.len() as u32;
-        let p = &self.pipelines;
         let timer = Timer::new(self, 8);
-        let image_buf = fb.storage("oit.image", 16 * pixels as u64, true);
-        let groups = (pixels.div_ceil(64)).min(65535);
-        if groups * 64 < pixels {
-            return Err(Error::Gpu(format!(
-                "{pixels} pixels exceed one dispatch (4,194,240)"
-            )));
-        }
-        let result = match slots {
+        let passes = Passes {
+            gpu: self,
+            timer: &timer,
+            geometry: [&params_buf, &positions, &colors],
+            target: &view,
+            vertices: scene.positions.len() as u32,
+        };
+        let p = &self.pipelines;
+        let params_buf = &params_buf;
+        let image = fb.storage("oit.image", 16 * px, true);
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        let mut out = Readback::default();
+        match slots {
             None | Some(Slots::Mlab(_)) => {
-                let counts = fb.storage("abuf.count", 4 * pixels as u64, true);
-                let offsets = fb.storage("abuf.offsets", 4 * (pixels as u64 + 1), true);
-                let cursor = fb.storage("abuf.cursor", 4 * pixels as u64, true);
-                let g0 = self.bind(
-                    &p.count.get_bind_group_layout(0),
-                    &[&params_buf, &positions, &colors],
-                );
-                let g1 = self.bind(&p.count.get_bind_group_layout(1), &[&counts]);
-                let mut enc = self.device.create_command_encoder(&Default::default());
-                self.geometry_pass(
-                    &mut enc,
-                    &p.count,
-                    [&g0, &g1],
-                    &view,
-                    vertices,
-                    (&timer.set, timer.next("count")),
-                );
-                let gs = self.bind(
-                    &p.scan.get_bind_group_layout(0),
-                    &[&params_buf, &counts, &offsets],
-                );
-                self.compute_pass(
+                let counts = fb.storage("abuf.count", 4 * px, true);
+                let offsets = fb.storage("abuf.offsets", 4 * (px + 1), true);
+                let cursor = fb.storage("abuf.cursor", 4 * px, true);
+                passes.draw(&mut enc, &p.count, &[&counts], "count");
+                passes.dispatch(
                     &mut enc,
                     &p.scan,
-                    &gs,
+                    &[params_buf, &counts, &offsets],
                     1,
-                    (&timer.set, timer.next("prefix sum")),
+                    "prefix sum",
                 );
-                self.queue.submit([enc.finish()]);
-                let total = u32s(&read_back(self, &offsets, 4 * (pixels as u64 + 1))?)
-                    [pixels as usize] as u64;
+                passes.submit(&mut enc);
+                // Exact memory: the pool holds what the count found.
+                let total = u32s(&read_back(self, &offsets, 4 * (px + 1))?)[pixels as usize] as u64;
                 let fragments = fb.storage("abuf.fragments", 16 * total, true);
-                let g0 = self.bind(
-                    &p.store.get_bind_group_layout(0),
-                    &[&params_buf, &positions, &colors],
-                );
-                let g1 = self.bind(
-                    &p.store.get_bind_group_layout(1),
-                    &[&offsets, &cursor, &fragments],
-                );
-                let mut enc = self.device.create_command_encoder(&Default::default());
-                self.geometry_pass(
+                passes.draw(
                     &mut enc,
                     &p.store,
-                    [&g0, &g1],
-                    &view,
-                    vertices,
-                    (&timer.set, timer.next("store")),
+                    &[&offsets, &cursor, &fragments],
+                    "store",
                 );
-                let (resolve, label) = match slots {
+                let (resolve, name) = match slots {
                     Some(_) => (&p.mlab_resolve, "mlab blend"),
                     None => (&p.abuffer_resolve, "sort and blend"),
                 };
-                let gr = self.bind(
-                    &resolve.get_bind_group_layout(0),
-                    &[&params_buf, &offsets, &fragments, &image_buf],
-                );
-                self.compute_pass(
+                passes.dispatch(
                     &mut enc,
                     resolve,
-                    &gr,
+                    &[params_buf, &offsets, &fragments, &image],
                     groups,
-                    (&timer.set, timer.next(label)),
+                    name,
                 );
-                self.queue.submit([enc.finish()]);
-                let off = u32s(&read_back(self, &offsets, 4 * (pixels as u64 + 1))?);
-                let raw = u32s(&read_back(self, &fragments, 16 * total)?);
+                passes.submit(&mut enc);
                 let mut fl = FragmentLists {
                     width,
                     height,
-                    offsets: off,
+                    offsets: u32s(&read_back(self, &offsets, 4 * (px + 1))?),
                     ..Default::default()
                 };
-                for f in raw.chunks_exact(4) {
+                for f in u32s(&read_back(self, &fragments, 16 * total)?).chunks_exact(4) {
                     fl.depth.push(f32::from_bits(f[0]));
                     fl.rgba.push(crate::composite::unpack_rgba8(f[1]));
                     fl.primitive.push(f[2]);
                 }
-                (Some(fl), None, None, None, None)
+                out.fragments = Some(fl);
             }
-            Some(s) => self.kbuffer(
-                &mut fb,
-                &timer,
-                &params_buf,
-                [&positions, &colors],
-                &view,
-                &image_buf,
-                pixels,
-                s,
-            )?,
-        };
-        let img = u32s(&read_back(self, &image_buf, 16 * pixels as u64)?);
+            Some(s) => {
+                // k for every pixel: uniform, uploaded, or allocated here from importance.
+                let (k_of, base, slot_count) = match s {
+                    Slots::Uniform(k) => {
+                        // FKB reads neither buffer, but the shared capture layout binds both.
+                        let unused_k = fb.storage("fkb.unused_k", 16, true);
+                        let unused_offsets = fb.storage("fkb.unused_offsets", 16, true);
+                        (unused_k, unused_offsets, k.max(1) as u64 * px)
+                    }
+                    Slots::PerPixel(k) => {
+                        if k.len() != pixels as usize {
+                            return Err(Error::Invalid(format!(
+                                "{} k values for {pixels} pixels",
+                                k.len()
+                            )));
+                        }
+                        let k_of = fb.init(
+                            "oit.k",
+                            bytemuck::cast_slice(k),
+                            wgpu::BufferUsages::STORAGE,
+                            true,
+                        );
+                        let base = fb.storage("oit.offsets", 4 * (px + 1), true);
+                        passes.dispatch(
+                            &mut enc,
+                            &p.scan,
+                            &[params_buf, &k_of, &base],
+                            1,
+                            "prefix sum",
+                        );
+                        (k_of, base, k.iter().map(|&x| x as u64).sum())
+                    }
+                    _ => {
+                        let (counts, importance) = match s {
+                            Slots::Importance(imp, _) => {
+                                if imp.len() != pixels as usize {
+                                    return Err(Error::Invalid(format!(
+                                        "{} importance values for {pixels} pixels",
+                                        imp.len()
+                                    )));
+                                }
+                                let counts = fb.storage("count", 4 * px, true);
+                                let imp = fb.init(
+                                    "oit.importance",
+                                    bytemuck::cast_slice(imp),
+                                    wgpu::BufferUsages::STORAGE,
+                                    true,
+                                );
+                                passes.draw(&mut enc, &p.count, &[&counts], "count");
+                                (counts, imp)
+                            }
+                            Slots::Vkb(..) => {
+                                let counts = fb.storage("vkb.count", 4 * px, true);
+                                let nearest = fb.storage("vkb.nearest", 8 * px, true);
+                                let totals = fb.storage("vkb.totals", 16, true);
+                                let imp = fb.storage("oit.importance", 4 * px, true);
+                                passes.draw(&mut enc, &p.vkb_count, &[&counts, &nearest], "count");
+                                passes.dispatch(
+                                    &mut enc,
+                                    &p.totals,
+                                    &[params_buf, &counts, &totals],
+                                    groups,
+                                    "totals",
+                                );
+                                passes.dispatch(
+                                    &mut enc,
+                                    &p.importance_vkb,
+                                    &[params_buf, &counts, &nearest, &totals, &imp],
+                                    groups,
+                                    "importance",
+                                );
+                                out.vkb_nearest_buf = Some(nearest);
+                                (counts, imp)
+                            }
+                            Slots::Dkb(mlp, _) => {
+                                let weights = fb.init(
+                                    "mlp.weights",
+                                    bytemuck::cast_slice(&mlp_uniform(mlp)),
+                                    wgpu::BufferUsages::UNIFORM,
+                                    true,
+                                );
+                                let counts = fb.storage("features.count", 4 * px, true);
+                                let near = fb.storage("features.near", 4 * px, true);
+                                let far = fb.storage("features.far", 4 * px, true);
+                                let nearest = fb.storage("features.nearest_color", 8 * px, true);
+                                let sums = fb.storage("features.sums", 20 * px, true);
+                                let totals = fb.storage("features.totals", 24, true);
+                                let imp = fb.storage("oit.importance", 4 * px, true);
+                                passes.draw(
+                                    &mut enc,
+                                    &p.features,
+                                    &[&counts, &near, &far, &nearest, &sums],
+                                    "features",
+                                );
+                                passes.dispatch(
+                                    &mut enc,
+                                    &p.totals,
+                                    &[params_buf, &counts, &totals],
+                                    groups,
+                                    "totals",
+                                );
+                                passes.dispatch(
+                                    &mut enc,
+                                    &p.importance_dkb,
+                                    &[
+                                        params_buf, &weights, &counts, &near, &far, &nearest,
+                                        &sums, &totals, &imp,
+                                    ],
+                                    groups,
+                                    "importance",
+                                );
+                                out.stats_bufs = Some([near, far, nearest, sums]);
+                                (counts, imp)
+                            }
+                            _ => unreachable!("handled above"),
+                        };
+                        if matches!(s, Slots::Vkb(..) | Slots::Dkb(..)) {
+                            // A readback copy (not counted, like the staging buffers): the
+                            // allocation pass overwrites importance with its fixed point.
+                            let copy = fb.storage("importance.readback", 4 * px, false);
+                            enc.copy_buffer_to_buffer(&importance, 0, &copy, 0, 4 * px);
+                            out.importance_buf = Some(copy);
+                        }
+                        let k_of = fb.storage("oit.k", 4 * px, true);
+                        let base = fb.storage("oit.offsets", 4 * (px + 1), true);
+                        passes.dispatch(
+                            &mut enc,
+                            &p.allocate,
+                            &[params_buf, &counts, &importance, &k_of],
+                            1,
+                            "allocation",
+                        );
+                        passes.dispatch(
+                            &mut enc,
+                            &p.scan,
+                            &[params_buf, &k_of, &base],
+                            1,
+                            "prefix sum",
+                        );
+                        passes.submit(&mut enc);
+                        let total =
+                            u32s(&read_back(self, &base, 4 * (px + 1))?)[pixels as usize] as u64;
+                        out.counts_buf = Some(counts);
+                        (k_of, base, total)
+                    }
+                };
+                let slots_buf = fb.storage("oit.slots", 8 * slot_count, true);
+                let tail = fb.storage("oit.tail", 20 * px, true);
+                passes.draw(
+                    &mut enc,
+                    &p.capture,
+                    &[&k_of, &base, &slots_buf, &tail],
+                    "capture",
+                );
+                passes.dispatch(
+                    &mut enc,
+                    &p.resolve,
+                    &[params_buf, &k_of, &base, &slots_buf, &tail, &image],
+                    groups,
+                    "resolve",
+                );
+                passes.submit(&mut enc);
+                let bases = match s {
+                    Slots::Uniform(k) => (0..=pixels).map(|q| q * k.max(1)).collect(),
+                    _ => u32s(&read_back(self, &base, 4 * (px + 1))?),
+                };
+                out.slots = Some((
+                    read_u64s(self, &slots_buf, slot_count, true)?,
+                    bases,
+                    u32s(&read_back(self, &tail, 20 * px)?),
+                ));
+            }
+        }
+        let img = u32s(&read_back(self, &image, 16 * px)?);
         let pass_ms = timer.read(self)?;
+        let (importance, stats, vkb_nearest) = out.statistics(self, px)?;
         if let Some(e) = pollster::block_on(oom.pop()) {
             return Err(Error::Gpu(format!("out of device memory: {e}")));
         }
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(Error::Gpu(format!("the device rejected a command: {e}")));
         }
-        let image = Image {
-            width,
-            height,
-            data: img
-                .chunks_exact(4)
-                .map(|c| {
-                    [
-                        f32::from_bits(c[0]),
-                        f32::from_bits(c[1]),
-                        f32::from_bits(c[2]),
-                    ]
-                })
-                .collect(),
-        };
         Ok(GpuFrame {
-            image,
+            image: Image {
+                width,
+                height,
+                data: img
+                    .chunks_exact(4)
+                    .map(|c| {
+                        [
+                            f32::from_bits(c[0]),
+                            f32::from_bits(c[1]),
+                            f32::from_bits(c[2]),
+                        ]
+                    })
+                    .collect(),
+            },
             pass_ms,
             allocated_bytes: fb.allocated,
-            fragments: result.0,
-            slots: result.1,
-            importance: result.2,
-            stats: result.3,
-            vkb_nearest: result.4,
+            fragments: out.fragments,
+            slots: out.slots,
+            importance,
+            stats,
+            vkb_nearest,
         })
+    }
+}
+
+/// What a frame leaves to read back after its passes.
+#[derive(Default)]
+struct Readback {
+    fragments: Option<FragmentLists>,
+    slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
+    counts_buf: Option<wgpu::Buffer>,
+    importance_buf: Option<wgpu::Buffer>,
+    /// DKB: near, far, nearest key, sums.
+    stats_bufs: Option<[wgpu::Buffer; 4]>,
+    vkb_nearest_buf: Option<wgpu::Buffer>,
+}
+
+type Statistics = (
+    Option<Vec<f32>>,
+    Option<Vec<PixelStats>>,
+    Option<(Vec<u32>, Vec<f32>)>,
+);
+
+impl Readback {
+    /// Importance, DKB statistics and VKB nearest facing, where the frame computed them.
+    fn statistics(&self, gpu: &Gpu, px: u64) -> Result<Statistics> {
+        let importance = match &self.importance_buf {
+            Some(b) => Some(
+                u32s(&read_back(gpu, b, 4 * px)?)
+                    .into_iter()
+                    .map(f32::from_bits)
+                    .collect(),
+            ),
+            None => None,
+        };
+        let Some(counts) = &self.counts_buf else {
+            return Ok((importance, None, None));
+        };
+        let counts = u32s(&read_back(gpu, counts, 4 * px)?);
+        let stats = match &self.stats_bufs {
+            Some([near, far, nearest, sums]) => {
+                let near = u32s(&read_back(gpu, near, 4 * px)?);
+                let far = u32s(&read_back(gpu, far, 4 * px)?);
+                let nearest = read_u64s(gpu, nearest, px, true)?;
+                let sums = u32s(&read_back(gpu, sums, 20 * px)?);
+                Some(
+                    (0..px as usize)
+                        .map(|q| PixelStats {
+                            count: counts[q],
+                            near: if counts[q] > 0 {
+                                f32::from_bits(!near[q])
+                            } else {
+                                0.0
+                            },
+                            far: f32::from_bits(far[q]),
+                            nearest_key: nearest[q],
+                            nearest_primitive: u32::MAX,
+                            color_sum: [sums[5 * q], sums[5 * q + 1], sums[5 * q + 2]],
+                            luma_sum: sums[5 * q + 3],
+                            luma_sq_sum: sums[5 * q + 4],
+                        })
+                        .collect(),
+                )
+            }
+            None => None,
+        };
+        let vkb_nearest = match &self.vkb_nearest_buf {
+            Some(b) => {
+                let facing = read_u64s(gpu, b, px, true)?
+                    .iter()
+                    .zip(&counts)
+                    .map(|(&v, &c)| if c > 0 { f32::from_bits(v as u32) } else { 1.0 })
+                    .collect();
+                Some((counts.clone(), facing))
+            }
+            None => None,
+        };
+        Ok((importance, stats, vkb_nearest))
     }
 }
