@@ -2,6 +2,11 @@
 # Runs every test of the workspace (release profile) and closes with one summary line over all
 # test binaries, so the total is visible at the end of a long log.
 set -uo pipefail
+# Mesa's Vulkan loader warns on stderr without a runtime directory; give it a private one.
+if [ -z "${XDG_RUNTIME_DIR:-}" ] || [ ! -d "$XDG_RUNTIME_DIR" ]; then
+  XDG_RUNTIME_DIR=$(mktemp -d)
+  export XDG_RUNTIME_DIR
+fi
 log=$(mktemp)
 cargo test --release --workspace --all-targets "$@" 2>&1 | tee "$log"
 status=${PIPESTATUS[0]}

@@ -402,23 +402,6 @@ fn features(a: FeaturesArgs) -> Result<()> {
     Ok(())
 }
 
-/// A file-name-safe label for a scene (its file stem for paths).
-fn scene_label(name: &str) -> String {
-    let stem = Path::new(name)
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| name.to_string());
-    stem.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
-}
-
 fn compare(a: CompareArgs) -> Result<()> {
     let budgets: Vec<Budget> = a
         .budgets
@@ -454,7 +437,7 @@ fn compare(a: CompareArgs) -> Result<()> {
         String::from("# dhoit comparison\n\nMSE against the A-buffer image (linear RGB).\n");
     for name in &a.scenes {
         let scene = load_scene(name, &a.common)?;
-        let label = scene_label(name);
+        let label = scene::file_label(name);
         for &view in &a.view_list {
             let (fl, raster_ms) = rasterize_view(&scene, view, &a.common)?;
             for budget in &budgets {

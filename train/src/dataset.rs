@@ -252,7 +252,7 @@ pub fn generate(
                     .collect();
                 let xs: Vec<f32> = keep.iter().flat_map(|&i| x[i]).collect();
                 let ys: Vec<f32> = keep.iter().map(|&i| y[i]).collect();
-                let label = scene_label(&config.scenes[si]);
+                let label = scene::file_label(&config.scenes[si]);
                 let file = format!("{label}_v{view}_{}.safetensors", level.label());
                 let meta: HashMap<String, String> = [
                     ("format", FORMAT.to_string()),
@@ -301,23 +301,6 @@ pub fn generate(
     let text = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
     tensors::write_atomic(&manifest_path, text.as_bytes())?;
     Ok(manifest)
-}
-
-/// A file-name-safe label for a scene (its file stem for paths).
-pub fn scene_label(name: &str) -> String {
-    let stem = Path::new(name)
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| name.to_string());
-    stem.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
 }
 
 /// Reads a whole dataset (every shard of its manifest).

@@ -96,6 +96,23 @@ impl Scene {
     }
 }
 
+/// A file-name-safe label for a scene name or path (its file stem for paths).
+pub fn file_label(name: &str) -> String {
+    let stem = Path::new(name)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| name.to_string());
+    stem.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
 /// Loads a scene by built-in name or by path to a `.gltf` / `.glb` file.
 pub fn load(name_or_path: &str, opacity: Opacity) -> Result<Scene> {
     let scene = if let Some(s) = procedural::build(name_or_path) {
