@@ -6,6 +6,8 @@
 @group(0) @binding(1) var<storage, read> offsets: array<u32>;
 @group(0) @binding(2) var<storage, read_write> fragments: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
+// Set to 1 when a pixel's sort came close to lavapipe's loop limit (see common.wgsl).
+@group(0) @binding(4) var<storage, read_write> status: array<atomic<u32>>;
 
 fn before(a: vec4<u32>, b: vec4<u32>) -> bool {
     let ka = fragment_key(bitcast<f32>(a.x), a.y);
@@ -22,9 +24,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let start = offsets[p];
     let end = offsets[p + 1u];
     for (var i = start + 1u; i < end; i++) {
+        tick();
         let f = fragments[i];
         var j = i;
         while (j > start && before(f, fragments[j - 1u])) {
+            tick();
             fragments[j] = fragments[j - 1u];
             j--;
         }
@@ -33,9 +37,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var c = vec3<f32>(0.0);
     var t = 1.0;
     for (var i = start; i < end; i++) {
+        tick();
         let rgba = unpack_rgba8(fragments[i].y);
         c += t * rgba.a * rgba.rgb;
         t *= 1.0 - rgba.a;
+    }
+    if (ticks > LOOP_BUDGET) {
+        atomicMax(&status[0], 1u);
     }
     image[p] = vec4<f32>(c + t * params.background.rgb, 1.0);
 }

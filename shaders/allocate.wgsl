@@ -9,6 +9,8 @@
 @group(0) @binding(1) var<storage, read> counts: array<u32>;
 @group(0) @binding(2) var<storage, read_write> importance: array<u32>;
 @group(0) @binding(3) var<storage, read_write> k: array<u32>;
+// Set to 1 when the pass came close to lavapipe's loop limit (see common.wgsl).
+@group(0) @binding(4) var<storage, read_write> status: array<atomic<u32>>;
 
 const SCALE: f32 = 1048576.0;
 
@@ -19,6 +21,7 @@ fn sum64(lid: u32, v: u64) -> u64 {
     red[lid] = v;
     workgroupBarrier();
     for (var s = 128u; s > 0u; s = s >> 1u) {
+        tick();
         if (lid < s) {
             red[lid] = red[lid] + red[lid + s];
         }
@@ -55,12 +58,14 @@ fn select_and_apply(lid: u32, count: u64, mode: u32, lo: u32) {
     var lo_t = 0lu;
     var hi_t = 4294967296lu;
     for (var it = 0u; it < 33u; it++) {
+        tick();
         if (hi_t - lo_t <= 1lu) {
             break;
         }
         let mid = (lo_t + hi_t) / 2lu;
         var c = 0lu;
         for (var p = lid; p < n; p += 256u) {
+            tick();
             if (eligible(p, mode, lo) && u64(rank(p, mode)) >= mid) {
                 c += 1lu;
             }
@@ -75,6 +80,7 @@ fn select_and_apply(lid: u32, count: u64, mode: u32, lo: u32) {
     // How many are strictly above the threshold; the rest come from the threshold in order.
     var above = 0lu;
     for (var p = lid; p < n; p += 256u) {
+        tick();
         if (eligible(p, mode, lo) && rank(p, mode) > t) {
             above += 1lu;
         }
@@ -84,6 +90,7 @@ fn select_and_apply(lid: u32, count: u64, mode: u32, lo: u32) {
     // anything (a change can alter eligibility).
     var taken = 0lu;
     for (var base = 0u; base < n; base += 256u) {
+        tick();
         let p = base + lid;
         var flag = 0lu;
         if (p < n && eligible(p, mode, lo) && rank(p, mode) == t) {
@@ -93,6 +100,7 @@ fn select_and_apply(lid: u32, count: u64, mode: u32, lo: u32) {
         red[lid] = flag;
         workgroupBarrier();
         for (var s = 1u; s < 256u; s = s << 1u) {
+            tick();
             var add = 0lu;
             if (lid >= s) {
                 add = red[lid - s];
@@ -112,6 +120,7 @@ fn select_and_apply(lid: u32, count: u64, mode: u32, lo: u32) {
     storageBarrier();
     workgroupBarrier();
     for (var p = lid; p < n; p += 256u) {
+        tick();
         var kp = k[p];
         var marked = false;
         if (kp >= 0x80000000u) {
@@ -150,6 +159,7 @@ fn main(@builtin(local_invocation_index) lid: u32) {
     var frags = 0lu;
     var qsum = 0lu;
     for (var p = lid; p < n; p += 256u) {
+        tick();
         let c = counts[p];
         var q = 0u;
         if (c > 0u) {
@@ -168,6 +178,7 @@ fn main(@builtin(local_invocation_index) lid: u32) {
     var s = sum64(lid, qsum);
     if (s == 0lu) {
         for (var p = lid; p < n; p += 256u) {
+            tick();
             importance[p] = select(0u, 1u, counts[p] > 0u);
         }
         s = c_all;
@@ -178,6 +189,7 @@ fn main(@builtin(local_invocation_index) lid: u32) {
     let lo = select(0u, 1u, f >= c_all);
     var g = 0lu;
     for (var p = lid; p < n; p += 256u) {
+        tick();
         var kp = 0u;
         let c = counts[p];
         if (c > 0u && lo == 1u) {
@@ -190,12 +202,14 @@ fn main(@builtin(local_invocation_index) lid: u32) {
     storageBarrier();
     // Hand out what is missing.
     for (var round = 0u; round < 100000u; round++) {
+        tick();
         if (sum_k >= target_k) {
             break;
         }
         let missing = target_k - sum_k;
         var open = 0lu;
         for (var p = lid; p < n; p += 256u) {
+            tick();
             if (eligible(p, 0u, lo)) {
                 open += 1lu;
             }
@@ -205,6 +219,7 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             let d = u32(max(missing / max(n_open, 1lu), 1lu));
             var added = 0lu;
             for (var p = lid; p < n; p += 256u) {
+                tick();
                 if (eligible(p, 0u, lo)) {
                     let add = min(d, counts[p] - k[p]);
                     k[p] = k[p] + add;
@@ -220,12 +235,14 @@ fn main(@builtin(local_invocation_index) lid: u32) {
     }
     // Take back what is extra.
     for (var round = 0u; round < 100000u; round++) {
+        tick();
         if (sum_k <= target_k) {
             break;
         }
         let extra = sum_k - target_k;
         var spare = 0lu;
         for (var p = lid; p < n; p += 256u) {
+            tick();
             if (eligible(p, 1u, lo)) {
                 spare += 1lu;
             }
@@ -235,6 +252,7 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             let d = u32(max(extra / max(n_spare, 1lu), 1lu));
             var taken = 0lu;
             for (var p = lid; p < n; p += 256u) {
+                tick();
                 if (eligible(p, 1u, lo)) {
                     let take = min(d, k[p] - lo);
                     k[p] = k[p] - take;
@@ -247,5 +265,8 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             select_and_apply(lid, extra, 1u, lo);
             sum_k = target_k;
         }
+    }
+    if (ticks > LOOP_BUDGET) {
+        atomicMax(&status[0], 1u);
     }
 }

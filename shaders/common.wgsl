@@ -56,3 +56,13 @@ fn fragment_key(depth: f32, rgba8: u32) -> u64 {
 fn pixel_index(frag_coord: vec4<f32>, width: u32) -> u32 {
     return u32(frag_coord.y) * width + u32(frag_coord.x);
 }
+
+// Mesa's lavapipe ends a shader invocation's loops after 65,535 iterations in all, silently.
+// Passes with long loops count theirs with tick() and report through a status word when they
+// came close, so the host can refuse the frame instead of returning a wrong one.
+const LOOP_BUDGET: u32 = 60000u;
+var<private> ticks: u32 = 0u;
+
+fn tick() {
+    ticks += 1u;
+}

@@ -8,6 +8,8 @@
 @group(0) @binding(1) var<storage, read> offsets: array<u32>;
 @group(0) @binding(2) var<storage, read_write> fragments: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
+// Set to 1 when a pixel's sort came close to lavapipe's loop limit (see common.wgsl).
+@group(0) @binding(4) var<storage, read_write> status: array<atomic<u32>>;
 
 const MAX_ROWS: u32 = 16u;
 
@@ -26,9 +28,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let start = offsets[p];
     let end = offsets[p + 1u];
     for (var i = start + 1u; i < end; i++) {
+        tick();
         let f = fragments[i];
         var j = i;
         while (j > start && f.z < fragments[j - 1u].z) {
+            tick();
             fragments[j] = fragments[j - 1u];
             j--;
         }
@@ -37,13 +41,16 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let m = clamp(params.k_uniform, 1u, MAX_ROWS);
     var rows: array<Row, 17>;
     for (var r = 0u; r <= m; r++) {
+        tick();
         rows[r] = Row(vec3<f32>(0.0), 1.0, 0xfffffffffffffffflu);
     }
     for (var i = start; i < end; i++) {
+        tick();
         let f = fragments[i];
         let rgba = unpack_rgba8(f.y);
         var cur = Row(rgba.rgb * rgba.a, 1.0 - rgba.a, fragment_key(bitcast<f32>(f.x), f.y));
         for (var r = 0u; r < m; r++) {
+            tick();
             if (cur.z <= rows[r].z) {
                 let tmp = rows[r];
                 rows[r] = cur;
@@ -59,8 +66,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var c = vec3<f32>(0.0);
     var t = 1.0;
     for (var r = 0u; r < m; r++) {
+        tick();
         c += t * rows[r].a;
         t *= rows[r].t;
+    }
+    if (ticks > LOOP_BUDGET) {
+        atomicMax(&status[0], 1u);
     }
     image[p] = vec4<f32>(c + t * params.background.rgb, 1.0);
 }

@@ -1,42 +1,68 @@
-// Exclusive prefix sum over pixels: offsets[p] = sum of values[q] for q < p, and
-// offsets[pixels] = the total. One workgroup walks the pixels in blocks of 256, carrying the
-// running sum (A-buffer offsets from counts, k-buffer slot bases from k).
+// Exclusive prefix sum over pixels, in three dispatches so no invocation loops long (Mesa's
+// lavapipe stops a shader's loops after 65,535 iterations, silently):
+//   scan_blocks: each workgroup scans its 256 values into offsets and writes the block total;
+//   scan_sums:   one workgroup scans the block totals in place (at most 65,535 blocks);
+//   scan_add:    each value gets its block's offset; the last entry gets the total.
+// offsets[p] = sum of values[q] for q < p, offsets[pixels] = the total.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> values: array<u32>;
 @group(0) @binding(2) var<storage, read_write> offsets: array<u32>;
+@group(0) @binding(3) var<storage, read_write> blocks: array<u32>;
 
 var<workgroup> block: array<u32, 256>;
 var<workgroup> carry: u32;
 
+// Inclusive Hillis-Steele scan of `block`; every invocation of the workgroup calls it.
+fn scan_block(lid: u32) {
+    for (var s = 1u; s < 256u; s = s << 1u) {
+        var add = 0u;
+        if (lid >= s) {
+            add = block[lid - s];
+        }
+        workgroupBarrier();
+        block[lid] = block[lid] + add;
+        workgroupBarrier();
+    }
+}
+
 @compute @workgroup_size(256)
-fn main(@builtin(local_invocation_index) lid: u32) {
+fn scan_blocks(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let i = wid.x * 256u + lid;
+    var v = 0u;
+    if (i < params.pixels) {
+        v = values[i];
+    }
+    block[lid] = v;
+    workgroupBarrier();
+    scan_block(lid);
+    if (i < params.pixels) {
+        offsets[i] = block[lid] - v;
+    }
+    if (lid == 255u) {
+        blocks[wid.x] = block[255];
+    }
+}
+
+@compute @workgroup_size(256)
+fn scan_sums(@builtin(local_invocation_index) lid: u32) {
+    let n = (params.pixels + 255u) / 256u;
     if (lid == 0u) {
         carry = 0u;
     }
     workgroupBarrier();
-    let n = params.pixels;
     for (var base = 0u; base < n; base += 256u) {
         let i = base + lid;
         var v = 0u;
         if (i < n) {
-            v = values[i];
+            v = blocks[i];
         }
         block[lid] = v;
         workgroupBarrier();
-        // Hillis-Steele inclusive scan of the block.
-        for (var s = 1u; s < 256u; s = s << 1u) {
-            var add = 0u;
-            if (lid >= s) {
-                add = block[lid - s];
-            }
-            workgroupBarrier();
-            block[lid] = block[lid] + add;
-            workgroupBarrier();
-        }
+        scan_block(lid);
         let c = carry;
         if (i < n) {
-            offsets[i] = c + block[lid] - v;
+            blocks[i] = c + block[lid] - v;
         }
         workgroupBarrier();
         if (lid == 255u) {
@@ -45,6 +71,14 @@ fn main(@builtin(local_invocation_index) lid: u32) {
         workgroupBarrier();
     }
     if (lid == 0u) {
-        offsets[n] = carry;
+        offsets[params.pixels] = carry;
+    }
+}
+
+@compute @workgroup_size(256)
+fn scan_add(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let i = wid.x * 256u + lid;
+    if (i < params.pixels) {
+        offsets[i] = offsets[i] + blocks[wid.x];
     }
 }

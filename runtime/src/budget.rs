@@ -16,6 +16,8 @@ pub const SLOT_BYTES: u64 = 8;
 /// Bytes of the MLP's uniform buffer: a 4-float header, 24 standardisation floats and the
 /// default network's 9,985 weights, in vec4s (`importance_dkb.wgsl` declares 2,504).
 pub const MLP_UNIFORM_BYTES: u64 = (4u64 + 24 + 9985).div_ceil(4) * 16;
+/// Pixels per workgroup of the prefix sum; one u32 of block totals per block.
+pub const SCAN_BLOCK: u64 = 256;
 /// Bytes of the per-frame parameter uniform (resolution, budget, background, totals).
 pub const PARAMS_BYTES: u64 = 256;
 
@@ -29,8 +31,8 @@ pub struct Layout {
     pub per_pixel: &'static [(&'static str, u64)],
     /// Fixed buffers: (label, bytes).
     pub fixed: &'static [(&'static str, u64)],
-    /// Whether a prefix sum over pixels is part of the pipeline (it needs no scratch: one
-    /// workgroup carries the running sum).
+    /// Whether a prefix sum over pixels is part of the pipeline (it keeps one u32 of block
+    /// totals per [`SCAN_BLOCK`] pixels).
     pub scan: bool,
 }
 
@@ -64,6 +66,7 @@ pub const DKB: Layout = Layout {
         ("params", PARAMS_BYTES),
         ("features.totals", 24),
         OFFSETS_END,
+        ("status", 16),
     ],
     scan: true,
 };
@@ -97,7 +100,12 @@ pub const VKB: Layout = Layout {
         HYBRID_TAIL,
         ("oit.image", 16),
     ],
-    fixed: &[("params", PARAMS_BYTES), ("vkb.totals", 16), OFFSETS_END],
+    fixed: &[
+        ("params", PARAMS_BYTES),
+        ("vkb.totals", 16),
+        OFFSETS_END,
+        ("status", 16),
+    ],
     scan: true,
 };
 
@@ -136,7 +144,7 @@ pub const ABUFFER: Layout = Layout {
         ("abuf.cursor", 4),
         ("oit.image", 16),
     ],
-    fixed: &[("params", PARAMS_BYTES), OFFSETS_END],
+    fixed: &[("params", PARAMS_BYTES), OFFSETS_END, ("status", 16)],
     scan: true,
 };
 
@@ -147,7 +155,13 @@ impl Layout {
     }
     /// Bytes that do not depend on the number of slots: `|P| S_p + S_i` (scan scratch included).
     pub fn fixed_bytes(&self, pixels: u64) -> u64 {
-        pixels * self.per_pixel_bytes() + self.fixed.iter().map(|b| b.1).sum::<u64>()
+        // The block totals; like every GPU buffer, at least 16 bytes.
+        let scan = if self.scan {
+            (4 * pixels.div_ceil(SCAN_BLOCK)).max(16)
+        } else {
+            0
+        };
+        pixels * self.per_pixel_bytes() + self.fixed.iter().map(|b| b.1).sum::<u64>() + scan
     }
     /// Bytes allocated with `slots` fragment slots.
     pub fn allocated_bytes(&self, pixels: u64, slots: u64) -> u64 {

@@ -112,7 +112,9 @@ struct Pipelines {
     count: wgpu::RenderPipeline,
     store: wgpu::RenderPipeline,
     capture: wgpu::RenderPipeline,
-    scan: wgpu::ComputePipeline,
+    scan_blocks: wgpu::ComputePipeline,
+    scan_sums: wgpu::ComputePipeline,
+    scan_add: wgpu::ComputePipeline,
     abuffer_resolve: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
     mlab_resolve: wgpu::ComputePipeline,
@@ -238,22 +240,25 @@ impl Pipelines {
                 cache: None,
             })
         };
-        let compute = |name: &str| {
+        let compute_entry = |name: &str, entry: &str| {
             let m = module(device, name);
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(name),
                 layout: None,
                 module: &m,
-                entry_point: Some("main"),
+                entry_point: Some(entry),
                 compilation_options: Default::default(),
                 cache: None,
             })
         };
+        let compute = |name: &str| compute_entry(name, "main");
         let p = Pipelines {
             count: geometry("abuffer_count"),
             store: geometry("abuffer_store"),
             capture: geometry("capture"),
-            scan: compute("scan"),
+            scan_blocks: compute_entry("scan", "scan_blocks"),
+            scan_sums: compute_entry("scan", "scan_sums"),
+            scan_add: compute_entry("scan", "scan_add"),
             abuffer_resolve: compute("abuffer_resolve"),
             resolve: compute("resolve"),
             mlab_resolve: compute("mlab_resolve"),
@@ -339,19 +344,32 @@ struct FrameBuffers<'a> {
 }
 
 impl FrameBuffers<'_> {
-    fn storage(&mut self, label: &str, size: u64, counted: bool) -> wgpu::Buffer {
+    /// A storage buffer of `size` bytes (at least 16), counted in the frame's allocation when
+    /// `counted`; an error naming the buffer when the device cannot bind one that large.
+    fn storage(&mut self, label: &str, size: u64, counted: bool) -> Result<wgpu::Buffer> {
         let size = size.max(16).next_multiple_of(4);
+        let limits = self.gpu.device.limits();
+        let max = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        if size > max {
+            return Err(Error::Gpu(format!(
+                "{label} needs {} in one buffer, but this device binds at most {}: lower the resolution or the budget",
+                budget::format_bytes(size),
+                budget::format_bytes(max)
+            )));
+        }
         if counted {
             self.allocated += size;
         }
-        self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        Ok(self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size,
             usage: wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_SRC
                 | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
-        })
+        }))
     }
     fn init(
         &mut self,
@@ -462,6 +480,7 @@ struct Passes<'a> {
     geometry: [&'a wgpu::Buffer; 3],
     target: &'a wgpu::TextureView,
     vertices: u32,
+    pixels: u32,
 }
 
 impl Passes<'_> {
@@ -528,6 +547,50 @@ impl Passes<'_> {
         pass.dispatch_workgroups(workgroups, 1, 1);
     }
 
+    /// Exclusive prefix sum of `values` into `offsets` (pixels + 1 entries): three dispatches
+    /// with a block-total buffer of one u32 per 256 pixels.
+    fn prefix_sum(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        fb: &mut FrameBuffers,
+        values: &wgpu::Buffer,
+        offsets: &wgpu::Buffer,
+    ) -> Result<()> {
+        let p = &self.gpu.pipelines;
+        let px = self.pixels;
+        let groups = px.div_ceil(256);
+        let blocks = fb.storage("scan.blocks", 4 * groups as u64, true)?;
+        let params = self.geometry[0];
+        // Auto layouts keep only the bindings an entry point uses: `values` only the first.
+        let bind = |pl: &wgpu::ComputePipeline, all: bool| {
+            let mut entries = vec![(0, params), (2, offsets), (3, &blocks)];
+            if all {
+                entries.push((1, values));
+            }
+            self.gpu.bind_at(&pl.get_bind_group_layout(0), &entries)
+        };
+        let (b, e) = self.timer.next("prefix sum");
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("prefix sum"),
+            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                query_set: &self.timer.set,
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: Some(e),
+            }),
+        });
+        for (pl, n, all) in [
+            (&p.scan_blocks, groups, true),
+            (&p.scan_sums, 1, false),
+            (&p.scan_add, groups, false),
+        ] {
+            let g = bind(pl, all);
+            pass.set_pipeline(pl);
+            pass.set_bind_group(0, &g, &[]);
+            pass.dispatch_workgroups(n, 1, 1);
+        }
+        Ok(())
+    }
+
     /// Submits what is recorded and starts a new encoder.
     fn submit(&self, enc: &mut wgpu::CommandEncoder) {
         let done = std::mem::replace(
@@ -550,11 +613,24 @@ fn read_u64s(gpu: &Gpu, b: &wgpu::Buffer, n: u64, invert: bool) -> Result<Vec<u6
 
 impl Gpu {
     fn bind(&self, layout: &wgpu::BindGroupLayout, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
+        let indexed: Vec<(u32, &wgpu::Buffer)> = buffers
             .iter()
             .enumerate()
+            .map(|(i, b)| (i as u32, *b))
+            .collect();
+        self.bind_at(layout, &indexed)
+    }
+
+    /// A bind group with buffers at the given binding indices.
+    fn bind_at(
+        &self,
+        layout: &wgpu::BindGroupLayout,
+        buffers: &[(u32, &wgpu::Buffer)],
+    ) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
             .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
+                binding: *i,
                 resource: b.as_entire_binding(),
             })
             .collect();
@@ -658,36 +734,34 @@ impl Gpu {
             view_formats: &[],
         });
         let view = target.create_view(&Default::default());
-        let timer = Timer::new(self, 8);
+        let timer = Timer::new(self, 12);
         let passes = Passes {
             gpu: self,
             timer: &timer,
             geometry: [&params_buf, &positions, &colors],
             target: &view,
             vertices: scene.positions.len() as u32,
+            pixels,
         };
         let p = &self.pipelines;
         let params_buf = &params_buf;
-        let image = fb.storage("oit.image", 16 * px, true);
+        let image = fb.storage("oit.image", 16 * px, true)?;
         let mut enc = self.device.create_command_encoder(&Default::default());
         let mut out = Readback::default();
+        // The long-loop passes (sort and blend, MLAB, allocation) report here (common.wgsl).
+        let uses_status = !matches!(slots, Some(Slots::Uniform(_) | Slots::PerPixel(_)));
+        let status = fb.storage("status", 16, uses_status)?;
         match slots {
             None | Some(Slots::Mlab(_)) => {
-                let counts = fb.storage("abuf.count", 4 * px, true);
-                let offsets = fb.storage("abuf.offsets", 4 * (px + 1), true);
-                let cursor = fb.storage("abuf.cursor", 4 * px, true);
+                let counts = fb.storage("abuf.count", 4 * px, true)?;
+                let offsets = fb.storage("abuf.offsets", 4 * (px + 1), true)?;
+                let cursor = fb.storage("abuf.cursor", 4 * px, true)?;
                 passes.draw(&mut enc, &p.count, &[&counts], "count");
-                passes.dispatch(
-                    &mut enc,
-                    &p.scan,
-                    &[params_buf, &counts, &offsets],
-                    1,
-                    "prefix sum",
-                );
+                passes.prefix_sum(&mut enc, &mut fb, &counts, &offsets)?;
                 passes.submit(&mut enc);
                 // Exact memory: the pool holds what the count found.
                 let total = u32s(&read_back(self, &offsets, 4 * (px + 1))?)[pixels as usize] as u64;
-                let fragments = fb.storage("abuf.fragments", 16 * total, true);
+                let fragments = fb.storage("abuf.fragments", 16 * total, true)?;
                 passes.draw(
                     &mut enc,
                     &p.store,
@@ -701,7 +775,7 @@ impl Gpu {
                 passes.dispatch(
                     &mut enc,
                     resolve,
-                    &[params_buf, &offsets, &fragments, &image],
+                    &[params_buf, &offsets, &fragments, &image, &status],
                     groups,
                     name,
                 );
@@ -724,8 +798,8 @@ impl Gpu {
                 let (k_of, base, slot_count) = match s {
                     Slots::Uniform(k) => {
                         // FKB reads neither buffer, but the shared capture layout binds both.
-                        let unused_k = fb.storage("fkb.unused_k", 16, true);
-                        let unused_offsets = fb.storage("fkb.unused_offsets", 16, true);
+                        let unused_k = fb.storage("fkb.unused_k", 16, true)?;
+                        let unused_offsets = fb.storage("fkb.unused_offsets", 16, true)?;
                         (unused_k, unused_offsets, k.max(1) as u64 * px)
                     }
                     Slots::PerPixel(k) => {
@@ -741,14 +815,8 @@ impl Gpu {
                             wgpu::BufferUsages::STORAGE,
                             true,
                         );
-                        let base = fb.storage("oit.offsets", 4 * (px + 1), true);
-                        passes.dispatch(
-                            &mut enc,
-                            &p.scan,
-                            &[params_buf, &k_of, &base],
-                            1,
-                            "prefix sum",
-                        );
+                        let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
+                        passes.prefix_sum(&mut enc, &mut fb, &k_of, &base)?;
                         (k_of, base, k.iter().map(|&x| x as u64).sum())
                     }
                     _ => {
@@ -760,7 +828,7 @@ impl Gpu {
                                         imp.len()
                                     )));
                                 }
-                                let counts = fb.storage("count", 4 * px, true);
+                                let counts = fb.storage("count", 4 * px, true)?;
                                 let imp = fb.init(
                                     "oit.importance",
                                     bytemuck::cast_slice(imp),
@@ -771,10 +839,10 @@ impl Gpu {
                                 (counts, imp)
                             }
                             Slots::Vkb(..) => {
-                                let counts = fb.storage("vkb.count", 4 * px, true);
-                                let nearest = fb.storage("vkb.nearest", 8 * px, true);
-                                let totals = fb.storage("vkb.totals", 16, true);
-                                let imp = fb.storage("oit.importance", 4 * px, true);
+                                let counts = fb.storage("vkb.count", 4 * px, true)?;
+                                let nearest = fb.storage("vkb.nearest", 8 * px, true)?;
+                                let totals = fb.storage("vkb.totals", 16, true)?;
+                                let imp = fb.storage("oit.importance", 4 * px, true)?;
                                 passes.draw(&mut enc, &p.vkb_count, &[&counts, &nearest], "count");
                                 passes.dispatch(
                                     &mut enc,
@@ -800,13 +868,13 @@ impl Gpu {
                                     wgpu::BufferUsages::UNIFORM,
                                     true,
                                 );
-                                let counts = fb.storage("features.count", 4 * px, true);
-                                let near = fb.storage("features.near", 4 * px, true);
-                                let far = fb.storage("features.far", 4 * px, true);
-                                let nearest = fb.storage("features.nearest_color", 8 * px, true);
-                                let sums = fb.storage("features.sums", 20 * px, true);
-                                let totals = fb.storage("features.totals", 24, true);
-                                let imp = fb.storage("oit.importance", 4 * px, true);
+                                let counts = fb.storage("features.count", 4 * px, true)?;
+                                let near = fb.storage("features.near", 4 * px, true)?;
+                                let far = fb.storage("features.far", 4 * px, true)?;
+                                let nearest = fb.storage("features.nearest_color", 8 * px, true)?;
+                                let sums = fb.storage("features.sums", 20 * px, true)?;
+                                let totals = fb.storage("features.totals", 24, true)?;
+                                let imp = fb.storage("oit.importance", 4 * px, true)?;
                                 passes.draw(
                                     &mut enc,
                                     &p.features,
@@ -838,26 +906,20 @@ impl Gpu {
                         if matches!(s, Slots::Vkb(..) | Slots::Dkb(..)) {
                             // A readback copy (not counted, like the staging buffers): the
                             // allocation pass overwrites importance with its fixed point.
-                            let copy = fb.storage("importance.readback", 4 * px, false);
+                            let copy = fb.storage("importance.readback", 4 * px, false)?;
                             enc.copy_buffer_to_buffer(&importance, 0, &copy, 0, 4 * px);
                             out.importance_buf = Some(copy);
                         }
-                        let k_of = fb.storage("oit.k", 4 * px, true);
-                        let base = fb.storage("oit.offsets", 4 * (px + 1), true);
+                        let k_of = fb.storage("oit.k", 4 * px, true)?;
+                        let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
                         passes.dispatch(
                             &mut enc,
                             &p.allocate,
-                            &[params_buf, &counts, &importance, &k_of],
+                            &[params_buf, &counts, &importance, &k_of, &status],
                             1,
                             "allocation",
                         );
-                        passes.dispatch(
-                            &mut enc,
-                            &p.scan,
-                            &[params_buf, &k_of, &base],
-                            1,
-                            "prefix sum",
-                        );
+                        passes.prefix_sum(&mut enc, &mut fb, &k_of, &base)?;
                         passes.submit(&mut enc);
                         let total =
                             u32s(&read_back(self, &base, 4 * (px + 1))?)[pixels as usize] as u64;
@@ -865,8 +927,8 @@ impl Gpu {
                         (k_of, base, total)
                     }
                 };
-                let slots_buf = fb.storage("oit.slots", 8 * slot_count, true);
-                let tail = fb.storage("oit.tail", 20 * px, true);
+                let slots_buf = fb.storage("oit.slots", 8 * slot_count, true)?;
+                let tail = fb.storage("oit.tail", 20 * px, true)?;
                 passes.draw(
                     &mut enc,
                     &p.capture,
@@ -891,6 +953,14 @@ impl Gpu {
                     u32s(&read_back(self, &tail, 20 * px)?),
                 ));
             }
+        }
+        if uses_status && u32s(&read_back(self, &status, 4)?)[0] != 0 {
+            return Err(Error::Gpu(format!(
+                "{} stopped a pass's loops early: the frame is too large for it (Mesa's lavapipe ends \
+                 a shader's loops after 65,535 iterations; the allocation pass loops over every pixel \
+                 in one workgroup, the A-buffer sorts each pixel in place): lower the resolution",
+                self.adapter
+            )));
         }
         let img = u32s(&read_back(self, &image, 16 * px)?);
         let pass_ms = timer.read(self)?;

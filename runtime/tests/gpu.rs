@@ -510,3 +510,50 @@ fn check_allocation_and_capture(
     let d = f.image.max_abs_diff(&twin);
     assert!(d <= 1e-5, "{label}: image differs by {d}");
 }
+
+#[test]
+fn the_prefix_sum_is_exact_over_millions_of_pixels() {
+    let Some(g) = gpu() else { return };
+    // 1700x1700 = 2.89 M pixels: past what one workgroup could loop over on lavapipe.
+    let (w, h) = (1700u32, 1700u32);
+    let (s, cam) = frame("shells", 0, 64, 64);
+    let k: Vec<u32> = (0..w * h)
+        .map(|p| (p % 5 == 0) as u32 + (p % 7 == 0) as u32)
+        .collect();
+    let f = g
+        .render(&s, &cam, w, h, BG, Some(Slots::PerPixel(&k)))
+        .unwrap();
+    let (_, bases, _) = f.slots.unwrap();
+    let mut acc = 0u32;
+    for (p, &kp) in k.iter().enumerate() {
+        assert_eq!(bases[p], acc, "offset of pixel {p}");
+        acc += kp;
+    }
+    assert_eq!(bases[k.len()], acc);
+}
+
+#[test]
+fn a_frame_beyond_the_devices_loop_limit_is_refused_not_wrong() {
+    let Some(g) = gpu() else { return };
+    let (w, h) = (1024u32, 768u32);
+    let (s, cam) = frame("particles", 0, w, h);
+    let r = g.render(
+        &s,
+        &cam,
+        w,
+        h,
+        BG,
+        Some(Slots::Vkb(Default::default(), (w * h) as u64)),
+    );
+    if g.adapter.contains("llvmpipe") {
+        let Err(e) = r else {
+            panic!("lavapipe cannot run this allocation in one workgroup, yet it returned a frame")
+        };
+        let e = e.to_string();
+        assert!(e.contains("loops early"), "{e}");
+    } else {
+        let f = r.unwrap();
+        let (_, bases, _) = f.slots.unwrap();
+        assert_eq!(bases[(w * h) as usize] as u64, (w * h) as u64);
+    }
+}
