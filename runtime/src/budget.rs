@@ -40,6 +40,9 @@ pub struct Layout {
 const HYBRID_TAIL: (&str, u64) = ("oit.tail", 20);
 /// The geometry passes' render target (R8, never written): rasterization needs one.
 const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
+/// The allocation's step parameters and integer sums.
+const ALLOC_PARAMS: (&str, u64) = ("alloc.params", 32);
+const ALLOC_SUMS: (&str, u64) = ("alloc.sums", 32);
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 
@@ -56,6 +59,7 @@ pub const DKB: Layout = Layout {
         ("features.color_sum", 12),
         ("features.luma_sums", 8),
         ("oit.importance", 4),
+        ("alloc.flags", 4),
         ("oit.k", 4),
         ("oit.offsets", 4),
         HYBRID_TAIL,
@@ -66,7 +70,8 @@ pub const DKB: Layout = Layout {
         ("params", PARAMS_BYTES),
         ("features.totals", 24),
         OFFSETS_END,
-        ("status", 16),
+        ALLOC_PARAMS,
+        ALLOC_SUMS,
     ],
     scan: true,
 };
@@ -95,6 +100,7 @@ pub const VKB: Layout = Layout {
         ("vkb.count", 4),
         ("vkb.nearest", 8),
         ("oit.importance", 4),
+        ("alloc.flags", 4),
         ("oit.k", 4),
         ("oit.offsets", 4),
         HYBRID_TAIL,
@@ -104,7 +110,8 @@ pub const VKB: Layout = Layout {
         ("params", PARAMS_BYTES),
         ("vkb.totals", 16),
         OFFSETS_END,
-        ("status", 16),
+        ALLOC_PARAMS,
+        ALLOC_SUMS,
     ],
     scan: true,
 };

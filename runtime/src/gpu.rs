@@ -118,7 +118,7 @@ struct Pipelines {
     abuffer_resolve: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
     mlab_resolve: wgpu::ComputePipeline,
-    allocate: wgpu::ComputePipeline,
+    allocate: Allocate,
     features: wgpu::RenderPipeline,
     totals: wgpu::ComputePipeline,
     importance_dkb: wgpu::ComputePipeline,
@@ -262,7 +262,7 @@ impl Pipelines {
             abuffer_resolve: compute("abuffer_resolve"),
             resolve: compute("resolve"),
             mlab_resolve: compute("mlab_resolve"),
-            allocate: compute("allocate"),
+            allocate: Allocate::new(device),
             features: geometry("features"),
             totals: compute("totals"),
             importance_dkb: compute("importance_dkb"),
@@ -341,6 +341,8 @@ pub struct GpuFrame {
 struct FrameBuffers<'a> {
     gpu: &'a Gpu,
     allocated: u64,
+    /// The prefix sum's block totals, created on first use and shared by every scan.
+    scan_blocks: Option<wgpu::Buffer>,
 }
 
 impl FrameBuffers<'_> {
@@ -559,7 +561,10 @@ impl Passes<'_> {
         let p = &self.gpu.pipelines;
         let px = self.pixels;
         let groups = px.div_ceil(256);
-        let blocks = fb.storage("scan.blocks", 4 * groups as u64, true)?;
+        if fb.scan_blocks.is_none() {
+            fb.scan_blocks = Some(fb.storage("scan.blocks", 4 * groups as u64, true)?);
+        }
+        let blocks = fb.scan_blocks.clone().expect("created above");
         let params = self.geometry[0];
         // Auto layouts keep only the bindings an entry point uses: `values` only the first.
         let bind = |pl: &wgpu::ComputePipeline, all: bool| {
@@ -665,6 +670,7 @@ impl Gpu {
         let mut fb = FrameBuffers {
             gpu: self,
             allocated: 0,
+            scan_blocks: None,
         };
         let (budget_fragments, vkb, k_uniform) = match slots {
             Some(Slots::Importance(_, f) | Slots::Dkb(_, f)) => (f, VkbParams::default(), 0),
@@ -748,8 +754,9 @@ impl Gpu {
         let image = fb.storage("oit.image", 16 * px, true)?;
         let mut enc = self.device.create_command_encoder(&Default::default());
         let mut out = Readback::default();
+        let mut host_ms: Vec<(&'static str, f64)> = Vec::new();
         // The long-loop passes (sort and blend, MLAB, allocation) report here (common.wgsl).
-        let uses_status = !matches!(slots, Some(Slots::Uniform(_) | Slots::PerPixel(_)));
+        let uses_status = matches!(slots, None | Some(Slots::Mlab(_)));
         let status = fb.storage("status", 16, uses_status)?;
         match slots {
             None | Some(Slots::Mlab(_)) => {
@@ -912,13 +919,18 @@ impl Gpu {
                         }
                         let k_of = fb.storage("oit.k", 4 * px, true)?;
                         let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
-                        passes.dispatch(
-                            &mut enc,
-                            &p.allocate,
-                            &[params_buf, &counts, &importance, &k_of, &status],
-                            1,
-                            "allocation",
-                        );
+                        passes.submit(&mut enc);
+                        let t = std::time::Instant::now();
+                        let alloc = AllocateRun {
+                            passes: &passes,
+                            params: params_buf,
+                            counts: &counts,
+                            q: &importance,
+                            k: &k_of,
+                            prefix: &base,
+                        };
+                        alloc.run(&mut fb, budget_fragments)?;
+                        host_ms.push(("allocation (host-driven)", t.elapsed().as_secs_f64() * 1e3));
                         passes.prefix_sum(&mut enc, &mut fb, &k_of, &base)?;
                         passes.submit(&mut enc);
                         let total =
@@ -957,13 +969,14 @@ impl Gpu {
         if uses_status && u32s(&read_back(self, &status, 4)?)[0] != 0 {
             return Err(Error::Gpu(format!(
                 "{} stopped a pass's loops early: the frame is too large for it (Mesa's lavapipe ends \
-                 a shader's loops after 65,535 iterations; the allocation pass loops over every pixel \
-                 in one workgroup, the A-buffer sorts each pixel in place): lower the resolution",
+                 a shader's loops after 65,535 iterations, and the A-buffer sorts each pixel's \
+                 fragments in place): too many fragments in one pixel",
                 self.adapter
             )));
         }
         let img = u32s(&read_back(self, &image, 16 * px)?);
-        let pass_ms = timer.read(self)?;
+        let mut pass_ms = timer.read(self)?;
+        pass_ms.extend(host_ms);
         let (importance, stats, vkb_nearest) = out.statistics(self, px)?;
         if let Some(e) = pollster::block_on(oom.pop()) {
             return Err(Error::Gpu(format!("out of device memory: {e}")));
@@ -994,6 +1007,214 @@ impl Gpu {
             stats,
             vkb_nearest,
         })
+    }
+}
+
+/// The allocation's entry points (shaders/allocate.wgsl), sharing one explicit layout.
+struct Allocate {
+    layout: wgpu::BindGroupLayout,
+    init: wgpu::ComputePipeline,
+    uniform_q: wgpu::ComputePipeline,
+    base: wgpu::ComputePipeline,
+    count: wgpu::ComputePipeline,
+    step: wgpu::ComputePipeline,
+    count_rank: wgpu::ComputePipeline,
+    mark: wgpu::ComputePipeline,
+    apply: wgpu::ComputePipeline,
+}
+
+/// The allocation step parameters (matches `Alloc` in allocate.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct AllocParams {
+    f: u32,
+    s_lo: u32,
+    s_hi: u32,
+    lo: u32,
+    mode: u32,
+    d: u32,
+    t: u32,
+    left: u32,
+}
+
+impl Allocate {
+    fn new(device: &wgpu::Device) -> Allocate {
+        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("allocate"),
+            entries: &[
+                entry(0, wgpu::BufferBindingType::Uniform),
+                entry(1, wgpu::BufferBindingType::Uniform),
+                entry(2, wgpu::BufferBindingType::Storage { read_only: true }),
+                entry(3, rw),
+                entry(4, rw),
+                entry(5, rw),
+                entry(6, rw),
+            ],
+        });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("allocate"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let m = module(device, "allocate");
+        let make = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pl),
+                module: &m,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        Allocate {
+            init: make("init"),
+            uniform_q: make("uniform_q"),
+            base: make("base"),
+            count: make("count"),
+            step: make("step"),
+            count_rank: make("count_rank"),
+            mark: make("mark"),
+            apply: make("apply"),
+            layout,
+        }
+    }
+}
+
+/// One frame's allocation: the host sequences small per-pixel steps, reading the integer sums
+/// after each, exactly as alloc::from_importance proceeds.
+struct AllocateRun<'a> {
+    passes: &'a Passes<'a>,
+    params: &'a wgpu::Buffer,
+    counts: &'a wgpu::Buffer,
+    q: &'a wgpu::Buffer,
+    k: &'a wgpu::Buffer,
+    /// Scratch for the prefix of the threshold marks (the slot offsets, computed after).
+    prefix: &'a wgpu::Buffer,
+}
+
+impl AllocateRun<'_> {
+    fn run(&self, fb: &mut FrameBuffers, f: u64) -> Result<()> {
+        let gpu = self.passes.gpu;
+        let a = &gpu.pipelines.allocate;
+        let px = self.passes.pixels as u64;
+        let step_params = fb.init(
+            "alloc.params",
+            &[0u8; 32],
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            true,
+        );
+        let acc = fb.storage("alloc.sums", 32, true)?;
+        let flags = fb.storage("alloc.flags", 4 * px, true)?;
+        let groups = self.passes.pixels.div_ceil(64);
+        let run = |pipeline: &wgpu::ComputePipeline,
+                   ap: &AllocParams,
+                   last: &wgpu::Buffer|
+         -> Result<[u64; 4]> {
+            gpu.queue
+                .write_buffer(&step_params, 0, bytemuck::bytes_of(ap));
+            let group = gpu.bind_at(
+                &a.layout,
+                &[
+                    (0, self.params),
+                    (1, &step_params),
+                    (2, self.counts),
+                    (3, self.q),
+                    (4, self.k),
+                    (5, &acc),
+                    (6, last),
+                ],
+            );
+            let mut enc = gpu.device.create_command_encoder(&Default::default());
+            enc.clear_buffer(&acc, 0, None);
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &group, &[]);
+                pass.dispatch_workgroups(groups, 1, 1);
+            }
+            gpu.queue.submit([enc.finish()]);
+            let v = read_u64s(gpu, &acc, 4, false)?;
+            Ok([v[0], v[1], v[2], v[3]])
+        };
+        let mut ap = AllocParams::default();
+        let [covered, fragments, mut s, _] = run(&a.init, &ap, &flags)?;
+        if s == 0 {
+            run(&a.uniform_q, &ap, &flags)?;
+            s = covered;
+        }
+        let target = f.min(fragments);
+        ap.f = f.min(u32::MAX as u64) as u32;
+        ap.s_lo = s as u32;
+        ap.s_hi = (s >> 32) as u32;
+        ap.lo = u32::from(f >= covered);
+        let mut sum_k = run(&a.base, &ap, &flags)?[0];
+        // Hand out what is missing (mode 0), then take back what is extra (mode 1).
+        for mode in [0u32, 1] {
+            ap.mode = mode;
+            loop {
+                let need = if mode == 0 {
+                    target.saturating_sub(sum_k)
+                } else {
+                    sum_k.saturating_sub(target)
+                };
+                if need == 0 {
+                    break;
+                }
+                let eligible = run(&a.count, &ap, &flags)?[0];
+                if eligible <= need {
+                    ap.d = (need / eligible.max(1)).max(1).min(u32::MAX as u64) as u32;
+                    let changed = run(&a.step, &ap, &flags)?[0];
+                    if changed == 0 {
+                        return Err(Error::Gpu("the allocation made no progress".into()));
+                    }
+                    sum_k = if mode == 0 {
+                        sum_k + changed
+                    } else {
+                        sum_k - changed
+                    };
+                } else {
+                    // The `need` eligible pixels of highest rank: a threshold by bisection,
+                    // then the pixels at the threshold in index order.
+                    let (mut lo_t, mut hi_t) = (0u64, 1u64 << 32);
+                    while hi_t - lo_t > 1 {
+                        let mid = (lo_t + hi_t) / 2;
+                        ap.t = mid as u32;
+                        if run(&a.count_rank, &ap, &flags)?[0] >= need {
+                            lo_t = mid;
+                        } else {
+                            hi_t = mid;
+                        }
+                    }
+                    let above = if lo_t == u32::MAX as u64 {
+                        0
+                    } else {
+                        ap.t = lo_t as u32 + 1;
+                        run(&a.count_rank, &ap, &flags)?[0]
+                    };
+                    ap.t = lo_t as u32;
+                    ap.left = (need - above) as u32;
+                    run(&a.mark, &ap, &flags)?;
+                    let mut enc = gpu.device.create_command_encoder(&Default::default());
+                    self.passes.prefix_sum(&mut enc, fb, &flags, self.prefix)?;
+                    gpu.queue.submit([enc.finish()]);
+                    run(&a.apply, &ap, self.prefix)?;
+                    sum_k = target;
+                }
+            }
+        }
+        Ok(())
     }
 }
 
