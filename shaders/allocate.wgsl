@@ -6,7 +6,9 @@
 //   base:        k = clamp(F q / S, lo, n); acc[0] = sum k
 //   count:       acc[0] = eligible pixels (mode 0: k < n, mode 1: k > lo)
 //   step:        eligible pixels change by min(d, room); acc[0] = total change
-//   count_rank:  acc[0] = eligible pixels whose rank >= t (rank: q giving, ~q taking)
+//   histogram:   hist[digit] counts eligible pixels by the 8-bit digit of their rank at bit d,
+//                among those whose higher digits equal t (rank: q giving, ~q taking); four
+//                of these find the threshold rank
 //   flags:       flags[p] = eligible and rank == t (then prefix-summed by the scan)
 //   apply:       eligible and (rank > t, or rank == t and before[p] < left) change by one
 
@@ -28,6 +30,8 @@ struct Alloc {
 @group(0) @binding(4) var<storage, read_write> k: array<u32>;
 @group(0) @binding(5) var<storage, read_write> acc: array<atomic<u64>, 4>;
 @group(0) @binding(6) var<storage, read_write> flags: array<u32>;
+// 256-bin histogram of one 8-bit digit of the rank (radix selection of the threshold).
+@group(0) @binding(7) var<storage, read_write> hist: array<atomic<u32>, 256>;
 
 const SCALE: f32 = 1048576.0;
 
@@ -117,11 +121,17 @@ fn step(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 @compute @workgroup_size(64)
-fn count_rank(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn histogram(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = gid.x;
-    if (p < params.pixels && eligible(p) && rank(p) >= alloc.t) {
-        atomicAdd(&acc[0], 1lu);
+    if (p >= params.pixels || !eligible(p)) {
+        return;
     }
+    let r = rank(p);
+    let shift = alloc.d;
+    if (shift < 24u && (r >> (shift + 8u)) != alloc.t) {
+        return;
+    }
+    atomicAdd(&hist[(r >> shift) & 255u], 1u);
 }
 
 @compute @workgroup_size(64)

@@ -43,6 +43,7 @@ const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
 /// The allocation's step parameters and integer sums.
 const ALLOC_PARAMS: (&str, u64) = ("alloc.params", 32);
 const ALLOC_SUMS: (&str, u64) = ("alloc.sums", 32);
+const ALLOC_HISTOGRAM: (&str, u64) = ("alloc.histogram", 1024);
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 
@@ -72,6 +73,7 @@ pub const DKB: Layout = Layout {
         OFFSETS_END,
         ALLOC_PARAMS,
         ALLOC_SUMS,
+        ALLOC_HISTOGRAM,
     ],
     scan: true,
 };
@@ -112,6 +114,7 @@ pub const VKB: Layout = Layout {
         OFFSETS_END,
         ALLOC_PARAMS,
         ALLOC_SUMS,
+        ALLOC_HISTOGRAM,
     ],
     scan: true,
 };

@@ -1018,7 +1018,7 @@ struct Allocate {
     base: wgpu::ComputePipeline,
     count: wgpu::ComputePipeline,
     step: wgpu::ComputePipeline,
-    count_rank: wgpu::ComputePipeline,
+    histogram: wgpu::ComputePipeline,
     mark: wgpu::ComputePipeline,
     apply: wgpu::ComputePipeline,
 }
@@ -1060,6 +1060,7 @@ impl Allocate {
                 entry(4, rw),
                 entry(5, rw),
                 entry(6, rw),
+                entry(7, rw),
             ],
         });
         let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -1084,7 +1085,7 @@ impl Allocate {
             base: make("base"),
             count: make("count"),
             step: make("step"),
-            count_rank: make("count_rank"),
+            histogram: make("histogram"),
             mark: make("mark"),
             apply: make("apply"),
             layout,
@@ -1116,6 +1117,7 @@ impl AllocateRun<'_> {
             true,
         );
         let acc = fb.storage("alloc.sums", 32, true)?;
+        let hist = fb.storage("alloc.histogram", 1024, true)?;
         let flags = fb.storage("alloc.flags", 4 * px, true)?;
         let groups = self.passes.pixels.div_ceil(64);
         let run = |pipeline: &wgpu::ComputePipeline,
@@ -1134,10 +1136,12 @@ impl AllocateRun<'_> {
                     (4, self.k),
                     (5, &acc),
                     (6, last),
+                    (7, &hist),
                 ],
             );
             let mut enc = gpu.device.create_command_encoder(&Default::default());
             enc.clear_buffer(&acc, 0, None);
+            enc.clear_buffer(&hist, 0, None);
             {
                 let mut pass = enc.begin_compute_pass(&Default::default());
                 pass.set_pipeline(pipeline);
@@ -1185,24 +1189,27 @@ impl AllocateRun<'_> {
                         sum_k - changed
                     };
                 } else {
-                    // The `need` eligible pixels of highest rank: a threshold by bisection,
-                    // then the pixels at the threshold in index order.
-                    let (mut lo_t, mut hi_t) = (0u64, 1u64 << 32);
-                    while hi_t - lo_t > 1 {
-                        let mid = (lo_t + hi_t) / 2;
-                        ap.t = mid as u32;
-                        if run(&a.count_rank, &ap, &flags)?[0] >= need {
-                            lo_t = mid;
-                        } else {
-                            hi_t = mid;
+                    // The `need` eligible pixels of highest rank: the threshold rank t (the
+                    // largest with at least `need` ranks >= t) by radix selection, one 8-bit
+                    // digit a pass from the top, then the pixels at t in index order.
+                    let (mut prefix, mut above, mut want) = (0u64, 0u64, need);
+                    for shift in [24u32, 16, 8, 0] {
+                        ap.d = shift;
+                        ap.t = prefix as u32;
+                        run(&a.histogram, &ap, &flags)?;
+                        let h = u32s(&read_back(gpu, &hist, 1024)?);
+                        let mut digit = 255usize;
+                        loop {
+                            if h[digit] as u64 >= want || digit == 0 {
+                                break;
+                            }
+                            want -= h[digit] as u64;
+                            above += h[digit] as u64;
+                            digit -= 1;
                         }
+                        prefix = (prefix << 8) | digit as u64;
                     }
-                    let above = if lo_t == u32::MAX as u64 {
-                        0
-                    } else {
-                        ap.t = lo_t as u32 + 1;
-                        run(&a.count_rank, &ap, &flags)?[0]
-                    };
+                    let lo_t = prefix;
                     ap.t = lo_t as u32;
                     ap.left = (need - above) as u32;
                     run(&a.mark, &ap, &flags)?;
