@@ -3,9 +3,10 @@
 // and no invocation loops: lavapipe ends long loops). The host reads `acc` after each step:
 //   init:        importance -> fixed point q in place; acc = covered, fragments, sum q
 //   uniform_q:   q = 1 for covered pixels (when every q is 0)
-//   base:        k = clamp(F q / S, lo, n); acc[0] = sum k
+//   base:        k = clamp(F q / S, lo, n); acc[0] = sum k, acc[1] = pixels with room
 //   count:       acc[0] = eligible pixels (mode 0: k < n, mode 1: k > lo)
-//   step:        eligible pixels change by min(d, room); acc[0] = total change
+//   step:        eligible pixels change by min(d, room); acc[0] = total change, acc[1] =
+//                pixels still eligible
 //   histogram:   hist[digit] counts eligible pixels by the 8-bit digit of their rank at bit d,
 //                among those whose higher digits equal t (rank: q giving, ~q taking); four
 //                of these find the threshold rank
@@ -93,6 +94,9 @@ fn base(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     k[p] = kp;
     atomicAdd(&acc[0], u64(kp));
+    if (c > 0u && kp < c) {
+        atomicAdd(&acc[1], 1lu); // still has room: eligible for the first round
+    }
 }
 
 @compute @workgroup_size(64)
@@ -117,6 +121,9 @@ fn step(@builtin(global_invocation_id) gid: vec3<u32>) {
         let take = min(alloc.d, k[p] - alloc.lo);
         k[p] = k[p] - take;
         atomicAdd(&acc[0], u64(take));
+    }
+    if (eligible(p)) {
+        atomicAdd(&acc[1], 1lu); // eligible for the next round: saves a count step
     }
 }
 

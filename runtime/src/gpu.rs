@@ -920,6 +920,10 @@ impl Gpu {
                         let k_of = fb.storage("oit.k", 4 * px, true)?;
                         let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
                         passes.submit(&mut enc);
+                        // Time the allocation alone: first let the passes before it finish.
+                        self.device
+                            .poll(wgpu::PollType::wait_indefinitely())
+                            .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
                         let t = std::time::Instant::now();
                         let alloc = AllocateRun {
                             passes: &passes,
@@ -1163,10 +1167,15 @@ impl AllocateRun<'_> {
         ap.s_lo = s as u32;
         ap.s_hi = (s >> 32) as u32;
         ap.lo = u32::from(f >= covered);
-        let mut sum_k = run(&a.base, &ap, &flags)?[0];
+        let [mut sum_k, open, _, _] = run(&a.base, &ap, &flags)?;
+        // Pixels eligible for the next round, when a step already counted them.
+        let mut known = Some(open);
         // Hand out what is missing (mode 0), then take back what is extra (mode 1).
         for mode in [0u32, 1] {
             ap.mode = mode;
+            if mode == 1 {
+                known = None;
+            }
             loop {
                 let need = if mode == 0 {
                     target.saturating_sub(sum_k)
@@ -1176,10 +1185,14 @@ impl AllocateRun<'_> {
                 if need == 0 {
                     break;
                 }
-                let eligible = run(&a.count, &ap, &flags)?[0];
+                let eligible = match known.take() {
+                    Some(n) => n,
+                    None => run(&a.count, &ap, &flags)?[0],
+                };
                 if eligible <= need {
                     ap.d = (need / eligible.max(1)).max(1).min(u32::MAX as u64) as u32;
-                    let changed = run(&a.step, &ap, &flags)?[0];
+                    let [changed, still, _, _] = run(&a.step, &ap, &flags)?;
+                    known = Some(still);
                     if changed == 0 {
                         return Err(Error::Gpu("the allocation made no progress".into()));
                     }
