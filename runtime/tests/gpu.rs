@@ -447,11 +447,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             let counts: Vec<u32> = stats.iter().map(|st| st.count).collect();
             let imp_twin = mlp.importance(&feats, &counts);
             let imp = d.importance.clone().unwrap();
-            let diff = imp
-                .iter()
-                .zip(&imp_twin)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0f32, f32::max);
+            let diff = max_abs_diff(&imp, &imp_twin);
             assert!(
                 diff <= 1e-5,
                 "{name} {fpp}fpp: DKB importance differs by {diff}"
@@ -469,11 +465,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             assert_eq!(vc, gfl.counts(), "{name} vkb counts");
             let imp_twin = importance::vkb_importance_from(&vc, &facing, w, h, &params);
             let imp = v.importance.clone().unwrap();
-            let diff = imp
-                .iter()
-                .zip(&imp_twin)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0f32, f32::max);
+            let diff = max_abs_diff(&imp, &imp_twin);
             assert!(
                 diff <= 1e-5,
                 "{name} {fpp}fpp: VKB importance differs by {diff}"
@@ -484,6 +476,14 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             assert_eq!(v.allocated_bytes, expect, "{name} vkb bytes");
         }
     }
+}
+
+fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
 }
 
 /// k from the GPU's importance equals the CPU allocation of it; slots, tail and image equal the
