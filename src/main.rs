@@ -306,7 +306,13 @@ fn render(a: RenderArgs) -> Result<()> {
         f.image = g.image;
         f.allocated_bytes = g.allocated_bytes;
         if let Some((_, bases, _)) = &g.slots {
+            // The GPU's own k (VKB and DKB allocate on the device); what it captures follows.
             f.k = bases.windows(2).map(|b| b[1] - b[0]).collect();
+            f.fragments_captured =
+                f.k.iter()
+                    .zip(fl.counts())
+                    .map(|(&k, n)| k.min(n) as u64)
+                    .sum();
         }
         gpu_fragments = match g.fragments {
             Some(fr) => Some(fr),

@@ -755,11 +755,10 @@ impl Gpu {
         let mut enc = self.device.create_command_encoder(&Default::default());
         let mut out = Readback::default();
         let mut host_ms: Vec<(&'static str, f64)> = Vec::new();
-        // The long-loop passes (sort and blend, MLAB, allocation) report here (common.wgsl).
-        let uses_status = matches!(slots, None | Some(Slots::Mlab(_)));
-        let status = fb.storage("status", 16, uses_status)?;
         match slots {
             None | Some(Slots::Mlab(_)) => {
+                // The per-pixel sorts (sort and blend, MLAB) report a near loop limit here.
+                let status = fb.storage("status", 16, true)?;
                 let counts = fb.storage("abuf.count", 4 * px, true)?;
                 let offsets = fb.storage("abuf.offsets", 4 * (px + 1), true)?;
                 let cursor = fb.storage("abuf.cursor", 4 * px, true)?;
@@ -799,6 +798,7 @@ impl Gpu {
                     fl.primitive.push(f[2]);
                 }
                 out.fragments = Some(fl);
+                out.status = Some(status);
             }
             Some(s) => {
                 // k for every pixel: uniform, uploaded, or allocated here from importance.
@@ -970,7 +970,9 @@ impl Gpu {
                 ));
             }
         }
-        if uses_status && u32s(&read_back(self, &status, 4)?)[0] != 0 {
+        if let Some(status) = &out.status
+            && u32s(&read_back(self, status, 4)?)[0] != 0
+        {
             return Err(Error::Gpu(format!(
                 "{} stopped a pass's loops early: the frame is too large for it (Mesa's lavapipe ends \
                  a shader's loops after 65,535 iterations, and the A-buffer sorts each pixel's \
@@ -1242,6 +1244,8 @@ impl AllocateRun<'_> {
 #[derive(Default)]
 struct Readback {
     fragments: Option<FragmentLists>,
+    /// The A-buffer resolve's loop-limit status word.
+    status: Option<wgpu::Buffer>,
     slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
     counts_buf: Option<wgpu::Buffer>,
     importance_buf: Option<wgpu::Buffer>,
