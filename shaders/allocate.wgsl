@@ -1,168 +1,195 @@
-// Allocation: k(p) from importance, the twin of alloc::from_importance, as small per-pixel
-// steps the host sequences (every sum an integer atomic, so each step is exact and order-free,
-// and no invocation loops: lavapipe ends long loops). The host reads `acc` after each step:
-//   init:        importance -> fixed point q in place; acc = covered, fragments, sum q
-//   uniform_q:   q = 1 for covered pixels (when every q is 0)
-//   base:        k = clamp(F q / S, lo, n); acc[0] = sum k, acc[1] = pixels with room
-//   count:       acc[0] = eligible pixels (mode 0: k < n, mode 1: k > lo)
-//   step:        eligible pixels change by min(d, room); acc[0] = total change, acc[1] =
-//                pixels still eligible
-//   histogram:   hist[digit] counts eligible pixels by the 8-bit digit of their rank at bit d,
-//                among those whose higher digits equal t (rank: q giving, ~q taking); four
-//                of these find the threshold rank
-//   flags:       flags[p] = eligible and rank == t (then prefix-summed by the scan)
-//   apply:       eligible and (rank > t, or rank == t and before[p] < left) change by one
+// Allocation (compute): k(p) from importance, the twin of alloc::allocate, entirely on the GPU
+// in one submission: every sum an integer atomic (exact, order-free), no invocation loops more
+// than 16 times (lavapipe ends long loops silently), no host round trip.
+//
+// Each covered pixel's k is a monotone function of one integer t: water-filling weights w
+// (alloc::water_fill: k = clamp(floor(t w / 2^24), lo, n), t capped at 2^40) or slot requests
+// c (alloc::level_fill, level L = 2^24 - t: k = clamp(floor((c - L) / 256), lo, n), t capped
+// at 2^26). The allocation is the largest t whose total fits min(F, sum n), plus one slot each
+// for the first pixels (by index) whose k rises at t + 1, as many as are still missing.
+//   weights: importance -> fixed-point weight in place (the kind of alloc::Target)
+//   setup:   F (fixed, or floor(total ppm / 10^6) from the totals pass), target, lo, the search
+//            interval [a, a + 2^44)
+//   search:  the totals at 16 candidates a + j span/16 (workgroup sums, then one 64-bit atomic
+//            per candidate and workgroup)
+//   choose:  the largest candidate whose total fits becomes a; span /= 16 (11 rounds: 2^44 = 16^11)
+//   mark:    flags[p] = 1 where k rises at a + 1 (then prefix-summed by the scan)
+//   apply:   k = k(a) + 1 for the first (target - total(a)) marked pixels
 
 struct Alloc {
-    f: u32,
-    s_lo: u32,
-    s_hi: u32,
-    lo: u32,
-    mode: u32,
-    d: u32,
-    t: u32,
-    left: u32,
+    // F, when ppm is 0.
+    f_lo: u32,
+    f_hi: u32,
+    // A share of the frame's fragments in parts per million, or 0.
+    ppm: u32,
+    // Weights: 0 proportional importance, 1 share of the pixel's fragments (r n), 2 slot
+    // request (an additive level fits them; the others a scale).
+    kind: u32,
 };
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<uniform> alloc: Alloc;
 @group(0) @binding(2) var<storage, read> counts: array<u32>;
-@group(0) @binding(3) var<storage, read_write> q: array<u32>;
+// Importance (f32) in, the weights (u32) in place.
+@group(0) @binding(3) var<storage, read_write> w: array<u32>;
 @group(0) @binding(4) var<storage, read_write> k: array<u32>;
-@group(0) @binding(5) var<storage, read_write> acc: array<atomic<u64>, 4>;
+// 0 target, 1 a, 2 span, 3 lo, 4 total at a, 5 F, 6..21 the candidates' totals.
+@group(0) @binding(5) var<storage, read_write> state: array<atomic<u64>, 24>;
+// The marks (mark), or their exclusive prefix (apply).
 @group(0) @binding(6) var<storage, read_write> flags: array<u32>;
-// 256-bin histogram of one 8-bit digit of the rank (radix selection of the threshold).
-@group(0) @binding(7) var<storage, read_write> hist: array<atomic<u32>, 256>;
+// fragments, covered, max count (totals.wgsl).
+@group(0) @binding(7) var<storage, read> totals: array<u32>;
 
-const SCALE: f32 = 1048576.0;
+const WEIGHT_MAX: u32 = 16777215u;
+const MAX_F32: f32 = 3.4028235e38;
 
-fn eligible(p: u32) -> bool {
+var<workgroup> partial: array<atomic<u32>, 16>;
+
+fn pixel(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
+    return (wid.y * nwg.x + wid.x) * 256u + lid;
+}
+
+fn finite(v: f32) -> bool {
+    return v == v && abs(v) <= MAX_F32;
+}
+
+// alloc::importance_weight, alloc::share_weight, alloc::slot_request.
+fn weight(i: f32, n: u32) -> u32 {
+    if (alloc.kind == 0u) {
+        if (finite(i) && i > 0.0) {
+            return clamp(u32(floor(min(i, 15.0) * 1048576.0 + 0.5)), 1u, WEIGHT_MAX);
+        }
+        return 1u;
+    }
+    let r = select(0.0, clamp(i, 0.0, 1.0), finite(i));
+    if (alloc.kind == 1u) {
+        return clamp(u32(floor(r * f32(n) * 256.0 + 0.5)), 1u, WEIGHT_MAX);
+    }
+    return min(u32(floor(r * 256.0 * 256.0 + 0.5)), WEIGHT_MAX);
+}
+
+// k of a covered pixel at t (alloc::water_level_k, alloc::level_k).
+fn k_at(t: u64, wp: u32, n: u32, lo: u32) -> u32 {
+    if (alloc.kind == 2u) {
+        let v = i64(wp) - (1li << 24u) + i64(min(t, 1lu << 26u));
+        return u32(clamp(v >> 8u, i64(lo), i64(n)));
+    }
+    let v = (min(t, 1lu << 40u) * u64(wp)) >> 24u;
+    return u32(clamp(v, u64(lo), u64(n)));
+}
+
+@compute @workgroup_size(256)
+fn weights(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = pixel(wid, nwg, lid);
+    if (p >= params.pixels) {
+        return;
+    }
+    let n = counts[p];
+    w[p] = select(0u, weight(bitcast<f32>(w[p]), n), n > 0u);
+}
+
+@compute @workgroup_size(1)
+fn setup() {
+    var f = (u64(alloc.f_hi) << 32u) | u64(alloc.f_lo);
+    if (alloc.ppm > 0u) {
+        f = (u64(totals[0]) * u64(alloc.ppm)) / 1000000lu;
+    }
+    atomicStore(&state[0], min(f, u64(totals[0])));
+    atomicStore(&state[1], 0lu);
+    atomicStore(&state[2], 1lu << 44u);
+    atomicStore(&state[3], select(0lu, 1lu, f >= u64(totals[1])));
+    atomicStore(&state[4], 0lu);
+    atomicStore(&state[5], f);
+    for (var j = 0u; j < 16u; j++) {
+        atomicStore(&state[6u + j], 0lu);
+    }
+}
+
+@compute @workgroup_size(256)
+fn search(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = pixel(wid, nwg, lid);
+    let a = atomicLoad(&state[1]);
+    let step = atomicLoad(&state[2]) >> 4u;
+    let lo = u32(atomicLoad(&state[3]));
+    if (p < params.pixels && counts[p] > 0u) {
+        let wp = w[p];
+        let n = counts[p];
+        for (var j = 0u; j < 16u; j++) {
+            atomicAdd(&partial[j], k_at(a + u64(j) * step, wp, n, lo));
+        }
+    }
+    workgroupBarrier();
+    if (lid < 16u) {
+        let v = atomicLoad(&partial[lid]);
+        if (v > 0u) {
+            atomicAdd(&state[6u + lid], u64(v));
+        }
+    }
+}
+
+@compute @workgroup_size(1)
+fn choose() {
+    let goal = atomicLoad(&state[0]);
+    let step = atomicLoad(&state[2]) >> 4u;
+    // Candidate 0 (the current a) always fits; the totals grow with j.
+    var best = 0u;
+    for (var j = 1u; j < 16u; j++) {
+        if (atomicLoad(&state[6u + j]) <= goal) {
+            best = j;
+        }
+    }
+    atomicStore(&state[4], atomicLoad(&state[6u + best]));
+    atomicStore(&state[1], atomicLoad(&state[1]) + u64(best) * step);
+    atomicStore(&state[2], step);
+    for (var j = 0u; j < 16u; j++) {
+        atomicStore(&state[6u + j], 0lu);
+    }
+}
+
+@compute @workgroup_size(256)
+fn mark(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = pixel(wid, nwg, lid);
+    if (p >= params.pixels) {
+        return;
+    }
+    let a = atomicLoad(&state[1]);
+    let lo = u32(atomicLoad(&state[3]));
+    let n = counts[p];
+    flags[p] = select(0u, 1u, n > 0u && k_at(a + 1lu, w[p], n, lo) > k_at(a, w[p], n, lo));
+}
+
+@compute @workgroup_size(256)
+fn apply(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = pixel(wid, nwg, lid);
+    if (p >= params.pixels) {
+        return;
+    }
     let n = counts[p];
     if (n == 0u) {
-        return false;
-    }
-    if (alloc.mode == 0u) {
-        return k[p] < n;
-    }
-    return k[p] > alloc.lo;
-}
-
-fn rank(p: u32) -> u32 {
-    return select(~q[p], q[p], alloc.mode == 0u);
-}
-
-@compute @workgroup_size(64)
-fn init(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = gid.x;
-    if (p >= params.pixels) {
+        k[p] = 0u;
         return;
     }
-    let c = counts[p];
-    var v = 0u;
-    if (c > 0u) {
-        let i = bitcast<f32>(q[p]);
-        if (i > 0.0 && i <= 3.4028235e38) {
-            v = u32(floor(min(i, 2047.0) * SCALE + 0.5));
-        }
-        atomicAdd(&acc[0], 1lu);
-        atomicAdd(&acc[1], u64(c));
-    }
-    q[p] = v;
-    atomicAdd(&acc[2], u64(v));
-}
-
-@compute @workgroup_size(64)
-fn uniform_q(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = gid.x;
-    if (p >= params.pixels) {
-        return;
-    }
-    q[p] = select(0u, 1u, counts[p] > 0u);
-}
-
-@compute @workgroup_size(64)
-fn base(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = gid.x;
-    if (p >= params.pixels) {
-        return;
-    }
-    let c = counts[p];
-    var kp = 0u;
-    if (c > 0u && alloc.lo == 1u) {
-        let s = max((u64(alloc.s_hi) << 32u) | u64(alloc.s_lo), 1lu);
-        kp = u32(clamp((u64(alloc.f) * u64(q[p])) / s, 1lu, u64(c)));
-    }
-    k[p] = kp;
-    atomicAdd(&acc[0], u64(kp));
-    if (c > 0u && kp < c) {
-        atomicAdd(&acc[1], 1lu); // still has room: eligible for the first round
-    }
-}
-
-@compute @workgroup_size(64)
-fn count(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = gid.x;
-    if (p < params.pixels && eligible(p)) {
-        atomicAdd(&acc[0], 1lu);
-    }
-}
-
-@compute @workgroup_size(64)
-fn step(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = gid.x;
-    if (p >= params.pixels || !eligible(p)) {
-        return;
-    }
-    if (alloc.mode == 0u) {
-        let add = min(alloc.d, counts[p] - k[p]);
-        k[p] = k[p] + add;
-        atomicAdd(&acc[0], u64(add));
-    } else {
-        let take = min(alloc.d, k[p] - alloc.lo);
-        k[p] = k[p] - take;
-        atomicAdd(&acc[0], u64(take));
-    }
-    if (eligible(p)) {
-        atomicAdd(&acc[1], 1lu); // eligible for the next round: saves a count step
-    }
-}
-
-@compute @workgroup_size(64)
-fn histogram(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = gid.x;
-    if (p >= params.pixels || !eligible(p)) {
-        return;
-    }
-    let r = rank(p);
-    let shift = alloc.d;
-    if (shift < 24u && (r >> (shift + 8u)) != alloc.t) {
-        return;
-    }
-    atomicAdd(&hist[(r >> shift) & 255u], 1u);
-}
-
-@compute @workgroup_size(64)
-fn mark(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = gid.x;
-    if (p >= params.pixels) {
-        return;
-    }
-    flags[p] = select(0u, 1u, eligible(p) && rank(p) == alloc.t);
-}
-
-@compute @workgroup_size(64)
-fn apply(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = gid.x;
-    if (p >= params.pixels || !eligible(p)) {
-        return;
-    }
-    let r = rank(p);
-    // `flags` holds the exclusive prefix of the marks here: threshold pixels before p.
-    if (r > alloc.t || (r == alloc.t && flags[p] < alloc.left)) {
-        if (alloc.mode == 0u) {
-            k[p] = k[p] + 1u;
-        } else {
-            k[p] = k[p] - 1u;
-        }
-    }
+    let a = atomicLoad(&state[1]);
+    let lo = u32(atomicLoad(&state[3]));
+    let left = atomicLoad(&state[0]) - atomicLoad(&state[4]);
+    let base = k_at(a, w[p], n, lo);
+    let rises = k_at(a + 1lu, w[p], n, lo) > base;
+    // `flags` holds the exclusive prefix of the marks: marked pixels before p.
+    k[p] = base + select(0u, 1u, rises && u64(flags[p]) < left);
 }

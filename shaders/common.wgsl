@@ -19,6 +19,9 @@ struct Params {
     vkb_exponent: f32,
     vkb_noise: f32,
     vkb_seed: u32,
+    // A relative budget in parts per million of the frame's fragments (0: F is
+    // budget_fragments).
+    budget_ppm: u32,
 };
 
 const AMBIENT: f32 = 0.3;
@@ -55,6 +58,14 @@ fn fragment_key(depth: f32, rgba8: u32) -> u64 {
 
 fn pixel_index(frag_coord: vec4<f32>, width: u32) -> u32 {
     return u32(frag_coord.y) * width + u32(frag_coord.x);
+}
+
+// F for a frame of `total` fragments (budget::FragmentBudget::of).
+fn budget_of(total: u32) -> u64 {
+    if (params.budget_ppm > 0u) {
+        return (u64(total) * u64(params.budget_ppm)) / 1000000lu;
+    }
+    return u64(params.budget_fragments);
 }
 
 // Mesa's lavapipe ends a shader invocation's loops after 65,535 iterations in all, silently.

@@ -49,7 +49,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         f32(sums[5u * p]) / scale / n,
         f32(sums[5u * p + 1u]) / scale / n,
         f32(sums[5u * p + 2u]) / scale / n,
-        f32(params.budget_fragments) / total,
+        f32(budget_of(totals[0])) / total,
         log2(n),
         sqrt(luma_var),
     );

@@ -90,7 +90,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
         let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
         let fl = raster::rasterize(&s, &cam, w, h)?;
         let frags = fl.fragment_count() as f64;
-        let (_, f) = budget.resolve(&dhoit_runtime::budget::OPT, (w * h) as u64)?;
+        let (_, f) = budget.resolve(
+            &dhoit_runtime::budget::OPT,
+            (w * h) as u64,
+            fl.fragment_count() as u64,
+        )?;
         let (t_curves, curves) = best(a.repeat, || Ok(alloc::error_curves(&fl, [1.0; 3])))?;
         let (t_opt, (_, rep)) = best(a.repeat, || Ok(alloc::optimal(&curves, f)))?;
         eprintln!(
@@ -167,12 +171,16 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             let s = scene::load(name, Opacity::default())?;
             let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
             let fl = raster::rasterize(&s, &cam, w, h)?;
-            let (_, f) = budget.resolve(&dhoit_runtime::budget::OPT, (w * h) as u64)?;
+            let (_, f) = budget.resolve(
+                &dhoit_runtime::budget::OPT,
+                (w * h) as u64,
+                fl.fragment_count() as u64,
+            )?;
             let (k_opt, _) = alloc::optimal(&alloc::error_curves(&fl, [1.0; 3]), f);
             let k_fkb = (f / (w * h) as u64).max(1) as u32;
             let mut methods = serde_json::Map::new();
-            let (_, f_dkb) = budget.resolve(&dhoit_runtime::budget::DKB, (w * h) as u64)?;
-            let (_, f_vkb) = budget.resolve(&dhoit_runtime::budget::VKB, (w * h) as u64)?;
+            let f_dkb = budget.fragment_budget(&dhoit_runtime::budget::DKB, (w * h) as u64)?;
+            let f_vkb = budget.fragment_budget(&dhoit_runtime::budget::VKB, (w * h) as u64)?;
             for (label, slots) in [
                 ("abuffer", None),
                 ("fkb", Some(Slots::Uniform(k_fkb))),

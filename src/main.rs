@@ -2,9 +2,9 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use dhoit_runtime::budget::{Budget, format_bytes};
+use dhoit_runtime::budget::{Budget, FragmentBudget, format_bytes};
 use dhoit_runtime::dump;
-use dhoit_runtime::frame::{Frame, Method, Options, Renderer};
+use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
 use dhoit_runtime::image_io::{self, Montage};
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::raster::{self, FragmentLists};
@@ -62,6 +62,9 @@ enum Command {
     Train(dhoit_train::cli::TrainArgs),
     /// Predict importance for a features file with burn inference.
     Predict(dhoit_train::cli::PredictArgs),
+    /// Score allocations from error curves, no images: optimal, VKB and the network(s) per scene
+    /// and budget, as DKB/VKB and DKB/optimal ratios (fast; `compare` renders the images).
+    Score(dhoit_train::cli::ScoreArgs),
     /// Export the 12 network features of one view's covered pixels (for predict).
     Features(FeaturesArgs),
     /// Measure CPU rasterization, compositing, allocation and training throughput; prints JSON.
@@ -110,9 +113,15 @@ struct RenderArgs {
     /// greedy allocations have their k computed on the CPU, MLAB blends from the A-buffer).
     #[arg(long, default_value = "cpu")]
     device: String,
-    /// Memory budget: bytes (20MB, 40MiB) or slots per pixel (2fpp).
+    /// Memory budget: bytes (20MB, 40MiB), slots per pixel (2fpp) or a share of the frame's
+    /// fragments (25%).
     #[arg(long, default_value = "2fpp")]
     budget: String,
+    /// What the budget fixes: slots (F; bytes follow from the method's layout) or bytes (the
+    /// memory M; F follows from the layout, a budget in slots or % sets M by the per-pixel-k
+    /// layout).
+    #[arg(long, default_value = "slots", value_parser = parse_equal)]
+    equal: Equal,
     /// Output image (sRGB PNG).
     #[arg(long)]
     out: PathBuf,
@@ -173,11 +182,19 @@ struct CompareArgs {
     /// Methods, comma separated (dkb only when weights are found); all by default.
     #[arg(long, value_delimiter = ',')]
     methods: Vec<String>,
+    /// What a budget holds equal across methods: slots (the same F) or bytes (the same memory
+    /// M, each method's F from its own layout; the paper's protocol).
+    #[arg(long, default_value = "slots", value_parser = parse_equal)]
+    equal: Equal,
     #[command(flatten)]
     common: ViewArgs,
     /// Directory for images, report.json and report.md.
     #[arg(long, default_value = "out/compare")]
     out: PathBuf,
+}
+
+fn parse_equal(s: &str) -> std::result::Result<Equal, String> {
+    Equal::parse(s).map_err(|e| e.to_string())
 }
 
 fn parse_rgb(s: &str) -> std::result::Result<[f32; 3], String> {
@@ -272,6 +289,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let (fl, _) = rasterize_view(&scene, a.view, &a.common)?;
     let options = Options {
         weights: weights.as_ref(),
+        equal: a.equal,
         ..Options::new(budget, a.common.background)
     };
     let mut f = Renderer::new(&fl, options).render(method)?;
@@ -281,18 +299,20 @@ fn render(a: RenderArgs) -> Result<()> {
         eprintln!("GPU: {}", gpu.adapter);
         let (w, h) = (fl.width, fl.height);
         let cam = Camera::orbit(&scene, a.view, a.common.views, w, h);
+        let gpu_budget = match budget {
+            Budget::Share(ppm) if a.equal == Equal::Slots => FragmentBudget::Share(ppm),
+            _ => FragmentBudget::Slots(f.budget_fragments),
+        };
         let slots = match method {
             Method::Abuffer => None,
             Method::Fkb => Some(dhoit_runtime::gpu::Slots::Uniform(f.k[0])),
             // MLAB on the GPU blends from the A-buffer (exact memory, not the budget's rows).
             Method::Mlab => Some(dhoit_runtime::gpu::Slots::Mlab(f.k[0])),
-            Method::Vkb => Some(dhoit_runtime::gpu::Slots::Vkb(
-                options.vkb,
-                f.budget_fragments,
-            )),
+            // A share of the fragments is resolved on the GPU from its own count.
+            Method::Vkb => Some(dhoit_runtime::gpu::Slots::Vkb(options.vkb, gpu_budget)),
             Method::Dkb => Some(dhoit_runtime::gpu::Slots::Dkb(
                 weights.as_ref().expect("dkb loaded its weights"),
-                f.budget_fragments,
+                gpu_budget,
             )),
             _ => Some(dhoit_runtime::gpu::Slots::PerPixel(&f.k)),
         };
@@ -372,7 +392,11 @@ fn features(a: FeaturesArgs) -> Result<()> {
     let budget = Budget::parse(&a.budget)?;
     let scene = load_scene(&a.scene, &a.common)?;
     let (fl, _) = rasterize_view(&scene, a.view, &a.common)?;
-    let (_, f) = budget.resolve(&dhoit_runtime::budget::DKB, fl.pixel_count() as u64)?;
+    let (_, f) = budget.resolve(
+        &dhoit_runtime::budget::DKB,
+        fl.pixel_count() as u64,
+        fl.fragment_count() as u64,
+    )?;
     let feats = dhoit_runtime::importance::features(&fl, f);
     let covered: Vec<usize> = (0..fl.pixel_count()).filter(|&p| fl.count(p) > 0).collect();
     let keep: Vec<usize> = match a.limit {
@@ -449,6 +473,7 @@ fn compare(a: CompareArgs) -> Result<()> {
             for budget in &budgets {
                 let options = Options {
                     weights: weights.as_ref(),
+                    equal: a.equal,
                     ..Options::new(*budget, a.common.background)
                 };
                 let renderer = Renderer::new(&fl, options);
@@ -673,6 +698,7 @@ fn main() {
         Command::Dataset(a) => dhoit_train::cli::dataset(a).map_err(Into::into),
         Command::Train(a) => dhoit_train::cli::train(a).map_err(Into::into),
         Command::Predict(a) => dhoit_train::cli::predict(a).map_err(Into::into),
+        Command::Score(a) => dhoit_train::cli::score(a).map_err(Into::into),
         Command::Features(a) => features(a),
         Command::Bench(a) => bench::run(a),
     };

@@ -164,6 +164,9 @@ pub struct OptimalReport {
     pub greedy_increase_total: f64,
     /// Which one was returned: "hull", "greedy-paper" or "greedy-increase".
     pub chosen: &'static str,
+    /// The Lagrange multiplier of the budget: the error one slot saves at the margin (the gain
+    /// per slot of the first convex-hull segment that did not fit; 0 when everything fits).
+    pub critical_gain: f64,
 }
 
 impl OptimalReport {
@@ -386,8 +389,9 @@ fn repair_dp(
     Some(out)
 }
 
-/// The convex-hull allocation with fill and repair, and its lower bound.
-fn hull_allocation(curves: &ErrorCurves, f: u64) -> (Vec<u32>, f64) {
+/// The convex-hull allocation with fill and repair, its lower bound and the critical gain (the
+/// gain per slot of the first hull segment that did not fit whole; 0 when every one fits).
+fn hull_allocation(curves: &ErrorCurves, f: u64) -> (Vec<u32>, f64, f64) {
     let counts = curves.counts();
     let lo = min_k(&counts, f);
     let mut k: Vec<u32> = counts.iter().map(|&n| if n > 0 { lo } else { 0 }).collect();
@@ -427,8 +431,9 @@ fn hull_allocation(curves: &ErrorCurves, f: u64) -> (Vec<u32>, f64) {
         }
     }
     let lower_bound = (start_total - bound_gain).max(0.0);
+    let critical_gain = segs.get(critical).map_or(0.0, |s| s.gain.max(0.0));
     if rem == 0 || critical == segs.len() {
-        return (k, lower_bound);
+        return (k, lower_bound, critical_gain);
     }
     // Fill: later segments that fit, in gain order, each only when its pixel's earlier
     // segments are taken (k equals the segment's start).
@@ -500,12 +505,12 @@ fn hull_allocation(curves: &ErrorCurves, f: u64) -> (Vec<u32>, f64) {
         k[p] += 1;
         rem -= 1;
     }
-    (k, lower_bound)
+    (k, lower_bound, critical_gain)
 }
 
 /// The optimal allocation (see the module docs) with the report of every total.
 pub fn optimal(curves: &ErrorCurves, f: u64) -> (Vec<u32>, OptimalReport) {
-    let ((hull_k, lower_bound), (paper, increase)) = rayon::join(
+    let ((hull_k, lower_bound, critical_gain), (paper, increase)) = rayon::join(
         || hull_allocation(curves, f),
         || {
             rayon::join(
@@ -537,6 +542,7 @@ pub fn optimal(curves: &ErrorCurves, f: u64) -> (Vec<u32>, OptimalReport) {
         greedy_paper_total: totals[1].0,
         greedy_increase_total: totals[2].0,
         chosen,
+        critical_gain,
     };
     (k, report)
 }
@@ -547,131 +553,249 @@ pub fn fixed(pixels: usize, f: u64) -> Vec<u32> {
     vec![k; pixels]
 }
 
-/// Fixed-point scale of importance in the allocation (20 fractional bits): integer sums are
-/// exact and the same in every order, on the CPU and in the GPU's allocation pass.
+/// Fixed-point scale of a proportional importance (20 fractional bits) in its water-filling
+/// weight ([`importance_weight`]): integer sums are exact and the same in every order, on the
+/// CPU and in the GPU's allocation pass.
 pub const IMPORTANCE_SCALE: f32 = 1_048_576.0;
 
-/// An importance value in fixed point; negative, non-finite or huge values are clamped.
-pub fn importance_fixed(i: f32) -> u32 {
+/// Fixed-point bits of the water-filling weights: `k_p(lambda) = clamp(floor(lambda w_p /
+/// 2^WEIGHT_BITS), lo, n_p)`. Weights are below `2^WEIGHT_BITS`, so raising lambda by one raises
+/// any k by at most one.
+pub const WEIGHT_BITS: u32 = 24;
+/// Largest weight.
+pub const WEIGHT_MAX: u32 = (1 << WEIGHT_BITS) - 1;
+/// Lambda is searched in `[0, 2^LAMBDA_BITS]`: at the top every covered pixel (weight >= 1)
+/// reaches `k = n`, since n < 2^16 and `2^40 / 2^24 = 2^16`; `lambda w < 2^64` throughout.
+pub const LAMBDA_BITS: u32 = 40;
+
+/// A proportional importance (VKB's, or a network trained for `k / max k`) as a water-filling
+/// weight: `clamp(floor(i 2^20 + 1/2), 1, WEIGHT_MAX)`; non-finite or negative values count as 0
+/// (then 1, the smallest weight, so every covered pixel can still reach n).
+pub fn importance_weight(i: f32) -> u32 {
     if i.is_finite() && i > 0.0 {
-        (i.min(2047.0) * IMPORTANCE_SCALE + 0.5).floor() as u32
+        ((i.min(15.0) * IMPORTANCE_SCALE + 0.5).floor() as u32).clamp(1, WEIGHT_MAX)
     } else {
-        0
+        1
     }
 }
 
-/// k(p) from an importance map (CPU twin of `shaders/allocate.wgsl`). With q(p) the fixed-point
-/// importance of covered pixels (all 1 when every one is 0) and S their sum:
-/// `k(p) = clamp(floor(F q(p) / S), lo, n(p))`, then, while `sum k` differs from
-/// `min(F, sum n)`, rounds that hand out (or take back) slots: when the pixels with room (or
-/// with slots above lo) are no more than what is missing (or extra), each gets (gives)
-/// `max(1, missing / those pixels)` within its room; otherwise the pixels are chosen by
-/// importance, most important first when giving and least important first when taking, ties
-/// to the lower pixel index. `sum k = min(F, sum n)` exactly; uncovered pixels get 0. When F
-/// is below the number of covered pixels, lo = 0 and the F most important pixels get one slot.
-pub fn from_importance(importance: &[f32], counts: &[u32], f: u64) -> Vec<u32> {
-    assert_eq!(importance.len(), counts.len(), "one importance per pixel");
+/// A predicted share of the pixel's own fragments `r = k / n` as a water-filling weight: the
+/// slots the pixel asks for, `r n`, with 8 fractional bits: `clamp(floor(r n 256 + 1/2), 1,
+/// WEIGHT_MAX)` (r is clamped to [0, 1]; at lambda = 2^24 every pixel gets `floor(r n)`).
+pub fn share_weight(r: f32, n: u32) -> u32 {
+    let r = if r.is_finite() {
+        r.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    ((r * n as f32 * 256.0 + 0.5).floor() as u32).clamp(1, WEIGHT_MAX)
+}
+
+/// k of one pixel at lambda (0 for uncovered pixels).
+#[inline]
+pub fn water_level_k(lambda: u64, w: u32, n: u32, lo: u32) -> u32 {
+    if n == 0 {
+        return 0;
+    }
+    let k = (lambda * w as u64) >> WEIGHT_BITS;
+    k.clamp(lo as u64, n as u64) as u32
+}
+
+/// Slots handed out at lambda.
+fn water_level_sum(lambda: u64, w: &[u32], counts: &[u32], lo: u32) -> u64 {
+    w.par_iter()
+        .zip(counts)
+        .map(|(&w, &n)| water_level_k(lambda, w, n, lo) as u64)
+        .sum()
+}
+
+/// Water-filling allocation (CPU twin of the GPU allocation): with weights `w_p` (see
+/// [`importance_weight`], [`share_weight`]), `k_p = clamp(floor(lambda w_p / 2^24), lo, n_p)`
+/// where lambda is the largest integer in `[0, 2^40]` whose total fits `min(F, sum n)`; the slots
+/// still missing go one each to the first pixels, by index, whose k rises at lambda + 1 (there
+/// are more of those than slots missing). A pixel whose weight asks for more than it holds is
+/// captured whole, and what the cap leaves over flows to the others: `sum k = min(F, sum n)`
+/// exactly, covered pixels get `lo <= k <= n`, uncovered 0; lo is 1 unless F is below the
+/// covered pixels. The result is unique (it does not depend on how lambda is searched).
+pub fn water_fill(w: &[u32], counts: &[u32], f: u64) -> Vec<u32> {
+    assert_eq!(w.len(), counts.len(), "one weight per pixel");
     let target = slots_to_allocate(counts, f);
     let lo = min_k(counts, f);
-    let mut q: Vec<u32> = importance
+    let (mut a, mut b) = (0u64, 1u64 << LAMBDA_BITS);
+    // Invariant: sum(a) <= target; sum(b) > target unless b is the top and fits.
+    if water_level_sum(b, w, counts, lo) <= target {
+        a = b;
+    }
+    while b - a > 1 {
+        let mid = a + (b - a) / 2;
+        if water_level_sum(mid, w, counts, lo) <= target {
+            a = mid;
+        } else {
+            b = mid;
+        }
+    }
+    let mut k: Vec<u32> = w
         .iter()
         .zip(counts)
-        .map(|(&i, &n)| if n > 0 { importance_fixed(i) } else { 0 })
+        .map(|(&w, &n)| water_level_k(a, w, n, lo))
         .collect();
-    if q.iter().all(|&x| x == 0) {
-        for (x, &n) in q.iter_mut().zip(counts) {
-            *x = u32::from(n > 0);
-        }
-    }
-    let sum: u64 = q.iter().map(|&x| x as u64).sum();
-    let ff = f.min(u32::MAX as u64);
-    let mut k: Vec<u32> = (0..counts.len())
-        .map(|p| {
-            if counts[p] == 0 || lo == 0 {
-                0
-            } else {
-                ((ff * q[p] as u64) / sum.max(1)).clamp(lo as u64, counts[p] as u64) as u32
-            }
-        })
-        .collect();
-    let mut total: u64 = k.iter().map(|&x| x as u64).sum();
-    while total < target {
-        let missing = target - total;
-        let open = |p: usize, k: &[u32]| counts[p] > 0 && k[p] < counts[p];
-        let n_open = (0..k.len()).filter(|&p| open(p, &k)).count() as u64;
-        if n_open <= missing {
-            let d = (missing / n_open.max(1)).max(1) as u32;
-            for p in 0..k.len() {
-                if open(p, &k) {
-                    let add = d.min(counts[p] - k[p]);
-                    k[p] += add;
-                    total += add as u64;
-                }
-            }
-        } else {
-            for p in select(&q, |p| open(p, &k), missing, true) {
-                k[p] += 1;
-            }
-            total = target;
-        }
-    }
-    while total > target {
-        let extra = total - target;
-        let spare = |p: usize, k: &[u32]| counts[p] > 0 && k[p] > lo;
-        let n_spare = (0..k.len()).filter(|&p| spare(p, &k)).count() as u64;
-        if n_spare <= extra {
-            let d = (extra / n_spare.max(1)).max(1) as u32;
-            for p in 0..k.len() {
-                if spare(p, &k) {
-                    let take = d.min(k[p] - lo);
-                    k[p] -= take;
-                    total -= take as u64;
-                }
-            }
-        } else {
-            for p in select(&q, |p| spare(p, &k), extra, false) {
-                k[p] -= 1;
-            }
-            total = target;
-        }
-    }
-    k
-}
-
-/// The `count` eligible pixels with the highest (`highest`) or lowest fixed-point importance,
-/// ties to the lower index: a threshold found by bisection over the 32-bit values, then the
-/// pixels at the threshold in index order (as the GPU pass selects them).
-fn select(q: &[u32], eligible: impl Fn(usize) -> bool, count: u64, highest: bool) -> Vec<usize> {
-    // Rank value: larger is chosen first.
-    let rank = |p: usize| if highest { q[p] } else { u32::MAX - q[p] };
-    let at_least = |t: u32| {
-        (0..q.len())
-            .filter(|&p| eligible(p) && rank(p) >= t)
-            .count() as u64
-    };
-    // Largest t with at_least(t) >= count.
-    let (mut lo_t, mut hi_t) = (0u64, u32::MAX as u64 + 1);
-    while hi_t - lo_t > 1 {
-        let mid = (lo_t + hi_t) / 2;
-        if at_least(mid as u32) >= count {
-            lo_t = mid;
-        } else {
-            hi_t = mid;
-        }
-    }
-    let t = lo_t as u32;
-    let mut chosen: Vec<usize> = (0..q.len())
-        .filter(|&p| eligible(p) && rank(p) > t)
-        .collect();
-    let mut left = count - chosen.len() as u64;
-    for p in 0..q.len() {
+    let mut left = target - k.iter().map(|&x| x as u64).sum::<u64>();
+    for p in 0..k.len() {
         if left == 0 {
             break;
         }
-        if eligible(p) && rank(p) == t {
-            chosen.push(p);
+        if water_level_k(a + 1, w[p], counts[p], lo) > k[p] {
+            k[p] += 1;
             left -= 1;
         }
     }
-    chosen
+    debug_assert_eq!(
+        left, 0,
+        "more pixels rise at lambda + 1 than slots are missing"
+    );
+    k
+}
+
+/// Fractional bits of a slot request: requests are in 1/256 of a slot.
+pub const REQUEST_BITS: u32 = 8;
+/// The most slots a network output of 1 requests (before the level).
+pub const REQUEST_SLOTS: f32 = 256.0;
+/// The level is searched in `[-2^24, 2^24]` (in 1/256 slot): at the bottom every covered pixel
+/// reaches n (requests are below 2^24 and n below 2^16), at the top every pixel falls to lo.
+pub const LEVEL_BITS: u32 = 24;
+
+/// A network output `r` in [0, 1] as a slot request in 1/256 of a slot:
+/// `floor(r REQUEST_SLOTS 256 + 1/2)`, below `2^24`.
+pub fn slot_request(r: f32) -> u32 {
+    let r = if r.is_finite() {
+        r.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    ((r * REQUEST_SLOTS * 256.0 + 0.5).floor() as u32).min(WEIGHT_MAX)
+}
+
+/// k of one pixel at level L (0 for uncovered pixels): `clamp(floor((c - L) / 256), lo, n)`.
+#[inline]
+pub fn level_k(level: i64, c: u32, n: u32, lo: u32) -> u32 {
+    if n == 0 {
+        return 0;
+    }
+    let k = (c as i64 - level).div_euclid(1 << REQUEST_BITS);
+    k.clamp(lo as i64, n as i64) as u32
+}
+
+fn level_sum(level: i64, c: &[u32], counts: &[u32], lo: u32) -> u64 {
+    c.par_iter()
+        .zip(counts)
+        .map(|(&c, &n)| level_k(level, c, n, lo) as u64)
+        .sum()
+}
+
+/// Additive water level (CPU twin of the GPU allocation for slot requests): each covered pixel
+/// asks for `c_p` slots (1/256 units, see [`slot_request`]) and gets `k_p = clamp(floor((c_p -
+/// L) / 256), lo, n_p)`, where L is the smallest integer level in `[-2^24, 2^24]` whose total
+/// fits `min(F, sum n)`; the slots still missing go one each to the first pixels, by index,
+/// whose k rises at L - 1. Pixels whose request exceeds what they hold are captured whole and
+/// the level hands what they leave to the others: `sum k = min(F, sum n)` exactly, covered
+/// pixels get `lo <= k <= n`. A common error in every request moves L, not the allocation.
+pub fn level_fill(c: &[u32], counts: &[u32], f: u64) -> Vec<u32> {
+    assert_eq!(c.len(), counts.len(), "one request per pixel");
+    let target = slots_to_allocate(counts, f);
+    let lo = min_k(counts, f);
+    let top = 1i64 << LEVEL_BITS;
+    // Invariant: sum(b) <= target; sum(a) > target unless a is the bottom and fits.
+    let (mut a, mut b) = (-top, top);
+    if level_sum(a, c, counts, lo) <= target {
+        b = a;
+    }
+    while b - a > 1 {
+        let mid = a + (b - a) / 2;
+        if level_sum(mid, c, counts, lo) <= target {
+            b = mid;
+        } else {
+            a = mid;
+        }
+    }
+    let mut k: Vec<u32> = c
+        .iter()
+        .zip(counts)
+        .map(|(&c, &n)| level_k(b, c, n, lo))
+        .collect();
+    let mut left = target - k.iter().map(|&x| x as u64).sum::<u64>();
+    for p in 0..k.len() {
+        if left == 0 {
+            break;
+        }
+        if level_k(b - 1, c[p], counts[p], lo) > k[p] {
+            k[p] += 1;
+            left -= 1;
+        }
+    }
+    debug_assert_eq!(left, 0, "more pixels rise at L - 1 than slots are missing");
+    k
+}
+
+/// What the network's output (in (0, 1)) means, so the runtime turns it into slots the way it
+/// was trained.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Target {
+    /// `r = k / n`: the share of the pixel's own fragments to keep. The allocation asks for `r n`
+    /// slots per pixel and water-fills (see [`share_weight`]).
+    #[default]
+    ShareOfFragments,
+    /// `k / max_q k(q)` (the paper's): proportional importance (see [`importance_weight`]).
+    RelativeK,
+    /// A slot request `256 r`: the allocation gives `k = clamp(256 r - L, lo, n)` with one level
+    /// L for the frame (see [`level_fill`]).
+    SlotRequest,
+}
+
+impl Target {
+    pub fn name(self) -> &'static str {
+        match self {
+            Target::ShareOfFragments => "k_over_n",
+            Target::RelativeK => "k_over_max_k",
+            Target::SlotRequest => "slot_request",
+        }
+    }
+    pub fn parse(s: &str) -> Option<Target> {
+        [
+            Target::ShareOfFragments,
+            Target::RelativeK,
+            Target::SlotRequest,
+        ]
+        .into_iter()
+        .find(|t| t.name() == s)
+    }
+    /// The water-filling weight of one covered pixel with n fragments and network output `i`.
+    pub fn weight(self, i: f32, n: u32) -> u32 {
+        match self {
+            Target::ShareOfFragments => share_weight(i, n),
+            Target::RelativeK => importance_weight(i),
+            Target::SlotRequest => slot_request(i),
+        }
+    }
+    /// Whether the weights are slot requests fitted by an additive level (else water-filling
+    /// weights fitted by a scale).
+    pub fn additive(self) -> bool {
+        self == Target::SlotRequest
+    }
+}
+
+/// k from any importance map as a network with that target would allocate it (VKB's importance
+/// is `Target::RelativeK`): the weights of covered pixels, then [`water_fill`] or
+/// [`level_fill`]. The CPU twin of the GPU allocation pass.
+pub fn allocate(importance: &[f32], counts: &[u32], target: Target, f: u64) -> Vec<u32> {
+    assert_eq!(importance.len(), counts.len(), "one importance per pixel");
+    let w: Vec<u32> = importance
+        .iter()
+        .zip(counts)
+        .map(|(&i, &n)| if n > 0 { target.weight(i, n) } else { 0 })
+        .collect();
+    if target.additive() {
+        level_fill(&w, counts, f)
+    } else {
+        water_fill(&w, counts, f)
+    }
 }

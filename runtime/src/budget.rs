@@ -6,8 +6,12 @@
 //! accounting is one table, not a constant to keep in step by hand: the bytes allocated for
 //! budget M never exceed M.
 //!
-//! A budget is given either in bytes (`20MB`, `40MiB`, `1048576`) or in average slots per pixel
-//! (`2fpp`); the latter fixes F directly and the bytes follow from each method's layout.
+//! A budget is given in bytes (`20MB`, `40MiB`, `1048576`), in average slots per pixel (`2fpp`),
+//! or relative to the frame (`25%`: F is that share of the frame's own fragment total, what the
+//! exact A-buffer would store, known from the count pass before any slot is allocated). The
+//! last two fix F directly and the bytes follow from each method's layout. A share is held in
+//! parts per million, so `F = floor(total * ppm / 10^6)` is the same integer on the CPU and the
+//! GPU.
 
 use crate::error::{Error, Result};
 
@@ -40,10 +44,10 @@ pub struct Layout {
 const HYBRID_TAIL: (&str, u64) = ("oit.tail", 20);
 /// The geometry passes' render target (R8, never written): rasterization needs one.
 const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
-/// The allocation's step parameters and integer sums.
-const ALLOC_PARAMS: (&str, u64) = ("alloc.params", 32);
-const ALLOC_SUMS: (&str, u64) = ("alloc.sums", 32);
-const ALLOC_HISTOGRAM: (&str, u64) = ("alloc.histogram", 1024);
+/// The allocation's parameters (F, share, weight kind) and its search state (24 u64: target,
+/// interval, sums of 16 candidates).
+const ALLOC_PARAMS: (&str, u64) = ("alloc.params", 16);
+const ALLOC_STATE: (&str, u64) = ("alloc.state", 192);
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 
@@ -72,8 +76,7 @@ pub const DKB: Layout = Layout {
         ("features.totals", 24),
         OFFSETS_END,
         ALLOC_PARAMS,
-        ALLOC_SUMS,
-        ALLOC_HISTOGRAM,
+        ALLOC_STATE,
     ],
     scan: true,
 };
@@ -113,8 +116,7 @@ pub const VKB: Layout = Layout {
         ("vkb.totals", 16),
         OFFSETS_END,
         ALLOC_PARAMS,
-        ALLOC_SUMS,
-        ALLOC_HISTOGRAM,
+        ALLOC_STATE,
     ],
     scan: true,
 };
@@ -212,6 +214,42 @@ pub enum Budget {
     Bytes(u64),
     /// Average fragment slots per pixel: F = floor(fpp |P|).
     SlotsPerPixel(f64),
+    /// A share of the frame's fragments, in parts per million: F = floor(total ppm / 10^6).
+    Share(u32),
+}
+
+/// F as a pass sees it before the frame's fragments are counted: a fixed number of slots, or a
+/// share of what the count finds (the GPU computes `floor(total ppm / 10^6)` after its count
+/// pass, the CPU the same integer).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FragmentBudget {
+    Slots(u64),
+    /// Parts per million of the frame's fragments.
+    Share(u32),
+}
+
+impl FragmentBudget {
+    /// F for a frame of `total` fragments.
+    pub fn of(self, total: u64) -> u64 {
+        match self {
+            FragmentBudget::Slots(f) => f,
+            FragmentBudget::Share(ppm) => share_of(total, ppm),
+        }
+    }
+}
+
+impl From<u64> for FragmentBudget {
+    fn from(f: u64) -> Self {
+        FragmentBudget::Slots(f)
+    }
+}
+
+/// Parts per million of a whole share.
+pub const PPM: u64 = 1_000_000;
+
+/// F of a relative budget: `floor(total ppm / 10^6)` (the GPU computes the same integer).
+pub fn share_of(total: u64, ppm: u32) -> u64 {
+    ((total as u128 * ppm as u128) / PPM as u128) as u64
 }
 
 impl Budget {
@@ -219,6 +257,22 @@ impl Budget {
         let t = s.trim();
         let bad = |m: &str| Error::Budget(s.to_string(), m.to_string());
         let lower = t.to_ascii_lowercase();
+        if let Some(n) = lower.strip_suffix('%') {
+            let v: f64 = n
+                .trim()
+                .parse()
+                .map_err(|_| bad("expected a number before '%', such as 25%"))?;
+            if !v.is_finite() || v <= 0.0 || v > 100.0 {
+                return Err(bad(
+                    "a share of the frame's fragments must be above 0% and at most 100%",
+                ));
+            }
+            let ppm = (v * 1e4).round();
+            if ppm < 1.0 {
+                return Err(bad("a share below 0.0001% leaves no fragment slot"));
+            }
+            return Ok(Budget::Share(ppm as u32));
+        }
         if let Some(n) = lower.strip_suffix("fpp") {
             let v: f64 = n
                 .trim()
@@ -234,7 +288,10 @@ impl Budget {
             .unwrap_or(lower.len());
         let (num, unit) = lower.split_at(split);
         let v: f64 = num.parse().map_err(|_| {
-            bad("expected bytes such as 20MB, 40MiB or 1048576, or slots per pixel such as 2fpp")
+            bad(
+                "expected bytes such as 20MB, 40MiB or 1048576, slots per pixel such as 2fpp, \
+                 or a share of the frame's fragments such as 25%",
+            )
         })?;
         let scale = match unit.trim() {
             "" | "b" => 1.0,
@@ -246,7 +303,7 @@ impl Budget {
             "gib" => 1024.0 * 1024.0 * 1024.0,
             u => {
                 return Err(bad(&format!(
-                    "unknown unit '{u}' (B, KB, MB, GB, KiB, MiB, GiB or fpp)"
+                    "unknown unit '{u}' (B, KB, MB, GB, KiB, MiB, GiB, fpp or %)"
                 )));
             }
         };
@@ -257,10 +314,30 @@ impl Budget {
         Ok(Budget::Bytes(bytes as u64))
     }
 
-    /// Resolves to (bytes M, fragment slots F(M)) for a layout and pixel count.
-    pub fn resolve(&self, layout: &Layout, pixels: u64) -> Result<(u64, u64)> {
+    /// F before the frame is counted: a share stays a share, slots per pixel and bytes resolve
+    /// through the layout.
+    pub fn fragment_budget(&self, layout: &Layout, pixels: u64) -> Result<FragmentBudget> {
+        match *self {
+            Budget::Share(ppm) => Ok(FragmentBudget::Share(ppm)),
+            _ => Ok(FragmentBudget::Slots(self.resolve(layout, pixels, 0)?.1)),
+        }
+    }
+
+    /// Resolves to (bytes M, fragment slots F(M)) for a layout, a pixel count and the frame's
+    /// fragment total (which only a relative budget reads).
+    pub fn resolve(&self, layout: &Layout, pixels: u64, fragments: u64) -> Result<(u64, u64)> {
         match *self {
             Budget::Bytes(b) => Ok((b, layout.fragment_budget(b, pixels)?)),
+            Budget::Share(ppm) => {
+                let slots = share_of(fragments, ppm);
+                if slots == 0 {
+                    return Err(Error::Budget(
+                        self.to_string(),
+                        format!("leaves no fragment slot of the frame's {fragments} fragments"),
+                    ));
+                }
+                Ok((layout.allocated_bytes(pixels, slots), slots))
+            }
             Budget::SlotsPerPixel(f) => {
                 let slots = (f * pixels as f64).floor() as u64;
                 if slots == 0 {
@@ -280,6 +357,7 @@ impl std::fmt::Display for Budget {
         match self {
             Budget::Bytes(b) => write!(f, "{}", format_bytes(*b)),
             Budget::SlotsPerPixel(v) => write!(f, "{v}fpp"),
+            Budget::Share(ppm) => write!(f, "{}%", *ppm as f64 / 1e4),
         }
     }
 }

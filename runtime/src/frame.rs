@@ -107,10 +107,44 @@ pub struct Frame {
     pub optimal: Option<OptimalReport>,
 }
 
+/// What the methods of one frame share, so that their errors compare.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Equal {
+    /// The same F for every method: slots per pixel or a share of the fragments fix F, and each
+    /// method's bytes follow from its layout (a byte budget fixes M instead).
+    #[default]
+    Slots,
+    /// The same bytes M for every method, each method's F following from its own layout (the
+    /// paper's protocol). A budget in slots or a share sets M to what the per-pixel-k layout
+    /// ([`budget::OPT`], the leanest with a per-pixel k) needs for that F.
+    Bytes,
+}
+
+impl Equal {
+    /// `slots` or `bytes`.
+    pub fn parse(s: &str) -> Result<Equal> {
+        match s {
+            "slots" | "f" => Ok(Equal::Slots),
+            "bytes" | "m" => Ok(Equal::Bytes),
+            _ => Err(Error::Invalid(format!(
+                "unknown comparison '{s}': expected slots (the same F for every method) or bytes (the same memory M)"
+            ))),
+        }
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            Equal::Slots => "equal F",
+            Equal::Bytes => "equal bytes",
+        }
+    }
+}
+
 /// Settings shared by every method of a frame.
 #[derive(Clone, Copy, Debug)]
 pub struct Options<'a> {
     pub budget: Budget,
+    /// Equal F or equal bytes across methods.
+    pub equal: Equal,
     pub background: [f32; 3],
     /// Network weights, needed by DKB.
     pub weights: Option<&'a Mlp>,
@@ -121,6 +155,7 @@ impl Options<'_> {
     pub fn new(budget: Budget, background: [f32; 3]) -> Options<'static> {
         Options {
             budget,
+            equal: Equal::Slots,
             background,
             weights: None,
             vkb: VkbParams::default(),
@@ -150,6 +185,24 @@ impl<'a> Renderer<'a> {
             .get_or_init(|| alloc::error_curves(self.fragments, self.options.background))
     }
 
+    /// The budget every method of this frame gets, after [`Equal`]: at equal bytes, a budget in
+    /// slots or a share becomes the bytes the per-pixel-k layout needs for it.
+    pub fn budget(&self) -> Result<Budget> {
+        let opts = &self.options;
+        match (opts.equal, opts.budget) {
+            (Equal::Bytes, b @ (Budget::SlotsPerPixel(_) | Budget::Share(_))) => {
+                let fl = self.fragments;
+                let (bytes, _) = b.resolve(
+                    &budget::OPT,
+                    fl.pixel_count() as u64,
+                    fl.fragment_count() as u64,
+                )?;
+                Ok(Budget::Bytes(bytes))
+            }
+            (_, b) => Ok(b),
+        }
+    }
+
     pub fn render(&self, method: Method) -> Result<Frame> {
         let fl = self.fragments;
         let opts = &self.options;
@@ -160,7 +213,7 @@ impl<'a> Renderer<'a> {
         let t0 = Instant::now();
         let (budget_bytes, f) = match method {
             Method::Abuffer => (layout.allocated_bytes(pixels, total), total),
-            _ => opts.budget.resolve(&layout, pixels)?,
+            _ => self.budget()?.resolve(&layout, pixels, total)?,
         };
         let uniform_k = |what: &str| -> Result<Vec<u32>> {
             let k = alloc::fixed(pixels as usize, f);
@@ -184,15 +237,14 @@ impl<'a> Renderer<'a> {
             Method::Mlab => uniform_k("mlab")?,
             Method::Vkb => {
                 let imp = importance::vkb_importance(fl, &opts.vkb);
-                alloc::from_importance(&imp, &counts, f)
+                alloc::allocate(&imp, &counts, alloc::Target::RelativeK, f)
             }
             Method::Dkb => {
                 let mlp = opts.weights.ok_or_else(|| {
                     Error::Invalid("dkb needs network weights (--weights FILE)".into())
                 })?;
                 let feats = importance::features(fl, f);
-                let imp = mlp.importance(&feats, &counts);
-                alloc::from_importance(&imp, &counts, f)
+                mlp.allocate(&feats, &counts, f)
             }
             Method::Optimal => {
                 let (k, rep) = alloc::optimal(self.curves(), f);

@@ -14,7 +14,8 @@
 //! Every buffer a method's frame allocates is labelled after the [`crate::budget::Layout`] entry
 //! it realises and counted, so [`GpuFrame::allocated_bytes`] is what the device really holds.
 
-use crate::budget;
+use crate::alloc::Target;
+use crate::budget::{self, FragmentBudget};
 use crate::composite::Image;
 use crate::error::{Error, Result};
 use crate::importance::{PixelStats, VkbParams};
@@ -144,7 +145,9 @@ struct Params {
     vkb_exponent: f32,
     vkb_noise: f32,
     vkb_seed: u32,
-    _pad: [u32; 31],
+    /// A relative budget in parts per million (0: F is `budget_fragments`).
+    budget_ppm: u32,
+    _pad: [u32; 30],
 }
 
 impl Gpu {
@@ -286,15 +289,25 @@ pub enum Slots<'a> {
     /// MLAB with this many rows (at most [`MLAB_MAX_ROWS`]), blended from the A-buffer's
     /// fragments taken in submission order.
     Mlab(u32),
-    /// Per-pixel importance (computed elsewhere) and F(M): the GPU counts fragments, allocates
-    /// k (`allocate.wgsl`, the twin of `alloc::from_importance`), then captures and resolves.
-    Importance(&'a [f32], u64),
+    /// Per-pixel importance (computed elsewhere), what it means and F: the GPU counts
+    /// fragments, allocates k (`allocate.wgsl`, the twin of `alloc::allocate`), then captures
+    /// and resolves.
+    Importance(&'a [f32], Target, FragmentBudget),
     /// The variable k-buffer, every pass on the GPU: count and nearest fragment, totals, paper
     /// 002's importance, allocation, capture, resolve.
-    Vkb(VkbParams, u64),
+    Vkb(VkbParams, FragmentBudget),
     /// The deep k-buffer, every pass on the GPU: features, totals, the network's importance,
     /// allocation, capture, resolve.
-    Dkb(&'a Mlp, u64),
+    Dkb(&'a Mlp, FragmentBudget),
+}
+
+/// The allocation pass's weight kind for a target (`Alloc.kind` in allocate.wgsl).
+fn weight_kind(t: Target) -> u32 {
+    match t {
+        Target::RelativeK => 0,
+        Target::ShareOfFragments => 1,
+        Target::SlotRequest => 2,
+    }
 }
 
 /// The network's weights as the uniform `importance_dkb.wgsl` reads: h1, h2, 0, 0, mean, std,
@@ -596,6 +609,94 @@ impl Passes<'_> {
         Ok(())
     }
 
+    /// The allocation (allocate.wgsl), recorded into `enc`: weights, setup, 11 rounds of search
+    /// and choose, mark (one timed pass), the prefix of the marks, apply (another).
+    fn allocate(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        fb: &mut FrameBuffers,
+        b: AllocBuffers,
+        budget: FragmentBudget,
+        kind: u32,
+    ) -> Result<()> {
+        let gpu = self.gpu;
+        let a = &gpu.pipelines.allocate;
+        let (f, ppm) = match budget {
+            FragmentBudget::Slots(f) => (f, 0),
+            FragmentBudget::Share(ppm) => (0, ppm),
+        };
+        let ap = AllocParams {
+            f_lo: f as u32,
+            f_hi: (f >> 32) as u32,
+            ppm,
+            kind,
+        };
+        let params = fb.init(
+            "alloc.params",
+            bytemuck::bytes_of(&ap),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        );
+        let state = fb.storage("alloc.state", 192, true)?;
+        let flags = fb.storage("alloc.flags", 4 * self.pixels as u64, true)?;
+        let bind = |marks: &wgpu::Buffer| {
+            gpu.bind_at(
+                &a.layout,
+                &[
+                    (0, self.geometry[0]),
+                    (1, &params),
+                    (2, b.counts),
+                    (3, b.weights),
+                    (4, b.k),
+                    (5, &state),
+                    (6, marks),
+                    (7, b.totals),
+                ],
+            )
+        };
+        let (gx, gy) = grid(self.pixels);
+        {
+            let group = bind(&flags);
+            let (tb, te) = self.timer.next("allocation");
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("allocation"),
+                timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                    query_set: &self.timer.set,
+                    beginning_of_pass_write_index: Some(tb),
+                    end_of_pass_write_index: Some(te),
+                }),
+            });
+            pass.set_bind_group(0, &group, &[]);
+            pass.set_pipeline(&a.weights);
+            pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_pipeline(&a.setup);
+            pass.dispatch_workgroups(1, 1, 1);
+            for _ in 0..SEARCH_ROUNDS {
+                pass.set_pipeline(&a.search);
+                pass.dispatch_workgroups(gx, gy, 1);
+                pass.set_pipeline(&a.choose);
+                pass.dispatch_workgroups(1, 1, 1);
+            }
+            pass.set_pipeline(&a.mark);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        self.prefix_sum(enc, fb, &flags, b.prefix)?;
+        let group = bind(b.prefix);
+        let (tb, te) = self.timer.next("allocation apply");
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("allocation apply"),
+            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                query_set: &self.timer.set,
+                beginning_of_pass_write_index: Some(tb),
+                end_of_pass_write_index: Some(te),
+            }),
+        });
+        pass.set_bind_group(0, &group, &[]);
+        pass.set_pipeline(&a.apply);
+        pass.dispatch_workgroups(gx, gy, 1);
+        Ok(())
+    }
+
     /// Submits what is recorded and starts a new encoder.
     fn submit(&self, enc: &mut wgpu::CommandEncoder) {
         let done = std::mem::replace(
@@ -672,19 +773,23 @@ impl Gpu {
             allocated: 0,
             scan_blocks: None,
         };
-        let (budget_fragments, vkb, k_uniform) = match slots {
-            Some(Slots::Importance(_, f) | Slots::Dkb(_, f)) => (f, VkbParams::default(), 0),
+        let (budget, vkb, k_uniform) = match slots {
+            Some(Slots::Importance(_, _, f) | Slots::Dkb(_, f)) => (f, VkbParams::default(), 0),
             Some(Slots::Vkb(v, f)) => (f, v, 0),
-            Some(Slots::Uniform(k)) => (0, VkbParams::default(), k.max(1)),
+            Some(Slots::Uniform(k)) => (0.into(), VkbParams::default(), k.max(1)),
             Some(Slots::Mlab(m)) => {
                 if m == 0 || m > MLAB_MAX_ROWS {
                     return Err(Error::Invalid(format!(
                         "MLAB on the GPU takes 1 to {MLAB_MAX_ROWS} rows, not {m}"
                     )));
                 }
-                (0, VkbParams::default(), m)
+                (0.into(), VkbParams::default(), m)
             }
-            Some(Slots::PerPixel(_)) | None => (0, VkbParams::default(), 0),
+            Some(Slots::PerPixel(_)) | None => (0.into(), VkbParams::default(), 0),
+        };
+        let (budget_fragments, budget_ppm) = match budget {
+            FragmentBudget::Slots(f) => (f, 0),
+            FragmentBudget::Share(ppm) => (0, ppm),
         };
         let params = Params {
             view_proj: cam.view_proj.to_cols_array_2d(),
@@ -699,7 +804,8 @@ impl Gpu {
             vkb_exponent: vkb.periphery_exponent,
             vkb_noise: vkb.noise,
             vkb_seed: vkb.seed,
-            _pad: [0; 31],
+            budget_ppm,
+            _pad: [0; 30],
         };
         let params_buf = fb.init(
             "params",
@@ -740,7 +846,7 @@ impl Gpu {
             view_formats: &[],
         });
         let view = target.create_view(&Default::default());
-        let timer = Timer::new(self, 12);
+        let timer = Timer::new(self, 16);
         let passes = Passes {
             gpu: self,
             timer: &timer,
@@ -754,7 +860,6 @@ impl Gpu {
         let image = fb.storage("oit.image", 16 * px, true)?;
         let mut enc = self.device.create_command_encoder(&Default::default());
         let mut out = Readback::default();
-        let mut host_ms: Vec<(&'static str, f64)> = Vec::new();
         match slots {
             None | Some(Slots::Mlab(_)) => {
                 // The per-pixel sorts (sort and blend, MLAB) report a near loop limit here.
@@ -827,8 +932,8 @@ impl Gpu {
                         (k_of, base, k.iter().map(|&x| x as u64).sum())
                     }
                     _ => {
-                        let (counts, importance) = match s {
-                            Slots::Importance(imp, _) => {
+                        let (counts, importance, totals, kind) = match s {
+                            Slots::Importance(imp, target, _) => {
                                 if imp.len() != pixels as usize {
                                     return Err(Error::Invalid(format!(
                                         "{} importance values for {pixels} pixels",
@@ -842,8 +947,16 @@ impl Gpu {
                                     wgpu::BufferUsages::STORAGE,
                                     true,
                                 );
+                                let totals = fb.storage("totals", 16, true)?;
                                 passes.draw(&mut enc, &p.count, &[&counts], "count");
-                                (counts, imp)
+                                passes.dispatch(
+                                    &mut enc,
+                                    &p.totals,
+                                    &[params_buf, &counts, &totals],
+                                    groups,
+                                    "totals",
+                                );
+                                (counts, imp, totals, weight_kind(target))
                             }
                             Slots::Vkb(..) => {
                                 let counts = fb.storage("vkb.count", 4 * px, true)?;
@@ -866,7 +979,7 @@ impl Gpu {
                                     "importance",
                                 );
                                 out.vkb_nearest_buf = Some(nearest);
-                                (counts, imp)
+                                (counts, imp, totals, weight_kind(Target::RelativeK))
                             }
                             Slots::Dkb(mlp, _) => {
                                 let weights = fb.init(
@@ -906,7 +1019,7 @@ impl Gpu {
                                     "importance",
                                 );
                                 out.stats_bufs = Some([near, far, nearest, sums]);
-                                (counts, imp)
+                                (counts, imp, totals, weight_kind(mlp.target))
                             }
                             _ => unreachable!("handled above"),
                         };
@@ -919,22 +1032,19 @@ impl Gpu {
                         }
                         let k_of = fb.storage("oit.k", 4 * px, true)?;
                         let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
-                        passes.submit(&mut enc);
-                        // Time the allocation alone: first let the passes before it finish.
-                        self.device
-                            .poll(wgpu::PollType::wait_indefinitely())
-                            .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
-                        let t = std::time::Instant::now();
-                        let alloc = AllocateRun {
-                            passes: &passes,
-                            params: params_buf,
-                            counts: &counts,
-                            q: &importance,
-                            k: &k_of,
-                            prefix: &base,
-                        };
-                        alloc.run(&mut fb, budget_fragments)?;
-                        host_ms.push(("allocation (host-driven)", t.elapsed().as_secs_f64() * 1e3));
+                        passes.allocate(
+                            &mut enc,
+                            &mut fb,
+                            AllocBuffers {
+                                counts: &counts,
+                                weights: &importance,
+                                k: &k_of,
+                                prefix: &base,
+                                totals: &totals,
+                            },
+                            budget,
+                            kind,
+                        )?;
                         passes.prefix_sum(&mut enc, &mut fb, &k_of, &base)?;
                         passes.submit(&mut enc);
                         let total =
@@ -981,8 +1091,7 @@ impl Gpu {
             )));
         }
         let img = u32s(&read_back(self, &image, 16 * px)?);
-        let mut pass_ms = timer.read(self)?;
-        pass_ms.extend(host_ms);
+        let pass_ms = timer.read(self)?;
         let (importance, stats, vkb_nearest) = out.statistics(self, px)?;
         if let Some(e) = pollster::block_on(oom.pop()) {
             return Err(Error::Gpu(format!("out of device memory: {e}")));
@@ -1019,28 +1128,44 @@ impl Gpu {
 /// The allocation's entry points (shaders/allocate.wgsl), sharing one explicit layout.
 struct Allocate {
     layout: wgpu::BindGroupLayout,
-    init: wgpu::ComputePipeline,
-    uniform_q: wgpu::ComputePipeline,
-    base: wgpu::ComputePipeline,
-    count: wgpu::ComputePipeline,
-    step: wgpu::ComputePipeline,
-    histogram: wgpu::ComputePipeline,
+    weights: wgpu::ComputePipeline,
+    setup: wgpu::ComputePipeline,
+    search: wgpu::ComputePipeline,
+    choose: wgpu::ComputePipeline,
     mark: wgpu::ComputePipeline,
     apply: wgpu::ComputePipeline,
 }
 
-/// The allocation step parameters (matches `Alloc` in allocate.wgsl).
+/// The allocation parameters (matches `Alloc` in allocate.wgsl).
 #[repr(C)]
 #[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
 struct AllocParams {
-    f: u32,
-    s_lo: u32,
-    s_hi: u32,
-    lo: u32,
-    mode: u32,
-    d: u32,
-    t: u32,
-    left: u32,
+    f_lo: u32,
+    f_hi: u32,
+    ppm: u32,
+    kind: u32,
+}
+
+/// Rounds of the allocation's 16-way search: the interval 2^44 shrinks to one value.
+const SEARCH_ROUNDS: u32 = 11;
+
+/// The buffers the allocation reads and writes.
+struct AllocBuffers<'a> {
+    counts: &'a wgpu::Buffer,
+    /// Importance in; the fixed-point weights in place.
+    weights: &'a wgpu::Buffer,
+    k: &'a wgpu::Buffer,
+    /// Scratch for the prefix of the marks (the slot offsets, computed after).
+    prefix: &'a wgpu::Buffer,
+    totals: &'a wgpu::Buffer,
+}
+
+/// Workgroups of 256 invocations covering `pixels`, as a 2-D grid when one dimension cannot
+/// hold them (the passes compute `(y * width + x) * 256 + local index`).
+pub fn grid(pixels: u32) -> (u32, u32) {
+    let groups = pixels.div_ceil(256).max(1);
+    let x = groups.min(65_535);
+    (x, groups.div_ceil(x))
 }
 
 impl Allocate {
@@ -1066,7 +1191,7 @@ impl Allocate {
                 entry(4, rw),
                 entry(5, rw),
                 entry(6, rw),
-                entry(7, rw),
+                entry(7, wgpu::BufferBindingType::Storage { read_only: true }),
             ],
         });
         let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -1086,157 +1211,14 @@ impl Allocate {
             })
         };
         Allocate {
-            init: make("init"),
-            uniform_q: make("uniform_q"),
-            base: make("base"),
-            count: make("count"),
-            step: make("step"),
-            histogram: make("histogram"),
+            weights: make("weights"),
+            setup: make("setup"),
+            search: make("search"),
+            choose: make("choose"),
             mark: make("mark"),
             apply: make("apply"),
             layout,
         }
-    }
-}
-
-/// One frame's allocation: the host sequences small per-pixel steps, reading the integer sums
-/// after each, exactly as alloc::from_importance proceeds.
-struct AllocateRun<'a> {
-    passes: &'a Passes<'a>,
-    params: &'a wgpu::Buffer,
-    counts: &'a wgpu::Buffer,
-    q: &'a wgpu::Buffer,
-    k: &'a wgpu::Buffer,
-    /// Scratch for the prefix of the threshold marks (the slot offsets, computed after).
-    prefix: &'a wgpu::Buffer,
-}
-
-impl AllocateRun<'_> {
-    fn run(&self, fb: &mut FrameBuffers, f: u64) -> Result<()> {
-        let gpu = self.passes.gpu;
-        let a = &gpu.pipelines.allocate;
-        let px = self.passes.pixels as u64;
-        let step_params = fb.init(
-            "alloc.params",
-            &[0u8; 32],
-            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            true,
-        );
-        let acc = fb.storage("alloc.sums", 32, true)?;
-        let hist = fb.storage("alloc.histogram", 1024, true)?;
-        let flags = fb.storage("alloc.flags", 4 * px, true)?;
-        let groups = self.passes.pixels.div_ceil(64);
-        let run = |pipeline: &wgpu::ComputePipeline,
-                   ap: &AllocParams,
-                   last: &wgpu::Buffer|
-         -> Result<[u64; 4]> {
-            gpu.queue
-                .write_buffer(&step_params, 0, bytemuck::bytes_of(ap));
-            let group = gpu.bind_at(
-                &a.layout,
-                &[
-                    (0, self.params),
-                    (1, &step_params),
-                    (2, self.counts),
-                    (3, self.q),
-                    (4, self.k),
-                    (5, &acc),
-                    (6, last),
-                    (7, &hist),
-                ],
-            );
-            let mut enc = gpu.device.create_command_encoder(&Default::default());
-            enc.clear_buffer(&acc, 0, None);
-            enc.clear_buffer(&hist, 0, None);
-            {
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &group, &[]);
-                pass.dispatch_workgroups(groups, 1, 1);
-            }
-            gpu.queue.submit([enc.finish()]);
-            let v = read_u64s(gpu, &acc, 4, false)?;
-            Ok([v[0], v[1], v[2], v[3]])
-        };
-        let mut ap = AllocParams::default();
-        let [covered, fragments, mut s, _] = run(&a.init, &ap, &flags)?;
-        if s == 0 {
-            run(&a.uniform_q, &ap, &flags)?;
-            s = covered;
-        }
-        let target = f.min(fragments);
-        ap.f = f.min(u32::MAX as u64) as u32;
-        ap.s_lo = s as u32;
-        ap.s_hi = (s >> 32) as u32;
-        ap.lo = u32::from(f >= covered);
-        let [mut sum_k, open, _, _] = run(&a.base, &ap, &flags)?;
-        // Pixels eligible for the next round, when a step already counted them.
-        let mut known = Some(open);
-        // Hand out what is missing (mode 0), then take back what is extra (mode 1).
-        for mode in [0u32, 1] {
-            ap.mode = mode;
-            if mode == 1 {
-                known = None;
-            }
-            loop {
-                let need = if mode == 0 {
-                    target.saturating_sub(sum_k)
-                } else {
-                    sum_k.saturating_sub(target)
-                };
-                if need == 0 {
-                    break;
-                }
-                let eligible = match known.take() {
-                    Some(n) => n,
-                    None => run(&a.count, &ap, &flags)?[0],
-                };
-                if eligible <= need {
-                    ap.d = (need / eligible.max(1)).max(1).min(u32::MAX as u64) as u32;
-                    let [changed, still, _, _] = run(&a.step, &ap, &flags)?;
-                    known = Some(still);
-                    if changed == 0 {
-                        return Err(Error::Gpu("the allocation made no progress".into()));
-                    }
-                    sum_k = if mode == 0 {
-                        sum_k + changed
-                    } else {
-                        sum_k - changed
-                    };
-                } else {
-                    // The `need` eligible pixels of highest rank: the threshold rank t (the
-                    // largest with at least `need` ranks >= t) by radix selection, one 8-bit
-                    // digit a pass from the top, then the pixels at t in index order.
-                    let (mut prefix, mut above, mut want) = (0u64, 0u64, need);
-                    for shift in [24u32, 16, 8, 0] {
-                        ap.d = shift;
-                        ap.t = prefix as u32;
-                        run(&a.histogram, &ap, &flags)?;
-                        let h = u32s(&read_back(gpu, &hist, 1024)?);
-                        let mut digit = 255usize;
-                        loop {
-                            if h[digit] as u64 >= want || digit == 0 {
-                                break;
-                            }
-                            want -= h[digit] as u64;
-                            above += h[digit] as u64;
-                            digit -= 1;
-                        }
-                        prefix = (prefix << 8) | digit as u64;
-                    }
-                    let lo_t = prefix;
-                    ap.t = lo_t as u32;
-                    ap.left = (need - above) as u32;
-                    run(&a.mark, &ap, &flags)?;
-                    let mut enc = gpu.device.create_command_encoder(&Default::default());
-                    self.passes.prefix_sum(&mut enc, fb, &flags, self.prefix)?;
-                    gpu.queue.submit([enc.finish()]);
-                    run(&a.apply, &ap, self.prefix)?;
-                    sum_k = target;
-                }
-            }
-        }
-        Ok(())
     }
 }
 

@@ -8,7 +8,8 @@
 //! f32, weights stored [in, out] as
 //! burn's `Linear` keeps them (row i holds input i's weights to every output). Metadata:
 //! `format` = "dhoit-mlp-1", `features` (JSON list of the 12 names, in order), `input_mean` and
-//! `input_std` (JSON lists of 12 numbers), `layout` = "linear-in-out".
+//! `input_std` (JSON lists of 12 numbers), `layout` = "linear-in-out", and `target`, what the
+//! output means (see [`Target`]; files without it predate it and mean `k_over_max_k`).
 
 use crate::error::{Error, Result};
 use crate::importance::{FEATURE_NAMES, FEATURES};
@@ -27,6 +28,8 @@ pub const H2: usize = 64;
 pub const MAX_PARAMETERS: usize = parameter_count(H1, H2);
 /// Largest second hidden layer accepted (the GPU pass keeps its sums in a private array).
 pub const MAX_H2: usize = 128;
+
+pub use crate::alloc::Target;
 
 pub const fn parameter_count(h1: usize, h2: usize) -> usize {
     FEATURES * h1 + h1 + h1 * h2 + h2 + h2 + 1
@@ -47,6 +50,8 @@ pub struct Mlp {
     pub b3: f32,
     pub mean: [f32; FEATURES],
     pub std: [f32; FEATURES],
+    /// What the output means.
+    pub target: Target,
 }
 
 impl Mlp {
@@ -73,6 +78,7 @@ impl Mlp {
             b3: 0.0,
             mean: [0.0; FEATURES],
             std: [1.0; FEATURES],
+            target: Target::default(),
         }
     }
 
@@ -128,6 +134,21 @@ impl Mlp {
             .collect()
     }
 
+    /// Water-filling weights of every pixel (0 for uncovered ones) from the network's output.
+    pub fn weights(&self, features: &[[f32; FEATURES]], counts: &[u32]) -> Vec<u32> {
+        self.importance(features, counts)
+            .iter()
+            .zip(counts)
+            .map(|(&i, &n)| if n > 0 { self.target.weight(i, n) } else { 0 })
+            .collect()
+    }
+
+    /// The network's allocation of `f` slots: its weights fitted to the budget by a scale
+    /// ([`crate::alloc::water_fill`]) or a level ([`crate::alloc::level_fill`]).
+    pub fn allocate(&self, features: &[[f32; FEATURES]], counts: &[u32], f: u64) -> Vec<u32> {
+        crate::alloc::allocate(&self.importance(features, counts), counts, self.target, f)
+    }
+
     /// Reads and validates a weights file.
     pub fn load(path: &Path) -> Result<Mlp> {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
@@ -163,6 +184,14 @@ impl Mlp {
                     v.len()
                 )
             })
+        };
+        let target = match file.metadata.get("target") {
+            None => Target::RelativeK,
+            Some(t) => Target::parse(t).ok_or_else(|| {
+                format!(
+                    "metadata 'target' is '{t}', expected k_over_n, k_over_max_k or slot_request"
+                )
+            })?,
         };
         let mean = vec12("input_mean")?;
         let std = vec12("input_std")?;
@@ -229,6 +258,7 @@ impl Mlp {
             b3: get("out.bias", &[1])?[0],
             mean,
             std,
+            target,
         })
     }
 
@@ -246,6 +276,7 @@ impl Mlp {
         let mut meta = extra.clone();
         meta.insert("format".into(), FORMAT.into());
         meta.insert("layout".into(), LAYOUT.into());
+        meta.insert("target".into(), self.target.name().into());
         meta.insert(
             "features".into(),
             serde_json::to_string(&FEATURE_NAMES).expect("names"),

@@ -245,6 +245,58 @@ fn optimal_against_exhaustive_search_and_the_greedies() {
     );
 }
 
+/// An independent reference of water-filling: k(t) of each pixel changes only at its
+/// breakpoints; the allocation is the largest t whose total fits, then the first pixels by index
+/// that rise at t + 1.
+fn reference_fill(w: &[u32], counts: &[u32], f: u64, additive: bool) -> Vec<u32> {
+    let target = alloc::slots_to_allocate(counts, f);
+    let lo = alloc::min_k(counts, f);
+    // Both fills as functions of an increasing t: the scale lambda, or 2^24 - L.
+    let k_at = |t: i64, p: usize| -> u32 {
+        if counts[p] == 0 {
+            0
+        } else if additive {
+            alloc::level_k((1i64 << 24) - t, w[p], counts[p], lo)
+        } else {
+            alloc::water_level_k(t.max(0) as u64, w[p], counts[p], lo)
+        }
+    };
+    let top: i64 = if additive { 1 << 25 } else { 1 << 40 };
+    // Every t where some pixel's k may rise: the smallest t giving each k in lo+1..=n.
+    let mut breaks: Vec<i64> = vec![0, top];
+    for p in 0..counts.len() {
+        for kk in lo + 1..=counts[p] {
+            let t = if additive {
+                (kk as i64) * 256 - w[p] as i64 + (1 << 24)
+            } else if w[p] == 0 {
+                continue;
+            } else {
+                ((kk as u64) << 24).div_ceil(w[p] as u64) as i64
+            };
+            if (0..=top).contains(&t) {
+                breaks.push(t);
+            }
+        }
+    }
+    breaks.sort_unstable();
+    breaks.dedup();
+    let sum = |t: i64| -> u64 { (0..counts.len()).map(|p| k_at(t, p) as u64).sum() };
+    // The first breakpoint whose total exceeds the target; t is the value just below it.
+    let t = match breaks.iter().find(|&&b| sum(b) > target) {
+        Some(&b) => b - 1,
+        None => top,
+    };
+    let mut k: Vec<u32> = (0..counts.len()).map(|p| k_at(t, p)).collect();
+    let mut left = target - k.iter().map(|&x| x as u64).sum::<u64>();
+    for p in 0..counts.len() {
+        if left > 0 && k_at(t + 1, p) > k[p] {
+            k[p] += 1;
+            left -= 1;
+        }
+    }
+    k
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(400))]
 
@@ -254,6 +306,7 @@ proptest! {
         kind in 0usize..5,
         seed in any::<u64>(),
         f_pick in 0usize..6,
+        target in 0usize..3,
     ) {
         let mut rng = Rng::new(seed);
         let p = counts.len();
@@ -264,28 +317,44 @@ proptest! {
             3 => (0..p).map(|i| if i % 3 == 0 { f32::NAN } else if i % 3 == 1 { -1.0 } else { rng.f32() * 1e-30 }).collect(),
             _ => (0..p).map(|_| rng.f32().powi(8) * 1e6).collect(),
         };
+        let target = [alloc::Target::RelativeK, alloc::Target::ShareOfFragments, alloc::Target::SlotRequest][target];
         let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
         let total: u64 = counts.iter().map(|&n| n as u64).sum();
         let f = [1, covered.saturating_sub(1).max(1), covered.max(1), (covered + total) / 2 + 1, total.max(1), total * 3 + 7][f_pick];
-        let k = alloc::from_importance(&importance, &counts, f);
+        let k = alloc::allocate(&importance, &counts, target, f);
         check_bounds(&k, &counts, f);
-        // Deterministic.
-        prop_assert_eq!(k, alloc::from_importance(&importance, &counts, f));
+        // The search's answer is the unique one an independent computation finds.
+        let w: Vec<u32> = importance.iter().zip(&counts)
+            .map(|(&i, &n)| if n > 0 { target.weight(i, n) } else { 0 })
+            .collect();
+        prop_assert_eq!(&k, &reference_fill(&w, &counts, f, target.additive()));
     }
 }
 
 #[test]
 fn importance_allocation_follows_the_importance() {
     let counts = vec![10u32; 4];
-    let k = alloc::from_importance(&[1.0, 2.0, 3.0, 4.0], &counts, 20);
+    let rel = alloc::Target::RelativeK;
+    let k = alloc::allocate(&[1.0, 2.0, 3.0, 4.0], &counts, rel, 20);
     assert_eq!(k, vec![2, 4, 6, 8]);
     // Caps redistribute: pixel 3 wants 16 but has 10 fragments.
-    let k = alloc::from_importance(&[1.0, 1.0, 1.0, 13.0], &counts, 16);
-    assert_eq!(k.iter().sum::<u32>(), 16);
-    assert_eq!(k[3], 10);
+    let k = alloc::allocate(&[1.0, 1.0, 1.0, 13.0], &counts, rel, 16);
+    assert_eq!(k, vec![2, 2, 2, 10]);
     // Fewer slots than covered pixels: the most important pixels keep one.
-    let k = alloc::from_importance(&[0.1, 0.9, 0.5, 0.2], &counts, 2);
+    let k = alloc::allocate(&[0.1, 0.9, 0.5, 0.2], &counts, rel, 2);
     assert_eq!(k, vec![0, 1, 1, 0]);
+    // A share of each pixel's fragments: the pixel that asks for all of them and fits gets them.
+    let k = alloc::allocate(
+        &[1.0, 0.2, 0.2, 0.2],
+        &[3, 20, 20, 20],
+        alloc::Target::ShareOfFragments,
+        15,
+    );
+    assert_eq!(k, vec![3, 4, 4, 4]);
+    // Slot requests of 10, 20 and 30 slots, 33 to hand out: one level takes 9 from each, and
+    // the first pixel keeps its one slot.
+    let k = alloc::level_fill(&[2560, 5120, 7680], &[50; 3], 33);
+    assert_eq!(k, vec![1, 11, 21]);
     // Fixed: one k for all.
     assert_eq!(alloc::fixed(4, 9), vec![2; 4]);
 }

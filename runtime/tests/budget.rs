@@ -53,7 +53,7 @@ fn fragment_budget_follows_the_layout_and_never_overspends() {
     }
     // Slots per pixel fix F directly; bytes follow from the layout.
     let (m, f) = Budget::SlotsPerPixel(2.0)
-        .resolve(&budget::DKB, 100)
+        .resolve(&budget::DKB, 100, 0)
         .unwrap();
     assert_eq!(f, 200);
     assert_eq!(m, budget::DKB.allocated_bytes(100, 200));

@@ -140,11 +140,26 @@ pub struct TrainArgs {
     /// SGD momentum (0 = plain SGD, as in the paper).
     #[arg(long, default_value_t = TrainConfig::default().momentum)]
     pub momentum: f64,
+    /// What the network learns: regret (what the k it asks for costs in the image above the
+    /// optimal allocation; output = share of the pixel's fragments to keep), mse-share (MSE on
+    /// k*/n) or mse-relative (the paper's MSE on k*/max k*; output = proportional importance).
+    #[arg(long, default_value = TrainConfig::default().loss.name(), value_parser = parse_loss)]
+    pub loss: trainer::Loss,
+    /// Gradient norm clipping (0: none).
+    #[arg(long, default_value_t = TrainConfig::default().clip)]
+    pub clip: f64,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Scenes held out for validation, comma separated (default: the seed-4 built-ins).
     #[arg(long, value_delimiter = ',')]
     pub validation: Vec<String>,
+}
+
+fn parse_loss(s: &str) -> std::result::Result<trainer::Loss, String> {
+    trainer::Loss::parse(s).ok_or_else(|| {
+        let names: Vec<_> = trainer::Loss::ALL.iter().map(|l| l.name()).collect();
+        format!("unknown loss '{s}': expected one of {}", names.join(", "))
+    })
 }
 
 /// `dhoit train`.
@@ -156,6 +171,8 @@ pub fn train(a: TrainArgs) -> Result<()> {
         )));
     };
     let config = TrainConfig {
+        loss: a.loss,
+        clip: a.clip,
         epochs: a.epochs,
         lr: a.lr,
         batch: a.batch,
@@ -195,8 +212,8 @@ pub fn train(a: TrainArgs) -> Result<()> {
     let trained = trainer::train(&config, &samples, &mut |e, _| {
         pb.suspend(|| {
             eprintln!(
-                "epoch {:>3}: train mse {:.4e} (+ reg {:.2e}), validation mse {:.4e}, {:.1} s",
-                e.epoch, e.train_mse, e.train_reg, e.validation_mse, e.seconds
+                "epoch {:>3}: train loss {:.4e} (+ reg {:.2e}), validation loss {:.4e}, {:.1} s",
+                e.epoch, e.train_loss, e.train_reg, e.validation_loss, e.seconds
             )
         });
         pb.inc(1);
@@ -221,8 +238,8 @@ pub fn train(a: TrainArgs) -> Result<()> {
         ),
         ("best_epoch".to_string(), trained.best_epoch.to_string()),
         (
-            "validation_mse".to_string(),
-            best.validation_mse.to_string(),
+            "validation_loss".to_string(),
+            best.validation_loss.to_string(),
         ),
     ]
     .into_iter()
@@ -241,10 +258,10 @@ pub fn train(a: TrainArgs) -> Result<()> {
     )?;
     plot::loss_curve(&dir.join("loss.png"), &trained.history, trained.best_epoch)?;
     eprintln!(
-        "train: best epoch {} (validation mse {:.4e}, train mse {:.4e}); {:.1} s, {:.0} samples/s -> {} (+ config.json, loss.png)",
+        "train: best epoch {} (validation loss {:.4e}, train loss {:.4e}); {:.1} s, {:.0} samples/s -> {} (+ config.json, loss.png)",
         trained.best_epoch,
-        best.validation_mse,
-        best.train_mse,
+        best.validation_loss,
+        best.train_loss,
         trained.seconds,
         trained.samples_per_second,
         a.out.display()
@@ -312,5 +329,82 @@ pub fn predict(a: PredictArgs) -> Result<()> {
         meta,
     )?;
     eprintln!("predict: {} rows -> {}", imp.len(), a.output.display());
+    Ok(())
+}
+
+#[derive(Args, Clone, Debug)]
+pub struct ScoreArgs {
+    /// Weights files to score, comma separated (default: data/weights.safetensors).
+    #[arg(long, value_delimiter = ',')]
+    pub weights: Vec<PathBuf>,
+    /// Scenes, comma separated: built-in names (with a seed: `particles:7`) or .gltf/.glb
+    /// paths. Default: every built-in generator at the validation seed (never evaluated on).
+    #[arg(long = "scene", value_delimiter = ',')]
+    pub scenes: Vec<String>,
+    /// Orbit views to score, comma separated.
+    #[arg(long = "view", value_delimiter = ',', default_value = "1,3")]
+    pub views: Vec<usize>,
+    /// Orbit views around each scene.
+    #[arg(long, default_value_t = dhoit_runtime::scene::DEFAULT_VIEWS)]
+    pub orbit_views: usize,
+    /// Resolution WIDTHxHEIGHT.
+    #[arg(long, default_value = "320x240")]
+    pub res: String,
+    /// Budgets, comma separated: shares of each frame's fragments (25%) or slots per pixel.
+    #[arg(
+        long = "budget",
+        value_delimiter = ',',
+        default_value = "10%,25%,50%,75%,90%,0.25fpp,0.5fpp,1fpp,2fpp,4fpp"
+    )]
+    pub budgets: Vec<String>,
+    /// Uniform opacity of every surface.
+    #[arg(long, default_value_t = 0.33)]
+    pub opacity: f32,
+    /// Also write every frame's totals as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// `dhoit score`.
+pub fn score(a: ScoreArgs) -> Result<()> {
+    let (width, height) = dhoit_runtime::raster::parse_resolution(&a.res)?;
+    let levels: Vec<Level> = a
+        .budgets
+        .iter()
+        .map(|b| Level::parse(b))
+        .collect::<Result<_>>()?;
+    let paths = if a.weights.is_empty() {
+        vec![PathBuf::from(DEFAULT_WEIGHTS)]
+    } else {
+        a.weights.clone()
+    };
+    let networks: Vec<Mlp> = paths
+        .iter()
+        .map(|p| Mlp::load(p))
+        .collect::<std::result::Result<_, _>>()?;
+    let scenes = if a.scenes.is_empty() {
+        dataset::default_validation()
+    } else {
+        a.scenes.clone()
+    };
+    let spec = crate::score::ScoreSpec {
+        scenes: &scenes,
+        views: &a.views,
+        orbit_views: a.orbit_views,
+        width,
+        height,
+        levels: &levels,
+        opacity: a.opacity,
+        networks: &networks,
+    };
+    let pb = bar((scenes.len() * a.views.len()) as u64, "frames");
+    let scores = crate::score::score(&spec, &|| pb.inc(1))?;
+    pb.finish_and_clear();
+    let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+    print!("{}", crate::score::summary(&scores, &names));
+    if let Some(path) = &a.json {
+        let text = serde_json::to_string_pretty(&scores).expect("json");
+        tensors::write_atomic(path, text.as_bytes())?;
+    }
     Ok(())
 }

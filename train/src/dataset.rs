@@ -1,15 +1,26 @@
-//! Training data: for each scene, view and budget, fragment lists -> the 12 features ->
-//! the optimal allocation -> the per-image scale-free target `k_opt(p) / max_q k_opt(q)` for a
-//! uniform sample of covered pixels. (Targets tried and measured worse on held-out scenes:
-//! `k_opt / n`, `log2 k_opt`, `log2(k_opt / n)` and `k_opt / 64`; see the README.)
+//! Training data: for each scene, view and budget, fragment lists -> the 12 features -> the
+//! optimal allocation k* and what any other k would cost, for a uniform sample of the covered
+//! pixels whose k is not forced (n(p) > the smallest k, so the network has a choice to make).
 //!
-//! On disk: one safetensors shard per (scene, view, budget) with `features` f32 [N,12] and
-//! `target` f32 [N] (metadata: scene, view, width, height, budget, budget_fragments), and a
-//! `manifest.json` written last, so a dataset without a manifest is incomplete and refused.
+//! What a k costs: the pixel's Lagrangian regret `R_p(k) = e_p(k) - e_p(k*) + mu (k - k*)`,
+//! with `e_p` the pixel's error curve and `mu` the budget's multiplier (the optimal
+//! allocation's critical gain per slot). Summed over a frame's pixels, for any allocation with
+//! the same total, it is exactly the error above the optimum, `E(k) - E*`; divided by the
+//! frame's optimal error `E*` (floored, see [`error_floor`]) it is `E / E* - 1`. Each sample
+//! stores R at `k* - D ..= k* + D` ([`REGRET_WINDOW`] values; above n only the price of the
+//! slots grows, below lo the first slope is extended), so a loss can weigh each pixel by what a
+//! wrong k costs in the image. Samples keep the frame (scene, view, budget) they come from, so
+//! a loss can fit a frame's predictions to its budget as the runtime does.
+//!
+//! On disk: one safetensors shard per (scene, view, budget) with `features` f32 [N,12],
+//! `target` f32 [N] (the paper's `k* / max_q k*(q)`), `count` u32 [N] (n), `k_opt` u32 [N] and
+//! `regret` f32 [N, 17] (metadata: scene, view, width, height, budget, budget_fragments,
+//! optimal_error, critical_gain), and a `manifest.json` written last, so a dataset without a
+//! manifest is incomplete and refused.
 
 use crate::{Error, Result};
 use dhoit_runtime::alloc;
-use dhoit_runtime::budget::Budget;
+use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::importance::{self, FEATURES};
 use dhoit_runtime::raster;
 use dhoit_runtime::rng::Rng;
@@ -23,14 +34,29 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 pub const MANIFEST: &str = "manifest.json";
-pub const FORMAT: &str = "dhoit-dataset-1";
+pub const FORMAT: &str = "dhoit-dataset-2";
 /// What produced a dataset: change it whenever the features, targets or fragments change, so a
 /// cached default dataset is regenerated rather than reused stale.
-pub const GENERATOR: &str = "features-v2 rgba8-fragments";
+pub const GENERATOR: &str = "features-v2 rgba8-fragments regret-v1 families-v2";
 
-/// A budget level of the dataset: average slots per pixel, or every fragment.
+/// Half-width D of the regret window: R is stored at `k* - D ..= k* + D`.
+pub const REGRET_HALF: usize = 8;
+/// Values of R stored per sample.
+pub const REGRET_WINDOW: usize = 2 * REGRET_HALF + 1;
+
+/// The smallest optimal error a frame's regrets are divided by: a mean squared error of 1e-14
+/// per channel (far below 8-bit visibility, near float rounding), so frames the optimum renders
+/// almost exactly do not blow up the loss.
+pub fn error_floor(pixels: u64) -> f64 {
+    3.0 * pixels as f64 * 1e-14
+}
+
+/// A budget level of the dataset: a share of the frame's fragments, average slots per pixel, or
+/// every fragment.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Level {
+    /// Parts per million of the frame's fragments.
+    Share(u32),
     SlotsPerPixel(f64),
     All,
 }
@@ -42,20 +68,23 @@ impl Level {
         }
         match Budget::parse(s)? {
             Budget::SlotsPerPixel(v) => Ok(Level::SlotsPerPixel(v)),
+            Budget::Share(ppm) => Ok(Level::Share(ppm)),
             Budget::Bytes(_) => Err(Error::Config(format!(
-                "dataset budget '{s}': give slots per pixel (such as 2fpp) or 'all', so every resolution sees the same levels"
+                "dataset budget '{s}': give a share of the fragments (such as 25%), slots per pixel (such as 2fpp) or 'all', so every resolution sees the same levels"
             ))),
         }
     }
     pub fn label(&self) -> String {
         match self {
+            Level::Share(ppm) => Budget::Share(*ppm).to_string(),
             Level::SlotsPerPixel(v) => format!("{v}fpp"),
             Level::All => "all".into(),
         }
     }
-    /// F for a frame: `floor(fpp |P|)`, or the frame's fragment count.
+    /// F for a frame: a share of its fragments, `floor(fpp |P|)`, or the frame's fragment count.
     pub fn fragments(&self, pixels: u64, total: u64) -> u64 {
         match *self {
+            Level::Share(ppm) => budget::share_of(total, ppm),
             Level::SlotsPerPixel(v) => (v * pixels as f64).floor() as u64,
             Level::All => total,
         }
@@ -70,7 +99,7 @@ pub struct DatasetConfig {
     pub height: u32,
     pub views: usize,
     pub levels: Vec<Level>,
-    /// Share of covered pixels kept (uniform sample).
+    /// Share of the eligible pixels kept per frame and level (uniform sample).
     pub sample: f64,
     pub seed: u64,
     /// Uniform opacity of every surface.
@@ -103,6 +132,15 @@ pub fn default_validation() -> Vec<String> {
         .collect()
 }
 
+/// The default budget levels: shares of each frame's fragments from 3% to 95%, which covers
+/// what 0.25 to 4 slots per pixel mean on deep and shallow scenes alike.
+pub fn default_levels() -> Vec<Level> {
+    [3, 5, 10, 20, 35, 50, 65, 80, 90, 95]
+        .into_iter()
+        .map(|pct| Level::Share(pct * 10_000))
+        .collect()
+}
+
 impl Default for DatasetConfig {
     fn default() -> Self {
         DatasetConfig {
@@ -110,14 +148,8 @@ impl Default for DatasetConfig {
             width: 320,
             height: 240,
             views: 4,
-            levels: vec![
-                Level::SlotsPerPixel(1.0),
-                Level::SlotsPerPixel(1.5),
-                Level::SlotsPerPixel(2.0),
-                Level::SlotsPerPixel(3.0),
-                Level::All,
-            ],
-            sample: 0.2,
+            levels: default_levels(),
+            sample: 0.06,
             seed: 0,
             opacity: 0.33,
         }
@@ -134,7 +166,15 @@ pub struct Shard {
     pub budget_fragments: u64,
     pub fragments: u64,
     pub covered_pixels: u64,
+    /// Covered pixels whose k is not forced (n > the smallest k).
+    #[serde(default)]
+    pub eligible_pixels: u64,
     pub samples: usize,
+    /// The optimal allocation's total error and critical gain.
+    #[serde(default)]
+    pub optimal_error: f64,
+    #[serde(default)]
+    pub critical_gain: f64,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -148,14 +188,30 @@ pub struct Manifest {
     pub seconds: f64,
 }
 
-/// In-memory samples, with the scene each came from.
+/// In-memory samples, with the scene each came from. `target` is always present; `count`,
+/// `k_opt` and `regret` are present for datasets generated from scenes (empty otherwise).
 #[derive(Clone, Debug, Default)]
 pub struct Samples {
     pub features: Vec<[f32; FEATURES]>,
+    /// The paper's target `k* / max_q k*(q)`.
     pub target: Vec<f32>,
+    /// n(p).
+    pub count: Vec<u32>,
+    /// k*(p), the optimal allocation.
+    pub k_opt: Vec<u32>,
+    /// `R_p(k* + j) / max(E*, floor)` for j = -D..=D.
+    pub regret: Vec<[f32; REGRET_WINDOW]>,
     /// Index into `scenes` of each sample.
     pub scene: Vec<u16>,
     pub scenes: Vec<String>,
+    /// The frame (scene, view, budget) of each sample, an index into `frame_lo`.
+    pub frame: Vec<u32>,
+    /// Per frame: the smallest k a covered pixel gets (1, or 0 when F is below the covered
+    /// pixels).
+    pub frame_lo: Vec<u32>,
+    /// The share of each frame's eligible pixels sampled (a frame's regrets sum to
+    /// `share (E / E* - 1)`).
+    pub share: f64,
 }
 
 impl Samples {
@@ -165,39 +221,136 @@ impl Samples {
     pub fn is_empty(&self) -> bool {
         self.target.is_empty()
     }
-    /// The samples whose scene satisfies `keep`.
-    pub fn filter_scenes(&self, keep: impl Fn(&str) -> bool) -> Samples {
+    /// Whether the cost of every k (count, k*, regret) is known for every sample.
+    pub fn has_regret(&self) -> bool {
+        self.regret.len() == self.len()
+            && self.count.len() == self.len()
+            && self.frame.len() == self.len()
+    }
+    /// Sample indices grouped by frame, in frame order.
+    pub fn frames(&self) -> Vec<Vec<usize>> {
+        let mut out = vec![Vec::new(); self.frame_lo.len()];
+        for (i, &f) in self.frame.iter().enumerate() {
+            out[f as usize].push(i);
+        }
+        out.retain(|v| !v.is_empty());
+        out
+    }
+    /// The samples at these indices.
+    pub fn select(&self, idx: impl Iterator<Item = usize>) -> Samples {
         let mut out = Samples {
             scenes: self.scenes.clone(),
+            frame_lo: self.frame_lo.clone(),
+            share: self.share,
             ..Default::default()
         };
-        for i in 0..self.len() {
-            if keep(&self.scenes[self.scene[i] as usize]) {
-                out.features.push(self.features[i]);
-                out.target.push(self.target[i]);
-                out.scene.push(self.scene[i]);
+        let full = self.has_regret();
+        for i in idx {
+            out.features.push(self.features[i]);
+            out.target.push(self.target[i]);
+            out.scene.push(self.scene[i]);
+            if full {
+                out.count.push(self.count[i]);
+                out.k_opt.push(self.k_opt[i]);
+                out.regret.push(self.regret[i]);
+                out.frame.push(self.frame[i]);
             }
         }
         out
     }
+    /// The samples whose scene satisfies `keep`.
+    pub fn filter_scenes(&self, keep: impl Fn(&str) -> bool) -> Samples {
+        self.select((0..self.len()).filter(|&i| keep(&self.scenes[self.scene[i] as usize])))
+    }
 }
 
-/// Features and scale-free optimal targets of the covered pixels of one frame at one budget
-/// level: (features, targets, pixel indices, F).
+/// One frame at one budget level: the samples of its eligible pixels.
+#[derive(Clone, Debug, Default)]
+pub struct FrameSamples {
+    pub features: Vec<[f32; FEATURES]>,
+    pub target: Vec<f32>,
+    pub count: Vec<u32>,
+    pub k_opt: Vec<u32>,
+    pub regret: Vec<[f32; REGRET_WINDOW]>,
+    /// Pixel index of each sample.
+    pub pixel: Vec<usize>,
+    /// F, and the covered pixels.
+    pub budget_fragments: u64,
+    pub covered: u64,
+    pub optimal_error: f64,
+    pub critical_gain: f64,
+}
+
+/// The regret window of one pixel (see the module docs), divided by `scale`. Above n the
+/// error stays e(n) and only the price of the slots grows (`mu` each), so asking for more than
+/// n still costs a little, as it does the other pixels.
+pub fn regret_window(
+    curve: &[f64],
+    k_opt: u32,
+    lo: u32,
+    mu: f64,
+    scale: f64,
+) -> [f32; REGRET_WINDOW] {
+    let n = curve.len() as i64 - 1;
+    let lo = lo as i64;
+    let ks = k_opt as i64;
+    let r = |k: i64| curve[k.min(n) as usize] - curve[ks as usize] + mu * (k - ks) as f64;
+    // Below lo, extend the first slope (k never goes there, but a gradient should lead back).
+    let slope = if lo < n {
+        (r(lo) - r(lo + 1)).max(0.0)
+    } else {
+        0.0
+    };
+    std::array::from_fn(|j| {
+        let k = ks + j as i64 - REGRET_HALF as i64;
+        let v = if k < lo {
+            r(lo) + slope * (lo - k) as f64
+        } else {
+            r(k)
+        };
+        (v / scale) as f32
+    })
+}
+
+/// The samples of one frame at one budget level: every covered pixel whose k is not forced.
 pub fn frame_samples(
     fl: &raster::FragmentLists,
     curves: &alloc::ErrorCurves,
     level: Level,
-) -> (Vec<[f32; FEATURES]>, Vec<f32>, Vec<usize>, u64) {
+) -> FrameSamples {
     let pixels = fl.pixel_count() as u64;
     let f = level.fragments(pixels, fl.fragment_count() as u64).max(1);
-    let (k, _) = alloc::optimal(curves, f);
+    let (k, report) = alloc::optimal(curves, f);
+    let counts = fl.counts();
+    let lo = alloc::min_k(&counts, f);
     let kmax = k.iter().copied().max().unwrap_or(1).max(1);
     let feats = importance::features(fl, f);
-    let covered: Vec<usize> = (0..fl.pixel_count()).filter(|&p| fl.count(p) > 0).collect();
-    let x = covered.iter().map(|&p| feats[p]).collect();
-    let y = covered.iter().map(|&p| k[p] as f32 / kmax as f32).collect();
-    (x, y, covered, f)
+    let scale = report.total.max(error_floor(pixels));
+    let mut out = FrameSamples {
+        budget_fragments: f,
+        covered: counts.iter().filter(|&&n| n > 0).count() as u64,
+        optimal_error: report.total,
+        critical_gain: report.critical_gain,
+        ..Default::default()
+    };
+    for p in 0..fl.pixel_count() {
+        if counts[p] <= lo {
+            continue;
+        }
+        out.features.push(feats[p]);
+        out.target.push(k[p] as f32 / kmax as f32);
+        out.count.push(counts[p]);
+        out.k_opt.push(k[p]);
+        out.regret.push(regret_window(
+            curves.curve(p),
+            k[p],
+            lo,
+            report.critical_gain,
+            scale,
+        ));
+        out.pixel.push(p);
+    }
+    out
 }
 
 /// Generates a dataset into `out`. `progress` is called with (done, total) after each frame.
@@ -243,17 +396,23 @@ pub fn generate(
             let curves = alloc::error_curves(&fl, [1.0; 3]);
             let mut shards = Vec::new();
             for (li, level) in config.levels.iter().enumerate() {
-                let (x, y, _, f) = frame_samples(&fl, &curves, *level);
+                let fs = frame_samples(&fl, &curves, *level);
                 let mut rng = Rng::new(
                     config.seed ^ (si as u64) << 40 ^ (view as u64) << 20 ^ li as u64 ^ 0xD5E7,
                 );
-                let keep: Vec<usize> = (0..x.len())
+                let keep: Vec<usize> = (0..fs.target.len())
                     .filter(|_| (rng.f32() as f64) < config.sample)
                     .collect();
-                let xs: Vec<f32> = keep.iter().flat_map(|&i| x[i]).collect();
-                let ys: Vec<f32> = keep.iter().map(|&i| y[i]).collect();
+                let xs: Vec<f32> = keep.iter().flat_map(|&i| fs.features[i]).collect();
+                let ys: Vec<f32> = keep.iter().map(|&i| fs.target[i]).collect();
+                let ns: Vec<u32> = keep.iter().map(|&i| fs.count[i]).collect();
+                let ks: Vec<u32> = keep.iter().map(|&i| fs.k_opt[i]).collect();
+                let rs: Vec<f32> = keep.iter().flat_map(|&i| fs.regret[i]).collect();
                 let label = scene::file_label(&config.scenes[si]);
-                let file = format!("{label}_v{view}_{}.safetensors", level.label());
+                let file = format!(
+                    "{label}_v{view}_{}.safetensors",
+                    level.label().replace('%', "pct")
+                );
                 let meta: HashMap<String, String> = [
                     ("format", FORMAT.to_string()),
                     ("scene", config.scenes[si].clone()),
@@ -261,7 +420,9 @@ pub fn generate(
                     ("width", config.width.to_string()),
                     ("height", config.height.to_string()),
                     ("budget", level.label()),
-                    ("budget_fragments", f.to_string()),
+                    ("budget_fragments", fs.budget_fragments.to_string()),
+                    ("optimal_error", fs.optimal_error.to_string()),
+                    ("critical_gain", fs.critical_gain.to_string()),
                 ]
                 .into_iter()
                 .map(|(k, v)| (k.to_string(), v))
@@ -271,6 +432,9 @@ pub fn generate(
                     &[
                         Entry::f32("features", vec![keep.len(), FEATURES], &xs),
                         Entry::f32("target", vec![keep.len()], &ys),
+                        Entry::u32("count", vec![keep.len()], &ns),
+                        Entry::u32("k_opt", vec![keep.len()], &ks),
+                        Entry::f32("regret", vec![keep.len(), REGRET_WINDOW], &rs),
                     ],
                     meta,
                 )?;
@@ -279,10 +443,13 @@ pub fn generate(
                     scene: config.scenes[si].clone(),
                     view,
                     budget: level.label(),
-                    budget_fragments: f,
+                    budget_fragments: fs.budget_fragments,
                     fragments: fl.fragment_count() as u64,
-                    covered_pixels: x.len() as u64,
+                    covered_pixels: fs.covered,
+                    eligible_pixels: fs.target.len() as u64,
                     samples: keep.len(),
+                    optimal_error: fs.optimal_error,
+                    critical_gain: fs.critical_gain,
                 });
             }
             progress(done.fetch_add(1, Ordering::SeqCst) + 1, jobs.len());
@@ -320,13 +487,14 @@ pub fn load(dir: &Path) -> Result<(Manifest, Samples)> {
         .map_err(|e| Error::Dataset(format!("{}: {e}", mpath.display())))?;
     if manifest.format != FORMAT {
         return Err(Error::Dataset(format!(
-            "{}: format '{}' is not {FORMAT}",
+            "{}: format '{}' is not {FORMAT} (regenerate it with `dhoit dataset`)",
             mpath.display(),
             manifest.format
         )));
     }
     let mut samples = Samples {
         scenes: manifest.config.scenes.clone(),
+        share: manifest.config.sample,
         ..Default::default()
     };
     for shard in &manifest.shards {
@@ -334,12 +502,20 @@ pub fn load(dir: &Path) -> Result<(Manifest, Samples)> {
         let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
         let bad = |m: String| Error::Dataset(format!("{}: {m}", path.display()));
         let file = tensors::File::parse(&bytes).map_err(bad)?;
-        let (_, x) = file
-            .f32("features", Some(&[shard.samples, FEATURES]))
-            .map_err(bad)?;
-        let (_, y) = file.f32("target", Some(&[shard.samples])).map_err(bad)?;
-        if x.iter().chain(&y).any(|v| !v.is_finite()) {
+        let n = shard.samples;
+        let (_, x) = file.f32("features", Some(&[n, FEATURES])).map_err(bad)?;
+        let (_, y) = file.f32("target", Some(&[n])).map_err(bad)?;
+        let (_, counts) = file.u32("count", Some(&[n])).map_err(bad)?;
+        let (_, k_opt) = file.u32("k_opt", Some(&[n])).map_err(bad)?;
+        let (_, r) = file.f32("regret", Some(&[n, REGRET_WINDOW])).map_err(bad)?;
+        if x.iter().chain(&y).chain(&r).any(|v| !v.is_finite()) {
             return Err(bad("non-finite values".into()));
+        }
+        if let Some(i) = (0..n).find(|&i| counts[i] == 0 || k_opt[i] > counts[i]) {
+            return Err(bad(format!(
+                "sample {i}: k_opt {} does not fit n {}",
+                k_opt[i], counts[i]
+            )));
         }
         let si = samples
             .scenes
@@ -356,9 +532,18 @@ pub fn load(dir: &Path) -> Result<(Manifest, Samples)> {
                 .map(|c| <[f32; FEATURES]>::try_from(c).expect("12")),
         );
         samples.target.extend(y);
+        samples.count.extend(counts);
+        samples.k_opt.extend(k_opt);
+        samples.regret.extend(
+            r.chunks_exact(REGRET_WINDOW)
+                .map(|c| <[f32; REGRET_WINDOW]>::try_from(c).expect("window")),
+        );
+        samples.scene.extend(std::iter::repeat_n(si as u16, n));
+        let frame = samples.frame_lo.len() as u32;
+        samples.frame.extend(std::iter::repeat_n(frame, n));
         samples
-            .scene
-            .extend(std::iter::repeat_n(si as u16, shard.samples));
+            .frame_lo
+            .push(u32::from(shard.budget_fragments >= shard.covered_pixels));
     }
     Ok((manifest, samples))
 }

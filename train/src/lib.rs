@@ -1,14 +1,16 @@
 //! dhoit trainer: datasets from scenes, the importance MLP in burn on the CPU, export to the
 //! weights contract the runtime reads.
 //!
-//! The network is 12-128-64-1 (ReLU, ReLU, sigmoid) on standardised features, trained with MSE,
-//! L1 on the first hidden layer's weights, L2 on the second's, and SGD (paper 001). burn runs on
-//! its NdArray CPU backend with autodiff.
+//! The network is 12-128-64-1 (ReLU, ReLU, sigmoid) on standardised features, trained with a
+//! loss (the regret of the k it asks for, by default; the paper's MSE as an option), L1 on the
+//! first hidden layer's weights, L2 on the second's, and SGD with momentum (paper 001). burn
+//! runs on its NdArray CPU backend with autodiff.
 
 pub mod cli;
 pub mod dataset;
 pub mod model;
 pub mod plot;
+pub mod score;
 pub mod trainer;
 
 use std::path::PathBuf;
@@ -27,6 +29,8 @@ pub enum Error {
     Dataset(String),
     #[error("{0}")]
     Config(String),
+    #[error("training diverged at epoch {epoch} (loss {loss}); lower the learning rate")]
+    Diverged { epoch: usize, loss: f64 },
     #[error("features {path}: {message}")]
     Features { path: PathBuf, message: String },
 }

@@ -10,7 +10,7 @@ use burn::prelude::*;
 use burn::tensor::TensorData;
 use burn::tensor::activation::{relu, sigmoid};
 use dhoit_runtime::importance::FEATURES;
-use dhoit_runtime::mlp::Mlp;
+use dhoit_runtime::mlp::{Mlp, Target};
 
 #[derive(Module, Debug)]
 pub struct ImportanceNet {
@@ -54,7 +54,7 @@ impl ImportanceNet {
     }
 
     /// The weights as the runtime's MLP, with the given standardisation.
-    pub fn to_mlp(&self, mean: [f32; FEATURES], std: [f32; FEATURES]) -> Mlp {
+    pub fn to_mlp(&self, mean: [f32; FEATURES], std: [f32; FEATURES], target: Target) -> Mlp {
         let w = |l: &Linear| values(l.weight.val());
         let b = |l: &Linear| values(l.bias.as_ref().expect("bias").val());
         let w1 = w(&self.fc1);
@@ -73,6 +73,7 @@ impl ImportanceNet {
             b3: b(&self.out)[0],
             mean,
             std,
+            target,
         }
     }
 

@@ -94,7 +94,7 @@ pub fn loss_curve(path: &Path, history: &[Epoch], best: usize) -> dhoit_runtime:
     let mut cv = Canvas(vec![255; W * H * 3]);
     let values: Vec<f64> = history
         .iter()
-        .flat_map(|e| [e.train_mse, e.validation_mse])
+        .flat_map(|e| [e.train_loss, e.validation_loss])
         .filter(|v| v.is_finite() && *v > 0.0)
         .collect();
     let lo = values
@@ -132,8 +132,8 @@ pub fn loss_curve(path: &Path, history: &[Epoch], best: usize) -> dhoit_runtime:
     }
     type Series = (fn(&Epoch) -> f64, [u8; 3]);
     let series: [Series; 2] = [
-        (|e| e.train_mse, [31, 119, 180]),
-        (|e| e.validation_mse, [255, 127, 14]),
+        (|e| e.train_loss, [31, 119, 180]),
+        (|e| e.validation_loss, [255, 127, 14]),
     ];
     for (get, colour) in series {
         for w in history.windows(2) {

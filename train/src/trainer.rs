@@ -1,26 +1,91 @@
-//! The training loop: standardisation, MSE + L1 (first hidden layer's weights) + L2 (second
-//! hidden layer's weights), SGD on shuffled mini-batches, per-epoch train and validation loss,
-//! and the best epoch kept.
+//! The training loop: standardisation, the loss + L1 (first hidden layer's weights) + L2
+//! (second hidden layer's weights), SGD on shuffled mini-batches, per-epoch train and validation
+//! loss, and the best epoch kept.
+//!
+//! Losses ([`Loss`]): the paper's MSE on `k* / max k*`; MSE on `k* / n`; and the regret, what
+//! the k the network asks for costs in the image. With `r` the output and n the pixel's
+//! fragments, the network asks for `k = r n` slots; the loss is the pixel's Lagrangian regret
+//! `R(k)` (dataset docs) interpolated linearly between the stored integers `k* - D ..= k* + D`
+//! and extended linearly beyond, divided by the frame's optimal error. Its mean over a frame's
+//! pixels is `(E / E* - 1)` over the pixel count: the loss is the image error above the
+//! optimum, and its minimum for each pixel is at k*.
 //!
 //! Reproducible: initial weights and batch order come from the seed through the runtime's own
 //! generator, not burn's global one.
 
-use crate::dataset::Samples;
+use crate::dataset::{REGRET_HALF, REGRET_WINDOW, Samples};
 use crate::model::{ImportanceNet, cpu_device, input_tensor, predict};
 use crate::{Error, Result};
+use burn::grad_clipping::GradientClippingConfig;
 use burn::optim::momentum::MomentumConfig;
 use burn::optim::{GradientsParams, SgdConfig};
 use burn::prelude::*;
 use burn::tensor::TensorData;
+use burn::tensor::activation::relu;
 use dhoit_runtime::importance::FEATURES;
-use dhoit_runtime::mlp::{self, Mlp};
+use dhoit_runtime::mlp::{self, Mlp, Target};
 use dhoit_runtime::rng::Rng;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
+/// What the network is trained to minimise.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Loss {
+    /// The paper's: MSE on `k* / max_q k*(q)`; the output is a proportional importance.
+    MseRelative,
+    /// MSE on `k* / n`; the output is the share of the pixel's fragments to keep.
+    MseShare,
+    /// What the k the network's frame gets costs in the image above the optimum (the module
+    /// docs); the output is the share of the pixel's fragments to keep, and a frame's asks are
+    /// fitted to its budget by a common scale, as the runtime's water-filling does.
+    #[default]
+    Regret,
+    /// The regret with the output a slot request (256 r), fitted to the budget by a common
+    /// level, as the runtime's additive allocation does.
+    RegretLevel,
+}
+
+impl Loss {
+    pub const ALL: [Loss; 4] = [
+        Loss::MseRelative,
+        Loss::MseShare,
+        Loss::Regret,
+        Loss::RegretLevel,
+    ];
+    pub fn name(self) -> &'static str {
+        match self {
+            Loss::MseRelative => "mse-relative",
+            Loss::MseShare => "mse-share",
+            Loss::Regret => "regret",
+            Loss::RegretLevel => "regret-level",
+        }
+    }
+    fn regret(self) -> bool {
+        matches!(self, Loss::Regret | Loss::RegretLevel)
+    }
+    pub fn parse(s: &str) -> Option<Loss> {
+        Self::ALL.into_iter().find(|l| l.name() == s)
+    }
+    /// What the trained network's output means.
+    pub fn target(self) -> Target {
+        match self {
+            Loss::MseRelative => Target::RelativeK,
+            Loss::MseShare | Loss::Regret => Target::ShareOfFragments,
+            Loss::RegretLevel => Target::SlotRequest,
+        }
+    }
+}
+
 /// Training settings (saved as config.json beside the weights).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TrainConfig {
+    /// What is minimised.
+    #[serde(default)]
+    pub loss: Loss,
+    /// Gradient norm clipping (0: none).
+    #[serde(default)]
+    pub clip: f64,
     pub epochs: usize,
     /// SGD learning rate (0.001 in the paper).
     pub lr: f64,
@@ -43,6 +108,8 @@ pub struct TrainConfig {
 impl Default for TrainConfig {
     fn default() -> Self {
         TrainConfig {
+            loss: Loss::default(),
+            clip: 1.0,
             epochs: 40,
             lr: 1e-3,
             batch: 512,
@@ -60,12 +127,12 @@ impl Default for TrainConfig {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Epoch {
     pub epoch: usize,
-    /// Mean MSE over the epoch's batches (regularisation excluded).
-    pub train_mse: f64,
+    /// Mean loss over the epoch's batches (regularisation excluded).
+    pub train_loss: f64,
     /// Mean of the regularisation terms over the epoch's batches.
     pub train_reg: f64,
-    /// MSE on the held-out scenes (on the training set when none are held out).
-    pub validation_mse: f64,
+    /// The loss on the held-out scenes (on the training set when none are held out).
+    pub validation_loss: f64,
     pub seconds: f64,
 }
 
@@ -116,26 +183,236 @@ pub fn loss(
 ) -> (Tensor<1>, Tensor<1>, Tensor<1>) {
     let pred = net.forward(x);
     let mse = (pred - y).square().mean();
-    let reg = net.fc1.weight.val().abs().sum().mul_scalar(l1)
-        + net.fc2.weight.val().square().sum().mul_scalar(l2);
+    let reg = regularisation(net, l1, l2);
     (mse.clone() + reg.clone(), mse, reg)
+}
+
+/// The regularisation terms of a network: `l1 sum|W1| + l2 sum W2^2`.
+fn regularisation(net: &ImportanceNet, l1: f64, l2: f64) -> Tensor<1> {
+    net.fc1.weight.val().abs().sum().mul_scalar(l1)
+        + net.fc2.weight.val().square().sum().mul_scalar(l2)
+}
+
+/// A frame's batch with what the regret loss needs: n and k* [B,1], the regret windows [B,W],
+/// the frame's smallest k.
+pub struct RegretBatch {
+    pub count: Tensor<2>,
+    pub k_opt: Tensor<2>,
+    pub regret: Tensor<2>,
+    pub lo: f32,
+    /// n and k* as numbers, for the fit.
+    pub counts: Vec<f32>,
+    pub k_opts: Vec<f32>,
+    /// The share of the frame's pixels sampled.
+    pub share: f64,
+}
+
+/// The slots a pixel asks for, from the network's output: `r n` (a share of its fragments) or
+/// `256 r` (a slot request).
+fn asks(loss: Loss, r: Tensor<2>, count: Tensor<2>) -> Tensor<2> {
+    match loss {
+        Loss::RegretLevel => r.mul_scalar(dhoit_runtime::alloc::REQUEST_SLOTS),
+        _ => r * count,
+    }
+}
+
+/// The frame's fit of asks `c` to the budget `sum k*`, as the runtime's allocation does it
+/// (continuously): the scale s with `sum clamp(s c, lo, n) = sum k*`, or the level L with
+/// `sum clamp(c - L, lo, n) = sum k*`. Returns s, or -L.
+pub fn fit(additive: bool, c: &[f32], n: &[f32], k_opt: &[f32], lo: f32) -> f64 {
+    let target: f64 = k_opt.iter().map(|&k| k as f64).sum();
+    let total = |x: f64| -> f64 {
+        c.iter()
+            .zip(n)
+            .map(|(&c, &n)| {
+                let k = if additive { c as f64 + x } else { c as f64 * x };
+                k.clamp(lo as f64, n as f64)
+            })
+            .sum()
+    };
+    // Bisection on the shift x (increasing totals): the scale in log space.
+    let (mut a, mut b) = if additive {
+        (-1e6f64, 1e6f64)
+    } else {
+        (-40.0f64, 40.0f64)
+    };
+    let at = |y: f64| if additive { y } else { y.exp() };
+    for _ in 0..80 {
+        let m = 0.5 * (a + b);
+        if total(at(m)) < target {
+            a = m;
+        } else {
+            b = m;
+        }
+    }
+    at(0.5 * (a + b))
+}
+
+/// The regret loss of one frame's batch (module docs): `(loss + reg, loss, reg)`. The frame's
+/// fit is taken as a constant (by the envelope theorem its gradient does not change the loss's
+/// at the fitted value).
+pub fn regret_loss(
+    net: &ImportanceNet,
+    loss: Loss,
+    x: Tensor<2>,
+    b: RegretBatch,
+    l1: f64,
+    l2: f64,
+) -> (Tensor<1>, Tensor<1>, Tensor<1>) {
+    let device = x.device();
+    let rows = b.regret.dims()[0];
+    let half = REGRET_HALF as f32;
+    let offsets: Vec<f32> = (0..REGRET_WINDOW).map(|j| j as f32 - half).collect();
+    let offsets = Tensor::<2>::from_data(TensorData::new(offsets, [1, REGRET_WINDOW]), &device);
+    let c = asks(loss, net.forward(x), b.count);
+    let values = c
+        .clone()
+        .into_data()
+        .try_into_vec::<f32>()
+        .expect("f32 asks");
+    let additive = loss == Loss::RegretLevel;
+    let shift = fit(additive, &values, &b.counts, &b.k_opts, b.lo);
+    // Pixels the fit clamps (to lo or n) keep that k; the others share what is left, through
+    // a shift written as a function of their asks so the gradient sees that asking more leaves
+    // less for the rest: sum k = sum k* exactly.
+    let (mut mask, mut fixed) = (vec![0.0f32; rows], vec![0.0f32; rows]);
+    let (mut fixed_sum, mut free) = (0.0f64, 0usize);
+    for i in 0..rows {
+        let k = if additive {
+            values[i] as f64 + shift
+        } else {
+            values[i] as f64 * shift
+        };
+        let (lo, n) = (b.lo as f64, b.counts[i] as f64);
+        if k <= lo || k >= n {
+            fixed[i] = k.clamp(lo, n) as f32;
+            fixed_sum += fixed[i] as f64;
+        } else {
+            mask[i] = 1.0;
+            free += 1;
+        }
+    }
+    let target: f64 = b.k_opts.iter().map(|&k| k as f64).sum();
+    let column = |v: Vec<f32>| Tensor::<2>::from_data(TensorData::new(v, [rows, 1]), &device);
+    let (mask, fixed) = (column(mask), column(fixed));
+    let free_asks = c.clone() * mask.clone();
+    let k = if free == 0 {
+        fixed
+    } else if additive {
+        let x = free_asks
+            .clone()
+            .sum()
+            .neg()
+            .add_scalar(target - fixed_sum)
+            .div_scalar(free as f64)
+            .reshape([1, 1]);
+        (c + x) * mask + fixed
+    } else {
+        let scale = free_asks
+            .sum()
+            .recip()
+            .mul_scalar(target - fixed_sum)
+            .reshape([1, 1]);
+        c * scale * mask + fixed
+    };
+    let d = k - b.k_opt;
+    let inside = d.clone().clamp(-half, half);
+    let hats = relu((inside - offsets).abs().neg().add_scalar(1.0));
+    let interp = (b.regret.clone() * hats).sum_dim(1);
+    let w = REGRET_WINDOW;
+    let slope_lo =
+        b.regret.clone().slice([0..rows, 0..1]) - b.regret.clone().slice([0..rows, 1..2]);
+    let slope_hi =
+        b.regret.clone().slice([0..rows, w - 1..w]) - b.regret.slice([0..rows, w - 2..w - 1]);
+    let beyond = slope_lo.clamp_min(0.0) * relu(d.clone().neg().sub_scalar(half))
+        + slope_hi.clamp_min(0.0) * relu(d.sub_scalar(half));
+    // The frame's E / E* - 1 estimated from its sample, then its logarithm: the loss is
+    // ln(E / E*), whose mean over frames is the log of the geometric mean of the ratio.
+    let excess = (interp + beyond).sum().div_scalar(b.share);
+    let loss = excess.add_scalar(1.0).clamp_min(1e-6).log();
+    let reg = regularisation(net, l1, l2);
+    (loss.clone() + reg.clone(), loss, reg)
+}
+
+/// The regret of one pixel that gets `k` (continuous) slots (the CPU twin of the interpolation
+/// in [`regret_loss`]).
+pub fn pixel_regret(k: f64, k_opt: u32, window: &[f32; REGRET_WINDOW]) -> f64 {
+    let half = REGRET_HALF as f64;
+    let d = k - k_opt as f64;
+    let inside = d.clamp(-half, half);
+    let mut v: f64 = (0..REGRET_WINDOW)
+        .map(|j| window[j] as f64 * (1.0 - (inside - (j as f64 - half)).abs()).max(0.0))
+        .sum();
+    let w = REGRET_WINDOW;
+    let slope_lo = (window[0] as f64 - window[1] as f64).max(0.0);
+    let slope_hi = (window[w - 1] as f64 - window[w - 2] as f64).max(0.0);
+    v += slope_lo * (-d - half).max(0.0) + slope_hi * (d - half).max(0.0);
+    v
+}
+
+/// The mean over frames of `ln(E / E*)` estimated from the samples, each frame fitted to its
+/// budget.
+fn frame_regret(loss: Loss, pred: &[f32], s: &Samples) -> f64 {
+    let additive = loss == Loss::RegretLevel;
+    let (mut sum, mut frames) = (0.0, 0usize);
+    for idx in s.frames() {
+        let n: Vec<f32> = idx.iter().map(|&i| s.count[i] as f32).collect();
+        let ko: Vec<f32> = idx.iter().map(|&i| s.k_opt[i] as f32).collect();
+        let c: Vec<f32> = idx
+            .iter()
+            .zip(&n)
+            .map(|(&i, &n)| match loss {
+                Loss::RegretLevel => pred[i] * dhoit_runtime::alloc::REQUEST_SLOTS,
+                _ => pred[i] * n,
+            })
+            .collect();
+        let lo = s.frame_lo[s.frame[idx[0]] as usize] as f32;
+        let shift = fit(additive, &c, &n, &ko, lo);
+        let mut excess = 0.0;
+        for (j, &i) in idx.iter().enumerate() {
+            let k = if additive {
+                c[j] as f64 + shift
+            } else {
+                c[j] as f64 * shift
+            };
+            excess += pixel_regret(k, s.k_opt[i], &s.regret[i]);
+        }
+        sum += (1.0 + excess / s.share).max(1e-6).ln();
+        frames += 1;
+    }
+    sum / frames.max(1) as f64
 }
 
 fn scalar(t: Tensor<1>) -> f64 {
     t.into_data().try_into_vec::<f32>().expect("f32")[0] as f64
 }
 
-/// Mean squared error of `m` on samples (burn inference).
-pub fn mse(m: &Mlp, s: &Samples) -> f64 {
+/// The training target of a sample under an MSE loss.
+fn mse_target(loss: Loss, s: &Samples, i: usize) -> f32 {
+    match loss {
+        Loss::MseShare => s.k_opt[i] as f32 / s.count[i] as f32,
+        _ => s.target[i],
+    }
+}
+
+/// The mean loss of `m` on samples (burn inference; the regret by its CPU twin).
+pub fn evaluate(m: &Mlp, s: &Samples, loss: Loss) -> f64 {
     if s.is_empty() {
         return f64::NAN;
     }
     let pred = predict(m, &s.features);
-    pred.iter()
-        .zip(&s.target)
-        .map(|(p, t)| ((p - t) as f64).powi(2))
-        .sum::<f64>()
-        / s.len() as f64
+    if loss.regret() {
+        return frame_regret(loss, &pred, s);
+    }
+    let sum: f64 = (0..s.len())
+        .map(|i| ((pred[i] - mse_target(loss, s, i)) as f64).powi(2))
+        .sum();
+    sum / s.len() as f64
+}
+
+/// Mean squared error of `m` on samples against the paper's target (burn inference).
+pub fn mse(m: &Mlp, s: &Samples) -> f64 {
+    evaluate(m, s, Loss::MseRelative)
 }
 
 /// Trains on `data`, holding out `config.validation_scenes`. `progress` gets each epoch.
@@ -151,6 +428,15 @@ pub fn train(
         return Err(Error::Config(
             "lr must be positive, l1 and l2 non-negative".into(),
         ));
+    }
+    if config.loss != Loss::MseRelative && !data.has_regret() {
+        return Err(Error::Config(format!(
+            "the {} loss needs each sample's n, k* and regret (a dataset generated by `dhoit dataset`)",
+            config.loss.name()
+        )));
+    }
+    if !(config.clip.is_finite() && config.clip >= 0.0) {
+        return Err(Error::Config("clip must be a non-negative number".into()));
     }
     let [h1, h2] = config.hidden;
     if h1 == 0 || h2 == 0 || h2 > mlp::MAX_H2 || mlp::parameter_count(h1, h2) > mlp::MAX_PARAMETERS
@@ -182,10 +468,14 @@ pub fn train(
     let mut init = Mlp::random_sized(config.seed, h1, h2);
     init.mean = mean;
     init.std = std;
+    init.target = config.loss.target();
     let mut net = ImportanceNet::from_mlp(&init, &device);
     let mut sgd = SgdConfig::new();
     if config.momentum > 0.0 {
         sgd = sgd.with_momentum(Some(MomentumConfig::new().with_momentum(config.momentum)));
+    }
+    if config.clip > 0.0 {
+        sgd = sgd.with_gradient_clipping(Some(GradientClippingConfig::Norm(config.clip as f32)));
     }
     let mut optim = sgd.init();
     let mut history = Vec::new();
@@ -193,19 +483,66 @@ pub fn train(
     let start = Instant::now();
     let mut rows = Vec::with_capacity(config.batch);
     let mut ys = Vec::with_capacity(config.batch);
+    let mut ns = Vec::with_capacity(config.batch);
+    let mut ks = Vec::with_capacity(config.batch);
+    let mut rs = Vec::with_capacity(config.batch * REGRET_WINDOW);
+    // The regret losses take one frame (scene, view, budget) a batch, as the budget is fitted
+    // per frame; the MSE losses shuffled mini-batches of `batch` samples.
+    let frames = if config.loss.regret() {
+        train_set.frames()
+    } else {
+        Vec::new()
+    };
     for epoch in 0..config.epochs {
         let t = Instant::now();
-        let order = Rng::new(config.seed ^ (epoch as u64 + 1).wrapping_mul(0x9E37_79B9))
-            .permutation(train_set.len());
+        let mut rng = Rng::new(config.seed ^ (epoch as u64 + 1).wrapping_mul(0x9E37_79B9));
+        let batches_of: Vec<Vec<usize>> = if config.loss.regret() {
+            rng.permutation(frames.len())
+                .into_iter()
+                .map(|f| frames[f].clone())
+                .collect()
+        } else {
+            rng.permutation(train_set.len())
+                .chunks(config.batch)
+                .map(|c| c.to_vec())
+                .collect()
+        };
         let (mut sum_mse, mut sum_reg, mut batches) = (0.0, 0.0, 0usize);
-        for chunk in order.chunks(config.batch) {
+        for chunk in &batches_of {
             rows.clear();
-            ys.clear();
             rows.extend(chunk.iter().map(|&i| train_set.features[i]));
-            ys.extend(chunk.iter().map(|&i| train_set.target[i]));
             let x = input_tensor(&rows, &mean, &std, &device);
-            let y = Tensor::from_data(TensorData::new(ys.clone(), [ys.len(), 1]), &device);
-            let (total, m, r) = loss(&net, x, y, config.l1, config.l2);
+            let b = chunk.len();
+            let column =
+                |v: &Vec<f32>| Tensor::from_data(TensorData::new(v.clone(), [b, 1]), &device);
+            let (total, m, r) = match config.loss {
+                l @ (Loss::Regret | Loss::RegretLevel) => {
+                    ns.clear();
+                    ks.clear();
+                    rs.clear();
+                    ns.extend(chunk.iter().map(|&i| train_set.count[i] as f32));
+                    ks.extend(chunk.iter().map(|&i| train_set.k_opt[i] as f32));
+                    rs.extend(chunk.iter().flat_map(|&i| train_set.regret[i]));
+                    let batch = RegretBatch {
+                        count: column(&ns),
+                        k_opt: column(&ks),
+                        regret: Tensor::from_data(
+                            TensorData::new(rs.clone(), [b, REGRET_WINDOW]),
+                            &device,
+                        ),
+                        lo: train_set.frame_lo[train_set.frame[chunk[0]] as usize] as f32,
+                        counts: ns.clone(),
+                        k_opts: ks.clone(),
+                        share: train_set.share,
+                    };
+                    regret_loss(&net, l, x, batch, config.l1, config.l2)
+                }
+                l => {
+                    ys.clear();
+                    ys.extend(chunk.iter().map(|&i| mse_target(l, &train_set, i)));
+                    loss(&net, x, column(&ys), config.l1, config.l2)
+                }
+            };
             let grads = total.backward();
             let grads = GradientsParams::from_grads(grads, &net);
             net = optim.step(config.lr, net, grads);
@@ -213,29 +550,29 @@ pub fn train(
             sum_reg += scalar(r);
             batches += 1;
         }
-        let current = net.to_mlp(mean, std);
-        let validation_mse = if val_set.is_empty() {
-            mse(&current, &train_set)
+        let current = net.to_mlp(mean, std, config.loss.target());
+        let validation_loss = if val_set.is_empty() {
+            evaluate(&current, &train_set, config.loss)
         } else {
-            mse(&current, &val_set)
+            evaluate(&current, &val_set, config.loss)
         };
         let e = Epoch {
             epoch,
-            train_mse: sum_mse / batches as f64,
+            train_loss: sum_mse / batches as f64,
             train_reg: sum_reg / batches as f64,
-            validation_mse,
+            validation_loss,
             seconds: t.elapsed().as_secs_f64(),
         };
-        if !e.train_mse.is_finite() {
-            return Err(Error::Config(format!(
-                "training diverged at epoch {epoch} (loss {}); lower the learning rate",
-                e.train_mse
-            )));
+        if !e.train_loss.is_finite() {
+            return Err(Error::Diverged {
+                epoch,
+                loss: e.train_loss,
+            });
         }
         progress(&e, config.epochs);
         history.push(e);
-        if best.as_ref().is_none_or(|b| validation_mse < b.0) {
-            best = Some((validation_mse, epoch, current));
+        if best.as_ref().is_none_or(|b| validation_loss < b.0) {
+            best = Some((validation_loss, epoch, current));
         }
     }
     let (_, best_epoch, mlp) = best.expect("at least one epoch");

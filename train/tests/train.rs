@@ -104,6 +104,7 @@ fn quick(seed: u64, epochs: usize) -> TrainConfig {
         hidden: [32, 16],
         seed,
         validation_scenes: vec!["b".into()],
+        loss: trainer::Loss::MseRelative,
         ..TrainConfig::default()
     }
 }
@@ -115,15 +116,15 @@ fn seeded_training_is_reproducible_and_the_loss_falls() {
     let b = trainer::train(&quick(7, 6), &data, &mut |_, _| {}).unwrap();
     assert_eq!(a.mlp, b.mlp, "same seed, same weights");
     assert_eq!(
-        a.history.iter().map(|e| e.train_mse).collect::<Vec<_>>(),
-        b.history.iter().map(|e| e.train_mse).collect::<Vec<_>>()
+        a.history.iter().map(|e| e.train_loss).collect::<Vec<_>>(),
+        b.history.iter().map(|e| e.train_loss).collect::<Vec<_>>()
     );
     let c = trainer::train(&quick(8, 6), &data, &mut |_, _| {}).unwrap();
     assert_ne!(a.mlp, c.mlp, "another seed, other weights");
-    let first = a.history.first().unwrap().train_mse;
-    let last = a.history.last().unwrap().train_mse;
+    let first = a.history.first().unwrap().train_loss;
+    let last = a.history.last().unwrap().train_loss;
     assert!(last < 0.5 * first, "training loss falls: {first} -> {last}");
-    assert!(a.history[a.best_epoch].validation_mse <= a.history[0].validation_mse);
+    assert!(a.history[a.best_epoch].validation_loss <= a.history[0].validation_loss);
     assert_eq!(a.validation_samples, 500);
 }
 
