@@ -1,11 +1,11 @@
 //! `dhoit`: deep hybrid order-independent transparency: render, compare and benchmark.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::{Args, Parser, Subcommand};
 use dhoit_runtime::budget::{Budget, FragmentBudget, format_bytes};
 use dhoit_runtime::dump;
-use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
-use dhoit_runtime::image_io::{self, Montage};
+use dhoit_runtime::frame::{Equal, Method, Options, Renderer};
+use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::raster::{self, FragmentLists};
 use dhoit_runtime::scene::{self, Camera, Opacity, Scene};
@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 mod bench;
+mod compare;
 
 /// The default weights (`make train` writes them): looked up in the working directory, then in
 /// the source tree this binary was built from.
@@ -55,7 +56,7 @@ enum Command {
     /// Render scenes x views x budgets with several methods: a quality table, images, side-by-side
     /// pictures, report.json and report.md.
     #[command(alias = "eval")]
-    Compare(CompareArgs),
+    Compare(compare::CompareArgs),
     /// Generate a training dataset: features and optimal-allocation targets from scenes.
     Dataset(dhoit_train::cli::DatasetArgs),
     /// Train the importance network on the CPU (burn) and export safetensors weights.
@@ -72,10 +73,10 @@ enum Command {
 }
 
 #[derive(Args, Clone)]
-struct ViewArgs {
+pub(crate) struct ViewArgs {
     /// Resolution WIDTHxHEIGHT.
     #[arg(long, default_value = "640x480")]
-    res: String,
+    pub(crate) res: String,
     /// Number of orbit views around the scene (view I is at angle I/N of a turn).
     #[arg(long, default_value_t = scene::DEFAULT_VIEWS)]
     views: usize,
@@ -153,47 +154,7 @@ struct FeaturesArgs {
     out: PathBuf,
 }
 
-#[derive(Args)]
-struct CompareArgs {
-    /// Scenes, comma separated: built-in names or .gltf/.glb paths.
-    #[arg(
-        long = "scene",
-        alias = "scenes",
-        value_delimiter = ',',
-        default_value = "particles"
-    )]
-    scenes: Vec<String>,
-    /// Views to render, comma separated.
-    #[arg(
-        long = "view",
-        alias = "view-list",
-        value_delimiter = ',',
-        default_value = "0"
-    )]
-    view_list: Vec<usize>,
-    /// Budgets, comma separated: bytes (20MB, 40MiB) or slots per pixel (2fpp).
-    #[arg(
-        long = "budget",
-        alias = "budgets",
-        value_delimiter = ',',
-        default_value = "2fpp"
-    )]
-    budgets: Vec<String>,
-    /// Methods, comma separated (dkb only when weights are found); all by default.
-    #[arg(long, value_delimiter = ',')]
-    methods: Vec<String>,
-    /// What a budget holds equal across methods: slots (the same F) or bytes (the same memory
-    /// M, each method's F from its own layout; the paper's protocol).
-    #[arg(long, default_value = "slots", value_parser = parse_equal)]
-    equal: Equal,
-    #[command(flatten)]
-    common: ViewArgs,
-    /// Directory for images, report.json and report.md.
-    #[arg(long, default_value = "out/compare")]
-    out: PathBuf,
-}
-
-fn parse_equal(s: &str) -> std::result::Result<Equal, String> {
+pub(crate) fn parse_equal(s: &str) -> std::result::Result<Equal, String> {
     Equal::parse(s).map_err(|e| e.to_string())
 }
 
@@ -211,7 +172,7 @@ fn parse_rgb(s: &str) -> std::result::Result<[f32; 3], String> {
     }
 }
 
-fn load_scene(name: &str, a: &ViewArgs) -> Result<Scene> {
+pub(crate) fn load_scene(name: &str, a: &ViewArgs) -> Result<Scene> {
     let opacity = if a.material_alpha {
         Opacity::Material
     } else {
@@ -224,7 +185,11 @@ fn load_scene(name: &str, a: &ViewArgs) -> Result<Scene> {
     Ok(scene)
 }
 
-fn rasterize_view(scene: &Scene, view: usize, a: &ViewArgs) -> Result<(FragmentLists, f64)> {
+pub(crate) fn rasterize_view(
+    scene: &Scene,
+    view: usize,
+    a: &ViewArgs,
+) -> Result<(FragmentLists, f64)> {
     let (w, h) = raster::parse_resolution(&a.res)?;
     if a.views == 0 || view >= a.views {
         bail!(
@@ -249,7 +214,7 @@ fn rasterize_view(scene: &Scene, view: usize, a: &ViewArgs) -> Result<(FragmentL
 }
 
 /// The weights DKB uses: --weights, else the default file when present.
-fn load_weights(a: &ViewArgs, required: bool) -> Result<Option<Mlp>> {
+pub(crate) fn load_weights(a: &ViewArgs, required: bool) -> Result<Option<Mlp>> {
     let path = match &a.weights {
         Some(p) => p.clone(),
         None => match default_weights() {
@@ -264,7 +229,7 @@ fn load_weights(a: &ViewArgs, required: bool) -> Result<Option<Mlp>> {
 }
 
 /// min(k, n) per pixel as a heat map tile, scaled by its maximum.
-fn kmap_rgb8(fl: &FragmentLists, k: &[u32]) -> (Vec<u8>, u32) {
+pub(crate) fn kmap_rgb8(fl: &FragmentLists, k: &[u32]) -> (Vec<u8>, u32) {
     let counts = fl.counts();
     let covered: Vec<bool> = counts.iter().map(|&n| n > 0).collect();
     let used: Vec<f32> = k
@@ -432,225 +397,6 @@ fn features(a: FeaturesArgs) -> Result<()> {
     Ok(())
 }
 
-fn compare(a: CompareArgs) -> Result<()> {
-    let budgets: Vec<Budget> = a
-        .budgets
-        .iter()
-        .map(|b| Budget::parse(b))
-        .collect::<Result<_, _>>()?;
-    let mut methods: Vec<Method> = if a.methods.is_empty() {
-        Method::ALL.to_vec()
-    } else {
-        a.methods
-            .iter()
-            .map(|m| Method::parse(m))
-            .collect::<Result<_, _>>()?
-    };
-    if !methods.contains(&Method::Abuffer) {
-        methods.insert(0, Method::Abuffer);
-    }
-    let weights = load_weights(
-        &a.common,
-        !a.methods.is_empty() && methods.contains(&Method::Dkb),
-    )?;
-    if weights.is_none() && methods.contains(&Method::Dkb) {
-        eprintln!(
-            "note: no weights found ({} or --weights), dkb left out",
-            dhoit_train::cli::DEFAULT_WEIGHTS
-        );
-        methods.retain(|&m| m != Method::Dkb);
-    }
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create {}", a.out.display()))?;
-    let mut records = Vec::new();
-    let mut md =
-        String::from("# dhoit comparison\n\nMSE against the A-buffer image (linear RGB).\n");
-    for name in &a.scenes {
-        let scene = load_scene(name, &a.common)?;
-        let label = scene::file_label(name);
-        for &view in &a.view_list {
-            let (fl, raster_ms) = rasterize_view(&scene, view, &a.common)?;
-            for budget in &budgets {
-                let options = Options {
-                    weights: weights.as_ref(),
-                    equal: a.equal,
-                    ..Options::new(*budget, a.common.background)
-                };
-                let renderer = Renderer::new(&fl, options);
-                // A method the budget cannot hold (FKB and MLAB need a slot for every pixel) is
-                // reported and left out of this frame; any other error stops the run.
-                let mut frames: Vec<Frame> = Vec::new();
-                let mut skipped: Vec<String> = Vec::new();
-                for &m in &methods {
-                    match renderer.render(m) {
-                        Ok(f) => frames.push(f),
-                        Err(e @ dhoit_runtime::Error::Budget(..)) if m != Method::Abuffer => {
-                            skipped.push(format!("{}: {e}", m.name()));
-                        }
-                        Err(e) => return Err(e.into()),
-                    }
-                }
-                let reference = frames[0].image.clone();
-                let title = format!(
-                    "{} view {view}, {}x{}, budget {budget}: {} fragments, max depth {}",
-                    scene.name,
-                    fl.width,
-                    fl.height,
-                    fl.fragment_count(),
-                    fl.max_depth_complexity()
-                );
-                println!("\n{title}\n");
-                let header = format!(
-                    "{:<16} {:>11} {:>9} {:>10} {:>10} {:>11} {:>9}",
-                    "method", "MSE", "captured", "F(M)", "used", "allocated", "ms"
-                );
-                println!("{header}");
-                md += &format!(
-                    "\n## {title}\n\n| method | MSE | captured | F(M) | sum k / F | allocated | ms |\n|---|---|---|---|---|---|---|\n"
-                );
-                let tag = format!("{label}_v{view}_{}", budget.to_string().replace(' ', ""));
-                let counts = fl.counts();
-                let covered: Vec<bool> = counts.iter().map(|&n| n > 0).collect();
-                let mut montage = Montage::new(fl.width, fl.height, frames.len() as u32, 3);
-                let errors: Vec<Vec<f32>> = frames
-                    .iter()
-                    .map(|f| {
-                        f.image
-                            .data
-                            .iter()
-                            .zip(&reference.data)
-                            .map(|(x, r)| (0..3).map(|i| (x[i] - r[i]).powi(2)).sum::<f32>().sqrt())
-                            .collect()
-                    })
-                    .collect();
-                let err_max = errors.iter().flatten().copied().fold(0.0f32, f32::max);
-                for (col, f) in frames.iter().enumerate() {
-                    let mse = f.image.mse(&reference);
-                    let captured = f.fragments_captured as f64 / f.fragments_total.max(1) as f64;
-                    let used =
-                        f.k.iter()
-                            .zip(&counts)
-                            .map(|(&k, &n)| k.min(n) as u64)
-                            .sum::<u64>() as f64
-                            / f.budget_fragments.max(1) as f64;
-                    let ms = f.allocation_ms + f.composite_ms;
-                    println!(
-                        "{:<16} {:>11.4e} {:>8.1}% {:>10} {:>9.1}% {:>11} {:>9.1}",
-                        f.method.name(),
-                        mse,
-                        100.0 * captured,
-                        f.budget_fragments,
-                        100.0 * used,
-                        format_bytes(f.allocated_bytes),
-                        ms
-                    );
-                    md += &format!(
-                        "| {} | {:.4e} | {:.1}% | {} | {:.1}% | {} | {:.1} |\n",
-                        f.method.name(),
-                        mse,
-                        100.0 * captured,
-                        f.budget_fragments,
-                        100.0 * used,
-                        format_bytes(f.allocated_bytes),
-                        ms
-                    );
-                    image_io::write_png(
-                        &a.out.join(format!("{tag}_{}.png", f.method.name())),
-                        &f.image,
-                    )?;
-                    montage.put(col as u32, 0, &image_io::to_srgb8(&f.image));
-                    montage.put(col as u32, 1, &kmap_rgb8(&fl, &f.k).0);
-                    montage.put(
-                        col as u32,
-                        2,
-                        &image_io::heat_rgb8(&errors[col], &covered, err_max),
-                    );
-                    let mut rec = serde_json::json!({
-                        "scene": scene.name, "view": view, "width": fl.width, "height": fl.height,
-                        "budget": budget.to_string(), "method": f.method.name(), "mse": mse,
-                        "fragments_total": f.fragments_total, "fragments_captured": f.fragments_captured,
-                        "budget_fragments": f.budget_fragments, "budget_bytes": f.budget_bytes,
-                        "allocated_bytes": f.allocated_bytes,
-                        "ms": {"raster": raster_ms, "allocation": f.allocation_ms, "composite": f.composite_ms},
-                    });
-                    if let Some(rep) = &f.optimal {
-                        rec["optimal"] = serde_json::to_value(rep)?;
-                        rec["optimal"]["gap"] = rep.gap().into();
-                    }
-                    records.push(rec);
-                }
-                for sk in &skipped {
-                    println!("not run: {sk}");
-                    md += &format!("\nnot run: {sk}\n");
-                }
-                if let Some(rep) = frames.iter().find_map(|f| f.optimal) {
-                    let line = format!(
-                        "optimal allocation: total error {:.4e} ({}), certified gap {:.2e} ({:.2}% of the total)",
-                        rep.total,
-                        rep.chosen,
-                        rep.gap(),
-                        100.0 * rep.gap() / rep.total.max(1e-300)
-                    );
-                    println!("{line}");
-                    md += &format!("\n{line}\n");
-                }
-                let pic = format!("{tag}_montage.png");
-                montage.write(&a.out.join(&pic))?;
-                let order: Vec<&str> = frames.iter().map(|f| f.method.name()).collect();
-                md += &format!(
-                    "\n![{tag}]({pic})\n\nColumns: {}. Rows: image; k(p) used (dark blue 0 to yellow: the method's max); colour error |C - C_exact| (one scale for the row).\n",
-                    order.join(", ")
-                );
-            }
-        }
-    }
-    // Summary: mean MSE of each method per budget over every frame.
-    let mut summary = String::from("\nmean MSE over all frames\n");
-    let mut md_sum = String::from("\n## Summary: mean MSE over all frames\n\n| budget |");
-    let names: Vec<&str> = methods
-        .iter()
-        .filter(|&&m| m != Method::Abuffer)
-        .map(|m| m.name())
-        .collect();
-    summary += &format!("{:<10}", "budget");
-    for n in &names {
-        summary += &format!(" {n:>16}");
-        md_sum += &format!(" {n} |");
-    }
-    md_sum += &format!("\n|---|{}\n", "---|".repeat(names.len()));
-    for budget in &budgets {
-        let b = budget.to_string();
-        summary += &format!("\n{b:<10}");
-        md_sum += &format!("| {b} |");
-        for n in &names {
-            let v: Vec<f64> = records
-                .iter()
-                .filter(|r| r["budget"] == b.as_str() && r["method"] == *n)
-                .filter_map(|r| r["mse"].as_f64())
-                .collect();
-            if v.is_empty() {
-                summary += &format!(" {:>16}", "n/a");
-                md_sum += " n/a |";
-                continue;
-            }
-            let mean = v.iter().sum::<f64>() / v.len() as f64;
-            summary += &format!(" {mean:>16.4e}");
-            md_sum += &format!(" {mean:.4e} |");
-        }
-        md_sum += "\n";
-    }
-    println!("{summary}");
-    md += &md_sum;
-    let text = serde_json::to_string_pretty(&records)?;
-    dhoit_runtime::tensors::write_atomic(&a.out.join("report.json"), text.as_bytes())?;
-    dhoit_runtime::tensors::write_atomic(&a.out.join("report.md"), md.as_bytes())?;
-    println!(
-        "\nimages, side-by-side montages, report.json and report.md -> {}",
-        a.out.display()
-    );
-    Ok(())
-}
-
 fn scenes() -> Result<()> {
     println!("{:<12} {:>10}  description", "built-in", "triangles");
     for (name, desc) in scene::procedural::BUILTIN {
@@ -694,7 +440,7 @@ fn main() {
     let result = match cli.command {
         Command::Scenes => scenes(),
         Command::Render(a) => render(a),
-        Command::Compare(a) => compare(a),
+        Command::Compare(a) => compare::run(a),
         Command::Dataset(a) => dhoit_train::cli::dataset(a).map_err(Into::into),
         Command::Train(a) => dhoit_train::cli::train(a).map_err(Into::into),
         Command::Predict(a) => dhoit_train::cli::predict(a).map_err(Into::into),

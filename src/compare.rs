@@ -1,0 +1,561 @@
+//! `dhoit compare`: scenes x views x budgets rendered with several methods on the CPU reference,
+//! one typed row per frame and method, written as a terminal table, Markdown and JSON from the
+//! same rows; a summary of the ratios that decide whether the network earns its place.
+
+use crate::{ViewArgs, kmap_rgb8, load_scene, load_weights, parse_equal, rasterize_view};
+use anyhow::{Context, Result};
+use clap::Args;
+use dhoit_runtime::budget::{Budget, format_bytes};
+use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
+use dhoit_runtime::image_io::{self, Montage};
+use dhoit_runtime::scene;
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct CompareArgs {
+    /// Scenes, comma separated: built-in names or .gltf/.glb paths.
+    #[arg(
+        long = "scene",
+        alias = "scenes",
+        value_delimiter = ',',
+        default_value = "particles"
+    )]
+    scenes: Vec<String>,
+    /// Views to render, comma separated.
+    #[arg(
+        long = "view",
+        alias = "view-list",
+        value_delimiter = ',',
+        default_value = "0"
+    )]
+    view_list: Vec<usize>,
+    /// Budgets, comma separated: bytes (20MB, 40MiB), slots per pixel (2fpp) or shares of each
+    /// frame's fragments (25%).
+    #[arg(
+        long = "budget",
+        alias = "budgets",
+        value_delimiter = ',',
+        default_value = "2fpp"
+    )]
+    budgets: Vec<String>,
+    /// Methods, comma separated (dkb only when weights are found); all by default.
+    #[arg(long, value_delimiter = ',')]
+    methods: Vec<String>,
+    /// What a budget holds equal across methods: slots (the same F) or bytes (the same memory
+    /// M, each method's F from its own layout; the paper's protocol).
+    #[arg(long, default_value = "slots", value_parser = parse_equal)]
+    equal: Equal,
+    #[command(flatten)]
+    common: ViewArgs,
+    /// Directory for images, report.json, report.md and summary.md.
+    #[arg(long, default_value = "out/compare")]
+    out: PathBuf,
+    /// Write no images (tables and reports only: faster sweeps).
+    #[arg(long)]
+    no_images: bool,
+    /// Also write the summary tables (Markdown, no images) to this file.
+    #[arg(long)]
+    summary: Option<PathBuf>,
+}
+
+/// One method on one frame.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    pub scene: String,
+    pub view: usize,
+    pub width: u32,
+    pub height: u32,
+    pub budget: String,
+    pub equal: &'static str,
+    pub method: &'static str,
+    pub mse: f64,
+    pub fragments_total: u64,
+    pub fragments_captured: u64,
+    pub budget_fragments: u64,
+    pub budget_bytes: u64,
+    pub allocated_bytes: u64,
+    /// sum min(k, n) / F.
+    pub budget_used: f64,
+    pub raster_ms: f64,
+    pub allocation_ms: f64,
+    pub composite_ms: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub optimal: Option<serde_json::Value>,
+}
+
+impl Row {
+    fn captured(&self) -> f64 {
+        self.fragments_captured as f64 / self.fragments_total.max(1) as f64
+    }
+    /// Whether the frame tells allocations apart: F below the frame's fragments.
+    fn counts(&self) -> bool {
+        self.budget_fragments < self.fragments_total
+    }
+}
+
+const HEADER: [&str; 7] = [
+    "method",
+    "MSE",
+    "captured",
+    "F(M)",
+    "sum k / F",
+    "allocated",
+    "ms",
+];
+
+fn cells(r: &Row) -> [String; 7] {
+    [
+        r.method.to_string(),
+        format!("{:.4e}", r.mse),
+        format!("{:.1}%", 100.0 * r.captured()),
+        r.budget_fragments.to_string(),
+        format!("{:.1}%", 100.0 * r.budget_used),
+        format_bytes(r.allocated_bytes),
+        format!("{:.1}", r.allocation_ms + r.composite_ms),
+    ]
+}
+
+/// A table as aligned text and as Markdown.
+fn table(header: &[&str], rows: &[Vec<String>]) -> (String, String) {
+    let widths: Vec<usize> = (0..header.len())
+        .map(|c| {
+            rows.iter()
+                .map(|r| r[c].len())
+                .chain([header[c].len()])
+                .max()
+                .unwrap_or(0)
+        })
+        .collect();
+    let line = |cols: Vec<&str>| -> String {
+        cols.iter()
+            .enumerate()
+            .map(|(c, v)| {
+                if c == 0 {
+                    format!("{v:<w$}", w = widths[c])
+                } else {
+                    format!("{v:>w$}", w = widths[c])
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("  ")
+    };
+    let mut text = line(header.to_vec()) + "\n";
+    let mut md = format!(
+        "| {} |\n|{}\n",
+        header.join(" | "),
+        "---|".repeat(header.len())
+    );
+    for r in rows {
+        text += &(line(r.iter().map(String::as_str).collect()) + "\n");
+        md += &format!("| {} |\n", r.join(" | "));
+    }
+    (text, md)
+}
+
+/// A mean squared error below which a frame counts as exact when ratios are taken (float
+/// rounding; 8-bit quantisation alone is about 1e-6).
+pub const MSE_FLOOR: f64 = 1e-14;
+
+fn geomean(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    (v.iter().map(|x| x.ln()).sum::<f64>() / v.len() as f64).exp()
+}
+
+/// DKB against VKB and the optimal allocation on every frame where all three ran and the
+/// budget is below the frame's fragments: (frame key, DKB/VKB, DKB/optimal, VKB/optimal).
+fn ratios(rows: &[Row]) -> Vec<(String, String, f64, f64, f64)> {
+    let find = |r: &Row, m: &str| {
+        rows.iter().find(|x| {
+            x.method == m && x.scene == r.scene && x.view == r.view && x.budget == r.budget
+        })
+    };
+    rows.iter()
+        .filter(|r| r.method == "dkb" && r.counts())
+        .filter_map(|d| {
+            let v = find(d, "vkb")?;
+            let o = find(d, "optimal")?;
+            let fl = |x: f64| x.max(MSE_FLOOR);
+            Some((
+                d.scene.clone(),
+                d.budget.clone(),
+                fl(d.mse) / fl(v.mse),
+                fl(d.mse) / fl(o.mse),
+                fl(v.mse) / fl(o.mse),
+            ))
+        })
+        .collect()
+}
+
+/// The summary: mean MSE per budget and method, ratio tables per scene and per budget, and the
+/// accuracy targets of issue 9 with whether they hold.
+pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
+    let mut text = String::new();
+    let mut md = String::new();
+    let mut budgets: Vec<String> = Vec::new();
+    let mut methods: Vec<&str> = Vec::new();
+    let mut scenes: Vec<String> = Vec::new();
+    for r in rows {
+        if !budgets.contains(&r.budget) {
+            budgets.push(r.budget.clone());
+        }
+        if r.method != "abuffer" && !methods.contains(&r.method) {
+            methods.push(r.method);
+        }
+        if !scenes.contains(&r.scene) {
+            scenes.push(r.scene.clone());
+        }
+    }
+    let mut head = vec!["budget"];
+    head.extend(methods.iter());
+    let mean_rows: Vec<Vec<String>> = budgets
+        .iter()
+        .map(|b| {
+            let mut row = vec![b.clone()];
+            for m in &methods {
+                let v: Vec<f64> = rows
+                    .iter()
+                    .filter(|r| r.budget == *b && r.method == *m)
+                    .map(|r| r.mse)
+                    .collect();
+                row.push(if v.is_empty() {
+                    "n/a".into()
+                } else {
+                    format!("{:.3e}", v.iter().sum::<f64>() / v.len() as f64)
+                });
+            }
+            row
+        })
+        .collect();
+    let (t, m) = table(&head, &mean_rows);
+    let title = format!(
+        "Mean MSE against the A-buffer over all frames ({})",
+        equal.name()
+    );
+    let _ = write!(text, "\n{title}\n{t}");
+    let _ = write!(md, "\n## {title}\n\n{m}");
+    let r = ratios(rows);
+    if r.is_empty() {
+        return (text, md);
+    }
+    let group = |keep: &dyn Fn(&(String, String, f64, f64, f64)) -> bool| -> Vec<String> {
+        let g: Vec<_> = r.iter().filter(|x| keep(x)).collect();
+        let dv: Vec<f64> = g.iter().map(|x| x.2).collect();
+        vec![
+            g.len().to_string(),
+            format!("{:.3}", geomean(&dv)),
+            format!("{:.3}", dv.iter().copied().fold(0.0, f64::max)),
+            format!("{:.3}", geomean(&g.iter().map(|x| x.3).collect::<Vec<_>>())),
+            format!("{:.3}", geomean(&g.iter().map(|x| x.4).collect::<Vec<_>>())),
+        ]
+    };
+    let head = [
+        "",
+        "frames",
+        "DKB/VKB (geo. mean)",
+        "worst DKB/VKB",
+        "DKB/optimal",
+        "VKB/optimal",
+    ];
+    let mut by_scene: Vec<Vec<String>> = Vec::new();
+    for s in &scenes {
+        if r.iter().any(|x| x.0 == *s) {
+            let mut row = vec![s.clone()];
+            row.extend(group(&|x| x.0 == *s));
+            by_scene.push(row);
+        }
+    }
+    let mut all = vec!["all".to_string()];
+    all.extend(group(&|_| true));
+    by_scene.push(all);
+    let mut by_budget: Vec<Vec<String>> = Vec::new();
+    for b in &budgets {
+        if r.iter().any(|x| x.1 == *b) {
+            let mut row = vec![b.clone()];
+            row.extend(group(&|x| x.1 == *b));
+            by_budget.push(row);
+        }
+    }
+    let note = format!(
+        "Frames whose budget is below their fragment total, {}; MSE below {MSE_FLOOR:e} counts as {MSE_FLOOR:e}.",
+        equal.name()
+    );
+    for (title, rows) in [
+        ("MSE ratios per scene", by_scene),
+        ("MSE ratios per budget", by_budget),
+    ] {
+        let (t, m) = table(&head, &rows);
+        let _ = write!(text, "\n{title} ({note})\n{t}");
+        let _ = write!(md, "\n## {title}\n\n{note}\n\n{m}");
+    }
+    // The targets.
+    let per_scene: Vec<(String, f64)> = scenes
+        .iter()
+        .filter_map(|s| {
+            let v: Vec<f64> = r.iter().filter(|x| x.0 == *s).map(|x| x.2).collect();
+            (!v.is_empty()).then(|| (s.clone(), geomean(&v)))
+        })
+        .collect();
+    let worst_scene = per_scene
+        .iter()
+        .cloned()
+        .fold(("".to_string(), 0.0), |a, b| if b.1 > a.1 { b } else { a });
+    let worst = r
+        .iter()
+        .fold(None::<&(String, String, f64, f64, f64)>, |a, x| match a {
+            Some(y) if y.2 >= x.2 => Some(y),
+            _ => Some(x),
+        })
+        .expect("some ratio");
+    let frames_over = r.iter().filter(|x| x.2 > 1.1).count();
+    let opt = geomean(&r.iter().map(|x| x.3).collect::<Vec<_>>());
+    let verdict = |ok: bool| if ok { "holds" } else { "does not hold" };
+    let targets = vec![
+        vec![
+            "DKB/VKB <= 0.8 (geometric mean, every scene)".to_string(),
+            format!("worst scene {} at {:.3}", worst_scene.0, worst_scene.1),
+            verdict(worst_scene.1 <= 0.8).to_string(),
+        ],
+        vec![
+            "DKB/VKB <= 1.1 on every frame".to_string(),
+            format!(
+                "{frames_over} of {} frames above; worst {:.3} ({} at {})",
+                r.len(),
+                worst.2,
+                worst.0,
+                worst.1
+            ),
+            verdict(frames_over == 0).to_string(),
+        ],
+        vec![
+            "DKB/optimal <= 3 (geometric mean)".to_string(),
+            format!("{opt:.3}"),
+            verdict(opt <= 3.0).to_string(),
+        ],
+        vec![
+            "DKB/optimal <= 1.3 (moonshot)".to_string(),
+            format!("{opt:.3}"),
+            verdict(opt <= 1.3).to_string(),
+        ],
+    ];
+    let (t, m) = table(&["target", "measured", ""], &targets);
+    let _ = write!(text, "\nAccuracy targets\n{t}");
+    let _ = write!(md, "\n## Accuracy targets\n\n{m}");
+    (text, md)
+}
+
+pub fn run(a: CompareArgs) -> Result<()> {
+    let budgets: Vec<Budget> = a
+        .budgets
+        .iter()
+        .map(|b| Budget::parse(b))
+        .collect::<Result<_, _>>()?;
+    let mut methods: Vec<Method> = if a.methods.is_empty() {
+        Method::ALL.to_vec()
+    } else {
+        a.methods
+            .iter()
+            .map(|m| Method::parse(m))
+            .collect::<Result<_, _>>()?
+    };
+    if !methods.contains(&Method::Abuffer) {
+        methods.insert(0, Method::Abuffer);
+    }
+    let weights = load_weights(
+        &a.common,
+        !a.methods.is_empty() && methods.contains(&Method::Dkb),
+    )?;
+    if weights.is_none() && methods.contains(&Method::Dkb) {
+        eprintln!(
+            "note: no weights found ({} or --weights), dkb left out",
+            dhoit_train::cli::DEFAULT_WEIGHTS
+        );
+        methods.retain(|&m| m != Method::Dkb);
+    }
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    let mut rows: Vec<Row> = Vec::new();
+    let mut md = format!(
+        "# dhoit comparison\n\nMSE against the A-buffer image (linear RGB), {}.\n",
+        a.equal.name()
+    );
+    for name in &a.scenes {
+        let scene = load_scene(name, &a.common)?;
+        let label = scene::file_label(name);
+        for &view in &a.view_list {
+            let (fl, raster_ms) = rasterize_view(&scene, view, &a.common)?;
+            for budget in &budgets {
+                let options = Options {
+                    weights: weights.as_ref(),
+                    equal: a.equal,
+                    ..Options::new(*budget, a.common.background)
+                };
+                let renderer = Renderer::new(&fl, options);
+                // A method the budget cannot hold (FKB and MLAB need a slot for every pixel) is
+                // reported and left out of this frame; any other error stops the run.
+                let mut frames: Vec<Frame> = Vec::new();
+                let mut skipped: Vec<String> = Vec::new();
+                for &m in &methods {
+                    match renderer.render(m) {
+                        Ok(f) => frames.push(f),
+                        Err(e @ dhoit_runtime::Error::Budget(..)) if m != Method::Abuffer => {
+                            skipped.push(format!("{}: {e}", m.name()));
+                        }
+                        Err(e) => return Err(e.into()),
+                    }
+                }
+                let reference = frames[0].image.clone();
+                let counts = fl.counts();
+                let frame_rows: Vec<Row> = frames
+                    .iter()
+                    .map(|f| {
+                        let used =
+                            f.k.iter()
+                                .zip(&counts)
+                                .map(|(&k, &n)| k.min(n) as u64)
+                                .sum::<u64>() as f64
+                                / f.budget_fragments.max(1) as f64;
+                        Row {
+                            scene: scene.name.clone(),
+                            view,
+                            width: fl.width,
+                            height: fl.height,
+                            budget: budget.to_string(),
+                            equal: a.equal.name(),
+                            method: f.method.name(),
+                            mse: f.image.mse(&reference),
+                            fragments_total: f.fragments_total,
+                            fragments_captured: f.fragments_captured,
+                            budget_fragments: f.budget_fragments,
+                            budget_bytes: f.budget_bytes,
+                            allocated_bytes: f.allocated_bytes,
+                            budget_used: used,
+                            raster_ms,
+                            allocation_ms: f.allocation_ms,
+                            composite_ms: f.composite_ms,
+                            optimal: f.optimal.map(|rep| {
+                                let mut v = serde_json::to_value(rep).expect("report");
+                                v["gap"] = rep.gap().into();
+                                v
+                            }),
+                        }
+                    })
+                    .collect();
+                let title = format!(
+                    "{} view {view}, {}x{}, budget {budget} ({}): {} fragments, max depth {}",
+                    scene.name,
+                    fl.width,
+                    fl.height,
+                    a.equal.name(),
+                    fl.fragment_count(),
+                    fl.max_depth_complexity()
+                );
+                let cell_rows: Vec<Vec<String>> =
+                    frame_rows.iter().map(|r| cells(r).to_vec()).collect();
+                let (t, m) = table(&HEADER, &cell_rows);
+                println!("\n{title}\n\n{t}");
+                md += &format!("\n## {title}\n\n{m}");
+                for sk in &skipped {
+                    println!("not run: {sk}");
+                    md += &format!("\nnot run: {sk}\n");
+                }
+                if let Some(rep) = frames.iter().find_map(|f| f.optimal) {
+                    let line = format!(
+                        "optimal allocation: total error {:.4e} ({}), certified gap {:.2e} ({:.2}% of the total)",
+                        rep.total,
+                        rep.chosen,
+                        rep.gap(),
+                        100.0 * rep.gap() / rep.total.max(1e-300)
+                    );
+                    println!("{line}");
+                    md += &format!("\n{line}\n");
+                }
+                if !a.no_images {
+                    let tag = format!("{label}_v{view}_{}", budget.to_string().replace(' ', ""));
+                    write_images(&a, &tag, &fl, &frames, &reference)?;
+                    let order: Vec<&str> = frames.iter().map(|f| f.method.name()).collect();
+                    md += &format!(
+                        "\n![{tag}]({tag}_montage.png)\n\nColumns: {}. Rows: image; k(p) used (dark blue 0 to yellow: the method's max); colour error |C - C_exact| (one scale for the row).\n",
+                        order.join(", ")
+                    );
+                }
+                rows.extend(frame_rows);
+            }
+        }
+    }
+    let (text, sum_md) = summary(&rows, a.equal);
+    println!("{text}");
+    md += &sum_md;
+    let json = serde_json::to_string_pretty(&rows)?;
+    dhoit_runtime::tensors::write_atomic(&a.out.join("report.json"), json.as_bytes())?;
+    dhoit_runtime::tensors::write_atomic(&a.out.join("report.md"), md.as_bytes())?;
+    let mut small = format!(
+        "# dhoit evaluation summary\n\nScenes: {}. Views {:?} at {}. MSE against the A-buffer \
+         image, {}. Generated by `dhoit compare`; frames and images in report.md and report.json.\n",
+        a.scenes
+            .iter()
+            .map(|s| scene::file_label(s))
+            .collect::<Vec<_>>()
+            .join(", "),
+        a.view_list,
+        a.common.res,
+        a.equal.name()
+    );
+    small += &sum_md;
+    dhoit_runtime::tensors::write_atomic(&a.out.join("summary.md"), small.as_bytes())?;
+    if let Some(path) = &a.summary {
+        dhoit_runtime::tensors::write_atomic(path, small.as_bytes())?;
+    }
+    println!(
+        "\n{}report.json, report.md and summary.md -> {}",
+        if a.no_images {
+            ""
+        } else {
+            "images, side-by-side montages, "
+        },
+        a.out.display()
+    );
+    Ok(())
+}
+
+fn write_images(
+    a: &CompareArgs,
+    tag: &str,
+    fl: &dhoit_runtime::raster::FragmentLists,
+    frames: &[Frame],
+    reference: &dhoit_runtime::composite::Image,
+) -> Result<()> {
+    let counts = fl.counts();
+    let covered: Vec<bool> = counts.iter().map(|&n| n > 0).collect();
+    let mut montage = Montage::new(fl.width, fl.height, frames.len() as u32, 3);
+    let errors: Vec<Vec<f32>> = frames
+        .iter()
+        .map(|f| {
+            f.image
+                .data
+                .iter()
+                .zip(&reference.data)
+                .map(|(x, r)| (0..3).map(|i| (x[i] - r[i]).powi(2)).sum::<f32>().sqrt())
+                .collect()
+        })
+        .collect();
+    let err_max = errors.iter().flatten().copied().fold(0.0f32, f32::max);
+    for (col, f) in frames.iter().enumerate() {
+        image_io::write_png(
+            &a.out.join(format!("{tag}_{}.png", f.method.name())),
+            &f.image,
+        )?;
+        montage.put(col as u32, 0, &image_io::to_srgb8(&f.image));
+        montage.put(col as u32, 1, &kmap_rgb8(fl, &f.k).0);
+        montage.put(
+            col as u32,
+            2,
+            &image_io::heat_rgb8(&errors[col], &covered, err_max),
+        );
+    }
+    montage.write(&a.out.join(format!("{tag}_montage.png")))?;
+    Ok(())
+}
