@@ -3,9 +3,9 @@
 // than 16 times (lavapipe ends long loops silently), no host round trip.
 //
 // Each covered pixel's k is a monotone function of one integer t: water-filling weights w
-// (alloc::water_fill: k = clamp(floor(t w / 2^24), lo, n), t capped at 2^40) or slot requests
-// c (alloc::level_fill, level L = 2^24 - t: k = clamp(floor((c - L) / 256), lo, n), t capped
-// at 2^26). The allocation is the largest t whose total fits min(F, sum n), plus one slot each
+// (alloc::water_fill: k = clamp(floor(t w / 2^24), lo, cap) below t = 2^40) or slot requests
+// c (alloc::level_fill, level L = 2^24 - t: k = clamp(floor((c - L) / 256), lo, cap) below
+// t = 2^26), with cap = max(n - 1, lo); every pixel at its cap from there, at n from twice it. The allocation is the largest t whose total fits min(F, sum n), plus one slot each
 // for the first pixels (by index) whose k rises at t + 1, as many as are still missing.
 //   weights: importance -> fixed-point weight in place (the kind of alloc::Target)
 //   setup:   F (fixed, or floor(total ppm / 10^6) from the totals pass), target, lo, the search
@@ -68,14 +68,24 @@ fn weight(i: f32, n: u32) -> u32 {
     return min(u32(floor(r * 256.0 * 256.0 + 0.5)), WEIGHT_MAX);
 }
 
-// k of a covered pixel at t (alloc::water_level_k, alloc::level_k).
+// k of a covered pixel at t (alloc::water_level_k, alloc::level_k): the fill up to the pixel's
+// useful cap max(n - 1, lo) (alloc::useful_cap: a tail of one fragment is exact), every pixel
+// at its cap from t = 2^40 (scale) or 2^26 (level), and every fragment from twice that.
 fn k_at(t: u64, wp: u32, n: u32, lo: u32) -> u32 {
-    if (alloc.kind == 2u) {
-        let v = i64(wp) - (1li << 24u) + i64(min(t, 1lu << 26u));
-        return u32(clamp(v >> 8u, i64(lo), i64(n)));
+    let cap = min(max(max(n, 1u) - 1u, lo), n);
+    let top = select(1lu << 40u, 1lu << 26u, alloc.kind == 2u);
+    if (t >= 2lu * top) {
+        return n;
     }
-    let v = (min(t, 1lu << 40u) * u64(wp)) >> 24u;
-    return u32(clamp(v, u64(lo), u64(n)));
+    if (t >= top) {
+        return cap;
+    }
+    if (alloc.kind == 2u) {
+        let v = i64(wp) - (1li << 24u) + i64(t);
+        return u32(clamp(v >> 8u, i64(lo), i64(cap)));
+    }
+    let v = (t * u64(wp)) >> 24u;
+    return u32(clamp(v, u64(lo), u64(cap)));
 }
 
 @compute @workgroup_size(256)

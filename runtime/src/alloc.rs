@@ -564,8 +564,8 @@ pub const IMPORTANCE_SCALE: f32 = 1_048_576.0;
 pub const WEIGHT_BITS: u32 = 24;
 /// Largest weight.
 pub const WEIGHT_MAX: u32 = (1 << WEIGHT_BITS) - 1;
-/// Lambda is searched in `[0, 2^LAMBDA_BITS]`: at the top every covered pixel (weight >= 1)
-/// reaches `k = n`, since n < 2^16 and `2^40 / 2^24 = 2^16`; `lambda w < 2^64` throughout.
+/// Below `2^LAMBDA_BITS` the scale applies: near the top every covered pixel (weight >= 1)
+/// reaches its cap, since n < 2^16 and `2^40 / 2^24 = 2^16`; `lambda w < 2^64` throughout.
 pub const LAMBDA_BITS: u32 = 40;
 
 /// A proportional importance (VKB's, or a network trained for `k / max k`) as a water-filling
@@ -591,14 +591,37 @@ pub fn share_weight(r: f32, n: u32) -> u32 {
     ((r * n as f32 * 256.0 + 0.5).floor() as u32).clamp(1, WEIGHT_MAX)
 }
 
-/// k of one pixel at lambda (0 for uncovered pixels).
+/// Lambda from which every covered pixel holds its [`useful_cap`] (the scale search's top).
+pub const LAMBDA_CAP: u64 = 1 << LAMBDA_BITS;
+/// Lambda from which every covered pixel holds all its fragments.
+pub const LAMBDA_FULL: u64 = 1 << (LAMBDA_BITS + 1);
+
+/// The most slots a covered pixel gets before every covered pixel has as many: all but its
+/// farthest fragment, `max(n - 1, lo)`. A tail of one fragment composites exactly (its `a_tail`
+/// is its own opacity and its colour its own), so `e(n - 1) = e(n)`: a pixel's last slot saves
+/// nothing, and is handed out only when the budget holds every pixel's `n - 1` and more.
+#[inline]
+pub fn useful_cap(n: u32, lo: u32) -> u32 {
+    n.saturating_sub(1).max(lo).min(n)
+}
+
+/// k of one pixel at lambda (0 for uncovered pixels): `clamp(floor(lambda w / 2^24), lo,
+/// useful_cap)` below [`LAMBDA_CAP`], the cap up to [`LAMBDA_FULL`], then n. Rises by at most one
+/// when lambda rises by one.
 #[inline]
 pub fn water_level_k(lambda: u64, w: u32, n: u32, lo: u32) -> u32 {
     if n == 0 {
         return 0;
     }
+    let cap = useful_cap(n, lo);
+    if lambda >= LAMBDA_FULL {
+        return n;
+    }
+    if lambda >= LAMBDA_CAP {
+        return cap;
+    }
     let k = (lambda * w as u64) >> WEIGHT_BITS;
-    k.clamp(lo as u64, n as u64) as u32
+    k.clamp(lo as u64, cap as u64) as u32
 }
 
 /// Slots handed out at lambda.
@@ -610,18 +633,20 @@ fn water_level_sum(lambda: u64, w: &[u32], counts: &[u32], lo: u32) -> u64 {
 }
 
 /// Water-filling allocation (CPU twin of the GPU allocation): with weights `w_p` (see
-/// [`importance_weight`], [`share_weight`]), `k_p = clamp(floor(lambda w_p / 2^24), lo, n_p)`
-/// where lambda is the largest integer in `[0, 2^40]` whose total fits `min(F, sum n)`; the slots
-/// still missing go one each to the first pixels, by index, whose k rises at lambda + 1 (there
-/// are more of those than slots missing). A pixel whose weight asks for more than it holds is
-/// captured whole, and what the cap leaves over flows to the others: `sum k = min(F, sum n)`
+/// [`importance_weight`], [`share_weight`]), `k_p = clamp(floor(lambda w_p / 2^24), lo,
+/// useful_cap_p)` (see [`water_level_k`]) where lambda is the largest integer in `[0,
+/// LAMBDA_FULL]` whose total fits `min(F, sum n)`; the slots still missing go one each to the
+/// first pixels, by index, whose k rises at lambda + 1 (there are more of those than slots
+/// missing). A pixel whose weight asks for more than it can use is captured as good as whole
+/// (all but its farthest fragment, which composites exactly as a tail of one), and what the cap
+/// leaves over flows to the others: `sum k = min(F, sum n)`
 /// exactly, covered pixels get `lo <= k <= n`, uncovered 0; lo is 1 unless F is below the
 /// covered pixels. The result is unique (it does not depend on how lambda is searched).
 pub fn water_fill(w: &[u32], counts: &[u32], f: u64) -> Vec<u32> {
     assert_eq!(w.len(), counts.len(), "one weight per pixel");
     let target = slots_to_allocate(counts, f);
     let lo = min_k(counts, f);
-    let (mut a, mut b) = (0u64, 1u64 << LAMBDA_BITS);
+    let (mut a, mut b) = (0u64, LAMBDA_FULL);
     // Invariant: sum(a) <= target; sum(b) > target unless b is the top and fits.
     if water_level_sum(b, w, counts, lo) <= target {
         a = b;
@@ -660,8 +685,9 @@ pub fn water_fill(w: &[u32], counts: &[u32], f: u64) -> Vec<u32> {
 pub const REQUEST_BITS: u32 = 8;
 /// The most slots a network output of 1 requests (before the level).
 pub const REQUEST_SLOTS: f32 = 256.0;
-/// The level is searched in `[-2^24, 2^24]` (in 1/256 slot): at the bottom every covered pixel
-/// reaches n (requests are below 2^24 and n below 2^16), at the top every pixel falls to lo.
+/// The level is searched in `[LEVEL_FULL, 2^24]` (in 1/256 slot): at [`LEVEL_CAP`] every covered
+/// pixel holds its [`useful_cap`] (requests are below 2^24 and n below 2^16), at
+/// [`LEVEL_FULL`] all its fragments, at the top every pixel falls to lo.
 pub const LEVEL_BITS: u32 = 24;
 
 /// A network output `r` in [0, 1] as a slot request in 1/256 of a slot:
@@ -675,14 +701,28 @@ pub fn slot_request(r: f32) -> u32 {
     ((r * REQUEST_SLOTS * 256.0 + 0.5).floor() as u32).min(WEIGHT_MAX)
 }
 
-/// k of one pixel at level L (0 for uncovered pixels): `clamp(floor((c - L) / 256), lo, n)`.
+/// Level at and below which every covered pixel holds its [`useful_cap`] (the level search's
+/// bottom): `2^24 - 2^26`.
+pub const LEVEL_CAP: i64 = (1 << LEVEL_BITS) - (1 << (LEVEL_BITS + 2));
+/// Level at and below which every covered pixel holds all its fragments: `2^24 - 2^27`.
+pub const LEVEL_FULL: i64 = (1 << LEVEL_BITS) - (1 << (LEVEL_BITS + 3));
+
+/// k of one pixel at level L (0 for uncovered pixels): `clamp(floor((c - L) / 256), lo,
+/// useful_cap)` above [`LEVEL_CAP`], the cap down to [`LEVEL_FULL`], then n.
 #[inline]
 pub fn level_k(level: i64, c: u32, n: u32, lo: u32) -> u32 {
     if n == 0 {
         return 0;
     }
+    let cap = useful_cap(n, lo);
+    if level <= LEVEL_FULL {
+        return n;
+    }
+    if level <= LEVEL_CAP {
+        return cap;
+    }
     let k = (c as i64 - level).div_euclid(1 << REQUEST_BITS);
-    k.clamp(lo as i64, n as i64) as u32
+    k.clamp(lo as i64, cap as i64) as u32
 }
 
 fn level_sum(level: i64, c: &[u32], counts: &[u32], lo: u32) -> u64 {
@@ -694,18 +734,19 @@ fn level_sum(level: i64, c: &[u32], counts: &[u32], lo: u32) -> u64 {
 
 /// Additive water level (CPU twin of the GPU allocation for slot requests): each covered pixel
 /// asks for `c_p` slots (1/256 units, see [`slot_request`]) and gets `k_p = clamp(floor((c_p -
-/// L) / 256), lo, n_p)`, where L is the smallest integer level in `[-2^24, 2^24]` whose total
-/// fits `min(F, sum n)`; the slots still missing go one each to the first pixels, by index,
-/// whose k rises at L - 1. Pixels whose request exceeds what they hold are captured whole and
-/// the level hands what they leave to the others: `sum k = min(F, sum n)` exactly, covered
-/// pixels get `lo <= k <= n`. A common error in every request moves L, not the allocation.
+/// L) / 256), lo, useful_cap_p)` (see [`level_k`]), where L is the smallest integer level in
+/// `[LEVEL_FULL, 2^24]` whose total fits `min(F, sum n)`; the slots still missing go one each to
+/// the first pixels, by index, whose k rises at L - 1. Pixels whose request exceeds what they
+/// can use are captured as good as whole (all but the farthest fragment, which composites
+/// exactly as a tail of one) and the level hands what they leave to the others: `sum k =
+/// min(F, sum n)` exactly, covered pixels get `lo <= k <= n`. A common error in every request
+/// moves L, not the allocation.
 pub fn level_fill(c: &[u32], counts: &[u32], f: u64) -> Vec<u32> {
     assert_eq!(c.len(), counts.len(), "one request per pixel");
     let target = slots_to_allocate(counts, f);
     let lo = min_k(counts, f);
-    let top = 1i64 << LEVEL_BITS;
     // Invariant: sum(b) <= target; sum(a) > target unless a is the bottom and fits.
-    let (mut a, mut b) = (-top, top);
+    let (mut a, mut b) = (LEVEL_FULL, 1i64 << LEVEL_BITS);
     if level_sum(a, c, counts, lo) <= target {
         b = a;
     }

@@ -65,6 +65,11 @@ fn error_curves_match_direct_computation() {
         alloc::error_curve_sorted(&f, BG, &mut curve);
         let exact = direct_hybrid(&f, n);
         assert_eq!(curve[n], 0.0);
+        // A tail of one fragment is exact: the last slot of a pixel saves nothing, which the
+        // allocations' useful cap relies on.
+        if n >= 1 {
+            assert!(curve[n - 1] <= 1e-24, "n {n}: e(n - 1) = {}", curve[n - 1]);
+        }
         for k in 0..=n {
             let h = direct_hybrid(&f, k);
             let e: f64 = (0..3).map(|i| (exact[i] - h[i]).powi(2)).sum();
@@ -261,9 +266,15 @@ fn reference_fill(w: &[u32], counts: &[u32], f: u64, additive: bool) -> Vec<u32>
             alloc::water_level_k(t.max(0) as u64, w[p], counts[p], lo)
         }
     };
-    let top: i64 = if additive { 1 << 25 } else { 1 << 40 };
+    // Every pixel holds its useful cap (all but its farthest fragment) from `cap`, all its
+    // fragments from `top`.
+    let (cap, top): (i64, i64) = if additive {
+        (1 << 26, 1 << 27)
+    } else {
+        (1 << 40, 1 << 41)
+    };
     // Every t where some pixel's k may rise: the smallest t giving each k in lo+1..=n.
-    let mut breaks: Vec<i64> = vec![0, top];
+    let mut breaks: Vec<i64> = vec![0, cap, top];
     for p in 0..counts.len() {
         for kk in lo + 1..=counts[p] {
             let t = if additive {
@@ -323,6 +334,13 @@ proptest! {
         let f = [1, covered.saturating_sub(1).max(1), covered.max(1), (covered + total) / 2 + 1, total.max(1), total * 3 + 7][f_pick];
         let k = alloc::allocate(&importance, &counts, target, f);
         check_bounds(&k, &counts, f);
+        // A pixel's last slot, which saves nothing, only once every pixel has what it can use.
+        let lo = alloc::min_k(&counts, f);
+        if k.iter().zip(&counts).any(|(&kp, &n)| n > 0 && kp > alloc::useful_cap(n, lo)) {
+            for (&kp, &n) in k.iter().zip(&counts) {
+                prop_assert!(kp >= alloc::useful_cap(n, lo), "k {} below the cap of n {}", kp, n);
+            }
+        }
         // The search's answer is the unique one an independent computation finds.
         let w: Vec<u32> = importance.iter().zip(&counts)
             .map(|(&i, &n)| if n > 0 { target.weight(i, n) } else { 0 })
@@ -337,20 +355,25 @@ fn importance_allocation_follows_the_importance() {
     let rel = alloc::Target::RelativeK;
     let k = alloc::allocate(&[1.0, 2.0, 3.0, 4.0], &counts, rel, 20);
     assert_eq!(k, vec![2, 4, 6, 8]);
-    // Caps redistribute: pixel 3 wants 16 but has 10 fragments.
+    // Caps redistribute: pixel 3 wants 16 but has 10 fragments, of which it can use 9 (its
+    // farthest composites exactly as a tail of one); the slot left over goes to the first pixel
+    // that rises next.
     let k = alloc::allocate(&[1.0, 1.0, 1.0, 13.0], &counts, rel, 16);
-    assert_eq!(k, vec![2, 2, 2, 10]);
+    assert_eq!(k, vec![3, 2, 2, 9]);
+    // A last slot only once every pixel has all but its farthest fragment (to the first pixels).
+    let k = alloc::allocate(&[1.0, 1.0, 1.0, 13.0], &counts, rel, 37);
+    assert_eq!(k, vec![10, 9, 9, 9]);
     // Fewer slots than covered pixels: the most important pixels keep one.
     let k = alloc::allocate(&[0.1, 0.9, 0.5, 0.2], &counts, rel, 2);
     assert_eq!(k, vec![0, 1, 1, 0]);
-    // A share of each pixel's fragments: the pixel that asks for all of them and fits gets them.
+    // A share of each pixel's fragments: the pixel that asks for all of them gets all it can use.
     let k = alloc::allocate(
         &[1.0, 0.2, 0.2, 0.2],
         &[3, 20, 20, 20],
         alloc::Target::ShareOfFragments,
         15,
     );
-    assert_eq!(k, vec![3, 4, 4, 4]);
+    assert_eq!(k, vec![2, 5, 4, 4]);
     // Slot requests of 10, 20 and 30 slots, 33 to hand out: one level takes 9 from each, and
     // the first pixel keeps its one slot.
     let k = alloc::level_fill(&[2560, 5120, 7680], &[50; 3], 33);

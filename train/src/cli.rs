@@ -140,6 +140,9 @@ pub struct TrainArgs {
     /// SGD momentum (0 = plain SGD, as in the paper).
     #[arg(long, default_value_t = TrainConfig::default().momentum)]
     pub momentum: f64,
+    /// Keep the learning rate constant instead of the cosine decay to lr / 20.
+    #[arg(long)]
+    pub constant_lr: bool,
     /// What the network learns: regret (what the k it asks for costs in the image above the
     /// optimal allocation; output = share of the pixel's fragments to keep), mse-share (MSE on
     /// k*/n) or mse-relative (the paper's MSE on k*/max k*; output = proportional importance).
@@ -180,6 +183,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         l2: a.l2,
         hidden: [h1, h2],
         momentum: a.momentum,
+        cosine: !a.constant_lr,
         seed: a.seed,
         validation_scenes: if a.validation.is_empty() {
             dataset::default_validation()

@@ -1,6 +1,7 @@
 //! Training data: for each scene, view and budget, fragment lists -> the 12 features -> the
 //! optimal allocation k* and what any other k would cost, for a uniform sample of the covered
-//! pixels whose k is not forced (n(p) > the smallest k, so the network has a choice to make).
+//! pixels whose k is not forced (the most slots the pixel can use, `alloc::useful_cap`, above
+//! the smallest k, so the network has a choice to make).
 //!
 //! What a k costs: the pixel's Lagrangian regret `R_p(k) = e_p(k) - e_p(k*) + mu (k - k*)`,
 //! with `e_p` the pixel's error curve and `mu` the budget's multiplier (the optimal
@@ -37,7 +38,7 @@ pub const MANIFEST: &str = "manifest.json";
 pub const FORMAT: &str = "dhoit-dataset-2";
 /// What produced a dataset: change it whenever the features, targets or fragments change, so a
 /// cached default dataset is regenerated rather than reused stale.
-pub const GENERATOR: &str = "features-v2 rgba8-fragments regret-v1 families-v2";
+pub const GENERATOR: &str = "features-v2 rgba8-fragments regret-v1 families-v2 useful-cap";
 
 /// Half-width D of the regret window: R is stored at `k* - D ..= k* + D`.
 pub const REGRET_HALF: usize = 8;
@@ -166,7 +167,7 @@ pub struct Shard {
     pub budget_fragments: u64,
     pub fragments: u64,
     pub covered_pixels: u64,
-    /// Covered pixels whose k is not forced (n > the smallest k).
+    /// Covered pixels whose k is not forced (the most slots they can use above the smallest k).
     #[serde(default)]
     pub eligible_pixels: u64,
     pub samples: usize,
@@ -334,7 +335,8 @@ pub fn frame_samples(
         ..Default::default()
     };
     for p in 0..fl.pixel_count() {
-        if counts[p] <= lo {
+        // Forced: no choice between lo and the most the pixel can use.
+        if alloc::useful_cap(counts[p], lo) <= lo {
             continue;
         }
         out.features.push(feats[p]);
