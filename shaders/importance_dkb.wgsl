@@ -1,5 +1,6 @@
 // DKB importance (compute, one invocation a pixel): the 12 features of
-// importance::pixel_features from the features pass and the totals, standardised, through the
+// importance::pixel_features from the features pass's statistics and the totals, computed here
+// and never stored, standardised, through the
 // MLP (ReLU, ReLU, sigmoid) whose weights sit in a uniform buffer, as mlp::Mlp::forward.
 // Layout of the weights (floats): h1, h2, unused, unused, mean[12], std[12], fc1.weight
 // [12][h1], fc1.bias[h1], fc2.weight[h1][h2], fc2.bias[h2], out.weight[h2], out.bias.
@@ -7,12 +8,17 @@
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<uniform> weights: array<vec4<f32>, 2504>;
 @group(0) @binding(2) var<storage, read> count: array<u32>;
-@group(0) @binding(3) var<storage, read> near_inv: array<u32>;
-@group(0) @binding(4) var<storage, read> far: array<u32>;
-@group(0) @binding(5) var<storage, read> nearest_inv: array<u64>;
-@group(0) @binding(6) var<storage, read> sums: array<u32>;
-@group(0) @binding(7) var<storage, read> totals: array<u32>;
-@group(0) @binding(8) var<storage, read_write> importance: array<f32>;
+@group(0) @binding(3) var<storage, read> nearest_inv: array<u64>;
+@group(0) @binding(4) var<storage, read> sums: array<u32>;
+@group(0) @binding(5) var<storage, read> totals: array<u32>;
+@group(0) @binding(6) var<storage, read_write> importance: array<f32>;
+
+// importance::LOG_FLOOR.
+const LOG_FLOOR: f32 = 1e-6;
+
+fn luma(c: vec3<f32>) -> f32 {
+    return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b;
+}
 
 // Largest second hidden layer the pass holds (mlp::MAX_H2).
 const MAX_H2: u32 = 128u;
@@ -32,26 +38,42 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         importance[p] = 0.0;
         return;
     }
+    // importance::pixel_features, operation for operation.
     let total = f32(max(totals[0], 1u));
-    let mean_n = total / f32(max(totals[1], 1u));
-    let n = f32(c);
-    let near = unpack_rgba8(u32((~nearest_inv[p]) & 0xfffffffflu));
-    let scale = 4096.0;
-    let luma_mean = f32(sums[5u * p + 3u]) / scale / n;
-    let luma_var = max(f32(sums[5u * p + 4u]) / scale / n - luma_mean * luma_mean, 0.0);
+    let covered = f32(max(totals[1], 1u));
+    let nf = f32(c);
+    let key = ~nearest_inv[p];
+    let near8 = u32(key & 0xfffffffflu);
+    let near = unpack_rgba8(near8).rgb;
+    let sum = vec3<u32>(sums[4u * p], sums[4u * p + 1u], sums[4u * p + 2u]);
+    let mean = vec3<f32>(f32(sum.r) / 255.0 / nf, f32(sum.g) / 255.0 / nf, f32(sum.b) / 255.0 / nf);
+    // n^2 var and n^2 dev in 8-bit units, exact integers.
+    var var_num = i64(c) * i64(sums[4u * p + 3u]);
+    var dev_num = 0li;
+    for (var ch = 0u; ch < 3u; ch++) {
+        let s = i64(sum[ch]);
+        var_num -= s * s;
+        let d = i64(c) * i64((near8 >> (8u * ch)) & 0xffu) - s;
+        dev_num += d * d;
+    }
+    let scale = nf * nf * 65025.0;
+    let variance = f32(max(var_num, 0li)) / scale;
+    let dev = f32(dev_num) / scale;
+    let mean_luma = luma(mean);
+    let near_luma = luma(near);
     var x = array<f32, 12>(
-        n / mean_n,
-        bitcast<f32>(~near_inv[p]),
-        bitcast<f32>(far[p]),
-        near.r,
-        near.g,
-        near.b,
-        f32(sums[5u * p]) / scale / n,
-        f32(sums[5u * p + 1u]) / scale / n,
-        f32(sums[5u * p + 2u]) / scale / n,
+        log2(nf),
+        nf / (total / covered),
         f32(budget_of(totals[0])) / total,
-        log2(n),
-        sqrt(luma_var),
+        log2(f32(max(budget_of(totals[0]), 1lu)) / covered),
+        bitcast<f32>(u32(key >> 32u)),
+        near_luma - mean_luma,
+        log2(variance + LOG_FLOOR),
+        log2(dev + LOG_FLOOR),
+        sqrt(variance),
+        mean_luma,
+        near_luma,
+        sqrt(dev),
     );
     let h1 = u32(w(0u));
     let h2 = u32(w(1u));

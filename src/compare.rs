@@ -165,9 +165,18 @@ fn geomean(v: &[f64]) -> f64 {
     (v.iter().map(|x| x.ln()).sum::<f64>() / v.len() as f64).exp()
 }
 
+/// One frame's MSE ratios.
+struct Ratio {
+    scene: String,
+    budget: String,
+    dkb_vkb: f64,
+    dkb_optimal: f64,
+    vkb_optimal: f64,
+}
+
 /// DKB against VKB and the optimal allocation on every frame where all three ran and the
-/// budget is below the frame's fragments: (frame key, DKB/VKB, DKB/optimal, VKB/optimal).
-fn ratios(rows: &[Row]) -> Vec<(String, String, f64, f64, f64)> {
+/// budget is below the frame's fragments.
+fn ratios(rows: &[Row]) -> Vec<Ratio> {
     let find = |r: &Row, m: &str| {
         rows.iter().find(|x| {
             x.method == m && x.scene == r.scene && x.view == r.view && x.budget == r.budget
@@ -179,13 +188,13 @@ fn ratios(rows: &[Row]) -> Vec<(String, String, f64, f64, f64)> {
             let v = find(d, "vkb")?;
             let o = find(d, "optimal")?;
             let fl = |x: f64| x.max(MSE_FLOOR);
-            Some((
-                d.scene.clone(),
-                d.budget.clone(),
-                fl(d.mse) / fl(v.mse),
-                fl(d.mse) / fl(o.mse),
-                fl(v.mse) / fl(o.mse),
-            ))
+            Some(Ratio {
+                scene: d.scene.clone(),
+                budget: d.budget.clone(),
+                dkb_vkb: fl(d.mse) / fl(v.mse),
+                dkb_optimal: fl(d.mse) / fl(o.mse),
+                vkb_optimal: fl(v.mse) / fl(o.mse),
+            })
         })
         .collect()
 }
@@ -241,15 +250,21 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
     if r.is_empty() {
         return (text, md);
     }
-    let group = |keep: &dyn Fn(&(String, String, f64, f64, f64)) -> bool| -> Vec<String> {
+    let group = |keep: &dyn Fn(&Ratio) -> bool| -> Vec<String> {
         let g: Vec<_> = r.iter().filter(|x| keep(x)).collect();
-        let dv: Vec<f64> = g.iter().map(|x| x.2).collect();
+        let dv: Vec<f64> = g.iter().map(|x| x.dkb_vkb).collect();
         vec![
             g.len().to_string(),
             format!("{:.3}", geomean(&dv)),
             format!("{:.3}", dv.iter().copied().fold(0.0, f64::max)),
-            format!("{:.3}", geomean(&g.iter().map(|x| x.3).collect::<Vec<_>>())),
-            format!("{:.3}", geomean(&g.iter().map(|x| x.4).collect::<Vec<_>>())),
+            format!(
+                "{:.3}",
+                geomean(&g.iter().map(|x| x.dkb_optimal).collect::<Vec<_>>())
+            ),
+            format!(
+                "{:.3}",
+                geomean(&g.iter().map(|x| x.vkb_optimal).collect::<Vec<_>>())
+            ),
         ]
     };
     let head = [
@@ -262,9 +277,9 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
     ];
     let mut by_scene: Vec<Vec<String>> = Vec::new();
     for s in &scenes {
-        if r.iter().any(|x| x.0 == *s) {
+        if r.iter().any(|x| x.scene == *s) {
             let mut row = vec![s.clone()];
-            row.extend(group(&|x| x.0 == *s));
+            row.extend(group(&|x| x.scene == *s));
             by_scene.push(row);
         }
     }
@@ -273,9 +288,9 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
     by_scene.push(all);
     let mut by_budget: Vec<Vec<String>> = Vec::new();
     for b in &budgets {
-        if r.iter().any(|x| x.1 == *b) {
+        if r.iter().any(|x| x.budget == *b) {
             let mut row = vec![b.clone()];
-            row.extend(group(&|x| x.1 == *b));
+            row.extend(group(&|x| x.budget == *b));
             by_budget.push(row);
         }
     }
@@ -295,7 +310,11 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
     let per_scene: Vec<(String, f64)> = scenes
         .iter()
         .filter_map(|s| {
-            let v: Vec<f64> = r.iter().filter(|x| x.0 == *s).map(|x| x.2).collect();
+            let v: Vec<f64> = r
+                .iter()
+                .filter(|x| x.scene == *s)
+                .map(|x| x.dkb_vkb)
+                .collect();
             (!v.is_empty()).then(|| (s.clone(), geomean(&v)))
         })
         .collect();
@@ -305,13 +324,13 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
         .fold(("".to_string(), 0.0), |a, b| if b.1 > a.1 { b } else { a });
     let worst = r
         .iter()
-        .fold(None::<&(String, String, f64, f64, f64)>, |a, x| match a {
-            Some(y) if y.2 >= x.2 => Some(y),
+        .fold(None::<&Ratio>, |a, x| match a {
+            Some(y) if y.dkb_vkb >= x.dkb_vkb => Some(y),
             _ => Some(x),
         })
         .expect("some ratio");
-    let frames_over = r.iter().filter(|x| x.2 > 1.1).count();
-    let opt = geomean(&r.iter().map(|x| x.3).collect::<Vec<_>>());
+    let frames_over = r.iter().filter(|x| x.dkb_vkb > 1.1).count();
+    let opt = geomean(&r.iter().map(|x| x.dkb_optimal).collect::<Vec<_>>());
     let verdict = |ok: bool| if ok { "holds" } else { "does not hold" };
     let targets = vec![
         vec![
@@ -324,9 +343,9 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
             format!(
                 "{frames_over} of {} frames above; worst {:.3} ({} at {})",
                 r.len(),
-                worst.2,
-                worst.0,
-                worst.1
+                worst.dkb_vkb,
+                worst.scene,
+                worst.budget
             ),
             verdict(frames_over == 0).to_string(),
         ],

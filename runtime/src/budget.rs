@@ -58,11 +58,8 @@ pub const DKB: Layout = Layout {
     per_pixel: &[
         RASTER_TARGET,
         ("features.count", 4),
-        ("features.near", 4),
-        ("features.far", 4),
-        ("features.nearest_color", 8),
-        ("features.color_sum", 12),
-        ("features.luma_sums", 8),
+        ("features.nearest", 8),
+        ("features.color_sums", 16),
         ("oit.importance", 4),
         ("alloc.flags", 4),
         ("oit.k", 4),

@@ -345,7 +345,7 @@ pub struct GpuFrame {
     /// VKB and DKB: the importance the GPU computed (uploaded importance: after allocation's
     /// fixed-point conversion is not returned).
     pub importance: Option<Vec<f32>>,
-    /// DKB: the features pass's per-pixel statistics (`nearest_primitive` unknown: u32::MAX).
+    /// DKB: the features pass's per-pixel statistics.
     pub stats: Option<Vec<PixelStats>>,
     /// VKB: per pixel the count and the nearest fragment's `|n . e|`.
     pub vkb_nearest: Option<(Vec<u32>, Vec<f32>)>,
@@ -989,16 +989,14 @@ impl Gpu {
                                     true,
                                 );
                                 let counts = fb.storage("features.count", 4 * px, true)?;
-                                let near = fb.storage("features.near", 4 * px, true)?;
-                                let far = fb.storage("features.far", 4 * px, true)?;
-                                let nearest = fb.storage("features.nearest_color", 8 * px, true)?;
-                                let sums = fb.storage("features.sums", 20 * px, true)?;
+                                let nearest = fb.storage("features.nearest", 8 * px, true)?;
+                                let sums = fb.storage("features.color_sums", 16 * px, true)?;
                                 let totals = fb.storage("features.totals", 24, true)?;
                                 let imp = fb.storage("oit.importance", 4 * px, true)?;
                                 passes.draw(
                                     &mut enc,
                                     &p.features,
-                                    &[&counts, &near, &far, &nearest, &sums],
+                                    &[&counts, &nearest, &sums],
                                     "features",
                                 );
                                 passes.dispatch(
@@ -1012,13 +1010,13 @@ impl Gpu {
                                     &mut enc,
                                     &p.importance_dkb,
                                     &[
-                                        params_buf, &weights, &counts, &near, &far, &nearest,
-                                        &sums, &totals, &imp,
+                                        params_buf, &weights, &counts, &nearest, &sums, &totals,
+                                        &imp,
                                     ],
                                     groups,
                                     "importance",
                                 );
-                                out.stats_bufs = Some([near, far, nearest, sums]);
+                                out.stats_bufs = Some([nearest, sums]);
                                 (counts, imp, totals, weight_kind(mlp.target))
                             }
                             _ => unreachable!("handled above"),
@@ -1231,8 +1229,8 @@ struct Readback {
     slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
     counts_buf: Option<wgpu::Buffer>,
     importance_buf: Option<wgpu::Buffer>,
-    /// DKB: near, far, nearest key, sums.
-    stats_bufs: Option<[wgpu::Buffer; 4]>,
+    /// DKB: nearest key, colour sums.
+    stats_bufs: Option<[wgpu::Buffer; 2]>,
     vkb_nearest_buf: Option<wgpu::Buffer>,
 }
 
@@ -1259,26 +1257,16 @@ impl Readback {
         };
         let counts = u32s(&read_back(gpu, counts, 4 * px)?);
         let stats = match &self.stats_bufs {
-            Some([near, far, nearest, sums]) => {
-                let near = u32s(&read_back(gpu, near, 4 * px)?);
-                let far = u32s(&read_back(gpu, far, 4 * px)?);
+            Some([nearest, sums]) => {
                 let nearest = read_u64s(gpu, nearest, px, true)?;
-                let sums = u32s(&read_back(gpu, sums, 20 * px)?);
+                let sums = u32s(&read_back(gpu, sums, 16 * px)?);
                 Some(
                     (0..px as usize)
                         .map(|q| PixelStats {
                             count: counts[q],
-                            near: if counts[q] > 0 {
-                                f32::from_bits(!near[q])
-                            } else {
-                                0.0
-                            },
-                            far: f32::from_bits(far[q]),
-                            nearest_key: nearest[q],
-                            nearest_primitive: u32::MAX,
-                            color_sum: [sums[5 * q], sums[5 * q + 1], sums[5 * q + 2]],
-                            luma_sum: sums[5 * q + 3],
-                            luma_sq_sum: sums[5 * q + 4],
+                            nearest_key: if counts[q] > 0 { nearest[q] } else { 0 },
+                            color_sum: [sums[4 * q], sums[4 * q + 1], sums[4 * q + 2]],
+                            color_sq_sum: sums[4 * q + 3],
                         })
                         .collect(),
                 )

@@ -2,50 +2,48 @@
 //! heuristic importance (paper 002). Written pass by pass as the GPU computes them, so the two
 //! can be compared line by line.
 
-use crate::composite::{fragment_key, unpack_rgba8};
+use crate::composite::{fragment_key, pack_rgba8, unpack_rgba8};
 use crate::raster::FragmentLists;
 
-/// Names of the network's inputs, in order.
+/// Names of the network's inputs, in order (see [`pixel_features`]).
 pub const FEATURE_NAMES: [&str; 12] = [
-    "count_rel",
-    "near_depth",
-    "far_depth",
-    "near_r",
-    "near_g",
-    "near_b",
-    "mean_r",
-    "mean_g",
-    "mean_b",
-    "budget_share",
     "log2_count",
-    "luma_std",
+    "count_rel",
+    "budget_share",
+    "log2_budget_per_pixel",
+    "near_depth",
+    "near_luma_dev",
+    "log2_color_var",
+    "log2_near_dev",
+    "color_std",
+    "mean_luma",
+    "near_luma",
+    "near_dev",
 ];
 pub const FEATURES: usize = 12;
 
-/// Fixed-point scale of the colour sums (the GPU adds them with u32 atomics, so the sum is the
-/// same in every order): 12 fractional bits, room for a million fragments per pixel.
-pub const COLOR_SUM_SCALE: f32 = 4096.0;
+/// What the log-scaled colour statistics add before the logarithm: below the smallest non-zero
+/// variance of 8-bit colours in any pixel of up to 128 fragments, so "every fragment has the
+/// same colour" (a pixel whose tails are all exact) stays apart from "nearly the same".
+pub const LOG_FLOOR: f32 = 1e-6;
 
-pub fn to_fixed(c: f32) -> u32 {
-    (c.clamp(0.0, 1.0) * COLOR_SUM_SCALE + 0.5).floor() as u32
-}
+/// The largest pixel depth whose sum of squared 8-bit colours fits the features pass's 32-bit
+/// atomic (`n 3 255^2 < 2^32`). Deeper pixels wrap the sum, which the CPU twin does alike; their
+/// colour variance is then meaningless (such pixels are far beyond any real scene's).
+pub const MAX_EXACT_COUNT: u32 = (u32::MAX as u64 / (3 * 255 * 255)) as u32;
 
-/// What the features pass accumulates per pixel.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// What the features pass accumulates per pixel, with integer atomics only, so any submission
+/// order gives the same result: 28 bytes a pixel, VKB's count and nearest key plus 16.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PixelStats {
     pub count: u32,
-    /// Window depths of the nearest and farthest fragment.
-    pub near: f32,
-    pub far: f32,
-    /// The smallest fragment key (depth bits high, RGBA8 low): the nearest fragment.
+    /// The smallest fragment key (window depth bits high, RGBA8 low): the nearest fragment.
     pub nearest_key: u64,
-    /// Submission index of the nearest fragment (ties: the lowest).
-    pub nearest_primitive: u32,
-    /// Sum of the fragments' RGB in fixed point.
+    /// Sums of the fragments' 8-bit R, G and B.
     pub color_sum: [u32; 3],
-    /// Sums of the fragments' luminance and squared luminance in fixed point.
-    pub luma_sum: u32,
-    pub luma_sq_sum: u32,
+    /// Sum over fragments of `r^2 + g^2 + b^2` in 8-bit units (wrapping, see
+    /// [`MAX_EXACT_COUNT`]).
+    pub color_sq_sum: u32,
 }
 
 /// Rec. 709 luminance of a linear colour.
@@ -58,30 +56,21 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
     (0..fl.pixel_count())
         .map(|p| {
             let mut s = PixelStats {
-                near: f32::INFINITY,
-                far: 0.0,
                 nearest_key: u64::MAX,
-                nearest_primitive: u32::MAX,
                 ..Default::default()
             };
             for i in fl.range(p) {
+                let rgba8 = pack_rgba8(fl.rgba[i]);
                 s.count += 1;
-                s.near = s.near.min(fl.depth[i]);
-                s.far = s.far.max(fl.depth[i]);
-                let key = fragment_key(fl.depth[i], fl.rgba[i]);
-                if (key, fl.primitive[i]) < (s.nearest_key, s.nearest_primitive) {
-                    s.nearest_key = key;
-                    s.nearest_primitive = fl.primitive[i];
-                }
+                s.nearest_key = s.nearest_key.min(fragment_key(fl.depth[i], fl.rgba[i]));
                 for c in 0..3 {
-                    s.color_sum[c] = s.color_sum[c].wrapping_add(to_fixed(fl.rgba[i][c]));
+                    let v = rgba8 >> (8 * c) & 0xff;
+                    s.color_sum[c] = s.color_sum[c].wrapping_add(v);
+                    s.color_sq_sum = s.color_sq_sum.wrapping_add(v * v);
                 }
-                let l = luma(fl.rgba[i]);
-                s.luma_sum = s.luma_sum.wrapping_add(to_fixed(l));
-                s.luma_sq_sum = s.luma_sq_sum.wrapping_add(to_fixed(l * l));
             }
             if s.count == 0 {
-                s.near = 0.0;
+                s.nearest_key = 0;
             }
             s
         })
@@ -110,39 +99,57 @@ pub fn totals(stats: &[PixelStats]) -> Totals {
     t
 }
 
-/// The 12 features of one covered pixel, in order:
-/// 0 `n / mean n` over covered pixels (relative depth complexity, the same at every
-/// resolution); 1, 2 nearest and farthest window depth; 3-5 the nearest fragment's RGB (RGBA8,
-/// as the capture key stores it); 6-8 the mean fragment RGB; 9 `F / sum n` (the budget's
-/// share of the frame's fragments); 10 `log2 n`; 11 the standard deviation of the fragments'
-/// luminance.
+/// The 12 features of one covered pixel, in order ([`FEATURE_NAMES`]); colours in [0, 1],
+/// `C_near` the nearest fragment's, `mean` and `var` the mean and the variance (summed over
+/// R, G, B) of the pixel's fragment colours, `dev = |C_near - mean|^2`:
+/// 0 `log2 n`; 1 `n / mean n` over covered pixels; 2 `F / sum n`, the budget's share of the
+/// frame's fragments; 3 `log2(F / covered pixels)`; 4 the nearest window depth; 5
+/// `luma(C_near) - luma(mean)`; 6 `log2(var + LOG_FLOOR)`; 7 `log2(dev + LOG_FLOOR)`; 8
+/// `sqrt(var)`; 9 `luma(mean)`; 10 `luma(C_near)`; 11 `sqrt(dev)`.
 ///
-/// The paper's list has `n / sum n` first and the frame's min and max depth last. `n / sum n`
-/// shrinks with resolution and, with the frame depth range, tells the network nothing about
-/// the absolute depth complexity or how much the fragments differ, which decide how many of
-/// them a pixel needs (the hybrid error of fragments that share one colour is zero); the
-/// replacements carry that, and measured better (see the README).
+/// Why these: with opacity a, truncating a pixel after k fragments costs about
+/// `(1 - a)^(2k)` times how far the tail's front fragments stray from the tail's mean, so the
+/// slots a pixel deserves grow with the logarithm of its colour spread (a factor of 2.2 in
+/// variance is one slot at a = 0.33), and a pixel whose fragments share one colour needs none.
+/// The variance and deviation are exact integers before the last division, so that case is
+/// exactly zero on the CPU and the GPU. The paper's `n / sum n` and frame depth range say
+/// nothing about either and shrink with resolution (see the README's ablation).
 pub fn pixel_features(s: &PixelStats, t: &Totals, budget_fragments: u64) -> [f32; FEATURES] {
     let total = t.fragments.max(1) as f32;
-    let near = unpack_rgba8(s.nearest_key as u32);
-    let n = s.count.max(1) as f32;
-    let mean = s.color_sum.map(|c| c as f32 / COLOR_SUM_SCALE / n);
-    let mean_n = total / t.covered.max(1) as f32;
-    let luma_mean = s.luma_sum as f32 / COLOR_SUM_SCALE / n;
-    let luma_var = (s.luma_sq_sum as f32 / COLOR_SUM_SCALE / n - luma_mean * luma_mean).max(0.0);
+    let covered = t.covered.max(1) as f32;
+    let n = s.count.max(1);
+    let nf = n as f32;
+    let near8 = s.nearest_key as u32;
+    let near = unpack_rgba8(near8);
+    let mean: [f32; 3] = std::array::from_fn(|c| s.color_sum[c] as f32 / 255.0 / nf);
+    // n^2 var and n^2 dev in 8-bit units, exact integers.
+    let sq = n as i64 * s.color_sq_sum as i64;
+    let mut var_num = sq;
+    let mut dev_num = 0i64;
+    for c in 0..3 {
+        let sum = s.color_sum[c] as i64;
+        var_num -= sum * sum;
+        let d = n as i64 * (near8 >> (8 * c) & 0xff) as i64 - sum;
+        dev_num += d * d;
+    }
+    let scale = nf * nf * 65025.0;
+    let var = var_num.max(0) as f32 / scale;
+    let dev = dev_num as f32 / scale;
+    let mean_luma = luma([mean[0], mean[1], mean[2], 1.0]);
+    let near_luma = luma(near);
     [
-        s.count as f32 / mean_n,
-        s.near,
-        s.far,
-        near[0],
-        near[1],
-        near[2],
-        mean[0],
-        mean[1],
-        mean[2],
+        nf.log2(),
+        nf / (total / covered),
         budget_fragments as f32 / total,
-        n.log2(),
-        luma_var.sqrt(),
+        (budget_fragments.max(1) as f32 / covered).log2(),
+        f32::from_bits((s.nearest_key >> 32) as u32),
+        near_luma - mean_luma,
+        (var + LOG_FLOOR).log2(),
+        (dev + LOG_FLOOR).log2(),
+        var.sqrt(),
+        mean_luma,
+        near_luma,
+        dev.sqrt(),
     ]
 }
 

@@ -97,33 +97,76 @@ fn features_match_their_definitions() {
     let fl = frame("shells", 40, 30);
     let f_budget = 1234u64;
     let feats = importance::features(&fl, f_budget);
-    let total = fl.fragment_count() as f32;
+    let total = fl.fragment_count() as f64;
     let covered: Vec<usize> = (0..fl.pixel_count()).filter(|&p| fl.count(p) > 0).collect();
-    let mean_n = total / covered.len() as f32;
+    let mean_n = total / covered.len() as f64;
+    let close = |a: f32, b: f64, what: &str| {
+        assert!(
+            (a as f64 - b).abs() <= 1e-5 * (1.0 + b.abs()),
+            "{what}: {a} vs {b}"
+        );
+    };
+    let luma = |c: [f64; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
     for &p in &covered {
         let r = fl.range(p);
         let x = &feats[p];
-        let n = r.len() as f32;
-        assert_eq!(x[0], n / mean_n);
+        let n = r.len() as f64;
+        close(x[0], n.log2(), "log2 n");
+        close(x[1], n / mean_n, "n / mean n");
+        close(x[2], f_budget as f64 / total, "budget share");
+        close(
+            x[3],
+            (f_budget as f64 / covered.len() as f64).log2(),
+            "budget per pixel",
+        );
+        // Colours as the pipeline stores them (RGBA8), in f64.
+        let rgb = |i: usize| -> [f64; 3] {
+            std::array::from_fn(|c| {
+                (fl.rgba[i][c].clamp(0.0, 1.0) * 255.0 + 0.5).floor() as f64 / 255.0
+            })
+        };
         let nearest = r
             .clone()
-            .min_by(|&a, &b| fl.depth[a].total_cmp(&fl.depth[b]))
+            .min_by(|&a, &b| {
+                fl.depth[a]
+                    .total_cmp(&fl.depth[b])
+                    .then(importance_key(&fl, a).cmp(&importance_key(&fl, b)))
+            })
             .unwrap();
-        assert_eq!(x[1], fl.depth[nearest]);
-        assert_eq!(x[2], r.clone().map(|i| fl.depth[i]).fold(0.0, f32::max));
-        for c in 0..3 {
-            // RGBA8 of the nearest fragment, fixed-point mean.
-            assert!((x[3 + c] - fl.rgba[nearest][c]).abs() <= 0.5 / 255.0 + 1e-6);
-            let mean = r.clone().map(|i| fl.rgba[i][c]).sum::<f32>() / n;
-            assert!((x[6 + c] - mean).abs() <= 0.5 / importance::COLOR_SUM_SCALE + 1e-6);
+        assert_eq!(x[4], fl.depth[nearest], "near depth");
+        let mean: [f64; 3] = std::array::from_fn(|c| r.clone().map(|i| rgb(i)[c]).sum::<f64>() / n);
+        let var: f64 = r
+            .clone()
+            .map(|i| (0..3).map(|c| (rgb(i)[c] - mean[c]).powi(2)).sum::<f64>())
+            .sum::<f64>()
+            / n;
+        let near = rgb(nearest);
+        let dev: f64 = (0..3).map(|c| (near[c] - mean[c]).powi(2)).sum();
+        close(x[5], luma(near) - luma(mean), "near luma deviation");
+        close(
+            x[6],
+            (var + importance::LOG_FLOOR as f64).log2(),
+            "log2 var",
+        );
+        close(
+            x[7],
+            (dev + importance::LOG_FLOOR as f64).log2(),
+            "log2 dev",
+        );
+        assert!((x[8] as f64 - var.sqrt()).abs() < 1e-4, "colour std");
+        close(x[9], luma(mean), "mean luma");
+        close(x[10], luma(near), "near luma");
+        assert!((x[11] as f64 - dev.sqrt()).abs() < 1e-4, "near deviation");
+        // A pixel whose fragments share one colour has exactly zero spread.
+        if r.clone().all(|i| rgb(i) == rgb(r.start)) {
+            assert_eq!((x[8], x[11]), (0.0, 0.0));
         }
-        assert_eq!(x[9], f_budget as f32 / total);
-        assert_eq!(x[10], n.log2());
-        let lum: Vec<f32> = r.clone().map(|i| importance::luma(fl.rgba[i])).collect();
-        let lm = lum.iter().sum::<f32>() / n;
-        let sd = (lum.iter().map(|l| (l - lm).powi(2)).sum::<f32>() / n).sqrt();
-        assert!((x[11] - sd).abs() < 0.02, "luminance std {} vs {sd}", x[11]);
     }
+}
+
+/// The low 32 bits of a fragment's capture key (its RGBA8), which break depth ties.
+fn importance_key(fl: &dhoit_runtime::raster::FragmentLists, i: usize) -> u32 {
+    dhoit_runtime::composite::fragment_key(fl.depth[i], fl.rgba[i]) as u32
 }
 
 #[test]

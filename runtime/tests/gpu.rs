@@ -441,18 +441,8 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             let stats = d.stats.clone().unwrap();
             let twin = importance::pixel_stats(&gfl);
             for (p, (a, b)) in stats.iter().zip(&twin).enumerate() {
-                assert_eq!(
-                    (a.count, a.nearest_key, a.color_sum),
-                    (b.count, b.nearest_key, b.color_sum),
-                    "{name} pixel {p}"
-                );
-                if a.count > 0 {
-                    assert_eq!((a.near, a.far), (b.near, b.far), "{name} pixel {p}");
-                    assert!(
-                        a.luma_sum.abs_diff(b.luma_sum) <= a.count
-                            && a.luma_sq_sum.abs_diff(b.luma_sq_sum) <= a.count
-                    );
-                }
+                // Integer statistics: identical, whatever order the fragments came in.
+                assert_eq!(a, b, "{name} pixel {p}");
             }
             // Importance: the network on the GPU's statistics, within 1e-5.
             let t = importance::totals(&stats);

@@ -32,15 +32,16 @@ pub struct DatasetArgs {
     /// Orbit views per scene.
     #[arg(long, default_value_t = 4)]
     pub views: usize,
-    /// Budget levels, comma separated: slots per pixel (2fpp) or `all` (every fragment).
+    /// Budget levels, comma separated: shares of each frame's fragments (25%), slots per pixel
+    /// (2fpp) or `all` (every fragment).
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "1fpp,1.5fpp,2fpp,3fpp,all"
+        default_value = "3%,5%,10%,20%,35%,50%,65%,80%,90%,95%"
     )]
     pub budgets: Vec<String>,
-    /// Share of covered pixels sampled.
-    #[arg(long, default_value_t = 0.2)]
+    /// Share of the covered pixels whose k is not forced that is sampled.
+    #[arg(long, default_value_t = DatasetConfig::default().sample)]
     pub sample: f64,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -143,9 +144,11 @@ pub struct TrainArgs {
     /// Keep the learning rate constant instead of the cosine decay to lr / 20.
     #[arg(long)]
     pub constant_lr: bool,
-    /// What the network learns: regret (what the k it asks for costs in the image above the
-    /// optimal allocation; output = share of the pixel's fragments to keep), mse-share (MSE on
-    /// k*/n) or mse-relative (the paper's MSE on k*/max k*; output = proportional importance).
+    /// What the network learns. regret-level: what the k it asks for costs in the image above
+    /// the optimal allocation, the output a slot request fitted to the budget by one level per
+    /// frame (the default); regret: the same with the output a share of the pixel's fragments
+    /// fitted by a scale; mse-share: MSE on k*/n; mse-relative: the paper's MSE on k*/max k*
+    /// (output = proportional importance).
     #[arg(long, default_value = TrainConfig::default().loss.name(), value_parser = parse_loss)]
     pub loss: trainer::Loss,
     /// Gradient norm clipping (0: none).
