@@ -5,7 +5,8 @@
 // Each covered pixel's k is a monotone function of one integer t: water-filling weights w
 // (alloc::water_fill: k = clamp(floor(t w / 2^24), lo, cap) below t = 2^40) or slot requests
 // c (alloc::level_fill, level L = 2^24 - t: k = clamp(floor((c - L) / 256), lo, cap) below
-// t = 2^26), with cap = max(n - 1, lo); every pixel at its cap from there, at n from twice it. The allocation is the largest t whose total fits min(F, sum n), plus one slot each
+// t = 2^26), cap the pixel's useful cap (all but its farthest fragment, or two for a pair);
+// then every pixel at its cap, at all but its farthest fragment, at n, in three more tiers. The allocation is the largest t whose total fits min(F, sum n), plus one slot each
 // for the first pixels (by index) whose k rises at t + 1, as many as are still missing.
 //   weights: importance -> fixed-point weight in place (the kind of alloc::Target)
 //   setup:   F (fixed, or floor(total ppm / 10^6) from the totals pass), target, lo, the search
@@ -41,6 +42,8 @@ struct Alloc {
 @group(0) @binding(7) var<storage, read> totals: array<u32>;
 
 const WEIGHT_MAX: u32 = 16777215u;
+// alloc::PAIR_BIT.
+const PAIR_BIT: u32 = 0x80000000u;
 const MAX_F32: f32 = 3.4028235e38;
 
 var<workgroup> partial: array<atomic<u32>, 16>;
@@ -68,24 +71,37 @@ fn weight(i: f32, n: u32) -> u32 {
     return min(u32(floor(r * 256.0 * 256.0 + 0.5)), WEIGHT_MAX);
 }
 
-// k of a covered pixel at t (alloc::water_level_k, alloc::level_k): the fill up to the pixel's
-// useful cap max(n - 1, lo) (alloc::useful_cap: a tail of one fragment is exact), every pixel
-// at its cap from t = 2^40 (scale) or 2^26 (level), and every fragment from twice that.
+// The most slots a covered pixel takes before every pixel has as many (alloc::useful_cap):
+// all but its farthest fragment, or its two farthest when they share one colour (pair).
+fn useful_cap(n: u32, lo: u32, pair: bool) -> u32 {
+    let drop = select(1u, 2u, pair);
+    return min(max(select(0u, n - drop, n >= drop), lo), n);
+}
+
+// k of a covered pixel at t (alloc::water_level_k, alloc::level_k), wp a weight with the pair
+// flag in bit 31: the fill up to the pixel's useful cap, then in tiers of 2^40 (scale) or
+// 2^26 (level) of t: every pixel at its cap, at all but its farthest fragment, at n.
 fn k_at(t: u64, wp: u32, n: u32, lo: u32) -> u32 {
-    let cap = min(max(max(n, 1u) - 1u, lo), n);
-    let top = select(1lu << 40u, 1lu << 26u, alloc.kind == 2u);
-    if (t >= 2lu * top) {
-        return n;
-    }
-    if (t >= top) {
+    let bits = select(40u, 26u, alloc.kind == 2u);
+    let tier = min(u32(t >> bits), 3u);
+    let pair = (wp & PAIR_BIT) != 0u;
+    let cap = useful_cap(n, lo, pair);
+    if (tier == 1u) {
         return cap;
     }
-    if (alloc.kind == 2u) {
-        let v = i64(wp) - (1li << 24u) + i64(t);
-        return u32(clamp(v >> 8u, i64(lo), i64(cap)));
+    if (tier == 2u) {
+        return useful_cap(n, lo, false);
     }
-    let v = (t * u64(wp)) >> 24u;
-    return u32(clamp(v, u64(lo), u64(cap)));
+    if (tier == 3u) {
+        return n;
+    }
+    let v = wp & WEIGHT_MAX;
+    if (alloc.kind == 2u) {
+        let k = i64(v) - (1li << 24u) + i64(t);
+        return u32(clamp(k >> 8u, i64(lo), i64(cap)));
+    }
+    let k = (t * u64(v)) >> 24u;
+    return u32(clamp(k, u64(lo), u64(cap)));
 }
 
 @compute @workgroup_size(256)
@@ -99,7 +115,10 @@ fn weights(
         return;
     }
     let n = counts[p];
-    w[p] = select(0u, weight(bitcast<f32>(w[p]), n), n > 0u);
+    // The importance's sign bit is the pair flag (alloc::pixel_weight).
+    let bits = w[p];
+    let i = bitcast<f32>(bits & ~PAIR_BIT);
+    w[p] = select(0u, weight(i, n) | (bits & PAIR_BIT), n > 0u);
 }
 
 @compute @workgroup_size(1)

@@ -10,8 +10,12 @@
 @group(0) @binding(2) var<storage, read> count: array<u32>;
 @group(0) @binding(3) var<storage, read> nearest_inv: array<u64>;
 @group(0) @binding(4) var<storage, read> sums: array<u32>;
-@group(0) @binding(5) var<storage, read> totals: array<u32>;
-@group(0) @binding(6) var<storage, read_write> importance: array<f32>;
+@group(0) @binding(5) var<storage, read> farthest: array<u64>;
+@group(0) @binding(6) var<storage, read> totals: array<u32>;
+@group(0) @binding(7) var<storage, read_write> importance: array<f32>;
+
+// importance::OCCUPIED.
+const OCCUPIED: u64 = 0x8000000000000000lu;
 
 // importance::LOG_FLOOR.
 const LOG_FLOOR: f32 = 1e-6;
@@ -109,5 +113,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var j = 0u; j < h2; j++) {
         out += max(acc2[j], 0.0) * w(w3 + j);
     }
-    importance[p] = 1.0 / (1.0 + exp(-out));
+    // The sign bit marks a pixel whose two farthest fragments share one colour
+    // (importance::tail_pair, alloc::mark_pair): the allocation lets it use a slot fewer.
+    let f0 = farthest[2u * p];
+    let f1 = farthest[2u * p + 1u];
+    let pair = (f1 & OCCUPIED) != 0lu && u32(f0 & 0xfffffffflu) == u32(f1 & 0xfffffffflu);
+    let i = 1.0 / (1.0 + exp(-out));
+    importance[p] = bitcast<f32>(bitcast<u32>(i) | select(0u, 0x80000000u, pair));
 }

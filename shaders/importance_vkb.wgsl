@@ -39,5 +39,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let g = 1.0 - facing;
     let i_f = 1.0 - g * g * g * g * g * 0.5;
     let xi = f32(pcg_hash(p ^ pcg_hash(params.vkb_seed)) >> 8u) / 16777216.0;
-    importance[p] = max(i_per * i_f * i_d + params.vkb_noise * (xi - 0.5), 0.0);
+    // abs: never the sign bit, which the allocation reads as the pair flag (VKB has none).
+    importance[p] = abs(max(i_per * i_f * i_d + params.vkb_noise * (xi - 0.5), 0.0));
 }

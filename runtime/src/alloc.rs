@@ -591,37 +591,59 @@ pub fn share_weight(r: f32, n: u32) -> u32 {
     ((r * n as f32 * 256.0 + 0.5).floor() as u32).clamp(1, WEIGHT_MAX)
 }
 
-/// Lambda from which every covered pixel holds its [`useful_cap`] (the scale search's top).
-pub const LAMBDA_CAP: u64 = 1 << LAMBDA_BITS;
-/// Lambda from which every covered pixel holds all its fragments.
-pub const LAMBDA_FULL: u64 = 1 << (LAMBDA_BITS + 1);
+/// The sign bit of an importance value ([`allocate`]) and bit 31 of a water-filling weight or
+/// slot request: the pixel's two farthest fragments share one colour (and opacity), so a tail
+/// of those two composites exactly too and the pixel can use one slot fewer (see
+/// [`useful_cap`]). DKB's features pass knows it (`importance::tail_pair`); VKB sets it never.
+pub const PAIR_BIT: u32 = 1 << 31;
 
 /// The most slots a covered pixel gets before every covered pixel has as many: all but its
-/// farthest fragment, `max(n - 1, lo)`. A tail of one fragment composites exactly (its `a_tail`
-/// is its own opacity and its colour its own), so `e(n - 1) = e(n)`: a pixel's last slot saves
-/// nothing, and is handed out only when the budget holds every pixel's `n - 1` and more.
+/// farthest fragment, `max(n - 1, lo)`, or all but its two farthest when they share one colour
+/// (`pair`). A tail of one fragment composites exactly (its `a_tail` is its own opacity and its
+/// colour its own), and so does a tail of fragments that share colour and opacity, so
+/// `e(n - 1) = e(n)` (and `e(n - 2) = e(n)` for a pair): those slots save nothing, and are
+/// handed out only once every pixel holds its cap (see [`water_level_k`]).
 #[inline]
-pub fn useful_cap(n: u32, lo: u32) -> u32 {
-    n.saturating_sub(1).max(lo).min(n)
+pub fn useful_cap(n: u32, lo: u32, pair: bool) -> u32 {
+    n.saturating_sub(1 + u32::from(pair)).max(lo).min(n)
 }
 
-/// k of one pixel at lambda (0 for uncovered pixels): `clamp(floor(lambda w / 2^24), lo,
-/// useful_cap)` below [`LAMBDA_CAP`], the cap up to [`LAMBDA_FULL`], then n. Rises by at most one
+/// Lambda from which every covered pixel holds its [`useful_cap`] (the scale's top).
+pub const LAMBDA_CAP: u64 = 1 << LAMBDA_BITS;
+/// Lambda from which every covered pixel holds all but its farthest fragment.
+pub const LAMBDA_ALL_BUT_ONE: u64 = 2 << LAMBDA_BITS;
+/// Lambda from which every covered pixel holds all its fragments.
+pub const LAMBDA_FULL: u64 = 3 << LAMBDA_BITS;
+
+/// k of a covered pixel in the tiers above the fill: `tier` 1 its useful cap, 2 all but its
+/// farthest fragment, 3 all; tier 0 clamps `k` between lo and the cap.
+#[inline]
+fn tier_k(tier: u32, k: i64, n: u32, lo: u32, pair: bool) -> u32 {
+    let cap = useful_cap(n, lo, pair);
+    match tier {
+        0 => k.clamp(lo as i64, cap as i64) as u32,
+        1 => cap,
+        2 => useful_cap(n, lo, false),
+        _ => n,
+    }
+}
+
+/// k of one pixel at lambda (0 for uncovered pixels), `w` a weight with its [`PAIR_BIT`]:
+/// `clamp(floor(lambda w / 2^24), lo, useful_cap)` below [`LAMBDA_CAP`], the cap up to
+/// [`LAMBDA_ALL_BUT_ONE`], `max(n - 1, lo)` up to [`LAMBDA_FULL`], then n. Rises by at most one
 /// when lambda rises by one.
 #[inline]
 pub fn water_level_k(lambda: u64, w: u32, n: u32, lo: u32) -> u32 {
     if n == 0 {
         return 0;
     }
-    let cap = useful_cap(n, lo);
-    if lambda >= LAMBDA_FULL {
-        return n;
-    }
-    if lambda >= LAMBDA_CAP {
-        return cap;
-    }
-    let k = (lambda * w as u64) >> WEIGHT_BITS;
-    k.clamp(lo as u64, cap as u64) as u32
+    let tier = (lambda >> LAMBDA_BITS).min(3) as u32;
+    let k = if tier == 0 {
+        (lambda * (w & WEIGHT_MAX) as u64) >> WEIGHT_BITS
+    } else {
+        0
+    };
+    tier_k(tier, k as i64, n, lo, w & PAIR_BIT != 0)
 }
 
 /// Slots handed out at lambda.
@@ -701,28 +723,30 @@ pub fn slot_request(r: f32) -> u32 {
     ((r * REQUEST_SLOTS * 256.0 + 0.5).floor() as u32).min(WEIGHT_MAX)
 }
 
-/// Level at and below which every covered pixel holds its [`useful_cap`] (the level search's
-/// bottom): `2^24 - 2^26`.
+/// Level at and below which every covered pixel holds its [`useful_cap`]: `2^24 - 2^26`.
 pub const LEVEL_CAP: i64 = (1 << LEVEL_BITS) - (1 << (LEVEL_BITS + 2));
-/// Level at and below which every covered pixel holds all its fragments: `2^24 - 2^27`.
-pub const LEVEL_FULL: i64 = (1 << LEVEL_BITS) - (1 << (LEVEL_BITS + 3));
+/// Level at and below which every covered pixel holds all but its farthest fragment.
+pub const LEVEL_ALL_BUT_ONE: i64 = (1 << LEVEL_BITS) - (2 << (LEVEL_BITS + 2));
+/// Level at and below which every covered pixel holds all its fragments (the search's bottom).
+pub const LEVEL_FULL: i64 = (1 << LEVEL_BITS) - (3 << (LEVEL_BITS + 2));
 
-/// k of one pixel at level L (0 for uncovered pixels): `clamp(floor((c - L) / 256), lo,
-/// useful_cap)` above [`LEVEL_CAP`], the cap down to [`LEVEL_FULL`], then n.
+/// k of one pixel at level L (0 for uncovered pixels), `c` a request with its [`PAIR_BIT`]:
+/// `clamp(floor((c - L) / 256), lo, useful_cap)` above [`LEVEL_CAP`], the cap down to
+/// [`LEVEL_ALL_BUT_ONE`], `max(n - 1, lo)` down to [`LEVEL_FULL`], then n.
 #[inline]
 pub fn level_k(level: i64, c: u32, n: u32, lo: u32) -> u32 {
     if n == 0 {
         return 0;
     }
-    let cap = useful_cap(n, lo);
-    if level <= LEVEL_FULL {
-        return n;
-    }
-    if level <= LEVEL_CAP {
-        return cap;
-    }
-    let k = (c as i64 - level).div_euclid(1 << REQUEST_BITS);
-    k.clamp(lo as i64, cap as i64) as u32
+    // The level as the GPU's t = 2^24 - L, in tiers of 2^26.
+    let t = (1i64 << LEVEL_BITS) - level;
+    let tier = if t <= 0 {
+        0
+    } else {
+        (t >> (LEVEL_BITS + 2)).min(3) as u32
+    };
+    let k = ((c & WEIGHT_MAX) as i64 - level).div_euclid(1 << REQUEST_BITS);
+    tier_k(tier, k, n, lo, c & PAIR_BIT != 0)
 }
 
 fn level_sum(level: i64, c: &[u32], counts: &[u32], lo: u32) -> u64 {
@@ -826,17 +850,32 @@ impl Target {
 
 /// k from any importance map as a network with that target would allocate it (VKB's importance
 /// is `Target::RelativeK`): the weights of covered pixels, then [`water_fill`] or
-/// [`level_fill`]. The CPU twin of the GPU allocation pass.
+/// [`level_fill`]. The sign bit of an importance value is the pixel's [`PAIR_BIT`] (DKB sets it
+/// where the two farthest fragments share one colour); its magnitude is the importance. The CPU
+/// twin of the GPU allocation pass.
 pub fn allocate(importance: &[f32], counts: &[u32], target: Target, f: u64) -> Vec<u32> {
     assert_eq!(importance.len(), counts.len(), "one importance per pixel");
     let w: Vec<u32> = importance
         .iter()
         .zip(counts)
-        .map(|(&i, &n)| if n > 0 { target.weight(i, n) } else { 0 })
+        .map(|(&i, &n)| if n > 0 { pixel_weight(target, i, n) } else { 0 })
         .collect();
     if target.additive() {
         level_fill(&w, counts, f)
     } else {
         water_fill(&w, counts, f)
     }
+}
+
+/// A covered pixel's weight or request from its importance, with the [`PAIR_BIT`] the
+/// importance's sign bit carries (the allocation pass's `weights` entry point).
+pub fn pixel_weight(target: Target, i: f32, n: u32) -> u32 {
+    let pair = i.is_sign_negative();
+    target.weight(f32::from_bits(i.to_bits() & !PAIR_BIT), n) | if pair { PAIR_BIT } else { 0 }
+}
+
+/// An importance value marked as a pixel whose two farthest fragments share one colour (its
+/// sign bit set, see [`allocate`]).
+pub fn mark_pair(i: f32, pair: bool) -> f32 {
+    f32::from_bits(i.to_bits() | if pair { PAIR_BIT } else { 0 })
 }

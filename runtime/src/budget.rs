@@ -60,6 +60,7 @@ pub const DKB: Layout = Layout {
         ("features.count", 4),
         ("features.nearest", 8),
         ("features.color_sums", 16),
+        ("features.farthest", 16),
         ("oit.importance", 4),
         ("alloc.flags", 4),
         ("oit.k", 4),

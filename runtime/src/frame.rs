@@ -243,8 +243,8 @@ impl<'a> Renderer<'a> {
                 let mlp = opts.weights.ok_or_else(|| {
                     Error::Invalid("dkb needs network weights (--weights FILE)".into())
                 })?;
-                let feats = importance::features(fl, f);
-                mlp.allocate(&feats, &counts, f)
+                let (feats, pairs) = importance::features_and_pairs(fl, f);
+                mlp.allocate(&feats, &counts, &pairs, f)
             }
             Method::Optimal => {
                 let (k, rep) = alloc::optimal(self.curves(), f);

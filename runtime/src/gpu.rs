@@ -991,12 +991,13 @@ impl Gpu {
                                 let counts = fb.storage("features.count", 4 * px, true)?;
                                 let nearest = fb.storage("features.nearest", 8 * px, true)?;
                                 let sums = fb.storage("features.color_sums", 16 * px, true)?;
+                                let farthest = fb.storage("features.farthest", 16 * px, true)?;
                                 let totals = fb.storage("features.totals", 24, true)?;
                                 let imp = fb.storage("oit.importance", 4 * px, true)?;
                                 passes.draw(
                                     &mut enc,
                                     &p.features,
-                                    &[&counts, &nearest, &sums],
+                                    &[&counts, &nearest, &sums, &farthest],
                                     "features",
                                 );
                                 passes.dispatch(
@@ -1010,13 +1011,13 @@ impl Gpu {
                                     &mut enc,
                                     &p.importance_dkb,
                                     &[
-                                        params_buf, &weights, &counts, &nearest, &sums, &totals,
-                                        &imp,
+                                        params_buf, &weights, &counts, &nearest, &sums, &farthest,
+                                        &totals, &imp,
                                     ],
                                     groups,
                                     "importance",
                                 );
-                                out.stats_bufs = Some([nearest, sums]);
+                                out.stats_bufs = Some([nearest, sums, farthest]);
                                 (counts, imp, totals, weight_kind(mlp.target))
                             }
                             _ => unreachable!("handled above"),
@@ -1229,8 +1230,8 @@ struct Readback {
     slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
     counts_buf: Option<wgpu::Buffer>,
     importance_buf: Option<wgpu::Buffer>,
-    /// DKB: nearest key, colour sums.
-    stats_bufs: Option<[wgpu::Buffer; 2]>,
+    /// DKB: nearest key, colour sums, the two farthest keys.
+    stats_bufs: Option<[wgpu::Buffer; 3]>,
     vkb_nearest_buf: Option<wgpu::Buffer>,
 }
 
@@ -1257,9 +1258,10 @@ impl Readback {
         };
         let counts = u32s(&read_back(gpu, counts, 4 * px)?);
         let stats = match &self.stats_bufs {
-            Some([nearest, sums]) => {
+            Some([nearest, sums, farthest]) => {
                 let nearest = read_u64s(gpu, nearest, px, true)?;
                 let sums = u32s(&read_back(gpu, sums, 16 * px)?);
+                let farthest = read_u64s(gpu, farthest, 2 * px, false)?;
                 Some(
                     (0..px as usize)
                         .map(|q| PixelStats {
@@ -1267,6 +1269,7 @@ impl Readback {
                             nearest_key: if counts[q] > 0 { nearest[q] } else { 0 },
                             color_sum: [sums[4 * q], sums[4 * q + 1], sums[4 * q + 2]],
                             color_sq_sum: sums[4 * q + 3],
+                            farthest: [farthest[2 * q], farthest[2 * q + 1]],
                         })
                         .collect(),
                 )

@@ -32,13 +32,20 @@ pub const LOG_FLOOR: f32 = 1e-6;
 /// colour variance is then meaningless (such pixels are far beyond any real scene's).
 pub const MAX_EXACT_COUNT: u32 = (u32::MAX as u64 / (3 * 255 * 255)) as u32;
 
+/// Bit 63 of a key in [`PixelStats::farthest`]: the slot holds a fragment (window depths are
+/// non-negative, so a key's own bit 63 is clear).
+pub const OCCUPIED: u64 = 1 << 63;
+
 /// What the features pass accumulates per pixel, with integer atomics only, so any submission
-/// order gives the same result: 28 bytes a pixel, VKB's count and nearest key plus 16.
+/// order gives the same result: 44 bytes a pixel, VKB's count and nearest key plus 32.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PixelStats {
     pub count: u32,
     /// The smallest fragment key (window depth bits high, RGBA8 low): the nearest fragment.
     pub nearest_key: u64,
+    /// The two largest fragment keys, farthest first, each with [`OCCUPIED`] set (0: none), as
+    /// the pass's two-slot insertion with `atomicMax` leaves them in any order.
+    pub farthest: [u64; 2],
     /// Sums of the fragments' 8-bit R, G and B.
     pub color_sum: [u32; 3],
     /// Sum over fragments of `r^2 + g^2 + b^2` in 8-bit units (wrapping, see
@@ -62,7 +69,15 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
             for i in fl.range(p) {
                 let rgba8 = pack_rgba8(fl.rgba[i]);
                 s.count += 1;
-                s.nearest_key = s.nearest_key.min(fragment_key(fl.depth[i], fl.rgba[i]));
+                let key = fragment_key(fl.depth[i], fl.rgba[i]);
+                s.nearest_key = s.nearest_key.min(key);
+                // The two largest keys of the multiset, as the insertion keeps them.
+                let key = key | OCCUPIED;
+                if key > s.farthest[0] {
+                    s.farthest = [key, s.farthest[0]];
+                } else if key > s.farthest[1] {
+                    s.farthest[1] = key;
+                }
                 for c in 0..3 {
                     let v = rgba8 >> (8 * c) & 0xff;
                     s.color_sum[c] = s.color_sum[c].wrapping_add(v);
@@ -75,6 +90,14 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
             s
         })
         .collect()
+}
+
+/// Whether a pixel's two farthest fragments share one colour and opacity (RGBA8): then a tail
+/// of those two composites exactly and the pixel can use one slot fewer (`alloc::useful_cap`).
+/// Closed surfaces seen through (a part's back and front face under the same light) are the
+/// common case.
+pub fn tail_pair(s: &PixelStats) -> bool {
+    s.farthest[1] & OCCUPIED != 0 && s.farthest[0] as u32 == s.farthest[1] as u32
 }
 
 /// Frame totals (the reduction pass): sum of n, covered pixels and max n.
@@ -155,9 +178,18 @@ pub fn pixel_features(s: &PixelStats, t: &Totals, budget_fragments: u64) -> [f32
 
 /// Features of every pixel (zeros for uncovered pixels, which the network never sees).
 pub fn features(fl: &FragmentLists, budget_fragments: u64) -> Vec<[f32; FEATURES]> {
+    features_and_pairs(fl, budget_fragments).0
+}
+
+/// Features of every pixel and whether its two farthest fragments share one colour
+/// ([`tail_pair`]): what DKB's allocation reads from its features pass.
+pub fn features_and_pairs(
+    fl: &FragmentLists,
+    budget_fragments: u64,
+) -> (Vec<[f32; FEATURES]>, Vec<bool>) {
     let stats = pixel_stats(fl);
     let t = totals(&stats);
-    stats
+    let features = stats
         .iter()
         .map(|s| {
             if s.count > 0 {
@@ -166,7 +198,8 @@ pub fn features(fl: &FragmentLists, budget_fragments: u64) -> Vec<[f32; FEATURES
                 [0.0; FEATURES]
             }
         })
-        .collect()
+        .collect();
+    (features, stats.iter().map(tail_pair).collect())
 }
 
 /// Variable k-buffer parameters (paper 002).
@@ -247,7 +280,10 @@ pub fn vkb_importance_from(
             let i_per = 1.0 - r.powf(params.periphery_exponent);
             let i_f = 1.0 - (1.0 - facing[p]).powi(5) * 0.5;
             let xi = pixel_noise(p as u32, params.seed);
-            (i_per * i_f * i_d + params.noise * (xi - 0.5)).max(0.0)
+            // abs: never the sign bit, which the allocation reads as the pair flag.
+            (i_per * i_f * i_d + params.noise * (xi - 0.5))
+                .max(0.0)
+                .abs()
         })
         .collect()
 }

@@ -134,19 +134,24 @@ impl Mlp {
             .collect()
     }
 
-    /// Water-filling weights of every pixel (0 for uncovered ones) from the network's output.
-    pub fn weights(&self, features: &[[f32; FEATURES]], counts: &[u32]) -> Vec<u32> {
-        self.importance(features, counts)
-            .iter()
-            .zip(counts)
-            .map(|(&i, &n)| if n > 0 { self.target.weight(i, n) } else { 0 })
-            .collect()
-    }
-
-    /// The network's allocation of `f` slots: its weights fitted to the budget by a scale
+    /// DKB's allocation of `f` slots: the network's importance, marked where a pixel's two
+    /// farthest fragments share one colour (`pairs`, [`crate::importance::tail_pair`]; such a
+    /// pixel can use a slot fewer), fitted to the budget by a scale
     /// ([`crate::alloc::water_fill`]) or a level ([`crate::alloc::level_fill`]).
-    pub fn allocate(&self, features: &[[f32; FEATURES]], counts: &[u32], f: u64) -> Vec<u32> {
-        crate::alloc::allocate(&self.importance(features, counts), counts, self.target, f)
+    pub fn allocate(
+        &self,
+        features: &[[f32; FEATURES]],
+        counts: &[u32],
+        pairs: &[bool],
+        f: u64,
+    ) -> Vec<u32> {
+        let imp: Vec<f32> = self
+            .importance(features, counts)
+            .iter()
+            .zip(pairs)
+            .map(|(&i, &pair)| crate::alloc::mark_pair(i, pair))
+            .collect();
+        crate::alloc::allocate(&imp, counts, self.target, f)
     }
 
     /// Reads and validates a weights file.

@@ -266,23 +266,21 @@ fn reference_fill(w: &[u32], counts: &[u32], f: u64, additive: bool) -> Vec<u32>
             alloc::water_level_k(t.max(0) as u64, w[p], counts[p], lo)
         }
     };
-    // Every pixel holds its useful cap (all but its farthest fragment) from `cap`, all its
-    // fragments from `top`.
-    let (cap, top): (i64, i64) = if additive {
-        (1 << 26, 1 << 27)
-    } else {
-        (1 << 40, 1 << 41)
-    };
+    // Every pixel holds its useful cap (all but its farthest fragment, or two for a pair) from
+    // `tier`, all but its farthest from twice that, all its fragments from three times (`top`).
+    let tier: i64 = if additive { 1 << 26 } else { 1 << 40 };
+    let top = 3 * tier;
     // Every t where some pixel's k may rise: the smallest t giving each k in lo+1..=n.
-    let mut breaks: Vec<i64> = vec![0, cap, top];
+    let mut breaks: Vec<i64> = vec![0, tier, 2 * tier, top];
     for p in 0..counts.len() {
+        let wp = w[p] & alloc::WEIGHT_MAX;
         for kk in lo + 1..=counts[p] {
             let t = if additive {
-                (kk as i64) * 256 - w[p] as i64 + (1 << 24)
-            } else if w[p] == 0 {
+                (kk as i64) * 256 - wp as i64 + (1 << 24)
+            } else if wp == 0 {
                 continue;
             } else {
-                ((kk as u64) << 24).div_ceil(w[p] as u64) as i64
+                ((kk as u64) << 24).div_ceil(wp as u64) as i64
             };
             if (0..=top).contains(&t) {
                 breaks.push(t);
@@ -328,22 +326,37 @@ proptest! {
             3 => (0..p).map(|i| if i % 3 == 0 { f32::NAN } else if i % 3 == 1 { -1.0 } else { rng.f32() * 1e-30 }).collect(),
             _ => (0..p).map(|_| rng.f32().powi(8) * 1e6).collect(),
         };
+        // Pixels whose two farthest fragments share one colour: the sign bit.
+        let pairs: Vec<bool> = (0..p).map(|_| rng.f32() < 0.3).collect();
+        let importance: Vec<f32> = importance
+            .iter()
+            .zip(&pairs)
+            .map(|(&i, &pair)| alloc::mark_pair(i, pair))
+            .collect();
         let target = [alloc::Target::RelativeK, alloc::Target::ShareOfFragments, alloc::Target::SlotRequest][target];
         let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
         let total: u64 = counts.iter().map(|&n| n as u64).sum();
         let f = [1, covered.saturating_sub(1).max(1), covered.max(1), (covered + total) / 2 + 1, total.max(1), total * 3 + 7][f_pick];
         let k = alloc::allocate(&importance, &counts, target, f);
         check_bounds(&k, &counts, f);
-        // A pixel's last slot, which saves nothing, only once every pixel has what it can use.
+        // Slots that save nothing (a pixel's last, or its last two where they share a colour)
+        // only once every pixel has what it can use.
         let lo = alloc::min_k(&counts, f);
-        if k.iter().zip(&counts).any(|(&kp, &n)| n > 0 && kp > alloc::useful_cap(n, lo)) {
-            for (&kp, &n) in k.iter().zip(&counts) {
-                prop_assert!(kp >= alloc::useful_cap(n, lo), "k {} below the cap of n {}", kp, n);
+        let pair = |q: usize| importance[q].is_sign_negative();
+        let cap = |q: usize| alloc::useful_cap(counts[q], lo, pair(q));
+        if (0..p).any(|q| counts[q] > 0 && k[q] > cap(q)) {
+            for q in (0..p).filter(|&q| counts[q] > 0) {
+                prop_assert!(k[q] >= cap(q), "k {} below the cap of n {}", k[q], counts[q]);
+            }
+        }
+        if (0..p).any(|q| counts[q] > 0 && k[q] > alloc::useful_cap(counts[q], lo, false)) {
+            for q in (0..p).filter(|&q| counts[q] > 0) {
+                prop_assert!(k[q] >= alloc::useful_cap(counts[q], lo, false));
             }
         }
         // The search's answer is the unique one an independent computation finds.
         let w: Vec<u32> = importance.iter().zip(&counts)
-            .map(|(&i, &n)| if n > 0 { target.weight(i, n) } else { 0 })
+            .map(|(&i, &n)| if n > 0 { alloc::pixel_weight(target, i, n) } else { 0 })
             .collect();
         prop_assert_eq!(&k, &reference_fill(&w, &counts, f, target.additive()));
     }
@@ -378,6 +391,59 @@ fn importance_allocation_follows_the_importance() {
     // the first pixel keeps its one slot.
     let k = alloc::level_fill(&[2560, 5120, 7680], &[50; 3], 33);
     assert_eq!(k, vec![1, 11, 21]);
+    // Pixel 3's two farthest fragments share one colour: it can use 8 of its 10.
+    let k = alloc::allocate(
+        &[1.0, 1.0, 1.0, alloc::mark_pair(13.0, true)],
+        &counts,
+        rel,
+        16,
+    );
+    assert_eq!(k, vec![3, 3, 2, 8]);
     // Fixed: one k for all.
     assert_eq!(alloc::fixed(4, 9), vec![2; 4]);
+}
+
+#[test]
+fn a_farthest_pair_of_one_colour_is_an_exact_tail() {
+    let mut rng = Rng::new(29);
+    let mut lists = Vec::new();
+    let mut expect = Vec::new();
+    for trial in 0..400 {
+        let n = 2 + rng.below(12);
+        let mut f = random_fragments(&mut rng, n);
+        let pair = trial % 2 == 0;
+        sort_front_to_back(&mut f);
+        if pair {
+            // The farthest takes the colour and opacity of the one before it, behind it.
+            f[n - 1].rgba = f[n - 2].rgba;
+            f[n - 1].depth = f[n - 2].depth + 1e-3;
+        }
+        // Submitted in any order.
+        for i in (1..n).rev() {
+            f.swap(i, rng.below(i + 1));
+        }
+        lists.push(f);
+        expect.push(pair);
+    }
+    let fl = frame_of(&lists);
+    let stats = dhoit_runtime::importance::pixel_stats(&fl);
+    let curves = alloc::error_curves(&fl, BG);
+    for (p, st) in stats.iter().enumerate() {
+        let n = fl.count(p) as usize;
+        let pair = dhoit_runtime::importance::tail_pair(st);
+        // Random colours never pair by chance here, constructed pairs always do.
+        assert_eq!(pair, expect[p], "pixel {p}");
+        if pair {
+            assert!(curves.curve(p)[n - 2] <= 1e-24, "pixel {p}: e(n - 2) > 0");
+            assert_eq!(alloc::useful_cap(n as u32, 0, true), n as u32 - 2);
+        }
+        // The two largest keys, farthest first, marked occupied.
+        let mut keys: Vec<u64> = fl
+            .range(p)
+            .map(|i| dhoit_runtime::composite::fragment_key(fl.depth[i], fl.rgba[i]))
+            .collect();
+        keys.sort_unstable();
+        let occ = dhoit_runtime::importance::OCCUPIED;
+        assert_eq!(st.farthest, [keys[n - 1] | occ, keys[n - 2] | occ]);
+    }
 }

@@ -352,12 +352,16 @@ fn the_allocation_pass_matches_its_cpu_twin() {
     let odd: Vec<f32> = (0..pixels)
         .map(|p| [f32::NAN, -1.0, 0.5, f32::INFINITY, 1e-9][p % 5])
         .collect();
-    // DKB's own importance, from the features of the GPU's fragments.
+    // DKB's own importance, from the features of the GPU's fragments, with the pair marks.
     let mlp = dhoit_runtime::mlp::Mlp::random(5);
-    let dkb = mlp.importance(
-        &dhoit_runtime::importance::features(&gfl, 2 * pixels as u64),
-        &counts,
-    );
+    let (feats, pairs) = dhoit_runtime::importance::features_and_pairs(&gfl, 2 * pixels as u64);
+    assert!(pairs.iter().any(|&p| p), "some pixels end in a pair");
+    let dkb: Vec<f32> = mlp
+        .importance(&feats, &counts)
+        .iter()
+        .zip(&pairs)
+        .map(|(&i, &p)| alloc::mark_pair(i, p))
+        .collect();
     let maps = [
         ("random", random),
         ("skewed", skewed),
@@ -457,8 +461,19 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
                 })
                 .collect();
             let counts: Vec<u32> = stats.iter().map(|st| st.count).collect();
-            let imp_twin = mlp.importance(&feats, &counts);
+            let imp_twin: Vec<f32> = mlp
+                .importance(&feats, &counts)
+                .iter()
+                .zip(&stats)
+                .map(|(&i, st)| alloc::mark_pair(i, importance::tail_pair(st)))
+                .collect();
             let imp = d.importance.clone().unwrap();
+            // The pair marks (sign bits) exactly, the values within 1e-5.
+            assert!(
+                imp.iter()
+                    .zip(&imp_twin)
+                    .all(|(a, b)| a.is_sign_negative() == b.is_sign_negative())
+            );
             let diff = max_abs_diff(&imp, &imp_twin);
             assert!(
                 diff <= 1e-5,

@@ -14,7 +14,8 @@
 //! a loss can fit a frame's predictions to its budget as the runtime does.
 //!
 //! On disk: one safetensors shard per (scene, view, budget) with `features` f32 [N,12],
-//! `target` f32 [N] (the paper's `k* / max_q k*(q)`), `count` u32 [N] (n), `k_opt` u32 [N] and
+//! `target` f32 [N] (the paper's `k* / max_q k*(q)`), `count` u32 [N] (n), `k_opt` u32 [N],
+//! `tail_pair` u32 [N] (1 where the two farthest fragments share one colour) and
 //! `regret` f32 [N, 17] (metadata: scene, view, width, height, budget, budget_fragments,
 //! optimal_error, critical_gain), and a `manifest.json` written last, so a dataset without a
 //! manifest is incomplete and refused.
@@ -35,10 +36,11 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 pub const MANIFEST: &str = "manifest.json";
-pub const FORMAT: &str = "dhoit-dataset-2";
+pub const FORMAT: &str = "dhoit-dataset-3";
 /// What produced a dataset: change it whenever the features, targets or fragments change, so a
 /// cached default dataset is regenerated rather than reused stale.
-pub const GENERATOR: &str = "features-v2 rgba8-fragments regret-v1 families-v2 useful-cap";
+pub const GENERATOR: &str =
+    "features-v3 rgba8-fragments regret-v1 families-v2 useful-cap tail-pair";
 
 /// Half-width D of the regret window: R is stored at `k* - D ..= k* + D`.
 pub const REGRET_HALF: usize = 8;
@@ -200,6 +202,8 @@ pub struct Samples {
     pub count: Vec<u32>,
     /// k*(p), the optimal allocation.
     pub k_opt: Vec<u32>,
+    /// Whether the pixel's two farthest fragments share one colour (`importance::tail_pair`).
+    pub pair: Vec<bool>,
     /// `R_p(k* + j) / max(E*, floor)` for j = -D..=D.
     pub regret: Vec<[f32; REGRET_WINDOW]>,
     /// Index into `scenes` of each sample.
@@ -226,6 +230,7 @@ impl Samples {
     pub fn has_regret(&self) -> bool {
         self.regret.len() == self.len()
             && self.count.len() == self.len()
+            && self.pair.len() == self.len()
             && self.frame.len() == self.len()
     }
     /// Sample indices grouped by frame, in frame order.
@@ -253,6 +258,7 @@ impl Samples {
             if full {
                 out.count.push(self.count[i]);
                 out.k_opt.push(self.k_opt[i]);
+                out.pair.push(self.pair[i]);
                 out.regret.push(self.regret[i]);
                 out.frame.push(self.frame[i]);
             }
@@ -273,6 +279,8 @@ pub struct FrameSamples {
     pub count: Vec<u32>,
     pub k_opt: Vec<u32>,
     pub regret: Vec<[f32; REGRET_WINDOW]>,
+    /// Whether the pixel's two farthest fragments share one colour (`importance::tail_pair`).
+    pub pair: Vec<bool>,
     /// Pixel index of each sample.
     pub pixel: Vec<usize>,
     /// F, and the covered pixels.
@@ -325,7 +333,7 @@ pub fn frame_samples(
     let counts = fl.counts();
     let lo = alloc::min_k(&counts, f);
     let kmax = k.iter().copied().max().unwrap_or(1).max(1);
-    let feats = importance::features(fl, f);
+    let (feats, pairs) = importance::features_and_pairs(fl, f);
     let scale = report.total.max(error_floor(pixels));
     let mut out = FrameSamples {
         budget_fragments: f,
@@ -336,10 +344,11 @@ pub fn frame_samples(
     };
     for p in 0..fl.pixel_count() {
         // Forced: no choice between lo and the most the pixel can use.
-        if alloc::useful_cap(counts[p], lo) <= lo {
+        if alloc::useful_cap(counts[p], lo, pairs[p]) <= lo {
             continue;
         }
         out.features.push(feats[p]);
+        out.pair.push(pairs[p]);
         out.target.push(k[p] as f32 / kmax as f32);
         out.count.push(counts[p]);
         out.k_opt.push(k[p]);
@@ -409,6 +418,7 @@ pub fn generate(
                 let ys: Vec<f32> = keep.iter().map(|&i| fs.target[i]).collect();
                 let ns: Vec<u32> = keep.iter().map(|&i| fs.count[i]).collect();
                 let ks: Vec<u32> = keep.iter().map(|&i| fs.k_opt[i]).collect();
+                let ps: Vec<u32> = keep.iter().map(|&i| u32::from(fs.pair[i])).collect();
                 let rs: Vec<f32> = keep.iter().flat_map(|&i| fs.regret[i]).collect();
                 let label = scene::file_label(&config.scenes[si]);
                 let file = format!(
@@ -436,6 +446,7 @@ pub fn generate(
                         Entry::f32("target", vec![keep.len()], &ys),
                         Entry::u32("count", vec![keep.len()], &ns),
                         Entry::u32("k_opt", vec![keep.len()], &ks),
+                        Entry::u32("tail_pair", vec![keep.len()], &ps),
                         Entry::f32("regret", vec![keep.len(), REGRET_WINDOW], &rs),
                     ],
                     meta,
@@ -509,6 +520,7 @@ pub fn load(dir: &Path) -> Result<(Manifest, Samples)> {
         let (_, y) = file.f32("target", Some(&[n])).map_err(bad)?;
         let (_, counts) = file.u32("count", Some(&[n])).map_err(bad)?;
         let (_, k_opt) = file.u32("k_opt", Some(&[n])).map_err(bad)?;
+        let (_, pair) = file.u32("tail_pair", Some(&[n])).map_err(bad)?;
         let (_, r) = file.f32("regret", Some(&[n, REGRET_WINDOW])).map_err(bad)?;
         if x.iter().chain(&y).chain(&r).any(|v| !v.is_finite()) {
             return Err(bad("non-finite values".into()));
@@ -536,6 +548,7 @@ pub fn load(dir: &Path) -> Result<(Manifest, Samples)> {
         samples.target.extend(y);
         samples.count.extend(counts);
         samples.k_opt.extend(k_opt);
+        samples.pair.extend(pair.iter().map(|&p| p != 0));
         samples.regret.extend(
             r.chunks_exact(REGRET_WINDOW)
                 .map(|c| <[f32; REGRET_WINDOW]>::try_from(c).expect("window")),

@@ -104,11 +104,11 @@ pub fn score(spec: &ScoreSpec, progress: &(dyn Fn() + Sync)) -> Result<Vec<Frame
                     let f = level.fragments(pixels, total).max(1);
                     let (_, rep) = alloc::optimal(&curves, f);
                     let vkb = curves.total(&alloc::water_fill(&vkb_w, &counts, f));
-                    let feats = importance::features(&fl, f);
+                    let (feats, pairs) = importance::features_and_pairs(&fl, f);
                     let dkb = spec
                         .networks
                         .iter()
-                        .map(|m| curves.total(&m.allocate(&feats, &counts, f)))
+                        .map(|m| curves.total(&m.allocate(&feats, &counts, &pairs, f)))
                         .collect();
                     scores.push(FrameScore {
                         scene: scene::file_label(name),

@@ -220,8 +220,10 @@ pub struct RegretBatch {
     pub k_opt: Tensor<2>,
     pub regret: Tensor<2>,
     pub lo: f32,
-    /// n and k* as numbers, for the fit.
+    /// n and k* as numbers, and the pixels whose two farthest fragments share one colour, for
+    /// the fit.
     pub counts: Vec<f32>,
+    pub pairs: Vec<bool>,
     pub k_opts: Vec<f32>,
     /// The share of the frame's pixels sampled.
     pub share: f64,
@@ -237,22 +239,23 @@ fn asks(loss: Loss, r: Tensor<2>, count: Tensor<2>) -> Tensor<2> {
 }
 
 /// The most slots a pixel of `n` fragments can use (`alloc::useful_cap`), as a number.
-fn useful_cap(n: f32, lo: f32) -> f64 {
-    dhoit_runtime::alloc::useful_cap(n as u32, lo as u32) as f64
+fn useful_cap(n: f32, lo: f32, pair: bool) -> f64 {
+    dhoit_runtime::alloc::useful_cap(n as u32, lo as u32, pair) as f64
 }
 
 /// The frame's fit of asks `c` to the budget `sum k*`, as the runtime's allocation does it
 /// (continuously): the scale s with `sum clamp(s c, lo, cap) = sum k*`, or the level L with
 /// `sum clamp(c - L, lo, cap) = sum k*`, cap the most slots a pixel can use
 /// (`alloc::useful_cap`). Returns s, or -L.
-pub fn fit(additive: bool, c: &[f32], n: &[f32], k_opt: &[f32], lo: f32) -> f64 {
+pub fn fit(additive: bool, c: &[f32], n: &[f32], pairs: &[bool], k_opt: &[f32], lo: f32) -> f64 {
     let target: f64 = k_opt.iter().map(|&k| k as f64).sum();
     let total = |x: f64| -> f64 {
         c.iter()
             .zip(n)
-            .map(|(&c, &n)| {
+            .zip(pairs)
+            .map(|((&c, &n), &pair)| {
                 let k = if additive { c as f64 + x } else { c as f64 * x };
-                k.clamp(lo as f64, useful_cap(n, lo))
+                k.clamp(lo as f64, useful_cap(n, lo, pair))
             })
             .sum()
     };
@@ -297,7 +300,7 @@ pub fn regret_loss(
         .try_into_vec::<f32>()
         .expect("f32 asks");
     let additive = loss == Loss::RegretLevel;
-    let shift = fit(additive, &values, &b.counts, &b.k_opts, b.lo);
+    let shift = fit(additive, &values, &b.counts, &b.pairs, &b.k_opts, b.lo);
     // Pixels the fit clamps (to lo or their cap) keep that k; the others share what is left,
     // through a shift written as a function of their asks so the gradient sees that asking
     // more leaves less for the rest: sum k = sum k* exactly. A pixel clamped on the far side
@@ -313,7 +316,7 @@ pub fn regret_loss(
         } else {
             values[i] as f64 * shift
         };
-        let (lo, cap) = (b.lo as f64, useful_cap(b.counts[i], b.lo));
+        let (lo, cap) = (b.lo as f64, useful_cap(b.counts[i], b.lo, b.pairs[i]));
         if k <= lo || k >= cap {
             fixed[i] = k.clamp(lo, cap) as f32;
             fixed_sum += fixed[i] as f64;
@@ -407,7 +410,8 @@ fn frame_regret(loss: Loss, pred: &[f32], s: &Samples) -> f64 {
             })
             .collect();
         let lo = s.frame_lo[s.frame[idx[0]] as usize] as f32;
-        let shift = fit(additive, &c, &n, &ko, lo);
+        let pairs: Vec<bool> = idx.iter().map(|&i| s.pair[i]).collect();
+        let shift = fit(additive, &c, &n, &pairs, &ko, lo);
         let mut excess = 0.0;
         for (j, &i) in idx.iter().enumerate() {
             let k = if additive {
@@ -572,6 +576,7 @@ pub fn train(
                         ),
                         lo: train_set.frame_lo[train_set.frame[chunk[0]] as usize] as f32,
                         counts: ns.clone(),
+                        pairs: chunk.iter().map(|&i| train_set.pair[i]).collect(),
                         k_opts: ks.clone(),
                         share: train_set.share,
                     };
