@@ -33,10 +33,21 @@ golden: build
 	$(RUN) features --scene hair --view 2 --res 160x120 --budget 2fpp --limit 512 --out data/golden/features.safetensors
 	$(RUN) predict --weights data/weights.safetensors --input data/golden/features.safetensors --output data/golden/predictions.safetensors
 
-## Quality table on scenes never used for training: the built-ins (seed 1) and ../shared/scenes.
-EVAL_SCENES := spheres,plates,particles,hair,foliage,shells,$(DHOIT_SCENES)/StanfordBunny/StanfordBunny.glb,$(DHOIT_SCENES)/GlassVaseFlowers/GlassVaseFlowers.glb,$(DHOIT_SCENES)/FlightHelmet/glTF/FlightHelmet.gltf,$(DHOIT_SCENES)/ToyCar/glTF/ToyCar.gltf,$(DHOIT_SCENES)/TransmissionTest/TransmissionTest.glb
+## Quality on scenes never used for training: the ten built-ins (seed 1) and, when present, the
+## real scenes in $(DHOIT_SCENES); budgets relative to each frame's fragments and in slots per
+## pixel; once at equal F and once at equal bytes. Small summaries -> docs/eval-slots.md and
+## docs/eval-bytes.md (committed), every frame, image and montage -> out/eval/.
+EVAL_BUILTIN := shells,spheres,foliage,plates,hair,particles,cad,glass,statue,shrub
+EVAL_REAL := StanfordBunny/StanfordBunny.glb GlassVaseFlowers/GlassVaseFlowers.glb FlightHelmet/glTF/FlightHelmet.gltf ToyCar/glTF/ToyCar.gltf TransmissionTest/TransmissionTest.glb
+EVAL_BUDGETS := 10%,25%,50%,75%,90%,0.25fpp,0.5fpp,1fpp,2fpp,4fpp
+EVAL_ARGS := --view 1,3 --res 320x240 --budget $(EVAL_BUDGETS) --methods fkb,vkb,dkb,optimal,mlab
 eval: build
-	$(RUN) compare --scene $(EVAL_SCENES) --view 1,3 --res 320x240 --budget 0.25fpp,0.5fpp,1fpp,2fpp,4fpp --methods fkb,vkb,dkb,optimal,mlab --out out/eval
+	@scenes="$(EVAL_BUILTIN)"; \
+	if [ -d "$(DHOIT_SCENES)" ]; then \
+	  for f in $(EVAL_REAL); do scenes="$$scenes,$(DHOIT_SCENES)/$$f"; done; \
+	else echo "eval: no real scenes at $(DHOIT_SCENES): the built-in scenes only" >&2; fi; \
+	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --equal slots --out out/eval/slots --summary docs/eval-slots.md && \
+	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --equal bytes --out out/eval/bytes --summary docs/eval-bytes.md
 
 fmt:
 	$(CARGO) fmt --all -- --check

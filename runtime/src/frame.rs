@@ -115,8 +115,9 @@ pub enum Equal {
     #[default]
     Slots,
     /// The same bytes M for every method, each method's F following from its own layout (the
-    /// paper's protocol). A budget in slots or a share sets M to what the per-pixel-k layout
-    /// ([`budget::OPT`], the leanest with a per-pixel k) needs for that F.
+    /// paper's protocol). A budget in slots or a share sets M to what DKB's layout (the largest
+    /// per-pixel cost, [`budget::DKB`]) needs for that F, so every per-pixel-k method fits and
+    /// the leaner ones get more slots than DKB for the same memory.
     Bytes,
 }
 
@@ -186,14 +187,14 @@ impl<'a> Renderer<'a> {
     }
 
     /// The budget every method of this frame gets, after [`Equal`]: at equal bytes, a budget in
-    /// slots or a share becomes the bytes the per-pixel-k layout needs for it.
+    /// slots or a share becomes the bytes DKB's layout needs for it.
     pub fn budget(&self) -> Result<Budget> {
         let opts = &self.options;
         match (opts.equal, opts.budget) {
             (Equal::Bytes, b @ (Budget::SlotsPerPixel(_) | Budget::Share(_))) => {
                 let fl = self.fragments;
                 let (bytes, _) = b.resolve(
-                    &budget::OPT,
+                    &budget::DKB,
                     fl.pixel_count() as u64,
                     fl.fragment_count() as u64,
                 )?;

@@ -93,6 +93,42 @@ fn allocations_spend_exactly_the_budget_and_never_more_bytes() {
 }
 
 #[test]
+fn equal_bytes_give_every_method_one_memory_budget() {
+    use dhoit_runtime::frame::Equal;
+    let mlp = Mlp::random(4);
+    let fl = frame("cad", 80, 60);
+    let px = fl.pixel_count() as u64;
+    for budget in ["25%", "90%", "0.5fpp", "3fpp"] {
+        let opts = Options {
+            weights: Some(&mlp),
+            equal: Equal::Bytes,
+            ..Options::new(Budget::parse(budget).unwrap(), [1.0; 3])
+        };
+        let r = Renderer::new(&fl, opts);
+        let frames: Vec<_> = [Method::Vkb, Method::Dkb, Method::Optimal]
+            .into_iter()
+            .map(|m| r.render(m).unwrap())
+            .collect();
+        let m = frames[0].budget_bytes;
+        for f in &frames {
+            assert_eq!(f.budget_bytes, m, "{budget} {}: one M", f.method.name());
+            assert!(f.allocated_bytes <= m, "{budget} {}", f.method.name());
+        }
+        // M is what DKB's layout needs for the budget's F; the leaner layouts get more slots.
+        let f_dkb = match Budget::parse(budget).unwrap() {
+            Budget::Share(ppm) => dhoit_runtime::budget::share_of(fl.fragment_count() as u64, ppm),
+            Budget::SlotsPerPixel(v) => (v * px as f64) as u64,
+            Budget::Bytes(_) => unreachable!(),
+        };
+        assert_eq!(frames[1].budget_fragments, f_dkb, "{budget}: DKB's F");
+        assert!(
+            frames[0].budget_fragments > f_dkb
+                && frames[2].budget_fragments > frames[0].budget_fragments
+        );
+    }
+}
+
+#[test]
 fn features_match_their_definitions() {
     let fl = frame("shells", 40, 30);
     let f_budget = 1234u64;
