@@ -12,8 +12,14 @@ cargo test --release --workspace --all-targets "$@" 2>&1 | tee "$log"
 status=${PIPESTATUS[0]}
 read -r passed failed < <(awk '/^test result:/ { for (i = 1; i < NF; i++) { if ($(i+1) ~ /^passed/) p += $i; if ($(i+1) ~ /^failed/) f += $i } } END { print p + 0, f + 0 }' "$log")
 rm -f "$log"
+scenes_dir=${DHOIT_SCENES:-$(cd "$(dirname "$0")/.." && pwd)/../shared/scenes}
+if [ -d "$scenes_dir" ]; then
+  real="real scenes from $scenes_dir"
+else
+  real="no real scenes (built-ins exported as glTF stood in; set DHOIT_SCENES)"
+fi
 echo
-echo "dhoit: ${passed:-0} passed, ${failed:-0} failed"
+echo "dhoit: ${passed:-0} passed, ${failed:-0} failed; $real"
 if [ "${passed:-0}" -eq 0 ] && [ "$status" -eq 0 ]; then
   echo "no test ran" >&2
   exit 1

@@ -70,6 +70,45 @@ enum Command {
     Features(FeaturesArgs),
     /// Measure CPU rasterization, compositing, allocation and training throughput; prints JSON.
     Bench(bench::BenchArgs),
+    /// Write a scene (a built-in, or a glTF file) as binary glTF 2.0: positions, vertex colours
+    /// and alpha, to open it in other tools or to test the glTF loader without real scenes.
+    Export(ExportArgs),
+}
+
+#[derive(Args)]
+struct ExportArgs {
+    /// A built-in scene name (`cad`, `particles:7`) or a .gltf/.glb path.
+    #[arg(long)]
+    scene: String,
+    /// The .glb file to write (written whole or not at all).
+    #[arg(long)]
+    out: PathBuf,
+    /// Give every surface this opacity instead of keeping the scene's own alpha.
+    #[arg(long)]
+    opacity: Option<f32>,
+}
+
+fn export(a: ExportArgs) -> Result<()> {
+    if !a
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb"))
+    {
+        bail!(
+            "--out {}: export writes binary glTF, give a .glb file name",
+            a.out.display()
+        );
+    }
+    let opacity = a.opacity.map_or(Opacity::Material, Opacity::Uniform);
+    let s = scene::load(&a.scene, opacity)?;
+    scene::gltf::export(&s, &a.out)?;
+    println!(
+        "{}: {} triangles -> {}",
+        s.name,
+        s.triangle_count(),
+        a.out.display()
+    );
+    Ok(())
 }
 
 #[derive(Args, Clone)]
@@ -439,6 +478,7 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Scenes => scenes(),
+        Command::Export(a) => export(a),
         Command::Render(a) => render(a),
         Command::Compare(a) => compare::run(a),
         Command::Dataset(a) => dhoit_train::cli::dataset(a).map_err(Into::into),

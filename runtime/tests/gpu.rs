@@ -1,6 +1,8 @@
 //! The wgpu renderer against its CPU twins. These tests need a GPU adapter (Mesa's lavapipe in
 //! CI); without one they fail, unless DHOIT_SKIP_GPU=1 says to skip them (and they say so).
 
+mod common;
+
 use dhoit_runtime::alloc;
 use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::composite::{self, Fragment, sort_front_to_back};
@@ -58,21 +60,18 @@ fn every_shader_validates_and_translates_without_a_gpu() {
     eprintln!("naga back ends accepting each pass: {accepted:?}");
 }
 
-/// One real scene among the GPU tests: the flight helmet from ../shared/scenes (or $DHOIT_SCENES).
+/// One real scene among the GPU tests: the flight helmet from ../shared/scenes (or
+/// $DHOIT_SCENES; see `common::real_or_exported` when there are none).
 const REAL: &str = "real:FlightHelmet/glTF/FlightHelmet.gltf";
 
 fn frame(name: &str, view: usize, w: u32, h: u32) -> (Scene, Camera) {
     let s = match name.strip_prefix("real:") {
         Some(rel) => {
-            let dir = std::env::var_os("DHOIT_SCENES")
-                .map(std::path::PathBuf::from)
-                .unwrap_or_else(|| {
-                    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes")
-                });
-            let path = dir.join(rel);
-            scene::load(path.to_str().unwrap(), Opacity::default()).unwrap_or_else(|e| {
-                panic!("the real scene for the GPU tests: {e} (set DHOIT_SCENES)")
-            })
+            // On a clone with nothing beside it, a textured-looking built-in written as glTF
+            // stands in, read through the same loader.
+            let path = common::real_or_exported(rel, "statue");
+            scene::load(path.to_str().unwrap(), Opacity::default())
+                .unwrap_or_else(|e| panic!("the real scene for the GPU tests: {e}"))
         }
         None => scene::load(name, Opacity::default()).unwrap(),
     };

@@ -299,3 +299,92 @@ fn to_rgba(data: &gltf::image::Data) -> Option<Vec<[f32; 4]>> {
     };
     (out.len() == (data.width * data.height) as usize).then_some(out)
 }
+
+/// Writes a scene as a binary glTF 2.0 file (`.glb`): one node, one mesh, one primitive of
+/// unindexed triangles in submission order with `POSITION` (f32 VEC3) and `COLOR_0` (f32 VEC4,
+/// linear, non-premultiplied), and a white `BLEND` material, so [`load`] with the material's
+/// alpha gives back the same triangles and colours bit for bit. Written to a temporary file and
+/// renamed, so a failed export leaves no half-written file.
+pub fn export(scene: &Scene, path: &Path) -> Result<()> {
+    let bytes = to_glb(scene).map_err(|m| Error::scene(path, m))?;
+    crate::tensors::write_atomic(path, &bytes)
+}
+
+/// The `.glb` bytes of a scene (see [`export`]).
+pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, String> {
+    let n = scene.positions.len();
+    if n == 0 || !n.is_multiple_of(3) || scene.colors.len() != n {
+        return Err(format!(
+            "{} positions and {} colours do not make whole triangles",
+            n,
+            scene.colors.len()
+        ));
+    }
+    if let Some(i) = scene.positions.iter().position(|p| !p.is_finite()) {
+        return Err(format!("vertex {i} has a non-finite position"));
+    }
+    let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+    for p in &scene.positions {
+        for (c, v) in p.to_array().into_iter().enumerate() {
+            lo[c] = lo[c].min(v);
+            hi[c] = hi[c].max(v);
+        }
+    }
+    let mut bin: Vec<u8> = Vec::with_capacity(n * 28);
+    bin.extend(
+        scene
+            .positions
+            .iter()
+            .flat_map(|p| p.to_array())
+            .flat_map(f32::to_le_bytes),
+    );
+    let pos_len = bin.len();
+    bin.extend(scene.colors.iter().flatten().flat_map(|c| c.to_le_bytes()));
+    let col_len = bin.len() - pos_len;
+    let json = serde_json::json!({
+        "asset": {"version": "2.0", "generator": "dhoit export"},
+        "scene": 0,
+        "scenes": [{"name": scene.name, "nodes": [0]}],
+        "nodes": [{"mesh": 0, "name": scene.name}],
+        "meshes": [{"primitives": [{
+            "attributes": {"POSITION": 0, "COLOR_0": 1},
+            "material": 0,
+            "mode": 4
+        }]}],
+        "materials": [{
+            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0]},
+            "alphaMode": "BLEND",
+            "doubleSided": true
+        }],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": n, "type": "VEC3",
+             "min": lo, "max": hi},
+            {"bufferView": 1, "componentType": 5126, "count": n, "type": "VEC4"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": pos_len},
+            {"buffer": 0, "byteOffset": pos_len, "byteLength": col_len}
+        ],
+        "buffers": [{"byteLength": bin.len()}]
+    });
+    let mut json = serde_json::to_vec(&json).map_err(|e| e.to_string())?;
+    while !json.len().is_multiple_of(4) {
+        json.push(b' ');
+    }
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let total = u32::try_from(total).map_err(|_| format!("{total} bytes exceed a GLB's 4 GiB"))?;
+    let mut out = Vec::with_capacity(total as usize);
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend(total.to_le_bytes());
+    out.extend((json.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(json);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(bin);
+    Ok(out)
+}

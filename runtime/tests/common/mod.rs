@@ -1,0 +1,47 @@
+//! Helpers shared by the runtime's integration tests.
+#![allow(dead_code)] // each test binary uses its own subset
+
+use dhoit_runtime::scene::{self, Opacity};
+use std::path::{Path, PathBuf};
+
+/// A fresh, empty temporary directory for one test (`prefix` names it).
+pub fn temp_dir(prefix: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("dhoit-{prefix}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The folder of real glTF scenes: $DHOIT_SCENES, else ../shared/scenes beside the workspace;
+/// None when it does not exist (a fresh clone with nothing beside it).
+pub fn scenes_dir() -> Option<PathBuf> {
+    let dir = std::env::var_os("DHOIT_SCENES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes"));
+    dir.is_dir().then_some(dir)
+}
+
+/// A glTF scene file for a test: the real scene `rel` under [`scenes_dir`] when there is one,
+/// else the built-in `stand_in` written as `.glb` by the exporter (which the loader then reads
+/// like any file). Says which on stderr.
+pub fn real_or_exported(rel: &str, stand_in: &str) -> PathBuf {
+    if let Some(dir) = scenes_dir() {
+        let path = dir.join(rel);
+        assert!(
+            path.is_file(),
+            "{} is missing from the real scenes at {}",
+            rel,
+            dir.display()
+        );
+        return path;
+    }
+    let path = temp_dir(&format!("standin-{}", scene::file_label(stand_in)))
+        .join(format!("{}.glb", scene::file_label(stand_in)));
+    let s = scene::load(stand_in, Opacity::Material).unwrap();
+    scene::gltf::export(&s, &path).unwrap();
+    eprintln!(
+        "real scenes absent: {rel} replaced by the built-in {stand_in} exported as {}",
+        path.display()
+    );
+    path
+}
