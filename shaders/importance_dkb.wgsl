@@ -8,11 +8,11 @@
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<uniform> weights: array<vec4<f32>, 2504>;
 @group(0) @binding(2) var<storage, read> count: array<u32>;
-@group(0) @binding(3) var<storage, read> nearest_inv: array<u64>;
+// Per pixel: the nearest key (complemented), the two farthest keys (features.wgsl).
+@group(0) @binding(3) var<storage, read> keys: array<u64>;
 @group(0) @binding(4) var<storage, read> sums: array<u32>;
-@group(0) @binding(5) var<storage, read> farthest: array<u64>;
-@group(0) @binding(6) var<storage, read> totals: array<u32>;
-@group(0) @binding(7) var<storage, read_write> importance: array<f32>;
+@group(0) @binding(5) var<storage, read> totals: array<u32>;
+@group(0) @binding(6) var<storage, read_write> importance: array<f32>;
 
 // importance::OCCUPIED.
 const OCCUPIED: u64 = 0x8000000000000000lu;
@@ -46,7 +46,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let total = f32(max(totals[0], 1u));
     let covered = f32(max(totals[1], 1u));
     let nf = f32(c);
-    let key = ~nearest_inv[p];
+    let key = ~keys[3u * p];
     let near8 = u32(key & 0xfffffffflu);
     let near = unpack_rgba8(near8).rgb;
     let sum = vec3<u32>(sums[4u * p], sums[4u * p + 1u], sums[4u * p + 2u]);
@@ -115,8 +115,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     // The sign bit marks a pixel whose two farthest fragments share one colour
     // (importance::tail_pair, alloc::mark_pair): the allocation lets it use a slot fewer.
-    let f0 = farthest[2u * p];
-    let f1 = farthest[2u * p + 1u];
+    let f0 = keys[3u * p + 1u];
+    let f1 = keys[3u * p + 2u];
     let pair = (f1 & OCCUPIED) != 0lu && u32(f0 & 0xfffffffflu) == u32(f1 & 0xfffffffflu);
     let i = 1.0 / (1.0 + exp(-out));
     importance[p] = bitcast<f32>(bitcast<u32>(i) | select(0u, 0x80000000u, pair));

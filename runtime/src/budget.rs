@@ -51,22 +51,21 @@ const ALLOC_STATE: (&str, u64) = ("alloc.state", 192);
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 
-/// Deep k-buffer: network features, importance, k, offsets, tail, output.
+/// Deep k-buffer: network features, importance, k, offsets, tail, output. The features'
+/// keys (nearest and two farthest, 24 bytes) are read by the importance pass and then hold the
+/// tail (20); their colour sums (16) then hold the image (16): 61 bytes a pixel, as VKB's.
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
     per_pixel: &[
         RASTER_TARGET,
         ("features.count", 4),
-        ("features.nearest", 8),
+        ("features.keys", 24),
         ("features.color_sums", 16),
-        ("features.farthest", 16),
         ("oit.importance", 4),
         ("alloc.flags", 4),
         ("oit.k", 4),
         ("oit.offsets", 4),
-        HYBRID_TAIL,
-        ("oit.image", 16),
     ],
     fixed: &[
         ("mlp.weights", MLP_UNIFORM_BYTES),
@@ -94,7 +93,8 @@ pub const OPT: Layout = Layout {
     scan: true,
 };
 
-/// Variable k-buffer with importance maps (paper 002).
+/// Variable k-buffer with importance maps (paper 002). The nearest keys (8 bytes), read by the
+/// importance pass, then hold the allocation's marks (4).
 pub const VKB: Layout = Layout {
     method: "vkb",
     slot_bytes: SLOT_BYTES,
@@ -103,7 +103,6 @@ pub const VKB: Layout = Layout {
         ("vkb.count", 4),
         ("vkb.nearest", 8),
         ("oit.importance", 4),
-        ("alloc.flags", 4),
         ("oit.k", 4),
         ("oit.offsets", 4),
         HYBRID_TAIL,

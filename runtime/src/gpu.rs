@@ -638,7 +638,12 @@ impl Passes<'_> {
             true,
         );
         let state = fb.storage("alloc.state", 192, true)?;
-        let flags = fb.storage("alloc.flags", 4 * self.pixels as u64, true)?;
+        // The marks need 4 bytes a pixel only during the allocation: a buffer the frame no longer
+        // needs by then holds them where there is one.
+        let flags = match b.flags {
+            Some(f) => f.clone(),
+            None => fb.storage("alloc.flags", 4 * self.pixels as u64, true)?,
+        };
         let bind = |marks: &wgpu::Buffer| {
             gpu.bind_at(
                 &a.layout,
@@ -857,13 +862,15 @@ impl Gpu {
         };
         let p = &self.pipelines;
         let params_buf = &params_buf;
-        let image = fb.storage("oit.image", 16 * px, true)?;
         let mut enc = self.device.create_command_encoder(&Default::default());
+        // The image: its own buffer, or (DKB) the features' colour sums once they are read.
+        let image: wgpu::Buffer;
         let mut out = Readback::default();
         match slots {
             None | Some(Slots::Mlab(_)) => {
                 // The per-pixel sorts (sort and blend, MLAB) report a near loop limit here.
                 let status = fb.storage("status", 16, true)?;
+                image = fb.storage("oit.image", 16 * px, true)?;
                 let counts = fb.storage("abuf.count", 4 * px, true)?;
                 let offsets = fb.storage("abuf.offsets", 4 * (px + 1), true)?;
                 let cursor = fb.storage("abuf.cursor", 4 * px, true)?;
@@ -906,6 +913,9 @@ impl Gpu {
                 out.status = Some(status);
             }
             Some(s) => {
+                // Per-pixel buffers whose contents are read by the time of the capture, for the
+                // tail (20 bytes a pixel) and the image (16) to live in (DKB's features).
+                let (mut reuse_tail, mut reuse_image) = (None, None);
                 // k for every pixel: uniform, uploaded, or allocated here from importance.
                 let (k_of, base, slot_count) = match s {
                     Slots::Uniform(k) => {
@@ -932,7 +942,7 @@ impl Gpu {
                         (k_of, base, k.iter().map(|&x| x as u64).sum())
                     }
                     _ => {
-                        let (counts, importance, totals, kind) = match s {
+                        let (counts, importance, totals, kind, marks) = match s {
                             Slots::Importance(imp, target, _) => {
                                 if imp.len() != pixels as usize {
                                     return Err(Error::Invalid(format!(
@@ -956,7 +966,7 @@ impl Gpu {
                                     groups,
                                     "totals",
                                 );
-                                (counts, imp, totals, weight_kind(target))
+                                (counts, imp, totals, weight_kind(target), None)
                             }
                             Slots::Vkb(..) => {
                                 let counts = fb.storage("vkb.count", 4 * px, true)?;
@@ -978,8 +988,13 @@ impl Gpu {
                                     groups,
                                     "importance",
                                 );
-                                out.vkb_nearest_buf = Some(nearest);
-                                (counts, imp, totals, weight_kind(Target::RelativeK))
+                                // The nearest keys are read: a copy for the frame's statistics
+                                // (not counted), then the buffer holds the allocation's marks.
+                                let copy = fb.storage("vkb.nearest.readback", 8 * px, false)?;
+                                enc.copy_buffer_to_buffer(&nearest, 0, &copy, 0, 8 * px);
+                                out.vkb_nearest_buf = Some(copy);
+                                let kind = weight_kind(Target::RelativeK);
+                                (counts, imp, totals, kind, Some(nearest))
                             }
                             Slots::Dkb(mlp, _) => {
                                 let weights = fb.init(
@@ -989,15 +1004,16 @@ impl Gpu {
                                     true,
                                 );
                                 let counts = fb.storage("features.count", 4 * px, true)?;
-                                let nearest = fb.storage("features.nearest", 8 * px, true)?;
+                                // The nearest and the two farthest keys (24 bytes a pixel), then
+                                // the tail; the colour sums (16), then the image.
+                                let keys = fb.storage("features.keys", 24 * px, true)?;
                                 let sums = fb.storage("features.color_sums", 16 * px, true)?;
-                                let farthest = fb.storage("features.farthest", 16 * px, true)?;
                                 let totals = fb.storage("features.totals", 24, true)?;
                                 let imp = fb.storage("oit.importance", 4 * px, true)?;
                                 passes.draw(
                                     &mut enc,
                                     &p.features,
-                                    &[&counts, &nearest, &sums, &farthest],
+                                    &[&counts, &keys, &sums],
                                     "features",
                                 );
                                 passes.dispatch(
@@ -1010,15 +1026,22 @@ impl Gpu {
                                 passes.dispatch(
                                     &mut enc,
                                     &p.importance_dkb,
-                                    &[
-                                        params_buf, &weights, &counts, &nearest, &sums, &farthest,
-                                        &totals, &imp,
-                                    ],
+                                    &[params_buf, &weights, &counts, &keys, &sums, &totals, &imp],
                                     groups,
                                     "importance",
                                 );
-                                out.stats_bufs = Some([nearest, sums, farthest]);
-                                (counts, imp, totals, weight_kind(mlp.target))
+                                // Copies for the frame's statistics (not counted), then the
+                                // buffers serve the tail and the image.
+                                let keys_copy =
+                                    fb.storage("features.keys.readback", 24 * px, false)?;
+                                let sums_copy =
+                                    fb.storage("features.color_sums.readback", 16 * px, false)?;
+                                enc.copy_buffer_to_buffer(&keys, 0, &keys_copy, 0, 24 * px);
+                                enc.copy_buffer_to_buffer(&sums, 0, &sums_copy, 0, 16 * px);
+                                out.stats_bufs = Some([keys_copy, sums_copy]);
+                                reuse_tail = Some(keys);
+                                reuse_image = Some(sums);
+                                (counts, imp, totals, weight_kind(mlp.target), None)
                             }
                             _ => unreachable!("handled above"),
                         };
@@ -1040,6 +1063,7 @@ impl Gpu {
                                 k: &k_of,
                                 prefix: &base,
                                 totals: &totals,
+                                flags: marks.as_ref(),
                             },
                             budget,
                             kind,
@@ -1053,7 +1077,18 @@ impl Gpu {
                     }
                 };
                 let slots_buf = fb.storage("oit.slots", 8 * slot_count, true)?;
-                let tail = fb.storage("oit.tail", 20 * px, true)?;
+                let tail = match reuse_tail {
+                    Some(b) => {
+                        // The tail's sums start from zero.
+                        enc.clear_buffer(&b, 0, None);
+                        b
+                    }
+                    None => fb.storage("oit.tail", 20 * px, true)?,
+                };
+                image = match reuse_image {
+                    Some(b) => b,
+                    None => fb.storage("oit.image", 16 * px, true)?,
+                };
                 passes.draw(
                     &mut enc,
                     &p.capture,
@@ -1157,6 +1192,8 @@ struct AllocBuffers<'a> {
     /// Scratch for the prefix of the marks (the slot offsets, computed after).
     prefix: &'a wgpu::Buffer,
     totals: &'a wgpu::Buffer,
+    /// A dead buffer of at least 4 bytes a pixel to hold the marks (else one is allocated).
+    flags: Option<&'a wgpu::Buffer>,
 }
 
 /// Workgroups of 256 invocations covering `pixels`, as a 2-D grid when one dimension cannot
@@ -1230,8 +1267,8 @@ struct Readback {
     slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
     counts_buf: Option<wgpu::Buffer>,
     importance_buf: Option<wgpu::Buffer>,
-    /// DKB: nearest key, colour sums, the two farthest keys.
-    stats_bufs: Option<[wgpu::Buffer; 3]>,
+    /// DKB: the keys (nearest, two farthest) and the colour sums.
+    stats_bufs: Option<[wgpu::Buffer; 2]>,
     vkb_nearest_buf: Option<wgpu::Buffer>,
 }
 
@@ -1258,18 +1295,17 @@ impl Readback {
         };
         let counts = u32s(&read_back(gpu, counts, 4 * px)?);
         let stats = match &self.stats_bufs {
-            Some([nearest, sums, farthest]) => {
-                let nearest = read_u64s(gpu, nearest, px, true)?;
+            Some([keys, sums]) => {
+                let keys = read_u64s(gpu, keys, 3 * px, false)?;
                 let sums = u32s(&read_back(gpu, sums, 16 * px)?);
-                let farthest = read_u64s(gpu, farthest, 2 * px, false)?;
                 Some(
                     (0..px as usize)
                         .map(|q| PixelStats {
                             count: counts[q],
-                            nearest_key: if counts[q] > 0 { nearest[q] } else { 0 },
+                            nearest_key: if counts[q] > 0 { !keys[3 * q] } else { 0 },
                             color_sum: [sums[4 * q], sums[4 * q + 1], sums[4 * q + 2]],
                             color_sq_sum: sums[4 * q + 3],
-                            farthest: [farthest[2 * q], farthest[2 * q + 1]],
+                            farthest: [keys[3 * q + 1], keys[3 * q + 2]],
                         })
                         .collect(),
                 )
