@@ -37,7 +37,8 @@ pub struct CompareArgs {
         long = "budget",
         alias = "budgets",
         value_delimiter = ',',
-        default_value = "2fpp"
+        default_value = "2fpp",
+        allow_hyphen_values = true
     )]
     budgets: Vec<String>,
     /// Methods, comma separated (dkb only when weights are found); all by default.

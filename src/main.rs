@@ -114,7 +114,7 @@ fn export(a: ExportArgs) -> Result<()> {
 #[derive(Args, Clone)]
 pub(crate) struct ViewArgs {
     /// Resolution WIDTHxHEIGHT.
-    #[arg(long, default_value = "640x480")]
+    #[arg(long, default_value = "640x480", allow_hyphen_values = true)]
     pub(crate) res: String,
     /// Number of orbit views around the scene (view I is at angle I/N of a turn).
     #[arg(long, default_value_t = scene::DEFAULT_VIEWS)]
@@ -155,11 +155,11 @@ struct RenderArgs {
     device: String,
     /// Memory budget: bytes (20MB, 40MiB), slots per pixel (2fpp) or a share of the frame's
     /// fragments (25%).
-    #[arg(long, default_value = "2fpp")]
+    #[arg(long, default_value = "2fpp", allow_hyphen_values = true)]
     budget: String,
     /// What the budget fixes: slots (F; bytes follow from the method's layout) or bytes (the
-    /// memory M; F follows from the layout, a budget in slots or % sets M by the per-pixel-k
-    /// layout).
+    /// memory M; F follows from the layout, a budget in slots or % sets M to what DKB's layout
+    /// needs for that F).
     #[arg(long, default_value = "slots", value_parser = parse_equal)]
     equal: Equal,
     /// Output image (sRGB PNG).
@@ -182,8 +182,8 @@ struct FeaturesArgs {
     view: usize,
     #[command(flatten)]
     common: ViewArgs,
-    /// Budget the features describe (feature 9 is F / sum n), for the DKB layout.
-    #[arg(long, default_value = "2fpp")]
+    /// Budget the features describe (F / sum n is a feature), for the DKB layout.
+    #[arg(long, default_value = "2fpp", allow_hyphen_values = true)]
     budget: String,
     /// Keep at most this many covered pixels, evenly spaced (all by default).
     #[arg(long)]

@@ -69,7 +69,7 @@ pub fn read(path: &Path) -> Result<Dump> {
     } else {
         path.to_path_buf()
     };
-    let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+    let bytes = std::fs::read(&path).map_err(|e| Error::read(&path, e))?;
     let err = |m: String| Error::Dump {
         path: path.clone(),
         message: m,

@@ -5,8 +5,11 @@ use std::path::PathBuf;
 /// Everything that can go wrong in the runtime, each variant naming the thing at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    #[error("cannot read {path}: {source}")]
+    /// A file or folder that could not be read, written, created or renamed (the operating
+    /// system's reason follows as the source).
+    #[error("cannot {op} {path}")]
     Io {
+        op: IoOp,
         path: PathBuf,
         #[source]
         source: std::io::Error,
@@ -35,9 +38,41 @@ pub enum Error {
 
 pub type Result<T> = std::result::Result<T, Error>;
 
+/// What an I/O error was doing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IoOp {
+    Read,
+    Write,
+    CreateFolder,
+    Rename,
+    Remove,
+}
+
+impl std::fmt::Display for IoOp {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            IoOp::Read => "read",
+            IoOp::Write => "write",
+            IoOp::CreateFolder => "create the folder",
+            IoOp::Rename => "rename a finished file to",
+            IoOp::Remove => "remove",
+        })
+    }
+}
+
 impl Error {
-    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+    /// A read that failed.
+    pub fn read(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
+            op: IoOp::Read,
+            path: path.into(),
+            source,
+        }
+    }
+    /// Any other I/O that failed.
+    pub fn io_op(op: IoOp, path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            op,
             path: path.into(),
             source,
         }

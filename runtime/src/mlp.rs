@@ -156,7 +156,7 @@ impl Mlp {
 
     /// Reads and validates a weights file.
     pub fn load(path: &Path) -> Result<Mlp> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
         Self::from_bytes(&bytes).map_err(|message| Error::Weights {
             path: path.to_path_buf(),
             message,

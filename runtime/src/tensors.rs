@@ -1,7 +1,7 @@
 //! Small helpers over the `safetensors` crate: typed reads with shape checks, and atomic writes
 //! (a temporary file renamed into place, so a failed write never leaves half a file).
 
-use crate::error::{Error, Result};
+use crate::error::{Error, IoOp, Result};
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 use std::collections::HashMap;
 use std::path::Path;
@@ -51,7 +51,7 @@ pub fn write(path: &Path, entries: &[Entry], metadata: HashMap<String, String>) 
 /// Writes bytes to a sibling temporary file, then renames it over `path`.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        std::fs::create_dir_all(dir).map_err(|e| Error::io_op(IoOp::CreateFolder, dir, e))?;
     }
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(format!(".{}.tmp", std::process::id()));
@@ -59,11 +59,11 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     // A failed write (a full disk, say) removes its temporary file and leaves `path` as it was.
     if let Err(e) = std::fs::write(&tmp, bytes) {
         let _ = std::fs::remove_file(&tmp);
-        return Err(Error::io(&tmp, e));
+        return Err(Error::io_op(IoOp::Write, path, e));
     }
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
-        Error::io(path, e)
+        Error::io_op(IoOp::Rename, path, e)
     })
 }
 

@@ -294,7 +294,7 @@ pub struct PredictArgs {
 
 /// Reads a features file (`features` f32 [N,12], finite).
 pub fn read_features(path: &Path) -> Result<Vec<[f32; FEATURES]>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
     let bad = |message: String| Error::Features {
         path: path.to_path_buf(),
         message,

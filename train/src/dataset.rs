@@ -20,7 +20,7 @@
 //! optimal_error, critical_gain), and a `manifest.json` written last, so a dataset without a
 //! manifest is incomplete and refused.
 
-use crate::{Error, Result};
+use crate::{Error, IoOp, Result};
 use dhoit_runtime::alloc;
 use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::importance::{self, FEATURES};
@@ -383,11 +383,12 @@ pub fn generate(
     }
     raster::check_resolution(config.width, config.height)?;
     let start = Instant::now();
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io_op(IoOp::CreateFolder, out, e))?;
     // A stale manifest must not describe shards about to be replaced.
     let manifest_path = out.join(MANIFEST);
     if manifest_path.exists() {
-        std::fs::remove_file(&manifest_path).map_err(|e| Error::io(&manifest_path, e))?;
+        std::fs::remove_file(&manifest_path)
+            .map_err(|e| Error::io_op(IoOp::Remove, &manifest_path, e))?;
     }
     let scenes: Vec<scene::Scene> = config
         .scenes
@@ -493,7 +494,7 @@ pub fn load(dir: &Path) -> Result<(Manifest, Samples)> {
                 dir.display()
             ))
         } else {
-            Error::io(&mpath, e)
+            Error::read(&mpath, e)
         }
     })?;
     let manifest: Manifest = serde_json::from_str(&text)
@@ -512,7 +513,7 @@ pub fn load(dir: &Path) -> Result<(Manifest, Samples)> {
     };
     for shard in &manifest.shards {
         let path: PathBuf = dir.join(&shard.file);
-        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+        let bytes = std::fs::read(&path).map_err(|e| Error::read(&path, e))?;
         let bad = |m: String| Error::Dataset(format!("{}: {m}", path.display()));
         let file = tensors::File::parse(&bytes).map_err(bad)?;
         let n = shard.samples;

@@ -13,18 +13,13 @@ pub mod plot;
 pub mod score;
 pub mod trainer;
 
+pub use dhoit_runtime::error::IoOp;
 use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     #[error(transparent)]
     Runtime(#[from] dhoit_runtime::Error),
-    #[error("cannot read or write {path}: {source}")]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
     #[error("dataset: {0}")]
     Dataset(String),
     #[error("{0}")]
@@ -36,11 +31,13 @@ pub enum Error {
 }
 
 impl Error {
-    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Error::Io {
-            path: path.into(),
-            source,
-        }
+    /// A read that failed (the runtime's I/O error, which says what and where).
+    pub fn read(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Runtime(dhoit_runtime::Error::read(path, source))
+    }
+    /// Any other I/O that failed.
+    pub fn io_op(op: IoOp, path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Runtime(dhoit_runtime::Error::io_op(op, path, source))
     }
 }
 

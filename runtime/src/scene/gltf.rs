@@ -18,7 +18,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 pub fn load(path: &Path) -> Result<Scene> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
     let err = |m: String| Error::scene(path, m);
     let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| err(format!("not a valid glTF: {e}")))?;
     let base = path.parent().unwrap_or(Path::new("."));

@@ -47,6 +47,36 @@ impl Scene {
         self.colors.extend_from_slice(&c);
     }
 
+    /// Whether the scene can be rendered: some triangles, every position finite, a bounding
+    /// sphere a float can hold (positions far beyond 1e18 leave no depth precision), and at
+    /// least one triangle with an area.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        if self.triangle_count() == 0 {
+            return Err("the scene has no triangles".into());
+        }
+        if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
+            return Err(format!(
+                "vertex {i} (triangle {}) has a position that is not finite: {:?}",
+                i / 3,
+                self.positions[i]
+            ));
+        }
+        let (_, r) = self.bounding_sphere();
+        if !(r.is_finite() && r <= 1e18) {
+            return Err(format!(
+                "coordinates too large: the scene's bounding radius is {r:e} (at most 1e18)"
+            ));
+        }
+        let area = |t: &[Vec3]| (t[1] - t[0]).cross(t[2] - t[0]).length_squared() > 0.0;
+        if !self.positions.chunks_exact(3).any(area) {
+            return Err(format!(
+                "every one of its {} triangles is degenerate (zero area): nothing to draw",
+                self.triangle_count()
+            ));
+        }
+        Ok(())
+    }
+
     /// Applies an opacity mode: `Uniform(a)` overwrites every vertex alpha with `a`.
     pub fn with_opacity(mut self, opacity: Opacity) -> Result<Self> {
         if let Opacity::Uniform(a) = opacity {
@@ -128,9 +158,7 @@ pub fn load(name_or_path: &str, opacity: Opacity) -> Result<Scene> {
         }
         gltf::load(path)?
     };
-    if scene.triangle_count() == 0 {
-        return Err(Error::scene(name_or_path, "the scene has no triangles"));
-    }
+    scene.check().map_err(|m| Error::scene(name_or_path, m))?;
     scene.with_opacity(opacity)
 }
 

@@ -1,0 +1,837 @@
+//! A corpus of bad inputs, one test per case: broken glTF and GLB files, weights and features
+//! files, fragment dumps and command-line arguments. Each must end the command with a non-zero
+//! exit and a message naming the problem, never a panic, and leave no output file behind.
+
+use dhoit_runtime::mlp::Mlp;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// A folder of its own for each case.
+fn case_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("dhoit-bad-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs dhoit with `args` (`{out}` is replaced by an output path in the case's folder) and
+/// checks the failure: non-zero exit, `needle` in the message (case-insensitive), no panic,
+/// no output left behind.
+fn fails(dir: &Path, args: &[&str], needle: &str) {
+    let out = dir.join("out.png");
+    let args: Vec<String> = args
+        .iter()
+        .map(|a| a.replace("{out}", out.to_str().unwrap()))
+        .collect();
+    let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
+        .args(&args)
+        .output()
+        .expect("run dhoit");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{args:?} succeeded");
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    assert!(
+        err.to_lowercase().contains(&needle.to_lowercase()),
+        "{args:?}: '{err}' should mention '{needle}'"
+    );
+    assert!(!out.exists(), "{args:?} left {} behind", out.display());
+    let left: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "{args:?} left temporary files: {left:?}");
+}
+
+/// Renders a scene file: the command every broken scene goes through.
+fn render_scene(dir: &Path, scene: &Path, needle: &str) {
+    fails(
+        dir,
+        &[
+            "render",
+            "--scene",
+            scene.to_str().unwrap(),
+            "--res",
+            "32x24",
+            "--out",
+            "{out}",
+        ],
+        needle,
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// glTF and GLB
+
+/// A glTF document with one triangle list: positions (and optional colours), the given
+/// indices, buffers inline as a data URI unless `bin` names a file.
+fn gltf_json(
+    positions: &[[f32; 3]],
+    indices: Option<&[u32]>,
+    extra: serde_json::Value,
+) -> (serde_json::Value, Vec<u8>) {
+    let mut bin: Vec<u8> = positions
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let pos_len = bin.len();
+    let mut accessors = vec![serde_json::json!({
+        "bufferView": 0, "componentType": 5126, "count": positions.len(), "type": "VEC3",
+        "min": [-1.0, -1.0, -1.0], "max": [1.0, 1.0, 1.0]
+    })];
+    let mut views = vec![serde_json::json!({"buffer": 0, "byteOffset": 0, "byteLength": pos_len})];
+    let mut prim = serde_json::json!({"attributes": {"POSITION": 0}});
+    if let Some(ix) = indices {
+        bin.extend(ix.iter().flat_map(|i| i.to_le_bytes()));
+        views.push(
+            serde_json::json!({"buffer": 0, "byteOffset": pos_len, "byteLength": 4 * ix.len()}),
+        );
+        accessors.push(serde_json::json!({"bufferView": 1, "componentType": 5125, "count": ix.len(), "type": "SCALAR"}));
+        prim["indices"] = 1.into();
+    }
+    let mut json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [prim]}],
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{"byteLength": bin.len()}]
+    });
+    if let serde_json::Value::Object(m) = extra {
+        for (k, v) in m {
+            json[k] = v;
+        }
+    }
+    (json, bin)
+}
+
+fn glb(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
+    let mut j = serde_json::to_vec(json).unwrap();
+    while !j.len().is_multiple_of(4) {
+        j.push(b' ');
+    }
+    let mut b = bin.to_vec();
+    while !b.len().is_multiple_of(4) {
+        b.push(0);
+    }
+    let total = 12 + 8 + j.len() + 8 + b.len();
+    let mut out = Vec::new();
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend((total as u32).to_le_bytes());
+    out.extend((j.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(j);
+    out.extend((b.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(b);
+    out
+}
+
+const TRI: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+
+fn good_glb() -> Vec<u8> {
+    let (j, b) = gltf_json(&TRI, None, serde_json::json!({}));
+    glb(&j, &b)
+}
+
+/// Writes `bytes` as the case's scene file and renders it.
+fn bad_scene(name: &str, file: &str, bytes: &[u8], needle: &str) {
+    let dir = case_dir(name);
+    let path = dir.join(file);
+    std::fs::write(&path, bytes).unwrap();
+    render_scene(&dir, &path, needle);
+}
+
+#[test]
+fn glb_empty_file() {
+    bad_scene("glb-empty", "s.glb", b"", "not a valid gltf");
+}
+
+#[test]
+fn glb_truncated_header() {
+    bad_scene("glb-header", "s.glb", &good_glb()[..7], "not a valid gltf");
+}
+
+#[test]
+fn glb_truncated_body() {
+    let g = good_glb();
+    bad_scene("glb-body", "s.glb", &g[..g.len() - 12], "gltf");
+}
+
+#[test]
+fn glb_wrong_magic() {
+    let mut g = good_glb();
+    g[..4].copy_from_slice(b"gLTx");
+    bad_scene("glb-magic", "s.glb", &g, "not a valid gltf");
+}
+
+#[test]
+fn glb_wrong_version() {
+    let mut g = good_glb();
+    g[4..8].copy_from_slice(&1u32.to_le_bytes());
+    bad_scene("glb-version", "s.glb", &g, "not a valid gltf");
+}
+
+#[test]
+fn glb_length_beyond_the_file() {
+    let mut g = good_glb();
+    let len = g.len() as u32 + 1000;
+    g[8..12].copy_from_slice(&len.to_le_bytes());
+    bad_scene("glb-length", "s.glb", &g, "not a valid gltf");
+}
+
+#[test]
+fn glb_json_chunk_beyond_the_file() {
+    let mut g = good_glb();
+    g[12..16].copy_from_slice(&100_000u32.to_le_bytes());
+    bad_scene("glb-chunk", "s.glb", &g, "not a valid gltf");
+}
+
+#[test]
+fn gltf_not_json() {
+    bad_scene(
+        "gltf-json",
+        "s.gltf",
+        b"{ not json at all",
+        "not a valid gltf",
+    );
+}
+
+#[test]
+fn gltf_missing_buffer_file() {
+    let (mut j, _) = gltf_json(&TRI, None, serde_json::json!({}));
+    j["buffers"][0]["uri"] = "nowhere.bin".into();
+    bad_scene(
+        "gltf-missing-bin",
+        "s.gltf",
+        &serde_json::to_vec(&j).unwrap(),
+        "buffer",
+    );
+}
+
+#[test]
+fn gltf_short_buffer() {
+    let dir = case_dir("gltf-short-bin");
+    let (mut j, b) = gltf_json(&TRI, None, serde_json::json!({}));
+    j["buffers"][0] = serde_json::json!({"uri": "s.bin", "byteLength": b.len() + 400});
+    std::fs::write(dir.join("s.bin"), &b).unwrap();
+    let path = dir.join("s.gltf");
+    std::fs::write(&path, serde_json::to_vec(&j).unwrap()).unwrap();
+    render_scene(&dir, &path, "buffer");
+}
+
+#[test]
+fn gltf_index_out_of_range() {
+    let (j, b) = gltf_json(&TRI, Some(&[0, 1, 7]), serde_json::json!({}));
+    bad_scene("gltf-oob", "s.glb", &glb(&j, &b), "out of range");
+}
+
+#[test]
+fn gltf_accessor_beyond_its_view() {
+    let (mut j, b) = gltf_json(&TRI, None, serde_json::json!({}));
+    j["accessors"][0]["count"] = 300.into();
+    bad_scene("gltf-accessor", "s.glb", &glb(&j, &b), "accessor");
+}
+
+#[test]
+fn gltf_nan_positions() {
+    let p = [[f32::NAN, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    let (j, b) = gltf_json(&p, None, serde_json::json!({}));
+    bad_scene("gltf-nan", "s.glb", &glb(&j, &b), "not finite");
+}
+
+#[test]
+fn gltf_huge_positions() {
+    let p = [[3e38, 0.0, 0.0], [-3e38, 0.0, 0.0], [0.0, 3e38, 0.0]];
+    let (j, b) = gltf_json(&p, None, serde_json::json!({}));
+    bad_scene("gltf-huge", "s.glb", &glb(&j, &b), "too large");
+}
+
+#[test]
+fn gltf_zero_triangles() {
+    let (j, b) = gltf_json(&TRI[..0], None, serde_json::json!({}));
+    bad_scene("gltf-zero", "s.glb", &glb(&j, &b), "no triangles");
+}
+
+#[test]
+fn gltf_only_degenerate_triangles() {
+    let p = [[0.5, 0.5, 0.5]; 6];
+    let (j, b) = gltf_json(&p, None, serde_json::json!({}));
+    bad_scene("gltf-degenerate", "s.glb", &glb(&j, &b), "degenerate");
+}
+
+#[test]
+fn gltf_no_scene() {
+    let (mut j, b) = gltf_json(&TRI, None, serde_json::json!({}));
+    j.as_object_mut().unwrap().remove("scene");
+    j["scenes"] = serde_json::json!([]);
+    bad_scene("gltf-no-scene", "s.glb", &glb(&j, &b), "no scene");
+}
+
+#[test]
+fn gltf_texture_that_is_not_an_image() {
+    let dir = case_dir("gltf-texture");
+    std::fs::write(dir.join("tex.png"), b"this is not a PNG").unwrap();
+    let uv: Vec<u8> = [[0.0f32, 0.0], [1.0, 0.0], [0.0, 1.0]]
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let (mut j, mut b) = gltf_json(&TRI, None, serde_json::json!({}));
+    let off = b.len();
+    b.extend(&uv);
+    j["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"buffer": 0, "byteOffset": off, "byteLength": uv.len()}));
+    j["accessors"].as_array_mut().unwrap().push(
+        serde_json::json!({"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}),
+    );
+    j["buffers"][0]["byteLength"] = b.len().into();
+    j["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = 1.into();
+    j["meshes"][0]["primitives"][0]["material"] = 0.into();
+    j["materials"] =
+        serde_json::json!([{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]);
+    j["textures"] = serde_json::json!([{"source": 0}]);
+    j["images"] = serde_json::json!([{"uri": "tex.png"}]);
+    let path = dir.join("s.glb");
+    std::fs::write(&path, glb(&j, &b)).unwrap();
+    render_scene(&dir, &path, "image");
+}
+
+#[test]
+fn gltf_colours_and_positions_disagree() {
+    let (mut j, mut b) = gltf_json(&TRI, None, serde_json::json!({}));
+    let off = b.len();
+    b.extend([1.0f32; 8].iter().flat_map(|v| v.to_le_bytes()));
+    j["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"buffer": 0, "byteOffset": off, "byteLength": 32}));
+    j["accessors"].as_array_mut().unwrap().push(
+        serde_json::json!({"bufferView": 1, "componentType": 5126, "count": 2, "type": "VEC4"}),
+    );
+    j["buffers"][0]["byteLength"] = b.len().into();
+    j["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = 1.into();
+    bad_scene("gltf-colours", "s.glb", &glb(&j, &b), "count");
+}
+
+#[test]
+fn scene_file_missing() {
+    let dir = case_dir("scene-missing");
+    render_scene(&dir, &dir.join("absent.glb"), "cannot read");
+}
+
+#[test]
+fn scene_is_a_folder() {
+    let dir = case_dir("scene-folder");
+    let sub = dir.join("folder.glb");
+    std::fs::create_dir_all(&sub).unwrap();
+    render_scene(&dir, &sub, "cannot read");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Weights and features (safetensors)
+
+/// A safetensors file from raw parts: (name, dtype, shape, bytes) and metadata.
+fn safetensors(tensors: &[(&str, &str, Vec<usize>, Vec<u8>)], meta: &[(&str, String)]) -> Vec<u8> {
+    let mut header = serde_json::Map::new();
+    let mut data: Vec<u8> = Vec::new();
+    for (name, dtype, shape, bytes) in tensors {
+        header.insert(
+            name.to_string(),
+            serde_json::json!({"dtype": dtype, "shape": shape, "data_offsets": [data.len(), data.len() + bytes.len()]}),
+        );
+        data.extend(bytes);
+    }
+    if !meta.is_empty() {
+        let m: serde_json::Map<String, serde_json::Value> = meta
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.clone().into()))
+            .collect();
+        header.insert("__metadata__".into(), m.into());
+    }
+    let mut h = serde_json::to_vec(&header).unwrap();
+    while !h.len().is_multiple_of(8) {
+        h.push(b' ');
+    }
+    let mut out = (h.len() as u64).to_le_bytes().to_vec();
+    out.extend(h);
+    out.extend(data);
+    out
+}
+
+fn f32s(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// The parts of a valid weights file of hidden sizes h1, h2 (random weights).
+fn weight_parts(
+    h1: usize,
+    h2: usize,
+) -> (
+    Vec<(&'static str, &'static str, Vec<usize>, Vec<u8>)>,
+    Vec<(&'static str, String)>,
+) {
+    let m = Mlp::random_sized(1, h1.min(128), h2.min(128));
+    let rnd = |n: usize| f32s(&vec![0.01; n]);
+    let tensors = vec![
+        ("fc1.weight", "F32", vec![12, h1], rnd(12 * h1)),
+        ("fc1.bias", "F32", vec![h1], rnd(h1)),
+        ("fc2.weight", "F32", vec![h1, h2], rnd(h1 * h2)),
+        ("fc2.bias", "F32", vec![h2], rnd(h2)),
+        ("out.weight", "F32", vec![h2, 1], rnd(h2)),
+        ("out.bias", "F32", vec![1], rnd(1)),
+    ];
+    let meta = vec![
+        ("format", dhoit_runtime::mlp::FORMAT.to_string()),
+        ("layout", dhoit_runtime::mlp::LAYOUT.to_string()),
+        ("target", "slot_request".to_string()),
+        (
+            "features",
+            serde_json::to_string(&dhoit_runtime::importance::FEATURE_NAMES).unwrap(),
+        ),
+        ("input_mean", serde_json::to_string(&m.mean).unwrap()),
+        ("input_std", serde_json::to_string(&m.std).unwrap()),
+    ];
+    (tensors, meta)
+}
+
+/// Renders DKB with the given weights file bytes; and predicts with them.
+fn bad_weights(name: &str, bytes: &[u8], needle: &str) {
+    let dir = case_dir(name);
+    let w = dir.join("w.safetensors");
+    std::fs::write(&w, bytes).unwrap();
+    let w = w.to_str().unwrap();
+    fails(
+        &dir,
+        &[
+            "render",
+            "--scene",
+            "shells",
+            "--res",
+            "32x24",
+            "--method",
+            "dkb",
+            "--weights",
+            w,
+            "--out",
+            "{out}",
+        ],
+        needle,
+    );
+    let feats = dir.join("f.safetensors");
+    std::fs::write(
+        &feats,
+        safetensors(&[("features", "F32", vec![2, 12], f32s(&[0.5; 24]))], &[]),
+    )
+    .unwrap();
+    fails(
+        &dir,
+        &[
+            "predict",
+            "--weights",
+            w,
+            "--input",
+            feats.to_str().unwrap(),
+            "--output",
+            "{out}",
+        ],
+        needle,
+    );
+}
+
+fn weights_with(
+    edit: impl FnOnce(
+        &mut Vec<(&'static str, &'static str, Vec<usize>, Vec<u8>)>,
+        &mut Vec<(&'static str, String)>,
+    ),
+) -> Vec<u8> {
+    let (mut t, mut m) = weight_parts(128, 64);
+    edit(&mut t, &mut m);
+    safetensors(&t, &m)
+}
+
+#[test]
+fn weights_valid_parts_load() {
+    // The builder itself makes a file the runtime accepts, so the cases below fail for their
+    // one defect.
+    let bytes = weights_with(|_, _| {});
+    Mlp::from_bytes(&bytes).unwrap();
+}
+
+#[test]
+fn weights_truncated() {
+    let b = weights_with(|_, _| {});
+    bad_weights("w-truncated", &b[..b.len() / 2], "weights");
+}
+
+#[test]
+fn weights_not_safetensors() {
+    bad_weights(
+        "w-garbage",
+        b"definitely not tensors",
+        "not a safetensors file",
+    );
+}
+
+#[test]
+fn weights_huge_header_length() {
+    let mut b = weights_with(|_, _| {});
+    b[..8].copy_from_slice(&(1u64 << 60).to_le_bytes());
+    bad_weights("w-header", &b, "not a safetensors file");
+}
+
+#[test]
+fn weights_wrong_dtype() {
+    let b = weights_with(|t, _| {
+        t[1] = ("fc1.bias", "F64", vec![64], vec![0; 512]);
+    });
+    bad_weights("w-dtype", &b, "fc1.bias");
+}
+
+#[test]
+fn weights_missing_tensor() {
+    let b = weights_with(|t, _| {
+        t.remove(3);
+    });
+    bad_weights("w-missing", &b, "fc2.bias");
+}
+
+#[test]
+fn weights_wrong_shape() {
+    let b = weights_with(|t, _| {
+        t[0] = (
+            "fc1.weight",
+            "F32",
+            vec![11, 128],
+            f32s(&vec![0.0; 11 * 128]),
+        );
+    });
+    bad_weights("w-shape", &b, "fc1.weight");
+}
+
+#[test]
+fn weights_non_finite() {
+    let b = weights_with(|t, _| {
+        let mut v = vec![0.01f32; 64];
+        v[7] = f32::INFINITY;
+        t[3] = ("fc2.bias", "F32", vec![64], f32s(&v));
+    });
+    bad_weights("w-inf", &b, "non-finite");
+}
+
+#[test]
+fn weights_nan() {
+    let b = weights_with(|t, _| {
+        t[5] = ("out.bias", "F32", vec![1], f32s(&[f32::NAN]));
+    });
+    bad_weights("w-nan", &b, "non-finite");
+}
+
+#[test]
+fn weights_missing_metadata() {
+    let b = weights_with(|_, m| m.clear());
+    bad_weights("w-meta", &b, "metadata");
+}
+
+#[test]
+fn weights_wrong_format() {
+    let b = weights_with(|_, m| m[0].1 = "dhoit-mlp-0".into());
+    bad_weights("w-format", &b, "format");
+}
+
+#[test]
+fn weights_other_features() {
+    let b = weights_with(|_, m| m[3].1 = r#"["a","b"]"#.into());
+    bad_weights("w-features", &b, "features");
+}
+
+#[test]
+fn weights_zero_std() {
+    let b = weights_with(|_, m| m[5].1 = serde_json::to_string(&[0.0f32; 12]).unwrap());
+    bad_weights("w-std", &b, "input_std");
+}
+
+#[test]
+fn weights_hidden_layer_too_large() {
+    let (t, m) = weight_parts(8, 256);
+    bad_weights("w-hidden", &safetensors(&t, &m), "at most");
+}
+
+#[test]
+fn weights_unknown_target() {
+    let b = weights_with(|_, m| m[2].1 = "k_squared".into());
+    bad_weights("w-target", &b, "target");
+}
+
+/// Predicts with the committed weights on a features file.
+fn bad_features(name: &str, bytes: &[u8], needle: &str) {
+    let dir = case_dir(name);
+    let f = dir.join("f.safetensors");
+    std::fs::write(&f, bytes).unwrap();
+    let w = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/weights.safetensors");
+    fails(
+        &dir,
+        &[
+            "predict",
+            "--weights",
+            w.to_str().unwrap(),
+            "--input",
+            f.to_str().unwrap(),
+            "--output",
+            "{out}",
+        ],
+        needle,
+    );
+}
+
+#[test]
+fn features_truncated() {
+    let b = safetensors(&[("features", "F32", vec![4, 12], f32s(&[0.5; 48]))], &[]);
+    bad_features("f-truncated", &b[..b.len() - 10], "not a safetensors file");
+}
+
+#[test]
+fn features_wrong_dtype() {
+    let b = safetensors(&[("features", "U32", vec![4, 12], vec![0; 192])], &[]);
+    bad_features("f-dtype", &b, "features");
+}
+
+#[test]
+fn features_wrong_shape() {
+    let b = safetensors(&[("features", "F32", vec![4, 11], f32s(&[0.5; 44]))], &[]);
+    bad_features("f-shape", &b, "expected [N, 12]");
+}
+
+#[test]
+fn features_wrong_name() {
+    let b = safetensors(&[("inputs", "F32", vec![4, 12], f32s(&[0.5; 48]))], &[]);
+    bad_features("f-name", &b, "features");
+}
+
+#[test]
+fn features_non_finite() {
+    let mut v = vec![0.5f32; 48];
+    v[13] = f32::NEG_INFINITY;
+    let b = safetensors(&[("features", "F32", vec![4, 12], f32s(&v))], &[]);
+    bad_features("f-inf", &b, "non-finite feature at row 1, column 1");
+}
+
+#[test]
+fn features_missing_file() {
+    let dir = case_dir("f-missing");
+    let w = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/weights.safetensors");
+    fails(
+        &dir,
+        &[
+            "predict",
+            "--weights",
+            w.to_str().unwrap(),
+            "--input",
+            dir.join("absent").to_str().unwrap(),
+            "--output",
+            "{out}",
+        ],
+        "cannot read",
+    );
+}
+
+#[test]
+fn dump_corrupt() {
+    let dir = case_dir("dump");
+    std::fs::write(dir.join("fragments.safetensors"), b"\x10\0\0\0\0\0\0\0{}").unwrap();
+    let e = dhoit_runtime::dump::read(&dir).unwrap_err().to_string();
+    assert!(e.contains("fragments.safetensors"), "{e}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Command-line arguments
+
+fn bad_render(name: &str, extra: &[&str], needle: &str) {
+    let dir = case_dir(name);
+    let mut args = vec!["render", "--scene", "shells", "--out", "{out}"];
+    args.extend_from_slice(extra);
+    fails(&dir, &args, needle);
+}
+
+#[test]
+fn resolution_zero() {
+    bad_render("res-zero", &["--res", "0x48"], "invalid resolution");
+}
+
+#[test]
+fn resolution_negative() {
+    bad_render("res-negative", &["--res", "-64x48"], "invalid resolution");
+}
+
+#[test]
+fn resolution_enormous() {
+    bad_render(
+        "res-enormous",
+        &["--res", "100000x100000"],
+        "invalid resolution",
+    );
+}
+
+#[test]
+fn resolution_unparsable() {
+    bad_render("res-text", &["--res", "wide"], "invalid resolution");
+}
+
+#[test]
+fn budget_unparsable() {
+    bad_render(
+        "budget-text",
+        &["--res", "32x24", "--budget", "12 parsecs"],
+        "invalid budget",
+    );
+}
+
+#[test]
+fn budget_negative() {
+    bad_render(
+        "budget-negative",
+        &["--res", "32x24", "--budget", "-2fpp"],
+        "invalid budget",
+    );
+}
+
+#[test]
+fn budget_zero_share() {
+    bad_render(
+        "budget-share",
+        &["--res", "32x24", "--budget", "0%"],
+        "invalid budget",
+    );
+}
+
+#[test]
+fn budget_over_everything() {
+    bad_render(
+        "budget-150",
+        &["--res", "32x24", "--budget", "150%"],
+        "at most 100%",
+    );
+}
+
+#[test]
+fn budget_below_the_fixed_cost() {
+    bad_render(
+        "budget-small",
+        &["--res", "32x24", "--method", "vkb", "--budget", "1KB"],
+        "needs",
+    );
+}
+
+#[test]
+fn opacity_not_a_number() {
+    bad_render(
+        "opacity",
+        &["--res", "32x24", "--opacity", "NaN"],
+        "opacity",
+    );
+}
+
+#[test]
+fn view_out_of_range() {
+    bad_render(
+        "view",
+        &["--res", "32x24", "--view", "99"],
+        "view 99 does not exist",
+    );
+}
+
+#[test]
+fn unknown_method() {
+    bad_render(
+        "method",
+        &["--res", "32x24", "--method", "magic"],
+        "unknown method",
+    );
+}
+
+#[test]
+fn unwritable_output() {
+    let dir = case_dir("unwritable");
+    // A path below a file cannot be created.
+    std::fs::write(dir.join("file"), b"x").unwrap();
+    let out = dir.join("file/out.png");
+    fails(
+        &dir,
+        &[
+            "render",
+            "--scene",
+            "shells",
+            "--res",
+            "32x24",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "cannot",
+    );
+}
+
+#[test]
+fn export_without_a_glb_name() {
+    let dir = case_dir("export-name");
+    fails(
+        &dir,
+        &["export", "--scene", "cad", "--out", "{out}"],
+        ".glb",
+    );
+}
+
+#[test]
+fn dataset_sample_out_of_range() {
+    let dir = case_dir("dataset-sample");
+    fails(
+        &dir,
+        &[
+            "dataset",
+            "--scenes",
+            "shells",
+            "--views",
+            "1",
+            "--sample",
+            "0",
+            "--out",
+            dir.join("ds").to_str().unwrap(),
+        ],
+        "sample",
+    );
+}
+
+#[test]
+fn train_with_zero_epochs() {
+    let dir = case_dir("train-epochs");
+    fails(
+        &dir,
+        &[
+            "train",
+            "--data",
+            dir.join("absent").to_str().unwrap(),
+            "--epochs",
+            "0",
+            "--out",
+            "{out}",
+        ],
+        "dataset",
+    );
+}
+
+#[test]
+fn train_on_a_folder_without_a_dataset() {
+    let dir = case_dir("train-nodata");
+    let _ = HashMap::<u8, u8>::new();
+    fails(
+        &dir,
+        &["train", "--data", dir.to_str().unwrap(), "--out", "{out}"],
+        "manifest",
+    );
+}

@@ -1,0 +1,111 @@
+//! Nothing half-written, nothing lost: outputs are written to a temporary file and renamed, so a
+//! failed write or a run killed in the middle leaves the previous file as it was.
+
+use dhoit_runtime::tensors;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("dhoit-durable-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+#[test]
+fn a_failed_write_leaves_the_previous_file_intact() {
+    let dir = temp("failed-write");
+    let path = dir.join("weights.safetensors");
+    std::fs::write(&path, b"the previous weights").unwrap();
+    // The temporary file's place is taken (a folder): the write fails as a full disk would.
+    let blocker = PathBuf::from(format!("{}.{}.tmp", path.display(), std::process::id()));
+    std::fs::create_dir_all(blocker.join("inside")).unwrap();
+    let e = tensors::write_atomic(&path, &[7u8; 1 << 16]).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains(&format!("cannot write {}", path.display())),
+        "{e}"
+    );
+    assert_eq!(std::fs::read(&path).unwrap(), b"the previous weights");
+    std::fs::remove_dir_all(&blocker).unwrap();
+    // Then it goes through, whole.
+    tensors::write_atomic(&path, &[7u8; 1 << 16]).unwrap();
+    assert_eq!(std::fs::read(&path).unwrap(), vec![7u8; 1 << 16]);
+}
+
+#[test]
+fn a_killed_training_run_leaves_the_previous_weights_intact() {
+    let dir = temp("killed-train");
+    let data = dir.join("ds");
+    let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
+        .args([
+            "dataset",
+            "--scenes",
+            "shells:5,particles:5",
+            "--views",
+            "2",
+            "--res",
+            "96x72",
+        ])
+        .args(["--budgets", "10%,50%", "--sample", "1", "--out"])
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = dir.join("weights.safetensors");
+    let previous = std::fs::read(root().join("data/weights.safetensors")).unwrap();
+    std::fs::write(&out, &previous).unwrap();
+    std::fs::write(dir.join("config.json"), b"{\"previous\": true}").unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dhoit"))
+        .args([
+            "train",
+            "--epochs",
+            "100000",
+            "--validation",
+            "shells:5",
+            "--data",
+        ])
+        .arg(&data)
+        .arg("--out")
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Let it train for a while, then kill it in the middle of an epoch.
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(3) {
+        assert!(child.try_wait().unwrap().is_none(), "training ended early");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert_eq!(std::fs::read(&out).unwrap(), previous, "weights untouched");
+    assert_eq!(
+        std::fs::read(dir.join("config.json")).unwrap(),
+        b"{\"previous\": true}"
+    );
+    // The weights still load.
+    dhoit_runtime::mlp::Mlp::load(&out).unwrap();
+}
+
+#[test]
+fn a_failed_render_leaves_a_previous_image_intact() {
+    let dir = temp("render");
+    let out = dir.join("frame.png");
+    std::fs::write(&out, b"previous image").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
+        .args([
+            "render", "--scene", "shells", "--res", "32x24", "--budget", "1KB",
+        ])
+        .args(["--method", "vkb", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous image");
+}
