@@ -338,8 +338,13 @@ fn scene_is_a_folder() {
 // ---------------------------------------------------------------------------------------------
 // Weights and features (safetensors)
 
+/// One tensor of a hand-made safetensors file: name, dtype, shape, raw bytes.
+type RawTensor = (&'static str, &'static str, Vec<usize>, Vec<u8>);
+/// Its metadata entries.
+type RawMeta = Vec<(&'static str, String)>;
+
 /// A safetensors file from raw parts: (name, dtype, shape, bytes) and metadata.
-fn safetensors(tensors: &[(&str, &str, Vec<usize>, Vec<u8>)], meta: &[(&str, String)]) -> Vec<u8> {
+fn safetensors(tensors: &[RawTensor], meta: &[(&str, String)]) -> Vec<u8> {
     let mut header = serde_json::Map::new();
     let mut data: Vec<u8> = Vec::new();
     for (name, dtype, shape, bytes) in tensors {
@@ -371,13 +376,7 @@ fn f32s(v: &[f32]) -> Vec<u8> {
 }
 
 /// The parts of a valid weights file of hidden sizes h1, h2 (random weights).
-fn weight_parts(
-    h1: usize,
-    h2: usize,
-) -> (
-    Vec<(&'static str, &'static str, Vec<usize>, Vec<u8>)>,
-    Vec<(&'static str, String)>,
-) {
+fn weight_parts(h1: usize, h2: usize) -> (Vec<RawTensor>, RawMeta) {
     let m = Mlp::random_sized(1, h1.min(128), h2.min(128));
     let rnd = |n: usize| f32s(&vec![0.01; n]);
     let tensors = vec![
@@ -446,12 +445,7 @@ fn bad_weights(name: &str, bytes: &[u8], needle: &str) {
     );
 }
 
-fn weights_with(
-    edit: impl FnOnce(
-        &mut Vec<(&'static str, &'static str, Vec<usize>, Vec<u8>)>,
-        &mut Vec<(&'static str, String)>,
-    ),
-) -> Vec<u8> {
+fn weights_with(edit: impl FnOnce(&mut Vec<RawTensor>, &mut RawMeta)) -> Vec<u8> {
     let (mut t, mut m) = weight_parts(128, 64);
     edit(&mut t, &mut m);
     safetensors(&t, &m)
