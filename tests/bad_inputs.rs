@@ -19,6 +19,11 @@ fn case_dir(name: &str) -> PathBuf {
 /// checks the failure: non-zero exit, `needle` in the message (case-insensitive), no panic,
 /// no output left behind.
 fn fails(dir: &Path, args: &[&str], needle: &str) {
+    fails_with_env(dir, args, &[], needle)
+}
+
+/// [`fails`] with environment variables set for the command.
+fn fails_with_env(dir: &Path, args: &[&str], env: &[(&str, &str)], needle: &str) {
     let out = dir.join("out.png");
     let args: Vec<String> = args
         .iter()
@@ -26,6 +31,7 @@ fn fails(dir: &Path, args: &[&str], needle: &str) {
         .collect();
     let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
         .args(&args)
+        .envs(env.iter().copied())
         .output()
         .expect("run dhoit");
     let err = String::from_utf8_lossy(&o.stderr);
@@ -827,5 +833,26 @@ fn train_on_a_folder_without_a_dataset() {
         &dir,
         &["train", "--data", dir.to_str().unwrap(), "--out", "{out}"],
         "manifest",
+    );
+}
+
+#[test]
+fn gpu_without_an_adapter() {
+    // No Metal adapter exists on this machine: the GPU path says what it needs.
+    let dir = case_dir("no-adapter");
+    fails_with_env(
+        &dir,
+        &[
+            "render", "--scene", "shells", "--res", "32x24", "--device", "gpu", "--out", "{out}",
+        ],
+        &[(
+            "WGPU_BACKEND",
+            if cfg!(target_os = "macos") {
+                "dx12"
+            } else {
+                "metal"
+            },
+        )],
+        "no GPU adapter found: dhoit needs a Vulkan, Metal or DX12 device",
     );
 }

@@ -30,13 +30,68 @@ pub enum Error {
     Dump { path: PathBuf, message: String },
     #[error("weights {path}: {message}")]
     Weights { path: PathBuf, message: String },
+    /// (Displayed whole, not as a source, so the message is not repeated.)
     #[error("GPU: {0}")]
-    Gpu(String),
+    Gpu(GpuError),
     #[error("image {path}: {message}")]
     Image { path: PathBuf, message: String },
 }
 
 pub type Result<T> = std::result::Result<T, Error>;
+
+impl From<GpuError> for Error {
+    fn from(e: GpuError) -> Self {
+        Error::Gpu(e)
+    }
+}
+
+/// What can go wrong on the GPU, so a caller can tell a missing device from a frame too large
+/// for it.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error(
+        "no GPU adapter found: dhoit needs a Vulkan, Metal or DX12 device (on Debian, \
+         `apt-get install mesa-vulkan-drivers` provides lavapipe, a Vulkan device on the CPU)"
+    )]
+    NoAdapter,
+    /// Every adapter lacks something the passes need; `lacking` says what, per adapter.
+    #[error(
+        "no adapter has what dhoit's passes need (64-bit integers and 64-bit atomic min/max \
+         for the capture keys, timestamp queries: Vulkan with shaderInt64 and \
+         VK_KHR_shader_atomic_int64, DX12 with shader model 6.6, Metal 2.4 on Apple7+): {lacking}"
+    )]
+    MissingFeatures { lacking: String },
+    #[error("cannot open {adapter}: {message}")]
+    Open { adapter: String, message: String },
+    #[error("the device rejected a shader or pipeline: {0}")]
+    Pipeline(String),
+    /// A buffer larger than the device binds, found before anything is allocated.
+    #[error(
+        "{label} needs {need} bytes in one buffer, but this device binds at most {max}: lower \
+         the resolution or the budget"
+    )]
+    BufferTooLarge { label: String, need: u64, max: u64 },
+    #[error("{pixels} pixels exceed what one frame dispatches ({max})")]
+    FrameTooLarge { pixels: u64, max: u64 },
+    /// A pass stopped its loops early (lavapipe ends a shader's loops after 65,535 iterations);
+    /// the frame is refused, not returned wrong.
+    #[error(
+        "{adapter} stopped a pass's loops early: too many fragments in one pixel for this device \
+         (Mesa's lavapipe ends a shader's loops after 65,535 iterations, and the A-buffer sorts \
+         each pixel's fragments in place)"
+    )]
+    LoopLimit { adapter: String },
+    #[error("out of device memory: {0}")]
+    OutOfMemory(String),
+    #[error("the device rejected a command: {0}")]
+    Validation(String),
+    /// The device was lost, or waiting for or reading back a submission failed.
+    #[error("the device failed while {doing}: {message}")]
+    Lost {
+        doing: &'static str,
+        message: String,
+    },
+}
 
 /// What an I/O error was doing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

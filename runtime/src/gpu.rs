@@ -17,7 +17,7 @@
 use crate::alloc::Target;
 use crate::budget::{self, FragmentBudget};
 use crate::composite::Image;
-use crate::error::{Error, Result};
+use crate::error::{Error, GpuError, Result};
 use crate::importance::{PixelStats, VkbParams};
 use crate::mlp::Mlp;
 use crate::raster::FragmentLists;
@@ -154,15 +154,19 @@ impl Gpu {
     /// Opens the first adapter that has every required feature; the error names what the
     /// adapters lack.
     pub fn new() -> Result<Gpu> {
+        Self::requiring(wgpu::Features::empty())
+    }
+
+    /// [`Gpu::new`], with `extra` features required on top of the pipeline's (tests use it to
+    /// see what happens on an adapter that lacks one).
+    pub fn requiring(extra: wgpu::Features) -> Result<Gpu> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
         if adapters.is_empty() {
-            return Err(Error::Gpu(
-                "no GPU adapter found (on Debian, `apt-get install mesa-vulkan-drivers` provides lavapipe)".into(),
-            ));
+            return Err(GpuError::NoAdapter.into());
         }
-        let need = required_features();
+        let need = required_features() | extra;
         let mut lacking = Vec::new();
         let adapter = adapters.into_iter().find(|a| {
             let missing = need - a.features();
@@ -172,10 +176,10 @@ impl Gpu {
             missing.is_empty()
         });
         let Some(adapter) = adapter else {
-            return Err(Error::Gpu(format!(
-                "no adapter has the features dhoit needs: {}",
-                lacking.join("; ")
-            )));
+            return Err(GpuError::MissingFeatures {
+                lacking: lacking.join("; "),
+            }
+            .into());
         };
         let info = adapter.get_info();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
@@ -184,7 +188,10 @@ impl Gpu {
             required_limits: adapter.limits(),
             ..Default::default()
         }))
-        .map_err(|e| Error::Gpu(format!("cannot open {}: {e}", info.name)))?;
+        .map_err(|e| GpuError::Open {
+            adapter: info.name.clone(),
+            message: e.to_string(),
+        })?;
         let adapter_name = format!(
             "{} ({:?}, {:?}, {} {})",
             info.name, info.backend, info.device_type, info.driver, info.driver_info
@@ -273,7 +280,7 @@ impl Pipelines {
             importance_vkb: compute("importance_vkb"),
         };
         if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(Error::Gpu(format!("shader or pipeline rejected: {e}")));
+            return Err(GpuError::Pipeline(e.to_string()).into());
         }
         Ok(p)
     }
@@ -368,11 +375,12 @@ impl FrameBuffers<'_> {
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size);
         if size > max {
-            return Err(Error::Gpu(format!(
-                "{label} needs {} in one buffer, but this device binds at most {}: lower the resolution or the budget",
-                budget::format_bytes(size),
-                budget::format_bytes(max)
-            )));
+            return Err(GpuError::BufferTooLarge {
+                label: label.to_string(),
+                need: size,
+                max,
+            }
+            .into());
         }
         if counted {
             self.allocated += size;
@@ -421,10 +429,16 @@ fn read_back(gpu: &Gpu, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>> {
     slice.map_async(wgpu::MapMode::Read, |_| {});
     gpu.device
         .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
+        .map_err(|e| GpuError::Lost {
+            doing: "waiting for a submission",
+            message: e.to_string(),
+        })?;
     let data = slice
         .get_mapped_range()
-        .map_err(|e| Error::Gpu(format!("reading back: {e}")))?
+        .map_err(|e| GpuError::Lost {
+            doing: "reading back",
+            message: e.to_string(),
+        })?
         .to_vec();
     Ok(data[..bytes as usize].to_vec())
 }
@@ -767,9 +781,11 @@ impl Gpu {
         let px = pixels as u64;
         let groups = pixels.div_ceil(64);
         if groups > 65535 {
-            return Err(Error::Gpu(format!(
-                "{pixels} pixels exceed one dispatch (4,194,240)"
-            )));
+            return Err(GpuError::FrameTooLarge {
+                pixels: pixels as u64,
+                max: 4_194_240,
+            }
+            .into());
         }
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
@@ -1117,21 +1133,19 @@ impl Gpu {
         if let Some(status) = &out.status
             && u32s(&read_back(self, status, 4)?)[0] != 0
         {
-            return Err(Error::Gpu(format!(
-                "{} stopped a pass's loops early: the frame is too large for it (Mesa's lavapipe ends \
-                 a shader's loops after 65,535 iterations, and the A-buffer sorts each pixel's \
-                 fragments in place): too many fragments in one pixel",
-                self.adapter
-            )));
+            return Err(GpuError::LoopLimit {
+                adapter: self.adapter.clone(),
+            }
+            .into());
         }
         let img = u32s(&read_back(self, &image, 16 * px)?);
         let pass_ms = timer.read(self)?;
         let (importance, stats, vkb_nearest) = out.statistics(self, px)?;
         if let Some(e) = pollster::block_on(oom.pop()) {
-            return Err(Error::Gpu(format!("out of device memory: {e}")));
+            return Err(GpuError::OutOfMemory(e.to_string()).into());
         }
         if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(Error::Gpu(format!("the device rejected a command: {e}")));
+            return Err(GpuError::Validation(e.to_string()).into());
         }
         Ok(GpuFrame {
             image: Image {

@@ -19,4 +19,4 @@ pub mod rng;
 pub mod scene;
 pub mod tensors;
 
-pub use error::{Error, Result};
+pub use error::{Error, GpuError, Result};
