@@ -6,7 +6,7 @@ RUN := $(CARGO) run --release --quiet --
 # Real glTF scenes for tests and evaluation, read in place (never copied into the repository).
 export DHOIT_SCENES ?= $(abspath ../shared/scenes)
 
-.PHONY: all setup demo test fmt lint check bench build train golden eval
+.PHONY: all setup demo test fmt lint check bench build train golden eval fuzz
 
 all: demo
 
@@ -48,6 +48,13 @@ eval: build
 	else echo "eval: no real scenes at $(DHOIT_SCENES): the built-in scenes only" >&2; fi; \
 	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --equal slots --out out/eval/slots --summary docs/eval-slots.md && \
 	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --equal bytes --out out/eval/bytes --summary docs/eval-bytes.md
+
+## Long structured fuzzing of every file parser (glTF/GLB, weights, features, dumps): the
+## property tests of tests/fuzz.rs with FUZZ_CASES mutated inputs each (CI runs 128). Keep
+## any input that fails under tests/corpus/.
+FUZZ_CASES ?= 2000000
+fuzz: build
+	PROPTEST_CASES=$(FUZZ_CASES) $(CARGO) test --release --test fuzz -- --nocapture --test-threads 2
 
 fmt:
 	$(CARGO) fmt --all -- --check

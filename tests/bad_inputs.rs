@@ -272,6 +272,14 @@ fn gltf_only_degenerate_triangles() {
 }
 
 #[test]
+fn gltf_position_names_a_missing_accessor() {
+    // Found by tests/fuzz.rs: the gltf crate panicked on it.
+    let (mut j, b) = gltf_json(&TRI, None, serde_json::json!({}));
+    j["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = 5.into();
+    bad_scene("gltf-position-accessor", "s.glb", &glb(&j, &b), "names accessor 5");
+}
+
+#[test]
 fn gltf_no_scene() {
     let (mut j, b) = gltf_json(&TRI, None, serde_json::json!({}));
     j.as_object_mut().unwrap().remove("scene");

@@ -70,11 +70,17 @@ pub fn read(path: &Path) -> Result<Dump> {
         path.to_path_buf()
     };
     let bytes = std::fs::read(&path).map_err(|e| Error::read(&path, e))?;
+    parse(&bytes, &path)
+}
+
+/// Parses a dump's bytes (`path` names it in errors), checking every shape.
+pub fn parse(bytes: &[u8], path: &Path) -> Result<Dump> {
+    let path = path.to_path_buf();
     let err = |m: String| Error::Dump {
         path: path.clone(),
         message: m,
     };
-    let file = tensors::File::parse(&bytes).map_err(err)?;
+    let file = tensors::File::parse(bytes).map_err(err)?;
     let num = |k: &str| -> Result<u64> {
         file.meta(k)
             .map_err(err)?

@@ -295,11 +295,16 @@ pub struct PredictArgs {
 /// Reads a features file (`features` f32 [N,12], finite).
 pub fn read_features(path: &Path) -> Result<Vec<[f32; FEATURES]>> {
     let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
+    parse_features(&bytes, path)
+}
+
+/// Parses a features file's bytes (`path` names it in errors).
+pub fn parse_features(bytes: &[u8], path: &Path) -> Result<Vec<[f32; FEATURES]>> {
     let bad = |message: String| Error::Features {
         path: path.to_path_buf(),
         message,
     };
-    let file = tensors::File::parse(&bytes).map_err(bad)?;
+    let file = tensors::File::parse(bytes).map_err(bad)?;
     let (shape, v) = file.f32("features", None).map_err(bad)?;
     if shape.len() != 2 || shape[1] != FEATURES {
         return Err(bad(format!(

@@ -19,8 +19,15 @@ use std::path::Path;
 
 pub fn load(path: &Path) -> Result<Scene> {
     let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
+    from_slice(&bytes, path)
+}
+
+/// Loads a glTF or GLB file's bytes; `path` names it in errors, and external buffers and
+/// images are looked up beside it.
+pub fn from_slice(bytes: &[u8], path: &Path) -> Result<Scene> {
     let err = |m: String| Error::scene(path, m);
-    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| err(format!("not a valid glTF: {e}")))?;
+    precheck(bytes).map_err(err)?;
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| err(format!("not a valid glTF: {e}")))?;
     let base = path.parent().unwrap_or(Path::new("."));
     let buffers = gltf::import_buffers(&gltf.document, Some(base), gltf.blob.clone())
         .map_err(|e| err(format!("cannot load buffers: {e}")))?;
@@ -69,6 +76,38 @@ pub fn load(path: &Path) -> Result<Scene> {
         }
     }
     Ok(loader.scene)
+}
+
+/// What the gltf crate's validation reads before checking it: its POSITION check indexes the
+/// accessor list with the attribute's index unchecked (gltf-json 1.4.1, mesh.rs), so a file
+/// whose POSITION names an accessor that does not exist panicked (found by tests/fuzz.rs).
+/// Anything this cannot parse is left to the crate, which reports it.
+fn precheck(bytes: &[u8]) -> std::result::Result<(), String> {
+    let json: std::borrow::Cow<[u8]> = if bytes.starts_with(b"glTF") {
+        match gltf::Glb::from_slice(bytes) {
+            Ok(glb) => glb.json,
+            Err(_) => return Ok(()),
+        }
+    } else {
+        bytes.into()
+    };
+    let Ok(root) = serde_json::from_slice::<gltf::json::Root>(&json) else {
+        return Ok(());
+    };
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            for index in prim.attributes.values() {
+                if index.value() >= root.accessors.len() {
+                    return Err(format!(
+                        "not a valid glTF: mesh {m} primitive {p} names accessor {} of {}",
+                        index.value(),
+                        root.accessors.len()
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// A decoded base colour texture: linear RGBA.
