@@ -118,6 +118,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let f0 = keys[3u * p + 1u];
     let f1 = keys[3u * p + 2u];
     let pair = (f1 & OCCUPIED) != 0lu && u32(f0 & 0xfffffffflu) == u32(f1 & 0xfffffffflu);
-    let i = 1.0 / (1.0 + exp(-out));
+    // mlp::squash: 0 where the sums overflowed both ways.
+    let s = 1.0 / (1.0 + exp(-out));
+    let i = select(0.0, s, s == s);
     importance[p] = bitcast<f32>(bitcast<u32>(i) | select(0u, 0x80000000u, pair));
 }

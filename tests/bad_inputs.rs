@@ -276,7 +276,12 @@ fn gltf_position_names_a_missing_accessor() {
     // Found by tests/fuzz.rs: the gltf crate panicked on it.
     let (mut j, b) = gltf_json(&TRI, None, serde_json::json!({}));
     j["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = 5.into();
-    bad_scene("gltf-position-accessor", "s.glb", &glb(&j, &b), "names accessor 5");
+    bad_scene(
+        "gltf-position-accessor",
+        "s.glb",
+        &glb(&j, &b),
+        "names accessor 5",
+    );
 }
 
 #[test]
@@ -540,6 +545,27 @@ fn weights_nan() {
         t[5] = ("out.bias", "F32", vec![1], f32s(&[f32::NAN]));
     });
     bad_weights("w-nan", &b, "non-finite");
+}
+
+#[test]
+fn weights_beyond_the_largest_magnitude() {
+    // Found by tests/fuzz.rs: finite but huge weights made the output NaN.
+    let b = weights_with(|t, _| {
+        let mut v = vec![0.01f32; 128 * 64];
+        v[100] = 3.4e38;
+        t[2] = ("fc2.weight", "F32", vec![128, 64], f32s(&v));
+    });
+    bad_weights("w-huge", &b, "largest magnitude");
+}
+
+#[test]
+fn gltf_colours_of_a_type_gltf_does_not_allow() {
+    // Found by tests/fuzz.rs: the gltf crate's reader reached unreachable!() on it.
+    let bytes = std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/glb-color-of-signed-bytes.bin"),
+    )
+    .unwrap();
+    bad_scene("gltf-colour-type", "s.glb", &bytes, "COLOR_0 is I8 Vec4");
 }
 
 #[test]

@@ -26,6 +26,21 @@ pub const H1: usize = 128;
 pub const H2: usize = 64;
 /// Largest parameter count accepted: the default network's.
 pub const MAX_PARAMETERS: usize = parameter_count(H1, H2);
+/// The largest magnitude a weight, bias or input mean may have, and the range of an input's
+/// standard deviation: far beyond anything training produces, and small enough that a
+/// standardised input stays far from f32's range (see [`Mlp::from_bytes`]).
+pub const MAX_PARAMETER: f32 = 1e6;
+pub const MAX_MEAN: f32 = 1e9;
+pub const STD_RANGE: (f32, f32) = (1e-9, 1e9);
+
+/// The output non-linearity: the logistic sigmoid, and 0 where the sum is not a number (inputs
+/// so extreme that the sums overflowed both ways; the allocation reads 0 as "no importance").
+/// The GPU pass computes the same.
+pub fn squash(acc: f32) -> f32 {
+    let s = 1.0 / (1.0 + (-acc).exp());
+    if s.is_nan() { 0.0 } else { s }
+}
+
 /// Largest second hidden layer accepted (the GPU pass keeps its sums in a private array).
 pub const MAX_H2: usize = 128;
 
@@ -115,7 +130,7 @@ impl Mlp {
         for i in 0..n2 {
             acc += h2[i] * self.w3[i];
         }
-        1.0 / (1.0 + (-acc).exp())
+        squash(acc)
     }
 
     /// Importance of every covered pixel (0 for uncovered ones).
@@ -200,12 +215,18 @@ impl Mlp {
         };
         let mean = vec12("input_mean")?;
         let std = vec12("input_std")?;
-        if let Some(i) = (0..FEATURES).find(|&i| !mean[i].is_finite()) {
-            return Err(format!("input_mean[{i}] is not finite"));
-        }
-        if let Some(i) = (0..FEATURES).find(|&i| !(std[i].is_finite() && std[i] > 0.0)) {
+        if let Some(i) =
+            (0..FEATURES).find(|&i| !(mean[i].is_finite() && mean[i].abs() <= MAX_MEAN))
+        {
             return Err(format!(
-                "input_std[{i}] = {} is not a positive finite number",
+                "input_mean[{i}] = {} is not a finite number of magnitude at most {MAX_MEAN:e}",
+                mean[i]
+            ));
+        }
+        let (lo, hi) = STD_RANGE;
+        if let Some(i) = (0..FEATURES).find(|&i| !(lo..=hi).contains(&std[i])) {
+            return Err(format!(
+                "input_std[{i}] = {} is not in [{lo:e}, {hi:e}]",
                 std[i]
             ));
         }
@@ -213,6 +234,12 @@ impl Mlp {
             let (_, v) = file.f32(name, Some(shape))?;
             if let Some(i) = v.iter().position(|x| !x.is_finite()) {
                 return Err(format!("tensor '{name}' has a non-finite value at {i}"));
+            }
+            if let Some(i) = v.iter().position(|x| x.abs() > MAX_PARAMETER) {
+                return Err(format!(
+                    "tensor '{name}' has {} at {i}, beyond the largest magnitude accepted ({MAX_PARAMETER:e})",
+                    v[i]
+                ));
             }
             Ok(v)
         };

@@ -106,7 +106,12 @@ pub fn predict(m: &Mlp, rows: &[[f32; FEATURES]]) -> Vec<f32> {
     let mut out = Vec::with_capacity(rows.len());
     for chunk in rows.chunks(8192) {
         let y = net.forward(input_tensor(chunk, &m.mean, &m.std, &device));
-        out.extend(values(y));
+        // As `mlp::squash`: 0 where the sums overflowed both ways.
+        out.extend(
+            values(y)
+                .into_iter()
+                .map(|v| if v.is_nan() { 0.0 } else { v }),
+        );
     }
     out
 }

@@ -148,6 +148,45 @@ impl Loader<'_> {
         Error::scene(self.path, m)
     }
 
+    /// Checks the component types and dimensions of the attributes read, which the gltf
+    /// crate's readers assume valid (they reach `unreachable!()` otherwise: found by
+    /// tests/fuzz.rs): POSITION f32 VEC3, COLOR_0 u8/u16/f32 VEC3/VEC4, TEXCOORD u8/u16/f32
+    /// VEC2, indices u8/u16/u32 SCALAR.
+    fn check_types(&self, prim: &gltf::Primitive) -> Result<()> {
+        use gltf::accessor::{DataType as T, Dimensions as D};
+        let check = |what: String, acc: gltf::Accessor, ok: &dyn Fn(T, D) -> bool| {
+            if ok(acc.data_type(), acc.dimensions()) {
+                Ok(())
+            } else {
+                Err(self.err(format!(
+                    "{what} is {:?} {:?}, which glTF does not allow there",
+                    acc.data_type(),
+                    acc.dimensions()
+                )))
+            }
+        };
+        for (sem, acc) in prim.attributes() {
+            match sem {
+                gltf::Semantic::Positions => {
+                    check("POSITION".into(), acc, &|t, d| t == T::F32 && d == D::Vec3)?
+                }
+                gltf::Semantic::Colors(i) => check(format!("COLOR_{i}"), acc, &|t, d| {
+                    matches!(t, T::U8 | T::U16 | T::F32) && matches!(d, D::Vec3 | D::Vec4)
+                })?,
+                gltf::Semantic::TexCoords(i) => check(format!("TEXCOORD_{i}"), acc, &|t, d| {
+                    matches!(t, T::U8 | T::U16 | T::F32) && d == D::Vec2
+                })?,
+                _ => {}
+            }
+        }
+        if let Some(acc) = prim.indices() {
+            check("the indices".into(), acc, &|t, d| {
+                matches!(t, T::U8 | T::U16 | T::U32) && d == D::Scalar
+            })?;
+        }
+        Ok(())
+    }
+
     /// Checks that an accessor's elements all lie inside its buffer view and buffer.
     fn check_accessor(&self, acc: &gltf::Accessor) -> Result<()> {
         let Some(view) = acc.view() else {
@@ -226,6 +265,7 @@ impl Loader<'_> {
         if let Some(acc) = prim.indices() {
             self.check_accessor(&acc)?;
         }
+        self.check_types(prim)?;
         let buffers = self.buffers;
         let reader = prim.reader(|b| Some(&buffers[b.index()].0[..]));
         let positions: Vec<Vec3> = reader
