@@ -49,7 +49,7 @@ const MAX_F32: f32 = 3.4028235e38;
 var<workgroup> partial: array<atomic<u32>, 16>;
 
 fn pixel(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
-    return (wid.y * nwg.x + wid.x) * 256u + lid;
+    return grid_index(wid, nwg, lid, 256u);
 }
 
 fn finite(v: f32) -> bool {

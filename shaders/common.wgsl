@@ -56,6 +56,12 @@ fn fragment_key(depth: f32, rgba8: u32) -> u64 {
     return (u64(bitcast<u32>(d)) << 32u) | u64(rgba8);
 }
 
+// The index of an invocation of a pass dispatched as a 2-D grid of workgroups of `size`
+// invocations (gpu::grid): rows of at most 65,535 workgroups, so frames up to 8K fit.
+fn grid_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32, size: u32) -> u32 {
+    return (wid.y * nwg.x + wid.x) * size + lid;
+}
+
 fn pixel_index(frag_coord: vec4<f32>, width: u32) -> u32 {
     return u32(frag_coord.y) * width + u32(frag_coord.x);
 }

@@ -1,7 +1,7 @@
 // Exclusive prefix sum over pixels, in three dispatches so no invocation loops long (Mesa's
 // lavapipe stops a shader's loops after 65,535 iterations, silently):
 //   scan_blocks: each workgroup scans its 256 values into offsets and writes the block total;
-//   scan_sums:   one workgroup scans the block totals in place (at most 65,535 blocks);
+//   scan_sums:   one workgroup scans the block totals in place, 256 at a time;
 //   scan_add:    each value gets its block's offset; the last entry gets the total.
 // offsets[p] = sum of values[q] for q < p, offsets[pixels] = the total.
 
@@ -27,8 +27,13 @@ fn scan_block(lid: u32) {
 }
 
 @compute @workgroup_size(256)
-fn scan_blocks(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    let i = wid.x * 256u + lid;
+fn scan_blocks(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let b = wid.y * nwg.x + wid.x;
+    let i = grid_index(wid, nwg, lid, 256u);
     var v = 0u;
     if (i < params.pixels) {
         v = values[i];
@@ -39,8 +44,8 @@ fn scan_blocks(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
     if (i < params.pixels) {
         offsets[i] = block[lid] - v;
     }
-    if (lid == 255u) {
-        blocks[wid.x] = block[255];
+    if (lid == 255u && b < (params.pixels + 255u) / 256u) {
+        blocks[b] = block[255];
     }
 }
 
@@ -76,9 +81,13 @@ fn scan_sums(@builtin(local_invocation_index) lid: u32) {
 }
 
 @compute @workgroup_size(256)
-fn scan_add(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    let i = wid.x * 256u + lid;
+fn scan_add(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let i = grid_index(wid, nwg, lid, 256u);
     if (i < params.pixels) {
-        offsets[i] = offsets[i] + blocks[wid.x];
+        offsets[i] = offsets[i] + blocks[wid.y * nwg.x + wid.x];
     }
 }

@@ -71,8 +71,8 @@ pub enum GpuError {
          the resolution or the budget"
     )]
     BufferTooLarge { label: String, need: u64, max: u64 },
-    #[error("{pixels} pixels exceed what one frame dispatches ({max})")]
-    FrameTooLarge { pixels: u64, max: u64 },
+    #[error("a {width}x{height} frame exceeds this device's largest render target ({max} a side)")]
+    FrameTooLarge { width: u32, height: u32, max: u32 },
     /// A pass stopped its loops early (lavapipe ends a shader's loops after 65,535 iterations);
     /// the frame is refused, not returned wrong.
     #[error(

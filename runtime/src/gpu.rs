@@ -558,9 +558,10 @@ impl Passes<'_> {
         enc: &mut wgpu::CommandEncoder,
         pipeline: &wgpu::ComputePipeline,
         buffers: &[&wgpu::Buffer],
-        workgroups: u32,
         name: &'static str,
     ) {
+        // Every dispatched pass is per pixel, 64 invocations a workgroup.
+        let (gx, gy) = grid(self.pixels, 64);
         let g = self.gpu.bind(&pipeline.get_bind_group_layout(0), buffers);
         let (b, e) = self.timer.next(name);
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -573,7 +574,7 @@ impl Passes<'_> {
         });
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &g, &[]);
-        pass.dispatch_workgroups(workgroups, 1, 1);
+        pass.dispatch_workgroups(gx, gy, 1);
     }
 
     /// Exclusive prefix sum of `values` into `offsets` (pixels + 1 entries): three dispatches
@@ -610,15 +611,16 @@ impl Passes<'_> {
                 end_of_pass_write_index: Some(e),
             }),
         });
+        let (gx, gy) = grid(px, 256);
         for (pl, n, all) in [
-            (&p.scan_blocks, groups, true),
-            (&p.scan_sums, 1, false),
-            (&p.scan_add, groups, false),
+            (&p.scan_blocks, (gx, gy), true),
+            (&p.scan_sums, (1, 1), false),
+            (&p.scan_add, (gx, gy), false),
         ] {
             let g = bind(pl, all);
             pass.set_pipeline(pl);
             pass.set_bind_group(0, &g, &[]);
-            pass.dispatch_workgroups(n, 1, 1);
+            pass.dispatch_workgroups(n.0, n.1, 1);
         }
         Ok(())
     }
@@ -673,7 +675,7 @@ impl Passes<'_> {
                 ],
             )
         };
-        let (gx, gy) = grid(self.pixels);
+        let (gx, gy) = grid(self.pixels, 256);
         {
             let group = bind(&flags);
             let (tb, te) = self.timer.next("allocation");
@@ -779,13 +781,9 @@ impl Gpu {
         crate::raster::check_resolution(width, height)?;
         let pixels = width * height;
         let px = pixels as u64;
-        let groups = pixels.div_ceil(64);
-        if groups > 65535 {
-            return Err(GpuError::FrameTooLarge {
-                pixels: pixels as u64,
-                max: 4_194_240,
-            }
-            .into());
+        let max = self.device.limits().max_texture_dimension_2d;
+        if width > max || height > max {
+            return Err(GpuError::FrameTooLarge { width, height, max }.into());
         }
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
@@ -910,7 +908,6 @@ impl Gpu {
                     &mut enc,
                     resolve,
                     &[params_buf, &offsets, &fragments, &image, &status],
-                    groups,
                     name,
                 );
                 passes.submit(&mut enc);
@@ -979,7 +976,6 @@ impl Gpu {
                                     &mut enc,
                                     &p.totals,
                                     &[params_buf, &counts, &totals],
-                                    groups,
                                     "totals",
                                 );
                                 (counts, imp, totals, weight_kind(target), None)
@@ -994,14 +990,12 @@ impl Gpu {
                                     &mut enc,
                                     &p.totals,
                                     &[params_buf, &counts, &totals],
-                                    groups,
                                     "totals",
                                 );
                                 passes.dispatch(
                                     &mut enc,
                                     &p.importance_vkb,
                                     &[params_buf, &counts, &nearest, &totals, &imp],
-                                    groups,
                                     "importance",
                                 );
                                 // The nearest keys are read: a copy for the frame's statistics
@@ -1036,14 +1030,12 @@ impl Gpu {
                                     &mut enc,
                                     &p.totals,
                                     &[params_buf, &counts, &totals],
-                                    groups,
                                     "totals",
                                 );
                                 passes.dispatch(
                                     &mut enc,
                                     &p.importance_dkb,
                                     &[params_buf, &weights, &counts, &keys, &sums, &totals, &imp],
-                                    groups,
                                     "importance",
                                 );
                                 // Copies for the frame's statistics (not counted), then the
@@ -1115,7 +1107,6 @@ impl Gpu {
                     &mut enc,
                     &p.resolve,
                     &[params_buf, &k_of, &base, &slots_buf, &tail, &image],
-                    groups,
                     "resolve",
                 );
                 passes.submit(&mut enc);
@@ -1210,10 +1201,11 @@ struct AllocBuffers<'a> {
     flags: Option<&'a wgpu::Buffer>,
 }
 
-/// Workgroups of 256 invocations covering `pixels`, as a 2-D grid when one dimension cannot
-/// hold them (the passes compute `(y * width + x) * 256 + local index`).
-pub fn grid(pixels: u32) -> (u32, u32) {
-    let groups = pixels.div_ceil(256).max(1);
+/// Workgroups of `size` invocations covering `pixels`, as a 2-D grid when one dimension cannot
+/// hold them (the passes compute `(y * width + x) * size + local index`, `grid_index` in
+/// common.wgsl): frames up to 8K and beyond in one dispatch.
+pub fn grid(pixels: u32, size: u32) -> (u32, u32) {
+    let groups = pixels.div_ceil(size).max(1);
     let x = groups.min(65_535);
     (x, groups.div_ceil(x))
 }
