@@ -436,6 +436,18 @@ fn features(a: FeaturesArgs) -> Result<()> {
     Ok(())
 }
 
+/// `dhoit predict`: burn, the CPU twin, or the GPU's WGSL network.
+fn predict(a: dhoit_train::cli::PredictArgs) -> Result<()> {
+    if a.device != "gpu" {
+        return Ok(dhoit_train::cli::predict(a)?);
+    }
+    let gpu = dhoit_runtime::gpu::Gpu::new()?;
+    eprintln!("predict: on {}", gpu.adapter);
+    Ok(dhoit_train::cli::predict_with(&a, &|mlp, rows| {
+        Ok(gpu.predict(mlp, rows)?)
+    })?)
+}
+
 fn scenes() -> Result<()> {
     println!("{:<12} {:>10}  description", "built-in", "triangles");
     for (name, desc) in scene::procedural::BUILTIN {
@@ -483,7 +495,7 @@ fn main() {
         Command::Compare(a) => compare::run(a),
         Command::Dataset(a) => dhoit_train::cli::dataset(a).map_err(Into::into),
         Command::Train(a) => dhoit_train::cli::train(a).map_err(Into::into),
-        Command::Predict(a) => dhoit_train::cli::predict(a).map_err(Into::into),
+        Command::Predict(a) => predict(a),
         Command::Score(a) => dhoit_train::cli::score(a).map_err(Into::into),
         Command::Features(a) => features(a),
         Command::Bench(a) => bench::run(a),

@@ -34,12 +34,38 @@ fn max_diff(a: &[f32], b: &[f32]) -> f32 {
         .fold(0.0, f32::max)
 }
 
+/// Fails, naming the rows that moved beyond `tolerance`, by how much, and how to regenerate the
+/// golden files when the change is on purpose.
+fn hold_to_golden(what: &str, got: &[f32], golden: &[f32], tolerance: f32) {
+    assert_eq!(got.len(), golden.len(), "{what}: row count");
+    let moved: Vec<String> = got
+        .iter()
+        .zip(golden)
+        .enumerate()
+        .filter(|(_, (g, e))| (*g - *e).abs() > tolerance)
+        .map(|(i, (g, e))| format!("row {i}: {e} -> {g} ({:+e})", g - e))
+        .collect();
+    assert!(
+        moved.is_empty(),
+        "{what}: {} of {} predictions moved beyond {tolerance:e}:\n  {}\nIf the change is on \
+         purpose (new weights or features), regenerate the golden files with `make golden` and \
+         commit data/golden/.",
+        moved.len(),
+        got.len(),
+        moved
+            .iter()
+            .take(10)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join("\n  ")
+    );
+}
+
 #[test]
 fn the_runtime_twin_reproduces_the_golden_predictions() {
     let (mlp, rows, pred) = golden();
     let twin: Vec<f32> = rows.iter().map(|r| mlp.forward(r)).collect();
-    let d = max_diff(&twin, &pred);
-    assert!(d <= 1e-6, "runtime twin differs from golden by {d}");
+    hold_to_golden("the runtime twin", &twin, &pred, 1e-6);
     // The predictions are not degenerate: they spread over a range (slot requests over
     // several slots).
     let (lo, hi) = pred
@@ -57,8 +83,36 @@ fn the_runtime_twin_reproduces_the_golden_predictions() {
 #[test]
 fn burn_reproduces_the_golden_predictions() {
     let (mlp, rows, pred) = golden();
-    let d = max_diff(&dhoit_train::model::predict(&mlp, &rows), &pred);
-    assert!(d <= 1e-6, "burn differs from golden by {d}");
+    hold_to_golden(
+        "burn",
+        &dhoit_train::model::predict(&mlp, &rows),
+        &pred,
+        1e-6,
+    );
+}
+
+#[test]
+fn the_gpu_reproduces_the_golden_predictions() {
+    let (mlp, rows, pred) = golden();
+    let g = match dhoit_runtime::gpu::Gpu::new() {
+        Ok(g) => g,
+        Err(e) if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") => {
+            eprintln!("SKIPPED (DHOIT_SKIP_GPU=1): golden predictions on the GPU: {e}");
+            return;
+        }
+        Err(e) => panic!("{e} (set DHOIT_SKIP_GPU=1 to skip the GPU tests explicitly)"),
+    };
+    hold_to_golden("the GPU", &g.predict(&mlp, &rows).unwrap(), &pred, 1e-5);
+}
+
+#[test]
+fn a_moved_prediction_is_reported_with_its_rows() {
+    let golden = [0.1f32, 0.2, 0.3];
+    let moved = [0.1f32, 0.25, 0.3];
+    let e = std::panic::catch_unwind(|| hold_to_golden("demo", &moved, &golden, 1e-6)).unwrap_err();
+    let msg = e.downcast_ref::<String>().unwrap();
+    assert!(msg.contains("1 of 3 predictions moved") && msg.contains("row 1: 0.2 -> 0.25"));
+    assert!(msg.contains("make golden"), "{msg}");
 }
 
 fn temp(name: &str) -> PathBuf {

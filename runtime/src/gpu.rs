@@ -28,67 +28,122 @@ use wgpu::util::DeviceExt;
 pub mod shaders {
     pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
     pub const GEOMETRY: &str = include_str!("../../shaders/geometry.wgsl");
-    /// (name, source, is a geometry pass)
-    pub const PASSES: [(&str, &str, bool); 13] = [
-        (
+    /// The importance network, prepended to the passes that run it.
+    pub const MLP: &str = include_str!("../../shaders/mlp.wgsl");
+
+    /// One WGSL pass: its name, its source, and what is prepended to it besides COMMON.
+    pub struct Pass {
+        pub name: &'static str,
+        pub source: &'static str,
+        /// A geometry pass (GEOMETRY, the vertex stage, is prepended).
+        pub geometry: bool,
+        /// Runs the network (MLP is prepended).
+        pub mlp: bool,
+    }
+
+    const fn pass(name: &'static str, source: &'static str, geometry: bool, mlp: bool) -> Pass {
+        Pass {
+            name,
+            source,
+            geometry,
+            mlp,
+        }
+    }
+
+    pub const PASSES: [Pass; 14] = [
+        pass(
             "abuffer_count",
             include_str!("../../shaders/abuffer_count.wgsl"),
             true,
+            false,
         ),
-        ("scan", include_str!("../../shaders/scan.wgsl"), false),
-        (
+        pass(
+            "scan",
+            include_str!("../../shaders/scan.wgsl"),
+            false,
+            false,
+        ),
+        pass(
             "abuffer_store",
             include_str!("../../shaders/abuffer_store.wgsl"),
             true,
+            false,
         ),
-        (
+        pass(
             "abuffer_resolve",
             include_str!("../../shaders/abuffer_resolve.wgsl"),
             false,
+            false,
         ),
-        ("capture", include_str!("../../shaders/capture.wgsl"), true),
-        ("resolve", include_str!("../../shaders/resolve.wgsl"), false),
-        (
+        pass(
+            "capture",
+            include_str!("../../shaders/capture.wgsl"),
+            true,
+            false,
+        ),
+        pass(
+            "resolve",
+            include_str!("../../shaders/resolve.wgsl"),
+            false,
+            false,
+        ),
+        pass(
             "mlab_resolve",
             include_str!("../../shaders/mlab_resolve.wgsl"),
             false,
+            false,
         ),
-        (
+        pass(
             "allocate",
             include_str!("../../shaders/allocate.wgsl"),
             false,
+            false,
         ),
-        (
+        pass(
             "features",
             include_str!("../../shaders/features.wgsl"),
             true,
+            false,
         ),
-        ("totals", include_str!("../../shaders/totals.wgsl"), false),
-        (
+        pass(
+            "totals",
+            include_str!("../../shaders/totals.wgsl"),
+            false,
+            false,
+        ),
+        pass(
             "importance_dkb",
             include_str!("../../shaders/importance_dkb.wgsl"),
             false,
+            true,
         ),
-        (
+        pass(
             "vkb_count",
             include_str!("../../shaders/vkb_count.wgsl"),
             true,
+            false,
         ),
-        (
+        pass(
             "importance_vkb",
             include_str!("../../shaders/importance_vkb.wgsl"),
             false,
+            false,
+        ),
+        pass(
+            "predict",
+            include_str!("../../shaders/predict.wgsl"),
+            false,
+            true,
         ),
     ];
 
-    /// The full source of a pass: common code, the vertex stage for geometry passes, the pass.
+    /// The full source of a pass: common code, the vertex stage for geometry passes, the
+    /// network for the passes that run it, the pass.
     pub fn source(name: &str) -> Option<String> {
-        let (_, src, geometry) = PASSES.iter().find(|p| p.0 == name)?;
-        Some(if *geometry {
-            format!("{COMMON}\n{GEOMETRY}\n{src}")
-        } else {
-            format!("{COMMON}\n{src}")
-        })
+        let p = PASSES.iter().find(|p| p.name == name)?;
+        let geometry = if p.geometry { GEOMETRY } else { "" };
+        let mlp = if p.mlp { MLP } else { "" };
+        Some(format!("{COMMON}\n{geometry}\n{mlp}\n{}", p.source))
     }
 }
 
@@ -123,6 +178,7 @@ struct Pipelines {
     features: wgpu::RenderPipeline,
     totals: wgpu::ComputePipeline,
     importance_dkb: wgpu::ComputePipeline,
+    predict: wgpu::ComputePipeline,
     vkb_count: wgpu::RenderPipeline,
     importance_vkb: wgpu::ComputePipeline,
 }
@@ -276,6 +332,7 @@ impl Pipelines {
             features: geometry("features"),
             totals: compute("totals"),
             importance_dkb: compute("importance_dkb"),
+            predict: compute("predict"),
             vkb_count: geometry("vkb_count"),
             importance_vkb: compute("importance_vkb"),
         };
@@ -317,7 +374,7 @@ fn weight_kind(t: Target) -> u32 {
     }
 }
 
-/// The network's weights as the uniform `importance_dkb.wgsl` reads: h1, h2, 0, 0, mean, std,
+/// The network's weights as the uniform `mlp.wgsl` reads: h1, h2, 0, 0, mean, std,
 /// fc1 weight and bias, fc2 weight and bias, out weight and bias, zero-padded.
 pub fn mlp_uniform(m: &Mlp) -> Vec<f32> {
     let mut v = vec![m.h1 as f32, m.h2 as f32, 0.0, 0.0];
@@ -331,6 +388,75 @@ pub fn mlp_uniform(m: &Mlp) -> Vec<f32> {
     v.push(m.b3);
     v.resize((budget::MLP_UNIFORM_BYTES / 4) as usize, 0.0);
     v
+}
+
+impl Gpu {
+    /// The network on rows of features, on the GPU: the batch pass `predict.wgsl` runs the same
+    /// WGSL network (`mlp.wgsl`) as the DKB importance pass. Rows go through in chunks that fit
+    /// the device's largest binding.
+    pub fn predict(
+        &self,
+        mlp: &Mlp,
+        rows: &[[f32; crate::importance::FEATURES]],
+    ) -> Result<Vec<f32>> {
+        let weights = self
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("mlp.weights"),
+                contents: bytemuck::cast_slice(&mlp_uniform(mlp)),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let limit = self.device.limits().max_storage_buffer_binding_size;
+        let chunk = ((limit / 48) as usize).clamp(1, 1 << 22);
+        let mut out = Vec::with_capacity(rows.len());
+        for part in rows.chunks(chunk) {
+            let n = part.len() as u32;
+            // The pass reads the row count from the frame parameters' pixel count.
+            let mut params: Params = bytemuck::Zeroable::zeroed();
+            params.pixels = n;
+            let params_buf = self
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("params"),
+                    contents: bytemuck::bytes_of::<Params>(&params),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+            let input = self
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("predict.rows"),
+                    contents: bytemuck::cast_slice(part),
+                    usage: wgpu::BufferUsages::STORAGE,
+                });
+            let size = (4 * n as u64).max(16);
+            let output = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("predict.out"),
+                size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let pl = &self.pipelines.predict;
+            let group = self.bind_at(
+                &pl.get_bind_group_layout(0),
+                &[(0, &params_buf), (1, &weights), (2, &input), (3, &output)],
+            );
+            let mut enc = self.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                pass.set_pipeline(pl);
+                pass.set_bind_group(0, &group, &[]);
+                let (gx, gy) = grid(n, 64);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            self.queue.submit([enc.finish()]);
+            out.extend(
+                u32s(&read_back(self, &output, 4 * n as u64)?)
+                    .into_iter()
+                    .map(f32::from_bits),
+            );
+        }
+        Ok(out)
+    }
 }
 
 /// Most MLAB rows the GPU blends (a private array in the shader).

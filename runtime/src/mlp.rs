@@ -33,6 +33,18 @@ pub const MAX_PARAMETER: f32 = 1e6;
 pub const MAX_MEAN: f32 = 1e9;
 pub const STD_RANGE: (f32, f32) = (1e-9, 1e9);
 
+/// The most standard deviations a standardised input may lie from its mean: inputs beyond are
+/// clamped to it. Far outside anything real (features stay within a few dozen), it keeps every
+/// sum of a network with parameters up to [`MAX_PARAMETER`] below 1e28, so no input, however
+/// extreme, overflows the network into a NaN that burn, the CPU and the GPU would each treat
+/// their own way.
+pub const MAX_STANDARDISED: f32 = 1e4;
+
+/// One standardised input: `clamp((f - mean) / std, -MAX_STANDARDISED, MAX_STANDARDISED)`.
+pub fn standardise(f: f32, mean: f32, std: f32) -> f32 {
+    ((f - mean) / std).clamp(-MAX_STANDARDISED, MAX_STANDARDISED)
+}
+
 /// The output non-linearity: the logistic sigmoid, and 0 where the sum is not a number (inputs
 /// so extreme that the sums overflowed both ways; the allocation reads 0 as "no importance").
 /// The GPU pass computes the same.
@@ -110,7 +122,7 @@ impl Mlp {
         let (h1, h2) = scratch.split_at_mut(n1);
         let mut x = [0.0f32; FEATURES];
         for i in 0..FEATURES {
-            x[i] = (f[i] - self.mean[i]) / self.std[i];
+            x[i] = standardise(f[i], self.mean[i], self.std[i]);
         }
         for j in 0..n1 {
             let mut acc = self.b1[j];

@@ -32,7 +32,7 @@ fn gpu() -> Option<&'static Gpu> {
 fn every_shader_validates_and_translates_without_a_gpu() {
     use naga::valid::{Capabilities, ValidationFlags, Validator};
     let mut accepted = Vec::new();
-    for (name, _, _) in shaders::PASSES {
+    for shaders::Pass { name, .. } in shaders::PASSES {
         let src = shaders::source(name).unwrap();
         let module = naga::front::wgsl::parse_str(&src)
             .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));

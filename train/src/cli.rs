@@ -287,7 +287,8 @@ pub struct PredictArgs {
     /// Output file: safetensors with `importance` f32 [N].
     #[arg(long)]
     pub output: PathBuf,
-    /// Where inference runs: cpu (burn, NdArray backend).
+    /// Where inference runs: cpu (burn, NdArray backend), twin (the runtime's plain-Rust
+    /// network) or gpu (the WGSL network the renderer's importance pass runs; `dhoit` only).
     #[arg(long, default_value = "cpu")]
     pub device: String,
 }
@@ -325,22 +326,40 @@ pub fn parse_features(bytes: &[u8], path: &Path) -> Result<Vec<[f32; FEATURES]>>
 
 /// `dhoit predict`.
 pub fn predict(a: PredictArgs) -> Result<()> {
-    if a.device != "cpu" {
-        return Err(Error::Config(format!(
-            "device '{}' is not available for predict: use --device cpu",
-            a.device
-        )));
-    }
+    predict_with(&a, &|mlp, rows| match a.device.as_str() {
+        "cpu" => Ok(model::predict(mlp, rows)),
+        "twin" => Ok(mlp.importance(rows, &vec![1; rows.len()])),
+        other => Err(Error::Config(format!(
+            "device '{other}' is not available here for predict: use cpu (burn) or twin (the \
+             runtime's CPU twin); `dhoit predict` also offers gpu"
+        ))),
+    })
+}
+
+/// A way to run the network on rows of features (burn, the CPU twin, the GPU).
+pub type Inference<'a> = dyn Fn(&Mlp, &[[f32; FEATURES]]) -> Result<Vec<f32>> + 'a;
+
+/// `dhoit predict` with the inference given: reads the weights and the features, writes the
+/// predictions (atomically).
+pub fn predict_with(a: &PredictArgs, infer: &Inference) -> Result<()> {
     let mlp = Mlp::load(&a.weights)?;
     let rows = read_features(&a.input)?;
-    let imp = model::predict(&mlp, &rows);
-    let meta = HashMap::from([("weights".to_string(), a.weights.display().to_string())]);
+    let imp = infer(&mlp, &rows)?;
+    let meta = HashMap::from([
+        ("weights".to_string(), a.weights.display().to_string()),
+        ("device".to_string(), a.device.clone()),
+    ]);
     tensors::write(
         &a.output,
         &[Entry::f32("importance", vec![imp.len()], &imp)],
         meta,
     )?;
-    eprintln!("predict: {} rows -> {}", imp.len(), a.output.display());
+    eprintln!(
+        "predict ({}): {} rows -> {}",
+        a.device,
+        imp.len(),
+        a.output.display()
+    );
     Ok(())
 }
 

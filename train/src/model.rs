@@ -94,7 +94,9 @@ pub fn input_tensor(
 ) -> Tensor<2> {
     let flat: Vec<f32> = rows
         .iter()
-        .flat_map(|r| (0..FEATURES).map(move |i| (r[i] - mean[i]) / std[i]))
+        .flat_map(|r| {
+            (0..FEATURES).map(move |i| dhoit_runtime::mlp::standardise(r[i], mean[i], std[i]))
+        })
         .collect();
     Tensor::from_data(TensorData::new(flat, [rows.len(), FEATURES]), device)
 }

@@ -1,0 +1,23 @@
+// Batch prediction (compute, one invocation a row): the network of mlp.wgsl on rows of 12
+// features, as `dhoit predict` runs it in burn and mlp::Mlp::forward on the CPU.
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(2) var<storage, read> rows: array<f32>;
+@group(0) @binding(3) var<storage, read_write> predictions: array<f32>;
+
+@compute @workgroup_size(64)
+fn main(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let r = grid_index(wid, nwg, lid, 64u);
+    if (r >= params.pixels) {
+        return;
+    }
+    var x: array<f32, 12>;
+    for (var i = 0u; i < 12u; i++) {
+        x[i] = rows[12u * r + i];
+    }
+    predictions[r] = mlp_forward(x);
+}

@@ -1,0 +1,252 @@
+//! burn, the runtime's CPU twin and the GPU's WGSL network compute one function: the same
+//! weights file loaded into all three, the same batches through each, within 1e-5 (f32), and
+//! never a NaN or an infinity. The batches are random, from real renders, the golden features,
+//! and extremes; the networks the default, saturated, dead and the smallest and largest sizes.
+
+use dhoit_runtime::gpu::Gpu;
+use dhoit_runtime::importance::FEATURES;
+use dhoit_runtime::mlp::{self, Mlp};
+use dhoit_runtime::rng::Rng;
+use std::path::Path;
+use std::sync::OnceLock;
+
+type Rows = Vec<[f32; FEATURES]>;
+
+fn gpu() -> Option<&'static Gpu> {
+    static GPU: OnceLock<Option<Gpu>> = OnceLock::new();
+    GPU.get_or_init(|| match Gpu::new() {
+        Ok(g) => Some(g),
+        Err(e) if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") => {
+            eprintln!("SKIPPED (DHOIT_SKIP_GPU=1): the GPU side of the equivalence: {e}");
+            None
+        }
+        Err(e) => panic!("{e} (set DHOIT_SKIP_GPU=1 to skip the GPU tests explicitly)"),
+    })
+    .as_ref()
+}
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn default_weights() -> Mlp {
+    Mlp::load(&root().join("data/weights.safetensors")).unwrap()
+}
+
+/// The largest difference between any two of burn, the twin and the GPU, after checking every
+/// output is a finite number in [0, 1].
+fn spread(m: &Mlp, rows: &Rows, what: &str) -> f32 {
+    let burn = dhoit_train::model::predict(m, rows);
+    let twin: Vec<f32> = rows.iter().map(|r| m.forward(r)).collect();
+    let mut all = vec![("burn", burn), ("twin", twin)];
+    if let Some(g) = gpu() {
+        all.push(("gpu", g.predict(m, rows).unwrap()));
+    }
+    for (name, v) in &all {
+        assert_eq!(v.len(), rows.len(), "{what}: {name}");
+        if let Some(i) = v
+            .iter()
+            .position(|x| !(x.is_finite() && (0.0..=1.0).contains(x)))
+        {
+            panic!("{what}: {name} gives {} for row {i}: {:?}", v[i], rows[i]);
+        }
+    }
+    let mut worst = 0.0f32;
+    for a in 0..all.len() {
+        for b in a + 1..all.len() {
+            for (i, (x, y)) in all[a].1.iter().zip(&all[b].1).enumerate() {
+                let d = (x - y).abs();
+                assert!(
+                    d <= 1e-5,
+                    "{what}: {} and {} differ by {d} on row {i} ({x} vs {y}): {:?}",
+                    all[a].0,
+                    all[b].0,
+                    rows[i]
+                );
+                worst = worst.max(d);
+            }
+        }
+    }
+    worst
+}
+
+/// Rows in the ranges real features take.
+fn random_rows(rng: &mut Rng, n: usize) -> Rows {
+    (0..n)
+        .map(|_| {
+            let c = rng.f32() * 8.0;
+            [
+                c,
+                rng.f32() * 6.0,
+                rng.f32(),
+                rng.f32() * 6.0 - 3.0,
+                rng.f32(),
+                rng.f32() - 0.5,
+                -20.0 + 20.0 * rng.f32(),
+                -20.0 + 20.0 * rng.f32(),
+                rng.f32(),
+                rng.f32(),
+                rng.f32(),
+                rng.f32(),
+            ]
+        })
+        .collect()
+}
+
+/// Extreme rows: all zeros, all ones, 1e6, 1e-9, negative, far outside the standardisation,
+/// the largest finite magnitudes.
+fn extreme_rows(m: &Mlp) -> Rows {
+    let mut rows: Rows = vec![
+        [0.0; FEATURES],
+        [1.0; FEATURES],
+        [1e6; FEATURES],
+        [1e-9; FEATURES],
+        [-1.0; FEATURES],
+        [-1e6; FEATURES],
+        [f32::MAX; FEATURES],
+        [f32::MIN; FEATURES],
+        [f32::MIN_POSITIVE; FEATURES],
+    ];
+    for k in [-1e4f32, -100.0, 100.0, 1e4] {
+        rows.push(std::array::from_fn(|i| m.mean[i] + k * m.std[i]));
+    }
+    for i in 0..FEATURES {
+        let mut r = [0.5; FEATURES];
+        r[i] = 1e30;
+        rows.push(r);
+        r[i] = -1e30;
+        rows.push(r);
+    }
+    rows
+}
+
+fn frame_rows(name: &str) -> Rows {
+    use dhoit_runtime::scene::{self, Camera, Opacity};
+    let s = scene::load(name, Opacity::default()).unwrap();
+    let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, 96, 72);
+    let fl = dhoit_runtime::raster::rasterize(&s, &cam, 96, 72).unwrap();
+    let counts = fl.counts();
+    dhoit_runtime::importance::features(&fl, fl.fragment_count() as u64 / 3)
+        .into_iter()
+        .zip(counts)
+        .filter(|(_, n)| *n > 0)
+        .map(|(f, _)| f)
+        .collect()
+}
+
+#[test]
+fn burn_the_twin_and_the_gpu_agree_on_every_batch() {
+    let m = default_weights();
+    let mut rng = Rng::new(12);
+    let golden =
+        dhoit_train::cli::read_features(&root().join("data/golden/features.safetensors")).unwrap();
+    let mut worst = Vec::new();
+    for (what, rows) in [
+        ("random", random_rows(&mut rng, 4096)),
+        ("golden", golden),
+        ("particles render", frame_rows("particles")),
+        ("cad render", frame_rows("cad")),
+        ("extremes", extreme_rows(&m)),
+    ] {
+        worst.push((what, spread(&m, &rows, what)));
+    }
+    eprintln!("largest difference between burn, twin and GPU: {worst:?}");
+}
+
+/// The default network with its weights changed by `edit`.
+fn edited(edit: impl FnOnce(&mut Mlp)) -> Mlp {
+    let mut m = default_weights();
+    edit(&mut m);
+    m
+}
+
+#[test]
+fn they_agree_at_the_limits_of_the_network() {
+    let mut rng = Rng::new(5);
+    let mut rows = random_rows(&mut rng, 512);
+    let mut worst = Vec::new();
+    let saturated_high = edited(|m| m.b3 = 60.0);
+    let saturated_low = edited(|m| m.b3 = -60.0);
+    // Every first-layer unit dead: the output is the sigmoid of the biases alone.
+    let dead = edited(|m| m.b1.iter_mut().for_each(|b| *b = -mlp::MAX_PARAMETER));
+    let mut cases: Vec<(String, Mlp)> = vec![
+        ("saturated at 1".into(), saturated_high),
+        ("saturated at 0".into(), saturated_low),
+        ("every hidden unit dead".into(), dead),
+    ];
+    for (h1, h2) in [(1, 1), (8, 128), (16, 8), (128, 64)] {
+        let mut m = Mlp::random_sized(7, h1, h2);
+        m.mean = default_weights().mean;
+        m.std = default_weights().std;
+        cases.push((format!("random {h1}-{h2}"), m));
+    }
+    for (what, m) in &cases {
+        let w = spread(m, &rows, what);
+        worst.push((what.clone(), w));
+        let x = spread(m, &extreme_rows(m), &format!("{what}, extremes"));
+        worst.push((format!("{what}, extremes"), x));
+    }
+    // The saturated networks give exactly 1 and 0 on ordinary rows.
+    let hi: Vec<f32> = rows.iter().map(|r| cases[0].1.forward(r)).collect();
+    assert!(hi.iter().all(|&v| v > 0.999_999));
+    let lo: Vec<f32> = rows.iter().map(|r| cases[1].1.forward(r)).collect();
+    assert!(lo.iter().all(|&v| v < 1e-6));
+    let dead: Vec<f32> = rows.iter().map(|r| cases[2].1.forward(r)).collect();
+    assert!(
+        dead.windows(2).all(|w| w[0] == w[1]),
+        "a dead network is constant"
+    );
+    rows.truncate(1);
+    eprintln!("largest difference at the limits: {worst:?}");
+}
+
+#[test]
+fn every_loader_refuses_weights_at_the_limits() {
+    let good = std::fs::read(root().join("data/weights.safetensors")).unwrap();
+    let m = Mlp::from_bytes(&good).unwrap();
+    let dir = std::env::temp_dir().join(format!("dhoit-equiv-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (what, edit, needle) in [
+        (
+            "NaN",
+            (|m: &mut Mlp| m.w2[3] = f32::NAN) as fn(&mut Mlp),
+            "non-finite",
+        ),
+        (
+            "infinity",
+            |m: &mut Mlp| m.b1[0] = f32::INFINITY,
+            "non-finite",
+        ),
+        ("huge", |m: &mut Mlp| m.w3[0] = 1e20, "largest magnitude"),
+        ("zero std", |m: &mut Mlp| m.std[4] = 0.0, "input_std[4]"),
+    ] {
+        let mut bad = m.clone();
+        edit(&mut bad);
+        let path = dir.join(format!("{what}.safetensors"));
+        bad.save(&path, &Default::default()).unwrap();
+        // The runtime (and so the GPU upload, which takes an Mlp) and the predict command,
+        // which loads for burn.
+        let e = Mlp::load(&path).unwrap_err().to_string();
+        assert!(e.contains(needle), "{what}: {e}");
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_dhoit"))
+            .args(["predict", "--weights"])
+            .arg(&path)
+            .arg("--input")
+            .arg(root().join("data/golden/features.safetensors"))
+            .arg("--output")
+            .arg(dir.join("never.safetensors"))
+            .output()
+            .unwrap();
+        assert!(!o.status.success(), "{what}");
+        assert!(
+            String::from_utf8_lossy(&o.stderr).contains(needle),
+            "{what}"
+        );
+    }
+    // A hidden layer larger than the GPU pass holds.
+    let big = Mlp::random_sized(1, 4, mlp::MAX_H2 + 1);
+    let path = dir.join("big.safetensors");
+    big.save(&path, &Default::default()).unwrap();
+    let e = Mlp::load(&path).unwrap_err().to_string();
+    assert!(e.contains("at most"), "{e}");
+}
