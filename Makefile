@@ -24,7 +24,7 @@ demo: build
 	$(RUN) compare --scene particles --res 640x480 --budget 1fpp,2fpp --weights out/demo/weights.safetensors --out out/demo
 
 ## Train the default network from the built-in scenes: data/weights.safetensors, data/config.json,
-## data/loss.png (the dataset is generated into data/generated/, which git ignores).
+## data/loss.svg, data/loss.png (the dataset is generated into data/generated/, which git ignores).
 train: build
 	$(CARGO) run --release --quiet -p dhoit-train
 

@@ -1,14 +1,18 @@
 #!/usr/bin/env bash
 # Installs what building and testing dhoit needs on a Debian machine: Mesa's Vulkan drivers
-# (lavapipe, the CPU Vulkan device the GPU tests run on) and the rustfmt / clippy components.
+# (lavapipe, the CPU Vulkan device the GPU tests run on), a TrueType font for the words in
+# plots and montages (fonts-dejavu-core), a C++ compiler for FLIP (nv-flip builds NVIDIA's C++
+# FLIP) and the rustfmt / clippy components.
 # Safe to run again: it only installs what is missing.
 set -euo pipefail
 
 need_apt=()
 dpkg -s mesa-vulkan-drivers >/dev/null 2>&1 || need_apt+=(mesa-vulkan-drivers)
+dpkg -s fonts-dejavu-core >/dev/null 2>&1 || need_apt+=(fonts-dejavu-core)
+command -v c++ >/dev/null 2>&1 || need_apt+=(g++)
 if [ ${#need_apt[@]} -gt 0 ]; then
   if ! command -v apt-get >/dev/null; then
-    echo "setup: please install Mesa's Vulkan drivers (lavapipe) with your package manager" >&2
+    echo "setup: please install with your package manager: ${need_apt[*]} (Mesa's Vulkan drivers, a TrueType font, a C++ compiler)" >&2
     exit 1
   fi
   sudo=""

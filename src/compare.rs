@@ -2,13 +2,14 @@
 //! one typed row per frame and method, written as a terminal table, Markdown and JSON from the
 //! same rows; a summary of the ratios that decide whether the network earns its place.
 
-use crate::{ViewArgs, kmap_rgb8, load_scene, load_weights, parse_equal, rasterize_view};
+use crate::{ViewArgs, load_scene, load_weights, parse_equal, rasterize_view};
 use anyhow::{Context, Result};
 use clap::Args;
 use dhoit_runtime::budget::{Budget, format_bytes};
 use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
-use dhoit_runtime::image_io::{self, Montage};
+use dhoit_runtime::image_io;
 use dhoit_runtime::scene;
+use dhoit_train::plot::{Montage, Scale};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -72,6 +73,8 @@ pub struct Row {
     pub equal: &'static str,
     pub method: &'static str,
     pub mse: f64,
+    /// Mean FLIP against the A-buffer image (sRGB8, 67 pixels per degree), in [0, 1].
+    pub flip: f64,
     pub fragments_total: u64,
     pub fragments_captured: u64,
     pub budget_fragments: u64,
@@ -96,9 +99,10 @@ impl Row {
     }
 }
 
-const HEADER: [&str; 7] = [
+const HEADER: [&str; 8] = [
     "method",
     "MSE",
+    "FLIP",
     "captured",
     "F(M)",
     "sum k / F",
@@ -106,10 +110,11 @@ const HEADER: [&str; 7] = [
     "ms",
 ];
 
-fn cells(r: &Row) -> [String; 7] {
+fn cells(r: &Row) -> [String; 8] {
     [
         r.method.to_string(),
         format!("{:.4e}", r.mse),
+        format!("{:.4}", r.flip),
         format!("{:.1}%", 100.0 * r.captured()),
         r.budget_fragments.to_string(),
         format!("{:.1}%", 100.0 * r.budget_used),
@@ -221,32 +226,39 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
     }
     let mut head = vec!["budget"];
     head.extend(methods.iter());
-    let mean_rows: Vec<Vec<String>> = budgets
-        .iter()
-        .map(|b| {
-            let mut row = vec![b.clone()];
-            for m in &methods {
-                let v: Vec<f64> = rows
-                    .iter()
-                    .filter(|r| r.budget == *b && r.method == *m)
-                    .map(|r| r.mse)
-                    .collect();
-                row.push(if v.is_empty() {
-                    "n/a".into()
-                } else {
-                    format!("{:.3e}", v.iter().sum::<f64>() / v.len() as f64)
-                });
-            }
-            row
-        })
-        .collect();
-    let (t, m) = table(&head, &mean_rows);
-    let title = format!(
-        "Mean MSE against the A-buffer over all frames ({})",
-        equal.name()
-    );
-    let _ = write!(text, "\n{title}\n{t}");
-    let _ = write!(md, "\n## {title}\n\n{m}");
+    type Metric = (&'static str, fn(&Row) -> f64, fn(f64) -> String);
+    let metrics: [Metric; 2] = [
+        ("MSE", |r| r.mse, |v| format!("{v:.3e}")),
+        ("FLIP", |r| r.flip, |v| format!("{v:.4}")),
+    ];
+    for (metric, get, show) in metrics {
+        let mean_rows: Vec<Vec<String>> = budgets
+            .iter()
+            .map(|b| {
+                let mut row = vec![b.clone()];
+                for m in &methods {
+                    let v: Vec<f64> = rows
+                        .iter()
+                        .filter(|r| r.budget == *b && r.method == *m)
+                        .map(get)
+                        .collect();
+                    row.push(if v.is_empty() {
+                        "n/a".into()
+                    } else {
+                        show(v.iter().sum::<f64>() / v.len() as f64)
+                    });
+                }
+                row
+            })
+            .collect();
+        let (t, m) = table(&head, &mean_rows);
+        let title = format!(
+            "Mean {metric} against the A-buffer over all frames ({})",
+            equal.name()
+        );
+        let _ = write!(text, "\n{title}\n{t}");
+        let _ = write!(md, "\n## {title}\n\n{m}");
+    }
     let r = ratios(rows);
     if r.is_empty() {
         return (text, md);
@@ -470,10 +482,19 @@ pub fn run(a: CompareArgs) -> Result<()> {
                     }
                 }
                 let reference = frames[0].image.clone();
+                let reference8 = image_io::to_srgb8(&reference);
+                let flips: Vec<(f64, Vec<f32>)> = frames
+                    .iter()
+                    .map(|f| {
+                        let test = image_io::to_srgb8(&f.image);
+                        image_io::flip(&reference8, &test, fl.width, fl.height)
+                    })
+                    .collect();
                 let counts = fl.counts();
                 let frame_rows: Vec<Row> = frames
                     .iter()
-                    .map(|f| {
+                    .zip(&flips)
+                    .map(|(f, (flip, _))| {
                         let used =
                             f.k.iter()
                                 .zip(&counts)
@@ -489,6 +510,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
                             equal: a.equal.name(),
                             method: f.method.name(),
                             mse: f.image.mse(&reference),
+                            flip: *flip,
                             fragments_total: f.fragments_total,
                             fragments_captured: f.fragments_captured,
                             budget_fragments: f.budget_fragments,
@@ -537,10 +559,20 @@ pub fn run(a: CompareArgs) -> Result<()> {
                 }
                 if !a.no_images {
                     let tag = format!("{label}_v{view}_{}", budget.to_string().replace(' ', ""));
-                    write_images(&a, &tag, &fl, &frames, &reference)?;
+                    let budget_label = format!("{budget} ({})", a.equal.name());
+                    write_images(
+                        &a,
+                        &tag,
+                        &budget_label,
+                        &fl,
+                        &frames,
+                        &frame_rows,
+                        &flips,
+                        &reference,
+                    )?;
                     let order: Vec<&str> = frames.iter().map(|f| f.method.name()).collect();
                     md += &format!(
-                        "\n![{tag}]({tag}_montage.png)\n\nColumns: {}. Rows: image; k(p) used (dark blue 0 to yellow: the method's max); colour error |C - C_exact| (one scale for the row).\n",
+                        "\n![{tag}]({tag}_montage.png)\n\nColumns: {}. Rows: image; k(p) used; colour error |C - C_exact|; FLIP error map (each row on the colour scale at its right, one scale for the row).\n",
                         order.join(", ")
                     );
                 }
@@ -587,13 +619,15 @@ pub fn run(a: CompareArgs) -> Result<()> {
 fn write_images(
     a: &CompareArgs,
     tag: &str,
+    budget: &str,
     fl: &dhoit_runtime::raster::FragmentLists,
     frames: &[Frame],
+    rows: &[Row],
+    flips: &[(f64, Vec<f32>)],
     reference: &dhoit_runtime::composite::Image,
 ) -> Result<()> {
     let counts = fl.counts();
     let covered: Vec<bool> = counts.iter().map(|&n| n > 0).collect();
-    let mut montage = Montage::new(fl.width, fl.height, frames.len() as u32, 3);
     let errors: Vec<Vec<f32>> = frames
         .iter()
         .map(|f| {
@@ -606,19 +640,73 @@ fn write_images(
         })
         .collect();
     let err_max = errors.iter().flatten().copied().fold(0.0f32, f32::max);
+    let used: Vec<Vec<f32>> = frames
+        .iter()
+        .map(|f| {
+            f.k.iter()
+                .zip(&counts)
+                .map(|(&k, &n)| k.min(n) as f32)
+                .collect()
+        })
+        .collect();
+    let k_max = used.iter().flatten().copied().fold(0.0f32, f32::max);
+    let mut tiles = vec![Vec::new(), Vec::new(), Vec::new(), Vec::new()];
+    let mut columns = Vec::new();
     for (col, f) in frames.iter().enumerate() {
         image_io::write_png(
             &a.out.join(format!("{tag}_{}.png", f.method.name())),
             &f.image,
         )?;
-        montage.put(col as u32, 0, &image_io::to_srgb8(&f.image));
-        montage.put(col as u32, 1, &kmap_rgb8(fl, &f.k).0);
-        montage.put(
-            col as u32,
-            2,
-            &image_io::heat_rgb8(&errors[col], &covered, err_max),
-        );
+        tiles[0].push(image_io::to_srgb8(&f.image));
+        tiles[1].push(image_io::heat_rgb8(&used[col], &covered, k_max));
+        tiles[2].push(image_io::heat_rgb8(&errors[col], &covered, err_max));
+        tiles[3].push(image_io::flip_rgb8(&flips[col].1, fl.width, fl.height));
+        let r = &rows[col];
+        columns.push(vec![
+            f.method.name().to_string(),
+            if f.method == Method::Abuffer {
+                format!("{} fragments", r.fragments_total)
+            } else {
+                format!("F {} of {}", r.budget_fragments, r.fragments_total)
+            },
+            format!("MSE {:.2e}", r.mse),
+            format!("FLIP {:.4}", r.flip),
+        ]);
     }
+    columns[0].insert(0, budget.to_string());
+    for c in columns.iter_mut().skip(1) {
+        c.insert(0, String::new());
+    }
+    let montage = Montage {
+        tile_w: fl.width,
+        tile_h: fl.height,
+        tiles,
+        columns,
+        rows: vec![
+            "image".into(),
+            "k(p) used\n= min(k, n)".into(),
+            "|C - C_exact|".into(),
+            "FLIP".into(),
+        ],
+        scales: vec![
+            None,
+            Some(Scale {
+                colour: image_io::ramp,
+                lo: "0".into(),
+                hi: format!("{k_max}"),
+            }),
+            Some(Scale {
+                colour: image_io::ramp,
+                lo: "0".into(),
+                hi: format!("{err_max:.3}"),
+            }),
+            Some(Scale {
+                colour: image_io::magma,
+                lo: "0".into(),
+                hi: "1".into(),
+            }),
+        ],
+    };
     montage.write(&a.out.join(format!("{tag}_montage.png")))?;
     Ok(())
 }

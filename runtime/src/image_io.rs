@@ -63,51 +63,6 @@ pub fn write_heatmap(
     write_rgb8(path, width, height, &heat_rgb8(values, covered, max))
 }
 
-/// A grid of equally sized RGB8 tiles, for side-by-side pictures.
-pub struct Montage {
-    pub tile_w: u32,
-    pub tile_h: u32,
-    pub cols: u32,
-    pub rows: u32,
-    pub rgb: Vec<u8>,
-}
-
-impl Montage {
-    /// A grid with a 4-pixel dark gutter between tiles.
-    pub fn new(tile_w: u32, tile_h: u32, cols: u32, rows: u32) -> Montage {
-        let (w, h) = (cols * (tile_w + 4) + 4, rows * (tile_h + 4) + 4);
-        Montage {
-            tile_w,
-            tile_h,
-            cols,
-            rows,
-            rgb: vec![40; (w * h * 3) as usize],
-        }
-    }
-    pub fn width(&self) -> u32 {
-        self.cols * (self.tile_w + 4) + 4
-    }
-    pub fn height(&self) -> u32 {
-        self.rows * (self.tile_h + 4) + 4
-    }
-    /// Places a tile of `tile_w * tile_h` RGB8 pixels.
-    pub fn put(&mut self, col: u32, row: u32, tile: &[u8]) {
-        let w = self.width() as usize;
-        let (x0, y0) = (
-            (4 + col * (self.tile_w + 4)) as usize,
-            (4 + row * (self.tile_h + 4)) as usize,
-        );
-        let tw = self.tile_w as usize;
-        for y in 0..self.tile_h as usize {
-            let dst = ((y0 + y) * w + x0) * 3;
-            self.rgb[dst..dst + tw * 3].copy_from_slice(&tile[y * tw * 3..(y + 1) * tw * 3]);
-        }
-    }
-    pub fn write(&self, path: &Path) -> Result<()> {
-        write_rgb8(path, self.width(), self.height(), &self.rgb)
-    }
-}
-
 /// An image as sRGB8 pixels.
 pub fn to_srgb8(img: &Image) -> Vec<u8> {
     img.data
@@ -124,4 +79,41 @@ pub fn heat_rgb8(values: &[f32], covered: &[bool], max: f32) -> Vec<u8> {
         .zip(covered)
         .flat_map(|(&v, &c)| if c { ramp(v / max) } else { [0, 0, 0] })
         .collect()
+}
+
+/// FLIP (NVIDIA's perceptual image difference, LDR, through `nv-flip`) between two sRGB8
+/// images of `width * height` pixels viewed at FLIP's default 67 pixels per degree: the mean
+/// error in [0, 1] (0: indistinguishable) and the per-pixel error map.
+pub fn flip(reference: &[u8], test: &[u8], width: u32, height: u32) -> (f64, Vec<f32>) {
+    let n = (width * height * 3) as usize;
+    assert!(
+        reference.len() == n && test.len() == n,
+        "flip: images of {width}x{height} RGB8 expected"
+    );
+    let r = nv_flip::FlipImageRgb8::with_data(width, height, reference);
+    let t = nv_flip::FlipImageRgb8::with_data(width, height, test);
+    let map = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
+    let mean = nv_flip::FlipPool::from_image(&map).mean() as f64;
+    (mean, map.to_vec())
+}
+
+/// A FLIP error map as RGB8 with FLIP's own magma colour scale (black 0 to pale yellow 1).
+pub fn flip_rgb8(map: &[f32], width: u32, height: u32) -> Vec<u8> {
+    let m = nv_flip::FlipImageFloat::with_data(width, height, map);
+    m.apply_color_lut(&nv_flip::magma_lut()).to_vec()
+}
+
+/// The magma colour of a FLIP value in [0, 1] (for colour-scale legends).
+pub fn magma(t: f32) -> [u8; 3] {
+    let lut = nv_flip::magma_lut().to_vec();
+    let i = ((t.clamp(0.0, 1.0) * 255.0).round() as usize).min(lut.len() / 3 - 1);
+    [lut[3 * i], lut[3 * i + 1], lut[3 * i + 2]]
+}
+
+/// The width and height of a PNG file.
+pub fn png_size(path: &Path) -> Result<(u32, u32)> {
+    image::image_dimensions(path).map_err(|e| Error::Image {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
 }

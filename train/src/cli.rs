@@ -119,7 +119,7 @@ pub struct TrainArgs {
     /// Dataset directory; the default dataset is generated there when missing.
     #[arg(long)]
     pub data: Option<PathBuf>,
-    /// Weights file to write (config.json and loss.png go beside it).
+    /// Weights file to write (config.json and the loss plot, loss.svg and loss.png, go beside it).
     #[arg(long, default_value = DEFAULT_WEIGHTS)]
     pub out: PathBuf,
     #[arg(long, default_value_t = TrainConfig::default().epochs)]
@@ -263,15 +263,20 @@ pub fn train(a: TrainArgs) -> Result<()> {
             .expect("json")
             .as_bytes(),
     )?;
-    plot::loss_curve(&dir.join("loss.png"), &trained.history, trained.best_epoch)?;
+    let plots = plot::loss_curve(&dir.join("loss"), &trained.history, trained.best_epoch);
     eprintln!(
-        "train: best epoch {} (validation loss {:.4e}, train loss {:.4e}); {:.1} s, {:.0} samples/s -> {} (+ config.json, loss.png)",
+        "train: best epoch {} (validation loss {:.4e}, train loss {:.4e}); {:.1} s, {:.0} samples/s -> {} (+ config.json{})",
         trained.best_epoch,
         best.validation_loss,
         best.train_loss,
         trained.seconds,
         trained.samples_per_second,
-        a.out.display()
+        a.out.display(),
+        plots
+            .iter()
+            .filter_map(|p| p.file_name())
+            .map(|n| format!(", {}", n.to_string_lossy()))
+            .collect::<String>()
     );
     Ok(())
 }

@@ -1,6 +1,6 @@
 //! The training entry point: `cargo run --release -p dhoit-train` with no arguments generates
 //! the default dataset from the built-in scenes (if needed), trains the network and writes
-//! data/weights.safetensors with config.json and loss.png beside it. Same flags as `dhoit train`.
+//! data/weights.safetensors with config.json and loss plot (svg, png) beside it. Same flags as `dhoit train`.
 
 use clap::Parser;
 
