@@ -119,14 +119,33 @@ pub struct TrainArgs {
     /// Dataset directory; the default dataset is generated there when missing.
     #[arg(long)]
     pub data: Option<PathBuf>,
-    /// Weights file to write (config.json and the loss plot, loss.svg and loss.png, go beside it).
-    #[arg(long, default_value = DEFAULT_WEIGHTS)]
-    pub out: PathBuf,
-    #[arg(long, default_value_t = TrainConfig::default().epochs)]
-    pub epochs: usize,
-    /// SGD learning rate.
-    #[arg(long, default_value_t = TrainConfig::default().lr)]
-    pub lr: f64,
+    /// Train on your own scenes instead of the built-in set: .gltf/.glb files or built-in names,
+    /// comma separated. A dataset of their orbit views (angles i/8 of a turn) is generated
+    /// beside --out; the network starts from --init (by default the default weights, when
+    /// their sizes are --hidden: fine-tuning) and is scored against that start on held-out
+    /// views (1, 5, 7 and 11 twelfths of a turn, which no training view sees).
+    #[arg(long = "scene", value_delimiter = ',', conflicts_with = "data")]
+    pub scenes: Vec<String>,
+    /// Start from these weights (fine-tuning) instead of random ones.
+    #[arg(long)]
+    pub init: Option<PathBuf>,
+    /// With --scene: train from random weights instead of fine-tuning the default ones.
+    #[arg(long, conflicts_with = "init", requires = "scenes")]
+    pub scratch: bool,
+    /// With --scene: resolution of the views trained on and scored.
+    #[arg(long, default_value = "320x240", requires = "scenes")]
+    pub res: String,
+    /// Weights file to write; config.json and the loss plot (loss.svg, loss.png) go beside it.
+    /// Default: data/weights.safetensors, or out/finetune/SCENE/weights.safetensors with
+    /// --scene.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Training epochs (default: 40, or 20 with --scene).
+    #[arg(long)]
+    pub epochs: Option<usize>,
+    /// SGD learning rate (default: 3e-3, or 3e-4 with --scene).
+    #[arg(long)]
+    pub lr: Option<f64>,
     #[arg(long, default_value_t = TrainConfig::default().batch)]
     pub batch: usize,
     /// L1 coefficient on the first hidden layer's weights.
@@ -168,6 +187,15 @@ fn parse_loss(s: &str) -> std::result::Result<trainer::Loss, String> {
     })
 }
 
+/// Orbit views a scene is trained on with `train --scene` (angles i/8 of a turn)...
+pub const OWN_TRAIN_VIEWS: usize = 8;
+/// ...and those it is scored on: views 1, 5, 7 and 11 of 12, angles no training view has.
+pub const OWN_HELD_OUT: (usize, [usize; 4]) = (12, [1, 5, 7, 11]);
+/// Learning rate with `train --scene` (a tenth of the default: fine-tuning).
+pub const OWN_LR: f64 = 3e-4;
+/// Epochs with `train --scene`.
+pub const OWN_EPOCHS: usize = 20;
+
 /// `dhoit train`.
 pub fn train(a: TrainArgs) -> Result<()> {
     let [h1, h2] = a.hidden[..] else {
@@ -176,11 +204,52 @@ pub fn train(a: TrainArgs) -> Result<()> {
             a.hidden
         )));
     };
+    let own = !a.scenes.is_empty();
+    let out = match &a.out {
+        Some(p) => p.clone(),
+        None if own => Path::new("out/finetune")
+            .join(
+                a.scenes
+                    .iter()
+                    .map(|s| dhoit_runtime::scene::file_label(s))
+                    .collect::<Vec<_>>()
+                    .join("+"),
+            )
+            .join("weights.safetensors"),
+        None => PathBuf::from(DEFAULT_WEIGHTS),
+    };
+    let default_weights = Path::new(DEFAULT_WEIGHTS);
+    // The network to start from: --init, or with --scene the default weights when they have
+    // the sizes asked for.
+    let init = match &a.init {
+        Some(p) => Some((p.clone(), Mlp::load(p)?)),
+        None if own && !a.scratch && default_weights.is_file() => {
+            let m = Mlp::load(default_weights)?;
+            if [m.h1, m.h2] == [h1, h2] {
+                Some((default_weights.to_path_buf(), m))
+            } else {
+                eprintln!(
+                    "train: the default weights are {}-{}, not {h1}-{h2}: training from random weights",
+                    m.h1, m.h2
+                );
+                None
+            }
+        }
+        None => None,
+    };
     let config = TrainConfig {
         loss: a.loss,
         clip: a.clip,
-        epochs: a.epochs,
-        lr: a.lr,
+        epochs: a.epochs.unwrap_or(if own {
+            OWN_EPOCHS
+        } else {
+            TrainConfig::default().epochs
+        }),
+        lr: a.lr.unwrap_or(if own {
+            OWN_LR
+        } else {
+            TrainConfig::default().lr
+        }),
         batch: a.batch,
         l1: a.l1,
         l2: a.l2,
@@ -188,15 +257,42 @@ pub fn train(a: TrainArgs) -> Result<()> {
         momentum: a.momentum,
         cosine: !a.constant_lr,
         seed: a.seed,
-        validation_scenes: if a.validation.is_empty() {
-            dataset::default_validation()
-        } else {
+        // Your own scenes are all trained on (the held-out views are scored after); the best
+        // epoch is then chosen on the training loss.
+        validation_scenes: if !a.validation.is_empty() {
             a.validation.clone()
+        } else if own {
+            Vec::new()
+        } else {
+            dataset::default_validation()
         },
     };
-    let data_dir = match &a.data {
-        Some(d) => d.clone(),
-        None => {
+    let dir = out
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+        .to_path_buf();
+    let own_config = if own {
+        let (width, height) = dhoit_runtime::raster::parse_resolution(&a.res)?;
+        Some(DatasetConfig {
+            scenes: a.scenes.clone(),
+            width,
+            height,
+            views: OWN_TRAIN_VIEWS,
+            seed: a.seed,
+            ..DatasetConfig::default()
+        })
+    } else {
+        None
+    };
+    let data_dir = match (&a.data, &own_config) {
+        (Some(d), _) => d.clone(),
+        (None, Some(c)) => {
+            let d = dir.join("dataset");
+            generate(c, &d)?;
+            d
+        }
+        (None, None) => {
             let d = PathBuf::from(DEFAULT_DATA);
             let default = DatasetConfig::default();
             let fresh = dataset::load(&d)
@@ -216,15 +312,67 @@ pub fn train(a: TrainArgs) -> Result<()> {
         samples.scenes.len()
     );
     let pb = bar(config.epochs as u64, "epochs");
-    let trained = trainer::train(&config, &samples, &mut |e, _| {
-        pb.suspend(|| {
+    if let Some((p, _)) = &init {
+        eprintln!("train: fine-tuning {}", p.display());
+    }
+    // With your own scenes, the best epoch is the one whose allocations come closest to the
+    // optimal one on the training views (the held-out views stay unseen).
+    let levels: Vec<Level> = HELD_OUT_BUDGETS
+        .split(',')
+        .map(Level::parse)
+        .collect::<Result<_>>()?;
+    // Every other training view: half the cost of judging an epoch.
+    let train_views: Vec<usize> = (0..OWN_TRAIN_VIEWS).step_by(2).collect();
+    let prepared = match &own_config {
+        Some(c) => Some(crate::score::Prepared::new(
+            &crate::score::ScoreSpec {
+                scenes: &c.scenes,
+                views: &train_views,
+                orbit_views: OWN_TRAIN_VIEWS,
+                width: c.width,
+                height: c.height,
+                levels: &levels,
+                opacity: c.opacity,
+                networks: &[],
+            },
+            &|| {},
+        )?),
+        None => None,
+    };
+    let select = |m: &Mlp| -> Result<f64> {
+        let scores = prepared
+            .as_ref()
+            .expect("own scenes")
+            .score(std::slice::from_ref(m));
+        Ok(crate::score::geomean(
+            scores
+                .iter()
+                .filter(|s| s.counts())
+                .map(|s| s.dkb_over_optimal(0)),
+        )
+        .ln())
+    };
+    if own {
+        eprintln!(
+            "train: the best epoch is chosen by ln(error / optimal) on the training views (the validation loss below)"
+        );
+    }
+    let select: Option<&trainer::Select> = if own { Some(&select) } else { None };
+    let trained = trainer::train_from(
+        &config,
+        &samples,
+        init.as_ref().map(|i| &i.1),
+        select,
+        &mut |e, _| {
+            pb.suspend(|| {
             eprintln!(
                 "epoch {:>3}: train loss {:.4e} (+ reg {:.2e}), validation loss {:.4e}, {:.1} s",
                 e.epoch, e.train_loss, e.train_reg, e.validation_loss, e.seconds
             )
         });
-        pb.inc(1);
-    })?;
+            pb.inc(1);
+        },
+    )?;
     pb.finish_and_clear();
     let best = &trained.history[trained.best_epoch];
     let summary = serde_json::json!({
@@ -251,12 +399,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
     ]
     .into_iter()
     .collect();
-    trained.mlp.save(&a.out, &meta)?;
-    let dir = a
-        .out
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    trained.mlp.save(&out, &meta)?;
     tensors::write_atomic(
         &dir.join("config.json"),
         serde_json::to_string_pretty(&summary)
@@ -271,14 +414,125 @@ pub fn train(a: TrainArgs) -> Result<()> {
         best.train_loss,
         trained.seconds,
         trained.samples_per_second,
-        a.out.display(),
+        out.display(),
         plots
             .iter()
             .filter_map(|p| p.file_name())
             .map(|n| format!(", {}", n.to_string_lossy()))
             .collect::<String>()
     );
+    if let Some(c) = &own_config {
+        let start = match &init {
+            Some((p, m)) => Some((p.clone(), m.clone())),
+            None if default_weights.is_file() => {
+                Some((default_weights.to_path_buf(), Mlp::load(default_weights)?))
+            }
+            None => None,
+        };
+        held_out(c, start, &trained.mlp, &out, &dir)?;
+    }
     Ok(())
+}
+
+/// What `train --scene` reports: the start network and the trained one scored on views of the
+/// same scenes that no training view saw.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct HeldOut {
+    pub scenes: Vec<String>,
+    pub orbit_views: usize,
+    pub views: Vec<usize>,
+    pub width: u32,
+    pub height: u32,
+    pub budgets: Vec<String>,
+    /// The network compared against (the fine-tuning start, else the default weights).
+    pub start: Option<String>,
+    pub trained: String,
+    /// Geometric means over the frames whose budget is below their fragments.
+    pub start_over_optimal: Option<f64>,
+    pub trained_over_optimal: f64,
+    pub vkb_over_optimal: f64,
+    /// start / trained: above 1 when training on the scene helped.
+    pub gain: Option<f64>,
+    pub frames: usize,
+}
+
+/// Budgets `train --scene` scores at.
+pub const HELD_OUT_BUDGETS: &str = "10%,25%,50%,75%,90%";
+
+fn held_out(
+    c: &DatasetConfig,
+    start: Option<(PathBuf, Mlp)>,
+    trained: &Mlp,
+    out: &Path,
+    dir: &Path,
+) -> Result<HeldOut> {
+    let (orbit_views, views) = OWN_HELD_OUT;
+    let budgets: Vec<String> = HELD_OUT_BUDGETS.split(',').map(String::from).collect();
+    let levels: Vec<Level> = budgets
+        .iter()
+        .map(|b| Level::parse(b))
+        .collect::<Result<_>>()?;
+    let mut networks = vec![trained.clone()];
+    if let Some((_, m)) = &start {
+        networks.push(m.clone());
+    }
+    let spec = crate::score::ScoreSpec {
+        scenes: &c.scenes,
+        views: &views,
+        orbit_views,
+        width: c.width,
+        height: c.height,
+        levels: &levels,
+        opacity: c.opacity,
+        networks: &networks,
+    };
+    let pb = bar((c.scenes.len() * views.len()) as u64, "held out");
+    let scores = crate::score::score(&spec, &|| pb.inc(1))?;
+    pb.finish_and_clear();
+    let counted: Vec<_> = scores.iter().filter(|s| s.counts()).collect();
+    let geo = |f: &dyn Fn(&crate::score::FrameScore) -> f64| {
+        crate::score::geomean(counted.iter().map(|s| f(s)))
+    };
+    let trained_ratio = geo(&|s| s.dkb_over_optimal(0));
+    let start_ratio = start.as_ref().map(|_| geo(&|s| s.dkb_over_optimal(1)));
+    let report = HeldOut {
+        scenes: c.scenes.clone(),
+        orbit_views,
+        views: views.to_vec(),
+        width: c.width,
+        height: c.height,
+        budgets,
+        start: start.as_ref().map(|(p, _)| p.display().to_string()),
+        trained: out.display().to_string(),
+        start_over_optimal: start_ratio,
+        trained_over_optimal: trained_ratio,
+        vkb_over_optimal: geo(&|s| s.vkb_over_optimal()),
+        gain: start_ratio.map(|r| r / trained_ratio),
+        frames: counted.len(),
+    };
+    tensors::write_atomic(
+        &dir.join("held_out.json"),
+        serde_json::to_string_pretty(&report)
+            .expect("json")
+            .as_bytes(),
+    )?;
+    eprintln!(
+        "held-out views {:?} of {orbit_views} ({} frames): error / optimal {} -> {:.3} trained (VKB {:.3}){} -> {}",
+        views,
+        report.frames,
+        match (&report.start, start_ratio) {
+            (Some(p), Some(r)) => format!("{r:.3} with {p}"),
+            _ => "no start network".into(),
+        },
+        trained_ratio,
+        report.vkb_over_optimal,
+        report
+            .gain
+            .map(|g| format!(", {g:.2}x better"))
+            .unwrap_or_default(),
+        dir.join("held_out.json").display()
+    );
+    Ok(report)
 }
 
 #[derive(Args, Clone, Debug)]

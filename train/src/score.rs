@@ -67,68 +67,131 @@ pub struct ScoreSpec<'a> {
     pub networks: &'a [Mlp],
 }
 
-/// Scores every frame; `progress` is called after each (scene, view).
-pub fn score(spec: &ScoreSpec, progress: &(dyn Fn() + Sync)) -> Result<Vec<FrameScore>> {
-    let mut out = Vec::new();
-    for name in spec.scenes {
-        let sc = scene::load(name, Opacity::Uniform(spec.opacity))?;
-        let frames: Vec<Vec<FrameScore>> = spec
-            .views
-            .par_iter()
-            .map(|&view| -> Result<Vec<FrameScore>> {
-                if view >= spec.orbit_views {
-                    return Err(Error::Config(format!(
-                        "view {view} does not exist: there are {} views",
-                        spec.orbit_views
-                    )));
-                }
-                let cam = Camera::orbit(&sc, view, spec.orbit_views, spec.width, spec.height);
-                let fl = raster::rasterize(&sc, &cam, spec.width, spec.height)?;
-                let curves = alloc::error_curves(&fl, [1.0; 3]);
-                let counts = fl.counts();
-                let pixels = fl.pixel_count() as u64;
-                let total = fl.fragment_count() as u64;
-                let vkb_w: Vec<u32> = importance::vkb_importance(&fl, &VkbParams::default())
-                    .iter()
-                    .zip(&counts)
-                    .map(|(&i, &n)| {
-                        if n > 0 {
-                            alloc::importance_weight(i)
-                        } else {
-                            0
-                        }
-                    })
-                    .collect();
-                let mut scores = Vec::new();
-                for level in spec.levels {
-                    let f = level.fragments(pixels, total).max(1);
-                    let (_, rep) = alloc::optimal(&curves, f);
-                    let vkb = curves.total(&alloc::water_fill(&vkb_w, &counts, f));
-                    let (feats, pairs) = importance::features_and_pairs(&fl, f);
-                    let dkb = spec
-                        .networks
+/// One budget level of a prepared frame: what does not depend on the network.
+struct PreparedLevel {
+    budget: String,
+    f: u64,
+    optimal: f64,
+    vkb: f64,
+    feats: Vec<[f32; importance::FEATURES]>,
+    pairs: Vec<bool>,
+}
+
+/// One view, rasterized, with its error curves and baselines: networks are scored on it
+/// without redoing any of that.
+struct PreparedFrame {
+    scene: String,
+    view: usize,
+    pixels: u64,
+    fragments: u64,
+    counts: Vec<u32>,
+    curves: alloc::ErrorCurves,
+    levels: Vec<PreparedLevel>,
+}
+
+/// Frames prepared once and scored for any number of networks (the best-epoch choice of
+/// `train --scene` scores every epoch).
+pub struct Prepared(Vec<PreparedFrame>);
+
+impl Prepared {
+    /// Rasterizes every (scene, view) of `spec` and computes what scoring needs but the
+    /// networks; `progress` is called after each (scene, view).
+    pub fn new(spec: &ScoreSpec, progress: &(dyn Fn() + Sync)) -> Result<Prepared> {
+        let mut out = Vec::new();
+        for name in spec.scenes {
+            let sc = scene::load(name, Opacity::Uniform(spec.opacity))?;
+            let frames: Vec<PreparedFrame> = spec
+                .views
+                .par_iter()
+                .map(|&view| -> Result<PreparedFrame> {
+                    if view >= spec.orbit_views {
+                        return Err(Error::Config(format!(
+                            "view {view} does not exist: there are {} views",
+                            spec.orbit_views
+                        )));
+                    }
+                    let cam = Camera::orbit(&sc, view, spec.orbit_views, spec.width, spec.height);
+                    let fl = raster::rasterize(&sc, &cam, spec.width, spec.height)?;
+                    let curves = alloc::error_curves(&fl, [1.0; 3]);
+                    let counts = fl.counts();
+                    let pixels = fl.pixel_count() as u64;
+                    let total = fl.fragment_count() as u64;
+                    let vkb_w: Vec<u32> = importance::vkb_importance(&fl, &VkbParams::default())
                         .iter()
-                        .map(|m| curves.total(&m.allocate(&feats, &counts, &pairs, f)))
+                        .zip(&counts)
+                        .map(|(&i, &n)| {
+                            if n > 0 {
+                                alloc::importance_weight(i)
+                            } else {
+                                0
+                            }
+                        })
                         .collect();
-                    scores.push(FrameScore {
+                    let levels = spec
+                        .levels
+                        .iter()
+                        .map(|level| {
+                            let f = level.fragments(pixels, total).max(1);
+                            let (_, rep) = alloc::optimal(&curves, f);
+                            let vkb = curves.total(&alloc::water_fill(&vkb_w, &counts, f));
+                            let (feats, pairs) = importance::features_and_pairs(&fl, f);
+                            PreparedLevel {
+                                budget: level.label(),
+                                f,
+                                optimal: rep.total,
+                                vkb,
+                                feats,
+                                pairs,
+                            }
+                        })
+                        .collect();
+                    progress();
+                    Ok(PreparedFrame {
                         scene: scene::file_label(name),
                         view,
-                        budget: level.label(),
                         pixels,
                         fragments: total,
-                        budget_fragments: f,
-                        optimal: rep.total,
-                        vkb,
-                        dkb,
-                    });
-                }
-                progress();
-                Ok(scores)
-            })
-            .collect::<Result<_>>()?;
-        out.extend(frames.into_iter().flatten());
+                        counts,
+                        curves,
+                        levels,
+                    })
+                })
+                .collect::<Result<_>>()?;
+            out.extend(frames);
+        }
+        Ok(Prepared(out))
     }
-    Ok(out)
+
+    /// Every frame and budget scored for `networks`.
+    pub fn score(&self, networks: &[Mlp]) -> Vec<FrameScore> {
+        self.0
+            .par_iter()
+            .flat_map_iter(|fr| {
+                fr.levels.iter().map(move |l| FrameScore {
+                    scene: fr.scene.clone(),
+                    view: fr.view,
+                    budget: l.budget.clone(),
+                    pixels: fr.pixels,
+                    fragments: fr.fragments,
+                    budget_fragments: l.f,
+                    optimal: l.optimal,
+                    vkb: l.vkb,
+                    dkb: networks
+                        .iter()
+                        .map(|m| {
+                            fr.curves
+                                .total(&m.allocate(&l.feats, &fr.counts, &l.pairs, l.f))
+                        })
+                        .collect(),
+                })
+            })
+            .collect()
+    }
+}
+
+/// Scores every frame; `progress` is called after each (scene, view).
+pub fn score(spec: &ScoreSpec, progress: &(dyn Fn() + Sync)) -> Result<Vec<FrameScore>> {
+    Ok(Prepared::new(spec, progress)?.score(spec.networks))
 }
 
 /// Geometric mean (1 for no values).

@@ -465,6 +465,23 @@ pub fn train(
     data: &Samples,
     progress: &mut dyn FnMut(&Epoch, usize),
 ) -> Result<Trained> {
+    train_from(config, data, None, None, progress)
+}
+
+/// How a trained network is judged to pick the best epoch, lower is better (by default the
+/// loss on the validation scenes).
+pub type Select<'a> = dyn Fn(&Mlp) -> Result<f64> + 'a;
+
+/// [`train`], starting from `init` when given (fine-tuning: its sizes must be the config's, its
+/// output the loss's, and its standardisation is kept so that it keeps its meaning), and
+/// choosing the best epoch by `select` when given (reported as the validation loss).
+pub fn train_from(
+    config: &TrainConfig,
+    data: &Samples,
+    init: Option<&Mlp>,
+    select: Option<&Select>,
+    progress: &mut dyn FnMut(&Epoch, usize),
+) -> Result<Trained> {
     if config.epochs == 0 || config.batch == 0 {
         return Err(Error::Config("epochs and batch must be positive".into()));
     }
@@ -507,12 +524,35 @@ pub fn train(
             "no training samples left after holding out the validation scenes".into(),
         ));
     }
-    let (mean, std) = standardisation(&train_set.features);
     let device = cpu_device(true);
-    let mut init = Mlp::random_sized(config.seed, h1, h2);
-    init.mean = mean;
-    init.std = std;
-    init.target = config.loss.target();
+    let init = match init {
+        Some(m) => {
+            if [m.h1, m.h2] != [h1, h2] {
+                return Err(Error::Config(format!(
+                    "cannot fine-tune a {}-{} network as {h1}-{h2}: give --hidden {},{}",
+                    m.h1, m.h2, m.h1, m.h2
+                )));
+            }
+            if m.target != config.loss.target() {
+                return Err(Error::Config(format!(
+                    "the initial network's output is {:?}, the {} loss trains {:?}",
+                    m.target,
+                    config.loss.name(),
+                    config.loss.target()
+                )));
+            }
+            m.clone()
+        }
+        None => {
+            let (mean, std) = standardisation(&train_set.features);
+            let mut m = Mlp::random_sized(config.seed, h1, h2);
+            m.mean = mean;
+            m.std = std;
+            m.target = config.loss.target();
+            m
+        }
+    };
+    let (mean, std) = (init.mean, init.std);
     let mut net = ImportanceNet::from_mlp(&init, &device);
     let mut sgd = SgdConfig::new();
     if config.momentum > 0.0 {
@@ -598,7 +638,9 @@ pub fn train(
             batches += 1;
         }
         let current = net.to_mlp(mean, std, config.loss.target());
-        let validation_loss = if val_set.is_empty() {
+        let validation_loss = if let Some(select) = select {
+            select(&current)?
+        } else if val_set.is_empty() {
             evaluate(&current, &train_set, config.loss)
         } else {
             evaluate(&current, &val_set, config.loss)
