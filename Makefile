@@ -6,7 +6,7 @@ RUN := $(CARGO) run --release --quiet --
 # Real glTF scenes for tests and evaluation, read in place (never copied into the repository).
 export DHOIT_SCENES ?= $(abspath ../shared/scenes)
 
-.PHONY: all setup demo test fmt lint check bench build train golden eval fuzz
+.PHONY: all setup demo test fmt lint check bench build train nets golden eval trade fuzz
 
 all: demo
 
@@ -28,6 +28,15 @@ demo: build
 train: build
 	$(CARGO) run --release --quiet -p dhoit-train
 
+## The networks of other sizes shipped beside the default, trained on the same data:
+## data/nets/H1-H2/weights.safetensors (+ config.json, loss plot). `dhoit trade` and `dhoit fit`
+## compare them.
+NETS := 16,8 32,16 64,32
+nets: build
+	@for h in $(NETS); do \
+	  $(RUN) train --hidden $$h --out data/nets/$$(echo $$h | tr , -)/weights.safetensors || exit 1; \
+	done
+
 ## Regression data for the committed weights: a small features file and its predictions.
 golden: build
 	$(RUN) features --scene hair --view 2 --res 160x120 --budget 2fpp --limit 512 --out data/golden/features.safetensors
@@ -48,6 +57,18 @@ eval: build
 	else echo "eval: no real scenes at $(DHOIT_SCENES): the built-in scenes only" >&2; fi; \
 	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --equal slots --out out/eval/slots --summary docs/eval-slots.md && \
 	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --equal bytes --out out/eval/bytes --summary docs/eval-bytes.md
+
+## The speed-accuracy trade of the shipped networks on the evaluation scenes: importance-pass
+## time (GPU timestamps on the adapter at hand, at 640x480) against MSE and FLIP (320x240),
+## the Pareto front marked. Small form -> docs/trade.json, docs/trade.md, docs/trade.svg and
+## docs/trade.png (all scenes); every scene's plot -> out/trade/.
+TRADE_BUDGETS := 10%,25%,50%,75%,90%
+trade: build
+	@scenes="$(EVAL_BUILTIN)"; \
+	if [ -d "$(DHOIT_SCENES)" ]; then \
+	  for f in $(EVAL_REAL); do scenes="$$scenes,$(DHOIT_SCENES)/$$f"; done; \
+	else echo "trade: no real scenes at $(DHOIT_SCENES): the built-in scenes only" >&2; fi; \
+	$(RUN) trade --scene "$$scenes" --view 1,3 --res 320x240 --budget $(TRADE_BUDGETS) --time-res 640x480 --out out/trade --summary docs
 
 ## Long structured fuzzing of every file parser (glTF/GLB, weights, features, dumps): the
 ## property tests of tests/fuzz.rs with FUZZ_CASES mutated inputs each (CI runs 128). Keep

@@ -14,6 +14,12 @@
 // importance::OCCUPIED.
 const OCCUPIED: u64 = 0x8000000000000000lu;
 
+// Skip the network where k does not depend on it (Mlp::dkb_importance): a pixel whose useful
+// cap is 0 (one fragment, or two sharing one colour: mlp::forced) and every pixel of a frame
+// whose budget holds all its fragments get importance 0 with their pair mark. The bench builds
+// this pass once more with it false (Gpu::skip_forced) to show the time saved.
+const SKIP_FORCED: bool = true;
+
 // importance::LOG_FLOOR.
 const LOG_FLOOR: f32 = 1e-6;
 
@@ -34,6 +40,16 @@ fn main(
     let c = count[p];
     if (c == 0u) {
         importance[p] = 0.0;
+        return;
+    }
+    // The sign bit marks a pixel whose two farthest fragments share one colour
+    // (importance::tail_pair, alloc::mark_pair): the allocation lets it use a slot fewer.
+    let f0 = keys[3u * p + 1u];
+    let f1 = keys[3u * p + 2u];
+    let pair = (f1 & OCCUPIED) != 0lu && u32(f0 & 0xfffffffflu) == u32(f1 & 0xfffffffflu);
+    let mark = select(0u, 0x80000000u, pair);
+    if (SKIP_FORCED && (c <= 1u + select(0u, 1u, pair) || budget_of(totals[0]) >= u64(totals[0]))) {
+        importance[p] = bitcast<f32>(mark);
         return;
     }
     // importance::pixel_features, operation for operation.
@@ -74,10 +90,5 @@ fn main(
         sqrt(dev),
     );
     let out = mlp_forward(x);
-    // The sign bit marks a pixel whose two farthest fragments share one colour
-    // (importance::tail_pair, alloc::mark_pair): the allocation lets it use a slot fewer.
-    let f0 = keys[3u * p + 1u];
-    let f1 = keys[3u * p + 2u];
-    let pair = (f1 & OCCUPIED) != 0lu && u32(f0 & 0xfffffffflu) == u32(f1 & 0xfffffffflu);
-    importance[p] = bitcast<f32>(bitcast<u32>(out) | select(0u, 0x80000000u, pair));
+    importance[p] = bitcast<f32>(bitcast<u32>(out) | mark);
 }

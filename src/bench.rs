@@ -147,7 +147,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
 /// `repeat` frames; an error entry when no suitable adapter exists.
 fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) -> serde_json::Value {
     use dhoit_runtime::gpu::{Gpu, Slots};
-    let gpu = match Gpu::new() {
+    let mut gpu = match Gpu::new() {
         Ok(g) => g,
         Err(e) => {
             eprintln!("GPU bench skipped: {e}");
@@ -167,7 +167,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
     let mlp = &mlp;
     let mut scenes = Vec::new();
     for name in names {
-        let run = || -> Result<serde_json::Value> {
+        let mut run = || -> Result<serde_json::Value> {
             let s = scene::load(name, Opacity::default())?;
             let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
             let fl = raster::rasterize(&s, &cam, w, h)?;
@@ -187,7 +187,10 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 ("optimal", Some(Slots::PerPixel(&k_opt))),
                 ("vkb", Some(Slots::Vkb(Default::default(), f_vkb))),
                 ("dkb", Some(Slots::Dkb(mlp, f_dkb))),
+                // DKB with the network run on every covered pixel, even where k is forced.
+                ("dkb_no_skip", Some(Slots::Dkb(mlp, f_dkb))),
             ] {
+                gpu.skip_forced = label != "dkb_no_skip";
                 // Fastest frame by GPU time: (GPU ms, wall ms, frame).
                 let mut best: Option<(f64, f64, dhoit_runtime::gpu::GpuFrame)> = None;
                 for _ in 0..repeat.max(1) {
@@ -210,11 +213,37 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     serde_json::json!({"passes_ms": per, "frame_gpu_ms": passes, "frame_wall_ms": wall, "allocated_bytes": bytes}),
                 );
             }
+            gpu.skip_forced = true;
             let ratio = methods["dkb"]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN)
                 / methods["vkb"]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
-            eprintln!("GPU {name}: DKB/VKB frame time {ratio:.2}");
+            let imp = |m: &str| {
+                methods[m]["passes_ms"]["importance"]
+                    .as_f64()
+                    .unwrap_or(f64::NAN)
+            };
+            let (skip, all) = (imp("dkb"), imp("dkb_no_skip"));
+            // Covered pixels whose k the network does not decide.
+            let counts = fl.counts();
+            let f_frame = f_dkb.of(fl.fragment_count() as u64);
+            let (feats_pairs, covered) = (
+                dhoit_runtime::importance::features_and_pairs(&fl, f_frame).1,
+                counts.iter().filter(|&&n| n > 0).count(),
+            );
+            let forced = counts
+                .iter()
+                .zip(&feats_pairs)
+                .filter(|&(&n, &p)| n > 0 && dhoit_runtime::mlp::forced(n, p))
+                .count();
+            eprintln!(
+                "GPU {name}: DKB/VKB frame time {ratio:.2}; importance pass {skip:.2} ms skipping {:.1}% forced pixels, {all:.2} ms without",
+                100.0 * forced as f64 / covered.max(1) as f64
+            );
             Ok(serde_json::json!({
                 "scene": name, "fragments": fl.fragment_count(), "dkb_over_vkb": ratio, "methods": methods,
+                "importance_skip_forced": {
+                    "forced_share_of_covered": forced as f64 / covered.max(1) as f64,
+                    "importance_ms": skip, "importance_ms_no_skip": all, "saved": 1.0 - skip / all,
+                },
             }))
         };
         match run() {

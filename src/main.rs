@@ -14,10 +14,11 @@ use std::time::Instant;
 
 mod bench;
 mod compare;
+mod trade;
 
 /// The default weights (`make train` writes them): looked up in the working directory, then in
 /// the source tree this binary was built from.
-fn default_weights() -> Option<PathBuf> {
+pub(crate) fn default_weights() -> Option<PathBuf> {
     let rel = Path::new(dhoit_train::cli::DEFAULT_WEIGHTS);
     [
         rel.to_path_buf(),
@@ -70,6 +71,13 @@ enum Command {
     Features(FeaturesArgs),
     /// Measure CPU rasterization, compositing, allocation and training throughput; prints JSON.
     Bench(bench::BenchArgs),
+    /// The speed-accuracy trade: networks of several sizes (the default and those shipped in
+    /// data/nets/) on scenes, importance-pass time against MSE and FLIP, the Pareto front
+    /// marked; trade.json, trade.md and plots.
+    Trade(trade::TradeArgs),
+    /// The smallest network whose MSE on a scene is within --target of the optimal
+    /// allocation's; writes its weights.
+    Fit(trade::FitArgs),
     /// Write a scene (a built-in, or a glTF file) as binary glTF 2.0: positions, vertex colours
     /// and alpha, to open it in other tools or to test the glTF loader without real scenes.
     Export(ExportArgs),
@@ -499,6 +507,8 @@ fn main() {
         Command::Score(a) => dhoit_train::cli::score(a).map_err(Into::into),
         Command::Features(a) => features(a),
         Command::Bench(a) => bench::run(a),
+        Command::Trade(a) => trade::trade(a),
+        Command::Fit(a) => trade::fit(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

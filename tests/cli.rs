@@ -484,3 +484,137 @@ fn fine_tuning_on_a_scene_beats_the_default_on_its_held_out_views() {
         assert!(out.is_file());
     }
 }
+
+/// `dhoit trade` reports every network, precision and budget asked for, with a front that no
+/// point dominates; `dhoit fit` picks the smallest network that meets the target, and writes
+/// nothing when none does.
+#[test]
+fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_smallest() {
+    let dir = temp("trade");
+    let small = dir.join("small.safetensors");
+    let large = dir.join("large.safetensors");
+    Mlp::random_sized(3, 16, 8)
+        .save(&small, &Default::default())
+        .unwrap();
+    Mlp::random_sized(4, 32, 16)
+        .save(&large, &Default::default())
+        .unwrap();
+    let nets = format!("{},{}", large.display(), small.display());
+    let timing = if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") {
+        "cpu"
+    } else {
+        "gpu"
+    };
+    let out = dir.join("out");
+    let o = dhoit(&[
+        "trade",
+        "--scene",
+        "spheres,plates",
+        "--res",
+        "64x48",
+        "--time-res",
+        "64x48",
+        "--budget",
+        "25%,50%,1fpp",
+        "--view",
+        "1",
+        "--networks",
+        &nets,
+        "--timing",
+        timing,
+        "--repeat",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("trade.json")).unwrap()).unwrap();
+    assert!(r["timing"].as_str().unwrap().starts_with(timing));
+    let scenes = r["scenes"].as_array().unwrap();
+    let names: Vec<&str> = scenes
+        .iter()
+        .map(|s| s["scene"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["spheres", "plates", "all"]);
+    for s in scenes {
+        let points = s["points"].as_array().unwrap();
+        let mut nets: Vec<(&str, &str)> = points
+            .iter()
+            .map(|p| {
+                (
+                    p["network"].as_str().unwrap(),
+                    p["precision"].as_str().unwrap(),
+                )
+            })
+            .collect();
+        nets.sort();
+        assert_eq!(nets, [("16-8", "f32"), ("32-16", "f32")], "{}", s["scene"]);
+        let key =
+            |p: &serde_json::Value| ["time_ms", "mse", "flip"].map(|k| p[k].as_f64().unwrap());
+        for p in points {
+            let dominated = points.iter().any(|o| {
+                let (a, b) = (key(o), key(p));
+                a.iter().zip(&b).all(|(x, y)| x <= y) && a.iter().zip(&b).any(|(x, y)| x < y)
+            });
+            assert_eq!(p["front"].as_bool().unwrap(), !dominated, "{}", s["scene"]);
+            assert!(key(p).iter().all(|v| v.is_finite() && *v >= 0.0));
+            assert!(p["time_ms"].as_f64().unwrap() > 0.0);
+            if s["scene"] != "all" {
+                let budgets: Vec<&str> = p["frames"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|f| f["budget"].as_str().unwrap())
+                    .collect();
+                assert_eq!(budgets, ["25%", "50%", "1fpp"]);
+            }
+        }
+        assert!(points.iter().any(|p| p["front"].as_bool().unwrap()));
+    }
+    // fit: any network meets a loose target, the smallest is written; none meets 1.0.
+    let fitted = dir.join("fitted.safetensors");
+    let o = dhoit(&[
+        "fit",
+        "--scene",
+        "spheres",
+        "--res",
+        "64x48",
+        "--budget",
+        "25%,50%",
+        "--view",
+        "1",
+        "--networks",
+        &nets,
+        "--target",
+        "1000",
+        "--out",
+        fitted.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        std::fs::read(&fitted).unwrap(),
+        std::fs::read(&small).unwrap()
+    );
+    let never = dir.join("never.safetensors");
+    let o = dhoit(&[
+        "fit",
+        "--scene",
+        "spheres",
+        "--res",
+        "64x48",
+        "--budget",
+        "25%,50%",
+        "--view",
+        "1",
+        "--networks",
+        &nets,
+        "--target",
+        "1",
+        "--out",
+        never.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no network meets"));
+    assert!(!never.exists());
+}

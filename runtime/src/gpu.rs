@@ -162,6 +162,9 @@ pub struct Gpu {
     pub adapter: String,
     timestamp_period: f32,
     pipelines: Pipelines,
+    /// Whether DKB's importance pass skips the network where k does not depend on it (on by
+    /// default; the bench turns it off to show the time saved). The images are the same.
+    pub skip_forced: bool,
 }
 
 struct Pipelines {
@@ -178,6 +181,8 @@ struct Pipelines {
     features: wgpu::RenderPipeline,
     totals: wgpu::ComputePipeline,
     importance_dkb: wgpu::ComputePipeline,
+    /// The same pass with SKIP_FORCED false: the network on every covered pixel.
+    importance_dkb_all: wgpu::ComputePipeline,
     predict: wgpu::ComputePipeline,
     vkb_count: wgpu::RenderPipeline,
     importance_vkb: wgpu::ComputePipeline,
@@ -259,6 +264,7 @@ impl Gpu {
             queue,
             adapter: adapter_name,
             pipelines,
+            skip_forced: true,
         })
     }
 }
@@ -332,6 +338,25 @@ impl Pipelines {
             features: geometry("features"),
             totals: compute("totals"),
             importance_dkb: compute("importance_dkb"),
+            importance_dkb_all: {
+                let src = shaders::source("importance_dkb").expect("known pass");
+                let skip = "const SKIP_FORCED: bool = true;";
+                assert!(src.contains(skip), "importance_dkb declares {skip}");
+                let m = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("importance_dkb_all"),
+                    source: wgpu::ShaderSource::Wgsl(
+                        src.replace(skip, "const SKIP_FORCED: bool = false;").into(),
+                    ),
+                });
+                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("importance_dkb_all"),
+                    layout: None,
+                    module: &m,
+                    entry_point: Some("main"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            },
             predict: compute("predict"),
             vkb_count: geometry("vkb_count"),
             importance_vkb: compute("importance_vkb"),
@@ -1160,7 +1185,11 @@ impl Gpu {
                                 );
                                 passes.dispatch(
                                     &mut enc,
-                                    &p.importance_dkb,
+                                    if self.skip_forced {
+                                        &p.importance_dkb
+                                    } else {
+                                        &p.importance_dkb_all
+                                    },
                                     &[params_buf, &weights, &counts, &keys, &sums, &totals, &imp],
                                     "importance",
                                 );

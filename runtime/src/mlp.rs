@@ -62,6 +62,13 @@ pub const fn parameter_count(h1: usize, h2: usize) -> usize {
     FEATURES * h1 + h1 + h1 * h2 + h2 + h2 + 1
 }
 
+/// Whether a covered pixel's k is forced whatever its importance: its useful cap
+/// ([`crate::alloc::useful_cap`]) is 0, so every allocation gives it the frame's minimum k or
+/// all its fragments (one fragment, or two that share one colour).
+pub fn forced(n: u32, pair: bool) -> bool {
+    crate::alloc::useful_cap(n, 0, pair) == 0
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mlp {
     pub h1: usize,
@@ -172,13 +179,36 @@ impl Mlp {
         pairs: &[bool],
         f: u64,
     ) -> Vec<u32> {
-        let imp: Vec<f32> = self
-            .importance(features, counts)
-            .iter()
-            .zip(pairs)
-            .map(|(&i, &pair)| crate::alloc::mark_pair(i, pair))
-            .collect();
+        let imp = self.dkb_importance(features, counts, pairs, f);
         crate::alloc::allocate(&imp, counts, self.target, f)
+    }
+
+    /// DKB's importance map, as the GPU's importance pass writes it: the network's output with
+    /// the pair mark, and 0 (with the mark) wherever k does not depend on it, without running
+    /// the network there: an empty pixel, a pixel whose useful cap is 0 ([`forced`]) and
+    /// every pixel of a frame whose budget holds all its fragments.
+    pub fn dkb_importance(
+        &self,
+        features: &[[f32; FEATURES]],
+        counts: &[u32],
+        pairs: &[bool],
+        f: u64,
+    ) -> Vec<f32> {
+        use rayon::prelude::*;
+        let all_fit = f >= counts.iter().map(|&n| n as u64).sum::<u64>();
+        features
+            .par_iter()
+            .zip(counts)
+            .zip(pairs)
+            .map_init(Vec::new, |scratch, ((x, &n), &pair)| {
+                let i = if n == 0 || all_fit || forced(n, pair) {
+                    0.0
+                } else {
+                    self.forward_with(x, scratch)
+                };
+                crate::alloc::mark_pair(i, pair)
+            })
+            .collect()
     }
 
     /// Reads and validates a weights file.
@@ -334,5 +364,72 @@ impl Mlp {
             serde_json::to_string(&self.std).expect("std"),
         );
         tensors::write(path, &entries, meta)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::alloc::{self, Target};
+    use crate::rng::Rng;
+
+    /// What the importance pass skips is what no allocation looks at: the k of a forced pixel
+    /// (useful cap 0), and every k of a frame whose budget holds all its fragments, are the
+    /// same whatever importance they are given, for every target and budget.
+    #[test]
+    fn skipped_pixels_get_the_same_k_whatever_their_importance() {
+        let mut rng = Rng::new(11);
+        let pixels = 4000;
+        let counts: Vec<u32> = (0..pixels)
+            .map(|_| match rng.f32() {
+                x if x < 0.2 => 0,
+                x if x < 0.5 => 1,
+                x if x < 0.6 => 2,
+                x => (x * 40.0) as u32,
+            })
+            .collect();
+        let pairs: Vec<bool> = counts.iter().map(|&n| n >= 2 && rng.f32() < 0.3).collect();
+        let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
+        let total: u64 = counts.iter().map(|&n| n as u64).sum();
+        assert!(counts.iter().zip(&pairs).any(|(&n, &p)| n == 2 && p));
+        for target in [
+            Target::RelativeK,
+            Target::ShareOfFragments,
+            Target::SlotRequest,
+        ] {
+            for f in [covered / 2, covered, total / 3, total - 1, total, total + 7] {
+                let all_fit = f >= total;
+                let imp: Vec<f32> = pairs
+                    .iter()
+                    .map(|&p| alloc::mark_pair(rng.f32() * 1.5, p))
+                    .collect();
+                let skipped: Vec<f32> = imp
+                    .iter()
+                    .zip(&counts)
+                    .zip(&pairs)
+                    .map(|((&i, &n), &p)| {
+                        if n == 0 || all_fit || forced(n, p) {
+                            alloc::mark_pair(0.0, p)
+                        } else {
+                            i
+                        }
+                    })
+                    .collect();
+                assert_eq!(
+                    alloc::allocate(&imp, &counts, target, f),
+                    alloc::allocate(&skipped, &counts, target, f),
+                    "{target:?}, F = {f}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn forced_means_no_useful_slot() {
+        assert!(forced(1, false));
+        assert!(forced(2, true));
+        assert!(!forced(2, false));
+        assert!(!forced(3, true));
+        assert!(forced(0, false));
     }
 }

@@ -469,12 +469,8 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
                 })
                 .collect();
             let counts: Vec<u32> = stats.iter().map(|st| st.count).collect();
-            let imp_twin: Vec<f32> = mlp
-                .importance(&feats, &counts)
-                .iter()
-                .zip(&stats)
-                .map(|(&i, st)| alloc::mark_pair(i, importance::tail_pair(st)))
-                .collect();
+            let pairs: Vec<bool> = stats.iter().map(importance::tail_pair).collect();
+            let imp_twin: Vec<f32> = mlp.dkb_importance(&feats, &counts, &pairs, f);
             let imp = d.importance.clone().unwrap();
             // The pair marks (sign bits) exactly, the values within 1e-5.
             assert!(

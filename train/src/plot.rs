@@ -248,7 +248,7 @@ impl Trade<'_> {
         let range = |v: &mut dyn Iterator<Item = f64>| {
             let (lo, hi) = v.fold((f64::INFINITY, 0.0f64), |(a, b), x| (a.min(x), b.max(x)));
             if lo.is_finite() {
-                (lo / 1.6, (hi * 1.6).max(lo * 3.0))
+                (lo / 1.25, (hi * 1.25).max(lo * 1.6))
             } else {
                 (1e-3, 1.0)
             }

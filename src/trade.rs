@@ -1,0 +1,645 @@
+//! `dhoit trade` and `dhoit fit`: the speed-accuracy trade of networks of several sizes on given
+//! scenes (importance-pass time against MSE and FLIP, the Pareto front marked), and the smallest
+//! network that meets a quality target on a scene.
+
+use crate::{ViewArgs, load_scene, rasterize_view};
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use dhoit_runtime::budget::Budget;
+use dhoit_runtime::frame::{Method, Options, Renderer};
+use dhoit_runtime::image_io;
+use dhoit_runtime::mlp::{self, Mlp};
+use dhoit_runtime::scene::{self, Camera};
+use dhoit_train::plot::{self, TradePoint};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Where the shipped networks of other sizes live: `data/nets/H1-H2/weights.safetensors`.
+pub const NETS_DIR: &str = "data/nets";
+
+/// The precisions the importance pass offers (the GPU network computes in f32; the CPU twin
+/// and burn too).
+pub const PRECISIONS: [&str; 1] = ["f32"];
+
+#[derive(Args, Clone)]
+pub struct QualityArgs {
+    /// Weights files to compare, comma separated. Default: the default network and every
+    /// network shipped beside it (data/nets/*/weights.safetensors).
+    #[arg(long, value_delimiter = ',')]
+    networks: Vec<PathBuf>,
+    /// Budgets, comma separated: shares of each frame's fragments (25%), slots per pixel
+    /// (2fpp) or bytes.
+    #[arg(
+        long = "budget",
+        value_delimiter = ',',
+        default_value = "10%,25%,50%,75%,90%",
+        allow_hyphen_values = true
+    )]
+    budgets: Vec<String>,
+    /// Orbit views whose images are measured, comma separated.
+    #[arg(long = "view", value_delimiter = ',', default_value = "1,3")]
+    view_list: Vec<usize>,
+    #[command(flatten)]
+    common: ViewArgs,
+}
+
+#[derive(Args)]
+pub struct TradeArgs {
+    /// Scenes, comma separated: built-in names or .gltf/.glb paths.
+    #[arg(long = "scene", value_delimiter = ',', default_value = "particles")]
+    scenes: Vec<String>,
+    #[command(flatten)]
+    quality: QualityArgs,
+    /// Precisions of the network, comma separated (the importance pass offers f32).
+    #[arg(long, value_delimiter = ',', default_value = "f32")]
+    precision: Vec<String>,
+    /// Resolution the importance pass is timed at (view 0, the first budget).
+    #[arg(long, default_value = "640x480")]
+    time_res: String,
+    /// What times the importance pass: gpu (timestamp queries on the adapter at hand), cpu
+    /// (the runtime's CPU twin over the frame's covered pixels), or auto (gpu when an adapter
+    /// exists).
+    #[arg(long, default_value = "auto")]
+    timing: String,
+    /// Timed repetitions; the fastest is kept.
+    #[arg(long, default_value_t = 3)]
+    repeat: usize,
+    /// Directory for trade.json, trade.md and the plots (trade_SCENE.svg/.png, trade_all).
+    #[arg(long, default_value = "out/trade")]
+    out: PathBuf,
+    /// Also write trade.json, trade.md and the all-scenes plot into this directory (small,
+    /// committed: `make trade` writes docs/).
+    #[arg(long)]
+    summary: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct FitArgs {
+    /// The scene to fit: a .gltf/.glb path or a built-in name.
+    #[arg(long)]
+    scene: String,
+    /// The quality to meet: the network's MSE at most TARGET times the optimal allocation's
+    /// (geometric mean over the views and budgets whose budget is below the frame's fragments).
+    #[arg(long, default_value_t = 1.5)]
+    target: f64,
+    #[command(flatten)]
+    quality: QualityArgs,
+    /// Where the chosen network's weights are written.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// A network to compare.
+struct Net {
+    path: PathBuf,
+    label: String,
+    mlp: Mlp,
+    parameters: usize,
+}
+
+fn networks(paths: &[PathBuf]) -> Result<Vec<Net>> {
+    let mut paths = paths.to_vec();
+    if paths.is_empty() {
+        let default = crate::default_weights()
+            .context("no network given (--networks) and the default weights are not found")?;
+        paths.push(default.clone());
+        let nets = default
+            .parent()
+            .map(|d| d.join("nets"))
+            .unwrap_or_else(|| PathBuf::from(NETS_DIR));
+        if let Ok(dir) = std::fs::read_dir(&nets) {
+            for e in dir.flatten() {
+                let w = e.path().join("weights.safetensors");
+                if w.is_file() {
+                    paths.push(w);
+                }
+            }
+        }
+    }
+    let mut out: Vec<Net> = paths
+        .iter()
+        .map(|p| -> Result<Net> {
+            let m = Mlp::load(p)?;
+            Ok(Net {
+                path: p.clone(),
+                label: format!("{}-{}", m.h1, m.h2),
+                parameters: mlp::parameter_count(m.h1, m.h2),
+                mlp: m,
+            })
+        })
+        .collect::<Result<_>>()?;
+    out.sort_by_key(|n| n.parameters);
+    Ok(out)
+}
+
+fn bar(len: u64, what: &str) -> ProgressBar {
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{msg:>10} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta}",
+        )
+        .expect("template")
+        .progress_chars("=> "),
+    );
+    pb.set_message(what.to_string());
+    pb
+}
+
+/// One network on one frame and budget.
+#[derive(Clone, Debug, Serialize)]
+pub struct Measure {
+    pub view: usize,
+    pub budget: String,
+    pub budget_fragments: u64,
+    pub fragments: u64,
+    pub mse: f64,
+    pub flip: f64,
+    pub optimal_mse: f64,
+    pub vkb_mse: f64,
+}
+
+/// Every network's images on every view and budget of one scene.
+fn quality(
+    name: &str,
+    q: &QualityArgs,
+    nets: &[Net],
+    pb: &ProgressBar,
+) -> Result<Vec<Vec<Measure>>> {
+    let budgets: Vec<Budget> = q
+        .budgets
+        .iter()
+        .map(|b| Budget::parse(b))
+        .collect::<Result<_, _>>()?;
+    let s = load_scene(name, &q.common)?;
+    let mut out: Vec<Vec<Measure>> = nets.iter().map(|_| Vec::new()).collect();
+    for &view in &q.view_list {
+        let (fl, _) = rasterize_view(&s, view, &q.common)?;
+        for b in &budgets {
+            let plain = Renderer::new(&fl, Options::new(*b, q.common.background));
+            let exact = plain.render(Method::Abuffer)?;
+            let exact8 = image_io::to_srgb8(&exact.image);
+            let optimal = plain.render(Method::Optimal)?;
+            let vkb = plain.render(Method::Vkb)?;
+            for (i, n) in nets.iter().enumerate() {
+                let opts = Options {
+                    weights: Some(&n.mlp),
+                    ..Options::new(*b, q.common.background)
+                };
+                let f = Renderer::new(&fl, opts).render(Method::Dkb)?;
+                let (flip, _) =
+                    image_io::flip(&exact8, &image_io::to_srgb8(&f.image), fl.width, fl.height);
+                out[i].push(Measure {
+                    view,
+                    budget: b.to_string(),
+                    budget_fragments: f.budget_fragments,
+                    fragments: f.fragments_total,
+                    mse: f.image.mse(&exact.image),
+                    flip,
+                    optimal_mse: optimal.image.mse(&exact.image),
+                    vkb_mse: vkb.image.mse(&exact.image),
+                });
+            }
+            pb.inc(1);
+        }
+    }
+    Ok(out)
+}
+
+const FLOOR: f64 = crate::compare::MSE_FLOOR;
+
+fn geomean(v: impl IntoIterator<Item = f64>) -> f64 {
+    let (s, n) = v
+        .into_iter()
+        .fold((0.0, 0usize), |(s, n), x| (s + x.max(FLOOR).ln(), n + 1));
+    if n == 0 {
+        f64::NAN
+    } else {
+        (s / n as f64).exp()
+    }
+}
+
+/// The frames that tell allocations apart (budget below the frame's fragments).
+fn counted(m: &[Measure]) -> impl Iterator<Item = &Measure> {
+    m.iter().filter(|x| x.budget_fragments < x.fragments)
+}
+
+/// One network at one precision on one scene.
+#[derive(Clone, Debug, Serialize)]
+pub struct Point {
+    pub network: String,
+    pub weights: String,
+    pub parameters: usize,
+    pub precision: String,
+    /// Importance-pass time, milliseconds (see the report's `timing`).
+    pub time_ms: f64,
+    /// Geometric mean MSE over views and budgets.
+    pub mse: f64,
+    /// Mean FLIP over views and budgets.
+    pub flip: f64,
+    /// Geometric mean of MSE / the optimal allocation's MSE over the frames whose budget is
+    /// below their fragments.
+    pub mse_over_optimal: f64,
+    pub mse_over_vkb: f64,
+    pub front: bool,
+    pub frames: Vec<Measure>,
+}
+
+fn point(n: &Net, precision: &str, time_ms: f64, m: Vec<Measure>) -> Point {
+    Point {
+        network: n.label.clone(),
+        weights: n.path.display().to_string(),
+        parameters: n.parameters,
+        precision: precision.to_string(),
+        time_ms,
+        mse: geomean(m.iter().map(|x| x.mse)),
+        flip: m.iter().map(|x| x.flip).sum::<f64>() / m.len().max(1) as f64,
+        mse_over_optimal: geomean(counted(&m).map(|x| x.mse.max(FLOOR) / x.optimal_mse.max(FLOOR))),
+        mse_over_vkb: geomean(counted(&m).map(|x| x.mse.max(FLOOR) / x.vkb_mse.max(FLOOR))),
+        front: false,
+        frames: m,
+    }
+}
+
+/// Marks the points no other point dominates (as fast or faster, MSE and FLIP as low or lower,
+/// and better in one of the three).
+pub fn mark_front(points: &mut [Point]) {
+    let key = |p: &Point| [p.time_ms, p.mse, p.flip];
+    let keys: Vec<[f64; 3]> = points.iter().map(key).collect();
+    for (i, p) in points.iter_mut().enumerate() {
+        p.front = !keys.iter().enumerate().any(|(j, o)| {
+            j != i
+                && o.iter().zip(&keys[i]).all(|(a, b)| a <= b)
+                && o.iter().zip(&keys[i]).any(|(a, b)| a < b)
+        });
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SceneTrade {
+    pub scene: String,
+    pub points: Vec<Point>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    /// What timed the importance pass: `gpu: ADAPTER` or `cpu (N threads)`.
+    pub timing: String,
+    pub time_resolution: String,
+    pub resolution: String,
+    pub views: Vec<usize>,
+    pub budgets: Vec<String>,
+    pub networks: Vec<String>,
+    pub precisions: Vec<String>,
+    pub scenes: Vec<SceneTrade>,
+}
+
+enum Timer {
+    Gpu(Box<dhoit_runtime::gpu::Gpu>),
+    Cpu,
+}
+
+impl Timer {
+    fn name(&self) -> String {
+        match self {
+            Timer::Gpu(g) => format!("gpu timestamps: {}", g.adapter),
+            Timer::Cpu => format!("cpu twin ({} threads)", rayon::current_num_threads()),
+        }
+    }
+
+    /// The importance pass's time for `mlp` on `scene`'s view 0 at the first budget.
+    fn time(
+        &self,
+        s: &scene::Scene,
+        (w, h): (u32, u32),
+        budget: Budget,
+        mlp: &Mlp,
+        repeat: usize,
+    ) -> Result<f64> {
+        let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, w, h);
+        let mut best = f64::INFINITY;
+        match self {
+            Timer::Gpu(g) => {
+                let f = budget.fragment_budget(&dhoit_runtime::budget::DKB, (w * h) as u64)?;
+                for _ in 0..repeat.max(1) {
+                    let frame = g.render(
+                        s,
+                        &cam,
+                        w,
+                        h,
+                        [1.0; 3],
+                        Some(dhoit_runtime::gpu::Slots::Dkb(mlp, f)),
+                    )?;
+                    let t = frame
+                        .pass_ms
+                        .iter()
+                        .filter(|p| p.0 == "importance")
+                        .map(|p| p.1)
+                        .sum::<f64>();
+                    best = best.min(t);
+                }
+            }
+            Timer::Cpu => {
+                let fl = dhoit_runtime::raster::rasterize(s, &cam, w, h)?;
+                let pixels = (w * h) as u64;
+                let total = fl.fragment_count() as u64;
+                let (_, f) = budget.resolve(&dhoit_runtime::budget::DKB, pixels, total)?;
+                let (feats, _) = dhoit_runtime::importance::features_and_pairs(&fl, f);
+                let counts = fl.counts();
+                for _ in 0..repeat.max(1) {
+                    let t = Instant::now();
+                    std::hint::black_box(mlp.importance(&feats, &counts));
+                    best = best.min(t.elapsed().as_secs_f64() * 1e3);
+                }
+            }
+        }
+        Ok(best)
+    }
+}
+
+pub fn trade(a: TradeArgs) -> Result<()> {
+    for p in &a.precision {
+        if !PRECISIONS.contains(&p.as_str()) {
+            bail!(
+                "precision '{p}' is not offered by the importance pass (it offers {})",
+                PRECISIONS.join(", ")
+            );
+        }
+    }
+    let nets = networks(&a.quality.networks)?;
+    let time_res = dhoit_runtime::raster::parse_resolution(&a.time_res)?;
+    let first_budget = Budget::parse(
+        a.quality
+            .budgets
+            .first()
+            .context("give at least one budget")?,
+    )?;
+    let timer = match a.timing.as_str() {
+        "cpu" => Timer::Cpu,
+        "gpu" => Timer::Gpu(Box::new(dhoit_runtime::gpu::Gpu::new()?)),
+        "auto" => match dhoit_runtime::gpu::Gpu::new() {
+            Ok(g) => Timer::Gpu(Box::new(g)),
+            Err(e) => {
+                eprintln!("trade: no GPU ({e}): timing the CPU twin");
+                Timer::Cpu
+            }
+        },
+        t => bail!("--timing {t}: expected gpu, cpu or auto"),
+    };
+    eprintln!(
+        "trade: {} networks ({}) x {} precisions on {} scenes; importance pass timed by {}",
+        nets.len(),
+        nets.iter()
+            .map(|n| n.label.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
+        a.precision.len(),
+        a.scenes.len(),
+        timer.name()
+    );
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    let steps = a.scenes.len() * a.quality.view_list.len() * a.quality.budgets.len();
+    let pb = bar(steps as u64, "frames");
+    let mut scenes = Vec::new();
+    for name in &a.scenes {
+        let measures = quality(name, &a.quality, &nets, &pb)?;
+        let s = load_scene(name, &a.quality.common)?;
+        let mut points = Vec::new();
+        for (n, m) in nets.iter().zip(measures) {
+            for p in &a.precision {
+                let t = pb.suspend(|| timer.time(&s, time_res, first_budget, &n.mlp, a.repeat))?;
+                points.push(point(n, p, t, m.clone()));
+            }
+        }
+        mark_front(&mut points);
+        scenes.push(SceneTrade {
+            scene: scene::file_label(name),
+            points,
+        });
+    }
+    pb.finish_and_clear();
+    // Every scene together: geometric means of time and MSE, mean FLIP.
+    if scenes.len() > 1 {
+        let mut points: Vec<Point> = scenes[0]
+            .points
+            .iter()
+            .enumerate()
+            .map(|(i, p0)| {
+                let all: Vec<&Point> = scenes.iter().map(|s| &s.points[i]).collect();
+                let frames: Vec<Measure> = all.iter().flat_map(|p| p.frames.clone()).collect();
+                let mut p = Point {
+                    time_ms: geomean(all.iter().map(|p| p.time_ms)),
+                    ..p0.clone()
+                };
+                p.mse = geomean(all.iter().map(|p| p.mse));
+                p.flip = all.iter().map(|p| p.flip).sum::<f64>() / all.len() as f64;
+                p.mse_over_optimal =
+                    geomean(counted(&frames).map(|x| x.mse.max(FLOOR) / x.optimal_mse.max(FLOOR)));
+                p.mse_over_vkb =
+                    geomean(counted(&frames).map(|x| x.mse.max(FLOOR) / x.vkb_mse.max(FLOOR)));
+                p.frames = Vec::new();
+                p
+            })
+            .collect();
+        mark_front(&mut points);
+        scenes.push(SceneTrade {
+            scene: "all".into(),
+            points,
+        });
+    }
+    let report = Report {
+        timing: timer.name(),
+        time_resolution: a.time_res.clone(),
+        resolution: a.quality.common.res.clone(),
+        views: a.quality.view_list.clone(),
+        budgets: a.quality.budgets.clone(),
+        networks: nets.iter().map(|n| n.label.clone()).collect(),
+        precisions: a.precision.clone(),
+        scenes,
+    };
+    let (text, md) = tables(&report);
+    println!("{text}");
+    let json = serde_json::to_string_pretty(&report)?;
+    dhoit_runtime::tensors::write_atomic(&a.out.join("trade.json"), json.as_bytes())?;
+    dhoit_runtime::tensors::write_atomic(&a.out.join("trade.md"), md.as_bytes())?;
+    let time_label = match &timer {
+        // The adapter's short name: "llvmpipe (LLVM ...)" -> "llvmpipe".
+        Timer::Gpu(g) => format!(
+            "importance pass, ms (GPU timestamps, {})",
+            g.adapter.split(" (").next().unwrap_or("GPU")
+        ),
+        Timer::Cpu => "importance pass, ms (CPU twin)".to_string(),
+    };
+    let mut plots = Vec::new();
+    for s in &report.scenes {
+        let pts: Vec<TradePoint> = s
+            .points
+            .iter()
+            .map(|p| TradePoint {
+                label: format!("{} {}", p.network, p.precision),
+                time_ms: p.time_ms,
+                mse: p.mse,
+                flip: p.flip,
+                front: p.front,
+            })
+            .collect();
+        let title = format!(
+            "{}: importance-pass time at {} against quality at {} ({} budgets, {} views)",
+            s.scene,
+            report.time_resolution,
+            report.resolution,
+            report.budgets.len(),
+            report.views.len()
+        );
+        plots.extend(plot::trade(
+            &a.out.join(format!("trade_{}", s.scene)),
+            &title,
+            &time_label,
+            &pts,
+        ));
+    }
+    if let Some(dir) = &a.summary {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        // The small form: per-frame measures left out.
+        let mut small = report.clone();
+        for s in &mut small.scenes {
+            for p in &mut s.points {
+                p.frames.clear();
+            }
+        }
+        dhoit_runtime::tensors::write_atomic(
+            &dir.join("trade.json"),
+            serde_json::to_string_pretty(&small)?.as_bytes(),
+        )?;
+        dhoit_runtime::tensors::write_atomic(&dir.join("trade.md"), md.as_bytes())?;
+        let last = &report.scenes.last().expect("a scene").scene;
+        for ext in ["svg", "png"] {
+            let from = a.out.join(format!("trade_{last}.{ext}"));
+            if from.is_file() {
+                std::fs::copy(&from, dir.join(format!("trade.{ext}")))
+                    .with_context(|| format!("cannot copy {}", from.display()))?;
+            }
+        }
+    }
+    println!(
+        "trade.json, trade.md{} -> {}",
+        if plots.is_empty() {
+            ""
+        } else {
+            " and the plots"
+        },
+        a.out.display()
+    );
+    Ok(())
+}
+
+fn tables(r: &Report) -> (String, String) {
+    let mut text = String::new();
+    let mut md = format!(
+        "# dhoit: the speed-accuracy trade\n\nImportance pass timed by {} at {}; quality at {} on views {:?}, budgets {} (MSE: geometric mean; FLIP: mean; ratios over the frames whose budget is below their fragments). `*`: on the Pareto front (time, MSE, FLIP). Generated by `dhoit trade` (`make trade`).\n",
+        r.timing,
+        r.time_resolution,
+        r.resolution,
+        r.views,
+        r.budgets.join(", ")
+    );
+    for s in &r.scenes {
+        let _ = std::fmt::Write::write_fmt(&mut text, format_args!("\n{}\n", s.scene));
+        md += &format!(
+            "\n## {}\n\n| network | precision | parameters | time (ms) | MSE | FLIP | MSE / optimal | MSE / VKB | front |\n|---|---|---:|---:|---:|---:|---:|---:|:---:|\n",
+            s.scene
+        );
+        for p in &s.points {
+            let line = format!(
+                "{:>7} {:>4} {:>6} params  {:>9.3} ms  MSE {:.3e}  FLIP {:.4}  /optimal {:>6.3}  /VKB {:>6.3} {}",
+                p.network,
+                p.precision,
+                p.parameters,
+                p.time_ms,
+                p.mse,
+                p.flip,
+                p.mse_over_optimal,
+                p.mse_over_vkb,
+                if p.front { "*" } else { "" }
+            );
+            text += &line;
+            text.push('\n');
+            md += &format!(
+                "| {} | {} | {} | {:.3} | {:.3e} | {:.4} | {:.3} | {:.3} | {} |\n",
+                p.network,
+                p.precision,
+                p.parameters,
+                p.time_ms,
+                p.mse,
+                p.flip,
+                p.mse_over_optimal,
+                p.mse_over_vkb,
+                if p.front { "*" } else { "" }
+            );
+        }
+    }
+    (text, md)
+}
+
+/// `dhoit fit`.
+pub fn fit(a: FitArgs) -> Result<()> {
+    if !(a.target.is_finite() && a.target >= 1.0) {
+        bail!(
+            "--target {}: a ratio to the optimal allocation's MSE, at least 1",
+            a.target
+        );
+    }
+    let nets = networks(&a.quality.networks)?;
+    let steps = a.quality.view_list.len() * a.quality.budgets.len();
+    let pb = bar(steps as u64, "frames");
+    let measures = quality(&a.scene, &a.quality, &nets, &pb)?;
+    pb.finish_and_clear();
+    let mut chosen = None;
+    for (n, m) in nets.iter().zip(&measures) {
+        let c: Vec<&Measure> = counted(m).collect();
+        let ratio = if c.is_empty() {
+            1.0
+        } else {
+            geomean(
+                c.iter()
+                    .map(|x| x.mse.max(FLOOR) / x.optimal_mse.max(FLOOR)),
+            )
+        };
+        let ok = ratio <= a.target;
+        println!(
+            "{:>7} ({} parameters): MSE / optimal {ratio:.3} over {} frames{}",
+            n.label,
+            n.parameters,
+            c.len(),
+            if ok { "  meets the target" } else { "" }
+        );
+        if ok && chosen.is_none() {
+            chosen = Some((n, ratio));
+        }
+    }
+    let Some((n, ratio)) = chosen else {
+        bail!(
+            "no network meets MSE <= {} x optimal on {}: fine-tune one on it (`dhoit train --scene {}`) or loosen --target",
+            a.target,
+            a.scene,
+            a.scene
+        );
+    };
+    let bytes =
+        std::fs::read(&n.path).with_context(|| format!("cannot read {}", n.path.display()))?;
+    write_weights(&a.out, &bytes)?;
+    println!(
+        "fit: {} is the smallest network within {}x of the optimal allocation on {} ({ratio:.3}) -> {}",
+        n.label,
+        a.target,
+        a.scene,
+        a.out.display()
+    );
+    Ok(())
+}
+
+fn write_weights(path: &Path, bytes: &[u8]) -> Result<()> {
+    Ok(dhoit_runtime::tensors::write_atomic(path, bytes)?)
+}
