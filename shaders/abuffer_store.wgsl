@@ -9,6 +9,6 @@
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let p = pixel_index(in.clip, params.width);
     let i = offsets[p] + atomicAdd(&cursor[p], 1u);
-    fragments[i] = vec4<u32>(bitcast<u32>(in.clip.z), fragment_rgba8(in.color), in.primitive, 0u);
+    fragments[i] = vec4<u32>(bitcast<u32>(in.clip.z), fragment_rgba8(in), in.primitive, 0u);
     return vec4<f32>(0.0);
 }

@@ -21,7 +21,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         k = k_of[p];
         base = slot_base[p];
     }
-    var cur = ~fragment_key(in.clip.z, fragment_rgba8(in.color));
+    var cur = ~fragment_key(in.clip.z, fragment_rgba8(in));
     for (var i = 0u; i < k; i++) {
         let old = atomicMax(&slots[base + i], cur);
         if (old == 0lu) {

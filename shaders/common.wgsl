@@ -32,6 +32,11 @@ struct VertexOut {
     @location(1) @interpolate(flat) primitive: u32,
     // |n . v| of the triangle (for the Fresnel importance).
     @location(2) @interpolate(flat) facing: f32,
+    // The triangle's colour when its three vertices share one (uniform_color 1): used as is,
+    // not interpolated, so that no rounding of the interpolation moves it across an 8-bit
+    // step (the CPU rasterizer does the same).
+    @location(3) @interpolate(flat) flat_color: vec4<f32>,
+    @location(4) @interpolate(flat) uniform_color: u32,
 };
 
 // 8-bit unorm with rounding half up, as composite::to_unorm8.

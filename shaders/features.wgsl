@@ -19,7 +19,7 @@ const OCCUPIED: u64 = 0x8000000000000000lu;
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let p = pixel_index(in.clip, params.width);
-    let rgba8 = fragment_rgba8(in.color);
+    let rgba8 = fragment_rgba8(in);
     let depth = select(0.0, in.clip.z, in.clip.z > 0.0);
     atomicAdd(&count[p], 1u);
     let key = fragment_key(depth, rgba8);

@@ -15,8 +15,12 @@
 //!
 //! Shading is fixed: a headlight Lambert term on the base colour,
 //! `rgb = vertex_rgb * (AMBIENT + (1 - AMBIENT) |n . v|)` with `n` the triangle's geometric
-//! normal and `v` the camera's forward direction; alpha is the vertex alpha. Fragment colours
-//! are rounded to 8 bits per channel, the precision the capture key stores. Each fragment keeps
+//! normal and `v` the camera's forward direction; alpha is the vertex alpha. Colours are
+//! interpolated perspective-correctly, except on a triangle whose three vertices share one
+//! colour, which keeps it exactly (the GPU passes it flat): the interpolation's rounding would
+//! otherwise move a colour that sits on a half step, such as alpha 0.3 = 76.5 / 255, to one
+//! side on the CPU and the other on the GPU. Fragment colours are rounded to 8 bits per
+//! channel, the precision the capture key stores. Each fragment keeps
 //! `|n . v|` (`facing`, for the Fresnel importance) and its triangle's submission index.
 //!
 //! Within a pixel, fragments are listed in submission order. Work is split into bands of rows
@@ -307,7 +311,12 @@ fn raster_band(tris: &[ScreenTri], ids: &[u32], width: u32, y0: u32, y1: u32) ->
                 let depth = plane_depth(t, x as f32 + 0.5, y as f32 + 0.5);
                 let pw = [l[0] * t.inv_w[0], l[1] * t.inv_w[1], l[2] * t.inv_w[2]];
                 let norm = 1.0 / (pw[0] + pw[1] + pw[2]);
-                let rgba = (t.rgba[0] * pw[0] + t.rgba[1] * pw[1] + t.rgba[2] * pw[2]) * norm;
+                // A triangle of one colour keeps it exactly, as the GPU's flat colour does.
+                let rgba = if t.rgba[0] == t.rgba[1] && t.rgba[1] == t.rgba[2] {
+                    t.rgba[0]
+                } else {
+                    (t.rgba[0] * pw[0] + t.rgba[1] * pw[1] + t.rgba[2] * pw[2]) * norm
+                };
                 let rgba = rgba.clamp(Vec4::ZERO, Vec4::ONE).to_array().map(quantize);
                 frags.push(Frag {
                     pixel: (y - y0) * width + x as u32,

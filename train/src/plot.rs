@@ -76,7 +76,7 @@ fn short(v: f64) -> String {
             .trim_end_matches('.')
             .to_string()
     } else {
-        format!("{v:.1e}")
+        format!("{v:.2e}")
     }
 }
 
@@ -245,40 +245,42 @@ impl Trade<'_> {
             .iter()
             .filter(|p| p.time_ms > 0.0 && get(p) > 0.0 && get(p).is_finite())
             .collect();
+        // Both axes log10 of the value on a linear axis, labelled with the value: evenly spaced
+        // labels however narrow the range (plotters' log axes label only round values).
         let range = |v: &mut dyn Iterator<Item = f64>| {
-            let (lo, hi) = v.fold((f64::INFINITY, 0.0f64), |(a, b), x| (a.min(x), b.max(x)));
+            let (lo, hi) = v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                (a.min(x.log10()), b.max(x.log10()))
+            });
             if lo.is_finite() {
-                (lo / 1.25, (hi * 1.25).max(lo * 1.6))
+                let pad = ((hi - lo) * 0.15).max(0.05);
+                (lo - pad)..(hi + pad)
             } else {
-                (1e-3, 1.0)
+                -3.0..0.0
             }
         };
-        let (t0, t1) = range(&mut pts.iter().map(|p| p.time_ms));
-        let (m0, m1) = range(&mut pts.iter().map(|p| get(p)));
+        let xs = range(&mut pts.iter().map(|p| p.time_ms));
+        let ys = range(&mut pts.iter().map(|p| get(p)));
         let mut chart = ChartBuilder::on(area)
-            .caption(format!("{metric} against time"), (FAMILY, 16))
+            .caption(format!("{metric} against time (log-log)"), (FAMILY, 16))
             .margin(10)
             .x_label_area_size(40)
             .y_label_area_size(70)
-            .build_cartesian_2d((t0..t1).log_scale(), (m0..m1).log_scale())
+            .build_cartesian_2d(xs, ys)
             .map_err(err)?;
         chart
             .configure_mesh()
             .x_desc(self.time_label)
             .y_desc(format!("{metric} against the A-buffer"))
-            .x_labels(12)
-            .y_labels(12)
-            .x_label_formatter(&|v| short(*v))
-            .y_label_formatter(&|v| short(*v))
+            .x_labels(8)
+            .y_labels(8)
+            .x_label_formatter(&|v| short(10f64.powf(*v)))
+            .y_label_formatter(&|v| short(10f64.powf(*v)))
             .draw()
             .map_err(err)?;
+        let at = |p: &TradePoint| (p.time_ms.log10(), get(p).log10());
         // The front, by time (the front is non-dominated in time, MSE and FLIP together, so
         // in one metric it need not be monotone).
-        let mut front: Vec<(f64, f64)> = pts
-            .iter()
-            .filter(|p| p.front)
-            .map(|p| (p.time_ms, get(p)))
-            .collect();
+        let mut front: Vec<(f64, f64)> = pts.iter().filter(|p| p.front).map(|p| at(p)).collect();
         front.sort_by(|a, b| a.0.total_cmp(&b.0));
         chart
             .draw_series(LineSeries::new(front, VALIDATION.stroke_width(2)))
@@ -292,7 +294,7 @@ impl Trade<'_> {
                 } else {
                     TRAIN.filled()
                 };
-                EmptyElement::at((p.time_ms, get(p)))
+                EmptyElement::at(at(p))
                     + Circle::new((0, 0), 5, style)
                     + Text::new(p.label.clone(), (7, -12), (FAMILY, 12))
             }))

@@ -1,0 +1,403 @@
+//! The whole pipeline at its extremes, CPU and GPU alike: each frame is rasterized and rendered
+//! by the CPU reference and by the GPU from the same scene (each with its own rasterizer), and
+//! the images must agree within 1e-5 on every pixel. Needs a GPU adapter (lavapipe in CI);
+//! DHOIT_SKIP_GPU=1 skips explicitly.
+
+use dhoit_runtime::budget::{self, Budget, FragmentBudget};
+use dhoit_runtime::composite::Image;
+use dhoit_runtime::frame::{self, Method, Options};
+use dhoit_runtime::gpu::{Gpu, Slots};
+use dhoit_runtime::importance::VkbParams;
+use dhoit_runtime::mlp::Mlp;
+use dhoit_runtime::raster::rasterize;
+use dhoit_runtime::scene::{Camera, Scene};
+use glam::Vec3;
+use std::sync::OnceLock;
+
+const BG: [f32; 3] = [0.9, 0.85, 0.8];
+const TOLERANCE: f32 = 1e-5;
+
+fn gpu() -> Option<&'static Gpu> {
+    static GPU: OnceLock<Option<Gpu>> = OnceLock::new();
+    GPU.get_or_init(|| match Gpu::new() {
+        Ok(g) => Some(g),
+        Err(e) if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") => {
+            eprintln!("SKIPPED (DHOIT_SKIP_GPU=1): {e}");
+            None
+        }
+        Err(e) => panic!("{e} (set DHOIT_SKIP_GPU=1 to skip the GPU tests explicitly)"),
+    })
+    .as_ref()
+}
+
+/// Clip space is world space: x, y in [-1, 1], window depth = z.
+fn identity() -> Camera {
+    Camera {
+        view_proj: glam::Mat4::IDENTITY,
+        forward: Vec3::NEG_Z,
+        eye: Vec3::ZERO,
+    }
+}
+
+/// A quad from (x0, y0) to (x1, y1) whose depth runs from z0 at x0 to z1 at x1.
+fn quad(s: &mut Scene, (x0, y0, x1, y1): (f32, f32, f32, f32), (z0, z1): (f32, f32), c: [f32; 4]) {
+    let (a, b) = (Vec3::new(x0, y0, z0), Vec3::new(x1, y0, z1));
+    let (d, e) = (Vec3::new(x1, y1, z1), Vec3::new(x0, y1, z0));
+    s.push_triangle([a, b, d], [c; 3]);
+    s.push_triangle([a, d, e], [c; 3]);
+}
+
+/// Every method that runs on both sides, CPU frame against GPU frame, on one scene and budget:
+/// the largest difference over every pixel of every method.
+fn cpu_and_gpu_agree(g: &Gpu, s: &Scene, (w, h): (u32, u32), budget: Budget, what: &str) -> f32 {
+    let cam = identity();
+    let fl = rasterize(s, &cam, w, h).unwrap();
+    let mlp = Mlp::random(9);
+    let opts = || Options {
+        weights: Some(&mlp),
+        ..Options::new(budget, BG)
+    };
+    let mut worst = 0.0f32;
+    for m in [
+        Method::Abuffer,
+        Method::Fkb,
+        Method::Optimal,
+        Method::Vkb,
+        Method::Dkb,
+    ] {
+        let cpu = match frame::render(&fl, m, opts()) {
+            Ok(f) => f,
+            // FKB needs a slot for every pixel: below that it is refused (documented).
+            Err(dhoit_runtime::Error::Budget(..)) if m == Method::Fkb => continue,
+            Err(e) => panic!("{what}, {}: {e}", m.name()),
+        };
+        let f = FragmentBudget::Slots(cpu.budget_fragments);
+        let slots = match m {
+            Method::Abuffer => None,
+            Method::Vkb => Some(Slots::Vkb(VkbParams::default(), f)),
+            Method::Dkb => Some(Slots::Dkb(&mlp, f)),
+            _ => Some(Slots::PerPixel(&cpu.k)),
+        };
+        let gpu = g.render(s, &cam, w, h, BG, slots).unwrap();
+        let d = gpu.image.max_abs_diff(&cpu.image);
+        assert!(
+            d <= TOLERANCE,
+            "{what}, {}: CPU and GPU images differ by {d} (F = {})",
+            m.name(),
+            cpu.budget_fragments
+        );
+        worst = worst.max(d);
+    }
+    eprintln!("{what}: CPU and GPU agree within {worst:e}");
+    worst
+}
+
+#[test]
+fn intersecting_and_coplanar_surfaces_render_alike_on_cpu_and_gpu() {
+    let Some(g) = gpu() else { return };
+    let mut s = Scene::default();
+    // Two tilted quads crossing along x = 0.
+    quad(
+        &mut s,
+        (-0.9, -0.9, 0.9, 0.9),
+        (0.2, 0.8),
+        [0.9, 0.1, 0.1, 0.5],
+    );
+    quad(
+        &mut s,
+        (-0.9, -0.6, 0.9, 0.6),
+        (0.8, 0.2),
+        [0.1, 0.1, 0.9, 0.5],
+    );
+    // Two coplanar quads at one depth, overlapping: equal keys, one order everywhere.
+    quad(
+        &mut s,
+        (-0.7, -0.7, 0.3, 0.3),
+        (0.5, 0.5),
+        [0.1, 0.8, 0.1, 0.4],
+    );
+    quad(
+        &mut s,
+        (-0.3, -0.3, 0.7, 0.7),
+        (0.5, 0.5),
+        [0.9, 0.9, 0.1, 0.4],
+    );
+    // The same quad twice (identical fragments but their primitive).
+    quad(
+        &mut s,
+        (-0.5, 0.2, 0.5, 0.8),
+        (0.35, 0.35),
+        [0.2, 0.6, 0.9, 0.3],
+    );
+    quad(
+        &mut s,
+        (-0.5, 0.2, 0.5, 0.8),
+        (0.35, 0.35),
+        [0.8, 0.3, 0.5, 0.3],
+    );
+    for budget in ["2fpp", "50%", "100%"] {
+        cpu_and_gpu_agree(
+            g,
+            &s,
+            (96, 72),
+            Budget::parse(budget).unwrap(),
+            &format!("intersecting + coplanar at {budget}"),
+        );
+    }
+}
+
+#[test]
+fn extreme_opacities_and_depths_render_alike_on_cpu_and_gpu() {
+    let Some(g) = gpu() else { return };
+    let mut s = Scene::default();
+    // Opacities 0, 1e-7 and 1 over a half-transparent backdrop.
+    quad(
+        &mut s,
+        (-1.0, -1.0, 1.0, 1.0),
+        (0.6, 0.6),
+        [0.3, 0.5, 0.7, 0.5],
+    );
+    quad(
+        &mut s,
+        (-0.9, -0.9, -0.3, 0.9),
+        (0.4, 0.4),
+        [1.0, 0.0, 0.0, 0.0],
+    );
+    quad(
+        &mut s,
+        (-0.3, -0.9, 0.3, 0.9),
+        (0.3, 0.3),
+        [0.0, 1.0, 0.0, 1e-7],
+    );
+    quad(
+        &mut s,
+        (0.3, -0.9, 0.9, 0.9),
+        (0.2, 0.2),
+        [0.0, 0.0, 1.0, 1.0],
+    );
+    // Depths at the near and far planes, and a layer behind an opaque one.
+    quad(
+        &mut s,
+        (-0.8, -0.2, 0.8, 0.2),
+        (0.0, 0.0),
+        [0.9, 0.9, 0.2, 0.6],
+    );
+    quad(
+        &mut s,
+        (-0.8, -0.5, 0.8, 0.5),
+        (1.0, 1.0),
+        [0.2, 0.9, 0.9, 0.6],
+    );
+    let cam = identity();
+    let fl = rasterize(&s, &cam, 80, 60).unwrap();
+    let depths = &fl.depth;
+    assert!(depths.contains(&0.0), "a fragment at depth 0");
+    assert!(depths.contains(&1.0), "a fragment at depth 1");
+    for budget in ["1fpp", "3fpp", "100%"] {
+        cpu_and_gpu_agree(
+            g,
+            &s,
+            (80, 60),
+            Budget::parse(budget).unwrap(),
+            &format!("opacities 0, 1e-7, 1 and depths 0, 1 at {budget}"),
+        );
+    }
+    // Opacity 0 leaves no trace, 1 hides what is behind: the exact image says so.
+    let exact = frame::render(
+        &fl,
+        Method::Abuffer,
+        Options::new(Budget::Share(1_000_000), BG),
+    )
+    .unwrap()
+    .image;
+    let at = |x: u32, y: u32| exact.data[(y * 80 + x) as usize];
+    // Column 12 (x = -0.7) at row 50 (y = 0.67): the backdrop and the invisible quad only.
+    let mut backdrop_only = Scene::default();
+    quad(
+        &mut backdrop_only,
+        (-1.0, -1.0, 1.0, 1.0),
+        (0.6, 0.6),
+        [0.3, 0.5, 0.7, 0.5],
+    );
+    let fb = rasterize(&backdrop_only, &cam, 80, 60).unwrap();
+    let plain = frame::render(
+        &fb,
+        Method::Abuffer,
+        Options::new(Budget::Share(1_000_000), BG),
+    )
+    .unwrap()
+    .image;
+    assert_eq!(at(12, 50), plain.data[(50 * 80 + 12) as usize]);
+}
+
+#[test]
+fn one_fragment_a_pixel_and_budgets_at_the_edges() {
+    let Some(g) = gpu() else { return };
+    let (w, h) = (64u32, 48u32);
+    let pixels = (w * h) as u64;
+    // One full-screen quad: every pixel exactly one fragment.
+    let mut one = Scene::default();
+    quad(
+        &mut one,
+        (-1.0, -1.0, 1.0, 1.0),
+        (0.5, 0.5),
+        [0.4, 0.7, 0.2, 0.6],
+    );
+    let fl = rasterize(&one, &identity(), w, h).unwrap();
+    assert!(fl.counts().iter().all(|&n| n == 1));
+    for budget in ["1fpp", "0.5fpp", "100%"] {
+        cpu_and_gpu_agree(
+            g,
+            &one,
+            (w, h),
+            Budget::parse(budget).unwrap(),
+            &format!("one fragment a pixel at {budget}"),
+        );
+    }
+    // A layered scene: 6 layers over most pixels.
+    let mut s = Scene::default();
+    for i in 0..6 {
+        let z = 0.1 + 0.13 * i as f32;
+        let c = [
+            0.15 * i as f32,
+            0.9 - 0.1 * i as f32,
+            0.5,
+            0.3 + 0.1 * i as f32,
+        ];
+        quad(
+            &mut s,
+            (-0.95 + 0.05 * i as f32, -0.9, 0.9, 0.95),
+            (z, z + 0.05),
+            c,
+        );
+    }
+    let fl = rasterize(&s, &identity(), w, h).unwrap();
+    let covered = fl.counts().iter().filter(|&&n| n > 0).count() as u64;
+    let total = fl.fragment_count() as u64;
+    // A budget of exactly the fixed cost leaves no slot: refused, saying what is needed.
+    let fixed = budget::DKB.fixed_bytes(pixels);
+    let mlp = Mlp::random(1);
+    let opts = |b| Options {
+        weights: Some(&mlp),
+        ..Options::new(b, BG)
+    };
+    let err = frame::render(&fl, Method::Dkb, opts(Budget::Bytes(fixed))).unwrap_err();
+    assert!(
+        err.to_string().contains("before any fragment slot"),
+        "{err}"
+    );
+    // One slot more than the fixed cost: F = 1, one pixel captures one fragment.
+    let f1 = frame::render(
+        &fl,
+        Method::Dkb,
+        opts(Budget::Bytes(fixed + budget::DKB.slot_bytes)),
+    )
+    .unwrap();
+    assert_eq!(f1.budget_fragments, 1);
+    assert_eq!(f1.k.iter().map(|&k| k as u64).sum::<u64>(), 1);
+    // Fewer slots than covered pixels: the documented behaviour is that k may be 0 (the pixel
+    // is all tail), the slots are all handed out, and CPU and GPU agree.
+    let few = covered / 3;
+    let fr = frame::render(
+        &fl,
+        Method::Dkb,
+        opts(Budget::SlotsPerPixel(few as f64 / pixels as f64)),
+    )
+    .unwrap();
+    assert!(fr.budget_fragments < covered);
+    assert_eq!(
+        fr.k.iter().map(|&k| k as u64).sum::<u64>(),
+        fr.budget_fragments
+    );
+    assert!(fr.k.iter().zip(fl.counts()).any(|(&k, n)| n > 0 && k == 0));
+    cpu_and_gpu_agree(
+        g,
+        &s,
+        (w, h),
+        Budget::SlotsPerPixel(few as f64 / pixels as f64),
+        "fewer slots than covered pixels",
+    );
+    // A budget of every fragment or more: every k-buffer method's image is the A-buffer's,
+    // exactly on the CPU, within float rounding on the GPU.
+    let exact = frame::render(&fl, Method::Abuffer, opts(Budget::Share(1_000_000))).unwrap();
+    let gpu_exact = g.render(&s, &identity(), w, h, BG, None).unwrap().image;
+    for b in [
+        Budget::Share(1_000_000),
+        Budget::SlotsPerPixel((total + 5) as f64 / pixels as f64),
+    ] {
+        for m in [Method::Vkb, Method::Dkb, Method::Optimal] {
+            let f = frame::render(&fl, m, opts(b)).unwrap();
+            assert_eq!(f.image.data, exact.image.data, "{} at {b}: CPU", m.name());
+        }
+        let fb = FragmentBudget::Slots(b.resolve(&budget::DKB, pixels, total).unwrap().1);
+        for slots in [Slots::Dkb(&mlp, fb), Slots::Vkb(VkbParams::default(), fb)] {
+            let img: Image = g
+                .render(&s, &identity(), w, h, BG, Some(slots))
+                .unwrap()
+                .image;
+            let d = img.max_abs_diff(&gpu_exact);
+            assert!(
+                d <= TOLERANCE,
+                "{slots:?} at {b}: GPU differs from its A-buffer by {d}"
+            );
+        }
+    }
+}
+
+#[test]
+fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
+    let Some(g) = gpu() else { return };
+    // 3000 layers over a 4x4 frame.
+    let mut s = Scene::default();
+    for i in 0..3000 {
+        let z = 0.05 + 0.9 * ((i * 7919) % 3000) as f32 / 3000.0;
+        let c = [
+            (i % 7) as f32 / 7.0,
+            (i % 5) as f32 / 5.0,
+            (i % 3) as f32 / 3.0,
+            0.02,
+        ];
+        s.push_triangle(
+            [
+                Vec3::new(-1.0, -1.0, z),
+                Vec3::new(3.0, -1.0, z),
+                Vec3::new(-1.0, 3.0, z),
+            ],
+            [c; 3],
+        );
+    }
+    let (w, h) = (4u32, 4u32);
+    let fl = rasterize(&s, &identity(), w, h).unwrap();
+    assert!(fl.counts().iter().all(|&n| n == 3000));
+    let mlp = Mlp::random(2);
+    for b in ["4fpp", "64fpp", "25%"] {
+        let b = Budget::parse(b).unwrap();
+        for m in [Method::Fkb, Method::Vkb, Method::Dkb] {
+            let cpu = frame::render(
+                &fl,
+                m,
+                Options {
+                    weights: Some(&mlp),
+                    ..Options::new(b, BG)
+                },
+            )
+            .unwrap();
+            let f = FragmentBudget::Slots(cpu.budget_fragments);
+            let slots = match m {
+                Method::Vkb => Slots::Vkb(VkbParams::default(), f),
+                Method::Dkb => Slots::Dkb(&mlp, f),
+                _ => Slots::PerPixel(&cpu.k),
+            };
+            match g.render(&s, &identity(), w, h, BG, Some(slots)) {
+                Ok(frame) => {
+                    let d = frame.image.max_abs_diff(&cpu.image);
+                    assert!(d <= TOLERANCE, "{} at {b}: GPU differs by {d}", m.name());
+                }
+                Err(e) => {
+                    let msg = e.to_string();
+                    assert!(msg.contains("loops early"), "{} at {b}: {msg}", m.name());
+                }
+            }
+        }
+    }
+}
