@@ -152,14 +152,16 @@ impl Chart for Loss<'_> {
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(70)
-            .build_cartesian_2d(0..n, (lo..hi).log_scale())
+            // log10 of the loss on a linear axis, labelled with the loss: evenly spaced labels
+            // however narrow the range.
+            .build_cartesian_2d(0..n, lo.log10()..hi.log10())
             .map_err(err)?;
         chart
             .configure_mesh()
             .x_desc("epoch")
             .y_desc("loss")
-            .y_labels(12)
-            .y_label_formatter(&|v| short(*v))
+            .y_labels(10)
+            .y_label_formatter(&|v| short(10f64.powf(*v)))
             .light_line_style(WHITE.mix(0.0))
             .draw()
             .map_err(err)?;
@@ -167,7 +169,7 @@ impl Chart for Loss<'_> {
             let b = self.best;
             chart
                 .draw_series(DashedLineSeries::new(
-                    [(b, lo), (b, hi)],
+                    [(b, lo.log10()), (b, hi.log10())],
                     5,
                     4,
                     GREY.stroke_width(1),
@@ -188,7 +190,7 @@ impl Chart for Loss<'_> {
                     self.history
                         .iter()
                         .filter(|e| finite(get(e)))
-                        .map(|e| (e.epoch, get(e))),
+                        .map(|e| (e.epoch, get(e).log10())),
                     colour.stroke_width(2),
                 ))
                 .map_err(err)?
