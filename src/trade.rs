@@ -99,8 +99,15 @@ struct Net {
     parameters: usize,
 }
 
-fn networks(paths: &[PathBuf]) -> Result<Vec<Net>> {
-    let mut paths = paths.to_vec();
+fn networks(q: &QualityArgs) -> Result<Vec<Net>> {
+    if let Some(w) = &q.common.weights {
+        bail!(
+            "--weights {}: trade and fit compare the networks given with --networks (comma \
+             separated), or every shipped one",
+            w.display()
+        );
+    }
+    let mut paths = q.networks.clone();
     if paths.is_empty() {
         let default = crate::default_weights()
             .context("no network given (--networks) and the default weights are not found")?;
@@ -367,7 +374,7 @@ pub fn trade(a: TradeArgs) -> Result<()> {
             );
         }
     }
-    let nets = networks(&a.quality.networks)?;
+    let nets = networks(&a.quality)?;
     let time_res = dhoit_runtime::raster::parse_resolution(&a.time_res)?;
     let first_budget = Budget::parse(
         a.quality
@@ -591,7 +598,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
             a.target
         );
     }
-    let nets = networks(&a.quality.networks)?;
+    let nets = networks(&a.quality)?;
     let steps = a.quality.view_list.len() * a.quality.budgets.len();
     let pb = bar(steps as u64, "frames");
     let measures = quality(&a.scene, &a.quality, &nets, &pb)?;

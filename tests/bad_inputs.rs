@@ -890,3 +890,59 @@ fn gpu_without_an_adapter() {
         "no GPU adapter found: dhoit needs a Vulkan, Metal or DX12 device",
     );
 }
+
+#[test]
+fn trade_and_fit_refuse_what_they_cannot_do() {
+    let dir = case_dir("trade-fit");
+    fails(
+        &dir,
+        &[
+            "fit",
+            "--scene",
+            "cad",
+            "--weights",
+            "w.safetensors",
+            "--out",
+            "{out}",
+        ],
+        "--networks",
+    );
+    fails(
+        &dir,
+        &["fit", "--scene", "cad", "--target", "0.5", "--out", "{out}"],
+        "at least 1",
+    );
+    fails(
+        &dir,
+        &[
+            "fit",
+            "--scene",
+            "cad",
+            "--networks",
+            "missing.safetensors",
+            "--out",
+            "{out}",
+        ],
+        "missing.safetensors",
+    );
+    fails(
+        &dir,
+        &[
+            "trade",
+            "--scene",
+            "cad",
+            "--precision",
+            "f16",
+            "--out",
+            "{out}",
+        ],
+        "offers f32",
+    );
+    fails(
+        &dir,
+        &[
+            "trade", "--scene", "cad", "--timing", "tpu", "--out", "{out}",
+        ],
+        "expected gpu, cpu or auto",
+    );
+}
