@@ -17,7 +17,7 @@ build: setup
 	$(CARGO) build --release
 
 ## The main job on built-in data: train the default network from the built-in scenes (about two
-## minutes; the same weights as the committed data/weights.safetensors, which it leaves alone),
+## minutes; the recipe of the committed data/weights.safetensors, which it leaves alone),
 ## then render a held-out built-in scene with it beside every baseline and print the tables.
 demo: build
 	$(RUN) train --out out/demo/weights.safetensors
