@@ -223,16 +223,17 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             };
             let (skip, all) = (imp("dkb"), imp("dkb_no_skip"));
             // Covered pixels whose k the network does not decide.
-            let counts = fl.counts();
-            let f_frame = f_dkb.of(fl.fragment_count() as u64);
-            let (feats_pairs, covered) = (
-                dhoit_runtime::importance::features_and_pairs(&fl, f_frame).1,
-                counts.iter().filter(|&&n| n > 0).count(),
-            );
-            let forced = counts
+            let stats = dhoit_runtime::importance::pixel_stats(&fl);
+            let covered = stats.iter().filter(|st| st.count > 0).count();
+            let forced = stats
                 .iter()
-                .zip(&feats_pairs)
-                .filter(|&(&n, &p)| n > 0 && dhoit_runtime::mlp::forced(n, p))
+                .filter(|st| {
+                    st.count > 0
+                        && dhoit_runtime::mlp::forced(
+                            st.count,
+                            dhoit_runtime::importance::tail_pair(st),
+                        )
+                })
                 .count();
             eprintln!(
                 "GPU {name}: DKB/VKB frame time {ratio:.2}; importance pass {skip:.2} ms skipping {:.1}% forced pixels, {all:.2} ms without",

@@ -124,7 +124,7 @@ fn cells(r: &Row) -> [String; 8] {
 }
 
 /// A table as aligned text and as Markdown.
-fn table(header: &[&str], rows: &[Vec<String>]) -> (String, String) {
+pub(crate) fn table(header: &[&str], rows: &[Vec<String>]) -> (String, String) {
     let widths: Vec<usize> = (0..header.len())
         .map(|c| {
             rows.iter()
@@ -164,7 +164,7 @@ fn table(header: &[&str], rows: &[Vec<String>]) -> (String, String) {
 /// rounding; 8-bit quantisation alone is about 1e-6).
 pub const MSE_FLOOR: f64 = 1e-14;
 
-fn geomean(v: &[f64]) -> f64 {
+pub(crate) fn geomean(v: &[f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }

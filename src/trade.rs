@@ -10,10 +10,11 @@ use dhoit_runtime::frame::{Method, Options, Renderer};
 use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::{self, Mlp};
 use dhoit_runtime::scene::{self, Camera};
+use dhoit_train::cli::bar;
 use dhoit_train::plot::{self, TradePoint};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// Where the shipped networks of other sizes live: `data/nets/H1-H2/weights.safetensors`.
@@ -141,19 +142,6 @@ fn networks(q: &QualityArgs) -> Result<Vec<Net>> {
     Ok(out)
 }
 
-fn bar(len: u64, what: &str) -> ProgressBar {
-    let pb = ProgressBar::new(len);
-    pb.set_style(
-        ProgressStyle::with_template(
-            "{msg:>10} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta}",
-        )
-        .expect("template")
-        .progress_chars("=> "),
-    );
-    pb.set_message(what.to_string());
-    pb
-}
-
 /// One network on one frame and budget.
 #[derive(Clone, Debug, Serialize)]
 pub struct Measure {
@@ -169,7 +157,7 @@ pub struct Measure {
 
 /// Every network's images on every view and budget of one scene.
 fn quality(
-    name: &str,
+    s: &scene::Scene,
     q: &QualityArgs,
     nets: &[Net],
     pb: &ProgressBar,
@@ -179,10 +167,9 @@ fn quality(
         .iter()
         .map(|b| Budget::parse(b))
         .collect::<Result<_, _>>()?;
-    let s = load_scene(name, &q.common)?;
     let mut out: Vec<Vec<Measure>> = nets.iter().map(|_| Vec::new()).collect();
     for &view in &q.view_list {
-        let (fl, _) = rasterize_view(&s, view, &q.common)?;
+        let (fl, _) = rasterize_view(s, view, &q.common)?;
         for b in &budgets {
             let plain = Renderer::new(&fl, Options::new(*b, q.common.background));
             let exact = plain.render(Method::Abuffer)?;
@@ -216,15 +203,19 @@ fn quality(
 
 const FLOOR: f64 = crate::compare::MSE_FLOOR;
 
+/// Geometric mean, values floored at [`FLOOR`] as in `compare`'s summary.
 fn geomean(v: impl IntoIterator<Item = f64>) -> f64 {
-    let (s, n) = v
-        .into_iter()
-        .fold((0.0, 0usize), |(s, n), x| (s + x.max(FLOOR).ln(), n + 1));
-    if n == 0 {
-        f64::NAN
-    } else {
-        (s / n as f64).exp()
-    }
+    crate::compare::geomean(&v.into_iter().map(|x| x.max(FLOOR)).collect::<Vec<_>>())
+}
+
+/// Geometric mean of MSE / the optimal allocation's over the frames that count.
+fn over_optimal(m: &[Measure]) -> f64 {
+    geomean(counted(m).map(|x| x.mse.max(FLOOR) / x.optimal_mse.max(FLOOR)))
+}
+
+/// Geometric mean of MSE / VKB's over the frames that count.
+fn over_vkb(m: &[Measure]) -> f64 {
+    geomean(counted(m).map(|x| x.mse.max(FLOOR) / x.vkb_mse.max(FLOOR)))
 }
 
 /// The frames that tell allocations apart (budget below the frame's fragments).
@@ -262,8 +253,8 @@ fn point(n: &Net, precision: &str, time_ms: f64, m: Vec<Measure>) -> Point {
         time_ms,
         mse: geomean(m.iter().map(|x| x.mse)),
         flip: m.iter().map(|x| x.flip).sum::<f64>() / m.len().max(1) as f64,
-        mse_over_optimal: geomean(counted(&m).map(|x| x.mse.max(FLOOR) / x.optimal_mse.max(FLOOR))),
-        mse_over_vkb: geomean(counted(&m).map(|x| x.mse.max(FLOOR) / x.vkb_mse.max(FLOOR))),
+        mse_over_optimal: over_optimal(&m),
+        mse_over_vkb: over_vkb(&m),
         front: false,
         frames: m,
     }
@@ -315,54 +306,75 @@ impl Timer {
         }
     }
 
-    /// The importance pass's time for `mlp` on `scene`'s view 0 at the first budget.
-    fn time(
-        &self,
-        s: &scene::Scene,
-        (w, h): (u32, u32),
-        budget: Budget,
-        mlp: &Mlp,
-        repeat: usize,
-    ) -> Result<f64> {
+    /// What timing `s`'s view 0 at `budget` needs, computed once for every network: the
+    /// camera and F on the GPU; the rasterized frame's features on the CPU.
+    fn frame(&self, s: &scene::Scene, (w, h): (u32, u32), budget: Budget) -> Result<TimedFrame> {
         let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, w, h);
-        let mut best = f64::INFINITY;
-        match self {
-            Timer::Gpu(g) => {
-                let f = budget.fragment_budget(&dhoit_runtime::budget::DKB, (w * h) as u64)?;
-                for _ in 0..repeat.max(1) {
-                    let frame = g.render(
-                        s,
-                        &cam,
-                        w,
-                        h,
-                        [1.0; 3],
-                        Some(dhoit_runtime::gpu::Slots::Dkb(mlp, f)),
-                    )?;
-                    let t = frame
-                        .pass_ms
-                        .iter()
-                        .filter(|p| p.0 == "importance")
-                        .map(|p| p.1)
-                        .sum::<f64>();
-                    best = best.min(t);
-                }
+        let pixels = (w * h) as u64;
+        Ok(match self {
+            Timer::Gpu(_) => {
+                let f = budget.fragment_budget(&dhoit_runtime::budget::DKB, pixels)?;
+                TimedFrame::Gpu { cam, f, w, h }
             }
             Timer::Cpu => {
                 let fl = dhoit_runtime::raster::rasterize(s, &cam, w, h)?;
-                let pixels = (w * h) as u64;
                 let total = fl.fragment_count() as u64;
                 let (_, f) = budget.resolve(&dhoit_runtime::budget::DKB, pixels, total)?;
                 let (feats, _) = dhoit_runtime::importance::features_and_pairs(&fl, f);
-                let counts = fl.counts();
-                for _ in 0..repeat.max(1) {
-                    let t = Instant::now();
-                    std::hint::black_box(mlp.importance(&feats, &counts));
-                    best = best.min(t.elapsed().as_secs_f64() * 1e3);
+                TimedFrame::Cpu {
+                    feats,
+                    counts: fl.counts(),
                 }
             }
+        })
+    }
+
+    /// The importance pass's time for `mlp` on a prepared frame of `s`, fastest of `repeat`.
+    fn time(&self, s: &scene::Scene, frame: &TimedFrame, mlp: &Mlp, repeat: usize) -> Result<f64> {
+        let mut best = f64::INFINITY;
+        for _ in 0..repeat.max(1) {
+            let t = match (self, frame) {
+                (Timer::Gpu(g), TimedFrame::Gpu { cam, f, w, h }) => g
+                    .render(
+                        s,
+                        cam,
+                        *w,
+                        *h,
+                        [1.0; 3],
+                        Some(dhoit_runtime::gpu::Slots::Dkb(mlp, *f)),
+                    )?
+                    .pass_ms
+                    .iter()
+                    .filter(|p| p.0 == "importance")
+                    .map(|p| p.1)
+                    .sum::<f64>(),
+                (_, TimedFrame::Cpu { feats, counts }) => {
+                    let t = Instant::now();
+                    std::hint::black_box(mlp.importance(feats, counts));
+                    t.elapsed().as_secs_f64() * 1e3
+                }
+                (Timer::Cpu, TimedFrame::Gpu { .. }) => {
+                    unreachable!("frames come from their timer")
+                }
+            };
+            best = best.min(t);
         }
         Ok(best)
     }
+}
+
+/// One scene's timed frame (see [`Timer::frame`]).
+enum TimedFrame {
+    Gpu {
+        cam: Camera,
+        f: dhoit_runtime::budget::FragmentBudget,
+        w: u32,
+        h: u32,
+    },
+    Cpu {
+        feats: Vec<[f32; dhoit_runtime::importance::FEATURES]>,
+        counts: Vec<u32>,
+    },
 }
 
 pub fn trade(a: TradeArgs) -> Result<()> {
@@ -411,12 +423,13 @@ pub fn trade(a: TradeArgs) -> Result<()> {
     let pb = bar(steps as u64, "frames");
     let mut scenes = Vec::new();
     for name in &a.scenes {
-        let measures = quality(name, &a.quality, &nets, &pb)?;
         let s = load_scene(name, &a.quality.common)?;
+        let measures = quality(&s, &a.quality, &nets, &pb)?;
+        let frame = timer.frame(&s, time_res, first_budget)?;
         let mut points = Vec::new();
         for (n, m) in nets.iter().zip(measures) {
             for p in &a.precision {
-                let t = pb.suspend(|| timer.time(&s, time_res, first_budget, &n.mlp, a.repeat))?;
+                let t = pb.suspend(|| timer.time(&s, &frame, &n.mlp, a.repeat))?;
                 points.push(point(n, p, t, m.clone()));
             }
         }
@@ -442,10 +455,8 @@ pub fn trade(a: TradeArgs) -> Result<()> {
                 };
                 p.mse = geomean(all.iter().map(|p| p.mse));
                 p.flip = all.iter().map(|p| p.flip).sum::<f64>() / all.len() as f64;
-                p.mse_over_optimal =
-                    geomean(counted(&frames).map(|x| x.mse.max(FLOOR) / x.optimal_mse.max(FLOOR)));
-                p.mse_over_vkb =
-                    geomean(counted(&frames).map(|x| x.mse.max(FLOOR) / x.vkb_mse.max(FLOOR)));
+                p.mse_over_optimal = over_optimal(&frames);
+                p.mse_over_vkb = over_vkb(&frames);
                 p.frames = Vec::new();
                 p
             })
@@ -552,40 +563,38 @@ fn tables(r: &Report) -> (String, String) {
         r.views,
         r.budgets.join(", ")
     );
+    const HEAD: [&str; 9] = [
+        "network",
+        "precision",
+        "parameters",
+        "time (ms)",
+        "MSE",
+        "FLIP",
+        "MSE / optimal",
+        "MSE / VKB",
+        "front",
+    ];
     for s in &r.scenes {
-        let _ = std::fmt::Write::write_fmt(&mut text, format_args!("\n{}\n", s.scene));
-        md += &format!(
-            "\n## {}\n\n| network | precision | parameters | time (ms) | MSE | FLIP | MSE / optimal | MSE / VKB | front |\n|---|---|---:|---:|---:|---:|---:|---:|:---:|\n",
-            s.scene
-        );
-        for p in &s.points {
-            let line = format!(
-                "{:>7} {:>4} {:>6} params  {:>9.3} ms  MSE {:.3e}  FLIP {:.4}  /optimal {:>6.3}  /VKB {:>6.3} {}",
-                p.network,
-                p.precision,
-                p.parameters,
-                p.time_ms,
-                p.mse,
-                p.flip,
-                p.mse_over_optimal,
-                p.mse_over_vkb,
-                if p.front { "*" } else { "" }
-            );
-            text += &line;
-            text.push('\n');
-            md += &format!(
-                "| {} | {} | {} | {:.3} | {:.3e} | {:.4} | {:.3} | {:.3} | {} |\n",
-                p.network,
-                p.precision,
-                p.parameters,
-                p.time_ms,
-                p.mse,
-                p.flip,
-                p.mse_over_optimal,
-                p.mse_over_vkb,
-                if p.front { "*" } else { "" }
-            );
-        }
+        let rows: Vec<Vec<String>> = s
+            .points
+            .iter()
+            .map(|p| {
+                vec![
+                    p.network.clone(),
+                    p.precision.clone(),
+                    p.parameters.to_string(),
+                    format!("{:.3}", p.time_ms),
+                    format!("{:.3e}", p.mse),
+                    format!("{:.4}", p.flip),
+                    format!("{:.3}", p.mse_over_optimal),
+                    format!("{:.3}", p.mse_over_vkb),
+                    if p.front { "*" } else { "" }.to_string(),
+                ]
+            })
+            .collect();
+        let (t, m) = crate::compare::table(&HEAD, &rows);
+        text += &format!("\n{}\n{t}", s.scene);
+        md += &format!("\n## {}\n\n{m}", s.scene);
     }
     (text, md)
 }
@@ -601,25 +610,19 @@ pub fn fit(a: FitArgs) -> Result<()> {
     let nets = networks(&a.quality)?;
     let steps = a.quality.view_list.len() * a.quality.budgets.len();
     let pb = bar(steps as u64, "frames");
-    let measures = quality(&a.scene, &a.quality, &nets, &pb)?;
+    let s = load_scene(&a.scene, &a.quality.common)?;
+    let measures = quality(&s, &a.quality, &nets, &pb)?;
     pb.finish_and_clear();
     let mut chosen = None;
     for (n, m) in nets.iter().zip(&measures) {
-        let c: Vec<&Measure> = counted(m).collect();
-        let ratio = if c.is_empty() {
-            1.0
-        } else {
-            geomean(
-                c.iter()
-                    .map(|x| x.mse.max(FLOOR) / x.optimal_mse.max(FLOOR)),
-            )
-        };
+        let frames = counted(m).count();
+        let ratio = if frames == 0 { 1.0 } else { over_optimal(m) };
         let ok = ratio <= a.target;
         println!(
             "{:>7} ({} parameters): MSE / optimal {ratio:.3} over {} frames{}",
             n.label,
             n.parameters,
-            c.len(),
+            frames,
             if ok { "  meets the target" } else { "" }
         );
         if ok && chosen.is_none() {
@@ -636,7 +639,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
     };
     let bytes =
         std::fs::read(&n.path).with_context(|| format!("cannot read {}", n.path.display()))?;
-    write_weights(&a.out, &bytes)?;
+    dhoit_runtime::tensors::write_atomic(&a.out, &bytes)?;
     println!(
         "fit: {} is the smallest network within {}x of the optimal allocation on {} ({ratio:.3}) -> {}",
         n.label,
@@ -645,8 +648,4 @@ pub fn fit(a: FitArgs) -> Result<()> {
         a.out.display()
     );
     Ok(())
-}
-
-fn write_weights(path: &Path, bytes: &[u8]) -> Result<()> {
-    Ok(dhoit_runtime::tensors::write_atomic(path, bytes)?)
 }

@@ -3,6 +3,9 @@
 //! the images must agree within 1e-5 on every pixel. Needs a GPU adapter (lavapipe in CI);
 //! DHOIT_SKIP_GPU=1 skips explicitly.
 
+mod common;
+
+use common::gpu;
 use dhoit_runtime::budget::{self, Budget, FragmentBudget};
 use dhoit_runtime::composite::Image;
 use dhoit_runtime::frame::{self, Method, Options};
@@ -12,23 +15,9 @@ use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::{Camera, Scene};
 use glam::Vec3;
-use std::sync::OnceLock;
 
 const BG: [f32; 3] = [0.9, 0.85, 0.8];
 const TOLERANCE: f32 = 1e-5;
-
-fn gpu() -> Option<&'static Gpu> {
-    static GPU: OnceLock<Option<Gpu>> = OnceLock::new();
-    GPU.get_or_init(|| match Gpu::new() {
-        Ok(g) => Some(g),
-        Err(e) if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") => {
-            eprintln!("SKIPPED (DHOIT_SKIP_GPU=1): {e}");
-            None
-        }
-        Err(e) => panic!("{e} (set DHOIT_SKIP_GPU=1 to skip the GPU tests explicitly)"),
-    })
-    .as_ref()
-}
 
 /// Clip space is world space: x, y in [-1, 1], window depth = z.
 fn identity() -> Camera {

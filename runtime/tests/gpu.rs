@@ -3,30 +3,15 @@
 
 mod common;
 
+use common::gpu;
+
 use dhoit_runtime::alloc;
 use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::composite::{self, Fragment, sort_front_to_back};
-use dhoit_runtime::gpu::{Gpu, Slots, shaders};
+use dhoit_runtime::gpu::{Slots, shaders};
 use dhoit_runtime::importance;
 use dhoit_runtime::raster::{FragmentLists, rasterize};
 use dhoit_runtime::scene::{self, Camera, Opacity, Scene};
-use std::sync::OnceLock;
-
-fn gpu() -> Option<&'static Gpu> {
-    static GPU: OnceLock<Option<Gpu>> = OnceLock::new();
-    GPU.get_or_init(|| match Gpu::new() {
-        Ok(g) => {
-            eprintln!("GPU tests on {}", g.adapter);
-            Some(g)
-        }
-        Err(e) if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") => {
-            eprintln!("SKIPPED (DHOIT_SKIP_GPU=1): {e}");
-            None
-        }
-        Err(e) => panic!("{e} (set DHOIT_SKIP_GPU=1 to skip the GPU tests explicitly)"),
-    })
-    .as_ref()
-}
 
 #[test]
 fn every_shader_validates_and_translates_without_a_gpu() {

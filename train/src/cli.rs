@@ -70,7 +70,8 @@ impl DatasetArgs {
     }
 }
 
-fn bar(len: u64, what: &str) -> ProgressBar {
+/// The progress bar of every long run (dataset, epochs, scoring, trade).
+pub fn bar(len: u64, what: &str) -> ProgressBar {
     let pb = ProgressBar::new(len);
     pb.set_style(
         ProgressStyle::with_template(

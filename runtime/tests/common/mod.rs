@@ -1,8 +1,10 @@
 //! Helpers shared by the runtime's integration tests.
 #![allow(dead_code)] // each test binary uses its own subset
 
+use dhoit_runtime::gpu::Gpu;
 use dhoit_runtime::scene::{self, Opacity};
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 /// A fresh, empty temporary directory for one test (`prefix` names it).
 pub fn temp_dir(prefix: &str) -> PathBuf {
@@ -44,4 +46,22 @@ pub fn real_or_exported(rel: &str, stand_in: &str) -> PathBuf {
         path.display()
     );
     path
+}
+
+/// The GPU every GPU test of one test binary shares (Mesa's lavapipe in CI). Without an adapter
+/// the test fails, unless DHOIT_SKIP_GPU=1 says to skip (None, and it says so).
+pub fn gpu() -> Option<&'static Gpu> {
+    static GPU: OnceLock<Option<Gpu>> = OnceLock::new();
+    GPU.get_or_init(|| match Gpu::new() {
+        Ok(g) => {
+            eprintln!("GPU tests on {}", g.adapter);
+            Some(g)
+        }
+        Err(e) if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") => {
+            eprintln!("SKIPPED (DHOIT_SKIP_GPU=1): {e}");
+            None
+        }
+        Err(e) => panic!("{e} (set DHOIT_SKIP_GPU=1 to skip the GPU tests explicitly)"),
+    })
+    .as_ref()
 }
