@@ -181,8 +181,8 @@ struct Pipelines {
     features: wgpu::RenderPipeline,
     totals: wgpu::ComputePipeline,
     importance_dkb: wgpu::ComputePipeline,
-    /// The same pass with SKIP_FORCED false: the network on every covered pixel.
-    importance_dkb_all: wgpu::ComputePipeline,
+    /// The same pass with SKIP_FORCED false ([`importance_dkb_all`]), once asked for.
+    importance_dkb_all: std::sync::OnceLock<wgpu::ComputePipeline>,
     predict: wgpu::ComputePipeline,
     vkb_count: wgpu::RenderPipeline,
     importance_vkb: wgpu::ComputePipeline,
@@ -270,11 +270,41 @@ impl Gpu {
 }
 
 fn module(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
-    let src = shaders::source(name).expect("known pass");
+    module_from(device, name, shaders::source(name).expect("known pass"))
+}
+
+fn module_from(device: &wgpu::Device, label: &str, src: String) -> wgpu::ShaderModule {
     device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(name),
+        label: Some(label),
         source: wgpu::ShaderSource::Wgsl(src.into()),
     })
+}
+
+fn compute_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    m: &wgpu::ShaderModule,
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: None,
+        module: m,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+/// DKB's importance pass with SKIP_FORCED false (the network on every covered pixel), for the
+/// bench's comparison: built on first use, not at start-up.
+fn importance_dkb_all(device: &wgpu::Device) -> wgpu::ComputePipeline {
+    let src = shaders::source("importance_dkb").expect("known pass");
+    let skip = "const SKIP_FORCED: bool = true;";
+    assert!(src.contains(skip), "importance_dkb declares {skip}");
+    let src = src.replace(skip, "const SKIP_FORCED: bool = false;");
+    let m = module_from(device, "importance_dkb_all", src);
+    compute_pipeline(device, "importance_dkb_all", &m, "main")
 }
 
 impl Pipelines {
@@ -312,17 +342,8 @@ impl Pipelines {
                 cache: None,
             })
         };
-        let compute_entry = |name: &str, entry: &str| {
-            let m = module(device, name);
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(name),
-                layout: None,
-                module: &m,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
+        let compute_entry =
+            |name: &str, entry: &str| compute_pipeline(device, name, &module(device, name), entry);
         let compute = |name: &str| compute_entry(name, "main");
         let p = Pipelines {
             count: geometry("abuffer_count"),
@@ -338,25 +359,7 @@ impl Pipelines {
             features: geometry("features"),
             totals: compute("totals"),
             importance_dkb: compute("importance_dkb"),
-            importance_dkb_all: {
-                let src = shaders::source("importance_dkb").expect("known pass");
-                let skip = "const SKIP_FORCED: bool = true;";
-                assert!(src.contains(skip), "importance_dkb declares {skip}");
-                let m = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("importance_dkb_all"),
-                    source: wgpu::ShaderSource::Wgsl(
-                        src.replace(skip, "const SKIP_FORCED: bool = false;").into(),
-                    ),
-                });
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("importance_dkb_all"),
-                    layout: None,
-                    module: &m,
-                    entry_point: Some("main"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            },
+            importance_dkb_all: std::sync::OnceLock::new(),
             predict: compute("predict"),
             vkb_count: geometry("vkb_count"),
             importance_vkb: compute("importance_vkb"),
@@ -1188,7 +1191,8 @@ impl Gpu {
                                     if self.skip_forced {
                                         &p.importance_dkb
                                     } else {
-                                        &p.importance_dkb_all
+                                        p.importance_dkb_all
+                                            .get_or_init(|| importance_dkb_all(&self.device))
                                     },
                                     &[params_buf, &weights, &counts, &keys, &sums, &totals, &imp],
                                     "importance",

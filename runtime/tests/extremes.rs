@@ -390,3 +390,76 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
         }
     }
 }
+
+/// Skipping the network where k is forced changes the time of the importance pass, never the
+/// frame: the importance map, k and the image are the same with the skip and without it.
+#[test]
+fn skipping_forced_pixels_leaves_the_frame_unchanged() {
+    if gpu().is_none() {
+        return;
+    }
+    let mut g = Gpu::new().unwrap();
+    let mut s = Scene::default();
+    // One fragment (forced), two of one colour (forced: a pair) and deeper pixels.
+    quad(
+        &mut s,
+        (-1.0, -1.0, 0.0, 1.0),
+        (0.3, 0.3),
+        [0.8, 0.2, 0.2, 0.5],
+    );
+    quad(
+        &mut s,
+        (-0.5, -1.0, 0.5, 0.0),
+        (0.5, 0.5),
+        [0.2, 0.2, 0.8, 0.5],
+    );
+    quad(
+        &mut s,
+        (-0.5, -1.0, 0.5, 0.0),
+        (0.6, 0.6),
+        [0.2, 0.2, 0.8, 0.5],
+    );
+    quad(
+        &mut s,
+        (0.0, -0.8, 1.0, 0.8),
+        (0.2, 0.7),
+        [0.2, 0.8, 0.2, 0.4],
+    );
+    quad(
+        &mut s,
+        (0.2, -0.6, 0.9, 0.9),
+        (0.4, 0.45),
+        [0.9, 0.9, 0.2, 0.4],
+    );
+    let mlp = Mlp::random(6);
+    let (w, h) = (64u32, 48u32);
+    for f in [
+        FragmentBudget::Share(400_000),
+        FragmentBudget::Share(1_000_000),
+    ] {
+        let mut frames = Vec::new();
+        for skip in [true, false] {
+            g.skip_forced = skip;
+            let fr = g
+                .render(&s, &identity(), w, h, BG, Some(Slots::Dkb(&mlp, f)))
+                .unwrap();
+            frames.push(fr);
+        }
+        let (a, b) = (&frames[0], &frames[1]);
+        assert_eq!(
+            a.slots.as_ref().unwrap().1,
+            b.slots.as_ref().unwrap().1,
+            "{f:?}: k"
+        );
+        assert_eq!(a.image.data, b.image.data, "{f:?}: image");
+        let (ia, ib) = (
+            a.importance.as_ref().unwrap(),
+            b.importance.as_ref().unwrap(),
+        );
+        let differ = ia.iter().zip(ib).filter(|(x, y)| x != y).count();
+        // The skipped pixels read 0 instead of the network's output: some differ, yet k does not.
+        if f == FragmentBudget::Share(400_000) {
+            assert!(differ > 0, "some pixels were skipped");
+        }
+    }
+}
