@@ -345,13 +345,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
             .as_ref()
             .expect("own scenes")
             .score(std::slice::from_ref(m));
-        Ok(crate::score::geomean(
-            scores
-                .iter()
-                .filter(|s| s.counts())
-                .map(|s| s.dkb_over_optimal(0)),
-        )
-        .ln())
+        Ok(crate::score::counted_geomean(&scores, |s| s.dkb_over_optimal(0)).ln())
     };
     if own {
         eprintln!(
@@ -490,12 +484,10 @@ fn held_out(
     let pb = bar((c.scenes.len() * views.len()) as u64, "held out");
     let scores = crate::score::score(&spec, &|| pb.inc(1))?;
     pb.finish_and_clear();
-    let counted: Vec<_> = scores.iter().filter(|s| s.counts()).collect();
-    let geo = |f: &dyn Fn(&crate::score::FrameScore) -> f64| {
-        crate::score::geomean(counted.iter().map(|s| f(s)))
-    };
-    let trained_ratio = geo(&|s| s.dkb_over_optimal(0));
-    let start_ratio = start.as_ref().map(|_| geo(&|s| s.dkb_over_optimal(1)));
+    let geo =
+        |ratio: fn(&crate::score::FrameScore) -> f64| crate::score::counted_geomean(&scores, ratio);
+    let trained_ratio = geo(|s| s.dkb_over_optimal(0));
+    let start_ratio = start.as_ref().map(|_| geo(|s| s.dkb_over_optimal(1)));
     let report = HeldOut {
         scenes: c.scenes.clone(),
         orbit_views,
@@ -507,9 +499,9 @@ fn held_out(
         trained: out.display().to_string(),
         start_over_optimal: start_ratio,
         trained_over_optimal: trained_ratio,
-        vkb_over_optimal: geo(&|s| s.vkb_over_optimal()),
+        vkb_over_optimal: geo(|s| s.vkb_over_optimal()),
         gain: start_ratio.map(|r| r / trained_ratio),
-        frames: counted.len(),
+        frames: scores.iter().filter(|s| s.counts()).count(),
     };
     tensors::write_atomic(
         &dir.join("held_out.json"),

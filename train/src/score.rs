@@ -194,6 +194,12 @@ pub fn score(spec: &ScoreSpec, progress: &(dyn Fn() + Sync)) -> Result<Vec<Frame
     Ok(Prepared::new(spec, progress)?.score(spec.networks))
 }
 
+/// Geometric mean of `ratio` over the frames whose budget is below their fragments (those
+/// that tell allocations apart).
+pub fn counted_geomean(scores: &[FrameScore], ratio: impl Fn(&FrameScore) -> f64) -> f64 {
+    geomean(scores.iter().filter(|s| s.counts()).map(ratio))
+}
+
 /// Geometric mean (1 for no values).
 pub fn geomean(v: impl IntoIterator<Item = f64>) -> f64 {
     let (mut s, mut n) = (0.0, 0usize);
