@@ -642,12 +642,7 @@ fn write_images(
     let err_max = errors.iter().flatten().copied().fold(0.0f32, f32::max);
     let used: Vec<Vec<f32>> = frames
         .iter()
-        .map(|f| {
-            f.k.iter()
-                .zip(&counts)
-                .map(|(&k, &n)| k.min(n) as f32)
-                .collect()
-        })
+        .map(|f| crate::k_used(&f.k, &counts))
         .collect();
     let k_max = used.iter().flatten().copied().fold(0.0f32, f32::max);
     let mut tiles = vec![Vec::new(), Vec::new(), Vec::new(), Vec::new()];

@@ -276,14 +276,18 @@ pub(crate) fn load_weights(a: &ViewArgs, required: bool) -> Result<Option<Mlp>> 
 }
 
 /// min(k, n) per pixel as a heat map tile, scaled by its maximum.
+/// The k each pixel uses, min(k, n).
+pub(crate) fn k_used(k: &[u32], counts: &[u32]) -> Vec<f32> {
+    k.iter()
+        .zip(counts)
+        .map(|(&k, &n)| k.min(n) as f32)
+        .collect()
+}
+
 pub(crate) fn kmap_rgb8(fl: &FragmentLists, k: &[u32]) -> (Vec<u8>, u32) {
     let counts = fl.counts();
     let covered: Vec<bool> = counts.iter().map(|&n| n > 0).collect();
-    let used: Vec<f32> = k
-        .iter()
-        .zip(&counts)
-        .map(|(&k, &n)| k.min(n) as f32)
-        .collect();
+    let used = k_used(k, &counts);
     let max = used.iter().copied().fold(0.0, f32::max);
     (image_io::heat_rgb8(&used, &covered, max), max as u32)
 }
