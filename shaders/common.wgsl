@@ -39,7 +39,7 @@ struct VertexOut {
     @location(4) @interpolate(flat) uniform_color: u32,
 };
 
-// 8-bit unorm with rounding half up, as composite::to_unorm8.
+// 8-bit unorm with rounding half up, as fragment::to_unorm8.
 fn to_unorm8(v: f32) -> u32 {
     return u32(floor(clamp(v, 0.0, 1.0) * 255.0 + 0.5));
 }
@@ -55,7 +55,7 @@ fn unpack_rgba8(v: u32) -> vec4<f32> {
 }
 
 // The 64-bit capture key: window depth bits high (non-negative floats order like their bits),
-// RGBA8 low, as composite::fragment_key.
+// RGBA8 low, as fragment::fragment_key.
 fn fragment_key(depth: f32, rgba8: u32) -> u64 {
     let d = select(0.0, depth, depth > 0.0);
     return (u64(bitcast<u32>(d)) << 32u) | u64(rgba8);

@@ -620,7 +620,7 @@ fn write_images(
     a: &CompareArgs,
     tag: &str,
     budget: &str,
-    fl: &dhoit_runtime::raster::FragmentLists,
+    fl: &dhoit_runtime::fragment::FragmentLists,
     frames: &[Frame],
     rows: &[Row],
     flips: &[(f64, Vec<f32>)],

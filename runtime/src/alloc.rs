@@ -25,8 +25,7 @@
 //! returned, so the result is never worse than either greedy; all totals and the certified gap
 //! (total minus lower bound) are reported.
 
-use crate::composite::{Fragment, sort_front_to_back};
-use crate::raster::FragmentLists;
+use crate::fragment::{Fragment, FragmentLists};
 use rayon::prelude::*;
 use std::cmp::{Ordering, Reverse};
 use std::collections::BinaryHeap;
@@ -125,13 +124,7 @@ pub fn error_curves(fl: &FragmentLists, bg: [f32; 3]) -> ErrorCurves {
         .for_each_init(Vec::new, |scratch: &mut Vec<Fragment>, (y, row)| {
             let base = start[y * w];
             for p in y * w..(y + 1) * w {
-                scratch.clear();
-                scratch.extend(fl.range(p).map(|i| Fragment {
-                    depth: fl.depth[i],
-                    rgba: fl.rgba[i],
-                    primitive: fl.primitive[i],
-                }));
-                sort_front_to_back(scratch);
+                fl.sorted_into(p, scratch);
                 error_curve_sorted(scratch, bg, &mut row[start[p] - base..start[p + 1] - base]);
             }
         });

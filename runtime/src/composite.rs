@@ -14,11 +14,9 @@
 //!   depth; each fragment, in submission order, is inserted by one bubble pass into m + 1 rows,
 //!   then the last two rows are merged.
 //!
-//! "Front to back" is the order of [`fragment_key`]: depth bits high, packed RGBA8 low, the key
-//! the GPU capture sorts by, with the submission index breaking exact ties. It is a total order,
-//! so every result is independent of the order fragments arrive in.
+//! "Front to back" is the order of [`crate::fragment::fragment_key`] (see [`crate::fragment`]).
 
-use crate::raster::FragmentLists;
+use crate::fragment::{Fragment, FragmentLists, fragment_key, sort_front_to_back, to_unorm8};
 use rayon::prelude::*;
 
 /// A linear RGB image, row-major from the top-left pixel.
@@ -58,48 +56,6 @@ impl Image {
             .flat_map(|(a, b)| (0..3).map(move |i| (a[i] - b[i]).abs()))
             .fold(0.0, f32::max)
     }
-}
-
-/// A channel in [0, 1] as an 8-bit unorm, rounding half up (`floor(v 255 + 0.5)`, which WGSL
-/// computes identically; Rust's `round` and WGSL's `round` disagree on halves).
-pub fn to_unorm8(v: f32) -> u32 {
-    (v.clamp(0.0, 1.0) * 255.0 + 0.5).floor() as u32
-}
-
-/// A channel rounded to the nearest 8-bit value: fragment colours are stored as RGBA8, as the
-/// capture key holds them, so every method sees the same colours on the CPU and the GPU.
-pub fn quantize(v: f32) -> f32 {
-    to_unorm8(v) as f32 / 255.0
-}
-
-/// Packs non-premultiplied RGBA in [0, 1] into RGBA8 (R in the low byte).
-pub fn pack_rgba8(c: [f32; 4]) -> u32 {
-    to_unorm8(c[0]) | to_unorm8(c[1]) << 8 | to_unorm8(c[2]) << 16 | to_unorm8(c[3]) << 24
-}
-
-pub fn unpack_rgba8(v: u32) -> [f32; 4] {
-    [0, 8, 16, 24].map(|s| ((v >> s) & 0xff) as f32 / 255.0)
-}
-
-/// The 64-bit key fragments are ordered by: window depth bits high (non-negative floats order
-/// like their bit patterns; -0 and NaN count as 0), packed RGBA8 low.
-pub fn fragment_key(depth: f32, rgba: [f32; 4]) -> u64 {
-    let d = if depth > 0.0 { depth } else { 0.0 };
-    ((d.to_bits() as u64) << 32) | pack_rgba8(rgba) as u64
-}
-
-/// One fragment as compositing sees it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Fragment {
-    pub depth: f32,
-    pub rgba: [f32; 4],
-    /// Submission index: breaks ties between equal keys.
-    pub primitive: u32,
-}
-
-/// Sorts fragments front to back (by key, then submission index).
-pub fn sort_front_to_back(frags: &mut [Fragment]) {
-    frags.sort_unstable_by_key(|f| (fragment_key(f.depth, f.rgba), f.primitive));
 }
 
 /// Exact compositing of fragments already sorted front to back.
@@ -257,16 +213,21 @@ pub fn composite(fl: &FragmentLists, method: Method, bg: [f32; 3]) -> Image {
         .for_each_init(Vec::new, |scratch, (y, row)| {
             for (x, out) in row.iter_mut().enumerate() {
                 let p = y * w as usize + x;
-                scratch.clear();
-                scratch.extend(fl.range(p).map(|i| Fragment {
-                    depth: fl.depth[i],
-                    rgba: fl.rgba[i],
-                    primitive: fl.primitive[i],
-                }));
                 *out = match method {
-                    Method::Exact => exact_pixel(scratch, bg),
-                    Method::Hybrid(k) => hybrid_pixel(scratch, k[p] as usize, bg),
-                    Method::Mlab(m) => mlab_pixel(scratch, m, bg),
+                    Method::Exact => {
+                        fl.sorted_into(p, scratch);
+                        exact_sorted(scratch, bg)
+                    }
+                    Method::Hybrid(k) => {
+                        fl.sorted_into(p, scratch);
+                        hybrid_sorted(scratch, k[p] as usize, bg)
+                    }
+                    // MLAB takes fragments in submission order.
+                    Method::Mlab(m) => {
+                        scratch.clear();
+                        scratch.extend(fl.fragments(p));
+                        mlab_pixel(scratch, m, bg)
+                    }
                 };
             }
         });
@@ -281,13 +242,7 @@ pub fn capture(fl: &FragmentLists, k: &[u32]) -> (Vec<u64>, Vec<u32>) {
     let mut tails = Vec::with_capacity(5 * fl.pixel_count());
     let mut frags = Vec::new();
     for p in 0..fl.pixel_count() {
-        frags.clear();
-        frags.extend(fl.range(p).map(|i| Fragment {
-            depth: fl.depth[i],
-            rgba: fl.rgba[i],
-            primitive: fl.primitive[i],
-        }));
-        sort_front_to_back(&mut frags);
+        fl.sorted_into(p, &mut frags);
         let kp = k[p] as usize;
         keys.extend((0..kp).map(|i| {
             frags

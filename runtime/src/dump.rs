@@ -9,7 +9,7 @@
 
 use crate::composite::Image;
 use crate::error::{Error, Result};
-use crate::raster::FragmentLists;
+use crate::fragment::FragmentLists;
 use crate::tensors::{self, Entry};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

@@ -5,9 +5,9 @@ use crate::alloc::{self, ErrorCurves, GreedyKey, OptimalReport};
 use crate::budget::{self, Budget, Layout};
 use crate::composite::{self, Image, Method as Composite};
 use crate::error::{Error, Result};
+use crate::fragment::FragmentLists;
 use crate::importance::{self, VkbParams};
 use crate::mlp::Mlp;
-use crate::raster::FragmentLists;
 use std::sync::OnceLock;
 use std::time::Instant;
 

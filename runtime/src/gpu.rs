@@ -18,9 +18,9 @@ use crate::alloc::Target;
 use crate::budget::{self, FragmentBudget};
 use crate::composite::Image;
 use crate::error::{Error, GpuError, Result};
+use crate::fragment::FragmentLists;
 use crate::importance::{PixelStats, VkbParams};
 use crate::mlp::Mlp;
-use crate::raster::FragmentLists;
 use crate::scene::{Camera, Scene};
 use wgpu::util::DeviceExt;
 
@@ -1073,7 +1073,7 @@ impl Gpu {
                 };
                 for f in u32s(&read_back(self, &fragments, 16 * total)?).chunks_exact(4) {
                     fl.depth.push(f32::from_bits(f[0]));
-                    fl.rgba.push(crate::composite::unpack_rgba8(f[1]));
+                    fl.rgba.push(crate::fragment::unpack_rgba8(f[1]));
                     fl.primitive.push(f[2]);
                 }
                 out.fragments = Some(fl);

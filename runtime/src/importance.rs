@@ -2,8 +2,7 @@
 //! heuristic importance (paper 002). Written pass by pass as the GPU computes them, so the two
 //! can be compared line by line.
 
-use crate::composite::{fragment_key, pack_rgba8, unpack_rgba8};
-use crate::raster::FragmentLists;
+use crate::fragment::{FragmentLists, fragment_key, pack_rgba8, unpack_rgba8};
 
 /// Names of the network's inputs, in order (see [`pixel_features`]).
 pub const FEATURE_NAMES: [&str; 12] = [

@@ -9,6 +9,7 @@ pub mod budget;
 pub mod composite;
 pub mod dump;
 pub mod error;
+pub mod fragment;
 pub mod frame;
 pub mod gpu;
 pub mod image_io;

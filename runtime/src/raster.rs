@@ -26,8 +26,8 @@
 //! Within a pixel, fragments are listed in submission order. Work is split into bands of rows
 //! processed in parallel; the result does not depend on the number of threads.
 
-use crate::composite::quantize;
 use crate::error::{Error, Result};
+use crate::fragment::{FragmentLists, quantize};
 use crate::scene::{Camera, Scene};
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
@@ -42,51 +42,6 @@ pub const MAX_DIM: u32 = 16384;
 /// Most fragments one pixel may hold: the tail's 32-bit integer sums add up to 255^2 per
 /// fragment.
 pub const MAX_FRAGMENTS_PER_PIXEL: u32 = 65_535;
-
-/// Per-pixel fragment lists: pixel `p = y * width + x` owns `offsets[p]..offsets[p + 1]`.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct FragmentLists {
-    pub width: u32,
-    pub height: u32,
-    pub offsets: Vec<u32>,
-    /// Window depth in [0, 1].
-    pub depth: Vec<f32>,
-    /// Non-premultiplied linear RGBA.
-    pub rgba: Vec<[f32; 4]>,
-    /// Submission index of the fragment's triangle.
-    pub primitive: Vec<u32>,
-    /// `|n . v|` of the fragment's triangle.
-    pub facing: Vec<f32>,
-}
-
-impl FragmentLists {
-    pub fn pixel_count(&self) -> usize {
-        (self.width * self.height) as usize
-    }
-    pub fn fragment_count(&self) -> usize {
-        self.depth.len()
-    }
-    pub fn range(&self, p: usize) -> std::ops::Range<usize> {
-        self.offsets[p] as usize..self.offsets[p + 1] as usize
-    }
-    /// n(p): the depth complexity of pixel p.
-    pub fn count(&self, p: usize) -> u32 {
-        self.offsets[p + 1] - self.offsets[p]
-    }
-    pub fn counts(&self) -> Vec<u32> {
-        self.offsets.windows(2).map(|w| w[1] - w[0]).collect()
-    }
-    pub fn max_depth_complexity(&self) -> u32 {
-        self.offsets
-            .windows(2)
-            .map(|w| w[1] - w[0])
-            .max()
-            .unwrap_or(0)
-    }
-    pub fn covered_pixels(&self) -> usize {
-        self.offsets.windows(2).filter(|w| w[1] > w[0]).count()
-    }
-}
 
 /// Parses `WxH` and checks it is a possible resolution.
 pub fn parse_resolution(s: &str) -> Result<(u32, u32)> {

@@ -1,8 +1,9 @@
 //! Error curves and allocations: against direct computation and exhaustive search.
 
 use dhoit_runtime::alloc::{self, ErrorCurves, GreedyKey};
-use dhoit_runtime::composite::{Fragment, hybrid_sorted, sort_front_to_back};
-use dhoit_runtime::raster::FragmentLists;
+use dhoit_runtime::composite::hybrid_sorted;
+use dhoit_runtime::fragment::FragmentLists;
+use dhoit_runtime::fragment::{Fragment, sort_front_to_back};
 use dhoit_runtime::rng::Rng;
 use proptest::prelude::*;
 
@@ -48,7 +49,7 @@ fn random_fragments(rng: &mut Rng, n: usize) -> Vec<Fragment> {
                 rng.f32(),
                 [0.33, rng.f32(), 1.0, 0.0, 0.9][rng.below(5)],
             ]
-            .map(dhoit_runtime::composite::quantize),
+            .map(dhoit_runtime::fragment::quantize),
             primitive: i as u32,
         })
         .collect()
@@ -440,7 +441,7 @@ fn a_farthest_pair_of_one_colour_is_an_exact_tail() {
         // The two largest keys, farthest first, marked occupied.
         let mut keys: Vec<u64> = fl
             .range(p)
-            .map(|i| dhoit_runtime::composite::fragment_key(fl.depth[i], fl.rgba[i]))
+            .map(|i| dhoit_runtime::fragment::fragment_key(fl.depth[i], fl.rgba[i]))
             .collect();
         keys.sort_unstable();
         let occ = dhoit_runtime::importance::OCCUPIED;

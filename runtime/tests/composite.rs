@@ -1,6 +1,7 @@
 //! Property tests of exact, hybrid and MLAB compositing on single pixels.
 
-use dhoit_runtime::composite::{Fragment, exact_pixel, hybrid_pixel, mlab_pixel};
+use dhoit_runtime::composite::{exact_pixel, hybrid_pixel, mlab_pixel};
+use dhoit_runtime::fragment::Fragment;
 use proptest::prelude::*;
 
 /// A channel as the pipeline stores it: 8 bits.

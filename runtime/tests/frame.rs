@@ -1,10 +1,11 @@
 //! Whole frames: every method under a full budget is exact, budgets hold, features and VKB.
 
 use dhoit_runtime::budget::Budget;
+use dhoit_runtime::fragment::FragmentLists;
 use dhoit_runtime::frame::{Method, Options, Renderer};
 use dhoit_runtime::importance::{self, VkbParams};
 use dhoit_runtime::mlp::Mlp;
-use dhoit_runtime::raster::{FragmentLists, rasterize};
+use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::{self, Camera, Opacity};
 
 fn frame(name: &str, w: u32, h: u32) -> FragmentLists {
@@ -201,8 +202,8 @@ fn features_match_their_definitions() {
 }
 
 /// The low 32 bits of a fragment's capture key (its RGBA8), which break depth ties.
-fn importance_key(fl: &dhoit_runtime::raster::FragmentLists, i: usize) -> u32 {
-    dhoit_runtime::composite::fragment_key(fl.depth[i], fl.rgba[i]) as u32
+fn importance_key(fl: &FragmentLists, i: usize) -> u32 {
+    dhoit_runtime::fragment::fragment_key(fl.depth[i], fl.rgba[i]) as u32
 }
 
 #[test]

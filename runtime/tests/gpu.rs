@@ -7,10 +7,11 @@ use common::gpu;
 
 use dhoit_runtime::alloc;
 use dhoit_runtime::budget::{self, Budget};
-use dhoit_runtime::composite::{self, Fragment, sort_front_to_back};
+use dhoit_runtime::composite;
+use dhoit_runtime::fragment::FragmentLists;
 use dhoit_runtime::gpu::{Slots, shaders};
 use dhoit_runtime::importance;
-use dhoit_runtime::raster::{FragmentLists, rasterize};
+use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::{self, Camera, Opacity, Scene};
 
 #[test]
@@ -71,20 +72,6 @@ fn frame(name: &str, view: usize, w: u32, h: u32) -> (Scene, Camera) {
     };
     let cam = Camera::orbit(&s, view, scene::DEFAULT_VIEWS, w, h);
     (s, cam)
-}
-
-/// The GPU's own fragments, sorted in each pixel as the CPU sorts them.
-fn pixel_fragments(fl: &FragmentLists, p: usize) -> Vec<Fragment> {
-    let mut v: Vec<Fragment> = fl
-        .range(p)
-        .map(|i| Fragment {
-            depth: fl.depth[i],
-            rgba: fl.rgba[i],
-            primitive: fl.primitive[i],
-        })
-        .collect();
-    sort_front_to_back(&mut v);
-    v
 }
 
 const BG: [f32; 3] = [0.9, 0.8, 1.0];
@@ -293,7 +280,7 @@ fn mlab_matches_the_cpu_in_submission_order() {
         // The CPU twin takes each pixel's fragments in submission order.
         let twin: Vec<[f32; 3]> = (0..gfl.pixel_count())
             .map(|p| {
-                let mut v = pixel_fragments(&gfl, p);
+                let mut v = gfl.sorted(p);
                 v.sort_by_key(|x| x.primitive);
                 composite::mlab_pixel(&v, m as usize, BG)
             })

@@ -1,6 +1,7 @@
 //! Rasterizer conventions: coverage, watertightness, depth.
 
-use dhoit_runtime::raster::{FragmentLists, rasterize};
+use dhoit_runtime::fragment::FragmentLists;
+use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::rng::Rng;
 use dhoit_runtime::scene::{Camera, Scene, perspective_rh};
 use glam::{Mat4, Vec3};

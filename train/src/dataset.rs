@@ -323,7 +323,7 @@ pub fn regret_window(
 
 /// The samples of one frame at one budget level: every covered pixel whose k is not forced.
 pub fn frame_samples(
-    fl: &raster::FragmentLists,
+    fl: &dhoit_runtime::fragment::FragmentLists,
     curves: &alloc::ErrorCurves,
     level: Level,
 ) -> FrameSamples {

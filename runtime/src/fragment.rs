@@ -1,0 +1,115 @@
+//! Fragments and per-pixel fragment lists: what the rasterizers produce and every pass reads.
+//!
+//! A fragment is a window depth in [0, 1], a non-premultiplied RGBA colour stored at 8 bits a
+//! channel (the precision of the GPU capture key), and its triangle's submission index.
+//! "Front to back" is the order of [`fragment_key`]: depth bits high, packed RGBA8 low, the key
+//! the GPU capture sorts by, with the submission index breaking exact ties. It is a total order,
+//! so every result is independent of the order fragments arrive in.
+
+/// A channel in [0, 1] as an 8-bit unorm, rounding half up (`floor(v 255 + 0.5)`, which WGSL
+/// computes identically; Rust's `round` and WGSL's `round` disagree on halves).
+pub fn to_unorm8(v: f32) -> u32 {
+    (v.clamp(0.0, 1.0) * 255.0 + 0.5).floor() as u32
+}
+
+/// A channel rounded to the nearest 8-bit value: fragment colours are stored as RGBA8, as the
+/// capture key holds them, so every method sees the same colours on the CPU and the GPU.
+pub fn quantize(v: f32) -> f32 {
+    to_unorm8(v) as f32 / 255.0
+}
+
+/// Packs non-premultiplied RGBA in [0, 1] into RGBA8 (R in the low byte).
+pub fn pack_rgba8(c: [f32; 4]) -> u32 {
+    to_unorm8(c[0]) | to_unorm8(c[1]) << 8 | to_unorm8(c[2]) << 16 | to_unorm8(c[3]) << 24
+}
+
+pub fn unpack_rgba8(v: u32) -> [f32; 4] {
+    [0, 8, 16, 24].map(|s| ((v >> s) & 0xff) as f32 / 255.0)
+}
+
+/// The 64-bit key fragments are ordered by: window depth bits high (non-negative floats order
+/// like their bit patterns; -0 and NaN count as 0), packed RGBA8 low.
+pub fn fragment_key(depth: f32, rgba: [f32; 4]) -> u64 {
+    let d = if depth > 0.0 { depth } else { 0.0 };
+    ((d.to_bits() as u64) << 32) | pack_rgba8(rgba) as u64
+}
+
+/// One fragment as compositing sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fragment {
+    pub depth: f32,
+    pub rgba: [f32; 4],
+    /// Submission index: breaks ties between equal keys.
+    pub primitive: u32,
+}
+
+/// Sorts fragments front to back (by key, then submission index).
+pub fn sort_front_to_back(frags: &mut [Fragment]) {
+    frags.sort_unstable_by_key(|f| (fragment_key(f.depth, f.rgba), f.primitive));
+}
+
+/// Per-pixel fragment lists: pixel `p = y * width + x` owns `offsets[p]..offsets[p + 1]`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FragmentLists {
+    pub width: u32,
+    pub height: u32,
+    pub offsets: Vec<u32>,
+    /// Window depth in [0, 1].
+    pub depth: Vec<f32>,
+    /// Non-premultiplied linear RGBA.
+    pub rgba: Vec<[f32; 4]>,
+    /// Submission index of the fragment's triangle.
+    pub primitive: Vec<u32>,
+    /// `|n . v|` of the fragment's triangle.
+    pub facing: Vec<f32>,
+}
+
+impl FragmentLists {
+    pub fn pixel_count(&self) -> usize {
+        (self.width * self.height) as usize
+    }
+    pub fn fragment_count(&self) -> usize {
+        self.depth.len()
+    }
+    pub fn range(&self, p: usize) -> std::ops::Range<usize> {
+        self.offsets[p] as usize..self.offsets[p + 1] as usize
+    }
+    /// n(p): the depth complexity of pixel p.
+    pub fn count(&self, p: usize) -> u32 {
+        self.offsets[p + 1] - self.offsets[p]
+    }
+    pub fn counts(&self) -> Vec<u32> {
+        self.offsets.windows(2).map(|w| w[1] - w[0]).collect()
+    }
+    pub fn max_depth_complexity(&self) -> u32 {
+        self.offsets
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .max()
+            .unwrap_or(0)
+    }
+    pub fn covered_pixels(&self) -> usize {
+        self.offsets.windows(2).filter(|w| w[1] > w[0]).count()
+    }
+    /// Pixel p's fragments in list (submission) order.
+    pub fn fragments(&self, p: usize) -> impl ExactSizeIterator<Item = Fragment> + '_ {
+        self.range(p).map(|i| Fragment {
+            depth: self.depth[i],
+            rgba: self.rgba[i],
+            primitive: self.primitive[i],
+        })
+    }
+    /// Pixel p's fragments sorted front to back into `out` (cleared first; reuse it across
+    /// pixels to avoid allocating).
+    pub fn sorted_into(&self, p: usize, out: &mut Vec<Fragment>) {
+        out.clear();
+        out.extend(self.fragments(p));
+        sort_front_to_back(out);
+    }
+    /// Pixel p's fragments sorted front to back.
+    pub fn sorted(&self, p: usize) -> Vec<Fragment> {
+        let mut v = Vec::with_capacity(self.count(p) as usize);
+        self.sorted_into(p, &mut v);
+        v
+    }
+}
