@@ -10,7 +10,7 @@
 use crate::composite::Image;
 use crate::error::{Error, Result};
 use crate::fragment::FragmentLists;
-use crate::tensors::{self, Entry};
+use crate::tensors::{self, Entry, FormatError};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -76,16 +76,19 @@ pub fn read(path: &Path) -> Result<Dump> {
 /// Parses a dump's bytes (`path` names it in errors), checking every shape.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Dump> {
     let path = path.to_path_buf();
-    let err = |m: String| Error::Dump {
+    let err = |source: FormatError| Error::Dump {
         path: path.clone(),
-        message: m,
+        source,
     };
+    let contract = |m: &str| err(FormatError::Contract(m.into()));
     let file = tensors::File::parse(bytes).map_err(err)?;
     let num = |k: &str| -> Result<u64> {
-        file.meta(k)
-            .map_err(err)?
-            .parse()
-            .map_err(|_| err(format!("metadata '{k}' is not a number")))
+        file.meta(k).map_err(err)?.parse().map_err(|_| {
+            err(FormatError::Metadata {
+                key: k.into(),
+                message: "not a number".into(),
+            })
+        })
     };
     let (width, height) = (num("width")? as u32, num("height")? as u32);
     let pixels = width as usize * height as usize;
@@ -96,10 +99,10 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dump> {
         || offsets.first() != Some(&0)
         || offsets.last().map(|&o| o as usize) != Some(f)
     {
-        return Err(err(format!("offsets do not span the {f} fragments")));
+        return Err(contract(&format!("offsets do not span the {f} fragments")));
     }
     if offsets.windows(2).any(|w| w[1] < w[0]) {
-        return Err(err("offsets decrease".into()));
+        return Err(contract("offsets decrease"));
     }
     let (_, rgba) = file.f32("rgba", Some(&[f, 4])).map_err(err)?;
     let (_, primitive) = file.u32("primitive", Some(&[f])).map_err(err)?;
@@ -113,10 +116,14 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dump> {
         .split(',')
         .map(|v| v.parse::<f32>())
         .collect::<std::result::Result<_, _>>()
-        .map_err(|_| err("metadata 'background' is not r,g,b".into()))?;
-    if bg.len() != 3 {
-        return Err(err("metadata 'background' is not r,g,b".into()));
-    }
+        .ok()
+        .filter(|v: &Vec<f32>| v.len() == 3)
+        .ok_or_else(|| {
+            err(FormatError::Metadata {
+                key: "background".into(),
+                message: "not r,g,b".into(),
+            })
+        })?;
     Ok(Dump {
         fragments: FragmentLists {
             width,

@@ -1,5 +1,6 @@
 //! The runtime's one error type.
 
+pub use crate::tensors::FormatError;
 use std::path::PathBuf;
 
 /// Everything that can go wrong in the runtime, each variant naming the thing at fault.
@@ -26,10 +27,11 @@ pub enum Error {
     Budget(String, String),
     #[error("invalid argument: {0}")]
     Invalid(String),
-    #[error("fragment dump {path}: {message}")]
-    Dump { path: PathBuf, message: String },
-    #[error("weights {path}: {message}")]
-    Weights { path: PathBuf, message: String },
+    /// (The file's fault is displayed inline, not as a source, so it is not repeated.)
+    #[error("fragment dump {path}: {source}")]
+    Dump { path: PathBuf, source: FormatError },
+    #[error("weights {path}: {source}")]
+    Weights { path: PathBuf, source: FormatError },
     /// (Displayed whole, not as a source, so the message is not repeated.)
     #[error("GPU: {0}")]
     Gpu(GpuError),

@@ -14,7 +14,7 @@
 use crate::error::{Error, Result};
 use crate::importance::{FEATURE_NAMES, FEATURES};
 use crate::rng::Rng;
-use crate::tensors::{self, Entry};
+use crate::tensors::{self, Entry, FormatError};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -214,45 +214,41 @@ impl Mlp {
     /// Reads and validates a weights file.
     pub fn load(path: &Path) -> Result<Mlp> {
         let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
-        Self::from_bytes(&bytes).map_err(|message| Error::Weights {
+        Self::from_bytes(&bytes).map_err(|source| Error::Weights {
             path: path.to_path_buf(),
-            message,
+            source,
         })
     }
 
-    pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Mlp, String> {
+    pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Mlp, FormatError> {
+        use FormatError::{Contract, Metadata, Shape, Unsupported};
         let file = tensors::File::parse(bytes)?;
         let format = file.meta("format")?;
         if format != FORMAT {
-            return Err(format!("format '{format}' is not {FORMAT}"));
+            return Err(Contract(format!("format '{format}' is not {FORMAT}")));
         }
         let layout = file.meta("layout")?;
         if layout != LAYOUT {
-            return Err(format!("layout '{layout}' is not {LAYOUT}"));
+            return Err(Contract(format!("layout '{layout}' is not {LAYOUT}")));
         }
-        let names: Vec<String> = serde_json::from_str(file.meta("features")?)
-            .map_err(|e| format!("metadata 'features': {e}"))?;
+        let names: Vec<String> = file.meta_json("features")?;
         if names != FEATURE_NAMES {
-            return Err(format!(
+            return Err(Contract(format!(
                 "features {names:?} differ from the runtime's {FEATURE_NAMES:?}"
-            ));
+            )));
         }
-        let vec12 = |key: &str| -> std::result::Result<[f32; FEATURES], String> {
-            let v: Vec<f32> = serde_json::from_str(file.meta(key)?)
-                .map_err(|e| format!("metadata '{key}': {e}"))?;
-            v.try_into().map_err(|v: Vec<f32>| {
-                format!(
-                    "metadata '{key}' has {} values, expected {FEATURES}",
-                    v.len()
-                )
+        let vec12 = |key: &str| -> std::result::Result<[f32; FEATURES], FormatError> {
+            let v: Vec<f32> = file.meta_json(key)?;
+            v.try_into().map_err(|v: Vec<f32>| Metadata {
+                key: key.into(),
+                message: format!("{} values, expected {FEATURES}", v.len()),
             })
         };
         let target = match file.metadata.get("target") {
             None => Target::RelativeK,
-            Some(t) => Target::parse(t).ok_or_else(|| {
-                format!(
-                    "metadata 'target' is '{t}', expected k_over_n, k_over_max_k or slot_request"
-                )
+            Some(t) => Target::parse(t).ok_or_else(|| Metadata {
+                key: "target".into(),
+                message: format!("'{t}', expected k_over_n, k_over_max_k or slot_request"),
             })?,
         };
         let mean = vec12("input_mean")?;
@@ -260,66 +256,64 @@ impl Mlp {
         if let Some(i) =
             (0..FEATURES).find(|&i| !(mean[i].is_finite() && mean[i].abs() <= MAX_MEAN))
         {
-            return Err(format!(
+            return Err(Contract(format!(
                 "input_mean[{i}] = {} is not a finite number of magnitude at most {MAX_MEAN:e}",
                 mean[i]
-            ));
+            )));
         }
         let (lo, hi) = STD_RANGE;
         if let Some(i) = (0..FEATURES).find(|&i| !(lo..=hi).contains(&std[i])) {
-            return Err(format!(
+            return Err(Contract(format!(
                 "input_std[{i}] = {} is not in [{lo:e}, {hi:e}]",
                 std[i]
-            ));
+            )));
         }
-        let get = |name: &str, shape: &[usize]| -> std::result::Result<Vec<f32>, String> {
+        let get = |name: &str, shape: &[usize]| -> std::result::Result<Vec<f32>, FormatError> {
             let (_, v) = file.f32(name, Some(shape))?;
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(format!("tensor '{name}' has a non-finite value at {i}"));
+            if let Some(index) = v.iter().position(|x| !x.is_finite()) {
+                return Err(FormatError::NonFinite {
+                    name: name.into(),
+                    index,
+                });
             }
             if let Some(i) = v.iter().position(|x| x.abs() > MAX_PARAMETER) {
-                return Err(format!(
+                return Err(Contract(format!(
                     "tensor '{name}' has {} at {i}, beyond the largest magnitude accepted ({MAX_PARAMETER:e})",
                     v[i]
-                ));
+                )));
             }
             Ok(v)
         };
         // Hidden sizes come from the first two weight matrices; every other shape must agree.
-        let shape = |name: &str| -> std::result::Result<Vec<usize>, String> {
-            Ok(file
-                .tensors
-                .tensor(name)
-                .map_err(|_| format!("missing tensor '{name}'"))?
-                .shape()
-                .to_vec())
-        };
-        let s1 = shape("fc1.weight")?;
-        let s2 = shape("fc2.weight")?;
+        let s1 = file.tensor("fc1.weight")?.shape().to_vec();
+        let s2 = file.tensor("fc2.weight")?.shape().to_vec();
         let (h1, h2) = match (&s1[..], &s2[..]) {
             ([FEATURES, a], [b, c]) if a == b && *a > 0 && *c > 0 => (*a, *c),
             ([FEATURES, _], _) => {
-                return Err(format!(
-                    "tensor 'fc2.weight' has shape {s2:?}, expected [{}, H2]",
-                    s1[1]
-                ));
+                return Err(Shape {
+                    name: "fc2.weight".into(),
+                    found: s2,
+                    expected: format!("[{}, H2]", s1[1]),
+                });
             }
             _ => {
-                return Err(format!(
-                    "tensor 'fc1.weight' has shape {s1:?}, expected [{FEATURES}, {H1}]"
-                ));
+                return Err(Shape {
+                    name: "fc1.weight".into(),
+                    found: s1,
+                    expected: format!("[{FEATURES}, {H1}]"),
+                });
             }
         };
         if h2 > MAX_H2 {
-            return Err(format!(
+            return Err(Unsupported(format!(
                 "the second hidden layer has {h2} units; at most {MAX_H2} are supported"
-            ));
+            )));
         }
         if parameter_count(h1, h2) > MAX_PARAMETERS {
-            return Err(format!(
+            return Err(Unsupported(format!(
                 "hidden sizes {h1},{h2} give {} parameters; at most {MAX_PARAMETERS} fit the GPU's uniform buffer",
                 parameter_count(h1, h2)
-            ));
+            )));
         }
         Ok(Mlp {
             h1,

@@ -67,6 +67,43 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
+/// What is wrong with the contents of a safetensors file (weights, features, dumps, dataset
+/// shards): the loaders wrap it with the file's path.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum FormatError {
+    #[error("not a safetensors file: {0}")]
+    NotSafetensors(String),
+    #[error("missing tensor '{0}'")]
+    MissingTensor(String),
+    #[error("tensor '{name}' is {found}, expected {expected}")]
+    Dtype {
+        name: String,
+        found: String,
+        expected: String,
+    },
+    #[error("tensor '{name}' has shape {found:?}, expected {expected}")]
+    Shape {
+        name: String,
+        found: Vec<usize>,
+        expected: String,
+    },
+    #[error("tensor '{name}' has a non-finite value at {index}")]
+    NonFinite { name: String, index: usize },
+    #[error("metadata has no '{0}'")]
+    MissingMetadata(String),
+    #[error("metadata '{key}': {message}")]
+    Metadata { key: String, message: String },
+    /// Well-formed, but beyond what this build holds (such as a hidden layer wider than the GPU
+    /// pass's arrays).
+    #[error("{0}")]
+    Unsupported(String),
+    /// Any other rule of the file's contract (values out of range, inconsistent tensors).
+    #[error("{0}")]
+    Contract(String),
+}
+
+type FormatResult<T> = std::result::Result<T, FormatError>;
+
 /// A parsed safetensors file with its metadata.
 pub struct File<'a> {
     pub tensors: SafeTensors<'a>,
@@ -74,11 +111,10 @@ pub struct File<'a> {
 }
 
 impl<'a> File<'a> {
-    pub fn parse(bytes: &'a [u8]) -> std::result::Result<File<'a>, String> {
-        let (_, meta) = SafeTensors::read_metadata(bytes)
-            .map_err(|e| format!("not a safetensors file: {e}"))?;
-        let tensors =
-            SafeTensors::deserialize(bytes).map_err(|e| format!("not a safetensors file: {e}"))?;
+    pub fn parse(bytes: &'a [u8]) -> FormatResult<File<'a>> {
+        let not = |e: safetensors::SafeTensorError| FormatError::NotSafetensors(e.to_string());
+        let (_, meta) = SafeTensors::read_metadata(bytes).map_err(not)?;
+        let tensors = SafeTensors::deserialize(bytes).map_err(not)?;
         Ok(File {
             tensors,
             metadata: meta.metadata().clone().unwrap_or_default(),
@@ -90,34 +126,29 @@ impl<'a> File<'a> {
         name: &str,
         dtype: Dtype,
         shape: Option<&[usize]>,
-    ) -> std::result::Result<TensorView<'a>, String> {
-        let v = self
-            .tensors
-            .tensor(name)
-            .map_err(|_| format!("missing tensor '{name}'"))?;
+    ) -> FormatResult<TensorView<'a>> {
+        let v = self.tensor(name)?;
         if v.dtype() != dtype {
-            return Err(format!(
-                "tensor '{name}' is {:?}, expected {dtype:?}",
-                v.dtype()
-            ));
+            return Err(FormatError::Dtype {
+                name: name.into(),
+                found: format!("{:?}", v.dtype()),
+                expected: format!("{dtype:?}"),
+            });
         }
         if let Some(s) = shape
             && v.shape() != s
         {
-            return Err(format!(
-                "tensor '{name}' has shape {:?}, expected {s:?}",
-                v.shape()
-            ));
+            return Err(FormatError::Shape {
+                name: name.into(),
+                found: v.shape().to_vec(),
+                expected: format!("{s:?}"),
+            });
         }
         Ok(v)
     }
 
     /// Reads an f32 tensor, checking its shape when one is given; returns (shape, values).
-    pub fn f32(
-        &self,
-        name: &str,
-        shape: Option<&[usize]>,
-    ) -> std::result::Result<(Vec<usize>, Vec<f32>), String> {
+    pub fn f32(&self, name: &str, shape: Option<&[usize]>) -> FormatResult<(Vec<usize>, Vec<f32>)> {
         let v = self.view(name, Dtype::F32, shape)?;
         let data = v
             .data()
@@ -126,11 +157,7 @@ impl<'a> File<'a> {
         Ok((v.shape().to_vec(), data.collect()))
     }
 
-    pub fn u32(
-        &self,
-        name: &str,
-        shape: Option<&[usize]>,
-    ) -> std::result::Result<(Vec<usize>, Vec<u32>), String> {
+    pub fn u32(&self, name: &str, shape: Option<&[usize]>) -> FormatResult<(Vec<usize>, Vec<u32>)> {
         let v = self.view(name, Dtype::U32, shape)?;
         let data = v
             .data()
@@ -139,10 +166,25 @@ impl<'a> File<'a> {
         Ok((v.shape().to_vec(), data.collect()))
     }
 
-    pub fn meta(&self, key: &str) -> std::result::Result<&str, String> {
+    /// A tensor of any dtype and shape.
+    pub fn tensor(&self, name: &str) -> FormatResult<TensorView<'a>> {
+        self.tensors
+            .tensor(name)
+            .map_err(|_| FormatError::MissingTensor(name.into()))
+    }
+
+    pub fn meta(&self, key: &str) -> FormatResult<&str> {
         self.metadata
             .get(key)
             .map(String::as_str)
-            .ok_or_else(|| format!("metadata has no '{key}'"))
+            .ok_or_else(|| FormatError::MissingMetadata(key.into()))
+    }
+
+    /// A metadata entry parsed as JSON.
+    pub fn meta_json<T: serde::de::DeserializeOwned>(&self, key: &str) -> FormatResult<T> {
+        serde_json::from_str(self.meta(key)?).map_err(|e| FormatError::Metadata {
+            key: key.into(),
+            message: e.to_string(),
+        })
     }
 }

@@ -148,3 +148,39 @@ fn wrong_weights_are_rejected_with_the_reason() {
         .to_string();
     assert!(e.contains("cannot read"), "{e}");
 }
+
+/// The loader's errors are values a caller can match on, not only words: the kind, the tensor
+/// and the position at fault.
+#[test]
+fn weights_errors_say_which_tensor_and_where() {
+    use dhoit_runtime::tensors::FormatError;
+    use dhoit_runtime::{Error, mlp::MAX_H2};
+    let load = |path: PathBuf| match Mlp::load(&path) {
+        Err(Error::Weights { path: p, source }) => {
+            assert_eq!(p, path);
+            source
+        }
+        other => panic!("expected a weights error, got {other:?}"),
+    };
+    let nan = broken("typed-nan", |t, _| {
+        t.iter_mut().find(|x| x.0 == "fc2.weight").unwrap().2[7] = f32::NAN
+    });
+    assert_eq!(
+        load(nan),
+        FormatError::NonFinite {
+            name: "fc2.weight".into(),
+            index: 7
+        }
+    );
+    let missing = broken("typed-missing", |t, _| t.retain(|x| x.0 != "out.bias"));
+    assert_eq!(load(missing), FormatError::MissingTensor("out.bias".into()));
+    let no_meta = broken("typed-meta", |_, m| {
+        m.remove("layout");
+    });
+    assert_eq!(load(no_meta), FormatError::MissingMetadata("layout".into()));
+    let wide = temp("typed-wide.safetensors");
+    Mlp::random_sized(1, 4, MAX_H2 + 1)
+        .save(&wide, &HashMap::new())
+        .unwrap();
+    assert!(matches!(load(wide), FormatError::Unsupported(_)));
+}

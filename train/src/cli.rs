@@ -8,7 +8,7 @@ use crate::{Error, Result};
 use clap::Args;
 use dhoit_runtime::importance::FEATURES;
 use dhoit_runtime::mlp::Mlp;
-use dhoit_runtime::tensors::{self, Entry};
+use dhoit_runtime::tensors::{self, Entry, FormatError};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -553,23 +553,25 @@ pub fn read_features(path: &Path) -> Result<Vec<[f32; FEATURES]>> {
 
 /// Parses a features file's bytes (`path` names it in errors).
 pub fn parse_features(bytes: &[u8], path: &Path) -> Result<Vec<[f32; FEATURES]>> {
-    let bad = |message: String| Error::Features {
+    let bad = |source: FormatError| Error::Features {
         path: path.to_path_buf(),
-        message,
+        source,
     };
     let file = tensors::File::parse(bytes).map_err(bad)?;
     let (shape, v) = file.f32("features", None).map_err(bad)?;
     if shape.len() != 2 || shape[1] != FEATURES {
-        return Err(bad(format!(
-            "tensor 'features' has shape {shape:?}, expected [N, {FEATURES}]"
-        )));
+        return Err(bad(FormatError::Shape {
+            name: "features".into(),
+            found: shape,
+            expected: format!("[N, {FEATURES}]"),
+        }));
     }
     if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-        return Err(bad(format!(
+        return Err(bad(FormatError::Contract(format!(
             "non-finite feature at row {}, column {}",
             i / FEATURES,
             i % FEATURES
-        )));
+        ))));
     }
     Ok(v.chunks_exact(FEATURES)
         .map(|c| c.try_into().expect("12"))

@@ -27,7 +27,7 @@ use dhoit_runtime::importance::{self, FEATURES};
 use dhoit_runtime::raster;
 use dhoit_runtime::rng::Rng;
 use dhoit_runtime::scene::{self, Camera, Opacity};
-use dhoit_runtime::tensors::{self, Entry};
+use dhoit_runtime::tensors::{self, Entry, FormatError};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
@@ -514,7 +514,11 @@ pub fn load(dir: &Path) -> Result<(Manifest, Samples)> {
     for shard in &manifest.shards {
         let path: PathBuf = dir.join(&shard.file);
         let bytes = std::fs::read(&path).map_err(|e| Error::read(&path, e))?;
-        let bad = |m: String| Error::Dataset(format!("{}: {m}", path.display()));
+        let bad = |source: FormatError| Error::Shard {
+            path: path.clone(),
+            source,
+        };
+        let contract = |m: String| bad(FormatError::Contract(m));
         let file = tensors::File::parse(&bytes).map_err(bad)?;
         let n = shard.samples;
         let (_, x) = file.f32("features", Some(&[n, FEATURES])).map_err(bad)?;
@@ -524,10 +528,10 @@ pub fn load(dir: &Path) -> Result<(Manifest, Samples)> {
         let (_, pair) = file.u32("tail_pair", Some(&[n])).map_err(bad)?;
         let (_, r) = file.f32("regret", Some(&[n, REGRET_WINDOW])).map_err(bad)?;
         if x.iter().chain(&y).chain(&r).any(|v| !v.is_finite()) {
-            return Err(bad("non-finite values".into()));
+            return Err(contract("non-finite values".into()));
         }
         if let Some(i) = (0..n).find(|&i| counts[i] == 0 || k_opt[i] > counts[i]) {
-            return Err(bad(format!(
+            return Err(contract(format!(
                 "sample {i}: k_opt {} does not fit n {}",
                 k_opt[i], counts[i]
             )));
@@ -537,7 +541,7 @@ pub fn load(dir: &Path) -> Result<(Manifest, Samples)> {
             .iter()
             .position(|s| *s == shard.scene)
             .ok_or_else(|| {
-                bad(format!(
+                contract(format!(
                     "scene '{}' is not in the manifest's scene list",
                     shard.scene
                 ))

@@ -14,6 +14,7 @@ pub mod score;
 pub mod trainer;
 
 pub use dhoit_runtime::error::IoOp;
+use dhoit_runtime::tensors::FormatError;
 use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
@@ -26,8 +27,10 @@ pub enum Error {
     Config(String),
     #[error("training diverged at epoch {epoch} (loss {loss}); lower the learning rate")]
     Diverged { epoch: usize, loss: f64 },
-    #[error("features {path}: {message}")]
-    Features { path: PathBuf, message: String },
+    #[error("dataset shard {path}: {source}")]
+    Shard { path: PathBuf, source: FormatError },
+    #[error("features {path}: {source}")]
+    Features { path: PathBuf, source: FormatError },
 }
 
 impl Error {

@@ -65,7 +65,7 @@ fn warn_no_font(why: &str) {
 
 /// A chart drawn the same way on any plotters backend.
 trait Chart {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String>;
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), PlotError>;
 }
 
 /// An axis label: plain when readable so, else in scientific notation.
@@ -83,7 +83,7 @@ fn short(v: f64) -> String {
 /// Every chart's legend: upper right, on a translucent white box.
 fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
     chart: &mut ChartContext<'a, DB, CT>,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.85))
@@ -93,8 +93,19 @@ fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
         .map_err(err)
 }
 
-fn err<E: std::fmt::Display>(e: E) -> String {
-    e.to_string()
+/// Why a chart was not made (charts only warn: they never fail the work).
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    #[error("{0}")]
+    NoFont(&'static str),
+    #[error("drawing failed: {0}")]
+    Draw(String),
+    #[error(transparent)]
+    Write(#[from] dhoit_runtime::Error),
+}
+
+fn err<E: std::fmt::Display>(e: E) -> PlotError {
+    PlotError::Draw(e.to_string())
 }
 
 /// Writes `chart` as `stem.svg` and `stem.png` (each atomically); the paths written.
@@ -102,8 +113,8 @@ fn write_chart(
     chart: &impl Chart,
     stem: &Path,
     (w, h): (u32, u32),
-) -> Result<Vec<PathBuf>, String> {
-    font()?;
+) -> Result<Vec<PathBuf>, PlotError> {
+    font().map_err(PlotError::NoFont)?;
     let svg_path = stem.with_extension("svg");
     let mut svg = String::new();
     {
@@ -111,7 +122,7 @@ fn write_chart(
         chart.draw(&root)?;
         root.present().map_err(err)?;
     }
-    dhoit_runtime::tensors::write_atomic(&svg_path, svg.as_bytes()).map_err(err)?;
+    dhoit_runtime::tensors::write_atomic(&svg_path, svg.as_bytes())?;
     let png_path = stem.with_extension("png");
     let mut rgb = vec![255u8; (w * h * 3) as usize];
     {
@@ -119,7 +130,7 @@ fn write_chart(
         chart.draw(&root)?;
         root.present().map_err(err)?;
     }
-    image_io::write_rgb8(&png_path, w, h, &rgb).map_err(err)?;
+    image_io::write_rgb8(&png_path, w, h, &rgb)?;
     Ok(vec![svg_path, png_path])
 }
 
@@ -127,12 +138,12 @@ fn write_chart(
 fn chart_or_warn(chart: &impl Chart, stem: &Path, size: (u32, u32)) -> Vec<PathBuf> {
     match write_chart(chart, stem, size) {
         Ok(p) => p,
+        Err(PlotError::NoFont(why)) => {
+            warn_no_font(why);
+            Vec::new()
+        }
         Err(e) => {
-            if font().is_err() {
-                warn_no_font(&e);
-            } else {
-                eprintln!("warning: {} not drawn: {e}", stem.display());
-            }
+            eprintln!("warning: {} not drawn: {e}", stem.display());
             Vec::new()
         }
     }
@@ -148,7 +159,7 @@ struct Loss<'a> {
 }
 
 impl Chart for Loss<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), PlotError> {
         root.fill(&WHITE).map_err(err)?;
         let values: Vec<f64> = self
             .history
@@ -247,7 +258,7 @@ impl Trade<'_> {
         area: &DrawingArea<DB, Shift>,
         metric: &str,
         get: fn(&TradePoint) -> f64,
-    ) -> Result<(), String> {
+    ) -> Result<(), PlotError> {
         let pts: Vec<&TradePoint> = self
             .points
             .iter()
@@ -312,7 +323,7 @@ impl Trade<'_> {
 }
 
 impl Chart for Trade<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), PlotError> {
         root.fill(&WHITE).map_err(err)?;
         let root = root.titled(self.title, (FAMILY, 20)).map_err(err)?;
         let panels = root.split_evenly((1, 2));
@@ -375,7 +386,7 @@ impl Montage {
         (left, top, w, h)
     }
 
-    fn draw(&self, rgb: &mut [u8], text: bool) -> Result<(), String> {
+    fn draw(&self, rgb: &mut [u8], text: bool) -> Result<(), PlotError> {
         let (left, top, w, h) = self.layout(text);
         let root = BitMapBackend::with_buffer(rgb, (w, h)).into_drawing_area();
         root.fill(&RGBColor(40, 40, 40)).map_err(err)?;
@@ -386,7 +397,7 @@ impl Montage {
             for (c, tile) in row.iter().enumerate() {
                 let x = (left + c as u32 * (self.tile_w + GAP)) as i32;
                 let el = BitMapElement::with_ref((x, y), (self.tile_w, self.tile_h), tile)
-                    .ok_or("montage: a tile of the wrong size")?;
+                    .ok_or_else(|| err("montage: a tile of the wrong size"))?;
                 root.draw(&el).map_err(err)?;
             }
             if text && let Some(label) = self.rows.get(r) {
@@ -441,9 +452,9 @@ impl Montage {
         let (_, _, w, h) = self.layout(text);
         let mut rgb = vec![0u8; (w * h * 3) as usize];
         self.draw(&mut rgb, text)
-            .map_err(|message| dhoit_runtime::Error::Image {
+            .map_err(|e| dhoit_runtime::Error::Image {
                 path: path.to_path_buf(),
-                message,
+                message: e.to_string(),
             })?;
         image_io::write_rgb8(path, w, h, &rgb)
     }

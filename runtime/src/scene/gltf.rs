@@ -10,7 +10,7 @@
 //! Every accessor is bounds-checked before it is read, so a truncated or inconsistent file is an
 //! error naming the problem, never a panic.
 
-use super::Scene;
+use super::{Scene, SceneFault};
 use crate::error::{Error, Result};
 use glam::{Mat4, Vec3};
 use gltf::mesh::Mode;
@@ -26,7 +26,7 @@ pub fn load(path: &Path) -> Result<Scene> {
 /// images are looked up beside it.
 pub fn from_slice(bytes: &[u8], path: &Path) -> Result<Scene> {
     let err = |m: String| Error::scene(path, m);
-    precheck(bytes).map_err(err)?;
+    precheck(bytes, path)?;
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| err(format!("not a valid glTF: {e}")))?;
     let base = path.parent().unwrap_or(Path::new("."));
     let buffers = gltf::import_buffers(&gltf.document, Some(base), gltf.blob.clone())
@@ -82,7 +82,7 @@ pub fn from_slice(bytes: &[u8], path: &Path) -> Result<Scene> {
 /// accessor list with the attribute's index unchecked (gltf-json 1.4.1, mesh.rs), so a file
 /// whose POSITION names an accessor that does not exist panicked (found by tests/fuzz.rs).
 /// Anything this cannot parse is left to the crate, which reports it.
-fn precheck(bytes: &[u8]) -> std::result::Result<(), String> {
+fn precheck(bytes: &[u8], path: &Path) -> Result<()> {
     let json: std::borrow::Cow<[u8]> = if bytes.starts_with(b"glTF") {
         match gltf::Glb::from_slice(bytes) {
             Ok(glb) => glb.json,
@@ -98,10 +98,13 @@ fn precheck(bytes: &[u8]) -> std::result::Result<(), String> {
         for (p, prim) in mesh.primitives.iter().enumerate() {
             for index in prim.attributes.values() {
                 if index.value() >= root.accessors.len() {
-                    return Err(format!(
-                        "not a valid glTF: mesh {m} primitive {p} names accessor {} of {}",
-                        index.value(),
-                        root.accessors.len()
+                    return Err(Error::scene(
+                        path,
+                        format!(
+                            "not a valid glTF: mesh {m} primitive {p} names accessor {} of {}",
+                            index.value(),
+                            root.accessors.len()
+                        ),
                     ));
                 }
             }
@@ -385,22 +388,24 @@ fn to_rgba(data: &gltf::image::Data) -> Option<Vec<[f32; 4]>> {
 /// alpha gives back the same triangles and colours bit for bit. Written to a temporary file and
 /// renamed, so a failed export leaves no half-written file.
 pub fn export(scene: &Scene, path: &Path) -> Result<()> {
-    let bytes = to_glb(scene).map_err(|m| Error::scene(path, m))?;
+    let bytes = to_glb(scene).map_err(|f| Error::scene(path, f.to_string()))?;
     crate::tensors::write_atomic(path, &bytes)
 }
 
 /// The `.glb` bytes of a scene (see [`export`]).
-pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, String> {
+pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, SceneFault> {
     let n = scene.positions.len();
     if n == 0 || !n.is_multiple_of(3) || scene.colors.len() != n {
-        return Err(format!(
-            "{} positions and {} colours do not make whole triangles",
-            n,
-            scene.colors.len()
-        ));
+        return Err(SceneFault::Unpaired {
+            positions: n,
+            colors: scene.colors.len(),
+        });
     }
-    if let Some(i) = scene.positions.iter().position(|p| !p.is_finite()) {
-        return Err(format!("vertex {i} has a non-finite position"));
+    if let Some(vertex) = scene.positions.iter().position(|p| !p.is_finite()) {
+        return Err(SceneFault::NonFinite {
+            vertex,
+            position: scene.positions[vertex],
+        });
     }
     let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
     for p in &scene.positions {
@@ -446,7 +451,7 @@ pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, String> {
         ],
         "buffers": [{"byteLength": bin.len()}]
     });
-    let mut json = serde_json::to_vec(&json).map_err(|e| e.to_string())?;
+    let mut json = serde_json::to_vec(&json).expect("a serde_json::Value always serialises");
     while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
@@ -454,7 +459,7 @@ pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, String> {
         bin.push(0);
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();
-    let total = u32::try_from(total).map_err(|_| format!("{total} bytes exceed a GLB's 4 GiB"))?;
+    let total = u32::try_from(total).map_err(|_| SceneFault::TooBigForGlb { bytes: total })?;
     let mut out = Vec::with_capacity(total as usize);
     out.extend(b"glTF");
     out.extend(2u32.to_le_bytes());

@@ -13,6 +13,28 @@ use crate::rng::Rng;
 use glam::{Mat4, Vec3};
 use std::path::Path;
 
+/// Largest bounding radius a scene may have: beyond it a float keeps no depth precision.
+pub const MAX_RADIUS: f32 = 1e18;
+
+/// Why a scene cannot be rendered.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SceneFault {
+    #[error("the scene has no triangles")]
+    NoTriangles,
+    #[error("vertex {vertex} (triangle {}) has a position that is not finite: {position:?}", vertex / 3)]
+    NonFinite { vertex: usize, position: Vec3 },
+    #[error(
+        "coordinates too large: the scene's bounding radius is {radius:e} (at most {MAX_RADIUS:e})"
+    )]
+    TooLarge { radius: f32 },
+    #[error("every one of its {triangles} triangles is degenerate (zero area): nothing to draw")]
+    Degenerate { triangles: usize },
+    #[error("{positions} positions and {colors} colours do not make whole triangles")]
+    Unpaired { positions: usize, colors: usize },
+    #[error("{bytes} bytes exceed a GLB's 4 GiB")]
+    TooBigForGlb { bytes: usize },
+}
+
 /// How fragment opacity is decided.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Opacity {
@@ -50,29 +72,25 @@ impl Scene {
     /// Whether the scene can be rendered: some triangles, every position finite, a bounding
     /// sphere a float can hold (positions far beyond 1e18 leave no depth precision), and at
     /// least one triangle with an area.
-    pub fn check(&self) -> std::result::Result<(), String> {
+    pub fn check(&self) -> std::result::Result<(), SceneFault> {
         if self.triangle_count() == 0 {
-            return Err("the scene has no triangles".into());
+            return Err(SceneFault::NoTriangles);
         }
-        if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
-            return Err(format!(
-                "vertex {i} (triangle {}) has a position that is not finite: {:?}",
-                i / 3,
-                self.positions[i]
-            ));
+        if let Some(vertex) = self.positions.iter().position(|p| !p.is_finite()) {
+            return Err(SceneFault::NonFinite {
+                vertex,
+                position: self.positions[vertex],
+            });
         }
-        let (_, r) = self.bounding_sphere();
-        if !(r.is_finite() && r <= 1e18) {
-            return Err(format!(
-                "coordinates too large: the scene's bounding radius is {r:e} (at most 1e18)"
-            ));
+        let (_, radius) = self.bounding_sphere();
+        if !(radius.is_finite() && radius <= MAX_RADIUS) {
+            return Err(SceneFault::TooLarge { radius });
         }
         let area = |t: &[Vec3]| (t[1] - t[0]).cross(t[2] - t[0]).length_squared() > 0.0;
         if !self.positions.chunks_exact(3).any(area) {
-            return Err(format!(
-                "every one of its {} triangles is degenerate (zero area): nothing to draw",
-                self.triangle_count()
-            ));
+            return Err(SceneFault::Degenerate {
+                triangles: self.triangle_count(),
+            });
         }
         Ok(())
     }
@@ -158,7 +176,9 @@ pub fn load(name_or_path: &str, opacity: Opacity) -> Result<Scene> {
         }
         gltf::load(path)?
     };
-    scene.check().map_err(|m| Error::scene(name_or_path, m))?;
+    scene
+        .check()
+        .map_err(|f| Error::scene(name_or_path, f.to_string()))?;
     scene.with_opacity(opacity)
 }
 
