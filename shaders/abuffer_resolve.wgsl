@@ -15,13 +15,13 @@ fn before(a: vec4<u32>, b: vec4<u32>) -> bool {
     return ka < kb || (ka == kb && a.z < b.z);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(PIXEL_GROUP)
 fn main(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let p = grid_index(wid, nwg, lid, 64u);
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (p >= params.pixels) {
         return;
     }

@@ -35,21 +35,17 @@ struct Alloc {
 @group(0) @binding(3) var<storage, read_write> w: array<u32>;
 @group(0) @binding(4) var<storage, read_write> k: array<u32>;
 // 0 target, 1 a, 2 span, 3 lo, 4 total at a, 5 F, 6..21 the candidates' totals.
-@group(0) @binding(5) var<storage, read_write> state: array<atomic<u64>, 24>;
+@group(0) @binding(5) var<storage, read_write> state: array<atomic<u64>, ALLOC_STATE_WORDS>;
 // The marks (mark), or their exclusive prefix (apply).
 @group(0) @binding(6) var<storage, read_write> flags: array<u32>;
 // fragments, covered, max count (totals.wgsl).
 @group(0) @binding(7) var<storage, read> totals: array<u32>;
 
-const WEIGHT_MAX: u32 = 16777215u;
-// alloc::PAIR_BIT.
-const PAIR_BIT: u32 = 0x80000000u;
-const MAX_F32: f32 = 3.4028235e38;
 
-var<workgroup> partial: array<atomic<u32>, 16>;
+var<workgroup> partial: array<atomic<u32>, ALLOC_CANDIDATES>;
 
 fn pixel(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
-    return grid_index(wid, nwg, lid, 256u);
+    return grid_index(wid, nwg, lid, ALLOC_GROUP);
 }
 
 fn finite(v: f32) -> bool {
@@ -60,15 +56,15 @@ fn finite(v: f32) -> bool {
 fn weight(i: f32, n: u32) -> u32 {
     if (alloc.kind == 0u) {
         if (finite(i) && i > 0.0) {
-            return clamp(u32(floor(min(i, 15.0) * 1048576.0 + 0.5)), 1u, WEIGHT_MAX);
+            return clamp(u32(floor(min(i, MAX_IMPORTANCE) * IMPORTANCE_SCALE + 0.5)), 1u, WEIGHT_MAX);
         }
         return 1u;
     }
     let r = select(0.0, clamp(i, 0.0, 1.0), finite(i));
     if (alloc.kind == 1u) {
-        return clamp(u32(floor(r * f32(n) * 256.0 + 0.5)), 1u, WEIGHT_MAX);
+        return clamp(u32(floor(r * f32(n) * f32(1u << REQUEST_BITS) + 0.5)), 1u, WEIGHT_MAX);
     }
-    return min(u32(floor(r * 256.0 * 256.0 + 0.5)), WEIGHT_MAX);
+    return min(u32(floor(r * REQUEST_SLOTS * f32(1u << REQUEST_BITS) + 0.5)), WEIGHT_MAX);
 }
 
 // The most slots a covered pixel takes before every pixel has as many (alloc::useful_cap):
@@ -82,7 +78,7 @@ fn useful_cap(n: u32, lo: u32, pair: bool) -> u32 {
 // flag in bit 31: the fill up to the pixel's useful cap, then in tiers of 2^40 (scale) or
 // 2^26 (level) of t: every pixel at its cap, at all but its farthest fragment, at n.
 fn k_at(t: u64, wp: u32, n: u32, lo: u32) -> u32 {
-    let bits = select(40u, 26u, alloc.kind == 2u);
+    let bits = select(LAMBDA_BITS, LEVEL_BITS + 2u, alloc.kind == 2u);
     let tier = min(u32(t >> bits), 3u);
     let pair = (wp & PAIR_BIT) != 0u;
     let cap = useful_cap(n, lo, pair);
@@ -97,14 +93,14 @@ fn k_at(t: u64, wp: u32, n: u32, lo: u32) -> u32 {
     }
     let v = wp & WEIGHT_MAX;
     if (alloc.kind == 2u) {
-        let k = i64(v) - (1li << 24u) + i64(t);
-        return u32(clamp(k >> 8u, i64(lo), i64(cap)));
+        let k = i64(v) - (1li << LEVEL_BITS) + i64(t);
+        return u32(clamp(k >> REQUEST_BITS, i64(lo), i64(cap)));
     }
-    let k = (t * u64(v)) >> 24u;
+    let k = (t * u64(v)) >> WEIGHT_BITS;
     return u32(clamp(k, u64(lo), u64(cap)));
 }
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(ALLOC_GROUP)
 fn weights(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
@@ -125,20 +121,20 @@ fn weights(
 fn setup() {
     var f = (u64(alloc.f_hi) << 32u) | u64(alloc.f_lo);
     if (alloc.ppm > 0u) {
-        f = (u64(totals[0]) * u64(alloc.ppm)) / 1000000lu;
+        f = (u64(totals[0]) * u64(alloc.ppm)) / u64(PPM);
     }
     atomicStore(&state[0], min(f, u64(totals[0])));
     atomicStore(&state[1], 0lu);
-    atomicStore(&state[2], 1lu << 44u);
+    atomicStore(&state[2], 1lu << (4u * SEARCH_ROUNDS));
     atomicStore(&state[3], select(0lu, 1lu, f >= u64(totals[1])));
     atomicStore(&state[4], 0lu);
     atomicStore(&state[5], f);
-    for (var j = 0u; j < 16u; j++) {
+    for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
         atomicStore(&state[6u + j], 0lu);
     }
 }
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(ALLOC_GROUP)
 fn search(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
@@ -151,12 +147,12 @@ fn search(
     if (p < params.pixels && counts[p] > 0u) {
         let wp = w[p];
         let n = counts[p];
-        for (var j = 0u; j < 16u; j++) {
+        for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
             atomicAdd(&partial[j], k_at(a + u64(j) * step, wp, n, lo));
         }
     }
     workgroupBarrier();
-    if (lid < 16u) {
+    if (lid < ALLOC_CANDIDATES) {
         let v = atomicLoad(&partial[lid]);
         if (v > 0u) {
             atomicAdd(&state[6u + lid], u64(v));
@@ -170,7 +166,7 @@ fn choose() {
     let step = atomicLoad(&state[2]) >> 4u;
     // Candidate 0 (the current a) always fits; the totals grow with j.
     var best = 0u;
-    for (var j = 1u; j < 16u; j++) {
+    for (var j = 1u; j < ALLOC_CANDIDATES; j++) {
         if (atomicLoad(&state[6u + j]) <= goal) {
             best = j;
         }
@@ -178,12 +174,12 @@ fn choose() {
     atomicStore(&state[4], atomicLoad(&state[6u + best]));
     atomicStore(&state[1], atomicLoad(&state[1]) + u64(best) * step);
     atomicStore(&state[2], step);
-    for (var j = 0u; j < 16u; j++) {
+    for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
         atomicStore(&state[6u + j], 0lu);
     }
 }
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(ALLOC_GROUP)
 fn mark(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
@@ -199,7 +195,7 @@ fn mark(
     flags[p] = select(0u, 1u, n > 0u && k_at(a + 1lu, w[p], n, lo) > k_at(a, w[p], n, lo));
 }
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(ALLOC_GROUP)
 fn apply(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,

@@ -24,8 +24,6 @@ struct Params {
     budget_ppm: u32,
 };
 
-const AMBIENT: f32 = 0.3;
-
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) color: vec4<f32>,

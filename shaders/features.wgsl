@@ -14,7 +14,6 @@
 // the image.
 @group(1) @binding(2) var<storage, read_write> sums: array<atomic<u32>>;
 
-const OCCUPIED: u64 = 0x8000000000000000lu;
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {

@@ -11,29 +11,23 @@
 @group(0) @binding(5) var<storage, read> totals: array<u32>;
 @group(0) @binding(6) var<storage, read_write> importance: array<f32>;
 
-// importance::OCCUPIED.
-const OCCUPIED: u64 = 0x8000000000000000lu;
-
 // Skip the network where k does not depend on it (Mlp::dkb_importance): a pixel whose useful
 // cap is 0 (one fragment, or two sharing one colour: mlp::forced) and every pixel of a frame
 // whose budget holds all its fragments get importance 0 with their pair mark. The bench builds
 // this pass once more with it false (Gpu::skip_forced) to show the time saved.
 const SKIP_FORCED: bool = true;
 
-// importance::LOG_FLOOR.
-const LOG_FLOOR: f32 = 1e-6;
-
 fn luma(c: vec3<f32>) -> f32 {
     return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(PIXEL_GROUP)
 fn main(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let p = grid_index(wid, nwg, lid, 64u);
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (p >= params.pixels) {
         return;
     }
@@ -47,7 +41,7 @@ fn main(
     let f0 = keys[3u * p + 1u];
     let f1 = keys[3u * p + 2u];
     let pair = (f1 & OCCUPIED) != 0lu && u32(f0 & 0xfffffffflu) == u32(f1 & 0xfffffffflu);
-    let mark = select(0u, 0x80000000u, pair);
+    let mark = select(0u, PAIR_BIT, pair);
     if (SKIP_FORCED && (c <= 1u + select(0u, 1u, pair) || budget_of(totals[0]) >= u64(totals[0]))) {
         importance[p] = bitcast<f32>(mark);
         return;

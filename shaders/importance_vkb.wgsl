@@ -14,13 +14,13 @@ fn pcg_hash(v: u32) -> u32 {
     return (word >> 22u) ^ word;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(PIXEL_GROUP)
 fn main(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let p = grid_index(wid, nwg, lid, 64u);
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (p >= params.pixels) {
         return;
     }

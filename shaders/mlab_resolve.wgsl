@@ -11,21 +11,19 @@
 // Set to 1 when a pixel's sort came close to lavapipe's loop limit (see common.wgsl).
 @group(0) @binding(4) var<storage, read_write> status: array<atomic<u32>>;
 
-const MAX_ROWS: u32 = 16u;
-
 struct Row {
     a: vec3<f32>,
     t: f32,
     z: u64,
 };
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(PIXEL_GROUP)
 fn main(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let p = grid_index(wid, nwg, lid, 64u);
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (p >= params.pixels) {
         return;
     }
@@ -42,7 +40,7 @@ fn main(
         }
         fragments[j] = f;
     }
-    let m = clamp(params.k_uniform, 1u, MAX_ROWS);
+    let m = clamp(params.k_uniform, 1u, MLAB_MAX_ROWS);
     var rows: array<Row, 17>;
     for (var r = 0u; r <= m; r++) {
         tick();

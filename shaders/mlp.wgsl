@@ -5,13 +5,10 @@
 // fc1.weight [12][h1], fc1.bias[h1], fc2.weight[h1][h2], fc2.bias[h2], out.weight[h2],
 // out.bias (gpu::mlp_uniform).
 
-@group(0) @binding(1) var<uniform> weights: array<vec4<f32>, 2504>;
+@group(0) @binding(1) var<uniform> weights: array<vec4<f32>, MLP_VEC4S>;
 
-// mlp::MAX_STANDARDISED: standardised inputs are clamped, so no sum overflows.
-const MAX_STANDARDISED: f32 = 1e4;
-
-// Largest second hidden layer the pass holds (mlp::MAX_H2).
-const MAX_H2: u32 = 128u;
+// Standardised inputs are clamped to MAX_STANDARDISED, so no sum overflows; the pass holds a
+// second hidden layer of at most MAX_H2 units (both from the prelude).
 
 fn w(i: u32) -> f32 {
     return weights[i >> 2u][i & 3u];
@@ -22,9 +19,9 @@ fn mlp_forward(features: array<f32, 12>) -> f32 {
     let h1 = u32(w(0u));
     let h2 = u32(w(1u));
     for (var i = 0u; i < 12u; i++) {
-        x[i] = clamp((x[i] - w(4u + i)) / w(16u + i), -MAX_STANDARDISED, MAX_STANDARDISED);
+        x[i] = clamp((x[i] - w(MLP_MEAN_AT + i)) / w(MLP_STD_AT + i), -MAX_STANDARDISED, MAX_STANDARDISED);
     }
-    let w1 = 28u;
+    let w1 = MLP_W1_AT;
     let b1 = w1 + 12u * h1;
     let w2 = b1 + h1;
     let b2 = w2 + h1 * h2;

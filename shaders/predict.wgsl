@@ -5,13 +5,13 @@
 @group(0) @binding(2) var<storage, read> rows: array<f32>;
 @group(0) @binding(3) var<storage, read_write> predictions: array<f32>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(PIXEL_GROUP)
 fn main(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let r = grid_index(wid, nwg, lid, 64u);
+    let r = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (r >= params.pixels) {
         return;
     }

@@ -9,13 +9,13 @@
 @group(0) @binding(4) var<storage, read> tail: array<u32>;
 @group(0) @binding(5) var<storage, read_write> image: array<vec4<f32>>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(PIXEL_GROUP)
 fn main(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let p = grid_index(wid, nwg, lid, 64u);
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (p >= params.pixels) {
         return;
     }

@@ -6,13 +6,13 @@
 // fragments, covered, max count, unused
 @group(0) @binding(2) var<storage, read_write> totals: array<atomic<u32>>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(PIXEL_GROUP)
 fn main(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let p = grid_index(wid, nwg, lid, 64u);
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (p >= params.pixels) {
         return;
     }

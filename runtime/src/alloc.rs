@@ -550,6 +550,8 @@ pub fn fixed(pixels: usize, f: u64) -> Vec<u32> {
 /// weight ([`importance_weight`]): integer sums are exact and the same in every order, on the
 /// CPU and in the GPU's allocation pass.
 pub const IMPORTANCE_SCALE: f32 = 1_048_576.0;
+/// Largest proportional importance a weight tells apart (larger values count as this).
+pub const MAX_IMPORTANCE: f32 = 15.0;
 
 /// Fixed-point bits of the water-filling weights: `k_p(lambda) = clamp(floor(lambda w_p /
 /// 2^WEIGHT_BITS), lo, n_p)`. Weights are below `2^WEIGHT_BITS`, so raising lambda by one raises
@@ -566,7 +568,7 @@ pub const LAMBDA_BITS: u32 = 40;
 /// (then 1, the smallest weight, so every covered pixel can still reach n).
 pub fn importance_weight(i: f32) -> u32 {
     if i.is_finite() && i > 0.0 {
-        ((i.min(15.0) * IMPORTANCE_SCALE + 0.5).floor() as u32).clamp(1, WEIGHT_MAX)
+        ((i.min(MAX_IMPORTANCE) * IMPORTANCE_SCALE + 0.5).floor() as u32).clamp(1, WEIGHT_MAX)
     } else {
         1
     }
@@ -581,7 +583,7 @@ pub fn share_weight(r: f32, n: u32) -> u32 {
     } else {
         0.0
     };
-    ((r * n as f32 * 256.0 + 0.5).floor() as u32).clamp(1, WEIGHT_MAX)
+    ((r * n as f32 * (1 << REQUEST_BITS) as f32 + 0.5).floor() as u32).clamp(1, WEIGHT_MAX)
 }
 
 /// The sign bit of an importance value ([`allocate`]) and bit 31 of a water-filling weight or
@@ -713,7 +715,7 @@ pub fn slot_request(r: f32) -> u32 {
     } else {
         0.0
     };
-    ((r * REQUEST_SLOTS * 256.0 + 0.5).floor() as u32).min(WEIGHT_MAX)
+    ((r * REQUEST_SLOTS * (1 << REQUEST_BITS) as f32 + 0.5).floor() as u32).min(WEIGHT_MAX)
 }
 
 /// Level at and below which every covered pixel holds its [`useful_cap`]: `2^24 - 2^26`.

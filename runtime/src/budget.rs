@@ -18,7 +18,7 @@ use crate::error::{Error, Result};
 /// Bytes of one fragment slot: a 64-bit key, window depth bits high and RGBA8 low.
 pub const SLOT_BYTES: u64 = 8;
 /// Bytes of the MLP's uniform buffer: a 4-float header, 24 standardisation floats and the
-/// default network's 9,985 weights, in vec4s (`importance_dkb.wgsl` declares 2,504).
+/// default network's 9,985 weights, in vec4s (`mlp.wgsl` declares `MLP_VEC4S` of them, from this).
 pub const MLP_UNIFORM_BYTES: u64 = (4u64 + 24 + 9985).div_ceil(4) * 16;
 /// Pixels per workgroup of the prefix sum; one u32 of block totals per block.
 pub const SCAN_BLOCK: u64 = 256;
@@ -47,7 +47,7 @@ const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
 /// The allocation's parameters (F, share, weight kind) and its search state (24 u64: target,
 /// interval, sums of 16 candidates).
 const ALLOC_PARAMS: (&str, u64) = ("alloc.params", 16);
-const ALLOC_STATE: (&str, u64) = ("alloc.state", 192);
+const ALLOC_STATE: (&str, u64) = ("alloc.state", 8 * crate::gpu::ALLOC_STATE_WORDS as u64);
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 
