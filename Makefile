@@ -82,6 +82,8 @@ fmt:
 
 lint:
 	$(CARGO) clippy --release --workspace --all-targets -- -D warnings
+	@if $(CARGO) tree -p dhoit-train -e normal --prefix none | grep -qE '^(wgpu|naga|pollster) '; then \
+	  echo "lint: dhoit-train depends on wgpu: keep dhoit-runtime's gpu feature off for it" >&2; exit 1; fi
 
 check: fmt lint
 

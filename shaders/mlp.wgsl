@@ -3,7 +3,7 @@
 // sigmoid (mlp::squash: 0 where the sums overflowed both ways). Its weights sit in a uniform
 // buffer at binding 1, laid out in floats as: h1, h2, unused, unused, mean[12], std[12],
 // fc1.weight [12][h1], fc1.bias[h1], fc2.weight[h1][h2], fc2.bias[h2], out.weight[h2],
-// out.bias (gpu::mlp_uniform).
+// out.bias (wgsl::mlp_uniform).
 
 @group(0) @binding(1) var<uniform> weights: array<vec4<f32>, MLP_VEC4S>;
 

@@ -47,7 +47,7 @@ const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
 /// The allocation's parameters (F, share, weight kind) and its search state (24 u64: target,
 /// interval, sums of 16 candidates).
 const ALLOC_PARAMS: (&str, u64) = ("alloc.params", 16);
-const ALLOC_STATE: (&str, u64) = ("alloc.state", 8 * crate::gpu::ALLOC_STATE_WORDS as u64);
+const ALLOC_STATE: (&str, u64) = ("alloc.state", 8 * crate::wgsl::ALLOC_STATE_WORDS as u64);
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 

@@ -22,200 +22,11 @@ use crate::fragment::FragmentLists;
 use crate::importance::{PixelStats, VkbParams};
 use crate::mlp::Mlp;
 use crate::scene::{Camera, Scene};
+use crate::wgsl::{
+    ALLOC_GROUP, ALLOC_STATE_WORDS, AllocParams, MLAB_MAX_ROWS, PIXEL_GROUP, Params, SEARCH_ROUNDS,
+    grid, mlp_uniform, shaders,
+};
 use wgpu::util::DeviceExt;
-
-/// WGSL sources, embedded at build time.
-pub mod shaders {
-    pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
-    pub const GEOMETRY: &str = include_str!("../../shaders/geometry.wgsl");
-    /// The importance network, prepended to the passes that run it.
-    pub const MLP: &str = include_str!("../../shaders/mlp.wgsl");
-
-    /// One WGSL pass: its name, its source, and what is prepended to it besides COMMON.
-    pub struct Pass {
-        pub name: &'static str,
-        pub source: &'static str,
-        /// A geometry pass (GEOMETRY, the vertex stage, is prepended).
-        pub geometry: bool,
-        /// Runs the network (MLP is prepended).
-        pub mlp: bool,
-    }
-
-    const fn pass(name: &'static str, source: &'static str, geometry: bool, mlp: bool) -> Pass {
-        Pass {
-            name,
-            source,
-            geometry,
-            mlp,
-        }
-    }
-
-    pub const PASSES: [Pass; 14] = [
-        pass(
-            "abuffer_count",
-            include_str!("../../shaders/abuffer_count.wgsl"),
-            true,
-            false,
-        ),
-        pass(
-            "scan",
-            include_str!("../../shaders/scan.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "abuffer_store",
-            include_str!("../../shaders/abuffer_store.wgsl"),
-            true,
-            false,
-        ),
-        pass(
-            "abuffer_resolve",
-            include_str!("../../shaders/abuffer_resolve.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "capture",
-            include_str!("../../shaders/capture.wgsl"),
-            true,
-            false,
-        ),
-        pass(
-            "resolve",
-            include_str!("../../shaders/resolve.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "mlab_resolve",
-            include_str!("../../shaders/mlab_resolve.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "allocate",
-            include_str!("../../shaders/allocate.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "features",
-            include_str!("../../shaders/features.wgsl"),
-            true,
-            false,
-        ),
-        pass(
-            "totals",
-            include_str!("../../shaders/totals.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "importance_dkb",
-            include_str!("../../shaders/importance_dkb.wgsl"),
-            false,
-            true,
-        ),
-        pass(
-            "vkb_count",
-            include_str!("../../shaders/vkb_count.wgsl"),
-            true,
-            false,
-        ),
-        pass(
-            "importance_vkb",
-            include_str!("../../shaders/importance_vkb.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "predict",
-            include_str!("../../shaders/predict.wgsl"),
-            false,
-            true,
-        ),
-    ];
-
-    /// The full source of a pass: the generated prelude, common code, the vertex stage for
-    /// geometry passes, the network for the passes that run it, the pass.
-    pub fn source(name: &str) -> Option<String> {
-        let p = PASSES.iter().find(|p| p.name == name)?;
-        let geometry = if p.geometry { GEOMETRY } else { "" };
-        let mlp = if p.mlp { MLP } else { "" };
-        Some(format!(
-            "{}\n{COMMON}\n{geometry}\n{mlp}\n{}",
-            prelude(),
-            p.source
-        ))
-    }
-
-    /// A constant the WGSL passes share with Rust.
-    #[derive(Clone, Copy, Debug, PartialEq)]
-    pub enum Value {
-        U32(u32),
-        U64(u64),
-        F32(f32),
-    }
-
-    /// Every constant Rust and WGSL must agree on, taken from the Rust definitions: the
-    /// prelude declares them, so a shader cannot keep a stale copy.
-    pub fn shared_constants() -> Vec<(&'static str, Value)> {
-        use super::{
-            ALLOC_CANDIDATES, ALLOC_GROUP, ALLOC_STATE_WORDS, MLAB_MAX_ROWS, MLP_MEAN_AT,
-            MLP_STD_AT, MLP_W1_AT, PIXEL_GROUP,
-        };
-        use crate::{alloc, budget, importance, mlp, raster};
-        use Value::{F32, U32, U64};
-        vec![
-            ("AMBIENT", F32(raster::AMBIENT)),
-            ("PIXEL_GROUP", U32(PIXEL_GROUP)),
-            ("SCAN_BLOCK", U32(budget::SCAN_BLOCK as u32)),
-            ("ALLOC_GROUP", U32(ALLOC_GROUP)),
-            ("ALLOC_CANDIDATES", U32(ALLOC_CANDIDATES)),
-            ("ALLOC_STATE_WORDS", U32(ALLOC_STATE_WORDS)),
-            ("SEARCH_ROUNDS", U32(super::SEARCH_ROUNDS)),
-            ("PPM", U32(budget::PPM as u32)),
-            ("WEIGHT_BITS", U32(alloc::WEIGHT_BITS)),
-            ("WEIGHT_MAX", U32(alloc::WEIGHT_MAX)),
-            ("LAMBDA_BITS", U32(alloc::LAMBDA_BITS)),
-            ("LEVEL_BITS", U32(alloc::LEVEL_BITS)),
-            ("REQUEST_BITS", U32(alloc::REQUEST_BITS)),
-            ("REQUEST_SLOTS", F32(alloc::REQUEST_SLOTS)),
-            ("PAIR_BIT", U32(alloc::PAIR_BIT)),
-            ("IMPORTANCE_SCALE", F32(alloc::IMPORTANCE_SCALE)),
-            ("MAX_IMPORTANCE", F32(alloc::MAX_IMPORTANCE)),
-            ("OCCUPIED", U64(importance::OCCUPIED)),
-            ("LOG_FLOOR", F32(importance::LOG_FLOOR)),
-            ("MAX_STANDARDISED", F32(mlp::MAX_STANDARDISED)),
-            ("MAX_H2", U32(mlp::MAX_H2 as u32)),
-            ("MLP_VEC4S", U32((budget::MLP_UNIFORM_BYTES / 16) as u32)),
-            ("MLP_MEAN_AT", U32(MLP_MEAN_AT as u32)),
-            ("MLP_STD_AT", U32(MLP_STD_AT as u32)),
-            ("MLP_W1_AT", U32(MLP_W1_AT as u32)),
-            ("MLAB_MAX_ROWS", U32(MLAB_MAX_ROWS)),
-            ("MAX_F32", F32(f32::MAX)),
-        ]
-    }
-
-    /// The WGSL declarations of [`shared_constants`], prepended to every pass.
-    pub fn prelude() -> String {
-        let mut s = String::from(
-            "// Generated from the Rust constants (gpu::shaders::shared_constants): edit them \
-             there.\n",
-        );
-        for (name, v) in shared_constants() {
-            let (ty, value) = match v {
-                // Debug prints the shortest decimal that reads back as the same f32.
-                Value::F32(x) => ("f32", format!("{x:?}")),
-                Value::U32(x) => ("u32", format!("{x}u")),
-                Value::U64(x) => ("u64", format!("{x}lu")),
-            };
-            s.push_str(&format!("const {name}: {ty} = {value};\n"));
-        }
-        s
-    }
-}
 
 /// Features the pipeline cannot run without.
 pub fn required_features() -> wgpu::Features {
@@ -259,42 +70,6 @@ struct Pipelines {
 }
 
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
-
-/// Invocations a workgroup of every per-pixel pass.
-pub const PIXEL_GROUP: u32 = 64;
-/// Invocations a workgroup of the allocation's per-pixel entry points.
-pub const ALLOC_GROUP: u32 = 256;
-/// Candidates the allocation's search tries per round (a 16-way search).
-pub const ALLOC_CANDIDATES: u32 = 16;
-/// The allocation's search state in u64s: target, interval start, span, lo, total at the start,
-/// F, the candidates' totals, and two spare.
-pub const ALLOC_STATE_WORDS: u32 = 6 + ALLOC_CANDIDATES + 2;
-/// Where the network's uniform holds the standardisation means, deviations and the first
-/// weight matrix, in floats (after a header of h1, h2 and two unused).
-pub const MLP_MEAN_AT: usize = 4;
-pub const MLP_STD_AT: usize = MLP_MEAN_AT + crate::importance::FEATURES;
-pub const MLP_W1_AT: usize = MLP_STD_AT + crate::importance::FEATURES;
-
-/// The per-frame uniform (matches `Params` in common.wgsl; padded to 256 bytes).
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub(crate) struct Params {
-    view_proj: [[f32; 4]; 4],
-    forward: [f32; 4],
-    background: [f32; 4],
-    width: u32,
-    height: u32,
-    k_uniform: u32,
-    pixels: u32,
-    budget_fragments: u32,
-    vkb_alpha: f32,
-    vkb_exponent: f32,
-    vkb_noise: f32,
-    vkb_seed: u32,
-    /// A relative budget in parts per million (0: F is `budget_fragments`).
-    budget_ppm: u32,
-    _pad: [u32; 30],
-}
 
 impl Gpu {
     /// Opens the first adapter that has every required feature; the error names what the
@@ -487,25 +262,6 @@ fn weight_kind(t: Target) -> u32 {
     }
 }
 
-/// The network's weights as the uniform `mlp.wgsl` reads: h1, h2, 0, 0, mean, std,
-/// fc1 weight and bias, fc2 weight and bias, out weight and bias, zero-padded.
-pub fn mlp_uniform(m: &Mlp) -> Vec<f32> {
-    let mut v = vec![m.h1 as f32, m.h2 as f32, 0.0, 0.0];
-    debug_assert_eq!(v.len(), MLP_MEAN_AT);
-    v.extend(m.mean);
-    debug_assert_eq!(v.len(), MLP_STD_AT);
-    v.extend(m.std);
-    debug_assert_eq!(v.len(), MLP_W1_AT);
-    v.extend(&m.w1);
-    v.extend(&m.b1);
-    v.extend(&m.w2);
-    v.extend(&m.b2);
-    v.extend(&m.w3);
-    v.push(m.b3);
-    v.resize((budget::MLP_UNIFORM_BYTES / 4) as usize, 0.0);
-    v
-}
-
 impl Gpu {
     /// The network on rows of features, on the GPU: the batch pass `predict.wgsl` runs the same
     /// WGSL network (`mlp.wgsl`) as the DKB importance pass. Rows go through in chunks that fit
@@ -574,9 +330,6 @@ impl Gpu {
         Ok(out)
     }
 }
-
-/// Most MLAB rows the GPU blends (a private array in the shader).
-pub const MLAB_MAX_ROWS: u32 = 16;
 
 /// What a GPU frame produced, read back.
 #[derive(Clone, Debug)]
@@ -1422,19 +1175,6 @@ struct Allocate {
     apply: wgpu::ComputePipeline,
 }
 
-/// The allocation parameters (matches `Alloc` in allocate.wgsl).
-#[repr(C)]
-#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
-pub(crate) struct AllocParams {
-    f_lo: u32,
-    f_hi: u32,
-    ppm: u32,
-    kind: u32,
-}
-
-/// Rounds of the allocation's 16-way search: the interval 2^44 shrinks to one value.
-pub const SEARCH_ROUNDS: u32 = 11;
-
 /// The buffers the allocation reads and writes.
 struct AllocBuffers<'a> {
     counts: &'a wgpu::Buffer,
@@ -1446,15 +1186,6 @@ struct AllocBuffers<'a> {
     totals: &'a wgpu::Buffer,
     /// A dead buffer of at least 4 bytes a pixel to hold the marks (else one is allocated).
     flags: Option<&'a wgpu::Buffer>,
-}
-
-/// Workgroups of `size` invocations covering `pixels`, as a 2-D grid when one dimension cannot
-/// hold them (the passes compute `(y * width + x) * size + local index`, `grid_index` in
-/// common.wgsl): frames up to 8K and beyond in one dispatch.
-pub fn grid(pixels: u32, size: u32) -> (u32, u32) {
-    let groups = pixels.div_ceil(size).max(1);
-    let x = groups.min(65_535);
-    (x, groups.div_ceil(x))
 }
 
 impl Allocate {
@@ -1577,134 +1308,5 @@ impl Readback {
             None => None,
         };
         Ok((importance, stats, vkb_nearest))
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use std::mem::{offset_of, size_of};
-
-    /// A struct of a parsed pass: its size and (member, offset) list.
-    fn wgsl_struct(module: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
-        module
-            .types
-            .iter()
-            .find_map(|(_, t)| match &t.inner {
-                naga::TypeInner::Struct { members, span } if t.name.as_deref() == Some(name) => {
-                    let m = members.iter().map(|m| (m.name.clone().unwrap(), m.offset));
-                    Some((*span, m.collect()))
-                }
-                _ => None,
-            })
-            .unwrap_or_else(|| panic!("no struct {name} in the WGSL"))
-    }
-
-    fn parse(pass: &str) -> naga::Module {
-        naga::front::wgsl::parse_str(&shaders::source(pass).unwrap())
-            .unwrap_or_else(|e| panic!("{pass}: {e}"))
-    }
-
-    macro_rules! offsets {
-        ($t:ty; $($f:ident),*) => {
-            vec![$((stringify!($f).to_string(), offset_of!($t, $f) as u32)),*]
-        };
-    }
-
-    #[test]
-    fn uploaded_structs_have_the_layout_of_their_wgsl_declarations() {
-        let module = parse("allocate");
-        let (span, wgsl) = wgsl_struct(&module, "Params");
-        let rust = offsets!(Params; view_proj, forward, background, width, height, k_uniform,
-            pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed, budget_ppm);
-        assert_eq!(
-            wgsl, rust,
-            "Params: WGSL (left) and Rust (right) members and offsets"
-        );
-        assert!(
-            span as usize <= size_of::<Params>(),
-            "Params: WGSL {span} bytes"
-        );
-        assert_eq!(size_of::<Params>() as u64, budget::PARAMS_BYTES);
-
-        let (span, wgsl) = wgsl_struct(&module, "Alloc");
-        let rust = offsets!(AllocParams; f_lo, f_hi, ppm, kind);
-        assert_eq!(wgsl, rust, "Alloc: WGSL (left) and Rust (right)");
-        assert_eq!(span as usize, size_of::<AllocParams>());
-
-        // The search state holds what the host allocates for it.
-        let state = module
-            .global_variables
-            .iter()
-            .find(|(_, g)| g.name.as_deref() == Some("state"))
-            .expect("allocate.wgsl's state")
-            .1;
-        let size = module.types[state.ty].inner.size(module.to_ctx());
-        assert_eq!(size as u64, 8 * ALLOC_STATE_WORDS as u64);
-    }
-
-    #[test]
-    fn the_weights_uniform_is_as_large_as_what_mlp_uniform_writes() {
-        for pass in ["predict", "importance_dkb"] {
-            let module = parse(pass);
-            let weights = module
-                .global_variables
-                .iter()
-                .find(|(_, g)| g.name.as_deref() == Some("weights"))
-                .expect("mlp.wgsl's weights")
-                .1;
-            let size = module.types[weights.ty].inner.size(module.to_ctx());
-            assert_eq!(size as u64, budget::MLP_UNIFORM_BYTES, "{pass}");
-        }
-        // The largest network the loader accepts fills it; the default is the largest.
-        let m = Mlp::random(1);
-        assert_eq!(
-            crate::mlp::parameter_count(m.h1, m.h2),
-            crate::mlp::MAX_PARAMETERS
-        );
-        let v = mlp_uniform(&m);
-        assert_eq!(4 * v.len() as u64, budget::MLP_UNIFORM_BYTES);
-        assert_eq!(&v[MLP_MEAN_AT..MLP_STD_AT], &m.mean);
-        assert_eq!(&v[MLP_STD_AT..MLP_W1_AT], &m.std);
-        assert_eq!(v[MLP_W1_AT], m.w1[0]);
-    }
-
-    #[test]
-    fn the_prelude_declares_every_shared_constant_once_and_no_pass_redeclares_one() {
-        let prelude = shaders::prelude();
-        for (name, _) in shaders::shared_constants() {
-            let decl = format!("const {name}:");
-            assert_eq!(prelude.matches(&decl).count(), 1, "{name}");
-            let others = [shaders::COMMON, shaders::GEOMETRY, shaders::MLP];
-            for src in others
-                .iter()
-                .chain(shaders::PASSES.iter().map(|p| &p.source))
-            {
-                assert!(!src.contains(&decl), "{name} is declared again in a shader");
-            }
-        }
-        // Every pass parses with the prelude, and its values are the Rust ones.
-        let module = parse("allocate");
-        let value = |name: &str| {
-            let (_, c) = module
-                .constants
-                .iter()
-                .find(|(_, c)| c.name.as_deref() == Some(name))
-                .unwrap_or_else(|| panic!("{name}"));
-            match module.global_expressions[c.init] {
-                naga::Expression::Literal(l) => l,
-                ref e => panic!("{name}: {e:?}"),
-            }
-        };
-        assert_eq!(value("AMBIENT"), naga::Literal::F32(crate::raster::AMBIENT));
-        assert_eq!(
-            value("PAIR_BIT"),
-            naga::Literal::U32(crate::alloc::PAIR_BIT)
-        );
-        assert_eq!(
-            value("OCCUPIED"),
-            naga::Literal::U64(crate::importance::OCCUPIED)
-        );
-        assert_eq!(value("MAX_F32"), naga::Literal::F32(f32::MAX));
     }
 }

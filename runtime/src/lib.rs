@@ -11,6 +11,8 @@ pub mod dump;
 pub mod error;
 pub mod fragment;
 pub mod frame;
+/// The wgpu renderer (the `gpu` feature, on by default; the trainer builds without it).
+#[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod image_io;
 pub mod importance;
@@ -19,5 +21,6 @@ pub mod raster;
 pub mod rng;
 pub mod scene;
 pub mod tensors;
+pub mod wgsl;
 
 pub use error::{Error, GpuError, Result};

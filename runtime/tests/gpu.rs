@@ -9,10 +9,11 @@ use dhoit_runtime::alloc;
 use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::composite;
 use dhoit_runtime::fragment::FragmentLists;
-use dhoit_runtime::gpu::{Slots, shaders};
+use dhoit_runtime::gpu::Slots;
 use dhoit_runtime::importance;
 use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::{self, Camera, Opacity, Scene};
+use dhoit_runtime::wgsl::shaders;
 
 #[test]
 fn every_shader_validates_and_translates_without_a_gpu() {

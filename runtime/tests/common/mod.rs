@@ -1,10 +1,10 @@
 //! Helpers shared by the runtime's integration tests.
 #![allow(dead_code)] // each test binary uses its own subset
 
+#[cfg(feature = "gpu")]
 use dhoit_runtime::gpu::Gpu;
 use dhoit_runtime::scene::{self, Opacity};
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
 
 /// A fresh, empty temporary directory for one test (`prefix` names it).
 pub fn temp_dir(prefix: &str) -> PathBuf {
@@ -48,10 +48,11 @@ pub fn real_or_exported(rel: &str, stand_in: &str) -> PathBuf {
     path
 }
 
+#[cfg(feature = "gpu")]
 /// The GPU every GPU test of one test binary shares (Mesa's lavapipe in CI). Without an adapter
 /// the test fails, unless DHOIT_SKIP_GPU=1 says to skip (None, and it says so).
 pub fn gpu() -> Option<&'static Gpu> {
-    static GPU: OnceLock<Option<Gpu>> = OnceLock::new();
+    static GPU: std::sync::OnceLock<Option<Gpu>> = std::sync::OnceLock::new();
     GPU.get_or_init(|| match Gpu::new() {
         Ok(g) => {
             eprintln!("GPU tests on {}", g.adapter);
