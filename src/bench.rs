@@ -5,7 +5,7 @@ use clap::Args;
 use dhoit_runtime::alloc;
 use dhoit_runtime::budget::Budget;
 use dhoit_runtime::frame::{Method, Options, Renderer};
-use dhoit_runtime::raster;
+use dhoit_runtime::raster::{self, Resolution};
 use dhoit_runtime::scene::{self, Camera, Opacity};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -17,13 +17,13 @@ pub struct BenchArgs {
     scenes: Vec<String>,
     /// Resolution WIDTHxHEIGHT.
     #[arg(long, default_value = "640x480")]
-    res: String,
+    res: Resolution,
     /// Timed repetitions per measurement; the fastest is reported.
     #[arg(long, default_value_t = 3)]
     repeat: usize,
     /// Budget for the fixed k-buffer and MLAB measurements.
     #[arg(long, default_value = "2fpp")]
-    budget: String,
+    budget: Budget,
     /// Also write the JSON here.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -43,8 +43,8 @@ fn best<T>(n: usize, mut f: impl FnMut() -> Result<T>) -> Result<(f64, T)> {
 }
 
 pub fn run(a: BenchArgs) -> Result<()> {
-    let (w, h) = raster::parse_resolution(&a.res)?;
-    let budget = Budget::parse(&a.budget)?;
+    let (w, h) = (a.res.width, a.res.height);
+    let budget = a.budget;
     let names: Vec<String> = if a.scenes.is_empty() {
         scene::procedural::BUILTIN
             .iter()
@@ -171,25 +171,33 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             let s = scene::load(name, Opacity::default())?;
             let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
             let fl = raster::rasterize(&s, &cam, w, h)?;
-            let (_, f) = budget.resolve(
-                &dhoit_runtime::budget::OPT,
-                (w * h) as u64,
-                fl.fragment_count() as u64,
-            )?;
-            let (k_opt, _) = alloc::optimal(&alloc::error_curves(&fl, [1.0; 3]), f);
-            let k_fkb = (f / (w * h) as u64).max(1) as u32;
+            // Each method's k and F as `render --device gpu` gives them (Slots::for_method on
+            // the CPU renderer's frame), so a byte budget benches the k render uses.
+            let options = Options {
+                weights: Some(mlp),
+                ..Options::new(budget, [1.0; 3])
+            };
+            let renderer = Renderer::new(&fl, options);
             let mut methods = serde_json::Map::new();
-            let f_dkb = budget.fragment_budget(&dhoit_runtime::budget::DKB, (w * h) as u64)?;
-            let f_vkb = budget.fragment_budget(&dhoit_runtime::budget::VKB, (w * h) as u64)?;
-            for (label, slots) in [
-                ("abuffer", None),
-                ("fkb", Some(Slots::Uniform(k_fkb))),
-                ("optimal", Some(Slots::PerPixel(&k_opt))),
-                ("vkb", Some(Slots::Vkb(Default::default(), f_vkb))),
-                ("dkb", Some(Slots::Dkb(mlp, f_dkb))),
-                // DKB with the network run on every covered pixel, even where k is forced.
-                ("dkb_no_skip", Some(Slots::Dkb(mlp, f_dkb))),
-            ] {
+            let order = [
+                Method::Abuffer,
+                Method::Fkb,
+                Method::Optimal,
+                Method::Vkb,
+                Method::Dkb,
+            ];
+            let cpu: Vec<dhoit_runtime::frame::Frame> = order
+                .iter()
+                .map(|&m| renderer.render(m))
+                .collect::<Result<_, _>>()?;
+            // DKB once more with the network run on every covered pixel, even where k is forced.
+            let runs = order
+                .iter()
+                .zip(&cpu)
+                .map(|(m, f)| (m.name(), *m, f))
+                .chain([("dkb_no_skip", Method::Dkb, &cpu[4])]);
+            for (label, method, frame) in runs {
+                let slots = Slots::for_method(method, frame, &options)?;
                 gpu.skip_forced = label != "dkb_no_skip";
                 // Fastest frame by GPU time: (GPU ms, wall ms, frame).
                 let mut best: Option<(f64, f64, dhoit_runtime::gpu::GpuFrame)> = None;

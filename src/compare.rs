@@ -2,7 +2,7 @@
 //! one typed row per frame and method, written as a terminal table, Markdown and JSON from the
 //! same rows; a summary of the ratios that decide whether the network earns its place.
 
-use crate::{ViewArgs, load_scene, load_weights, parse_equal, rasterize_view};
+use crate::args::{ViewArgs, k_used, load_scene, load_weights, rasterize_view};
 use anyhow::{Context, Result};
 use clap::Args;
 use dhoit_runtime::budget::{Budget, format_bytes};
@@ -41,13 +41,13 @@ pub struct CompareArgs {
         default_value = "2fpp",
         allow_hyphen_values = true
     )]
-    budgets: Vec<String>,
+    budgets: Vec<Budget>,
     /// Methods, comma separated (dkb only when weights are found); all by default.
     #[arg(long, value_delimiter = ',')]
-    methods: Vec<String>,
+    methods: Vec<Method>,
     /// What a budget holds equal across methods: slots (the same F) or bytes (the same memory
     /// M, each method's F from its own layout; the paper's protocol).
-    #[arg(long, default_value = "slots", value_parser = parse_equal)]
+    #[arg(long, default_value = "slots")]
     equal: Equal,
     #[command(flatten)]
     common: ViewArgs,
@@ -422,18 +422,11 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
 }
 
 pub fn run(a: CompareArgs) -> Result<()> {
-    let budgets: Vec<Budget> = a
-        .budgets
-        .iter()
-        .map(|b| Budget::parse(b))
-        .collect::<Result<_, _>>()?;
+    let budgets = a.budgets.clone();
     let mut methods: Vec<Method> = if a.methods.is_empty() {
         Method::ALL.to_vec()
     } else {
-        a.methods
-            .iter()
-            .map(|m| Method::parse(m))
-            .collect::<Result<_, _>>()?
+        a.methods.clone()
     };
     if !methods.contains(&Method::Abuffer) {
         methods.insert(0, Method::Abuffer);
@@ -640,10 +633,7 @@ fn write_images(
         })
         .collect();
     let err_max = errors.iter().flatten().copied().fold(0.0f32, f32::max);
-    let used: Vec<Vec<f32>> = frames
-        .iter()
-        .map(|f| crate::k_used(&f.k, &counts))
-        .collect();
+    let used: Vec<Vec<f32>> = frames.iter().map(|f| k_used(&f.k, &counts)).collect();
     let k_max = used.iter().flatten().copied().fold(0.0f32, f32::max);
     let mut tiles = vec![Vec::new(), Vec::new(), Vec::new(), Vec::new()];
     let mut columns = Vec::new();

@@ -2,13 +2,14 @@
 //! scenes (importance-pass time against MSE and FLIP, the Pareto front marked), and the smallest
 //! network that meets a quality target on a scene.
 
-use crate::{ViewArgs, load_scene, rasterize_view};
+use crate::args::{ViewArgs, default_weights, load_scene, rasterize_view};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use dhoit_runtime::budget::Budget;
 use dhoit_runtime::frame::{Method, Options, Renderer};
 use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::{self, Mlp};
+use dhoit_runtime::raster::Resolution;
 use dhoit_runtime::scene::{self, Camera};
 use dhoit_train::cli::bar;
 use dhoit_train::plot::{self, TradePoint};
@@ -24,6 +25,37 @@ pub const NETS_DIR: &str = "data/nets";
 /// and burn too).
 pub const PRECISIONS: [&str; 1] = ["f32"];
 
+fn parse_precision(s: &str) -> std::result::Result<String, String> {
+    if PRECISIONS.contains(&s) {
+        Ok(s.to_string())
+    } else {
+        Err(format!(
+            "precision '{s}' is not offered by the importance pass (it offers {})",
+            PRECISIONS.join(", ")
+        ))
+    }
+}
+
+/// What times the importance pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Timing {
+    Auto,
+    Cpu,
+    Gpu,
+}
+
+impl std::str::FromStr for Timing {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Timing, String> {
+        match s {
+            "auto" => Ok(Timing::Auto),
+            "cpu" => Ok(Timing::Cpu),
+            "gpu" => Ok(Timing::Gpu),
+            _ => Err(format!("'{s}': expected gpu, cpu or auto")),
+        }
+    }
+}
+
 #[derive(Args, Clone)]
 pub struct QualityArgs {
     /// Weights files to compare, comma separated. Default: the default network and every
@@ -38,7 +70,7 @@ pub struct QualityArgs {
         default_value = "10%,25%,50%,75%,90%",
         allow_hyphen_values = true
     )]
-    budgets: Vec<String>,
+    budgets: Vec<Budget>,
     /// Orbit views whose images are measured, comma separated.
     #[arg(long = "view", value_delimiter = ',', default_value = "1,3")]
     view_list: Vec<usize>,
@@ -54,16 +86,16 @@ pub struct TradeArgs {
     #[command(flatten)]
     quality: QualityArgs,
     /// Precisions of the network, comma separated (the importance pass offers f32).
-    #[arg(long, value_delimiter = ',', default_value = "f32")]
+    #[arg(long, value_delimiter = ',', default_value = "f32", value_parser = parse_precision)]
     precision: Vec<String>,
     /// Resolution the importance pass is timed at (view 0, the first budget).
     #[arg(long, default_value = "640x480")]
-    time_res: String,
+    time_res: Resolution,
     /// What times the importance pass: gpu (timestamp queries on the adapter at hand), cpu
     /// (the runtime's CPU twin over the frame's covered pixels), or auto (gpu when an adapter
     /// exists).
     #[arg(long, default_value = "auto")]
-    timing: String,
+    timing: Timing,
     /// Timed repetitions; the fastest is kept.
     #[arg(long, default_value_t = 3)]
     repeat: usize,
@@ -110,7 +142,7 @@ fn networks(q: &QualityArgs) -> Result<Vec<Net>> {
     }
     let mut paths = q.networks.clone();
     if paths.is_empty() {
-        let default = crate::default_weights()
+        let default = default_weights()
             .context("no network given (--networks) and the default weights are not found")?;
         paths.push(default.clone());
         let nets = default
@@ -162,15 +194,11 @@ fn quality(
     nets: &[Net],
     pb: &ProgressBar,
 ) -> Result<Vec<Vec<Measure>>> {
-    let budgets: Vec<Budget> = q
-        .budgets
-        .iter()
-        .map(|b| Budget::parse(b))
-        .collect::<Result<_, _>>()?;
+    let budgets = &q.budgets;
     let mut out: Vec<Vec<Measure>> = nets.iter().map(|_| Vec::new()).collect();
     for &view in &q.view_list {
         let (fl, _) = rasterize_view(s, view, &q.common)?;
-        for b in &budgets {
+        for b in budgets {
             let plain = Renderer::new(&fl, Options::new(*b, q.common.background));
             let exact = plain.render(Method::Abuffer)?;
             let exact8 = image_io::to_srgb8(&exact.image);
@@ -378,33 +406,23 @@ enum TimedFrame {
 }
 
 pub fn trade(a: TradeArgs) -> Result<()> {
-    for p in &a.precision {
-        if !PRECISIONS.contains(&p.as_str()) {
-            bail!(
-                "precision '{p}' is not offered by the importance pass (it offers {})",
-                PRECISIONS.join(", ")
-            );
-        }
-    }
     let nets = networks(&a.quality)?;
-    let time_res = dhoit_runtime::raster::parse_resolution(&a.time_res)?;
-    let first_budget = Budget::parse(
-        a.quality
-            .budgets
-            .first()
-            .context("give at least one budget")?,
-    )?;
-    let timer = match a.timing.as_str() {
-        "cpu" => Timer::Cpu,
-        "gpu" => Timer::Gpu(Box::new(dhoit_runtime::gpu::Gpu::new()?)),
-        "auto" => match dhoit_runtime::gpu::Gpu::new() {
+    let time_res = (a.time_res.width, a.time_res.height);
+    let first_budget = *a
+        .quality
+        .budgets
+        .first()
+        .context("give at least one budget")?;
+    let timer = match a.timing {
+        Timing::Cpu => Timer::Cpu,
+        Timing::Gpu => Timer::Gpu(Box::new(dhoit_runtime::gpu::Gpu::new()?)),
+        Timing::Auto => match dhoit_runtime::gpu::Gpu::new() {
             Ok(g) => Timer::Gpu(Box::new(g)),
             Err(e) => {
                 eprintln!("trade: no GPU ({e}): timing the CPU twin");
                 Timer::Cpu
             }
         },
-        t => bail!("--timing {t}: expected gpu, cpu or auto"),
     };
     eprintln!(
         "trade: {} networks ({}) x {} precisions on {} scenes; importance pass timed by {}",
@@ -469,10 +487,10 @@ pub fn trade(a: TradeArgs) -> Result<()> {
     }
     let report = Report {
         timing: timer.name(),
-        time_resolution: a.time_res.clone(),
-        resolution: a.quality.common.res.clone(),
+        time_resolution: a.time_res.to_string(),
+        resolution: a.quality.common.res.to_string(),
         views: a.quality.view_list.clone(),
-        budgets: a.quality.budgets.clone(),
+        budgets: a.quality.budgets.iter().map(Budget::to_string).collect(),
         networks: nets.iter().map(|n| n.label.clone()).collect(),
         precisions: a.precision.clone(),
         scenes,

@@ -83,6 +83,19 @@ impl Method {
     }
 }
 
+impl std::str::FromStr for Method {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Method> {
+        Method::parse(s)
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// What rendering one frame with one method produced.
 #[derive(Clone, Debug)]
 pub struct Frame {
@@ -119,6 +132,13 @@ pub enum Equal {
     /// per-pixel cost, [`budget::DKB`]) needs for that F, so every per-pixel-k method fits and
     /// the leaner ones get more slots than DKB for the same memory.
     Bytes,
+}
+
+impl std::str::FromStr for Equal {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Equal> {
+        Equal::parse(s)
+    }
 }
 
 impl Equal {

@@ -15,10 +15,11 @@
 //! it realises and counted, so [`GpuFrame::allocated_bytes`] is what the device really holds.
 
 use crate::alloc::Target;
-use crate::budget::{self, FragmentBudget};
+use crate::budget::{self, Budget, FragmentBudget};
 use crate::composite::Image;
 use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
+use crate::frame::{Equal, Frame, Method, Options};
 use crate::importance::{PixelStats, VkbParams};
 use crate::mlp::Mlp;
 use crate::scene::{Camera, Scene};
@@ -251,6 +252,43 @@ pub enum Slots<'a> {
     /// The deep k-buffer, every pass on the GPU: features, totals, the network's importance,
     /// allocation, capture, resolve.
     Dkb(&'a Mlp, FragmentBudget),
+}
+
+impl<'a> Slots<'a> {
+    /// How the GPU renders `method` for the frame the CPU renderer made with `options`
+    /// (`cpu`, from [`crate::frame::Renderer::render`]): FKB and MLAB with the CPU's k; VKB
+    /// and DKB allocating on the device at the CPU's F (a share of the fragments at equal F
+    /// stays a share, resolved from the GPU's own count); every allocation only the CPU makes
+    /// (optimal, the greedies) uploaded as per-pixel k; `None` for the A-buffer. The one
+    /// method-to-slots mapping: render, compare and bench all use it, so a method gets the
+    /// same k whichever command renders it.
+    pub fn for_method(
+        method: Method,
+        cpu: &'a Frame,
+        options: &Options<'a>,
+    ) -> Result<Option<Slots<'a>>> {
+        let budget = match options.budget {
+            Budget::Share(ppm) if options.equal == Equal::Slots => FragmentBudget::Share(ppm),
+            _ => FragmentBudget::Slots(cpu.budget_fragments),
+        };
+        let first = || cpu.k.first().copied().unwrap_or(0);
+        Ok(match method {
+            Method::Abuffer => None,
+            Method::Fkb => Some(Slots::Uniform(first())),
+            // MLAB on the GPU blends from the A-buffer (exact memory, not the budget's rows).
+            Method::Mlab => Some(Slots::Mlab(first())),
+            Method::Vkb => Some(Slots::Vkb(options.vkb, budget)),
+            Method::Dkb => Some(Slots::Dkb(
+                options.weights.ok_or_else(|| {
+                    Error::Invalid("dkb needs network weights (--weights FILE)".into())
+                })?,
+                budget,
+            )),
+            Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => {
+                Some(Slots::PerPixel(&cpu.k))
+            }
+        })
+    }
 }
 
 /// The allocation pass's weight kind for a target (`Alloc.kind` in allocate.wgsl).

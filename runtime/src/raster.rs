@@ -43,6 +43,27 @@ pub const MAX_DIM: u32 = 16384;
 /// fragment.
 pub const MAX_FRAGMENTS_PER_PIXEL: u32 = 65_535;
 
+/// A frame size, given as `WIDTHxHEIGHT` on command lines (parsed by [`parse_resolution`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Resolution {
+    pub width: u32,
+    pub height: u32,
+}
+
+impl std::str::FromStr for Resolution {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Resolution> {
+        let (width, height) = parse_resolution(s)?;
+        Ok(Resolution { width, height })
+    }
+}
+
+impl std::fmt::Display for Resolution {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}x{}", self.width, self.height)
+    }
+}
+
 /// Parses `WxH` and checks it is a possible resolution.
 pub fn parse_resolution(s: &str) -> Result<(u32, u32)> {
     let bad = |m: &str| Error::Resolution(s.to_string(), m.to_string());

@@ -8,6 +8,7 @@ use crate::{Error, Result};
 use clap::Args;
 use dhoit_runtime::importance::FEATURES;
 use dhoit_runtime::mlp::Mlp;
+use dhoit_runtime::raster::Resolution;
 use dhoit_runtime::tensors::{self, Entry, FormatError};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::HashMap;
@@ -28,7 +29,7 @@ pub struct DatasetArgs {
     pub scenes: Vec<String>,
     /// Resolution WIDTHxHEIGHT.
     #[arg(long, default_value = "320x240")]
-    pub res: String,
+    pub res: Resolution,
     /// Orbit views per scene.
     #[arg(long, default_value_t = 4)]
     pub views: usize,
@@ -39,7 +40,7 @@ pub struct DatasetArgs {
         value_delimiter = ',',
         default_value = "3%,5%,10%,20%,35%,50%,65%,80%,90%,95%"
     )]
-    pub budgets: Vec<String>,
+    pub budgets: Vec<Level>,
     /// Share of the covered pixels whose k is not forced that is sampled.
     #[arg(long, default_value_t = DatasetConfig::default().sample)]
     pub sample: f64,
@@ -49,16 +50,12 @@ pub struct DatasetArgs {
 
 impl DatasetArgs {
     pub fn config(&self) -> Result<DatasetConfig> {
-        let (width, height) = dhoit_runtime::raster::parse_resolution(&self.res)?;
+        let Resolution { width, height } = self.res;
         let mut c = DatasetConfig {
             width,
             height,
             views: self.views,
-            levels: self
-                .budgets
-                .iter()
-                .map(|b| Level::parse(b))
-                .collect::<Result<_>>()?,
+            levels: self.budgets.clone(),
             sample: self.sample,
             seed: self.seed,
             ..DatasetConfig::default()
@@ -135,7 +132,7 @@ pub struct TrainArgs {
     pub scratch: bool,
     /// With --scene: resolution of the views trained on and scored.
     #[arg(long, default_value = "320x240", requires = "scenes")]
-    pub res: String,
+    pub res: Resolution,
     /// Weights file to write; config.json and the loss plot (loss.svg, loss.png) go beside it.
     /// Default: data/weights.safetensors, or out/finetune/SCENE/weights.safetensors with
     /// --scene.
@@ -169,7 +166,7 @@ pub struct TrainArgs {
     /// frame (the default); regret: the same with the output a share of the pixel's fragments
     /// fitted by a scale; mse-share: MSE on k*/n; mse-relative: the paper's MSE on k*/max k*
     /// (output = proportional importance).
-    #[arg(long, default_value = TrainConfig::default().loss.name(), value_parser = parse_loss)]
+    #[arg(long, default_value = TrainConfig::default().loss.name())]
     pub loss: trainer::Loss,
     /// Gradient norm clipping (0: none).
     #[arg(long, default_value_t = TrainConfig::default().clip)]
@@ -179,13 +176,6 @@ pub struct TrainArgs {
     /// Scenes held out for validation, comma separated (default: the seed-4 built-ins).
     #[arg(long, value_delimiter = ',')]
     pub validation: Vec<String>,
-}
-
-fn parse_loss(s: &str) -> std::result::Result<trainer::Loss, String> {
-    trainer::Loss::parse(s).ok_or_else(|| {
-        let names: Vec<_> = trainer::Loss::ALL.iter().map(|l| l.name()).collect();
-        format!("unknown loss '{s}': expected one of {}", names.join(", "))
-    })
 }
 
 /// Orbit views a scene is trained on with `train --scene` (angles i/8 of a turn)...
@@ -274,7 +264,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         .unwrap_or(Path::new("."))
         .to_path_buf();
     let own_config = if own {
-        let (width, height) = dhoit_runtime::raster::parse_resolution(&a.res)?;
+        let Resolution { width, height } = a.res;
         Some(DatasetConfig {
             scenes: a.scenes.clone(),
             width,
@@ -539,10 +529,30 @@ pub struct PredictArgs {
     /// Output file: safetensors with `importance` f32 [N].
     #[arg(long)]
     pub output: PathBuf,
-    /// Where inference runs: cpu (burn, NdArray backend), twin (the runtime's plain-Rust
-    /// network) or gpu (the WGSL network the renderer's importance pass runs; `dhoit` only).
-    #[arg(long, default_value = "cpu")]
-    pub device: String,
+    /// Where inference runs.
+    #[arg(long, value_enum, default_value_t = PredictDevice::Cpu)]
+    pub device: PredictDevice,
+}
+
+/// Where `predict` runs the network.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum PredictDevice {
+    /// burn, NdArray backend (what training runs).
+    Cpu,
+    /// The runtime's plain-Rust network (the renderer's CPU twin).
+    Twin,
+    /// The WGSL network the renderer's importance pass runs (`dhoit` only).
+    Gpu,
+}
+
+impl std::fmt::Display for PredictDevice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            PredictDevice::Cpu => "cpu",
+            PredictDevice::Twin => "twin",
+            PredictDevice::Gpu => "gpu",
+        })
+    }
 }
 
 /// Reads a features file (`features` f32 [N,12], finite).
@@ -580,13 +590,14 @@ pub fn parse_features(bytes: &[u8], path: &Path) -> Result<Vec<[f32; FEATURES]>>
 
 /// `dhoit predict`.
 pub fn predict(a: PredictArgs) -> Result<()> {
-    predict_with(&a, &|mlp, rows| match a.device.as_str() {
-        "cpu" => Ok(model::predict(mlp, rows)),
-        "twin" => Ok(mlp.importance(rows, &vec![1; rows.len()])),
-        other => Err(Error::Config(format!(
-            "device '{other}' is not available here for predict: use cpu (burn) or twin (the \
+    predict_with(&a, &|mlp, rows| match a.device {
+        PredictDevice::Cpu => Ok(model::predict(mlp, rows)),
+        PredictDevice::Twin => Ok(mlp.importance(rows, &vec![1; rows.len()])),
+        PredictDevice::Gpu => Err(Error::Config(
+            "device gpu is not available here for predict: use cpu (burn) or twin (the \
              runtime's CPU twin); `dhoit predict` also offers gpu"
-        ))),
+                .into(),
+        )),
     })
 }
 
@@ -601,7 +612,7 @@ pub fn predict_with(a: &PredictArgs, infer: &Inference) -> Result<()> {
     let imp = infer(&mlp, &rows)?;
     let meta = HashMap::from([
         ("weights".to_string(), a.weights.display().to_string()),
-        ("device".to_string(), a.device.clone()),
+        ("device".to_string(), a.device.to_string()),
     ]);
     tensors::write(
         &a.output,
@@ -634,14 +645,14 @@ pub struct ScoreArgs {
     pub orbit_views: usize,
     /// Resolution WIDTHxHEIGHT.
     #[arg(long, default_value = "320x240")]
-    pub res: String,
+    pub res: Resolution,
     /// Budgets, comma separated: shares of each frame's fragments (25%) or slots per pixel.
     #[arg(
         long = "budget",
         value_delimiter = ',',
         default_value = "10%,25%,50%,75%,90%,0.25fpp,0.5fpp,1fpp,2fpp,4fpp"
     )]
-    pub budgets: Vec<String>,
+    pub budgets: Vec<Level>,
     /// Uniform opacity of every surface.
     #[arg(long, default_value_t = 0.33)]
     pub opacity: f32,
@@ -652,12 +663,8 @@ pub struct ScoreArgs {
 
 /// `dhoit score`.
 pub fn score(a: ScoreArgs) -> Result<()> {
-    let (width, height) = dhoit_runtime::raster::parse_resolution(&a.res)?;
-    let levels: Vec<Level> = a
-        .budgets
-        .iter()
-        .map(|b| Level::parse(b))
-        .collect::<Result<_>>()?;
+    let Resolution { width, height } = a.res;
+    let levels: Vec<Level> = a.budgets.clone();
     let paths = if a.weights.is_empty() {
         vec![PathBuf::from(DEFAULT_WEIGHTS)]
     } else {

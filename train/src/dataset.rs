@@ -64,6 +64,13 @@ pub enum Level {
     All,
 }
 
+impl std::str::FromStr for Level {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Level> {
+        Level::parse(s)
+    }
+}
+
 impl Level {
     pub fn parse(s: &str) -> Result<Level> {
         if s.trim().eq_ignore_ascii_case("all") {

@@ -49,6 +49,19 @@ pub enum Loss {
     RegretLevel,
 }
 
+impl std::str::FromStr for Loss {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> crate::Result<Loss> {
+        Loss::parse(s).ok_or_else(|| {
+            let names: Vec<_> = Loss::ALL.iter().map(|l| l.name()).collect();
+            crate::Error::Config(format!(
+                "unknown loss '{s}': expected one of {}",
+                names.join(", ")
+            ))
+        })
+    }
+}
+
 impl Loss {
     pub const ALL: [Loss; 4] = [
         Loss::MseRelative,

@@ -1,0 +1,139 @@
+//! What several commands share: the view options, their value parsers, and loading a scene,
+//! its fragments and the weights.
+
+use anyhow::{Result, bail};
+use clap::Args;
+use dhoit_runtime::fragment::FragmentLists;
+use dhoit_runtime::image_io;
+use dhoit_runtime::mlp::Mlp;
+use dhoit_runtime::raster::{self, Resolution};
+use dhoit_runtime::scene::{self, Camera, Opacity, Scene};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The default weights (`make train` writes them): looked up in the working directory, then in
+/// the source tree this binary was built from.
+pub(crate) fn default_weights() -> Option<PathBuf> {
+    let rel = Path::new(dhoit_train::cli::DEFAULT_WEIGHTS);
+    [
+        rel.to_path_buf(),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(rel),
+    ]
+    .into_iter()
+    .find(|p| p.is_file())
+}
+
+#[derive(Args, Clone)]
+pub(crate) struct ViewArgs {
+    /// Resolution WIDTHxHEIGHT.
+    #[arg(long, default_value = "640x480", allow_hyphen_values = true)]
+    pub(crate) res: Resolution,
+    /// Number of orbit views around the scene (view I is at angle I/N of a turn).
+    #[arg(long, default_value_t = scene::DEFAULT_VIEWS)]
+    pub(crate) views: usize,
+    /// Uniform opacity of every surface (the reference uses 0.33).
+    #[arg(long, default_value_t = 0.33, conflicts_with = "material_alpha")]
+    pub(crate) opacity: f32,
+    /// Keep material alpha instead of one uniform opacity.
+    #[arg(long)]
+    pub(crate) material_alpha: bool,
+    /// Permute the triangle submission order with this seed.
+    #[arg(long)]
+    pub(crate) shuffle: Option<u64>,
+    /// Background colour, linear R,G,B in [0, 1].
+    #[arg(long, default_value = "1,1,1", value_parser = parse_rgb)]
+    pub(crate) background: [f32; 3],
+    /// Network weights for dkb (default: data/weights.safetensors when it exists).
+    #[arg(long)]
+    pub(crate) weights: Option<PathBuf>,
+}
+
+fn parse_rgb(s: &str) -> std::result::Result<[f32; 3], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f32>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| format!("'{s}' is not R,G,B"))?;
+    match v[..] {
+        [r, g, b] if v.iter().all(|c| c.is_finite() && (0.0..=1.0).contains(c)) => Ok([r, g, b]),
+        _ => Err(format!(
+            "'{s}' is not three numbers in [0, 1] separated by commas"
+        )),
+    }
+}
+
+pub(crate) fn load_scene(name: &str, a: &ViewArgs) -> Result<Scene> {
+    let opacity = if a.material_alpha {
+        Opacity::Material
+    } else {
+        Opacity::Uniform(a.opacity)
+    };
+    let mut scene = scene::load(name, opacity)?;
+    if let Some(seed) = a.shuffle {
+        scene = scene.shuffled(seed);
+    }
+    Ok(scene)
+}
+
+pub(crate) fn rasterize_view(
+    scene: &Scene,
+    view: usize,
+    a: &ViewArgs,
+) -> Result<(FragmentLists, f64)> {
+    let Resolution {
+        width: w,
+        height: h,
+    } = a.res;
+    if a.views == 0 || view >= a.views {
+        bail!(
+            "view {view} does not exist: there are {} views (0..{})",
+            a.views,
+            a.views
+        );
+    }
+    let cam = Camera::orbit(scene, view, a.views, w, h);
+    let t = Instant::now();
+    let fl = raster::rasterize(scene, &cam, w, h)?;
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    eprintln!(
+        "{}: {} triangles, view {view}/{}, {w}x{h}: {} fragments, max depth complexity {} ({ms:.0} ms)",
+        scene.name,
+        scene.triangle_count(),
+        a.views,
+        fl.fragment_count(),
+        fl.max_depth_complexity(),
+    );
+    Ok((fl, ms))
+}
+
+/// The weights DKB uses: --weights, else the default file when present.
+pub(crate) fn load_weights(a: &ViewArgs, required: bool) -> Result<Option<Mlp>> {
+    let path = match &a.weights {
+        Some(p) => p.clone(),
+        None => match default_weights() {
+            Some(p) => p,
+            None if required => bail!(
+                "dkb needs network weights: pass --weights FILE (or train the default ones with `make train`)"
+            ),
+            None => return Ok(None),
+        },
+    };
+    Ok(Some(Mlp::load(&path)?))
+}
+
+/// The k each pixel uses, min(k, n).
+pub(crate) fn k_used(k: &[u32], counts: &[u32]) -> Vec<f32> {
+    k.iter()
+        .zip(counts)
+        .map(|(&k, &n)| k.min(n) as f32)
+        .collect()
+}
+
+/// min(k, n) per pixel as a heat map tile, scaled by its maximum.
+pub(crate) fn kmap_rgb8(fl: &FragmentLists, k: &[u32]) -> (Vec<u8>, u32) {
+    let counts = fl.counts();
+    let covered: Vec<bool> = counts.iter().map(|&n| n > 0).collect();
+    let used = k_used(k, &counts);
+    let max = used.iter().copied().fold(0.0, f32::max);
+    (image_io::heat_rgb8(&used, &covered, max), max as u32)
+}

@@ -1,0 +1,149 @@
+//! `dhoit render`: one view of a scene with one method, on the CPU reference or the GPU.
+
+use crate::args::{ViewArgs, kmap_rgb8, load_scene, load_weights, rasterize_view};
+use anyhow::Result;
+use clap::{Args, ValueEnum};
+use dhoit_runtime::budget::{Budget, format_bytes};
+use dhoit_runtime::dump;
+use dhoit_runtime::frame::{Equal, Method, Options, Renderer};
+use dhoit_runtime::gpu::{Gpu, Slots};
+use dhoit_runtime::image_io;
+use dhoit_runtime::scene::Camera;
+use std::path::PathBuf;
+
+/// Where a frame is rendered.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Device {
+    /// The CPU reference renderer.
+    Cpu,
+    /// wgpu on the first adapter with the features the passes need.
+    Gpu,
+}
+
+#[derive(Args)]
+pub struct RenderArgs {
+    /// Built-in scene name (optionally `name:seed`) or path to a .gltf/.glb file.
+    #[arg(long, default_value = "particles")]
+    scene: String,
+    /// Which orbit view to render.
+    #[arg(long, default_value_t = 0)]
+    view: usize,
+    #[command(flatten)]
+    common: ViewArgs,
+    /// Method (see `dhoit --help`).
+    #[arg(long, default_value = "abuffer")]
+    method: Method,
+    /// Where to run (on the GPU every method runs: optimal and the greedy allocations have
+    /// their k computed on the CPU, MLAB blends from the A-buffer).
+    #[arg(long, value_enum, default_value_t = Device::Cpu)]
+    device: Device,
+    /// Memory budget: bytes (20MB, 40MiB), slots per pixel (2fpp) or a share of the frame's
+    /// fragments (25%).
+    #[arg(long, default_value = "2fpp", allow_hyphen_values = true)]
+    budget: Budget,
+    /// What the budget fixes: slots (F; bytes follow from the method's layout) or bytes (the
+    /// memory M; F follows from the layout, a budget in slots or % sets M to what DKB's layout
+    /// needs for that F).
+    #[arg(long, default_value = "slots")]
+    equal: Equal,
+    /// Output image (sRGB PNG).
+    #[arg(long)]
+    out: PathBuf,
+    /// Also write the fragment dump (fragments.safetensors) into this directory.
+    #[arg(long)]
+    dump: Option<PathBuf>,
+    /// Also write a heat map of the per-pixel k actually used (min(k, n)).
+    #[arg(long)]
+    kmap: Option<PathBuf>,
+}
+
+pub fn run(a: RenderArgs) -> Result<()> {
+    let (method, budget) = (a.method, a.budget);
+    let weights = load_weights(&a.common, method == Method::Dkb)?;
+    let scene = load_scene(&a.scene, &a.common)?;
+    let (fl, _) = rasterize_view(&scene, a.view, &a.common)?;
+    let options = Options {
+        weights: weights.as_ref(),
+        equal: a.equal,
+        ..Options::new(budget, a.common.background)
+    };
+    let mut f = Renderer::new(&fl, options).render(method)?;
+    let mut gpu_fragments = None;
+    if a.device == Device::Gpu {
+        let gpu = Gpu::new()?;
+        eprintln!("GPU: {}", gpu.adapter);
+        let (w, h) = (fl.width, fl.height);
+        let cam = Camera::orbit(&scene, a.view, a.common.views, w, h);
+        let cpu = f.clone();
+        let slots = Slots::for_method(method, &cpu, &options)?;
+        let g = gpu.render(&scene, &cam, w, h, a.common.background, slots)?;
+        let passes: Vec<String> = g
+            .pass_ms
+            .iter()
+            .map(|(n, ms)| format!("{n} {ms:.2} ms"))
+            .collect();
+        println!("GPU passes: {}", passes.join(", "));
+        f.image = g.image;
+        f.allocated_bytes = g.allocated_bytes;
+        if let Some((_, bases, _)) = &g.slots {
+            // The GPU's own k (VKB and DKB allocate on the device); what it captures follows.
+            f.k = bases.windows(2).map(|b| b[1] - b[0]).collect();
+            f.fragments_captured =
+                f.k.iter()
+                    .zip(fl.counts())
+                    .map(|(&k, n)| k.min(n) as u64)
+                    .sum();
+        }
+        gpu_fragments = match g.fragments {
+            Some(fr) => Some(fr),
+            None if a.dump.is_some() => {
+                gpu.render(&scene, &cam, w, h, a.common.background, None)?
+                    .fragments
+            }
+            None => None,
+        };
+    }
+    image_io::write_png(&a.out, &f.image)?;
+    println!(
+        "{}: k up to {}, {:.1}% of {} fragments captured, F(M) = {}, budget {}, allocated {} -> {}",
+        method.name(),
+        f.k.iter().max().unwrap_or(&0),
+        100.0 * f.fragments_captured as f64 / f.fragments_total.max(1) as f64,
+        f.fragments_total,
+        f.budget_fragments,
+        format_bytes(f.budget_bytes),
+        format_bytes(f.allocated_bytes),
+        a.out.display()
+    );
+    if let Some(rep) = &f.optimal {
+        println!(
+            "optimal: total error {:.6e} ({}), lower bound {:.6e}, gap {:.3e}; greedy as printed {:.6e}, \
+             increase-keyed {:.6e}",
+            rep.total,
+            rep.chosen,
+            rep.lower_bound,
+            rep.gap(),
+            rep.greedy_paper_total,
+            rep.greedy_increase_total
+        );
+    }
+    if let Some(path) = &a.kmap {
+        let (rgb, max) = kmap_rgb8(&fl, &f.k);
+        image_io::write_rgb8(path, fl.width, fl.height, &rgb)?;
+        println!("k map (0..{max}) -> {}", path.display());
+    }
+    if let Some(dir) = &a.dump {
+        let d = dump::Dump {
+            fragments: gpu_fragments.unwrap_or(fl),
+            k: f.k,
+            image: f.image,
+            method: method.name().into(),
+            budget_bytes: f.budget_bytes,
+            budget_fragments: f.budget_fragments,
+            background: a.common.background,
+        };
+        let path = dump::write(dir, &d)?;
+        println!("dump -> {}", path.display());
+    }
+    Ok(())
+}
