@@ -13,13 +13,15 @@ all: demo
 setup:
 	@./scripts/setup.sh
 
-build: setup
+# Building needs no setup (a Rust toolchain and a C++ compiler for nv-flip); `make setup`
+# installs what the tests and the demo need (lavapipe, a font, g++), and they run it first.
+build:
 	$(CARGO) build --release
 
 ## The main job on built-in data: train the default network from the built-in scenes (about two
 ## minutes; the recipe of the committed data/weights.safetensors, which it leaves alone),
 ## then render a held-out built-in scene with it beside every baseline and print the tables.
-demo: build
+demo: setup build
 	$(RUN) train --out out/demo/weights.safetensors
 	$(RUN) compare --scene particles --res 640x480 --budget 1fpp,2fpp --weights out/demo/weights.safetensors --out out/demo
 

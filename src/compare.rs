@@ -554,8 +554,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
                     let tag = format!("{label}_v{view}_{}", budget.to_string().replace(' ', ""));
                     let budget_label = format!("{budget} ({})", a.equal.name());
                     write_images(
-                        &a,
-                        &tag,
+                        &a.out.join(&tag),
                         &budget_label,
                         &fl,
                         &frames,
@@ -609,9 +608,9 @@ pub fn run(a: CompareArgs) -> Result<()> {
     Ok(())
 }
 
+/// The frame's images and montage, `STEM_METHOD.png` and `STEM_montage.png`.
 fn write_images(
-    a: &CompareArgs,
-    tag: &str,
+    stem: &std::path::Path,
     budget: &str,
     fl: &dhoit_runtime::fragment::FragmentLists,
     frames: &[Frame],
@@ -639,7 +638,7 @@ fn write_images(
     let mut columns = Vec::new();
     for (col, f) in frames.iter().enumerate() {
         image_io::write_png(
-            &a.out.join(format!("{tag}_{}.png", f.method.name())),
+            &PathBuf::from(format!("{}_{}.png", stem.display(), f.method.name())),
             &f.image,
         )?;
         tiles[0].push(image_io::to_srgb8(&f.image));
@@ -692,6 +691,6 @@ fn write_images(
             }),
         ],
     };
-    montage.write(&a.out.join(format!("{tag}_montage.png")))?;
+    montage.write(&PathBuf::from(format!("{}_montage.png", stem.display())))?;
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! A corpus of bad inputs, one test per case: broken glTF and GLB files, weights and features
 //! files, fragment dumps and command-line arguments. Each must end the command with a non-zero
 //! exit and a message naming the problem, never a panic, and leave no output file behind.
+mod common;
 
 use dhoit_runtime::mlp::Mlp;
 use std::collections::HashMap;
@@ -9,10 +10,7 @@ use std::process::Command;
 
 /// A folder of its own for each case.
 fn case_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("dhoit-bad-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::temp_dir(&format!("bad-{name}"))
 }
 
 /// Runs dhoit with `args` (`{out}` is replaced by an output path in the case's folder) and

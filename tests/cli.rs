@@ -1,30 +1,17 @@
 //! End-to-end checks of the `dhoit` command: dumps, order independence, errors.
 
+mod common;
+use common::{dhoit, skip_gpu, temp_dir};
 use dhoit_runtime::budget::Budget;
 use dhoit_runtime::frame::{self, Method, Options};
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::{self, Camera, Opacity};
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn dhoit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dhoit"))
-        .args(args)
-        .output()
-        .expect("run dhoit")
-}
-
-fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("dhoit-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use std::path::Path;
 
 #[test]
 fn the_dump_round_trips() {
-    let dir = temp("dump");
+    let dir = temp_dir("cli-dump");
     let out = dir.join("img.png");
     let o = dhoit(&[
         "render",
@@ -67,14 +54,14 @@ fn the_dump_round_trips() {
     assert_eq!(d.budget_bytes, f.budget_bytes);
     assert_eq!(d.background, [0.1, 0.2, 0.3]);
     // Written and read back again, the dump is unchanged.
-    let again = temp("dump2");
+    let again = temp_dir("cli-dump2");
     dhoit_runtime::dump::write(&again, &d).unwrap();
     assert_eq!(dhoit_runtime::dump::read(&again).unwrap(), d);
 }
 
 #[test]
 fn a_corrupt_dump_is_a_clear_error() {
-    let dir = temp("corrupt");
+    let dir = temp_dir("cli-corrupt");
     let path = dir.join(dhoit_runtime::dump::FILE_NAME);
     std::fs::write(&path, b"\x10\x00\x00\x00\x00\x00\x00\x00{not json}").unwrap();
     let e = dhoit_runtime::dump::read(&dir).unwrap_err().to_string();
@@ -114,7 +101,7 @@ fn shuffled_submission_gives_bit_identical_abuffer_and_fkb_images() {
         }
     }
     // Through the command line too: two seeds, identical PNGs.
-    let dir = temp("shuffle");
+    let dir = temp_dir("cli-shuffle");
     for method in ["abuffer", "fkb"] {
         let pngs: Vec<Vec<u8>> = ["3", "4"]
             .iter()
@@ -150,7 +137,7 @@ fn opts<'a>(b: Budget, bg: [f32; 3], mlp: &'a Mlp) -> Options<'a> {
 
 #[test]
 fn allocation_methods_render_from_the_command_line() {
-    let dir = temp("methods");
+    let dir = temp_dir("cli-methods");
     let weights = dir.join("w.safetensors");
     Mlp::random(2).save(&weights, &Default::default()).unwrap();
     for method in [
@@ -254,7 +241,7 @@ fn expect_failure(args: &[&str], needle: &str, out: &Path) {
 
 #[test]
 fn bad_input_fails_cleanly_and_writes_nothing() {
-    let dir = temp("bad");
+    let dir = temp_dir("cli-bad");
     let out = dir.join("never.png");
     let o = out.to_str().unwrap();
     let base = |extra: &[&'static str]| {
@@ -301,7 +288,7 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
     );
     expect_failure(
         &base(&["--scene", "shells", "--device", "tpu"]),
-        "device 'tpu'",
+        "invalid value 'tpu' for '--device",
         &out,
     );
     let o2 = dhoit(&["render", "--scene", "shells", "--res", "0x48", "--out", o]);
@@ -313,7 +300,7 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
 
 #[test]
 fn compare_prints_a_table_and_writes_a_report() {
-    let dir = temp("compare");
+    let dir = temp_dir("cli-compare");
     let o = dhoit(&[
         "compare",
         "--scene",
@@ -360,11 +347,10 @@ fn compare_prints_a_table_and_writes_a_report() {
 
 #[test]
 fn the_gpu_renders_from_the_command_line() {
-    if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") {
-        eprintln!("SKIPPED (DHOIT_SKIP_GPU=1): GPU command-line test");
+    if skip_gpu("GPU command-line test") {
         return;
     }
-    let dir = temp("gpu");
+    let dir = temp_dir("cli-gpu");
     for method in ["abuffer", "fkb", "optimal", "mlab", "vkb", "dkb"] {
         let out = dir.join(format!("{method}.png"));
         let dump_dir = dir.join(method);
@@ -409,7 +395,7 @@ fn the_gpu_renders_from_the_command_line() {
 /// saw, in the held-out report and in rendered images.
 #[test]
 fn fine_tuning_on_a_scene_beats_the_default_on_its_held_out_views() {
-    let dir = temp("finetune");
+    let dir = temp_dir("cli-finetune");
     let w = dir.join("weights.safetensors");
     let o = dhoit(&[
         "train",
@@ -457,7 +443,7 @@ fn fine_tuning_on_a_scene_beats_the_default_on_its_held_out_views() {
         ratio < 1.0,
         "rendered MSE fine-tuned / default on held-out views: {ratio}"
     );
-    if std::env::var("DHOIT_SKIP_GPU").as_deref() != Ok("1") {
+    if !skip_gpu("the fine-tuned weights rendered on the GPU") {
         let out = dir.join("gpu.png");
         let o = dhoit(&[
             "render",
@@ -490,7 +476,7 @@ fn fine_tuning_on_a_scene_beats_the_default_on_its_held_out_views() {
 /// nothing when none does.
 #[test]
 fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_smallest() {
-    let dir = temp("trade");
+    let dir = temp_dir("cli-trade");
     let small = dir.join("small.safetensors");
     let large = dir.join("large.safetensors");
     Mlp::random_sized(3, 16, 8)
@@ -500,7 +486,7 @@ fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_small
         .save(&large, &Default::default())
         .unwrap();
     let nets = format!("{},{}", large.display(), small.display());
-    let timing = if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") {
+    let timing = if skip_gpu("trade timed on the GPU (timed on the CPU instead)") {
         "cpu"
     } else {
         "gpu"

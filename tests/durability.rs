@@ -1,25 +1,16 @@
 //! Nothing half-written, nothing lost: outputs are written to a temporary file and renamed, so a
 //! failed write or a run killed in the middle leaves the previous file as it was.
 
+mod common;
+use common::{root, temp_dir};
 use dhoit_runtime::tensors;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("dhoit-durable-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
 #[test]
 fn a_failed_write_leaves_the_previous_file_intact() {
-    let dir = temp("failed-write");
+    let dir = temp_dir("durable-failed-write");
     let path = dir.join("weights.safetensors");
     std::fs::write(&path, b"the previous weights").unwrap();
     // The temporary file's place is taken (a folder): the write fails as a full disk would.
@@ -40,7 +31,7 @@ fn a_failed_write_leaves_the_previous_file_intact() {
 
 #[test]
 fn a_killed_training_run_leaves_the_previous_weights_intact() {
-    let dir = temp("killed-train");
+    let dir = temp_dir("durable-killed-train");
     let data = dir.join("ds");
     let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
         .args([
@@ -95,7 +86,7 @@ fn a_killed_training_run_leaves_the_previous_weights_intact() {
 
 #[test]
 fn a_failed_render_leaves_a_previous_image_intact() {
-    let dir = temp("render");
+    let dir = temp_dir("durable-render");
     let out = dir.join("frame.png");
     std::fs::write(&out, b"previous image").unwrap();
     let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))

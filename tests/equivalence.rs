@@ -2,32 +2,14 @@
 //! weights file loaded into all three, the same batches through each, within 1e-5 (f32), and
 //! never a NaN or an infinity. The batches are random, from real renders, the golden features,
 //! and extremes; the networks the default, saturated, dead and the smallest and largest sizes.
+mod common;
+use common::{gpu, root};
 
-use dhoit_runtime::gpu::Gpu;
 use dhoit_runtime::importance::FEATURES;
 use dhoit_runtime::mlp::{self, Mlp};
 use dhoit_runtime::rng::Rng;
-use std::path::Path;
-use std::sync::OnceLock;
 
 type Rows = Vec<[f32; FEATURES]>;
-
-fn gpu() -> Option<&'static Gpu> {
-    static GPU: OnceLock<Option<Gpu>> = OnceLock::new();
-    GPU.get_or_init(|| match Gpu::new() {
-        Ok(g) => Some(g),
-        Err(e) if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") => {
-            eprintln!("SKIPPED (DHOIT_SKIP_GPU=1): the GPU side of the equivalence: {e}");
-            None
-        }
-        Err(e) => panic!("{e} (set DHOIT_SKIP_GPU=1 to skip the GPU tests explicitly)"),
-    })
-    .as_ref()
-}
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
 
 fn default_weights() -> Mlp {
     Mlp::load(&root().join("data/weights.safetensors")).unwrap()

@@ -3,10 +3,12 @@
 //! return a value or an error and never panic or hang. A bounded number of cases runs in CI;
 //! `make fuzz` runs many more (PROPTEST_CASES). Inputs that once broke a parser are kept in
 //! tests/corpus/ and replayed by `the_regression_corpus_parses_without_panicking`.
+mod common;
+use common::root;
 
 use dhoit_runtime::scene::{self, Opacity};
 use proptest::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::OnceLock;
 
 /// One edit of a byte string.
@@ -83,10 +85,6 @@ fn apply(mut b: Vec<u8>, edits: &[Edit]) -> Vec<u8> {
         }
     }
     b
-}
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
 /// Valid seeds, built once: a small built-in scene as GLB, the default weights, the golden

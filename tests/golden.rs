@@ -1,14 +1,12 @@
 //! Regression of the committed default weights: their predictions on the committed golden
 //! features must not change, through the runtime's twin, burn, and the `predict` command.
 
+mod common;
+use common::{gpu, max_abs_diff, root, temp_dir};
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::tensors::{self, Entry};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
 
 fn golden() -> (Mlp, Vec<[f32; 12]>, Vec<f32>) {
     let mlp =
@@ -24,14 +22,6 @@ fn golden() -> (Mlp, Vec<[f32; 12]>, Vec<f32>) {
         rows.len()
     );
     (mlp, rows, pred)
-}
-
-fn max_diff(a: &[f32], b: &[f32]) -> f32 {
-    assert_eq!(a.len(), b.len());
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f32::max)
 }
 
 /// Fails, naming the rows that moved beyond `tolerance`, by how much, and how to regenerate the
@@ -94,14 +84,7 @@ fn burn_reproduces_the_golden_predictions() {
 #[test]
 fn the_gpu_reproduces_the_golden_predictions() {
     let (mlp, rows, pred) = golden();
-    let g = match dhoit_runtime::gpu::Gpu::new() {
-        Ok(g) => g,
-        Err(e) if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") => {
-            eprintln!("SKIPPED (DHOIT_SKIP_GPU=1): golden predictions on the GPU: {e}");
-            return;
-        }
-        Err(e) => panic!("{e} (set DHOIT_SKIP_GPU=1 to skip the GPU tests explicitly)"),
-    };
+    let Some(g) = gpu() else { return };
     hold_to_golden("the GPU", &g.predict(&mlp, &rows).unwrap(), &pred, 1e-5);
 }
 
@@ -115,17 +98,10 @@ fn a_moved_prediction_is_reported_with_its_rows() {
     assert!(msg.contains("make golden"), "{msg}");
 }
 
-fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("dhoit-golden-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
 #[test]
 fn the_predict_command_reproduces_them_and_refuses_bad_features() {
     let (_, rows, pred) = golden();
-    let dir = temp("predict");
+    let dir = temp_dir("golden-predict");
     let out = dir.join("pred.safetensors");
     let run = |input: &Path, out: &Path| {
         Command::new(env!("CARGO_BIN_EXE_dhoit"))
@@ -146,7 +122,7 @@ fn the_predict_command_reproduces_them_and_refuses_bad_features() {
         .unwrap()
         .f32("importance", Some(&[rows.len()]))
         .unwrap();
-    assert!(max_diff(&got, &pred) <= 1e-6);
+    assert!(max_abs_diff(&got, &pred) <= 1e-6);
     // Non-finite and misshapen features: a clear error, no output.
     let mut flat: Vec<f32> = rows.iter().flatten().copied().collect();
     flat[5] = f32::NAN;
@@ -175,7 +151,7 @@ fn the_predict_command_reproduces_them_and_refuses_bad_features() {
 
 #[test]
 fn dkb_renders_with_the_default_weights() {
-    let dir = temp("dkb");
+    let dir = temp_dir("golden-dkb");
     let out = dir.join("dkb.png");
     let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
         .current_dir(root())

@@ -72,8 +72,8 @@ pub fn error_curve_sorted(frags: &[Fragment], bg: [f32; 3], out: &mut [f64]) {
     for k in (0..n).rev() {
         let f = &frags[k];
         let a = f.rgba[3] as f64;
-        for i in 0..3 {
-            sca[i] += f.rgba[i] as f64 * a;
+        for (s, ch) in sca.iter_mut().zip(f.rgba) {
+            *s += ch as f64 * a;
         }
         sa += a;
         let t = (n - k) as i32;
@@ -93,8 +93,8 @@ pub fn error_curve_sorted(frags: &[Fragment], bg: [f32; 3], out: &mut [f64]) {
         if k < n {
             let f = &frags[k];
             let a = f.rgba[3] as f64;
-            for i in 0..3 {
-                core[i] += tr * a * f.rgba[i] as f64;
+            for (ci, ch) in core.iter_mut().zip(f.rgba) {
+                *ci += tr * a * ch as f64;
             }
             tr *= 1.0 - a;
         }
@@ -350,8 +350,8 @@ fn repair_dp(
         let curve = curves.curve(p);
         let mut next = vec![inf; cap + 1];
         let mut pick = vec![0u32; cap + 1];
-        for c in 0..=cap {
-            if best[c] == inf {
+        for (c, &bc) in best.iter().enumerate() {
+            if bc == inf {
                 continue;
             }
             for extra in 0..=(hi - lo) as usize {
@@ -359,7 +359,7 @@ fn repair_dp(
                 if c2 > cap {
                     break;
                 }
-                let v = best[c] + curve[lo as usize + extra];
+                let v = bc + curve[lo as usize + extra];
                 if v < next[c2] {
                     next[c2] = v;
                     pick[c2] = extra as u32;

@@ -64,8 +64,8 @@ pub fn exact_sorted(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
     let mut t = 1.0f32;
     for f in frags {
         let a = f.rgba[3];
-        for i in 0..3 {
-            c[i] += t * a * f.rgba[i];
+        for (ci, fi) in c.iter_mut().zip(f.rgba) {
+            *ci += t * a * fi;
         }
         t *= 1.0 - a;
     }
@@ -96,8 +96,8 @@ pub struct Tail {
 impl Tail {
     pub fn add(&mut self, rgba: [f32; 4]) {
         let a = to_unorm8(rgba[3]);
-        for i in 0..3 {
-            self.sum_ca[i] = self.sum_ca[i].wrapping_add(to_unorm8(rgba[i]) * a);
+        for (s, ch) in self.sum_ca.iter_mut().zip(rgba) {
+            *s = s.wrapping_add(to_unorm8(ch) * a);
         }
         self.sum_a = self.sum_a.wrapping_add(a);
         self.count += 1;
@@ -129,8 +129,8 @@ pub fn hybrid_sorted(frags: &[Fragment], k: usize, bg: [f32; 3]) -> [f32; 3] {
     let mut t = 1.0f32;
     for f in &frags[..k] {
         let a = f.rgba[3];
-        for i in 0..3 {
-            c[i] += t * a * f.rgba[i];
+        for (ci, fi) in c.iter_mut().zip(f.rgba) {
+            *ci += t * a * fi;
         }
         t *= 1.0 - a;
     }
@@ -185,8 +185,8 @@ pub fn mlab_pixel(frags: &[Fragment], m: usize, bg: [f32; 3]) -> [f32; 3] {
     let mut c = [0.0f32; 3];
     let mut t = 1.0f32;
     for r in &rows[..m] {
-        for i in 0..3 {
-            c[i] += t * r.a[i];
+        for (ci, ri) in c.iter_mut().zip(r.a) {
+            *ci += t * ri;
         }
         t *= r.t;
     }
@@ -241,9 +241,9 @@ pub fn capture(fl: &FragmentLists, k: &[u32]) -> (Vec<u64>, Vec<u32>) {
     let mut keys = Vec::with_capacity(k.iter().map(|&x| x as usize).sum());
     let mut tails = Vec::with_capacity(5 * fl.pixel_count());
     let mut frags = Vec::new();
-    for p in 0..fl.pixel_count() {
+    for (p, &kp) in k.iter().enumerate().take(fl.pixel_count()) {
         fl.sorted_into(p, &mut frags);
-        let kp = k[p] as usize;
+        let kp = kp as usize;
         keys.extend((0..kp).map(|i| {
             frags
                 .get(i)

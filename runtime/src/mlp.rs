@@ -122,6 +122,9 @@ impl Mlp {
     }
 
     /// [`Mlp::forward`] with a reusable scratch buffer for the hidden activations.
+    // Indexed loops on purpose: the twin of mlp.wgsl's mlp_forward, operation for operation
+    // and in the same order of sums, so the GPU can be held to it within float rounding.
+    #[allow(clippy::needless_range_loop)]
     pub fn forward_with(&self, f: &[f32; FEATURES], scratch: &mut Vec<f32>) -> f32 {
         let (n1, n2) = (self.h1, self.h2);
         scratch.clear();

@@ -16,8 +16,8 @@ fn direct_hybrid(f: &[Fragment], k: usize) -> [f64; 3] {
     let mut t = 1.0;
     for x in &f[..k] {
         let a = x.rgba[3] as f64;
-        for i in 0..3 {
-            c[i] += t * a * x.rgba[i] as f64;
+        for (ci, ch) in c.iter_mut().zip(x.rgba) {
+            *ci += t * a * ch as f64;
         }
         t *= 1.0 - a;
     }
@@ -71,13 +71,13 @@ fn error_curves_match_direct_computation() {
         if n >= 1 {
             assert!(curve[n - 1] <= 1e-24, "n {n}: e(n - 1) = {}", curve[n - 1]);
         }
-        for k in 0..=n {
+        assert_eq!(curve.len(), n + 1);
+        for (k, &ck) in curve.iter().enumerate() {
             let h = direct_hybrid(&f, k);
             let e: f64 = (0..3).map(|i| (exact[i] - h[i]).powi(2)).sum();
             assert!(
-                (curve[k] - e).abs() <= 1e-12 + 1e-9 * e,
-                "n {n} k {k}: {} vs {e}",
-                curve[k]
+                (ck - e).abs() <= 1e-12 + 1e-9 * e,
+                "n {n} k {k}: {ck} vs {e}"
             );
             // And the f32 compositor agrees on the colour difference.
             let h32 = hybrid_sorted(&f, k, BG);
@@ -125,14 +125,14 @@ fn exhaustive(curves: &ErrorCurves, f: u64) -> f64 {
     for (p, &n) in counts.iter().enumerate() {
         let mut next = vec![f64::INFINITY; target + 1];
         let range = if n == 0 { 0..=0 } else { lo..=n };
-        for used in 0..=target {
-            if best[used].is_infinite() {
+        for (used, &bu) in best.iter().enumerate() {
+            if bu.is_infinite() {
                 continue;
             }
             for kp in range.clone() {
                 let u = used + kp as usize;
                 if u <= target {
-                    next[u] = next[u].min(best[used] + curves.curve(p)[kp as usize]);
+                    next[u] = next[u].min(bu + curves.curve(p)[kp as usize]);
                 }
             }
         }
@@ -298,9 +298,9 @@ fn reference_fill(w: &[u32], counts: &[u32], f: u64, additive: bool) -> Vec<u32>
     };
     let mut k: Vec<u32> = (0..counts.len()).map(|p| k_at(t, p)).collect();
     let mut left = target - k.iter().map(|&x| x as u64).sum::<u64>();
-    for p in 0..counts.len() {
-        if left > 0 && k_at(t + 1, p) > k[p] {
-            k[p] += 1;
+    for (p, kp) in k.iter_mut().enumerate() {
+        if left > 0 && k_at(t + 1, p) > *kp {
+            *kp += 1;
             left -= 1;
         }
     }

@@ -60,13 +60,8 @@ fn cpu_and_gpu_agree(g: &Gpu, s: &Scene, (w, h): (u32, u32), budget: Budget, wha
             Err(dhoit_runtime::Error::Budget(..)) if m == Method::Fkb => continue,
             Err(e) => panic!("{what}, {}: {e}", m.name()),
         };
-        let f = FragmentBudget::Slots(cpu.budget_fragments);
-        let slots = match m {
-            Method::Abuffer => None,
-            Method::Vkb => Some(Slots::Vkb(VkbParams::default(), f)),
-            Method::Dkb => Some(Slots::Dkb(&mlp, f)),
-            _ => Some(Slots::PerPixel(&cpu.k)),
-        };
+        // The mapping render, compare and bench use.
+        let slots = Slots::for_method(m, &cpu, &opts()).unwrap();
         let gpu = g.render(s, &cam, w, h, BG, slots).unwrap();
         let d = gpu.image.max_abs_diff(&cpu.image);
         assert!(

@@ -214,11 +214,12 @@ fn vkb_importance_follows_its_factors() {
         ..VkbParams::default()
     };
     let imp = importance::vkb_importance(&fl, &quiet);
-    for p in 0..fl.pixel_count() {
+    assert_eq!(imp.len(), fl.pixel_count());
+    for (p, &i) in imp.iter().enumerate() {
         if fl.count(p) == 0 {
-            assert_eq!(imp[p], 0.0);
+            assert_eq!(i, 0.0);
         } else {
-            assert!(imp[p] > 0.0 && imp[p] <= 1.0, "{}", imp[p]);
+            assert!(i > 0.0 && i <= 1.0, "{i}");
         }
     }
     // The noise term moves importance by at most lambda / 2.

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::gpu;
+use common::{gpu, max_abs_diff};
 
 use dhoit_runtime::alloc;
 use dhoit_runtime::budget::{self, Budget};
@@ -494,14 +494,6 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             assert_eq!(v.allocated_bytes, expect, "{name} vkb bytes");
         }
     }
-}
-
-fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
-    assert_eq!(a.len(), b.len());
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f32::max)
 }
 
 /// k from the GPU's importance equals the CPU allocation of it; slots, tail and image equal the

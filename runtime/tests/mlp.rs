@@ -1,13 +1,15 @@
 //! The MLP's CPU twin and the weights contract.
 
+mod common;
+
 use dhoit_runtime::mlp::{H1, H2, Mlp};
 use std::collections::HashMap;
 use std::path::PathBuf;
 
+/// A file in this binary's temporary folder (made once).
 fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("dhoit-mlp-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    static DIR: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| common::temp_dir("mlp")).join(name)
 }
 
 /// The same network as matrix products in f64: an independent implementation.

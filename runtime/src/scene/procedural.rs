@@ -325,7 +325,7 @@ fn gear(s: &mut Scene, centre: Vec3, axis: Vec3, radius: f32, width: f32, teeth:
 }
 
 /// A torus section (a bent pipe) around `centre` in the plane of `u`, `v`.
-fn pipe(s: &mut Scene, centre: Vec3, u: Vec3, v: Vec3, bend: f32, r: f32, arc: f32, c: [f32; 4]) {
+fn pipe(s: &mut Scene, centre: Vec3, [u, v]: [Vec3; 2], bend: f32, r: f32, arc: f32, c: [f32; 4]) {
     let (segs, ring) = (24u32, 10u32);
     let point = |i: u32, j: u32| {
         let a = arc * i as f32 / segs as f32;
@@ -455,8 +455,7 @@ fn cad(s: &mut Scene, rng: &mut Rng) {
         pipe(
             s,
             centre,
-            u,
-            v,
+            [u, v],
             rng.range(0.2, 0.4),
             0.04,
             rng.range(1.5, 4.0),
