@@ -143,12 +143,17 @@ pub fn run(a: BenchArgs) -> Result<()> {
     Ok(())
 }
 
-/// Per-pass GPU times (timestamp queries) and whole-frame times per method, fastest of
-/// `repeat` frames; an error entry when no suitable adapter exists.
+/// Per-pass GPU times (timestamp queries) and whole-frame times per method: one cold frame,
+/// then the medians of `repeat` steady-state frames (buffers reused, the image read back); an
+/// error entry when no suitable adapter exists.
 fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) -> serde_json::Value {
     use dhoit_runtime::gpu::{Gpu, Slots};
     let mut gpu = match Gpu::new() {
-        Ok(g) => g,
+        Ok(mut g) => {
+            // Steady-state frames read back their image only.
+            g.diagnostics = false;
+            g
+        }
         Err(e) => {
             eprintln!("GPU bench skipped: {e}");
             return serde_json::json!({ "error": e.to_string() });
@@ -172,7 +177,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
             let fl = raster::rasterize(&s, &cam, w, h)?;
             // Each method's k and F as `render --device gpu` gives them (Slots::for_method on
-            // the CPU renderer's frame), so a byte budget benches the k render uses.
+            // the CPU's allocation), so a byte budget benches the k render uses.
             let options = Options {
                 weights: Some(mlp),
                 ..Options::new(budget, [1.0; 3])
@@ -186,9 +191,9 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 Method::Vkb,
                 Method::Dkb,
             ];
-            let cpu: Vec<dhoit_runtime::frame::Frame> = order
+            let cpu: Vec<dhoit_runtime::frame::Allocation> = order
                 .iter()
-                .map(|&m| renderer.render(m))
+                .map(|&m| renderer.allocate_for_gpu(m))
                 .collect::<Result<_, _>>()?;
             // DKB once more with the network run on every covered pixel, even where k is forced.
             let runs = order
@@ -199,31 +204,54 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             for (label, method, frame) in runs {
                 let slots = Slots::for_method(method, frame, &options)?;
                 gpu.skip_forced = label != "dkb_no_skip";
-                // Fastest frame by GPU time: (GPU ms, wall ms, frame).
-                let mut best: Option<(f64, f64, dhoit_runtime::gpu::GpuFrame)> = None;
-                for _ in 0..repeat.max(1) {
+                // One cold frame (its buffers are created), then `repeat` steady-state frames
+                // that reuse them and read back only the image: medians of those.
+                let timed = |gpu: &dhoit_runtime::gpu::Gpu| -> Result<(f64, f64, _)> {
                     let t = Instant::now();
                     let g = gpu.render(&s, &cam, w, h, [1.0; 3], slots)?;
                     let wall = t.elapsed().as_secs_f64() * 1e3;
                     let passes: f64 = g.pass_ms.iter().map(|p| p.1).sum();
-                    if best.as_ref().is_none_or(|b| passes < b.0) {
-                        best = Some((passes, wall, g));
-                    }
+                    Ok((passes, wall, g))
+                };
+                let (_, cold_wall, _) = timed(&gpu)?;
+                let created = gpu.buffers_created();
+                let mut steady = Vec::new();
+                for _ in 0..repeat.max(1) {
+                    steady.push(timed(&gpu)?);
                 }
-                let (passes, wall, g) = best.expect("one frame");
-                let (per, bytes) = (g.pass_ms, g.allocated_bytes);
-                let per: serde_json::Map<String, serde_json::Value> = per
+                let created_steady = gpu.buffers_created() - created;
+                let median = |mut v: Vec<f64>| {
+                    v.sort_by(f64::total_cmp);
+                    v[v.len() / 2]
+                };
+                let gpu_ms = median(steady.iter().map(|f| f.0).collect());
+                let wall_ms = median(steady.iter().map(|f| f.1).collect());
+                // Per-pass times of the fastest steady frame.
+                let fastest = steady
+                    .into_iter()
+                    .min_by(|a, b| a.0.total_cmp(&b.0))
+                    .expect("one frame")
+                    .2;
+                let per: serde_json::Map<String, serde_json::Value> = fastest
+                    .pass_ms
                     .into_iter()
                     .map(|(n, ms)| (n.to_string(), ms.into()))
                     .collect();
                 methods.insert(
                     label.into(),
-                    serde_json::json!({"passes_ms": per, "frame_gpu_ms": passes, "frame_wall_ms": wall, "allocated_bytes": bytes}),
+                    serde_json::json!({
+                        "passes_ms": per, "frame_gpu_ms": gpu_ms, "frame_wall_ms": wall_ms,
+                        "wall_over_gpu": wall_ms / gpu_ms, "first_frame_wall_ms": cold_wall,
+                        "steady_frames": repeat.max(1),
+                        "buffers_created_in_steady_frames": created_steady,
+                        "allocated_bytes": fastest.allocated_bytes,
+                    }),
                 );
             }
             gpu.skip_forced = true;
-            let ratio = methods["dkb"]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN)
-                / methods["vkb"]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
+            let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
+            let ratio = ms("dkb") / ms("vkb");
+            let over_abuffer = ms("dkb") / ms("abuffer");
             let imp = |m: &str| {
                 methods[m]["passes_ms"]["importance"]
                     .as_f64()
@@ -244,11 +272,16 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 })
                 .count();
             eprintln!(
-                "GPU {name}: DKB/VKB frame time {ratio:.2}; importance pass {skip:.2} ms skipping {:.1}% forced pixels, {all:.2} ms without",
+                "GPU {name}: DKB/VKB frame time {ratio:.2}, DKB/A-buffer {over_abuffer:.2}; DKB wall/GPU {:.2} steady (first frame {:.0} ms wall); importance pass {skip:.2} ms skipping {:.1}% forced pixels, {all:.2} ms without",
+                methods["dkb"]["wall_over_gpu"].as_f64().unwrap_or(f64::NAN),
+                methods["dkb"]["first_frame_wall_ms"]
+                    .as_f64()
+                    .unwrap_or(f64::NAN),
                 100.0 * forced as f64 / covered.max(1) as f64
             );
             Ok(serde_json::json!({
-                "scene": name, "fragments": fl.fragment_count(), "dkb_over_vkb": ratio, "methods": methods,
+                "scene": name, "fragments": fl.fragment_count(), "dkb_over_vkb": ratio,
+                "dkb_over_abuffer": over_abuffer, "methods": methods,
                 "importance_skip_forced": {
                     "forced_share_of_covered": forced as f64 / covered.max(1) as f64,
                     "importance_ms": skip, "importance_ms_no_skip": all, "saved": 1.0 - skip / all,

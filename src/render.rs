@@ -5,7 +5,7 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 use dhoit_runtime::budget::{Budget, format_bytes};
 use dhoit_runtime::dump;
-use dhoit_runtime::frame::{Equal, Method, Options, Renderer};
+use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
 use dhoit_runtime::gpu::{Gpu, Slots};
 use dhoit_runtime::image_io;
 use dhoit_runtime::scene::Camera;
@@ -67,42 +67,55 @@ pub fn run(a: RenderArgs) -> Result<()> {
         equal: a.equal,
         ..Options::new(budget, a.common.background)
     };
-    let mut f = Renderer::new(&fl, options).render(method)?;
+    let renderer = Renderer::new(&fl, options);
     let mut gpu_fragments = None;
-    if a.device == Device::Gpu {
-        let gpu = Gpu::new()?;
-        eprintln!("GPU: {}", gpu.adapter);
-        let (w, h) = (fl.width, fl.height);
-        let cam = Camera::orbit(&scene, a.view, a.common.views, w, h);
-        let cpu = f.clone();
-        let slots = Slots::for_method(method, &cpu, &options)?;
-        let g = gpu.render(&scene, &cam, w, h, a.common.background, slots)?;
-        let passes: Vec<String> = g
-            .pass_ms
-            .iter()
-            .map(|(n, ms)| format!("{n} {ms:.2} ms"))
-            .collect();
-        println!("GPU passes: {}", passes.join(", "));
-        f.image = g.image;
-        f.allocated_bytes = g.allocated_bytes;
-        if let Some((_, bases, _)) = &g.slots {
+    let f = match a.device {
+        Device::Cpu => renderer.render(method)?,
+        Device::Gpu => {
+            // The CPU only decides what the GPU cannot (F, and k for FKB, MLAB and the CPU-only
+            // allocations); nothing is composited on the CPU.
+            let cpu = renderer.allocate_for_gpu(method)?;
+            let gpu = Gpu::new()?;
+            eprintln!("GPU: {}", gpu.adapter);
+            let (w, h) = (fl.width, fl.height);
+            let cam = Camera::orbit(&scene, a.view, a.common.views, w, h);
+            let slots = Slots::for_method(method, &cpu, &options)?;
+            let g = gpu.render(&scene, &cam, w, h, a.common.background, slots)?;
+            let passes: Vec<String> = g
+                .pass_ms
+                .iter()
+                .map(|(n, ms)| format!("{n} {ms:.2} ms"))
+                .collect();
+            println!("GPU passes: {}", passes.join(", "));
             // The GPU's own k (VKB and DKB allocate on the device); what it captures follows.
-            f.k = bases.windows(2).map(|b| b[1] - b[0]).collect();
-            f.fragments_captured =
-                f.k.iter()
-                    .zip(fl.counts())
-                    .map(|(&k, n)| k.min(n) as u64)
-                    .sum();
-        }
-        gpu_fragments = match g.fragments {
-            Some(fr) => Some(fr),
-            None if a.dump.is_some() => {
-                gpu.render(&scene, &cam, w, h, a.common.background, None)?
-                    .fragments
+            let k: Vec<u32> = match &g.slots {
+                Some((_, bases, _)) => bases.windows(2).map(|b| b[1] - b[0]).collect(),
+                None => cpu.k.clone(),
+            };
+            let captured = k.iter().zip(fl.counts()).map(|(&k, n)| k.min(n) as u64);
+            gpu_fragments = match g.fragments {
+                Some(fr) => Some(fr),
+                None if a.dump.is_some() => {
+                    gpu.render(&scene, &cam, w, h, a.common.background, None)?
+                        .fragments
+                }
+                None => None,
+            };
+            Frame {
+                method,
+                image: g.image,
+                fragments_captured: captured.sum(),
+                k,
+                budget_bytes: cpu.budget_bytes,
+                budget_fragments: cpu.budget_fragments,
+                allocated_bytes: g.allocated_bytes,
+                fragments_total: fl.fragment_count() as u64,
+                allocation_ms: cpu.allocation_ms,
+                composite_ms: 0.0,
+                optimal: cpu.optimal,
             }
-            None => None,
-        };
-    }
+        }
+    };
     image_io::write_png(&a.out, &f.image)?;
     println!(
         "{}: k up to {}, {:.1}% of {} fragments captured, F(M) = {}, budget {}, allocated {} -> {}",

@@ -120,6 +120,21 @@ pub struct Frame {
     pub optimal: Option<OptimalReport>,
 }
 
+/// A method's k for one frame and the budget behind it, before compositing.
+#[derive(Clone, Debug)]
+pub struct Allocation {
+    pub method: Method,
+    /// Slots per pixel (MLAB: rows); empty when the GPU allocates ([`Renderer::allocate_for_gpu`]).
+    pub k: Vec<u32>,
+    /// The budget M in bytes.
+    pub budget_bytes: u64,
+    /// F(M).
+    pub budget_fragments: u64,
+    pub allocation_ms: f64,
+    /// The optimal allocation's report (optimal method only).
+    pub optimal: Option<OptimalReport>,
+}
+
 /// What the methods of one frame share, so that their errors compare.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Equal {
@@ -224,7 +239,19 @@ impl<'a> Renderer<'a> {
         }
     }
 
-    pub fn render(&self, method: Method) -> Result<Frame> {
+    /// The method's k on the CPU, with the budget figures, before compositing.
+    pub fn allocate(&self, method: Method) -> Result<Allocation> {
+        self.allocate_with(method, true)
+    }
+
+    /// What the GPU needs from the CPU to render `method` (see `gpu::Slots::for_method`): the
+    /// budget and F, and k only where the GPU cannot compute it itself (VKB and DKB allocate
+    /// on the device: their k is left empty, no CPU time spent on it).
+    pub fn allocate_for_gpu(&self, method: Method) -> Result<Allocation> {
+        self.allocate_with(method, !matches!(method, Method::Vkb | Method::Dkb))
+    }
+
+    fn allocate_with(&self, method: Method, cpu_k: bool) -> Result<Allocation> {
         let fl = self.fragments;
         let opts = &self.options;
         let pixels = fl.pixel_count() as u64;
@@ -253,9 +280,10 @@ impl<'a> Renderer<'a> {
         };
         let mut optimal = None;
         let k = match method {
-            Method::Abuffer => counts.clone(),
+            Method::Abuffer => counts,
             Method::Fkb => uniform_k("fkb")?,
             Method::Mlab => uniform_k("mlab")?,
+            Method::Vkb | Method::Dkb if !cpu_k => Vec::new(),
             Method::Vkb => {
                 let imp = importance::vkb_importance(fl, &opts.vkb);
                 alloc::allocate(&imp, &counts, alloc::Target::RelativeK, f)
@@ -275,11 +303,27 @@ impl<'a> Renderer<'a> {
             Method::GreedyPaper => alloc::greedy(self.curves(), f, GreedyKey::NewError),
             Method::GreedyIncrease => alloc::greedy(self.curves(), f, GreedyKey::Increase),
         };
-        let allocation_ms = t0.elapsed().as_secs_f64() * 1e3;
+        Ok(Allocation {
+            method,
+            k,
+            budget_bytes,
+            budget_fragments: f,
+            allocation_ms: t0.elapsed().as_secs_f64() * 1e3,
+            optimal,
+        })
+    }
+
+    /// Composites an allocation of this frame on the CPU.
+    pub fn composite(&self, a: Allocation) -> Frame {
+        let fl = self.fragments;
+        let pixels = fl.pixel_count() as u64;
+        let counts = fl.counts();
+        let method = a.method;
+        let k = a.k;
         let slots: u64 = k.iter().map(|&x| x as u64).sum();
         let captured: u64 = k.iter().zip(&counts).map(|(&a, &b)| a.min(b) as u64).sum();
         let t1 = Instant::now();
-        let bg = opts.background;
+        let bg = self.options.background;
         let image = match method {
             Method::Abuffer => composite::composite(fl, Composite::Exact, bg),
             Method::Mlab => composite::composite(fl, Composite::Mlab(k[0] as usize), bg),
@@ -291,19 +335,23 @@ impl<'a> Renderer<'a> {
             Method::Fkb | Method::Mlab => k[0] as u64 * pixels,
             _ => slots,
         };
-        Ok(Frame {
+        Frame {
             method,
             image,
-            allocated_bytes: layout.allocated_bytes(pixels, allocated_slots),
+            allocated_bytes: method.layout().allocated_bytes(pixels, allocated_slots),
             k,
-            budget_bytes,
-            budget_fragments: f,
-            fragments_total: total,
+            budget_bytes: a.budget_bytes,
+            budget_fragments: a.budget_fragments,
+            fragments_total: fl.fragment_count() as u64,
             fragments_captured: captured,
-            allocation_ms,
+            allocation_ms: a.allocation_ms,
             composite_ms,
-            optimal,
-        })
+            optimal: a.optimal,
+        }
+    }
+
+    pub fn render(&self, method: Method) -> Result<Frame> {
+        Ok(self.composite(self.allocate(method)?))
     }
 }
 

@@ -19,7 +19,7 @@ use crate::budget::{self, Budget, FragmentBudget};
 use crate::composite::Image;
 use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
-use crate::frame::{Equal, Frame, Method, Options};
+use crate::frame::{Allocation, Equal, Method, Options};
 use crate::importance::{PixelStats, VkbParams};
 use crate::mlp::Mlp;
 use crate::scene::{Camera, Scene};
@@ -47,6 +47,77 @@ pub struct Gpu {
     /// Whether DKB's importance pass skips the network where k does not depend on it (on by
     /// default; the bench turns it off to show the time saved). The images are the same.
     pub skip_forced: bool,
+    /// Whether a frame reads back what the tests compare besides the image (the A-buffer's
+    /// fragments, the k-buffer's slots and tails, importance and statistics): on by default;
+    /// off, a frame reads back its image only (the bench's steady-state frames).
+    pub diagnostics: bool,
+    /// Buffers of earlier frames, by label, reused when a frame asks for one of the same size
+    /// and usage (cleared first, as a new buffer is), so a steady stream of frames creates
+    /// none. Frames take their buffers out and put them back when done, so concurrent frames
+    /// never share one.
+    pool: std::sync::Mutex<std::collections::HashMap<String, wgpu::Buffer>>,
+    /// Timestamp query sets of earlier frames.
+    query_sets: std::sync::Mutex<Vec<wgpu::QuerySet>>,
+    /// Buffers created for frames since the device opened (reused ones not counted).
+    created: std::sync::atomic::AtomicU64,
+}
+
+/// Most buffers the pool keeps (beyond, a returned buffer is dropped).
+const POOL_MAX: usize = 64;
+/// Timestamped passes a frame has room for.
+const TIMED_PASSES: u32 = 16;
+
+impl Gpu {
+    /// A buffer for a frame: the pooled one under `key` when its size and usage match (cleared
+    /// through `clear` when given, since a reused buffer holds the last frame's data), else a
+    /// new one (zeroed by wgpu).
+    fn acquire(
+        &self,
+        key: &str,
+        size: u64,
+        usage: wgpu::BufferUsages,
+        clear: Option<&mut Option<wgpu::CommandEncoder>>,
+    ) -> wgpu::Buffer {
+        let pooled = self
+            .pool
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(key);
+        match pooled {
+            Some(b) if b.size() == size && b.usage() == usage => {
+                if let Some(enc) = clear {
+                    enc.get_or_insert_with(|| {
+                        self.device.create_command_encoder(&Default::default())
+                    })
+                    .clear_buffer(&b, 0, None);
+                }
+                b
+            }
+            _ => {
+                self.created
+                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(key),
+                    size,
+                    usage,
+                    mapped_at_creation: false,
+                })
+            }
+        }
+    }
+
+    /// Buffers created for frames so far: a frame like the one before creates none.
+    pub fn buffers_created(&self) -> u64 {
+        self.created.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Puts a frame's buffer back for the next frame.
+    fn release(&self, key: String, buffer: wgpu::Buffer) {
+        let mut pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
+        if pool.len() < POOL_MAX || pool.contains_key(&key) {
+            pool.insert(key, buffer);
+        }
+    }
 }
 
 struct Pipelines {
@@ -126,6 +197,10 @@ impl Gpu {
             adapter: adapter_name,
             pipelines,
             skip_forced: true,
+            diagnostics: true,
+            pool: Default::default(),
+            query_sets: Default::default(),
+            created: Default::default(),
         })
     }
 }
@@ -255,16 +330,16 @@ pub enum Slots<'a> {
 }
 
 impl<'a> Slots<'a> {
-    /// How the GPU renders `method` for the frame the CPU renderer made with `options`
-    /// (`cpu`, from [`crate::frame::Renderer::render`]): FKB and MLAB with the CPU's k; VKB
-    /// and DKB allocating on the device at the CPU's F (a share of the fragments at equal F
-    /// stays a share, resolved from the GPU's own count); every allocation only the CPU makes
-    /// (optimal, the greedies) uploaded as per-pixel k; `None` for the A-buffer. The one
-    /// method-to-slots mapping: render, compare and bench all use it, so a method gets the
+    /// How the GPU renders `method` for the allocation the CPU made with `options` (`cpu`,
+    /// from [`crate::frame::Renderer::allocate_for_gpu`] or `allocate`): FKB and MLAB with the
+    /// CPU's k; VKB and DKB allocating on the device at the CPU's F (a share of the fragments
+    /// at equal F stays a share, resolved from the GPU's own count); every allocation only the
+    /// CPU makes (optimal, the greedies) uploaded as per-pixel k; `None` for the A-buffer. The
+    /// one method-to-slots mapping: render, bench and the tests use it, so a method gets the
     /// same k whichever command renders it.
     pub fn for_method(
         method: Method,
-        cpu: &'a Frame,
+        cpu: &'a Allocation,
         options: &Options<'a>,
     ) -> Result<Option<Slots<'a>>> {
         let budget = match options.budget {
@@ -396,9 +471,43 @@ struct FrameBuffers<'a> {
     allocated: u64,
     /// The prefix sum's block totals, created on first use and shared by every scan.
     scan_blocks: Option<wgpu::Buffer>,
+    /// The buffers this frame took (pool key, buffer), put back when it ends.
+    taken: Vec<(String, wgpu::Buffer)>,
+    /// Clears of reused buffers, submitted before the frame's next commands.
+    clears: Option<wgpu::CommandEncoder>,
 }
 
-impl FrameBuffers<'_> {
+impl<'a> FrameBuffers<'a> {
+    fn new(gpu: &'a Gpu) -> Self {
+        FrameBuffers {
+            gpu,
+            allocated: 0,
+            scan_blocks: None,
+            taken: Vec::new(),
+            clears: None,
+        }
+    }
+
+    /// A pooled buffer; a label asked for twice in one frame gets two buffers.
+    fn take(
+        &mut self,
+        label: &str,
+        size: u64,
+        usage: wgpu::BufferUsages,
+        zero: bool,
+    ) -> wgpu::Buffer {
+        let nth = self
+            .taken
+            .iter()
+            .filter(|(k, _)| k.rsplit_once('#').map(|(l, _)| l) == Some(label))
+            .count();
+        let key = format!("{label}#{nth}");
+        let clears = if zero { Some(&mut self.clears) } else { None };
+        let b = self.gpu.acquire(&key, size, usage, clears);
+        self.taken.push((key, b.clone()));
+        b
+    }
+
     /// A storage buffer of `size` bytes (at least 16), counted in the frame's allocation when
     /// `counted`; an error naming the buffer when the device cannot bind one that large.
     fn storage(&mut self, label: &str, size: u64, counted: bool) -> Result<wgpu::Buffer> {
@@ -418,15 +527,13 @@ impl FrameBuffers<'_> {
         if counted {
             self.allocated += size;
         }
-        Ok(self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        }))
+        let usage = wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST;
+        Ok(self.take(label, size, usage, true))
     }
+
+    /// A buffer holding `bytes` (zero-padded to at least 16 bytes, a multiple of 4).
     fn init(
         &mut self,
         label: &str,
@@ -437,24 +544,47 @@ impl FrameBuffers<'_> {
         if counted {
             self.allocated += bytes.len() as u64;
         }
+        let size = (bytes.len() as u64).max(16).next_multiple_of(4);
+        let usage = usage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let b = self.take(label, size, usage, false);
+        if bytes.len() as u64 == size {
+            self.gpu.queue.write_buffer(&b, 0, bytes);
+        } else {
+            let mut padded = bytes.to_vec();
+            padded.resize(size as usize, 0);
+            self.gpu.queue.write_buffer(&b, 0, &padded);
+        }
+        b
+    }
+
+    /// Submits `enc` (after the clears of the buffers taken since the last submission) and
+    /// starts a new encoder in its place.
+    fn submit(&mut self, enc: &mut wgpu::CommandEncoder) {
+        let done = std::mem::replace(
+            enc,
+            self.gpu.device.create_command_encoder(&Default::default()),
+        );
+        let clears = self.clears.take().map(|c| c.finish());
         self.gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytes,
-                usage: usage | wgpu::BufferUsages::COPY_SRC,
-            })
+            .queue
+            .submit(clears.into_iter().chain([done.finish()]));
+    }
+}
+
+impl Drop for FrameBuffers<'_> {
+    fn drop(&mut self) {
+        for (key, b) in self.taken.drain(..) {
+            self.gpu.release(key, b);
+        }
     }
 }
 
 fn read_back(gpu: &Gpu, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>> {
     let size = bytes.max(4).next_multiple_of(4);
-    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("readback"),
-        size,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
+    // Staging buffers are pooled by size (the image's is the same every frame).
+    let key = format!("readback {size}");
+    let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
+    let staging = gpu.acquire(&key, size, usage, None);
     let mut enc = gpu.device.create_command_encoder(&Default::default());
     enc.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
     gpu.queue.submit([enc.finish()]);
@@ -473,6 +603,8 @@ fn read_back(gpu: &Gpu, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>> {
             message: e.to_string(),
         })?
         .to_vec();
+    staging.unmap();
+    gpu.release(key, staging);
     Ok(data[..bytes as usize].to_vec())
 }
 
@@ -483,22 +615,49 @@ fn u32s(bytes: &[u8]) -> Vec<u32> {
         .collect()
 }
 
-/// Timestamp queries around each pass.
-struct Timer {
-    set: wgpu::QuerySet,
+/// Timestamp queries around each pass (room for [`TIMED_PASSES`]; the set is reused by the
+/// next frame).
+struct Timer<'a> {
+    gpu: &'a Gpu,
+    set: Option<wgpu::QuerySet>,
     names: std::cell::RefCell<Vec<&'static str>>,
 }
 
-impl Timer {
-    fn new(gpu: &Gpu, passes: u32) -> Timer {
-        Timer {
-            set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+impl Drop for Timer<'_> {
+    fn drop(&mut self) {
+        if let Some(set) = self.set.take() {
+            let mut sets = self
+                .gpu
+                .query_sets
+                .lock()
+                .unwrap_or_else(|e| e.into_inner());
+            sets.push(set);
+        }
+    }
+}
+
+impl<'a> Timer<'a> {
+    fn new(gpu: &'a Gpu) -> Timer<'a> {
+        let pooled = gpu
+            .query_sets
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .pop();
+        let set = pooled.unwrap_or_else(|| {
+            gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("timestamps"),
                 ty: wgpu::QueryType::Timestamp,
-                count: 2 * passes,
-            }),
+                count: 2 * TIMED_PASSES,
+            })
+        });
+        Timer {
+            gpu,
+            set: Some(set),
             names: Default::default(),
         }
+    }
+    fn set(&self) -> &wgpu::QuerySet {
+        self.set.as_ref().expect("held until the timer is dropped")
     }
     fn next(&self, name: &'static str) -> (u32, u32) {
         let mut names = self.names.borrow_mut();
@@ -509,16 +668,15 @@ impl Timer {
     fn read(&self, gpu: &Gpu) -> Result<Vec<(&'static str, f64)>> {
         let names = self.names.borrow();
         let n = 2 * names.len() as u64;
-        let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("timestamps.resolve"),
-            size: 8 * n,
-            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let key = format!("timestamps.resolve {n}");
+        let usage = wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC;
+        let buf = gpu.acquire(&key, 8 * n, usage, None);
         let mut enc = gpu.device.create_command_encoder(&Default::default());
-        enc.resolve_query_set(&self.set, 0..n as u32, &buf, 0);
+        enc.resolve_query_set(self.set(), 0..n as u32, &buf, 0);
         gpu.queue.submit([enc.finish()]);
-        let raw = read_back(gpu, &buf, 8 * n)?;
+        let raw = read_back(gpu, &buf, 8 * n);
+        gpu.release(key, buf);
+        let raw = raw?;
         let ticks: Vec<u64> = raw
             .chunks_exact(8)
             .map(|c| u64::from_le_bytes(c.try_into().expect("8")))
@@ -537,7 +695,7 @@ impl Timer {
 /// The frame's shared bindings and the pass timer: every pass is one call.
 struct Passes<'a> {
     gpu: &'a Gpu,
-    timer: &'a Timer,
+    timer: &'a Timer<'a>,
     /// params, positions, colours: group 0 of every geometry pass.
     geometry: [&'a wgpu::Buffer; 3],
     target: &'a wgpu::TextureView,
@@ -572,7 +730,7 @@ impl Passes<'_> {
             })],
             depth_stencil_attachment: None,
             timestamp_writes: Some(wgpu::RenderPassTimestampWrites {
-                query_set: &self.timer.set,
+                query_set: self.timer.set(),
                 beginning_of_pass_write_index: Some(b),
                 end_of_pass_write_index: Some(e),
             }),
@@ -600,7 +758,7 @@ impl Passes<'_> {
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(name),
             timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
-                query_set: &self.timer.set,
+                query_set: self.timer.set(),
                 beginning_of_pass_write_index: Some(b),
                 end_of_pass_write_index: Some(e),
             }),
@@ -639,7 +797,7 @@ impl Passes<'_> {
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("prefix sum"),
             timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
-                query_set: &self.timer.set,
+                query_set: self.timer.set(),
                 beginning_of_pass_write_index: Some(b),
                 end_of_pass_write_index: Some(e),
             }),
@@ -715,7 +873,7 @@ impl Passes<'_> {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("allocation"),
                 timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
-                    query_set: &self.timer.set,
+                    query_set: self.timer.set(),
                     beginning_of_pass_write_index: Some(tb),
                     end_of_pass_write_index: Some(te),
                 }),
@@ -740,7 +898,7 @@ impl Passes<'_> {
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("allocation apply"),
             timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
-                query_set: &self.timer.set,
+                query_set: self.timer.set(),
                 beginning_of_pass_write_index: Some(tb),
                 end_of_pass_write_index: Some(te),
             }),
@@ -749,15 +907,6 @@ impl Passes<'_> {
         pass.set_pipeline(&a.apply);
         pass.dispatch_workgroups(gx, gy, 1);
         Ok(())
-    }
-
-    /// Submits what is recorded and starts a new encoder.
-    fn submit(&self, enc: &mut wgpu::CommandEncoder) {
-        let done = std::mem::replace(
-            enc,
-            self.gpu.device.create_command_encoder(&Default::default()),
-        );
-        self.gpu.queue.submit([done.finish()]);
     }
 }
 
@@ -820,11 +969,7 @@ impl Gpu {
         }
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let mut fb = FrameBuffers {
-            gpu: self,
-            allocated: 0,
-            scan_blocks: None,
-        };
+        let mut fb = FrameBuffers::new(self);
         let (budget, vkb, k_uniform) = match slots {
             Some(Slots::Importance(_, _, f) | Slots::Dkb(_, f)) => (f, VkbParams::default(), 0),
             Some(Slots::Vkb(v, f)) => (f, v, 0),
@@ -898,7 +1043,7 @@ impl Gpu {
             view_formats: &[],
         });
         let view = target.create_view(&Default::default());
-        let timer = Timer::new(self, 16);
+        let timer = Timer::new(self);
         let passes = Passes {
             gpu: self,
             timer: &timer,
@@ -923,7 +1068,7 @@ impl Gpu {
                 let cursor = fb.storage("abuf.cursor", 4 * px, true)?;
                 passes.draw(&mut enc, &p.count, &[&counts], "count");
                 passes.prefix_sum(&mut enc, &mut fb, &counts, &offsets)?;
-                passes.submit(&mut enc);
+                fb.submit(&mut enc);
                 // Exact memory: the pool holds what the count found.
                 let total = u32s(&read_back(self, &offsets, 4 * (px + 1))?)[pixels as usize] as u64;
                 let fragments = fb.storage("abuf.fragments", 16 * total, true)?;
@@ -943,19 +1088,21 @@ impl Gpu {
                     &[params_buf, &offsets, &fragments, &image, &status],
                     name,
                 );
-                passes.submit(&mut enc);
-                let mut fl = FragmentLists {
-                    width,
-                    height,
-                    offsets: u32s(&read_back(self, &offsets, 4 * (px + 1))?),
-                    ..Default::default()
-                };
-                for f in u32s(&read_back(self, &fragments, 16 * total)?).chunks_exact(4) {
-                    fl.depth.push(f32::from_bits(f[0]));
-                    fl.rgba.push(crate::fragment::unpack_rgba8(f[1]));
-                    fl.primitive.push(f[2]);
+                fb.submit(&mut enc);
+                if self.diagnostics {
+                    let mut fl = FragmentLists {
+                        width,
+                        height,
+                        offsets: u32s(&read_back(self, &offsets, 4 * (px + 1))?),
+                        ..Default::default()
+                    };
+                    for f in u32s(&read_back(self, &fragments, 16 * total)?).chunks_exact(4) {
+                        fl.depth.push(f32::from_bits(f[0]));
+                        fl.rgba.push(crate::fragment::unpack_rgba8(f[1]));
+                        fl.primitive.push(f[2]);
+                    }
+                    out.fragments = Some(fl);
                 }
-                out.fragments = Some(fl);
                 out.status = Some(status);
             }
             Some(s) => {
@@ -1115,7 +1262,7 @@ impl Gpu {
                             kind,
                         )?;
                         passes.prefix_sum(&mut enc, &mut fb, &k_of, &base)?;
-                        passes.submit(&mut enc);
+                        fb.submit(&mut enc);
                         let total =
                             u32s(&read_back(self, &base, 4 * (px + 1))?)[pixels as usize] as u64;
                         out.counts_buf = Some(counts);
@@ -1147,16 +1294,18 @@ impl Gpu {
                     &[params_buf, &k_of, &base, &slots_buf, &tail, &image],
                     "resolve",
                 );
-                passes.submit(&mut enc);
-                let bases = match s {
-                    Slots::Uniform(k) => (0..=pixels).map(|q| q * k.max(1)).collect(),
-                    _ => u32s(&read_back(self, &base, 4 * (px + 1))?),
-                };
-                out.slots = Some((
-                    read_u64s(self, &slots_buf, slot_count, true)?,
-                    bases,
-                    u32s(&read_back(self, &tail, 20 * px)?),
-                ));
+                fb.submit(&mut enc);
+                if self.diagnostics {
+                    let bases = match s {
+                        Slots::Uniform(k) => (0..=pixels).map(|q| q * k.max(1)).collect(),
+                        _ => u32s(&read_back(self, &base, 4 * (px + 1))?),
+                    };
+                    out.slots = Some((
+                        read_u64s(self, &slots_buf, slot_count, true)?,
+                        bases,
+                        u32s(&read_back(self, &tail, 20 * px)?),
+                    ));
+                }
             }
         }
         if let Some(status) = &out.status
@@ -1169,7 +1318,11 @@ impl Gpu {
         }
         let img = u32s(&read_back(self, &image, 16 * px)?);
         let pass_ms = timer.read(self)?;
-        let (importance, stats, vkb_nearest) = out.statistics(self, px)?;
+        let (importance, stats, vkb_nearest) = if self.diagnostics {
+            out.statistics(self, px)?
+        } else {
+            (None, None, None)
+        };
         if let Some(e) = pollster::block_on(oom.pop()) {
             return Err(GpuError::OutOfMemory(e.to_string()).into());
         }

@@ -54,14 +54,16 @@ fn cpu_and_gpu_agree(g: &Gpu, s: &Scene, (w, h): (u32, u32), budget: Budget, wha
         Method::Vkb,
         Method::Dkb,
     ] {
-        let cpu = match frame::render(&fl, m, opts()) {
-            Ok(f) => f,
+        let renderer = frame::Renderer::new(&fl, opts());
+        let allocation = match renderer.allocate(m) {
+            Ok(a) => a,
             // FKB needs a slot for every pixel: below that it is refused (documented).
             Err(dhoit_runtime::Error::Budget(..)) if m == Method::Fkb => continue,
             Err(e) => panic!("{what}, {}: {e}", m.name()),
         };
-        // The mapping render, compare and bench use.
-        let slots = Slots::for_method(m, &cpu, &opts()).unwrap();
+        // The mapping render and bench use.
+        let slots = Slots::for_method(m, &allocation, &opts()).unwrap();
+        let cpu = renderer.composite(allocation.clone());
         let gpu = g.render(s, &cam, w, h, BG, slots).unwrap();
         let d = gpu.image.max_abs_diff(&cpu.image);
         assert!(

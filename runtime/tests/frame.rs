@@ -251,3 +251,36 @@ fn dkb_without_weights_is_a_clear_error() {
         .unwrap_err();
     assert!(e.to_string().contains("weights"), "{e}");
 }
+
+/// `render` is `allocate` then `composite`; what the GPU path asks of the CPU has the same
+/// budget and F, with k left to the device for VKB and DKB and computed for everything else.
+#[test]
+fn the_gpu_path_gets_the_cpus_budget_without_its_composite() {
+    let fl = frame("foliage", 64, 48);
+    let mlp = Mlp::random(3);
+    for budget in ["1.5fpp", "30%", "40KiB"] {
+        let options = Options {
+            weights: Some(&mlp),
+            ..Options::new(Budget::parse(budget).unwrap(), [1.0; 3])
+        };
+        let r = Renderer::new(&fl, options);
+        for m in Method::ALL {
+            let (Ok(full), Ok(gpu)) = (r.allocate(m), r.allocate_for_gpu(m)) else {
+                // FKB and MLAB refuse a budget without a slot a pixel, both ways alike.
+                assert!(r.allocate(m).is_err() && r.allocate_for_gpu(m).is_err());
+                continue;
+            };
+            assert_eq!(gpu.budget_fragments, full.budget_fragments, "{m} {budget}");
+            assert_eq!(gpu.budget_bytes, full.budget_bytes, "{m} {budget}");
+            if matches!(m, Method::Vkb | Method::Dkb) {
+                assert!(gpu.k.is_empty(), "{m}: k is the device's to compute");
+            } else {
+                assert_eq!(gpu.k, full.k, "{m} {budget}");
+            }
+            let rendered = r.render(m).unwrap();
+            let composed = r.composite(full);
+            assert_eq!(rendered.image, composed.image, "{m} {budget}");
+            assert_eq!(rendered.k, composed.k);
+        }
+    }
+}

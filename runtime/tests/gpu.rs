@@ -203,6 +203,78 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
     }
 }
 
+/// A persistent renderer: frames take their buffers from the ones earlier frames left, so a
+/// repeated frame creates none, and what an earlier frame left in them never shows: every image
+/// is bit for bit the image of the same frame rendered before, whatever came between.
+#[test]
+fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
+    if gpu().is_none() {
+        return;
+    }
+    // A device of its own: the shared one's pool serves tests running in parallel.
+    let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
+    g.diagnostics = false;
+    let (w, h) = (96, 72);
+    let (a, cam_a) = frame("particles", 0, w, h);
+    let (b, cam_b) = frame("shells", 1, w, h);
+    let k: Vec<u32> = (0..w * h).map(|p| 1 + p % 4).collect();
+    let mlp = dhoit_runtime::mlp::Mlp::random(7);
+    let f = (2 * w * h) as u64;
+    let vkb = dhoit_runtime::importance::VkbParams::default();
+    let slots = [
+        None,
+        Some(Slots::Uniform(2)),
+        Some(Slots::PerPixel(&k)),
+        Some(Slots::Mlab(4)),
+        Some(Slots::Vkb(vkb, f.into())),
+        Some(Slots::Dkb(&mlp, f.into())),
+    ];
+    let bits = |g: &dhoit_runtime::gpu::Gpu, s: &Scene, cam: &Camera, slots: Option<Slots>| {
+        let frame = g.render(s, cam, w, h, BG, slots).unwrap();
+        let v: Vec<u32> = frame
+            .image
+            .data
+            .iter()
+            .flatten()
+            .map(|v| v.to_bits())
+            .collect();
+        v
+    };
+    for (i, &sl) in slots.iter().enumerate() {
+        let first = bits(&g, &a, &cam_a, sl);
+        let created = g.buffers_created();
+        assert!(
+            bits(&g, &a, &cam_a, sl) == first,
+            "method {i}: the repeated frame differs"
+        );
+        assert_eq!(
+            g.buffers_created(),
+            created,
+            "method {i}: the repeated frame created buffers"
+        );
+        // Another scene in the same buffers, then the first again.
+        let other = bits(&g, &b, &cam_b, sl);
+        assert!(other != first, "method {i}: two scenes, one image");
+        assert!(
+            bits(&g, &a, &cam_a, sl) == first,
+            "method {i}: the last frame showed through"
+        );
+    }
+    // With the readbacks the tests use on, the same image again.
+    g.diagnostics = true;
+    let with = g.render(&a, &cam_a, w, h, BG, slots[5]).unwrap();
+    assert!(with.slots.is_some() && with.stats.is_some());
+    let bits_with: Vec<u32> = with
+        .image
+        .data
+        .iter()
+        .flatten()
+        .map(|v| v.to_bits())
+        .collect();
+    g.diagnostics = false;
+    assert!(bits(&g, &a, &cam_a, slots[5]) == bits_with);
+}
+
 #[test]
 fn allocated_bytes_never_exceed_the_budget() {
     let Some(g) = gpu() else { return };
