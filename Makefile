@@ -70,7 +70,7 @@ trade: build
 	if [ -d "$(DHOIT_SCENES)" ]; then \
 	  for f in $(EVAL_REAL); do scenes="$$scenes,$(DHOIT_SCENES)/$$f"; done; \
 	else echo "trade: no real scenes at $(DHOIT_SCENES): the built-in scenes only" >&2; fi; \
-	$(RUN) trade --scene "$$scenes" --view 1,3 --res 320x240 --budget $(TRADE_BUDGETS) --time-res 640x480 --out out/trade --summary docs
+	$(RUN) trade --scene "$$scenes" --view 1,3 --res 320x240 --budget $(TRADE_BUDGETS) --precision f32,f16 --time-res 640x480 --out out/trade --summary docs
 
 ## Long structured fuzzing of every file parser (glTF/GLB, weights, features, dumps): the
 ## property tests of tests/fuzz.rs with FUZZ_CASES mutated inputs each (CI runs 128). Keep

@@ -1,17 +1,34 @@
 // The importance network (mlp::Mlp::forward, operation for operation), shared by the DKB
 // importance pass and the batch prediction pass: 12 standardised inputs, ReLU, ReLU, and the
 // sigmoid (mlp::squash: 0 where the sums overflowed both ways). Its weights sit in a uniform
-// buffer at binding 1, laid out in floats as: h1, h2, unused, unused, mean[12], std[12],
+// buffer at binding 1, in 32-bit words: h1, h2, unused, unused, mean[12], std[12] (f32), then
 // fc1.weight [12][h1], fc1.bias[h1], fc2.weight[h1][h2], fc2.bias[h2], out.weight[h2],
-// out.bias (wgsl::mlp_uniform).
+// out.bias: f32 words, or with F16_WEIGHTS binary16 values two to a word (wgsl::mlp_uniform).
 
-@group(0) @binding(1) var<uniform> weights: array<vec4<f32>, MLP_VEC4S>;
+@group(0) @binding(1) var<uniform> weights: array<vec4<u32>, MLP_VEC4S>;
 
 // Standardised inputs are clamped to MAX_STANDARDISED, so no sum overflows; the pass holds a
 // second hidden layer of at most MAX_H2 units (both from the prelude).
 
-fn w(i: u32) -> f32 {
+// The weights' precision (mlp::Precision): the f16 variant of a pass is built with this true.
+const F16_WEIGHTS: bool = false;
+
+fn word(i: u32) -> u32 {
     return weights[i >> 2u][i & 3u];
+}
+
+// An f32 of the header (sizes, standardisation).
+fn w(i: u32) -> f32 {
+    return bitcast<f32>(word(i));
+}
+
+// A weight or bias, `i` its index in the f32 layout: unpacked exactly from binary16 at f16.
+fn param(i: u32) -> f32 {
+    if (F16_WEIGHTS) {
+        let j = i - MLP_W1_AT;
+        return unpack2x16float(word(MLP_W1_AT + (j >> 1u)))[j & 1u];
+    }
+    return w(i);
 }
 
 fn mlp_forward(features: array<f32, 12>) -> f32 {
@@ -32,23 +49,23 @@ fn mlp_forward(features: array<f32, 12>) -> f32 {
     // output unit is the same as the CPU twin's).
     var acc2: array<f32, MAX_H2>;
     for (var j = 0u; j < h2; j++) {
-        acc2[j] = w(b2 + j);
+        acc2[j] = param(b2 + j);
     }
     for (var i = 0u; i < h1; i++) {
-        var acc = w(b1 + i);
+        var acc = param(b1 + i);
         for (var f = 0u; f < 12u; f++) {
-            acc += x[f] * w(w1 + f * h1 + i);
+            acc += x[f] * param(w1 + f * h1 + i);
         }
         let a = max(acc, 0.0);
         if (a != 0.0) {
             for (var j = 0u; j < h2; j++) {
-                acc2[j] += a * w(w2 + i * h2 + j);
+                acc2[j] += a * param(w2 + i * h2 + j);
             }
         }
     }
-    var out = w(b3);
+    var out = param(b3);
     for (var j = 0u; j < h2; j++) {
-        out += max(acc2[j], 0.0) * w(w3 + j);
+        out += max(acc2[j], 0.0) * param(w3 + j);
     }
     let s = 1.0 / (1.0 + exp(-out));
     return select(0.0, s, s == s);

@@ -5,7 +5,7 @@ use anyhow::{Result, bail};
 use clap::Args;
 use dhoit_runtime::fragment::FragmentLists;
 use dhoit_runtime::image_io;
-use dhoit_runtime::mlp::Mlp;
+use dhoit_runtime::mlp::{Mlp, Precision};
 use dhoit_runtime::raster::{self, Resolution};
 use dhoit_runtime::scene::{self, Camera, Opacity, Scene};
 use std::path::{Path, PathBuf};
@@ -106,8 +106,12 @@ pub(crate) fn rasterize_view(
     Ok((fl, ms))
 }
 
-/// The weights DKB uses: --weights, else the default file when present.
-pub(crate) fn load_weights(a: &ViewArgs, required: bool) -> Result<Option<Mlp>> {
+/// The weights DKB uses: --weights, else the default file when present, at `precision`.
+pub(crate) fn load_weights(
+    a: &ViewArgs,
+    precision: Precision,
+    required: bool,
+) -> Result<Option<Mlp>> {
     let path = match &a.weights {
         Some(p) => p.clone(),
         None => match default_weights() {
@@ -118,7 +122,7 @@ pub(crate) fn load_weights(a: &ViewArgs, required: bool) -> Result<Option<Mlp>> 
             None => return Ok(None),
         },
     };
-    Ok(Some(Mlp::load(&path)?))
+    Ok(Some(Mlp::load(&path)?.at_precision(precision)?))
 }
 
 /// The k each pixel uses, min(k, n).

@@ -8,6 +8,7 @@ use clap::Args;
 use dhoit_runtime::budget::{Budget, format_bytes};
 use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
 use dhoit_runtime::image_io;
+use dhoit_runtime::mlp::Precision;
 use dhoit_runtime::scene;
 use dhoit_train::plot::{Montage, Scale};
 use serde::Serialize;
@@ -49,6 +50,10 @@ pub struct CompareArgs {
     /// M, each method's F from its own layout; the paper's protocol).
     #[arg(long, default_value = "slots")]
     equal: Equal,
+    /// Precision of the network's weights for dkb: f32, or f16 (binary16 weights, f32
+    /// arithmetic; the CPU twin computes with the same rounded weights).
+    #[arg(long, default_value = "f32")]
+    precision: Precision,
     #[command(flatten)]
     common: ViewArgs,
     /// Directory for images, report.json, report.md and summary.md.
@@ -433,6 +438,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
     }
     let weights = load_weights(
         &a.common,
+        a.precision,
         !a.methods.is_empty() && methods.contains(&Method::Dkb),
     )?;
     if weights.is_none() && methods.contains(&Method::Dkb) {

@@ -8,6 +8,7 @@ use dhoit_runtime::dump;
 use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
 use dhoit_runtime::gpu::{Gpu, Slots};
 use dhoit_runtime::image_io;
+use dhoit_runtime::mlp::Precision;
 use dhoit_runtime::scene::Camera;
 use std::path::PathBuf;
 
@@ -46,6 +47,10 @@ pub struct RenderArgs {
     /// needs for that F).
     #[arg(long, default_value = "slots")]
     equal: Equal,
+    /// Precision of the network's weights for dkb: f32, or f16 (binary16 weights, f32
+    /// arithmetic; the CPU twin computes with the same rounded weights).
+    #[arg(long, default_value = "f32")]
+    precision: Precision,
     /// Output image (sRGB PNG).
     #[arg(long)]
     out: PathBuf,
@@ -59,7 +64,7 @@ pub struct RenderArgs {
 
 pub fn run(a: RenderArgs) -> Result<()> {
     let (method, budget) = (a.method, a.budget);
-    let weights = load_weights(&a.common, method == Method::Dkb)?;
+    let weights = load_weights(&a.common, a.precision, method == Method::Dkb)?;
     let scene = load_scene(&a.scene, &a.common)?;
     let (fl, _) = rasterize_view(&scene, a.view, &a.common)?;
     let options = Options {

@@ -8,7 +8,7 @@ use clap::Args;
 use dhoit_runtime::budget::Budget;
 use dhoit_runtime::frame::{Method, Options, Renderer};
 use dhoit_runtime::image_io;
-use dhoit_runtime::mlp::{self, Mlp};
+use dhoit_runtime::mlp::{self, Mlp, Precision};
 use dhoit_runtime::raster::Resolution;
 use dhoit_runtime::scene::{self, Camera};
 use dhoit_train::cli::bar;
@@ -20,21 +20,6 @@ use std::time::Instant;
 
 /// Where the shipped networks of other sizes live: `data/nets/H1-H2/weights.safetensors`.
 pub const NETS_DIR: &str = "data/nets";
-
-/// The precisions the importance pass offers (the GPU network computes in f32; the CPU twin
-/// and burn too).
-pub const PRECISIONS: [&str; 1] = ["f32"];
-
-fn parse_precision(s: &str) -> std::result::Result<String, String> {
-    if PRECISIONS.contains(&s) {
-        Ok(s.to_string())
-    } else {
-        Err(format!(
-            "precision '{s}' is not offered by the importance pass (it offers {})",
-            PRECISIONS.join(", ")
-        ))
-    }
-}
 
 /// What times the importance pass.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -85,9 +70,10 @@ pub struct TradeArgs {
     scenes: Vec<String>,
     #[command(flatten)]
     quality: QualityArgs,
-    /// Precisions of the network, comma separated (the importance pass offers f32).
-    #[arg(long, value_delimiter = ',', default_value = "f32", value_parser = parse_precision)]
-    precision: Vec<String>,
+    /// Precisions of the network's weights, comma separated: f32, f16 (binary16 weights,
+    /// f32 arithmetic).
+    #[arg(long, value_delimiter = ',', default_value = "f32")]
+    precision: Vec<Precision>,
     /// Resolution the importance pass is timed at (view 0, the first budget).
     #[arg(long, default_value = "640x480")]
     time_res: Resolution,
@@ -125,11 +111,14 @@ pub struct FitArgs {
 }
 
 /// A network to compare.
+#[derive(Clone)]
 struct Net {
     path: PathBuf,
     label: String,
+    /// At `precision`.
     mlp: Mlp,
     parameters: usize,
+    precision: Precision,
 }
 
 fn networks(q: &QualityArgs) -> Result<Vec<Net>> {
@@ -167,6 +156,7 @@ fn networks(q: &QualityArgs) -> Result<Vec<Net>> {
                 label: format!("{}-{}", m.h1, m.h2),
                 parameters: mlp::parameter_count(m.h1, m.h2),
                 mlp: m,
+                precision: Precision::F32,
             })
         })
         .collect::<Result<_>>()?;
@@ -272,12 +262,12 @@ pub struct Point {
     pub frames: Vec<Measure>,
 }
 
-fn point(n: &Net, precision: &str, time_ms: f64, m: Vec<Measure>) -> Point {
+fn point(n: &Net, time_ms: f64, m: Vec<Measure>) -> Point {
     Point {
         network: n.label.clone(),
         weights: n.path.display().to_string(),
         parameters: n.parameters,
-        precision: precision.to_string(),
+        precision: n.precision.to_string(),
         time_ms,
         mse: geomean(m.iter().map(|x| x.mse)),
         flip: m.iter().map(|x| x.flip).sum::<f64>() / m.len().max(1) as f64,
@@ -406,7 +396,18 @@ enum TimedFrame {
 }
 
 pub fn trade(a: TradeArgs) -> Result<()> {
-    let nets = networks(&a.quality)?;
+    // Every network at every precision: quality and time of each.
+    let nets: Vec<Net> = networks(&a.quality)?
+        .into_iter()
+        .flat_map(|n| a.precision.iter().map(move |&p| (n.clone(), p)))
+        .map(|(n, p)| -> Result<Net> {
+            Ok(Net {
+                mlp: n.mlp.at_precision(p)?,
+                precision: p,
+                ..n
+            })
+        })
+        .collect::<Result<_>>()?;
     let time_res = (a.time_res.width, a.time_res.height);
     let first_budget = *a
         .quality
@@ -425,13 +426,13 @@ pub fn trade(a: TradeArgs) -> Result<()> {
         },
     };
     eprintln!(
-        "trade: {} networks ({}) x {} precisions on {} scenes; importance pass timed by {}",
-        nets.len(),
+        "trade: {} networks at {} precisions ({}) on {} scenes; importance pass timed by {}",
+        nets.len() / a.precision.len().max(1),
+        a.precision.len(),
         nets.iter()
-            .map(|n| n.label.as_str())
+            .map(|n| format!("{} {}", n.label, n.precision))
             .collect::<Vec<_>>()
             .join(", "),
-        a.precision.len(),
         a.scenes.len(),
         timer.name()
     );
@@ -446,10 +447,8 @@ pub fn trade(a: TradeArgs) -> Result<()> {
         let frame = timer.frame(&s, time_res, first_budget)?;
         let mut points = Vec::new();
         for (n, m) in nets.iter().zip(measures) {
-            for p in &a.precision {
-                let t = pb.suspend(|| timer.time(&s, &frame, &n.mlp, a.repeat))?;
-                points.push(point(n, p, t, m.clone()));
-            }
+            let t = pb.suspend(|| timer.time(&s, &frame, &n.mlp, a.repeat))?;
+            points.push(point(n, t, m));
         }
         mark_front(&mut points);
         scenes.push(SceneTrade {
@@ -492,7 +491,7 @@ pub fn trade(a: TradeArgs) -> Result<()> {
         views: a.quality.view_list.clone(),
         budgets: a.quality.budgets.iter().map(Budget::to_string).collect(),
         networks: nets.iter().map(|n| n.label.clone()).collect(),
-        precisions: a.precision.clone(),
+        precisions: a.precision.iter().map(Precision::to_string).collect(),
         scenes,
     };
     let (text, md) = tables(&report);

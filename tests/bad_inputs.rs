@@ -930,7 +930,7 @@ fn trade_and_fit_refuse_what_they_cannot_do() {
             "--scene",
             "cad",
             "--precision",
-            "f16",
+            "f8",
             "--out",
             "{out}",
         ],

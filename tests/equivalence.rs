@@ -232,3 +232,68 @@ fn every_loader_refuses_weights_at_the_limits() {
     let e = Mlp::load(&path).unwrap_err().to_string();
     assert!(e.contains("at most"), "{e}");
 }
+
+/// The f16 network (weights and biases rounded to binary16, f32 arithmetic) is one function on
+/// burn, the twin and the GPU's f16 pass, within 1e-5, never NaN; against the f32 network its
+/// importance moves by at most `mlp::F16_BOUND` on every batch; and a weight binary16 cannot
+/// hold is refused by name.
+#[test]
+fn the_f16_network_is_one_function_within_its_bound_of_f32() {
+    use dhoit_runtime::mlp::Precision;
+    let mut rng = Rng::new(21);
+    let golden =
+        dhoit_train::cli::read_features(&root().join("data/golden/features.safetensors")).unwrap();
+    let batches = [
+        ("random", random_rows(&mut rng, 4096)),
+        ("golden", golden),
+        ("particles render", frame_rows("particles")),
+        ("cad render", frame_rows("cad")),
+    ];
+    let sized = |h1, h2| {
+        let mut m = Mlp::random_sized(9, h1, h2);
+        m.mean = default_weights().mean;
+        m.std = default_weights().std;
+        m
+    };
+    let mut nets = vec![("default".to_string(), default_weights())];
+    for dir in ["16-8", "32-16", "64-32"] {
+        let path = root()
+            .join("data/nets")
+            .join(dir)
+            .join("weights.safetensors");
+        nets.push((dir.to_string(), Mlp::load(&path).unwrap()));
+    }
+    nets.push(("random 128-64".into(), sized(128, 64)));
+    let (mut worst_devices, mut worst_f32) = (0.0f32, Vec::new());
+    for (name, m) in &nets {
+        let h = m.at_precision(Precision::F16).unwrap();
+        assert_eq!(h.precision, Precision::F16);
+        assert!(
+            h.w2.iter().zip(&m.w2).any(|(a, b)| a != b),
+            "{name}: nothing rounded"
+        );
+        let mut worst = 0.0f32;
+        for (what, rows) in &batches {
+            worst_devices = worst_devices.max(spread(&h, rows, &format!("{name} f16, {what}")));
+            for (i, r) in rows.iter().enumerate() {
+                let d = (h.forward(r) - m.forward(r)).abs();
+                assert!(
+                    d <= mlp::F16_BOUND,
+                    "{name}, {what}, row {i}: f16 and f32 differ by {d} (bound {})",
+                    mlp::F16_BOUND
+                );
+                worst = worst.max(d);
+            }
+        }
+        spread(&h, &extreme_rows(&h), &format!("{name} f16, extremes"));
+        worst_f32.push((name.clone(), worst));
+    }
+    eprintln!(
+        "f16: burn, twin and GPU within {worst_devices:e}; largest |f16 - f32| per network: \
+         {worst_f32:?} (bound {})",
+        mlp::F16_BOUND
+    );
+    let big = edited(|m| m.w2[5] = 7e4);
+    let e = big.at_precision(Precision::F16).unwrap_err().to_string();
+    assert!(e.contains("fc2.weight[5]") && e.contains("f16"), "{e}");
+}

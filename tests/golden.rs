@@ -165,3 +165,48 @@ fn dkb_renders_with_the_default_weights() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.is_file());
 }
+
+/// `predict --precision f16` on every device: burn, the twin and the GPU's f16 pass write the
+/// same predictions (within 1e-5), within `mlp::F16_BOUND` of the f32 golden ones.
+#[test]
+fn f16_predictions_agree_on_every_device_and_stay_near_the_golden_ones() {
+    let (_, rows, pred) = golden();
+    let dir = temp_dir("golden-f16");
+    let mut devices = vec!["cpu", "twin"];
+    if !common::skip_gpu("f16 predictions on the GPU") {
+        devices.push("gpu");
+    }
+    let mut outs = Vec::new();
+    for device in devices {
+        let out = dir.join(format!("{device}.safetensors"));
+        let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
+            .args([
+                "predict",
+                "--precision",
+                "f16",
+                "--device",
+                device,
+                "--weights",
+            ])
+            .arg(root().join("data/weights.safetensors"))
+            .arg("--input")
+            .arg(root().join("data/golden/features.safetensors"))
+            .arg("--output")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let bytes = std::fs::read(&out).unwrap();
+        let file = tensors::File::parse(&bytes).unwrap();
+        assert_eq!(file.meta("precision").unwrap(), "f16");
+        let (_, got) = file.f32("importance", Some(&[rows.len()])).unwrap();
+        let d = max_abs_diff(&got, &pred);
+        assert!(d <= dhoit_runtime::mlp::F16_BOUND, "{device}: {d} from f32");
+        assert!(d > 0.0, "{device}: f16 changed nothing");
+        outs.push((device, got));
+    }
+    for (device, got) in &outs[1..] {
+        let d = max_abs_diff(got, &outs[0].1);
+        assert!(d <= 1e-5, "{device} and burn differ by {d} at f16");
+    }
+}

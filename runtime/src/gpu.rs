@@ -21,7 +21,7 @@ use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
 use crate::frame::{Allocation, Equal, Method, Options};
 use crate::importance::{PixelStats, VkbParams};
-use crate::mlp::Mlp;
+use crate::mlp::{Mlp, Precision};
 use crate::scene::{Camera, Scene};
 use crate::wgsl::{
     ALLOC_GROUP, ALLOC_STATE_WORDS, AllocParams, MLAB_MAX_ROWS, PIXEL_GROUP, Params, SEARCH_ROUNDS,
@@ -134,8 +134,10 @@ struct Pipelines {
     features: wgpu::RenderPipeline,
     totals: wgpu::ComputePipeline,
     importance_dkb: wgpu::ComputePipeline,
-    /// The same pass with SKIP_FORCED false ([`importance_dkb_all`]), once asked for.
-    importance_dkb_all: std::sync::OnceLock<wgpu::ComputePipeline>,
+    /// Variants of the network's passes (DKB importance, predict) with other constants: the
+    /// network on every covered pixel (SKIP_FORCED false), f16 weights; built when first asked
+    /// for ([`Gpu::network_pass`]).
+    variants: std::sync::Mutex<std::collections::HashMap<Variant, wgpu::ComputePipeline>>,
     predict: wgpu::ComputePipeline,
     vkb_count: wgpu::RenderPipeline,
     importance_vkb: wgpu::ComputePipeline,
@@ -232,15 +234,67 @@ fn compute_pipeline(
     })
 }
 
-/// DKB's importance pass with SKIP_FORCED false (the network on every covered pixel), for the
-/// bench's comparison: built on first use, not at start-up.
-fn importance_dkb_all(device: &wgpu::Device) -> wgpu::ComputePipeline {
-    let src = shaders::source("importance_dkb").expect("known pass");
-    let skip = "const SKIP_FORCED: bool = true;";
-    assert!(src.contains(skip), "importance_dkb declares {skip}");
-    let src = src.replace(skip, "const SKIP_FORCED: bool = false;");
-    let m = module_from(device, "importance_dkb_all", src);
-    compute_pipeline(device, "importance_dkb_all", &m, "main")
+/// A pass that runs the network, with its constants.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+struct Variant {
+    /// "importance_dkb" or "predict".
+    pass: &'static str,
+    skip_forced: bool,
+    precision: Precision,
+}
+
+impl Variant {
+    /// Its source: the pass's, with the constants it changes replaced.
+    fn source(self) -> String {
+        let mut src = shaders::source(self.pass).expect("known pass");
+        let mut set = |from: &str, to: &str| {
+            assert!(src.contains(from), "{} declares {from}", self.pass);
+            src = src.replace(from, to);
+        };
+        if !self.skip_forced {
+            set(
+                "const SKIP_FORCED: bool = true;",
+                "const SKIP_FORCED: bool = false;",
+            );
+        }
+        if self.precision == Precision::F16 {
+            set(
+                "const F16_WEIGHTS: bool = false;",
+                "const F16_WEIGHTS: bool = true;",
+            );
+        }
+        src
+    }
+}
+
+impl Gpu {
+    /// The pipeline of a network pass: the one built at start-up for the default constants
+    /// (skip forced pixels, f32), else its variant, built on first use.
+    fn network_pass(&self, v: Variant) -> wgpu::ComputePipeline {
+        let p = &self.pipelines;
+        match v {
+            Variant {
+                pass: "importance_dkb",
+                skip_forced: true,
+                precision: Precision::F32,
+            } => return p.importance_dkb.clone(),
+            Variant {
+                pass: "predict",
+                precision: Precision::F32,
+                ..
+            } => return p.predict.clone(),
+            _ => {}
+        }
+        let mut variants = p.variants.lock().unwrap_or_else(|e| e.into_inner());
+        variants
+            .entry(v)
+            .or_insert_with(|| {
+                let label = format!("{} {:?} {}", v.pass, v.skip_forced, v.precision);
+                let m = module_from(&self.device, &label, v.source());
+                compute_pipeline(&self.device, &label, &m, "main")
+            })
+            .clone()
+    }
 }
 
 impl Pipelines {
@@ -295,7 +349,7 @@ impl Pipelines {
             features: geometry("features"),
             totals: compute("totals"),
             importance_dkb: compute("importance_dkb"),
-            importance_dkb_all: std::sync::OnceLock::new(),
+            variants: Default::default(),
             predict: compute("predict"),
             vkb_count: geometry("vkb_count"),
             importance_vkb: compute("importance_vkb"),
@@ -420,7 +474,11 @@ impl Gpu {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             });
-            let pl = &self.pipelines.predict;
+            let pl = &self.network_pass(Variant {
+                pass: "predict",
+                skip_forced: true,
+                precision: mlp.precision,
+            });
             let group = self.bind_at(
                 &pl.get_bind_group_layout(0),
                 &[(0, &params_buf), (1, &weights), (2, &input), (3, &output)],
@@ -1180,9 +1238,11 @@ impl Gpu {
                                 );
                                 // The nearest keys are read: a copy for the frame's statistics
                                 // (not counted), then the buffer holds the allocation's marks.
-                                let copy = fb.storage("vkb.nearest.readback", 8 * px, false)?;
-                                enc.copy_buffer_to_buffer(&nearest, 0, &copy, 0, 8 * px);
-                                out.vkb_nearest_buf = Some(copy);
+                                if self.diagnostics {
+                                    let copy = fb.storage("vkb.nearest.readback", 8 * px, false)?;
+                                    enc.copy_buffer_to_buffer(&nearest, 0, &copy, 0, 8 * px);
+                                    out.vkb_nearest_buf = Some(copy);
+                                }
                                 let kind = weight_kind(Target::RelativeK);
                                 (counts, imp, totals, kind, Some(nearest))
                             }
@@ -1214,31 +1274,32 @@ impl Gpu {
                                 );
                                 passes.dispatch(
                                     &mut enc,
-                                    if self.skip_forced {
-                                        &p.importance_dkb
-                                    } else {
-                                        p.importance_dkb_all
-                                            .get_or_init(|| importance_dkb_all(&self.device))
-                                    },
+                                    &self.network_pass(Variant {
+                                        pass: "importance_dkb",
+                                        skip_forced: self.skip_forced,
+                                        precision: mlp.precision,
+                                    }),
                                     &[params_buf, &weights, &counts, &keys, &sums, &totals, &imp],
                                     "importance",
                                 );
                                 // Copies for the frame's statistics (not counted), then the
                                 // buffers serve the tail and the image.
-                                let keys_copy =
-                                    fb.storage("features.keys.readback", 24 * px, false)?;
-                                let sums_copy =
-                                    fb.storage("features.color_sums.readback", 16 * px, false)?;
-                                enc.copy_buffer_to_buffer(&keys, 0, &keys_copy, 0, 24 * px);
-                                enc.copy_buffer_to_buffer(&sums, 0, &sums_copy, 0, 16 * px);
-                                out.stats_bufs = Some([keys_copy, sums_copy]);
+                                if self.diagnostics {
+                                    let keys_copy =
+                                        fb.storage("features.keys.readback", 24 * px, false)?;
+                                    let sums_copy =
+                                        fb.storage("features.color_sums.readback", 16 * px, false)?;
+                                    enc.copy_buffer_to_buffer(&keys, 0, &keys_copy, 0, 24 * px);
+                                    enc.copy_buffer_to_buffer(&sums, 0, &sums_copy, 0, 16 * px);
+                                    out.stats_bufs = Some([keys_copy, sums_copy]);
+                                }
                                 reuse_tail = Some(keys);
                                 reuse_image = Some(sums);
                                 (counts, imp, totals, weight_kind(mlp.target), None)
                             }
                             _ => unreachable!("handled above"),
                         };
-                        if matches!(s, Slots::Vkb(..) | Slots::Dkb(..)) {
+                        if self.diagnostics && matches!(s, Slots::Vkb(..) | Slots::Dkb(..)) {
                             // A readback copy (not counted, like the staging buffers): the
                             // allocation pass overwrites importance with its fixed point.
                             let copy = fb.storage("importance.readback", 4 * px, false)?;

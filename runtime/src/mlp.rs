@@ -86,6 +86,54 @@ pub struct Mlp {
     pub std: [f32; FEATURES],
     /// What the output means.
     pub target: Target,
+    /// How the deployed network stores its weights (see [`Mlp::at_precision`]).
+    pub precision: Precision,
+}
+
+/// How a deployed network stores its weights and biases. Arithmetic is f32 either way, and the
+/// standardisation (means, deviations) stays f32.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Precision {
+    #[default]
+    F32,
+    /// IEEE binary16, rounded to nearest even on the host: half the weights' bytes. The GPU
+    /// unpacks them exactly, so the CPU twin (f32 arithmetic on the rounded values) stays its
+    /// twin; against f32 the importance moves by at most [`F16_BOUND`] on the tests' batches.
+    F16,
+}
+
+/// The most the f16 network's output may differ from the f32 network's (importance in (0, 1)),
+/// held by the equivalence tests on the golden, random and rendered features.
+pub const F16_BOUND: f32 = 5e-3;
+
+impl Precision {
+    pub const ALL: [Precision; 2] = [Precision::F32, Precision::F16];
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::F32 => "f32",
+            Precision::F16 => "f16",
+        }
+    }
+}
+
+impl std::fmt::Display for Precision {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Precision {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Precision> {
+        Precision::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| {
+                Error::Invalid(format!(
+                    "precision '{s}' is not offered by the importance pass (it offers f32, f16)"
+                ))
+            })
+    }
 }
 
 impl Mlp {
@@ -113,7 +161,51 @@ impl Mlp {
             mean: [0.0; FEATURES],
             std: [1.0; FEATURES],
             target: Target::default(),
+            precision: Precision::F32,
         }
+    }
+
+    /// The network deployed at `p`: for f16, every weight and bias rounded to the nearest
+    /// binary16 value (ties to even), which the twin then computes with in f32, as the GPU
+    /// does. A weight beyond binary16's range (65,504) is refused, naming it.
+    pub fn at_precision(&self, p: Precision) -> Result<Mlp> {
+        let mut m = self.clone();
+        m.precision = p;
+        if p == Precision::F32 {
+            return Ok(m);
+        }
+        let round = |name: &str, v: &mut [f32]| -> Result<()> {
+            for (i, x) in v.iter_mut().enumerate() {
+                let h = half::f16::from_f32(*x);
+                if !h.is_finite() {
+                    return Err(Error::Invalid(format!(
+                        "{name}[{i}] = {x} is beyond f16's range (65504): this network cannot run at f16"
+                    )));
+                }
+                *x = h.to_f32();
+            }
+            Ok(())
+        };
+        round("fc1.weight", &mut m.w1)?;
+        round("fc1.bias", &mut m.b1)?;
+        round("fc2.weight", &mut m.w2)?;
+        round("fc2.bias", &mut m.b2)?;
+        round("out.weight", &mut m.w3)?;
+        round("out.bias", std::slice::from_mut(&mut m.b3))?;
+        Ok(m)
+    }
+
+    /// Weights and biases in the uniform's order (fc1 weight and bias, fc2 weight and bias, out
+    /// weight and bias).
+    pub fn parameters(&self) -> impl Iterator<Item = f32> + '_ {
+        self.w1
+            .iter()
+            .chain(&self.b1)
+            .chain(&self.w2)
+            .chain(&self.b2)
+            .chain(&self.w3)
+            .chain(std::iter::once(&self.b3))
+            .copied()
     }
 
     /// The network on one feature vector: importance in (0, 1).
@@ -330,6 +422,7 @@ impl Mlp {
             mean,
             std,
             target,
+            precision: Precision::F32,
         })
     }
 

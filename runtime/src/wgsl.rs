@@ -4,7 +4,7 @@
 //! without wgpu, and naga tests hold each layout to its WGSL declaration.
 
 use crate::budget;
-use crate::mlp::Mlp;
+use crate::mlp::{Mlp, Precision};
 
 /// WGSL sources, embedded at build time.
 pub mod shaders {
@@ -235,22 +235,35 @@ pub(crate) struct Params {
     pub(crate) _pad: [u32; 30],
 }
 
-/// The network's weights as the uniform `mlp.wgsl` reads: h1, h2, 0, 0, mean, std,
-/// fc1 weight and bias, fc2 weight and bias, out weight and bias, zero-padded.
-pub fn mlp_uniform(m: &Mlp) -> Vec<f32> {
-    let mut v = vec![m.h1 as f32, m.h2 as f32, 0.0, 0.0];
+/// The network's weights as the uniform `mlp.wgsl` reads, in 32-bit words: h1, h2, 0, 0,
+/// mean, std (f32), then fc1 weight and bias, fc2 weight and bias, out weight and bias: f32
+/// words, or at [`Precision::F16`] binary16 values two to a word (the first in the low half, as
+/// `unpack2x16float` reads them); zero-padded to [`budget::MLP_UNIFORM_BYTES`].
+pub fn mlp_uniform(m: &Mlp) -> Vec<u32> {
+    let mut v: Vec<u32> = [m.h1 as f32, m.h2 as f32, 0.0, 0.0]
+        .iter()
+        .map(|x| x.to_bits())
+        .collect();
     debug_assert_eq!(v.len(), MLP_MEAN_AT);
-    v.extend(m.mean);
+    v.extend(m.mean.map(f32::to_bits));
     debug_assert_eq!(v.len(), MLP_STD_AT);
-    v.extend(m.std);
+    v.extend(m.std.map(f32::to_bits));
     debug_assert_eq!(v.len(), MLP_W1_AT);
-    v.extend(&m.w1);
-    v.extend(&m.b1);
-    v.extend(&m.w2);
-    v.extend(&m.b2);
-    v.extend(&m.w3);
-    v.push(m.b3);
-    v.resize((budget::MLP_UNIFORM_BYTES / 4) as usize, 0.0);
+    match m.precision {
+        Precision::F32 => v.extend(m.parameters().map(f32::to_bits)),
+        Precision::F16 => {
+            let halves: Vec<u32> = m
+                .parameters()
+                .map(|x| half::f16::from_f32(x).to_bits() as u32)
+                .collect();
+            v.extend(
+                halves
+                    .chunks(2)
+                    .map(|p| p[0] | p.get(1).map_or(0, |&hi| hi << 16)),
+            );
+        }
+    }
+    v.resize((budget::MLP_UNIFORM_BYTES / 4) as usize, 0);
     v
 }
 
@@ -363,9 +376,29 @@ mod tests {
         );
         let v = mlp_uniform(&m);
         assert_eq!(4 * v.len() as u64, budget::MLP_UNIFORM_BYTES);
-        assert_eq!(&v[MLP_MEAN_AT..MLP_STD_AT], &m.mean);
-        assert_eq!(&v[MLP_STD_AT..MLP_W1_AT], &m.std);
-        assert_eq!(v[MLP_W1_AT], m.w1[0]);
+        assert_eq!(&v[MLP_MEAN_AT..MLP_STD_AT], &m.mean.map(f32::to_bits));
+        assert_eq!(&v[MLP_STD_AT..MLP_W1_AT], &m.std.map(f32::to_bits));
+        assert_eq!(v[MLP_W1_AT], m.w1[0].to_bits());
+        // At f16: the header as before, then two rounded values a word, low half first.
+        let h = m.at_precision(Precision::F16).unwrap();
+        let v16 = mlp_uniform(&h);
+        assert_eq!(v16.len(), v.len());
+        assert_eq!(&v16[..MLP_W1_AT], &v[..MLP_W1_AT]);
+        let params: Vec<f32> = h.parameters().collect();
+        for (i, &p) in params.iter().enumerate() {
+            let word = v16[MLP_W1_AT + i / 2];
+            let bits = (word >> (16 * (i % 2))) & 0xffff;
+            assert_eq!(
+                half::f16::from_bits(bits as u16).to_f32(),
+                p,
+                "parameter {i}"
+            );
+        }
+        assert!(
+            v16[MLP_W1_AT + params.len().div_ceil(2)..]
+                .iter()
+                .all(|&w| w == 0)
+        );
     }
 
     #[test]

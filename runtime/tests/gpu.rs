@@ -23,7 +23,11 @@ fn every_shader_validates_and_translates_without_a_gpu() {
         let src = shaders::source(name).unwrap();
         let module = naga::front::wgsl::parse_str(&src)
             .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
-        let caps = Capabilities::SHADER_INT64 | Capabilities::SHADER_INT64_ATOMIC_ALL_OPS;
+        // pack/unpack2x16float (the f16 weights) need SHADER_FLOAT16_IN_FLOAT32, which any
+        // device wgpu grants the downlevel flag SHADER_F16_IN_F32 to (every Vulkan one).
+        let caps = Capabilities::SHADER_INT64
+            | Capabilities::SHADER_INT64_ATOMIC_ALL_OPS
+            | Capabilities::SHADER_FLOAT16_IN_FLOAT32;
         let info = Validator::new(ValidationFlags::all(), caps)
             .validate(&module)
             .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));

@@ -7,7 +7,7 @@ use crate::trainer::{self, TrainConfig};
 use crate::{Error, Result};
 use clap::Args;
 use dhoit_runtime::importance::FEATURES;
-use dhoit_runtime::mlp::Mlp;
+use dhoit_runtime::mlp::{Mlp, Precision};
 use dhoit_runtime::raster::Resolution;
 use dhoit_runtime::tensors::{self, Entry, FormatError};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -532,6 +532,10 @@ pub struct PredictArgs {
     /// Where inference runs.
     #[arg(long, value_enum, default_value_t = PredictDevice::Cpu)]
     pub device: PredictDevice,
+    /// The weights' precision: f32, or f16 (weights and biases rounded to binary16, as the
+    /// GPU's f16 pass holds them; arithmetic in f32 on every device).
+    #[arg(long, default_value = "f32")]
+    pub precision: Precision,
 }
 
 /// Where `predict` runs the network.
@@ -607,12 +611,13 @@ pub type Inference<'a> = dyn Fn(&Mlp, &[[f32; FEATURES]]) -> Result<Vec<f32>> + 
 /// `dhoit predict` with the inference given: reads the weights and the features, writes the
 /// predictions (atomically).
 pub fn predict_with(a: &PredictArgs, infer: &Inference) -> Result<()> {
-    let mlp = Mlp::load(&a.weights)?;
+    let mlp = Mlp::load(&a.weights)?.at_precision(a.precision)?;
     let rows = read_features(&a.input)?;
     let imp = infer(&mlp, &rows)?;
     let meta = HashMap::from([
         ("weights".to_string(), a.weights.display().to_string()),
         ("device".to_string(), a.device.to_string()),
+        ("precision".to_string(), a.precision.to_string()),
     ]);
     tensors::write(
         &a.output,

@@ -74,6 +74,7 @@ impl ImportanceNet {
             mean,
             std,
             target,
+            precision: dhoit_runtime::mlp::Precision::F32,
         }
     }
 
