@@ -1,6 +1,6 @@
 // A-buffer pass 3 (compute, one invocation a pixel): sort the pixel's fragments front to back
-// in place (insertion sort by capture key, then submission index) and blend them exactly over
-// the background, as composite::exact_sorted.
+// in place (sort.wgsl's insertion sort by capture key, then submission index) and blend them
+// exactly over the background, as composite::exact_sorted.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> offsets: array<u32>;
@@ -8,12 +8,6 @@
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
 // Set to 1 when a pixel's sort came close to lavapipe's loop limit (see common.wgsl).
 @group(0) @binding(4) var<storage, read_write> status: array<atomic<u32>>;
-
-fn before(a: vec4<u32>, b: vec4<u32>) -> bool {
-    let ka = fragment_key(bitcast<f32>(a.x), a.y);
-    let kb = fragment_key(bitcast<f32>(b.x), b.y);
-    return ka < kb || (ka == kb && a.z < b.z);
-}
 
 @compute @workgroup_size(PIXEL_GROUP)
 fn main(
@@ -27,17 +21,7 @@ fn main(
     }
     let start = offsets[p];
     let end = offsets[p + 1u];
-    for (var i = start + 1u; i < end; i++) {
-        tick();
-        let f = fragments[i];
-        var j = i;
-        while (j > start && before(f, fragments[j - 1u])) {
-            tick();
-            fragments[j] = fragments[j - 1u];
-            j--;
-        }
-        fragments[j] = f;
-    }
+    sort_pixel(start, end, false);
     var c = vec3<f32>(0.0);
     var t = 1.0;
     for (var i = start; i < end; i++) {

@@ -29,17 +29,7 @@ fn main(
     }
     let start = offsets[p];
     let end = offsets[p + 1u];
-    for (var i = start + 1u; i < end; i++) {
-        tick();
-        let f = fragments[i];
-        var j = i;
-        while (j > start && f.z < fragments[j - 1u].z) {
-            tick();
-            fragments[j] = fragments[j - 1u];
-            j--;
-        }
-        fragments[j] = f;
-    }
+    sort_pixel(start, end, true);
     let m = clamp(params.k_uniform, 1u, MLAB_MAX_ROWS);
     var rows: array<Row, 17>;
     for (var r = 0u; r <= m; r++) {

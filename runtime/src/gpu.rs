@@ -2,8 +2,9 @@
 //! or DX12 device (here Mesa's lavapipe), each pass the twin of a CPU function that the tests
 //! hold it to.
 //!
-//! Passes (shaders in `shaders/`, one file a pass, `common.wgsl` and, for geometry passes,
-//! `geometry.wgsl` prepended):
+//! Passes (shaders in `shaders/`, one file a pass, with the generated prelude, `common.wgsl`
+//! and their includes prepended: `geometry.wgsl`, `mlp.wgsl`, `sort.wgsl`; see
+//! [`crate::wgsl::shaders`]):
 //! - A-buffer: `abuffer_count` (geometry) -> `scan` (offsets) -> `abuffer_store` (geometry, exact
 //!   memory: the fragment pool is sized from the count) -> `abuffer_resolve` (sort and blend).
 //! - k-buffer: per-pixel k uploaded (or one k for all), `scan` (slot bases) -> `capture`
@@ -13,6 +14,10 @@
 //!
 //! Every buffer a method's frame allocates is labelled after the [`crate::budget::Layout`] entry
 //! it realises and counted, so [`GpuFrame::allocated_bytes`] is what the device really holds.
+//!
+//! The renderer persists across frames: pipelines are built once ([`Gpu::new`]; variants of the
+//! network's passes on first use), and a frame takes its buffers from those earlier frames left
+//! (cleared where reused), so a stream of like frames creates none.
 
 use crate::alloc::Target;
 use crate::budget::{self, Budget, FragmentBudget};

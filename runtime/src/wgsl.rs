@@ -13,121 +13,98 @@ pub mod shaders {
     /// The importance network, prepended to the passes that run it.
     pub const MLP: &str = include_str!("../../shaders/mlp.wgsl");
 
-    /// One WGSL pass: its name, its source, and what is prepended to it besides COMMON.
+    /// The A-buffer's per-pixel insertion sort, prepended to the passes that sort.
+    pub const SORT: &str = include_str!("../../shaders/sort.wgsl");
+
+    /// One WGSL pass: its name, its source, and the shared code prepended to it after the
+    /// prelude and COMMON: GEOMETRY (the vertex stage) for geometry passes, MLP for the passes
+    /// that run the network, SORT for those that sort a pixel's fragments.
     pub struct Pass {
         pub name: &'static str,
         pub source: &'static str,
-        /// A geometry pass (GEOMETRY, the vertex stage, is prepended).
-        pub geometry: bool,
-        /// Runs the network (MLP is prepended).
-        pub mlp: bool,
-    }
-
-    const fn pass(name: &'static str, source: &'static str, geometry: bool, mlp: bool) -> Pass {
-        Pass {
-            name,
-            source,
-            geometry,
-            mlp,
-        }
+        pub includes: &'static [&'static str],
     }
 
     pub const PASSES: [Pass; 14] = [
-        pass(
-            "abuffer_count",
-            include_str!("../../shaders/abuffer_count.wgsl"),
-            true,
-            false,
-        ),
-        pass(
-            "scan",
-            include_str!("../../shaders/scan.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "abuffer_store",
-            include_str!("../../shaders/abuffer_store.wgsl"),
-            true,
-            false,
-        ),
-        pass(
-            "abuffer_resolve",
-            include_str!("../../shaders/abuffer_resolve.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "capture",
-            include_str!("../../shaders/capture.wgsl"),
-            true,
-            false,
-        ),
-        pass(
-            "resolve",
-            include_str!("../../shaders/resolve.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "mlab_resolve",
-            include_str!("../../shaders/mlab_resolve.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "allocate",
-            include_str!("../../shaders/allocate.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "features",
-            include_str!("../../shaders/features.wgsl"),
-            true,
-            false,
-        ),
-        pass(
-            "totals",
-            include_str!("../../shaders/totals.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "importance_dkb",
-            include_str!("../../shaders/importance_dkb.wgsl"),
-            false,
-            true,
-        ),
-        pass(
-            "vkb_count",
-            include_str!("../../shaders/vkb_count.wgsl"),
-            true,
-            false,
-        ),
-        pass(
-            "importance_vkb",
-            include_str!("../../shaders/importance_vkb.wgsl"),
-            false,
-            false,
-        ),
-        pass(
-            "predict",
-            include_str!("../../shaders/predict.wgsl"),
-            false,
-            true,
-        ),
+        Pass {
+            name: "abuffer_count",
+            source: include_str!("../../shaders/abuffer_count.wgsl"),
+            includes: &[GEOMETRY],
+        },
+        Pass {
+            name: "scan",
+            source: include_str!("../../shaders/scan.wgsl"),
+            includes: &[],
+        },
+        Pass {
+            name: "abuffer_store",
+            source: include_str!("../../shaders/abuffer_store.wgsl"),
+            includes: &[GEOMETRY],
+        },
+        Pass {
+            name: "abuffer_resolve",
+            source: include_str!("../../shaders/abuffer_resolve.wgsl"),
+            includes: &[SORT],
+        },
+        Pass {
+            name: "capture",
+            source: include_str!("../../shaders/capture.wgsl"),
+            includes: &[GEOMETRY],
+        },
+        Pass {
+            name: "resolve",
+            source: include_str!("../../shaders/resolve.wgsl"),
+            includes: &[],
+        },
+        Pass {
+            name: "mlab_resolve",
+            source: include_str!("../../shaders/mlab_resolve.wgsl"),
+            includes: &[SORT],
+        },
+        Pass {
+            name: "allocate",
+            source: include_str!("../../shaders/allocate.wgsl"),
+            includes: &[],
+        },
+        Pass {
+            name: "features",
+            source: include_str!("../../shaders/features.wgsl"),
+            includes: &[GEOMETRY],
+        },
+        Pass {
+            name: "totals",
+            source: include_str!("../../shaders/totals.wgsl"),
+            includes: &[],
+        },
+        Pass {
+            name: "importance_dkb",
+            source: include_str!("../../shaders/importance_dkb.wgsl"),
+            includes: &[MLP],
+        },
+        Pass {
+            name: "vkb_count",
+            source: include_str!("../../shaders/vkb_count.wgsl"),
+            includes: &[GEOMETRY],
+        },
+        Pass {
+            name: "importance_vkb",
+            source: include_str!("../../shaders/importance_vkb.wgsl"),
+            includes: &[],
+        },
+        Pass {
+            name: "predict",
+            source: include_str!("../../shaders/predict.wgsl"),
+            includes: &[MLP],
+        },
     ];
 
-    /// The full source of a pass: the generated prelude, common code, the vertex stage for
-    /// geometry passes, the network for the passes that run it, the pass.
+    /// The full source of a pass: the generated prelude, common code, its includes, the pass.
     pub fn source(name: &str) -> Option<String> {
         let p = PASSES.iter().find(|p| p.name == name)?;
-        let geometry = if p.geometry { GEOMETRY } else { "" };
-        let mlp = if p.mlp { MLP } else { "" };
         Some(format!(
-            "{}\n{COMMON}\n{geometry}\n{mlp}\n{}",
+            "{}\n{COMMON}\n{}\n{}",
             prelude(),
+            p.includes.join("\n"),
             p.source
         ))
     }
@@ -407,7 +384,12 @@ mod tests {
         for (name, _) in shaders::shared_constants() {
             let decl = format!("const {name}:");
             assert_eq!(prelude.matches(&decl).count(), 1, "{name}");
-            let others = [shaders::COMMON, shaders::GEOMETRY, shaders::MLP];
+            let others = [
+                shaders::COMMON,
+                shaders::GEOMETRY,
+                shaders::MLP,
+                shaders::SORT,
+            ];
             for src in others
                 .iter()
                 .chain(shaders::PASSES.iter().map(|p| &p.source))
