@@ -1047,65 +1047,9 @@ impl Gpu {
             }
             Some(Slots::PerPixel(_)) | None => (0.into(), VkbParams::default(), 0),
         };
-        let (budget_fragments, budget_ppm) = match budget {
-            FragmentBudget::Slots(f) => (f, 0),
-            FragmentBudget::Share(ppm) => (0, ppm),
-        };
-        let params = Params {
-            view_proj: cam.view_proj.to_cols_array_2d(),
-            forward: cam.forward.extend(0.0).to_array(),
-            background: [background[0], background[1], background[2], 1.0],
-            width,
-            height,
-            k_uniform,
-            pixels,
-            budget_fragments: budget_fragments.min(u32::MAX as u64) as u32,
-            vkb_alpha: vkb.alpha,
-            vkb_exponent: vkb.periphery_exponent,
-            vkb_noise: vkb.noise,
-            vkb_seed: vkb.seed,
-            budget_ppm,
-            _pad: [0; 30],
-        };
-        let params_buf = fb.init(
-            "params",
-            bytemuck::bytes_of(&params),
-            wgpu::BufferUsages::UNIFORM,
-            true,
-        );
-        let pos: Vec<[f32; 4]> = scene
-            .positions
-            .iter()
-            .map(|p| p.extend(1.0).to_array())
-            .collect();
-        let positions = fb.init(
-            "scene.positions",
-            bytemuck::cast_slice(&pos),
-            wgpu::BufferUsages::STORAGE,
-            false,
-        );
-        let colors = fb.init(
-            "scene.colors",
-            bytemuck::cast_slice(&scene.colors),
-            wgpu::BufferUsages::STORAGE,
-            false,
-        );
-        fb.allocated += px; // the R8 render target
-        let target = self.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("raster.target"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: TARGET_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-            view_formats: &[],
-        });
-        let view = target.create_view(&Default::default());
+        let params = frame_params(cam, width, height, background, k_uniform, budget, vkb);
+        let (params_buf, positions, colors) = self.geometry_inputs(&mut fb, scene, &params);
+        let view = self.raster_target(&mut fb, width, height);
         let timer = Timer::new(self);
         let passes = Passes {
             gpu: self,
@@ -1418,6 +1362,197 @@ impl Gpu {
             stats,
             vkb_nearest,
         })
+    }
+}
+
+/// The per-frame uniform.
+fn frame_params(
+    cam: &Camera,
+    width: u32,
+    height: u32,
+    background: [f32; 3],
+    k_uniform: u32,
+    budget: FragmentBudget,
+    vkb: VkbParams,
+) -> Params {
+    let (budget_fragments, budget_ppm) = match budget {
+        FragmentBudget::Slots(f) => (f, 0),
+        FragmentBudget::Share(ppm) => (0, ppm),
+    };
+    Params {
+        view_proj: cam.view_proj.to_cols_array_2d(),
+        forward: cam.forward.extend(0.0).to_array(),
+        background: [background[0], background[1], background[2], 1.0],
+        width,
+        height,
+        k_uniform,
+        pixels: width * height,
+        budget_fragments: budget_fragments.min(u32::MAX as u64) as u32,
+        vkb_alpha: vkb.alpha,
+        vkb_exponent: vkb.periphery_exponent,
+        vkb_noise: vkb.noise,
+        vkb_seed: vkb.seed,
+        budget_ppm,
+        _pad: [0; 30],
+    }
+}
+
+/// What [`Gpu::allocate`] read back.
+#[derive(Clone, Debug)]
+pub struct GpuAllocation {
+    /// n(p), the GPU's own count.
+    pub counts: Vec<u32>,
+    /// k(p).
+    pub k: Vec<u32>,
+    /// Exclusive prefix sums of k (`pixels + 1` entries): the slot bases.
+    pub bases: Vec<u32>,
+    pub pass_ms: Vec<(&'static str, f64)>,
+}
+
+impl Gpu {
+    /// The params, positions and colours every geometry pass binds (group 0).
+    fn geometry_inputs(
+        &self,
+        fb: &mut FrameBuffers,
+        scene: &Scene,
+        params: &Params,
+    ) -> (wgpu::Buffer, wgpu::Buffer, wgpu::Buffer) {
+        let params_buf = fb.init(
+            "params",
+            bytemuck::bytes_of(params),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        );
+        let pos: Vec<[f32; 4]> = scene
+            .positions
+            .iter()
+            .map(|p| p.extend(1.0).to_array())
+            .collect();
+        let positions = fb.init(
+            "scene.positions",
+            bytemuck::cast_slice(&pos),
+            wgpu::BufferUsages::STORAGE,
+            false,
+        );
+        let colors = fb.init(
+            "scene.colors",
+            bytemuck::cast_slice(&scene.colors),
+            wgpu::BufferUsages::STORAGE,
+            false,
+        );
+        (params_buf, positions, colors)
+    }
+
+    /// The R8 target rasterization needs (never written; counted in the frame's bytes).
+    fn raster_target(&self, fb: &mut FrameBuffers, width: u32, height: u32) -> wgpu::TextureView {
+        fb.allocated += width as u64 * height as u64;
+        let target = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("raster.target"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: TARGET_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        target.create_view(&Default::default())
+    }
+
+    /// The allocation alone, on the GPU: the count pass, totals, the allocation of k from
+    /// `importance` (one value a pixel, meaning what `target` says) at `budget`, and the
+    /// prefix sums of k; no capture. The twin is `alloc::allocate` on the returned counts.
+    /// Five buffers of 4 bytes a pixel, so a 7680x4320 frame fits a device whose bindings
+    /// hold 133 MB (lavapipe's 128 MiB do), where a whole k-buffer frame does not.
+    pub fn allocate(
+        &self,
+        scene: &Scene,
+        cam: &Camera,
+        (width, height): (u32, u32),
+        importance: &[f32],
+        target: Target,
+        budget: FragmentBudget,
+    ) -> Result<GpuAllocation> {
+        crate::raster::check_resolution(width, height)?;
+        let max = self.device.limits().max_texture_dimension_2d;
+        if width > max || height > max {
+            return Err(GpuError::FrameTooLarge { width, height, max }.into());
+        }
+        let pixels = width * height;
+        let px = pixels as u64;
+        if importance.len() != pixels as usize {
+            return Err(Error::Invalid(format!(
+                "{} importance values for {pixels} pixels",
+                importance.len()
+            )));
+        }
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let mut fb = FrameBuffers::new(self);
+        let params = frame_params(cam, width, height, [1.0; 3], 0, budget, Default::default());
+        let (params_buf, positions, colors) = self.geometry_inputs(&mut fb, scene, &params);
+        let view = self.raster_target(&mut fb, width, height);
+        let timer = Timer::new(self);
+        let passes = Passes {
+            gpu: self,
+            timer: &timer,
+            geometry: [&params_buf, &positions, &colors],
+            target: &view,
+            vertices: scene.positions.len() as u32,
+            pixels,
+        };
+        let p = &self.pipelines;
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        let counts = fb.storage("count", 4 * px, true)?;
+        let imp = fb.init(
+            "oit.importance",
+            bytemuck::cast_slice(importance),
+            wgpu::BufferUsages::STORAGE,
+            true,
+        );
+        let totals = fb.storage("totals", 16, true)?;
+        let k = fb.storage("oit.k", 4 * px, true)?;
+        let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
+        passes.draw(&mut enc, &p.count, &[&counts], "count");
+        passes.dispatch(
+            &mut enc,
+            &p.totals,
+            &[&params_buf, &counts, &totals],
+            "totals",
+        );
+        passes.allocate(
+            &mut enc,
+            &mut fb,
+            AllocBuffers {
+                counts: &counts,
+                weights: &imp,
+                k: &k,
+                prefix: &base,
+                totals: &totals,
+                flags: None,
+            },
+            budget,
+            weight_kind(target),
+        )?;
+        passes.prefix_sum(&mut enc, &mut fb, &k, &base)?;
+        fb.submit(&mut enc);
+        let out = GpuAllocation {
+            counts: u32s(&read_back(self, &counts, 4 * px)?),
+            k: u32s(&read_back(self, &k, 4 * px)?),
+            bases: u32s(&read_back(self, &base, 4 * (px + 1))?),
+            pass_ms: timer.read(self)?,
+        };
+        if let Some(e) = pollster::block_on(oom.pop()) {
+            return Err(GpuError::OutOfMemory(e.to_string()).into());
+        }
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Validation(e.to_string()).into());
+        }
+        Ok(out)
     }
 }
 

@@ -920,6 +920,70 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
     }
 }
 
+/// The allocation alone at 7680x4320 (33 M pixels; every buffer 4 bytes a pixel, within
+/// lavapipe's bindings where a whole k-buffer frame is not): per pixel the GPU's k equals the
+/// twin's on the GPU's own counts, for every weight kind and both kinds of budget, the slot
+/// bases are the exact prefix sums of k, and sum k = min(F, sum n).
+#[test]
+fn an_8k_allocation_matches_its_twin_exactly() {
+    let Some(g) = gpu() else { return };
+    let s = sparse_scene();
+    let (w, h) = (7680u32, 4320u32);
+    let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
+    let px = (w * h) as usize;
+    // Importance of every kind of value the passes meet: spread, tied, tiny, pair-marked.
+    let mut rng = dhoit_runtime::rng::Rng::new(8);
+    let imp: Vec<f32> = (0..px)
+        .map(|p| {
+            let v = match p % 7 {
+                0 => 0.5,
+                1 => 1e-7,
+                _ => rng.f32(),
+            };
+            alloc::mark_pair(v, p % 11 == 0)
+        })
+        .collect();
+    let mut counts = None;
+    for (target, budget) in [
+        (
+            alloc::Target::RelativeK,
+            budget::FragmentBudget::Slots(12_000),
+        ),
+        (
+            alloc::Target::ShareOfFragments,
+            budget::FragmentBudget::Share(250_000),
+        ),
+        (
+            alloc::Target::SlotRequest,
+            budget::FragmentBudget::Slots(8_000),
+        ),
+    ] {
+        let a = g.allocate(&s, &cam, (w, h), &imp, target, budget).unwrap();
+        let n = counts.get_or_insert_with(|| a.counts.clone());
+        assert_eq!(&a.counts, n, "the count is the same every time");
+        let total: u64 = n.iter().map(|&c| c as u64).sum();
+        assert!(total > 10_000, "{total} fragments");
+        // Budgets below the frame's fragments, so the allocation has choices to make.
+        let f = match budget {
+            budget::FragmentBudget::Slots(f) => f,
+            budget::FragmentBudget::Share(ppm) => total * ppm as u64 / 1_000_000,
+        };
+        let twin = alloc::allocate(&imp, n, target, f);
+        if let Some(p) = (0..px).find(|&p| a.k[p] != twin[p]) {
+            panic!("{target:?}: pixel {p}: GPU k {} twin {}", a.k[p], twin[p]);
+        }
+        let mut acc = 0u32;
+        for p in 0..px {
+            assert_eq!(a.bases[p], acc, "{target:?}: base of pixel {p}");
+            acc += a.k[p];
+        }
+        assert_eq!(a.bases[px], acc);
+        assert!(f < total, "{target:?}: F {f} holds every fragment");
+        assert_eq!(acc as u64, f, "{target:?}: sum k");
+        eprintln!("8K {target:?}: F {f}, {total} fragments, k identical to the twin's");
+    }
+}
+
 #[test]
 fn cpu_and_gpu_rasterizers_agree_on_depth_and_coverage() {
     // The CPU interpolates depth on the plane through the unsnapped window positions, as
