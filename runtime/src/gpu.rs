@@ -766,7 +766,18 @@ struct Passes<'a> {
     pixels: u32,
 }
 
-impl Passes<'_> {
+impl<'a> Passes<'a> {
+    fn new(gpu: &'a Gpu, timer: &'a Timer<'a>, inputs: &'a FrameInputs) -> Self {
+        Passes {
+            gpu,
+            timer,
+            geometry: [&inputs.params, &inputs.positions, &inputs.colors],
+            target: &inputs.target,
+            vertices: inputs.vertices,
+            pixels: inputs.pixels,
+        }
+    }
+
     /// A geometry pass over every triangle, `buffers` bound as group 1.
     fn draw(
         &self,
@@ -1023,15 +1034,9 @@ impl Gpu {
         background: [f32; 3],
         slots: Option<Slots>,
     ) -> Result<GpuFrame> {
-        crate::raster::check_resolution(width, height)?;
+        let scopes = self.begin_frame(width, height)?;
         let pixels = width * height;
         let px = pixels as u64;
-        let max = self.device.limits().max_texture_dimension_2d;
-        if width > max || height > max {
-            return Err(GpuError::FrameTooLarge { width, height, max }.into());
-        }
-        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let mut fb = FrameBuffers::new(self);
         let (budget, vkb, k_uniform) = match slots {
             Some(Slots::Importance(_, _, f) | Slots::Dkb(_, f)) => (f, VkbParams::default(), 0),
@@ -1048,19 +1053,11 @@ impl Gpu {
             Some(Slots::PerPixel(_)) | None => (0.into(), VkbParams::default(), 0),
         };
         let params = frame_params(cam, width, height, background, k_uniform, budget, vkb);
-        let (params_buf, positions, colors) = self.geometry_inputs(&mut fb, scene, &params);
-        let view = self.raster_target(&mut fb, width, height);
+        let inputs = self.frame_inputs(&mut fb, scene, &params);
         let timer = Timer::new(self);
-        let passes = Passes {
-            gpu: self,
-            timer: &timer,
-            geometry: [&params_buf, &positions, &colors],
-            target: &view,
-            vertices: scene.positions.len() as u32,
-            pixels,
-        };
+        let passes = Passes::new(self, &timer, &inputs);
         let p = &self.pipelines;
-        let params_buf = &params_buf;
+        let params_buf = &inputs.params;
         let mut enc = self.device.create_command_encoder(&Default::default());
         // The image: its own buffer, or (DKB) the features' colour sums once they are read.
         let image: wgpu::Buffer;
@@ -1333,12 +1330,7 @@ impl Gpu {
         } else {
             (None, None, None)
         };
-        if let Some(e) = pollster::block_on(oom.pop()) {
-            return Err(GpuError::OutOfMemory(e.to_string()).into());
-        }
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(GpuError::Validation(e.to_string()).into());
-        }
+        scopes.end()?;
         Ok(GpuFrame {
             image: Image {
                 width,
@@ -1397,6 +1389,36 @@ fn frame_params(
     }
 }
 
+/// The error scopes a frame records under ([`Gpu::begin_frame`]).
+struct Scopes {
+    // Fields drop in order: the scope pushed last first, should a frame end early.
+    oom: wgpu::ErrorScopeGuard,
+    validation: wgpu::ErrorScopeGuard,
+}
+
+impl Scopes {
+    /// The first out-of-memory, then validation, error the frame raised.
+    fn end(self) -> Result<()> {
+        if let Some(e) = pollster::block_on(self.oom.pop()) {
+            return Err(GpuError::OutOfMemory(e.to_string()).into());
+        }
+        if let Some(e) = pollster::block_on(self.validation.pop()) {
+            return Err(GpuError::Validation(e.to_string()).into());
+        }
+        Ok(())
+    }
+}
+
+/// A frame's shared bindings and render target ([`Gpu::frame_inputs`]).
+struct FrameInputs {
+    params: wgpu::Buffer,
+    positions: wgpu::Buffer,
+    colors: wgpu::Buffer,
+    target: wgpu::TextureView,
+    vertices: u32,
+    pixels: u32,
+}
+
 /// What [`Gpu::allocate`] read back.
 #[derive(Clone, Debug)]
 pub struct GpuAllocation {
@@ -1410,13 +1432,22 @@ pub struct GpuAllocation {
 }
 
 impl Gpu {
-    /// The params, positions and colours every geometry pass binds (group 0).
-    fn geometry_inputs(
-        &self,
-        fb: &mut FrameBuffers,
-        scene: &Scene,
-        params: &Params,
-    ) -> (wgpu::Buffer, wgpu::Buffer, wgpu::Buffer) {
+    /// Checks the frame's size before anything is allocated (an error with the numbers), and
+    /// starts catching the validation and out-of-memory errors its commands raise.
+    fn begin_frame(&self, width: u32, height: u32) -> Result<Scopes> {
+        crate::raster::check_resolution(width, height)?;
+        let max = self.device.limits().max_texture_dimension_2d;
+        if width > max || height > max {
+            return Err(GpuError::FrameTooLarge { width, height, max }.into());
+        }
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        Ok(Scopes { oom, validation })
+    }
+
+    /// What every geometry pass binds (group 0: params, positions, colours) and the R8 target
+    /// rasterization needs (never written; counted in the frame's bytes).
+    fn frame_inputs(&self, fb: &mut FrameBuffers, scene: &Scene, params: &Params) -> FrameInputs {
         let params_buf = fb.init(
             "params",
             bytemuck::bytes_of(params),
@@ -1440,11 +1471,7 @@ impl Gpu {
             wgpu::BufferUsages::STORAGE,
             false,
         );
-        (params_buf, positions, colors)
-    }
-
-    /// The R8 target rasterization needs (never written; counted in the frame's bytes).
-    fn raster_target(&self, fb: &mut FrameBuffers, width: u32, height: u32) -> wgpu::TextureView {
+        let (width, height) = (params.width, params.height);
         fb.allocated += width as u64 * height as u64;
         let target = self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("raster.target"),
@@ -1460,7 +1487,14 @@ impl Gpu {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
             view_formats: &[],
         });
-        target.create_view(&Default::default())
+        FrameInputs {
+            params: params_buf,
+            positions,
+            colors,
+            target: target.create_view(&Default::default()),
+            vertices: scene.positions.len() as u32,
+            pixels: params.pixels,
+        }
     }
 
     /// The allocation alone, on the GPU: the count pass, totals, the allocation of k from
@@ -1477,11 +1511,7 @@ impl Gpu {
         target: Target,
         budget: FragmentBudget,
     ) -> Result<GpuAllocation> {
-        crate::raster::check_resolution(width, height)?;
-        let max = self.device.limits().max_texture_dimension_2d;
-        if width > max || height > max {
-            return Err(GpuError::FrameTooLarge { width, height, max }.into());
-        }
+        let scopes = self.begin_frame(width, height)?;
         let pixels = width * height;
         let px = pixels as u64;
         if importance.len() != pixels as usize {
@@ -1490,21 +1520,11 @@ impl Gpu {
                 importance.len()
             )));
         }
-        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let mut fb = FrameBuffers::new(self);
         let params = frame_params(cam, width, height, [1.0; 3], 0, budget, Default::default());
-        let (params_buf, positions, colors) = self.geometry_inputs(&mut fb, scene, &params);
-        let view = self.raster_target(&mut fb, width, height);
+        let inputs = self.frame_inputs(&mut fb, scene, &params);
         let timer = Timer::new(self);
-        let passes = Passes {
-            gpu: self,
-            timer: &timer,
-            geometry: [&params_buf, &positions, &colors],
-            target: &view,
-            vertices: scene.positions.len() as u32,
-            pixels,
-        };
+        let passes = Passes::new(self, &timer, &inputs);
         let p = &self.pipelines;
         let mut enc = self.device.create_command_encoder(&Default::default());
         let counts = fb.storage("count", 4 * px, true)?;
@@ -1521,7 +1541,7 @@ impl Gpu {
         passes.dispatch(
             &mut enc,
             &p.totals,
-            &[&params_buf, &counts, &totals],
+            &[&inputs.params, &counts, &totals],
             "totals",
         );
         passes.allocate(
@@ -1546,12 +1566,7 @@ impl Gpu {
             bases: u32s(&read_back(self, &base, 4 * (px + 1))?),
             pass_ms: timer.read(self)?,
         };
-        if let Some(e) = pollster::block_on(oom.pop()) {
-            return Err(GpuError::OutOfMemory(e.to_string()).into());
-        }
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(GpuError::Validation(e.to_string()).into());
-        }
+        scopes.end()?;
         Ok(out)
     }
 }

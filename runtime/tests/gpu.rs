@@ -173,6 +173,11 @@ fn kbuffers_match_the_cpu_slot_for_slot() {
     }
 }
 
+/// An image's channels as bits, to compare images exactly.
+fn image_bits(img: &composite::Image) -> Vec<u32> {
+    img.data.iter().flatten().map(|v| v.to_bits()).collect()
+}
+
 #[test]
 fn shuffled_submission_gives_bit_identical_gpu_images() {
     let Some(g) = gpu() else { return };
@@ -190,16 +195,7 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
             Some(Slots::Vkb(vkb, f.into())),
             Some(Slots::Dkb(&mlp, f.into())),
         ]
-        .map(|slots| {
-            g.render(sc, &cam, w, h, BG, slots)
-                .unwrap()
-                .image
-                .data
-                .iter()
-                .flatten()
-                .map(|v| v.to_bits())
-                .collect::<Vec<_>>()
-        })
+        .map(|slots| image_bits(&g.render(sc, &cam, w, h, BG, slots).unwrap().image))
     };
     let base = images(&s);
     for seed in 0..10 {
@@ -234,15 +230,7 @@ fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
         Some(Slots::Dkb(&mlp, f.into())),
     ];
     let bits = |g: &dhoit_runtime::gpu::Gpu, s: &Scene, cam: &Camera, slots: Option<Slots>| {
-        let frame = g.render(s, cam, w, h, BG, slots).unwrap();
-        let v: Vec<u32> = frame
-            .image
-            .data
-            .iter()
-            .flatten()
-            .map(|v| v.to_bits())
-            .collect();
-        v
+        image_bits(&g.render(s, cam, w, h, BG, slots).unwrap().image)
     };
     for (i, &sl) in slots.iter().enumerate() {
         let first = bits(&g, &a, &cam_a, sl);
@@ -268,13 +256,7 @@ fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
     g.diagnostics = true;
     let with = g.render(&a, &cam_a, w, h, BG, slots[5]).unwrap();
     assert!(with.slots.is_some() && with.stats.is_some());
-    let bits_with: Vec<u32> = with
-        .image
-        .data
-        .iter()
-        .flatten()
-        .map(|v| v.to_bits())
-        .collect();
+    let bits_with = image_bits(&with.image);
     g.diagnostics = false;
     assert!(bits(&g, &a, &cam_a, slots[5]) == bits_with);
 }
