@@ -1,16 +1,29 @@
-// k-buffer capture (geometry): insert every fragment into its pixel's k slots without locks.
-// Slots hold the bitwise complement of the capture key (so a cleared, zero slot is empty and
-// atomicMax keeps the nearest): for each slot, old = atomicMax(slot, cur); an empty old ends the
-// insertion, otherwise the farther of the two is carried on. A key still carried after the last
-// slot is the one fragment this insertion pushed out; it goes to the tail's integer sums. Every
-// fragment ends in a slot or in the tail exactly once, in any submission order, and the slots
-// end sorted front to back.
+// k-buffer capture (geometry), in two modes chosen per pixel from k(p) and n(p) (the pixel's
+// fragment count, known when params.append is 1), so every fragment ends in a slot or in the
+// tail exactly once, in any submission order, and the slots end sorted front to back (the
+// append mode's once the resolve has sorted them):
+//
+// - append (n <= k + APPEND_SPILL and n <= APPEND_MAX): at most two fragments are truncated, so
+//   no insertion is needed; each fragment takes the next place from a cursor (the tail's count
+//   word): one of the k slots, or past them one of the APPEND_SPILL keys kept in the tail's four
+//   sum words, and the resolve sorts the pixel's n keys, as the A-buffer does, keeps the k
+//   nearest and sums the rest into the tail.
+// - insertion (every other pixel, and every pixel when n is unknown: FKB, uploaded k): NVIDIA's
+//   lock-free Loop64. Slots hold the bitwise complement of the capture key (so a cleared, zero
+//   slot is empty and atomicMax keeps the nearest): for each slot, old = atomicMax(slot, cur);
+//   an empty old ends the insertion, otherwise the farther of the two is carried on. A key
+//   still carried after the last slot is the one this insertion pushed out; it goes to the
+//   tail's integer sums. Two early tests skip the atomics that could not change a slot: the
+//   slots only ever grow and stay in decreasing order, so a key no greater than the last slot
+//   goes straight to the tail, and one no greater than the middle slot starts after it.
 
 @group(1) @binding(0) var<storage, read> k_of: array<u32>;
 @group(1) @binding(1) var<storage, read> slot_base: array<u32>;
 @group(1) @binding(2) var<storage, read_write> slots: array<atomic<u64>>;
-// Per pixel: sum c8 a8 for r, g, b, sum a8, count.
+// Per pixel: sum c8 a8 for r, g, b, sum a8, count (the append mode's cursor).
 @group(1) @binding(3) var<storage, read_write> tail: array<atomic<u32>>;
+// n(p), read when params.append is 1.
+@group(1) @binding(4) var<storage, read> count: array<u32>;
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
@@ -22,7 +35,32 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         base = slot_base[p];
     }
     var cur = ~fragment_key(in.clip.z, fragment_rgba8(in));
-    for (var i = 0u; i < k; i++) {
+    if (params.append != 0u) {
+        let n = count[p];
+        if (appends(k, n)) {
+            let i = atomicAdd(&tail[5u * p + 4u], 1u);
+            if (i < k) {
+                atomicStore(&slots[base + i], cur);
+            } else {
+                let j = 5u * p + 2u * (i - k);
+                atomicStore(&tail[j], u32(cur & 0xfffffffflu));
+                atomicStore(&tail[j + 1u], u32(cur >> 32u));
+            }
+            return vec4<f32>(0.0);
+        }
+    }
+    var i = 0u;
+    if (k > 0u) {
+        if (atomicLoad(&slots[base + k - 1u]) >= cur) {
+            i = k;
+        } else if (k > 2u) {
+            let m = k / 2u;
+            if (atomicLoad(&slots[base + m]) >= cur) {
+                i = m + 1u;
+            }
+        }
+    }
+    for (; i < k; i++) {
         let old = atomicMax(&slots[base + i], cur);
         if (old == 0lu) {
             return vec4<f32>(0.0);

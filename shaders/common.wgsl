@@ -22,6 +22,8 @@ struct Params {
     // A relative budget in parts per million of the frame's fragments (0: F is
     // budget_fragments).
     budget_ppm: u32,
+    // 1 when the k-buffer passes have n(p) bound and capture in two modes (capture.wgsl).
+    append: u32,
 };
 
 struct VertexOut {
@@ -75,6 +77,12 @@ fn budget_of(total: u32) -> u64 {
         return (u64(total) * u64(params.budget_ppm)) / 1000000lu;
     }
     return u64(params.budget_fragments);
+}
+
+// The capture's mode for a pixel of k slots and n fragments (composite::appends): append
+// (true) or insertion.
+fn appends(k: u32, n: u32) -> bool {
+    return n <= k + APPEND_SPILL && n <= APPEND_MAX;
 }
 
 // Mesa's lavapipe ends a shader invocation's loops after 65,535 iterations in all, silently.

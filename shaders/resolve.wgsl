@@ -1,13 +1,59 @@
 // k-buffer resolve (compute, one invocation a pixel): the core slots blended front to back,
 // then the tail approximated over the background, as composite::hybrid_sorted with
-// composite::Tail.
+// composite::Tail. A pixel the capture appended (common.wgsl's appends) first has its n keys
+// sorted here, the k nearest written back in order and the rest summed into its tail: after
+// this pass the slots and the tail are those of the insertion mode (composite::capture),
+// whatever the mode.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> k_of: array<u32>;
 @group(0) @binding(2) var<storage, read> slot_base: array<u32>;
-@group(0) @binding(3) var<storage, read> slots: array<u64>;
-@group(0) @binding(4) var<storage, read> tail: array<u32>;
+@group(0) @binding(3) var<storage, read_write> slots: array<u64>;
+@group(0) @binding(4) var<storage, read_write> tail: array<u32>;
 @group(0) @binding(5) var<storage, read_write> image: array<vec4<f32>>;
+// n(p), read when params.append is 1.
+@group(0) @binding(6) var<storage, read> count: array<u32>;
+
+// An appended pixel's n keys (complemented: the nearest is the largest), sorted in place:
+// those in its slots by insertion in decreasing order (at most APPEND_MAX (APPEND_MAX - 1) / 2
+// steps), then each of the at most APPEND_SPILL keys past them (in the tail's sum words,
+// capture.wgsl) swapped in where it is nearer than the last slot; what is left out is summed
+// into the tail.
+fn sort_appended(p: u32, base: u32, k: u32, n: u32) {
+    let held = min(k, n);
+    for (var i = 1u; i < held; i++) {
+        let key = slots[base + i];
+        var j = i;
+        while (j > 0u && slots[base + j - 1u] < key) {
+            slots[base + j] = slots[base + j - 1u];
+            j--;
+        }
+        slots[base + j] = key;
+    }
+    var sums = vec4<u32>(0u);
+    for (var s = 0u; s < n - held; s++) {
+        var key = u64(tail[5u * p + 2u * s]) | (u64(tail[5u * p + 2u * s + 1u]) << 32u);
+        if (held > 0u && slots[base + held - 1u] < key) {
+            // Nearer than the last slot: it takes its place in order, the last is left out.
+            let out = slots[base + held - 1u];
+            var j = held - 1u;
+            while (j > 0u && slots[base + j - 1u] < key) {
+                slots[base + j] = slots[base + j - 1u];
+                j--;
+            }
+            slots[base + j] = key;
+            key = out;
+        }
+        let rgba = u32((~key) & 0xfffffffflu);
+        let a = rgba >> 24u;
+        sums += vec4<u32>((rgba & 0xffu) * a, ((rgba >> 8u) & 0xffu) * a, ((rgba >> 16u) & 0xffu) * a, a);
+    }
+    tail[5u * p] = sums.x;
+    tail[5u * p + 1u] = sums.y;
+    tail[5u * p + 2u] = sums.z;
+    tail[5u * p + 3u] = sums.w;
+    tail[5u * p + 4u] = n - held;
+}
 
 @compute @workgroup_size(PIXEL_GROUP)
 fn main(
@@ -25,14 +71,20 @@ fn main(
         k = k_of[p];
         base = slot_base[p];
     }
+    if (params.append != 0u) {
+        let n = count[p];
+        if (appends(k, n)) {
+            sort_appended(p, base, k, n);
+        }
+    }
     // The tail over the background.
     let bg = params.background.rgb;
     var behind = bg;
-    let count = tail[5u * p + 4u];
+    let tail_count = tail[5u * p + 4u];
     let sum_a = tail[5u * p + 3u];
-    if (count > 0u && sum_a > 0u) {
-        let a_avg = min(f32(sum_a) / (255.0 * f32(count)), 1.0);
-        let a_tail = 1.0 - pow(1.0 - a_avg, f32(count));
+    if (tail_count > 0u && sum_a > 0u) {
+        let a_avg = min(f32(sum_a) / (255.0 * f32(tail_count)), 1.0);
+        let a_tail = 1.0 - pow(1.0 - a_avg, f32(tail_count));
         let inv = 1.0 / (255.0 * f32(sum_a));
         let c_tail = vec3<f32>(f32(tail[5u * p]), f32(tail[5u * p + 1u]), f32(tail[5u * p + 2u])) * inv;
         behind = a_tail * c_tail + (1.0 - a_tail) * bg;

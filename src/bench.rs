@@ -195,15 +195,20 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 .iter()
                 .map(|&m| renderer.allocate_for_gpu(m))
                 .collect::<Result<_, _>>()?;
-            // DKB once more with the network run on every covered pixel, even where k is forced.
+            // DKB once more with the network run on every covered pixel, even where k is forced,
+            // and once with every fragment inserted (no append mode in the capture).
             let runs = order
                 .iter()
                 .zip(&cpu)
                 .map(|(m, f)| (m.name(), *m, f))
-                .chain([("dkb_no_skip", Method::Dkb, &cpu[4])]);
+                .chain([
+                    ("dkb_no_skip", Method::Dkb, &cpu[4]),
+                    ("dkb_insertion_only", Method::Dkb, &cpu[4]),
+                ]);
             for (label, method, frame) in runs {
                 let slots = Slots::for_method(method, frame, &options)?;
                 gpu.skip_forced = label != "dkb_no_skip";
+                gpu.two_mode_capture = label != "dkb_insertion_only";
                 // One cold frame (its buffers are created), then `repeat` steady-state frames
                 // that reuse them and read back only the image: medians of those.
                 let timed = |gpu: &dhoit_runtime::gpu::Gpu| -> Result<(f64, f64, _)> {
@@ -249,6 +254,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 );
             }
             gpu.skip_forced = true;
+            gpu.two_mode_capture = true;
             let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
             let ratio = ms("dkb") / ms("vkb");
             let over_abuffer = ms("dkb") / ms("abuffer");
@@ -258,6 +264,19 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     .unwrap_or(f64::NAN)
             };
             let (skip, all) = (imp("dkb"), imp("dkb_no_skip"));
+            let capture = |m: &str| {
+                methods[m]["passes_ms"]["capture"]
+                    .as_f64()
+                    .unwrap_or(f64::NAN)
+            };
+            let (two_mode, inserted) = (capture("dkb"), capture("dkb_insertion_only"));
+            // Covered pixels DKB's capture appends (k from its CPU twin, which the GPU's equals).
+            let dkb_k = renderer.allocate(Method::Dkb)?.k;
+            let appended = dkb_k
+                .iter()
+                .zip(fl.counts())
+                .filter(|&(&k, n)| n > 0 && dhoit_runtime::composite::appends(k, n))
+                .count();
             // Covered pixels whose k the network does not decide.
             let stats = dhoit_runtime::importance::pixel_stats(&fl);
             let covered = stats.iter().filter(|st| st.count > 0).count();
@@ -279,12 +298,21 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     .unwrap_or(f64::NAN),
                 100.0 * forced as f64 / covered.max(1) as f64
             );
+            eprintln!(
+                "GPU {name}: DKB capture {two_mode:.2} ms appending {:.1}% of covered pixels, {inserted:.2} ms inserting every fragment",
+                100.0 * appended as f64 / covered.max(1) as f64
+            );
             Ok(serde_json::json!({
                 "scene": name, "fragments": fl.fragment_count(), "dkb_over_vkb": ratio,
                 "dkb_over_abuffer": over_abuffer, "methods": methods,
                 "importance_skip_forced": {
                     "forced_share_of_covered": forced as f64 / covered.max(1) as f64,
                     "importance_ms": skip, "importance_ms_no_skip": all, "saved": 1.0 - skip / all,
+                },
+                "two_mode_capture": {
+                    "appended_share_of_covered": appended as f64 / covered.max(1) as f64,
+                    "capture_ms": two_mode, "capture_ms_insertion_only": inserted,
+                    "saved": 1.0 - two_mode / inserted,
                 },
             }))
         };

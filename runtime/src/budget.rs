@@ -78,7 +78,8 @@ pub const DKB: Layout = Layout {
     scan: true,
 };
 
-/// Optimal allocation uploaded as k: the same capture and resolve as DKB, no network.
+/// Optimal allocation uploaded as k: the same capture and resolve as DKB, no network (and no
+/// counts: its capture inserts every fragment, and binds an unused counts buffer).
 pub const OPT: Layout = Layout {
     method: "optimal",
     slot_bytes: SLOT_BYTES,
@@ -89,7 +90,11 @@ pub const OPT: Layout = Layout {
         HYBRID_TAIL,
         ("oit.image", 16),
     ],
-    fixed: &[("params", PARAMS_BYTES), OFFSETS_END],
+    fixed: &[
+        ("params", PARAMS_BYTES),
+        OFFSETS_END,
+        ("oit.unused_counts", 16),
+    ],
     scan: true,
 };
 
@@ -123,11 +128,13 @@ pub const FKB: Layout = Layout {
     method: "fkb",
     slot_bytes: SLOT_BYTES,
     per_pixel: &[RASTER_TARGET, HYBRID_TAIL, ("oit.image", 16)],
-    // The capture and resolve passes bind a per-pixel k and offsets that FKB never reads.
+    // The capture and resolve passes bind a per-pixel k, offsets and counts that FKB never
+    // reads.
     fixed: &[
         ("params", PARAMS_BYTES),
         ("fkb.unused_k", 16),
         ("fkb.unused_offsets", 16),
+        ("fkb.unused_counts", 16),
     ],
     scan: false,
 };

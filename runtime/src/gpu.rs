@@ -52,6 +52,11 @@ pub struct Gpu {
     /// Whether DKB's importance pass skips the network where k does not depend on it (on by
     /// default; the bench turns it off to show the time saved). The images are the same.
     pub skip_forced: bool,
+    /// Whether the allocated k-buffers (DKB, VKB, uploaded importance), which know n(p) by the
+    /// capture, append the pixels whose slots hold all but at most
+    /// [`crate::composite::APPEND_SPILL`] fragments and insert the rest (capture.wgsl); off,
+    /// every fragment is inserted (the bench's comparison). The images are the same.
+    pub two_mode_capture: bool,
     /// Whether a frame reads back what the tests compare besides the image (the A-buffer's
     /// fragments, the k-buffer's slots and tails, importance and statistics): on by default;
     /// off, a frame reads back its image only (the bench's steady-state frames).
@@ -204,6 +209,7 @@ impl Gpu {
             adapter: adapter_name,
             pipelines,
             skip_forced: true,
+            two_mode_capture: true,
             diagnostics: true,
             pool: Default::default(),
             query_sets: Default::default(),
@@ -1052,7 +1058,14 @@ impl Gpu {
             }
             Some(Slots::PerPixel(_)) | None => (0.into(), VkbParams::default(), 0),
         };
-        let params = frame_params(cam, width, height, background, k_uniform, budget, vkb);
+        let mut params = frame_params(cam, width, height, background, k_uniform, budget, vkb);
+        // The allocated k-buffers know n(p) by the capture: two-mode capture (capture.wgsl).
+        params.append = (self.two_mode_capture
+            && matches!(
+                slots,
+                Some(Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
+            ))
+        .into();
         let inputs = self.frame_inputs(&mut fb, scene, &params);
         let timer = Timer::new(self);
         let passes = Passes::new(self, &timer, &inputs);
@@ -1114,12 +1127,19 @@ impl Gpu {
                 // tail (20 bytes a pixel) and the image (16) to live in (DKB's features).
                 let (mut reuse_tail, mut reuse_image) = (None, None);
                 // k for every pixel: uniform, uploaded, or allocated here from importance.
-                let (k_of, base, slot_count) = match s {
+                // n(p) when known (the allocated k-buffers): the capture's two modes read it.
+                let (k_of, base, slot_count, counts) = match s {
                     Slots::Uniform(k) => {
-                        // FKB reads neither buffer, but the shared capture layout binds both.
+                        // FKB reads none of these, but the shared capture layout binds them.
                         let unused_k = fb.storage("fkb.unused_k", 16, true)?;
                         let unused_offsets = fb.storage("fkb.unused_offsets", 16, true)?;
-                        (unused_k, unused_offsets, k.max(1) as u64 * px)
+                        let unused_counts = fb.storage("fkb.unused_counts", 16, true)?;
+                        (
+                            unused_k,
+                            unused_offsets,
+                            k.max(1) as u64 * px,
+                            unused_counts,
+                        )
                     }
                     Slots::PerPixel(k) => {
                         if k.len() != pixels as usize {
@@ -1136,7 +1156,8 @@ impl Gpu {
                         );
                         let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
                         passes.prefix_sum(&mut enc, &mut fb, &k_of, &base)?;
-                        (k_of, base, k.iter().map(|&x| x as u64).sum())
+                        let unused_counts = fb.storage("oit.unused_counts", 16, true)?;
+                        (k_of, base, k.iter().map(|&x| x as u64).sum(), unused_counts)
                     }
                     _ => {
                         let (counts, importance, totals, kind, marks) = match s {
@@ -1272,8 +1293,7 @@ impl Gpu {
                         fb.submit(&mut enc);
                         let total =
                             u32s(&read_back(self, &base, 4 * (px + 1))?)[pixels as usize] as u64;
-                        out.counts_buf = Some(counts);
-                        (k_of, base, total)
+                        (k_of, base, total, counts)
                     }
                 };
                 let slots_buf = fb.storage("oit.slots", 8 * slot_count, true)?;
@@ -1292,16 +1312,19 @@ impl Gpu {
                 passes.draw(
                     &mut enc,
                     &p.capture,
-                    &[&k_of, &base, &slots_buf, &tail],
+                    &[&k_of, &base, &slots_buf, &tail, &counts],
                     "capture",
                 );
                 passes.dispatch(
                     &mut enc,
                     &p.resolve,
-                    &[params_buf, &k_of, &base, &slots_buf, &tail, &image],
+                    &[params_buf, &k_of, &base, &slots_buf, &tail, &image, &counts],
                     "resolve",
                 );
                 fb.submit(&mut enc);
+                if params.append != 0 {
+                    out.counts_buf = Some(counts);
+                }
                 if self.diagnostics {
                     let bases = match s {
                         Slots::Uniform(k) => (0..=pixels).map(|q| q * k.max(1)).collect(),
@@ -1385,7 +1408,8 @@ fn frame_params(
         vkb_noise: vkb.noise,
         vkb_seed: vkb.seed,
         budget_ppm,
-        _pad: [0; 30],
+        append: 0,
+        _pad: [0; 29],
     }
 }
 

@@ -154,6 +154,8 @@ pub mod shaders {
             ("MLP_W1_AT", U32(MLP_W1_AT as u32)),
             ("MLAB_MAX_ROWS", U32(MLAB_MAX_ROWS)),
             ("MAX_F32", F32(f32::MAX)),
+            ("APPEND_MAX", U32(crate::composite::APPEND_MAX)),
+            ("APPEND_SPILL", U32(crate::composite::APPEND_SPILL)),
         ]
     }
 
@@ -209,7 +211,9 @@ pub(crate) struct Params {
     pub(crate) vkb_seed: u32,
     /// A relative budget in parts per million (0: F is `budget_fragments`).
     pub(crate) budget_ppm: u32,
-    pub(crate) _pad: [u32; 30],
+    /// 1 when the k-buffer passes have n(p) bound and capture in two modes (capture.wgsl).
+    pub(crate) append: u32,
+    pub(crate) _pad: [u32; 29],
 }
 
 /// The network's weights as the uniform `mlp.wgsl` reads, in 32-bit words: h1, h2, 0, 0,
@@ -305,7 +309,8 @@ mod tests {
         let module = parse("allocate");
         let (span, wgsl) = wgsl_struct(&module, "Params");
         let rust = offsets!(Params; view_proj, forward, background, width, height, k_uniform,
-            pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed, budget_ppm);
+            pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed, budget_ppm,
+            append);
         assert_eq!(
             wgsl, rust,
             "Params: WGSL (left) and Rust (right) members and offsets"

@@ -634,6 +634,97 @@ fn a_large_allocation_matches_its_twin() {
     }
 }
 
+/// The capture's two modes (capture.wgsl): pixels whose k holds all their fragments append
+/// them and are sorted at resolve, the others insert through their slots (with Loop64's early
+/// tests), and both end in the slots, tail and image of the CPU twin, bit for bit in the image
+/// whatever the submission order. A layered scene gives every case: pixels appended, pixels
+/// truncated, and pixels deeper than APPEND_MAX that insert although k >= n.
+#[test]
+fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
+    let Some(g) = gpu() else { return };
+    let mut s = Scene::default();
+    let v = glam::Vec3::new;
+    // 70 layers over the left half, 3 over the right, 1 over a strip at the top: deep pixels
+    // beyond APPEND_MAX, shallow ones, single ones.
+    let deep = composite::APPEND_MAX as usize + 6;
+    for i in 0..deep + 4 {
+        let z = 0.05 + 0.9 * ((i * 37) % (deep + 4)) as f32 / (deep + 4) as f32;
+        let (x0, x1) = if i < deep { (-1.0, 0.0) } else { (0.0, 1.0) };
+        let y1 = if i == deep + 3 { -0.6 } else { 1.0 };
+        let c = [
+            (i % 5) as f32 / 4.0,
+            (i % 3) as f32 / 2.0,
+            0.6,
+            0.25 + (i % 4) as f32 * 0.15,
+        ];
+        s.push_triangle([v(x0, -1.0, z), v(x1, -1.0, z), v(x0, y1, z)], [c; 3]);
+        s.push_triangle([v(x1, -1.0, z), v(x1, y1, z), v(x0, y1, z)], [c; 3]);
+    }
+    let cam = Camera {
+        view_proj: glam::Mat4::IDENTITY,
+        forward: glam::Vec3::NEG_Z,
+        eye: glam::Vec3::ZERO,
+    };
+    let (w, h) = (48, 32);
+    let gfl = g
+        .render(&s, &cam, w, h, BG, None)
+        .unwrap()
+        .fragments
+        .unwrap();
+    let counts = gfl.counts();
+    let total = gfl.fragment_count() as u64;
+    let mlp = dhoit_runtime::mlp::Mlp::random(6);
+    for f in [total / 4, total / 2, total - 40, total] {
+        for (label, slots) in [
+            ("dkb", Slots::Dkb(&mlp, f.into())),
+            ("vkb", Slots::Vkb(Default::default(), f.into())),
+        ] {
+            let frame = g.render(&s, &cam, w, h, BG, Some(slots)).unwrap();
+            let imp = frame.importance.clone().unwrap();
+            let target = if label == "dkb" {
+                mlp.target
+            } else {
+                alloc::Target::RelativeK
+            };
+            let label = format!("{label} F = {f}");
+            check_allocation_and_capture(&gfl, &frame, &imp, f, target, &label);
+            let (_, bases, _) = frame.slots.clone().unwrap();
+            let k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
+            let modes = |pred: &dyn Fn(u32, u32) -> bool| {
+                k.iter()
+                    .zip(&counts)
+                    .filter(|&(&k, &n)| n > 0 && pred(k, n))
+                    .count()
+            };
+            let appended = modes(&|k, n| composite::appends(k, n));
+            let spilled = modes(&|k, n| composite::appends(k, n) && k < n);
+            let inserted = modes(&|k, n| !composite::appends(k, n));
+            let deep_whole = modes(&|k, n| k >= n && !composite::appends(k, n));
+            eprintln!(
+                "{label}: {appended} pixels appended ({spilled} with a tail), {inserted} \
+                 inserted ({deep_whole} held whole)"
+            );
+            assert!(appended > 0 && inserted > 0, "{label}: one mode only");
+            if f == total / 2 {
+                assert!(spilled > 0, "{label}: no appended pixel with a tail");
+            }
+            if f == total {
+                assert!(deep_whole > 0, "{label}: no deep pixel held whole");
+            }
+            // Any submission order: the same image bits.
+            for seed in 0..3 {
+                let shuffled = g
+                    .render(&s.shuffled(seed), &cam, w, h, BG, Some(slots))
+                    .unwrap();
+                assert!(
+                    image_bits(&shuffled.image) == image_bits(&frame.image),
+                    "{label}: shuffle {seed}"
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn a_pixel_too_deep_for_the_devices_loops_is_refused_not_wrong() {
     // A pixel with 600 fragments needs ~180k insertion-sort steps: beyond lavapipe's loops.
