@@ -18,8 +18,9 @@ use crate::error::{Error, Result};
 /// Bytes of one fragment slot: a 64-bit key, window depth bits high and RGBA8 low.
 pub const SLOT_BYTES: u64 = 8;
 /// Bytes of the MLP's uniform buffer: a 4-float header, 24 standardisation floats and the
-/// default network's 9,985 weights, in vec4s (`mlp.wgsl` declares `MLP_VEC4S` of them, from this).
-pub const MLP_UNIFORM_BYTES: u64 = (4u64 + 24 + 9985).div_ceil(4) * 16;
+/// default network's 9,985 weights as the uniform lays them out (9,988, `mlp::MAX_PARAMETERS`),
+/// in vec4s (`mlp.wgsl` declares `MLP_VEC4S` of them, from this).
+pub const MLP_UNIFORM_BYTES: u64 = (4u64 + 24 + crate::mlp::MAX_PARAMETERS as u64).div_ceil(4) * 16;
 /// Pixels per workgroup of the prefix sum; one u32 of block totals per block.
 pub const SCAN_BLOCK: u64 = 256;
 /// Bytes of the per-frame parameter uniform (resolution, budget, background, totals).

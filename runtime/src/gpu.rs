@@ -143,12 +143,10 @@ struct Pipelines {
     allocate: Allocate,
     features: wgpu::RenderPipeline,
     totals: wgpu::ComputePipeline,
-    importance_dkb: wgpu::ComputePipeline,
-    /// Variants of the network's passes (DKB importance, predict) with other constants: the
-    /// network on every covered pixel (SKIP_FORCED false), f16 weights; built when first asked
-    /// for ([`Gpu::network_pass`]).
+    /// The network's passes (DKB importance, predict), built for one network shape, precision
+    /// and SKIP_FORCED each ([`Variant`]): the default network's at f32 at start-up, the others
+    /// when first asked for ([`Gpu::network_pass`]).
     variants: std::sync::Mutex<std::collections::HashMap<Variant, wgpu::ComputePipeline>>,
-    predict: wgpu::ComputePipeline,
     vkb_count: wgpu::RenderPipeline,
     importance_vkb: wgpu::ComputePipeline,
 }
@@ -252,9 +250,32 @@ struct Variant {
     pass: &'static str,
     skip_forced: bool,
     precision: Precision,
+    /// The network's padded layer sizes ([`crate::mlp::padded_units`]), built into the pass so
+    /// its loops have known lengths; (0, 0) reads them from the uniform.
+    shape: (u32, u32),
 }
 
 impl Variant {
+    fn pipeline(self, device: &wgpu::Device) -> wgpu::ComputePipeline {
+        let label = format!(
+            "{} {:?} {} {:?}",
+            self.pass, self.skip_forced, self.precision, self.shape
+        );
+        let m = module_from(device, &label, self.source());
+        compute_pipeline(device, &label, &m, "main")
+    }
+
+    /// The pass `pass` for network `m`, its sizes built in.
+    fn for_network(pass: &'static str, m: &Mlp, skip_forced: bool) -> Variant {
+        let p = |h| crate::mlp::padded_units(h) as u32;
+        Variant {
+            pass,
+            skip_forced,
+            precision: m.precision,
+            shape: (p(m.h1), p(m.h2)),
+        }
+    }
+
     /// Its source: the pass's, with the constants it changes replaced.
     fn source(self) -> String {
         let mut src = shaders::source(self.pass).expect("known pass");
@@ -274,36 +295,38 @@ impl Variant {
                 "const F16_WEIGHTS: bool = true;",
             );
         }
+        let (p1, p2) = self.shape;
+        // Known sizes: the private sums hold exactly p2 floats.
+        if p1 != 0 {
+            set(
+                "const NET_P1: u32 = 0u;",
+                &format!("const NET_P1: u32 = {p1}u;"),
+            );
+            set(
+                "const NET_P2: u32 = 0u;",
+                &format!("const NET_P2: u32 = {p2}u;"),
+            );
+            set(
+                "const ACC2_VEC4S: u32 = MAX_H2 / 4u;",
+                &format!("const ACC2_VEC4S: u32 = {}u;", p2 / 4),
+            );
+        }
         src
     }
 }
 
 impl Gpu {
-    /// The pipeline of a network pass: the one built at start-up for the default constants
-    /// (skip forced pixels, f32), else its variant, built on first use.
+    /// The pipeline of a network pass: built at start-up for the default network, else on
+    /// first use.
     fn network_pass(&self, v: Variant) -> wgpu::ComputePipeline {
-        let p = &self.pipelines;
-        match v {
-            Variant {
-                pass: "importance_dkb",
-                skip_forced: true,
-                precision: Precision::F32,
-            } => return p.importance_dkb.clone(),
-            Variant {
-                pass: "predict",
-                precision: Precision::F32,
-                ..
-            } => return p.predict.clone(),
-            _ => {}
-        }
-        let mut variants = p.variants.lock().unwrap_or_else(|e| e.into_inner());
+        let mut variants = self
+            .pipelines
+            .variants
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
         variants
             .entry(v)
-            .or_insert_with(|| {
-                let label = format!("{} {:?} {}", v.pass, v.skip_forced, v.precision);
-                let m = module_from(&self.device, &label, v.source());
-                compute_pipeline(&self.device, &label, &m, "main")
-            })
+            .or_insert_with(|| v.pipeline(&self.device))
             .clone()
     }
 }
@@ -359,9 +382,21 @@ impl Pipelines {
             allocate: Allocate::new(device),
             features: geometry("features"),
             totals: compute("totals"),
-            importance_dkb: compute("importance_dkb"),
-            variants: Default::default(),
-            predict: compute("predict"),
+            variants: std::sync::Mutex::new(
+                [("importance_dkb", true), ("predict", true)]
+                    .map(|(pass, skip)| {
+                        let p = crate::mlp::padded_units;
+                        let v = Variant {
+                            pass,
+                            skip_forced: skip,
+                            precision: Precision::F32,
+                            shape: (p(crate::mlp::H1) as u32, p(crate::mlp::H2) as u32),
+                        };
+                        (v, v.pipeline(device))
+                    })
+                    .into_iter()
+                    .collect(),
+            ),
             vkb_count: geometry("vkb_count"),
             importance_vkb: compute("importance_vkb"),
         };
@@ -485,11 +520,7 @@ impl Gpu {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             });
-            let pl = &self.network_pass(Variant {
-                pass: "predict",
-                skip_forced: true,
-                precision: mlp.precision,
-            });
+            let pl = &self.network_pass(Variant::for_network("predict", mlp, true));
             let group = self.bind_at(
                 &pl.get_bind_group_layout(0),
                 &[(0, &params_buf), (1, &weights), (2, &input), (3, &output)],
@@ -1241,11 +1272,11 @@ impl Gpu {
                                 );
                                 passes.dispatch(
                                     &mut enc,
-                                    &self.network_pass(Variant {
-                                        pass: "importance_dkb",
-                                        skip_forced: self.skip_forced,
-                                        precision: mlp.precision,
-                                    }),
+                                    &self.network_pass(Variant::for_network(
+                                        "importance_dkb",
+                                        mlp,
+                                        self.skip_forced,
+                                    )),
                                     &[params_buf, &weights, &counts, &keys, &sums, &totals, &imp],
                                     "importance",
                                 );

@@ -24,8 +24,9 @@ pub const LAYOUT: &str = "linear-in-out";
 /// Default hidden layer sizes.
 pub const H1: usize = 128;
 pub const H2: usize = 64;
-/// Largest parameter count accepted: the default network's.
-pub const MAX_PARAMETERS: usize = parameter_count(H1, H2);
+/// Most parameters the GPU's uniform holds, counted as laid out there
+/// ([`uniform_parameter_count`]): the default network's.
+pub const MAX_PARAMETERS: usize = uniform_parameter_count(H1, H2);
 /// The largest magnitude a weight, bias or input mean may have, and the range of an input's
 /// standard deviation: far beyond anything training produces, and small enough that a
 /// standardised input stays far from f32's range (see [`Mlp::from_bytes`]).
@@ -60,6 +61,20 @@ pub use crate::alloc::Target;
 
 pub const fn parameter_count(h1: usize, h2: usize) -> usize {
     FEATURES * h1 + h1 + h1 * h2 + h2 + h2 + 1
+}
+
+/// A layer's units as the GPU's uniform lays them out: padded to a multiple of four with
+/// zero weights and biases, so the network pass reads four units at once (mlp.wgsl).
+pub const fn padded_units(h: usize) -> usize {
+    h.next_multiple_of(4)
+}
+
+/// The parameters a network of these sizes takes in the GPU's uniform: every layer padded to
+/// [`padded_units`], the output bias to four (zeros add nothing to any sum). At most
+/// [`MAX_PARAMETERS`] are accepted.
+pub const fn uniform_parameter_count(h1: usize, h2: usize) -> usize {
+    let (p1, p2) = (padded_units(h1), padded_units(h2));
+    FEATURES * p1 + p1 + p1 * p2 + p2 + p2 + 4
 }
 
 /// Whether a covered pixel's k is forced whatever its importance: its useful cap
@@ -404,10 +419,10 @@ impl Mlp {
                 "the second hidden layer has {h2} units; at most {MAX_H2} are supported"
             )));
         }
-        if parameter_count(h1, h2) > MAX_PARAMETERS {
+        if uniform_parameter_count(h1, h2) > MAX_PARAMETERS {
             return Err(Unsupported(format!(
-                "hidden sizes {h1},{h2} give {} parameters; at most {MAX_PARAMETERS} fit the GPU's uniform buffer",
-                parameter_count(h1, h2)
+                "hidden sizes {h1},{h2} take {} parameters on the GPU (layers padded to multiples of 4 units); at most {MAX_PARAMETERS} fit its uniform buffer",
+                uniform_parameter_count(h1, h2)
             )));
         }
         Ok(Mlp {

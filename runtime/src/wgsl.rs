@@ -4,7 +4,7 @@
 //! without wgpu, and naga tests hold each layout to its WGSL declaration.
 
 use crate::budget;
-use crate::mlp::{Mlp, Precision};
+use crate::mlp::{self, Mlp, Precision};
 
 /// WGSL sources, embedded at build time.
 pub mod shaders {
@@ -217,9 +217,12 @@ pub(crate) struct Params {
 }
 
 /// The network's weights as the uniform `mlp.wgsl` reads, in 32-bit words: h1, h2, 0, 0,
-/// mean, std (f32), then fc1 weight and bias, fc2 weight and bias, out weight and bias: f32
-/// words, or at [`Precision::F16`] binary16 values two to a word (the first in the low half, as
-/// `unpack2x16float` reads them); zero-padded to [`budget::MLP_UNIFORM_BYTES`].
+/// mean, std (f32), then fc1 weight and bias, fc2 weight and bias, out weight and bias, each
+/// layer's units padded with zeros to a multiple of four ([`mlp::padded_units`]: fc1 weight
+/// `[12][p1]`, fc1 bias `[p1]`, fc2 weight `[p1][p2]`, fc2 bias `[p2]`, out weight `[p2]`, out
+/// bias and three zeros), so every group of four units starts on a vec4 (f32) or half a vec4
+/// (f16): f32 words, or at [`Precision::F16`] binary16 values two to a word (the first in the
+/// low half, as `unpack2x16float` reads them); zero-padded to [`budget::MLP_UNIFORM_BYTES`].
 pub fn mlp_uniform(m: &Mlp) -> Vec<u32> {
     let mut v: Vec<u32> = [m.h1 as f32, m.h2 as f32, 0.0, 0.0]
         .iter()
@@ -230,21 +233,42 @@ pub fn mlp_uniform(m: &Mlp) -> Vec<u32> {
     debug_assert_eq!(v.len(), MLP_STD_AT);
     v.extend(m.std.map(f32::to_bits));
     debug_assert_eq!(v.len(), MLP_W1_AT);
+    let params = padded_parameters(m);
     match m.precision {
-        Precision::F32 => v.extend(m.parameters().map(f32::to_bits)),
+        Precision::F32 => v.extend(params.iter().map(|x| x.to_bits())),
         Precision::F16 => {
-            let halves: Vec<u32> = m
-                .parameters()
-                .map(|x| half::f16::from_f32(x).to_bits() as u32)
+            let halves: Vec<u32> = params
+                .iter()
+                .map(|&x| half::f16::from_f32(x).to_bits() as u32)
                 .collect();
-            v.extend(
-                halves
-                    .chunks(2)
-                    .map(|p| p[0] | p.get(1).map_or(0, |&hi| hi << 16)),
-            );
+            v.extend(halves.chunks(2).map(|p| p[0] | p[1] << 16));
         }
     }
     v.resize((budget::MLP_UNIFORM_BYTES / 4) as usize, 0);
+    v
+}
+
+/// The parameters in the uniform's order, each layer padded to [`mlp::padded_units`]
+/// ([`mlp::uniform_parameter_count`] of them, a multiple of four).
+fn padded_parameters(m: &Mlp) -> Vec<f32> {
+    let (p1, p2) = (mlp::padded_units(m.h1), mlp::padded_units(m.h2));
+    let mut v = Vec::with_capacity(mlp::uniform_parameter_count(m.h1, m.h2));
+    let mut pad = |row: &[f32], to: usize| {
+        v.extend_from_slice(row);
+        v.resize(v.len() + to - row.len(), 0.0);
+    };
+    for row in m.w1.chunks(m.h1) {
+        pad(row, p1);
+    }
+    pad(&m.b1, p1);
+    for row in m.w2.chunks(m.h2) {
+        pad(row, p2);
+    }
+    pad(&[], (p1 - m.h1) * p2);
+    pad(&m.b2, p2);
+    pad(&m.w3, p2);
+    pad(&[m.b3], 4);
+    debug_assert_eq!(v.len(), mlp::uniform_parameter_count(m.h1, m.h2));
     v
 }
 
@@ -353,7 +377,7 @@ mod tests {
         // The largest network the loader accepts fills it; the default is the largest.
         let m = Mlp::random(1);
         assert_eq!(
-            crate::mlp::parameter_count(m.h1, m.h2),
+            crate::mlp::uniform_parameter_count(m.h1, m.h2),
             crate::mlp::MAX_PARAMETERS
         );
         let v = mlp_uniform(&m);

@@ -513,10 +513,13 @@ pub fn train_from(
         return Err(Error::Config("clip must be a non-negative number".into()));
     }
     let [h1, h2] = config.hidden;
-    if h1 == 0 || h2 == 0 || h2 > mlp::MAX_H2 || mlp::parameter_count(h1, h2) > mlp::MAX_PARAMETERS
+    if h1 == 0
+        || h2 == 0
+        || h2 > mlp::MAX_H2
+        || mlp::uniform_parameter_count(h1, h2) > mlp::MAX_PARAMETERS
     {
         return Err(Error::Config(format!(
-            "hidden sizes {h1},{h2}: need positive sizes, H2 at most {}, and at most {} parameters (128,64 has that many)",
+            "hidden sizes {h1},{h2}: need positive sizes, H2 at most {}, and at most {} parameters with each layer padded to a multiple of 4 units, as the GPU lays them out (128,64 has that many)",
             mlp::MAX_H2,
             mlp::MAX_PARAMETERS
         )));
