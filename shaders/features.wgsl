@@ -5,14 +5,20 @@
 // atomicMax finds the minimum. The two largest keys (the farthest fragments) are kept by a
 // two-slot insertion with atomicMax, each key marked with bit 63 (importance::OCCUPIED) so a
 // slot is never mistaken for empty. 44 bytes a pixel, which the tail and the image reuse.
+//
+// Three atomic adds a fragment, and atomicMax only where it can change a key: the colour sums
+// go two to a 64-bit add (r and g, then b and the squares; the low halves hold at most 255 n,
+// so they never carry into the high ones below 2^24 fragments a pixel, and the squares wrap in
+// the high half as a 32-bit sum does), and the keys only grow, so a key that the stored one
+// already beats is skipped after a plain atomic load, as Loop64's early test does.
 
 @group(1) @binding(0) var<storage, read_write> count: array<atomic<u32>>;
 // Per pixel: the nearest key (complemented), then the two largest keys, farthest first. The
 // frame reuses this buffer for the tail's sums once the importance pass has read it.
 @group(1) @binding(1) var<storage, read_write> keys: array<atomic<u64>>;
-// Per pixel: sum r, sum g, sum b, sum (r^2 + g^2 + b^2), 8-bit units (wrapping). Reused for
-// the image.
-@group(1) @binding(2) var<storage, read_write> sums: array<atomic<u32>>;
+// Per pixel: sum r, sum g, sum b, sum (r^2 + g^2 + b^2), 8-bit units (wrapping), as 32-bit
+// words (importance_dkb.wgsl reads them so), added as two 64-bit words. Reused for the image.
+@group(1) @binding(2) var<storage, read_write> sums: array<atomic<u64>>;
 
 
 @fragment
@@ -22,23 +28,26 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let depth = select(0.0, in.clip.z, in.clip.z > 0.0);
     atomicAdd(&count[p], 1u);
     let key = fragment_key(depth, rgba8);
-    atomicMax(&keys[3u * p], ~key);
+    if (atomicLoad(&keys[3u * p]) < ~key) {
+        atomicMax(&keys[3u * p], ~key);
+    }
     // Insertion into two slots kept in decreasing order: the larger key stays, the smaller
-    // moves on; a key that finds an empty slot stops there.
+    // moves on; a key that finds an empty slot stops there. A key no greater than the second
+    // slot changes neither.
     var carry = key | OCCUPIED;
-    for (var i = 0u; i < 2u; i++) {
-        let old = atomicMax(&keys[3u * p + 1u + i], carry);
-        if (old == 0lu) {
-            break;
+    if (atomicLoad(&keys[3u * p + 2u]) < carry) {
+        for (var i = 0u; i < 2u; i++) {
+            let old = atomicMax(&keys[3u * p + 1u + i], carry);
+            if (old == 0lu) {
+                break;
+            }
+            carry = min(old, carry);
         }
-        carry = min(old, carry);
     }
     let r = rgba8 & 0xffu;
     let g = (rgba8 >> 8u) & 0xffu;
     let b = (rgba8 >> 16u) & 0xffu;
-    atomicAdd(&sums[4u * p], r);
-    atomicAdd(&sums[4u * p + 1u], g);
-    atomicAdd(&sums[4u * p + 2u], b);
-    atomicAdd(&sums[4u * p + 3u], r * r + g * g + b * b);
+    atomicAdd(&sums[2u * p], u64(r) | (u64(g) << 32u));
+    atomicAdd(&sums[2u * p + 1u], u64(b) | (u64(r * r + g * g + b * b) << 32u));
     return vec4<f32>(0.0);
 }
