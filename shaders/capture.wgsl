@@ -4,9 +4,9 @@
 // append mode's once the resolve has sorted them):
 //
 // - append (n <= k + APPEND_SPILL and n <= APPEND_MAX): at most two fragments are truncated, so
-//   no insertion is needed; each fragment takes the next place from a cursor (the tail's count
-//   word): one of the k slots, or past them one of the APPEND_SPILL keys kept in the tail's four
-//   sum words, and the resolve sorts the pixel's n keys, as the A-buffer does, keeps the k
+//   no insertion is needed; each fragment takes the next place from a cursor (the tail's
+//   count): one of the k slots, or past them one of the APPEND_SPILL keys kept in the tail's
+//   four sum words, and the resolve sorts the pixel's n keys, as the A-buffer does, keeps the k
 //   nearest and sums the rest into the tail.
 // - insertion (every other pixel, and every pixel when n is unknown: FKB, uploaded k): NVIDIA's
 //   lock-free Loop64. Slots hold the bitwise complement of the capture key (so a cleared, zero
@@ -20,10 +20,11 @@
 @group(1) @binding(0) var<storage, read> k_of: array<u32>;
 @group(1) @binding(1) var<storage, read> slot_base: array<u32>;
 @group(1) @binding(2) var<storage, read_write> slots: array<atomic<u64>>;
-// Per pixel: sum c8 a8 for r, g, b, sum a8, count (the append mode's cursor).
+// Per pixel: sum c8 a8 for r, g, b, sum a8; and the tail's count (the append mode's cursor).
 @group(1) @binding(3) var<storage, read_write> tail: array<atomic<u32>>;
+@group(1) @binding(4) var<storage, read_write> tail_count: array<atomic<u32>>;
 // n(p), read when params.append is 1.
-@group(1) @binding(4) var<storage, read> count: array<u32>;
+@group(1) @binding(5) var<storage, read> count: array<u32>;
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
@@ -38,11 +39,11 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     if (params.append != 0u) {
         let n = count[p];
         if (appends(k, n)) {
-            let i = atomicAdd(&tail[5u * p + 4u], 1u);
+            let i = atomicAdd(&tail_count[p], 1u);
             if (i < k) {
                 atomicStore(&slots[base + i], cur);
             } else {
-                let j = 5u * p + 2u * (i - k);
+                let j = 4u * p + 2u * (i - k);
                 atomicStore(&tail[j], u32(cur & 0xfffffffflu));
                 atomicStore(&tail[j + 1u], u32(cur >> 32u));
             }
@@ -70,10 +71,10 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let c = (~cur) & 0xfffffffflu;
     let rgba = u32(c);
     let a = rgba >> 24u;
-    atomicAdd(&tail[5u * p], (rgba & 0xffu) * a);
-    atomicAdd(&tail[5u * p + 1u], ((rgba >> 8u) & 0xffu) * a);
-    atomicAdd(&tail[5u * p + 2u], ((rgba >> 16u) & 0xffu) * a);
-    atomicAdd(&tail[5u * p + 3u], a);
-    atomicAdd(&tail[5u * p + 4u], 1u);
+    atomicAdd(&tail[4u * p], (rgba & 0xffu) * a);
+    atomicAdd(&tail[4u * p + 1u], ((rgba >> 8u) & 0xffu) * a);
+    atomicAdd(&tail[4u * p + 2u], ((rgba >> 16u) & 0xffu) * a);
+    atomicAdd(&tail[4u * p + 3u], a);
+    atomicAdd(&tail_count[p], 1u);
     return vec4<f32>(0.0);
 }

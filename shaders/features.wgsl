@@ -13,12 +13,14 @@
 // already beats is skipped after a plain atomic load, as Loop64's early test does.
 
 @group(1) @binding(0) var<storage, read_write> count: array<atomic<u32>>;
-// Per pixel: the nearest key (complemented), then the two largest keys, farthest first. The
-// frame reuses this buffer for the tail's sums once the importance pass has read it.
-@group(1) @binding(1) var<storage, read_write> keys: array<atomic<u64>>;
+// Per pixel: the nearest key (complemented); the frame reuses this buffer for the tail's count
+// once the importance pass has read it.
+@group(1) @binding(1) var<storage, read_write> nearest: array<atomic<u64>>;
+// Per pixel: the two largest keys, farthest first; reused for the tail's sums.
+@group(1) @binding(2) var<storage, read_write> farthest: array<atomic<u64>>;
 // Per pixel: sum r, sum g, sum b, sum (r^2 + g^2 + b^2), 8-bit units (wrapping), as 32-bit
 // words (importance_dkb.wgsl reads them so), added as two 64-bit words. Reused for the image.
-@group(1) @binding(2) var<storage, read_write> sums: array<atomic<u64>>;
+@group(1) @binding(3) var<storage, read_write> sums: array<atomic<u64>>;
 
 
 @fragment
@@ -28,16 +30,16 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let depth = select(0.0, in.clip.z, in.clip.z > 0.0);
     atomicAdd(&count[p], 1u);
     let key = fragment_key(depth, rgba8);
-    if (atomicLoad(&keys[3u * p]) < ~key) {
-        atomicMax(&keys[3u * p], ~key);
+    if (atomicLoad(&nearest[p]) < ~key) {
+        atomicMax(&nearest[p], ~key);
     }
     // Insertion into two slots kept in decreasing order: the larger key stays, the smaller
     // moves on; a key that finds an empty slot stops there. A key no greater than the second
     // slot changes neither.
     var carry = key | OCCUPIED;
-    if (atomicLoad(&keys[3u * p + 2u]) < carry) {
+    if (atomicLoad(&farthest[2u * p + 1u]) < carry) {
         for (var i = 0u; i < 2u; i++) {
-            let old = atomicMax(&keys[3u * p + 1u + i], carry);
+            let old = atomicMax(&farthest[2u * p + i], carry);
             if (old == 0lu) {
                 break;
             }

@@ -5,11 +5,12 @@
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(2) var<storage, read> count: array<u32>;
-// Per pixel: the nearest key (complemented), the two farthest keys (features.wgsl).
-@group(0) @binding(3) var<storage, read> keys: array<u64>;
-@group(0) @binding(4) var<storage, read> sums: array<u32>;
-@group(0) @binding(5) var<storage, read> totals: array<u32>;
-@group(0) @binding(6) var<storage, read_write> importance: array<f32>;
+// Per pixel: the nearest key (complemented); the two farthest keys (features.wgsl).
+@group(0) @binding(3) var<storage, read> nearest: array<u64>;
+@group(0) @binding(4) var<storage, read> farthest: array<u64>;
+@group(0) @binding(5) var<storage, read> sums: array<u32>;
+@group(0) @binding(6) var<storage, read> totals: array<u32>;
+@group(0) @binding(7) var<storage, read_write> importance: array<f32>;
 
 // Skip the network where k does not depend on it (Mlp::dkb_importance): a pixel whose useful
 // cap is 0 (one fragment, or two sharing one colour: mlp::forced) and every pixel of a frame
@@ -38,8 +39,8 @@ fn main(
     }
     // The sign bit marks a pixel whose two farthest fragments share one colour
     // (importance::tail_pair, alloc::mark_pair): the allocation lets it use a slot fewer.
-    let f0 = keys[3u * p + 1u];
-    let f1 = keys[3u * p + 2u];
+    let f0 = farthest[2u * p];
+    let f1 = farthest[2u * p + 1u];
     let pair = (f1 & OCCUPIED) != 0lu && u32(f0 & 0xfffffffflu) == u32(f1 & 0xfffffffflu);
     let mark = select(0u, PAIR_BIT, pair);
     if (SKIP_FORCED && (c <= 1u + select(0u, 1u, pair) || budget_of(totals[0]) >= u64(totals[0]))) {
@@ -50,7 +51,7 @@ fn main(
     let total = f32(max(totals[0], 1u));
     let covered = f32(max(totals[1], 1u));
     let nf = f32(c);
-    let key = ~keys[3u * p];
+    let key = ~nearest[p];
     let near8 = u32(key & 0xfffffffflu);
     let near = unpack_rgba8(near8).rgb;
     let sum = vec3<u32>(sums[4u * p], sums[4u * p + 1u], sums[4u * p + 2u]);

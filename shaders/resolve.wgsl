@@ -9,10 +9,12 @@
 @group(0) @binding(1) var<storage, read> k_of: array<u32>;
 @group(0) @binding(2) var<storage, read> slot_base: array<u32>;
 @group(0) @binding(3) var<storage, read_write> slots: array<u64>;
+// Per pixel: sum c8 a8 for r, g, b, sum a8; and the tail's count.
 @group(0) @binding(4) var<storage, read_write> tail: array<u32>;
-@group(0) @binding(5) var<storage, read_write> image: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read_write> tail_count: array<u32>;
+@group(0) @binding(6) var<storage, read_write> image: array<vec4<f32>>;
 // n(p), read when params.append is 1.
-@group(0) @binding(6) var<storage, read> count: array<u32>;
+@group(0) @binding(7) var<storage, read> count: array<u32>;
 
 // An appended pixel's n keys (complemented: the nearest is the largest), sorted in place:
 // those in its slots by insertion in decreasing order (at most APPEND_MAX (APPEND_MAX - 1) / 2
@@ -32,7 +34,7 @@ fn sort_appended(p: u32, base: u32, k: u32, n: u32) {
     }
     var sums = vec4<u32>(0u);
     for (var s = 0u; s < n - held; s++) {
-        var key = u64(tail[5u * p + 2u * s]) | (u64(tail[5u * p + 2u * s + 1u]) << 32u);
+        var key = u64(tail[4u * p + 2u * s]) | (u64(tail[4u * p + 2u * s + 1u]) << 32u);
         if (held > 0u && slots[base + held - 1u] < key) {
             // Nearer than the last slot: it takes its place in order, the last is left out.
             let out = slots[base + held - 1u];
@@ -48,11 +50,11 @@ fn sort_appended(p: u32, base: u32, k: u32, n: u32) {
         let a = rgba >> 24u;
         sums += vec4<u32>((rgba & 0xffu) * a, ((rgba >> 8u) & 0xffu) * a, ((rgba >> 16u) & 0xffu) * a, a);
     }
-    tail[5u * p] = sums.x;
-    tail[5u * p + 1u] = sums.y;
-    tail[5u * p + 2u] = sums.z;
-    tail[5u * p + 3u] = sums.w;
-    tail[5u * p + 4u] = n - held;
+    tail[4u * p] = sums.x;
+    tail[4u * p + 1u] = sums.y;
+    tail[4u * p + 2u] = sums.z;
+    tail[4u * p + 3u] = sums.w;
+    tail_count[p] = n - held;
 }
 
 @compute @workgroup_size(PIXEL_GROUP)
@@ -80,13 +82,13 @@ fn main(
     // The tail over the background.
     let bg = params.background.rgb;
     var behind = bg;
-    let tail_count = tail[5u * p + 4u];
-    let sum_a = tail[5u * p + 3u];
-    if (tail_count > 0u && sum_a > 0u) {
-        let a_avg = min(f32(sum_a) / (255.0 * f32(tail_count)), 1.0);
-        let a_tail = 1.0 - pow(1.0 - a_avg, f32(tail_count));
+    let tail_n = tail_count[p];
+    let sum_a = tail[4u * p + 3u];
+    if (tail_n > 0u && sum_a > 0u) {
+        let a_avg = min(f32(sum_a) / (255.0 * f32(tail_n)), 1.0);
+        let a_tail = 1.0 - pow(1.0 - a_avg, f32(tail_n));
         let inv = 1.0 / (255.0 * f32(sum_a));
-        let c_tail = vec3<f32>(f32(tail[5u * p]), f32(tail[5u * p + 1u]), f32(tail[5u * p + 2u])) * inv;
+        let c_tail = vec3<f32>(f32(tail[4u * p]), f32(tail[4u * p + 1u]), f32(tail[4u * p + 2u])) * inv;
         behind = a_tail * c_tail + (1.0 - a_tail) * bg;
     }
     var c = vec3<f32>(0.0);

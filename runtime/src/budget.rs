@@ -41,8 +41,9 @@ pub struct Layout {
     pub scan: bool,
 }
 
-/// The tail's integer sums: sum c8 a8 for r, g, b, sum a8, count (five u32 a pixel).
-const HYBRID_TAIL: (&str, u64) = ("oit.tail", 20);
+/// The tail's integer sums: sum c8 a8 for r, g, b, sum a8 (four u32 a pixel), and its count.
+const HYBRID_TAIL: (&str, u64) = ("oit.tail", 16);
+const TAIL_COUNT: (&str, u64) = ("oit.tail_count", 4);
 /// The geometry passes' render target (R8, never written): rasterization needs one.
 const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
 /// The allocation's parameters (F, share, weight kind) and its search state (24 u64: target,
@@ -53,15 +54,17 @@ const ALLOC_STATE: (&str, u64) = ("alloc.state", 8 * crate::wgsl::ALLOC_STATE_WO
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 
 /// Deep k-buffer: network features, importance, k, offsets, tail, output. The features'
-/// keys (nearest and two farthest, 24 bytes) are read by the importance pass and then hold the
-/// tail (20); their colour sums (16) then hold the image (16): 61 bytes a pixel, as VKB's.
+/// keys, read by the importance pass, then hold the tail: the nearest (8 bytes) its count (4),
+/// the two farthest (16) its sums (16); their colour sums (16) then hold the image (16): 61
+/// bytes a pixel, as VKB's.
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
     per_pixel: &[
         RASTER_TARGET,
         ("features.count", 4),
-        ("features.keys", 24),
+        ("features.nearest", 8),
+        ("features.farthest", 16),
         ("features.color_sums", 16),
         ("oit.importance", 4),
         ("alloc.flags", 4),
@@ -89,6 +92,7 @@ pub const OPT: Layout = Layout {
         ("oit.k", 4),
         ("oit.offsets", 4),
         HYBRID_TAIL,
+        TAIL_COUNT,
         ("oit.image", 16),
     ],
     fixed: &[
@@ -112,6 +116,7 @@ pub const VKB: Layout = Layout {
         ("oit.k", 4),
         ("oit.offsets", 4),
         HYBRID_TAIL,
+        TAIL_COUNT,
         ("oit.image", 16),
     ],
     fixed: &[
@@ -128,7 +133,7 @@ pub const VKB: Layout = Layout {
 pub const FKB: Layout = Layout {
     method: "fkb",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[RASTER_TARGET, HYBRID_TAIL, ("oit.image", 16)],
+    per_pixel: &[RASTER_TARGET, HYBRID_TAIL, TAIL_COUNT, ("oit.image", 16)],
     // The capture and resolve passes bind a per-pixel k, offsets and counts that FKB never
     // reads.
     fixed: &[

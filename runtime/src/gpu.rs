@@ -1155,7 +1155,8 @@ impl Gpu {
             }
             Some(s) => {
                 // Per-pixel buffers whose contents are read by the time of the capture, for the
-                // tail (20 bytes a pixel) and the image (16) to live in (DKB's features).
+                // tail (its sums, 16 bytes a pixel, and its count, 4) and the image (16) to live
+                // in (DKB's features).
                 let (mut reuse_tail, mut reuse_image) = (None, None);
                 // k for every pixel: uniform, uploaded, or allocated here from importance.
                 // n(p) when known (the allocated k-buffers): the capture's two modes read it.
@@ -1252,16 +1253,19 @@ impl Gpu {
                                     true,
                                 );
                                 let counts = fb.storage("features.count", 4 * px, true)?;
-                                // The nearest and the two farthest keys (24 bytes a pixel), then
-                                // the tail; the colour sums (16), then the image.
-                                let keys = fb.storage("features.keys", 24 * px, true)?;
+                                // The nearest key (8 bytes a pixel), then the tail's count; the
+                                // two farthest keys (16), then the tail's sums; the colour sums
+                                // (16), then the image. No buffer above 16 bytes a pixel, so a
+                                // 4K frame fits 128 MiB bindings.
+                                let nearest = fb.storage("features.nearest", 8 * px, true)?;
+                                let farthest = fb.storage("features.farthest", 16 * px, true)?;
                                 let sums = fb.storage("features.color_sums", 16 * px, true)?;
                                 let totals = fb.storage("features.totals", 24, true)?;
                                 let imp = fb.storage("oit.importance", 4 * px, true)?;
                                 passes.draw(
                                     &mut enc,
                                     &p.features,
-                                    &[&counts, &keys, &sums],
+                                    &[&counts, &nearest, &farthest, &sums],
                                     "features",
                                 );
                                 passes.dispatch(
@@ -1277,21 +1281,27 @@ impl Gpu {
                                         mlp,
                                         self.skip_forced,
                                     )),
-                                    &[params_buf, &weights, &counts, &keys, &sums, &totals, &imp],
+                                    &[
+                                        params_buf, &weights, &counts, &nearest, &farthest, &sums,
+                                        &totals, &imp,
+                                    ],
                                     "importance",
                                 );
                                 // Copies for the frame's statistics (not counted), then the
                                 // buffers serve the tail and the image.
                                 if self.diagnostics {
-                                    let keys_copy =
-                                        fb.storage("features.keys.readback", 24 * px, false)?;
-                                    let sums_copy =
-                                        fb.storage("features.color_sums.readback", 16 * px, false)?;
-                                    enc.copy_buffer_to_buffer(&keys, 0, &keys_copy, 0, 24 * px);
-                                    enc.copy_buffer_to_buffer(&sums, 0, &sums_copy, 0, 16 * px);
-                                    out.stats_bufs = Some([keys_copy, sums_copy]);
+                                    let mut copy = |b: &wgpu::Buffer, label: &str, bytes: u64| {
+                                        let c = fb.storage(label, bytes * px, false)?;
+                                        enc.copy_buffer_to_buffer(b, 0, &c, 0, bytes * px);
+                                        Ok::<_, Error>(c)
+                                    };
+                                    out.stats_bufs = Some([
+                                        copy(&nearest, "features.nearest.readback", 8)?,
+                                        copy(&farthest, "features.farthest.readback", 16)?,
+                                        copy(&sums, "features.color_sums.readback", 16)?,
+                                    ]);
                                 }
-                                reuse_tail = Some(keys);
+                                reuse_tail = Some((farthest, nearest));
                                 reuse_image = Some(sums);
                                 (counts, imp, totals, weight_kind(mlp.target), None)
                             }
@@ -1324,17 +1334,23 @@ impl Gpu {
                         fb.submit(&mut enc);
                         let total =
                             u32s(&read_back(self, &base, 4 * (px + 1))?)[pixels as usize] as u64;
+                        out.counts_buf = Some(counts.clone());
                         (k_of, base, total, counts)
                     }
                 };
                 let slots_buf = fb.storage("oit.slots", 8 * slot_count, true)?;
-                let tail = match reuse_tail {
-                    Some(b) => {
-                        // The tail's sums start from zero.
-                        enc.clear_buffer(&b, 0, None);
-                        b
+                // The tail: sum c8 a8 for r, g, b and sum a8 (16 bytes a pixel), and its count.
+                let (tail, tail_count) = match reuse_tail {
+                    Some((sums, count)) => {
+                        // The tail starts from zero.
+                        enc.clear_buffer(&sums, 0, None);
+                        enc.clear_buffer(&count, 0, None);
+                        (sums, count)
                     }
-                    None => fb.storage("oit.tail", 20 * px, true)?,
+                    None => (
+                        fb.storage("oit.tail", 16 * px, true)?,
+                        fb.storage("oit.tail_count", 4 * px, true)?,
+                    ),
                 };
                 image = match reuse_image {
                     Some(b) => b,
@@ -1343,29 +1359,40 @@ impl Gpu {
                 passes.draw(
                     &mut enc,
                     &p.capture,
-                    &[&k_of, &base, &slots_buf, &tail, &counts],
+                    &[&k_of, &base, &slots_buf, &tail, &tail_count, &counts],
                     "capture",
                 );
                 passes.dispatch(
                     &mut enc,
                     &p.resolve,
-                    &[params_buf, &k_of, &base, &slots_buf, &tail, &image, &counts],
+                    &[
+                        params_buf,
+                        &k_of,
+                        &base,
+                        &slots_buf,
+                        &tail,
+                        &tail_count,
+                        &image,
+                        &counts,
+                    ],
                     "resolve",
                 );
                 fb.submit(&mut enc);
-                if params.append != 0 {
-                    out.counts_buf = Some(counts);
-                }
                 if self.diagnostics {
                     let bases = match s {
                         Slots::Uniform(k) => (0..=pixels).map(|q| q * k.max(1)).collect(),
                         _ => u32s(&read_back(self, &base, 4 * (px + 1))?),
                     };
-                    out.slots = Some((
-                        read_u64s(self, &slots_buf, slot_count, true)?,
-                        bases,
-                        u32s(&read_back(self, &tail, 20 * px)?),
-                    ));
+                    // Five words a pixel, as composite::capture gives them.
+                    let sums = u32s(&read_back(self, &tail, 16 * px)?);
+                    let counts = u32s(&read_back(self, &tail_count, 4 * px)?);
+                    let tails = sums
+                        .chunks_exact(4)
+                        .zip(counts)
+                        .flat_map(|(s, c)| [s[0], s[1], s[2], s[3], c])
+                        .collect();
+                    out.slots =
+                        Some((read_u64s(self, &slots_buf, slot_count, true)?, bases, tails));
                 }
             }
         }
@@ -1713,8 +1740,8 @@ struct Readback {
     slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
     counts_buf: Option<wgpu::Buffer>,
     importance_buf: Option<wgpu::Buffer>,
-    /// DKB: the keys (nearest, two farthest) and the colour sums.
-    stats_bufs: Option<[wgpu::Buffer; 2]>,
+    /// DKB: the nearest keys, the two farthest keys and the colour sums.
+    stats_bufs: Option<[wgpu::Buffer; 3]>,
     vkb_nearest_buf: Option<wgpu::Buffer>,
 }
 
@@ -1741,17 +1768,18 @@ impl Readback {
         };
         let counts = u32s(&read_back(gpu, counts, 4 * px)?);
         let stats = match &self.stats_bufs {
-            Some([keys, sums]) => {
-                let keys = read_u64s(gpu, keys, 3 * px, false)?;
+            Some([nearest, farthest, sums]) => {
+                let nearest = read_u64s(gpu, nearest, px, false)?;
+                let farthest = read_u64s(gpu, farthest, 2 * px, false)?;
                 let sums = u32s(&read_back(gpu, sums, 16 * px)?);
                 Some(
                     (0..px as usize)
                         .map(|q| PixelStats {
                             count: counts[q],
-                            nearest_key: if counts[q] > 0 { !keys[3 * q] } else { 0 },
+                            nearest_key: if counts[q] > 0 { !nearest[q] } else { 0 },
                             color_sum: [sums[4 * q], sums[4 * q + 1], sums[4 * q + 2]],
                             color_sq_sum: sums[4 * q + 3],
-                            farthest: [keys[3 * q + 1], keys[3 * q + 2]],
+                            farthest: [farthest[2 * q], farthest[2 * q + 1]],
                         })
                         .collect(),
                 )
