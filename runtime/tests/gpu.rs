@@ -991,6 +991,13 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
             BG,
         );
         assert!(fk.image.max_abs_diff(&twin) <= 1e-5, "fkb {w}x{h}");
+        // MLAB and the exact A-buffer's image.
+        let ml = g.render(&s, &cam, w, h, BG, Some(Slots::Mlab(4))).unwrap();
+        let twin = composite::composite(&gfl, composite::Method::Mlab(4), BG);
+        assert!(ml.image.max_abs_diff(&twin) <= 1e-5, "mlab {w}x{h}");
+        let a = g.render(&s, &cam, w, h, BG, None).unwrap();
+        let twin = composite::composite(&gfl, composite::Method::Exact, BG);
+        assert!(a.image.max_abs_diff(&twin) <= 1e-5, "abuffer {w}x{h}");
     }
 }
 
