@@ -1,0 +1,335 @@
+//! The allocation on the device, in one submission (`allocate.wgsl`: weights, an 11-round
+//! 16-way search for the water level, the marks, their prefix sums and the apply; the twin is
+//! `alloc::allocate`), from the importance a frame computes (`dkb.rs`, `vkb.rs`) or is given
+//! (the count pass and `totals.wgsl` first). [`Gpu::allocate`] runs it alone.
+
+use super::*;
+
+/// Per-pixel importance on the device and what the allocation needs beside it.
+pub(super) struct Importance {
+    pub(super) counts: wgpu::Buffer,
+    /// Importance in; the allocation's fixed-point weights in place.
+    pub(super) importance: wgpu::Buffer,
+    pub(super) totals: wgpu::Buffer,
+    /// Whether the frame computed the importance (read back with diagnostics).
+    pub(super) computed: bool,
+    /// The weight kind (`Alloc.kind`, [`weight_kind`]).
+    pub(super) kind: u32,
+    /// A buffer of at least 4 bytes a pixel no longer needed, to hold the allocation's marks.
+    pub(super) marks: Option<wgpu::Buffer>,
+    /// Buffers no longer needed by the capture, for the tail and the image (DKB's features).
+    pub(super) reuse: Option<Reuse>,
+}
+
+/// Per-pixel buffers whose contents are read by the time of the capture.
+pub(super) struct Reuse {
+    /// 16 bytes a pixel.
+    pub(super) tail: wgpu::Buffer,
+    /// 4 bytes a pixel.
+    pub(super) tail_count: wgpu::Buffer,
+    /// 16 bytes a pixel.
+    pub(super) image: wgpu::Buffer,
+}
+
+impl Recording<'_, '_> {
+    /// The count and totals for importance computed elsewhere, uploaded.
+    pub(super) fn uploaded_importance(
+        &mut self,
+        imp: &[f32],
+        target: Target,
+    ) -> Result<Importance> {
+        let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
+        let p = &gpu.pipelines;
+        if imp.len() as u64 != px {
+            return Err(Error::Invalid(format!(
+                "{} importance values for {px} pixels",
+                imp.len()
+            )));
+        }
+        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        let counts = fb.storage("count", 4 * px, true)?;
+        let importance = fb.init(
+            "oit.importance",
+            bytemuck::cast_slice(imp),
+            wgpu::BufferUsages::STORAGE,
+            true,
+        );
+        let totals = fb.storage("totals", 16, true)?;
+        passes.draw(enc, &p.count, &[&counts], "count");
+        passes.dispatch(
+            enc,
+            &p.totals,
+            &[passes.params(), &counts, &totals],
+            "totals",
+        );
+        Ok(Importance {
+            counts,
+            importance,
+            totals,
+            computed: false,
+            kind: weight_kind(target),
+            marks: None,
+            reuse: None,
+        })
+    }
+}
+
+impl<'a> Passes<'a> {
+    /// The allocation (allocate.wgsl), recorded into `enc`: weights, setup, 11 rounds of search
+    /// and choose, mark (one timed pass), the prefix of the marks, apply (another).
+    pub(super) fn allocate(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        fb: &mut FrameBuffers,
+        b: AllocBuffers,
+        budget: FragmentBudget,
+        kind: u32,
+    ) -> Result<()> {
+        let gpu = self.gpu;
+        let a = &gpu.pipelines.allocate;
+        let (f, ppm) = match budget {
+            FragmentBudget::Slots(f) => (f, 0),
+            FragmentBudget::Share(ppm) => (0, ppm),
+        };
+        let ap = AllocParams {
+            f_lo: f as u32,
+            f_hi: (f >> 32) as u32,
+            ppm,
+            kind,
+        };
+        let params = fb.init(
+            "alloc.params",
+            bytemuck::bytes_of(&ap),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        );
+        let state = fb.storage("alloc.state", 8 * ALLOC_STATE_WORDS as u64, true)?;
+        // The marks need 4 bytes a pixel only during the allocation: a buffer the frame no longer
+        // needs by then holds them where there is one.
+        let flags = match b.flags {
+            Some(f) => f.clone(),
+            None => fb.storage("alloc.flags", 4 * self.pixels as u64, true)?,
+        };
+        let bind = |marks: &wgpu::Buffer| {
+            gpu.bind_at(
+                &a.layout,
+                &[
+                    (0, self.geometry[0]),
+                    (1, &params),
+                    (2, b.counts),
+                    (3, b.weights),
+                    (4, b.k),
+                    (5, &state),
+                    (6, marks),
+                    (7, b.totals),
+                ],
+            )
+        };
+        let (gx, gy) = grid(self.pixels, ALLOC_GROUP);
+        {
+            let group = bind(&flags);
+            let (tb, te) = self.timer.next("allocation");
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("allocation"),
+                timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                    query_set: self.timer.set(),
+                    beginning_of_pass_write_index: Some(tb),
+                    end_of_pass_write_index: Some(te),
+                }),
+            });
+            pass.set_bind_group(0, &group, &[]);
+            pass.set_pipeline(&a.weights);
+            pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_pipeline(&a.setup);
+            pass.dispatch_workgroups(1, 1, 1);
+            for _ in 0..SEARCH_ROUNDS {
+                pass.set_pipeline(&a.search);
+                pass.dispatch_workgroups(gx, gy, 1);
+                pass.set_pipeline(&a.choose);
+                pass.dispatch_workgroups(1, 1, 1);
+            }
+            pass.set_pipeline(&a.mark);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        self.prefix_sum(enc, fb, &flags, b.prefix)?;
+        let group = bind(b.prefix);
+        let (tb, te) = self.timer.next("allocation apply");
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("allocation apply"),
+            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                query_set: self.timer.set(),
+                beginning_of_pass_write_index: Some(tb),
+                end_of_pass_write_index: Some(te),
+            }),
+        });
+        pass.set_bind_group(0, &group, &[]);
+        pass.set_pipeline(&a.apply);
+        pass.dispatch_workgroups(gx, gy, 1);
+        Ok(())
+    }
+}
+
+/// What [`Gpu::allocate`] read back.
+#[derive(Clone, Debug)]
+pub struct GpuAllocation {
+    /// n(p), the GPU's own count.
+    pub counts: Vec<u32>,
+    /// k(p).
+    pub k: Vec<u32>,
+    /// Exclusive prefix sums of k (`pixels + 1` entries): the slot bases.
+    pub bases: Vec<u32>,
+    pub pass_ms: Vec<(&'static str, f64)>,
+}
+
+impl Gpu {
+    /// The allocation alone, on the GPU: the count pass, totals, the allocation of k from
+    /// `importance` (one value a pixel, meaning what `target` says) at `budget`, and the
+    /// prefix sums of k; no capture. The twin is `alloc::allocate` on the returned counts.
+    /// Five buffers of 4 bytes a pixel, so a 7680x4320 frame fits a device whose bindings
+    /// hold 133 MB (lavapipe's 128 MiB do), where a whole k-buffer frame does not.
+    pub fn allocate(
+        &self,
+        scene: &Scene,
+        cam: &Camera,
+        (width, height): (u32, u32),
+        importance: &[f32],
+        target: Target,
+        budget: FragmentBudget,
+    ) -> Result<GpuAllocation> {
+        let scopes = self.begin_frame(width, height)?;
+        let pixels = width * height;
+        let px = pixels as u64;
+        if importance.len() != pixels as usize {
+            return Err(Error::Invalid(format!(
+                "{} importance values for {pixels} pixels",
+                importance.len()
+            )));
+        }
+        let mut fb = FrameBuffers::new(self);
+        let params = frame_params(cam, width, height, [1.0; 3], 0, budget, Default::default());
+        let inputs = self.frame_inputs(&mut fb, scene, &params);
+        let timer = Timer::new(self);
+        let passes = Passes::new(self, &timer, &inputs);
+        let p = &self.pipelines;
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        let counts = fb.storage("count", 4 * px, true)?;
+        let imp = fb.init(
+            "oit.importance",
+            bytemuck::cast_slice(importance),
+            wgpu::BufferUsages::STORAGE,
+            true,
+        );
+        let totals = fb.storage("totals", 16, true)?;
+        let k = fb.storage("oit.k", 4 * px, true)?;
+        let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
+        passes.draw(&mut enc, &p.count, &[&counts], "count");
+        passes.dispatch(
+            &mut enc,
+            &p.totals,
+            &[&inputs.params, &counts, &totals],
+            "totals",
+        );
+        passes.allocate(
+            &mut enc,
+            &mut fb,
+            AllocBuffers {
+                counts: &counts,
+                weights: &imp,
+                k: &k,
+                prefix: &base,
+                totals: &totals,
+                flags: None,
+            },
+            budget,
+            weight_kind(target),
+        )?;
+        passes.prefix_sum(&mut enc, &mut fb, &k, &base)?;
+        fb.submit(&mut enc);
+        let out = GpuAllocation {
+            counts: u32s(&read_back(self, &counts, 4 * px)?),
+            k: u32s(&read_back(self, &k, 4 * px)?),
+            bases: u32s(&read_back(self, &base, 4 * (px + 1))?),
+            pass_ms: timer.read(self)?,
+        };
+        scopes.end()?;
+        Ok(out)
+    }
+}
+
+/// The allocation's entry points (shaders/allocate.wgsl), sharing one explicit layout.
+pub(super) struct Allocate {
+    pub(super) layout: wgpu::BindGroupLayout,
+    pub(super) weights: wgpu::ComputePipeline,
+    pub(super) setup: wgpu::ComputePipeline,
+    pub(super) search: wgpu::ComputePipeline,
+    pub(super) choose: wgpu::ComputePipeline,
+    pub(super) mark: wgpu::ComputePipeline,
+    pub(super) apply: wgpu::ComputePipeline,
+}
+
+/// The buffers the allocation reads and writes.
+pub(super) struct AllocBuffers<'a> {
+    pub(super) counts: &'a wgpu::Buffer,
+    /// Importance in; the fixed-point weights in place.
+    pub(super) weights: &'a wgpu::Buffer,
+    pub(super) k: &'a wgpu::Buffer,
+    /// Scratch for the prefix of the marks (the slot offsets, computed after).
+    pub(super) prefix: &'a wgpu::Buffer,
+    pub(super) totals: &'a wgpu::Buffer,
+    /// A dead buffer of at least 4 bytes a pixel to hold the marks (else one is allocated).
+    pub(super) flags: Option<&'a wgpu::Buffer>,
+}
+
+impl Allocate {
+    pub(super) fn new(device: &wgpu::Device) -> Allocate {
+        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("allocate"),
+            entries: &[
+                entry(0, wgpu::BufferBindingType::Uniform),
+                entry(1, wgpu::BufferBindingType::Uniform),
+                entry(2, wgpu::BufferBindingType::Storage { read_only: true }),
+                entry(3, rw),
+                entry(4, rw),
+                entry(5, rw),
+                entry(6, rw),
+                entry(7, wgpu::BufferBindingType::Storage { read_only: true }),
+            ],
+        });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("allocate"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let m = module(device, "allocate");
+        let make = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pl),
+                module: &m,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        Allocate {
+            weights: make("weights"),
+            setup: make("setup"),
+            search: make("search"),
+            choose: make("choose"),
+            mark: make("mark"),
+            apply: make("apply"),
+            layout,
+        }
+    }
+}

@@ -1,0 +1,238 @@
+//! A frame's buffers: taken from the renderer's pool and given back ([`FrameBuffers`]), read
+//! back through pooled staging buffers, and what a frame reads back for the tests
+//! ([`Readback`]).
+
+use super::*;
+
+pub(super) struct FrameBuffers<'a> {
+    pub(super) gpu: &'a Gpu,
+    pub(super) allocated: u64,
+    /// The prefix sum's block totals, created on first use and shared by every scan.
+    pub(super) scan_blocks: Option<wgpu::Buffer>,
+    /// The buffers this frame took (pool key, buffer), put back when it ends.
+    pub(super) taken: Vec<(String, wgpu::Buffer)>,
+    /// Clears of reused buffers, submitted before the frame's next commands.
+    pub(super) clears: Option<wgpu::CommandEncoder>,
+}
+
+impl<'a> FrameBuffers<'a> {
+    pub(super) fn new(gpu: &'a Gpu) -> Self {
+        FrameBuffers {
+            gpu,
+            allocated: 0,
+            scan_blocks: None,
+            taken: Vec::new(),
+            clears: None,
+        }
+    }
+
+    /// A pooled buffer; a label asked for twice in one frame gets two buffers.
+    pub(super) fn take(
+        &mut self,
+        label: &str,
+        size: u64,
+        usage: wgpu::BufferUsages,
+        zero: bool,
+    ) -> wgpu::Buffer {
+        let nth = self
+            .taken
+            .iter()
+            .filter(|(k, _)| k.rsplit_once('#').map(|(l, _)| l) == Some(label))
+            .count();
+        let key = format!("{label}#{nth}");
+        let clears = if zero { Some(&mut self.clears) } else { None };
+        let b = self.gpu.acquire(&key, size, usage, clears);
+        self.taken.push((key, b.clone()));
+        b
+    }
+
+    /// A storage buffer of `size` bytes (at least 16), counted in the frame's allocation when
+    /// `counted`; an error naming the buffer when the device cannot bind one that large.
+    pub(super) fn storage(
+        &mut self,
+        label: &str,
+        size: u64,
+        counted: bool,
+    ) -> Result<wgpu::Buffer> {
+        let size = size.max(16).next_multiple_of(4);
+        let limits = self.gpu.device.limits();
+        let max = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        if size > max {
+            return Err(GpuError::BufferTooLarge {
+                label: label.to_string(),
+                need: size,
+                max,
+            }
+            .into());
+        }
+        if counted {
+            self.allocated += size;
+        }
+        let usage = wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST;
+        Ok(self.take(label, size, usage, true))
+    }
+
+    /// A buffer holding `bytes` (zero-padded to at least 16 bytes, a multiple of 4).
+    pub(super) fn init(
+        &mut self,
+        label: &str,
+        bytes: &[u8],
+        usage: wgpu::BufferUsages,
+        counted: bool,
+    ) -> wgpu::Buffer {
+        if counted {
+            self.allocated += bytes.len() as u64;
+        }
+        let size = (bytes.len() as u64).max(16).next_multiple_of(4);
+        let usage = usage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let b = self.take(label, size, usage, false);
+        if bytes.len() as u64 == size {
+            self.gpu.queue.write_buffer(&b, 0, bytes);
+        } else {
+            let mut padded = bytes.to_vec();
+            padded.resize(size as usize, 0);
+            self.gpu.queue.write_buffer(&b, 0, &padded);
+        }
+        b
+    }
+
+    /// Submits `enc` (after the clears of the buffers taken since the last submission) and
+    /// starts a new encoder in its place.
+    pub(super) fn submit(&mut self, enc: &mut wgpu::CommandEncoder) {
+        let done = std::mem::replace(
+            enc,
+            self.gpu.device.create_command_encoder(&Default::default()),
+        );
+        let clears = self.clears.take().map(|c| c.finish());
+        self.gpu
+            .queue
+            .submit(clears.into_iter().chain([done.finish()]));
+    }
+}
+
+impl Drop for FrameBuffers<'_> {
+    fn drop(&mut self) {
+        for (key, b) in self.taken.drain(..) {
+            self.gpu.release(key, b);
+        }
+    }
+}
+
+pub(super) fn read_back(gpu: &Gpu, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>> {
+    let size = bytes.max(4).next_multiple_of(4);
+    // Staging buffers are pooled by size (the image's is the same every frame).
+    let key = format!("readback {size}");
+    let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
+    let staging = gpu.acquire(&key, size, usage, None);
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    enc.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+    gpu.queue.submit([enc.finish()]);
+    let slice = staging.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |_| {});
+    gpu.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GpuError::Lost {
+            doing: "waiting for a submission",
+            message: e.to_string(),
+        })?;
+    let data = slice
+        .get_mapped_range()
+        .map_err(|e| GpuError::Lost {
+            doing: "reading back",
+            message: e.to_string(),
+        })?
+        .to_vec();
+    staging.unmap();
+    gpu.release(key, staging);
+    Ok(data[..bytes as usize].to_vec())
+}
+
+pub(super) fn u32s(bytes: &[u8]) -> Vec<u32> {
+    bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
+}
+
+pub(super) fn read_u64s(gpu: &Gpu, b: &wgpu::Buffer, n: u64, invert: bool) -> Result<Vec<u64>> {
+    Ok(read_back(gpu, b, 8 * n)?
+        .chunks_exact(8)
+        .map(|c| {
+            let v = u64::from_le_bytes(c.try_into().expect("8"));
+            if invert { !v } else { v }
+        })
+        .collect())
+}
+
+#[derive(Default)]
+pub(super) struct Readback {
+    pub(super) fragments: Option<FragmentLists>,
+    /// The A-buffer resolve's loop-limit status word.
+    pub(super) status: Option<wgpu::Buffer>,
+    pub(super) slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
+    pub(super) counts_buf: Option<wgpu::Buffer>,
+    pub(super) importance_buf: Option<wgpu::Buffer>,
+    /// DKB: the nearest keys, the two farthest keys and the colour sums.
+    pub(super) stats_bufs: Option<[wgpu::Buffer; 3]>,
+    pub(super) vkb_nearest_buf: Option<wgpu::Buffer>,
+}
+
+pub(super) type Statistics = (
+    Option<Vec<f32>>,
+    Option<Vec<PixelStats>>,
+    Option<(Vec<u32>, Vec<f32>)>,
+);
+
+impl Readback {
+    /// Importance, DKB statistics and VKB nearest facing, where the frame computed them.
+    pub(super) fn statistics(&self, gpu: &Gpu, px: u64) -> Result<Statistics> {
+        let importance = match &self.importance_buf {
+            Some(b) => Some(
+                u32s(&read_back(gpu, b, 4 * px)?)
+                    .into_iter()
+                    .map(f32::from_bits)
+                    .collect(),
+            ),
+            None => None,
+        };
+        let Some(counts) = &self.counts_buf else {
+            return Ok((importance, None, None));
+        };
+        let counts = u32s(&read_back(gpu, counts, 4 * px)?);
+        let stats = match &self.stats_bufs {
+            Some([nearest, farthest, sums]) => {
+                let nearest = read_u64s(gpu, nearest, px, false)?;
+                let farthest = read_u64s(gpu, farthest, 2 * px, false)?;
+                let sums = u32s(&read_back(gpu, sums, 16 * px)?);
+                Some(
+                    (0..px as usize)
+                        .map(|q| PixelStats {
+                            count: counts[q],
+                            nearest_key: if counts[q] > 0 { !nearest[q] } else { 0 },
+                            color_sum: [sums[4 * q], sums[4 * q + 1], sums[4 * q + 2]],
+                            color_sq_sum: sums[4 * q + 3],
+                            farthest: [farthest[2 * q], farthest[2 * q + 1]],
+                        })
+                        .collect(),
+                )
+            }
+            None => None,
+        };
+        let vkb_nearest = match &self.vkb_nearest_buf {
+            Some(b) => {
+                let facing = read_u64s(gpu, b, px, true)?
+                    .iter()
+                    .zip(&counts)
+                    .map(|(&v, &c)| if c > 0 { f32::from_bits(v as u32) } else { 1.0 })
+                    .collect();
+                Some((counts.clone(), facing))
+            }
+            None => None,
+        };
+        Ok((importance, stats, vkb_nearest))
+    }
+}

@@ -1,0 +1,177 @@
+//! The k-buffer: k for every pixel (one for all, uploaded, or allocated on the device:
+//! `allocate.rs`), the slot bases (`scan.wgsl`), then `capture.wgsl` (geometry: the two-mode
+//! capture, append or Loop64 insertion; twin `composite::capture`) and `resolve.wgsl` (the
+//! slots front to back over the tail's approximation; twin `composite::hybrid_sorted`).
+
+use super::*;
+
+/// A frame's k: per pixel, its slot bases and how many slots in all, and n(p) where the frame
+/// counted it (the two-mode capture reads it; else an unused buffer).
+pub(super) struct KBuffer {
+    pub(super) k: wgpu::Buffer,
+    pub(super) base: wgpu::Buffer,
+    pub(super) slots: u64,
+    pub(super) counts: wgpu::Buffer,
+    pub(super) reuse: Option<Reuse>,
+}
+
+impl Recording<'_, '_> {
+    /// k as `s` gives it: FKB's uniform k, an uploaded k, or the allocation of the importance
+    /// the frame computes (DKB, VKB) or is given.
+    pub(super) fn k_for(&mut self, s: Slots, budget: FragmentBudget) -> Result<KBuffer> {
+        let (passes, px) = (self.passes, self.px);
+        match s {
+            Slots::Uniform(k) => {
+                // FKB reads none of these, but the shared capture layout binds them.
+                let fb = &mut self.fb;
+                Ok(KBuffer {
+                    k: fb.storage("fkb.unused_k", 16, true)?,
+                    base: fb.storage("fkb.unused_offsets", 16, true)?,
+                    slots: k.max(1) as u64 * px,
+                    counts: fb.storage("fkb.unused_counts", 16, true)?,
+                    reuse: None,
+                })
+            }
+            Slots::PerPixel(k) => {
+                if k.len() as u64 != px {
+                    return Err(Error::Invalid(format!(
+                        "{} k values for {px} pixels",
+                        k.len()
+                    )));
+                }
+                let fb = &mut self.fb;
+                let k_of = fb.init(
+                    "oit.k",
+                    bytemuck::cast_slice(k),
+                    wgpu::BufferUsages::STORAGE,
+                    true,
+                );
+                let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
+                passes.prefix_sum(&mut self.enc, fb, &k_of, &base)?;
+                Ok(KBuffer {
+                    k: k_of,
+                    base,
+                    slots: k.iter().map(|&x| x as u64).sum(),
+                    counts: fb.storage("oit.unused_counts", 16, true)?,
+                    reuse: None,
+                })
+            }
+            Slots::Importance(imp, target, _) => {
+                let i = self.uploaded_importance(imp, target)?;
+                self.allocated(i, budget)
+            }
+            Slots::Vkb(..) => {
+                let i = self.vkb_importance()?;
+                self.allocated(i, budget)
+            }
+            Slots::Dkb(mlp, _) => {
+                let i = self.dkb_importance(mlp)?;
+                self.allocated(i, budget)
+            }
+            Slots::Mlab(_) => unreachable!("MLAB blends from the A-buffer"),
+        }
+    }
+
+    /// The allocation of `i` at `budget`, its slot bases, and the slot count read back (the
+    /// slots buffer is sized from it).
+    pub(super) fn allocated(&mut self, i: Importance, budget: FragmentBudget) -> Result<KBuffer> {
+        let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
+        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        if gpu.diagnostics && i.computed {
+            // A readback copy (not counted, like the staging buffers): the allocation pass
+            // overwrites importance with its fixed point.
+            let copy = fb.storage("importance.readback", 4 * px, false)?;
+            enc.copy_buffer_to_buffer(&i.importance, 0, &copy, 0, 4 * px);
+            self.out.importance_buf = Some(copy);
+        }
+        let k = fb.storage("oit.k", 4 * px, true)?;
+        let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
+        passes.allocate(
+            enc,
+            fb,
+            AllocBuffers {
+                counts: &i.counts,
+                weights: &i.importance,
+                k: &k,
+                prefix: &base,
+                totals: &i.totals,
+                flags: i.marks.as_ref(),
+            },
+            budget,
+            i.kind,
+        )?;
+        passes.prefix_sum(enc, fb, &k, &base)?;
+        fb.submit(enc);
+        let slots = u32s(&read_back(gpu, &base, 4 * (px + 1))?)[px as usize] as u64;
+        self.out.counts_buf = Some(i.counts.clone());
+        Ok(KBuffer {
+            k,
+            base,
+            slots,
+            counts: i.counts,
+            reuse: i.reuse,
+        })
+    }
+
+    /// The capture and resolve into `k`'s slots; returns the image buffer. With diagnostics,
+    /// the slots, their bases and the tails are read back (five words a pixel, as
+    /// `composite::capture` gives them).
+    pub(super) fn capture_and_resolve(&mut self, s: Slots, kb: KBuffer) -> Result<wgpu::Buffer> {
+        let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
+        let p = &gpu.pipelines;
+        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        let slots = fb.storage("oit.slots", 8 * kb.slots, true)?;
+        // The tail: sum c8 a8 for r, g, b and sum a8 (16 bytes a pixel), and its count; and the
+        // image: their own buffers, or DKB's features once read.
+        let (tail, tail_count, image) = match kb.reuse {
+            Some(r) => {
+                // The tail starts from zero.
+                enc.clear_buffer(&r.tail, 0, None);
+                enc.clear_buffer(&r.tail_count, 0, None);
+                (r.tail, r.tail_count, r.image)
+            }
+            None => (
+                fb.storage("oit.tail", 16 * px, true)?,
+                fb.storage("oit.tail_count", 4 * px, true)?,
+                fb.storage("oit.image", 16 * px, true)?,
+            ),
+        };
+        passes.draw(
+            enc,
+            &p.capture,
+            &[&kb.k, &kb.base, &slots, &tail, &tail_count, &kb.counts],
+            "capture",
+        );
+        passes.dispatch(
+            enc,
+            &p.resolve,
+            &[
+                passes.params(),
+                &kb.k,
+                &kb.base,
+                &slots,
+                &tail,
+                &tail_count,
+                &image,
+                &kb.counts,
+            ],
+            "resolve",
+        );
+        fb.submit(enc);
+        if gpu.diagnostics {
+            let bases = match s {
+                Slots::Uniform(k) => (0..=px as u32).map(|q| q * k.max(1)).collect(),
+                _ => u32s(&read_back(gpu, &kb.base, 4 * (px + 1))?),
+            };
+            let sums = u32s(&read_back(gpu, &tail, 16 * px)?);
+            let counts = u32s(&read_back(gpu, &tail_count, 4 * px)?);
+            let tails = sums
+                .chunks_exact(4)
+                .zip(counts)
+                .flat_map(|(s, c)| [s[0], s[1], s[2], s[3], c])
+                .collect();
+            self.out.slots = Some((read_u64s(gpu, &slots, kb.slots, true)?, bases, tails));
+        }
+        Ok(image)
+    }
+}

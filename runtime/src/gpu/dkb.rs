@@ -1,0 +1,85 @@
+//! The deep k-buffer's importance: `features.wgsl` (geometry: count, nearest and two farthest
+//! keys, colour sums; twin `importance::pixel_stats`), `totals.wgsl`, then `importance_dkb.wgsl`
+//! (the 12 features, never stored, through the network of `mlp.wgsl`, built for the network's
+//! shape and precision by [`Variant`]; twin `Mlp::dkb_importance`).
+
+use super::*;
+
+impl Recording<'_, '_> {
+    /// DKB's features, totals and importance; the features' buffers, once read, hold the tail
+    /// and the image.
+    pub(super) fn dkb_importance(&mut self, mlp: &Mlp) -> Result<Importance> {
+        let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
+        let p = &gpu.pipelines;
+        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        let weights = fb.init(
+            "mlp.weights",
+            bytemuck::cast_slice(&mlp_uniform(mlp)),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        );
+        let counts = fb.storage("features.count", 4 * px, true)?;
+        // The nearest key (8 bytes a pixel), then the tail's count; the two farthest keys (16),
+        // then the tail's sums; the colour sums (16), then the image. No buffer above 16 bytes
+        // a pixel, so a 4K frame fits 128 MiB bindings.
+        let nearest = fb.storage("features.nearest", 8 * px, true)?;
+        let farthest = fb.storage("features.farthest", 16 * px, true)?;
+        let sums = fb.storage("features.color_sums", 16 * px, true)?;
+        let totals = fb.storage("features.totals", 24, true)?;
+        let importance = fb.storage("oit.importance", 4 * px, true)?;
+        passes.draw(
+            enc,
+            &p.features,
+            &[&counts, &nearest, &farthest, &sums],
+            "features",
+        );
+        passes.dispatch(
+            enc,
+            &p.totals,
+            &[passes.params(), &counts, &totals],
+            "totals",
+        );
+        passes.dispatch(
+            enc,
+            &gpu.network_pass(Variant::for_network("importance_dkb", mlp, gpu.skip_forced)),
+            &[
+                passes.params(),
+                &weights,
+                &counts,
+                &nearest,
+                &farthest,
+                &sums,
+                &totals,
+                &importance,
+            ],
+            "importance",
+        );
+        // Copies for the frame's statistics (not counted), then the buffers serve the tail and
+        // the image.
+        if gpu.diagnostics {
+            let mut copy = |b: &wgpu::Buffer, label: &str, bytes: u64| {
+                let c = fb.storage(label, bytes * px, false)?;
+                enc.copy_buffer_to_buffer(b, 0, &c, 0, bytes * px);
+                Ok::<_, Error>(c)
+            };
+            self.out.stats_bufs = Some([
+                copy(&nearest, "features.nearest.readback", 8)?,
+                copy(&farthest, "features.farthest.readback", 16)?,
+                copy(&sums, "features.color_sums.readback", 16)?,
+            ]);
+        }
+        Ok(Importance {
+            counts,
+            importance,
+            totals,
+            computed: true,
+            kind: weight_kind(mlp.target),
+            marks: None,
+            reuse: Some(Reuse {
+                tail: farthest,
+                tail_count: nearest,
+                image: sums,
+            }),
+        })
+    }
+}

@@ -1,0 +1,574 @@
+//! The wgpu renderer: the A-buffer, MLAB and the k-buffers' passes on any Vulkan, Metal or DX12
+//! device (here Mesa's lavapipe), each pass the twin of a CPU function that the tests hold it
+//! to. One file a pass, beside its shaders (in `shaders/`, one file a pass, with the generated
+//! prelude, `common.wgsl` and their includes prepended: `geometry.wgsl`, `mlp.wgsl`,
+//! `sort.wgsl`; see [`crate::wgsl::shaders`]) and naming its twin:
+//! - `abuffer.rs`: the A-buffer (`abuffer_count` -> `scan` -> `abuffer_store` ->
+//!   `abuffer_resolve`) and MLAB (`mlab_resolve` on the A-buffer's fragments).
+//! - `dkb.rs`: DKB's `features` and `importance_dkb` (the network of `mlp.wgsl`);
+//!   `vkb.rs`: VKB's `vkb_count` and `importance_vkb`; both with `totals`.
+//! - `allocate.rs`: the allocation of k from importance (`allocate.wgsl`), in one submission.
+//! - `scan.rs`: the prefix sums (`scan.wgsl`).
+//! - `capture.rs`: k, the two-mode `capture` (append or Loop64 insertion) and `resolve`.
+//! - `predict.rs`: the network on rows of features (`predict.wgsl`).
+//!
+//! And the frame's machinery: `pipelines.rs` (built once; the network's per shape),
+//! `passes.rs` (recording a pass), `buffers.rs` (pooled buffers, readback), `timer.rs`.
+//!
+//! Every buffer a method's frame allocates is labelled after the [`crate::budget::Layout`] entry
+//! it realises and counted, so [`GpuFrame::allocated_bytes`] is what the device really holds.
+//!
+//! The renderer persists across frames: pipelines are built once ([`Gpu::new`]; variants of the
+//! network's passes on first use), and a frame takes its buffers from those earlier frames left
+//! (cleared where reused), so a stream of like frames creates none.
+
+mod abuffer;
+mod allocate;
+mod buffers;
+mod capture;
+mod dkb;
+mod passes;
+mod pipelines;
+mod predict;
+mod scan;
+mod timer;
+mod vkb;
+
+pub use allocate::GpuAllocation;
+use allocate::*;
+use buffers::*;
+use passes::*;
+use pipelines::*;
+use timer::*;
+
+use crate::alloc::Target;
+use crate::budget::{self, Budget, FragmentBudget};
+use crate::composite::Image;
+use crate::error::{Error, GpuError, Result};
+use crate::fragment::FragmentLists;
+use crate::frame::{Allocation, Equal, Method, Options};
+use crate::importance::{PixelStats, VkbParams};
+use crate::mlp::{Mlp, Precision};
+use crate::scene::{Camera, Scene};
+use crate::wgsl::{
+    ALLOC_GROUP, ALLOC_STATE_WORDS, AllocParams, MLAB_MAX_ROWS, PIXEL_GROUP, Params, SEARCH_ROUNDS,
+    grid, mlp_uniform, shaders,
+};
+use wgpu::util::DeviceExt;
+
+/// Features the pipeline cannot run without.
+pub fn required_features() -> wgpu::Features {
+    wgpu::Features::SHADER_INT64
+        | wgpu::Features::SHADER_INT64_ATOMIC_ALL_OPS
+        | wgpu::Features::TIMESTAMP_QUERY
+}
+
+/// A device and queue with the pipeline's features, and the compiled passes.
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    /// "name (backend, device type, driver)".
+    pub adapter: String,
+    timestamp_period: f32,
+    pipelines: Pipelines,
+    /// Whether DKB's importance pass skips the network where k does not depend on it (on by
+    /// default; the bench turns it off to show the time saved). The images are the same.
+    pub skip_forced: bool,
+    /// Whether the allocated k-buffers (DKB, VKB, uploaded importance), which know n(p) by the
+    /// capture, append the pixels whose slots hold all but at most
+    /// [`crate::composite::APPEND_SPILL`] fragments and insert the rest (capture.wgsl); off,
+    /// every fragment is inserted (the bench's comparison). The images are the same.
+    pub two_mode_capture: bool,
+    /// Whether a frame reads back what the tests compare besides the image (the A-buffer's
+    /// fragments, the k-buffer's slots and tails, importance and statistics): on by default;
+    /// off, a frame reads back its image only (the bench's steady-state frames).
+    pub diagnostics: bool,
+    /// Buffers of earlier frames, by label, reused when a frame asks for one of the same size
+    /// and usage (cleared first, as a new buffer is), so a steady stream of frames creates
+    /// none. Frames take their buffers out and put them back when done, so concurrent frames
+    /// never share one.
+    pool: std::sync::Mutex<std::collections::HashMap<String, wgpu::Buffer>>,
+    /// Timestamp query sets of earlier frames.
+    query_sets: std::sync::Mutex<Vec<wgpu::QuerySet>>,
+    /// Buffers created for frames since the device opened (reused ones not counted).
+    created: std::sync::atomic::AtomicU64,
+}
+
+/// Most buffers the pool keeps (beyond, a returned buffer is dropped).
+const POOL_MAX: usize = 64;
+/// Timestamped passes a frame has room for.
+const TIMED_PASSES: u32 = 16;
+
+impl Gpu {
+    /// A buffer for a frame: the pooled one under `key` when its size and usage match (cleared
+    /// through `clear` when given, since a reused buffer holds the last frame's data), else a
+    /// new one (zeroed by wgpu).
+    fn acquire(
+        &self,
+        key: &str,
+        size: u64,
+        usage: wgpu::BufferUsages,
+        clear: Option<&mut Option<wgpu::CommandEncoder>>,
+    ) -> wgpu::Buffer {
+        let pooled = self
+            .pool
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(key);
+        match pooled {
+            Some(b) if b.size() == size && b.usage() == usage => {
+                if let Some(enc) = clear {
+                    enc.get_or_insert_with(|| {
+                        self.device.create_command_encoder(&Default::default())
+                    })
+                    .clear_buffer(&b, 0, None);
+                }
+                b
+            }
+            _ => {
+                self.created
+                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(key),
+                    size,
+                    usage,
+                    mapped_at_creation: false,
+                })
+            }
+        }
+    }
+
+    /// Buffers created for frames so far: a frame like the one before creates none.
+    pub fn buffers_created(&self) -> u64 {
+        self.created.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Puts a frame's buffer back for the next frame.
+    fn release(&self, key: String, buffer: wgpu::Buffer) {
+        let mut pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
+        if pool.len() < POOL_MAX || pool.contains_key(&key) {
+            pool.insert(key, buffer);
+        }
+    }
+}
+
+impl Gpu {
+    /// Opens the first adapter that has every required feature; the error names what the
+    /// adapters lack.
+    pub fn new() -> Result<Gpu> {
+        Self::requiring(wgpu::Features::empty())
+    }
+
+    /// [`Gpu::new`], with `extra` features required on top of the pipeline's (tests use it to
+    /// see what happens on an adapter that lacks one).
+    pub fn requiring(extra: wgpu::Features) -> Result<Gpu> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        if adapters.is_empty() {
+            return Err(GpuError::NoAdapter.into());
+        }
+        let need = required_features() | extra;
+        let mut lacking = Vec::new();
+        let adapter = adapters.into_iter().find(|a| {
+            let missing = need - a.features();
+            if !missing.is_empty() {
+                lacking.push(format!("{} lacks {missing:?}", a.get_info().name));
+            }
+            missing.is_empty()
+        });
+        let Some(adapter) = adapter else {
+            return Err(GpuError::MissingFeatures {
+                lacking: lacking.join("; "),
+            }
+            .into());
+        };
+        let info = adapter.get_info();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("dhoit"),
+            required_features: need,
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::Open {
+            adapter: info.name.clone(),
+            message: e.to_string(),
+        })?;
+        let adapter_name = format!(
+            "{} ({:?}, {:?}, {} {})",
+            info.name, info.backend, info.device_type, info.driver, info.driver_info
+        );
+        let pipelines = Pipelines::new(&device)?;
+        Ok(Gpu {
+            timestamp_period: queue.get_timestamp_period(),
+            device,
+            queue,
+            adapter: adapter_name,
+            pipelines,
+            skip_forced: true,
+            two_mode_capture: true,
+            diagnostics: true,
+            pool: Default::default(),
+            query_sets: Default::default(),
+            created: Default::default(),
+        })
+    }
+}
+
+/// How the k-buffer gets its k.
+#[derive(Clone, Copy, Debug)]
+pub enum Slots<'a> {
+    /// One k for every pixel (FKB).
+    Uniform(u32),
+    /// k per pixel, computed elsewhere (the optimal allocation, or any CPU allocation).
+    PerPixel(&'a [u32]),
+    /// MLAB with this many rows (at most [`MLAB_MAX_ROWS`]), blended from the A-buffer's
+    /// fragments taken in submission order.
+    Mlab(u32),
+    /// Per-pixel importance (computed elsewhere), what it means and F: the GPU counts
+    /// fragments, allocates k (`allocate.wgsl`, the twin of `alloc::allocate`), then captures
+    /// and resolves.
+    Importance(&'a [f32], Target, FragmentBudget),
+    /// The variable k-buffer, every pass on the GPU: count and nearest fragment, totals, paper
+    /// 002's importance, allocation, capture, resolve.
+    Vkb(VkbParams, FragmentBudget),
+    /// The deep k-buffer, every pass on the GPU: features, totals, the network's importance,
+    /// allocation, capture, resolve.
+    Dkb(&'a Mlp, FragmentBudget),
+}
+
+impl<'a> Slots<'a> {
+    /// How the GPU renders `method` for the allocation the CPU made with `options` (`cpu`,
+    /// from [`crate::frame::Renderer::allocate_for_gpu`] or `allocate`): FKB and MLAB with the
+    /// CPU's k; VKB and DKB allocating on the device at the CPU's F (a share of the fragments
+    /// at equal F stays a share, resolved from the GPU's own count); every allocation only the
+    /// CPU makes (optimal, the greedies) uploaded as per-pixel k; `None` for the A-buffer. The
+    /// one method-to-slots mapping: render, bench and the tests use it, so a method gets the
+    /// same k whichever command renders it.
+    pub fn for_method(
+        method: Method,
+        cpu: &'a Allocation,
+        options: &Options<'a>,
+    ) -> Result<Option<Slots<'a>>> {
+        let budget = match options.budget {
+            Budget::Share(ppm) if options.equal == Equal::Slots => FragmentBudget::Share(ppm),
+            _ => FragmentBudget::Slots(cpu.budget_fragments),
+        };
+        let first = || cpu.k.first().copied().unwrap_or(0);
+        Ok(match method {
+            Method::Abuffer => None,
+            Method::Fkb => Some(Slots::Uniform(first())),
+            // MLAB on the GPU blends from the A-buffer (exact memory, not the budget's rows).
+            Method::Mlab => Some(Slots::Mlab(first())),
+            Method::Vkb => Some(Slots::Vkb(options.vkb, budget)),
+            Method::Dkb => Some(Slots::Dkb(
+                options.weights.ok_or_else(|| {
+                    Error::Invalid("dkb needs network weights (--weights FILE)".into())
+                })?,
+                budget,
+            )),
+            Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => {
+                Some(Slots::PerPixel(&cpu.k))
+            }
+        })
+    }
+}
+
+/// The allocation pass's weight kind for a target (`Alloc.kind` in allocate.wgsl).
+fn weight_kind(t: Target) -> u32 {
+    match t {
+        Target::RelativeK => 0,
+        Target::ShareOfFragments => 1,
+        Target::SlotRequest => 2,
+    }
+}
+
+/// What a GPU frame produced, read back.
+#[derive(Clone, Debug)]
+pub struct GpuFrame {
+    pub image: Image,
+    /// Milliseconds of each pass, from timestamp queries, in order.
+    pub pass_ms: Vec<(&'static str, f64)>,
+    /// Bytes of every buffer and target the method allocated for this frame.
+    pub allocated_bytes: u64,
+    /// A-buffer: the GPU's own fragments (sorted front to back within each pixel).
+    pub fragments: Option<FragmentLists>,
+    /// k-buffer: the slots (capture keys, front to back; `u64::MAX` where empty), their bases
+    /// (`pixels + 1` entries) and the tail sums (five per pixel).
+    pub slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
+    /// VKB and DKB: the importance the GPU computed (uploaded importance: after allocation's
+    /// fixed-point conversion is not returned).
+    pub importance: Option<Vec<f32>>,
+    /// DKB: the features pass's per-pixel statistics.
+    pub stats: Option<Vec<PixelStats>>,
+    /// VKB: per pixel the count and the nearest fragment's `|n . e|`.
+    pub vkb_nearest: Option<(Vec<u32>, Vec<f32>)>,
+}
+
+impl Gpu {
+    fn bind(&self, layout: &wgpu::BindGroupLayout, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
+        let indexed: Vec<(u32, &wgpu::Buffer)> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (i as u32, *b))
+            .collect();
+        self.bind_at(layout, &indexed)
+    }
+
+    /// A bind group with buffers at the given binding indices.
+    fn bind_at(
+        &self,
+        layout: &wgpu::BindGroupLayout,
+        buffers: &[(u32, &wgpu::Buffer)],
+    ) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: *i,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout,
+            entries: &entries,
+        })
+    }
+}
+
+/// One frame being recorded: its passes, its command encoder, the buffers it took and what it
+/// will read back. Each pass file adds its part of the frame as a method.
+struct Recording<'f, 'a> {
+    passes: &'f Passes<'a>,
+    enc: wgpu::CommandEncoder,
+    fb: FrameBuffers<'a>,
+    out: Readback,
+    /// Pixels.
+    px: u64,
+}
+
+impl Gpu {
+    /// Renders one frame: the A-buffer when `slots` is None, else as `slots` says.
+    pub fn render(
+        &self,
+        scene: &Scene,
+        cam: &Camera,
+        width: u32,
+        height: u32,
+        background: [f32; 3],
+        slots: Option<Slots>,
+    ) -> Result<GpuFrame> {
+        let scopes = self.begin_frame(width, height)?;
+        let px = width as u64 * height as u64;
+        let mut fb = FrameBuffers::new(self);
+        let (budget, vkb, k_uniform) = match slots {
+            Some(Slots::Importance(_, _, f) | Slots::Dkb(_, f)) => (f, VkbParams::default(), 0),
+            Some(Slots::Vkb(v, f)) => (f, v, 0),
+            Some(Slots::Uniform(k)) => (0.into(), VkbParams::default(), k.max(1)),
+            Some(Slots::Mlab(m)) => {
+                if m == 0 || m > MLAB_MAX_ROWS {
+                    return Err(Error::Invalid(format!(
+                        "MLAB on the GPU takes 1 to {MLAB_MAX_ROWS} rows, not {m}"
+                    )));
+                }
+                (0.into(), VkbParams::default(), m)
+            }
+            Some(Slots::PerPixel(_)) | None => (0.into(), VkbParams::default(), 0),
+        };
+        let mut params = frame_params(cam, width, height, background, k_uniform, budget, vkb);
+        // The allocated k-buffers know n(p) by the capture: two-mode capture (capture.wgsl).
+        params.append = (self.two_mode_capture
+            && matches!(
+                slots,
+                Some(Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
+            ))
+        .into();
+        let inputs = self.frame_inputs(&mut fb, scene, &params);
+        let timer = Timer::new(self);
+        let passes = Passes::new(self, &timer, &inputs);
+        let mut rec = Recording {
+            passes: &passes,
+            enc: self.device.create_command_encoder(&Default::default()),
+            fb,
+            out: Readback::default(),
+            px,
+        };
+        let image = match slots {
+            None | Some(Slots::Mlab(_)) => rec.abuffer(slots.is_some(), width, height)?,
+            Some(s) => {
+                let k = rec.k_for(s, budget)?;
+                rec.capture_and_resolve(s, k)?
+            }
+        };
+        let out = &rec.out;
+        if let Some(status) = &out.status
+            && u32s(&read_back(self, status, 4)?)[0] != 0
+        {
+            return Err(GpuError::LoopLimit {
+                adapter: self.adapter.clone(),
+            }
+            .into());
+        }
+        let img = u32s(&read_back(self, &image, 16 * px)?);
+        let pass_ms = timer.read(self)?;
+        let (importance, stats, vkb_nearest) = if self.diagnostics {
+            out.statistics(self, px)?
+        } else {
+            (None, None, None)
+        };
+        scopes.end()?;
+        Ok(GpuFrame {
+            image: Image {
+                width,
+                height,
+                data: img
+                    .chunks_exact(4)
+                    .map(|c| {
+                        [
+                            f32::from_bits(c[0]),
+                            f32::from_bits(c[1]),
+                            f32::from_bits(c[2]),
+                        ]
+                    })
+                    .collect(),
+            },
+            pass_ms,
+            allocated_bytes: rec.fb.allocated,
+            fragments: rec.out.fragments,
+            slots: rec.out.slots,
+            importance,
+            stats,
+            vkb_nearest,
+        })
+    }
+}
+
+/// The per-frame uniform.
+fn frame_params(
+    cam: &Camera,
+    width: u32,
+    height: u32,
+    background: [f32; 3],
+    k_uniform: u32,
+    budget: FragmentBudget,
+    vkb: VkbParams,
+) -> Params {
+    let (budget_fragments, budget_ppm) = match budget {
+        FragmentBudget::Slots(f) => (f, 0),
+        FragmentBudget::Share(ppm) => (0, ppm),
+    };
+    Params {
+        view_proj: cam.view_proj.to_cols_array_2d(),
+        forward: cam.forward.extend(0.0).to_array(),
+        background: [background[0], background[1], background[2], 1.0],
+        width,
+        height,
+        k_uniform,
+        pixels: width * height,
+        budget_fragments: budget_fragments.min(u32::MAX as u64) as u32,
+        vkb_alpha: vkb.alpha,
+        vkb_exponent: vkb.periphery_exponent,
+        vkb_noise: vkb.noise,
+        vkb_seed: vkb.seed,
+        budget_ppm,
+        append: 0,
+        _pad: [0; 29],
+    }
+}
+
+/// The error scopes a frame records under ([`Gpu::begin_frame`]).
+struct Scopes {
+    // Fields drop in order: the scope pushed last first, should a frame end early.
+    oom: wgpu::ErrorScopeGuard,
+    validation: wgpu::ErrorScopeGuard,
+}
+
+impl Scopes {
+    /// The first out-of-memory, then validation, error the frame raised.
+    fn end(self) -> Result<()> {
+        if let Some(e) = pollster::block_on(self.oom.pop()) {
+            return Err(GpuError::OutOfMemory(e.to_string()).into());
+        }
+        if let Some(e) = pollster::block_on(self.validation.pop()) {
+            return Err(GpuError::Validation(e.to_string()).into());
+        }
+        Ok(())
+    }
+}
+
+/// A frame's shared bindings and render target ([`Gpu::frame_inputs`]).
+struct FrameInputs {
+    params: wgpu::Buffer,
+    positions: wgpu::Buffer,
+    colors: wgpu::Buffer,
+    target: wgpu::TextureView,
+    vertices: u32,
+    pixels: u32,
+}
+
+impl Gpu {
+    /// Checks the frame's size before anything is allocated (an error with the numbers), and
+    /// starts catching the validation and out-of-memory errors its commands raise.
+    fn begin_frame(&self, width: u32, height: u32) -> Result<Scopes> {
+        crate::raster::check_resolution(width, height)?;
+        let max = self.device.limits().max_texture_dimension_2d;
+        if width > max || height > max {
+            return Err(GpuError::FrameTooLarge { width, height, max }.into());
+        }
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        Ok(Scopes { oom, validation })
+    }
+
+    /// What every geometry pass binds (group 0: params, positions, colours) and the R8 target
+    /// rasterization needs (never written; counted in the frame's bytes).
+    fn frame_inputs(&self, fb: &mut FrameBuffers, scene: &Scene, params: &Params) -> FrameInputs {
+        let params_buf = fb.init(
+            "params",
+            bytemuck::bytes_of(params),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        );
+        let pos: Vec<[f32; 4]> = scene
+            .positions
+            .iter()
+            .map(|p| p.extend(1.0).to_array())
+            .collect();
+        let positions = fb.init(
+            "scene.positions",
+            bytemuck::cast_slice(&pos),
+            wgpu::BufferUsages::STORAGE,
+            false,
+        );
+        let colors = fb.init(
+            "scene.colors",
+            bytemuck::cast_slice(&scene.colors),
+            wgpu::BufferUsages::STORAGE,
+            false,
+        );
+        let (width, height) = (params.width, params.height);
+        fb.allocated += width as u64 * height as u64;
+        let target = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("raster.target"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: TARGET_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        FrameInputs {
+            params: params_buf,
+            positions,
+            colors,
+            target: target.create_view(&Default::default()),
+            vertices: scene.positions.len() as u32,
+            pixels: params.pixels,
+        }
+    }
+}

@@ -1,0 +1,219 @@
+//! The compiled passes: built once per device ([`Pipelines::new`]), the network's passes per
+//! network shape, precision and SKIP_FORCED ([`Variant`], on first use).
+
+use super::*;
+
+pub(super) struct Pipelines {
+    pub(super) count: wgpu::RenderPipeline,
+    pub(super) store: wgpu::RenderPipeline,
+    pub(super) capture: wgpu::RenderPipeline,
+    pub(super) scan_blocks: wgpu::ComputePipeline,
+    pub(super) scan_sums: wgpu::ComputePipeline,
+    pub(super) scan_add: wgpu::ComputePipeline,
+    pub(super) abuffer_resolve: wgpu::ComputePipeline,
+    pub(super) resolve: wgpu::ComputePipeline,
+    pub(super) mlab_resolve: wgpu::ComputePipeline,
+    pub(super) allocate: Allocate,
+    pub(super) features: wgpu::RenderPipeline,
+    pub(super) totals: wgpu::ComputePipeline,
+    /// The network's passes (DKB importance, predict), built for one network shape, precision
+    /// and SKIP_FORCED each ([`Variant`]): the default network's at f32 at start-up, the others
+    /// when first asked for ([`Gpu::network_pass`]).
+    pub(super) variants:
+        std::sync::Mutex<std::collections::HashMap<Variant, wgpu::ComputePipeline>>,
+    pub(super) vkb_count: wgpu::RenderPipeline,
+    pub(super) importance_vkb: wgpu::ComputePipeline,
+}
+
+pub(super) const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
+
+pub(super) fn module(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
+    module_from(device, name, shaders::source(name).expect("known pass"))
+}
+
+pub(super) fn module_from(device: &wgpu::Device, label: &str, src: String) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(src.into()),
+    })
+}
+
+pub(super) fn compute_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    m: &wgpu::ShaderModule,
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: None,
+        module: m,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+/// A pass that runs the network, with its constants.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(super) struct Variant {
+    /// "importance_dkb" or "predict".
+    pub(super) pass: &'static str,
+    pub(super) skip_forced: bool,
+    pub(super) precision: Precision,
+    /// The network's padded layer sizes ([`crate::mlp::padded_units`]), built into the pass so
+    /// its loops have known lengths; (0, 0) reads them from the uniform.
+    pub(super) shape: (u32, u32),
+}
+
+impl Variant {
+    pub(super) fn pipeline(self, device: &wgpu::Device) -> wgpu::ComputePipeline {
+        let label = format!(
+            "{} {:?} {} {:?}",
+            self.pass, self.skip_forced, self.precision, self.shape
+        );
+        let m = module_from(device, &label, self.source());
+        compute_pipeline(device, &label, &m, "main")
+    }
+
+    /// The pass `pass` for network `m`, its sizes built in.
+    pub(super) fn for_network(pass: &'static str, m: &Mlp, skip_forced: bool) -> Variant {
+        let p = |h| crate::mlp::padded_units(h) as u32;
+        Variant {
+            pass,
+            skip_forced,
+            precision: m.precision,
+            shape: (p(m.h1), p(m.h2)),
+        }
+    }
+
+    /// Its source: the pass's, with the constants it changes replaced.
+    pub(super) fn source(self) -> String {
+        let mut src = shaders::source(self.pass).expect("known pass");
+        let mut set = |from: &str, to: &str| {
+            assert!(src.contains(from), "{} declares {from}", self.pass);
+            src = src.replace(from, to);
+        };
+        if !self.skip_forced {
+            set(
+                "const SKIP_FORCED: bool = true;",
+                "const SKIP_FORCED: bool = false;",
+            );
+        }
+        if self.precision == Precision::F16 {
+            set(
+                "const F16_WEIGHTS: bool = false;",
+                "const F16_WEIGHTS: bool = true;",
+            );
+        }
+        let (p1, p2) = self.shape;
+        // Known sizes: the private sums hold exactly p2 floats.
+        if p1 != 0 {
+            set(
+                "const NET_P1: u32 = 0u;",
+                &format!("const NET_P1: u32 = {p1}u;"),
+            );
+            set(
+                "const NET_P2: u32 = 0u;",
+                &format!("const NET_P2: u32 = {p2}u;"),
+            );
+            set(
+                "const ACC2_VEC4S: u32 = MAX_H2 / 4u;",
+                &format!("const ACC2_VEC4S: u32 = {}u;", p2 / 4),
+            );
+        }
+        src
+    }
+}
+
+impl Gpu {
+    /// The pipeline of a network pass: built at start-up for the default network, else on
+    /// first use.
+    pub(super) fn network_pass(&self, v: Variant) -> wgpu::ComputePipeline {
+        let mut variants = self
+            .pipelines
+            .variants
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        variants
+            .entry(v)
+            .or_insert_with(|| v.pipeline(&self.device))
+            .clone()
+    }
+}
+
+impl Pipelines {
+    pub(super) fn new(device: &wgpu::Device) -> Result<Pipelines> {
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let geometry = |name: &str| {
+            let m = module(device, name);
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(name),
+                layout: None,
+                vertex: wgpu::VertexState {
+                    module: &m,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: None,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &m,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: TARGET_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::empty(),
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let compute_entry =
+            |name: &str, entry: &str| compute_pipeline(device, name, &module(device, name), entry);
+        let compute = |name: &str| compute_entry(name, "main");
+        let p = Pipelines {
+            count: geometry("abuffer_count"),
+            store: geometry("abuffer_store"),
+            capture: geometry("capture"),
+            scan_blocks: compute_entry("scan", "scan_blocks"),
+            scan_sums: compute_entry("scan", "scan_sums"),
+            scan_add: compute_entry("scan", "scan_add"),
+            abuffer_resolve: compute("abuffer_resolve"),
+            resolve: compute("resolve"),
+            mlab_resolve: compute("mlab_resolve"),
+            allocate: Allocate::new(device),
+            features: geometry("features"),
+            totals: compute("totals"),
+            variants: std::sync::Mutex::new(
+                [("importance_dkb", true), ("predict", true)]
+                    .map(|(pass, skip)| {
+                        let p = crate::mlp::padded_units;
+                        let v = Variant {
+                            pass,
+                            skip_forced: skip,
+                            precision: Precision::F32,
+                            shape: (p(crate::mlp::H1) as u32, p(crate::mlp::H2) as u32),
+                        };
+                        (v, v.pipeline(device))
+                    })
+                    .into_iter()
+                    .collect(),
+            ),
+            vkb_count: geometry("vkb_count"),
+            importance_vkb: compute("importance_vkb"),
+        };
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Pipeline(e.to_string()).into());
+        }
+        Ok(p)
+    }
+}

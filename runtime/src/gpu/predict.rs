@@ -1,0 +1,73 @@
+//! Batch prediction: `predict.wgsl` runs the network of `mlp.wgsl` (as the DKB importance
+//! pass does) on rows of 12 features; the twins are `Mlp::forward` and the trainer's burn model.
+
+use super::*;
+
+impl Gpu {
+    /// The network on rows of features, on the GPU: the batch pass `predict.wgsl` runs the same
+    /// WGSL network (`mlp.wgsl`) as the DKB importance pass. Rows go through in chunks that fit
+    /// the device's largest binding.
+    pub fn predict(
+        &self,
+        mlp: &Mlp,
+        rows: &[[f32; crate::importance::FEATURES]],
+    ) -> Result<Vec<f32>> {
+        let weights = self
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("mlp.weights"),
+                contents: bytemuck::cast_slice(&mlp_uniform(mlp)),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let limit = self.device.limits().max_storage_buffer_binding_size;
+        let chunk = ((limit / 48) as usize).clamp(1, 1 << 22);
+        let mut out = Vec::with_capacity(rows.len());
+        for part in rows.chunks(chunk) {
+            let n = part.len() as u32;
+            // The pass reads the row count from the frame parameters' pixel count.
+            let mut params: Params = bytemuck::Zeroable::zeroed();
+            params.pixels = n;
+            let params_buf = self
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("params"),
+                    contents: bytemuck::bytes_of::<Params>(&params),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+            let input = self
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("predict.rows"),
+                    contents: bytemuck::cast_slice(part),
+                    usage: wgpu::BufferUsages::STORAGE,
+                });
+            let size = (4 * n as u64).max(16);
+            let output = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("predict.out"),
+                size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let pl = &self.network_pass(Variant::for_network("predict", mlp, true));
+            let group = self.bind_at(
+                &pl.get_bind_group_layout(0),
+                &[(0, &params_buf), (1, &weights), (2, &input), (3, &output)],
+            );
+            let mut enc = self.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                pass.set_pipeline(pl);
+                pass.set_bind_group(0, &group, &[]);
+                let (gx, gy) = grid(n, PIXEL_GROUP);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            self.queue.submit([enc.finish()]);
+            out.extend(
+                u32s(&read_back(self, &output, 4 * n as u64)?)
+                    .into_iter()
+                    .map(f32::from_bits),
+            );
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,55 @@
+//! The exclusive prefix sum (`scan.wgsl`: per-block scans, the block totals' scan, the add),
+//! for the A-buffer's offsets and the k-buffer's slot bases; the twin is a running sum
+//! (`FragmentLists::offsets`, `alloc` tests).
+
+use super::*;
+
+impl<'a> Passes<'a> {
+    /// Exclusive prefix sum of `values` into `offsets` (pixels + 1 entries): three dispatches
+    /// with a block-total buffer of one u32 per 256 pixels.
+    pub(super) fn prefix_sum(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        fb: &mut FrameBuffers,
+        values: &wgpu::Buffer,
+        offsets: &wgpu::Buffer,
+    ) -> Result<()> {
+        let p = &self.gpu.pipelines;
+        let px = self.pixels;
+        let groups = px.div_ceil(budget::SCAN_BLOCK as u32);
+        if fb.scan_blocks.is_none() {
+            fb.scan_blocks = Some(fb.storage("scan.blocks", 4 * groups as u64, true)?);
+        }
+        let blocks = fb.scan_blocks.clone().expect("created above");
+        let params = self.geometry[0];
+        // Auto layouts keep only the bindings an entry point uses: `values` only the first.
+        let bind = |pl: &wgpu::ComputePipeline, all: bool| {
+            let mut entries = vec![(0, params), (2, offsets), (3, &blocks)];
+            if all {
+                entries.push((1, values));
+            }
+            self.gpu.bind_at(&pl.get_bind_group_layout(0), &entries)
+        };
+        let (b, e) = self.timer.next("prefix sum");
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("prefix sum"),
+            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                query_set: self.timer.set(),
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: Some(e),
+            }),
+        });
+        let (gx, gy) = grid(px, budget::SCAN_BLOCK as u32);
+        for (pl, n, all) in [
+            (&p.scan_blocks, (gx, gy), true),
+            (&p.scan_sums, (1, 1), false),
+            (&p.scan_add, (gx, gy), false),
+        ] {
+            let g = bind(pl, all);
+            pass.set_pipeline(pl);
+            pass.set_bind_group(0, &g, &[]);
+            pass.dispatch_workgroups(n.0, n.1, 1);
+        }
+        Ok(())
+    }
+}
