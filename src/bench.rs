@@ -231,6 +231,21 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 };
                 let gpu_ms = median(steady.iter().map(|f| f.0).collect());
                 let wall_ms = median(steady.iter().map(|f| f.1).collect());
+                // Host time outside the passes: the scene's upload and the image's readback.
+                let host = |name: &str| {
+                    median(
+                        steady
+                            .iter()
+                            .map(|f| {
+                                f.2.host_ms
+                                    .iter()
+                                    .find(|h| h.0 == name)
+                                    .map_or(0.0, |h| h.1)
+                            })
+                            .collect(),
+                    )
+                };
+                let (upload_ms, readback_ms) = (host("scene upload"), host("image readback"));
                 // Per-pass times of the fastest steady frame.
                 let fastest = steady
                     .into_iter()
@@ -247,6 +262,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     serde_json::json!({
                         "passes_ms": per, "frame_gpu_ms": gpu_ms, "frame_wall_ms": wall_ms,
                         "wall_over_gpu": wall_ms / gpu_ms, "first_frame_wall_ms": cold_wall,
+                        "scene_upload_ms": upload_ms, "image_readback_ms": readback_ms,
+                        "wall_over_gpu_plus_readback": wall_ms / (gpu_ms + readback_ms),
                         "steady_frames": repeat.max(1),
                         "buffers_created_in_steady_frames": created_steady,
                         "allocated_bytes": fastest.allocated_bytes,

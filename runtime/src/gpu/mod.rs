@@ -289,6 +289,9 @@ pub struct GpuFrame {
     pub image: Image,
     /// Milliseconds of each pass, from timestamp queries, in order.
     pub pass_ms: Vec<(&'static str, f64)>,
+    /// Host milliseconds outside the passes: "scene upload" (positions widened to vec4 and
+    /// written with the colours), "image readback" (copy, map and convert the image).
+    pub host_ms: Vec<(&'static str, f64)>,
     /// Bytes of every buffer and target the method allocated for this frame.
     pub allocated_bytes: u64,
     /// A-buffer: the GPU's own fragments (sorted front to back within each pixel).
@@ -383,7 +386,9 @@ impl Gpu {
                 Some(Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
             ))
         .into();
+        let upload = std::time::Instant::now();
         let inputs = self.frame_inputs(&mut fb, scene, &params);
+        let upload_ms = upload.elapsed().as_secs_f64() * 1e3;
         let timer = Timer::new(self);
         let passes = Passes::new(self, &timer, &inputs);
         let mut rec = Recording {
@@ -409,7 +414,26 @@ impl Gpu {
             }
             .into());
         }
+        // The frame's passes finish first, so the readback's time is its own.
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Lost {
+                doing: "waiting for a submission",
+                message: e.to_string(),
+            })?;
+        let readback = std::time::Instant::now();
         let img = u32s(&read_back(self, &image, 16 * px)?);
+        let data = img
+            .chunks_exact(4)
+            .map(|c| {
+                [
+                    f32::from_bits(c[0]),
+                    f32::from_bits(c[1]),
+                    f32::from_bits(c[2]),
+                ]
+            })
+            .collect();
+        let readback_ms = readback.elapsed().as_secs_f64() * 1e3;
         let pass_ms = timer.read(self)?;
         let (importance, stats, vkb_nearest) = if self.diagnostics {
             out.statistics(self, px)?
@@ -421,18 +445,10 @@ impl Gpu {
             image: Image {
                 width,
                 height,
-                data: img
-                    .chunks_exact(4)
-                    .map(|c| {
-                        [
-                            f32::from_bits(c[0]),
-                            f32::from_bits(c[1]),
-                            f32::from_bits(c[2]),
-                        ]
-                    })
-                    .collect(),
+                data,
             },
             pass_ms,
+            host_ms: vec![("scene upload", upload_ms), ("image readback", readback_ms)],
             allocated_bytes: rec.fb.allocated,
             fragments: rec.out.fragments,
             slots: rec.out.slots,
