@@ -11,8 +11,8 @@
 //   weights: importance -> fixed-point weight in place (the kind of alloc::Target)
 //   setup:   F (fixed, or floor(total ppm / 10^6) from the totals pass), target, lo, the search
 //            interval [a, a + 2^44)
-//   search:  the totals at 16 candidates a + j span/16 (workgroup sums, then one 64-bit atomic
-//            per candidate and workgroup)
+//   search:  the totals at 16 candidates a + j span/16 (SEARCH_PIXELS pixels an invocation, then
+//            workgroup sums, then one 64-bit atomic per candidate and workgroup)
 //   choose:  the largest candidate whose total fits becomes a; span /= 16 (11 rounds: 2^44 = 16^11)
 //   mark:    flags[p] = 1 where k rises at a + 1 (then prefix-summed by the scan)
 //   apply:   k = k(a) + 1 for the first (target - total(a)) marked pixels
@@ -140,15 +140,28 @@ fn search(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let p = pixel(wid, nwg, lid);
+    // SEARCH_PIXELS pixels an invocation, ALLOC_GROUP apart (neighbouring invocations read
+    // neighbouring pixels), summed privately before the workgroup's atomics.
+    let first = (wid.y * nwg.x + wid.x) * ALLOC_GROUP * SEARCH_PIXELS + lid;
     let a = atomicLoad(&state[1]);
     let step = atomicLoad(&state[2]) >> 4u;
     let lo = u32(atomicLoad(&state[3]));
-    if (p < params.pixels && counts[p] > 0u) {
-        let wp = w[p];
-        let n = counts[p];
+    var sums: array<u32, ALLOC_CANDIDATES>;
+    var any = false;
+    for (var i = 0u; i < SEARCH_PIXELS; i++) {
+        let p = first + i * ALLOC_GROUP;
+        if (p < params.pixels && counts[p] > 0u) {
+            any = true;
+            let wp = w[p];
+            let n = counts[p];
+            for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
+                sums[j] += k_at(a + u64(j) * step, wp, n, lo);
+            }
+        }
+    }
+    if (any) {
         for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
-            atomicAdd(&partial[j], k_at(a + u64(j) * step, wp, n, lo));
+            atomicAdd(&partial[j], sums[j]);
         }
     }
     workgroupBarrier();

@@ -122,7 +122,7 @@ pub mod shaders {
     pub fn shared_constants() -> Vec<(&'static str, Value)> {
         use super::{
             ALLOC_CANDIDATES, ALLOC_GROUP, ALLOC_STATE_WORDS, MLAB_MAX_ROWS, MLP_MEAN_AT,
-            MLP_STD_AT, MLP_W1_AT, PIXEL_GROUP,
+            MLP_STD_AT, MLP_W1_AT, PIXEL_GROUP, SEARCH_PIXELS,
         };
         use crate::{alloc, budget, importance, mlp, raster};
         use Value::{F32, U32, U64};
@@ -132,6 +132,7 @@ pub mod shaders {
             ("SCAN_BLOCK", U32(budget::SCAN_BLOCK as u32)),
             ("ALLOC_GROUP", U32(ALLOC_GROUP)),
             ("ALLOC_CANDIDATES", U32(ALLOC_CANDIDATES)),
+            ("SEARCH_PIXELS", U32(SEARCH_PIXELS)),
             ("ALLOC_STATE_WORDS", U32(ALLOC_STATE_WORDS)),
             ("SEARCH_ROUNDS", U32(super::SEARCH_ROUNDS)),
             ("PPM", U32(budget::PPM as u32)),
@@ -184,6 +185,9 @@ pub const PIXEL_GROUP: u32 = 64;
 pub const ALLOC_GROUP: u32 = 256;
 /// Candidates the allocation's search tries per round (a 16-way search).
 pub const ALLOC_CANDIDATES: u32 = 16;
+/// Pixels each invocation of the allocation's search sums before its workgroup's atomics: a
+/// quarter of the shared atomics, and a quarter of the workgroups.
+pub const SEARCH_PIXELS: u32 = 4;
 /// The allocation's search state in u64s: target, interval start, span, lo, total at the start,
 /// F, the candidates' totals, and two spare.
 pub const ALLOC_STATE_WORDS: u32 = 6 + ALLOC_CANDIDATES + 2;

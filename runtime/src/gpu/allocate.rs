@@ -142,9 +142,10 @@ impl<'a> Passes<'a> {
             pass.dispatch_workgroups(gx, gy, 1);
             pass.set_pipeline(&a.setup);
             pass.dispatch_workgroups(1, 1, 1);
+            let (sx, sy) = grid(self.pixels.div_ceil(SEARCH_PIXELS), ALLOC_GROUP);
             for _ in 0..SEARCH_ROUNDS {
                 pass.set_pipeline(&a.search);
-                pass.dispatch_workgroups(gx, gy, 1);
+                pass.dispatch_workgroups(sx, sy, 1);
                 pass.set_pipeline(&a.choose);
                 pass.dispatch_workgroups(1, 1, 1);
             }
