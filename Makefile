@@ -6,7 +6,7 @@ RUN := $(CARGO) run --release --quiet --
 # Real glTF scenes for tests and evaluation, read in place (never copied into the repository).
 export DHOIT_SCENES ?= $(abspath ../shared/scenes)
 
-.PHONY: all setup demo test fmt lint check bench build train nets golden eval trade fuzz
+.PHONY: all setup demo test fmt lint check bench devbin build train nets golden eval trade fuzz
 
 all: demo
 
@@ -96,3 +96,10 @@ test: setup fmt lint
 ## Throughput of every pass, as JSON (also written to out/bench.json).
 bench: setup
 	$(RUN) bench --out out/bench.json
+
+## For a machine lent with a real GPU: the release binary into .devbin/ and the Vulkan loader
+## packages into .gl/ (both ignored by git), which scripts/device.sh runs the bench with there.
+devbin: build
+	mkdir -p .devbin .gl
+	cp target/release/dhoit .devbin/
+	cd .gl && apt-get download libvulkan1
