@@ -22,20 +22,20 @@ fn luma(c: vec3<f32>) -> f32 {
     return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b;
 }
 
-@compute @workgroup_size(PIXEL_GROUP)
-fn main(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
-    if (p >= params.pixels) {
-        return;
-    }
+// A pixel's network inputs (importance::pixel_features), or, where the network is not run (an
+// uncovered or forced pixel), its importance written here and `runs` false.
+struct Net {
+    x: array<f32, 12>,
+    mark: u32,
+    runs: bool,
+}
+
+fn network_inputs(p: u32) -> Net {
+    var net: Net;
     let c = count[p];
     if (c == 0u) {
         importance[p] = 0.0;
-        return;
+        return net;
     }
     // The sign bit marks a pixel whose two farthest fragments share one colour
     // (importance::tail_pair, alloc::mark_pair): the allocation lets it use a slot fewer.
@@ -45,7 +45,7 @@ fn main(
     let mark = select(0u, PAIR_BIT, pair);
     if (SKIP_FORCED && (c <= 1u + select(0u, 1u, pair) || budget_of(totals[0]) >= u64(totals[0]))) {
         importance[p] = bitcast<f32>(mark);
-        return;
+        return net;
     }
     // importance::pixel_features, operation for operation.
     let total = f32(max(totals[0], 1u));
@@ -70,7 +70,7 @@ fn main(
     let dev = f32(dev_num) / scale;
     let mean_luma = luma(mean);
     let near_luma = luma(near);
-    var x = array<f32, 12>(
+    net.x = array<f32, 12>(
         log2(nf),
         nf / (total / covered),
         f32(budget_of(totals[0])) / total,
@@ -84,6 +84,29 @@ fn main(
         near_luma,
         sqrt(dev),
     );
-    let out = mlp_forward(x);
-    importance[p] = bitcast<f32>(bitcast<u32>(out) | mark);
+    net.runs = true;
+    net.mark = mark;
+    return net;
+}
+
+@compute @workgroup_size(PIXEL_GROUP)
+fn main(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    var net: Net;
+    if (p < params.pixels) {
+        net = network_inputs(p);
+    }
+    if (SHARED_WEIGHTS) {
+        // Every invocation of the workgroup stages the weights, runs or not.
+        let out = mlp_forward_shared(net.x, net.runs, lid);
+        if (net.runs) {
+            importance[p] = bitcast<f32>(bitcast<u32>(out) | net.mark);
+        }
+    } else if (net.runs) {
+        importance[p] = bitcast<f32>(bitcast<u32>(mlp_forward(net.x)) | net.mark);
+    }
 }

@@ -17,6 +17,18 @@
 // The weights' precision (mlp::Precision): the f16 variant of a pass is built with this true.
 const F16_WEIGHTS: bool = false;
 
+// Whether the DKB importance pass stages the first two layers' weights in workgroup memory,
+// TILE_UNITS first-layer units at a time, shared by the workgroup's pixels
+// (mlp_forward_shared), instead of reading them from the uniform (gpu::Gpu::shared_weights).
+const SHARED_WEIGHTS: bool = false;
+const TILE_UNITS: u32 = 16u;
+// A tile: fc1's 12 x TILE_UNITS weights (input-major), TILE_UNITS biases, then TILE_UNITS rows
+// of fc2 (p2 weights each), in vec4s.
+const TILE_W1: u32 = 0u;
+const TILE_B1: u32 = 12u * TILE_UNITS / 4u;
+const TILE_W2: u32 = TILE_B1 + TILE_UNITS / 4u;
+var<workgroup> tile: array<vec4<f32>, TILE_W2 + TILE_UNITS * MAX_H2 / 4u>;
+
 // The padded sizes (p1, p2) when the pass is built for one network shape (gpu::Variant): loops
 // of known length, and the second layer's sums in exactly p2 floats. 0: read from the uniform.
 const NET_P1: u32 = 0u;
@@ -60,6 +72,114 @@ fn standardised(x: vec4<f32>, at: u32) -> vec4<f32> {
     let mean = bitcast<vec4<f32>>(weights[(MLP_MEAN_AT >> 2u) + at]);
     let spread = bitcast<vec4<f32>>(weights[(MLP_STD_AT >> 2u) + at]);
     return clamp((x - mean) / spread, vec4<f32>(-MAX_STANDARDISED), vec4<f32>(MAX_STANDARDISED));
+}
+
+// The network's padded sizes.
+fn net_shape() -> vec2<u32> {
+    var p1 = NET_P1;
+    var p2 = NET_P2;
+    if (NET_P1 == 0u) {
+        let shape = weights[0];
+        p1 = (u32(bitcast<f32>(shape.x)) + 3u) & ~3u;
+        p2 = (u32(bitcast<f32>(shape.y)) + 3u) & ~3u;
+    }
+    return vec2<u32>(p1, p2);
+}
+
+// mlp_forward with the first two layers' weights staged in workgroup memory a tile of
+// TILE_UNITS first-layer units at a time: every invocation of the workgroup calls it (its
+// barriers need them all), `runs` the ones whose output counts. The same sums in the same
+// order as mlp_forward.
+fn mlp_forward_shared(f: array<f32, 12>, runs: bool, lid: u32) -> f32 {
+    let shape = net_shape();
+    let p1 = shape.x;
+    let p2 = shape.y;
+    let q2 = p2 / 4u;
+    let x0 = standardised(vec4<f32>(f[0], f[1], f[2], f[3]), 0u);
+    let x1 = standardised(vec4<f32>(f[4], f[5], f[6], f[7]), 1u);
+    let x2 = standardised(vec4<f32>(f[8], f[9], f[10], f[11]), 2u);
+    let w1 = MLP_W1_AT;
+    let b1 = w1 + 12u * p1;
+    let w2 = b1 + p1;
+    let b2 = w2 + p1 * p2;
+    let w3 = b2 + p2;
+    let b3 = w3 + p2;
+    var acc2: array<vec4<f32>, ACC2_VEC4S>;
+    for (var j = 0u; j < q2; j++) {
+        acc2[j] = param4(b2 + 4u * j);
+    }
+    let staged = TILE_W2 + TILE_UNITS * q2;
+    for (var t = 0u; t < p1; t += TILE_UNITS) {
+        // Stage the tile (units past p1: zeros, so they add nothing).
+        for (var v = lid; v < staged; v += PIXEL_GROUP) {
+            var value = vec4<f32>(0.0);
+            if (v < TILE_B1) {
+                let unit = t + 4u * (v % (TILE_UNITS / 4u));
+                if (unit < p1) {
+                    value = param4(w1 + (v / (TILE_UNITS / 4u)) * p1 + unit);
+                }
+            } else if (v < TILE_W2) {
+                let unit = t + 4u * (v - TILE_B1);
+                if (unit < p1) {
+                    value = param4(b1 + unit);
+                }
+            } else {
+                let r = v - TILE_W2;
+                let unit = t + r / q2;
+                if (unit < p1) {
+                    value = param4(w2 + unit * p2 + 4u * (r % q2));
+                }
+            }
+            tile[v] = value;
+        }
+        workgroupBarrier();
+        if (runs) {
+            for (var g = 0u; g < TILE_UNITS / 4u; g++) {
+                var acc = tile[TILE_B1 + g];
+                let c = TILE_W1 + g;
+                let s = TILE_UNITS / 4u;
+                acc += x0.x * tile[c];
+                acc += x0.y * tile[c + s];
+                acc += x0.z * tile[c + 2u * s];
+                acc += x0.w * tile[c + 3u * s];
+                acc += x1.x * tile[c + 4u * s];
+                acc += x1.y * tile[c + 5u * s];
+                acc += x1.z * tile[c + 6u * s];
+                acc += x1.w * tile[c + 7u * s];
+                acc += x2.x * tile[c + 8u * s];
+                acc += x2.y * tile[c + 9u * s];
+                acc += x2.z * tile[c + 10u * s];
+                acc += x2.w * tile[c + 11u * s];
+                let a = max(acc, vec4<f32>(0.0));
+                let row = TILE_W2 + 4u * g * q2;
+                add_tile_row(&acc2, a.x, row, q2);
+                add_tile_row(&acc2, a.y, row + q2, q2);
+                add_tile_row(&acc2, a.z, row + 2u * q2, q2);
+                add_tile_row(&acc2, a.w, row + 3u * q2, q2);
+            }
+        }
+        workgroupBarrier();
+    }
+    var out = param4(b3).x;
+    for (var j = 0u; j < q2; j++) {
+        let h = max(acc2[j], vec4<f32>(0.0));
+        let wv = param4(w3 + 4u * j);
+        out += h.x * wv.x;
+        out += h.y * wv.y;
+        out += h.z * wv.z;
+        out += h.w * wv.w;
+    }
+    let s = 1.0 / (1.0 + exp(-out));
+    return select(0.0, s, s == s);
+}
+
+// add_row from a staged tile's row (q2 vec4s from `row`).
+fn add_tile_row(acc2: ptr<function, array<vec4<f32>, ACC2_VEC4S>>, a: f32, row: u32, q2: u32) {
+    if (a != 0.0) {
+        for (var j = 0u; j < q2; j++) {
+            (*acc2)[j] += a * tile[row + j];
+        }
+    }
 }
 
 fn mlp_forward(f: array<f32, 12>) -> f32 {

@@ -196,7 +196,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 .map(|&m| renderer.allocate_for_gpu(m))
                 .collect::<Result<_, _>>()?;
             // DKB once more with the network run on every covered pixel, even where k is forced,
-            // and once with every fragment inserted (no append mode in the capture).
+            // once with every fragment inserted (no append mode in the capture), and once with
+            // the network's weights staged in workgroup memory.
             let runs = order
                 .iter()
                 .zip(&cpu)
@@ -204,11 +205,13 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 .chain([
                     ("dkb_no_skip", Method::Dkb, &cpu[4]),
                     ("dkb_insertion_only", Method::Dkb, &cpu[4]),
+                    ("dkb_shared_weights", Method::Dkb, &cpu[4]),
                 ]);
             for (label, method, frame) in runs {
                 let slots = Slots::for_method(method, frame, &options)?;
                 gpu.skip_forced = label != "dkb_no_skip";
                 gpu.two_mode_capture = label != "dkb_insertion_only";
+                gpu.shared_weights = label == "dkb_shared_weights";
                 // One cold frame (its buffers are created), then `repeat` steady-state frames
                 // that reuse them and read back only the image: medians of those.
                 let timed = |gpu: &dhoit_runtime::gpu::Gpu| -> Result<(f64, f64, _)> {
@@ -272,6 +275,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             }
             gpu.skip_forced = true;
             gpu.two_mode_capture = true;
+            gpu.shared_weights = false;
             let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
             let ratio = ms("dkb") / ms("vkb");
             let over_abuffer = ms("dkb") / ms("abuffer");
@@ -287,6 +291,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     .unwrap_or(f64::NAN)
             };
             let (two_mode, inserted) = (capture("dkb"), capture("dkb_insertion_only"));
+            let staged = imp("dkb_shared_weights");
             // Covered pixels DKB's capture appends (k from its CPU twin, which the GPU's equals).
             let dkb_k = renderer.allocate(Method::Dkb)?.k;
             let appended = dkb_k
@@ -319,6 +324,9 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 "GPU {name}: DKB capture {two_mode:.2} ms appending {:.1}% of covered pixels, {inserted:.2} ms inserting every fragment",
                 100.0 * appended as f64 / covered.max(1) as f64
             );
+            eprintln!(
+                "GPU {name}: DKB importance {skip:.2} ms reading the weights from the uniform, {staged:.2} ms staging them in workgroup memory"
+            );
             Ok(serde_json::json!({
                 "scene": name, "fragments": fl.fragment_count(), "dkb_over_vkb": ratio,
                 "dkb_over_abuffer": over_abuffer, "methods": methods,
@@ -326,6 +334,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     "forced_share_of_covered": forced as f64 / covered.max(1) as f64,
                     "importance_ms": skip, "importance_ms_no_skip": all, "saved": 1.0 - skip / all,
                 },
+                "shared_weights": {"importance_ms": staged, "importance_ms_uniform": skip},
                 "two_mode_capture": {
                     "appended_share_of_covered": appended as f64 / covered.max(1) as f64,
                     "capture_ms": two_mode, "capture_ms_insertion_only": inserted,

@@ -41,7 +41,10 @@ impl Recording<'_, '_> {
         );
         passes.dispatch(
             enc,
-            &gpu.network_pass(Variant::for_network("importance_dkb", mlp, gpu.skip_forced)),
+            &gpu.network_pass(Variant {
+                shared_weights: gpu.shared_weights,
+                ..Variant::for_network("importance_dkb", mlp, gpu.skip_forced)
+            }),
             &[
                 passes.params(),
                 &weights,

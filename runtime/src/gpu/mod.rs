@@ -79,6 +79,11 @@ pub struct Gpu {
     /// [`crate::composite::APPEND_SPILL`] fragments and insert the rest (capture.wgsl); off,
     /// every fragment is inserted (the bench's comparison). The images are the same.
     pub two_mode_capture: bool,
+    /// Whether DKB's importance pass stages the network's first two layers in workgroup memory,
+    /// 16 first-layer units at a time, shared by the workgroup's 64 pixels, instead of reading
+    /// every weight from the uniform buffer (off by default: on lavapipe it is slower; the
+    /// bench measures both). The importance is the same.
+    pub shared_weights: bool,
     /// Whether a frame reads back what the tests compare besides the image (the A-buffer's
     /// fragments, the k-buffer's slots and tails, importance and statistics): on by default;
     /// off, a frame reads back its image only (the bench's steady-state frames).
@@ -207,6 +212,7 @@ impl Gpu {
             pipelines,
             skip_forced: true,
             two_mode_capture: true,
+            shared_weights: false,
             diagnostics: true,
             pool: Default::default(),
             query_sets: Default::default(),

@@ -64,13 +64,15 @@ pub(super) struct Variant {
     /// The network's padded layer sizes ([`crate::mlp::padded_units`]), built into the pass so
     /// its loops have known lengths; (0, 0) reads them from the uniform.
     pub(super) shape: (u32, u32),
+    /// The first two layers' weights staged in workgroup memory (SHARED_WEIGHTS).
+    pub(super) shared_weights: bool,
 }
 
 impl Variant {
     pub(super) fn pipeline(self, device: &wgpu::Device) -> wgpu::ComputePipeline {
         let label = format!(
-            "{} {:?} {} {:?}",
-            self.pass, self.skip_forced, self.precision, self.shape
+            "{} {:?} {} {:?} {:?}",
+            self.pass, self.skip_forced, self.precision, self.shape, self.shared_weights
         );
         let m = module_from(device, &label, self.source());
         compute_pipeline(device, &label, &m, "main")
@@ -84,6 +86,7 @@ impl Variant {
             skip_forced,
             precision: m.precision,
             shape: (p(m.h1), p(m.h2)),
+            shared_weights: false,
         }
     }
 
@@ -104,6 +107,12 @@ impl Variant {
             set(
                 "const F16_WEIGHTS: bool = false;",
                 "const F16_WEIGHTS: bool = true;",
+            );
+        }
+        if self.shared_weights {
+            set(
+                "const SHARED_WEIGHTS: bool = false;",
+                "const SHARED_WEIGHTS: bool = true;",
             );
         }
         let (p1, p2) = self.shape;
@@ -202,6 +211,7 @@ impl Pipelines {
                             skip_forced: skip,
                             precision: Precision::F32,
                             shape: (p(crate::mlp::H1) as u32, p(crate::mlp::H2) as u32),
+                            shared_weights: false,
                         };
                         (v, v.pipeline(device))
                     })
