@@ -52,17 +52,17 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     }
     var i = 0u;
     if (k > 0u) {
-        if (atomicLoad(&slots[base + k - 1u]) >= cur) {
+        if (atomicLoad(&slots[slot_at(base, k - 1u, p)]) >= cur) {
             i = k;
         } else if (k > 2u) {
             let m = k / 2u;
-            if (atomicLoad(&slots[base + m]) >= cur) {
+            if (atomicLoad(&slots[slot_at(base, m, p)]) >= cur) {
                 i = m + 1u;
             }
         }
     }
     for (; i < k; i++) {
-        let old = atomicMax(&slots[base + i], cur);
+        let old = atomicMax(&slots[slot_at(base, i, p)], cur);
         if (old == 0lu) {
             return vec4<f32>(0.0);
         }

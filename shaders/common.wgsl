@@ -24,6 +24,8 @@ struct Params {
     budget_ppm: u32,
     // 1 when the k-buffer passes have n(p) bound and capture in two modes (capture.wgsl).
     append: u32,
+    // 1 when FKB's slots are laid out layer-major (slot_at).
+    layer_major: u32,
 };
 
 struct VertexOut {
@@ -77,6 +79,17 @@ fn budget_of(total: u32) -> u64 {
         return (u64(total) * u64(params.budget_ppm)) / 1000000lu;
     }
     return u64(params.budget_fragments);
+}
+
+// Where slot i of pixel p lies, its slots starting at `base`: pixel-major (a pixel's slots
+// together), or with FKB's layer-major layout (params.layer_major) slot i of every pixel
+// together, so neighbouring pixels' fragments touch neighbouring words. Only FKB, which
+// never appends, is laid out layer-major.
+fn slot_at(base: u32, i: u32, p: u32) -> u32 {
+    if (params.layer_major != 0u) {
+        return i * params.pixels + p;
+    }
+    return base + i;
 }
 
 // The capture's mode for a pixel of k slots and n fragments (composite::appends): append

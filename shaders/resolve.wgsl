@@ -94,7 +94,7 @@ fn main(
     var c = vec3<f32>(0.0);
     var t = 1.0;
     for (var i = 0u; i < k; i++) {
-        let s = slots[base + i];
+        let s = slots[slot_at(base, i, p)];
         if (s == 0lu) {
             break;
         }

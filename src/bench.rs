@@ -197,7 +197,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 .collect::<Result<_, _>>()?;
             // DKB once more with the network run on every covered pixel, even where k is forced,
             // once with every fragment inserted (no append mode in the capture), and once with
-            // the network's weights staged in workgroup memory.
+            // the network's weights staged in workgroup memory; FKB once more with its slots
+            // laid out layer-major.
             let runs = order
                 .iter()
                 .zip(&cpu)
@@ -206,12 +207,14 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     ("dkb_no_skip", Method::Dkb, &cpu[4]),
                     ("dkb_insertion_only", Method::Dkb, &cpu[4]),
                     ("dkb_shared_weights", Method::Dkb, &cpu[4]),
+                    ("fkb_layer_major", Method::Fkb, &cpu[1]),
                 ]);
             for (label, method, frame) in runs {
                 let slots = Slots::for_method(method, frame, &options)?;
                 gpu.skip_forced = label != "dkb_no_skip";
                 gpu.two_mode_capture = label != "dkb_insertion_only";
                 gpu.shared_weights = label == "dkb_shared_weights";
+                gpu.layer_major_fkb = label == "fkb_layer_major";
                 // One cold frame (its buffers are created), then `repeat` steady-state frames
                 // that reuse them and read back only the image: medians of those.
                 let timed = |gpu: &dhoit_runtime::gpu::Gpu| -> Result<(f64, f64, _)> {
@@ -276,6 +279,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             gpu.skip_forced = true;
             gpu.two_mode_capture = true;
             gpu.shared_weights = false;
+            gpu.layer_major_fkb = false;
             let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
             let ratio = ms("dkb") / ms("vkb");
             let over_abuffer = ms("dkb") / ms("abuffer");
@@ -292,6 +296,13 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             };
             let (two_mode, inserted) = (capture("dkb"), capture("dkb_insertion_only"));
             let staged = imp("dkb_shared_weights");
+            let fkb_slots = |m: &str| {
+                capture(m)
+                    + methods[m]["passes_ms"]["resolve"]
+                        .as_f64()
+                        .unwrap_or(f64::NAN)
+            };
+            let (pixel_major, layer_major) = (fkb_slots("fkb"), fkb_slots("fkb_layer_major"));
             // Covered pixels DKB's capture appends (k from its CPU twin, which the GPU's equals).
             let dkb_k = renderer.allocate(Method::Dkb)?.k;
             let appended = dkb_k
@@ -327,6 +338,9 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             eprintln!(
                 "GPU {name}: DKB importance {skip:.2} ms reading the weights from the uniform, {staged:.2} ms staging them in workgroup memory"
             );
+            eprintln!(
+                "GPU {name}: FKB capture and resolve {pixel_major:.2} ms pixel-major, {layer_major:.2} ms layer-major"
+            );
             Ok(serde_json::json!({
                 "scene": name, "fragments": fl.fragment_count(), "dkb_over_vkb": ratio,
                 "dkb_over_abuffer": over_abuffer, "methods": methods,
@@ -335,6 +349,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     "importance_ms": skip, "importance_ms_no_skip": all, "saved": 1.0 - skip / all,
                 },
                 "shared_weights": {"importance_ms": staged, "importance_ms_uniform": skip},
+                "fkb_slot_layout": {"capture_resolve_ms_pixel_major": pixel_major, "capture_resolve_ms_layer_major": layer_major},
                 "two_mode_capture": {
                     "appended_share_of_covered": appended as f64 / covered.max(1) as f64,
                     "capture_ms": two_mode, "capture_ms_insertion_only": inserted,

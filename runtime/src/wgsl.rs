@@ -217,7 +217,9 @@ pub(crate) struct Params {
     pub(crate) budget_ppm: u32,
     /// 1 when the k-buffer passes have n(p) bound and capture in two modes (capture.wgsl).
     pub(crate) append: u32,
-    pub(crate) _pad: [u32; 29],
+    /// 1 when FKB's slots are laid out layer-major (`slot_at` in common.wgsl).
+    pub(crate) layer_major: u32,
+    pub(crate) _pad: [u32; 28],
 }
 
 /// The network's weights as the uniform `mlp.wgsl` reads, in 32-bit words: h1, h2, 0, 0,
@@ -338,7 +340,7 @@ mod tests {
         let (span, wgsl) = wgsl_struct(&module, "Params");
         let rust = offsets!(Params; view_proj, forward, background, width, height, k_uniform,
             pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed, budget_ppm,
-            append);
+            append, layer_major);
         assert_eq!(
             wgsl, rust,
             "Params: WGSL (left) and Rust (right) members and offsets"

@@ -248,6 +248,49 @@ fn weights_staged_in_workgroup_memory_give_the_same_importance() {
     }
 }
 
+/// FKB's slots laid out layer-major (`Gpu::layer_major_fkb`) hold the same keys and tails,
+/// and draw the same image bits, as pixel-major ones and the CPU twin, in any submission order.
+#[test]
+fn layer_major_slots_capture_what_pixel_major_ones_do() {
+    if gpu().is_none() {
+        return;
+    }
+    let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
+    let (w, h) = (80, 60);
+    for (name, view) in [("particles", 1), ("hair", 0)] {
+        let (s, cam) = frame(name, view, w, h);
+        let gfl = g
+            .render(&s, &cam, w, h, BG, None)
+            .unwrap()
+            .fragments
+            .unwrap();
+        for k in [1u32, 3] {
+            let frames = [false, true].map(|layer_major| {
+                g.layer_major_fkb = layer_major;
+                g.render(&s, &cam, w, h, BG, Some(Slots::Uniform(k)))
+                    .unwrap()
+            });
+            let (twin_keys, twin_tails) = twin_capture(&gfl, &vec![k; gfl.pixel_count()]);
+            for f in &frames {
+                let (keys, _, tails) = f.slots.clone().unwrap();
+                assert!(
+                    keys == twin_keys && tails == twin_tails,
+                    "{name} k = {k}: capture"
+                );
+            }
+            assert!(
+                image_bits(&frames[0].image) == image_bits(&frames[1].image),
+                "{name} k = {k}: image"
+            );
+            let shuffled = g
+                .render(&s.shuffled(5), &cam, w, h, BG, Some(Slots::Uniform(k)))
+                .unwrap();
+            assert!(image_bits(&shuffled.image) == image_bits(&frames[1].image));
+            g.layer_major_fkb = false;
+        }
+    }
+}
+
 /// A persistent renderer: frames take their buffers from the ones earlier frames left, so a
 /// repeated frame creates none, and what an earlier frame left in them never shows: every image
 /// is bit for bit the image of the same frame rendered before, whatever came between.

@@ -170,7 +170,13 @@ impl Recording<'_, '_> {
                 .zip(counts)
                 .flat_map(|(s, c)| [s[0], s[1], s[2], s[3], c])
                 .collect();
-            self.out.slots = Some((read_u64s(gpu, &slots, kb.slots, true)?, bases, tails));
+            let mut keys = read_u64s(gpu, &slots, kb.slots, true)?;
+            if let (Slots::Uniform(k), true) = (s, gpu.layer_major_fkb) {
+                // Pixel-major, as composite::capture gives them.
+                let (k, n) = (k.max(1) as usize, px as usize);
+                keys = (0..n * k).map(|q| keys[(q % k) * n + q / k]).collect();
+            }
+            self.out.slots = Some((keys, bases, tails));
         }
         Ok(image)
     }

@@ -84,6 +84,10 @@ pub struct Gpu {
     /// every weight from the uniform buffer (off by default: on lavapipe it is slower; the
     /// bench measures both). The importance is the same.
     pub shared_weights: bool,
+    /// Whether FKB lays its slots out layer-major (slot i of every pixel together, so the
+    /// fragments of neighbouring pixels touch neighbouring words) rather than pixel-major
+    /// (off by default; the bench measures both). The images are the same.
+    pub layer_major_fkb: bool,
     /// Whether a frame reads back what the tests compare besides the image (the A-buffer's
     /// fragments, the k-buffer's slots and tails, importance and statistics): on by default;
     /// off, a frame reads back its image only (the bench's steady-state frames).
@@ -213,6 +217,7 @@ impl Gpu {
             skip_forced: true,
             two_mode_capture: true,
             shared_weights: false,
+            layer_major_fkb: false,
             diagnostics: true,
             pool: Default::default(),
             query_sets: Default::default(),
@@ -392,6 +397,8 @@ impl Gpu {
                 Some(Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
             ))
         .into();
+        params.layer_major =
+            (self.layer_major_fkb && matches!(slots, Some(Slots::Uniform(_)))).into();
         let upload = std::time::Instant::now();
         let inputs = self.frame_inputs(&mut fb, scene, &params);
         let upload_ms = upload.elapsed().as_secs_f64() * 1e3;
@@ -494,7 +501,8 @@ fn frame_params(
         vkb_seed: vkb.seed,
         budget_ppm,
         append: 0,
-        _pad: [0; 29],
+        layer_major: 0,
+        _pad: [0; 28],
     }
 }
 
