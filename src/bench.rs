@@ -160,16 +160,29 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
         }
     };
     eprintln!("GPU: {}", gpu.adapter);
-    // The committed default weights when found, else seeded random ones (same cost).
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/weights.safetensors");
-    let (mlp, weights) = match dhoit_runtime::mlp::Mlp::load(&path) {
-        Ok(m) => (m, path.display().to_string()),
-        Err(_) => (
-            dhoit_runtime::mlp::Mlp::random(1),
-            "random (default weights not found)".to_string(),
-        ),
+    // The committed weights when found (under the working directory's data/, as on a machine
+    // the binary was carried to, else the source tree's), else seeded random ones of the same
+    // size (same cost).
+    let load = |rel: &str, seed: u64, (h1, h2): (usize, usize)| {
+        let local = std::path::PathBuf::from(rel);
+        let built = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(rel);
+        match [local, built].iter().find_map(|p| {
+            dhoit_runtime::mlp::Mlp::load(p)
+                .ok()
+                .map(|m| (m, p.clone()))
+        }) {
+            Some((m, p)) => (m, p.display().to_string()),
+            None => (
+                dhoit_runtime::mlp::Mlp::random_sized(seed, h1, h2),
+                format!("random ({rel} not found)"),
+            ),
+        }
     };
+    let (mlp, weights) = load("data/weights.safetensors", 1, (128, 64));
     let mlp = &mlp;
+    // The smallest shipped network, which the trade finds as accurate (docs/trade.md).
+    let (small, small_weights) = load("data/nets/16-8/weights.safetensors", 2, (16, 8));
+    let small = &small;
     let mut scenes = Vec::new();
     for name in names {
         let mut run = || -> Result<serde_json::Value> {
@@ -198,7 +211,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             // DKB once more with the network run on every covered pixel, even where k is forced,
             // once with every fragment inserted (no append mode in the capture), and once with
             // the network's weights staged in workgroup memory; FKB once more with its slots
-            // laid out layer-major.
+            // laid out layer-major; and DKB with the 16-8 network.
             let runs = order
                 .iter()
                 .zip(&cpu)
@@ -208,9 +221,13 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     ("dkb_insertion_only", Method::Dkb, &cpu[4]),
                     ("dkb_shared_weights", Method::Dkb, &cpu[4]),
                     ("fkb_layer_major", Method::Fkb, &cpu[1]),
+                    ("dkb_16-8", Method::Dkb, &cpu[4]),
                 ]);
             for (label, method, frame) in runs {
-                let slots = Slots::for_method(method, frame, &options)?;
+                let slots = match Slots::for_method(method, frame, &options)? {
+                    Some(Slots::Dkb(_, f)) if label == "dkb_16-8" => Some(Slots::Dkb(small, f)),
+                    s => s,
+                };
                 gpu.skip_forced = label != "dkb_no_skip";
                 gpu.two_mode_capture = label != "dkb_insertion_only";
                 gpu.shared_weights = label == "dkb_shared_weights";
@@ -282,6 +299,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             gpu.layer_major_fkb = false;
             let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
             let ratio = ms("dkb") / ms("vkb");
+            let small_ratio = ms("dkb_16-8") / ms("vkb");
             let over_abuffer = ms("dkb") / ms("abuffer");
             let imp = |m: &str| {
                 methods[m]["passes_ms"]["importance"]
@@ -338,11 +356,13 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             eprintln!(
                 "GPU {name}: DKB importance {skip:.2} ms reading the weights from the uniform, {staged:.2} ms staging them in workgroup memory"
             );
+            eprintln!("GPU {name}: DKB/VKB frame time with the 16-8 network {small_ratio:.2}");
             eprintln!(
                 "GPU {name}: FKB capture and resolve {pixel_major:.2} ms pixel-major, {layer_major:.2} ms layer-major"
             );
             Ok(serde_json::json!({
                 "scene": name, "fragments": fl.fragment_count(), "dkb_over_vkb": ratio,
+                "dkb_16_8_over_vkb": small_ratio,
                 "dkb_over_abuffer": over_abuffer, "methods": methods,
                 "importance_skip_forced": {
                     "forced_share_of_covered": forced as f64 / covered.max(1) as f64,
@@ -362,5 +382,5 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             Err(e) => scenes.push(serde_json::json!({"scene": name, "error": e.to_string()})),
         }
     }
-    serde_json::json!({"adapter": gpu.adapter, "width": w, "height": h, "budget": budget.to_string(), "weights": weights, "scenes": scenes})
+    serde_json::json!({"adapter": gpu.adapter, "width": w, "height": h, "budget": budget.to_string(), "weights": weights, "weights_16_8": small_weights, "scenes": scenes})
 }
