@@ -90,11 +90,21 @@ pub fn run(a: BenchArgs) -> Result<()> {
         let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
         let fl = raster::rasterize(&s, &cam, w, h)?;
         let frags = fl.fragment_count() as f64;
-        let (_, f) = budget.resolve(
+        // A byte budget sized for --res may not hold this frame: said, and the rest measured.
+        let f = match budget.resolve(
             &dhoit_runtime::budget::OPT,
             (w * h) as u64,
             fl.fragment_count() as u64,
-        )?;
+        ) {
+            Ok((_, f)) => f,
+            Err(e) => {
+                eprintln!("optimal allocation, {deepest} {w}x{h}: skipped: {e}");
+                optimal.push(serde_json::json!({
+                    "scene": deepest, "width": w, "height": h, "error": e.to_string(),
+                }));
+                continue;
+            }
+        };
         let (t_curves, curves) = best(a.repeat, || Ok(alloc::error_curves(&fl, [1.0; 3])))?;
         let (t_opt, (_, rep)) = best(a.repeat, || Ok(alloc::optimal(&curves, f)))?;
         eprintln!(
