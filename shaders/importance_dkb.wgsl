@@ -1,7 +1,14 @@
-// DKB importance (compute, one invocation a pixel): the 12 features of
-// importance::pixel_features from the features pass's statistics and the totals, computed here
-// and never stored, standardised, through the
-// MLP of mlp.wgsl (the same source `dhoit predict --device gpu` runs).
+// DKB importance (compute): the 12 features of importance::pixel_features from the features
+// pass's statistics and the totals, computed here and never stored, standardised, through the
+// MLP of mlp.wgsl (the same source `dhoit predict --device gpu` runs). Three entry points in
+// one compute pass, sharing one explicit layout (gpu::Pipelines::network_layout):
+//   select:  one invocation a pixel: a pixel the network decides is appended to a list (its
+//            index; the list lives in the allocation's marks buffer, dead until then), every
+//            other pixel gets its importance here (0, or its pair mark where forced);
+//   args:    the list's length -> the workgroups of an indirect dispatch (a 2-D grid);
+//   network: one invocation a listed pixel: its features again, the network, its importance.
+// So the network's invocations all run it (no forced pixel idles a SIMD lane), and a frame whose
+// pixels are all forced never enters the network's code.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(2) var<storage, read> count: array<u32>;
@@ -11,6 +18,11 @@
 @group(0) @binding(5) var<storage, read> sums: array<u32>;
 @group(0) @binding(6) var<storage, read> totals: array<u32>;
 @group(0) @binding(7) var<storage, read_write> importance: array<f32>;
+// The pixels the network decides, and how many (list_len[0]).
+@group(0) @binding(8) var<storage, read_write> list: array<u32>;
+@group(0) @binding(9) var<storage, read_write> list_len: array<atomic<u32>, 4>;
+// The network entry's indirect dispatch: workgroups x, y, z.
+@group(0) @binding(10) var<storage, read_write> dispatch: array<u32, 4>;
 
 // Skip the network where k does not depend on it (Mlp::dkb_importance): a pixel whose useful
 // cap is 0 (one fragment, or two sharing one colour: mlp::forced) and every pixel of a frame
@@ -90,18 +102,46 @@ fn network_inputs(p: u32) -> Net {
 }
 
 @compute @workgroup_size(PIXEL_GROUP)
-fn main(
+fn select_pixels(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
     let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (p >= params.pixels) {
+        return;
+    }
+    if (network_inputs(p).runs) {
+        list[atomicAdd(&list_len[0], 1u)] = p;
+    }
+}
+
+@compute @workgroup_size(1)
+fn args() {
+    let groups = (atomicLoad(&list_len[0]) + PIXEL_GROUP - 1u) / PIXEL_GROUP;
+    // Rows of at most 65,535 workgroups (gpu::grid).
+    let rows = max((groups + 65534u) / 65535u, 1u);
+    dispatch[0] = (groups + rows - 1u) / rows;
+    dispatch[1] = select(0u, rows, groups > 0u);
+    dispatch[2] = 1u;
+}
+
+@compute @workgroup_size(PIXEL_GROUP)
+fn network(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let i = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    let listed = i < atomicLoad(&list_len[0]);
+    var p = 0u;
     var net: Net;
-    if (p < params.pixels) {
+    if (listed) {
+        p = list[i];
         net = network_inputs(p);
     }
     if (SHARED_WEIGHTS) {
-        // Every invocation of the workgroup stages the weights, runs or not.
+        // Every invocation of the workgroup stages the weights, listed or not.
         let out = mlp_forward_shared(net.x, net.runs, lid);
         if (net.runs) {
             importance[p] = bitcast<f32>(bitcast<u32>(out) | net.mark);

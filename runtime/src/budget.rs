@@ -75,6 +75,9 @@ pub const DKB: Layout = Layout {
         ("mlp.weights", MLP_UNIFORM_BYTES),
         ("params", PARAMS_BYTES),
         ("features.totals", 24),
+        // The network's pixel list lives in alloc.flags; its length and indirect dispatch.
+        ("importance.list_len", 16),
+        ("importance.dispatch", 16),
         OFFSETS_END,
         ALLOC_PARAMS,
         ALLOC_STATE,

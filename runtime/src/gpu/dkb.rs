@@ -39,24 +39,59 @@ impl Recording<'_, '_> {
             &[passes.params(), &counts, &totals],
             "totals",
         );
-        passes.dispatch(
-            enc,
-            &gpu.network_pass(Variant {
-                shared_weights: gpu.shared_weights,
-                ..Variant::for_network("importance_dkb", mlp, gpu.skip_forced)
-            }),
-            &[
-                passes.params(),
-                &weights,
-                &counts,
-                &nearest,
-                &farthest,
-                &sums,
-                &totals,
-                &importance,
-            ],
-            "importance",
+        // The pixels the network decides, listed in the allocation's marks buffer (dead until
+        // the allocation), their count and the network's indirect dispatch.
+        let list = fb.storage("alloc.flags", 4 * px, true)?;
+        let list_len = fb.storage("importance.list_len", 16, true)?;
+        let dispatch = fb.take(
+            "importance.dispatch",
+            16,
+            wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::INDIRECT
+                | wgpu::BufferUsages::COPY_DST,
+            true,
         );
+        fb.allocated += 16;
+        let entry = |entry| {
+            gpu.network_pass(Variant {
+                shared_weights: gpu.shared_weights,
+                entry,
+                ..Variant::for_network("importance_dkb", mlp, gpu.skip_forced)
+            })
+        };
+        let (select, args, network) = (entry("select_pixels"), entry("args"), entry("network"));
+        let bind = |dispatch_or_not: &wgpu::Buffer| {
+            gpu.bind(
+                &p.network_layout.group,
+                &[
+                    passes.params(),
+                    &weights,
+                    &counts,
+                    &nearest,
+                    &farthest,
+                    &sums,
+                    &totals,
+                    &importance,
+                    &list,
+                    &list_len,
+                    dispatch_or_not,
+                ],
+            )
+        };
+        // The network's dispatch reads `dispatch` as its arguments, so its group binds the
+        // list's length (which that entry does not touch there) in its place.
+        let (group, network_group) = (bind(&dispatch), bind(&list_len));
+        passes.compute(enc, "importance", |pass| {
+            pass.set_bind_group(0, &group, &[]);
+            pass.set_pipeline(&select);
+            let (gx, gy) = grid(px as u32, PIXEL_GROUP);
+            pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_pipeline(&args);
+            pass.dispatch_workgroups(1, 1, 1);
+            pass.set_pipeline(&network);
+            pass.set_bind_group(0, &network_group, &[]);
+            pass.dispatch_workgroups_indirect(&dispatch, 0);
+        });
         // Copies for the frame's statistics (not counted), then the buffers serve the tail and
         // the image.
         if gpu.diagnostics {
@@ -77,7 +112,7 @@ impl Recording<'_, '_> {
             totals,
             computed: true,
             kind: weight_kind(mlp.target),
-            marks: None,
+            marks: Some(list),
             reuse: Some(Reuse {
                 tail: farthest,
                 tail_count: nearest,

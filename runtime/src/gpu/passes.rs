@@ -70,6 +70,25 @@ impl<'a> Passes<'a> {
         pass.draw(0..self.vertices, 0..1);
     }
 
+    /// A timed compute pass `record` fills (several dispatches, one timestamp pair).
+    pub(super) fn compute(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        name: &'static str,
+        record: impl FnOnce(&mut wgpu::ComputePass),
+    ) {
+        let (b, e) = self.timer.next(name);
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(name),
+            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                query_set: self.timer.set(),
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: Some(e),
+            }),
+        });
+        record(&mut pass);
+    }
+
     /// A compute pass, `buffers` bound as group 0 in binding order.
     pub(super) fn dispatch(
         &self,

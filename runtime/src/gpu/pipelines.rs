@@ -21,6 +21,7 @@ pub(super) struct Pipelines {
     /// when first asked for ([`Gpu::network_pass`]).
     pub(super) variants:
         std::sync::Mutex<std::collections::HashMap<Variant, wgpu::ComputePipeline>>,
+    pub(super) network_layout: NetworkLayout,
     pub(super) vkb_count: wgpu::RenderPipeline,
     pub(super) importance_vkb: wgpu::ComputePipeline,
 }
@@ -66,16 +67,86 @@ pub(super) struct Variant {
     pub(super) shape: (u32, u32),
     /// The first two layers' weights staged in workgroup memory (SHARED_WEIGHTS).
     pub(super) shared_weights: bool,
+    /// The entry point: "main" (predict), or importance_dkb's "select_pixels", "args",
+    /// "network" (sharing [`NetworkLayout`]).
+    pub(super) entry: &'static str,
+}
+
+/// The explicit layout importance_dkb's three entry points share (each uses some of it):
+/// params, weights, count, nearest, farthest, colour sums, totals (read), importance, list, its
+/// length, the indirect dispatch (written).
+pub(super) struct NetworkLayout {
+    pub(super) group: wgpu::BindGroupLayout,
+    pub(super) pipeline: wgpu::PipelineLayout,
+}
+
+impl NetworkLayout {
+    pub(super) fn new(device: &wgpu::Device) -> NetworkLayout {
+        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let read = wgpu::BufferBindingType::Storage { read_only: true };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let uniform = wgpu::BufferBindingType::Uniform;
+        let group = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("importance_dkb"),
+            entries: &[
+                entry(0, uniform),
+                entry(1, uniform),
+                entry(2, read),
+                entry(3, read),
+                entry(4, read),
+                entry(5, read),
+                entry(6, read),
+                entry(7, rw),
+                entry(8, rw),
+                entry(9, rw),
+                entry(10, rw),
+            ],
+        });
+        let pipeline = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("importance_dkb"),
+            bind_group_layouts: &[Some(&group)],
+            immediate_size: 0,
+        });
+        NetworkLayout { group, pipeline }
+    }
 }
 
 impl Variant {
-    pub(super) fn pipeline(self, device: &wgpu::Device) -> wgpu::ComputePipeline {
+    pub(super) fn pipeline(
+        self,
+        device: &wgpu::Device,
+        layout: &NetworkLayout,
+    ) -> wgpu::ComputePipeline {
         let label = format!(
-            "{} {:?} {} {:?} {:?}",
-            self.pass, self.skip_forced, self.precision, self.shape, self.shared_weights
+            "{} {} {:?} {} {:?} {:?}",
+            self.pass,
+            self.entry,
+            self.skip_forced,
+            self.precision,
+            self.shape,
+            self.shared_weights
         );
         let m = module_from(device, &label, self.source());
-        compute_pipeline(device, &label, &m, "main")
+        if self.pass != "importance_dkb" {
+            return compute_pipeline(device, &label, &m, self.entry);
+        }
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(&label),
+            layout: Some(&layout.pipeline),
+            module: &m,
+            entry_point: Some(self.entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
     }
 
     /// The pass `pass` for network `m`, its sizes built in.
@@ -87,6 +158,7 @@ impl Variant {
             precision: m.precision,
             shape: (p(m.h1), p(m.h2)),
             shared_weights: false,
+            entry: "main",
         }
     }
 
@@ -146,7 +218,7 @@ impl Gpu {
             .unwrap_or_else(|e| e.into_inner());
         variants
             .entry(v)
-            .or_insert_with(|| v.pipeline(&self.device))
+            .or_insert_with(|| v.pipeline(&self.device, &self.pipelines.network_layout))
             .clone()
     }
 }
@@ -189,6 +261,7 @@ impl Pipelines {
         let compute_entry =
             |name: &str, entry: &str| compute_pipeline(device, name, &module(device, name), entry);
         let compute = |name: &str| compute_entry(name, "main");
+        let network_layout = NetworkLayout::new(device);
         let p = Pipelines {
             count: geometry("abuffer_count"),
             store: geometry("abuffer_store"),
@@ -203,21 +276,28 @@ impl Pipelines {
             features: geometry("features"),
             totals: compute("totals"),
             variants: std::sync::Mutex::new(
-                [("importance_dkb", true), ("predict", true)]
-                    .map(|(pass, skip)| {
-                        let p = crate::mlp::padded_units;
-                        let v = Variant {
-                            pass,
-                            skip_forced: skip,
-                            precision: Precision::F32,
-                            shape: (p(crate::mlp::H1) as u32, p(crate::mlp::H2) as u32),
-                            shared_weights: false,
-                        };
-                        (v, v.pipeline(device))
-                    })
-                    .into_iter()
-                    .collect(),
+                [
+                    ("importance_dkb", "select_pixels"),
+                    ("importance_dkb", "args"),
+                    ("importance_dkb", "network"),
+                    ("predict", "main"),
+                ]
+                .map(|(pass, entry)| {
+                    let p = crate::mlp::padded_units;
+                    let v = Variant {
+                        pass,
+                        skip_forced: true,
+                        precision: Precision::F32,
+                        shape: (p(crate::mlp::H1) as u32, p(crate::mlp::H2) as u32),
+                        shared_weights: false,
+                        entry,
+                    };
+                    (v, v.pipeline(device, &network_layout))
+                })
+                .into_iter()
+                .collect(),
             ),
+            network_layout,
             vkb_count: geometry("vkb_count"),
             importance_vkb: compute("importance_vkb"),
         };
