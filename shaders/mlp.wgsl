@@ -103,7 +103,6 @@ fn mlp_forward_shared(f: array<f32, 12>, runs: bool, lid: u32) -> f32 {
     let w2 = b1 + p1;
     let b2 = w2 + p1 * p2;
     let w3 = b2 + p2;
-    let b3 = w3 + p2;
     var acc2: array<vec4<f32>, ACC2_VEC4S>;
     for (var j = 0u; j < q2; j++) {
         acc2[j] = param4(b2 + 4u * j);
@@ -160,9 +159,15 @@ fn mlp_forward_shared(f: array<f32, 12>, runs: bool, lid: u32) -> f32 {
         }
         workgroupBarrier();
     }
-    var out = param4(b3).x;
+    return network_output(&acc2, w3, q2);
+}
+
+// The output unit on the second layer's sums (ReLU), in the twin's order, through the sigmoid
+// (mlp::squash: 0 where the sums overflowed both ways); its weights at `w3`, its bias after.
+fn network_output(acc2: ptr<function, array<vec4<f32>, ACC2_VEC4S>>, w3: u32, q2: u32) -> f32 {
+    var out = param4(w3 + 4u * q2).x;
     for (var j = 0u; j < q2; j++) {
-        let h = max(acc2[j], vec4<f32>(0.0));
+        let h = max((*acc2)[j], vec4<f32>(0.0));
         let wv = param4(w3 + 4u * j);
         out += h.x * wv.x;
         out += h.y * wv.y;
@@ -183,13 +188,9 @@ fn add_tile_row(acc2: ptr<function, array<vec4<f32>, ACC2_VEC4S>>, a: f32, row: 
 }
 
 fn mlp_forward(f: array<f32, 12>) -> f32 {
-    var p1 = NET_P1;
-    var p2 = NET_P2;
-    if (NET_P1 == 0u) {
-        let shape = weights[0];
-        p1 = (u32(bitcast<f32>(shape.x)) + 3u) & ~3u;
-        p2 = (u32(bitcast<f32>(shape.y)) + 3u) & ~3u;
-    }
+    let shape = net_shape();
+    let p1 = shape.x;
+    let p2 = shape.y;
     let q2 = p2 / 4u;
     let x0 = standardised(vec4<f32>(f[0], f[1], f[2], f[3]), 0u);
     let x1 = standardised(vec4<f32>(f[4], f[5], f[6], f[7]), 1u);
@@ -199,7 +200,6 @@ fn mlp_forward(f: array<f32, 12>) -> f32 {
     let w2 = b1 + p1;
     let b2 = w2 + p1 * p2;
     let w3 = b2 + p2;
-    let b3 = w3 + p2;
     // Four hidden units of the first layer at a time, accumulated straight into the second
     // layer's sums: a private array of p2 floats instead of p1 (the order of the sums per
     // output unit is the same as the CPU twin's).
@@ -218,15 +218,5 @@ fn mlp_forward(f: array<f32, 12>) -> f32 {
         add_row(&acc2, a.z, w2 + (i + 2u) * p2, q2);
         add_row(&acc2, a.w, w2 + (i + 3u) * p2, q2);
     }
-    var out = param4(b3).x;
-    for (var j = 0u; j < q2; j++) {
-        let h = max(acc2[j], vec4<f32>(0.0));
-        let wv = param4(w3 + 4u * j);
-        out += h.x * wv.x;
-        out += h.y * wv.y;
-        out += h.z * wv.z;
-        out += h.w * wv.w;
-    }
-    let s = 1.0 / (1.0 + exp(-out));
-    return select(0.0, s, s == s);
+    return network_output(&acc2, w3, q2);
 }

@@ -126,17 +126,8 @@ impl<'a> Passes<'a> {
             )
         };
         let (gx, gy) = grid(self.pixels, ALLOC_GROUP);
-        {
-            let group = bind(&flags);
-            let (tb, te) = self.timer.next("allocation");
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("allocation"),
-                timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
-                    query_set: self.timer.set(),
-                    beginning_of_pass_write_index: Some(tb),
-                    end_of_pass_write_index: Some(te),
-                }),
-            });
+        let group = bind(&flags);
+        self.compute(enc, "allocation", |pass| {
             pass.set_bind_group(0, &group, &[]);
             pass.set_pipeline(&a.weights);
             pass.dispatch_workgroups(gx, gy, 1);
@@ -151,21 +142,14 @@ impl<'a> Passes<'a> {
             }
             pass.set_pipeline(&a.mark);
             pass.dispatch_workgroups(gx, gy, 1);
-        }
+        });
         self.prefix_sum(enc, fb, &flags, b.prefix)?;
         let group = bind(b.prefix);
-        let (tb, te) = self.timer.next("allocation apply");
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("allocation apply"),
-            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
-                query_set: self.timer.set(),
-                beginning_of_pass_write_index: Some(tb),
-                end_of_pass_write_index: Some(te),
-            }),
+        self.compute(enc, "allocation apply", |pass| {
+            pass.set_bind_group(0, &group, &[]);
+            pass.set_pipeline(&a.apply);
+            pass.dispatch_workgroups(gx, gy, 1);
         });
-        pass.set_bind_group(0, &group, &[]);
-        pass.set_pipeline(&a.apply);
-        pass.dispatch_workgroups(gx, gy, 1);
         Ok(())
     }
 }
@@ -283,16 +267,7 @@ pub(super) struct AllocBuffers<'a> {
 
 impl Allocate {
     pub(super) fn new(device: &wgpu::Device) -> Allocate {
-        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
+        let entry = compute_buffer_entry;
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("allocate"),

@@ -100,17 +100,10 @@ impl<'a> Passes<'a> {
         // Every dispatched pass is per pixel.
         let (gx, gy) = grid(self.pixels, PIXEL_GROUP);
         let g = self.gpu.bind(&pipeline.get_bind_group_layout(0), buffers);
-        let (b, e) = self.timer.next(name);
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(name),
-            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
-                query_set: self.timer.set(),
-                beginning_of_pass_write_index: Some(b),
-                end_of_pass_write_index: Some(e),
-            }),
+        self.compute(enc, name, |pass| {
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &g, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
         });
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &g, &[]);
-        pass.dispatch_workgroups(gx, gy, 1);
     }
 }

@@ -72,6 +72,23 @@ pub(super) struct Variant {
     pub(super) entry: &'static str,
 }
 
+/// A buffer binding of a compute pass's explicit layout (the allocation's, the network's).
+pub(super) fn compute_buffer_entry(
+    binding: u32,
+    ty: wgpu::BufferBindingType,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
 /// The explicit layout importance_dkb's three entry points share (each uses some of it):
 /// params, weights, count, nearest, farthest, colour sums, totals (read), importance, list, its
 /// length, the indirect dispatch (written).
@@ -82,16 +99,7 @@ pub(super) struct NetworkLayout {
 
 impl NetworkLayout {
     pub(super) fn new(device: &wgpu::Device) -> NetworkLayout {
-        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
+        let entry = compute_buffer_entry;
         let read = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
         let uniform = wgpu::BufferBindingType::Uniform;

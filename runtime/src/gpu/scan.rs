@@ -30,26 +30,19 @@ impl<'a> Passes<'a> {
             }
             self.gpu.bind_at(&pl.get_bind_group_layout(0), &entries)
         };
-        let (b, e) = self.timer.next("prefix sum");
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("prefix sum"),
-            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
-                query_set: self.timer.set(),
-                beginning_of_pass_write_index: Some(b),
-                end_of_pass_write_index: Some(e),
-            }),
-        });
         let (gx, gy) = grid(px, budget::SCAN_BLOCK as u32);
-        for (pl, n, all) in [
-            (&p.scan_blocks, (gx, gy), true),
-            (&p.scan_sums, (1, 1), false),
-            (&p.scan_add, (gx, gy), false),
-        ] {
-            let g = bind(pl, all);
-            pass.set_pipeline(pl);
-            pass.set_bind_group(0, &g, &[]);
-            pass.dispatch_workgroups(n.0, n.1, 1);
-        }
+        self.compute(enc, "prefix sum", |pass| {
+            for (pl, n, all) in [
+                (&p.scan_blocks, (gx, gy), true),
+                (&p.scan_sums, (1, 1), false),
+                (&p.scan_add, (gx, gy), false),
+            ] {
+                let g = bind(pl, all);
+                pass.set_pipeline(pl);
+                pass.set_bind_group(0, &g, &[]);
+                pass.dispatch_workgroups(n.0, n.1, 1);
+            }
+        });
         Ok(())
     }
 }
