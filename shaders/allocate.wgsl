@@ -14,6 +14,8 @@
 //   search:  the totals at 16 candidates a + j span/16 (SEARCH_PIXELS pixels an invocation, then
 //            workgroup sums, then one 64-bit atomic per candidate and workgroup)
 //   choose:  the largest candidate whose total fits becomes a; span /= 16 (11 rounds: 2^44 = 16^11)
+//            (when every fragment fits, setup sets the state the rounds would end in, and
+//            they return at once)
 //   mark:    flags[p] = 1 where k rises at a + 1 (then prefix-summed by the scan)
 //   apply:   k = k(a) + 1 for the first (target - total(a)) marked pixels
 
@@ -123,11 +125,21 @@ fn setup() {
     if (alloc.ppm > 0u) {
         f = (u64(totals[0]) * u64(alloc.ppm)) / u64(PPM);
     }
-    atomicStore(&state[0], min(f, u64(totals[0])));
-    atomicStore(&state[1], 0lu);
-    atomicStore(&state[2], 1lu << (4u * SEARCH_ROUNDS));
+    let all = u64(totals[0]);
+    atomicStore(&state[0], min(f, all));
     atomicStore(&state[3], select(0lu, 1lu, f >= u64(totals[1])));
-    atomicStore(&state[4], 0lu);
+    if (f >= all) {
+        // Every fragment fits: k = n everywhere, the top tier. The search would pick its last
+        // candidate in every round (every total fits) and end at a = 2^44 - 1 with span 1 and
+        // the total there sum n; that state is set here, and the rounds return at once.
+        atomicStore(&state[1], (1lu << (4u * SEARCH_ROUNDS)) - 1lu);
+        atomicStore(&state[2], 1lu);
+        atomicStore(&state[4], all);
+    } else {
+        atomicStore(&state[1], 0lu);
+        atomicStore(&state[2], 1lu << (4u * SEARCH_ROUNDS));
+        atomicStore(&state[4], 0lu);
+    }
     atomicStore(&state[5], f);
     for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
         atomicStore(&state[6u + j], 0lu);
@@ -142,13 +154,16 @@ fn search(
 ) {
     // SEARCH_PIXELS pixels an invocation, ALLOC_GROUP apart (neighbouring invocations read
     // neighbouring pixels), summed privately before the workgroup's atomics.
+    let step = atomicLoad(&state[2]) >> 4u;
+    // No pixel to visit once the search is over (setup found that every fragment fits); the
+    // invocation still meets the barrier below.
+    let visits = select(0u, SEARCH_PIXELS, step != 0lu);
     let first = (wid.y * nwg.x + wid.x) * ALLOC_GROUP * SEARCH_PIXELS + lid;
     let a = atomicLoad(&state[1]);
-    let step = atomicLoad(&state[2]) >> 4u;
     let lo = u32(atomicLoad(&state[3]));
     var sums: array<u32, ALLOC_CANDIDATES>;
     var any = false;
-    for (var i = 0u; i < SEARCH_PIXELS; i++) {
+    for (var i = 0u; i < visits; i++) {
         let p = first + i * ALLOC_GROUP;
         if (p < params.pixels && counts[p] > 0u) {
             any = true;
@@ -177,6 +192,9 @@ fn search(
 fn choose() {
     let goal = atomicLoad(&state[0]);
     let step = atomicLoad(&state[2]) >> 4u;
+    if (step == 0lu) {
+        return;
+    }
     // Candidate 0 (the current a) always fits; the totals grow with j.
     var best = 0u;
     for (var j = 1u; j < ALLOC_CANDIDATES; j++) {
