@@ -97,9 +97,16 @@ test: setup fmt lint
 bench: setup
 	$(RUN) bench --out out/bench.json
 
-## For a machine lent with a real GPU: the release binary into .devbin/ and the Vulkan loader
-## packages into .gl/ (both ignored by git), which scripts/device.sh runs the bench with there.
+## For a machine lent with a real GPU: the release binary and the GPU test binaries (stripped)
+## into .devbin/ and the Vulkan loader package into .gl/ (both ignored by git), which
+## scripts/device.sh runs the bench and the tests with there.
 devbin: build
 	mkdir -p .devbin .gl
-	cp target/release/dhoit .devbin/
-	cd .gl && apt-get download libvulkan1
+	strip -o .devbin/dhoit target/release/dhoit
+	for t in gpu extremes; do \
+	  strip -o .devbin/test-$$t $$($(CARGO) test --release -p dhoit-runtime --test $$t --no-run --message-format=json 2>/dev/null | \
+	    python3 -c 'import json,sys; print([m["executable"] for m in map(json.loads, sys.stdin) if m.get("executable") and m["target"]["kind"] == ["test"]][0])'); done
+	strip -o .devbin/test-equivalence $$($(CARGO) test --release --test equivalence --no-run --message-format=json 2>/dev/null | \
+	  python3 -c 'import json,sys; print([m["executable"] for m in map(json.loads, sys.stdin) if m.get("executable") and m["target"]["kind"] == ["test"]][0])')
+	pwd > .devbin/built-in
+	cd .gl && apt-get download libvulkan1 libglvnd0 libegl1 libopengl0 libgl1 libglx0 libgles2
