@@ -23,6 +23,11 @@
 @group(1) @binding(3) var<storage, read_write> sums: array<atomic<u64>>;
 
 
+// Whether the nearest key is loaded first, and atomicMax issued only where it can change it
+// (gpu::Gpu::features_preload): fewer atomics, but the load waits for its value, where a GPU
+// issues an atomicMax whose result is unused without waiting.
+const PRELOAD_NEAREST: bool = true;
+
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let p = pixel_index(in.clip, params.width);
@@ -30,7 +35,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let depth = select(0.0, in.clip.z, in.clip.z > 0.0);
     atomicAdd(&count[p], 1u);
     let key = fragment_key(depth, rgba8);
-    if (atomicLoad(&nearest[p]) < ~key) {
+    if (!PRELOAD_NEAREST || atomicLoad(&nearest[p]) < ~key) {
         atomicMax(&nearest[p], ~key);
     }
     // Insertion into two slots kept in decreasing order: the larger key stays, the smaller

@@ -27,6 +27,10 @@ pub struct BenchArgs {
     /// Also write the JSON here.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Measure the GPU pipeline only: skip the CPU rasterizer, compositors, optimal allocation
+    /// and training throughput (for a short lease on a machine with a real GPU).
+    #[arg(long)]
+    gpu_only: bool,
 }
 
 /// Fastest of `n` runs of `f`, in seconds, with the last result.
@@ -53,6 +57,16 @@ pub fn run(a: BenchArgs) -> Result<()> {
     } else {
         a.scenes.clone()
     };
+    if a.gpu_only {
+        let gpu = gpu_bench(&names, w, h, budget, a.repeat);
+        return write_report(
+            serde_json::json!({
+                "threads": rayon::current_num_threads(), "gpu": gpu,
+                "budget": budget.to_string(), "repeat": a.repeat,
+            }),
+            a.out.as_deref(),
+        );
+    }
     let mut results = Vec::new();
     for name in &names {
         let s = scene::load(name, Opacity::default())?;
@@ -145,9 +159,14 @@ pub fn run(a: BenchArgs) -> Result<()> {
         "cpu": results,
         "optimal_allocation": optimal,
     });
+    write_report(report, a.out.as_deref())
+}
+
+/// Prints the report and, when asked, writes it whole (never half-written).
+fn write_report(report: serde_json::Value, out: Option<&std::path::Path>) -> Result<()> {
     let text = serde_json::to_string_pretty(&report)?;
     println!("{text}");
-    if let Some(path) = &a.out {
+    if let Some(path) = out {
         dhoit_runtime::tensors::write_atomic(path, text.as_bytes())?;
     }
     Ok(())
@@ -170,6 +189,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
         }
     };
     eprintln!("GPU: {}", gpu.adapter);
+    // This device's default for the features pass (the other is measured beside it).
+    let preload = gpu.features_preload;
     // The committed weights when found (under the working directory's data/, as on a machine
     // the binary was carried to, else the source tree's), else seeded random ones of the same
     // size (same cost).
@@ -230,6 +251,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     ("dkb_no_skip", Method::Dkb, &cpu[4]),
                     ("dkb_insertion_only", Method::Dkb, &cpu[4]),
                     ("dkb_shared_weights", Method::Dkb, &cpu[4]),
+                    ("dkb_array_network", Method::Dkb, &cpu[4]),
+                    ("dkb_features_other_preload", Method::Dkb, &cpu[4]),
                     ("fkb_layer_major", Method::Fkb, &cpu[1]),
                     ("dkb_16-8", Method::Dkb, &cpu[4]),
                 ]);
@@ -241,6 +264,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 gpu.skip_forced = label != "dkb_no_skip";
                 gpu.two_mode_capture = label != "dkb_insertion_only";
                 gpu.shared_weights = label == "dkb_shared_weights";
+                gpu.unrolled_network = label != "dkb_array_network";
+                gpu.features_preload = (label == "dkb_features_other_preload") != preload;
                 gpu.layer_major_fkb = label == "fkb_layer_major";
                 // One cold frame (its buffers are created), then `repeat` steady-state frames
                 // that reuse them and read back only the image: medians of those.
@@ -306,6 +331,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             gpu.skip_forced = true;
             gpu.two_mode_capture = true;
             gpu.shared_weights = false;
+            gpu.unrolled_network = true;
+            gpu.features_preload = preload;
             gpu.layer_major_fkb = false;
             let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
             let ratio = ms("dkb") / ms("vkb");
@@ -324,6 +351,17 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             };
             let (two_mode, inserted) = (capture("dkb"), capture("dkb_insertion_only"));
             let staged = imp("dkb_shared_weights");
+            let looped = imp("dkb_array_network");
+            let features = |m: &str| {
+                methods[m]["passes_ms"]["features"]
+                    .as_f64()
+                    .unwrap_or(f64::NAN)
+            };
+            let (features_default, features_other) =
+                (features("dkb"), features("dkb_features_other_preload"));
+            let count_ms = methods["vkb"]["passes_ms"]["count"]
+                .as_f64()
+                .unwrap_or(f64::NAN);
             let fkb_slots = |m: &str| {
                 capture(m)
                     + methods[m]["passes_ms"]["resolve"]
@@ -364,9 +402,15 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 100.0 * appended as f64 / covered.max(1) as f64
             );
             eprintln!(
-                "GPU {name}: DKB importance {skip:.2} ms reading the weights from the uniform, {staged:.2} ms staging them in workgroup memory"
+                "GPU {name}: DKB importance {skip:.2} ms reading the weights from the uniform, {staged:.2} ms staging them in workgroup memory, {looped:.2} ms with mlp.wgsl's loops over an array"
             );
             eprintln!("GPU {name}: DKB/VKB frame time with the 16-8 network {small_ratio:.2}");
+            eprintln!(
+                "GPU {name}: DKB features {features_default:.2} ms ({:.2}x VKB's count) {} the nearest key's load, {features_other:.2} ms {}",
+                features_default / count_ms,
+                if preload { "with" } else { "without" },
+                if preload { "without" } else { "with" }
+            );
             eprintln!(
                 "GPU {name}: FKB capture and resolve {pixel_major:.2} ms pixel-major, {layer_major:.2} ms layer-major"
             );
@@ -379,6 +423,12 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     "importance_ms": skip, "importance_ms_no_skip": all, "saved": 1.0 - skip / all,
                 },
                 "shared_weights": {"importance_ms": staged, "importance_ms_uniform": skip},
+                "unrolled_network": {"importance_ms": skip, "importance_ms_array_loops": looped},
+                "features_pass": {
+                    "preload_nearest": preload, "features_ms": features_default,
+                    "features_ms_other_preload": features_other, "vkb_count_ms": count_ms,
+                    "over_vkb_count": features_default / count_ms,
+                },
                 "fkb_slot_layout": {"capture_resolve_ms_pixel_major": pixel_major, "capture_resolve_ms_layer_major": layer_major},
                 "two_mode_capture": {
                     "appended_share_of_covered": appended as f64 / covered.max(1) as f64,

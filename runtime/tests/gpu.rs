@@ -203,6 +203,57 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
     }
 }
 
+/// The two ways the features pass may take a pixel's nearest key (`Gpu::features_preload`)
+/// gather the same statistics, and the network written out for its shape
+/// (`Gpu::unrolled_network`) gives the importance of mlp.wgsl's loops: one frame per setting,
+/// the same statistics, importance and image bits as the CPU twin's statistics.
+#[test]
+fn the_features_and_network_layouts_give_the_same_frame() {
+    if gpu().is_none() {
+        return;
+    }
+    // A device of its own: the flags are the device's.
+    let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
+    let (w, h) = (64, 48);
+    let (s, cam) = frame("particles", 1, w, h);
+    let mlp = dhoit_runtime::mlp::Mlp::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
+    )
+    .unwrap();
+    let f = (3 * w * h / 2) as u64;
+    let gfl = g
+        .render(&s, &cam, w, h, BG, None)
+        .unwrap()
+        .fragments
+        .unwrap();
+    let stats = importance::pixel_stats(&gfl);
+    let mut first: Option<dhoit_runtime::gpu::GpuFrame> = None;
+    for (preload, unrolled) in [(true, true), (false, true), (true, false), (false, false)] {
+        g.features_preload = preload;
+        g.unrolled_network = unrolled;
+        let frame = g
+            .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
+            .unwrap();
+        let label = format!("preload {preload}, unrolled {unrolled}");
+        assert_eq!(frame.stats.as_ref().unwrap(), &stats, "{label}: statistics");
+        let imp = frame.importance.as_ref().unwrap();
+        assert!(imp.iter().any(|&i| i.abs() > 0.0), "{label}: no importance");
+        if let Some(a) = &first {
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert!(
+                bits(a.importance.as_ref().unwrap()) == bits(imp),
+                "{label}: importance differs"
+            );
+            assert!(
+                image_bits(&a.image) == image_bits(&frame.image),
+                "{label}: image differs"
+            );
+        } else {
+            first = Some(frame);
+        }
+    }
+}
+
 /// DKB's importance pass with the network's weights staged in workgroup memory
 /// (`Gpu::shared_weights`) gives the importance and image of the pass that reads them from the
 /// uniform (held to the CPU twin by the other tests): the default network, one whose first
@@ -1161,7 +1212,17 @@ fn cpu_and_gpu_rasterizers_agree_on_depth_and_coverage() {
     // a median of one ulp (it was 9.2e-4 when the CPU interpolated on the snapped positions;
     // what remains is the rounding of steep planes' gradients), the same fragments in all but
     // a pixel or so where an edge passes through a pixel centre. The bound held: 5e-5.
+    // Vulkan lets a device interpolate depth from its snapped vertices instead: an NVIDIA H200
+    // (driver 580) does, and differs by up to 9.2e-4 on shells and 3.9e-3 on spheres (steep
+    // planes at their silhouettes; medians 7.2e-6 and 5.0e-6), what the CPU gave when it
+    // interpolated so. There the bounds are the snapping's: 1e-2 for the worst fragment,
+    // 1e-3 for all but the worst 1%, and the median within a few ulps.
     let Some(g) = gpu() else { return };
+    let (max_bound, p99_bound, median_bound) = if g.adapter.contains("llvmpipe") {
+        (5e-5, 5e-5, 5e-5)
+    } else {
+        (1e-2, 1e-3, 2e-5)
+    };
     for (name, view, w, h) in [
         ("shells", 0, 96, 72),
         ("cad", 1, 160, 120),
@@ -1202,7 +1263,17 @@ fn cpu_and_gpu_rasterizers_agree_on_depth_and_coverage() {
             diffs.len(),
             cfl.pixel_count()
         );
-        assert!(worst <= 5e-5, "{name}: depth differs by {worst}");
+        assert!(worst <= max_bound, "{name}: depth differs by {worst}");
+        let median = diffs[diffs.len() / 2];
+        assert!(
+            median <= median_bound,
+            "{name}: median depth difference {median}"
+        );
+        let p99 = diffs[diffs.len() * 99 / 100];
+        assert!(
+            p99 <= p99_bound,
+            "{name}: 99th percentile depth difference {p99}"
+        );
         assert!(
             other_pixels * 1000 <= cfl.pixel_count(),
             "{name}: {other_pixels} pixels differ in coverage"

@@ -29,7 +29,11 @@ impl Recording<'_, '_> {
         let importance = fb.storage("oit.importance", 4 * px, true)?;
         passes.draw(
             enc,
-            &p.features,
+            if gpu.features_preload {
+                &p.features
+            } else {
+                &p.features_no_preload
+            },
             &[&counts, &nearest, &farthest, &sums],
             "features",
         );
@@ -55,6 +59,7 @@ impl Recording<'_, '_> {
         let entry = |entry| {
             gpu.network_pass(Variant {
                 shared_weights: gpu.shared_weights,
+                unrolled: gpu.unrolled_network,
                 entry,
                 ..Variant::for_network("importance_dkb", mlp, gpu.skip_forced)
             })

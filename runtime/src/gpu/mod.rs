@@ -84,6 +84,19 @@ pub struct Gpu {
     /// every weight from the uniform buffer (off by default: on lavapipe it is slower; the
     /// bench measures both). The importance is the same.
     pub shared_weights: bool,
+    /// Whether a network pass built for one network shape runs its forward written out for
+    /// that shape (the second layer's sums in named vectors, no array; on by default), rather
+    /// than mlp.wgsl's loops over an array (the bench measures both). The importance is the
+    /// same.
+    pub unrolled_network: bool,
+    /// Whether DKB's features pass loads a pixel's nearest key before its atomicMax, and skips
+    /// the atomic where the key cannot change it (fewer atomics), rather than issuing it
+    /// always (an atomic whose result is unused, which a GPU need not wait for). On by default:
+    /// faster on lavapipe, and within the run-to-run noise of the other on an NVIDIA H200
+    /// (1080p features pass 5.7 / 5.1 / 7.0 / 6.6 / 3.4 ms with the load, 5.9 / 4.4 / 7.3 /
+    /// 8.6 / 3.2 without: particles, plates, shells, foliage, glass). The bench measures both;
+    /// the features are the same.
+    pub features_preload: bool,
     /// Whether FKB lays its slots out layer-major (slot i of every pixel together, so the
     /// fragments of neighbouring pixels touch neighbouring words) rather than pixel-major
     /// (off by default; the bench measures both). The images are the same.
@@ -92,6 +105,10 @@ pub struct Gpu {
     /// fragments, the k-buffer's slots and tails, importance and statistics): on by default;
     /// off, a frame reads back its image only (the bench's steady-state frames).
     pub diagnostics: bool,
+    /// Whether the device ends a shader invocation's loops early, silently (Mesa's lavapipe,
+    /// after 65,535 iterations): then a frame whose passes came close to that (common.wgsl's
+    /// LOOP_BUDGET) is refused. Other devices run loops to their end, and deep pixels render.
+    pub bounded_loops: bool,
     /// Buffers of earlier frames, by label, reused when a frame asks for one of the same size
     /// and usage (cleared first, as a new buffer is), so a steady stream of frames creates
     /// none. Frames take their buffers out and put them back when done, so concurrent frames
@@ -217,8 +234,11 @@ impl Gpu {
             skip_forced: true,
             two_mode_capture: true,
             shared_weights: false,
+            unrolled_network: true,
+            features_preload: true,
             layer_major_fkb: false,
             diagnostics: true,
+            bounded_loops: info.name.contains("llvmpipe") || info.driver.contains("llvmpipe"),
             pool: Default::default(),
             query_sets: Default::default(),
             created: Default::default(),
@@ -420,6 +440,7 @@ impl Gpu {
         };
         let out = &rec.out;
         if let Some(status) = &out.status
+            && self.bounded_loops
             && u32s(&read_back(self, status, 4)?)[0] != 0
         {
             return Err(GpuError::LoopLimit {

@@ -15,6 +15,8 @@ pub(super) struct Pipelines {
     pub(super) mlab_resolve: wgpu::ComputePipeline,
     pub(super) allocate: Allocate,
     pub(super) features: wgpu::RenderPipeline,
+    /// The features pass without the nearest key's load first (PRELOAD_NEAREST false).
+    pub(super) features_no_preload: wgpu::RenderPipeline,
     pub(super) totals: wgpu::ComputePipeline,
     /// The network's passes (DKB importance, predict), built for one network shape, precision
     /// and SKIP_FORCED each ([`Variant`]): the default network's at f32 at start-up, the others
@@ -67,6 +69,9 @@ pub(super) struct Variant {
     pub(super) shape: (u32, u32),
     /// The first two layers' weights staged in workgroup memory (SHARED_WEIGHTS).
     pub(super) shared_weights: bool,
+    /// With a known shape and the weights in the uniform, the forward written out for that
+    /// shape ([`unrolled_forward`]) instead of mlp.wgsl's loops.
+    pub(super) unrolled: bool,
     /// The entry point: "main" (predict), or importance_dkb's "select_pixels", "args",
     /// "network" (sharing [`NetworkLayout`]).
     pub(super) entry: &'static str,
@@ -135,13 +140,14 @@ impl Variant {
         layout: &NetworkLayout,
     ) -> wgpu::ComputePipeline {
         let label = format!(
-            "{} {} {:?} {} {:?} {:?}",
+            "{} {} {:?} {} {:?} {:?} {:?}",
             self.pass,
             self.entry,
             self.skip_forced,
             self.precision,
             self.shape,
-            self.shared_weights
+            self.shared_weights,
+            self.unrolled
         );
         let m = module_from(device, &label, self.source());
         if self.pass != "importance_dkb" {
@@ -166,6 +172,7 @@ impl Variant {
             precision: m.precision,
             shape: (p(m.h1), p(m.h2)),
             shared_weights: false,
+            unrolled: true,
             entry: "main",
         }
     }
@@ -210,9 +217,85 @@ impl Variant {
                 "const ACC2_VEC4S: u32 = MAX_H2 / 4u;",
                 &format!("const ACC2_VEC4S: u32 = {}u;", p2 / 4),
             );
+            if self.unrolled && !self.shared_weights {
+                set(
+                    "fn mlp_forward(f: array<f32, 12>) -> f32 {",
+                    "fn mlp_forward_any_shape(f: array<f32, 12>) -> f32 {",
+                );
+                src.push_str(&unrolled_forward(p1, p2));
+            }
         }
         src
     }
+}
+
+/// `mlp_forward` for one network shape (padded sizes p1, p2), written out: the second layer's
+/// sums in p2 / 4 named vec4s instead of an array (which a GPU compiler may keep in local
+/// memory when its loops are not unrolled), every weight's offset within a row a constant.
+/// The same sums in the same order as mlp.wgsl's `mlp_forward` and the CPU twin; a first-layer
+/// unit at 0 adds its zero products instead of being skipped (no branch that diverges across
+/// pixels), which changes no sum (x + 0 = x; a zero's sign is lost by the ReLU and the sigmoid).
+fn unrolled_forward(p1: u32, p2: u32) -> String {
+    use std::fmt::Write;
+    let q2 = p2 / 4;
+    let mut f = String::new();
+    let w = &mut f;
+    let _ = writeln!(
+        w,
+        "\n// Written out for a {p1}-{p2} network (gpu::pipelines::unrolled_forward)."
+    );
+    let _ = writeln!(w, "fn mlp_forward(f: array<f32, 12>) -> f32 {{");
+    for (i, at) in [(0, 0), (1, 4), (2, 8)] {
+        let _ = writeln!(
+            w,
+            "    let x{i} = standardised(vec4<f32>(f[{}], f[{}], f[{}], f[{}]), {i}u);",
+            at,
+            at + 1,
+            at + 2,
+            at + 3
+        );
+    }
+    let _ = writeln!(w, "    let w1 = MLP_W1_AT;");
+    let _ = writeln!(w, "    let b1 = w1 + {}u;", 12 * p1);
+    let _ = writeln!(w, "    let w2 = b1 + {p1}u;");
+    let _ = writeln!(w, "    let b2 = w2 + {}u;", p1 * p2);
+    let _ = writeln!(w, "    let w3 = b2 + {p2}u;");
+    for j in 0..q2 {
+        let _ = writeln!(w, "    var s{j} = param4(b2 + {}u);", 4 * j);
+    }
+    let _ = writeln!(w, "    for (var i = 0u; i < {p1}u; i += 4u) {{");
+    let _ = writeln!(w, "        var acc = param4(b1 + i);");
+    for x in 0..3 {
+        let _ = writeln!(
+            w,
+            "        acc = add_inputs(acc, x{x}, w1 + {}u + i, {p1}u);",
+            4 * x * p1
+        );
+    }
+    let _ = writeln!(w, "        let a = max(acc, vec4<f32>(0.0));");
+    let _ = writeln!(w, "        let row = w2 + i * {p2}u;");
+    for (u, c) in ["x", "y", "z", "w"].iter().enumerate() {
+        for j in 0..q2 {
+            let _ = writeln!(
+                w,
+                "        s{j} += a.{c} * param4(row + {}u);",
+                u as u32 * p2 + 4 * j
+            );
+        }
+    }
+    let _ = writeln!(w, "    }}");
+    let _ = writeln!(w, "    var out = param4(w3 + {}u).x;", 4 * q2);
+    for j in 0..q2 {
+        let _ = writeln!(w, "    let h{j} = max(s{j}, vec4<f32>(0.0));");
+        let _ = writeln!(w, "    let v{j} = param4(w3 + {}u);", 4 * j);
+        for c in ["x", "y", "z", "w"] {
+            let _ = writeln!(w, "    out += h{j}.{c} * v{j}.{c};");
+        }
+    }
+    let _ = writeln!(w, "    let s = 1.0 / (1.0 + exp(-out));");
+    let _ = writeln!(w, "    return select(0.0, s, s == s);");
+    let _ = writeln!(w, "}}");
+    f
 }
 
 impl Gpu {
@@ -234,8 +317,7 @@ impl Gpu {
 impl Pipelines {
     pub(super) fn new(device: &wgpu::Device) -> Result<Pipelines> {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let geometry = |name: &str| {
-            let m = module(device, name);
+        let geometry_from = |name: &str, m: wgpu::ShaderModule| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(name),
                 layout: None,
@@ -266,6 +348,7 @@ impl Pipelines {
                 cache: None,
             })
         };
+        let geometry = |name: &str| geometry_from(name, module(device, name));
         let compute_entry =
             |name: &str, entry: &str| compute_pipeline(device, name, &module(device, name), entry);
         let compute = |name: &str| compute_entry(name, "main");
@@ -282,6 +365,17 @@ impl Pipelines {
             mlab_resolve: compute("mlab_resolve"),
             allocate: Allocate::new(device),
             features: geometry("features"),
+            features_no_preload: geometry_from(
+                "features",
+                module_from(
+                    device,
+                    "features (no preload)",
+                    shaders::source("features").expect("known pass").replace(
+                        "const PRELOAD_NEAREST: bool = true;",
+                        "const PRELOAD_NEAREST: bool = false;",
+                    ),
+                ),
+            ),
             totals: compute("totals"),
             variants: std::sync::Mutex::new(
                 [
@@ -298,6 +392,7 @@ impl Pipelines {
                         precision: Precision::F32,
                         shape: (p(crate::mlp::H1) as u32, p(crate::mlp::H2) as u32),
                         shared_weights: false,
+                        unrolled: true,
                         entry,
                     };
                     (v, v.pipeline(device, &network_layout))
