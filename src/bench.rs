@@ -173,7 +173,7 @@ fn write_report(report: serde_json::Value, out: Option<&std::path::Path>) -> Res
 }
 
 /// Per-pass GPU times (timestamp queries) and whole-frame times per method: one cold frame,
-/// then the medians of `repeat` steady-state frames (buffers reused, the image read back); an
+/// warm-up frames for 0.25 s, then the medians of `repeat` steady-state frames (buffers reused, the image read back); an
 /// error entry when no suitable adapter exists.
 fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) -> serde_json::Value {
     use dhoit_runtime::gpu::{Gpu, Slots};
@@ -277,6 +277,12 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     Ok((passes, wall, g))
                 };
                 let (_, cold_wall, _) = timed(&gpu)?;
+                // Warm-up frames for a quarter of a second at least: a real GPU raises its
+                // clocks under load (an H200 timed the same pass up to 2x apart between runs).
+                let warm = Instant::now();
+                while warm.elapsed().as_secs_f64() < 0.25 {
+                    timed(&gpu)?;
+                }
                 let created = gpu.buffers_created();
                 let mut steady = Vec::new();
                 for _ in 0..repeat.max(1) {
