@@ -1,0 +1,51 @@
+#!/usr/bin/env python3
+"""Markdown tables from `dhoit bench` JSON: each method's steady-state GPU frame time, DKB's
+ratios, and the passes where DKB and VKB differ.
+
+    scripts/bench_table.py out/bench.json [more.json ...] > table.md
+"""
+import json
+import sys
+
+
+def table(path):
+    with open(path) as f:
+        report = json.load(f)
+    gpu = report.get("gpu", {})
+    if "error" in gpu:
+        return f"`{path}`: no GPU ({gpu['error']})\n"
+    out = [
+        f"`{path}`: {gpu['adapter']}, {gpu['width']}x{gpu['height']}, budget {gpu['budget']}, "
+        f"{report.get('repeat', '?')} steady frames (medians; passes from the fastest)\n",
+        "| scene | A-buffer | FKB | optimal | VKB | DKB | DKB 16-8 | DKB/VKB | DKB/A-buffer "
+        "| VKB count | DKB features | DKB importance | allocation | capture DKB / VKB "
+        "| wall/(GPU + readback) |",
+        "|---|" + "---:|" * 14,
+    ]
+    for s in gpu["scenes"]:
+        if "error" in s:
+            out.append(f"| {s['scene']} | error: {s['error']} |" + " |" * 13)
+            continue
+        m = s["methods"]
+
+        def frame(k):
+            return m[k]["frame_gpu_ms"]
+
+        def p(k, name):
+            return m[k]["passes_ms"].get(name, float("nan"))
+
+        out.append(
+            f"| {s['scene']} | {frame('abuffer'):.2f} | {frame('fkb'):.2f} | {frame('optimal'):.2f} "
+            f"| {frame('vkb'):.2f} | {frame('dkb'):.2f} | {frame('dkb_16-8'):.2f} "
+            f"| {s['dkb_over_vkb']:.2f} | {s['dkb_over_abuffer']:.2f} | {p('vkb', 'count'):.2f} "
+            f"| {p('dkb', 'features'):.2f} | {p('dkb', 'importance'):.2f} "
+            f"| {p('dkb', 'allocation'):.2f} | {p('dkb', 'capture'):.2f} / {p('vkb', 'capture'):.2f} "
+            f"| {m['dkb']['wall_over_gpu_plus_readback']:.2f} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+if __name__ == "__main__":
+    if len(sys.argv) < 2:
+        sys.exit(__doc__)
+    print("\n".join(table(p) for p in sys.argv[1:]))
