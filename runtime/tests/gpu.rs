@@ -203,17 +203,61 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
     }
 }
 
-/// The two ways the features pass may take a pixel's nearest key (`Gpu::features_preload`)
-/// gather the same statistics, and the network written out for its shape
-/// (`Gpu::unrolled_network`) gives the importance of mlp.wgsl's loops: one frame per setting,
-/// the same statistics, importance and image bits as the CPU twin's statistics.
+/// DKB's importance pass with the network's weights staged in workgroup memory
+/// (`Gpu::shared_weights`) gives the importance and image of the pass that reads them from the
+/// uniform (held to the CPU twin by the other tests): the default network, one whose first
+/// layer leaves a tile part empty (20 units in tiles of 16), and one at f16; then the other
+/// layouts' frames ([`features_and_network_layouts_give_the_same_frame`]).
 #[test]
-fn the_features_and_network_layouts_give_the_same_frame() {
+fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames() {
     if gpu().is_none() {
         return;
     }
-    // A device of its own: the flags are the device's.
+    // A device of its own: the flag is the device's.
     let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
+    let (w, h) = (64, 48);
+    let (s, cam) = frame("particles", 1, w, h);
+    let default = dhoit_runtime::mlp::Mlp::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
+    )
+    .unwrap();
+    let nets = [
+        ("default", default),
+        ("20-12", dhoit_runtime::mlp::Mlp::random_sized(3, 20, 12)),
+        (
+            "16-8 f16",
+            dhoit_runtime::mlp::Mlp::random_sized(4, 16, 8)
+                .at_precision(dhoit_runtime::mlp::Precision::F16)
+                .unwrap(),
+        ),
+    ];
+    let f = (3 * w * h / 2) as u64;
+    for (label, mlp) in &nets {
+        let mut frames = [false, true].map(|shared| {
+            g.shared_weights = shared;
+            g.render(&s, &cam, w, h, BG, Some(Slots::Dkb(mlp, f.into())))
+                .unwrap()
+        });
+        let (b, a) = (frames[1].clone(), &mut frames[0]);
+        let (ia, ib) = (a.importance.take().unwrap(), b.importance.unwrap());
+        let d = max_abs_diff(&ia, &ib);
+        eprintln!("{label}: |staged - uniform| importance {d:e}");
+        assert!(d <= 1e-6, "{label}: importance differs by {d}");
+        assert!(ia.iter().any(|&i| i.abs() > 0.0), "{label}: no importance");
+        let di = a.image.max_abs_diff(&b.image);
+        assert!(di <= 1e-5, "{label}: image differs by {di}");
+    }
+    g.shared_weights = false;
+    // The features pass's and the network's other layouts, on the same device (one device
+    // fewer in the test process: lavapipe runs each device's threads).
+    features_and_network_layouts_give_the_same_frame(&mut g);
+}
+
+/// The two ways the features pass may take a pixel's nearest key (`Gpu::features_preload`)
+/// gather the same statistics, and the network written out for its shape
+/// (`Gpu::unrolled_network`) gives the importance of mlp.wgsl's loops: one frame per setting,
+/// the same statistics as the CPU twin's, the same importance and image bits.
+fn features_and_network_layouts_give_the_same_frame(g: &mut dhoit_runtime::gpu::Gpu) {
     let (w, h) = (64, 48);
     let (s, cam) = frame("particles", 1, w, h);
     let mlp = dhoit_runtime::mlp::Mlp::load(
@@ -251,51 +295,6 @@ fn the_features_and_network_layouts_give_the_same_frame() {
         } else {
             first = Some(frame);
         }
-    }
-}
-
-/// DKB's importance pass with the network's weights staged in workgroup memory
-/// (`Gpu::shared_weights`) gives the importance and image of the pass that reads them from the
-/// uniform (held to the CPU twin by the other tests): the default network, one whose first
-/// layer leaves a tile part empty (20 units in tiles of 16), and one at f16.
-#[test]
-fn weights_staged_in_workgroup_memory_give_the_same_importance() {
-    if gpu().is_none() {
-        return;
-    }
-    // A device of its own: the flag is the device's.
-    let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
-    let (w, h) = (64, 48);
-    let (s, cam) = frame("particles", 1, w, h);
-    let default = dhoit_runtime::mlp::Mlp::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
-    )
-    .unwrap();
-    let nets = [
-        ("default", default),
-        ("20-12", dhoit_runtime::mlp::Mlp::random_sized(3, 20, 12)),
-        (
-            "16-8 f16",
-            dhoit_runtime::mlp::Mlp::random_sized(4, 16, 8)
-                .at_precision(dhoit_runtime::mlp::Precision::F16)
-                .unwrap(),
-        ),
-    ];
-    let f = (3 * w * h / 2) as u64;
-    for (label, mlp) in &nets {
-        let mut frames = [false, true].map(|shared| {
-            g.shared_weights = shared;
-            g.render(&s, &cam, w, h, BG, Some(Slots::Dkb(mlp, f.into())))
-                .unwrap()
-        });
-        let (b, a) = (frames[1].clone(), &mut frames[0]);
-        let (ia, ib) = (a.importance.take().unwrap(), b.importance.unwrap());
-        let d = max_abs_diff(&ia, &ib);
-        eprintln!("{label}: |staged - uniform| importance {d:e}");
-        assert!(d <= 1e-6, "{label}: importance differs by {d}");
-        assert!(ia.iter().any(|&i| i.abs() > 0.0), "{label}: no importance");
-        let di = a.image.max_abs_diff(&b.image);
-        assert!(di <= 1e-5, "{label}: image differs by {di}");
     }
 }
 
