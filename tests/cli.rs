@@ -390,6 +390,72 @@ fn the_gpu_renders_from_the_command_line() {
     }
 }
 
+/// `bench --gpu-only` (what scripts/device.sh runs on a lent GPU) writes every method's
+/// steady frames and passes, DKB's ratios and the measured options, and no CPU section.
+#[test]
+fn the_gpu_bench_reports_every_method_and_option() {
+    if skip_gpu("GPU bench test") {
+        return;
+    }
+    let dir = temp_dir("cli-bench");
+    let out = dir.join("bench.json");
+    let o = dhoit(&[
+        "bench",
+        "--gpu-only",
+        "--scenes",
+        "cad",
+        "--res",
+        "48x32",
+        "--repeat",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert!(
+        report.get("cpu").is_none(),
+        "--gpu-only ran the CPU section"
+    );
+    let scene = &report["gpu"]["scenes"][0];
+    assert_eq!(scene["scene"], "cad", "{scene}");
+    for m in [
+        "abuffer",
+        "fkb",
+        "optimal",
+        "vkb",
+        "dkb",
+        "dkb_no_skip",
+        "dkb_insertion_only",
+        "dkb_shared_weights",
+        "dkb_array_network",
+        "dkb_features_other_preload",
+        "fkb_layer_major",
+        "dkb_16-8",
+    ] {
+        let ms = scene["methods"][m]["frame_gpu_ms"].as_f64();
+        assert!(ms.is_some_and(|t| t > 0.0 && t.is_finite()), "{m}: {ms:?}");
+        assert_eq!(
+            scene["methods"][m]["buffers_created_in_steady_frames"], 0,
+            "{m}"
+        );
+    }
+    for pass in ["features", "importance", "allocation", "capture", "resolve"] {
+        let ms = scene["methods"]["dkb"]["passes_ms"][pass].as_f64();
+        assert!(ms.is_some_and(|t| t >= 0.0), "dkb {pass}: {ms:?}");
+    }
+    for ratio in ["dkb_over_vkb", "dkb_over_abuffer", "dkb_16_8_over_vkb"] {
+        let r = scene[ratio].as_f64();
+        assert!(
+            r.is_some_and(|r| r > 0.0 && r.is_finite()),
+            "{ratio}: {r:?}"
+        );
+    }
+    let over_count = scene["features_pass"]["over_vkb_count"].as_f64();
+    assert!(over_count.is_some_and(|r| r > 0.0 && r.is_finite()));
+}
+
 /// `train --scene` fine-tunes the default network on one scene's orbit views; the weights load
 /// in the renderer (CPU and GPU) and beat the default on views of that scene no training view
 /// saw, in the held-out report and in rendered images.
