@@ -103,10 +103,8 @@ bench: setup
 devbin: build
 	mkdir -p .devbin .gl
 	strip -o .devbin/dhoit target/release/dhoit
-	for t in gpu extremes; do \
-	  strip -o .devbin/test-$$t $$($(CARGO) test --release -p dhoit-runtime --test $$t --no-run --message-format=json 2>/dev/null | \
-	    python3 -c 'import json,sys; print([m["executable"] for m in map(json.loads, sys.stdin) if m.get("executable") and m["target"]["kind"] == ["test"]][0])'); done
-	strip -o .devbin/test-equivalence $$($(CARGO) test --release --test equivalence --no-run --message-format=json 2>/dev/null | \
-	  python3 -c 'import json,sys; print([m["executable"] for m in map(json.loads, sys.stdin) if m.get("executable") and m["target"]["kind"] == ["test"]][0])')
+	for t in dhoit-runtime:gpu dhoit-runtime:extremes dhoit:equivalence; do \
+	  strip -o .devbin/test-$${t#*:} $$($(CARGO) test --release -p $${t%%:*} --test $${t#*:} --no-run --message-format=json 2>/dev/null | \
+	    python3 -c 'import json,sys; print([m["executable"] for m in map(json.loads, sys.stdin) if m.get("executable") and m["target"]["kind"] == ["test"]][0])') || exit 1; done
 	pwd > .devbin/built-in
 	cd .gl && apt-get download libvulkan1 libglvnd0 libegl1 libopengl0 libgl1 libglx0 libgles2

@@ -173,8 +173,8 @@ fn write_report(report: serde_json::Value, out: Option<&std::path::Path>) -> Res
 }
 
 /// Per-pass GPU times (timestamp queries) and whole-frame times per method: one cold frame,
-/// warm-up frames for 0.25 s, then the medians of `repeat` steady-state frames (buffers reused, the image read back); an
-/// error entry when no suitable adapter exists.
+/// warm-up frames for 0.25 s, then the medians of `repeat` steady-state frames (buffers reused,
+/// the image read back); an error entry when no suitable adapter exists.
 fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) -> serde_json::Value {
     use dhoit_runtime::gpu::{Gpu, Slots};
     let mut gpu = match Gpu::new() {
@@ -189,8 +189,6 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
         }
     };
     eprintln!("GPU: {}", gpu.adapter);
-    // This device's default for the features pass (the other is measured beside it).
-    let preload = gpu.features_preload;
     // The committed weights when found (under the working directory's data/, as on a machine
     // the binary was carried to, else the source tree's), else seeded random ones of the same
     // size (same cost).
@@ -252,7 +250,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     ("dkb_insertion_only", Method::Dkb, &cpu[4]),
                     ("dkb_shared_weights", Method::Dkb, &cpu[4]),
                     ("dkb_array_network", Method::Dkb, &cpu[4]),
-                    ("dkb_features_other_preload", Method::Dkb, &cpu[4]),
+                    ("dkb_features_no_preload", Method::Dkb, &cpu[4]),
                     ("fkb_layer_major", Method::Fkb, &cpu[1]),
                     ("dkb_16-8", Method::Dkb, &cpu[4]),
                 ]);
@@ -265,7 +263,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 gpu.two_mode_capture = label != "dkb_insertion_only";
                 gpu.shared_weights = label == "dkb_shared_weights";
                 gpu.unrolled_network = label != "dkb_array_network";
-                gpu.features_preload = (label == "dkb_features_other_preload") != preload;
+                gpu.features_preload = label != "dkb_features_no_preload";
                 gpu.layer_major_fkb = label == "fkb_layer_major";
                 // One cold frame (its buffers are created), then `repeat` steady-state frames
                 // that reuse them and read back only the image: medians of those.
@@ -338,42 +336,26 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             gpu.two_mode_capture = true;
             gpu.shared_weights = false;
             gpu.unrolled_network = true;
-            gpu.features_preload = preload;
+            gpu.features_preload = true;
             gpu.layer_major_fkb = false;
             let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
             let ratio = ms("dkb") / ms("vkb");
             let small_ratio = ms("dkb_16-8") / ms("vkb");
             let over_abuffer = ms("dkb") / ms("abuffer");
-            let imp = |m: &str| {
-                methods[m]["passes_ms"]["importance"]
-                    .as_f64()
-                    .unwrap_or(f64::NAN)
-            };
+            // One pass of one run, in ms (NaN when that run has no such pass).
+            let pass = |m: &str, p: &str| methods[m]["passes_ms"][p].as_f64().unwrap_or(f64::NAN);
+            let imp = |m: &str| pass(m, "importance");
             let (skip, all) = (imp("dkb"), imp("dkb_no_skip"));
-            let capture = |m: &str| {
-                methods[m]["passes_ms"]["capture"]
-                    .as_f64()
-                    .unwrap_or(f64::NAN)
-            };
+            let capture = |m: &str| pass(m, "capture");
             let (two_mode, inserted) = (capture("dkb"), capture("dkb_insertion_only"));
             let staged = imp("dkb_shared_weights");
             let looped = imp("dkb_array_network");
-            let features = |m: &str| {
-                methods[m]["passes_ms"]["features"]
-                    .as_f64()
-                    .unwrap_or(f64::NAN)
-            };
-            let (features_default, features_other) =
-                (features("dkb"), features("dkb_features_other_preload"));
-            let count_ms = methods["vkb"]["passes_ms"]["count"]
-                .as_f64()
-                .unwrap_or(f64::NAN);
-            let fkb_slots = |m: &str| {
-                capture(m)
-                    + methods[m]["passes_ms"]["resolve"]
-                        .as_f64()
-                        .unwrap_or(f64::NAN)
-            };
+            let (features, no_preload) = (
+                pass("dkb", "features"),
+                pass("dkb_features_no_preload", "features"),
+            );
+            let count_ms = pass("vkb", "count");
+            let fkb_slots = |m: &str| capture(m) + pass(m, "resolve");
             let (pixel_major, layer_major) = (fkb_slots("fkb"), fkb_slots("fkb_layer_major"));
             // Covered pixels DKB's capture appends (k from its CPU twin, which the GPU's equals).
             let dkb_k = renderer.allocate(Method::Dkb)?.k;
@@ -412,10 +394,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             );
             eprintln!("GPU {name}: DKB/VKB frame time with the 16-8 network {small_ratio:.2}");
             eprintln!(
-                "GPU {name}: DKB features {features_default:.2} ms ({:.2}x VKB's count) {} the nearest key's load, {features_other:.2} ms {}",
-                features_default / count_ms,
-                if preload { "with" } else { "without" },
-                if preload { "without" } else { "with" }
+                "GPU {name}: DKB features {features:.2} ms ({:.2}x VKB's count) with the nearest key's load, {no_preload:.2} ms without",
+                features / count_ms,
             );
             eprintln!(
                 "GPU {name}: FKB capture and resolve {pixel_major:.2} ms pixel-major, {layer_major:.2} ms layer-major"
@@ -431,9 +411,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 "shared_weights": {"importance_ms": staged, "importance_ms_uniform": skip},
                 "unrolled_network": {"importance_ms": skip, "importance_ms_array_loops": looped},
                 "features_pass": {
-                    "preload_nearest": preload, "features_ms": features_default,
-                    "features_ms_other_preload": features_other, "vkb_count_ms": count_ms,
-                    "over_vkb_count": features_default / count_ms,
+                    "features_ms": features, "features_ms_no_preload": no_preload,
+                    "vkb_count_ms": count_ms, "over_vkb_count": features / count_ms,
                 },
                 "fkb_slot_layout": {"capture_resolve_ms_pixel_major": pixel_major, "capture_resolve_ms_layer_major": layer_major},
                 "two_mode_capture": {

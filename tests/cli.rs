@@ -430,7 +430,7 @@ fn the_gpu_bench_reports_every_method_and_option() {
         "dkb_insertion_only",
         "dkb_shared_weights",
         "dkb_array_network",
-        "dkb_features_other_preload",
+        "dkb_features_no_preload",
         "fkb_layer_major",
         "dkb_16-8",
     ] {

@@ -41,6 +41,13 @@ pub(super) fn module_from(device: &wgpu::Device, label: &str, src: String) -> wg
     })
 }
 
+/// Replaces declaration `from` of pass `pass`'s source `src` by `to` (a constant a variant of
+/// the pass changes); a declaration the source lacks is a bug, not a silent no-op.
+fn redeclare(src: &mut String, pass: &str, from: &str, to: &str) {
+    assert!(src.contains(from), "{pass} declares {from}");
+    *src = src.replace(from, to);
+}
+
 pub(super) fn compute_pipeline(
     device: &wgpu::Device,
     label: &str,
@@ -180,10 +187,7 @@ impl Variant {
     /// Its source: the pass's, with the constants it changes replaced.
     pub(super) fn source(self) -> String {
         let mut src = shaders::source(self.pass).expect("known pass");
-        let mut set = |from: &str, to: &str| {
-            assert!(src.contains(from), "{} declares {from}", self.pass);
-            src = src.replace(from, to);
-        };
+        let mut set = |from: &str, to: &str| redeclare(&mut src, self.pass, from, to);
         if !self.skip_forced {
             set(
                 "const SKIP_FORCED: bool = true;",
@@ -349,6 +353,13 @@ impl Pipelines {
             })
         };
         let geometry = |name: &str| geometry_from(name, module(device, name));
+        let mut no_preload = shaders::source("features").expect("known pass");
+        redeclare(
+            &mut no_preload,
+            "features",
+            "const PRELOAD_NEAREST: bool = true;",
+            "const PRELOAD_NEAREST: bool = false;",
+        );
         let compute_entry =
             |name: &str, entry: &str| compute_pipeline(device, name, &module(device, name), entry);
         let compute = |name: &str| compute_entry(name, "main");
@@ -367,14 +378,7 @@ impl Pipelines {
             features: geometry("features"),
             features_no_preload: geometry_from(
                 "features",
-                module_from(
-                    device,
-                    "features (no preload)",
-                    shaders::source("features").expect("known pass").replace(
-                        "const PRELOAD_NEAREST: bool = true;",
-                        "const PRELOAD_NEAREST: bool = false;",
-                    ),
-                ),
+                module_from(device, "features (no preload)", no_preload),
             ),
             totals: compute("totals"),
             variants: std::sync::Mutex::new(
