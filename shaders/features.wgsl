@@ -1,26 +1,32 @@
 // DKB features pass (geometry): per pixel, with integer atomics only (so any order gives the
-// same result), the statistics importance::pixel_stats gathers: the fragment count, the nearest
+// same result), the statistics importance::pixel_stats gathers beside the count: the nearest
 // fragment's capture key, and the sums of the fragments' 8-bit R, G, B and of r^2 + g^2 + b^2.
 // The nearest key is kept complemented so a cleared (zero) buffer means "none yet" and
 // atomicMax finds the minimum. The two largest keys (the farthest fragments) are kept by a
 // two-slot insertion with atomicMax, each key marked with bit 63 (importance::OCCUPIED) so a
-// slot is never mistaken for empty. 44 bytes a pixel, which the tail and the image reuse.
+// slot is never mistaken for empty. 40 bytes a pixel, which the tail and the image reuse.
 //
-// Three atomic adds a fragment, and atomicMax only where it can change a key: the colour sums
+// The frame counts its fragments first (abuffer_count.wgsl) and draws this pass indirectly
+// (totals.wgsl's features_draw): with no vertex when the budget holds every fragment, since then
+// k = n whatever the network says (gpu::Gpu::features_count_first). Built with COUNT_FRAGMENTS,
+// the pass counts too and runs always (no count pass first; the bench's comparison).
+//
+// Two atomic adds a fragment, and atomicMax only where it can change a key: the colour sums
 // go two to a 64-bit add (r and g, then b and the squares; the low halves hold at most 255 n,
 // so they never carry into the high ones below 2^24 fragments a pixel, and the squares wrap in
 // the high half as a 32-bit sum does), and the keys only grow, so a key that the stored one
 // already beats is skipped after a plain atomic load, as Loop64's early test does.
 
-@group(1) @binding(0) var<storage, read_write> count: array<atomic<u32>>;
 // Per pixel: the nearest key (complemented); the frame reuses this buffer for the tail's count
 // once the importance pass has read it.
-@group(1) @binding(1) var<storage, read_write> nearest: array<atomic<u64>>;
+@group(1) @binding(0) var<storage, read_write> nearest: array<atomic<u64>>;
 // Per pixel: the two largest keys, farthest first; reused for the tail's sums.
-@group(1) @binding(2) var<storage, read_write> farthest: array<atomic<u64>>;
+@group(1) @binding(1) var<storage, read_write> farthest: array<atomic<u64>>;
 // Per pixel: sum r, sum g, sum b, sum (r^2 + g^2 + b^2), 8-bit units (wrapping), as 32-bit
 // words (importance_dkb.wgsl reads them so), added as two 64-bit words. Reused for the image.
-@group(1) @binding(3) var<storage, read_write> sums: array<atomic<u64>>;
+@group(1) @binding(2) var<storage, read_write> sums: array<atomic<u64>>;
+// The fragment count: written where this pass counts (COUNT_FRAGMENTS), else bound unused.
+@group(1) @binding(3) var<storage, read_write> count: array<atomic<u32>>;
 
 
 // Whether the nearest key is loaded first, and atomicMax issued only where it can change it
@@ -28,12 +34,17 @@
 // issues an atomicMax whose result is unused without waiting.
 const PRELOAD_NEAREST: bool = true;
 
+// Whether this pass counts the fragments (no count pass before it).
+const COUNT_FRAGMENTS: bool = false;
+
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let p = pixel_index(in.clip, params.width);
     let rgba8 = fragment_rgba8(in);
     let depth = select(0.0, in.clip.z, in.clip.z > 0.0);
-    atomicAdd(&count[p], 1u);
+    if (COUNT_FRAGMENTS) {
+        atomicAdd(&count[p], 1u);
+    }
     let key = fragment_key(depth, rgba8);
     if (!PRELOAD_NEAREST || atomicLoad(&nearest[p]) < ~key) {
         atomicMax(&nearest[p], ~key);

@@ -25,9 +25,10 @@
 @group(0) @binding(10) var<storage, read_write> dispatch: array<u32, 4>;
 
 // Skip the network where k does not depend on it (Mlp::dkb_importance): a pixel whose useful
-// cap is 0 (one fragment, or two sharing one colour: mlp::forced) and every pixel of a frame
-// whose budget holds all its fragments get importance 0 with their pair mark. The bench builds
-// this pass once more with it false (Gpu::skip_forced) to show the time saved.
+// cap is 0 (one fragment, or two sharing one colour: mlp::forced) gets importance 0 with its
+// pair mark. The bench builds this pass once more with it false (Gpu::skip_forced) to show the
+// time saved. Every pixel of a frame whose budget holds all its fragments gets 0, unmarked,
+// either way: its features pass drew nothing (features.wgsl), and k = n whatever it gets.
 const SKIP_FORCED: bool = true;
 
 fn luma(c: vec3<f32>) -> f32 {
@@ -45,7 +46,7 @@ struct Net {
 fn network_inputs(p: u32) -> Net {
     var net: Net;
     let c = count[p];
-    if (c == 0u) {
+    if (c == 0u || budget_of(totals[0]) >= u64(totals[0])) {
         importance[p] = 0.0;
         return net;
     }
@@ -55,7 +56,7 @@ fn network_inputs(p: u32) -> Net {
     let f1 = farthest[2u * p + 1u];
     let pair = (f1 & OCCUPIED) != 0lu && u32(f0 & 0xfffffffflu) == u32(f1 & 0xfffffffflu);
     let mark = select(0u, PAIR_BIT, pair);
-    if (SKIP_FORCED && (c <= 1u + select(0u, 1u, pair) || budget_of(totals[0]) >= u64(totals[0]))) {
+    if (SKIP_FORCED && c <= 1u + select(0u, 1u, pair)) {
         importance[p] = bitcast<f32>(mark);
         return net;
     }

@@ -23,3 +23,17 @@ fn main(
         atomicMax(&totals[2], c);
     }
 }
+
+// DKB's features pass is drawn indirectly from these arguments (vertices, instances, first
+// vertex, first instance; the host writes the frame's vertex count): with no vertex when the
+// budget holds every fragment, since k = n then whatever the importance (allocate.wgsl's
+// setup, mlp::Mlp::dkb_importance).
+@group(0) @binding(3) var<storage, read_write> features_draw_args: array<u32, 4>;
+
+@compute @workgroup_size(1)
+fn features_draw() {
+    let all = atomicLoad(&totals[0]);
+    if (budget_of(all) >= u64(all)) {
+        features_draw_args[0] = 0u;
+    }
+}

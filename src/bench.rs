@@ -251,6 +251,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     ("dkb_shared_weights", Method::Dkb, &cpu[4]),
                     ("dkb_array_network", Method::Dkb, &cpu[4]),
                     ("dkb_features_no_preload", Method::Dkb, &cpu[4]),
+                    ("dkb_counting_features", Method::Dkb, &cpu[4]),
                     ("fkb_layer_major", Method::Fkb, &cpu[1]),
                     ("dkb_16-8", Method::Dkb, &cpu[4]),
                 ]);
@@ -264,6 +265,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 gpu.shared_weights = label == "dkb_shared_weights";
                 gpu.unrolled_network = label != "dkb_array_network";
                 gpu.features_preload = label != "dkb_features_no_preload";
+                gpu.features_count_first = label != "dkb_counting_features";
                 gpu.layer_major_fkb = label == "fkb_layer_major";
                 // One cold frame (its buffers are created), then `repeat` steady-state frames
                 // that reuse them and read back only the image: medians of those.
@@ -337,6 +339,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             gpu.shared_weights = false;
             gpu.unrolled_network = true;
             gpu.features_preload = true;
+            gpu.features_count_first = true;
             gpu.layer_major_fkb = false;
             let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
             let ratio = ms("dkb") / ms("vkb");
@@ -355,6 +358,18 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 pass("dkb_features_no_preload", "features"),
             );
             let count_ms = pass("vkb", "count");
+            // DKB's geometry passes: its count (none when the features pass counts) and its
+            // features pass (a draw of no vertex when the budget holds every fragment).
+            let geometry = |m: &str| {
+                let count = pass(m, "count");
+                pass(m, "features") + if count.is_nan() { 0.0 } else { count }
+            };
+            let (count_first, counting) = (geometry("dkb"), geometry("dkb_counting_features"));
+            let total = fl.fragment_count() as u64;
+            let holds_all = match Slots::for_method(Method::Dkb, &cpu[4], &options)? {
+                Some(Slots::Dkb(_, f)) => f.of(total) >= total,
+                _ => false,
+            };
             let fkb_slots = |m: &str| capture(m) + pass(m, "resolve");
             let (pixel_major, layer_major) = (fkb_slots("fkb"), fkb_slots("fkb_layer_major"));
             // Covered pixels DKB's capture appends (k from its CPU twin, which the GPU's equals).
@@ -398,6 +413,16 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 features / count_ms,
             );
             eprintln!(
+                "GPU {name}: DKB count and features {count_first:.2} ms counting first ({}), {counting:.2} ms counting in the features pass; frame {:.2} / {:.2} ms",
+                if holds_all {
+                    "the budget holds every fragment: no features drawn"
+                } else {
+                    "the budget truncates: features drawn"
+                },
+                ms("dkb"),
+                ms("dkb_counting_features"),
+            );
+            eprintln!(
                 "GPU {name}: FKB capture and resolve {pixel_major:.2} ms pixel-major, {layer_major:.2} ms layer-major"
             );
             Ok(serde_json::json!({
@@ -413,6 +438,13 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 "features_pass": {
                     "features_ms": features, "features_ms_no_preload": no_preload,
                     "vkb_count_ms": count_ms, "over_vkb_count": features / count_ms,
+                    "count_and_features_over_vkb_count": count_first / count_ms,
+                },
+                "features_count_first": {
+                    "budget_holds_every_fragment": holds_all,
+                    "geometry_ms": count_first, "geometry_ms_counting_features": counting,
+                    "frame_gpu_ms": ms("dkb"),
+                    "frame_gpu_ms_counting_features": ms("dkb_counting_features"),
                 },
                 "fkb_slot_layout": {"capture_resolve_ms_pixel_major": pixel_major, "capture_resolve_ms_layer_major": layer_major},
                 "two_mode_capture": {

@@ -431,6 +431,7 @@ fn the_gpu_bench_reports_every_method_and_option() {
         "dkb_shared_weights",
         "dkb_array_network",
         "dkb_features_no_preload",
+        "dkb_counting_features",
         "fkb_layer_major",
         "dkb_16-8",
     ] {
@@ -441,7 +442,14 @@ fn the_gpu_bench_reports_every_method_and_option() {
             "{m}"
         );
     }
-    for pass in ["features", "importance", "allocation", "capture", "resolve"] {
+    for pass in [
+        "count",
+        "features",
+        "importance",
+        "allocation",
+        "capture",
+        "resolve",
+    ] {
         let ms = scene["methods"]["dkb"]["passes_ms"][pass].as_f64();
         assert!(ms.is_some_and(|t| t >= 0.0), "dkb {pass}: {ms:?}");
     }
@@ -452,8 +460,13 @@ fn the_gpu_bench_reports_every_method_and_option() {
             "{ratio}: {r:?}"
         );
     }
-    let over_count = scene["features_pass"]["over_vkb_count"].as_f64();
+    let over_count = scene["features_pass"]["count_and_features_over_vkb_count"].as_f64();
     assert!(over_count.is_some_and(|r| r > 0.0 && r.is_finite()));
+    // The counting features pass has no count pass of its own.
+    let counting = &scene["methods"]["dkb_counting_features"]["passes_ms"];
+    assert!(counting["count"].is_null() && counting["features"].as_f64().is_some());
+    let holds = scene["features_count_first"]["budget_holds_every_fragment"].as_bool();
+    assert!(holds.is_some(), "{scene}");
 }
 
 /// `train --scene` fine-tunes the default network on one scene's orbit views; the weights load

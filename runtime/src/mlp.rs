@@ -294,9 +294,10 @@ impl Mlp {
     }
 
     /// DKB's importance map, as the GPU's importance pass writes it: the network's output with
-    /// the pair mark, and 0 (with the mark) wherever k does not depend on it, without running
-    /// the network there: an empty pixel, a pixel whose useful cap is 0 ([`forced`]) and
-    /// every pixel of a frame whose budget holds all its fragments.
+    /// the pair mark, and 0 wherever k does not depend on it, without running the network
+    /// there: with the mark at a pixel whose useful cap is 0 ([`forced`]); unmarked at an empty
+    /// pixel and at every pixel of a frame whose budget holds all its fragments (k = n: the GPU
+    /// does not gather that frame's features at all, so it knows no pair).
     pub fn dkb_importance(
         &self,
         features: &[[f32; FEATURES]],
@@ -311,7 +312,10 @@ impl Mlp {
             .zip(counts)
             .zip(pairs)
             .map_init(Vec::new, |scratch, ((x, &n), &pair)| {
-                let i = if n == 0 || all_fit || forced(n, pair) {
+                if n == 0 || all_fit {
+                    return 0.0;
+                }
+                let i = if forced(n, pair) {
                     0.0
                 } else {
                     self.forward_with(x, scratch)

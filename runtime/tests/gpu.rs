@@ -254,43 +254,71 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
 }
 
 /// The two ways the features pass may take a pixel's nearest key (`Gpu::features_preload`)
-/// gather the same statistics, and the network written out for its shape
-/// (`Gpu::unrolled_network`) gives the importance of mlp.wgsl's loops: one frame per setting,
-/// the same statistics as the CPU twin's, the same importance and image bits.
+/// gather the same statistics, the network written out for its shape (`Gpu::unrolled_network`)
+/// gives the importance of mlp.wgsl's loops, and counting first (`Gpu::features_count_first`)
+/// gives the frame of counting in the features pass: one frame per setting, at a budget that
+/// truncates and at one that holds every fragment, the same statistics as the CPU twin's where
+/// the features pass drew (always when it counts, else only where the budget truncates), the
+/// same importance and image bits.
 fn features_and_network_layouts_give_the_same_frame(
     g: &mut dhoit_runtime::gpu::Gpu,
     (s, cam): (&Scene, &Camera),
     (w, h): (u32, u32),
     mlp: &dhoit_runtime::mlp::Mlp,
 ) {
-    let f = (3 * w * h / 2) as u64;
     let gfl = g.render(s, cam, w, h, BG, None).unwrap().fragments.unwrap();
     let stats = importance::pixel_stats(&gfl);
-    let mut first: Option<dhoit_runtime::gpu::GpuFrame> = None;
-    for (preload, unrolled) in [(true, true), (false, true), (true, false), (false, false)] {
-        g.features_preload = preload;
-        g.unrolled_network = unrolled;
-        let frame = g
-            .render(s, cam, w, h, BG, Some(Slots::Dkb(mlp, f.into())))
-            .unwrap();
-        let label = format!("preload {preload}, unrolled {unrolled}");
-        assert_eq!(frame.stats.as_ref().unwrap(), &stats, "{label}: statistics");
-        let imp = frame.importance.as_ref().unwrap();
-        assert!(imp.iter().any(|&i| i.abs() > 0.0), "{label}: no importance");
-        if let Some(a) = &first {
-            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert!(
-                bits(a.importance.as_ref().unwrap()) == bits(imp),
-                "{label}: importance differs"
+    let total = gfl.fragment_count() as u64;
+    for f in [(3 * w * h / 2) as u64, total] {
+        let holds = f >= total;
+        let mut first: Option<dhoit_runtime::gpu::GpuFrame> = None;
+        for (preload, unrolled, count_first) in [
+            (true, true, true),
+            (false, true, true),
+            (true, false, true),
+            (false, false, true),
+            (true, true, false),
+        ] {
+            g.features_preload = preload;
+            g.unrolled_network = unrolled;
+            g.features_count_first = count_first;
+            let frame = g
+                .render(s, cam, w, h, BG, Some(Slots::Dkb(mlp, f.into())))
+                .unwrap();
+            let label = format!(
+                "F {f} of {total}: preload {preload}, unrolled {unrolled}, count first {count_first}"
             );
-            assert!(
-                image_bits(&a.image) == image_bits(&frame.image),
-                "{label}: image differs"
+            let drawn = !(holds && count_first);
+            assert_eq!(frame.features_drawn, Some(drawn), "{label}");
+            if drawn {
+                assert_eq!(frame.stats.as_ref().unwrap(), &stats, "{label}: statistics");
+            } else {
+                assert!(frame.stats.is_none(), "{label}: statistics");
+            }
+            let imp = frame.importance.as_ref().unwrap();
+            assert_eq!(
+                imp.iter().any(|&i| i.abs() > 0.0),
+                !holds,
+                "{label}: importance"
             );
-        } else {
-            first = Some(frame);
+            if let Some(a) = &first {
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert!(
+                    bits(a.importance.as_ref().unwrap()) == bits(imp),
+                    "{label}: importance differs"
+                );
+                assert!(
+                    image_bits(&a.image) == image_bits(&frame.image),
+                    "{label}: image differs"
+                );
+            } else {
+                first = Some(frame);
+            }
         }
     }
+    g.features_preload = true;
+    g.unrolled_network = true;
+    g.features_count_first = true;
 }
 
 /// FKB's slots laid out layer-major (`Gpu::layer_major_fkb`) hold the same keys and tails,
@@ -608,18 +636,33 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             .fragments
             .unwrap();
         let pixels = gfl.pixel_count();
-        for fpp in [0.5, 1.0, 2.0] {
-            let f = (fpp * pixels as f64) as u64;
-            // DKB: the features pass against pixel_stats on the GPU's own fragments.
+        let total = gfl.fragment_count() as u64;
+        // 0.5, 1 and 2 fragments a pixel, one slot short of every fragment, and every one.
+        let budgets = [0.5, 1.0, 2.0]
+            .map(|fpp| (fpp * pixels as f64) as u64)
+            .into_iter()
+            .chain([total - 1, total]);
+        for f in budgets {
+            let fpp = format!("{:.2}", f as f64 / pixels as f64);
+            // DKB: the features pass against pixel_stats on the GPU's own fragments, where the
+            // device drew it: only where the budget truncates.
             let d = g
                 .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
                 .unwrap();
-            let stats = d.stats.clone().unwrap();
             let twin = importance::pixel_stats(&gfl);
-            for (p, (a, b)) in stats.iter().zip(&twin).enumerate() {
-                // Integer statistics: identical, whatever order the fragments came in.
-                assert_eq!(a, b, "{name} pixel {p}");
-            }
+            let holds = f >= total;
+            assert_eq!(d.features_drawn, Some(!holds), "{name} F {f} of {total}");
+            let stats = if holds {
+                assert!(d.stats.is_none(), "{name}: statistics of an undrawn pass");
+                twin
+            } else {
+                let stats = d.stats.clone().unwrap();
+                for (p, (a, b)) in stats.iter().zip(&twin).enumerate() {
+                    // Integer statistics: identical, whatever order the fragments came in.
+                    assert_eq!(a, b, "{name} pixel {p}");
+                }
+                stats
+            };
             // Importance: the network on the GPU's statistics, within 1e-5.
             let t = importance::totals(&stats);
             let feats: Vec<[f32; 12]> = stats
@@ -636,6 +679,10 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             let pairs: Vec<bool> = stats.iter().map(importance::tail_pair).collect();
             let imp_twin: Vec<f32> = mlp.dkb_importance(&feats, &counts, &pairs, f);
             let imp = d.importance.clone().unwrap();
+            if holds {
+                // k = n whatever the importance: 0 everywhere, unmarked, as the twin's.
+                assert!(imp.iter().chain(&imp_twin).all(|i| i.to_bits() == 0));
+            }
             // The pair marks (sign bits) exactly, the values within 1e-5.
             assert!(
                 imp.iter()

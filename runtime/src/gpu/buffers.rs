@@ -178,17 +178,23 @@ pub(super) struct Readback {
     pub(super) importance_buf: Option<wgpu::Buffer>,
     /// DKB: the nearest keys, the two farthest keys and the colour sums.
     pub(super) stats_bufs: Option<[wgpu::Buffer; 3]>,
+    /// DKB: the features pass's indirect draw (its first word: the vertices it drew).
+    pub(super) features_draw_buf: Option<wgpu::Buffer>,
     pub(super) vkb_nearest_buf: Option<wgpu::Buffer>,
 }
 
-pub(super) type Statistics = (
-    Option<Vec<f32>>,
-    Option<Vec<PixelStats>>,
-    Option<(Vec<u32>, Vec<f32>)>,
-);
+/// What [`GpuFrame`] reports besides the image: importance, DKB's statistics and whether its
+/// features pass drew, VKB's nearest facing.
+pub(super) struct Statistics {
+    pub(super) importance: Option<Vec<f32>>,
+    pub(super) stats: Option<Vec<PixelStats>>,
+    pub(super) features_drawn: Option<bool>,
+    pub(super) vkb_nearest: Option<(Vec<u32>, Vec<f32>)>,
+}
 
 impl Readback {
-    /// Importance, DKB statistics and VKB nearest facing, where the frame computed them.
+    /// Importance, DKB statistics and VKB nearest facing, where the frame computed them (DKB's
+    /// statistics where its features pass drew).
     pub(super) fn statistics(&self, gpu: &Gpu, px: u64) -> Result<Statistics> {
         let importance = match &self.importance_buf {
             Some(b) => Some(
@@ -199,12 +205,21 @@ impl Readback {
             ),
             None => None,
         };
+        let features_drawn = match &self.features_draw_buf {
+            Some(b) => Some(u32s(&read_back(gpu, b, 4)?)[0] > 0),
+            None => None,
+        };
         let Some(counts) = &self.counts_buf else {
-            return Ok((importance, None, None));
+            return Ok(Statistics {
+                importance,
+                stats: None,
+                features_drawn,
+                vkb_nearest: None,
+            });
         };
         let counts = u32s(&read_back(gpu, counts, 4 * px)?);
         let stats = match &self.stats_bufs {
-            Some([nearest, farthest, sums]) => {
+            Some([nearest, farthest, sums]) if features_drawn != Some(false) => {
                 let nearest = read_u64s(gpu, nearest, px, false)?;
                 let farthest = read_u64s(gpu, farthest, 2 * px, false)?;
                 let sums = u32s(&read_back(gpu, sums, 16 * px)?);
@@ -220,7 +235,7 @@ impl Readback {
                         .collect(),
                 )
             }
-            None => None,
+            _ => None,
         };
         let vkb_nearest = match &self.vkb_nearest_buf {
             Some(b) => {
@@ -233,6 +248,11 @@ impl Readback {
             }
             None => None,
         };
-        Ok((importance, stats, vkb_nearest))
+        Ok(Statistics {
+            importance,
+            stats,
+            features_drawn,
+            vkb_nearest,
+        })
     }
 }

@@ -1,7 +1,9 @@
-//! The deep k-buffer's importance: `features.wgsl` (geometry: count, nearest and two farthest
-//! keys, colour sums; twin `importance::pixel_stats`), `totals.wgsl`, then `importance_dkb.wgsl`
-//! (the 12 features, never stored, through the network of `mlp.wgsl`, built for the network's
-//! shape and precision by [`Variant`]; twin `Mlp::dkb_importance`).
+//! The deep k-buffer's importance: the count (`abuffer_count.wgsl`), `totals.wgsl`, then
+//! `features.wgsl` (geometry: nearest and two farthest keys, colour sums; twin
+//! `importance::pixel_stats`), drawn only when the budget truncates (`totals.wgsl`'s
+//! `features_draw` sets its indirect draw), then `importance_dkb.wgsl` (the 12 features, never
+//! stored, through the network of `mlp.wgsl`, built for the network's shape and precision by
+//! [`Variant`]; twin `Mlp::dkb_importance`).
 
 use super::*;
 
@@ -19,6 +21,13 @@ impl Recording<'_, '_> {
             true,
         );
         let counts = fb.storage("features.count", 4 * px, true)?;
+        // The features pass's indirect draw: the frame's vertices, or none (below).
+        let draw = fb.init(
+            "features.draw",
+            bytemuck::cast_slice(&[passes.vertices, 1, 0, 0]),
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+            true,
+        );
         // The nearest key (8 bytes a pixel), then the tail's count; the two farthest keys (16),
         // then the tail's sums; the colour sums (16), then the image. No buffer above 16 bytes
         // a pixel, so a 4K frame fits 128 MiB bindings.
@@ -27,22 +36,56 @@ impl Recording<'_, '_> {
         let sums = fb.storage("features.color_sums", 16 * px, true)?;
         let totals = fb.storage("features.totals", 24, true)?;
         let importance = fb.storage("oit.importance", 4 * px, true)?;
-        passes.draw(
-            enc,
-            if gpu.features_preload {
+        if gpu.features_count_first {
+            // Count, totals, and the features only where the budget truncates: when it holds
+            // every fragment, k = n whatever the importance, and the draw has no vertex.
+            passes.draw(enc, &p.count, &[&counts], "count");
+            let sum = gpu.bind(
+                &p.totals.get_bind_group_layout(0),
+                &[passes.params(), &counts, &totals],
+            );
+            let args = gpu.bind_at(
+                &p.features_draw.get_bind_group_layout(0),
+                &[(0, passes.params()), (2, &totals), (3, &draw)],
+            );
+            passes.compute(enc, "totals", |pass| {
+                pass.set_pipeline(&p.totals);
+                pass.set_bind_group(0, &sum, &[]);
+                let (gx, gy) = grid(px as u32, PIXEL_GROUP);
+                pass.dispatch_workgroups(gx, gy, 1);
+                pass.set_pipeline(&p.features_draw);
+                pass.set_bind_group(0, &args, &[]);
+                pass.dispatch_workgroups(1, 1, 1);
+            });
+            let features = if gpu.features_preload {
                 &p.features
             } else {
                 &p.features_no_preload
-            },
-            &[&counts, &nearest, &farthest, &sums],
-            "features",
-        );
-        passes.dispatch(
-            enc,
-            &p.totals,
-            &[passes.params(), &counts, &totals],
-            "totals",
-        );
+            };
+            // The count is bound, not written (COUNT_FRAGMENTS is false).
+            passes.draw_indirect(
+                enc,
+                features,
+                &[&nearest, &farthest, &sums, &counts],
+                "features",
+                &draw,
+            );
+        } else {
+            // One pass counts and gathers the features, always (the bench's comparison).
+            passes.draw_indirect(
+                enc,
+                &p.features_counting,
+                &[&nearest, &farthest, &sums, &counts],
+                "features",
+                &draw,
+            );
+            passes.dispatch(
+                enc,
+                &p.totals,
+                &[passes.params(), &counts, &totals],
+                "totals",
+            );
+        }
         // The pixels the network decides, listed in the allocation's marks buffer (dead until
         // the allocation), their count and the network's indirect dispatch.
         let list = fb.storage("alloc.flags", 4 * px, true)?;
@@ -110,6 +153,7 @@ impl Recording<'_, '_> {
                 copy(&farthest, "features.farthest.readback", 16)?,
                 copy(&sums, "features.color_sums.readback", 16)?,
             ]);
+            self.out.features_draw_buf = Some(draw.clone());
         }
         Ok(Importance {
             counts,

@@ -97,6 +97,13 @@ pub struct Gpu {
     /// 8.6 / 3.2 without: particles, plates, shells, foliage, glass). The bench measures both;
     /// the features are the same.
     pub features_preload: bool,
+    /// Whether DKB counts its fragments in a pass of its own first, and draws its features
+    /// pass only when the budget truncates the frame (an indirect draw the device sets from the
+    /// count: when the budget holds every fragment, k = n whatever the importance, and the
+    /// frame costs about a count pass instead of the features pass), rather than counting in the
+    /// features pass and drawing it always (one geometry pass fewer where the budget
+    /// truncates). On by default; the bench measures both. The images are the same.
+    pub features_count_first: bool,
     /// Whether FKB lays its slots out layer-major (slot i of every pixel together, so the
     /// fragments of neighbouring pixels touch neighbouring words) rather than pixel-major
     /// (off by default; the bench measures both). The images are the same.
@@ -236,6 +243,7 @@ impl Gpu {
             shared_weights: false,
             unrolled_network: true,
             features_preload: true,
+            features_count_first: true,
             layer_major_fkb: false,
             diagnostics: true,
             bounded_loops: info.name.contains("llvmpipe") || info.driver.contains("llvmpipe"),
@@ -333,8 +341,11 @@ pub struct GpuFrame {
     /// VKB and DKB: the importance the GPU computed (uploaded importance: after allocation's
     /// fixed-point conversion is not returned).
     pub importance: Option<Vec<f32>>,
-    /// DKB: the features pass's per-pixel statistics.
+    /// DKB: the features pass's per-pixel statistics, where it drew.
     pub stats: Option<Vec<PixelStats>>,
+    /// DKB: whether its features pass drew the frame's triangles; the device decides, from the
+    /// count: not when the budget holds every fragment (k = n whatever the importance).
+    pub features_drawn: Option<bool>,
     /// VKB: per pixel the count and the nearest fragment's `|n . e|`.
     pub vkb_nearest: Option<(Vec<u32>, Vec<f32>)>,
 }
@@ -469,10 +480,20 @@ impl Gpu {
             .collect();
         let readback_ms = readback.elapsed().as_secs_f64() * 1e3;
         let pass_ms = timer.read(self)?;
-        let (importance, stats, vkb_nearest) = if self.diagnostics {
+        let Statistics {
+            importance,
+            stats,
+            features_drawn,
+            vkb_nearest,
+        } = if self.diagnostics {
             out.statistics(self, px)?
         } else {
-            (None, None, None)
+            Statistics {
+                importance: None,
+                stats: None,
+                features_drawn: None,
+                vkb_nearest: None,
+            }
         };
         scopes.end()?;
         Ok(GpuFrame {
@@ -488,6 +509,7 @@ impl Gpu {
             slots: rec.out.slots,
             importance,
             stats,
+            features_drawn,
             vkb_nearest,
         })
     }

@@ -39,6 +39,30 @@ impl<'a> Passes<'a> {
         buffers: &[&wgpu::Buffer],
         name: &'static str,
     ) {
+        self.geometry_pass(enc, pipeline, buffers, name, None);
+    }
+
+    /// [`Passes::draw`] with its vertex count (all of the frame's, or none) read from `args`
+    /// (four words: vertices, instances, first vertex, first instance) on the device.
+    pub(super) fn draw_indirect(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::RenderPipeline,
+        buffers: &[&wgpu::Buffer],
+        name: &'static str,
+        args: &wgpu::Buffer,
+    ) {
+        self.geometry_pass(enc, pipeline, buffers, name, Some(args));
+    }
+
+    fn geometry_pass(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::RenderPipeline,
+        buffers: &[&wgpu::Buffer],
+        name: &'static str,
+        indirect: Option<&wgpu::Buffer>,
+    ) {
         let g0 = self
             .gpu
             .bind(&pipeline.get_bind_group_layout(0), &self.geometry);
@@ -67,7 +91,10 @@ impl<'a> Passes<'a> {
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &g0, &[]);
         pass.set_bind_group(1, &g1, &[]);
-        pass.draw(0..self.vertices, 0..1);
+        match indirect {
+            Some(args) => pass.draw_indirect(args, 0),
+            None => pass.draw(0..self.vertices, 0..1),
+        }
     }
 
     /// A timed compute pass `record` fills (several dispatches, one timestamp pair).

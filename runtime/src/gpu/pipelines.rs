@@ -17,7 +17,11 @@ pub(super) struct Pipelines {
     pub(super) features: wgpu::RenderPipeline,
     /// The features pass without the nearest key's load first (PRELOAD_NEAREST false).
     pub(super) features_no_preload: wgpu::RenderPipeline,
+    /// The features pass that counts the fragments too (COUNT_FRAGMENTS; no count pass first).
+    pub(super) features_counting: wgpu::RenderPipeline,
     pub(super) totals: wgpu::ComputePipeline,
+    /// DKB's features pass's indirect draw: no vertex when the budget holds every fragment.
+    pub(super) features_draw: wgpu::ComputePipeline,
     /// The network's passes (DKB importance, predict), built for one network shape, precision
     /// and SKIP_FORCED each ([`Variant`]): the default network's at f32 at start-up, the others
     /// when first asked for ([`Gpu::network_pass`]).
@@ -353,13 +357,11 @@ impl Pipelines {
             })
         };
         let geometry = |name: &str| geometry_from(name, module(device, name));
-        let mut no_preload = shaders::source("features").expect("known pass");
-        redeclare(
-            &mut no_preload,
-            "features",
-            "const PRELOAD_NEAREST: bool = true;",
-            "const PRELOAD_NEAREST: bool = false;",
-        );
+        let features_with = |label: &str, from: &str, to: &str| {
+            let mut src = shaders::source("features").expect("known pass");
+            redeclare(&mut src, "features", from, to);
+            geometry_from("features", module_from(device, label, src))
+        };
         let compute_entry =
             |name: &str, entry: &str| compute_pipeline(device, name, &module(device, name), entry);
         let compute = |name: &str| compute_entry(name, "main");
@@ -376,11 +378,18 @@ impl Pipelines {
             mlab_resolve: compute("mlab_resolve"),
             allocate: Allocate::new(device),
             features: geometry("features"),
-            features_no_preload: geometry_from(
-                "features",
-                module_from(device, "features (no preload)", no_preload),
+            features_no_preload: features_with(
+                "features (no preload)",
+                "const PRELOAD_NEAREST: bool = true;",
+                "const PRELOAD_NEAREST: bool = false;",
+            ),
+            features_counting: features_with(
+                "features (counting)",
+                "const COUNT_FRAGMENTS: bool = false;",
+                "const COUNT_FRAGMENTS: bool = true;",
             ),
             totals: compute("totals"),
+            features_draw: compute_entry("totals", "features_draw"),
             variants: std::sync::Mutex::new(
                 [
                     ("importance_dkb", "select_pixels"),
