@@ -8,7 +8,7 @@
 //
 // The frame counts its fragments first (abuffer_count.wgsl) and draws this pass indirectly
 // (totals.wgsl's features_draw): with no vertex when the budget holds every fragment, since then
-// k = n whatever the network says (gpu::Gpu::features_count_first). Built with COUNT_FRAGMENTS,
+// k = n whatever the network says (gpu::DkbGeometry). Built with COUNT_FRAGMENTS,
 // the pass counts too and runs always (no count pass first; the bench's comparison).
 //
 // Two atomic adds a fragment, and atomicMax only where it can change a key: the colour sums

@@ -176,7 +176,7 @@ fn write_report(report: serde_json::Value, out: Option<&std::path::Path>) -> Res
 /// warm-up frames for 0.25 s, then the medians of `repeat` steady-state frames (buffers reused,
 /// the image read back); an error entry when no suitable adapter exists.
 fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) -> serde_json::Value {
-    use dhoit_runtime::gpu::{Gpu, Slots};
+    use dhoit_runtime::gpu::{DkbGeometry, Gpu, Slots};
     let mut gpu = match Gpu::new() {
         Ok(mut g) => {
             // Steady-state frames read back their image only.
@@ -251,6 +251,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     ("dkb_shared_weights", Method::Dkb, &cpu[4]),
                     ("dkb_array_network", Method::Dkb, &cpu[4]),
                     ("dkb_features_no_preload", Method::Dkb, &cpu[4]),
+                    ("dkb_count_first", Method::Dkb, &cpu[4]),
                     ("dkb_counting_features", Method::Dkb, &cpu[4]),
                     ("fkb_layer_major", Method::Fkb, &cpu[1]),
                     ("dkb_16-8", Method::Dkb, &cpu[4]),
@@ -265,7 +266,11 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 gpu.shared_weights = label == "dkb_shared_weights";
                 gpu.unrolled_network = label != "dkb_array_network";
                 gpu.features_preload = label != "dkb_features_no_preload";
-                gpu.features_count_first = label != "dkb_counting_features";
+                gpu.dkb_geometry = match label {
+                    "dkb_count_first" => DkbGeometry::CountFirst,
+                    "dkb_counting_features" => DkbGeometry::Counting,
+                    _ => DkbGeometry::FollowLastFrame,
+                };
                 gpu.layer_major_fkb = label == "fkb_layer_major";
                 // One cold frame (its buffers are created), then `repeat` steady-state frames
                 // that reuse them and read back only the image: medians of those.
@@ -339,7 +344,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             gpu.shared_weights = false;
             gpu.unrolled_network = true;
             gpu.features_preload = true;
-            gpu.features_count_first = true;
+            gpu.dkb_geometry = DkbGeometry::FollowLastFrame;
             gpu.layer_major_fkb = false;
             let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
             let ratio = ms("dkb") / ms("vkb");
@@ -364,7 +369,10 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 let count = pass(m, "count");
                 pass(m, "features") + if count.is_nan() { 0.0 } else { count }
             };
-            let (count_first, counting) = (geometry("dkb"), geometry("dkb_counting_features"));
+            let (count_first, counting) = (
+                geometry("dkb_count_first"),
+                geometry("dkb_counting_features"),
+            );
             let total = fl.fragment_count() as u64;
             let holds_all = match Slots::for_method(Method::Dkb, &cpu[4], &options)? {
                 Some(Slots::Dkb(_, f)) => f.of(total) >= total,
@@ -413,14 +421,15 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 features / count_ms,
             );
             eprintln!(
-                "GPU {name}: DKB count and features {count_first:.2} ms counting first ({}), {counting:.2} ms counting in the features pass; frame {:.2} / {:.2} ms",
+                "GPU {name}: DKB count and features {count_first:.2} ms counting first ({}), {counting:.2} ms counting in the features pass; frame {:.2} / {:.2} ms, {:.2} ms following the last frame",
                 if holds_all {
                     "the budget holds every fragment: no features drawn"
                 } else {
                     "the budget truncates: features drawn"
                 },
-                ms("dkb"),
+                ms("dkb_count_first"),
                 ms("dkb_counting_features"),
+                ms("dkb"),
             );
             eprintln!(
                 "GPU {name}: FKB capture and resolve {pixel_major:.2} ms pixel-major, {layer_major:.2} ms layer-major"
@@ -440,11 +449,12 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     "vkb_count_ms": count_ms, "over_vkb_count": features / count_ms,
                     "count_and_features_over_vkb_count": count_first / count_ms,
                 },
-                "features_count_first": {
+                "dkb_geometry": {
                     "budget_holds_every_fragment": holds_all,
-                    "geometry_ms": count_first, "geometry_ms_counting_features": counting,
-                    "frame_gpu_ms": ms("dkb"),
-                    "frame_gpu_ms_counting_features": ms("dkb_counting_features"),
+                    "geometry_ms_count_first": count_first, "geometry_ms_counting": counting,
+                    "frame_gpu_ms_count_first": ms("dkb_count_first"),
+                    "frame_gpu_ms_counting": ms("dkb_counting_features"),
+                    "frame_gpu_ms_following_last_frame": ms("dkb"),
                 },
                 "fkb_slot_layout": {"capture_resolve_ms_pixel_major": pixel_major, "capture_resolve_ms_layer_major": layer_major},
                 "two_mode_capture": {

@@ -255,39 +255,47 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
 
 /// The two ways the features pass may take a pixel's nearest key (`Gpu::features_preload`)
 /// gather the same statistics, the network written out for its shape (`Gpu::unrolled_network`)
-/// gives the importance of mlp.wgsl's loops, and counting first (`Gpu::features_count_first`)
-/// gives the frame of counting in the features pass: one frame per setting, at a budget that
-/// truncates and at one that holds every fragment, the same statistics as the CPU twin's where
-/// the features pass drew (always when it counts, else only where the budget truncates), the
-/// same importance and image bits.
+/// gives the importance of mlp.wgsl's loops, and counting first (`DkbGeometry::CountFirst`)
+/// gives the frame of counting in the features pass (`DkbGeometry::Counting`): one frame per
+/// setting, at a budget that truncates and at one that holds every fragment, the same
+/// statistics as the CPU twin's where the features pass drew (always when it counts, else only
+/// where the budget truncates), the same importance and image bits. Then a stream of frames
+/// following the last (`DkbGeometry::FollowLastFrame`, the default) counts first after a frame
+/// the budget held, in the features pass after one it truncated, with the same images.
 fn features_and_network_layouts_give_the_same_frame(
     g: &mut dhoit_runtime::gpu::Gpu,
     (s, cam): (&Scene, &Camera),
     (w, h): (u32, u32),
     mlp: &dhoit_runtime::mlp::Mlp,
 ) {
+    use dhoit_runtime::gpu::DkbGeometry;
     let gfl = g.render(s, cam, w, h, BG, None).unwrap().fragments.unwrap();
     let stats = importance::pixel_stats(&gfl);
     let total = gfl.fragment_count() as u64;
-    for f in [(3 * w * h / 2) as u64, total] {
+    let (truncates, holds_all) = ((3 * w * h / 2) as u64, total);
+    assert!(truncates < total);
+    let counted_first = |f: &dhoit_runtime::gpu::GpuFrame| f.pass_ms.iter().any(|p| p.0 == "count");
+    let mut images = std::collections::HashMap::new();
+    for f in [truncates, holds_all] {
         let holds = f >= total;
         let mut first: Option<dhoit_runtime::gpu::GpuFrame> = None;
-        for (preload, unrolled, count_first) in [
-            (true, true, true),
-            (false, true, true),
-            (true, false, true),
-            (false, false, true),
-            (true, true, false),
+        for (preload, unrolled, geometry) in [
+            (true, true, DkbGeometry::CountFirst),
+            (false, true, DkbGeometry::CountFirst),
+            (true, false, DkbGeometry::CountFirst),
+            (false, false, DkbGeometry::CountFirst),
+            (true, true, DkbGeometry::Counting),
         ] {
             g.features_preload = preload;
             g.unrolled_network = unrolled;
-            g.features_count_first = count_first;
+            g.dkb_geometry = geometry;
             let frame = g
                 .render(s, cam, w, h, BG, Some(Slots::Dkb(mlp, f.into())))
                 .unwrap();
-            let label = format!(
-                "F {f} of {total}: preload {preload}, unrolled {unrolled}, count first {count_first}"
-            );
+            let label =
+                format!("F {f} of {total}: preload {preload}, unrolled {unrolled}, {geometry:?}");
+            let count_first = geometry == DkbGeometry::CountFirst;
+            assert_eq!(counted_first(&frame), count_first, "{label}: count pass");
             let drawn = !(holds && count_first);
             assert_eq!(frame.features_drawn, Some(drawn), "{label}");
             if drawn {
@@ -312,13 +320,37 @@ fn features_and_network_layouts_give_the_same_frame(
                     "{label}: image differs"
                 );
             } else {
+                images.insert(f, image_bits(&frame.image));
                 first = Some(frame);
             }
         }
     }
     g.features_preload = true;
     g.unrolled_network = true;
-    g.features_count_first = true;
+    // The last frame above was held by its budget: the stream starts counting first.
+    g.dkb_geometry = DkbGeometry::FollowLastFrame;
+    for (i, (f, count_first)) in [
+        (holds_all, true),
+        (truncates, true),
+        (truncates, false),
+        (holds_all, false),
+        (holds_all, true),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let frame = g
+            .render(s, cam, w, h, BG, Some(Slots::Dkb(mlp, f.into())))
+            .unwrap();
+        let label = format!("following frame {i}, F {f} of {total}");
+        assert_eq!(counted_first(&frame), count_first, "{label}: count pass");
+        let drawn = !(f >= total && count_first);
+        assert_eq!(frame.features_drawn, Some(drawn), "{label}");
+        assert!(
+            image_bits(&frame.image) == images[&f],
+            "{label}: image differs"
+        );
+    }
 }
 
 /// FKB's slots laid out layer-major (`Gpu::layer_major_fkb`) hold the same keys and tails,
@@ -645,14 +677,18 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
         for f in budgets {
             let fpp = format!("{:.2}", f as f64 / pixels as f64);
             // DKB: the features pass against pixel_stats on the GPU's own fragments, where the
-            // device drew it: only where the budget truncates.
+            // device drew it: always where the budget truncates; where it holds every
+            // fragment, not after a count pass (the shared device follows its last DKB frame,
+            // which another test may have drawn: the layouts' test pins each way).
             let d = g
                 .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
                 .unwrap();
             let twin = importance::pixel_stats(&gfl);
             let holds = f >= total;
-            assert_eq!(d.features_drawn, Some(!holds), "{name} F {f} of {total}");
-            let stats = if holds {
+            let counted_first = d.pass_ms.iter().any(|p| p.0 == "count");
+            let drawn = !(holds && counted_first);
+            assert_eq!(d.features_drawn, Some(drawn), "{name} F {f} of {total}");
+            let stats = if !drawn {
                 assert!(d.stats.is_none(), "{name}: statistics of an undrawn pass");
                 twin
             } else {

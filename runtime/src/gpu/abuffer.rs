@@ -23,7 +23,7 @@ impl Recording<'_, '_> {
         passes.prefix_sum(enc, fb, &counts, &offsets)?;
         fb.submit(enc);
         // Exact memory: the pool holds what the count found.
-        let total = u32s(&read_back(gpu, &offsets, 4 * (px + 1))?)[px as usize] as u64;
+        let total = read_words(gpu, &[(&offsets, 4 * px)])?[0] as u64;
         let fragments = fb.storage("abuf.fragments", 16 * total, true)?;
         passes.draw(enc, &p.store, &[&offsets, &cursor, &fragments], "store");
         let (resolve, name) = if mlab {

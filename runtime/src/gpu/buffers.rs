@@ -151,6 +151,35 @@ pub(super) fn read_back(gpu: &Gpu, buffer: &wgpu::Buffer, bytes: u64) -> Result<
     Ok(data[..bytes as usize].to_vec())
 }
 
+/// Single words of device buffers (each a buffer and a byte offset, a multiple of 4), read in
+/// one copy and one map: a frame's sizes without reading back the buffers they end.
+pub(super) fn read_words(gpu: &Gpu, words: &[(&wgpu::Buffer, u64)]) -> Result<Vec<u32>> {
+    let size = 4 * words.len().max(1) as u64;
+    let key = format!("readback {size}");
+    let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
+    let staging = gpu.acquire(&key, size, usage, None);
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    for (i, (buffer, offset)) in words.iter().enumerate() {
+        enc.copy_buffer_to_buffer(buffer, *offset, &staging, 4 * i as u64, 4);
+    }
+    gpu.queue.submit([enc.finish()]);
+    let slice = staging.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |_| {});
+    gpu.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GpuError::Lost {
+            doing: "waiting for a submission",
+            message: e.to_string(),
+        })?;
+    let data = u32s(&slice.get_mapped_range().map_err(|e| GpuError::Lost {
+        doing: "reading back",
+        message: e.to_string(),
+    })?);
+    staging.unmap();
+    gpu.release(key, staging);
+    Ok(data[..words.len()].to_vec())
+}
+
 pub(super) fn u32s(bytes: &[u8]) -> Vec<u32> {
     bytes
         .chunks_exact(4)

@@ -11,6 +11,8 @@ pub(super) struct KBuffer {
     pub(super) k: wgpu::Buffer,
     pub(super) base: wgpu::Buffer,
     pub(super) slots: u64,
+    /// The frame's fragments, where it counted them (else 0).
+    pub(super) fragments: u64,
     pub(super) counts: wgpu::Buffer,
     pub(super) reuse: Option<Reuse>,
 }
@@ -28,6 +30,7 @@ impl Recording<'_, '_> {
                     k: fb.storage("fkb.unused_k", 16, true)?,
                     base: fb.storage("fkb.unused_offsets", 16, true)?,
                     slots: k.max(1) as u64 * px,
+                    fragments: 0,
                     counts: fb.storage("fkb.unused_counts", 16, true)?,
                     reuse: None,
                 })
@@ -52,6 +55,7 @@ impl Recording<'_, '_> {
                     k: k_of,
                     base,
                     slots: k.iter().map(|&x| x as u64).sum(),
+                    fragments: 0,
                     counts: fb.storage("oit.unused_counts", 16, true)?,
                     reuse: None,
                 })
@@ -66,7 +70,13 @@ impl Recording<'_, '_> {
             }
             Slots::Dkb(mlp, _) => {
                 let i = self.dkb_importance(mlp)?;
-                self.allocated(i, budget)
+                let kb = self.allocated(i, budget)?;
+                let truncated = budget.of(kb.fragments) < kb.fragments;
+                self.passes
+                    .gpu
+                    .last_dkb_truncated
+                    .store(truncated, std::sync::atomic::Ordering::Relaxed);
+                Ok(kb)
             }
             Slots::Mlab(_) => unreachable!("MLAB blends from the A-buffer"),
         }
@@ -102,12 +112,16 @@ impl Recording<'_, '_> {
         )?;
         passes.prefix_sum(enc, fb, &k, &base)?;
         fb.submit(enc);
-        let slots = u32s(&read_back(gpu, &base, 4 * (px + 1))?)[px as usize] as u64;
+        // The slots (the bases' last entry) and the frame's fragments, without reading back
+        // the bases.
+        let words = read_words(gpu, &[(&base, 4 * px), (&i.totals, 0)])?;
+        let (slots, fragments) = (words[0] as u64, words[1] as u64);
         self.out.counts_buf = Some(i.counts.clone());
         Ok(KBuffer {
             k,
             base,
             slots,
+            fragments,
             counts: i.counts,
             reuse: i.reuse,
         })

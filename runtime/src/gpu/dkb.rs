@@ -1,7 +1,8 @@
 //! The deep k-buffer's importance: the count (`abuffer_count.wgsl`), `totals.wgsl`, then
 //! `features.wgsl` (geometry: nearest and two farthest keys, colour sums; twin
 //! `importance::pixel_stats`), drawn only when the budget truncates (`totals.wgsl`'s
-//! `features_draw` sets its indirect draw), then `importance_dkb.wgsl` (the 12 features, never
+//! `features_draw` sets its indirect draw; or counting in the features pass, drawn always:
+//! [`DkbGeometry`]), then `importance_dkb.wgsl` (the 12 features, never
 //! stored, through the network of `mlp.wgsl`, built for the network's shape and precision by
 //! [`Variant`]; twin `Mlp::dkb_importance`).
 
@@ -36,7 +37,14 @@ impl Recording<'_, '_> {
         let sums = fb.storage("features.color_sums", 16 * px, true)?;
         let totals = fb.storage("features.totals", 24, true)?;
         let importance = fb.storage("oit.importance", 4 * px, true)?;
-        if gpu.features_count_first {
+        let count_first = match gpu.dkb_geometry {
+            DkbGeometry::CountFirst => true,
+            DkbGeometry::Counting => false,
+            DkbGeometry::FollowLastFrame => !gpu
+                .last_dkb_truncated
+                .load(std::sync::atomic::Ordering::Relaxed),
+        };
+        if count_first {
             // Count, totals, and the features only where the budget truncates: when it holds
             // every fragment, k = n whatever the importance, and the draw has no vertex.
             passes.draw(enc, &p.count, &[&counts], "count");

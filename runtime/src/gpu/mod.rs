@@ -97,13 +97,12 @@ pub struct Gpu {
     /// 8.6 / 3.2 without: particles, plates, shells, foliage, glass). The bench measures both;
     /// the features are the same.
     pub features_preload: bool,
-    /// Whether DKB counts its fragments in a pass of its own first, and draws its features
-    /// pass only when the budget truncates the frame (an indirect draw the device sets from the
-    /// count: when the budget holds every fragment, k = n whatever the importance, and the
-    /// frame costs about a count pass instead of the features pass), rather than counting in the
-    /// features pass and drawing it always (one geometry pass fewer where the budget
-    /// truncates). On by default; the bench measures both. The images are the same.
-    pub features_count_first: bool,
+    /// How DKB counts its fragments and gathers its features ([`DkbGeometry`]; the images are
+    /// the same).
+    pub dkb_geometry: DkbGeometry,
+    /// Whether the last DKB frame's budget truncated it (what [`DkbGeometry::FollowLastFrame`]
+    /// goes by).
+    last_dkb_truncated: std::sync::atomic::AtomicBool,
     /// Whether FKB lays its slots out layer-major (slot i of every pixel together, so the
     /// fragments of neighbouring pixels touch neighbouring words) rather than pixel-major
     /// (off by default; the bench measures both). The images are the same.
@@ -243,7 +242,8 @@ impl Gpu {
             shared_weights: false,
             unrolled_network: true,
             features_preload: true,
-            features_count_first: true,
+            dkb_geometry: DkbGeometry::FollowLastFrame,
+            last_dkb_truncated: false.into(),
             layer_major_fkb: false,
             diagnostics: true,
             bounded_loops: info.name.contains("llvmpipe") || info.driver.contains("llvmpipe"),
@@ -252,6 +252,23 @@ impl Gpu {
             created: Default::default(),
         })
     }
+}
+
+/// How DKB's frame counts its fragments and gathers its features (count, nearest and farthest
+/// keys, colour sums). Where the budget holds every fragment, k = n whatever the importance,
+/// and the features are not needed; where it truncates, they are. The images are the same.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DkbGeometry {
+    /// A count pass first, then the features pass drawn only where the budget truncates (an
+    /// indirect draw the device sets from the count): about a count pass where the budget holds
+    /// every fragment, one geometry pass more than [`DkbGeometry::Counting`] where it truncates.
+    CountFirst,
+    /// The features pass counts too, drawn always: no count pass.
+    Counting,
+    /// [`DkbGeometry::CountFirst`], unless the renderer's last DKB frame was truncated by its
+    /// budget, then [`DkbGeometry::Counting`] (a stream of like frames takes the cheaper one;
+    /// the first frame counts first). The default.
+    FollowLastFrame,
 }
 
 /// How the k-buffer gets its k.
