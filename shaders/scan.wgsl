@@ -4,52 +4,92 @@
 //   scan_sums:   one workgroup scans the block totals in place, SCAN_BLOCK at a time;
 //   scan_add:    each value gets its block's offset; the last entry gets the total.
 // offsets[p] = sum of values[q] for q < p, offsets[pixels] = the total.
+//
+// A workgroup's SCAN_GROUP invocations take SCAN_ITEMS consecutive values each: a running sum
+// over its own values, then a Hillis-Steele scan over the invocations' sums, so a block of
+// SCAN_BLOCK values costs the workgroup barriers of SCAN_GROUP (each barrier costs a CPU
+// device such as lavapipe a switch of every invocation). Values move between the device's
+// memory and the workgroup's in strides of SCAN_GROUP (neighbouring invocations, neighbouring
+// words), and the workgroup's copy is padded one word every 32 so an invocation's run of
+// SCAN_ITEMS does not fall in one memory bank with its neighbours'.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> values: array<u32>;
 @group(0) @binding(2) var<storage, read_write> offsets: array<u32>;
 @group(0) @binding(3) var<storage, read_write> blocks: array<u32>;
 
-var<workgroup> block: array<u32, SCAN_BLOCK>;
+const SCAN_ITEMS: u32 = SCAN_BLOCK / SCAN_GROUP;
+
+var<workgroup> items: array<u32, SCAN_BLOCK + SCAN_BLOCK / 32u>;
+var<workgroup> sums: array<u32, SCAN_GROUP>;
 var<workgroup> carry: u32;
 
-// Inclusive Hillis-Steele scan of `block`; every invocation of the workgroup calls it.
-fn scan_block(lid: u32) {
-    for (var s = 1u; s < SCAN_BLOCK; s = s << 1u) {
-        var add = 0u;
-        if (lid >= s) {
-            add = block[lid - s];
-        }
-        workgroupBarrier();
-        block[lid] = block[lid] + add;
-        workgroupBarrier();
-    }
+// Where value i of the block lies in `items`.
+fn at(i: u32) -> u32 {
+    return i + (i >> 5u);
 }
 
-@compute @workgroup_size(SCAN_BLOCK)
+// Exclusive scan of the block in `items`, in place; returns the block's total. Every
+// invocation of the workgroup calls it, after the block is stored and a barrier.
+fn scan_items(lid: u32) -> u32 {
+    let first = lid * SCAN_ITEMS;
+    var own = 0u;
+    for (var j = 0u; j < SCAN_ITEMS; j++) {
+        let v = items[at(first + j)];
+        items[at(first + j)] = own;
+        own += v;
+    }
+    sums[lid] = own;
+    workgroupBarrier();
+    // Inclusive Hillis-Steele scan of the invocations' sums.
+    for (var s = 1u; s < SCAN_GROUP; s = s << 1u) {
+        var add = 0u;
+        if (lid >= s) {
+            add = sums[lid - s];
+        }
+        workgroupBarrier();
+        sums[lid] = sums[lid] + add;
+        workgroupBarrier();
+    }
+    let before = sums[lid] - own;
+    for (var j = 0u; j < SCAN_ITEMS; j++) {
+        items[at(first + j)] += before;
+    }
+    let total = sums[SCAN_GROUP - 1u];
+    workgroupBarrier();
+    return total;
+}
+
+@compute @workgroup_size(SCAN_GROUP)
 fn scan_blocks(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
     let b = wid.y * nwg.x + wid.x;
-    let i = grid_index(wid, nwg, lid, SCAN_BLOCK);
-    var v = 0u;
-    if (i < params.pixels) {
-        v = values[i];
+    let first = b * SCAN_BLOCK;
+    for (var j = 0u; j < SCAN_ITEMS; j++) {
+        let i = first + j * SCAN_GROUP + lid;
+        var v = 0u;
+        if (i < params.pixels) {
+            v = values[i];
+        }
+        items[at(j * SCAN_GROUP + lid)] = v;
     }
-    block[lid] = v;
     workgroupBarrier();
-    scan_block(lid);
-    if (i < params.pixels) {
-        offsets[i] = block[lid] - v;
+    let total = scan_items(lid);
+    for (var j = 0u; j < SCAN_ITEMS; j++) {
+        let i = first + j * SCAN_GROUP + lid;
+        if (i < params.pixels) {
+            offsets[i] = items[at(j * SCAN_GROUP + lid)];
+        }
     }
-    if (lid == SCAN_BLOCK - 1u && b < (params.pixels + SCAN_BLOCK - 1u) / SCAN_BLOCK) {
-        blocks[b] = block[SCAN_BLOCK - 1u];
+    if (lid == 0u && b < (params.pixels + SCAN_BLOCK - 1u) / SCAN_BLOCK) {
+        blocks[b] = total;
     }
 }
 
-@compute @workgroup_size(SCAN_BLOCK)
+@compute @workgroup_size(SCAN_GROUP)
 fn scan_sums(@builtin(local_invocation_index) lid: u32) {
     let n = (params.pixels + SCAN_BLOCK - 1u) / SCAN_BLOCK;
     if (lid == 0u) {
@@ -57,21 +97,26 @@ fn scan_sums(@builtin(local_invocation_index) lid: u32) {
     }
     workgroupBarrier();
     for (var base = 0u; base < n; base += SCAN_BLOCK) {
-        let i = base + lid;
-        var v = 0u;
-        if (i < n) {
-            v = blocks[i];
+        for (var j = 0u; j < SCAN_ITEMS; j++) {
+            let i = base + j * SCAN_GROUP + lid;
+            var v = 0u;
+            if (i < n) {
+                v = blocks[i];
+            }
+            items[at(j * SCAN_GROUP + lid)] = v;
         }
-        block[lid] = v;
         workgroupBarrier();
-        scan_block(lid);
+        let total = scan_items(lid);
         let c = carry;
-        if (i < n) {
-            blocks[i] = c + block[lid] - v;
+        for (var j = 0u; j < SCAN_ITEMS; j++) {
+            let i = base + j * SCAN_GROUP + lid;
+            if (i < n) {
+                blocks[i] = c + items[at(j * SCAN_GROUP + lid)];
+            }
         }
         workgroupBarrier();
-        if (lid == SCAN_BLOCK - 1u) {
-            carry = c + block[SCAN_BLOCK - 1u];
+        if (lid == 0u) {
+            carry = c + total;
         }
         workgroupBarrier();
     }
@@ -80,14 +125,19 @@ fn scan_sums(@builtin(local_invocation_index) lid: u32) {
     }
 }
 
-@compute @workgroup_size(SCAN_BLOCK)
+@compute @workgroup_size(SCAN_GROUP)
 fn scan_add(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let i = grid_index(wid, nwg, lid, SCAN_BLOCK);
-    if (i < params.pixels) {
-        offsets[i] = offsets[i] + blocks[wid.y * nwg.x + wid.x];
+    let b = wid.y * nwg.x + wid.x;
+    let first = b * SCAN_BLOCK;
+    let add = blocks[min(b, arrayLength(&blocks) - 1u)];
+    for (var j = 0u; j < SCAN_ITEMS; j++) {
+        let i = first + j * SCAN_GROUP + lid;
+        if (i < params.pixels) {
+            offsets[i] = offsets[i] + add;
+        }
     }
 }

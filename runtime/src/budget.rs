@@ -21,8 +21,11 @@ pub const SLOT_BYTES: u64 = 8;
 /// default network's 9,985 weights as the uniform lays them out (9,988, `mlp::MAX_PARAMETERS`),
 /// in vec4s (`mlp.wgsl` declares `MLP_VEC4S` of them, from this).
 pub const MLP_UNIFORM_BYTES: u64 = (4u64 + 24 + crate::mlp::MAX_PARAMETERS as u64).div_ceil(4) * 16;
-/// Pixels per workgroup of the prefix sum; one u32 of block totals per block.
-pub const SCAN_BLOCK: u64 = 256;
+/// Pixels per workgroup of the prefix sum (its [`SCAN_GROUP`] invocations take
+/// `SCAN_BLOCK / SCAN_GROUP` each); one u32 of block totals per block.
+pub const SCAN_BLOCK: u64 = 2048;
+/// Invocations per workgroup of the prefix sum.
+pub const SCAN_GROUP: u64 = 256;
 /// Bytes of the per-frame parameter uniform (resolution, budget, background, totals).
 pub const PARAMS_BYTES: u64 = 256;
 

@@ -130,6 +130,7 @@ pub mod shaders {
             ("AMBIENT", F32(raster::AMBIENT)),
             ("PIXEL_GROUP", U32(PIXEL_GROUP)),
             ("SCAN_BLOCK", U32(budget::SCAN_BLOCK as u32)),
+            ("SCAN_GROUP", U32(budget::SCAN_GROUP as u32)),
             ("ALLOC_GROUP", U32(ALLOC_GROUP)),
             ("ALLOC_CANDIDATES", U32(ALLOC_CANDIDATES)),
             ("SEARCH_PIXELS", U32(SEARCH_PIXELS)),

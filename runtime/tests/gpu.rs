@@ -799,8 +799,10 @@ fn check_allocation_and_capture(
 #[test]
 fn the_prefix_sum_is_exact_over_millions_of_pixels() {
     let Some(g) = gpu() else { return };
-    // 1700x1700 = 2.89 M pixels: past what one workgroup could loop over on lavapipe.
-    let (w, h) = (1700u32, 1700u32);
+    // 2100x2100 = 4.41 M pixels: past what one workgroup could loop over on lavapipe, and
+    // more blocks (2,154 of 2,048 pixels) than the block totals' scan takes at once, so it
+    // carries between rounds.
+    let (w, h) = (2100u32, 2100u32);
     let (s, cam) = frame("shells", 0, 64, 64);
     let k: Vec<u32> = (0..w * h)
         .map(|p| (p % 5 == 0) as u32 + (p % 7 == 0) as u32)

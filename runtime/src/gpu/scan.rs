@@ -6,7 +6,7 @@ use super::*;
 
 impl<'a> Passes<'a> {
     /// Exclusive prefix sum of `values` into `offsets` (pixels + 1 entries): three dispatches
-    /// with a block-total buffer of one u32 per 256 pixels.
+    /// with a block-total buffer of one u32 per [`budget::SCAN_BLOCK`] pixels.
     pub(super) fn prefix_sum(
         &self,
         enc: &mut wgpu::CommandEncoder,
