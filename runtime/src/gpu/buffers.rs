@@ -123,6 +123,17 @@ impl Drop for FrameBuffers<'_> {
 }
 
 pub(super) fn read_back(gpu: &Gpu, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>> {
+    read_back_with(gpu, buffer, bytes, <[u8]>::to_vec)
+}
+
+/// The first `bytes` of `buffer`, as `read` makes of them straight from the mapped staging
+/// buffer (no copy of the bytes first: a frame's image is read in one pass).
+pub(super) fn read_back_with<T>(
+    gpu: &Gpu,
+    buffer: &wgpu::Buffer,
+    bytes: u64,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T> {
     let size = bytes.max(4).next_multiple_of(4);
     // Staging buffers are pooled by size (the image's is the same every frame).
     let key = format!("readback {size}");
@@ -139,16 +150,16 @@ pub(super) fn read_back(gpu: &Gpu, buffer: &wgpu::Buffer, bytes: u64) -> Result<
             doing: "waiting for a submission",
             message: e.to_string(),
         })?;
-    let data = slice
-        .get_mapped_range()
-        .map_err(|e| GpuError::Lost {
+    let data = {
+        let mapped = slice.get_mapped_range().map_err(|e| GpuError::Lost {
             doing: "reading back",
             message: e.to_string(),
-        })?
-        .to_vec();
+        })?;
+        read(&mapped[..bytes as usize])
+    };
     staging.unmap();
     gpu.release(key, staging);
-    Ok(data[..bytes as usize].to_vec())
+    Ok(data)
 }
 
 /// Single words of device buffers (each a buffer and a byte offset, a multiple of 4), read in

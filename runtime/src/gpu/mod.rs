@@ -484,17 +484,14 @@ impl Gpu {
                 message: e.to_string(),
             })?;
         let readback = std::time::Instant::now();
-        let img = u32s(&read_back(self, &image, 16 * px)?);
-        let data = img
-            .chunks_exact(4)
-            .map(|c| {
-                [
-                    f32::from_bits(c[0]),
-                    f32::from_bits(c[1]),
-                    f32::from_bits(c[2]),
-                ]
-            })
-            .collect();
+        // RGBA f32 a pixel, straight from the mapped buffer into the image.
+        let data = read_back_with(self, &image, 16 * px, |bytes| {
+            let f = |c: &[u8]| f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+            bytes
+                .chunks_exact(16)
+                .map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12])])
+                .collect()
+        })?;
         let readback_ms = readback.elapsed().as_secs_f64() * 1e3;
         let pass_ms = timer.read(self)?;
         let Statistics {
