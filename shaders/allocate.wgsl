@@ -15,7 +15,7 @@
 //            workgroup sums, then one 64-bit atomic per candidate and workgroup)
 //   choose:  the largest candidate whose total fits becomes a; span /= 16 (11 rounds: 2^44 = 16^11)
 //            (when every fragment fits, setup sets the state the rounds would end in, and
-//            they return at once)
+//            they run no workgroup: an indirect dispatch setup empties)
 //   mark:    flags[p] = 1 where k rises at a + 1 (then prefix-summed by the scan)
 //   apply:   k = k(a) + 1 for the first (target - total(a)) marked pixels
 
@@ -42,6 +42,11 @@ struct Alloc {
 @group(0) @binding(6) var<storage, read_write> flags: array<u32>;
 // fragments, covered, max count (totals.wgsl).
 @group(0) @binding(7) var<storage, read> totals: array<u32>;
+// The search rounds' indirect dispatch (workgroups x, y, z; the host writes the frame's grid):
+// setup zeroes x when every fragment fits, and the rounds run no workgroup. Bound to the
+// state in every dispatch but setup's (a buffer read as a dispatch's arguments is not bound
+// writable in that dispatch).
+@group(0) @binding(8) var<storage, read_write> search_args: array<u32, 4>;
 
 
 var<workgroup> partial: array<atomic<u32>, ALLOC_CANDIDATES>;
@@ -131,7 +136,9 @@ fn setup() {
     if (f >= all) {
         // Every fragment fits: k = n everywhere, the top tier. The search would pick its last
         // candidate in every round (every total fits) and end at a = 2^44 - 1 with span 1 and
-        // the total there sum n; that state is set here, and the rounds return at once.
+        // the total there sum n; that state is set here, the rounds' search dispatches no
+        // workgroup and their choice returns at once.
+        search_args[0] = 0u;
         atomicStore(&state[1], (1lu << (4u * SEARCH_ROUNDS)) - 1lu);
         atomicStore(&state[2], 1lu);
         atomicStore(&state[4], all);

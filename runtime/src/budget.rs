@@ -53,6 +53,8 @@ const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
 /// interval, sums of 16 candidates).
 const ALLOC_PARAMS: (&str, u64) = ("alloc.params", 16);
 const ALLOC_STATE: (&str, u64) = ("alloc.state", 8 * crate::wgsl::ALLOC_STATE_WORDS as u64);
+/// The allocation search's indirect dispatch (empty when every fragment fits).
+const ALLOC_SEARCH_ARGS: (&str, u64) = ("alloc.search_args", 16);
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 
@@ -86,6 +88,7 @@ pub const DKB: Layout = Layout {
         OFFSETS_END,
         ALLOC_PARAMS,
         ALLOC_STATE,
+        ALLOC_SEARCH_ARGS,
     ],
     scan: true,
 };
@@ -133,6 +136,7 @@ pub const VKB: Layout = Layout {
         OFFSETS_END,
         ALLOC_PARAMS,
         ALLOC_STATE,
+        ALLOC_SEARCH_ARGS,
     ],
     scan: true,
 };

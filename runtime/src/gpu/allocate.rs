@@ -110,7 +110,15 @@ impl<'a> Passes<'a> {
             Some(f) => f.clone(),
             None => fb.storage("alloc.flags", 4 * self.pixels as u64, true)?,
         };
-        let bind = |marks: &wgpu::Buffer| {
+        // The search rounds' grid, which setup empties when every fragment fits.
+        let (sx, sy) = grid(self.pixels.div_ceil(SEARCH_PIXELS), ALLOC_GROUP);
+        let search_args = fb.init(
+            "alloc.search_args",
+            bytemuck::cast_slice(&[sx, sy, 1, 0]),
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+            true,
+        );
+        let bind = |marks: &wgpu::Buffer, args: &wgpu::Buffer| {
             gpu.bind_at(
                 &a.layout,
                 &[
@@ -122,21 +130,25 @@ impl<'a> Passes<'a> {
                     (5, &state),
                     (6, marks),
                     (7, b.totals),
+                    (8, args),
                 ],
             )
         };
         let (gx, gy) = grid(self.pixels, ALLOC_GROUP);
-        let group = bind(&flags);
+        // Setup writes the search's arguments; the dispatches that read them bind the state
+        // in their place.
+        let (setup_group, group) = (bind(&flags, &search_args), bind(&flags, &state));
         self.compute(enc, "allocation", |pass| {
             pass.set_bind_group(0, &group, &[]);
             pass.set_pipeline(&a.weights);
             pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_bind_group(0, &setup_group, &[]);
             pass.set_pipeline(&a.setup);
             pass.dispatch_workgroups(1, 1, 1);
-            let (sx, sy) = grid(self.pixels.div_ceil(SEARCH_PIXELS), ALLOC_GROUP);
+            pass.set_bind_group(0, &group, &[]);
             for _ in 0..SEARCH_ROUNDS {
                 pass.set_pipeline(&a.search);
-                pass.dispatch_workgroups(sx, sy, 1);
+                pass.dispatch_workgroups_indirect(&search_args, 0);
                 pass.set_pipeline(&a.choose);
                 pass.dispatch_workgroups(1, 1, 1);
             }
@@ -144,7 +156,7 @@ impl<'a> Passes<'a> {
             pass.dispatch_workgroups(gx, gy, 1);
         });
         self.prefix_sum(enc, fb, &flags, b.prefix)?;
-        let group = bind(b.prefix);
+        let group = bind(b.prefix, &state);
         self.compute(enc, "allocation apply", |pass| {
             pass.set_bind_group(0, &group, &[]);
             pass.set_pipeline(&a.apply);
@@ -280,6 +292,7 @@ impl Allocate {
                 entry(5, rw),
                 entry(6, rw),
                 entry(7, wgpu::BufferBindingType::Storage { read_only: true }),
+                entry(8, rw),
             ],
         });
         let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
