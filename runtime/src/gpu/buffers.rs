@@ -135,12 +135,39 @@ pub(super) fn read_back_with<T>(
     read: impl FnOnce(&[u8]) -> T,
 ) -> Result<T> {
     let size = bytes.max(4).next_multiple_of(4);
+    staged(
+        gpu,
+        size,
+        |enc, staging| enc.copy_buffer_to_buffer(buffer, 0, staging, 0, size),
+        |mapped| read(&mapped[..bytes as usize]),
+    )
+}
+
+/// Single words of device buffers (each a buffer and a byte offset, a multiple of 4), read in
+/// one copy and one map: a frame's sizes without reading back the buffers they end.
+pub(super) fn read_words(gpu: &Gpu, words: &[(&wgpu::Buffer, u64)]) -> Result<Vec<u32>> {
+    let size = 4 * words.len().max(1) as u64;
+    let copy = |enc: &mut wgpu::CommandEncoder, staging: &wgpu::Buffer| {
+        for (i, (buffer, offset)) in words.iter().enumerate() {
+            enc.copy_buffer_to_buffer(buffer, *offset, staging, 4 * i as u64, 4);
+        }
+    };
+    staged(gpu, size, copy, |mapped| u32s(&mapped[..4 * words.len()]))
+}
+
+/// A pooled staging buffer of `size` bytes that `copy` fills, mapped and given to `read`.
+fn staged<T>(
+    gpu: &Gpu,
+    size: u64,
+    copy: impl FnOnce(&mut wgpu::CommandEncoder, &wgpu::Buffer),
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T> {
     // Staging buffers are pooled by size (the image's is the same every frame).
     let key = format!("readback {size}");
     let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
     let staging = gpu.acquire(&key, size, usage, None);
     let mut enc = gpu.device.create_command_encoder(&Default::default());
-    enc.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+    copy(&mut enc, &staging);
     gpu.queue.submit([enc.finish()]);
     let slice = staging.slice(..);
     slice.map_async(wgpu::MapMode::Read, |_| {});
@@ -155,40 +182,11 @@ pub(super) fn read_back_with<T>(
             doing: "reading back",
             message: e.to_string(),
         })?;
-        read(&mapped[..bytes as usize])
+        read(&mapped)
     };
     staging.unmap();
     gpu.release(key, staging);
     Ok(data)
-}
-
-/// Single words of device buffers (each a buffer and a byte offset, a multiple of 4), read in
-/// one copy and one map: a frame's sizes without reading back the buffers they end.
-pub(super) fn read_words(gpu: &Gpu, words: &[(&wgpu::Buffer, u64)]) -> Result<Vec<u32>> {
-    let size = 4 * words.len().max(1) as u64;
-    let key = format!("readback {size}");
-    let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
-    let staging = gpu.acquire(&key, size, usage, None);
-    let mut enc = gpu.device.create_command_encoder(&Default::default());
-    for (i, (buffer, offset)) in words.iter().enumerate() {
-        enc.copy_buffer_to_buffer(buffer, *offset, &staging, 4 * i as u64, 4);
-    }
-    gpu.queue.submit([enc.finish()]);
-    let slice = staging.slice(..);
-    slice.map_async(wgpu::MapMode::Read, |_| {});
-    gpu.device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Lost {
-            doing: "waiting for a submission",
-            message: e.to_string(),
-        })?;
-    let data = u32s(&slice.get_mapped_range().map_err(|e| GpuError::Lost {
-        doing: "reading back",
-        message: e.to_string(),
-    })?);
-    staging.unmap();
-    gpu.release(key, staging);
-    Ok(data[..words.len()].to_vec())
 }
 
 pub(super) fn u32s(bytes: &[u8]) -> Vec<u32> {
