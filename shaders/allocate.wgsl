@@ -8,14 +8,14 @@
 // t = 2^26), cap the pixel's useful cap (all but its farthest fragment, or two for a pair);
 // then every pixel at its cap, at all but its farthest fragment, at n, in three more tiers. The allocation is the largest t whose total fits min(F, sum n), plus one slot each
 // for the first pixels (by index) whose k rises at t + 1, as many as are still missing.
-//   weights: importance -> fixed-point weight in place (the kind of alloc::Target)
 //   setup:   F (fixed, or floor(total ppm / 10^6) from the totals pass), target, lo, the search
-//            interval [a, a + 2^44)
+//            interval [a, a + 2^44); when every fragment fits, the state the rounds would end
+//            in, and no workgroup for the weights, the rounds, the marks and their prefix sum
+//            (indirect dispatches it empties): apply alone gives k = n
+//   weights: importance -> fixed-point weight in place (the kind of alloc::Target)
 //   search:  the totals at 16 candidates a + j span/16 (SEARCH_PIXELS pixels an invocation, then
 //            workgroup sums, then one 64-bit atomic per candidate and workgroup)
 //   choose:  the largest candidate whose total fits becomes a; span /= 16 (11 rounds: 2^44 = 16^11)
-//            (when every fragment fits, setup sets the state the rounds would end in, and
-//            they run no workgroup: an indirect dispatch setup empties)
 //   mark:    flags[p] = 1 where k rises at a + 1 (then prefix-summed by the scan)
 //   apply:   k = k(a) + 1 for the first (target - total(a)) marked pixels
 
@@ -42,11 +42,13 @@ struct Alloc {
 @group(0) @binding(6) var<storage, read_write> flags: array<u32>;
 // fragments, covered, max count (totals.wgsl).
 @group(0) @binding(7) var<storage, read> totals: array<u32>;
-// The search rounds' indirect dispatch (workgroups x, y, z; the host writes the frame's grid):
-// setup zeroes x when every fragment fits, and the rounds run no workgroup. Bound to the
-// state in every dispatch but setup's (a buffer read as a dispatch's arguments is not bound
-// writable in that dispatch).
-@group(0) @binding(8) var<storage, read_write> search_args: array<u32, 4>;
+// Three indirect dispatches (workgroups x, y, z, unused; the host writes the frame's grids):
+// the per-pixel weights and marks, the search rounds, and the marks' prefix sum over its
+// blocks. When every fragment fits, k = n whatever the weights and marks (apply places no
+// slot past k(a)), so setup zeroes the three x and none of them runs a workgroup. Bound to
+// the state in every dispatch but setup's (a buffer read as a dispatch's arguments is not
+// bound writable in that dispatch).
+@group(0) @binding(8) var<storage, read_write> dispatches: array<u32, 12>;
 
 
 var<workgroup> partial: array<atomic<u32>, ALLOC_CANDIDATES>;
@@ -136,9 +138,11 @@ fn setup() {
     if (f >= all) {
         // Every fragment fits: k = n everywhere, the top tier. The search would pick its last
         // candidate in every round (every total fits) and end at a = 2^44 - 1 with span 1 and
-        // the total there sum n; that state is set here, the rounds' search dispatches no
-        // workgroup and their choice returns at once.
-        search_args[0] = 0u;
+        // the total there sum n; that state is set here, the weights, the rounds' search, the
+        // marks and their prefix sum dispatch no workgroup, and the choice returns at once.
+        dispatches[0] = 0u;
+        dispatches[4] = 0u;
+        dispatches[8] = 0u;
         atomicStore(&state[1], (1lu << (4u * SEARCH_ROUNDS)) - 1lu);
         atomicStore(&state[2], 1lu);
         atomicStore(&state[4], all);

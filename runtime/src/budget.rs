@@ -53,8 +53,8 @@ const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
 /// interval, sums of 16 candidates).
 const ALLOC_PARAMS: (&str, u64) = ("alloc.params", 16);
 const ALLOC_STATE: (&str, u64) = ("alloc.state", 8 * crate::wgsl::ALLOC_STATE_WORDS as u64);
-/// The allocation search's indirect dispatch (empty when every fragment fits).
-const ALLOC_SEARCH_ARGS: (&str, u64) = ("alloc.search_args", 16);
+/// The allocation's three indirect dispatches (empty when every fragment fits).
+const ALLOC_DISPATCHES: (&str, u64) = ("alloc.dispatches", 48);
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 
@@ -88,7 +88,7 @@ pub const DKB: Layout = Layout {
         OFFSETS_END,
         ALLOC_PARAMS,
         ALLOC_STATE,
-        ALLOC_SEARCH_ARGS,
+        ALLOC_DISPATCHES,
     ],
     scan: true,
 };
@@ -136,7 +136,7 @@ pub const VKB: Layout = Layout {
         OFFSETS_END,
         ALLOC_PARAMS,
         ALLOC_STATE,
-        ALLOC_SEARCH_ARGS,
+        ALLOC_DISPATCHES,
     ],
     scan: true,
 };

@@ -110,14 +110,18 @@ impl<'a> Passes<'a> {
             Some(f) => f.clone(),
             None => fb.storage("alloc.flags", 4 * self.pixels as u64, true)?,
         };
-        // The search rounds' grid, which setup empties when every fragment fits.
+        // The grids of the per-pixel weights and marks, the search rounds and the marks'
+        // prefix sum, which setup empties when every fragment fits.
+        let (gx, gy) = grid(self.pixels, ALLOC_GROUP);
         let (sx, sy) = grid(self.pixels.div_ceil(SEARCH_PIXELS), ALLOC_GROUP);
-        let search_args = fb.init(
-            "alloc.search_args",
-            bytemuck::cast_slice(&[sx, sy, 1, 0]),
+        let (cx, cy) = grid(self.pixels, budget::SCAN_BLOCK as u32);
+        let dispatches = fb.init(
+            "alloc.dispatches",
+            bytemuck::cast_slice(&[gx, gy, 1, 0, sx, sy, 1, 0, cx, cy, 1, 0]),
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
             true,
         );
+        let (per_pixel, search, scan) = (0, 16, 32);
         let bind = |marks: &wgpu::Buffer, args: &wgpu::Buffer| {
             gpu.bind_at(
                 &a.layout,
@@ -134,29 +138,28 @@ impl<'a> Passes<'a> {
                 ],
             )
         };
-        let (gx, gy) = grid(self.pixels, ALLOC_GROUP);
-        // Setup writes the search's arguments; the dispatches that read them bind the state
+        // Setup writes the dispatches' arguments; the dispatches that read them bind the state
         // in their place.
-        let (setup_group, group) = (bind(&flags, &search_args), bind(&flags, &state));
+        let (setup_group, group) = (bind(&flags, &dispatches), bind(&flags, &state));
         self.compute(enc, "allocation", |pass| {
-            pass.set_bind_group(0, &group, &[]);
-            pass.set_pipeline(&a.weights);
-            pass.dispatch_workgroups(gx, gy, 1);
             pass.set_bind_group(0, &setup_group, &[]);
             pass.set_pipeline(&a.setup);
             pass.dispatch_workgroups(1, 1, 1);
             pass.set_bind_group(0, &group, &[]);
+            pass.set_pipeline(&a.weights);
+            pass.dispatch_workgroups_indirect(&dispatches, per_pixel);
             for _ in 0..SEARCH_ROUNDS {
                 pass.set_pipeline(&a.search);
-                pass.dispatch_workgroups_indirect(&search_args, 0);
+                pass.dispatch_workgroups_indirect(&dispatches, search);
                 pass.set_pipeline(&a.choose);
                 pass.dispatch_workgroups(1, 1, 1);
             }
             pass.set_pipeline(&a.mark);
-            pass.dispatch_workgroups(gx, gy, 1);
+            pass.dispatch_workgroups_indirect(&dispatches, per_pixel);
         });
-        self.prefix_sum(enc, fb, &flags, b.prefix)?;
+        self.prefix_sum_of(enc, fb, &flags, b.prefix, Some((&dispatches, scan)))?;
         let group = bind(b.prefix, &state);
+        let (gx, gy) = grid(self.pixels, ALLOC_GROUP);
         self.compute(enc, "allocation apply", |pass| {
             pass.set_bind_group(0, &group, &[]);
             pass.set_pipeline(&a.apply);

@@ -14,6 +14,20 @@ impl<'a> Passes<'a> {
         values: &wgpu::Buffer,
         offsets: &wgpu::Buffer,
     ) -> Result<()> {
+        self.prefix_sum_of(enc, fb, values, offsets, None)
+    }
+
+    /// [`Passes::prefix_sum`] with its per-block dispatches' grid read from `args` at an offset
+    /// (the device may empty it: then only the block totals' scan runs, over stale totals, and
+    /// `offsets` is left undefined).
+    pub(super) fn prefix_sum_of(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        fb: &mut FrameBuffers,
+        values: &wgpu::Buffer,
+        offsets: &wgpu::Buffer,
+        args: Option<(&wgpu::Buffer, u64)>,
+    ) -> Result<()> {
         let p = &self.gpu.pipelines;
         let px = self.pixels;
         let groups = px.div_ceil(budget::SCAN_BLOCK as u32);
@@ -32,15 +46,20 @@ impl<'a> Passes<'a> {
         };
         let (gx, gy) = grid(px, budget::SCAN_BLOCK as u32);
         self.compute(enc, "prefix sum", |pass| {
-            for (pl, n, all) in [
-                (&p.scan_blocks, (gx, gy), true),
-                (&p.scan_sums, (1, 1), false),
-                (&p.scan_add, (gx, gy), false),
+            // (pipeline, over every block, binds `values`)
+            for (pl, per_block, all) in [
+                (&p.scan_blocks, true, true),
+                (&p.scan_sums, false, false),
+                (&p.scan_add, true, false),
             ] {
                 let g = bind(pl, all);
                 pass.set_pipeline(pl);
                 pass.set_bind_group(0, &g, &[]);
-                pass.dispatch_workgroups(n.0, n.1, 1);
+                match (per_block, args) {
+                    (true, Some((args, at))) => pass.dispatch_workgroups_indirect(args, at),
+                    (true, None) => pass.dispatch_workgroups(gx, gy, 1),
+                    (false, _) => pass.dispatch_workgroups(1, 1, 1),
+                }
             }
         });
         Ok(())
