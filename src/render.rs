@@ -6,7 +6,7 @@ use clap::{Args, ValueEnum};
 use dhoit_runtime::budget::{Budget, format_bytes};
 use dhoit_runtime::dump;
 use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
-use dhoit_runtime::gpu::{Gpu, Slots};
+use dhoit_runtime::gpu::{DkbGeometry, Gpu, Slots};
 use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::Precision;
 use dhoit_runtime::scene::Camera;
@@ -80,11 +80,22 @@ pub fn run(a: RenderArgs) -> Result<()> {
             // The CPU only decides what the GPU cannot (F, and k for FKB, MLAB and the CPU-only
             // allocations); nothing is composited on the CPU.
             let cpu = renderer.allocate_for_gpu(method)?;
-            let gpu = Gpu::new()?;
+            let mut gpu = Gpu::new()?;
             eprintln!("GPU: {}", gpu.adapter);
             let (w, h) = (fl.width, fl.height);
             let cam = Camera::orbit(&scene, a.view, a.common.views, w, h);
             let slots = Slots::for_method(method, &cpu, &options)?;
+            // One frame on a new renderer, with no last frame to follow: DKB counts first only
+            // where the budget holds every fragment the CPU counted in this frame (the images
+            // are the same either way; only the passes differ).
+            if let Some(Slots::Dkb(_, f)) = slots {
+                let total = fl.fragment_count() as u64;
+                gpu.dkb_geometry = if f.of(total) >= total {
+                    DkbGeometry::CountFirst
+                } else {
+                    DkbGeometry::Counting
+                };
+            }
             let g = gpu.render(&scene, &cam, w, h, a.common.background, slots)?;
             let passes: Vec<String> = g
                 .pass_ms

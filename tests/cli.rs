@@ -380,6 +380,41 @@ fn the_gpu_renders_from_the_command_line() {
             (d.fragments.width, d.fragments.height, d.method.as_str()),
             (64, 48, method)
         );
+        if method == "dkb" {
+            // Its one frame counts first only where the budget holds every fragment (the CPU
+            // counted them): at 2 fpp plates truncates, at 100% nothing does.
+            let passes = |o: &std::process::Output| {
+                let out = String::from_utf8_lossy(&o.stdout).to_string();
+                let line = out.lines().find(|l| l.starts_with("GPU passes:")).unwrap();
+                line.split(", ").any(|p| p.contains(" count "))
+            };
+            assert!(d.fragments.fragment_count() > 2 * 64 * 48);
+            assert!(!passes(&o), "dkb counted first at a budget that truncates");
+            let all = dhoit(&[
+                "render",
+                "--scene",
+                "plates",
+                "--res",
+                "64x48",
+                "--method",
+                "dkb",
+                "--budget",
+                "100%",
+                "--device",
+                "gpu",
+                "--out",
+                dir.join("dkb-all.png").to_str().unwrap(),
+            ]);
+            assert!(
+                all.status.success(),
+                "{}",
+                String::from_utf8_lossy(&all.stderr)
+            );
+            assert!(
+                passes(&all),
+                "dkb drew its features where every fragment fits"
+            );
+        }
         assert!(
             d.image
                 .data
