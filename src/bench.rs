@@ -18,10 +18,12 @@ pub struct BenchArgs {
     /// Resolution WIDTHxHEIGHT.
     #[arg(long, default_value = "640x480")]
     res: Resolution,
-    /// Timed repetitions per measurement; the fastest is reported.
+    /// Timed repetitions per measurement: the fastest is reported on the CPU, the median of
+    /// the steady frames (after 0.25 s of warm-up) on the GPU.
     #[arg(long, default_value_t = 3)]
     repeat: usize,
-    /// Budget for the fixed k-buffer and MLAB measurements.
+    /// Budget of every bounded method (F of the k-buffers, MLAB's rows), as `render --budget`
+    /// takes it.
     #[arg(long, default_value = "2fpp")]
     budget: Budget,
     /// Also write the JSON here.

@@ -54,7 +54,10 @@ enum Command {
     Score(dhoit_train::cli::ScoreArgs),
     /// Export the 12 network features of one view's covered pixels (for predict).
     Features(features::FeaturesArgs),
-    /// Measure CPU rasterization, compositing, allocation and training throughput; prints JSON.
+    /// Measure every method's GPU frame (steady frames of a persistent renderer: GPU and wall
+    /// ms, each pass, DKB/VKB and DKB/A-buffer, and DKB's layout and geometry options side by
+    /// side), then CPU rasterization, compositing, allocation and training throughput; prints
+    /// JSON.
     Bench(bench::BenchArgs),
     /// The speed-accuracy trade: networks of several sizes (the default and those shipped in
     /// data/nets/) on scenes, importance-pass time against MSE and FLIP, the Pareto front
