@@ -2,9 +2,9 @@
 //! `features.wgsl` (geometry: nearest and two farthest keys, colour sums; twin
 //! `importance::pixel_stats`), drawn only when the budget truncates (`totals.wgsl`'s
 //! `features_draw` sets its indirect draw; or counting in the features pass, drawn always:
-//! [`DkbGeometry`]), then `importance_dkb.wgsl` (the 12 features, never
-//! stored, through the network of `mlp.wgsl`, built for the network's shape and precision by
-//! [`Variant`]; twin `Mlp::dkb_importance`).
+//! [`DkbGeometry`]), then `importance_dkb.wgsl` (the 12 features, never stored, through the
+//! network of `mlp.wgsl`, built for the network's shape and precision by [`Variant`]; twin
+//! `Mlp::dkb_importance`).
 
 use super::*;
 
@@ -79,7 +79,8 @@ impl Recording<'_, '_> {
                 &draw,
             );
         } else {
-            // One pass counts and gathers the features, always (the bench's comparison).
+            // One pass counts and gathers the features, drawn always: where the budget
+            // truncates (as the last frame's did), one geometry pass fewer.
             passes.draw_indirect(
                 enc,
                 &p.features_counting,
