@@ -81,6 +81,12 @@ fn budget_of(total: u32) -> u64 {
     return u64(params.budget_fragments);
 }
 
+// Whether the budget holds every one of a frame's `total` fragments (k = n then, whatever the
+// importance; budget::FragmentBudget::holds).
+fn holds_every_fragment(total: u32) -> bool {
+    return budget_of(total) >= u64(total);
+}
+
 // Where slot i of pixel p lies, its slots starting at `base`: pixel-major (a pixel's slots
 // together), or with FKB's layer-major layout (params.layer_major) slot i of every pixel
 // together, so neighbouring pixels' fragments touch neighbouring words. Only FKB, which

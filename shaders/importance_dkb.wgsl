@@ -46,7 +46,7 @@ struct Net {
 fn network_inputs(p: u32) -> Net {
     var net: Net;
     let c = count[p];
-    if (c == 0u || budget_of(totals[0]) >= u64(totals[0])) {
+    if (c == 0u || holds_every_fragment(totals[0])) {
         importance[p] = 0.0;
         return net;
     }

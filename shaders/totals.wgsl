@@ -32,8 +32,7 @@ fn main(
 
 @compute @workgroup_size(1)
 fn features_draw() {
-    let all = atomicLoad(&totals[0]);
-    if (budget_of(all) >= u64(all)) {
+    if (holds_every_fragment(atomicLoad(&totals[0]))) {
         features_draw_args[0] = 0u;
     }
 }

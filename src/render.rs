@@ -90,7 +90,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             // are the same either way; only the passes differ).
             if let Some(Slots::Dkb(_, f)) = slots {
                 let total = fl.fragment_count() as u64;
-                gpu.dkb_geometry = if f.of(total) >= total {
+                gpu.dkb_geometry = if f.holds(total) {
                     DkbGeometry::CountFirst
                 } else {
                     DkbGeometry::Counting

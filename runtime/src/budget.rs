@@ -258,6 +258,12 @@ impl FragmentBudget {
             FragmentBudget::Share(ppm) => share_of(total, ppm),
         }
     }
+
+    /// Whether F holds every one of a frame's `total` fragments (k = n then, whatever the
+    /// importance; common.wgsl's `holds_every_fragment`).
+    pub fn holds(self, total: u64) -> bool {
+        self.of(total) >= total
+    }
 }
 
 impl From<u64> for FragmentBudget {

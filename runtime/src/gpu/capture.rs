@@ -71,7 +71,7 @@ impl Recording<'_, '_> {
             Slots::Dkb(mlp, _) => {
                 let i = self.dkb_importance(mlp)?;
                 let kb = self.allocated(i, budget)?;
-                let truncated = budget.of(kb.fragments) < kb.fragments;
+                let truncated = !budget.holds(kb.fragments);
                 self.passes
                     .gpu
                     .last_dkb_truncated
