@@ -174,11 +174,28 @@ fn write_report(report: serde_json::Value, out: Option<&std::path::Path>) -> Res
     Ok(())
 }
 
+/// The renderer's options for one of the bench's runs, by its label: the run's one option
+/// away from the default, every other option at its default (any other label: all defaults).
+fn configure(gpu: &mut dhoit_runtime::gpu::Gpu, label: &str) {
+    use dhoit_runtime::gpu::DkbGeometry;
+    gpu.skip_forced = label != "dkb_no_skip";
+    gpu.two_mode_capture = label != "dkb_insertion_only";
+    gpu.shared_weights = label == "dkb_shared_weights";
+    gpu.unrolled_network = label != "dkb_array_network";
+    gpu.features_preload = label != "dkb_features_no_preload";
+    gpu.dkb_geometry = match label {
+        "dkb_count_first" => DkbGeometry::CountFirst,
+        "dkb_counting_features" => DkbGeometry::Counting,
+        _ => DkbGeometry::FollowLastFrame,
+    };
+    gpu.layer_major_fkb = label == "fkb_layer_major";
+}
+
 /// Per-pass GPU times (timestamp queries) and whole-frame times per method: one cold frame,
 /// warm-up frames for 0.25 s, then the medians of `repeat` steady-state frames (buffers reused,
 /// the image read back); an error entry when no suitable adapter exists.
 fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) -> serde_json::Value {
-    use dhoit_runtime::gpu::{DkbGeometry, Gpu, Slots};
+    use dhoit_runtime::gpu::{Gpu, Slots};
     let mut gpu = match Gpu::new() {
         Ok(mut g) => {
             // Steady-state frames read back their image only.
@@ -263,17 +280,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     Some(Slots::Dkb(_, f)) if label == "dkb_16-8" => Some(Slots::Dkb(small, f)),
                     s => s,
                 };
-                gpu.skip_forced = label != "dkb_no_skip";
-                gpu.two_mode_capture = label != "dkb_insertion_only";
-                gpu.shared_weights = label == "dkb_shared_weights";
-                gpu.unrolled_network = label != "dkb_array_network";
-                gpu.features_preload = label != "dkb_features_no_preload";
-                gpu.dkb_geometry = match label {
-                    "dkb_count_first" => DkbGeometry::CountFirst,
-                    "dkb_counting_features" => DkbGeometry::Counting,
-                    _ => DkbGeometry::FollowLastFrame,
-                };
-                gpu.layer_major_fkb = label == "fkb_layer_major";
+                configure(&mut gpu, label);
                 // One cold frame (its buffers are created), then `repeat` steady-state frames
                 // that reuse them and read back only the image: medians of those.
                 let timed = |gpu: &dhoit_runtime::gpu::Gpu| -> Result<(f64, f64, _)> {
@@ -341,13 +348,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     }),
                 );
             }
-            gpu.skip_forced = true;
-            gpu.two_mode_capture = true;
-            gpu.shared_weights = false;
-            gpu.unrolled_network = true;
-            gpu.features_preload = true;
-            gpu.dkb_geometry = DkbGeometry::FollowLastFrame;
-            gpu.layer_major_fkb = false;
+            // Back to the defaults (no run's label) for the next scene's cold frames.
+            configure(&mut gpu, "");
             let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
             let ratio = ms("dkb") / ms("vkb");
             let small_ratio = ms("dkb_16-8") / ms("vkb");
@@ -377,7 +379,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             );
             let total = fl.fragment_count() as u64;
             let holds_all = match Slots::for_method(Method::Dkb, &cpu[4], &options)? {
-                Some(Slots::Dkb(_, f)) => f.of(total) >= total,
+                Some(Slots::Dkb(_, f)) => f.holds(total),
                 _ => false,
             };
             let fkb_slots = |m: &str| capture(m) + pass(m, "resolve");

@@ -159,7 +159,6 @@ impl<'a> Passes<'a> {
         });
         self.prefix_sum_of(enc, fb, &flags, b.prefix, Some((&dispatches, scan)))?;
         let group = bind(b.prefix, &state);
-        let (gx, gy) = grid(self.pixels, ALLOC_GROUP);
         self.compute(enc, "allocation apply", |pass| {
             pass.set_bind_group(0, &group, &[]);
             pass.set_pipeline(&a.apply);

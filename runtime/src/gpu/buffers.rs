@@ -223,6 +223,7 @@ pub(super) struct Readback {
 
 /// What [`GpuFrame`] reports besides the image: importance, DKB's statistics and whether its
 /// features pass drew, VKB's nearest facing.
+#[derive(Default)]
 pub(super) struct Statistics {
     pub(super) importance: Option<Vec<f32>>,
     pub(super) stats: Option<Vec<PixelStats>>,
@@ -250,9 +251,8 @@ impl Readback {
         let Some(counts) = &self.counts_buf else {
             return Ok(Statistics {
                 importance,
-                stats: None,
                 features_drawn,
-                vkb_nearest: None,
+                ..Default::default()
             });
         };
         let counts = u32s(&read_back(gpu, counts, 4 * px)?);

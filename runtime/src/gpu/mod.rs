@@ -502,12 +502,7 @@ impl Gpu {
         } = if self.diagnostics {
             out.statistics(self, px)?
         } else {
-            Statistics {
-                importance: None,
-                stats: None,
-                features_drawn: None,
-                vkb_nearest: None,
-            }
+            Statistics::default()
         };
         scopes.end()?;
         Ok(GpuFrame {
