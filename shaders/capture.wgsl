@@ -16,6 +16,9 @@
 //   tail's integer sums. Two early tests skip the atomics that could not change a slot: the
 //   slots only ever grow and stay in decreasing order, so a key no greater than the last slot
 //   goes straight to the tail, and one no greater than the middle slot starts after it.
+//
+// Built a second time with EVERY_FRAGMENT_FITS for the frames whose budget holds every fragment
+// (the pixels' modes then follow from the slot bases alone; see below).
 
 @group(1) @binding(0) var<storage, read> k_of: array<u32>;
 @group(1) @binding(1) var<storage, read> slot_base: array<u32>;
@@ -26,30 +29,16 @@
 // n(p), read when params.append is 1.
 @group(1) @binding(5) var<storage, read> count: array<u32>;
 
-@fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    let p = pixel_index(in.clip, params.width);
-    var k = params.k_uniform;
-    var base = p * params.k_uniform;
-    if (k == 0u) {
-        k = k_of[p];
-        base = slot_base[p];
-    }
-    var cur = ~fragment_key(in.clip.z, fragment_rgba8(in));
-    if (params.append != 0u) {
-        let n = count[p];
-        if (appends(k, n)) {
-            let i = atomicAdd(&tail_count[p], 1u);
-            if (i < k) {
-                atomicStore(&slots[base + i], cur);
-            } else {
-                let j = 4u * p + 2u * (i - k);
-                atomicStore(&tail[j], u32(cur & 0xfffffffflu));
-                atomicStore(&tail[j + 1u], u32(cur >> 32u));
-            }
-            return vec4<f32>(0.0);
-        }
-    }
+// Whether the frame's budget holds every fragment, so k(p) = n(p) for every pixel (a pipeline
+// of its own, built with this set true): each pixel's k is its slot bases' difference, nothing
+// goes to the tail, and a pixel of at most APPEND_MAX fragments appends with no other load; the
+// deeper ones insert as above (nothing is pushed out). k_of and count are not read.
+const EVERY_FRAGMENT_FITS: bool = false;
+
+// Loop64 insertion of `key` (complemented) into the pixel's k slots from `base`; returns the
+// key pushed out past the last slot, or 0 where the insertion ended in an empty slot.
+fn insert(p: u32, base: u32, k: u32, key: u64) -> u64 {
+    var cur = key;
     var i = 0u;
     if (k > 0u) {
         if (atomicLoad(&slots[slot_at(base, k - 1u, p)]) >= cur) {
@@ -64,12 +53,52 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     for (; i < k; i++) {
         let old = atomicMax(&slots[slot_at(base, i, p)], cur);
         if (old == 0lu) {
-            return vec4<f32>(0.0);
+            return 0lu;
         }
         cur = min(old, cur);
     }
-    let c = (~cur) & 0xfffffffflu;
-    let rgba = u32(c);
+    return cur;
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    let p = pixel_index(in.clip, params.width);
+    let key = ~fragment_key(in.clip.z, fragment_rgba8(in));
+    if (EVERY_FRAGMENT_FITS) {
+        let base = slot_base[p];
+        let n = slot_base[p + 1u] - base;
+        if (n <= APPEND_MAX) {
+            atomicStore(&slots[base + atomicAdd(&tail_count[p], 1u)], key);
+        } else {
+            insert(p, base, n, key);
+        }
+        return vec4<f32>(0.0);
+    }
+    var k = params.k_uniform;
+    var base = p * params.k_uniform;
+    if (k == 0u) {
+        k = k_of[p];
+        base = slot_base[p];
+    }
+    if (params.append != 0u) {
+        let n = count[p];
+        if (appends(k, n)) {
+            let i = atomicAdd(&tail_count[p], 1u);
+            if (i < k) {
+                atomicStore(&slots[base + i], key);
+            } else {
+                let j = 4u * p + 2u * (i - k);
+                atomicStore(&tail[j], u32(key & 0xfffffffflu));
+                atomicStore(&tail[j + 1u], u32(key >> 32u));
+            }
+            return vec4<f32>(0.0);
+        }
+    }
+    let out = insert(p, base, k, key);
+    if (out == 0lu) {
+        return vec4<f32>(0.0);
+    }
+    let rgba = u32((~out) & 0xfffffffflu);
     let a = rgba >> 24u;
     atomicAdd(&tail[4u * p], (rgba & 0xffu) * a);
     atomicAdd(&tail[4u * p + 1u], ((rgba >> 8u) & 0xffu) * a);

@@ -16,14 +16,16 @@
 // n(p), read when params.append is 1.
 @group(0) @binding(7) var<storage, read> count: array<u32>;
 
-// An appended pixel's n keys (complemented: the nearest is the largest), sorted in place:
-// those in its slots by insertion in decreasing order (at most APPEND_MAX (APPEND_MAX - 1) / 2
-// steps), then each of the at most APPEND_SPILL keys past them (in the tail's sum words,
-// capture.wgsl) swapped in where it is nearer than the last slot; what is left out is summed
-// into the tail.
-fn sort_appended(p: u32, base: u32, k: u32, n: u32) {
-    let held = min(k, n);
-    for (var i = 1u; i < held; i++) {
+// Whether the frame's budget holds every fragment, so k(p) = n(p) for every pixel (a pipeline
+// of its own, built with this set true, beside capture.wgsl's): k is the slot bases'
+// difference, the tail is empty, and only the appended pixels (at most APPEND_MAX fragments)
+// are sorted. k_of, count and the tail's sums are not read.
+const EVERY_FRAGMENT_FITS: bool = false;
+
+// The keys of slots [base, base + n) in decreasing order (nearest first), by insertion (at most
+// APPEND_MAX (APPEND_MAX - 1) / 2 steps).
+fn sort_slots(base: u32, n: u32) {
+    for (var i = 1u; i < n; i++) {
         let key = slots[base + i];
         var j = i;
         while (j > 0u && slots[base + j - 1u] < key) {
@@ -32,6 +34,32 @@ fn sort_appended(p: u32, base: u32, k: u32, n: u32) {
         }
         slots[base + j] = key;
     }
+}
+
+// The slots [base, base + k) front to back (up to the first empty one) over `behind`.
+fn blend_slots(p: u32, base: u32, k: u32, behind: vec3<f32>) -> vec4<f32> {
+    var c = vec3<f32>(0.0);
+    var t = 1.0;
+    for (var i = 0u; i < k; i++) {
+        let s = slots[slot_at(base, i, p)];
+        if (s == 0lu) {
+            break;
+        }
+        let rgba = unpack_rgba8(u32((~s) & 0xfffffffflu));
+        c += t * rgba.a * rgba.rgb;
+        t *= 1.0 - rgba.a;
+    }
+    return vec4<f32>(c + t * behind, 1.0);
+}
+
+// An appended pixel's n keys (complemented: the nearest is the largest), sorted in place:
+// those in its slots by insertion in decreasing order (at most APPEND_MAX (APPEND_MAX - 1) / 2
+// steps), then each of the at most APPEND_SPILL keys past them (in the tail's sum words,
+// capture.wgsl) swapped in where it is nearer than the last slot; what is left out is summed
+// into the tail.
+fn sort_appended(p: u32, base: u32, k: u32, n: u32) {
+    let held = min(k, n);
+    sort_slots(base, held);
     var sums = vec4<u32>(0u);
     for (var s = 0u; s < n - held; s++) {
         var key = u64(tail[4u * p + 2u * s]) | (u64(tail[4u * p + 2u * s + 1u]) << 32u);
@@ -67,6 +95,17 @@ fn main(
     if (p >= params.pixels) {
         return;
     }
+    if (EVERY_FRAGMENT_FITS) {
+        let base = slot_base[p];
+        let n = slot_base[p + 1u] - base;
+        if (n <= APPEND_MAX) {
+            sort_slots(base, n);
+            // The capture's cursor: the tail is empty.
+            tail_count[p] = 0u;
+        }
+        image[p] = blend_slots(p, base, n, params.background.rgb);
+        return;
+    }
     var k = params.k_uniform;
     var base = p * params.k_uniform;
     if (k == 0u) {
@@ -91,16 +130,5 @@ fn main(
         let c_tail = vec3<f32>(f32(tail[4u * p]), f32(tail[4u * p + 1u]), f32(tail[4u * p + 2u])) * inv;
         behind = a_tail * c_tail + (1.0 - a_tail) * bg;
     }
-    var c = vec3<f32>(0.0);
-    var t = 1.0;
-    for (var i = 0u; i < k; i++) {
-        let s = slots[slot_at(base, i, p)];
-        if (s == 0lu) {
-            break;
-        }
-        let rgba = unpack_rgba8(u32((~s) & 0xfffffffflu));
-        c += t * rgba.a * rgba.rgb;
-        t *= 1.0 - rgba.a;
-    }
-    image[p] = vec4<f32>(c + t * behind, 1.0);
+    image[p] = blend_slots(p, base, k, behind);
 }

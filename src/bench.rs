@@ -180,6 +180,7 @@ fn configure(gpu: &mut dhoit_runtime::gpu::Gpu, label: &str) {
     use dhoit_runtime::gpu::DkbGeometry;
     gpu.skip_forced = label != "dkb_no_skip";
     gpu.two_mode_capture = label != "dkb_insertion_only";
+    gpu.fits_pipelines = label != "dkb_two_mode_where_all_fit";
     gpu.shared_weights = label == "dkb_shared_weights";
     gpu.unrolled_network = label != "dkb_array_network";
     gpu.features_preload = label != "dkb_features_no_preload";
@@ -257,7 +258,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 .map(|&m| renderer.allocate_for_gpu(m))
                 .collect::<Result<_, _>>()?;
             // DKB once more with the network run on every covered pixel, even where k is forced,
-            // once with every fragment inserted (no append mode in the capture), and once with
+            // once with every fragment inserted (no append mode in the capture), once with the
+            // two-mode capture pipeline where the budget holds every fragment, and once with
             // the network's weights staged in workgroup memory; FKB once more with its slots
             // laid out layer-major; and DKB with the 16-8 network.
             let runs = order
@@ -267,6 +269,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 .chain([
                     ("dkb_no_skip", Method::Dkb, &cpu[4]),
                     ("dkb_insertion_only", Method::Dkb, &cpu[4]),
+                    ("dkb_two_mode_where_all_fit", Method::Dkb, &cpu[4]),
                     ("dkb_shared_weights", Method::Dkb, &cpu[4]),
                     ("dkb_array_network", Method::Dkb, &cpu[4]),
                     ("dkb_features_no_preload", Method::Dkb, &cpu[4]),
@@ -360,6 +363,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             let (skip, all) = (imp("dkb"), imp("dkb_no_skip"));
             let capture = |m: &str| pass(m, "capture");
             let (two_mode, inserted) = (capture("dkb"), capture("dkb_insertion_only"));
+            let two_mode_where_all_fit = capture("dkb_two_mode_where_all_fit");
             let staged = imp("dkb_shared_weights");
             let looped = imp("dkb_array_network");
             let (features, no_preload) = (
@@ -435,6 +439,12 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 ms("dkb_counting_features"),
                 ms("dkb"),
             );
+            if holds_all {
+                eprintln!(
+                    "GPU {name}: DKB capture {two_mode:.2} ms with the pipeline built for frames whose fragments all fit, {two_mode_where_all_fit:.2} ms with the two-mode one (A-buffer store {:.2} ms)",
+                    pass("abuffer", "store"),
+                );
+            }
             eprintln!(
                 "GPU {name}: FKB capture and resolve {pixel_major:.2} ms pixel-major, {layer_major:.2} ms layer-major"
             );
@@ -465,6 +475,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     "appended_share_of_covered": appended as f64 / covered.max(1) as f64,
                     "capture_ms": two_mode, "capture_ms_insertion_only": inserted,
                     "saved": 1.0 - two_mode / inserted,
+                    "capture_ms_two_mode_where_all_fit": two_mode_where_all_fit,
+                    "abuffer_store_ms": pass("abuffer", "store"),
                 },
             }))
         };

@@ -463,6 +463,7 @@ fn the_gpu_bench_reports_every_method_and_option() {
         "dkb",
         "dkb_no_skip",
         "dkb_insertion_only",
+        "dkb_two_mode_where_all_fit",
         "dkb_shared_weights",
         "dkb_array_network",
         "dkb_features_no_preload",

@@ -856,10 +856,16 @@ fn a_large_allocation_matches_its_twin() {
 /// them and are sorted at resolve, the others insert through their slots (with Loop64's early
 /// tests), and both end in the slots, tail and image of the CPU twin, bit for bit in the image
 /// whatever the submission order. A layered scene gives every case: pixels appended, pixels
-/// truncated, and pixels deeper than APPEND_MAX that insert although k >= n.
+/// truncated, and pixels deeper than APPEND_MAX that insert although k >= n. Where the budget
+/// holds every fragment, the pipeline built for such frames (`Gpu::fits_pipelines`) gives the
+/// same slots, tails and image bits as the two-mode one.
 #[test]
 fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
-    let Some(g) = gpu() else { return };
+    if gpu().is_none() {
+        return;
+    }
+    // A device of its own: the flag is the device's.
+    let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
     let mut s = Scene::default();
     let v = glam::Vec3::new;
     // 70 layers over the left half, 3 over the right, 1 over a strip at the top: deep pixels
@@ -892,12 +898,22 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
     let counts = gfl.counts();
     let total = gfl.fragment_count() as u64;
     let mlp = dhoit_runtime::mlp::Mlp::random(6);
-    for f in [total / 4, total / 2, total - 40, total] {
+    for f in [total / 4, total / 2, total - 40, total, total + 100] {
         for (label, slots) in [
             ("dkb", Slots::Dkb(&mlp, f.into())),
             ("vkb", Slots::Vkb(Default::default(), f.into())),
         ] {
             let frame = g.render(&s, &cam, w, h, BG, Some(slots)).unwrap();
+            if f >= total {
+                g.fits_pipelines = false;
+                let two_mode = g.render(&s, &cam, w, h, BG, Some(slots)).unwrap();
+                g.fits_pipelines = true;
+                assert!(
+                    two_mode.slots == frame.slots
+                        && image_bits(&two_mode.image) == image_bits(&frame.image),
+                    "{label} F = {f}: the capture for frames that fit differs from the two-mode one"
+                );
+            }
             let imp = frame.importance.clone().unwrap();
             let target = if label == "dkb" {
                 mlp.target
@@ -926,7 +942,7 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
             if f == total / 2 {
                 assert!(spilled > 0, "{label}: no appended pixel with a tail");
             }
-            if f == total {
+            if f >= total {
                 assert!(deep_whole > 0, "{label}: no deep pixel held whole");
             }
             // Any submission order: the same image bits.

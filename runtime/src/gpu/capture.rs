@@ -11,10 +11,10 @@ pub(super) struct KBuffer {
     pub(super) k: wgpu::Buffer,
     pub(super) base: wgpu::Buffer,
     pub(super) slots: u64,
-    /// The frame's fragments, where it counted them (else 0).
-    pub(super) fragments: u64,
     pub(super) counts: wgpu::Buffer,
     pub(super) reuse: Option<Reuse>,
+    /// Whether the budget holds every fragment the frame counted (then k = n everywhere).
+    pub(super) all_fit: bool,
 }
 
 impl Recording<'_, '_> {
@@ -30,9 +30,9 @@ impl Recording<'_, '_> {
                     k: fb.storage("fkb.unused_k", 16, true)?,
                     base: fb.storage("fkb.unused_offsets", 16, true)?,
                     slots: k.max(1) as u64 * px,
-                    fragments: 0,
                     counts: fb.storage("fkb.unused_counts", 16, true)?,
                     reuse: None,
+                    all_fit: false,
                 })
             }
             Slots::PerPixel(k) => {
@@ -55,9 +55,9 @@ impl Recording<'_, '_> {
                     k: k_of,
                     base,
                     slots: k.iter().map(|&x| x as u64).sum(),
-                    fragments: 0,
                     counts: fb.storage("oit.unused_counts", 16, true)?,
                     reuse: None,
+                    all_fit: false,
                 })
             }
             Slots::Importance(imp, target, _) => {
@@ -71,11 +71,10 @@ impl Recording<'_, '_> {
             Slots::Dkb(mlp, _) => {
                 let i = self.dkb_importance(mlp)?;
                 let kb = self.allocated(i, budget)?;
-                let truncated = !budget.holds(kb.fragments);
                 self.passes
                     .gpu
                     .last_dkb_truncated
-                    .store(truncated, std::sync::atomic::Ordering::Relaxed);
+                    .store(!kb.all_fit, std::sync::atomic::Ordering::Relaxed);
                 Ok(kb)
             }
             Slots::Mlab(_) => unreachable!("MLAB blends from the A-buffer"),
@@ -121,9 +120,9 @@ impl Recording<'_, '_> {
             k,
             base,
             slots,
-            fragments,
             counts: i.counts,
             reuse: i.reuse,
+            all_fit: budget.holds(fragments),
         })
     }
 
@@ -150,15 +149,21 @@ impl Recording<'_, '_> {
                 fb.storage("oit.image", 16 * px, true)?,
             ),
         };
+        // Where k = n everywhere, the pipelines built for it (the same slots, tail and image).
+        let (capture, resolve) = if gpu.two_mode_capture && gpu.fits_pipelines && kb.all_fit {
+            (&p.capture_fits, &p.resolve_fits)
+        } else {
+            (&p.capture, &p.resolve)
+        };
         passes.draw(
             enc,
-            &p.capture,
+            capture,
             &[&kb.k, &kb.base, &slots, &tail, &tail_count, &kb.counts],
             "capture",
         );
         passes.dispatch(
             enc,
-            &p.resolve,
+            resolve,
             &[
                 passes.params(),
                 &kb.k,

@@ -9,7 +9,8 @@
 //!   `vkb.rs`: VKB's `vkb_count` and `importance_vkb`; both with `totals`.
 //! - `allocate.rs`: the allocation of k from importance (`allocate.wgsl`), in one submission.
 //! - `scan.rs`: the prefix sums (`scan.wgsl`).
-//! - `capture.rs`: k, the two-mode `capture` (append or Loop64 insertion) and `resolve`.
+//! - `capture.rs`: k, the two-mode `capture` (append or Loop64 insertion) and `resolve`, and
+//!   both built for frames whose budget holds every fragment (`EVERY_FRAGMENT_FITS`).
 //! - `predict.rs`: the network on rows of features (`predict.wgsl`).
 //!
 //! And the frame's machinery: `pipelines.rs` (built once; the network's per shape),
@@ -79,6 +80,13 @@ pub struct Gpu {
     /// [`crate::composite::APPEND_SPILL`] fragments and insert the rest (capture.wgsl); off,
     /// every fragment is inserted (the bench's comparison). The images are the same.
     pub two_mode_capture: bool,
+    /// Whether, with the two-mode capture, a frame whose budget holds every fragment (so
+    /// k(p) = n(p) everywhere) captures and resolves with the pipelines of capture.wgsl and
+    /// resolve.wgsl built for it: k from the slot bases alone, every pixel of at most
+    /// [`crate::composite::APPEND_MAX`] fragments appended with no other load and sorted at
+    /// resolve, no tail read or summed. Off, such frames take the two-mode pipelines (the
+    /// bench's comparison). The slots, tails and images are the same.
+    pub fits_pipelines: bool,
     /// Whether DKB's importance pass stages the network's first two layers in workgroup memory,
     /// 16 first-layer units at a time, shared by the workgroup's 64 pixels, instead of reading
     /// every weight from the uniform buffer (off by default: on lavapipe it is slower; the
@@ -239,6 +247,7 @@ impl Gpu {
             pipelines,
             skip_forced: true,
             two_mode_capture: true,
+            fits_pipelines: true,
             shared_weights: false,
             unrolled_network: true,
             features_preload: true,

@@ -7,11 +7,15 @@ pub(super) struct Pipelines {
     pub(super) count: wgpu::RenderPipeline,
     pub(super) store: wgpu::RenderPipeline,
     pub(super) capture: wgpu::RenderPipeline,
+    /// capture.wgsl built for frames whose budget holds every fragment (k = n).
+    pub(super) capture_fits: wgpu::RenderPipeline,
     pub(super) scan_blocks: wgpu::ComputePipeline,
     pub(super) scan_sums: wgpu::ComputePipeline,
     pub(super) scan_add: wgpu::ComputePipeline,
     pub(super) abuffer_resolve: wgpu::ComputePipeline,
     pub(super) resolve: wgpu::ComputePipeline,
+    /// resolve.wgsl built for frames whose budget holds every fragment (k = n).
+    pub(super) resolve_fits: wgpu::ComputePipeline,
     pub(super) mlab_resolve: wgpu::ComputePipeline,
     pub(super) allocate: Allocate,
     pub(super) features: wgpu::RenderPipeline,
@@ -357,10 +361,22 @@ impl Pipelines {
             })
         };
         let geometry = |name: &str| geometry_from(name, module(device, name));
+        let module_with = |pass: &str, label: &str, from: &str, to: &str| {
+            let mut src = shaders::source(pass).expect("known pass");
+            redeclare(&mut src, pass, from, to);
+            module_from(device, label, src)
+        };
         let features_with = |label: &str, from: &str, to: &str| {
-            let mut src = shaders::source("features").expect("known pass");
-            redeclare(&mut src, "features", from, to);
-            geometry_from("features", module_from(device, label, src))
+            geometry_from("features", module_with("features", label, from, to))
+        };
+        // capture.wgsl and resolve.wgsl for frames whose budget holds every fragment.
+        let fits = |pass: &str| {
+            module_with(
+                pass,
+                &format!("{pass} (every fragment fits)"),
+                "const EVERY_FRAGMENT_FITS: bool = false;",
+                "const EVERY_FRAGMENT_FITS: bool = true;",
+            )
         };
         let compute_entry =
             |name: &str, entry: &str| compute_pipeline(device, name, &module(device, name), entry);
@@ -370,11 +386,13 @@ impl Pipelines {
             count: geometry("abuffer_count"),
             store: geometry("abuffer_store"),
             capture: geometry("capture"),
+            capture_fits: geometry_from("capture", fits("capture")),
             scan_blocks: compute_entry("scan", "scan_blocks"),
             scan_sums: compute_entry("scan", "scan_sums"),
             scan_add: compute_entry("scan", "scan_add"),
             abuffer_resolve: compute("abuffer_resolve"),
             resolve: compute("resolve"),
+            resolve_fits: compute_pipeline(device, "resolve", &fits("resolve"), "main"),
             mlab_resolve: compute("mlab_resolve"),
             allocate: Allocate::new(device),
             features: geometry("features"),
