@@ -65,10 +65,13 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let p = pixel_index(in.clip, params.width);
     let key = ~fragment_key(in.clip.z, fragment_rgba8(in));
     if (EVERY_FRAGMENT_FITS) {
+        // As the A-buffer's store: the cursor's atomic does not wait for the bases' loads
+        // (deeper pixels count too, unused; the resolve clears every pixel's count).
+        let i = atomicAdd(&tail_count[p], 1u);
         let base = slot_base[p];
         let n = slot_base[p + 1u] - base;
         if (n <= APPEND_MAX) {
-            atomicStore(&slots[base + atomicAdd(&tail_count[p], 1u)], key);
+            atomicStore(&slots[base + i], key);
         } else {
             insert(p, base, n, key);
         }

@@ -100,9 +100,9 @@ fn main(
         let n = slot_base[p + 1u] - base;
         if (n <= APPEND_MAX) {
             sort_slots(base, n);
-            // The capture's cursor: the tail is empty.
-            tail_count[p] = 0u;
         }
+        // The capture's cursor: the tail is empty.
+        tail_count[p] = 0u;
         image[p] = blend_slots(p, base, n, params.background.rgb);
         return;
     }
