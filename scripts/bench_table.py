@@ -32,16 +32,20 @@ def table(path):
             return m[k]["frame_gpu_ms"]
 
         def p(k, name):
-            return m[k]["passes_ms"].get(name, float("nan"))
+            # "-": the frame did not record that pass (DKB's importance where the budget
+            # holds every fragment).
+            ms = m[k]["passes_ms"].get(name)
+            return "-" if ms is None else f"{ms:.2f}"
 
         # DKB's count pass, where it counts first (absent where the features pass counts).
-        geometry = m["dkb"]["passes_ms"].get("count", 0.0) + p("dkb", "features")
+        passes = m["dkb"]["passes_ms"]
+        geometry = passes.get("count", 0.0) + passes.get("features", float("nan"))
         out.append(
             f"| {s['scene']} | {frame('abuffer'):.2f} | {frame('fkb'):.2f} | {frame('optimal'):.2f} "
             f"| {frame('vkb'):.2f} | {frame('dkb'):.2f} | {frame('dkb_16-8'):.2f} "
-            f"| {s['dkb_over_vkb']:.2f} | {s['dkb_over_abuffer']:.2f} | {p('vkb', 'count'):.2f} "
-            f"| {geometry:.2f} | {p('dkb', 'importance'):.2f} "
-            f"| {p('dkb', 'allocation'):.2f} | {p('dkb', 'capture'):.2f} / {p('vkb', 'capture'):.2f} "
+            f"| {s['dkb_over_vkb']:.2f} | {s['dkb_over_abuffer']:.2f} | {p('vkb', 'count')} "
+            f"| {geometry:.2f} | {p('dkb', 'importance')} "
+            f"| {p('dkb', 'allocation')} | {p('dkb', 'capture')} / {p('vkb', 'capture')} "
             f"| {m['dkb']['wall_over_gpu_plus_readback']:.2f} |"
         )
     return "\n".join(out) + "\n"

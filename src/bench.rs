@@ -181,6 +181,7 @@ fn configure(gpu: &mut dhoit_runtime::gpu::Gpu, label: &str) {
     gpu.skip_forced = label != "dkb_no_skip";
     gpu.two_mode_capture = label != "dkb_insertion_only";
     gpu.fits_pipelines = label != "dkb_two_mode_where_all_fit";
+    gpu.predict_fit = label != "dkb_every_pass";
     gpu.shared_weights = label == "dkb_shared_weights";
     gpu.unrolled_network = label != "dkb_array_network";
     gpu.features_preload = label != "dkb_features_no_preload";
@@ -259,7 +260,9 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 .collect::<Result<_, _>>()?;
             // DKB once more with the network run on every covered pixel, even where k is forced,
             // once with every fragment inserted (no append mode in the capture), once with the
-            // two-mode capture pipeline where the budget holds every fragment, and once with
+            // two-mode capture pipeline where the budget holds every fragment, once recording
+            // every pass whatever the last frame (the device empties what it does not need:
+            // Gpu::predict_fit off), and once with
             // the network's weights staged in workgroup memory; FKB once more with its slots
             // laid out layer-major; and DKB with the 16-8 network.
             let runs = order
@@ -270,6 +273,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     ("dkb_no_skip", Method::Dkb, &cpu[4]),
                     ("dkb_insertion_only", Method::Dkb, &cpu[4]),
                     ("dkb_two_mode_where_all_fit", Method::Dkb, &cpu[4]),
+                    ("dkb_every_pass", Method::Dkb, &cpu[4]),
                     ("dkb_shared_weights", Method::Dkb, &cpu[4]),
                     ("dkb_array_network", Method::Dkb, &cpu[4]),
                     ("dkb_features_no_preload", Method::Dkb, &cpu[4]),
@@ -408,13 +412,20 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                         )
                 })
                 .count();
+            let importance_note = if skip.is_nan() {
+                "importance pass not recorded (the budget holds every fragment)".to_string()
+            } else {
+                format!(
+                    "importance pass {skip:.2} ms skipping {:.1}% forced pixels, {all:.2} ms without",
+                    100.0 * forced as f64 / covered.max(1) as f64
+                )
+            };
             eprintln!(
-                "GPU {name}: DKB/VKB frame time {ratio:.2}, DKB/A-buffer {over_abuffer:.2}; DKB wall/GPU {:.2} steady (first frame {:.0} ms wall); importance pass {skip:.2} ms skipping {:.1}% forced pixels, {all:.2} ms without",
+                "GPU {name}: DKB/VKB frame time {ratio:.2}, DKB/A-buffer {over_abuffer:.2}; DKB wall/GPU {:.2} steady (first frame {:.0} ms wall); {importance_note}",
                 methods["dkb"]["wall_over_gpu"].as_f64().unwrap_or(f64::NAN),
                 methods["dkb"]["first_frame_wall_ms"]
                     .as_f64()
                     .unwrap_or(f64::NAN),
-                100.0 * forced as f64 / covered.max(1) as f64
             );
             eprintln!(
                 "GPU {name}: DKB capture {two_mode:.2} ms appending {:.1}% of covered pixels, {inserted:.2} ms inserting every fragment",
@@ -439,10 +450,26 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 ms("dkb_counting_features"),
                 ms("dkb"),
             );
+            // The importance and allocation passes as recorded for a frame expected to fit (no
+            // importance, setup and apply alone), and as when every pass is recorded.
+            let small = |m: &str| {
+                ["importance", "allocation", "allocation apply"]
+                    .iter()
+                    .map(|p| pass(m, p))
+                    .filter(|ms| !ms.is_nan())
+                    .sum::<f64>()
+            };
             if holds_all {
                 eprintln!(
                     "GPU {name}: DKB capture {two_mode:.2} ms with the pipeline built for frames whose fragments all fit, {two_mode_where_all_fit:.2} ms with the two-mode one (A-buffer store {:.2} ms)",
                     pass("abuffer", "store"),
+                );
+                eprintln!(
+                    "GPU {name}: DKB importance and allocation {:.2} ms expecting the fit, {:.2} ms recording every pass; frame {:.2} / {:.2} ms",
+                    small("dkb"),
+                    small("dkb_every_pass"),
+                    ms("dkb"),
+                    ms("dkb_every_pass"),
                 );
             }
             eprintln!(
@@ -477,6 +504,11 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     "saved": 1.0 - two_mode / inserted,
                     "capture_ms_two_mode_where_all_fit": two_mode_where_all_fit,
                     "abuffer_store_ms": pass("abuffer", "store"),
+                },
+                "predict_fit": {
+                    "importance_and_allocation_ms": small("dkb"),
+                    "importance_and_allocation_ms_every_pass": small("dkb_every_pass"),
+                    "frame_gpu_ms": ms("dkb"), "frame_gpu_ms_every_pass": ms("dkb_every_pass"),
                 },
             }))
         };

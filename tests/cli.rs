@@ -464,6 +464,7 @@ fn the_gpu_bench_reports_every_method_and_option() {
         "dkb_no_skip",
         "dkb_insertion_only",
         "dkb_two_mode_where_all_fit",
+        "dkb_every_pass",
         "dkb_shared_weights",
         "dkb_array_network",
         "dkb_features_no_preload",
@@ -479,10 +480,16 @@ fn the_gpu_bench_reports_every_method_and_option() {
             "{m}"
         );
     }
-    for pass in ["features", "importance", "allocation", "capture", "resolve"] {
+    for pass in ["features", "allocation", "capture", "resolve"] {
         let ms = scene["methods"]["dkb"]["passes_ms"][pass].as_f64();
         assert!(ms.is_some_and(|t| t >= 0.0), "dkb {pass}: {ms:?}");
     }
+    // The steady frames record the importance pass only where the budget truncates (the last
+    // frame's did); the frames recording every pass always.
+    let holds = scene["dkb_geometry"]["budget_holds_every_fragment"].as_bool();
+    let importance = |m: &str| scene["methods"][m]["passes_ms"]["importance"].as_f64();
+    assert_eq!(importance("dkb").is_some(), holds == Some(false), "{scene}");
+    assert!(importance("dkb_every_pass").is_some_and(|t| t >= 0.0));
     // Counting first, the count is a pass of its own.
     let ms = scene["methods"]["dkb_count_first"]["passes_ms"]["count"].as_f64();
     assert!(ms.is_some_and(|t| t > 0.0), "dkb_count_first count: {ms:?}");
@@ -498,7 +505,6 @@ fn the_gpu_bench_reports_every_method_and_option() {
     // The counting features pass has no count pass of its own.
     let counting = &scene["methods"]["dkb_counting_features"]["passes_ms"];
     assert!(counting["count"].is_null() && counting["features"].as_f64().is_some());
-    let holds = scene["dkb_geometry"]["budget_holds_every_fragment"].as_bool();
     assert!(holds.is_some(), "{scene}");
 }
 

@@ -260,8 +260,10 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
 /// setting, at a budget that truncates and at one that holds every fragment, the same
 /// statistics as the CPU twin's where the features pass drew (always when it counts, else only
 /// where the budget truncates), the same importance and image bits. Then a stream of frames
-/// following the last (`DkbGeometry::FollowLastFrame`, the default) counts first after a frame
-/// the budget held, in the features pass after one it truncated, with the same images.
+/// following the last (`DkbGeometry::FollowLastFrame` and `Gpu::predict_fit`, the defaults),
+/// DKB's and VKB's, counts first and records neither importance nor search after a frame the
+/// budget held, records them after one it truncated or in a second submission where an
+/// expected fit truncates, with the slots, importance and image bits of every pass recorded.
 fn features_and_network_layouts_give_the_same_frame(
     g: &mut dhoit_runtime::gpu::Gpu,
     (s, cam): (&Scene, &Camera),
@@ -327,29 +329,77 @@ fn features_and_network_layouts_give_the_same_frame(
     }
     g.features_preload = true;
     g.unrolled_network = true;
-    // The last frame above was held by its budget: the stream starts counting first.
     g.dkb_geometry = DkbGeometry::FollowLastFrame;
-    for (i, (f, count_first)) in [
-        (holds_all, true),
-        (truncates, true),
-        (truncates, false),
-        (holds_all, false),
-        (holds_all, true),
-    ]
-    .into_iter()
-    .enumerate()
-    {
-        let frame = g
-            .render(s, cam, w, h, BG, Some(Slots::Dkb(mlp, f.into())))
-            .unwrap();
-        let label = format!("following frame {i}, F {f} of {total}");
-        assert_eq!(counted_first(&frame), count_first, "{label}: count pass");
-        let drawn = !(f >= total && count_first);
-        assert_eq!(frame.features_drawn, Some(drawn), "{label}");
-        assert!(
-            image_bits(&frame.image) == images[&f],
-            "{label}: image differs"
-        );
+    // Every pass recorded whatever the last frame (`Gpu::predict_fit` off): the references of
+    // the stream below, DKB's and VKB's.
+    let vkb = |f: u64| Slots::Vkb(Default::default(), f.into());
+    let dkb = |f: u64| Slots::Dkb(mlp, f.into());
+    g.predict_fit = false;
+    let mut reference = std::collections::HashMap::new();
+    for f in [truncates, holds_all] {
+        for (method, slots) in [("dkb", dkb(f)), ("vkb", vkb(f))] {
+            let frame = g.render(s, cam, w, h, BG, Some(slots)).unwrap();
+            let bits: Vec<u32> = frame
+                .importance
+                .unwrap()
+                .iter()
+                .map(|x| x.to_bits())
+                .collect();
+            assert!(image_bits(&frame.image) == images[&f] || method == "vkb");
+            reference.insert((method, f), (image_bits(&frame.image), frame.slots, bits));
+        }
+    }
+    g.predict_fit = true;
+    // The last frame above was held by its budget: the stream starts counting first and
+    // expects to fit. A frame expected to fit records no importance pass and allocates with
+    // setup and apply alone; where it truncates (frame 1), it records the importance and the
+    // search in a second submission, so it times two allocations.
+    for method in ["dkb", "vkb"] {
+        let slots = |f| if method == "dkb" { dkb(f) } else { vkb(f) };
+        for (i, (f, expect_fit)) in [
+            (holds_all, true),
+            (truncates, true),
+            (truncates, false),
+            (holds_all, false),
+            (holds_all, true),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let frame = g.render(s, cam, w, h, BG, Some(slots(f))).unwrap();
+            let label = format!("{method}: following frame {i}, F {f} of {total}");
+            let passes = |name: &str| frame.pass_ms.iter().filter(|p| p.0 == name).count();
+            let holds = f >= total;
+            if method == "dkb" {
+                let count_first = expect_fit;
+                assert_eq!(counted_first(&frame), count_first, "{label}: count pass");
+                let drawn = !(holds && count_first);
+                assert_eq!(frame.features_drawn, Some(drawn), "{label}");
+            }
+            let recorded = !(holds && expect_fit);
+            assert_eq!(
+                passes("importance"),
+                recorded as usize,
+                "{label}: importance"
+            );
+            let twice = expect_fit && !holds;
+            assert_eq!(passes("allocation"), 1 + twice as usize, "{label}");
+            let (image, keys, importance) = &reference[&(method, f)];
+            let bits: Vec<u32> = frame
+                .importance
+                .unwrap()
+                .iter()
+                .map(|x| x.to_bits())
+                .collect();
+            assert!(image_bits(&frame.image) == *image, "{label}: image differs");
+            assert!(frame.slots == *keys, "{label}: slots differ");
+            if recorded || method == "dkb" {
+                assert!(bits == *importance, "{label}: importance differs");
+            } else {
+                // VKB's importance where it was not computed: none (k = n needs none).
+                assert!(bits.iter().all(|&b| b == 0), "{label}: importance");
+            }
+        }
     }
 }
 
@@ -426,7 +476,14 @@ fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
         image_bits(&g.render(s, cam, w, h, BG, slots).unwrap().image)
     };
     for (i, &sl) in slots.iter().enumerate() {
+        // The first frame of a method may take another path than those after it (a k-buffer
+        // frame expected to fit that truncates records its importance and search in a second
+        // submission, and times more passes): the stream is steady from the second.
         let first = bits(&g, &a, &cam_a, sl);
+        assert!(
+            bits(&g, &a, &cam_a, sl) == first,
+            "method {i}: the second frame differs"
+        );
         let created = g.buffers_created();
         assert!(
             bits(&g, &a, &cam_a, sl) == first,
@@ -748,8 +805,17 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
                 .unwrap();
             let (vc, facing) = v.vkb_nearest.clone().unwrap();
             assert_eq!(vc, gfl.counts(), "{name} vkb counts");
-            let imp_twin = importance::vkb_importance_from(&vc, &facing, w, h, &params);
+            let mut imp_twin = importance::vkb_importance_from(&vc, &facing, w, h, &params);
             let imp = v.importance.clone().unwrap();
+            // A frame expected to fit computes no importance (k = n needs none): only where the
+            // budget holds every fragment, and then the buffer stays zero.
+            if !v.pass_ms.iter().any(|p| p.0 == "importance") {
+                assert!(
+                    holds,
+                    "{name} {fpp}fpp: VKB importance skipped, budget truncates"
+                );
+                imp_twin = vec![0.0; imp.len()];
+            }
             let diff = max_abs_diff(&imp, &imp_twin);
             assert!(
                 diff <= 1e-5,

@@ -19,6 +19,52 @@ pub(super) struct Importance {
     pub(super) marks: Option<wgpu::Buffer>,
     /// Buffers no longer needed by the capture, for the tail and the image (DKB's features).
     pub(super) reuse: Option<Reuse>,
+    /// The importance pass, where the frame expected to fit and did not record it.
+    pub(super) pending: Option<PendingPass>,
+}
+
+/// An importance pass that a frame expected to fit did not record (where the budget holds
+/// every fragment, k = n whatever the importance): recorded only if the budget truncates.
+pub(super) struct PendingPass {
+    pub(super) name: &'static str,
+    /// Each dispatch: pipeline, bind group, grid (or its indirect arguments).
+    pub(super) steps: Vec<(wgpu::ComputePipeline, wgpu::BindGroup, Grid)>,
+}
+
+/// A dispatch's workgroups.
+pub(super) enum Grid {
+    Direct(u32, u32),
+    Indirect(wgpu::Buffer),
+}
+
+impl Passes<'_> {
+    /// `p` as one timed compute pass.
+    pub(super) fn record_pending(&self, enc: &mut wgpu::CommandEncoder, p: &PendingPass) {
+        self.compute(enc, p.name, |pass| {
+            for (pipeline, group, grid) in &p.steps {
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, group, &[]);
+                match grid {
+                    Grid::Direct(x, y) => pass.dispatch_workgroups(*x, *y, 1),
+                    Grid::Indirect(args) => pass.dispatch_workgroups_indirect(args, 0),
+                }
+            }
+        });
+    }
+
+    /// `p` now where the frame is not expected to fit, else kept for later.
+    pub(super) fn record_unless(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        p: PendingPass,
+        expect_fit: bool,
+    ) -> Option<PendingPass> {
+        if expect_fit {
+            return Some(p);
+        }
+        self.record_pending(enc, &p);
+        None
+    }
 }
 
 /// Per-pixel buffers whose contents are read by the time of the capture.
@@ -70,21 +116,33 @@ impl Recording<'_, '_> {
             kind: weight_kind(target),
             marks: None,
             reuse: None,
+            pending: None,
         })
     }
 }
 
+/// An allocation's buffers and bind groups, recorded once or, where a frame expected to fit
+/// turns out truncated, twice (the second time with the search) on the same buffers.
+pub(super) struct Allocation {
+    flags: wgpu::Buffer,
+    prefix: wgpu::Buffer,
+    dispatches: wgpu::Buffer,
+    setup_group: wgpu::BindGroup,
+    group: wgpu::BindGroup,
+    apply_group: wgpu::BindGroup,
+    grid: (u32, u32),
+}
+
 impl<'a> Passes<'a> {
-    /// The allocation (allocate.wgsl), recorded into `enc`: weights, setup, 11 rounds of search
-    /// and choose, mark (one timed pass), the prefix of the marks, apply (another).
-    pub(super) fn allocate(
+    /// The allocation (allocate.wgsl) of `b` at `budget`: its buffers and bind groups, for
+    /// [`Passes::allocate`] to record.
+    pub(super) fn allocation(
         &self,
-        enc: &mut wgpu::CommandEncoder,
         fb: &mut FrameBuffers,
         b: AllocBuffers,
         budget: FragmentBudget,
         kind: u32,
-    ) -> Result<()> {
+    ) -> Result<Allocation> {
         let gpu = self.gpu;
         let a = &gpu.pipelines.allocate;
         let (f, ppm) = match budget {
@@ -121,7 +179,6 @@ impl<'a> Passes<'a> {
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
             true,
         );
-        let (per_pixel, search, scan) = (0, 16, 32);
         let bind = |marks: &wgpu::Buffer, args: &wgpu::Buffer| {
             gpu.bind_at(
                 &a.layout,
@@ -140,27 +197,56 @@ impl<'a> Passes<'a> {
         };
         // Setup writes the dispatches' arguments; the dispatches that read them bind the state
         // in their place.
-        let (setup_group, group) = (bind(&flags, &dispatches), bind(&flags, &state));
+        Ok(Allocation {
+            setup_group: bind(&flags, &dispatches),
+            group: bind(&flags, &state),
+            apply_group: bind(b.prefix, &state),
+            flags,
+            prefix: b.prefix.clone(),
+            dispatches,
+            grid: (gx, gy),
+        })
+    }
+
+    /// `al` recorded into `enc`: setup, weights, 11 rounds of search and choose, mark (one
+    /// timed pass), the prefix of the marks, apply (another). Without `search`, setup and
+    /// apply alone: k = n where the budget holds every fragment (else k is wrong, and the
+    /// caller records the allocation again with the search).
+    pub(super) fn allocate(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        fb: &mut FrameBuffers,
+        al: &Allocation,
+        search: bool,
+    ) -> Result<()> {
+        let a = &self.gpu.pipelines.allocate;
+        let (per_pixel, rounds, scan) = (0, 16, 32);
+        let dispatches = &al.dispatches;
         self.compute(enc, "allocation", |pass| {
-            pass.set_bind_group(0, &setup_group, &[]);
+            pass.set_bind_group(0, &al.setup_group, &[]);
             pass.set_pipeline(&a.setup);
             pass.dispatch_workgroups(1, 1, 1);
-            pass.set_bind_group(0, &group, &[]);
+            if !search {
+                return;
+            }
+            pass.set_bind_group(0, &al.group, &[]);
             pass.set_pipeline(&a.weights);
-            pass.dispatch_workgroups_indirect(&dispatches, per_pixel);
+            pass.dispatch_workgroups_indirect(dispatches, per_pixel);
             for _ in 0..SEARCH_ROUNDS {
                 pass.set_pipeline(&a.search);
-                pass.dispatch_workgroups_indirect(&dispatches, search);
+                pass.dispatch_workgroups_indirect(dispatches, rounds);
                 pass.set_pipeline(&a.choose);
                 pass.dispatch_workgroups(1, 1, 1);
             }
             pass.set_pipeline(&a.mark);
-            pass.dispatch_workgroups_indirect(&dispatches, per_pixel);
+            pass.dispatch_workgroups_indirect(dispatches, per_pixel);
         });
-        self.prefix_sum_of(enc, fb, &flags, b.prefix, Some((&dispatches, scan)))?;
-        let group = bind(b.prefix, &state);
+        if search {
+            self.prefix_sum_of(enc, fb, &al.flags, &al.prefix, Some((dispatches, scan)))?;
+        }
+        let (gx, gy) = al.grid;
         self.compute(enc, "allocation apply", |pass| {
-            pass.set_bind_group(0, &group, &[]);
+            pass.set_bind_group(0, &al.apply_group, &[]);
             pass.set_pipeline(&a.apply);
             pass.dispatch_workgroups(gx, gy, 1);
         });
@@ -228,8 +314,7 @@ impl Gpu {
             &[&inputs.params, &counts, &totals],
             "totals",
         );
-        passes.allocate(
-            &mut enc,
+        let al = passes.allocation(
             &mut fb,
             AllocBuffers {
                 counts: &counts,
@@ -242,6 +327,7 @@ impl Gpu {
             budget,
             weight_kind(target),
         )?;
+        passes.allocate(&mut enc, &mut fb, &al, true)?;
         passes.prefix_sum(&mut enc, &mut fb, &k, &base)?;
         fb.submit(&mut enc);
         let out = GpuAllocation {

@@ -61,43 +61,49 @@ impl Recording<'_, '_> {
                 })
             }
             Slots::Importance(imp, target, _) => {
+                let expect_fit = self.expect_fit();
                 let i = self.uploaded_importance(imp, target)?;
-                self.allocated(i, budget)
+                self.allocated(i, budget, expect_fit)
             }
             Slots::Vkb(..) => {
-                let i = self.vkb_importance()?;
-                self.allocated(i, budget)
+                let expect_fit = self.expect_fit();
+                let i = self.vkb_importance(expect_fit)?;
+                self.allocated(i, budget, expect_fit)
             }
             Slots::Dkb(mlp, _) => {
-                let i = self.dkb_importance(mlp)?;
-                let kb = self.allocated(i, budget)?;
-                self.passes
-                    .gpu
-                    .last_dkb_truncated
-                    .store(!kb.all_fit, std::sync::atomic::Ordering::Relaxed);
-                Ok(kb)
+                let expect_fit = self.expect_fit();
+                let i = self.dkb_importance(mlp, expect_fit)?;
+                self.allocated(i, budget, expect_fit)
             }
             Slots::Mlab(_) => unreachable!("MLAB blends from the A-buffer"),
         }
     }
 
+    /// Whether this frame is recorded as one whose budget holds every fragment
+    /// ([`Gpu::predict_fit`]: as the renderer's last allocated frame's did).
+    fn expect_fit(&self) -> bool {
+        let gpu = self.passes.gpu;
+        gpu.predict_fit
+            && !gpu
+                .last_truncated
+                .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
     /// The allocation of `i` at `budget`, its slot bases, and the slot count read back (the
-    /// slots buffer is sized from it).
-    pub(super) fn allocated(&mut self, i: Importance, budget: FragmentBudget) -> Result<KBuffer> {
+    /// slots buffer is sized from it). Expecting every fragment to fit, the frame records no
+    /// importance pass and no search (k = n needs neither); where the budget turns out to
+    /// truncate, it records them in a second submission and allocates again.
+    pub(super) fn allocated(
+        &mut self,
+        i: Importance,
+        budget: FragmentBudget,
+        expect_fit: bool,
+    ) -> Result<KBuffer> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
-        let (fb, enc) = (&mut self.fb, &mut self.enc);
-        if gpu.diagnostics && i.computed {
-            // A readback copy (not counted, like the staging buffers): the allocation pass
-            // overwrites importance with its fixed point.
-            let copy = fb.storage("importance.readback", 4 * px, false)?;
-            enc.copy_buffer_to_buffer(&i.importance, 0, &copy, 0, 4 * px);
-            self.out.importance_buf = Some(copy);
-        }
-        let k = fb.storage("oit.k", 4 * px, true)?;
-        let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
-        passes.allocate(
-            enc,
-            fb,
+        let k = self.fb.storage("oit.k", 4 * px, true)?;
+        let base = self.fb.storage("oit.offsets", 4 * (px + 1), true)?;
+        let al = passes.allocation(
+            &mut self.fb,
             AllocBuffers {
                 counts: &i.counts,
                 weights: &i.importance,
@@ -109,12 +115,45 @@ impl Recording<'_, '_> {
             budget,
             i.kind,
         )?;
-        passes.prefix_sum(enc, fb, &k, &base)?;
-        fb.submit(enc);
-        // The slots (the bases' last entry) and the frame's fragments, without reading back
-        // the bases.
-        let words = read_words(gpu, &[(&base, 4 * px), (&i.totals, 0)])?;
-        let (slots, fragments) = (words[0] as u64, words[1] as u64);
+        // A readback copy of the importance (not counted, like the staging buffers), taken
+        // before the search overwrites it with its fixed point.
+        let copy_importance = |fb: &mut FrameBuffers, enc: &mut wgpu::CommandEncoder| {
+            if !(gpu.diagnostics && i.computed) {
+                return Ok::<_, Error>(None);
+            }
+            let copy = fb.storage("importance.readback", 4 * px, false)?;
+            enc.copy_buffer_to_buffer(&i.importance, 0, &copy, 0, 4 * px);
+            Ok(Some(copy))
+        };
+        let mut search = !expect_fit;
+        let (slots, fragments) = loop {
+            let (fb, enc) = (&mut self.fb, &mut self.enc);
+            if search {
+                if let Some(p) = &i.pending {
+                    passes.record_pending(enc, p);
+                }
+                self.out.importance_buf = copy_importance(fb, enc)?;
+            }
+            passes.allocate(enc, fb, &al, search)?;
+            passes.prefix_sum(enc, fb, &k, &base)?;
+            fb.submit(enc);
+            // The slots (the bases' last entry) and the frame's fragments, without reading
+            // back the bases.
+            let words = read_words(gpu, &[(&base, 4 * px), (&i.totals, 0)])?;
+            let fragments = words[1] as u64;
+            if search || budget.holds(fragments) {
+                break (words[0] as u64, fragments);
+            }
+            // Expected to fit, truncated: the importance and the search after all.
+            search = true;
+        };
+        if !search {
+            // Untouched without the search (and never computed: k = n needs none).
+            self.out.importance_buf = copy_importance(&mut self.fb, &mut self.enc)?;
+        }
+        let all_fit = budget.holds(fragments);
+        gpu.last_truncated
+            .store(!all_fit, std::sync::atomic::Ordering::Relaxed);
         self.out.counts_buf = Some(i.counts.clone());
         Ok(KBuffer {
             k,
@@ -122,7 +161,7 @@ impl Recording<'_, '_> {
             slots,
             counts: i.counts,
             reuse: i.reuse,
-            all_fit: budget.holds(fragments),
+            all_fit,
         })
     }
 

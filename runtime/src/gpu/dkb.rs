@@ -9,9 +9,9 @@
 use super::*;
 
 impl Recording<'_, '_> {
-    /// DKB's features, totals and importance; the features' buffers, once read, hold the tail
-    /// and the image.
-    pub(super) fn dkb_importance(&mut self, mlp: &Mlp) -> Result<Importance> {
+    /// DKB's features, totals and importance (the network's pass left pending where the frame
+    /// is expected to fit); the features' buffers, once read, hold the tail and the image.
+    pub(super) fn dkb_importance(&mut self, mlp: &Mlp, expect_fit: bool) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
@@ -41,7 +41,7 @@ impl Recording<'_, '_> {
             DkbGeometry::CountFirst => true,
             DkbGeometry::Counting => false,
             DkbGeometry::FollowLastFrame => !gpu
-                .last_dkb_truncated
+                .last_truncated
                 .load(std::sync::atomic::Ordering::Relaxed),
         };
         if count_first {
@@ -138,17 +138,16 @@ impl Recording<'_, '_> {
         // The network's dispatch reads `dispatch` as its arguments, so its group binds the
         // list's length (which that entry does not touch there) in its place.
         let (group, network_group) = (bind(&dispatch), bind(&list_len));
-        passes.compute(enc, "importance", |pass| {
-            pass.set_bind_group(0, &group, &[]);
-            pass.set_pipeline(&select);
-            let (gx, gy) = grid(px as u32, PIXEL_GROUP);
-            pass.dispatch_workgroups(gx, gy, 1);
-            pass.set_pipeline(&args);
-            pass.dispatch_workgroups(1, 1, 1);
-            pass.set_pipeline(&network);
-            pass.set_bind_group(0, &network_group, &[]);
-            pass.dispatch_workgroups_indirect(&dispatch, 0);
-        });
+        let (gx, gy) = grid(px as u32, PIXEL_GROUP);
+        let importance_pass = PendingPass {
+            name: "importance",
+            steps: vec![
+                (select, group.clone(), Grid::Direct(gx, gy)),
+                (args, group, Grid::Direct(1, 1)),
+                (network, network_group, Grid::Indirect(dispatch)),
+            ],
+        };
+        let pending = passes.record_unless(enc, importance_pass, expect_fit);
         // Copies for the frame's statistics (not counted), then the buffers serve the tail and
         // the image.
         if gpu.diagnostics {
@@ -176,6 +175,7 @@ impl Recording<'_, '_> {
                 tail_count: nearest,
                 image: sums,
             }),
+            pending,
         })
     }
 }

@@ -108,9 +108,18 @@ pub struct Gpu {
     /// How DKB counts its fragments and gathers its features ([`DkbGeometry`]; the images are
     /// the same).
     pub dkb_geometry: DkbGeometry,
-    /// Whether the last DKB frame's budget truncated it (what [`DkbGeometry::FollowLastFrame`]
-    /// goes by).
-    last_dkb_truncated: std::sync::atomic::AtomicBool,
+    /// Whether the budget truncated the last frame this renderer allocated k for (DKB, VKB,
+    /// uploaded importance): what [`DkbGeometry::FollowLastFrame`] and [`Gpu::predict_fit`] go
+    /// by.
+    last_truncated: std::sync::atomic::AtomicBool,
+    /// Whether an allocated frame (DKB, VKB, uploaded importance) is recorded as one whose
+    /// budget holds every fragment where the renderer's last allocated frame's did: then k = n
+    /// whatever the importance, and the frame records neither the importance pass nor the
+    /// allocation's search (setup and apply alone). Where the budget turns out to truncate
+    /// (read back with the slot count), the frame records them in a second submission and
+    /// allocates again. On by default; off, every frame records them and the device empties
+    /// what it does not need (the bench's comparison). The images are the same.
+    pub predict_fit: bool,
     /// Whether FKB lays its slots out layer-major (slot i of every pixel together, so the
     /// fragments of neighbouring pixels touch neighbouring words) rather than pixel-major
     /// (off by default; the bench measures both). The images are the same.
@@ -252,7 +261,8 @@ impl Gpu {
             unrolled_network: true,
             features_preload: true,
             dkb_geometry: DkbGeometry::FollowLastFrame,
-            last_dkb_truncated: false.into(),
+            last_truncated: false.into(),
+            predict_fit: true,
             layer_major_fkb: false,
             diagnostics: true,
             bounded_loops: info.name.contains("llvmpipe") || info.driver.contains("llvmpipe"),
@@ -274,9 +284,10 @@ pub enum DkbGeometry {
     CountFirst,
     /// The features pass counts too, drawn always: no count pass.
     Counting,
-    /// [`DkbGeometry::CountFirst`], unless the renderer's last DKB frame was truncated by its
-    /// budget, then [`DkbGeometry::Counting`] (a stream of like frames takes the cheaper one;
-    /// the first frame counts first). The default.
+    /// [`DkbGeometry::CountFirst`], unless the last frame the renderer allocated k for (DKB,
+    /// VKB, uploaded importance) was truncated by its budget, then [`DkbGeometry::Counting`] (a
+    /// stream of like frames takes the cheaper one; the first frame counts first). The
+    /// default.
     FollowLastFrame,
 }
 

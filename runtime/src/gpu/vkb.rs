@@ -5,9 +5,9 @@
 use super::*;
 
 impl Recording<'_, '_> {
-    /// VKB's count, totals and importance; its nearest keys, once read, hold the allocation's
-    /// marks.
-    pub(super) fn vkb_importance(&mut self) -> Result<Importance> {
+    /// VKB's count, totals and importance (left pending where the frame is expected to fit);
+    /// its nearest keys, once read, hold the allocation's marks.
+    pub(super) fn vkb_importance(&mut self, expect_fit: bool) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
@@ -22,12 +22,16 @@ impl Recording<'_, '_> {
             &[passes.params(), &counts, &totals],
             "totals",
         );
-        passes.dispatch(
-            enc,
-            &p.importance_vkb,
+        let group = gpu.bind(
+            &p.importance_vkb.get_bind_group_layout(0),
             &[passes.params(), &counts, &nearest, &totals, &importance],
-            "importance",
         );
+        let (gx, gy) = grid(px as u32, PIXEL_GROUP);
+        let importance_pass = PendingPass {
+            name: "importance",
+            steps: vec![(p.importance_vkb.clone(), group, Grid::Direct(gx, gy))],
+        };
+        let pending = passes.record_unless(enc, importance_pass, expect_fit);
         // The nearest keys are read: a copy for the frame's statistics (not counted), then the
         // buffer holds the allocation's marks.
         if gpu.diagnostics {
@@ -43,6 +47,7 @@ impl Recording<'_, '_> {
             kind: weight_kind(Target::RelativeK),
             marks: Some(nearest),
             reuse: None,
+            pending,
         })
     }
 }
