@@ -85,12 +85,14 @@ pub fn run(a: RenderArgs) -> Result<()> {
             let (w, h) = (fl.width, fl.height);
             let cam = Camera::orbit(&scene, a.view, a.common.views, w, h);
             let slots = Slots::for_method(method, &cpu, &options)?;
-            // One frame on a new renderer, with no last frame to follow: DKB counts first only
-            // where the budget holds every fragment the CPU counted in this frame (the images
-            // are the same either way; only the passes differ).
-            if let Some(Slots::Dkb(_, f)) = slots {
-                let total = fl.fragment_count() as u64;
-                gpu.dkb_geometry = if f.holds(total) {
+            // One frame on a new renderer, with no last frame to follow: DKB counts first, and
+            // an allocated frame skips its importance and search, only where the budget holds
+            // every fragment the CPU counted in this frame (no second submission where it
+            // truncates; the images are the same either way, only the passes differ).
+            if let Some(Slots::Dkb(_, f) | Slots::Vkb(_, f) | Slots::Importance(_, _, f)) = slots {
+                let holds = f.holds(fl.fragment_count() as u64);
+                gpu.predict_fit = holds;
+                gpu.dkb_geometry = if holds {
                     DkbGeometry::CountFirst
                 } else {
                     DkbGeometry::Counting

@@ -380,14 +380,26 @@ fn the_gpu_renders_from_the_command_line() {
             (d.fragments.width, d.fragments.height, d.method.as_str()),
             (64, 48, method)
         );
+        // The passes' names, in order.
+        let names = |o: &std::process::Output| {
+            let out = String::from_utf8_lossy(&o.stdout).to_string();
+            let line = out.lines().find(|l| l.starts_with("GPU passes:")).unwrap();
+            line.trim_start_matches("GPU passes: ")
+                .split(", ")
+                .map(|p| p.rsplitn(3, ' ').nth(2).unwrap_or("").to_string())
+                .collect::<Vec<_>>()
+        };
+        if method == "vkb" || method == "dkb" {
+            // One allocation (no second submission) and the importance pass where the budget
+            // truncates: the CPU counted the frame's fragments.
+            let n = names(&o);
+            let times = |p: &str| n.iter().filter(|x| *x == p).count();
+            assert_eq!((times("allocation"), times("importance")), (1, 1), "{n:?}");
+        }
         if method == "dkb" {
             // Its one frame counts first only where the budget holds every fragment (the CPU
             // counted them): at 2 fpp plates truncates, at 100% nothing does.
-            let passes = |o: &std::process::Output| {
-                let out = String::from_utf8_lossy(&o.stdout).to_string();
-                let line = out.lines().find(|l| l.starts_with("GPU passes:")).unwrap();
-                line.split(", ").any(|p| p.contains(" count "))
-            };
+            let passes = |o: &std::process::Output| names(o).iter().any(|p| p == "count");
             assert!(d.fragments.fragment_count() > 2 * 64 * 48);
             assert!(!passes(&o), "dkb counted first at a budget that truncates");
             let all = dhoit(&[
@@ -414,6 +426,8 @@ fn the_gpu_renders_from_the_command_line() {
                 passes(&all),
                 "dkb drew its features where every fragment fits"
             );
+            // Where every fragment fits, k = n: no importance pass.
+            assert!(!names(&all).iter().any(|p| p == "importance"));
         }
         assert!(
             d.image
