@@ -37,9 +37,10 @@ def table(path):
             ms = m[k]["passes_ms"].get(name)
             return "-" if ms is None else f"{ms:.2f}"
 
-        # DKB's count pass, where it counts first (absent where the features pass counts).
+        # DKB's count pass, where it counts first (absent where the features pass counts), and
+        # its features pass (absent where the frame expected to fit, and did).
         passes = m["dkb"]["passes_ms"]
-        geometry = passes.get("count", 0.0) + passes.get("features", float("nan"))
+        geometry = passes.get("count", 0.0) + passes.get("features", 0.0)
         out.append(
             f"| {s['scene']} | {frame('abuffer'):.2f} | {frame('fkb'):.2f} | {frame('optimal'):.2f} "
             f"| {frame('vkb'):.2f} | {frame('dkb'):.2f} | {frame('dkb_16-8'):.2f} "

@@ -19,52 +19,33 @@ pub(super) struct Importance {
     pub(super) marks: Option<wgpu::Buffer>,
     /// Buffers no longer needed by the capture, for the tail and the image (DKB's features).
     pub(super) reuse: Option<Reuse>,
-    /// The importance pass, where the frame expected to fit and did not record it.
-    pub(super) pending: Option<PendingPass>,
+    /// The passes after the count, where the frame expected to fit and did not record them.
+    pub(super) pending: Option<Pending>,
 }
 
-/// An importance pass that a frame expected to fit did not record (where the budget holds
-/// every fragment, k = n whatever the importance): recorded only if the budget truncates.
-pub(super) struct PendingPass {
-    pub(super) name: &'static str,
-    /// Each dispatch: pipeline, bind group, grid (or its indirect arguments).
-    pub(super) steps: Vec<(wgpu::ComputePipeline, wgpu::BindGroup, Grid)>,
+/// The passes after the count that a frame expected to fit leaves unrecorded (totals,
+/// features, importance: where the budget holds every fragment, k = n needs none of them);
+/// [`Recording::allocated`] records them where the budget turns out to truncate.
+pub(super) type Pending = Box<dyn for<'r, 'f, 'a> FnOnce(&'r mut Recording<'f, 'a>) -> Result<()>>;
+
+/// `f` as [`Pending`] (a closure handed here is inferred for every recording).
+pub(super) fn pending(
+    f: impl for<'r, 'f, 'a> FnOnce(&'r mut Recording<'f, 'a>) -> Result<()> + 'static,
+) -> Pending {
+    Box::new(f)
 }
 
-/// A dispatch's workgroups.
-pub(super) enum Grid {
-    Direct(u32, u32),
-    Indirect(wgpu::Buffer),
-}
-
-impl Passes<'_> {
-    /// `p` as one timed compute pass.
-    pub(super) fn record_pending(&self, enc: &mut wgpu::CommandEncoder, p: &PendingPass) {
-        self.compute(enc, p.name, |pass| {
-            for (pipeline, group, grid) in &p.steps {
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, group, &[]);
-                match grid {
-                    Grid::Direct(x, y) => pass.dispatch_workgroups(*x, *y, 1),
-                    Grid::Indirect(args) => pass.dispatch_workgroups_indirect(args, 0),
-                }
-            }
-        });
+/// `rest` recorded now unless the frame expects to fit, else kept.
+pub(super) fn record_unless(
+    rec: &mut Recording,
+    rest: Pending,
+    expect_fit: bool,
+) -> Result<Option<Pending>> {
+    if expect_fit {
+        return Ok(Some(rest));
     }
-
-    /// `p` now where the frame is not expected to fit, else kept for later.
-    pub(super) fn record_unless(
-        &self,
-        enc: &mut wgpu::CommandEncoder,
-        p: PendingPass,
-        expect_fit: bool,
-    ) -> Option<PendingPass> {
-        if expect_fit {
-            return Some(p);
-        }
-        self.record_pending(enc, &p);
-        None
-    }
+    rest(rec)?;
+    Ok(None)
 }
 
 /// Per-pixel buffers whose contents are read by the time of the capture.
@@ -78,11 +59,13 @@ pub(super) struct Reuse {
 }
 
 impl Recording<'_, '_> {
-    /// The count and totals for importance computed elsewhere, uploaded.
+    /// The count and totals (left pending where the frame is expected to fit) for importance
+    /// computed elsewhere, uploaded.
     pub(super) fn uploaded_importance(
         &mut self,
         imp: &[f32],
         target: Target,
+        expect_fit: bool,
     ) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
@@ -102,12 +85,18 @@ impl Recording<'_, '_> {
         );
         let totals = fb.storage("totals", 16, true)?;
         passes.draw(enc, &p.count, &[&counts], "count");
-        passes.dispatch(
-            enc,
-            &p.totals,
-            &[passes.params(), &counts, &totals],
-            "totals",
-        );
+        let (c, t) = (counts.clone(), totals.clone());
+        let rest = pending(move |rec| {
+            let (passes, p) = (rec.passes, &rec.passes.gpu.pipelines);
+            passes.dispatch(
+                &mut rec.enc,
+                &p.totals,
+                &[passes.params(), &c, &t],
+                "totals",
+            );
+            Ok(())
+        });
+        let pending = record_unless(self, rest, expect_fit)?;
         Ok(Importance {
             counts,
             importance,
@@ -116,13 +105,13 @@ impl Recording<'_, '_> {
             kind: weight_kind(target),
             marks: None,
             reuse: None,
-            pending: None,
+            pending,
         })
     }
 }
 
-/// An allocation's buffers and bind groups, recorded once or, where a frame expected to fit
-/// turns out truncated, twice (the second time with the search) on the same buffers.
+/// An allocation's buffers and bind groups (taken whether or not the frame records it, so a
+/// frame's memory is the same either way).
 pub(super) struct Allocation {
     flags: wgpu::Buffer,
     prefix: wgpu::Buffer,
@@ -209,15 +198,12 @@ impl<'a> Passes<'a> {
     }
 
     /// `al` recorded into `enc`: setup, weights, 11 rounds of search and choose, mark (one
-    /// timed pass), the prefix of the marks, apply (another). Without `search`, setup and
-    /// apply alone: k = n where the budget holds every fragment (else k is wrong, and the
-    /// caller records the allocation again with the search).
+    /// timed pass), the prefix of the marks, apply (another).
     pub(super) fn allocate(
         &self,
         enc: &mut wgpu::CommandEncoder,
         fb: &mut FrameBuffers,
         al: &Allocation,
-        search: bool,
     ) -> Result<()> {
         let a = &self.gpu.pipelines.allocate;
         let (per_pixel, rounds, scan) = (0, 16, 32);
@@ -226,9 +212,6 @@ impl<'a> Passes<'a> {
             pass.set_bind_group(0, &al.setup_group, &[]);
             pass.set_pipeline(&a.setup);
             pass.dispatch_workgroups(1, 1, 1);
-            if !search {
-                return;
-            }
             pass.set_bind_group(0, &al.group, &[]);
             pass.set_pipeline(&a.weights);
             pass.dispatch_workgroups_indirect(dispatches, per_pixel);
@@ -241,9 +224,7 @@ impl<'a> Passes<'a> {
             pass.set_pipeline(&a.mark);
             pass.dispatch_workgroups_indirect(dispatches, per_pixel);
         });
-        if search {
-            self.prefix_sum_of(enc, fb, &al.flags, &al.prefix, Some((dispatches, scan)))?;
-        }
+        self.prefix_sum_of(enc, fb, &al.flags, &al.prefix, Some((dispatches, scan)))?;
         let (gx, gy) = al.grid;
         self.compute(enc, "allocation apply", |pass| {
             pass.set_bind_group(0, &al.apply_group, &[]);
@@ -327,7 +308,7 @@ impl Gpu {
             budget,
             weight_kind(target),
         )?;
-        passes.allocate(&mut enc, &mut fb, &al, true)?;
+        passes.allocate(&mut enc, &mut fb, &al)?;
         passes.prefix_sum(&mut enc, &mut fb, &k, &base)?;
         fb.submit(&mut enc);
         let out = GpuAllocation {

@@ -218,6 +218,8 @@ pub(super) struct Readback {
     pub(super) stats_bufs: Option<[wgpu::Buffer; 3]>,
     /// DKB: the features pass's indirect draw (its first word: the vertices it drew).
     pub(super) features_draw_buf: Option<wgpu::Buffer>,
+    /// DKB: whether its features pass drew, where the host knows it (not recorded: false).
+    pub(super) features_drawn: Option<bool>,
     pub(super) vkb_nearest_buf: Option<wgpu::Buffer>,
 }
 
@@ -246,7 +248,7 @@ impl Readback {
         };
         let features_drawn = match &self.features_draw_buf {
             Some(b) => Some(u32s(&read_back(gpu, b, 4)?)[0] > 0),
-            None => None,
+            None => self.features_drawn,
         };
         let Some(counts) = &self.counts_buf else {
             return Ok(Statistics {

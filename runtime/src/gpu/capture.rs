@@ -62,7 +62,7 @@ impl Recording<'_, '_> {
             }
             Slots::Importance(imp, target, _) => {
                 let expect_fit = self.expect_fit();
-                let i = self.uploaded_importance(imp, target)?;
+                let i = self.uploaded_importance(imp, target, expect_fit)?;
                 self.allocated(i, budget, expect_fit)
             }
             Slots::Vkb(..) => {
@@ -90,12 +90,14 @@ impl Recording<'_, '_> {
     }
 
     /// The allocation of `i` at `budget`, its slot bases, and the slot count read back (the
-    /// slots buffer is sized from it). Expecting every fragment to fit, the frame records no
-    /// importance pass and no search (k = n needs neither); where the budget turns out to
-    /// truncate, it records them in a second submission and allocates again.
+    /// slots buffer is sized from it). A frame expected to fit has recorded its count alone:
+    /// k = n, so the bases are the count's prefix sum and its last entry says whether the
+    /// budget holds every fragment. Where it does not (and in every other frame), the passes
+    /// left pending, the allocation (the device empties its search where every fragment fits)
+    /// and the prefix sum of k, in another submission.
     pub(super) fn allocated(
         &mut self,
-        i: Importance,
+        mut i: Importance,
         budget: FragmentBudget,
         expect_fit: bool,
     ) -> Result<KBuffer> {
@@ -116,7 +118,8 @@ impl Recording<'_, '_> {
             i.kind,
         )?;
         // A readback copy of the importance (not counted, like the staging buffers), taken
-        // before the search overwrites it with its fixed point.
+        // before the allocation overwrites it with its fixed point; where no pass computed it
+        // (k = n), it stays zero.
         let copy_importance = |fb: &mut FrameBuffers, enc: &mut wgpu::CommandEncoder| {
             if !(gpu.diagnostics && i.computed) {
                 return Ok::<_, Error>(None);
@@ -125,36 +128,42 @@ impl Recording<'_, '_> {
             enc.copy_buffer_to_buffer(&i.importance, 0, &copy, 0, 4 * px);
             Ok(Some(copy))
         };
-        let mut search = !expect_fit;
-        let (slots, fragments) = loop {
+        self.out.counts_buf = Some(i.counts.clone());
+        if expect_fit {
             let (fb, enc) = (&mut self.fb, &mut self.enc);
-            if search {
-                if let Some(p) = &i.pending {
-                    passes.record_pending(enc, p);
-                }
-                self.out.importance_buf = copy_importance(fb, enc)?;
-            }
-            passes.allocate(enc, fb, &al, search)?;
-            passes.prefix_sum(enc, fb, &k, &base)?;
+            passes.prefix_sum(enc, fb, &i.counts, &base)?;
             fb.submit(enc);
-            // The slots (the bases' last entry) and the frame's fragments, without reading
-            // back the bases.
-            let words = read_words(gpu, &[(&base, 4 * px), (&i.totals, 0)])?;
-            let fragments = words[1] as u64;
-            if search || budget.holds(fragments) {
-                break (words[0] as u64, fragments);
+            let total = read_words(gpu, &[(&base, 4 * px)])?[0] as u64;
+            if budget.holds(total) {
+                self.out.importance_buf = copy_importance(fb, enc)?;
+                gpu.last_truncated
+                    .store(false, std::sync::atomic::Ordering::Relaxed);
+                return Ok(KBuffer {
+                    k: i.counts.clone(),
+                    base,
+                    slots: total,
+                    counts: i.counts,
+                    reuse: i.reuse,
+                    all_fit: true,
+                });
             }
-            // Expected to fit, truncated: the importance and the search after all.
-            search = true;
-        };
-        if !search {
-            // Untouched without the search (and never computed: k = n needs none).
-            self.out.importance_buf = copy_importance(&mut self.fb, &mut self.enc)?;
+            // Expected to fit, truncated: the rest after all.
         }
+        if let Some(rest) = i.pending.take() {
+            rest(self)?;
+        }
+        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        self.out.importance_buf = copy_importance(fb, enc)?;
+        passes.allocate(enc, fb, &al)?;
+        passes.prefix_sum(enc, fb, &k, &base)?;
+        fb.submit(enc);
+        // The slots (the bases' last entry) and the frame's fragments, without reading back
+        // the bases.
+        let words = read_words(gpu, &[(&base, 4 * px), (&i.totals, 0)])?;
+        let (slots, fragments) = (words[0] as u64, words[1] as u64);
         let all_fit = budget.holds(fragments);
         gpu.last_truncated
             .store(!all_fit, std::sync::atomic::Ordering::Relaxed);
-        self.out.counts_buf = Some(i.counts.clone());
         Ok(KBuffer {
             k,
             base,

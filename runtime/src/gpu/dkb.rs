@@ -4,101 +4,38 @@
 //! `features_draw` sets its indirect draw; or counting in the features pass, drawn always:
 //! [`DkbGeometry`]), then `importance_dkb.wgsl` (the 12 features, never stored, through the
 //! network of `mlp.wgsl`, built for the network's shape and precision by [`Variant`]; twin
-//! `Mlp::dkb_importance`).
+//! `Mlp::dkb_importance`). A frame expected to fit ([`Gpu::predict_fit`]) records the count
+//! alone and leaves the rest to [`Recording::allocated`], which records it only where the
+//! budget truncates.
 
 use super::*;
 
+/// DKB's per-frame buffers.
+#[derive(Clone)]
+struct DkbBuffers {
+    weights: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    /// The features pass's indirect draw.
+    draw: wgpu::Buffer,
+    nearest: wgpu::Buffer,
+    farthest: wgpu::Buffer,
+    sums: wgpu::Buffer,
+    totals: wgpu::Buffer,
+    importance: wgpu::Buffer,
+    /// The pixels the network decides (the allocation's marks buffer, dead until then).
+    list: wgpu::Buffer,
+    list_len: wgpu::Buffer,
+    dispatch: wgpu::Buffer,
+}
+
 impl Recording<'_, '_> {
-    /// DKB's features, totals and importance (the network's pass left pending where the frame
-    /// is expected to fit); the features' buffers, once read, hold the tail and the image.
+    /// DKB's count (or the features pass counting), then its totals, features and importance,
+    /// left pending where the frame is expected to fit (k = n needs none of them). The
+    /// features' buffers, once read, hold the tail and the image.
     pub(super) fn dkb_importance(&mut self, mlp: &Mlp, expect_fit: bool) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
-        let (fb, enc) = (&mut self.fb, &mut self.enc);
-        let weights = fb.init(
-            "mlp.weights",
-            bytemuck::cast_slice(&mlp_uniform(mlp)),
-            wgpu::BufferUsages::UNIFORM,
-            true,
-        );
-        let counts = fb.storage("features.count", 4 * px, true)?;
-        // The features pass's indirect draw: the frame's vertices, or none (below).
-        let draw = fb.init(
-            "features.draw",
-            bytemuck::cast_slice(&[passes.vertices, 1, 0, 0]),
-            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
-            true,
-        );
-        // The nearest key (8 bytes a pixel), then the tail's count; the two farthest keys (16),
-        // then the tail's sums; the colour sums (16), then the image. No buffer above 16 bytes
-        // a pixel, so a 4K frame fits 128 MiB bindings.
-        let nearest = fb.storage("features.nearest", 8 * px, true)?;
-        let farthest = fb.storage("features.farthest", 16 * px, true)?;
-        let sums = fb.storage("features.color_sums", 16 * px, true)?;
-        let totals = fb.storage("features.totals", 24, true)?;
-        let importance = fb.storage("oit.importance", 4 * px, true)?;
-        let count_first = match gpu.dkb_geometry {
-            DkbGeometry::CountFirst => true,
-            DkbGeometry::Counting => false,
-            DkbGeometry::FollowLastFrame => !gpu
-                .last_truncated
-                .load(std::sync::atomic::Ordering::Relaxed),
-        };
-        if count_first {
-            // Count, totals, and the features only where the budget truncates: when it holds
-            // every fragment, k = n whatever the importance, and the draw has no vertex.
-            passes.draw(enc, &p.count, &[&counts], "count");
-            let sum = gpu.bind(
-                &p.totals.get_bind_group_layout(0),
-                &[passes.params(), &counts, &totals],
-            );
-            let args = gpu.bind_at(
-                &p.features_draw.get_bind_group_layout(0),
-                &[(0, passes.params()), (2, &totals), (3, &draw)],
-            );
-            passes.compute(enc, "totals", |pass| {
-                pass.set_pipeline(&p.totals);
-                pass.set_bind_group(0, &sum, &[]);
-                let (gx, gy) = grid(px as u32, PIXEL_GROUP);
-                pass.dispatch_workgroups(gx, gy, 1);
-                pass.set_pipeline(&p.features_draw);
-                pass.set_bind_group(0, &args, &[]);
-                pass.dispatch_workgroups(1, 1, 1);
-            });
-            let features = if gpu.features_preload {
-                &p.features
-            } else {
-                &p.features_no_preload
-            };
-            // The count is bound, not written (COUNT_FRAGMENTS is false).
-            passes.draw_indirect(
-                enc,
-                features,
-                &[&nearest, &farthest, &sums, &counts],
-                "features",
-                &draw,
-            );
-        } else {
-            // One pass counts and gathers the features, drawn always: where the budget
-            // truncates (as the last frame's did), one geometry pass fewer.
-            passes.draw_indirect(
-                enc,
-                &p.features_counting,
-                &[&nearest, &farthest, &sums, &counts],
-                "features",
-                &draw,
-            );
-            passes.dispatch(
-                enc,
-                &p.totals,
-                &[passes.params(), &counts, &totals],
-                "totals",
-            );
-        }
-        // The pixels the network decides, listed in the allocation's marks buffer (dead until
-        // the allocation), their count and the network's indirect dispatch.
-        let list = fb.storage("alloc.flags", 4 * px, true)?;
-        let list_len = fb.storage("importance.list_len", 16, true)?;
+        let fb = &mut self.fb;
         let dispatch = fb.take(
             "importance.dispatch",
             16,
@@ -108,7 +45,58 @@ impl Recording<'_, '_> {
             true,
         );
         fb.allocated += 16;
-        let entry = |entry| {
+        let b = DkbBuffers {
+            weights: fb.init(
+                "mlp.weights",
+                bytemuck::cast_slice(&mlp_uniform(mlp)),
+                wgpu::BufferUsages::UNIFORM,
+                true,
+            ),
+            counts: fb.storage("features.count", 4 * px, true)?,
+            // The frame's vertices, or none (totals.wgsl's features_draw).
+            draw: fb.init(
+                "features.draw",
+                bytemuck::cast_slice(&[passes.vertices, 1, 0, 0]),
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+                true,
+            ),
+            // The nearest key (8 bytes a pixel), then the tail's count; the two farthest keys
+            // (16), then the tail's sums; the colour sums (16), then the image. No buffer above
+            // 16 bytes a pixel, so a 4K frame fits 128 MiB bindings.
+            nearest: fb.storage("features.nearest", 8 * px, true)?,
+            farthest: fb.storage("features.farthest", 16 * px, true)?,
+            sums: fb.storage("features.color_sums", 16 * px, true)?,
+            totals: fb.storage("features.totals", 24, true)?,
+            importance: fb.storage("oit.importance", 4 * px, true)?,
+            list: fb.storage("alloc.flags", 4 * px, true)?,
+            list_len: fb.storage("importance.list_len", 16, true)?,
+            dispatch,
+        };
+        let count_first = match gpu.dkb_geometry {
+            DkbGeometry::CountFirst => true,
+            DkbGeometry::Counting => false,
+            DkbGeometry::FollowLastFrame => !gpu
+                .last_truncated
+                .load(std::sync::atomic::Ordering::Relaxed),
+        };
+        let features = if !count_first {
+            &p.features_counting
+        } else if gpu.features_preload {
+            &p.features
+        } else {
+            &p.features_no_preload
+        }
+        .clone();
+        if count_first {
+            passes.draw(&mut self.enc, &p.count, &[&b.counts], "count");
+            // Drawn, if at all, with the rest (where the frame is not expected to fit).
+            self.out.features_drawn = Some(false);
+        } else {
+            // One pass counts and gathers the features, drawn always: where the budget
+            // truncates (as the last frame's did), one geometry pass fewer.
+            self.dkb_features(&b, &features)?;
+        }
+        let net = |entry| {
             gpu.network_pass(Variant {
                 shared_weights: gpu.shared_weights,
                 unrolled: gpu.unrolled_network,
@@ -116,40 +104,34 @@ impl Recording<'_, '_> {
                 ..Variant::for_network("importance_dkb", mlp, gpu.skip_forced)
             })
         };
-        let (select, args, network) = (entry("select_pixels"), entry("args"), entry("network"));
-        let bind = |dispatch_or_not: &wgpu::Buffer| {
-            gpu.bind(
-                &p.network_layout.group,
-                &[
-                    passes.params(),
-                    &weights,
-                    &counts,
-                    &nearest,
-                    &farthest,
-                    &sums,
-                    &totals,
-                    &importance,
-                    &list,
-                    &list_len,
-                    dispatch_or_not,
-                ],
-            )
-        };
-        // The network's dispatch reads `dispatch` as its arguments, so its group binds the
-        // list's length (which that entry does not touch there) in its place.
-        let (group, network_group) = (bind(&dispatch), bind(&list_len));
-        let (gx, gy) = grid(px as u32, PIXEL_GROUP);
-        let importance_pass = PendingPass {
-            name: "importance",
-            steps: vec![
-                (select, group.clone(), Grid::Direct(gx, gy)),
-                (args, group, Grid::Direct(1, 1)),
-                (network, network_group, Grid::Indirect(dispatch)),
-            ],
-        };
-        let pending = passes.record_unless(enc, importance_pass, expect_fit);
-        // Copies for the frame's statistics (not counted), then the buffers serve the tail and
-        // the image.
+        let network = [net("select_pixels"), net("args"), net("network")];
+        let bufs = b.clone();
+        let rest = pending(move |rec| rec.dkb_rest(&bufs, count_first, &features, &network));
+        let pending = record_unless(self, rest, expect_fit)?;
+        Ok(Importance {
+            counts: b.counts,
+            importance: b.importance,
+            totals: b.totals,
+            computed: true,
+            kind: weight_kind(mlp.target),
+            marks: Some(b.list),
+            reuse: Some(Reuse {
+                tail: b.farthest,
+                tail_count: b.nearest,
+                image: b.sums,
+            }),
+            pending,
+        })
+    }
+
+    /// The features pass (drawn indirectly), and with diagnostics the copies of its statistics
+    /// (not counted; the buffers then serve the tail and the image).
+    fn dkb_features(&mut self, b: &DkbBuffers, features: &wgpu::RenderPipeline) -> Result<()> {
+        let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
+        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        // The count is bound, and written only where the pass counts (COUNT_FRAGMENTS).
+        let bufs = [&b.nearest, &b.farthest, &b.sums, &b.counts];
+        passes.draw_indirect(enc, features, &bufs, "features", &b.draw);
         if gpu.diagnostics {
             let mut copy = |b: &wgpu::Buffer, label: &str, bytes: u64| {
                 let c = fb.storage(label, bytes * px, false)?;
@@ -157,25 +139,82 @@ impl Recording<'_, '_> {
                 Ok::<_, Error>(c)
             };
             self.out.stats_bufs = Some([
-                copy(&nearest, "features.nearest.readback", 8)?,
-                copy(&farthest, "features.farthest.readback", 16)?,
-                copy(&sums, "features.color_sums.readback", 16)?,
+                copy(&b.nearest, "features.nearest.readback", 8)?,
+                copy(&b.farthest, "features.farthest.readback", 16)?,
+                copy(&b.sums, "features.color_sums.readback", 16)?,
             ]);
-            self.out.features_draw_buf = Some(draw.clone());
+            self.out.features_draw_buf = Some(b.draw.clone());
         }
-        Ok(Importance {
-            counts,
-            importance,
-            totals,
-            computed: true,
-            kind: weight_kind(mlp.target),
-            marks: Some(list),
-            reuse: Some(Reuse {
-                tail: farthest,
-                tail_count: nearest,
-                image: sums,
-            }),
-            pending,
-        })
+        Ok(())
+    }
+
+    /// After DKB's count: the totals, the features where the count came first (drawn only
+    /// where the budget truncates: when it holds every fragment, k = n whatever the importance,
+    /// and `features_draw` empties the draw), and the network's pass.
+    fn dkb_rest(
+        &mut self,
+        b: &DkbBuffers,
+        count_first: bool,
+        features: &wgpu::RenderPipeline,
+        [select, args, network]: &[wgpu::ComputePipeline; 3],
+    ) -> Result<()> {
+        let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
+        let p = &gpu.pipelines;
+        let (gx, gy) = grid(px as u32, PIXEL_GROUP);
+        if count_first {
+            let sum = gpu.bind(
+                &p.totals.get_bind_group_layout(0),
+                &[passes.params(), &b.counts, &b.totals],
+            );
+            let draw_args = gpu.bind_at(
+                &p.features_draw.get_bind_group_layout(0),
+                &[(0, passes.params()), (2, &b.totals), (3, &b.draw)],
+            );
+            passes.compute(&mut self.enc, "totals", |pass| {
+                pass.set_pipeline(&p.totals);
+                pass.set_bind_group(0, &sum, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+                pass.set_pipeline(&p.features_draw);
+                pass.set_bind_group(0, &draw_args, &[]);
+                pass.dispatch_workgroups(1, 1, 1);
+            });
+            self.out.features_drawn = None;
+            self.dkb_features(b, features)?;
+        } else {
+            let bufs = [passes.params(), &b.counts, &b.totals];
+            passes.dispatch(&mut self.enc, &p.totals, &bufs, "totals");
+        }
+        let bind = |dispatch_or_not: &wgpu::Buffer| {
+            gpu.bind(
+                &p.network_layout.group,
+                &[
+                    passes.params(),
+                    &b.weights,
+                    &b.counts,
+                    &b.nearest,
+                    &b.farthest,
+                    &b.sums,
+                    &b.totals,
+                    &b.importance,
+                    &b.list,
+                    &b.list_len,
+                    dispatch_or_not,
+                ],
+            )
+        };
+        // The network's dispatch reads `dispatch` as its arguments, so its group binds the
+        // list's length (which that entry does not touch there) in its place.
+        let (group, network_group) = (bind(&b.dispatch), bind(&b.list_len));
+        passes.compute(&mut self.enc, "importance", |pass| {
+            pass.set_bind_group(0, &group, &[]);
+            pass.set_pipeline(select);
+            pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_pipeline(args);
+            pass.dispatch_workgroups(1, 1, 1);
+            pass.set_pipeline(network);
+            pass.set_bind_group(0, &network_group, &[]);
+            pass.dispatch_workgroups_indirect(&b.dispatch, 0);
+        });
+        Ok(())
     }
 }

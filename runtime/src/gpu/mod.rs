@@ -114,11 +114,12 @@ pub struct Gpu {
     last_truncated: std::sync::atomic::AtomicBool,
     /// Whether an allocated frame (DKB, VKB, uploaded importance) is recorded as one whose
     /// budget holds every fragment where the renderer's last allocated frame's did: then k = n
-    /// whatever the importance, and the frame records neither the importance pass nor the
-    /// allocation's search (setup and apply alone). Where the budget turns out to truncate
-    /// (read back with the slot count), the frame records them in a second submission and
-    /// allocates again. On by default; off, every frame records them and the device empties
-    /// what it does not need (the bench's comparison). The images are the same.
+    /// whatever the importance, so the frame records its count, the count's prefix sum (the
+    /// slot bases), the capture and the resolve, as the A-buffer does; no totals, features,
+    /// importance or allocation. Where the budget turns out to truncate (the bases' last entry,
+    /// read back to size the slots, is the frame's fragment count), the frame records those
+    /// in a second submission. On by default; off, every frame records every pass and the
+    /// device empties what it does not need (the bench's comparison). The images are the same.
     pub predict_fit: bool,
     /// Whether FKB lays its slots out layer-major (slot i of every pixel together, so the
     /// fragments of neighbouring pixels touch neighbouring words) rather than pixel-major

@@ -5,7 +5,7 @@
 use super::*;
 
 impl Recording<'_, '_> {
-    /// VKB's count, totals and importance (left pending where the frame is expected to fit);
+    /// VKB's count, then totals and importance (left pending where the frame is expected to fit);
     /// its nearest keys, once read, hold the allocation's marks.
     pub(super) fn vkb_importance(&mut self, expect_fit: bool) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
@@ -16,22 +16,14 @@ impl Recording<'_, '_> {
         let totals = fb.storage("vkb.totals", 16, true)?;
         let importance = fb.storage("oit.importance", 4 * px, true)?;
         passes.draw(enc, &p.vkb_count, &[&counts, &nearest], "count");
-        passes.dispatch(
-            enc,
-            &p.totals,
-            &[passes.params(), &counts, &totals],
-            "totals",
-        );
-        let group = gpu.bind(
-            &p.importance_vkb.get_bind_group_layout(0),
-            &[passes.params(), &counts, &nearest, &totals, &importance],
-        );
-        let (gx, gy) = grid(px as u32, PIXEL_GROUP);
-        let importance_pass = PendingPass {
-            name: "importance",
-            steps: vec![(p.importance_vkb.clone(), group, Grid::Direct(gx, gy))],
-        };
-        let pending = passes.record_unless(enc, importance_pass, expect_fit);
+        let [c, n, t, i] = [&counts, &nearest, &totals, &importance].map(|b| b.clone());
+        let rest = pending(move |rec| {
+            let (passes, p, enc) = (rec.passes, &rec.passes.gpu.pipelines, &mut rec.enc);
+            passes.dispatch(enc, &p.totals, &[passes.params(), &c, &t], "totals");
+            let bufs = [passes.params(), &c, &n, &t, &i];
+            passes.dispatch(enc, &p.importance_vkb, &bufs, "importance");
+            Ok(())
+        });
         // The nearest keys are read: a copy for the frame's statistics (not counted), then the
         // buffer holds the allocation's marks.
         if gpu.diagnostics {
@@ -39,6 +31,7 @@ impl Recording<'_, '_> {
             enc.copy_buffer_to_buffer(&nearest, 0, &copy, 0, 8 * px);
             self.out.vkb_nearest_buf = Some(copy);
         }
+        let pending = record_unless(self, rest, expect_fit)?;
         Ok(Importance {
             counts,
             importance,
