@@ -175,7 +175,11 @@ fn kbuffers_match_the_cpu_slot_for_slot() {
 
 /// An image's channels as bits, to compare images exactly.
 fn image_bits(img: &composite::Image) -> Vec<u32> {
-    img.data.iter().flatten().map(|v| v.to_bits()).collect()
+    float_bits(img.data.iter().flatten())
+}
+
+fn float_bits<'a>(v: impl IntoIterator<Item = &'a f32>) -> Vec<u32> {
+    v.into_iter().map(|x| x.to_bits()).collect()
 }
 
 #[test]
@@ -313,9 +317,8 @@ fn features_and_network_layouts_give_the_same_frame(
                 "{label}: importance"
             );
             if let Some(a) = &first {
-                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 assert!(
-                    bits(a.importance.as_ref().unwrap()) == bits(imp),
+                    float_bits(a.importance.as_ref().unwrap()) == float_bits(imp),
                     "{label}: importance differs"
                 );
                 assert!(
@@ -340,12 +343,7 @@ fn features_and_network_layouts_give_the_same_frame(
     for f in [truncates, holds_all] {
         for (method, slots) in [("dkb", dkb(f)), ("vkb", vkb(f))] {
             let frame = g.render(s, cam, w, h, BG, Some(slots)).unwrap();
-            let bits: Vec<u32> = frame
-                .importance
-                .unwrap()
-                .iter()
-                .map(|x| x.to_bits())
-                .collect();
+            let bits = float_bits(&frame.importance.unwrap());
             assert!(image_bits(&frame.image) == images[&f] || method == "vkb");
             reference.insert((method, f), (image_bits(&frame.image), frame.slots, bits));
         }
@@ -383,12 +381,7 @@ fn features_and_network_layouts_give_the_same_frame(
                 assert_eq!(passes(name), recorded as usize, "{label}: {name}");
             }
             let (image, keys, importance) = &reference[&(method, f)];
-            let bits: Vec<u32> = frame
-                .importance
-                .unwrap()
-                .iter()
-                .map(|x| x.to_bits())
-                .collect();
+            let bits = float_bits(&frame.importance.unwrap());
             assert!(image_bits(&frame.image) == *image, "{label}: image differs");
             assert!(frame.slots == *keys, "{label}: slots differ");
             if recorded || method == "dkb" {
