@@ -364,8 +364,8 @@ impl Timer {
                     .pass_ms
                     .iter()
                     .filter(|p| p.0 == "importance")
-                    .map(|p| p.1)
-                    .sum::<f64>(),
+                    // None where the budget holds every fragment (k = n needs no importance).
+                    .fold(0.0, |a, p| a + p.1),
                 (_, TimedFrame::Cpu { feats, counts }) => {
                     let t = Instant::now();
                     std::hint::black_box(mlp.importance(feats, counts));
