@@ -381,8 +381,9 @@ pub struct GpuFrame {
     pub importance: Option<Vec<f32>>,
     /// DKB: the features pass's per-pixel statistics, where it drew.
     pub stats: Option<Vec<PixelStats>>,
-    /// DKB: whether its features pass drew the frame's triangles; the device decides, from the
-    /// count: not when the budget holds every fragment (k = n whatever the importance).
+    /// DKB: whether its features pass drew the frame's triangles: not when the budget holds
+    /// every fragment (k = n whatever the importance), where the frame either did not record
+    /// the pass (it expected to fit: [`Gpu::predict_fit`]) or the device emptied its draw.
     pub features_drawn: Option<bool>,
     /// VKB: per pixel the count and the nearest fragment's `|n . e|`.
     pub vkb_nearest: Option<(Vec<u32>, Vec<f32>)>,
