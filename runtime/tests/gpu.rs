@@ -265,10 +265,10 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
 /// statistics as the CPU twin's where the features pass drew (always when it counts, else only
 /// where the budget truncates), the same importance and image bits. Then a stream of frames
 /// following the last (`DkbGeometry::FollowLastFrame` and `Gpu::predict_fit`, the defaults),
-/// DKB's and VKB's, counts first and records nothing else before the capture after a frame
-/// the budget held, records every pass after one it truncated, or in a second submission
-/// where an expected fit truncates, with the slots, importance and image bits of frames that
-/// record every pass.
+/// DKB's, VKB's and uploaded importance's, counts first and records nothing else before the
+/// capture after a frame the budget held, records every pass after one it truncated, or in a
+/// second submission where an expected fit truncates, with the slots, importance and image
+/// bits of frames that record every pass.
 fn features_and_network_layouts_give_the_same_frame(
     g: &mut dhoit_runtime::gpu::Gpu,
     (s, cam): (&Scene, &Camera),
@@ -335,16 +335,25 @@ fn features_and_network_layouts_give_the_same_frame(
     g.unrolled_network = true;
     g.dkb_geometry = DkbGeometry::FollowLastFrame;
     // Every pass recorded whatever the last frame (`Gpu::predict_fit` off): the references of
-    // the stream below, DKB's and VKB's.
+    // the stream below, DKB's, VKB's and uploaded importance's.
     let vkb = |f: u64| Slots::Vkb(Default::default(), f.into());
     let dkb = |f: u64| Slots::Dkb(mlp, f.into());
+    let mut rng = dhoit_runtime::rng::Rng::new(11);
+    let uploaded: Vec<f32> = (0..w * h).map(|_| rng.f32()).collect();
+    let upload = |f: u64| Slots::Importance(&uploaded, alloc::Target::RelativeK, f.into());
+    let slots = |method: &str, f: u64| match method {
+        "dkb" => dkb(f),
+        "vkb" => vkb(f),
+        _ => upload(f),
+    };
+    let methods = ["dkb", "vkb", "uploaded"];
     g.predict_fit = false;
     let mut reference = std::collections::HashMap::new();
     for f in [truncates, holds_all] {
-        for (method, slots) in [("dkb", dkb(f)), ("vkb", vkb(f))] {
+        for (method, slots) in methods.map(|m| (m, slots(m, f))) {
             let frame = g.render(s, cam, w, h, BG, Some(slots)).unwrap();
-            let bits = float_bits(&frame.importance.unwrap());
-            assert!(image_bits(&frame.image) == images[&f] || method == "vkb");
+            let bits = frame.importance.as_deref().map(float_bits);
+            assert!(method != "dkb" || image_bits(&frame.image) == images[&f]);
             reference.insert((method, f), (image_bits(&frame.image), frame.slots, bits));
         }
     }
@@ -354,8 +363,7 @@ fn features_and_network_layouts_give_the_same_frame(
     // are the count's prefix sum) and, where the budget holds every fragment, neither totals,
     // features, importance nor allocation; where it truncates (frame 1), it records them in
     // a second submission.
-    for method in ["dkb", "vkb"] {
-        let slots = |f| if method == "dkb" { dkb(f) } else { vkb(f) };
+    for method in methods {
         for (i, (f, expect_fit)) in [
             (holds_all, true),
             (truncates, true),
@@ -366,7 +374,7 @@ fn features_and_network_layouts_give_the_same_frame(
         .into_iter()
         .enumerate()
         {
-            let frame = g.render(s, cam, w, h, BG, Some(slots(f))).unwrap();
+            let frame = g.render(s, cam, w, h, BG, Some(slots(method, f))).unwrap();
             let label = format!("{method}: following frame {i}, F {f} of {total}");
             let passes = |name: &str| frame.pass_ms.iter().filter(|p| p.0 == name).count();
             let holds = f >= total;
@@ -377,18 +385,20 @@ fn features_and_network_layouts_give_the_same_frame(
                 assert_eq!(frame.features_drawn, Some(drawn), "{label}");
             }
             let recorded = !(holds && expect_fit);
-            for name in ["totals", "importance", "allocation"] {
-                assert_eq!(passes(name), recorded as usize, "{label}: {name}");
+            // Uploaded importance has no importance pass.
+            let computed = (method != "uploaded") as usize;
+            for (name, times) in [("totals", 1), ("importance", computed), ("allocation", 1)] {
+                assert_eq!(passes(name), times * recorded as usize, "{label}: {name}");
             }
             let (image, keys, importance) = &reference[&(method, f)];
-            let bits = float_bits(&frame.importance.unwrap());
+            let bits = frame.importance.as_deref().map(float_bits);
             assert!(image_bits(&frame.image) == *image, "{label}: image differs");
             assert!(frame.slots == *keys, "{label}: slots differ");
-            if recorded || method == "dkb" {
+            if recorded || method != "vkb" {
                 assert!(bits == *importance, "{label}: importance differs");
             } else {
                 // VKB's importance where it was not computed: none (k = n needs none).
-                assert!(bits.iter().all(|&b| b == 0), "{label}: importance");
+                assert!(bits.unwrap().iter().all(|&b| b == 0), "{label}: importance");
             }
         }
     }
