@@ -51,7 +51,11 @@ struct Alloc {
 @group(0) @binding(8) var<storage, read_write> dispatches: array<u32, 12>;
 
 
-var<workgroup> partial: array<atomic<u32>, ALLOC_CANDIDATES>;
+// The workgroup's totals in SEARCH_COPIES copies: invocation lid adds to copy lid %
+// SEARCH_COPIES, so with more than one, neighbouring invocations' atomics do not wait on one
+// address (gpu::Gpu::spread_search builds it with 32; on lavapipe one is faster).
+const SEARCH_COPIES: u32 = 1u;
+var<workgroup> partial: array<atomic<u32>, ALLOC_CANDIDATES * SEARCH_COPIES>;
 
 fn pixel(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
     return grid_index(wid, nwg, lid, ALLOC_GROUP);
@@ -186,13 +190,17 @@ fn search(
         }
     }
     if (any) {
+        let copy = (lid % SEARCH_COPIES) * ALLOC_CANDIDATES;
         for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
-            atomicAdd(&partial[j], sums[j]);
+            atomicAdd(&partial[copy + j], sums[j]);
         }
     }
     workgroupBarrier();
     if (lid < ALLOC_CANDIDATES) {
-        let v = atomicLoad(&partial[lid]);
+        var v = 0u;
+        for (var c = 0u; c < SEARCH_COPIES; c++) {
+            v += atomicLoad(&partial[c * ALLOC_CANDIDATES + lid]);
+        }
         if (v > 0u) {
             atomicAdd(&state[6u + lid], u64(v));
         }

@@ -182,6 +182,7 @@ fn configure(gpu: &mut dhoit_runtime::gpu::Gpu, label: &str) {
     gpu.two_mode_capture = label != "dkb_insertion_only";
     gpu.fits_pipelines = label != "dkb_two_mode_where_all_fit";
     gpu.predict_fit = label != "dkb_every_pass";
+    gpu.spread_search = label == "dkb_spread_search";
     gpu.shared_weights = label == "dkb_shared_weights";
     gpu.unrolled_network = label != "dkb_array_network";
     gpu.features_preload = label != "dkb_features_no_preload";
@@ -262,9 +263,9 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             // once with every fragment inserted (no append mode in the capture), once with the
             // two-mode capture pipeline where the budget holds every fragment, once recording
             // every pass whatever the last frame (the device empties what it does not need:
-            // Gpu::predict_fit off), and once with
-            // the network's weights staged in workgroup memory; FKB once more with its slots
-            // laid out layer-major; and DKB with the 16-8 network.
+            // Gpu::predict_fit off), once with the search's totals spread over 32 copies, and
+            // once with the network's weights staged in workgroup memory; FKB once more with
+            // its slots laid out layer-major; and DKB with the 16-8 network.
             let runs = order
                 .iter()
                 .zip(&cpu)
@@ -274,6 +275,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     ("dkb_insertion_only", Method::Dkb, &cpu[4]),
                     ("dkb_two_mode_where_all_fit", Method::Dkb, &cpu[4]),
                     ("dkb_every_pass", Method::Dkb, &cpu[4]),
+                    ("dkb_spread_search", Method::Dkb, &cpu[4]),
                     ("dkb_shared_weights", Method::Dkb, &cpu[4]),
                     ("dkb_array_network", Method::Dkb, &cpu[4]),
                     ("dkb_features_no_preload", Method::Dkb, &cpu[4]),
@@ -506,6 +508,10 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     "saved": 1.0 - two_mode / inserted,
                     "capture_ms_two_mode_where_all_fit": two_mode_where_all_fit,
                     "abuffer_store_ms": pass("abuffer", "store"),
+                },
+                "spread_search": {
+                    "allocation_ms": pass("dkb", "allocation"),
+                    "allocation_ms_spread": pass("dkb_spread_search", "allocation"),
                 },
                 "predict_fit": {
                     "importance_and_allocation_ms": small("dkb"),

@@ -479,6 +479,7 @@ fn the_gpu_bench_reports_every_method_and_option() {
         "dkb_insertion_only",
         "dkb_two_mode_where_all_fit",
         "dkb_every_pass",
+        "dkb_spread_search",
         "dkb_shared_weights",
         "dkb_array_network",
         "dkb_features_no_preload",

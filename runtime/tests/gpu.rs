@@ -268,7 +268,7 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
 /// DKB's, VKB's and uploaded importance's, counts first and records nothing else before the
 /// capture after a frame the budget held, records every pass after one it truncated, or in a
 /// second submission where an expected fit truncates, with the slots, importance and image
-/// bits of frames that record every pass.
+/// bits of frames that record every pass; and so does the allocation's spread search.
 fn features_and_network_layouts_give_the_same_frame(
     g: &mut dhoit_runtime::gpu::Gpu,
     (s, cam): (&Scene, &Camera),
@@ -402,6 +402,24 @@ fn features_and_network_layouts_give_the_same_frame(
             }
         }
     }
+    // The allocation's search adding into 32 copies of its totals (`Gpu::spread_search`):
+    // the same slots and images where the budget truncates.
+    g.spread_search = true;
+    for method in methods {
+        let frame = g
+            .render(s, cam, w, h, BG, Some(slots(method, truncates)))
+            .unwrap();
+        let (image, keys, _) = &reference[&(method, truncates)];
+        assert!(
+            frame.slots == *keys,
+            "{method}: spread search: slots differ"
+        );
+        assert!(
+            image_bits(&frame.image) == *image,
+            "{method}: spread search"
+        );
+    }
+    g.spread_search = false;
 }
 
 /// FKB's slots laid out layer-major (`Gpu::layer_major_fkb`) hold the same keys and tails,

@@ -206,6 +206,11 @@ impl<'a> Passes<'a> {
         al: &Allocation,
     ) -> Result<()> {
         let a = &self.gpu.pipelines.allocate;
+        let search = if self.gpu.spread_search {
+            &a.search_spread
+        } else {
+            &a.search
+        };
         let (per_pixel, rounds, scan) = (0, 16, 32);
         let dispatches = &al.dispatches;
         self.compute(enc, "allocation", |pass| {
@@ -216,7 +221,7 @@ impl<'a> Passes<'a> {
             pass.set_pipeline(&a.weights);
             pass.dispatch_workgroups_indirect(dispatches, per_pixel);
             for _ in 0..SEARCH_ROUNDS {
-                pass.set_pipeline(&a.search);
+                pass.set_pipeline(search);
                 pass.dispatch_workgroups_indirect(dispatches, rounds);
                 pass.set_pipeline(&a.choose);
                 pass.dispatch_workgroups(1, 1, 1);
@@ -328,6 +333,8 @@ pub(super) struct Allocate {
     pub(super) weights: wgpu::ComputePipeline,
     pub(super) setup: wgpu::ComputePipeline,
     pub(super) search: wgpu::ComputePipeline,
+    /// The search adding into 32 copies of the workgroup's totals ([`Gpu::spread_search`]).
+    pub(super) search_spread: wgpu::ComputePipeline,
     pub(super) choose: wgpu::ComputePipeline,
     pub(super) mark: wgpu::ComputePipeline,
     pub(super) apply: wgpu::ComputePipeline,
@@ -370,20 +377,30 @@ impl Allocate {
             immediate_size: 0,
         });
         let m = module(device, "allocate");
-        let make = |entry: &str| {
+        let mut spread = shaders::source("allocate").expect("known pass");
+        redeclare(
+            &mut spread,
+            "allocate",
+            "const SEARCH_COPIES: u32 = 1u;",
+            "const SEARCH_COPIES: u32 = 32u;",
+        );
+        let spread = module_from(device, "allocate (spread search)", spread);
+        let make_from = |m: &wgpu::ShaderModule, entry: &str| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
                 layout: Some(&pl),
-                module: &m,
+                module: m,
                 entry_point: Some(entry),
                 compilation_options: Default::default(),
                 cache: None,
             })
         };
+        let make = |entry: &str| make_from(&m, entry);
         Allocate {
             weights: make("weights"),
             setup: make("setup"),
             search: make("search"),
+            search_spread: make_from(&spread, "search"),
             choose: make("choose"),
             mark: make("mark"),
             apply: make("apply"),

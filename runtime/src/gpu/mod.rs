@@ -121,6 +121,12 @@ pub struct Gpu {
     /// in a second submission. On by default; off, every frame records every pass and the
     /// device empties what it does not need (the bench's comparison). The images are the same.
     pub predict_fit: bool,
+    /// Whether the allocation's search adds each invocation's 16 candidate totals into one of
+    /// 32 copies in workgroup memory (by invocation index) rather than into one, so that
+    /// neighbouring invocations' atomics do not wait on the same address. Off by default: on
+    /// lavapipe it is slower (197 / 289 / 215 against 167 / 252 / 194 ms on particles, shells,
+    /// plates at 640x480); the bench measures both. The allocation is the same.
+    pub spread_search: bool,
     /// Whether FKB lays its slots out layer-major (slot i of every pixel together, so the
     /// fragments of neighbouring pixels touch neighbouring words) rather than pixel-major
     /// (off by default; the bench measures both). The images are the same.
@@ -264,6 +270,7 @@ impl Gpu {
             dkb_geometry: DkbGeometry::FollowLastFrame,
             last_truncated: false.into(),
             predict_fit: true,
+            spread_search: false,
             layer_major_fkb: false,
             diagnostics: true,
             bounded_loops: info.name.contains("llvmpipe") || info.driver.contains("llvmpipe"),

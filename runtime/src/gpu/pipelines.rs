@@ -51,7 +51,7 @@ pub(super) fn module_from(device: &wgpu::Device, label: &str, src: String) -> wg
 
 /// Replaces declaration `from` of pass `pass`'s source `src` by `to` (a constant a variant of
 /// the pass changes); a declaration the source lacks is a bug, not a silent no-op.
-fn redeclare(src: &mut String, pass: &str, from: &str, to: &str) {
+pub(super) fn redeclare(src: &mut String, pass: &str, from: &str, to: &str) {
     assert!(src.contains(from), "{pass} declares {from}");
     *src = src.replace(from, to);
 }
