@@ -206,11 +206,7 @@ impl<'a> Passes<'a> {
         al: &Allocation,
     ) -> Result<()> {
         let a = &self.gpu.pipelines.allocate;
-        let search = if self.gpu.spread_search {
-            &a.search_spread
-        } else {
-            &a.search
-        };
+        let search = a.search_for(self.gpu);
         let (per_pixel, rounds, scan) = (0, 16, 32);
         let dispatches = &al.dispatches;
         self.compute(enc, "allocation", |pass| {
@@ -333,8 +329,10 @@ pub(super) struct Allocate {
     pub(super) weights: wgpu::ComputePipeline,
     pub(super) setup: wgpu::ComputePipeline,
     pub(super) search: wgpu::ComputePipeline,
-    /// The search adding into 32 copies of the workgroup's totals ([`Gpu::spread_search`]).
-    pub(super) search_spread: wgpu::ComputePipeline,
+    /// The search adding into 32 copies of the workgroup's totals ([`Gpu::spread_search`],
+    /// off by default): built on first use.
+    search_spread: std::sync::OnceLock<wgpu::ComputePipeline>,
+    pipeline_layout: wgpu::PipelineLayout,
     pub(super) choose: wgpu::ComputePipeline,
     pub(super) mark: wgpu::ComputePipeline,
     pub(super) apply: wgpu::ComputePipeline,
@@ -377,34 +375,52 @@ impl Allocate {
             immediate_size: 0,
         });
         let m = module(device, "allocate");
-        let mut spread = shaders::source("allocate").expect("known pass");
-        redeclare(
-            &mut spread,
-            "allocate",
-            "const SEARCH_COPIES: u32 = 1u;",
-            "const SEARCH_COPIES: u32 = 32u;",
-        );
-        let spread = module_from(device, "allocate (spread search)", spread);
-        let make_from = |m: &wgpu::ShaderModule, entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&pl),
-                module: m,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        let make = |entry: &str| make_from(&m, entry);
+        let make = |entry: &str| pipeline(device, &pl, &m, entry);
         Allocate {
             weights: make("weights"),
             setup: make("setup"),
             search: make("search"),
-            search_spread: make_from(&spread, "search"),
+            search_spread: Default::default(),
             choose: make("choose"),
             mark: make("mark"),
             apply: make("apply"),
             layout,
+            pipeline_layout: pl,
         }
     }
+
+    /// The search as [`Gpu::spread_search`] asks for it.
+    pub(super) fn search_for(&self, gpu: &Gpu) -> &wgpu::ComputePipeline {
+        if !gpu.spread_search {
+            return &self.search;
+        }
+        self.search_spread.get_or_init(|| {
+            let mut src = shaders::source("allocate").expect("known pass");
+            redeclare(
+                &mut src,
+                "allocate",
+                "const SEARCH_COPIES: u32 = 1u;",
+                "const SEARCH_COPIES: u32 = 32u;",
+            );
+            let m = module_from(&gpu.device, "allocate (spread search)", src);
+            pipeline(&gpu.device, &self.pipeline_layout, &m, "search")
+        })
+    }
+}
+
+/// One of allocate.wgsl's entry points on the allocation's layout.
+fn pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::PipelineLayout,
+    m: &wgpu::ShaderModule,
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry),
+        layout: Some(layout),
+        module: m,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
 }
