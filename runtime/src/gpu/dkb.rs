@@ -89,7 +89,8 @@ impl Recording<'_, '_> {
         .clone();
         if count_first {
             passes.draw(&mut self.enc, &p.count, &[&b.counts], "count");
-            // Drawn, if at all, with the rest (where the frame is not expected to fit).
+            // Drawn, if at all, with the rest (where the frame is not expected to fit); once
+            // recorded, its draw's arguments say whether it drew.
             self.out.features_drawn = Some(false);
         } else {
             // One pass counts and gathers the features, drawn always: where the budget
@@ -178,7 +179,6 @@ impl Recording<'_, '_> {
                 pass.set_bind_group(0, &draw_args, &[]);
                 pass.dispatch_workgroups(1, 1, 1);
             });
-            self.out.features_drawn = None;
             self.dkb_features(b, features)?;
         } else {
             let bufs = [passes.params(), &b.counts, &b.totals];
