@@ -351,24 +351,26 @@ fn the_gpu_renders_from_the_command_line() {
         return;
     }
     let dir = temp_dir("cli-gpu");
+    // plates at 64x48 on the GPU with `method`, then `more` arguments.
+    let render = |method: &str, more: &[&str]| {
+        let mut args = vec![
+            "render", "--scene", "plates", "--res", "64x48", "--method", method, "--device", "gpu",
+        ];
+        args.extend_from_slice(more);
+        dhoit(&args)
+    };
     for method in ["abuffer", "fkb", "optimal", "mlab", "vkb", "dkb"] {
         let out = dir.join(format!("{method}.png"));
         let dump_dir = dir.join(method);
-        let o = dhoit(&[
-            "render",
-            "--scene",
-            "plates",
-            "--res",
-            "64x48",
-            "--method",
+        let o = render(
             method,
-            "--device",
-            "gpu",
-            "--out",
-            out.to_str().unwrap(),
-            "--dump",
-            dump_dir.to_str().unwrap(),
-        ]);
+            &[
+                "--out",
+                out.to_str().unwrap(),
+                "--dump",
+                dump_dir.to_str().unwrap(),
+            ],
+        );
         assert!(
             o.status.success(),
             "{method}: {}",
@@ -402,21 +404,11 @@ fn the_gpu_renders_from_the_command_line() {
             let passes = |o: &std::process::Output| names(o).iter().any(|p| p == "count");
             assert!(d.fragments.fragment_count() > 2 * 64 * 48);
             assert!(!passes(&o), "dkb counted first at a budget that truncates");
-            let all = dhoit(&[
-                "render",
-                "--scene",
-                "plates",
-                "--res",
-                "64x48",
-                "--method",
+            let all_png = dir.join("dkb-all.png");
+            let all = render(
                 "dkb",
-                "--budget",
-                "100%",
-                "--device",
-                "gpu",
-                "--out",
-                dir.join("dkb-all.png").to_str().unwrap(),
-            ]);
+                &["--budget", "100%", "--out", all_png.to_str().unwrap()],
+            );
             assert!(
                 all.status.success(),
                 "{}",
