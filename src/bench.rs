@@ -234,6 +234,16 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
     // The smallest shipped network, which the trade finds as accurate (docs/trade.md).
     let (small, small_weights) = load("data/nets/16-8/weights.safetensors", 2, (16, 8));
     let small = &small;
+    // The default network with binary16 hidden layers (mlp::Precision::F16Math), where the
+    // device computes in binary16 and the weights fit it.
+    let half = mlp
+        .at_precision(dhoit_runtime::mlp::Precision::F16Math)
+        .ok()
+        .filter(|_| gpu.has_half_math());
+    if half.is_none() {
+        eprintln!("GPU: no f16-math run (the device lacks SHADER_F16 or a weight exceeds f16)");
+    }
+    let half = half.as_ref();
     let mut scenes = Vec::new();
     for name in names {
         let mut run = || -> Result<serde_json::Value> {
@@ -265,7 +275,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             // every pass whatever the last frame (the device empties what it does not need:
             // Gpu::predict_fit off), once with the search's totals spread over 32 copies, and
             // once with the network's weights staged in workgroup memory; FKB once more with
-            // its slots laid out layer-major; and DKB with the 16-8 network.
+            // its slots laid out layer-major; and DKB with the 16-8 network, and with the
+            // default one at f16-math (binary16 hidden layers) where the device has them.
             let runs = order
                 .iter()
                 .zip(&cpu)
@@ -283,10 +294,17 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                     ("dkb_counting_features", Method::Dkb, &cpu[4]),
                     ("fkb_layer_major", Method::Fkb, &cpu[1]),
                     ("dkb_16-8", Method::Dkb, &cpu[4]),
+                    ("dkb_f16_math", Method::Dkb, &cpu[4]),
                 ]);
             for (label, method, frame) in runs {
+                if label == "dkb_f16_math" && half.is_none() {
+                    continue;
+                }
                 let slots = match Slots::for_method(method, frame, &options)? {
                     Some(Slots::Dkb(_, f)) if label == "dkb_16-8" => Some(Slots::Dkb(small, f)),
+                    Some(Slots::Dkb(_, f)) if label == "dkb_f16_math" => {
+                        half.map(|m| Slots::Dkb(m, f))
+                    }
                     s => s,
                 };
                 configure(&mut gpu, label);
@@ -372,6 +390,11 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             let two_mode_where_all_fit = capture("dkb_two_mode_where_all_fit");
             let staged = imp("dkb_shared_weights");
             let looped = imp("dkb_array_network");
+            let half_ms = if methods.contains_key("dkb_f16_math") {
+                imp("dkb_f16_math")
+            } else {
+                f64::NAN
+            };
             let (features, no_preload) = (
                 pass("dkb", "features"),
                 pass("dkb_features_no_preload", "features"),
@@ -440,6 +463,9 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             );
             eprintln!("GPU {name}: DKB/VKB frame time with the 16-8 network {small_ratio:.2}");
             eprintln!(
+                "GPU {name}: DKB importance {half_ms:.2} ms with binary16 hidden layers (f16-math), {skip:.2} ms in f32"
+            );
+            eprintln!(
                 "GPU {name}: DKB features {features:.2} ms ({:.2}x VKB's count) with the nearest key's load, {no_preload:.2} ms without",
                 features / count_ms,
             );
@@ -489,6 +515,11 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
                 },
                 "shared_weights": {"importance_ms": staged, "importance_ms_uniform": skip},
                 "unrolled_network": {"importance_ms": skip, "importance_ms_array_loops": looped},
+                "f16_math": {
+                    "importance_ms": half_ms, "importance_ms_f32": skip,
+                    "over_f32": half_ms / skip,
+                    "frame_gpu_ms": if half.is_some() { ms("dkb_f16_math") } else { f64::NAN },
+                },
                 "features_pass": {
                     "features_ms": features, "features_ms_no_preload": no_preload,
                     "vkb_count_ms": count_ms, "over_vkb_count": features / count_ms,

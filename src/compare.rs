@@ -50,8 +50,10 @@ pub struct CompareArgs {
     /// M, each method's F from its own layout; the paper's protocol).
     #[arg(long, default_value = "slots")]
     equal: Equal,
-    /// Precision of the network's weights for dkb: f32, or f16 (binary16 weights, f32
-    /// arithmetic; the CPU twin computes with the same rounded weights).
+    /// Precision of the network for dkb: f32; f16 (binary16 weights, f32 arithmetic; the CPU
+    /// twin computes with the same rounded weights); or f16-math (binary16 weights and
+    /// hidden-layer arithmetic, for GPUs with fast half precision; the device needs
+    /// SHADER_F16).
     #[arg(long, default_value = "f32")]
     precision: Precision,
     #[command(flatten)]

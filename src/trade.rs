@@ -70,8 +70,8 @@ pub struct TradeArgs {
     scenes: Vec<String>,
     #[command(flatten)]
     quality: QualityArgs,
-    /// Precisions of the network's weights, comma separated: f32, f16 (binary16 weights,
-    /// f32 arithmetic).
+    /// Precisions of the network, comma separated: f32, f16 (binary16 weights, f32
+    /// arithmetic), f16-math (binary16 weights and hidden-layer arithmetic; needs SHADER_F16).
     #[arg(long, value_delimiter = ',', default_value = "f32")]
     precision: Vec<Precision>,
     /// Resolution the importance pass is timed at (view 0, the first budget).

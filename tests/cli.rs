@@ -479,6 +479,8 @@ fn the_gpu_bench_reports_every_method_and_option() {
         "dkb_counting_features",
         "fkb_layer_major",
         "dkb_16-8",
+        // lavapipe computes in binary16 (SHADER_F16); a device without it has no such run.
+        "dkb_f16_math",
     ] {
         let ms = scene["methods"][m]["frame_gpu_ms"].as_f64();
         assert!(ms.is_some_and(|t| t > 0.0 && t.is_finite()), "{m}: {ms:?}");
@@ -518,6 +520,8 @@ fn the_gpu_bench_reports_every_method_and_option() {
     let counting = &scene["methods"]["dkb_counting_features"]["passes_ms"];
     assert!(counting["count"].is_null() && counting["features"].as_f64().is_some());
     assert!(holds.is_some(), "{scene}");
+    let half = scene["f16_math"]["frame_gpu_ms"].as_f64();
+    assert!(half.is_some_and(|t| t > 0.0), "f16_math: {half:?}");
 }
 
 /// `train --scene` fine-tunes the default network on one scene's orbit views; the weights load

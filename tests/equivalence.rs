@@ -297,3 +297,118 @@ fn the_f16_network_is_one_function_within_its_bound_of_f32() {
     let e = big.at_precision(Precision::F16).unwrap_err().to_string();
     assert!(e.contains("fc2.weight[5]") && e.contains("f16"), "{e}");
 }
+
+/// The f16-math network (binary16 weights and hidden-layer arithmetic, `Precision::F16Math`):
+/// its CPU twin moves the importance by at most `mlp::F16_MATH_BOUND` from the f32 network on
+/// every batch, the GPU's pass stays within `mlp::F16_MATH_GPU_BOUND` of the twin (a GPU may
+/// fuse what the twin rounds twice), and at the limits both give an importance in [0, 1]. A
+/// device without half-precision shaders refuses it by name (there the GPU part is skipped,
+/// saying so: lavapipe has it).
+#[test]
+fn the_f16_math_network_stays_within_its_bounds_of_f32_and_its_twin() {
+    use dhoit_runtime::mlp::Precision;
+    let mut rng = Rng::new(23);
+    let golden =
+        dhoit_train::cli::read_features(&root().join("data/golden/features.safetensors")).unwrap();
+    let batches = [
+        ("random", random_rows(&mut rng, 4096)),
+        ("golden", golden),
+        ("particles render", frame_rows("particles")),
+        ("cad render", frame_rows("cad")),
+    ];
+    let mut nets = vec![("default".to_string(), default_weights())];
+    for dir in ["16-8", "64-32"] {
+        let path = root()
+            .join("data/nets")
+            .join(dir)
+            .join("weights.safetensors");
+        nets.push((dir.to_string(), Mlp::load(&path).unwrap()));
+    }
+    let g = gpu().filter(|g| {
+        if !g.has_half_math() {
+            let h = default_weights().at_precision(Precision::F16Math).unwrap();
+            let e = g.predict(&h, &[[0.5; FEATURES]]).unwrap_err().to_string();
+            assert!(e.contains("SHADER_F16") && e.contains("f16-math"), "{e}");
+            eprintln!(
+                "{} lacks SHADER_F16 (refused: {e}): its f16-math pass is not compared",
+                g.adapter
+            );
+        }
+        g.has_half_math()
+    });
+    let (mut worst_f32, mut worst_gpu) = (Vec::new(), 0.0f32);
+    for (name, m) in &nets {
+        let h = m.at_precision(Precision::F16Math).unwrap();
+        assert!(h.precision.half_weights());
+        let w16 = m.at_precision(Precision::F16).unwrap();
+        let mut worst = 0.0f32;
+        let mut moved = false;
+        for (what, rows) in &batches {
+            let twin: Vec<f32> = rows.iter().map(|r| h.forward(r)).collect();
+            for (i, r) in rows.iter().enumerate() {
+                let d = (twin[i] - m.forward(r)).abs();
+                assert!(
+                    d <= mlp::F16_MATH_BOUND,
+                    "{name}, {what}, row {i}: f16-math and f32 differ by {d} (bound {})",
+                    mlp::F16_MATH_BOUND
+                );
+                worst = worst.max(d);
+                moved |= twin[i] != w16.forward(r);
+            }
+            if let Some(g) = &g {
+                let on_gpu = g.predict(&h, rows).unwrap();
+                for (i, (a, b)) in on_gpu.iter().zip(&twin).enumerate() {
+                    let d = (a - b).abs();
+                    assert!(
+                        d <= mlp::F16_MATH_GPU_BOUND,
+                        "{name}, {what}, row {i}: the GPU's f16-math pass and its twin differ \
+                         by {d} ({a} vs {b}; bound {})",
+                        mlp::F16_MATH_GPU_BOUND
+                    );
+                    worst_gpu = worst_gpu.max(d);
+                }
+            }
+        }
+        // Half-precision arithmetic, not only half-precision weights.
+        assert!(
+            moved,
+            "{name}: f16-math computes what f16 weights in f32 do"
+        );
+        let rows = extreme_rows(&h);
+        let mut all = vec![rows.iter().map(|r| h.forward(r)).collect::<Vec<f32>>()];
+        if let Some(g) = &g {
+            all.push(g.predict(&h, &rows).unwrap());
+        }
+        for v in all {
+            assert!(
+                v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)),
+                "{name}: f16-math at the limits gives {v:?}"
+            );
+        }
+        worst_f32.push((name.clone(), worst));
+    }
+    // burn computes in f32: `predict` refuses f16-math there, writing nothing.
+    let out =
+        std::env::temp_dir().join(format!("dhoit-f16-math-{}.safetensors", std::process::id()));
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_dhoit"))
+        .args(["predict", "--precision", "f16-math", "--weights"])
+        .arg(root().join("data/weights.safetensors"))
+        .arg("--input")
+        .arg(root().join("data/golden/features.safetensors"))
+        .arg("--output")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("burn") && e.contains("f16-math"),
+        "{e}"
+    );
+    assert!(!out.exists());
+    eprintln!(
+        "f16-math: largest |twin - f32| per network {worst_f32:?} (bound {}); largest \
+         |GPU - twin| {worst_gpu:e} (bound {})",
+        mlp::F16_MATH_BOUND,
+        mlp::F16_MATH_GPU_BOUND
+    );
+}

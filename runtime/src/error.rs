@@ -63,6 +63,13 @@ pub enum GpuError {
          VK_KHR_shader_atomic_int64, DX12 with shader model 6.6, Metal 2.4 on Apple7+): {lacking}"
     )]
     MissingFeatures { lacking: String },
+    /// The network was deployed at f16-math on a device without half-precision shaders.
+    #[error(
+        "{adapter} lacks SHADER_F16 (half-precision arithmetic in shaders), which the \
+         importance pass needs at precision f16-math: use f16 (binary16 weights, f32 \
+         arithmetic) or f32"
+    )]
+    NoHalfMath { adapter: String },
     #[error("cannot open {adapter}: {message}")]
     Open { adapter: String, message: String },
     #[error("the device rejected a shader or pipeline: {0}")]

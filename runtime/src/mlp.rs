@@ -105,8 +105,8 @@ pub struct Mlp {
     pub precision: Precision,
 }
 
-/// How a deployed network stores its weights and biases. Arithmetic is f32 either way, and the
-/// standardisation (means, deviations) stays f32.
+/// How a deployed network stores its weights and biases, and in which precision its hidden
+/// layers compute. The standardisation (means, deviations) and the output unit stay f32.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Precision {
     #[default]
@@ -115,19 +115,40 @@ pub enum Precision {
     /// unpacks them exactly, so the CPU twin (f32 arithmetic on the rounded values) stays its
     /// twin; against f32 the importance moves by at most [`F16_BOUND`] on the tests' batches.
     F16,
+    /// Binary16 weights (as [`Precision::F16`]) and binary16 arithmetic in the two hidden layers
+    /// (the inputs rounded to binary16 once standardised; every product and sum rounded), so a
+    /// GPU with fast half precision runs two multiply-adds where f32 runs one; the output unit
+    /// and the sigmoid stay f32. Needs the device's `SHADER_F16`. The twin rounds each product
+    /// and each sum; a GPU may fuse them, so it is held to the twin within [`F16_MATH_GPU_BOUND`],
+    /// and the twin to f32 within [`F16_MATH_BOUND`], on the tests' batches.
+    F16Math,
 }
 
 /// The most the f16 network's output may differ from the f32 network's (importance in (0, 1)),
 /// held by the equivalence tests on the golden, random and rendered features.
 pub const F16_BOUND: f32 = 5e-3;
 
+/// The most the f16-math network's output (its CPU twin) may differ from the f32 network's,
+/// held by the equivalence tests on the golden, random and rendered features.
+pub const F16_MATH_BOUND: f32 = 5e-3;
+
+/// The most the GPU's f16-math importance may differ from its twin's (which rounds every
+/// product and sum, where a GPU may fuse a multiply and an add into one rounding).
+pub const F16_MATH_GPU_BOUND: f32 = 5e-3;
+
 impl Precision {
-    pub const ALL: [Precision; 2] = [Precision::F32, Precision::F16];
+    pub const ALL: [Precision; 3] = [Precision::F32, Precision::F16, Precision::F16Math];
     pub fn name(self) -> &'static str {
         match self {
             Precision::F32 => "f32",
             Precision::F16 => "f16",
+            Precision::F16Math => "f16-math",
         }
+    }
+
+    /// Whether the weights are stored as binary16 (two to a uniform word).
+    pub fn half_weights(self) -> bool {
+        self != Precision::F32
     }
 }
 
@@ -145,7 +166,7 @@ impl std::str::FromStr for Precision {
             .find(|p| p.name() == s)
             .ok_or_else(|| {
                 Error::Invalid(format!(
-                    "precision '{s}' is not offered by the importance pass (it offers f32, f16)"
+                    "precision '{s}' is not offered by the importance pass (it offers f32, f16, f16-math)"
                 ))
             })
     }
@@ -180,9 +201,10 @@ impl Mlp {
         }
     }
 
-    /// The network deployed at `p`: for f16, every weight and bias rounded to the nearest
-    /// binary16 value (ties to even), which the twin then computes with in f32, as the GPU
-    /// does. A weight beyond binary16's range (65,504) is refused, naming it.
+    /// The network deployed at `p`: for f16 and f16-math, every weight and bias rounded to the
+    /// nearest binary16 value (ties to even), which the twin then computes with in f32 (f16) or
+    /// binary16 (f16-math's hidden layers), as the GPU does. A weight beyond binary16's range
+    /// (65,504) is refused, naming it.
     pub fn at_precision(&self, p: Precision) -> Result<Mlp> {
         let mut m = self.clone();
         m.precision = p;
@@ -233,6 +255,9 @@ impl Mlp {
     // and in the same order of sums, so the GPU can be held to it within float rounding.
     #[allow(clippy::needless_range_loop)]
     pub fn forward_with(&self, f: &[f32; FEATURES], scratch: &mut Vec<f32>) -> f32 {
+        if self.precision == Precision::F16Math {
+            return self.forward_half(f, scratch);
+        }
         let (n1, n2) = (self.h1, self.h2);
         scratch.clear();
         scratch.resize(n1 + n2, 0.0);
@@ -258,6 +283,42 @@ impl Mlp {
         let mut acc = self.b3;
         for i in 0..n2 {
             acc += h2[i] * self.w3[i];
+        }
+        squash(acc)
+    }
+
+    /// [`Mlp::forward_with`] at [`Precision::F16Math`]: the twin of the f16-math pass
+    /// (gpu::pipelines::unrolled_forward): the standardised inputs rounded to binary16, every
+    /// product and every sum of the hidden layers rounded to binary16 (overflowing to an
+    /// infinity as binary16 does), in the same order of sums; the output unit in f32.
+    #[allow(clippy::needless_range_loop)]
+    fn forward_half(&self, f: &[f32; FEATURES], scratch: &mut Vec<f32>) -> f32 {
+        let h = |v: f32| half::f16::from_f32(v).to_f32();
+        let (n1, n2) = (self.h1, self.h2);
+        scratch.clear();
+        scratch.resize(n1 + n2, 0.0);
+        let (h1, h2) = scratch.split_at_mut(n1);
+        let mut x = [0.0f32; FEATURES];
+        for i in 0..FEATURES {
+            x[i] = h(standardise(f[i], self.mean[i], self.std[i]));
+        }
+        for j in 0..n1 {
+            let mut acc = h(self.b1[j]);
+            for i in 0..FEATURES {
+                acc = h(acc + h(x[i] * h(self.w1[i * n1 + j])));
+            }
+            h1[j] = acc.max(0.0);
+        }
+        for j in 0..n2 {
+            let mut acc = h(self.b2[j]);
+            for i in 0..n1 {
+                acc = h(acc + h(h1[i] * h(self.w2[i * n2 + j])));
+            }
+            h2[j] = acc.max(0.0);
+        }
+        let mut acc = h(self.b3);
+        for i in 0..n2 {
+            acc += h2[i] * h(self.w3[i]);
         }
         squash(acc)
     }

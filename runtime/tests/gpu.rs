@@ -855,6 +855,76 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
     }
 }
 
+/// DKB's importance pass with the network deployed at f16-math (binary16 hidden layers,
+/// `Precision::F16Math`): the importance within `mlp::F16_MATH_GPU_BOUND` of the twin's on the
+/// GPU's own statistics, the pair marks exact, and the allocation, capture and image its twins'
+/// from that importance; against the f32 network's frame the importance moves by at most
+/// `mlp::F16_MATH_BOUND`.
+#[test]
+fn dkb_frames_run_the_f16_math_network_like_its_twin() {
+    use dhoit_runtime::mlp::{self, Mlp, Precision};
+    let Some(g) = gpu() else { return };
+    assert!(g.has_half_math(), "{} lacks SHADER_F16", g.adapter);
+    let f32_net = Mlp::load(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../data/weights.safetensors"
+    )))
+    .unwrap();
+    let half = f32_net.at_precision(Precision::F16Math).unwrap();
+    for (name, view) in [("particles", 0), ("shells", 2)] {
+        let (w, h) = (72, 54);
+        let (s, cam) = frame(name, view, w, h);
+        let gfl = g
+            .render(&s, &cam, w, h, BG, None)
+            .unwrap()
+            .fragments
+            .unwrap();
+        let f = gfl.pixel_count() as u64;
+        assert!(
+            f < gfl.fragment_count() as u64,
+            "{name}: the budget truncates"
+        );
+        let d = g
+            .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&half, f.into())))
+            .unwrap();
+        let stats = importance::pixel_stats(&gfl);
+        let t = importance::totals(&stats);
+        let feats: Vec<[f32; 12]> = stats
+            .iter()
+            .map(|st| {
+                if st.count > 0 {
+                    importance::pixel_features(st, &t, f)
+                } else {
+                    [0.0; 12]
+                }
+            })
+            .collect();
+        let counts = gfl.counts();
+        let pairs: Vec<bool> = stats.iter().map(importance::tail_pair).collect();
+        let twin = half.dkb_importance(&feats, &counts, &pairs, f);
+        let imp = d.importance.clone().unwrap();
+        assert!(imp.iter().any(|i| i.abs() > 0.0), "{name}: no importance");
+        assert!(
+            imp.iter()
+                .zip(&twin)
+                .all(|(a, b)| a.is_sign_negative() == b.is_sign_negative())
+        );
+        let diff = max_abs_diff(&imp, &twin);
+        let full = f32_net.dkb_importance(&feats, &counts, &pairs, f);
+        let moved = max_abs_diff(&imp, &full);
+        eprintln!("{name}: f16-math |GPU - twin| {diff:e}, |GPU - f32 network| {moved:e}");
+        assert!(
+            diff <= mlp::F16_MATH_GPU_BOUND,
+            "{name}: f16-math importance differs from its twin by {diff}"
+        );
+        assert!(
+            moved <= mlp::F16_MATH_BOUND,
+            "{name}: moved {moved} from f32"
+        );
+        check_allocation_and_capture(&gfl, &d, &imp, f, half.target, &format!("{name} f16-math"));
+    }
+}
+
 /// k from the GPU's importance equals the CPU allocation of it; slots, tail and image equal the
 /// CPU capture and resolve.
 fn check_allocation_and_capture(

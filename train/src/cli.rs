@@ -532,8 +532,9 @@ pub struct PredictArgs {
     /// Where inference runs.
     #[arg(long, value_enum, default_value_t = PredictDevice::Cpu)]
     pub device: PredictDevice,
-    /// The weights' precision: f32, or f16 (weights and biases rounded to binary16, as the
-    /// GPU's f16 pass holds them; arithmetic in f32 on every device).
+    /// The network's precision: f32; f16 (weights and biases rounded to binary16, as the
+    /// GPU's f16 pass holds them; arithmetic in f32 on every device); or f16-math (binary16
+    /// hidden-layer arithmetic too: the twin and the GPU only, burn computes in f32).
     #[arg(long, default_value = "f32")]
     pub precision: Precision,
 }
@@ -611,6 +612,13 @@ pub type Inference<'a> = dyn Fn(&Mlp, &[[f32; FEATURES]]) -> Result<Vec<f32>> + 
 /// `dhoit predict` with the inference given: reads the weights and the features, writes the
 /// predictions (atomically).
 pub fn predict_with(a: &PredictArgs, infer: &Inference) -> Result<()> {
+    if a.precision == Precision::F16Math && a.device == PredictDevice::Cpu {
+        return Err(Error::Config(
+            "precision f16-math computes in binary16, which burn (device cpu) does not: use \
+             device twin or gpu, or precision f16 (binary16 weights, f32 arithmetic)"
+                .into(),
+        ));
+    }
     let mlp = Mlp::load(&a.weights)?.at_precision(a.precision)?;
     let rows = read_features(&a.input)?;
     let imp = infer(&mlp, &rows)?;

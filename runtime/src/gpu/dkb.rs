@@ -34,6 +34,7 @@ impl Recording<'_, '_> {
     /// features' buffers, once read, hold the tail and the image.
     pub(super) fn dkb_importance(&mut self, mlp: &Mlp, expect_fit: bool) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
+        gpu.can_run(mlp)?;
         let p = &gpu.pipelines;
         let fb = &mut self.fb;
         let dispatch = fb.take(
@@ -199,6 +200,7 @@ impl Recording<'_, '_> {
                     &b.list,
                     &b.list_len,
                     dispatch_or_not,
+                    &b.weights,
                 ],
             )
         };

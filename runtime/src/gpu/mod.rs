@@ -75,6 +75,9 @@ pub struct Gpu {
     /// Whether DKB's importance pass skips the network where k does not depend on it (on by
     /// default; the bench turns it off to show the time saved). The images are the same.
     pub skip_forced: bool,
+    /// Whether the device computes in binary16 (`SHADER_F16`): the importance pass runs a
+    /// network deployed at [`Precision::F16Math`] only where it does.
+    half_math: bool,
     /// Whether the allocated k-buffers (DKB, VKB, uploaded importance), which know n(p) by the
     /// capture, append the pixels whose slots hold all but at most
     /// [`crate::composite::APPEND_SPILL`] fragments and insert the rest (capture.wgsl); off,
@@ -194,6 +197,24 @@ impl Gpu {
         }
     }
 
+    /// Whether the device runs networks deployed at [`Precision::F16Math`] (it has
+    /// `SHADER_F16`).
+    pub fn has_half_math(&self) -> bool {
+        self.half_math
+    }
+
+    /// Refuses a network this device cannot run: one deployed at [`Precision::F16Math`] on a
+    /// device without half-precision shaders.
+    pub(super) fn can_run(&self, mlp: &Mlp) -> Result<()> {
+        if mlp.precision == Precision::F16Math && !self.half_math {
+            return Err(GpuError::NoHalfMath {
+                adapter: self.adapter.clone(),
+            }
+            .into());
+        }
+        Ok(())
+    }
+
     /// Buffers created for frames so far: a frame like the one before creates none.
     pub fn buffers_created(&self) -> u64 {
         self.created.load(std::sync::atomic::Ordering::Relaxed)
@@ -225,6 +246,8 @@ impl Gpu {
             return Err(GpuError::NoAdapter.into());
         }
         let need = required_features() | extra;
+        // Requested where offered: the importance pass's f16-math variant needs it.
+        let optional = wgpu::Features::SHADER_F16;
         let mut lacking = Vec::new();
         let adapter = adapters.into_iter().find(|a| {
             let missing = need - a.features();
@@ -240,9 +263,10 @@ impl Gpu {
             .into());
         };
         let info = adapter.get_info();
+        let features = need | (adapter.features() & optional);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("dhoit"),
-            required_features: need,
+            required_features: features,
             required_limits: adapter.limits(),
             ..Default::default()
         }))
@@ -273,6 +297,7 @@ impl Gpu {
             spread_search: false,
             layer_major_fkb: false,
             diagnostics: true,
+            half_math: features.contains(wgpu::Features::SHADER_F16),
             bounded_loops: info.name.contains("llvmpipe") || info.driver.contains("llvmpipe"),
             pool: Default::default(),
             query_sets: Default::default(),

@@ -111,7 +111,8 @@ pub(super) fn compute_buffer_entry(
 
 /// The explicit layout importance_dkb's three entry points share (each uses some of it):
 /// params, weights, count, nearest, farthest, colour sums, totals (read), importance, list, its
-/// length, the indirect dispatch (written).
+/// length, the indirect dispatch (written), and the weights again (their binary16 view, which
+/// only the f16-math pass reads).
 pub(super) struct NetworkLayout {
     pub(super) group: wgpu::BindGroupLayout,
     pub(super) pipeline: wgpu::PipelineLayout,
@@ -137,6 +138,8 @@ impl NetworkLayout {
                 entry(8, rw),
                 entry(9, rw),
                 entry(10, rw),
+                // The weights again, read as binary16 by the f16-math pass (mlp::Precision).
+                entry(11, uniform),
             ],
         });
         let pipeline = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -202,13 +205,14 @@ impl Variant {
                 "const SKIP_FORCED: bool = false;",
             );
         }
-        if self.precision == Precision::F16 {
+        let half_math = self.precision == Precision::F16Math;
+        if self.precision.half_weights() {
             set(
                 "const F16_WEIGHTS: bool = false;",
                 "const F16_WEIGHTS: bool = true;",
             );
         }
-        if self.shared_weights {
+        if self.shared_weights && !half_math {
             set(
                 "const SHARED_WEIGHTS: bool = false;",
                 "const SHARED_WEIGHTS: bool = true;",
@@ -229,13 +233,22 @@ impl Variant {
                 "const ACC2_VEC4S: u32 = MAX_H2 / 4u;",
                 &format!("const ACC2_VEC4S: u32 = {}u;", p2 / 4),
             );
-            if self.unrolled && !self.shared_weights {
+            // f16-math has one form: written out (the twin's order of sums, at binary16).
+            if half_math || (self.unrolled && !self.shared_weights) {
                 set(
                     "fn mlp_forward(f: array<f32, 12>) -> f32 {",
                     "fn mlp_forward_any_shape(f: array<f32, 12>) -> f32 {",
                 );
-                src.push_str(&unrolled_forward(p1, p2));
+                src.push_str(&unrolled_forward(p1, p2, half_math));
             }
+        }
+        assert!(
+            !half_math || p1 != 0,
+            "the f16-math network pass is built for its network's shape"
+        );
+        if half_math {
+            // The directive comes before every declaration, the prelude's included.
+            src.insert_str(0, "enable f16;\n");
         }
         src
     }
@@ -247,20 +260,51 @@ impl Variant {
 /// The same sums in the same order as mlp.wgsl's `mlp_forward` and the CPU twin; a first-layer
 /// unit at 0 adds its zero products instead of being skipped (no branch that diverges across
 /// pixels), which changes no sum (x + 0 = x; a zero's sign is lost by the ReLU and the sigmoid).
-fn unrolled_forward(p1: u32, p2: u32) -> String {
+///
+/// With `half_math` ([`Precision::F16Math`]) the two hidden layers compute in binary16 vec4s
+/// (`vec4<f16>`: on GPUs with fast half precision, two multiply-adds an instruction), their
+/// weights read as stored (binary16, `param4h`), the standardised inputs rounded to binary16;
+/// the output unit sums in f32 (`Mlp::forward_half` is the twin).
+fn unrolled_forward(p1: u32, p2: u32, half_math: bool) -> String {
     use std::fmt::Write;
     let q2 = p2 / 4;
+    // The hidden layers' vector type, its weights' reader and its zero.
+    let (v4, param, zero) = if half_math {
+        ("vec4<f16>", "param4h", "0.0h")
+    } else {
+        ("vec4<f32>", "param4", "0.0")
+    };
     let mut f = String::new();
     let w = &mut f;
     let _ = writeln!(
         w,
         "\n// Written out for a {p1}-{p2} network (gpu::pipelines::unrolled_forward)."
     );
+    if half_math {
+        let _ = writeln!(
+            w,
+            "// The weights' uniform read as binary16 (the same buffer, bound a second time): a vec4 of
+// its 32-bit words is eight binary16 values, the first four in `lo` (a uniform array's
+// elements are 16 bytes apart, so vec4<f16> alone cannot be one).
+struct HalfWords {{
+    lo: vec4<f16>,
+    hi: vec4<f16>,
+}};
+@group(0) @binding(11) var<uniform> weights_h: array<HalfWords, MLP_VEC4S>;
+
+// Four binary16 parameters from index `i` (where param4 reads them at F16_WEIGHTS), as they are.
+fn param4h(i: u32) -> vec4<f16> {{
+    let word = MLP_W1_AT + ((i - MLP_W1_AT) >> 1u);
+    let v = weights_h[word >> 2u];
+    return select(v.lo, v.hi, (word & 2u) != 0u);
+}}"
+        );
+    }
     let _ = writeln!(w, "fn mlp_forward(f: array<f32, 12>) -> f32 {{");
     for (i, at) in [(0, 0), (1, 4), (2, 8)] {
         let _ = writeln!(
             w,
-            "    let x{i} = standardised(vec4<f32>(f[{}], f[{}], f[{}], f[{}]), {i}u);",
+            "    let x{i} = {v4}(standardised(vec4<f32>(f[{}], f[{}], f[{}], f[{}]), {i}u));",
             at,
             at + 1,
             at + 2,
@@ -273,24 +317,27 @@ fn unrolled_forward(p1: u32, p2: u32) -> String {
     let _ = writeln!(w, "    let b2 = w2 + {}u;", p1 * p2);
     let _ = writeln!(w, "    let w3 = b2 + {p2}u;");
     for j in 0..q2 {
-        let _ = writeln!(w, "    var s{j} = param4(b2 + {}u);", 4 * j);
+        let _ = writeln!(w, "    var s{j} = {param}(b2 + {}u);", 4 * j);
     }
     let _ = writeln!(w, "    for (var i = 0u; i < {p1}u; i += 4u) {{");
-    let _ = writeln!(w, "        var acc = param4(b1 + i);");
+    let _ = writeln!(w, "        var acc = {param}(b1 + i);");
+    // add_inputs, written out: input c of x{x} times its four units' weights.
     for x in 0..3 {
-        let _ = writeln!(
-            w,
-            "        acc = add_inputs(acc, x{x}, w1 + {}u + i, {p1}u);",
-            4 * x * p1
-        );
+        for (c, comp) in ["x", "y", "z", "w"].iter().enumerate() {
+            let _ = writeln!(
+                w,
+                "        acc += x{x}.{comp} * {param}(w1 + {}u + i);",
+                (4 * x + c as u32) * p1
+            );
+        }
     }
-    let _ = writeln!(w, "        let a = max(acc, vec4<f32>(0.0));");
+    let _ = writeln!(w, "        let a = max(acc, {v4}({zero}));");
     let _ = writeln!(w, "        let row = w2 + i * {p2}u;");
     for (u, c) in ["x", "y", "z", "w"].iter().enumerate() {
         for j in 0..q2 {
             let _ = writeln!(
                 w,
-                "        s{j} += a.{c} * param4(row + {}u);",
+                "        s{j} += a.{c} * {param}(row + {}u);",
                 u as u32 * p2 + 4 * j
             );
         }
@@ -298,7 +345,7 @@ fn unrolled_forward(p1: u32, p2: u32) -> String {
     let _ = writeln!(w, "    }}");
     let _ = writeln!(w, "    var out = param4(w3 + {}u).x;", 4 * q2);
     for j in 0..q2 {
-        let _ = writeln!(w, "    let h{j} = max(s{j}, vec4<f32>(0.0));");
+        let _ = writeln!(w, "    let h{j} = vec4<f32>(max(s{j}, {v4}({zero})));");
         let _ = writeln!(w, "    let v{j} = param4(w3 + {}u);", 4 * j);
         for c in ["x", "y", "z", "w"] {
             let _ = writeln!(w, "    out += h{j}.{c} * v{j}.{c};");

@@ -12,6 +12,7 @@ impl Gpu {
         mlp: &Mlp,
         rows: &[[f32; crate::importance::FEATURES]],
     ) -> Result<Vec<f32>> {
+        self.can_run(mlp)?;
         let weights = self
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -49,10 +50,12 @@ impl Gpu {
                 mapped_at_creation: false,
             });
             let pl = &self.network_pass(Variant::for_network("predict", mlp, true));
-            let group = self.bind_at(
-                &pl.get_bind_group_layout(0),
-                &[(0, &params_buf), (1, &weights), (2, &input), (3, &output)],
-            );
+            let mut entries = vec![(0, &params_buf), (1, &weights), (2, &input), (3, &output)];
+            if mlp.precision == Precision::F16Math {
+                // The weights' binary16 view (pipelines::unrolled_forward).
+                entries.push((11, &weights));
+            }
+            let group = self.bind_at(&pl.get_bind_group_layout(0), &entries);
             let mut enc = self.device.create_command_encoder(&Default::default());
             {
                 let mut pass = enc.begin_compute_pass(&Default::default());
