@@ -13,9 +13,17 @@
 //            in, and no workgroup for the weights, the rounds, the marks and their prefix sum
 //            (indirect dispatches it empties): apply alone gives k = n
 //   weights: importance -> fixed-point weight in place (the kind of alloc::Target)
-//   search:  the totals at 16 candidates a + j span/16 (SEARCH_PIXELS pixels an invocation, then
-//            workgroup sums, then one 64-bit atomic per candidate and workgroup)
-//   choose:  the largest candidate whose total fits becomes a; span /= 16 (11 rounds: 2^44 = 16^11)
+//   search:  the totals at 16 candidates (SEARCH_PIXELS pixels an invocation, then workgroup
+//            sums, then one 64-bit atomic per candidate and workgroup): in the first round a
+//            bracket (bracket_at), then a + j span/16
+//   choose:  the largest candidate whose total fits becomes a; after the bracket, span is the
+//            smallest power of 16 that reaches the next candidate, then span /= 16 each round
+//            until it is 1, when the remaining rounds' search dispatches no workgroup.
+// The bracket's candidates are geometric, 8 apart, from 0 or around the last frame's answer of
+// the same kind (kept in the state): an answer d from its centre takes 1 + log16(8 d) rounds or
+// so instead of 11 (2 for the frame before's answer again; 4 for VKB's scale near 2^9 and 7
+// for DKB's levels near 2^24 from 0). The answer itself does not depend on the bracket: it is
+// the largest t whose total fits, and the totals grow with t.
 //   mark:    flags[p] = 1 where k rises at a + 1 (then prefix-summed by the scan)
 //   apply:   k = k(a) + 1 for the first (target - total(a)) marked pixels
 
@@ -36,7 +44,8 @@ struct Alloc {
 // Importance (f32) in, the weights (u32) in place.
 @group(0) @binding(3) var<storage, read_write> w: array<u32>;
 @group(0) @binding(4) var<storage, read_write> k: array<u32>;
-// 0 target, 1 a, 2 span, 3 lo, 4 total at a, 5 F, 6..21 the candidates' totals.
+// 0 target, 1 a, 2 span, 3 lo, 4 total at a, 5 F, 6..21 the candidates' totals, 22 the rounds
+// the search took, 23 and 24 the last answers of a level and of a scale (last_answer_word).
 @group(0) @binding(5) var<storage, read_write> state: array<atomic<u64>, ALLOC_STATE_WORDS>;
 // The marks (mark), or their exclusive prefix (apply).
 @group(0) @binding(6) var<storage, read_write> flags: array<u32>;
@@ -46,8 +55,8 @@ struct Alloc {
 // the per-pixel weights and marks, the search rounds, and the marks' prefix sum over its
 // blocks. When every fragment fits, k = n whatever the weights and marks (apply places no
 // slot past k(a)), so setup zeroes the three x and none of them runs a workgroup. Bound to
-// the state in every dispatch but setup's (a buffer read as a dispatch's arguments is not
-// bound writable in that dispatch).
+// the state in every dispatch but setup's and choose's (a buffer read as a dispatch's arguments
+// is not bound writable in that dispatch).
 @group(0) @binding(8) var<storage, read_write> dispatches: array<u32, 12>;
 
 
@@ -56,6 +65,37 @@ struct Alloc {
 // address (gpu::Gpu::spread_search builds it with 32; on lavapipe one is faster).
 const SEARCH_COPIES: u32 = 1u;
 var<workgroup> partial: array<atomic<u32>, ALLOC_CANDIDATES * SEARCH_COPIES>;
+
+// The span setup leaves for the first round: the bracket's candidates (bracket_at) instead of
+// a + j span/16.
+const BRACKET: u64 = 0x8000000000000000lu;
+
+// The state word holding the last answer of this frame's kind (a level, or a scale), 0 for none.
+fn last_answer_word() -> u32 {
+    return select(ALLOC_STATE_WORDS - 1u, ALLOC_STATE_WORDS - 2u, alloc.kind == 2u);
+}
+
+// Candidate j of the bracket, centred on `c` (0: none): first 0 (every covered pixel at lo: it
+// always fits), last 2^44 (past the last tier: it never fits, unless every fragment does, which
+// setup settles); between them, without a centre, 2^(3j) up to 2^42, and around one, c minus
+// 2^21, 2^18, ..., 2^3, c, then c plus 2^3, ..., 2^18 (kept within [0, 2^44]). Non-decreasing.
+fn bracket_at(j: u32, c: u64) -> u64 {
+    let top = 1lu << (4u * SEARCH_SPAN_DIGITS);
+    if (j == 0u) {
+        return 0lu;
+    }
+    if (j == ALLOC_CANDIDATES - 1u) {
+        return top;
+    }
+    if (c == 0lu) {
+        return 1lu << (3u * j);
+    }
+    if (j < 8u) {
+        let d = 1lu << (3u * (8u - j));
+        return select(0lu, c - d, c > d);
+    }
+    return min(c + select(0lu, 1lu << (3u * (j - 8u)), j > 8u), top);
+}
 
 fn pixel(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
     return grid_index(wid, nwg, lid, ALLOC_GROUP);
@@ -147,15 +187,16 @@ fn setup() {
         dispatches[0] = 0u;
         dispatches[4] = 0u;
         dispatches[8] = 0u;
-        atomicStore(&state[1], (1lu << (4u * SEARCH_ROUNDS)) - 1lu);
+        atomicStore(&state[1], (1lu << (4u * SEARCH_SPAN_DIGITS)) - 1lu);
         atomicStore(&state[2], 1lu);
         atomicStore(&state[4], all);
     } else {
         atomicStore(&state[1], 0lu);
-        atomicStore(&state[2], 1lu << (4u * SEARCH_ROUNDS));
+        atomicStore(&state[2], BRACKET);
         atomicStore(&state[4], 0lu);
     }
     atomicStore(&state[5], f);
+    atomicStore(&state[ALLOC_ROUNDS_WORD], 0lu);
     for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
         atomicStore(&state[6u + j], 0lu);
     }
@@ -169,13 +210,16 @@ fn search(
 ) {
     // SEARCH_PIXELS pixels an invocation, ALLOC_GROUP apart (neighbouring invocations read
     // neighbouring pixels), summed privately before the workgroup's atomics.
-    let step = atomicLoad(&state[2]) >> 4u;
-    // No pixel to visit once the search is over (setup found that every fragment fits); the
-    // invocation still meets the barrier below.
+    let span = atomicLoad(&state[2]);
+    let bracket = span == BRACKET;
+    let step = span >> 4u;
+    // No pixel to visit once the search is over (setup found that every fragment fits, or the
+    // rounds so far found the answer); the invocation still meets the barrier below.
     let visits = select(0u, SEARCH_PIXELS, step != 0lu);
     let first = (wid.y * nwg.x + wid.x) * ALLOC_GROUP * SEARCH_PIXELS + lid;
     let a = atomicLoad(&state[1]);
     let lo = u32(atomicLoad(&state[3]));
+    let centre = atomicLoad(&state[last_answer_word()]);
     var sums: array<u32, ALLOC_CANDIDATES>;
     var any = false;
     for (var i = 0u; i < visits; i++) {
@@ -184,8 +228,14 @@ fn search(
             any = true;
             let wp = w[p];
             let n = counts[p];
-            for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
-                sums[j] += k_at(a + u64(j) * step, wp, n, lo);
+            if (bracket) {
+                for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
+                    sums[j] += k_at(bracket_at(j, centre), wp, n, lo);
+                }
+            } else {
+                for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
+                    sums[j] += k_at(a + u64(j) * step, wp, n, lo);
+                }
             }
         }
     }
@@ -210,7 +260,8 @@ fn search(
 @compute @workgroup_size(1)
 fn choose() {
     let goal = atomicLoad(&state[0]);
-    let step = atomicLoad(&state[2]) >> 4u;
+    let span = atomicLoad(&state[2]);
+    let step = span >> 4u;
     if (step == 0lu) {
         return;
     }
@@ -222,8 +273,30 @@ fn choose() {
         }
     }
     atomicStore(&state[4], atomicLoad(&state[6u + best]));
-    atomicStore(&state[1], atomicLoad(&state[1]) + u64(best) * step);
-    atomicStore(&state[2], step);
+    atomicAdd(&state[ALLOC_ROUNDS_WORD], 1lu);
+    var next_span = step;
+    if (span == BRACKET) {
+        // The answer lies in [bracket_at(best), bracket_at(best + 1)) (the last candidate's
+        // total never fits here): search the smallest power of 16 that covers it (candidates
+        // past its end do not fit either). At most 2^44, so at most 11 rounds more.
+        let centre = atomicLoad(&state[last_answer_word()]);
+        let a = bracket_at(best, centre);
+        let gap = bracket_at(min(best + 1u, ALLOC_CANDIDATES - 1u), centre) - a;
+        next_span = 1lu;
+        for (var d = 0u; d < SEARCH_SPAN_DIGITS && next_span < gap; d++) {
+            next_span = next_span << 4u;
+        }
+        atomicStore(&state[1], a);
+    } else {
+        atomicStore(&state[1], atomicLoad(&state[1]) + u64(best) * step);
+    }
+    atomicStore(&state[2], next_span);
+    if (next_span == 1lu) {
+        // Found: the remaining rounds' search dispatches no workgroup, and the next frame's
+        // bracket centres on the answer.
+        dispatches[4] = 0u;
+        atomicStore(&state[last_answer_word()], atomicLoad(&state[1]));
+    }
     for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
         atomicStore(&state[6u + j], 0lu);
     }

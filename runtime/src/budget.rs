@@ -49,8 +49,8 @@ const HYBRID_TAIL: (&str, u64) = ("oit.tail", 16);
 const TAIL_COUNT: (&str, u64) = ("oit.tail_count", 4);
 /// The geometry passes' render target (R8, never written): rasterization needs one.
 const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
-/// The allocation's parameters (F, share, weight kind) and its search state (24 u64: target,
-/// interval, sums of 16 candidates).
+/// The allocation's parameters (F, share, weight kind) and its search state (25 u64: target,
+/// interval, sums of 16 candidates, rounds, the last answers).
 const ALLOC_PARAMS: (&str, u64) = ("alloc.params", 16);
 const ALLOC_STATE: (&str, u64) = ("alloc.state", 8 * crate::wgsl::ALLOC_STATE_WORDS as u64);
 /// The allocation's three indirect dispatches (empty when every fragment fits).

@@ -136,6 +136,8 @@ pub mod shaders {
             ("SEARCH_PIXELS", U32(SEARCH_PIXELS)),
             ("ALLOC_STATE_WORDS", U32(ALLOC_STATE_WORDS)),
             ("SEARCH_ROUNDS", U32(super::SEARCH_ROUNDS)),
+            ("SEARCH_SPAN_DIGITS", U32(super::SEARCH_SPAN_DIGITS)),
+            ("ALLOC_ROUNDS_WORD", U32(super::ALLOC_ROUNDS_WORD)),
             ("PPM", U32(budget::PPM as u32)),
             ("WEIGHT_BITS", U32(alloc::WEIGHT_BITS)),
             ("WEIGHT_MAX", U32(alloc::WEIGHT_MAX)),
@@ -190,8 +192,11 @@ pub const ALLOC_CANDIDATES: u32 = 16;
 /// quarter of the shared atomics, and a quarter of the workgroups.
 pub const SEARCH_PIXELS: u32 = 4;
 /// The allocation's search state in u64s: target, interval start, span, lo, total at the start,
-/// F, the candidates' totals, and two spare.
-pub const ALLOC_STATE_WORDS: u32 = 6 + ALLOC_CANDIDATES + 2;
+/// F, the candidates' totals, the rounds the search took, and the last answers found for a
+/// level and for a scale (kept from frame to frame: the next search's bracket centres on them).
+pub const ALLOC_STATE_WORDS: u32 = 6 + ALLOC_CANDIDATES + 3;
+/// The state word counting the search's rounds (those that narrowed the interval).
+pub const ALLOC_ROUNDS_WORD: u32 = 6 + ALLOC_CANDIDATES;
 /// Where the network's uniform holds the standardisation means, deviations and the first
 /// weight matrix, in floats (after a header of h1, h2 and two unused).
 pub const MLP_MEAN_AT: usize = 4;
@@ -292,8 +297,12 @@ pub(crate) struct AllocParams {
     pub(crate) kind: u32,
 }
 
-/// Rounds of the allocation's 16-way search: the interval 2^44 shrinks to one value.
-pub const SEARCH_ROUNDS: u32 = 11;
+/// Hexadecimal digits of the allocation's search interval: t lies in [0, 2^44) (16^11).
+pub const SEARCH_SPAN_DIGITS: u32 = 11;
+/// Rounds of the allocation's 16-way search recorded: the bracket (t's binary order of
+/// magnitude) and at most [`SEARCH_SPAN_DIGITS`] more (allocate.wgsl's `choose`); the rounds
+/// after the one that finds t dispatch no workgroup.
+pub const SEARCH_ROUNDS: u32 = SEARCH_SPAN_DIGITS + 1;
 
 /// Workgroups of `size` invocations covering `pixels`, as a 2-D grid when one dimension cannot
 /// hold them (the passes compute `(y * width + x) * size + local index`, `grid_index` in

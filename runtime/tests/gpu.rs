@@ -638,6 +638,59 @@ fn mlab_matches_the_cpu_in_submission_order() {
     );
 }
 
+/// The allocation's search brackets its answer around the device's last answer of the same
+/// kind (a scale, a level): the same allocation again takes two rounds (the bracket and one),
+/// with a frame of the other kind between them too; another budget takes more, at most
+/// SEARCH_ROUNDS, and every fragment fitting none; k is always its twin's.
+#[test]
+fn the_search_brackets_the_last_answer_of_its_kind() {
+    use dhoit_runtime::wgsl::SEARCH_ROUNDS;
+    if gpu().is_none() {
+        return;
+    }
+    // A device of its own: the last answers are the device's, and the other tests' frames run
+    // on the shared one meanwhile.
+    let g = &dhoit_runtime::gpu::Gpu::new().unwrap();
+    let (w, h) = (96, 72);
+    let (s, cam) = frame("particles", 1, w, h);
+    let counts = g
+        .render(&s, &cam, w, h, BG, None)
+        .unwrap()
+        .fragments
+        .unwrap()
+        .counts();
+    let total: u64 = counts.iter().map(|&n| n as u64).sum();
+    let mut rng = dhoit_runtime::rng::Rng::new(8);
+    let imp: Vec<f32> = (0..counts.len()).map(|_| rng.f32()).collect();
+    let run = |target: alloc::Target, f: u64| {
+        let a = g
+            .allocate(&s, &cam, (w, h), &imp, target, f.into())
+            .unwrap();
+        assert!(
+            a.k == alloc::allocate(&imp, &counts, target, f),
+            "{target:?} F {f}: k differs from the twin's"
+        );
+        a.search_rounds
+    };
+    let (scale, level) = (alloc::Target::RelativeK, alloc::Target::SlotRequest);
+    let f = total / 3;
+    let first = [run(scale, f), run(level, f)];
+    assert!(
+        first.iter().all(|r| (2..=SEARCH_ROUNDS).contains(r)),
+        "{first:?}"
+    );
+    // Again, each kind after the other: its own last answer.
+    let again = [run(scale, f), run(level, f), run(scale, f)];
+    assert_eq!(again, [2, 2, 2], "the same allocations again");
+    let other = [run(scale, total / 2), run(level, total / 5)];
+    assert!(
+        other.iter().all(|r| (2..=SEARCH_ROUNDS).contains(r)),
+        "{other:?}"
+    );
+    assert_eq!(run(scale, total), 0, "every fragment fits: no search");
+    eprintln!("search rounds: first {first:?}, again {again:?}, other budgets {other:?}");
+}
+
 #[test]
 fn the_allocation_pass_matches_its_cpu_twin() {
     let Some(g) = gpu() else { return };

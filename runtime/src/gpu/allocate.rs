@@ -1,5 +1,5 @@
-//! The allocation on the device, in one submission (`allocate.wgsl`: weights, an 11-round
-//! 16-way search for the water level, the marks, their prefix sums and the apply; the twin is
+//! The allocation on the device, in one submission (`allocate.wgsl`: weights, a 16-way search
+//! for the water level (a bracket of its order of magnitude, then at most 11 rounds), the marks, their prefix sums and the apply; the twin is
 //! `alloc::allocate`), from the importance a frame computes (`dkb.rs`, `vkb.rs`) or is given
 //! (the count pass and `totals.wgsl` first). [`Gpu::allocate`] runs it alone.
 
@@ -116,6 +116,8 @@ pub(super) struct Allocation {
     flags: wgpu::Buffer,
     prefix: wgpu::Buffer,
     dispatches: wgpu::Buffer,
+    /// The search's state (allocate.wgsl), kept from frame to frame.
+    state: wgpu::Buffer,
     setup_group: wgpu::BindGroup,
     group: wgpu::BindGroup,
     apply_group: wgpu::BindGroup,
@@ -150,7 +152,9 @@ impl<'a> Passes<'a> {
             wgpu::BufferUsages::UNIFORM,
             true,
         );
-        let state = fb.storage("alloc.state", 8 * ALLOC_STATE_WORDS as u64, true)?;
+        // Not cleared: setup writes every word the search reads but the last two, the answers
+        // of the last frame (allocate.wgsl's bracket), which a new buffer holds as zeros.
+        let state = fb.storage_cleared("alloc.state", 8 * ALLOC_STATE_WORDS as u64, true, false)?;
         // The marks need 4 bytes a pixel only during the allocation: a buffer the frame no longer
         // needs by then holds them where there is one.
         let flags = match b.flags {
@@ -184,8 +188,8 @@ impl<'a> Passes<'a> {
                 ],
             )
         };
-        // Setup writes the dispatches' arguments; the dispatches that read them bind the state
-        // in their place.
+        // Setup and choose write the dispatches' arguments; the dispatches that read them bind
+        // the state in their place.
         Ok(Allocation {
             setup_group: bind(&flags, &dispatches),
             group: bind(&flags, &state),
@@ -193,11 +197,12 @@ impl<'a> Passes<'a> {
             flags,
             prefix: b.prefix.clone(),
             dispatches,
+            state,
             grid: (gx, gy),
         })
     }
 
-    /// `al` recorded into `enc`: setup, weights, 11 rounds of search and choose, mark (one
+    /// `al` recorded into `enc`: setup, weights, 12 rounds of search and choose, mark (one
     /// timed pass), the prefix of the marks, apply (another).
     pub(super) fn allocate(
         &self,
@@ -216,12 +221,17 @@ impl<'a> Passes<'a> {
             pass.set_bind_group(0, &al.group, &[]);
             pass.set_pipeline(&a.weights);
             pass.dispatch_workgroups_indirect(dispatches, per_pixel);
+            // Choose binds the dispatches' arguments, to empty the rounds' grid once the search
+            // has found its answer.
             for _ in 0..SEARCH_ROUNDS {
+                pass.set_bind_group(0, &al.group, &[]);
                 pass.set_pipeline(search);
                 pass.dispatch_workgroups_indirect(dispatches, rounds);
+                pass.set_bind_group(0, &al.setup_group, &[]);
                 pass.set_pipeline(&a.choose);
                 pass.dispatch_workgroups(1, 1, 1);
             }
+            pass.set_bind_group(0, &al.group, &[]);
             pass.set_pipeline(&a.mark);
             pass.dispatch_workgroups_indirect(dispatches, per_pixel);
         });
@@ -246,6 +256,10 @@ pub struct GpuAllocation {
     /// Exclusive prefix sums of k (`pixels + 1` entries): the slot bases.
     pub bases: Vec<u32>,
     pub pass_ms: Vec<(&'static str, f64)>,
+    /// Rounds the search took (0 when every fragment fits; at most [`SEARCH_ROUNDS`]): its
+    /// bracket centres on the device's last answer of the same kind, so a frame allocated like
+    /// the one before takes 2.
+    pub search_rounds: u32,
 }
 
 impl Gpu {
@@ -317,6 +331,7 @@ impl Gpu {
             k: u32s(&read_back(self, &k, 4 * px)?),
             bases: u32s(&read_back(self, &base, 4 * (px + 1))?),
             pass_ms: timer.read(self)?,
+            search_rounds: read_words(self, &[(&al.state, 8 * ALLOC_ROUNDS_WORD as u64)])?[0],
         };
         scopes.end()?;
         Ok(out)

@@ -54,6 +54,18 @@ impl<'a> FrameBuffers<'a> {
         size: u64,
         counted: bool,
     ) -> Result<wgpu::Buffer> {
+        self.storage_cleared(label, size, counted, true)
+    }
+
+    /// [`FrameBuffers::storage`], holding what the last frame left in it where `clear` is
+    /// false (zeros when new): for state a pass carries from frame to frame.
+    pub(super) fn storage_cleared(
+        &mut self,
+        label: &str,
+        size: u64,
+        counted: bool,
+        clear: bool,
+    ) -> Result<wgpu::Buffer> {
         let size = size.max(16).next_multiple_of(4);
         let limits = self.gpu.device.limits();
         let max = limits
@@ -73,7 +85,7 @@ impl<'a> FrameBuffers<'a> {
         let usage = wgpu::BufferUsages::STORAGE
             | wgpu::BufferUsages::COPY_SRC
             | wgpu::BufferUsages::COPY_DST;
-        Ok(self.take(label, size, usage, true))
+        Ok(self.take(label, size, usage, clear))
     }
 
     /// A buffer holding `bytes` (zero-padded to at least 16 bytes, a multiple of 4).

@@ -52,8 +52,8 @@ use crate::importance::{PixelStats, VkbParams};
 use crate::mlp::{Mlp, Precision};
 use crate::scene::{Camera, Scene};
 use crate::wgsl::{
-    ALLOC_GROUP, ALLOC_STATE_WORDS, AllocParams, MLAB_MAX_ROWS, PIXEL_GROUP, Params, SEARCH_PIXELS,
-    SEARCH_ROUNDS, grid, mlp_uniform, shaders,
+    ALLOC_GROUP, ALLOC_ROUNDS_WORD, ALLOC_STATE_WORDS, AllocParams, MLAB_MAX_ROWS, PIXEL_GROUP,
+    Params, SEARCH_PIXELS, SEARCH_ROUNDS, grid, mlp_uniform, shaders,
 };
 use wgpu::util::DeviceExt;
 
