@@ -233,6 +233,20 @@ fn every_loader_refuses_weights_at_the_limits() {
     assert!(e.contains("at most"), "{e}");
 }
 
+/// The batches the precisions are held on: random rows (seeded), the golden features, and the
+/// features of two renders.
+fn precision_batches(seed: u64) -> [(&'static str, Rows); 4] {
+    let mut rng = Rng::new(seed);
+    let golden =
+        dhoit_train::cli::read_features(&root().join("data/golden/features.safetensors")).unwrap();
+    [
+        ("random", random_rows(&mut rng, 4096)),
+        ("golden", golden),
+        ("particles render", frame_rows("particles")),
+        ("cad render", frame_rows("cad")),
+    ]
+}
+
 /// The f16 network (weights and biases rounded to binary16, f32 arithmetic) is one function on
 /// burn, the twin and the GPU's f16 pass, within 1e-5, never NaN; against the f32 network its
 /// importance moves by at most `mlp::F16_BOUND` on every batch; and a weight binary16 cannot
@@ -240,15 +254,7 @@ fn every_loader_refuses_weights_at_the_limits() {
 #[test]
 fn the_f16_network_is_one_function_within_its_bound_of_f32() {
     use dhoit_runtime::mlp::Precision;
-    let mut rng = Rng::new(21);
-    let golden =
-        dhoit_train::cli::read_features(&root().join("data/golden/features.safetensors")).unwrap();
-    let batches = [
-        ("random", random_rows(&mut rng, 4096)),
-        ("golden", golden),
-        ("particles render", frame_rows("particles")),
-        ("cad render", frame_rows("cad")),
-    ];
+    let batches = precision_batches(21);
     let sized = |h1, h2| {
         let mut m = Mlp::random_sized(9, h1, h2);
         m.mean = default_weights().mean;
@@ -307,15 +313,7 @@ fn the_f16_network_is_one_function_within_its_bound_of_f32() {
 #[test]
 fn the_f16_math_network_stays_within_its_bounds_of_f32_and_its_twin() {
     use dhoit_runtime::mlp::Precision;
-    let mut rng = Rng::new(23);
-    let golden =
-        dhoit_train::cli::read_features(&root().join("data/golden/features.safetensors")).unwrap();
-    let batches = [
-        ("random", random_rows(&mut rng, 4096)),
-        ("golden", golden),
-        ("particles render", frame_rows("particles")),
-        ("cad render", frame_rows("cad")),
-    ];
+    let batches = precision_batches(23);
     let mut nets = vec![("default".to_string(), default_weights())];
     for dir in ["16-8", "64-32"] {
         let path = root()

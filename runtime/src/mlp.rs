@@ -251,74 +251,53 @@ impl Mlp {
     }
 
     /// [`Mlp::forward`] with a reusable scratch buffer for the hidden activations.
+    pub fn forward_with(&self, f: &[f32; FEATURES], scratch: &mut Vec<f32>) -> f32 {
+        if self.precision == Precision::F16Math {
+            self.forward_rounded(f, scratch, |v| half::f16::from_f32(v).to_f32())
+        } else {
+            self.forward_rounded(f, scratch, |v| v)
+        }
+    }
+
+    /// The forward with every standardised input, weight, product and sum of the hidden layers
+    /// passed through `round`: as is at f32 and f16 (whose weights are already binary16);
+    /// rounded to binary16 at [`Precision::F16Math`] (overflowing to an infinity as binary16
+    /// does), the twin of its pass (gpu::pipelines::unrolled_forward), where a GPU may fuse a
+    /// product and a sum. The output unit is f32 either way.
     // Indexed loops on purpose: the twin of mlp.wgsl's mlp_forward, operation for operation
     // and in the same order of sums, so the GPU can be held to it within float rounding.
     #[allow(clippy::needless_range_loop)]
-    pub fn forward_with(&self, f: &[f32; FEATURES], scratch: &mut Vec<f32>) -> f32 {
-        if self.precision == Precision::F16Math {
-            return self.forward_half(f, scratch);
-        }
+    fn forward_rounded(
+        &self,
+        f: &[f32; FEATURES],
+        scratch: &mut Vec<f32>,
+        round: impl Fn(f32) -> f32,
+    ) -> f32 {
         let (n1, n2) = (self.h1, self.h2);
         scratch.clear();
         scratch.resize(n1 + n2, 0.0);
         let (h1, h2) = scratch.split_at_mut(n1);
         let mut x = [0.0f32; FEATURES];
         for i in 0..FEATURES {
-            x[i] = standardise(f[i], self.mean[i], self.std[i]);
+            x[i] = round(standardise(f[i], self.mean[i], self.std[i]));
         }
         for j in 0..n1 {
-            let mut acc = self.b1[j];
+            let mut acc = round(self.b1[j]);
             for i in 0..FEATURES {
-                acc += x[i] * self.w1[i * n1 + j];
+                acc = round(acc + round(x[i] * round(self.w1[i * n1 + j])));
             }
             h1[j] = acc.max(0.0);
         }
         for j in 0..n2 {
-            let mut acc = self.b2[j];
+            let mut acc = round(self.b2[j]);
             for i in 0..n1 {
-                acc += h1[i] * self.w2[i * n2 + j];
+                acc = round(acc + round(h1[i] * round(self.w2[i * n2 + j])));
             }
             h2[j] = acc.max(0.0);
         }
         let mut acc = self.b3;
         for i in 0..n2 {
             acc += h2[i] * self.w3[i];
-        }
-        squash(acc)
-    }
-
-    /// [`Mlp::forward_with`] at [`Precision::F16Math`]: the twin of the f16-math pass
-    /// (gpu::pipelines::unrolled_forward): the standardised inputs rounded to binary16, every
-    /// product and every sum of the hidden layers rounded to binary16 (overflowing to an
-    /// infinity as binary16 does), in the same order of sums; the output unit in f32.
-    #[allow(clippy::needless_range_loop)]
-    fn forward_half(&self, f: &[f32; FEATURES], scratch: &mut Vec<f32>) -> f32 {
-        let h = |v: f32| half::f16::from_f32(v).to_f32();
-        let (n1, n2) = (self.h1, self.h2);
-        scratch.clear();
-        scratch.resize(n1 + n2, 0.0);
-        let (h1, h2) = scratch.split_at_mut(n1);
-        let mut x = [0.0f32; FEATURES];
-        for i in 0..FEATURES {
-            x[i] = h(standardise(f[i], self.mean[i], self.std[i]));
-        }
-        for j in 0..n1 {
-            let mut acc = h(self.b1[j]);
-            for i in 0..FEATURES {
-                acc = h(acc + h(x[i] * h(self.w1[i * n1 + j])));
-            }
-            h1[j] = acc.max(0.0);
-        }
-        for j in 0..n2 {
-            let mut acc = h(self.b2[j]);
-            for i in 0..n1 {
-                acc = h(acc + h(h1[i] * h(self.w2[i * n2 + j])));
-            }
-            h2[j] = acc.max(0.0);
-        }
-        let mut acc = h(self.b3);
-        for i in 0..n2 {
-            acc += h2[i] * h(self.w3[i]);
         }
         squash(acc)
     }

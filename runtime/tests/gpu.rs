@@ -829,19 +829,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
                 stats
             };
             // Importance: the network on the GPU's statistics, within 1e-5.
-            let t = importance::totals(&stats);
-            let feats: Vec<[f32; 12]> = stats
-                .iter()
-                .map(|st| {
-                    if st.count > 0 {
-                        importance::pixel_features(st, &t, f)
-                    } else {
-                        [0.0; 12]
-                    }
-                })
-                .collect();
-            let counts: Vec<u32> = stats.iter().map(|st| st.count).collect();
-            let pairs: Vec<bool> = stats.iter().map(importance::tail_pair).collect();
+            let (feats, counts, pairs) = network_inputs(&stats, f);
             let imp_twin: Vec<f32> = mlp.dkb_importance(&feats, &counts, &pairs, f);
             let imp = d.importance.clone().unwrap();
             if holds {
@@ -908,6 +896,31 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
     }
 }
 
+/// What DKB's network reads from a frame's statistics at F = `f`: each pixel's features (zeros
+/// where uncovered), its count, and whether its two farthest fragments share one colour.
+fn network_inputs(
+    stats: &[importance::PixelStats],
+    f: u64,
+) -> (Vec<[f32; 12]>, Vec<u32>, Vec<bool>) {
+    let t = importance::totals(stats);
+    let feats = stats
+        .iter()
+        .map(|st| {
+            if st.count > 0 {
+                importance::pixel_features(st, &t, f)
+            } else {
+                [0.0; 12]
+            }
+        })
+        .collect();
+    let counts = stats.iter().map(|st| st.count).collect();
+    (
+        feats,
+        counts,
+        stats.iter().map(importance::tail_pair).collect(),
+    )
+}
+
 /// DKB's importance pass with the network deployed at f16-math (binary16 hidden layers,
 /// `Precision::F16Math`): the importance within `mlp::F16_MATH_GPU_BOUND` of the twin's on the
 /// GPU's own statistics, the pair marks exact, and the allocation, capture and image its twins'
@@ -940,20 +953,7 @@ fn dkb_frames_run_the_f16_math_network_like_its_twin() {
         let d = g
             .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&half, f.into())))
             .unwrap();
-        let stats = importance::pixel_stats(&gfl);
-        let t = importance::totals(&stats);
-        let feats: Vec<[f32; 12]> = stats
-            .iter()
-            .map(|st| {
-                if st.count > 0 {
-                    importance::pixel_features(st, &t, f)
-                } else {
-                    [0.0; 12]
-                }
-            })
-            .collect();
-        let counts = gfl.counts();
-        let pairs: Vec<bool> = stats.iter().map(importance::tail_pair).collect();
+        let (feats, counts, pairs) = network_inputs(&importance::pixel_stats(&gfl), f);
         let twin = half.dkb_importance(&feats, &counts, &pairs, f);
         let imp = d.importance.clone().unwrap();
         assert!(imp.iter().any(|i| i.abs() > 0.0), "{name}: no importance");
