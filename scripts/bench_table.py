@@ -18,8 +18,8 @@ def table(path):
         f"`{path}`: {gpu['adapter']}, {gpu['width']}x{gpu['height']}, budget {gpu['budget']}, "
         f"{report.get('repeat', '?')} steady frames (medians; passes from the fastest)\n",
         "| scene | A-buffer | FKB | optimal | VKB | DKB | DKB 16-8 | DKB/VKB | DKB/A-buffer "
-        "| VKB count | DKB count + features | DKB importance | allocation | capture DKB / VKB "
-        "| wall/(GPU + readback) |",
+        "| VKB count | DKB count + features | DKB importance (f16-math) | allocation "
+        "| capture DKB / VKB | wall/(GPU + readback) |",
         "|---|" + "---:|" * 14,
     ]
     for s in gpu["scenes"]:
@@ -40,12 +40,15 @@ def table(path):
         # DKB's count pass, where it counts first (absent where the features pass counts), and
         # its features pass (absent where the frame expected to fit, and did).
         passes = m["dkb"]["passes_ms"]
+        # The same importance pass at f16-math, where the bench ran it (the device has
+        # SHADER_F16) and the frame recorded it.
+        half = p("dkb_f16_math", "importance") if "dkb_f16_math" in m else "-"
         geometry = passes.get("count", 0.0) + passes.get("features", 0.0)
         out.append(
             f"| {s['scene']} | {frame('abuffer'):.2f} | {frame('fkb'):.2f} | {frame('optimal'):.2f} "
             f"| {frame('vkb'):.2f} | {frame('dkb'):.2f} | {frame('dkb_16-8'):.2f} "
             f"| {s['dkb_over_vkb']:.2f} | {s['dkb_over_abuffer']:.2f} | {p('vkb', 'count')} "
-            f"| {geometry:.2f} | {p('dkb', 'importance')} "
+            f"| {geometry:.2f} | {p('dkb', 'importance')} ({half}) "
             f"| {p('dkb', 'allocation')} | {p('dkb', 'capture')} / {p('vkb', 'capture')} "
             f"| {m['dkb']['wall_over_gpu_plus_readback']:.2f} |"
         )
