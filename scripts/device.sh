@@ -32,7 +32,7 @@ mkdir -p target/release && cp .devbin/dhoit target/release/dhoit
   nproc
   VK_LOADER_DEBUG=error .devbin/dhoit bench --gpu-only --scenes shells --res 64x48 --repeat 1 2>&1 >/dev/null | head -8
   echo "== bench 1920x1080 2fpp"
-  timeout 150 .devbin/dhoit bench --gpu-only --res 1920x1080 --budget 2fpp --repeat 7 --out "$out/bench-1080p.json" >/dev/null
+  timeout 190 .devbin/dhoit bench --gpu-only --res 1920x1080 --budget 2fpp --repeat 7 --out "$out/bench-1080p.json" >/dev/null
   echo "== GPU tests"
   for t in gpu extremes equivalence; do
     [ -x ".devbin/test-$t" ] || continue
