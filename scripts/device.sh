@@ -12,7 +12,8 @@
 # 2. The GPU tests (every pass held to its CPU twin, 4K and 8K frames, burn = twin = shader) on
 #    that GPU instead of lavapipe.
 # 3. The same bench at 3840x2160, and at 1920x1080 with one byte budget for every method.
-# Each step has its own time limit, so a slow one cannot take the others' results with it.
+# Each step has its own time limit, so a slow one cannot take the others' results with it; a
+# bench stopped by its limit leaves the scenes it finished (its JSON marked "partial").
 set -uo pipefail
 out="${OUT:-out/device}"
 mkdir -p "$out"

@@ -26,7 +26,8 @@ pub struct BenchArgs {
     /// takes it.
     #[arg(long, default_value = "2fpp")]
     budget: Budget,
-    /// Also write the JSON here.
+    /// Also write the JSON here (with --gpu-only, after each scene too, marked "partial": true
+    /// until the run ends, so a run stopped early keeps the scenes it finished).
     #[arg(long)]
     out: Option<PathBuf>,
     /// Measure the GPU pipeline only: skip the CPU rasterizer, compositors, optimal allocation
@@ -60,14 +61,30 @@ pub fn run(a: BenchArgs) -> Result<()> {
         a.scenes.clone()
     };
     if a.gpu_only {
-        let gpu = gpu_bench(&names, w, h, budget, a.repeat);
-        return write_report(
+        let report = |gpu: serde_json::Value| {
             serde_json::json!({
                 "threads": rayon::current_num_threads(), "gpu": gpu,
                 "budget": budget.to_string(), "repeat": a.repeat,
-            }),
-            a.out.as_deref(),
-        );
+            })
+        };
+        // After each scene, the report so far (marked partial) replaces the file, so a run
+        // stopped by a time limit (a lent GPU's) keeps the scenes it finished.
+        let mut partial = |gpu: &serde_json::Value| {
+            if let Some(path) = a.out.as_deref() {
+                let mut r = report(gpu.clone());
+                r["partial"] = true.into();
+                let write = || -> Result<()> {
+                    let text = serde_json::to_string_pretty(&r)?;
+                    dhoit_runtime::tensors::write_atomic(path, text.as_bytes())?;
+                    Ok(())
+                };
+                if let Err(e) = write() {
+                    eprintln!("bench: could not write the partial report: {e}");
+                }
+            }
+        };
+        let gpu = gpu_bench(&names, w, h, budget, a.repeat, &mut partial);
+        return write_report(report(gpu), a.out.as_deref());
     }
     let mut results = Vec::new();
     for name in &names {
@@ -151,7 +168,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         "burn_inference_samples_per_s": burn_sps,
         "cpu_twin_inference_samples_per_s": feats.len() as f64 / t_twin,
     });
-    let gpu = gpu_bench(&names, w, h, budget, a.repeat);
+    let gpu = gpu_bench(&names, w, h, budget, a.repeat, &mut |_| {});
     let report = serde_json::json!({
         "threads": rayon::current_num_threads(),
         "gpu": gpu,
@@ -197,7 +214,15 @@ fn configure(gpu: &mut dhoit_runtime::gpu::Gpu, label: &str) {
 /// Per-pass GPU times (timestamp queries) and whole-frame times per method: one cold frame,
 /// warm-up frames for 0.25 s, then the medians of `repeat` steady-state frames (buffers reused,
 /// the image read back); an error entry when no suitable adapter exists.
-fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) -> serde_json::Value {
+/// `partial` sees the report so far after each scene.
+fn gpu_bench(
+    names: &[String],
+    w: u32,
+    h: u32,
+    budget: Budget,
+    repeat: usize,
+    partial: &mut dyn FnMut(&serde_json::Value),
+) -> serde_json::Value {
     use dhoit_runtime::gpu::{Gpu, Slots};
     let mut gpu = match Gpu::new() {
         Ok(mut g) => {
@@ -244,6 +269,8 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
         eprintln!("GPU: no f16-math run (the device lacks SHADER_F16 or a weight exceeds f16)");
     }
     let half = half.as_ref();
+    let adapter = gpu.adapter.clone();
+    let summary = |scenes: &[serde_json::Value]| serde_json::json!({"adapter": adapter, "width": w, "height": h, "budget": budget.to_string(), "weights": weights, "weights_16_8": small_weights, "scenes": scenes});
     let mut scenes = Vec::new();
     for name in names {
         let mut run = || -> Result<serde_json::Value> {
@@ -555,6 +582,7 @@ fn gpu_bench(names: &[String], w: u32, h: u32, budget: Budget, repeat: usize) ->
             Ok(v) => scenes.push(v),
             Err(e) => scenes.push(serde_json::json!({"scene": name, "error": e.to_string()})),
         }
+        partial(&summary(&scenes));
     }
-    serde_json::json!({"adapter": gpu.adapter, "width": w, "height": h, "budget": budget.to_string(), "weights": weights, "weights_16_8": small_weights, "scenes": scenes})
+    summary(&scenes)
 }

@@ -459,6 +459,11 @@ fn the_gpu_bench_reports_every_method_and_option() {
         report.get("cpu").is_none(),
         "--gpu-only ran the CPU section"
     );
+    // The reports written after each scene are marked partial; the last one is not.
+    assert!(
+        report.get("partial").is_none(),
+        "the final report is marked partial"
+    );
     let scene = &report["gpu"]["scenes"][0];
     assert_eq!(scene["scene"], "cad", "{scene}");
     for m in [
