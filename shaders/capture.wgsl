@@ -23,8 +23,11 @@
 @group(1) @binding(0) var<storage, read> k_of: array<u32>;
 @group(1) @binding(1) var<storage, read> slot_base: array<u32>;
 @group(1) @binding(2) var<storage, read_write> slots: array<atomic<u64>>;
-// Per pixel: sum c8 a8 for r, g, b, sum a8; and the tail's count (the append mode's cursor).
-@group(1) @binding(3) var<storage, read_write> tail: array<atomic<u32>>;
+// Per pixel: sum c8 a8 for r, g, b, sum a8 (four 32-bit words, as resolve.wgsl reads them),
+// added two to a 64-bit word: r and g, then b and a. No low half carries into its high half:
+// a sum of c8 a8 stays below 2^32 up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (65,535 x
+// 255^2 < 2^32). And the tail's count (the append mode's cursor).
+@group(1) @binding(3) var<storage, read_write> tail: array<atomic<u64>>;
 @group(1) @binding(4) var<storage, read_write> tail_count: array<atomic<u32>>;
 // n(p), read when params.append is 1.
 @group(1) @binding(5) var<storage, read> count: array<u32>;
@@ -90,9 +93,8 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
             if (i < k) {
                 atomicStore(&slots[base + i], key);
             } else {
-                let j = 4u * p + 2u * (i - k);
-                atomicStore(&tail[j], u32(key & 0xfffffffflu));
-                atomicStore(&tail[j + 1u], u32(key >> 32u));
+                // A spilled key in two of the tail's sum words, low half first.
+                atomicStore(&tail[2u * p + (i - k)], key);
             }
             return vec4<f32>(0.0);
         }
@@ -103,10 +105,12 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     }
     let rgba = u32((~out) & 0xfffffffflu);
     let a = rgba >> 24u;
-    atomicAdd(&tail[4u * p], (rgba & 0xffu) * a);
-    atomicAdd(&tail[4u * p + 1u], ((rgba >> 8u) & 0xffu) * a);
-    atomicAdd(&tail[4u * p + 2u], ((rgba >> 16u) & 0xffu) * a);
-    atomicAdd(&tail[4u * p + 3u], a);
+    // Three atomics a fragment pushed out, not five.
+    let r = u64((rgba & 0xffu) * a);
+    let g = u64(((rgba >> 8u) & 0xffu) * a);
+    let b = u64(((rgba >> 16u) & 0xffu) * a);
+    atomicAdd(&tail[2u * p], r | (g << 32u));
+    atomicAdd(&tail[2u * p + 1u], b | (u64(a) << 32u));
     atomicAdd(&tail_count[p], 1u);
     return vec4<f32>(0.0);
 }
