@@ -1,7 +1,8 @@
 //! The allocation on the device, in one submission (`allocate.wgsl`: weights, a 16-way search
-//! for the water level (a bracket of its order of magnitude, then at most 11 rounds), the marks, their prefix sums and the apply; the twin is
-//! `alloc::allocate`), from the importance a frame computes (`dkb.rs`, `vkb.rs`) or is given
-//! (the count pass and `totals.wgsl` first). [`Gpu::allocate`] runs it alone.
+//! for the water level (a bracket of its order of magnitude, then at most 11 rounds), the
+//! marks, their prefix sums and the apply; the twin is `alloc::allocate`), from the importance
+//! a frame computes (`dkb.rs`, `vkb.rs`) or is given (the count pass and `totals.wgsl` first).
+//! [`Gpu::allocate`] runs it alone.
 
 use super::*;
 
