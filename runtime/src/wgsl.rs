@@ -233,8 +233,9 @@ pub(crate) struct Params {
 /// layer's units padded with zeros to a multiple of four ([`mlp::padded_units`]: fc1 weight
 /// `[12][p1]`, fc1 bias `[p1]`, fc2 weight `[p1][p2]`, fc2 bias `[p2]`, out weight `[p2]`, out
 /// bias and three zeros), so every group of four units starts on a vec4 (f32) or half a vec4
-/// (f16): f32 words, or at [`Precision::F16`] and [`Precision::F16Math`] binary16 values two to a word (the first in the
-/// low half, as `unpack2x16float` reads them); zero-padded to [`budget::MLP_UNIFORM_BYTES`].
+/// (f16): f32 words, or at [`Precision::F16`] and [`Precision::F16Math`] binary16 values two
+/// to a word (the first in the low half, as `unpack2x16float` reads them); zero-padded to
+/// [`budget::MLP_UNIFORM_BYTES`].
 pub fn mlp_uniform(m: &Mlp) -> Vec<u32> {
     let mut v: Vec<u32> = [m.h1 as f32, m.h2 as f32, 0.0, 0.0]
         .iter()

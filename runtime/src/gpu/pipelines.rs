@@ -283,9 +283,9 @@ fn unrolled_forward(p1: u32, p2: u32, half_math: bool) -> String {
     if half_math {
         let _ = writeln!(
             w,
-            "// The weights' uniform read as binary16 (the same buffer, bound a second time): a vec4 of
-// its 32-bit words is eight binary16 values, the first four in `lo` (a uniform array's
-// elements are 16 bytes apart, so vec4<f16> alone cannot be one).
+            "// The weights' uniform read as binary16 (the same buffer, bound a second time): a
+// vec4 of its 32-bit words is eight binary16 values, the first four in `lo` (a uniform
+// array's elements are 16 bytes apart, so vec4<f16> alone cannot be one).
 struct HalfWords {{
     lo: vec4<f16>,
     hi: vec4<f16>,
