@@ -88,13 +88,7 @@ impl Recording<'_, '_> {
         passes.draw(enc, &p.count, &[&counts], "count");
         let (c, t) = (counts.clone(), totals.clone());
         let rest = pending(move |rec| {
-            let (passes, p) = (rec.passes, &rec.passes.gpu.pipelines);
-            passes.dispatch(
-                &mut rec.enc,
-                &p.totals,
-                &[passes.params(), &c, &t],
-                "totals",
-            );
+            rec.passes.totals(&mut rec.enc, &c, &t);
             Ok(())
         });
         let pending = record_unless(self, rest, expect_fit)?;
@@ -155,7 +149,7 @@ impl<'a> Passes<'a> {
         );
         // Not cleared: setup writes every word the search reads but the last two, the answers
         // of the last frame (allocate.wgsl's bracket), which a new buffer holds as zeros.
-        let state = fb.storage_cleared("alloc.state", 8 * ALLOC_STATE_WORDS as u64, true, false)?;
+        let state = fb.storage_kept("alloc.state", 8 * ALLOC_STATE_WORDS as u64, true)?;
         // The marks need 4 bytes a pixel only during the allocation: a buffer the frame no longer
         // needs by then holds them where there is one.
         let flags = match b.flags {
@@ -305,12 +299,7 @@ impl Gpu {
         let k = fb.storage("oit.k", 4 * px, true)?;
         let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
         passes.draw(&mut enc, &p.count, &[&counts], "count");
-        passes.dispatch(
-            &mut enc,
-            &p.totals,
-            &[&inputs.params, &counts, &totals],
-            "totals",
-        );
+        passes.totals(&mut enc, &counts, &totals);
         let al = passes.allocation(
             &mut fb,
             AllocBuffers {

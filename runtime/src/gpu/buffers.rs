@@ -54,12 +54,21 @@ impl<'a> FrameBuffers<'a> {
         size: u64,
         counted: bool,
     ) -> Result<wgpu::Buffer> {
-        self.storage_cleared(label, size, counted, true)
+        self.storage_with(label, size, counted, true)
     }
 
-    /// [`FrameBuffers::storage`], holding what the last frame left in it where `clear` is
-    /// false (zeros when new): for state a pass carries from frame to frame.
-    pub(super) fn storage_cleared(
+    /// [`FrameBuffers::storage`], not cleared: it holds what the last frame left in it (zeros
+    /// when new), for state a pass carries from frame to frame.
+    pub(super) fn storage_kept(
+        &mut self,
+        label: &str,
+        size: u64,
+        counted: bool,
+    ) -> Result<wgpu::Buffer> {
+        self.storage_with(label, size, counted, false)
+    }
+
+    fn storage_with(
         &mut self,
         label: &str,
         size: u64,

@@ -182,8 +182,7 @@ impl Recording<'_, '_> {
             });
             self.dkb_features(b, features)?;
         } else {
-            let bufs = [passes.params(), &b.counts, &b.totals];
-            passes.dispatch(&mut self.enc, &p.totals, &bufs, "totals");
+            passes.totals(&mut self.enc, &b.counts, &b.totals);
         }
         let bind = |dispatch_or_not: &wgpu::Buffer| {
             gpu.bind(

@@ -133,4 +133,16 @@ impl<'a> Passes<'a> {
             pass.dispatch_workgroups(gx, gy, 1);
         });
     }
+
+    /// The totals pass (totals.wgsl): the frame's fragments, covered pixels and largest count
+    /// from `counts` into `totals`.
+    pub(super) fn totals(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        counts: &wgpu::Buffer,
+        totals: &wgpu::Buffer,
+    ) {
+        let pipeline = &self.gpu.pipelines.totals;
+        self.dispatch(enc, pipeline, &[self.params(), counts, totals], "totals");
+    }
 }

@@ -19,7 +19,7 @@ impl Recording<'_, '_> {
         let [c, n, t, i] = [&counts, &nearest, &totals, &importance].map(|b| b.clone());
         let rest = pending(move |rec| {
             let (passes, p, enc) = (rec.passes, &rec.passes.gpu.pipelines, &mut rec.enc);
-            passes.dispatch(enc, &p.totals, &[passes.params(), &c, &t], "totals");
+            passes.totals(enc, &c, &t);
             let bufs = [passes.params(), &c, &n, &t, &i];
             passes.dispatch(enc, &p.importance_vkb, &bufs, "importance");
             Ok(())
