@@ -81,6 +81,17 @@ fn frame(name: &str, view: usize, w: u32, h: u32) -> (Scene, Camera) {
 
 const BG: [f32; 3] = [0.9, 0.8, 1.0];
 
+/// The GPU's own fragments of a frame (its A-buffer, read back), which the twins take.
+fn gpu_fragments(
+    g: &dhoit_runtime::gpu::Gpu,
+    s: &Scene,
+    cam: &Camera,
+    w: u32,
+    h: u32,
+) -> FragmentLists {
+    g.render(s, cam, w, h, BG, None).unwrap().fragments.unwrap()
+}
+
 #[test]
 fn abuffer_matches_the_cpu_on_its_own_fragments() {
     let Some(g) = gpu() else { return };
@@ -131,11 +142,7 @@ fn kbuffers_match_the_cpu_slot_for_slot() {
     for (name, view) in [("hair", 0), ("particles", 1), (REAL, 2)] {
         let (w, h) = (80, 60);
         let (s, cam) = frame(name, view, w, h);
-        let gfl = g
-            .render(&s, &cam, w, h, BG, None)
-            .unwrap()
-            .fragments
-            .unwrap();
+        let gfl = gpu_fragments(g, &s, &cam, w, h);
         let pixels = gfl.pixel_count();
         // FKB with k = 2, and the optimal allocation at 1.5 slots per pixel uploaded as k.
         let curves = alloc::error_curves(&gfl, BG);
@@ -276,7 +283,7 @@ fn features_and_network_layouts_give_the_same_frame(
     mlp: &dhoit_runtime::mlp::Mlp,
 ) {
     use dhoit_runtime::gpu::DkbGeometry;
-    let gfl = g.render(s, cam, w, h, BG, None).unwrap().fragments.unwrap();
+    let gfl = gpu_fragments(g, s, cam, w, h);
     let stats = importance::pixel_stats(&gfl);
     let total = gfl.fragment_count() as u64;
     let (truncates, holds_all) = ((3 * w * h / 2) as u64, total);
@@ -433,11 +440,7 @@ fn layer_major_slots_capture_what_pixel_major_ones_do() {
     let (w, h) = (80, 60);
     for (name, view) in [("particles", 1), ("hair", 0)] {
         let (s, cam) = frame(name, view, w, h);
-        let gfl = g
-            .render(&s, &cam, w, h, BG, None)
-            .unwrap()
-            .fragments
-            .unwrap();
+        let gfl = gpu_fragments(&g, &s, &cam, w, h);
         for k in [1u32, 3] {
             let frames = [false, true].map(|layer_major| {
                 g.layer_major_fkb = layer_major;
@@ -599,11 +602,7 @@ fn mlab_matches_the_cpu_in_submission_order() {
     for (name, m) in [("particles", 2u32), ("foliage", 4)] {
         let (w, h) = (64, 48);
         let (s, cam) = frame(name, 1, w, h);
-        let gfl = g
-            .render(&s, &cam, w, h, BG, None)
-            .unwrap()
-            .fragments
-            .unwrap();
+        let gfl = gpu_fragments(g, &s, &cam, w, h);
         let f = g.render(&s, &cam, w, h, BG, Some(Slots::Mlab(m))).unwrap();
         // The CPU twin takes each pixel's fragments in submission order.
         let twin: Vec<[f32; 3]> = (0..gfl.pixel_count())
@@ -653,12 +652,7 @@ fn the_search_brackets_the_last_answer_of_its_kind() {
     let g = &dhoit_runtime::gpu::Gpu::new().unwrap();
     let (w, h) = (96, 72);
     let (s, cam) = frame("particles", 1, w, h);
-    let counts = g
-        .render(&s, &cam, w, h, BG, None)
-        .unwrap()
-        .fragments
-        .unwrap()
-        .counts();
+    let counts = gpu_fragments(g, &s, &cam, w, h).counts();
     let total: u64 = counts.iter().map(|&n| n as u64).sum();
     let mut rng = dhoit_runtime::rng::Rng::new(8);
     let imp: Vec<f32> = (0..counts.len()).map(|_| rng.f32()).collect();
@@ -696,11 +690,7 @@ fn the_allocation_pass_matches_its_cpu_twin() {
     let Some(g) = gpu() else { return };
     let (w, h) = (64, 48);
     let (s, cam) = frame("hair", 2, w, h);
-    let gfl = g
-        .render(&s, &cam, w, h, BG, None)
-        .unwrap()
-        .fragments
-        .unwrap();
+    let gfl = gpu_fragments(g, &s, &cam, w, h);
     let counts = gfl.counts();
     let pixels = counts.len();
     let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
@@ -791,11 +781,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
     for (name, view) in [("particles", 0), ("plates", 3)] {
         let (w, h) = (72, 54);
         let (s, cam) = frame(name, view, w, h);
-        let gfl = g
-            .render(&s, &cam, w, h, BG, None)
-            .unwrap()
-            .fragments
-            .unwrap();
+        let gfl = gpu_fragments(g, &s, &cam, w, h);
         let pixels = gfl.pixel_count();
         let total = gfl.fragment_count() as u64;
         // 0.5, 1 and 2 fragments a pixel, one slot short of every fragment, and every one.
@@ -940,11 +926,7 @@ fn dkb_frames_run_the_f16_math_network_like_its_twin() {
     for (name, view) in [("particles", 0), ("shells", 2)] {
         let (w, h) = (72, 54);
         let (s, cam) = frame(name, view, w, h);
-        let gfl = g
-            .render(&s, &cam, w, h, BG, None)
-            .unwrap()
-            .fragments
-            .unwrap();
+        let gfl = gpu_fragments(g, &s, &cam, w, h);
         let f = gfl.pixel_count() as u64;
         assert!(
             f < gfl.fragment_count() as u64,
@@ -1033,11 +1015,7 @@ fn a_large_allocation_matches_its_twin() {
     let Some(g) = gpu() else { return };
     let (w, h) = (1024u32, 768u32);
     let (s, cam) = frame("particles", 0, w, h);
-    let gfl = g
-        .render(&s, &cam, w, h, BG, None)
-        .unwrap()
-        .fragments
-        .unwrap();
+    let gfl = gpu_fragments(g, &s, &cam, w, h);
     for fpp in [0.5, 1.0] {
         let f = (fpp * (w * h) as f64) as u64;
         let v = g
@@ -1098,11 +1076,7 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
         eye: glam::Vec3::ZERO,
     };
     let (w, h) = (48, 32);
-    let gfl = g
-        .render(&s, &cam, w, h, BG, None)
-        .unwrap()
-        .fragments
-        .unwrap();
+    let gfl = gpu_fragments(&g, &s, &cam, w, h);
     let counts = gfl.counts();
     let total = gfl.fragment_count() as u64;
     let mlp = dhoit_runtime::mlp::Mlp::random(6);
@@ -1211,11 +1185,7 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
     let (w, h) = (80, 60);
     for name in ["spheres", "cad"] {
         let (s, cam) = frame(name, 1, w, h);
-        let gfl = g
-            .render(&s, &cam, w, h, BG, None)
-            .unwrap()
-            .fragments
-            .unwrap();
+        let gfl = gpu_fragments(g, &s, &cam, w, h);
         let total = gfl.fragment_count() as u64;
         let px = gfl.pixel_count() as u64;
         let sum_n: u64 = gfl.counts().iter().map(|&n| n as u64).sum();
@@ -1387,11 +1357,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
             }
             continue;
         }
-        let gfl = g
-            .render(&s, &cam, w, h, BG, None)
-            .unwrap()
-            .fragments
-            .unwrap();
+        let gfl = gpu_fragments(g, &s, &cam, w, h);
         let total = gfl.fragment_count() as u64;
         assert!(total > 1000, "{w}x{h}: {total} fragments");
         let f = total / 3;
@@ -1536,11 +1502,7 @@ fn cpu_and_gpu_rasterizers_agree_on_depth_and_coverage() {
         ("plates", 2, 128, 96),
     ] {
         let (s, cam) = frame(name, view, w, h);
-        let gfl = g
-            .render(&s, &cam, w, h, BG, None)
-            .unwrap()
-            .fragments
-            .unwrap();
+        let gfl = gpu_fragments(g, &s, &cam, w, h);
         let cfl = rasterize(&s, &cam, w, h).unwrap();
         let (mut diffs, mut other_pixels) = (Vec::new(), 0usize);
         for p in 0..cfl.pixel_count() {
