@@ -6,8 +6,9 @@
 @group(0) @binding(1) var<storage, read> offsets: array<u32>;
 @group(0) @binding(2) var<storage, read_write> fragments: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
-// Set to 1 when a pixel's sort came close to lavapipe's loop limit (see common.wgsl).
-@group(0) @binding(4) var<storage, read_write> status: array<atomic<u32>>;
+// Set to 1 when a pixel's sort came close to lavapipe's loop limit; the deepest pixel over
+// MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word).
+@group(0) @binding(4) var<storage, read_write> status: array<atomic<u64>, 2>;
 
 @compute @workgroup_size(PIXEL_GROUP)
 fn main(
@@ -21,6 +22,11 @@ fn main(
     }
     let start = offsets[p];
     let end = offsets[p + 1u];
+    if (end - start > MAX_FRAGMENTS_PER_PIXEL) {
+        // The frame is refused: no sort of that length.
+        atomicMax(&status[1], deepest_word(end - start, p));
+        return;
+    }
     sort_pixel(start, end, false);
     var c = vec3<f32>(0.0);
     var t = 1.0;
@@ -31,7 +37,7 @@ fn main(
         t *= 1.0 - rgba.a;
     }
     if (ticks > LOOP_BUDGET) {
-        atomicMax(&status[0], 1u);
+        atomicMax(&status[0], 1lu);
     }
     image[p] = vec4<f32>(c + t * params.background.rgb, 1.0);
 }

@@ -15,6 +15,22 @@
 @group(0) @binding(6) var<storage, read_write> image: array<vec4<f32>>;
 // n(p), read when params.append is 1.
 @group(0) @binding(7) var<storage, read> count: array<u32>;
+// Word 1: the deepest pixel over MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word), from the
+// fragments the capture saw (its cursor, or the slots filled and the tail's count), so it holds
+// whatever n(p) the frame was given. Word 0 (loop limits) is not set here.
+@group(0) @binding(8) var<storage, read_write> status: array<atomic<u64>, 2>;
+
+// The slots blend_slots found filled.
+var<private> filled: u32 = 0u;
+
+// Whether a pixel that saw `n` fragments is over MAX_FRAGMENTS_PER_PIXEL (then recorded).
+fn too_deep(p: u32, n: u32) -> bool {
+    if (n > MAX_FRAGMENTS_PER_PIXEL) {
+        atomicMax(&status[1], deepest_word(n, p));
+        return true;
+    }
+    return false;
+}
 
 // Whether the frame's budget holds every fragment, so k(p) = n(p) for every pixel (a pipeline
 // of its own, built with this set true, beside capture.wgsl's): k is the slot bases'
@@ -45,6 +61,7 @@ fn blend_slots(p: u32, base: u32, k: u32, behind: vec3<f32>) -> vec4<f32> {
         if (s == 0lu) {
             break;
         }
+        filled += 1u;
         let rgba = unpack_rgba8(u32((~s) & 0xfffffffflu));
         c += t * rgba.a * rgba.rgb;
         t *= 1.0 - rgba.a;
@@ -98,11 +115,15 @@ fn main(
     if (EVERY_FRAGMENT_FITS) {
         let base = slot_base[p];
         let n = slot_base[p + 1u] - base;
+        // The capture's cursor: the tail is empty.
+        let seen = tail_count[p];
+        tail_count[p] = 0u;
+        if (too_deep(p, max(n, seen))) {
+            return;
+        }
         if (n <= APPEND_MAX) {
             sort_slots(base, n);
         }
-        // The capture's cursor: the tail is empty.
-        tail_count[p] = 0u;
         image[p] = blend_slots(p, base, n, params.background.rgb);
         return;
     }
@@ -115,6 +136,10 @@ fn main(
     if (params.append != 0u) {
         let n = count[p];
         if (appends(k, n)) {
+            // Every fragment took a place from the cursor.
+            if (too_deep(p, max(n, tail_count[p]))) {
+                return;
+            }
             sort_appended(p, base, k, n);
         }
     }
@@ -131,4 +156,6 @@ fn main(
         behind = a_tail * c_tail + (1.0 - a_tail) * bg;
     }
     image[p] = blend_slots(p, base, k, behind);
+    // Where the capture inserted: every fragment is in a slot or in the tail.
+    too_deep(p, filled + tail_n);
 }

@@ -57,6 +57,8 @@ const ALLOC_STATE: (&str, u64) = ("alloc.state", 8 * crate::wgsl::ALLOC_STATE_WO
 const ALLOC_DISPATCHES: (&str, u64) = ("alloc.dispatches", 48);
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
+/// The resolve's status words: loops cut short, a pixel too deep (gpu's FrameStatus).
+const STATUS: (&str, u64) = ("status", 16);
 
 /// Deep k-buffer: network features, importance, k, offsets, tail, output. The features'
 /// keys, read by the importance pass, then hold the tail: the nearest (8 bytes) its count (4),
@@ -89,6 +91,7 @@ pub const DKB: Layout = Layout {
         ALLOC_PARAMS,
         ALLOC_STATE,
         ALLOC_DISPATCHES,
+        STATUS,
     ],
     scan: true,
 };
@@ -110,6 +113,7 @@ pub const OPT: Layout = Layout {
         ("params", PARAMS_BYTES),
         OFFSETS_END,
         ("oit.unused_counts", 16),
+        STATUS,
     ],
     scan: true,
 };
@@ -137,6 +141,7 @@ pub const VKB: Layout = Layout {
         ALLOC_PARAMS,
         ALLOC_STATE,
         ALLOC_DISPATCHES,
+        STATUS,
     ],
     scan: true,
 };
@@ -153,6 +158,7 @@ pub const FKB: Layout = Layout {
         ("fkb.unused_k", 16),
         ("fkb.unused_offsets", 16),
         ("fkb.unused_counts", 16),
+        STATUS,
     ],
     scan: false,
 };
@@ -178,7 +184,7 @@ pub const ABUFFER: Layout = Layout {
         ("abuf.cursor", 4),
         ("oit.image", 16),
     ],
-    fixed: &[("params", PARAMS_BYTES), OFFSETS_END, ("status", 16)],
+    fixed: &[("params", PARAMS_BYTES), OFFSETS_END, STATUS],
     scan: true,
 };
 

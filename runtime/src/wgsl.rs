@@ -160,6 +160,10 @@ pub mod shaders {
             ("MAX_F32", F32(f32::MAX)),
             ("APPEND_MAX", U32(crate::composite::APPEND_MAX)),
             ("APPEND_SPILL", U32(crate::composite::APPEND_SPILL)),
+            (
+                "MAX_FRAGMENTS_PER_PIXEL",
+                U32(raster::MAX_FRAGMENTS_PER_PIXEL),
+            ),
         ]
     }
 

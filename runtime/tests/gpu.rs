@@ -1176,6 +1176,87 @@ fn a_pixel_too_deep_for_the_devices_loops_is_refused_not_wrong() {
     }
 }
 
+/// `n` full-frame triangles, each covering every pixel of a small frame: two faint blue ones
+/// nearest, opaque red ones behind in shuffled depth order (their tail's sum of r a reaches
+/// 2^32 a little past raster::MAX_FRAGMENTS_PER_PIXEL), and the identity camera.
+fn deep_pixels(n: usize) -> (Scene, Camera) {
+    let mut s = Scene::default();
+    for i in 0..n {
+        let (z, c) = if i < 2 {
+            (0.01 * (i + 1) as f32, [0.0, 0.0, 1.0, 0.1])
+        } else {
+            (
+                0.1 + 0.8 * ((i * 7919) % n) as f32 / n as f32,
+                [1.0, 0.0, 0.0, 1.0],
+            )
+        };
+        s.push_triangle(
+            [
+                glam::Vec3::new(-1.0, -1.0, z),
+                glam::Vec3::new(3.0, -1.0, z),
+                glam::Vec3::new(-1.0, 3.0, z),
+            ],
+            [c; 3],
+        );
+    }
+    let cam = Camera {
+        view_proj: glam::Mat4::IDENTITY,
+        forward: glam::Vec3::NEG_Z,
+        eye: glam::Vec3::ZERO,
+    };
+    (s, cam)
+}
+
+#[test]
+fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
+    let Some(g) = gpu() else { return };
+    let max = dhoit_runtime::raster::MAX_FRAGMENTS_PER_PIXEL as usize;
+    let mlp = dhoit_runtime::mlp::Mlp::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
+    )
+    .unwrap();
+    let (w, h) = (2, 2);
+    // At the limit both rasterizers take the frame and the tails' sums are exact.
+    let (s, cam) = deep_pixels(max);
+    let fl = rasterize(&s, &cam, w, h).unwrap();
+    assert_eq!(fl.count(0) as usize, max);
+    let vkb = Slots::Vkb(Default::default(), 8u64.into());
+    for slots in [Slots::Uniform(2), vkb] {
+        let f = g.render(&s, &cam, w, h, BG, Some(slots)).unwrap();
+        let k = f.slots.as_ref().map(|(_, b, _)| b[1] - b[0]).unwrap();
+        let twin = composite::composite(&fl, composite::Method::Hybrid(&[k; 4]), BG);
+        let d = f.image.max_abs_diff(&twin);
+        assert!(d <= 1e-5, "{max} fragments a pixel: {d} from the twin");
+    }
+    // One more: the CPU refuses it, and so does every GPU method (not an image whose tail
+    // is wrong, or a sort of that length), naming the pixel and its count.
+    let (s, cam) = deep_pixels(max + 1);
+    let cpu = rasterize(&s, &cam, w, h).unwrap_err().to_string();
+    assert!(cpu.contains(&format!("has {} fragments", max + 1)), "{cpu}");
+    let k = vec![3u32; 4];
+    let methods: [(&str, Option<Slots>); 6] = [
+        ("A-buffer", None),
+        ("MLAB", Some(Slots::Mlab(4))),
+        ("FKB", Some(Slots::Uniform(2))),
+        ("uploaded k", Some(Slots::PerPixel(&k))),
+        ("VKB", Some(vkb)),
+        ("DKB", Some(Slots::Dkb(&mlp, 8u64.into()))),
+    ];
+    for (name, slots) in methods {
+        let Err(e) = g.render(&s, &cam, w, h, BG, slots) else {
+            panic!("{name}: a pixel of {} fragments gave a frame", max + 1)
+        };
+        let e = e.to_string();
+        assert!(
+            e.contains(&format!(
+                "pixel (1, 1) has {} fragments; at most {max}",
+                max + 1
+            )),
+            "{name}: {e}"
+        );
+    }
+}
+
 #[test]
 fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
     use dhoit_runtime::budget::FragmentBudget;

@@ -13,8 +13,9 @@ impl Recording<'_, '_> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
-        // The per-pixel sorts (sort and blend, MLAB) report a near loop limit here.
-        let status = fb.storage("status", 16, true)?;
+        // The per-pixel sorts (sort and blend, MLAB) report a near loop limit here, and a
+        // pixel too deep for any method.
+        let status = fb.storage("status", FrameStatus::BYTES, true)?;
         let image = fb.storage("oit.image", 16 * px, true)?;
         let counts = fb.storage("abuf.count", 4 * px, true)?;
         let offsets = fb.storage("abuf.offsets", 4 * (px + 1), true)?;

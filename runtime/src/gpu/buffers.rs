@@ -164,6 +164,75 @@ pub(super) fn read_back_with<T>(
     )
 }
 
+/// What a frame's resolve reports in its status buffer (two 64-bit words, common.wgsl's
+/// `deepest_word`): whether a pixel's loops came close to the device's limit, and the deepest
+/// pixel over [`crate::raster::MAX_FRAGMENTS_PER_PIXEL`] fragments, if any.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) struct FrameStatus {
+    pub(super) near_loop_limit: bool,
+    /// (n, pixel index) of the deepest such pixel (the largest index among equals).
+    pub(super) too_deep: Option<(u32, u32)>,
+}
+
+impl FrameStatus {
+    pub(super) const BYTES: u64 = 16;
+
+    fn parse(bytes: &[u8]) -> FrameStatus {
+        let word = |i: usize| u64::from_le_bytes(bytes[8 * i..8 * i + 8].try_into().expect("8"));
+        let deepest = word(1);
+        FrameStatus {
+            near_loop_limit: word(0) != 0,
+            too_deep: (deepest != 0).then_some(((deepest >> 32) as u32, deepest as u32)),
+        }
+    }
+
+    /// The frame's error, if it has one: a pixel too deep for any method (as the CPU
+    /// rasterizer refuses it), or loops cut short where the device cuts them (`bounded_loops`).
+    pub(super) fn check(self, gpu: &Gpu, width: u32) -> Result<()> {
+        if let Some((n, p)) = self.too_deep {
+            let (x, y) = (p % width, p / width);
+            let max = crate::raster::MAX_FRAGMENTS_PER_PIXEL;
+            return Err(Error::Invalid(format!(
+                "pixel ({x}, {y}) has {n} fragments; at most {max} fit one pixel"
+            )));
+        }
+        if self.near_loop_limit && gpu.bounded_loops {
+            return Err(GpuError::LoopLimit {
+                adapter: gpu.adapter.clone(),
+            }
+            .into());
+        }
+        Ok(())
+    }
+}
+
+/// A frame's image (its first `bytes`, as `read` makes of them straight from the mapped
+/// buffer) and its status, in one copy and one map. The image is not read where the status
+/// refuses the frame.
+pub(super) fn read_frame<T>(
+    gpu: &Gpu,
+    image: &wgpu::Buffer,
+    bytes: u64,
+    status: Option<&wgpu::Buffer>,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<(Option<T>, FrameStatus)> {
+    let at = bytes.next_multiple_of(4);
+    let size = at + FrameStatus::BYTES;
+    let copy = |enc: &mut wgpu::CommandEncoder, staging: &wgpu::Buffer| {
+        enc.copy_buffer_to_buffer(image, 0, staging, 0, at);
+        match status {
+            Some(s) => enc.copy_buffer_to_buffer(s, 0, staging, at, FrameStatus::BYTES),
+            // No status: a frame with nothing to report.
+            None => enc.clear_buffer(staging, at, Some(FrameStatus::BYTES)),
+        }
+    };
+    staged(gpu, size, copy, |mapped| {
+        let status = FrameStatus::parse(&mapped[at as usize..]);
+        let refused = status.too_deep.is_some() || (status.near_loop_limit && gpu.bounded_loops);
+        ((!refused).then(|| read(&mapped[..bytes as usize])), status)
+    })
+}
+
 /// Single words of device buffers (each a buffer and a byte offset, a multiple of 4), read in
 /// one copy and one map: a frame's sizes without reading back the buffers they end.
 pub(super) fn read_words(gpu: &Gpu, words: &[(&wgpu::Buffer, u64)]) -> Result<Vec<u32>> {
@@ -230,7 +299,7 @@ pub(super) fn read_u64s(gpu: &Gpu, b: &wgpu::Buffer, n: u64, invert: bool) -> Re
 #[derive(Default)]
 pub(super) struct Readback {
     pub(super) fragments: Option<FragmentLists>,
-    /// The A-buffer resolve's loop-limit status word.
+    /// The resolve's status words ([`FrameStatus`]).
     pub(super) status: Option<wgpu::Buffer>,
     pub(super) slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
     pub(super) counts_buf: Option<wgpu::Buffer>,

@@ -182,6 +182,7 @@ impl Recording<'_, '_> {
         let p = &gpu.pipelines;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         let slots = fb.storage("oit.slots", 8 * kb.slots, true)?;
+        let status = fb.storage("status", FrameStatus::BYTES, true)?;
         // The tail: sum c8 a8 for r, g, b and sum a8 (16 bytes a pixel), and its count; and the
         // image: their own buffers, or DKB's features once read.
         let (tail, tail_count, image) = match kb.reuse {
@@ -221,10 +222,12 @@ impl Recording<'_, '_> {
                 &tail_count,
                 &image,
                 &kb.counts,
+                &status,
             ],
             "resolve",
         );
         fb.submit(enc);
+        self.out.status = Some(status);
         if gpu.diagnostics {
             let bases = match s {
                 Slots::Uniform(k) => (0..=px as u32).map(|q| q * k.max(1)).collect(),

@@ -521,15 +521,6 @@ impl Gpu {
             }
         };
         let out = &rec.out;
-        if let Some(status) = &out.status
-            && self.bounded_loops
-            && u32s(&read_back(self, status, 4)?)[0] != 0
-        {
-            return Err(GpuError::LoopLimit {
-                adapter: self.adapter.clone(),
-            }
-            .into());
-        }
         // The frame's passes finish first, so the readback's time is its own.
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
@@ -538,14 +529,17 @@ impl Gpu {
                 message: e.to_string(),
             })?;
         let readback = std::time::Instant::now();
-        // RGBA f32 a pixel, straight from the mapped buffer into the image.
-        let data = read_back_with(self, &image, 16 * px, |bytes| {
+        // RGBA f32 a pixel, straight from the mapped buffer into the image, with the
+        // resolve's status.
+        let (data, status) = read_frame(self, &image, 16 * px, out.status.as_ref(), |bytes| {
             let f = |c: &[u8]| f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
             bytes
                 .chunks_exact(16)
                 .map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12])])
                 .collect()
         })?;
+        status.check(self, width)?;
+        let data = data.expect("a frame its status does not refuse is read");
         let readback_ms = readback.elapsed().as_secs_f64() * 1e3;
         let pass_ms = timer.read(self)?;
         let Statistics {
