@@ -12,21 +12,23 @@
 // the pass counts too and runs always (no count pass first; the bench's comparison).
 //
 // Two atomic adds a fragment, and atomicMax only where it can change a key: the colour sums
-// go two to a 64-bit add (r and g, then b and the squares; the low halves hold at most 255 n,
-// so they never carry into the high ones below 2^24 fragments a pixel, and the squares wrap in
-// the high half as a 32-bit sum does), and the keys only grow, so a key that the stored one
-// already beats is skipped after a plain atomic load, as Loop64's early test does.
+// and the count go in two 64-bit adds, and the keys only grow, so a key that the stored one
+// already beats is skipped after a plain atomic load, as Loop64's early test does. The first
+// word holds sum r (bits 0-23), sum g (24-47) and, where this pass counts, n (48-63): exact up
+// to raster::MAX_FRAGMENTS_PER_PIXEL fragments (255 x 65,535 < 2^24), past which the resolve
+// refuses the frame whatever n the passes before it were given (resolve.wgsl's too_deep). The
+// second holds sum b (low half, at most 255 n) and sum (r^2 + g^2 + b^2) (high half, wrapping
+// as a 32-bit sum does).
 
 // Per pixel: the nearest key (complemented); the frame reuses this buffer for the tail's count
 // once the importance pass has read it.
 @group(1) @binding(0) var<storage, read_write> nearest: array<atomic<u64>>;
 // Per pixel: the two largest keys, farthest first; reused for the tail's sums.
 @group(1) @binding(1) var<storage, read_write> farthest: array<atomic<u64>>;
-// Per pixel: sum r, sum g, sum b, sum (r^2 + g^2 + b^2), 8-bit units (wrapping), as 32-bit
-// words (importance_dkb.wgsl reads them so), added as two 64-bit words. Reused for the image.
+// Per pixel: sum r, sum g and n; sum b and sum (r^2 + g^2 + b^2); 8-bit units, as above
+// (importance_dkb.wgsl's color_sums and totals.wgsl's from_sums read them as 32-bit words).
+// Reused for the image.
 @group(1) @binding(2) var<storage, read_write> sums: array<atomic<u64>>;
-// The fragment count: written where this pass counts (COUNT_FRAGMENTS), else bound unused.
-@group(1) @binding(3) var<storage, read_write> count: array<atomic<u32>>;
 
 
 // Whether the nearest key is loaded first, and atomicMax issued only where it can change it
@@ -34,7 +36,8 @@
 // issues an atomicMax whose result is unused without waiting.
 const PRELOAD_NEAREST: bool = true;
 
-// Whether this pass counts the fragments (no count pass before it).
+// Whether this pass counts the fragments (no count pass before it): n in the first sums word,
+// which totals.wgsl's from_sums writes out as the count.
 const COUNT_FRAGMENTS: bool = false;
 
 @fragment
@@ -42,9 +45,6 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let p = pixel_index(in.clip, params.width);
     let rgba8 = fragment_rgba8(in);
     let depth = select(0.0, in.clip.z, in.clip.z > 0.0);
-    if (COUNT_FRAGMENTS) {
-        atomicAdd(&count[p], 1u);
-    }
     let key = fragment_key(depth, rgba8);
     if (!PRELOAD_NEAREST || atomicLoad(&nearest[p]) < ~key) {
         atomicMax(&nearest[p], ~key);
@@ -65,7 +65,8 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let r = rgba8 & 0xffu;
     let g = (rgba8 >> 8u) & 0xffu;
     let b = (rgba8 >> 16u) & 0xffu;
-    atomicAdd(&sums[2u * p], u64(r) | (u64(g) << 32u));
+    let counted = select(0lu, 1lu << 48u, COUNT_FRAGMENTS);
+    atomicAdd(&sums[2u * p], u64(r) | (u64(g) << 24u) | counted);
     atomicAdd(&sums[2u * p + 1u], u64(b) | (u64(r * r + g * g + b * b) << 32u));
     return vec4<f32>(0.0);
 }

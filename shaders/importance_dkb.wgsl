@@ -31,6 +31,14 @@
 // either way: its features pass drew nothing (features.wgsl), and k = n whatever it gets.
 const SKIP_FORCED: bool = true;
 
+// Sum r, g, b of pixel p's fragments (features.wgsl's packing: r and g 24 bits each in the first
+// 64-bit word, then n; b in the second's low half).
+fn color_sums(p: u32) -> vec3<u32> {
+    let lo = sums[4u * p];
+    let hi = sums[4u * p + 1u];
+    return vec3<u32>(lo & 0xffffffu, (lo >> 24u) | ((hi & 0xffffu) << 8u), sums[4u * p + 2u]);
+}
+
 fn luma(c: vec3<f32>) -> f32 {
     return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b;
 }
@@ -67,7 +75,7 @@ fn network_inputs(p: u32) -> Net {
     let key = ~nearest[p];
     let near8 = u32(key & 0xfffffffflu);
     let near = unpack_rgba8(near8).rgb;
-    let sum = vec3<u32>(sums[4u * p], sums[4u * p + 1u], sums[4u * p + 2u]);
+    let sum = color_sums(p);
     let mean = vec3<f32>(f32(sum.r) / 255.0 / nf, f32(sum.g) / 255.0 / nf, f32(sum.b) / 255.0 / nf);
     // n^2 var and n^2 dev in 8-bit units, exact integers.
     var var_num = i64(c) * i64(sums[4u * p + 3u]);

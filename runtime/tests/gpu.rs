@@ -1177,8 +1177,9 @@ fn a_pixel_too_deep_for_the_devices_loops_is_refused_not_wrong() {
 }
 
 /// `n` full-frame triangles, each covering every pixel of a small frame: two faint blue ones
-/// nearest, opaque red ones behind in shuffled depth order (their tail's sum of r a reaches
-/// 2^32 a little past raster::MAX_FRAGMENTS_PER_PIXEL), and the identity camera.
+/// nearest, opaque yellow ones behind in shuffled depth order (their tail's sum of r a reaches
+/// 2^32 a little past raster::MAX_FRAGMENTS_PER_PIXEL, and their sums of r and g fill the
+/// features pass's 24-bit fields), and the identity camera.
 fn deep_pixels(n: usize) -> (Scene, Camera) {
     let mut s = Scene::default();
     for i in 0..n {
@@ -1187,7 +1188,7 @@ fn deep_pixels(n: usize) -> (Scene, Camera) {
         } else {
             (
                 0.1 + 0.8 * ((i * 7919) % n) as f32 / n as f32,
-                [1.0, 0.0, 0.0, 1.0],
+                [1.0, 1.0, 0.0, 1.0],
             )
         };
         s.push_triangle(
@@ -1207,9 +1208,18 @@ fn deep_pixels(n: usize) -> (Scene, Camera) {
     (s, cam)
 }
 
+/// At raster::MAX_FRAGMENTS_PER_PIXEL fragments a pixel, the k-buffers' images are their twins'
+/// and DKB's features pass (counting or after a count pass) gathers the twin's counts and
+/// colour sums, its fields full, and the importance pass reads them as the twin does; one
+/// fragment more, every method refuses the frame as the CPU rasterizer does.
 #[test]
 fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
-    let Some(g) = gpu() else { return };
+    use dhoit_runtime::gpu::DkbGeometry;
+    if gpu().is_none() {
+        return;
+    }
+    // A device of its own: the features pass's geometry is the device's.
+    let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
     let max = dhoit_runtime::raster::MAX_FRAGMENTS_PER_PIXEL as usize;
     let mlp = dhoit_runtime::mlp::Mlp::load(
         &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
@@ -1220,13 +1230,36 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
     let (s, cam) = deep_pixels(max);
     let fl = rasterize(&s, &cam, w, h).unwrap();
     assert_eq!(fl.count(0) as usize, max);
-    let vkb = Slots::Vkb(Default::default(), 8u64.into());
-    for slots in [Slots::Uniform(2), vkb] {
-        let f = g.render(&s, &cam, w, h, BG, Some(slots)).unwrap();
-        let k = f.slots.as_ref().map(|(_, b, _)| b[1] - b[0]).unwrap();
-        let twin = composite::composite(&fl, composite::Method::Hybrid(&[k; 4]), BG);
-        let d = f.image.max_abs_diff(&twin);
-        assert!(d <= 1e-5, "{max} fragments a pixel: {d} from the twin");
+    let twin_stats = importance::pixel_stats(&fl);
+    let (f, vkb) = (8u64, Slots::Vkb(Default::default(), 8u64.into()));
+    for geometry in [DkbGeometry::CountFirst, DkbGeometry::Counting] {
+        g.dkb_geometry = geometry;
+        let dkb = Slots::Dkb(&mlp, f.into());
+        for (name, slots) in [("FKB", Slots::Uniform(2)), ("VKB", vkb), ("DKB", dkb)] {
+            let frame = g.render(&s, &cam, w, h, BG, Some(slots)).unwrap();
+            let bases = &frame.slots.as_ref().unwrap().1;
+            let k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
+            let twin = composite::composite(&fl, composite::Method::Hybrid(&k), BG);
+            let d = frame.image.max_abs_diff(&twin);
+            assert!(
+                d <= 1e-5,
+                "{name}: {max} fragments a pixel: {d} from the twin"
+            );
+            if name != "DKB" {
+                continue;
+            }
+            // Counts and colour sums exactly (the keys' depths are the GPU's own).
+            let stats = frame.stats.clone().unwrap();
+            for (a, b) in stats.iter().zip(&twin_stats) {
+                let sums = |s: &importance::PixelStats| (s.count, s.color_sum, s.color_sq_sum);
+                assert_eq!(sums(a), sums(b), "{geometry:?}: statistics");
+            }
+            assert_eq!(stats[0].color_sum[1], 255 * (max as u32 - 2));
+            let (feats, counts, pairs) = network_inputs(&stats, f);
+            let imp_twin = mlp.dkb_importance(&feats, &counts, &pairs, f);
+            let d = max_abs_diff(frame.importance.as_ref().unwrap(), &imp_twin);
+            assert!(d <= 1e-5, "{geometry:?}: importance {d} from the twin");
+        }
     }
     // One more: the CPU refuses it, and so does every GPU method (not an image whose tail
     // is wrong, or a sort of that length), naming the pixel and its count.
@@ -1240,8 +1273,9 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
         ("FKB", Some(Slots::Uniform(2))),
         ("uploaded k", Some(Slots::PerPixel(&k))),
         ("VKB", Some(vkb)),
-        ("DKB", Some(Slots::Dkb(&mlp, 8u64.into()))),
+        ("DKB", Some(Slots::Dkb(&mlp, f.into()))),
     ];
+    g.dkb_geometry = DkbGeometry::FollowLastFrame;
     for (name, slots) in methods {
         let Err(e) = g.render(&s, &cam, w, h, BG, slots) else {
             panic!("{name}: a pixel of {} fragments gave a frame", max + 1)

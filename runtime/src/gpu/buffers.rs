@@ -358,7 +358,12 @@ impl Readback {
                         .map(|q| PixelStats {
                             count: counts[q],
                             nearest_key: if counts[q] > 0 { !nearest[q] } else { 0 },
-                            color_sum: [sums[4 * q], sums[4 * q + 1], sums[4 * q + 2]],
+                            // features.wgsl's packing: r and g 24 bits each, then n; b.
+                            color_sum: [
+                                sums[4 * q] & 0xff_ffff,
+                                (sums[4 * q] >> 24) | ((sums[4 * q + 1] & 0xffff) << 8),
+                                sums[4 * q + 2],
+                            ],
                             color_sq_sum: sums[4 * q + 3],
                             farthest: [farthest[2 * q], farthest[2 * q + 1]],
                         })

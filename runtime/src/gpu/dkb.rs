@@ -2,7 +2,8 @@
 //! `features.wgsl` (geometry: nearest and two farthest keys, colour sums; twin
 //! `importance::pixel_stats`), drawn only when the budget truncates (`totals.wgsl`'s
 //! `features_draw` sets its indirect draw; or counting in the features pass, drawn always:
-//! [`DkbGeometry`]), then `importance_dkb.wgsl` (the 12 features, never stored, through the
+//! [`DkbGeometry`], its count packed in the colour sums and written out by `totals.wgsl`'s
+//! `from_sums`), then `importance_dkb.wgsl` (the 12 features, never stored, through the
 //! network of `mlp.wgsl`, built for the network's shape and precision by [`Variant`]; twin
 //! `Mlp::dkb_importance`). A frame expected to fit ([`Gpu::predict_fit`]) records the count
 //! alone and leaves the rest to [`Recording::allocated`], which records it only where the
@@ -95,8 +96,24 @@ impl Recording<'_, '_> {
             self.out.features_drawn = Some(false);
         } else {
             // One pass counts and gathers the features, drawn always: where the budget
-            // truncates (as the last frame's did), one geometry pass fewer.
+            // truncates (as the last frame's did), one geometry pass fewer. Its count goes
+            // out of the sums (and into the totals) at once, for a frame expected to fit.
             self.dkb_features(&b, &features)?;
+            let group = gpu.bind_at(
+                &p.totals_from_sums.get_bind_group_layout(0),
+                &[
+                    (0, passes.params()),
+                    (2, &b.totals),
+                    (4, &b.sums),
+                    (5, &b.counts),
+                ],
+            );
+            let (gx, gy) = grid(px as u32, PIXEL_GROUP);
+            passes.compute(&mut self.enc, "totals", |pass| {
+                pass.set_pipeline(&p.totals_from_sums);
+                pass.set_bind_group(0, &group, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            });
         }
         let net = |entry| {
             gpu.network_pass(Variant {
@@ -131,8 +148,8 @@ impl Recording<'_, '_> {
     fn dkb_features(&mut self, b: &DkbBuffers, features: &wgpu::RenderPipeline) -> Result<()> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let (fb, enc) = (&mut self.fb, &mut self.enc);
-        // The count is bound, and written only where the pass counts (COUNT_FRAGMENTS).
-        let bufs = [&b.nearest, &b.farthest, &b.sums, &b.counts];
+        // Where the pass counts (COUNT_FRAGMENTS), n goes in the sums (totals.wgsl's from_sums).
+        let bufs = [&b.nearest, &b.farthest, &b.sums];
         passes.draw_indirect(enc, features, &bufs, "features", &b.draw);
         if gpu.diagnostics {
             let mut copy = |b: &wgpu::Buffer, label: &str, bytes: u64| {
@@ -150,9 +167,9 @@ impl Recording<'_, '_> {
         Ok(())
     }
 
-    /// After DKB's count: the totals, the features where the count came first (drawn only
+    /// After DKB's count: where the count came first, the totals and the features (drawn only
     /// where the budget truncates: when it holds every fragment, k = n whatever the importance,
-    /// and `features_draw` empties the draw), and the network's pass.
+    /// and `features_draw` empties the draw); then the network's pass.
     fn dkb_rest(
         &mut self,
         b: &DkbBuffers,
@@ -181,8 +198,6 @@ impl Recording<'_, '_> {
                 pass.dispatch_workgroups(1, 1, 1);
             });
             self.dkb_features(b, features)?;
-        } else {
-            passes.totals(&mut self.enc, &b.counts, &b.totals);
         }
         let bind = |dispatch_or_not: &wgpu::Buffer| {
             gpu.bind(

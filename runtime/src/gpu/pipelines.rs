@@ -24,6 +24,8 @@ pub(super) struct Pipelines {
     /// The features pass that counts the fragments too (COUNT_FRAGMENTS; no count pass first).
     pub(super) features_counting: wgpu::RenderPipeline,
     pub(super) totals: wgpu::ComputePipeline,
+    /// The totals from the counting features pass's sums, writing its count out (from_sums).
+    pub(super) totals_from_sums: wgpu::ComputePipeline,
     /// DKB's features pass's indirect draw: no vertex when the budget holds every fragment.
     pub(super) features_draw: wgpu::ComputePipeline,
     /// The network's passes (DKB importance, predict), built for one network shape, precision
@@ -455,6 +457,7 @@ impl Pipelines {
             ),
             totals: compute("totals"),
             features_draw: compute_entry("totals", "features_draw"),
+            totals_from_sums: compute_entry("totals", "from_sums"),
             variants: std::sync::Mutex::new(
                 [
                     ("importance_dkb", "select_pixels"),
