@@ -25,8 +25,9 @@
 @group(0) @binding(10) var<storage, read_write> dispatch: array<u32, 4>;
 
 // Skip the network where k does not depend on it (Mlp::dkb_importance): a pixel whose useful
-// cap is 0 (one fragment, or two sharing one colour: mlp::forced) gets importance 0 with its
-// pair mark. The bench builds this pass once more with it false (Gpu::skip_forced) to show the
+// cap is the frame's smallest k, lo (mlp::forced: n <= lo + 1, or lo + 2 where its two farthest
+// fragments share one colour; lo is 1 where F covers every covered pixel, as at 2 fpp) gets
+// importance 0 with its pair mark. The bench builds this pass once more with it false (Gpu::skip_forced) to show the
 // time saved. Every pixel of a frame whose budget holds all its fragments gets 0, unmarked,
 // either way: its features pass drew nothing (features.wgsl), and k = n whatever it gets.
 const SKIP_FORCED: bool = true;
@@ -64,7 +65,9 @@ fn network_inputs(p: u32) -> Net {
     let f1 = farthest[2u * p + 1u];
     let pair = (f1 & OCCUPIED) != 0lu && u32(f0 & 0xfffffffflu) == u32(f1 & 0xfffffffflu);
     let mark = select(0u, PAIR_BIT, pair);
-    if (SKIP_FORCED && c <= 1u + select(0u, 1u, pair)) {
+    // alloc::min_k, as the allocation's setup finds it.
+    let lo = select(0u, 1u, budget_of(totals[0]) >= u64(totals[1]));
+    if (SKIP_FORCED && c <= lo + 1u + select(0u, 1u, pair)) {
         importance[p] = bitcast<f32>(mark);
         return net;
     }

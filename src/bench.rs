@@ -440,10 +440,15 @@ fn gpu_bench(
                 geometry("dkb_counting_features"),
             );
             let total = fl.fragment_count() as u64;
-            let holds_all = match Slots::for_method(Method::Dkb, &cpu[4], &options)? {
-                Some(Slots::Dkb(_, f)) => f.holds(total),
-                _ => false,
+            let dkb_f = match Slots::for_method(Method::Dkb, &cpu[4], &options)? {
+                Some(Slots::Dkb(_, f)) => Some(f),
+                _ => None,
             };
+            let holds_all = dkb_f.is_some_and(|f| f.holds(total));
+            // The frame's smallest k (1 where F covers every covered pixel).
+            let lo = dkb_f.map_or(0, |f| {
+                dhoit_runtime::alloc::min_k(&fl.counts(), f.of(total))
+            });
             let fkb_slots = |m: &str| capture(m) + pass(m, "resolve");
             let (pixel_major, layer_major) = (fkb_slots("fkb"), fkb_slots("fkb_layer_major"));
             // Covered pixels DKB's capture appends (k from its CPU twin, which the GPU's equals).
@@ -463,6 +468,7 @@ fn gpu_bench(
                         && dhoit_runtime::mlp::forced(
                             st.count,
                             dhoit_runtime::importance::tail_pair(st),
+                            lo,
                         )
                 })
                 .count();

@@ -77,11 +77,13 @@ pub const fn uniform_parameter_count(h1: usize, h2: usize) -> usize {
     FEATURES * p1 + p1 + p1 * p2 + p2 + p2 + 4
 }
 
-/// Whether a covered pixel's k is forced whatever its importance: its useful cap
-/// ([`crate::alloc::useful_cap`]) is 0, so every allocation gives it the frame's minimum k or
-/// all its fragments (one fragment, or two that share one colour).
-pub fn forced(n: u32, pair: bool) -> bool {
-    crate::alloc::useful_cap(n, 0, pair) == 0
+/// Whether a covered pixel's k is forced whatever its importance, in a frame whose smallest k
+/// is `lo` ([`crate::alloc::min_k`]: 1 where F covers every covered pixel): its useful cap
+/// ([`crate::alloc::useful_cap`]) is lo, so every allocation gives it lo below the top tiers
+/// and their k above (`n <= lo + 1`, or `lo + 2` where its two farthest fragments share one
+/// colour).
+pub fn forced(n: u32, pair: bool, lo: u32) -> bool {
+    crate::alloc::useful_cap(n, lo, pair) <= lo
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -347,6 +349,7 @@ impl Mlp {
     ) -> Vec<f32> {
         use rayon::prelude::*;
         let all_fit = f >= counts.iter().map(|&n| n as u64).sum::<u64>();
+        let lo = crate::alloc::min_k(counts, f);
         features
             .par_iter()
             .zip(counts)
@@ -355,7 +358,7 @@ impl Mlp {
                 if n == 0 || all_fit {
                     return 0.0;
                 }
-                let i = if forced(n, pair) {
+                let i = if forced(n, pair, lo) {
                     0.0
                 } else {
                     self.forward_with(x, scratch)
@@ -523,7 +526,7 @@ mod tests {
     use crate::rng::Rng;
 
     /// What the importance pass skips is what no allocation looks at: the k of a forced pixel
-    /// (useful cap 0), and every k of a frame whose budget holds all its fragments, are the
+    /// (useful cap lo, the frame's smallest k: 0 at F below the covered pixels, else 1), and every k of a frame whose budget holds all its fragments, are the
     /// same whatever importance they are given, for every target and budget.
     #[test]
     fn skipped_pixels_get_the_same_k_whatever_their_importance() {
@@ -534,13 +537,22 @@ mod tests {
                 x if x < 0.2 => 0,
                 x if x < 0.5 => 1,
                 x if x < 0.6 => 2,
+                x if x < 0.7 => 3,
                 x => (x * 40.0) as u32,
             })
             .collect();
         let pairs: Vec<bool> = counts.iter().map(|&n| n >= 2 && rng.f32() < 0.3).collect();
         let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
         let total: u64 = counts.iter().map(|&n| n as u64).sum();
-        assert!(counts.iter().zip(&pairs).any(|(&n, &p)| n == 2 && p));
+        // Forced where lo is 0 (n 2, a pair) and only where it is 1 (n 2, not; n 3, a pair).
+        for (n, pair) in [(2, true), (2, false), (3, true)] {
+            assert!(
+                counts
+                    .iter()
+                    .zip(&pairs)
+                    .any(|(&c, &p)| c == n && p == pair)
+            );
+        }
         for target in [
             Target::RelativeK,
             Target::ShareOfFragments,
@@ -548,6 +560,7 @@ mod tests {
         ] {
             for f in [covered / 2, covered, total / 3, total - 1, total, total + 7] {
                 let all_fit = f >= total;
+                let lo = alloc::min_k(&counts, f);
                 let imp: Vec<f32> = pairs
                     .iter()
                     .map(|&p| alloc::mark_pair(rng.f32() * 1.5, p))
@@ -557,7 +570,7 @@ mod tests {
                     .zip(&counts)
                     .zip(&pairs)
                     .map(|((&i, &n), &p)| {
-                        if n == 0 || all_fit || forced(n, p) {
+                        if n == 0 || all_fit || forced(n, p, lo) {
                             alloc::mark_pair(0.0, p)
                         } else {
                             i
@@ -575,10 +588,15 @@ mod tests {
 
     #[test]
     fn forced_means_no_useful_slot() {
-        assert!(forced(1, false));
-        assert!(forced(2, true));
-        assert!(!forced(2, false));
-        assert!(!forced(3, true));
-        assert!(forced(0, false));
+        // Where a covered pixel may get no slot (lo 0), and where each gets one.
+        assert!(forced(1, false, 0));
+        assert!(forced(2, true, 0));
+        assert!(!forced(2, false, 0));
+        assert!(!forced(3, true, 0));
+        assert!(forced(0, false, 0));
+        assert!(forced(2, false, 1));
+        assert!(forced(3, true, 1));
+        assert!(!forced(3, false, 1));
+        assert!(!forced(4, true, 1));
     }
 }
