@@ -337,9 +337,10 @@ impl Mlp {
 
     /// DKB's importance map, as the GPU's importance pass writes it: the network's output with
     /// the pair mark, and 0 wherever k does not depend on it, without running the network
-    /// there: with the mark at a pixel whose useful cap is 0 ([`forced`]); unmarked at an empty
-    /// pixel and at every pixel of a frame whose budget holds all its fragments (k = n: the GPU
-    /// does not gather that frame's features at all, so it knows no pair).
+    /// there: with the mark at a pixel whose useful cap is the frame's lo ([`forced`]);
+    /// unmarked at an empty pixel and at every pixel of a frame whose budget holds all its
+    /// fragments (k = n: the GPU does not gather that frame's features at all, so it knows no
+    /// pair).
     pub fn dkb_importance(
         &self,
         features: &[[f32; FEATURES]],
@@ -526,8 +527,9 @@ mod tests {
     use crate::rng::Rng;
 
     /// What the importance pass skips is what no allocation looks at: the k of a forced pixel
-    /// (useful cap lo, the frame's smallest k: 0 at F below the covered pixels, else 1), and every k of a frame whose budget holds all its fragments, are the
-    /// same whatever importance they are given, for every target and budget.
+    /// (useful cap lo, the frame's smallest k: 0 at F below the covered pixels, else 1), and
+    /// every k of a frame whose budget holds all its fragments, are the same whatever
+    /// importance they are given, for every target and budget.
     #[test]
     fn skipped_pixels_get_the_same_k_whatever_their_importance() {
         let mut rng = Rng::new(11);
