@@ -27,8 +27,8 @@
 // Skip the network where k does not depend on it (Mlp::dkb_importance): a pixel whose useful
 // cap is the frame's smallest k, lo (mlp::forced: n <= lo + 1, or lo + 2 where its two farthest
 // fragments share one colour; lo is 1 where F covers every covered pixel, as at 2 fpp) gets
-// importance 0 with its pair mark. The bench builds this pass once more with it false (Gpu::skip_forced) to show the
-// time saved. Every pixel of a frame whose budget holds all its fragments gets 0, unmarked,
+// importance 0 with its pair mark. The bench builds this pass once more with it false
+// (Gpu::skip_forced) to show the time saved. Every pixel of a frame whose budget holds all its fragments gets 0, unmarked,
 // either way: its features pass drew nothing (features.wgsl), and k = n whatever it gets.
 const SKIP_FORCED: bool = true;
 

@@ -207,15 +207,16 @@ impl FrameStatus {
 }
 
 /// A frame's image (its first `bytes`, as `read` makes of them straight from the mapped
-/// buffer) and its status, in one copy and one map. The image is not read where the status
-/// refuses the frame.
+/// buffer), read in one copy and one map with its status, which may refuse the frame
+/// ([`FrameStatus::check`]; `width` names the pixel): then the image is not read.
 pub(super) fn read_frame<T>(
     gpu: &Gpu,
     image: &wgpu::Buffer,
     bytes: u64,
     status: Option<&wgpu::Buffer>,
+    width: u32,
     read: impl FnOnce(&[u8]) -> T,
-) -> Result<(Option<T>, FrameStatus)> {
+) -> Result<T> {
     let at = bytes.next_multiple_of(4);
     let size = at + FrameStatus::BYTES;
     let copy = |enc: &mut wgpu::CommandEncoder, staging: &wgpu::Buffer| {
@@ -227,10 +228,10 @@ pub(super) fn read_frame<T>(
         }
     };
     staged(gpu, size, copy, |mapped| {
-        let status = FrameStatus::parse(&mapped[at as usize..]);
-        let refused = status.too_deep.is_some() || (status.near_loop_limit && gpu.bounded_loops);
-        ((!refused).then(|| read(&mapped[..bytes as usize])), status)
-    })
+        FrameStatus::parse(&mapped[at as usize..])
+            .check(gpu, width)
+            .map(|()| read(&mapped[..bytes as usize]))
+    })?
 }
 
 /// Single words of device buffers (each a buffer and a byte offset, a multiple of 4), read in

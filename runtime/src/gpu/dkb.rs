@@ -99,21 +99,7 @@ impl Recording<'_, '_> {
             // truncates (as the last frame's did), one geometry pass fewer. Its count goes
             // out of the sums (and into the totals) at once, for a frame expected to fit.
             self.dkb_features(&b, &features)?;
-            let group = gpu.bind_at(
-                &p.totals_from_sums.get_bind_group_layout(0),
-                &[
-                    (0, passes.params()),
-                    (2, &b.totals),
-                    (4, &b.sums),
-                    (5, &b.counts),
-                ],
-            );
-            let (gx, gy) = grid(px as u32, PIXEL_GROUP);
-            passes.compute(&mut self.enc, "totals", |pass| {
-                pass.set_pipeline(&p.totals_from_sums);
-                pass.set_bind_group(0, &group, &[]);
-                pass.dispatch_workgroups(gx, gy, 1);
-            });
+            passes.totals_from_sums(&mut self.enc, &b.sums, &b.counts, &b.totals);
         }
         let net = |entry| {
             gpu.network_pass(Variant {

@@ -145,4 +145,26 @@ impl<'a> Passes<'a> {
         let pipeline = &self.gpu.pipelines.totals;
         self.dispatch(enc, pipeline, &[self.params(), counts, totals], "totals");
     }
+
+    /// The totals pass from DKB's counting features pass (totals.wgsl's from_sums): the count
+    /// packed in `sums` written out into `counts`, and the totals into `totals`.
+    pub(super) fn totals_from_sums(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        sums: &wgpu::Buffer,
+        counts: &wgpu::Buffer,
+        totals: &wgpu::Buffer,
+    ) {
+        let pipeline = &self.gpu.pipelines.totals_from_sums;
+        let group = self.gpu.bind_at(
+            &pipeline.get_bind_group_layout(0),
+            &[(0, self.params()), (2, totals), (4, sums), (5, counts)],
+        );
+        let (gx, gy) = grid(self.pixels, PIXEL_GROUP);
+        self.compute(enc, "totals", |pass| {
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        });
+    }
 }
