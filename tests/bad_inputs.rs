@@ -39,6 +39,10 @@ fn fails_with_env(dir: &Path, args: &[&str], env: &[(&str, &str)], needle: &str)
         err.to_lowercase().contains(&needle.to_lowercase()),
         "{args:?}: '{err}' should mention '{needle}'"
     );
+    assert!(
+        !repeats_itself(&err),
+        "{args:?}: '{err}' says the same thing twice"
+    );
     assert!(!out.exists(), "{args:?} left {} behind", out.display());
     let left: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
@@ -46,6 +50,28 @@ fn fails_with_env(dir: &Path, args: &[&str], env: &[(&str, &str)], needle: &str)
         .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
         .collect();
     assert!(left.is_empty(), "{args:?} left temporary files: {left:?}");
+}
+
+/// Whether an error line says one part twice in a row ("weights w: bad: bad"), as a cause
+/// printed both inline and as the source of the error (`{:#}` prints the chain) does.
+fn repeats_itself(err: &str) -> bool {
+    err.lines().any(|line| {
+        let parts: Vec<&str> = line.split(": ").collect();
+        (1..=parts.len() / 2).any(|len| {
+            (0..=parts.len() - 2 * len).any(|i| parts[i..i + len] == parts[i + len..i + 2 * len])
+        })
+    })
+}
+
+#[test]
+fn an_error_saying_one_thing_twice_is_caught() {
+    assert!(repeats_itself(
+        "error: weights w: missing tensor 'x': missing tensor 'x'"
+    ));
+    assert!(repeats_itself("error: a: b: c: b: c"));
+    assert!(!repeats_itself(
+        "error: scene s.gltf: cannot load buffers: buffer 0: expected 436 bytes"
+    ));
 }
 
 /// Renders a scene file: the command every broken scene goes through.

@@ -76,9 +76,9 @@ pub fn read(path: &Path) -> Result<Dump> {
 /// Parses a dump's bytes (`path` names it in errors), checking every shape.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Dump> {
     let path = path.to_path_buf();
-    let err = |source: FormatError| Error::Dump {
+    let err = |fault: FormatError| Error::Dump {
         path: path.clone(),
-        source,
+        fault,
     };
     let contract = |m: &str| err(FormatError::Contract(m.into()));
     let file = tensors::File::parse(bytes).map_err(err)?;

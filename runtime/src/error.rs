@@ -27,11 +27,12 @@ pub enum Error {
     Budget(String, String),
     #[error("invalid argument: {0}")]
     Invalid(String),
-    /// (The file's fault is displayed inline, not as a source, so it is not repeated.)
-    #[error("fragment dump {path}: {source}")]
-    Dump { path: PathBuf, source: FormatError },
-    #[error("weights {path}: {source}")]
-    Weights { path: PathBuf, source: FormatError },
+    /// The file's fault is displayed inline, and is not the error's `source` (which anyhow's
+    /// `{:#}` would print a second time): thiserror takes a field named `source` as one.
+    #[error("fragment dump {path}: {fault}")]
+    Dump { path: PathBuf, fault: FormatError },
+    #[error("weights {path}: {fault}")]
+    Weights { path: PathBuf, fault: FormatError },
     /// (Displayed whole, not as a source, so the message is not repeated.)
     #[error("GPU: {0}")]
     Gpu(GpuError),

@@ -372,9 +372,9 @@ impl Mlp {
     /// Reads and validates a weights file.
     pub fn load(path: &Path) -> Result<Mlp> {
         let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
-        Self::from_bytes(&bytes).map_err(|source| Error::Weights {
+        Self::from_bytes(&bytes).map_err(|fault| Error::Weights {
             path: path.to_path_buf(),
-            source,
+            fault,
         })
     }
 

@@ -158,9 +158,9 @@ fn weights_errors_say_which_tensor_and_where() {
     use dhoit_runtime::tensors::FormatError;
     use dhoit_runtime::{Error, mlp::MAX_H2};
     let load = |path: PathBuf| match Mlp::load(&path) {
-        Err(Error::Weights { path: p, source }) => {
+        Err(Error::Weights { path: p, fault }) => {
             assert_eq!(p, path);
-            source
+            fault
         }
         other => panic!("expected a weights error, got {other:?}"),
     };

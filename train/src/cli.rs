@@ -568,9 +568,9 @@ pub fn read_features(path: &Path) -> Result<Vec<[f32; FEATURES]>> {
 
 /// Parses a features file's bytes (`path` names it in errors).
 pub fn parse_features(bytes: &[u8], path: &Path) -> Result<Vec<[f32; FEATURES]>> {
-    let bad = |source: FormatError| Error::Features {
+    let bad = |fault: FormatError| Error::Features {
         path: path.to_path_buf(),
-        source,
+        fault,
     };
     let file = tensors::File::parse(bytes).map_err(bad)?;
     let (shape, v) = file.f32("features", None).map_err(bad)?;

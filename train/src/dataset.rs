@@ -521,9 +521,9 @@ pub fn load(dir: &Path) -> Result<(Manifest, Samples)> {
     for shard in &manifest.shards {
         let path: PathBuf = dir.join(&shard.file);
         let bytes = std::fs::read(&path).map_err(|e| Error::read(&path, e))?;
-        let bad = |source: FormatError| Error::Shard {
+        let bad = |fault: FormatError| Error::Shard {
             path: path.clone(),
-            source,
+            fault,
         };
         let contract = |m: String| bad(FormatError::Contract(m));
         let file = tensors::File::parse(&bytes).map_err(bad)?;

@@ -27,10 +27,11 @@ pub enum Error {
     Config(String),
     #[error("training diverged at epoch {epoch} (loss {loss}); lower the learning rate")]
     Diverged { epoch: usize, loss: f64 },
-    #[error("dataset shard {path}: {source}")]
-    Shard { path: PathBuf, source: FormatError },
-    #[error("features {path}: {source}")]
-    Features { path: PathBuf, source: FormatError },
+    // The file's fault inline, not as the error's source (dhoit_runtime::Error::Weights).
+    #[error("dataset shard {path}: {fault}")]
+    Shard { path: PathBuf, fault: FormatError },
+    #[error("features {path}: {fault}")]
+    Features { path: PathBuf, fault: FormatError },
 }
 
 impl Error {
