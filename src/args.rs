@@ -29,7 +29,7 @@ pub(crate) struct ViewArgs {
     #[arg(long, default_value = "640x480", allow_hyphen_values = true)]
     pub(crate) res: Resolution,
     /// Number of orbit views around the scene (view I is at angle I/N of a turn).
-    #[arg(long, default_value_t = scene::DEFAULT_VIEWS)]
+    #[arg(long, default_value_t = scene::DEFAULT_VIEWS, value_parser = parse_views)]
     pub(crate) views: usize,
     /// Uniform opacity of every surface (the reference uses 0.33).
     #[arg(long, default_value_t = 0.33, conflicts_with = "material_alpha")]
@@ -62,6 +62,15 @@ fn parse_rgb(s: &str) -> std::result::Result<[f32; 3], String> {
     }
 }
 
+/// `--views`: a whole number of at least one.
+fn parse_views(s: &str) -> std::result::Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("an orbit needs at least one view".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("'{s}' is not a number of views: {e}")),
+    }
+}
+
 pub(crate) fn load_scene(name: &str, a: &ViewArgs) -> Result<Scene> {
     let opacity = if a.material_alpha {
         Opacity::Material
@@ -75,6 +84,20 @@ pub(crate) fn load_scene(name: &str, a: &ViewArgs) -> Result<Scene> {
     Ok(scene)
 }
 
+/// Every scene of a command that renders several, loaded before the first frame: a name that
+/// is neither built in nor a glTF file stops the command before it writes anything.
+pub(crate) fn load_scenes(names: &[String], a: &ViewArgs) -> Result<Vec<Scene>> {
+    names.iter().map(|name| load_scene(name, a)).collect()
+}
+
+/// That `view` is one of the orbit's `views`.
+pub(crate) fn check_view(view: usize, views: usize) -> Result<()> {
+    if view >= views {
+        bail!("view {view} does not exist: there are {views} views (0..{views})");
+    }
+    Ok(())
+}
+
 pub(crate) fn rasterize_view(
     scene: &Scene,
     view: usize,
@@ -84,13 +107,7 @@ pub(crate) fn rasterize_view(
         width: w,
         height: h,
     } = a.res;
-    if a.views == 0 || view >= a.views {
-        bail!(
-            "view {view} does not exist: there are {} views (0..{})",
-            a.views,
-            a.views
-        );
-    }
+    check_view(view, a.views)?;
     let cam = Camera::orbit(scene, view, a.views, w, h);
     let t = Instant::now();
     let fl = raster::rasterize(scene, &cam, w, h)?;

@@ -60,6 +60,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
     } else {
         a.scenes.clone()
     };
+    // Every scene checked before the first measurement (a scene that fails later, on the
+    // device, is recorded in the report beside the others).
+    for name in &names {
+        scene::load(name, Opacity::default())?;
+    }
     if a.gpu_only {
         let report = |gpu: serde_json::Value| {
             serde_json::json!({

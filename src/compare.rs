@@ -2,7 +2,7 @@
 //! one typed row per frame and method, written as a terminal table, Markdown and JSON from the
 //! same rows; a summary of the ratios that decide whether the network earns its place.
 
-use crate::args::{ViewArgs, k_used, load_scene, load_weights, rasterize_view};
+use crate::args::{ViewArgs, check_view, k_used, load_scenes, load_weights, rasterize_view};
 use anyhow::{Context, Result};
 use clap::Args;
 use dhoit_runtime::budget::{Budget, format_bytes};
@@ -450,6 +450,11 @@ pub fn run(a: CompareArgs) -> Result<()> {
         );
         methods.retain(|&m| m != Method::Dkb);
     }
+    // Every scene and view checked before the first frame.
+    for &view in &a.view_list {
+        check_view(view, a.common.views)?;
+    }
+    let loaded = load_scenes(&a.scenes, &a.common)?;
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
     let mut rows: Vec<Row> = Vec::new();
@@ -457,8 +462,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
         "# dhoit comparison\n\nMSE against the A-buffer image (linear RGB), {}.\n",
         a.equal.name()
     );
-    for name in &a.scenes {
-        let scene = load_scene(name, &a.common)?;
+    for (name, scene) in a.scenes.iter().zip(loaded) {
         let label = scene::file_label(name);
         for &view in &a.view_list {
             let (fl, raster_ms) = rasterize_view(&scene, view, &a.common)?;

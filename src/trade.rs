@@ -2,7 +2,7 @@
 //! scenes (importance-pass time against MSE and FLIP, the Pareto front marked), and the smallest
 //! network that meets a quality target on a scene.
 
-use crate::args::{ViewArgs, default_weights, load_scene, rasterize_view};
+use crate::args::{ViewArgs, check_view, default_weights, load_scene, load_scenes, rasterize_view};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use dhoit_runtime::budget::Budget;
@@ -436,13 +436,17 @@ pub fn trade(a: TradeArgs) -> Result<()> {
         a.scenes.len(),
         timer.name()
     );
+    // Every scene and view checked before the first frame.
+    for &view in &a.quality.view_list {
+        check_view(view, a.quality.common.views)?;
+    }
+    let loaded = load_scenes(&a.scenes, &a.quality.common)?;
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
     let steps = a.scenes.len() * a.quality.view_list.len() * a.quality.budgets.len();
     let pb = bar(steps as u64, "frames");
     let mut scenes = Vec::new();
-    for name in &a.scenes {
-        let s = load_scene(name, &a.quality.common)?;
+    for (name, s) in a.scenes.iter().zip(loaded) {
         let measures = quality(&s, &a.quality, &nets, &pb)?;
         let frame = timer.frame(&s, time_res, first_budget)?;
         let mut points = Vec::new();
@@ -623,6 +627,9 @@ pub fn fit(a: FitArgs) -> Result<()> {
             "--target {}: a ratio to the optimal allocation's MSE, at least 1",
             a.target
         );
+    }
+    for &view in &a.quality.view_list {
+        check_view(view, a.quality.common.views)?;
     }
     let nets = networks(&a.quality)?;
     let steps = a.quality.view_list.len() * a.quality.budgets.len();

@@ -806,6 +806,15 @@ fn view_out_of_range() {
 }
 
 #[test]
+fn no_views() {
+    bad_render(
+        "views",
+        &["--res", "32x24", "--views", "0"],
+        "an orbit needs at least one view",
+    );
+}
+
+#[test]
 fn unknown_method() {
     bad_render(
         "method",
@@ -865,22 +874,23 @@ fn dataset_sample_out_of_range() {
     );
 }
 
+/// A training setting that cannot work is refused before the dataset is read (or generated,
+/// which takes minutes): here the dataset does not exist either, and the setting is named.
 #[test]
-fn train_with_zero_epochs() {
+fn training_settings_that_cannot_work_are_refused_before_the_dataset_is_read() {
     let dir = case_dir("train-epochs");
-    fails(
-        &dir,
-        &[
-            "train",
-            "--data",
-            dir.join("absent").to_str().unwrap(),
-            "--epochs",
-            "0",
-            "--out",
-            "{out}",
-        ],
-        "dataset",
-    );
+    let data = dir.join("absent");
+    let data = data.to_str().unwrap();
+    for (setting, value, needle) in [
+        ("--epochs", "0", "epochs and batch must be positive"),
+        ("--lr", "NaN", "lr NaN must be a positive number"),
+        ("--l2", "inf", "l2 inf finite and non-negative"),
+        ("--momentum", "1", "momentum 1 must be in [0, 1)"),
+        ("--hidden", "8,256", "hidden sizes 8,256"),
+    ] {
+        let args = ["train", "--data", data, setting, value, "--out", "{out}"];
+        fails(&dir, &args, needle);
+    }
 }
 
 #[test]
@@ -969,4 +979,37 @@ fn trade_and_fit_refuse_what_they_cannot_do() {
         ],
         "expected gpu, cpu or auto",
     );
+}
+
+/// The commands that render several scenes, views or budgets check every one before the first
+/// frame: a bad name late in the list stops the command before it renders or writes anything
+/// (`fails` checks that `{out}` was not created).
+#[test]
+fn a_bad_scene_or_view_late_in_a_list_stops_the_command_before_its_first_frame() {
+    let dir = case_dir("late-in-a-list");
+    let scenes = "cad,no-such-scene";
+    for cmd in ["compare", "trade"] {
+        let args = [cmd, "--scene", scenes, "--res", "32x24", "--out", "{out}"];
+        fails(&dir, &args, "unknown scene 'no-such-scene'");
+        let args = [
+            cmd, "--scene", "cad", "--res", "32x24", "--view", "0,8", "--out", "{out}",
+        ];
+        fails(&dir, &args, "view 8 does not exist");
+    }
+    let args = [
+        "bench",
+        "--gpu-only",
+        "--res",
+        "32x24",
+        "--scenes",
+        scenes,
+        "--out",
+        "{out}",
+    ];
+    fails(&dir, &args, "unknown scene 'no-such-scene'");
+    let args = [
+        "fit", "--scene", "cad", "--res", "32x24", "--view", "1,8", "--target", "2", "--out",
+        "{out}",
+    ];
+    fails(&dir, &args, "view 8 does not exist");
 }

@@ -258,6 +258,8 @@ pub fn train(a: TrainArgs) -> Result<()> {
             dataset::default_validation()
         },
     };
+    // Before any dataset is generated or loaded.
+    config.check()?;
     let dir = out
         .parent()
         .filter(|d| !d.as_os_str().is_empty())
