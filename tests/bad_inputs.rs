@@ -1012,4 +1012,18 @@ fn a_bad_scene_or_view_late_in_a_list_stops_the_command_before_its_first_frame()
         "{out}",
     ];
     fails(&dir, &args, "view 8 does not exist");
+    let args = [
+        "score", "--scene", scenes, "--res", "32x24", "--json", "{out}",
+    ];
+    fails(&dir, &args, "unknown scene 'no-such-scene'");
+    let args = [
+        "score",
+        "--scene",
+        "cad",
+        "--orbit-views",
+        "0",
+        "--json",
+        "{out}",
+    ];
+    fails(&dir, &args, "an orbit needs at least one view");
 }

@@ -100,3 +100,29 @@ fn a_failed_render_leaves_a_previous_image_intact() {
     assert!(!o.status.success());
     assert_eq!(std::fs::read(&out).unwrap(), b"previous image");
 }
+
+#[test]
+fn a_dataset_run_with_a_bad_scene_leaves_the_previous_dataset_intact() {
+    let dir = temp_dir("durable-dataset");
+    let data = dir.join("ds");
+    let dataset = |scenes: &str| {
+        Command::new(env!("CARGO_BIN_EXE_dhoit"))
+            .args([
+                "dataset", "--scenes", scenes, "--views", "1", "--res", "32x24",
+            ])
+            .args(["--budgets", "50%", "--sample", "1", "--out"])
+            .arg(&data)
+            .output()
+            .unwrap()
+    };
+    let o = dataset("shells:5");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let manifest = std::fs::read(data.join("manifest.json")).unwrap();
+    // A name that does not load, after one that does: refused before the folder is touched
+    // (its manifest was removed first, which left the dataset unreadable).
+    let o = dataset("shells:5,no-such-scene");
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("unknown scene 'no-such-scene'"), "{err}");
+    assert_eq!(std::fs::read(data.join("manifest.json")).unwrap(), manifest);
+}

@@ -390,6 +390,13 @@ pub fn generate(
     }
     raster::check_resolution(config.width, config.height)?;
     let start = Instant::now();
+    // Every scene first: one that does not load leaves `out` (a dataset there included) as it
+    // was.
+    let scenes: Vec<scene::Scene> = config
+        .scenes
+        .iter()
+        .map(|s| scene::load(s, Opacity::Uniform(config.opacity)))
+        .collect::<std::result::Result<_, _>>()?;
     std::fs::create_dir_all(out).map_err(|e| Error::io_op(IoOp::CreateFolder, out, e))?;
     // A stale manifest must not describe shards about to be replaced.
     let manifest_path = out.join(MANIFEST);
@@ -397,11 +404,6 @@ pub fn generate(
         std::fs::remove_file(&manifest_path)
             .map_err(|e| Error::io_op(IoOp::Remove, &manifest_path, e))?;
     }
-    let scenes: Vec<scene::Scene> = config
-        .scenes
-        .iter()
-        .map(|s| scene::load(s, Opacity::Uniform(config.opacity)))
-        .collect::<std::result::Result<_, _>>()?;
     let jobs: Vec<(usize, usize)> = (0..scenes.len())
         .flat_map(|s| (0..config.views).map(move |v| (s, v)))
         .collect();

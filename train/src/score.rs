@@ -97,19 +97,26 @@ impl Prepared {
     /// Rasterizes every (scene, view) of `spec` and computes what scoring needs but the
     /// networks; `progress` is called after each (scene, view).
     pub fn new(spec: &ScoreSpec, progress: &(dyn Fn() + Sync)) -> Result<Prepared> {
+        // Every view and scene checked before the first frame.
+        if let Some(view) = spec.views.iter().find(|&&v| v >= spec.orbit_views) {
+            let n = spec.orbit_views;
+            return Err(Error::Config(if n == 0 {
+                "an orbit needs at least one view".to_string()
+            } else {
+                format!("view {view} does not exist: there are {n} views (0..{n})")
+            }));
+        }
+        let scenes = spec
+            .scenes
+            .iter()
+            .map(|name| scene::load(name, Opacity::Uniform(spec.opacity)))
+            .collect::<std::result::Result<Vec<_>, _>>()?;
         let mut out = Vec::new();
-        for name in spec.scenes {
-            let sc = scene::load(name, Opacity::Uniform(spec.opacity))?;
+        for (name, sc) in spec.scenes.iter().zip(scenes) {
             let frames: Vec<PreparedFrame> = spec
                 .views
                 .par_iter()
                 .map(|&view| -> Result<PreparedFrame> {
-                    if view >= spec.orbit_views {
-                        return Err(Error::Config(format!(
-                            "view {view} does not exist: there are {} views",
-                            spec.orbit_views
-                        )));
-                    }
                     let cam = Camera::orbit(&sc, view, spec.orbit_views, spec.width, spec.height);
                     let fl = raster::rasterize(&sc, &cam, spec.width, spec.height)?;
                     let curves = alloc::error_curves(&fl, [1.0; 3]);
