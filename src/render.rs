@@ -53,19 +53,24 @@ pub struct RenderArgs {
     /// SHADER_F16).
     #[arg(long, default_value = "f32")]
     precision: Precision,
-    /// Output image (sRGB PNG).
+    /// Output image, sRGB: .png, or .jpg (lossy, for sharing).
     #[arg(long)]
     out: PathBuf,
     /// Also write the fragment dump (fragments.safetensors) into this directory.
     #[arg(long)]
     dump: Option<PathBuf>,
-    /// Also write a heat map of the per-pixel k actually used (min(k, n)).
+    /// Also write a heat map of the per-pixel k actually used (min(k, n)): .png or .jpg.
     #[arg(long)]
     kmap: Option<PathBuf>,
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
     let (method, budget) = (a.method, a.budget);
+    // The images' formats before any work.
+    image_io::encoding(&a.out)?;
+    if let Some(k) = &a.kmap {
+        image_io::encoding(k)?;
+    }
     let weights = load_weights(&a.common, a.precision, method == Method::Dkb)?;
     let scene = load_scene(&a.scene, &a.common)?;
     let (fl, _) = rasterize_view(&scene, a.view, &a.common)?;

@@ -204,6 +204,27 @@ fn allocation_methods_render_from_the_command_line() {
         dir.join("o.png").to_str().unwrap(),
     ]);
     assert!(String::from_utf8_lossy(&o.stdout).contains("lower bound"));
+    // The image and the k map as JPEG where their paths ask for it (and PNG above).
+    let (jpg, kjpg) = (dir.join("o.JPG"), dir.join("k.jpeg"));
+    let o = dhoit(&[
+        "render",
+        "--scene",
+        "hair",
+        "--res",
+        "64x48",
+        "--method",
+        "vkb",
+        "--out",
+        jpg.to_str().unwrap(),
+        "--kmap",
+        kjpg.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (path, png) in [(&jpg, false), (&kjpg, false), (&dir.join("o.png"), true)] {
+        let bytes = std::fs::read(path).unwrap();
+        let magic: &[u8] = if png { b"\x89PNG" } else { b"\xff\xd8\xff" };
+        assert!(bytes.starts_with(magic), "{}", path.display());
+    }
     // Weights that are not weights: a clear error.
     let bad = dir.join("bad.safetensors");
     std::fs::write(&bad, b"nope").unwrap();
@@ -291,6 +312,23 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
         "invalid value 'tpu' for '--device",
         &out,
     );
+    // A format dhoit does not write, named before any work (a JPEG is written below).
+    let bmp = out.with_extension("bmp");
+    expect_failure(
+        &[
+            "render",
+            "--scene",
+            "shells",
+            "--res",
+            "64x48",
+            "--out",
+            bmp.to_str().unwrap(),
+        ],
+        "images are written as .png (or .jpg)",
+        &bmp,
+    );
+    let kmap = ["--scene", "shells", "--kmap", "k.tiff", "--method", "vkb"];
+    expect_failure(&base(&kmap), "k.tiff", &out);
     let o2 = dhoit(&["render", "--scene", "shells", "--res", "0x48", "--out", o]);
     assert!(
         !o2.status.success() && String::from_utf8_lossy(&o2.stderr).contains("invalid resolution")

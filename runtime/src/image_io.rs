@@ -1,4 +1,5 @@
-//! PNG output: linear images encoded to sRGB, and heat maps of per-pixel values.
+//! Image output: linear images encoded to sRGB, and heat maps of per-pixel values, as PNG (or
+//! JPEG, where the path asks for it).
 
 use crate::composite::Image;
 use crate::error::{Error, Result};
@@ -15,16 +16,50 @@ pub fn linear_to_srgb(c: f32) -> f32 {
     }
 }
 
-/// Encodes 8-bit RGB pixels as PNG and writes them atomically.
-pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
-    let mut png = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut png)
-        .write_image(rgb, width, height, image::ExtendedColorType::Rgb8)
-        .map_err(|e| Error::Image {
+/// How an image path is encoded, by its extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Encoding {
+    Png,
+    /// Lossy (quality 90): for sharing, not for measuring.
+    Jpeg,
+}
+
+/// The encoding `path` asks for (`.png`, or `.jpg` / `.jpeg`, any case); anything else is an
+/// error naming the path, which a command checks before it renders.
+pub fn encoding(path: &Path) -> Result<Encoding> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("png") => Ok(Encoding::Png),
+        Some("jpg" | "jpeg") => Ok(Encoding::Jpeg),
+        _ => Err(Error::Image {
             path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
-    write_atomic(path, &png)
+            message: "images are written as .png (or .jpg); give a path ending in one".into(),
+        }),
+    }
+}
+
+/// Encodes 8-bit RGB pixels as the path's extension asks ([`encoding`]) and writes them
+/// atomically.
+pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
+    let mut bytes = Vec::new();
+    let encoded = match encoding(path)? {
+        Encoding::Png => image::codecs::png::PngEncoder::new(&mut bytes).write_image(
+            rgb,
+            width,
+            height,
+            image::ExtendedColorType::Rgb8,
+        ),
+        Encoding::Jpeg => image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 90)
+            .write_image(rgb, width, height, image::ExtendedColorType::Rgb8),
+    };
+    encoded.map_err(|e| Error::Image {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    write_atomic(path, &bytes)
 }
 
 /// Writes a linear image as an sRGB PNG.
