@@ -466,6 +466,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
         let label = scene::file_label(name);
         for &view in &a.view_list {
             let (fl, raster_ms) = rasterize_view(&scene, view, &a.common)?;
+            dhoit_runtime::frame::check_memory(&methods, &fl)?;
             for budget in &budgets {
                 let options = Options {
                     weights: weights.as_ref(),

@@ -74,6 +74,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let weights = load_weights(&a.common, a.precision, method == Method::Dkb)?;
     let scene = load_scene(&a.scene, &a.common)?;
     let (fl, _) = rasterize_view(&scene, a.view, &a.common)?;
+    if a.device == Device::Cpu {
+        dhoit_runtime::frame::check_memory(&[method], &fl)?;
+    }
     let options = Options {
         weights: weights.as_ref(),
         equal: a.equal,

@@ -1027,3 +1027,43 @@ fn a_bad_scene_or_view_late_in_a_list_stops_the_command_before_its_first_frame()
     ];
     fails(&dir, &args, "an orbit needs at least one view");
 }
+
+/// A view whose fragments would not fit in memory is refused before it is rasterized, with the
+/// numbers (here under a cap set by DHOIT_MAX_MEMORY, as on a small machine).
+#[test]
+fn a_view_too_large_for_memory_is_refused_before_rasterizing() {
+    let dir = case_dir("memory");
+    let args = [
+        "render", "--scene", "plates", "--res", "320x240", "--out", "{out}",
+    ];
+    fails_with_env(
+        &dir,
+        &args,
+        &[("DHOIT_MAX_MEMORY", "4MiB")],
+        "rasterizing them on the CPU takes about",
+    );
+    fails_with_env(
+        &dir,
+        &args,
+        &[("DHOIT_MAX_MEMORY", "plenty")],
+        "DHOIT_MAX_MEMORY='plenty'",
+    );
+    // Under 8 MiB, cad's view at 320x240 rasterizes (about 5 MiB at the peak), and then what
+    // each method adds is checked: DKB's features and importance do not fit (about 11 MiB),
+    // the A-buffer's image does (about 5 MiB), and is written.
+    let cap = [("DHOIT_MAX_MEMORY", "8MiB")];
+    let args = [
+        "render", "--scene", "cad", "--res", "320x240", "--out", "{out}",
+    ];
+    let dkb = [&args[..], &["--method", "dkb"]].concat();
+    fails_with_env(&dir, &dkb, &cap, "dkb needs about");
+    let out = dir.join("abuffer.png");
+    let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
+        .args(&args[..args.len() - 1])
+        .arg(&out)
+        .envs(cap)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.is_file());
+}

@@ -70,6 +70,22 @@ impl Method {
             })
     }
 
+    /// The most memory the method's CPU frame adds to its fragment lists, as bytes a fragment
+    /// and a pixel: its allocation's state, the image and its encoding. Fitted to the peak
+    /// resident size of `dhoit render` on `cad` at 4096x4096 (1.3 fragments a pixel) and
+    /// `particles` at 2048x2048 (9.7), less the lists' 28 bytes a fragment and 4 a pixel, and
+    /// rounded up (bounds, not measurements: where the rasterizer's peak hid the frame's, the
+    /// larger share is assumed): the sorted copies the composite takes, the image and its
+    /// encoding; the features and importance of DKB; the error curves and the allocation's
+    /// hulls or heaps of the optimal and the greedy ones.
+    pub fn frame_bytes(self) -> (u64, u64) {
+        match self {
+            Method::Abuffer | Method::Fkb | Method::Vkb | Method::Mlab => (28, 40),
+            Method::Dkb => (24, 120),
+            Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => (70, 40),
+        }
+    }
+
     /// The buffers the method's GPU pipeline creates.
     pub fn layout(self) -> Layout {
         match self {
@@ -353,6 +369,38 @@ impl<'a> Renderer<'a> {
     pub fn render(&self, method: Method) -> Result<Frame> {
         Ok(self.composite(self.allocate(method)?))
     }
+}
+
+/// Refuses a frame whose methods' CPU work ([`Method::frame_bytes`], the most of them) would
+/// not fit in the memory still available beside its fragment lists
+/// ([`crate::raster::available_memory`]), with the numbers: before any of them starts, where
+/// the allocation would fail or the system stop the process without a word.
+pub fn check_memory(methods: &[Method], fl: &FragmentLists) -> Result<()> {
+    let Some(available) = crate::raster::available_memory()? else {
+        return Ok(());
+    };
+    let (n, p) = (fl.fragment_count() as u64, fl.pixel_count() as u64);
+    let need = |m: &Method| {
+        let (a, b) = m.frame_bytes();
+        a.saturating_mul(n).saturating_add(b.saturating_mul(p))
+    };
+    if let Some(m) = methods.iter().max_by_key(|&m| need(m))
+        && need(m) > available
+    {
+        return Err(Error::Resolution(
+            format!("{}x{}", fl.width, fl.height),
+            format!(
+                "{} needs about {} beside the view's {n} fragments ({} a fragment, {} a \
+                     pixel), and {} is available: lower the resolution",
+                m.name(),
+                budget::format_bytes(need(m)),
+                m.frame_bytes().0,
+                m.frame_bytes().1,
+                budget::format_bytes(available),
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Renders `fl` with one method (see [`Renderer`] to share work between methods).

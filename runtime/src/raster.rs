@@ -349,10 +349,130 @@ fn plane_depth(t: &ScreenTri, px: f32, py: f32) -> f32 {
     (t.z[0] + dzdx * (px - a[0]) + dzdy * (py - a[1])).clamp(0.0, 1.0)
 }
 
-/// Rasterizes every triangle of `scene` seen by `cam` into per-pixel fragment lists.
+/// Bytes the rasterizer holds a fragment at its peak: the bands' lists and the frame's (depth,
+/// RGBA, primitive and facing, 28 bytes), while the one is copied into the other.
+pub const PEAK_BYTES_PER_FRAGMENT: u64 = 2 * 28;
+/// ... and a pixel: the bands' counts and the frame's offsets.
+pub const PEAK_BYTES_PER_PIXEL: u64 = 8;
+/// The environment variable that caps the memory a frame's rasterization may plan for (bytes
+/// as budgets take them: `8GiB`), in place of what the machine reports available.
+pub const MAX_MEMORY_VAR: &str = "DHOIT_MAX_MEMORY";
+
+/// The area of a triangle's part inside the window [0, w] x [0, h], in square pixels: close to
+/// the number of pixel centres it covers, so summed over a view's triangles, to its fragments.
+fn window_area(t: &ScreenTri, w: f64, h: f64) -> f64 {
+    // Sutherland-Hodgman against the window's four edges: (axis, bound, keep the side above).
+    let mut poly: Vec<[f64; 2]> = t.xyf.iter().map(|p| [p[0] as f64, p[1] as f64]).collect();
+    for (axis, bound, above) in [(0, 0.0, true), (0, w, false), (1, 0.0, true), (1, h, false)] {
+        let inside = |p: [f64; 2]| {
+            if above {
+                p[axis] >= bound
+            } else {
+                p[axis] <= bound
+            }
+        };
+        let mut out = Vec::with_capacity(poly.len() + 1);
+        for (i, &a) in poly.iter().enumerate() {
+            let b = poly[(i + 1) % poly.len()];
+            if inside(a) {
+                out.push(a);
+            }
+            if inside(a) != inside(b) {
+                let s = (bound - a[axis]) / (b[axis] - a[axis]);
+                out.push([a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1])]);
+            }
+        }
+        poly = out;
+        if poly.len() < 3 {
+            return 0.0;
+        }
+    }
+    let twice: f64 = (0..poly.len())
+        .map(|i| {
+            let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
+            p[0] * q[1] - q[0] * p[1]
+        })
+        .sum();
+    twice.abs() / 2.0
+}
+
+/// The memory a frame may plan for: [`MAX_MEMORY_VAR`] where set, else what Linux reports
+/// available (`MemAvailable`, and within a cgroup with a memory limit, that limit less its
+/// usage, if less); `None` where none of them is known.
+pub fn available_memory() -> Result<Option<u64>> {
+    if let Ok(v) = std::env::var(MAX_MEMORY_VAR) {
+        return match crate::budget::Budget::parse(&v) {
+            Ok(crate::budget::Budget::Bytes(b)) => Ok(Some(b)),
+            _ => Err(Error::Invalid(format!(
+                "{MAX_MEMORY_VAR}='{v}': expected bytes such as 8GiB or 500MB"
+            ))),
+        };
+    }
+    let read = |p: &str| std::fs::read_to_string(p).ok();
+    let meminfo = read("/proc/meminfo").and_then(|m| {
+        m.lines()
+            .find_map(|l| l.strip_prefix("MemAvailable:"))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+            .map(|kb| kb * 1024)
+    });
+    let number = |p: &str| read(p).and_then(|v| v.trim().parse::<u64>().ok());
+    let cgroup = number("/sys/fs/cgroup/memory.max")
+        .map(|max| max.saturating_sub(number("/sys/fs/cgroup/memory.current").unwrap_or(0)));
+    Ok(match (meminfo, cgroup) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    })
+}
+
+/// Refuses a view whose fragments would not fit in memory, before rasterizing it (where the
+/// allocation would fail or the system stop the process without a word).
+fn check_memory(width: u32, height: u32, fragments: f64) -> Result<()> {
+    let Some(available) = available_memory()? else {
+        return Ok(());
+    };
+    let pixels = width as f64 * height as f64;
+    let need = fragments * PEAK_BYTES_PER_FRAGMENT as f64 + pixels * PEAK_BYTES_PER_PIXEL as f64;
+    if need > available as f64 {
+        let source = if std::env::var_os(MAX_MEMORY_VAR).is_some() {
+            format!("{MAX_MEMORY_VAR} allows")
+        } else {
+            "this machine has available".to_string()
+        };
+        return Err(Error::Resolution(
+            format!("{width}x{height}"),
+            format!(
+                "the view covers about {:.0} fragments; rasterizing them on the CPU takes about {} \
+                 at its peak ({PEAK_BYTES_PER_FRAGMENT} bytes a fragment, {PEAK_BYTES_PER_PIXEL} a \
+                 pixel), and {source} {}: lower the resolution",
+                fragments.round(),
+                crate::budget::format_bytes(need as u64),
+                crate::budget::format_bytes(available),
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// About how many fragments a view of `scene` at `width` x `height` holds (the area of its
+/// triangles inside the window), without rasterizing it.
+pub fn estimate_fragments(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result<f64> {
+    check_resolution(width, height)?;
+    let tris = setup(scene, cam, width, height);
+    Ok(covered_area(&tris, width, height))
+}
+
+fn covered_area(tris: &[ScreenTri], width: u32, height: u32) -> f64 {
+    tris.par_iter()
+        .map(|t| window_area(t, width as f64, height as f64))
+        .sum()
+}
+
+/// Rasterizes every triangle of `scene` seen by `cam` into per-pixel fragment lists, after
+/// checking that they fit in memory ([`available_memory`]).
 pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result<FragmentLists> {
     check_resolution(width, height)?;
     let tris = setup(scene, cam, width, height);
+    check_memory(width, height, covered_area(&tris, width, height))?;
     let bands = height.div_ceil(BAND_ROWS);
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); bands as usize];
     for (i, t) in tris.iter().enumerate() {

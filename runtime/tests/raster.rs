@@ -262,3 +262,40 @@ fn impossible_resolutions_are_errors() {
         (640, 480)
     );
 }
+
+/// The memory check's fragment estimate (the triangles' area inside the window): exact for a
+/// quad that overhangs the window on every side (clipped to it), and within 2% of the
+/// rasterized count for every built-in scene at 320x240.
+#[test]
+fn the_fragment_estimate_clips_to_the_window_and_follows_the_count() {
+    use dhoit_runtime::raster::estimate_fragments;
+    let (w, h) = (64u32, 48u32);
+    let c = [
+        ndc(-20.0, -9.0, w, h, 0.5),
+        ndc(90.0, -9.0, w, h, 0.5),
+        ndc(90.0, 70.0, w, h, 0.5),
+        ndc(-20.0, 70.0, w, h, 0.5),
+    ];
+    let mut s = Scene::default();
+    s.push_triangle([c[0], c[1], c[2]], [WHITE; 3]);
+    s.push_triangle([c[0], c[2], c[3]], [WHITE; 3]);
+    let e = estimate_fragments(&s, &ndc_camera(), w, h).unwrap();
+    assert!((e - (w * h) as f64).abs() < 1e-6, "{e}");
+    assert_eq!(
+        rasterize(&s, &ndc_camera(), w, h).unwrap().fragment_count(),
+        (w * h) as usize
+    );
+    let (w, h) = (320, 240);
+    for (name, _) in dhoit_runtime::scene::procedural::BUILTIN {
+        let s = dhoit_runtime::scene::load(name, Default::default()).unwrap();
+        for view in [0, 3] {
+            let cam = Camera::orbit(&s, view, 8, w, h);
+            let e = estimate_fragments(&s, &cam, w, h).unwrap();
+            let n = rasterize(&s, &cam, w, h).unwrap().fragment_count() as f64;
+            assert!(
+                (e / n - 1.0).abs() < 0.02,
+                "{name} view {view}: {e} against {n}"
+            );
+        }
+    }
+}
