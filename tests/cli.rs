@@ -192,35 +192,20 @@ fn allocation_methods_render_from_the_command_line() {
             );
         }
     }
-    let o = dhoit(&[
-        "render",
-        "--scene",
-        "hair",
-        "--res",
-        "64x48",
-        "--method",
-        "optimal",
-        "--out",
-        dir.join("o.png").to_str().unwrap(),
-    ]);
+    let png = dir.join("o.png");
+    let o = dhoit(&hair_render("optimal", &["--out", png.to_str().unwrap()]));
     assert!(String::from_utf8_lossy(&o.stdout).contains("lower bound"));
     // The image and the k map as JPEG where their paths ask for it (and PNG above).
     let (jpg, kjpg) = (dir.join("o.JPG"), dir.join("k.jpeg"));
-    let o = dhoit(&[
-        "render",
-        "--scene",
-        "hair",
-        "--res",
-        "64x48",
-        "--method",
-        "vkb",
+    let images = [
         "--out",
         jpg.to_str().unwrap(),
         "--kmap",
         kjpg.to_str().unwrap(),
-    ]);
+    ];
+    let o = dhoit(&hair_render("vkb", &images));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    for (path, png) in [(&jpg, false), (&kjpg, false), (&dir.join("o.png"), true)] {
+    for (path, png) in [(&jpg, false), (&kjpg, false), (&png, true)] {
         let bytes = std::fs::read(path).unwrap();
         let magic: &[u8] = if png { b"\x89PNG" } else { b"\xff\xd8\xff" };
         assert!(bytes.starts_with(magic), "{}", path.display());
@@ -229,23 +214,22 @@ fn allocation_methods_render_from_the_command_line() {
     let bad = dir.join("bad.safetensors");
     std::fs::write(&bad, b"nope").unwrap();
     let out = dir.join("never.png");
-    expect_failure(
-        &[
-            "render",
-            "--scene",
-            "hair",
-            "--res",
-            "64x48",
-            "--method",
-            "dkb",
-            "--weights",
-            bad.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        "not a safetensors file",
-        &out,
-    );
+    let args = [
+        "--weights",
+        bad.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    expect_failure(&hair_render("dkb", &args), "not a safetensors file", &out);
+}
+
+/// `render` of hair at 64x48 with `method`, then `rest`.
+fn hair_render<'a>(method: &'a str, rest: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec![
+        "render", "--scene", "hair", "--res", "64x48", "--method", method,
+    ];
+    args.extend_from_slice(rest);
+    args
 }
 
 fn expect_failure(args: &[&str], needle: &str, out: &Path) {
