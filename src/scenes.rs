@@ -6,17 +6,29 @@ use dhoit_runtime::scene::{self, Opacity};
 use std::path::{Path, PathBuf};
 
 pub fn list() -> Result<()> {
+    let folder = std::env::var_os("DHOIT_SCENES");
+    if let Some(dir) = folder.as_deref().map(Path::new).filter(|d| !d.is_dir()) {
+        bail!(
+            "DHOIT_SCENES={}: not a folder (unset it, or point it at a folder of .gltf/.glb \
+             files)",
+            dir.display()
+        );
+    }
     println!("{:<12} {:>10}  description", "built-in", "triangles");
     for (name, desc) in scene::procedural::BUILTIN {
         let s = scene::procedural::build(name).expect("built-in scene");
         println!("{:<12} {:>10}  {}", name, s.triangle_count(), desc);
     }
-    match std::env::var_os("DHOIT_SCENES") {
+    match folder {
         Some(dir) => {
-            println!("\nglTF files under {}:", Path::new(&dir).display());
+            let dir = Path::new(&dir);
+            println!("\nglTF files under {}:", dir.display());
             let mut files = Vec::new();
-            find_gltf(Path::new(&dir), &mut files, 0);
+            find_gltf(dir, &mut files, 0);
             files.sort();
+            if files.is_empty() {
+                println!("(none: no .gltf or .glb file in it or its subfolders, 4 deep)");
+            }
             for f in files {
                 match scene::load(&f.to_string_lossy(), Opacity::Material) {
                     Ok(s) => println!("{:>10}  {}", s.triangle_count(), f.display()),

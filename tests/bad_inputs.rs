@@ -1067,3 +1067,11 @@ fn a_view_too_large_for_memory_is_refused_before_rasterizing() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.is_file());
 }
+
+#[test]
+fn scenes_under_a_folder_that_is_not_there() {
+    let dir = case_dir("scenes-folder");
+    let missing = dir.join("no-such-folder");
+    let env = [("DHOIT_SCENES", missing.to_str().unwrap())];
+    fails_with_env(&dir, &["scenes"], &env, "no-such-folder: not a folder");
+}
