@@ -60,11 +60,12 @@ pub fn run(a: BenchArgs) -> Result<()> {
     } else {
         a.scenes.clone()
     };
-    // Every scene checked before the first measurement (a scene that fails later, on the
+    // Every scene loaded before the first measurement (a scene that fails later, on the
     // device, is recorded in the report beside the others).
-    for name in &names {
-        scene::load(name, Opacity::default())?;
-    }
+    let scenes = names
+        .iter()
+        .map(|name| Ok((name.clone(), scene::load(name, Opacity::default())?)))
+        .collect::<Result<Vec<(String, scene::Scene)>>>()?;
     if a.gpu_only {
         let report = |gpu: serde_json::Value| {
             serde_json::json!({
@@ -88,14 +89,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 }
             }
         };
-        let gpu = gpu_bench(&names, w, h, budget, a.repeat, &mut partial);
+        let gpu = gpu_bench(&scenes, w, h, budget, a.repeat, &mut partial);
         return write_report(report(gpu), a.out.as_deref());
     }
     let mut results = Vec::new();
-    for name in &names {
-        let s = scene::load(name, Opacity::default())?;
-        let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
-        let (t_raster, fl) = best(a.repeat, || Ok(raster::rasterize(&s, &cam, w, h)?))?;
+    for (name, s) in &scenes {
+        let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, w, h);
+        let (t_raster, fl) = best(a.repeat, || Ok(raster::rasterize(s, &cam, w, h)?))?;
         let frags = fl.fragment_count() as f64;
         let mut entry = serde_json::json!({
             "scene": name, "triangles": s.triangle_count(), "width": w, "height": h,
@@ -173,7 +173,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         "burn_inference_samples_per_s": burn_sps,
         "cpu_twin_inference_samples_per_s": feats.len() as f64 / t_twin,
     });
-    let gpu = gpu_bench(&names, w, h, budget, a.repeat, &mut |_| {});
+    let gpu = gpu_bench(&scenes, w, h, budget, a.repeat, &mut |_| {});
     let report = serde_json::json!({
         "threads": rayon::current_num_threads(),
         "gpu": gpu,
@@ -221,7 +221,7 @@ fn configure(gpu: &mut dhoit_runtime::gpu::Gpu, label: &str) {
 /// the image read back); an error entry when no suitable adapter exists.
 /// `partial` sees the report so far after each scene.
 fn gpu_bench(
-    names: &[String],
+    loaded: &[(String, scene::Scene)],
     w: u32,
     h: u32,
     budget: Budget,
@@ -277,11 +277,10 @@ fn gpu_bench(
     let adapter = gpu.adapter.clone();
     let summary = |scenes: &[serde_json::Value]| serde_json::json!({"adapter": adapter, "width": w, "height": h, "budget": budget.to_string(), "weights": weights, "weights_16_8": small_weights, "scenes": scenes});
     let mut scenes = Vec::new();
-    for name in names {
+    for (name, s) in loaded {
         let mut run = || -> Result<serde_json::Value> {
-            let s = scene::load(name, Opacity::default())?;
-            let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
-            let fl = raster::rasterize(&s, &cam, w, h)?;
+            let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, w, h);
+            let fl = raster::rasterize(s, &cam, w, h)?;
             // Each method's k and F as `render --device gpu` gives them (Slots::for_method on
             // the CPU's allocation), so a byte budget benches the k render uses.
             let options = Options {
@@ -344,7 +343,7 @@ fn gpu_bench(
                 // that reuse them and read back only the image: medians of those.
                 let timed = |gpu: &dhoit_runtime::gpu::Gpu| -> Result<(f64, f64, _)> {
                     let t = Instant::now();
-                    let g = gpu.render(&s, &cam, w, h, [1.0; 3], slots)?;
+                    let g = gpu.render(s, &cam, w, h, [1.0; 3], slots)?;
                     let wall = t.elapsed().as_secs_f64() * 1e3;
                     let passes: f64 = g.pass_ms.iter().map(|p| p.1).sum();
                     Ok((passes, wall, g))
