@@ -376,31 +376,20 @@ impl<'a> Renderer<'a> {
 /// ([`crate::raster::available_memory`]), with the numbers: before any of them starts, where
 /// the allocation would fail or the system stop the process without a word.
 pub fn check_memory(methods: &[Method], fl: &FragmentLists) -> Result<()> {
-    let Some(available) = crate::raster::available_memory()? else {
-        return Ok(());
-    };
     let (n, p) = (fl.fragment_count() as u64, fl.pixel_count() as u64);
-    let need = |m: &Method| {
+    let need = |m: Method| {
         let (a, b) = m.frame_bytes();
         a.saturating_mul(n).saturating_add(b.saturating_mul(p))
     };
-    if let Some(m) = methods.iter().max_by_key(|&m| need(m))
-        && need(m) > available
-    {
-        return Err(Error::Resolution(
-            format!("{}x{}", fl.width, fl.height),
-            format!(
-                "{} needs about {} beside the view's {n} fragments ({} a fragment, {} a \
-                     pixel), and {} is available: lower the resolution",
-                m.name(),
-                budget::format_bytes(need(m)),
-                m.frame_bytes().0,
-                m.frame_bytes().1,
-                budget::format_bytes(available),
-            ),
-        ));
-    }
-    Ok(())
+    let Some(&m) = methods.iter().max_by_key(|&&m| need(m)) else {
+        return Ok(());
+    };
+    let (a, b) = m.frame_bytes();
+    crate::raster::check_fits(fl.width, fl.height, need(m), |bytes| {
+        format!(
+            "{m} needs about {bytes} beside the view's {n} fragments ({a} a fragment, {b} a pixel)"
+        )
+    })
 }
 
 /// Renders `fl` with one method (see [`Renderer`] to share work between methods).

@@ -424,33 +424,49 @@ pub fn available_memory() -> Result<Option<u64>> {
     })
 }
 
-/// Refuses a view whose fragments would not fit in memory, before rasterizing it (where the
-/// allocation would fail or the system stop the process without a word).
-fn check_memory(width: u32, height: u32, fragments: f64) -> Result<()> {
+/// Refuses work on a `width` x `height` frame that needs `need` bytes where less is available
+/// ([`available_memory`]), where the allocation would fail or the system stop the process
+/// without a word: `what` says what needs them; the error adds what is available.
+pub fn check_fits(
+    width: u32,
+    height: u32,
+    need: u64,
+    what: impl FnOnce(&str) -> String,
+) -> Result<()> {
     let Some(available) = available_memory()? else {
         return Ok(());
     };
-    let pixels = width as f64 * height as f64;
-    let need = fragments * PEAK_BYTES_PER_FRAGMENT as f64 + pixels * PEAK_BYTES_PER_PIXEL as f64;
-    if need > available as f64 {
-        let source = if std::env::var_os(MAX_MEMORY_VAR).is_some() {
-            format!("{MAX_MEMORY_VAR} allows")
-        } else {
-            "this machine has available".to_string()
-        };
-        return Err(Error::Resolution(
-            format!("{width}x{height}"),
-            format!(
-                "the view covers about {:.0} fragments; rasterizing them on the CPU takes about {} \
-                 at its peak ({PEAK_BYTES_PER_FRAGMENT} bytes a fragment, {PEAK_BYTES_PER_PIXEL} a \
-                 pixel), and {source} {}: lower the resolution",
-                fragments.round(),
-                crate::budget::format_bytes(need as u64),
-                crate::budget::format_bytes(available),
-            ),
-        ));
+    if need <= available {
+        return Ok(());
     }
-    Ok(())
+    let available = crate::budget::format_bytes(available);
+    let source = if std::env::var_os(MAX_MEMORY_VAR).is_some() {
+        format!("{MAX_MEMORY_VAR} allows {available}")
+    } else {
+        format!("this machine has {available} available")
+    };
+    Err(Error::Resolution(
+        format!("{width}x{height}"),
+        format!(
+            "{}, and {source}: lower the resolution",
+            what(&crate::budget::format_bytes(need))
+        ),
+    ))
+}
+
+/// Refuses a view whose fragments would not fit in memory, before rasterizing it.
+fn check_memory(width: u32, height: u32, fragments: f64) -> Result<()> {
+    let pixels = width as u64 * height as u64;
+    let need = fragments * PEAK_BYTES_PER_FRAGMENT as f64;
+    let need = need as u64 + pixels * PEAK_BYTES_PER_PIXEL;
+    check_fits(width, height, need, |need| {
+        format!(
+            "the view covers about {:.0} fragments; rasterizing them on the CPU takes about \
+             {need} at its peak ({PEAK_BYTES_PER_FRAGMENT} bytes a fragment, \
+             {PEAK_BYTES_PER_PIXEL} a pixel)",
+            fragments.round()
+        )
+    })
 }
 
 /// About how many fragments a view of `scene` at `width` x `height` holds (the area of its
