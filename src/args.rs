@@ -64,11 +64,10 @@ fn parse_rgb(s: &str) -> std::result::Result<[f32; 3], String> {
 
 /// `--views`: a whole number of at least one.
 fn parse_views(s: &str) -> std::result::Result<usize, String> {
-    match s.parse::<usize>() {
-        Ok(0) => Err("an orbit needs at least one view".into()),
-        Ok(n) => Ok(n),
-        Err(e) => Err(format!("'{s}' is not a number of views: {e}")),
-    }
+    let n = s
+        .parse::<usize>()
+        .map_err(|e| format!("'{s}' is not a number of views: {e}"))?;
+    scene::check_view(0, n).map(|()| n)
 }
 
 pub(crate) fn load_scene(name: &str, a: &ViewArgs) -> Result<Scene> {
@@ -90,12 +89,9 @@ pub(crate) fn load_scenes(names: &[String], a: &ViewArgs) -> Result<Vec<Scene>> 
     names.iter().map(|name| load_scene(name, a)).collect()
 }
 
-/// That `view` is one of the orbit's `views`.
+/// That `view` is one of the orbit's `views` ([`scene::check_view`]).
 pub(crate) fn check_view(view: usize, views: usize) -> Result<()> {
-    if view >= views {
-        bail!("view {view} does not exist: there are {views} views (0..{views})");
-    }
-    Ok(())
+    scene::check_view(view, views).map_err(anyhow::Error::msg)
 }
 
 pub(crate) fn rasterize_view(

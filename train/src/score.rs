@@ -98,13 +98,8 @@ impl Prepared {
     /// networks; `progress` is called after each (scene, view).
     pub fn new(spec: &ScoreSpec, progress: &(dyn Fn() + Sync)) -> Result<Prepared> {
         // Every view and scene checked before the first frame.
-        if let Some(view) = spec.views.iter().find(|&&v| v >= spec.orbit_views) {
-            let n = spec.orbit_views;
-            return Err(Error::Config(if n == 0 {
-                "an orbit needs at least one view".to_string()
-            } else {
-                format!("view {view} does not exist: there are {n} views (0..{n})")
-            }));
+        for &view in spec.views {
+            scene::check_view(view, spec.orbit_views).map_err(Error::Config)?;
         }
         let scenes = spec
             .scenes

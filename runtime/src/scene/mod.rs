@@ -194,6 +194,20 @@ pub struct Camera {
 /// Number of orbit views a scene is seen from by default.
 pub const DEFAULT_VIEWS: usize = 8;
 
+/// Whether `view` is one of an orbit of `views` ([`Camera::orbit`]); otherwise the message,
+/// for the caller's error.
+pub fn check_view(view: usize, views: usize) -> std::result::Result<(), String> {
+    if views == 0 {
+        return Err("an orbit needs at least one view".into());
+    }
+    if view >= views {
+        return Err(format!(
+            "view {view} does not exist: there are {views} views (0..{views})"
+        ));
+    }
+    Ok(())
+}
+
 impl Camera {
     /// View `view` of `views` evenly spaced around the bounding sphere, alternating between
     /// looking down (25 degrees) and up (-15 degrees), framing the whole sphere with a 45 degree
