@@ -70,6 +70,15 @@ fn parse_views(s: &str) -> std::result::Result<usize, String> {
     scene::check_view(0, n).map(|()| n)
 }
 
+/// `--repeat`: a whole number of at least one (timed repetitions).
+pub(crate) fn parse_repeat(s: &str) -> std::result::Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("at least one repetition is needed to time anything".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("'{s}' is not a number of repetitions: {e}")),
+    }
+}
+
 pub(crate) fn load_scene(name: &str, a: &ViewArgs) -> Result<Scene> {
     let opacity = if a.material_alpha {
         Opacity::Material

@@ -20,7 +20,7 @@ pub struct BenchArgs {
     res: Resolution,
     /// Timed repetitions per measurement: the fastest is reported on the CPU, the median of
     /// the steady frames (after 0.25 s of warm-up) on the GPU.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = crate::args::parse_repeat)]
     repeat: usize,
     /// Budget of every bounded method (F of the k-buffers, MLAB's rows), as `render --budget`
     /// takes it.
@@ -66,6 +66,12 @@ pub fn run(a: BenchArgs) -> Result<()> {
         .iter()
         .map(|name| Ok((name.clone(), scene::load(name, Opacity::default())?)))
         .collect::<Result<Vec<(String, scene::Scene)>>>()?;
+    // A budget too small for a method measured is refused before the first measurement (on
+    // the GPU it would be recorded as every scene's error). MLAB, measured on the CPU only,
+    // needs less than FKB.
+    for m in [Method::Fkb, Method::Optimal, Method::Vkb, Method::Dkb] {
+        dhoit_runtime::frame::check_budget(budget, m, w, h)?;
+    }
     if a.gpu_only {
         let report = |gpu: serde_json::Value| {
             serde_json::json!({

@@ -83,7 +83,7 @@ pub struct TradeArgs {
     #[arg(long, default_value = "auto")]
     timing: Timing,
     /// Timed repetitions; the fastest is kept.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = crate::args::parse_repeat)]
     repeat: usize,
     /// Directory for trade.json, trade.md and the plots (trade_SCENE.svg/.png, trade_all).
     #[arg(long, default_value = "out/trade")]

@@ -787,6 +787,40 @@ fn budget_below_the_fixed_cost() {
     );
 }
 
+/// `bench` measures FKB, the optimal allocation, VKB and DKB at one budget: one too small for
+/// any of them is refused before the first measurement, as `render` refuses it (with
+/// `--gpu-only` it used to become every scene's recorded error, and the run exited 0).
+#[test]
+fn bench_budget_a_method_cannot_hold() {
+    let dir = case_dir("bench-budget");
+    for (budget, needle) in [
+        ("1KB", "fkb needs"),
+        ("0.5fpp", "fkb needs one slot for every pixel"),
+    ] {
+        for gpu_only in [true, false] {
+            let mut args = vec![
+                "bench", "--scenes", "cad", "--res", "32x24", "--budget", budget, "--out", "{out}",
+            ];
+            if gpu_only {
+                args.push("--gpu-only");
+            }
+            fails(&dir, &args, needle);
+        }
+    }
+}
+
+#[test]
+fn no_repetitions() {
+    let dir = case_dir("repeat");
+    for cmd in ["bench", "trade"] {
+        fails(
+            &dir,
+            &[cmd, "--repeat", "0", "--out", "{out}"],
+            "at least one repetition",
+        );
+    }
+}
+
 #[test]
 fn opacity_not_a_number() {
     bad_render(

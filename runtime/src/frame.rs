@@ -112,6 +112,33 @@ impl std::fmt::Display for Method {
     }
 }
 
+/// FKB and MLAB give every pixel the same k (slots, rows): F must hold one for every pixel.
+fn check_slot_per_pixel(method: Method, given: Budget, f: u64, w: u32, h: u32) -> Result<()> {
+    let pixels = w as u64 * h as u64;
+    if matches!(method, Method::Fkb | Method::Mlab) && f < pixels {
+        return Err(Error::Budget(
+            given.to_string(),
+            format!(
+                "{method} needs one slot for every pixel: at least {} at {w}x{h}",
+                budget::format_bytes(method.layout().allocated_bytes(pixels, pixels)),
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses, before any frame is rendered, a budget that cannot hold `method` at `w`x`h`: its
+/// fixed cost, and a slot for every pixel where the method needs one. A budget in bytes or in
+/// slots per pixel depends on the resolution alone; a share of the frame's fragments (and the
+/// exact A-buffer) passes here and is checked with each frame.
+pub fn check_budget(given: Budget, method: Method, w: u32, h: u32) -> Result<()> {
+    if method == Method::Abuffer || matches!(given, Budget::Share(_)) {
+        return Ok(());
+    }
+    let (_, f) = given.resolve(&method.layout(), w as u64 * h as u64, 0)?;
+    check_slot_per_pixel(method, given, f, w, h)
+}
+
 /// What rendering one frame with one method produced.
 #[derive(Clone, Debug)]
 pub struct Frame {
@@ -279,26 +306,13 @@ impl<'a> Renderer<'a> {
             Method::Abuffer => (layout.allocated_bytes(pixels, total), total),
             _ => self.budget()?.resolve(&layout, pixels, total)?,
         };
-        let uniform_k = |what: &str| -> Result<Vec<u32>> {
-            let k = alloc::fixed(pixels as usize, f);
-            if k.first().is_some_and(|&k| k == 0) {
-                return Err(Error::Budget(
-                    opts.budget.to_string(),
-                    format!(
-                        "{what} needs one slot for every pixel: at least {} at {}x{}",
-                        budget::format_bytes(layout.allocated_bytes(pixels, pixels)),
-                        fl.width,
-                        fl.height
-                    ),
-                ));
-            }
-            Ok(k)
-        };
         let mut optimal = None;
         let k = match method {
             Method::Abuffer => counts,
-            Method::Fkb => uniform_k("fkb")?,
-            Method::Mlab => uniform_k("mlab")?,
+            Method::Fkb | Method::Mlab => {
+                check_slot_per_pixel(method, opts.budget, f, fl.width, fl.height)?;
+                alloc::fixed(pixels as usize, f)
+            }
             Method::Vkb | Method::Dkb if !cpu_k => Vec::new(),
             Method::Vkb => {
                 let imp = importance::vkb_importance(fl, &opts.vkb);
