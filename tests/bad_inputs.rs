@@ -878,6 +878,26 @@ fn unwritable_output() {
     );
 }
 
+/// A dump or k map that cannot be written stops `render` before its image is written
+/// (`fails` checks that `{out}` is not there).
+#[test]
+fn unwritable_dump_or_kmap_leaves_no_image() {
+    let dir = case_dir("unwritable-extra");
+    std::fs::write(dir.join("file"), b"x").unwrap();
+    let below_a_file = dir.join("file/sub");
+    let kmap = below_a_file.join("k.png");
+    for extra in [
+        ["--dump", below_a_file.to_str().unwrap()],
+        ["--kmap", kmap.to_str().unwrap()],
+    ] {
+        let mut args = vec![
+            "render", "--scene", "cad", "--res", "32x24", "--out", "{out}",
+        ];
+        args.extend(extra);
+        fails(&dir, &args, "cannot create the folder");
+    }
+}
+
 #[test]
 fn export_without_a_glb_name() {
     let dir = case_dir("export-name");
