@@ -789,9 +789,10 @@ fn budget_below_the_fixed_cost() {
 
 /// `bench` measures FKB, the optimal allocation, VKB and DKB at one budget: one too small for
 /// any of them is refused before the first measurement, as `render` refuses it (with
-/// `--gpu-only` it used to become every scene's recorded error, and the run exited 0).
+/// `--gpu-only` it used to become every scene's recorded error, and the run exited 0); so is
+/// a report it could not write (it used to fail after measuring).
 #[test]
-fn bench_budget_a_method_cannot_hold() {
+fn bench_refuses_a_budget_or_report_it_cannot_use_before_measuring() {
     let dir = case_dir("bench-budget");
     for (budget, needle) in [
         ("1KB", "fkb needs"),
@@ -807,6 +808,27 @@ fn bench_budget_a_method_cannot_hold() {
             fails(&dir, &args, needle);
         }
     }
+    // A report that cannot be written is found before the first measurement (the GPU part
+    // names its adapter when it starts).
+    std::fs::write(dir.join("file"), b"x").unwrap();
+    let report = dir.join("file/bench.json");
+    let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
+        .args([
+            "bench",
+            "--gpu-only",
+            "--scenes",
+            "cad",
+            "--res",
+            "32x24",
+            "--out",
+        ])
+        .arg(&report)
+        .output()
+        .expect("run dhoit");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "an unwritable report succeeded");
+    assert!(err.contains("cannot create the folder"), "{err}");
+    assert!(!err.contains("GPU:"), "measured before refusing: {err}");
 }
 
 #[test]
