@@ -74,12 +74,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
     }
     // The report's folder too: a run on a lent GPU must not measure for minutes and then fail
     // to write what it measured.
-    if let Some(dir) = a.out.as_deref().and_then(std::path::Path::parent)
-        && !dir.as_os_str().is_empty()
-    {
-        std::fs::create_dir_all(dir).map_err(|e| {
-            dhoit_runtime::Error::io_op(dhoit_runtime::error::IoOp::CreateFolder, dir, e)
-        })?;
+    if let Some(path) = &a.out {
+        crate::args::make_parent(path)?;
     }
     if a.gpu_only {
         let report = |gpu: serde_json::Value| {

@@ -1,17 +1,18 @@
 //! `dhoit render`: one view of a scene with one method, on the CPU reference or the GPU.
 
-use crate::args::{ViewArgs, kmap_rgb8, load_scene, load_weights, rasterize_view};
+use crate::args::{
+    ViewArgs, kmap_rgb8, load_scene, load_weights, make_folder, make_parent, rasterize_view,
+};
 use anyhow::Result;
 use clap::{Args, ValueEnum};
 use dhoit_runtime::budget::{Budget, format_bytes};
 use dhoit_runtime::dump;
-use dhoit_runtime::error::IoOp;
 use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
 use dhoit_runtime::gpu::{DkbGeometry, Gpu, Slots};
 use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::Precision;
 use dhoit_runtime::scene::Camera;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Where a frame is rendered.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -80,16 +81,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     // Every output's folder before the frame: an output that cannot be written stops the
     // command before any other is (the image used to be written before a dump folder failed).
-    let folders = [
-        a.out.parent(),
-        a.kmap.as_deref().and_then(Path::parent),
-        a.dump.as_deref(),
-    ];
-    for dir in folders.into_iter().flatten() {
-        if !dir.as_os_str().is_empty() {
-            std::fs::create_dir_all(dir)
-                .map_err(|e| dhoit_runtime::Error::io_op(IoOp::CreateFolder, dir, e))?;
-        }
+    make_parent(&a.out)?;
+    if let Some(path) = &a.kmap {
+        make_parent(path)?;
+    }
+    if let Some(dir) = &a.dump {
+        make_folder(dir)?;
     }
     let options = Options {
         weights: weights.as_ref(),

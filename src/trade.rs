@@ -635,6 +635,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
     let steps = a.quality.view_list.len() * a.quality.budgets.len();
     let pb = bar(steps as u64, "frames");
     let s = load_scene(&a.scene, &a.quality.common)?;
+    crate::args::make_parent(&a.out)?;
     let measures = quality(&s, &a.quality, &nets, &pb)?;
     pb.finish_and_clear();
     let mut chosen = None;

@@ -920,6 +920,36 @@ fn unwritable_dump_or_kmap_leaves_no_image() {
     }
 }
 
+/// `fit` scores every shipped network before it writes one: a weights path it cannot write is
+/// refused before the first is scored.
+#[test]
+fn fit_to_an_unwritable_path() {
+    let dir = case_dir("fit-unwritable");
+    std::fs::write(dir.join("file"), b"x").unwrap();
+    let weights = dir.join("file/w.safetensors");
+    let args = ["fit", "--scene", "cad", "--res", "32x24", "--target", "100"];
+    let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
+        .args(args)
+        .arg("--out")
+        .arg(&weights)
+        .output()
+        .expect("run dhoit");
+    let (out, err) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    assert!(
+        !o.status.success(),
+        "fit to {} succeeded",
+        weights.display()
+    );
+    assert!(err.contains("cannot create the folder"), "{err}");
+    assert!(
+        !out.contains("MSE / optimal"),
+        "scored before refusing: {out}"
+    );
+}
+
 #[test]
 fn export_without_a_glb_name() {
     let dir = case_dir("export-name");
@@ -967,6 +997,11 @@ fn training_settings_that_cannot_work_are_refused_before_the_dataset_is_read() {
         let args = ["train", "--data", data, setting, value, "--out", "{out}"];
         fails(&dir, &args, needle);
     }
+    // So is a weights file whose folder cannot be made (it used to fail after the last epoch).
+    std::fs::write(dir.join("file"), b"x").unwrap();
+    let weights = dir.join("file/w.safetensors");
+    let args = ["train", "--data", data, "--out", weights.to_str().unwrap()];
+    fails(&dir, &args, "cannot create the folder");
 }
 
 #[test]

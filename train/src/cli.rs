@@ -265,6 +265,8 @@ pub fn train(a: TrainArgs) -> Result<()> {
         .filter(|d| !d.as_os_str().is_empty())
         .unwrap_or(Path::new("."))
         .to_path_buf();
+    // The weights' folder before the data: a training run must not end unable to write them.
+    std::fs::create_dir_all(&dir).map_err(|e| Error::io_op(crate::IoOp::CreateFolder, &dir, e))?;
     let own_config = if own {
         let Resolution { width, height } = a.res;
         Some(DatasetConfig {
