@@ -812,19 +812,17 @@ fn bench_refuses_a_budget_or_report_it_cannot_use_before_measuring() {
     // names its adapter when it starts).
     std::fs::write(dir.join("file"), b"x").unwrap();
     let report = dir.join("file/bench.json");
-    let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
-        .args([
-            "bench",
-            "--gpu-only",
-            "--scenes",
-            "cad",
-            "--res",
-            "32x24",
-            "--out",
-        ])
-        .arg(&report)
-        .output()
-        .expect("run dhoit");
+    let report = report.to_str().unwrap();
+    let o = common::dhoit(&[
+        "bench",
+        "--gpu-only",
+        "--scenes",
+        "cad",
+        "--res",
+        "32x24",
+        "--out",
+        report,
+    ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "an unwritable report succeeded");
     assert!(err.contains("cannot create the folder"), "{err}");
@@ -927,22 +925,15 @@ fn fit_to_an_unwritable_path() {
     let dir = case_dir("fit-unwritable");
     std::fs::write(dir.join("file"), b"x").unwrap();
     let weights = dir.join("file/w.safetensors");
-    let args = ["fit", "--scene", "cad", "--res", "32x24", "--target", "100"];
-    let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
-        .args(args)
-        .arg("--out")
-        .arg(&weights)
-        .output()
-        .expect("run dhoit");
+    let weights = weights.to_str().unwrap();
+    let o = common::dhoit(&[
+        "fit", "--scene", "cad", "--res", "32x24", "--target", "100", "--out", weights,
+    ]);
     let (out, err) = (
         String::from_utf8_lossy(&o.stdout),
         String::from_utf8_lossy(&o.stderr),
     );
-    assert!(
-        !o.status.success(),
-        "fit to {} succeeded",
-        weights.display()
-    );
+    assert!(!o.status.success(), "fit to {weights} succeeded");
     assert!(err.contains("cannot create the folder"), "{err}");
     assert!(
         !out.contains("MSE / optimal"),
