@@ -77,6 +77,15 @@ proptest! {
     }
 
     #[test]
+    fn mlab_rows_past_the_fragments_change_nothing(f in fragments(24), extra in 1usize..4) {
+        let m = f.len().max(1);
+        let a = mlab_pixel(&f, m, BG).map(f32::to_bits);
+        prop_assert_eq!(a, mlab_pixel(&f, m + extra, BG).map(f32::to_bits));
+        // A budget of gigabytes: as many rows as slots, taken as the fragments.
+        prop_assert_eq!(a, mlab_pixel(&f, usize::MAX / 2, BG).map(f32::to_bits));
+    }
+
+    #[test]
     fn every_method_stays_finite_at_the_extremes(
         n in 0usize..3000,
         alphas in prop::collection::vec(prop::sample::select(vec![0.0f32, 1e-7, 1.0, 0.5, 1.0 - 1e-7, 1.0 / 255.0]), 3000),
