@@ -367,6 +367,29 @@ fn compare_prints_a_table_and_writes_a_report() {
     assert!(records.iter().all(|r| r["mse"].as_f64().unwrap() >= 0.0));
 }
 
+/// A font asked for by DHOIT_FONT that cannot be used is named, whether another font draws
+/// the text instead or none does; the pictures are still written.
+#[test]
+fn a_font_that_cannot_be_read_is_named() {
+    let dir = temp_dir("cli-font");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_dhoit"))
+        .args([
+            "compare", "--scene", "cad", "--res", "32x24", "--budget", "2fpp",
+        ])
+        .arg("--out")
+        .arg(&dir)
+        .env("DHOIT_FONT", "/no/such/font.ttf")
+        .output()
+        .expect("run dhoit");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("DHOIT_FONT=/no/such/font.ttf is not a readable TrueType font"),
+        "{err}"
+    );
+    assert!(dir.join("cad_v0_2fpp_montage.png").is_file());
+}
+
 #[test]
 fn the_gpu_renders_from_the_command_line() {
     if skip_gpu("GPU command-line test") {

@@ -36,12 +36,20 @@ pub fn font() -> std::result::Result<&'static Path, &'static str> {
             .chain(FONT_PATHS.iter().map(PathBuf::from))
             .collect();
         for p in &candidates {
-            let Ok(bytes) = std::fs::read(p) else {
-                continue;
-            };
-            // plotters keeps fonts for the life of the process.
-            let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-            if plotters::style::register_font(FAMILY, FontStyle::Normal, bytes).is_ok() {
+            let registered = std::fs::read(p).is_ok_and(|bytes| {
+                // plotters keeps fonts for the life of the process.
+                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                plotters::style::register_font(FAMILY, FontStyle::Normal, bytes).is_ok()
+            });
+            if registered {
+                // A font asked for by name and not used is said, not passed over in silence.
+                if let Some(asked) = env.as_ref().filter(|a| *a != p) {
+                    eprintln!(
+                        "warning: DHOIT_FONT={} is not a readable TrueType font; text is drawn with {}",
+                        asked.display(),
+                        p.display()
+                    );
+                }
                 return Ok(p.clone());
             }
         }
