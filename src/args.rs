@@ -3,7 +3,6 @@
 
 use anyhow::{Result, bail};
 use clap::Args;
-use dhoit_runtime::error::IoOp;
 use dhoit_runtime::fragment::FragmentLists;
 use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::{Mlp, Precision};
@@ -78,21 +77,6 @@ pub(crate) fn parse_repeat(s: &str) -> std::result::Result<usize, String> {
         Ok(n) => Ok(n),
         Err(e) => Err(format!("'{s}' is not a number of repetitions: {e}")),
     }
-}
-
-/// Creates `dir` (and its parents) ahead of the work whose output goes there, so that an
-/// output that cannot be written is refused before the work, not after it.
-pub(crate) fn make_folder(dir: &Path) -> Result<()> {
-    if !dir.as_os_str().is_empty() {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| dhoit_runtime::Error::io_op(IoOp::CreateFolder, dir, e))?;
-    }
-    Ok(())
-}
-
-/// [`make_folder`] for the folder a file goes in.
-pub(crate) fn make_parent(path: &Path) -> Result<()> {
-    path.parent().map_or(Ok(()), make_folder)
 }
 
 pub(crate) fn load_scene(name: &str, a: &ViewArgs) -> Result<Scene> {

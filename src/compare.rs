@@ -3,7 +3,7 @@
 //! same rows; a summary of the ratios that decide whether the network earns its place.
 
 use crate::args::{ViewArgs, check_view, k_used, load_scenes, load_weights, rasterize_view};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
 use dhoit_runtime::budget::{Budget, format_bytes};
 use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
@@ -455,8 +455,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
         check_view(view, a.common.views)?;
     }
     let loaded = load_scenes(&a.scenes, &a.common)?;
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    dhoit_runtime::tensors::create_folder(&a.out)?;
     let mut rows: Vec<Row> = Vec::new();
     let mut md = format!(
         "# dhoit comparison\n\nMSE against the A-buffer image (linear RGB), {}.\n",

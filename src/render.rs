@@ -1,8 +1,6 @@
 //! `dhoit render`: one view of a scene with one method, on the CPU reference or the GPU.
 
-use crate::args::{
-    ViewArgs, kmap_rgb8, load_scene, load_weights, make_folder, make_parent, rasterize_view,
-};
+use crate::args::{ViewArgs, kmap_rgb8, load_scene, load_weights, rasterize_view};
 use anyhow::Result;
 use clap::{Args, ValueEnum};
 use dhoit_runtime::budget::{Budget, format_bytes};
@@ -12,6 +10,7 @@ use dhoit_runtime::gpu::{DkbGeometry, Gpu, Slots};
 use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::Precision;
 use dhoit_runtime::scene::Camera;
+use dhoit_runtime::tensors;
 use std::path::PathBuf;
 
 /// Where a frame is rendered.
@@ -81,12 +80,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     // Every output's folder before the frame: an output that cannot be written stops the
     // command before any other is (the image used to be written before a dump folder failed).
-    make_parent(&a.out)?;
+    tensors::create_parent(&a.out)?;
     if let Some(path) = &a.kmap {
-        make_parent(path)?;
+        tensors::create_parent(path)?;
     }
     if let Some(dir) = &a.dump {
-        make_folder(dir)?;
+        tensors::create_folder(dir)?;
     }
     let options = Options {
         weights: weights.as_ref(),

@@ -441,8 +441,7 @@ pub fn trade(a: TradeArgs) -> Result<()> {
         check_view(view, a.quality.common.views)?;
     }
     let loaded = load_scenes(&a.scenes, &a.quality.common)?;
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    dhoit_runtime::tensors::create_folder(&a.out)?;
     let steps = a.scenes.len() * a.quality.view_list.len() * a.quality.budgets.len();
     let pb = bar(steps as u64, "frames");
     let mut scenes = Vec::new();
@@ -540,7 +539,7 @@ pub fn trade(a: TradeArgs) -> Result<()> {
         ));
     }
     if let Some(dir) = &a.summary {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        dhoit_runtime::tensors::create_folder(dir)?;
         // The small form: per-frame measures left out.
         let mut small = report.clone();
         for s in &mut small.scenes {
@@ -635,7 +634,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
     let steps = a.quality.view_list.len() * a.quality.budgets.len();
     let pb = bar(steps as u64, "frames");
     let s = load_scene(&a.scene, &a.quality.common)?;
-    crate::args::make_parent(&a.out)?;
+    dhoit_runtime::tensors::create_parent(&a.out)?;
     let measures = quality(&s, &a.quality, &nets, &pb)?;
     pb.finish_and_clear();
     let mut chosen = None;

@@ -48,11 +48,24 @@ pub fn write(path: &Path, entries: &[Entry], metadata: HashMap<String, String>) 
     write_atomic(path, &bytes)
 }
 
-/// Writes bytes to a sibling temporary file, then renames it over `path`.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+/// Creates `dir` and its parents (nothing for an empty path), the error naming it. Commands
+/// call it for their outputs before their work, so a path that cannot be written is refused
+/// before the work, not after it.
+pub fn create_folder(dir: &Path) -> Result<()> {
+    if !dir.as_os_str().is_empty() {
         std::fs::create_dir_all(dir).map_err(|e| Error::io_op(IoOp::CreateFolder, dir, e))?;
     }
+    Ok(())
+}
+
+/// [`create_folder`] for the folder a file goes in.
+pub fn create_parent(path: &Path) -> Result<()> {
+    path.parent().map_or(Ok(()), create_folder)
+}
+
+/// Writes bytes to a sibling temporary file, then renames it over `path`.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    create_parent(path)?;
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(format!(".{}.tmp", std::process::id()));
     let tmp = std::path::PathBuf::from(tmp);

@@ -266,7 +266,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         .unwrap_or(Path::new("."))
         .to_path_buf();
     // The weights' folder before the data: a training run must not end unable to write them.
-    std::fs::create_dir_all(&dir).map_err(|e| Error::io_op(crate::IoOp::CreateFolder, &dir, e))?;
+    tensors::create_folder(&dir)?;
     let own_config = if own {
         let Resolution { width, height } = a.res;
         Some(DatasetConfig {

@@ -397,7 +397,7 @@ pub fn generate(
         .iter()
         .map(|s| scene::load(s, Opacity::Uniform(config.opacity)))
         .collect::<std::result::Result<_, _>>()?;
-    std::fs::create_dir_all(out).map_err(|e| Error::io_op(IoOp::CreateFolder, out, e))?;
+    dhoit_runtime::tensors::create_folder(out)?;
     // A stale manifest must not describe shards about to be replaced.
     let manifest_path = out.join(MANIFEST);
     if manifest_path.exists() {
