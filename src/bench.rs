@@ -36,6 +36,15 @@ pub struct BenchArgs {
     gpu_only: bool,
 }
 
+/// The methods the GPU bench measures, in its order (its variants are of FKB and DKB).
+const GPU_METHODS: [Method; 5] = [
+    Method::Abuffer,
+    Method::Fkb,
+    Method::Optimal,
+    Method::Vkb,
+    Method::Dkb,
+];
+
 /// Fastest of `n` runs of `f`, in seconds, with the last result.
 fn best<T>(n: usize, mut f: impl FnMut() -> Result<T>) -> Result<(f64, T)> {
     let mut best = f64::INFINITY;
@@ -69,13 +78,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
     // A budget too small for a method measured is refused before the first measurement (on
     // the GPU it would be recorded as every scene's error). MLAB, measured on the CPU only,
     // needs less than FKB.
-    for m in [Method::Fkb, Method::Optimal, Method::Vkb, Method::Dkb] {
+    for m in GPU_METHODS {
         dhoit_runtime::frame::check_budget(budget, m, w, h)?;
     }
     // The report's folder too: a run on a lent GPU must not measure for minutes and then fail
     // to write what it measured.
     if let Some(path) = &a.out {
-        crate::args::make_parent(path)?;
+        dhoit_runtime::tensors::create_parent(path)?;
     }
     if a.gpu_only {
         let report = |gpu: serde_json::Value| {
@@ -300,13 +309,7 @@ fn gpu_bench(
             };
             let renderer = Renderer::new(&fl, options);
             let mut methods = serde_json::Map::new();
-            let order = [
-                Method::Abuffer,
-                Method::Fkb,
-                Method::Optimal,
-                Method::Vkb,
-                Method::Dkb,
-            ];
+            let order = GPU_METHODS;
             let cpu: Vec<dhoit_runtime::frame::Allocation> = order
                 .iter()
                 .map(|&m| renderer.allocate_for_gpu(m))

@@ -6,7 +6,6 @@ mod common;
 use dhoit_runtime::mlp::Mlp;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 /// A folder of its own for each case.
 fn case_dir(name: &str) -> PathBuf {
@@ -27,11 +26,8 @@ fn fails_with_env(dir: &Path, args: &[&str], env: &[(&str, &str)], needle: &str)
         .iter()
         .map(|a| a.replace("{out}", out.to_str().unwrap()))
         .collect();
-    let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
-        .args(&args)
-        .envs(env.iter().copied())
-        .output()
-        .expect("run dhoit");
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = common::dhoit_with_env(&args, env);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "{args:?} succeeded");
     assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
@@ -1160,12 +1156,8 @@ fn a_view_too_large_for_memory_is_refused_before_rasterizing() {
     let dkb = [&args[..], &["--method", "dkb"]].concat();
     fails_with_env(&dir, &dkb, &cap, "dkb needs about");
     let out = dir.join("abuffer.png");
-    let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
-        .args(&args[..args.len() - 1])
-        .arg(&out)
-        .envs(cap)
-        .output()
-        .unwrap();
+    let abuffer = [&args[..args.len() - 1], &[out.to_str().unwrap()]].concat();
+    let o = common::dhoit_with_env(&abuffer, &cap);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.is_file());
 }

@@ -372,15 +372,18 @@ fn compare_prints_a_table_and_writes_a_report() {
 #[test]
 fn a_font_that_cannot_be_read_is_named() {
     let dir = temp_dir("cli-font");
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_dhoit"))
-        .args([
-            "compare", "--scene", "cad", "--res", "32x24", "--budget", "2fpp",
-        ])
-        .arg("--out")
-        .arg(&dir)
-        .env("DHOIT_FONT", "/no/such/font.ttf")
-        .output()
-        .expect("run dhoit");
+    let args = [
+        "compare",
+        "--scene",
+        "cad",
+        "--res",
+        "32x24",
+        "--budget",
+        "2fpp",
+        "--out",
+        dir.to_str().unwrap(),
+    ];
+    let o = common::dhoit_with_env(&args, &[("DHOIT_FONT", "/no/such/font.ttf")]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(

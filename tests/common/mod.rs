@@ -20,8 +20,14 @@ pub fn temp_dir(prefix: &str) -> PathBuf {
 
 /// Runs the `dhoit` binary.
 pub fn dhoit(args: &[&str]) -> Output {
+    dhoit_with_env(args, &[])
+}
+
+/// Runs the `dhoit` binary with environment variables set for it.
+pub fn dhoit_with_env(args: &[&str], env: &[(&str, &str)]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_dhoit"))
         .args(args)
+        .envs(env.iter().copied())
         .output()
         .expect("run dhoit")
 }
