@@ -1,6 +1,6 @@
 // A-buffer pass 3 (compute, one invocation a pixel): sort the pixel's fragments front to back
 // in place (sort.wgsl's insertion sort by capture key, then submission index) and blend them
-// exactly over the background, as composite::exact_sorted.
+// exactly over what is behind the pixel (behind.wgsl), as composite::exact_sorted.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> offsets: array<u32>;
@@ -39,5 +39,5 @@ fn main(
     if (ticks > LOOP_BUDGET) {
         atomicMax(&status[0], 1lu);
     }
-    image[p] = vec4<f32>(c + t * params.background.rgb, 1.0);
+    image[p] = vec4<f32>(c + t * behind(p), 1.0);
 }

@@ -64,9 +64,13 @@ fn insert(p: u32, base: u32, k: u32, key: u64) -> u64 {
 }
 
 @fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+    let f = transparent_fragment(in, front);
+    if (!f.visible) {
+        return vec4<f32>(0.0);
+    }
     let p = pixel_index(in.clip, params.width);
-    let key = ~fragment_key(in.clip.z, fragment_rgba8(in));
+    let key = ~fragment_key(in.clip.z, f.rgba8);
     if (EVERY_FRAGMENT_FITS) {
         // As the A-buffer's store: the cursor's atomic does not wait for the bases' loads
         // (deeper pixels count too, unused; the resolve clears every pixel's count).

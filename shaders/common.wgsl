@@ -7,6 +7,8 @@ struct Params {
     forward: vec4<f32>,
     // rgb: linear background colour; a unused.
     background: vec4<f32>,
+    // xyz: the eye's world position (glass's view angle); w unused.
+    eye: vec4<f32>,
     width: u32,
     height: u32,
     // FKB: slots per pixel; 0 when k comes from the per-pixel buffer.
@@ -26,6 +28,23 @@ struct Params {
     append: u32,
     // 1 when FKB's slots are laid out layer-major (slot_at).
     layer_major: u32,
+    // The scene's one opacity for every surface, or -1: the materials decide.
+    uniform_alpha: f32,
+};
+
+// A material (wgsl::GpuMaterial; scene::material): base colour factor, its texture (where its
+// texels start in the texel buffer, or NO_TEXTURE; size), flags (bits 0-1 and 2-3 the wrap
+// modes along U and V, 4-5 the coverage COVERAGE_*, MATERIAL_NEAREST, MATERIAL_DOUBLE_SIDED),
+// MASK's cutoff, glass's transmission and F0.
+struct Material {
+    factor: vec4<f32>,
+    texels: u32,
+    width: u32,
+    height: u32,
+    flags: u32,
+    cutoff: f32,
+    transmission: f32,
+    f0: f32,
 };
 
 struct VertexOut {
@@ -39,6 +58,12 @@ struct VertexOut {
     // step (the CPU rasterizer does the same).
     @location(3) @interpolate(flat) flat_color: vec4<f32>,
     @location(4) @interpolate(flat) uniform_color: u32,
+    // Perspective-correct texture coordinates and world position; the triangle's geometric
+    // normal and material.
+    @location(5) uv: vec2<f32>,
+    @location(6) world: vec3<f32>,
+    @location(7) @interpolate(flat) normal: vec3<f32>,
+    @location(8) @interpolate(flat) material: u32,
 };
 
 // 8-bit unorm with rounding half up, as fragment::to_unorm8.

@@ -41,9 +41,13 @@ const PRELOAD_NEAREST: bool = true;
 const COUNT_FRAGMENTS: bool = false;
 
 @fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+    let f = transparent_fragment(in, front);
+    if (!f.visible) {
+        return vec4<f32>(0.0);
+    }
     let p = pixel_index(in.clip, params.width);
-    let rgba8 = fragment_rgba8(in);
+    let rgba8 = f.rgba8;
     let depth = select(0.0, in.clip.z, in.clip.z > 0.0);
     let key = fragment_key(depth, rgba8);
     if (!PRELOAD_NEAREST || atomicLoad(&nearest[p]) < ~key) {

@@ -1,10 +1,23 @@
-// Vertex stage of every geometry pass: positions and colours come from storage buffers indexed
-// by vertex_index (three vertices per triangle, in submission order), so the stage can read its
-// triangle's other vertices for the face normal of the headlight shading.
+// Vertex stage of every geometry pass, and the material per fragment (the twin of
+// scene::material::shade and raster.rs's Shading). Positions, colours and texture coordinates
+// come from storage buffers indexed by vertex_index (three vertices per triangle, in submission
+// order; an index buffer lists the transparent triangles' vertices, then the opaque ones'), so
+// the stage can read its triangle's other vertices for the face normal of the headlight
+// shading. Every transparent pass tests its fragments against the opaque pass's depth (LESS, as
+// a depth attachment would; read in the shader, so the test comes before the pass's atomics on
+// every device) and drops those of zero 8-bit opacity.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> colors: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> uvs: array<vec2<f32>>;
+// Per triangle, its material.
+@group(0) @binding(4) var<storage, read> triangle_material: array<u32>;
+@group(0) @binding(5) var<storage, read> materials: array<Material>;
+// Every texture's RGBA8 texels (colour sRGB-encoded), one after another.
+@group(0) @binding(6) var<storage, read> texels: array<u32>;
+// sRGB -> linear for the 256 8-bit values, four to a vec4 (material::srgb_table).
+@group(0) @binding(7) var<uniform> srgb: array<vec4<f32>, 64>;
 
 @vertex
 fn vs_main(@builtin(vertex_index) vid: u32) -> VertexOut {
@@ -25,12 +38,148 @@ fn vs_main(@builtin(vertex_index) vid: u32) -> VertexOut {
     out.color = vec4<f32>(c.rgb * shade, c.a);
     out.primitive = tri;
     out.facing = facing;
+    out.uv = uvs[vid];
+    out.world = positions[vid].xyz;
+    out.normal = n;
+    out.material = triangle_material[tri];
     return out;
 }
 
-// The fragment's colour as the pipeline stores it: the triangle's own when its vertices share
-// one, else interpolated; clamped, 8 bits a channel.
-fn fragment_rgba8(in: VertexOut) -> u32 {
-    let color = select(in.color, in.flat_color, in.uniform_color != 0u);
-    return pack_rgba8(clamp(color, vec4<f32>(0.0), vec4<f32>(1.0)));
+// Texel (x, y) of the texture at `m`, decoded: colour through the sRGB table, alpha / 255.
+fn texel(m: Material, x: i32, y: i32) -> vec4<f32> {
+    let v = texels[m.texels + u32(y) * m.width + u32(x)];
+    let r = v & 0xffu;
+    let g = (v >> 8u) & 0xffu;
+    let b = (v >> 16u) & 0xffu;
+    return vec4<f32>(srgb[r >> 2u][r & 3u], srgb[g >> 2u][g & 3u], srgb[b >> 2u][b & 3u], f32(v >> 24u) / 255.0);
+}
+
+// Texel i of an axis of n as the wrap mode places it (material::wrap): 0 repeat, 1 mirrored
+// repeat, 2 clamp to edge.
+fn wrap(i: i32, n: i32, mode: u32) -> i32 {
+    if (mode == 0u) {
+        return ((i % n) + n) % n;
+    }
+    if (mode == 1u) {
+        let j = ((i % (2 * n)) + 2 * n) % (2 * n);
+        return select(2 * n - 1 - j, j, j < n);
+    }
+    return clamp(i, 0, n - 1);
+}
+
+// The texture at `uv` (material::Texture::sample): nearest, or bilinear between the four
+// texels around uv * size - 0.5, each axis wrapped by its mode; arithmetic written out, not the
+// hardware filter, so the CPU computes the same.
+fn sample_texture(m: Material, uv: vec2<f32>) -> vec4<f32> {
+    let w = i32(m.width);
+    let h = i32(m.height);
+    let wrap_s = m.flags & 3u;
+    let wrap_t = (m.flags >> 2u) & 3u;
+    if ((m.flags & MATERIAL_NEAREST) != 0u) {
+        let x = i32(floor(clamp(uv.x * f32(w), -TEXEL_LIMIT, TEXEL_LIMIT)));
+        let y = i32(floor(clamp(uv.y * f32(h), -TEXEL_LIMIT, TEXEL_LIMIT)));
+        return texel(m, wrap(x, w, wrap_s), wrap(y, h, wrap_t));
+    }
+    let x = clamp(uv.x * f32(w) - 0.5, -TEXEL_LIMIT, TEXEL_LIMIT);
+    let y = clamp(uv.y * f32(h) - 0.5, -TEXEL_LIMIT, TEXEL_LIMIT);
+    let xf = floor(x);
+    let yf = floor(y);
+    let fx = x - xf;
+    let fy = y - yf;
+    let x0 = i32(xf);
+    let y0 = i32(yf);
+    let xa = wrap(x0, w, wrap_s);
+    let xb = wrap(x0 + 1, w, wrap_s);
+    let ya = wrap(y0, h, wrap_t);
+    let yb = wrap(y0 + 1, h, wrap_t);
+    let top = texel(m, xa, ya) * (1.0 - fx) + texel(m, xb, ya) * fx;
+    let bottom = texel(m, xa, yb) * (1.0 - fx) + texel(m, xb, yb) * fx;
+    return top * (1.0 - fy) + bottom * fy;
+}
+
+// The opacity of glass at view cosine `c` (material::glass_opacity).
+fn glass_opacity(transmission: f32, f0: f32, c: f32) -> f32 {
+    let m = 1.0 - clamp(c, 0.0, 1.0);
+    let m2 = m * m;
+    let f = f0 + (1.0 - f0) * (m2 * m2 * m);
+    return 1.0 - transmission * (1.0 - f);
+}
+
+// What a fragment is once shaded (material::Shaded): kind SHADED_OPAQUE, SHADED_TRANSPARENT or
+// SHADED_NONE (a MASK test failed, or a back face of a single-sided material), and its colour
+// (not yet clamped).
+struct Shaded {
+    kind: u32,
+    color: vec4<f32>,
+};
+
+// The fragment's material (material::shade).
+fn shade(in: VertexOut, front: bool) -> Shaded {
+    let m = materials[in.material];
+    var out: Shaded;
+    out.kind = SHADED_NONE;
+    let uniform = params.uniform_alpha >= 0.0;
+    if (!uniform && (m.flags & MATERIAL_DOUBLE_SIDED) == 0u && !front) {
+        return out;
+    }
+    let vertex = select(in.color, in.flat_color, in.uniform_color != 0u);
+    var c = vertex * m.factor;
+    if (m.texels != NO_TEXTURE) {
+        c = c * sample_texture(m, in.uv);
+    }
+    out.color = c;
+    if (uniform) {
+        out.color.a = params.uniform_alpha;
+        out.kind = SHADED_TRANSPARENT;
+        return out;
+    }
+    let coverage = (m.flags >> 4u) & 3u;
+    if (coverage == COVERAGE_MASK && c.a < m.cutoff) {
+        return out;
+    }
+    let glass = m.transmission > 0.0;
+    if (coverage != COVERAGE_BLEND && !glass) {
+        out.kind = SHADED_OPAQUE;
+        return out;
+    }
+    let a = select(1.0, c.a, coverage == COVERAGE_BLEND);
+    if (glass) {
+        let v = in.world - params.eye.xyz;
+        let cosine = abs(dot(in.normal, v)) / length(v);
+        out.color.a = a * glass_opacity(m.transmission, m.f0, cosine);
+    } else {
+        out.color.a = a;
+    }
+    out.kind = SHADED_TRANSPARENT;
+    return out;
+}
+
+// The nearest opaque surface's depth (the opaque pass's depth attachment; 1 where none).
+@group(0) @binding(8) var opaque_depth: texture_depth_2d;
+
+// A transparent pass's fragment: its RGBA8, or none (0 after `visible` says false).
+struct Transparent {
+    visible: bool,
+    rgba8: u32,
+};
+
+// The fragment as a transparent pass stores it: in front of the opaque depth, transparent,
+// and of non-zero 8-bit opacity (raster.rs's transparent pass); its colour clamped, 8 bits a
+// channel.
+fn transparent_fragment(in: VertexOut, front: bool) -> Transparent {
+    var out: Transparent;
+    out.visible = false;
+    out.rgba8 = 0u;
+    let d = textureLoad(opaque_depth, vec2<u32>(u32(in.clip.x), u32(in.clip.y)), 0);
+    if (in.clip.z >= d) {
+        return out;
+    }
+    let s = shade(in, front);
+    if (s.kind != SHADED_TRANSPARENT) {
+        return out;
+    }
+    let rgba8 = pack_rgba8(clamp(s.color, vec4<f32>(0.0), vec4<f32>(1.0)));
+    out.visible = (rgba8 >> 24u) != 0u;
+    out.rgba8 = rgba8;
+    return out;
 }

@@ -1,8 +1,8 @@
 // MLAB from the A-buffer (compute, one invocation a pixel): the pixel's stored fragments are
 // sorted into submission order (insertion sort by submission index), then inserted one by one
 // into m blending rows of premultiplied colour, transmittance and depth key (a bubble pass into
-// m + 1 rows, then the last two merged), and the rows blended over the background, as
-// composite::mlab_pixel.
+// m + 1 rows, then the last two merged), and the rows blended over what is behind the pixel
+// (behind.wgsl), as composite::mlab_pixel.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> offsets: array<u32>;
@@ -71,5 +71,5 @@ fn main(
     if (ticks > LOOP_BUDGET) {
         atomicMax(&status[0], 1lu);
     }
-    image[p] = vec4<f32>(c + t * params.background.rgb, 1.0);
+    image[p] = vec4<f32>(c + t * behind(p), 1.0);
 }

@@ -1,5 +1,6 @@
 // k-buffer resolve (compute, one invocation a pixel): the core slots blended front to back,
-// then the tail approximated over the background, as composite::hybrid_sorted with
+// then the tail approximated over what is behind the pixel (behind.wgsl), as
+// composite::hybrid_sorted with
 // composite::Tail. A pixel the capture appended (common.wgsl's appends) first has its n keys
 // sorted here, the k nearest written back in order and the rest summed into its tail: after
 // this pass the slots and the tail are those of the insertion mode (composite::capture),
@@ -52,8 +53,8 @@ fn sort_slots(base: u32, n: u32) {
     }
 }
 
-// The slots [base, base + k) front to back (up to the first empty one) over `behind`.
-fn blend_slots(p: u32, base: u32, k: u32, behind: vec3<f32>) -> vec4<f32> {
+// The slots [base, base + k) front to back (up to the first empty one) over `under`.
+fn blend_slots(p: u32, base: u32, k: u32, under: vec3<f32>) -> vec4<f32> {
     var c = vec3<f32>(0.0);
     var t = 1.0;
     for (var i = 0u; i < k; i++) {
@@ -66,7 +67,7 @@ fn blend_slots(p: u32, base: u32, k: u32, behind: vec3<f32>) -> vec4<f32> {
         c += t * rgba.a * rgba.rgb;
         t *= 1.0 - rgba.a;
     }
-    return vec4<f32>(c + t * behind, 1.0);
+    return vec4<f32>(c + t * under, 1.0);
 }
 
 // An appended pixel's n keys (complemented: the nearest is the largest), sorted in place:
@@ -124,7 +125,7 @@ fn main(
         if (n <= APPEND_MAX) {
             sort_slots(base, n);
         }
-        image[p] = blend_slots(p, base, n, params.background.rgb);
+        image[p] = blend_slots(p, base, n, behind(p));
         return;
     }
     var k = params.k_uniform;
@@ -143,9 +144,9 @@ fn main(
             sort_appended(p, base, k, n);
         }
     }
-    // The tail over the background.
-    let bg = params.background.rgb;
-    var behind = bg;
+    // The tail over what is behind the pixel.
+    let bg = behind(p);
+    var over = bg;
     let tail_n = tail_count[p];
     let sum_a = tail[4u * p + 3u];
     if (tail_n > 0u && sum_a > 0u) {
@@ -153,9 +154,9 @@ fn main(
         let a_tail = 1.0 - pow(1.0 - a_avg, f32(tail_n));
         let inv = 1.0 / (255.0 * f32(sum_a));
         let c_tail = vec3<f32>(f32(tail[4u * p]), f32(tail[4u * p + 1u]), f32(tail[4u * p + 2u])) * inv;
-        behind = a_tail * c_tail + (1.0 - a_tail) * bg;
+        over = a_tail * c_tail + (1.0 - a_tail) * bg;
     }
-    image[p] = blend_slots(p, base, k, behind);
+    image[p] = blend_slots(p, base, k, over);
     // Where the capture inserted: every fragment is in a slot or in the tail.
     too_deep(p, filled + tail_n);
 }

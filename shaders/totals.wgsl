@@ -69,11 +69,11 @@ fn from_sums(
     add_group(lid);
 }
 
-// DKB's features pass is drawn indirectly from these arguments (vertices, instances, first
-// vertex, first instance; the host writes the frame's vertex count): with no vertex when the
-// budget holds every fragment, since k = n then whatever the importance (allocate.wgsl's
-// setup, mlp::Mlp::dkb_importance).
-@group(0) @binding(3) var<storage, read_write> features_draw_args: array<u32, 4>;
+// DKB's features pass is drawn indirectly from these arguments (an indexed draw: indices,
+// instances, first index, base vertex, first instance; the host writes the frame's
+// transparent indices): with none when the budget holds every fragment, since k = n then
+// whatever the importance (allocate.wgsl's setup, mlp::Mlp::dkb_importance).
+@group(0) @binding(3) var<storage, read_write> features_draw_args: array<u32, 5>;
 
 @compute @workgroup_size(1)
 fn features_draw() {

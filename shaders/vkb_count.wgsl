@@ -5,7 +5,10 @@
 @group(1) @binding(1) var<storage, read_write> nearest_inv: array<atomic<u64>>;
 
 @fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+    if (!transparent_fragment(in, front).visible) {
+        return vec4<f32>(0.0);
+    }
     let p = pixel_index(in.clip, params.width);
     let depth = select(0.0, in.clip.z, in.clip.z > 0.0);
     atomicAdd(&count[p], 1u);

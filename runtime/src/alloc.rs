@@ -105,7 +105,8 @@ pub fn error_curve_sorted(frags: &[Fragment], bg: [f32; 3], out: &mut [f64]) {
     }
 }
 
-/// Error curves of every pixel of a frame.
+/// Error curves of every pixel of a frame, over what is behind each pixel
+/// ([`FragmentLists::behind`]: its opaque surface, else the background `bg`).
 pub fn error_curves(fl: &FragmentLists, bg: [f32; 3]) -> ErrorCurves {
     let pixels = fl.pixel_count();
     let start: Vec<usize> = (0..=pixels).map(|p| fl.offsets[p] as usize + p).collect();
@@ -125,6 +126,7 @@ pub fn error_curves(fl: &FragmentLists, bg: [f32; 3]) -> ErrorCurves {
             let base = start[y * w];
             for p in y * w..(y + 1) * w {
                 fl.sorted_into(p, scratch);
+                let bg = fl.behind(p, bg);
                 error_curve_sorted(scratch, bg, &mut row[start[p] - base..start[p + 1] - base]);
             }
         });

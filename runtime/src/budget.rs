@@ -82,8 +82,8 @@ pub const DKB: Layout = Layout {
         ("mlp.weights", MLP_UNIFORM_BYTES),
         ("params", PARAMS_BYTES),
         ("features.totals", 24),
-        // The features pass's indirect draw.
-        ("features.draw", 16),
+        // The features pass's indirect draw (an indexed one: five words).
+        ("features.draw", 20),
         // The network's pixel list lives in alloc.flags; its length and indirect dispatch.
         ("importance.list_len", 16),
         ("importance.dispatch", 16),

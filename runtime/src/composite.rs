@@ -206,7 +206,8 @@ pub enum Method<'a> {
     Mlab(usize),
 }
 
-/// Composites every pixel of `fl` over the background.
+/// Composites every pixel of `fl` over what is behind it: its opaque surface where one covers
+/// it, else the background `bg` ([`FragmentLists::behind`]).
 pub fn composite(fl: &FragmentLists, method: Method, bg: [f32; 3]) -> Image {
     let (w, h) = (fl.width, fl.height);
     let mut img = Image::new(w, h);
@@ -216,6 +217,7 @@ pub fn composite(fl: &FragmentLists, method: Method, bg: [f32; 3]) -> Image {
         .for_each_init(Vec::new, |scratch, (y, row)| {
             for (x, out) in row.iter_mut().enumerate() {
                 let p = y * w as usize + x;
+                let bg = fl.behind(p, bg);
                 *out = match method {
                     Method::Exact => {
                         fl.sorted_into(p, scratch);

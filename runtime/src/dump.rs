@@ -3,7 +3,9 @@
 //!
 //! Tensors: `offsets` u32 [W*H+1] (pixel p's fragments are `offsets[p]..offsets[p+1]`, row-major
 //! from the top-left pixel), `depth` f32 [F], `rgba` f32 [F,4] (non-premultiplied), `primitive`
-//! u32 [F] (submission index), `k` u32 [W*H], `image` f32 [H,W,3] (linear). Metadata: `width`,
+//! u32 [F] (submission index), `k` u32 [W*H], `image` f32 [H,W,3] (linear); where the frame has
+//! opaque surfaces, `opaque` u32 [W*H] (each pixel's nearest opaque colour as RGBA8, A = 255;
+//! 0 where none) and `opaque_depth` f32 [W*H] (its depth; 1 where none). Metadata: `width`,
 //! `height`, `method`, `budget_bytes`, `budget_fragments` (F(M)), `background` ("r,g,b"),
 //! `format` ("dhoit-dump-1").
 
@@ -36,7 +38,7 @@ pub fn write(dir: &Path, d: &Dump) -> Result<PathBuf> {
     let f = fl.fragment_count();
     let rgba: Vec<f32> = fl.rgba.iter().flatten().copied().collect();
     let image: Vec<f32> = d.image.data.iter().flatten().copied().collect();
-    let entries = [
+    let mut entries = vec![
         Entry::u32("offsets", vec![w * h + 1], &fl.offsets),
         Entry::f32("depth", vec![f], &fl.depth),
         Entry::f32("rgba", vec![f, 4], &rgba),
@@ -44,6 +46,10 @@ pub fn write(dir: &Path, d: &Dump) -> Result<PathBuf> {
         Entry::u32("k", vec![w * h], &d.k),
         Entry::f32("image", vec![h, w, 3], &image),
     ];
+    if !fl.opaque.is_empty() {
+        entries.push(Entry::u32("opaque", vec![w * h], &fl.opaque));
+        entries.push(Entry::f32("opaque_depth", vec![w * h], &fl.opaque_depth));
+    }
     let bg = d.background;
     let meta: HashMap<String, String> = [
         ("format", FORMAT.to_string()),
@@ -107,6 +113,14 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dump> {
     let (_, rgba) = file.f32("rgba", Some(&[f, 4])).map_err(err)?;
     let (_, primitive) = file.u32("primitive", Some(&[f])).map_err(err)?;
     let (_, k) = file.u32("k", Some(&[pixels])).map_err(err)?;
+    // The opaque layer, where the frame has one: both tensors or neither.
+    let (opaque, opaque_depth) = match file.tensor("opaque") {
+        Ok(_) => (
+            file.u32("opaque", Some(&[pixels])).map_err(err)?.1,
+            file.f32("opaque_depth", Some(&[pixels])).map_err(err)?.1,
+        ),
+        Err(_) => (Vec::new(), Vec::new()),
+    };
     let (_, image) = file
         .f32("image", Some(&[height as usize, width as usize, 3]))
         .map_err(err)?;
@@ -136,6 +150,8 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dump> {
                 .collect(),
             primitive,
             facing: Vec::new(),
+            opaque,
+            opaque_depth,
         },
         k,
         image: Image {

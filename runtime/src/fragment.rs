@@ -62,6 +62,13 @@ pub struct FragmentLists {
     pub primitive: Vec<u32>,
     /// `|n . v|` of the fragment's triangle.
     pub facing: Vec<f32>,
+    /// Per pixel, the nearest opaque surface's colour as RGBA8 with A = 255 (0 where none
+    /// covers the pixel): what every method composites over instead of the background. Empty
+    /// where the frame has no opaque surface.
+    pub opaque: Vec<u32>,
+    /// Per pixel, the nearest opaque surface's window depth (1 where none; empty with
+    /// `opaque`): transparent fragments at or behind it are not in the lists.
+    pub opaque_depth: Vec<f32>,
 }
 
 impl FragmentLists {
@@ -91,6 +98,19 @@ impl FragmentLists {
     pub fn covered_pixels(&self) -> usize {
         self.offsets.windows(2).filter(|w| w[1] > w[0]).count()
     }
+    /// What pixel p's fragments are composited over: its opaque surface's colour where one
+    /// covers it, else the background `bg`.
+    #[inline]
+    pub fn behind(&self, p: usize, bg: [f32; 3]) -> [f32; 3] {
+        match self.opaque.get(p) {
+            Some(&c) if c >> 24 != 0 => {
+                let c = unpack_rgba8(c);
+                [c[0], c[1], c[2]]
+            }
+            _ => bg,
+        }
+    }
+
     /// Pixel p's fragments in list (submission) order.
     pub fn fragments(&self, p: usize) -> impl ExactSizeIterator<Item = Fragment> + '_ {
         self.range(p).map(|i| Fragment {

@@ -10,12 +10,24 @@
 //!   edge that is a top edge (horizontal, interior below) or a left edge (interior to the right);
 //! - depth interpolated linearly in screen space on the plane through the vertices' unsnapped
 //!   window positions (as Mesa's lavapipe does; snapped positions put depth up to 9e-4 away
-//!   from the GPU's on steep triangles), colour perspective-correctly;
-//! - triangles are clipped against the near and far planes in clip space.
+//!   from the GPU's on steep triangles), colour, texture coordinates and world position
+//!   perspective-correctly;
+//! - triangles are clipped against the near and far planes in clip space;
+//! - a single-sided material's back faces (clockwise in clip space) are culled, except under
+//!   one uniform opacity (the papers' protocol draws both faces).
 //!
-//! Shading is fixed: a headlight Lambert term on the base colour,
+//! Two passes, as renderers draw them: the opaque triangles first (OPAQUE and MASK materials,
+//! [`crate::scene::material`]) with a depth buffer cleared to 1 (a fragment is kept where its
+//! depth is less than the buffer's, so the first of equal depths in submission order stays),
+//! giving each pixel its nearest opaque colour ([`FragmentLists::opaque`]); then the
+//! transparent triangles, a fragment kept only where it lies in front of that depth (at or
+//! behind it, it does not exist for any method) and its 8-bit opacity is not zero (it would
+//! add nothing to any composite).
+//!
+//! Shading: a headlight Lambert term on the vertex colour,
 //! `rgb = vertex_rgb * (AMBIENT + (1 - AMBIENT) |n . v|)` with `n` the triangle's geometric
-//! normal and `v` the camera's forward direction; alpha is the vertex alpha. Colours are
+//! normal and `v` the camera's forward direction, then the material per fragment
+//! ([`crate::scene::material::shade`]: factor, texture, alpha mode, glass). Vertex colours are
 //! interpolated perspective-correctly, except on a triangle whose three vertices share one
 //! colour, which keeps it exactly (the GPU passes it flat): the interpolation's rounding would
 //! otherwise move a colour that sits on a half step, such as alpha 0.3 = 76.5 / 255, to one
@@ -27,7 +39,8 @@
 //! processed in parallel; the result does not depend on the number of threads.
 
 use crate::error::{Error, Result};
-use crate::fragment::{FragmentLists, quantize};
+use crate::fragment::{FragmentLists, pack_rgba8, quantize};
+use crate::scene::material::{self, Shaded};
 use crate::scene::{Camera, Scene};
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
@@ -102,8 +115,15 @@ struct ScreenTri {
     z: [f32; 3],
     inv_w: [f32; 3],
     rgba: [Vec4; 3],
+    uv: [[f32; 2]; 3],
+    world: [Vec3; 3],
+    /// The geometric unit normal.
+    normal: Vec3,
     facing: f32,
     prim: u32,
+    material: u32,
+    /// Drawn in the opaque pass.
+    opaque: bool,
     y_range: (u32, u32),
 }
 
@@ -115,6 +135,8 @@ struct ScreenVertex {
     z: f32,
     inv_w: f32,
     rgba: Vec4,
+    uv: [f32; 2],
+    world: Vec3,
     /// Unsnapped (the depth plane).
     xyf: [f32; 2],
 }
@@ -123,12 +145,16 @@ struct ScreenVertex {
 struct ClipVertex {
     pos: Vec4,
     rgba: Vec4,
+    uv: [f32; 2],
+    world: Vec3,
 }
 
 fn lerp_vertex(a: &ClipVertex, b: &ClipVertex, t: f32) -> ClipVertex {
     ClipVertex {
         pos: a.pos + (b.pos - a.pos) * t,
         rgba: a.rgba + (b.rgba - a.rgba) * t,
+        uv: std::array::from_fn(|i| a.uv[i] + (b.uv[i] - a.uv[i]) * t),
+        world: a.world + (b.world - a.world) * t,
     }
 }
 
@@ -180,12 +206,17 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Vec<ScreenTri>
             let n = face_normal(p);
             let facing = n.dot(cam.forward).abs();
             let shade = AMBIENT + (1.0 - AMBIENT) * facing;
+            let opaque = !scene.transparent(t);
+            // Single-sided surfaces show their front faces only (not under one opacity).
+            let cull = scene.uniform_opacity.is_none() && !scene.material_of(t).double_sided;
             let verts: Vec<ClipVertex> = (0..3)
                 .map(|i| {
                     let c = scene.colors[3 * t + i];
                     ClipVertex {
                         pos: cam.view_proj * p[i].extend(1.0),
                         rgba: Vec4::new(c[0] * shade, c[1] * shade, c[2] * shade, c[3]),
+                        uv: scene.uvs[3 * t + i],
+                        world: p[i],
                     }
                 })
                 .collect();
@@ -204,6 +235,8 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Vec<ScreenTri>
                         z,
                         inv_w,
                         rgba: v.rgba,
+                        uv: v.uv,
+                        world: v.world,
                         xyf: [xw, yw],
                     }
                 })
@@ -213,6 +246,11 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Vec<ScreenTri>
                 let v = [screen[0], screen[i - 1], screen[i]];
                 let area = orient(v[0].xy, v[1].xy, v[2].xy);
                 if area == 0 {
+                    continue;
+                }
+                // Clockwise in clip space (y up) is counter-clockwise here (y down): a back
+                // face.
+                if cull && area > 0 {
                     continue;
                 }
                 // Both faces: make every triangle positively oriented.
@@ -231,8 +269,13 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Vec<ScreenTri>
                     z: v.map(|q| q.z),
                     inv_w: v.map(|q| q.inv_w),
                     rgba: v.map(|q| q.rgba),
+                    uv: v.map(|q| q.uv),
+                    world: v.map(|q| q.world),
+                    normal: n,
                     facing,
                     prim: t as u32,
+                    material: scene.triangle_material[t],
+                    opaque,
                     y_range: (r0 as u32, r1 as u32),
                 });
             }
@@ -247,6 +290,9 @@ struct BandOut {
     rgba: Vec<[f32; 4]>,
     primitive: Vec<u32>,
     facing: Vec<f32>,
+    /// The nearest opaque fragment's RGBA8 (A = 255) and depth, per pixel of the band.
+    opaque: Vec<u32>,
+    opaque_depth: Vec<f32>,
 }
 
 struct Frag {
@@ -257,55 +303,126 @@ struct Frag {
     facing: f32,
 }
 
-fn raster_band(tris: &[ScreenTri], ids: &[u32], width: u32, y0: u32, y1: u32) -> BandOut {
+/// What shading a fragment needs beside its triangle.
+struct Shading<'a> {
+    scene: &'a Scene,
+    eye: Vec3,
+    table: [f32; 256],
+}
+
+impl Shading<'_> {
+    /// The material's fragment of `t` at perspective weights `pw` (normalised by `norm`).
+    fn shade(&self, t: &ScreenTri, pw: [f32; 3], norm: f32) -> Shaded {
+        // A triangle of one colour keeps it exactly, as the GPU's flat colour does.
+        let vertex = if t.rgba[0] == t.rgba[1] && t.rgba[1] == t.rgba[2] {
+            t.rgba[0]
+        } else {
+            (t.rgba[0] * pw[0] + t.rgba[1] * pw[1] + t.rgba[2] * pw[2]) * norm
+        };
+        let uv = std::array::from_fn(|i| {
+            (t.uv[0][i] * pw[0] + t.uv[1][i] * pw[1] + t.uv[2][i] * pw[2]) * norm
+        });
+        let world = (t.world[0] * pw[0] + t.world[1] * pw[1] + t.world[2] * pw[2]) * norm;
+        let m = &self.scene.materials[t.material as usize];
+        // Only glass reads the view angle.
+        let cos = if m.transmission > 0.0 {
+            let v = world - self.eye;
+            t.normal.dot(v).abs() / v.length()
+        } else {
+            0.0
+        };
+        material::shade(
+            m,
+            &self.scene.textures,
+            &self.table,
+            vertex.to_array(),
+            uv,
+            cos,
+            self.scene.uniform_opacity,
+        )
+    }
+}
+
+fn raster_band(
+    tris: &[ScreenTri],
+    ids: &[u32],
+    shading: &Shading,
+    width: u32,
+    y0: u32,
+    y1: u32,
+) -> BandOut {
+    let npix = ((y1 - y0) * width) as usize;
+    let mut opaque = vec![0u32; npix];
+    let mut opaque_depth = vec![1.0f32; npix];
     let mut frags: Vec<Frag> = Vec::new();
-    for &id in ids {
-        let t = &tris[id as usize];
-        let [a, b, c] = t.xy;
-        let area = orient(a, b, c);
-        let inv_area = 1.0 / area as f64;
-        let xmin = a[0].min(b[0]).min(c[0]);
-        let xmax = a[0].max(b[0]).max(c[0]);
-        let c0 = ((xmin - SUB / 2 + SUB - 1).div_euclid(SUB)).max(0);
-        let c1 = ((xmax - SUB / 2).div_euclid(SUB)).min(width as i64 - 1);
-        if c0 > c1 {
-            continue;
-        }
-        let bias = [top_left(b, c), top_left(c, a), top_left(a, b)];
-        let ry0 = t.y_range.0.max(y0);
-        let ry1 = t.y_range.1.min(y1 - 1);
-        for y in ry0..=ry1 {
-            let py = y as i64 * SUB + SUB / 2;
-            for x in c0..=c1 {
-                let p = [x * SUB + SUB / 2, py];
-                let w = [orient(b, c, p), orient(c, a, p), orient(a, b, p)];
-                let inside = (0..3).all(|i| w[i] > 0 || (w[i] == 0 && bias[i]));
-                if !inside {
-                    continue;
+    // The opaque pass, then the transparent one (ids are in submission order).
+    for pass_opaque in [true, false] {
+        for &id in ids {
+            let t = &tris[id as usize];
+            if t.opaque != pass_opaque {
+                continue;
+            }
+            let [a, b, c] = t.xy;
+            let area = orient(a, b, c);
+            let inv_area = 1.0 / area as f64;
+            let xmin = a[0].min(b[0]).min(c[0]);
+            let xmax = a[0].max(b[0]).max(c[0]);
+            let c0 = ((xmin - SUB / 2 + SUB - 1).div_euclid(SUB)).max(0);
+            let c1 = ((xmax - SUB / 2).div_euclid(SUB)).min(width as i64 - 1);
+            if c0 > c1 {
+                continue;
+            }
+            let bias = [top_left(b, c), top_left(c, a), top_left(a, b)];
+            let ry0 = t.y_range.0.max(y0);
+            let ry1 = t.y_range.1.min(y1 - 1);
+            for y in ry0..=ry1 {
+                let py = y as i64 * SUB + SUB / 2;
+                for x in c0..=c1 {
+                    let p = [x * SUB + SUB / 2, py];
+                    let w = [orient(b, c, p), orient(c, a, p), orient(a, b, p)];
+                    let inside = (0..3).all(|i| w[i] > 0 || (w[i] == 0 && bias[i]));
+                    if !inside {
+                        continue;
+                    }
+                    let pixel = ((y - y0) * width + x as u32) as usize;
+                    let depth = plane_depth(t, x as f32 + 0.5, y as f32 + 0.5);
+                    // The depth test against the opaque pass (LESS, as the GPU's).
+                    if depth >= opaque_depth[pixel] {
+                        continue;
+                    }
+                    let l = w.map(|wi| (wi as f64 * inv_area) as f32);
+                    let pw = [l[0] * t.inv_w[0], l[1] * t.inv_w[1], l[2] * t.inv_w[2]];
+                    let norm = 1.0 / (pw[0] + pw[1] + pw[2]);
+                    match shading.shade(t, pw, norm) {
+                        Shaded::Opaque(c) => {
+                            let c = Vec4::from(c).clamp(Vec4::ZERO, Vec4::ONE);
+                            opaque_depth[pixel] = depth;
+                            opaque[pixel] = pack_rgba8([c.x, c.y, c.z, 1.0]);
+                        }
+                        Shaded::Transparent(c) => {
+                            let rgba = Vec4::from(c)
+                                .clamp(Vec4::ZERO, Vec4::ONE)
+                                .to_array()
+                                .map(quantize);
+                            // Zero opacity adds nothing to any composite: no fragment.
+                            if rgba[3] == 0.0 {
+                                continue;
+                            }
+                            frags.push(Frag {
+                                pixel: pixel as u32,
+                                depth,
+                                rgba,
+                                prim: t.prim,
+                                facing: t.facing,
+                            });
+                        }
+                        Shaded::None => {}
+                    }
                 }
-                let l = w.map(|wi| (wi as f64 * inv_area) as f32);
-                let depth = plane_depth(t, x as f32 + 0.5, y as f32 + 0.5);
-                let pw = [l[0] * t.inv_w[0], l[1] * t.inv_w[1], l[2] * t.inv_w[2]];
-                let norm = 1.0 / (pw[0] + pw[1] + pw[2]);
-                // A triangle of one colour keeps it exactly, as the GPU's flat colour does.
-                let rgba = if t.rgba[0] == t.rgba[1] && t.rgba[1] == t.rgba[2] {
-                    t.rgba[0]
-                } else {
-                    (t.rgba[0] * pw[0] + t.rgba[1] * pw[1] + t.rgba[2] * pw[2]) * norm
-                };
-                let rgba = rgba.clamp(Vec4::ZERO, Vec4::ONE).to_array().map(quantize);
-                frags.push(Frag {
-                    pixel: (y - y0) * width + x as u32,
-                    depth,
-                    rgba,
-                    prim: t.prim,
-                    facing: t.facing,
-                });
             }
         }
     }
     // Stable counting sort by pixel keeps submission order within each pixel.
-    let npix = ((y1 - y0) * width) as usize;
     let mut counts = vec![0u32; npix];
     for f in &frags {
         counts[f.pixel as usize] += 1;
@@ -323,6 +440,8 @@ fn raster_band(tris: &[ScreenTri], ids: &[u32], width: u32, y0: u32, y1: u32) ->
         rgba: vec![[0.0; 4]; n],
         primitive: vec![0; n],
         facing: vec![0.0; n],
+        opaque,
+        opaque_depth,
     };
     for f in frags {
         let i = start[f.pixel as usize];
@@ -496,12 +615,24 @@ pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result
             bins[b as usize].push(i as u32);
         }
     }
+    let shading = Shading {
+        scene,
+        eye: cam.eye,
+        table: material::srgb_table(),
+    };
     let outs: Vec<BandOut> = bins
         .par_iter()
         .enumerate()
         .map(|(b, ids)| {
             let y0 = b as u32 * BAND_ROWS;
-            raster_band(&tris, ids, width, y0, (y0 + BAND_ROWS).min(height))
+            raster_band(
+                &tris,
+                ids,
+                &shading,
+                width,
+                y0,
+                (y0 + BAND_ROWS).min(height),
+            )
         })
         .collect();
     let total: usize = outs.iter().map(|o| o.depth.len()).sum();
@@ -527,7 +658,9 @@ pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result
         rgba: Vec::with_capacity(total),
         primitive: Vec::with_capacity(total),
         facing: Vec::with_capacity(total),
+        ..Default::default()
     };
+    let has_opaque = scene.has_opaque();
     let mut acc = 0u32;
     fl.offsets.push(0);
     for o in outs {
@@ -539,6 +672,10 @@ pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result
         fl.rgba.extend(o.rgba);
         fl.primitive.extend(o.primitive);
         fl.facing.extend(o.facing);
+        if has_opaque {
+            fl.opaque.extend(o.opaque);
+            fl.opaque_depth.extend(o.opaque_depth);
+        }
     }
     Ok(fl)
 }

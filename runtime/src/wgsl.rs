@@ -15,6 +15,8 @@ pub mod shaders {
 
     /// The A-buffer's per-pixel insertion sort, prepended to the passes that sort.
     pub const SORT: &str = include_str!("../../shaders/sort.wgsl");
+    /// What the resolves composite over (the opaque pass's colour, else the background).
+    pub const BEHIND: &str = include_str!("../../shaders/behind.wgsl");
 
     /// One WGSL pass: its name, its source, and the shared code prepended to it after the
     /// prelude and COMMON: GEOMETRY (the vertex stage) for geometry passes, MLP for the passes
@@ -25,7 +27,12 @@ pub mod shaders {
         pub includes: &'static [&'static str],
     }
 
-    pub const PASSES: [Pass; 14] = [
+    pub const PASSES: [Pass; 15] = [
+        Pass {
+            name: "opaque",
+            source: include_str!("../../shaders/opaque.wgsl"),
+            includes: &[GEOMETRY],
+        },
         Pass {
             name: "abuffer_count",
             source: include_str!("../../shaders/abuffer_count.wgsl"),
@@ -44,7 +51,7 @@ pub mod shaders {
         Pass {
             name: "abuffer_resolve",
             source: include_str!("../../shaders/abuffer_resolve.wgsl"),
-            includes: &[SORT],
+            includes: &[SORT, BEHIND],
         },
         Pass {
             name: "capture",
@@ -54,12 +61,12 @@ pub mod shaders {
         Pass {
             name: "resolve",
             source: include_str!("../../shaders/resolve.wgsl"),
-            includes: &[],
+            includes: &[BEHIND],
         },
         Pass {
             name: "mlab_resolve",
             source: include_str!("../../shaders/mlab_resolve.wgsl"),
-            includes: &[SORT],
+            includes: &[SORT, BEHIND],
         },
         Pass {
             name: "allocate",
@@ -164,6 +171,16 @@ pub mod shaders {
                 "MAX_FRAGMENTS_PER_PIXEL",
                 U32(raster::MAX_FRAGMENTS_PER_PIXEL),
             ),
+            ("TEXEL_LIMIT", F32(crate::scene::material::TEXEL_LIMIT)),
+            ("NO_TEXTURE", U32(super::NO_TEXTURE)),
+            ("MATERIAL_NEAREST", U32(super::MATERIAL_NEAREST)),
+            ("MATERIAL_DOUBLE_SIDED", U32(super::MATERIAL_DOUBLE_SIDED)),
+            ("COVERAGE_OPAQUE", U32(super::COVERAGE_OPAQUE)),
+            ("COVERAGE_MASK", U32(super::COVERAGE_MASK)),
+            ("COVERAGE_BLEND", U32(super::COVERAGE_BLEND)),
+            ("SHADED_NONE", U32(super::SHADED_NONE)),
+            ("SHADED_OPAQUE", U32(super::SHADED_OPAQUE)),
+            ("SHADED_TRANSPARENT", U32(super::SHADED_TRANSPARENT)),
         ]
     }
 
@@ -214,6 +231,8 @@ pub(crate) struct Params {
     pub(crate) view_proj: [[f32; 4]; 4],
     pub(crate) forward: [f32; 4],
     pub(crate) background: [f32; 4],
+    /// The eye's world position (w unused): glass's view angle.
+    pub(crate) eye: [f32; 4],
     pub(crate) width: u32,
     pub(crate) height: u32,
     pub(crate) k_uniform: u32,
@@ -229,7 +248,90 @@ pub(crate) struct Params {
     pub(crate) append: u32,
     /// 1 when FKB's slots are laid out layer-major (`slot_at` in common.wgsl).
     pub(crate) layer_major: u32,
-    pub(crate) _pad: [u32; 28],
+    /// The scene's one opacity ([`crate::scene::Scene::uniform_opacity`]), or -1: the
+    /// materials decide.
+    pub(crate) uniform_alpha: f32,
+    pub(crate) _pad: [u32; 23],
+}
+
+/// `Material.texels` of a material without a texture.
+pub const NO_TEXTURE: u32 = u32::MAX;
+/// `Material.flags`: bits 0-1 the wrap mode along U ([`crate::scene::Wrap::code`]), 2-3 along
+/// V, 4-5 the coverage (`COVERAGE_*`), then these.
+pub const MATERIAL_NEAREST: u32 = 1 << 6;
+pub const MATERIAL_DOUBLE_SIDED: u32 = 1 << 7;
+pub const COVERAGE_OPAQUE: u32 = 0;
+pub const COVERAGE_MASK: u32 = 1;
+pub const COVERAGE_BLEND: u32 = 2;
+/// What geometry.wgsl's `shade` makes of a fragment (scene::material::Shaded).
+pub const SHADED_NONE: u32 = 0;
+pub const SHADED_OPAQUE: u32 = 1;
+pub const SHADED_TRANSPARENT: u32 = 2;
+
+/// A material as the geometry passes read it (matches `Material` in common.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct GpuMaterial {
+    pub(crate) factor: [f32; 4],
+    /// Where its texture's texels start in the texel buffer, or [`NO_TEXTURE`].
+    pub(crate) texels: u32,
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    pub(crate) flags: u32,
+    pub(crate) cutoff: f32,
+    pub(crate) transmission: f32,
+    /// Schlick's reflectance at normal incidence ([`crate::scene::Material::f0`]).
+    pub(crate) f0: f32,
+    pub(crate) _pad: u32,
+}
+
+/// A scene's materials as the GPU reads them, and every texture's texels one after another.
+pub(crate) fn gpu_materials(scene: &crate::scene::Scene) -> (Vec<GpuMaterial>, Vec<u32>) {
+    use crate::scene::Coverage;
+    let mut starts = Vec::with_capacity(scene.textures.len());
+    let mut texels = Vec::new();
+    for t in &scene.textures {
+        starts.push(texels.len() as u32);
+        texels.extend_from_slice(&t.texels);
+    }
+    let materials = scene
+        .materials
+        .iter()
+        .map(|m| {
+            let (coverage, cutoff) = match m.coverage {
+                Coverage::Opaque => (COVERAGE_OPAQUE, 0.0),
+                Coverage::Mask(c) => (COVERAGE_MASK, c),
+                Coverage::Blend => (COVERAGE_BLEND, 0.0),
+            };
+            let mut flags = coverage << 4;
+            if m.double_sided {
+                flags |= MATERIAL_DOUBLE_SIDED;
+            }
+            let (texels, width, height) = match m.texture {
+                Some(t) => {
+                    let tex = &scene.textures[t as usize];
+                    flags |= tex.wrap[0].code() | tex.wrap[1].code() << 2;
+                    if tex.nearest {
+                        flags |= MATERIAL_NEAREST;
+                    }
+                    (starts[t as usize], tex.width, tex.height)
+                }
+                None => (NO_TEXTURE, 0, 0),
+            };
+            GpuMaterial {
+                factor: m.base_color,
+                texels,
+                width,
+                height,
+                flags,
+                cutoff,
+                transmission: m.transmission,
+                f0: m.f0(),
+                _pad: 0,
+            }
+        })
+        .collect();
+    (materials, texels)
 }
 
 /// The network's weights as the uniform `mlp.wgsl` reads, in 32-bit words: h1, h2, 0, 0,
@@ -353,9 +455,9 @@ mod tests {
     fn uploaded_structs_have_the_layout_of_their_wgsl_declarations() {
         let module = parse("allocate");
         let (span, wgsl) = wgsl_struct(&module, "Params");
-        let rust = offsets!(Params; view_proj, forward, background, width, height, k_uniform,
-            pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed, budget_ppm,
-            append, layer_major);
+        let rust = offsets!(Params; view_proj, forward, background, eye, width, height,
+            k_uniform, pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed,
+            budget_ppm, append, layer_major, uniform_alpha);
         assert_eq!(
             wgsl, rust,
             "Params: WGSL (left) and Rust (right) members and offsets"
@@ -365,6 +467,12 @@ mod tests {
             "Params: WGSL {span} bytes"
         );
         assert_eq!(size_of::<Params>() as u64, budget::PARAMS_BYTES);
+
+        let (span, wgsl) = wgsl_struct(&parse("capture"), "Material");
+        let rust = offsets!(GpuMaterial; factor, texels, width, height, flags, cutoff,
+            transmission, f0);
+        assert_eq!(wgsl, rust, "Material: WGSL (left) and Rust (right)");
+        assert_eq!(span as usize, size_of::<GpuMaterial>());
 
         let (span, wgsl) = wgsl_struct(&module, "Alloc");
         let rust = offsets!(AllocParams; f_lo, f_hi, ppm, kind);
@@ -439,6 +547,7 @@ mod tests {
                 shaders::GEOMETRY,
                 shaders::MLP,
                 shaders::SORT,
+                shaders::BEHIND,
             ];
             for src in others
                 .iter()

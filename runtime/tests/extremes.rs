@@ -174,11 +174,27 @@ fn extreme_opacities_and_depths_render_alike_on_cpu_and_gpu() {
         (1.0, 1.0),
         [0.2, 0.9, 0.9, 0.6],
     );
+    quad(
+        &mut s,
+        (-0.6, -0.6, 0.6, 0.6),
+        (0.9995, 0.9995),
+        [0.7, 0.2, 0.9, 0.6],
+    );
     let cam = identity();
     let fl = rasterize(&s, &cam, 80, 60).unwrap();
     let depths = &fl.depth;
     assert!(depths.contains(&0.0), "a fragment at depth 0");
-    assert!(depths.contains(&1.0), "a fragment at depth 1");
+    // At the far plane a fragment lies at the depth the opaque pass clears to: as under any
+    // LESS depth test, it is not drawn. A fragment of 8-bit opacity 0 adds nothing: none.
+    assert!(!depths.contains(&1.0), "no fragment at depth 1");
+    assert!(
+        depths.iter().any(|&d| d > 0.99),
+        "fragments just before the far plane"
+    );
+    assert!(
+        fl.rgba.iter().all(|c| c[3] > 0.0),
+        "no fragment of opacity 0"
+    );
     for budget in ["1fpp", "3fpp", "100%"] {
         cpu_and_gpu_agree(
             g,

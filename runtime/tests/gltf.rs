@@ -52,8 +52,16 @@ fn every_real_scene_loads_with_its_triangle_count() {
     // Uniform opacity overrides every alpha; material alpha keeps the bunny's 0.33 BLEND.
     let bunny = dir.join("StanfordBunny/StanfordBunny.glb");
     let s = scene::load(bunny.to_str().unwrap(), Opacity::Material).unwrap();
-    assert!(s.colors.iter().all(|c| (c[3] - 0.33).abs() < 1e-6));
+    assert_eq!(s.uniform_opacity, None);
+    assert!((0..s.triangle_count()).all(|t| {
+        let m = s.material_of(t);
+        m.coverage == scene::Coverage::Blend && (m.base_color[3] - 0.33).abs() < 1e-6
+    }));
+    // The scene's own opacity is the material's.
+    let native = scene::load(bunny.to_str().unwrap(), Opacity::Native).unwrap();
+    assert_eq!(native.uniform_opacity, None);
     let s = scene::load(bunny.to_str().unwrap(), Opacity::Uniform(0.6)).unwrap();
+    assert_eq!(s.uniform_opacity, Some(0.6));
     assert!(s.colors.iter().all(|c| c[3] == 0.6));
 }
 
@@ -110,10 +118,12 @@ fn a_tiny_gltf_written_here_loads() {
         glam::Vec3::new(11.0, 0.0, 0.0),
         "node translation applied"
     );
+    assert_eq!(s.colors[0], [1.0; 4], "no COLOR_0: white");
+    let m = s.material_of(0);
     assert_eq!(
-        s.colors[0],
-        [0.5, 0.25, 1.0, 0.4],
-        "base colour factor and BLEND alpha"
+        (m.base_color, m.coverage, m.double_sided),
+        ([0.5, 0.25, 1.0, 0.4], scene::Coverage::Blend, false),
+        "base colour factor, BLEND, single-sided"
     );
     // The same triangle as a .glb.
     let bin = std::fs::read(dir.join("tiny.bin")).unwrap();

@@ -32,7 +32,7 @@ impl Recording<'_, '_> {
         } else {
             (&p.abuffer_resolve, "sort and blend")
         };
-        passes.dispatch(
+        passes.resolve(
             enc,
             resolve,
             &[passes.params(), &offsets, &fragments, &image, &status],

@@ -171,7 +171,7 @@ impl<'a> Passes<'a> {
             gpu.bind_at(
                 &a.layout,
                 &[
-                    (0, self.geometry[0]),
+                    (0, self.params()),
                     (1, &params),
                     (2, b.counts),
                     (3, b.weights),
@@ -298,6 +298,7 @@ impl Gpu {
         let totals = fb.storage("totals", 16, true)?;
         let k = fb.storage("oit.k", 4 * px, true)?;
         let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
+        passes.opaque(&mut enc);
         passes.draw(&mut enc, &p.count, &[&counts], "count");
         passes.totals(&mut enc, &counts, &totals);
         let al = passes.allocation(

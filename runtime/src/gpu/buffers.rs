@@ -280,6 +280,37 @@ fn staged<T>(
     Ok(data)
 }
 
+/// A 32-bit-a-texel texture's texels (R32 or Depth32Float), row-major, read in one copy.
+pub(super) fn read_texture(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Vec<u32>> {
+    let (w, h) = (texture.width(), texture.height());
+    let row = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+    let copy = |enc: &mut wgpu::CommandEncoder, staging: &wgpu::Buffer| {
+        enc.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: staging,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row),
+                    rows_per_image: Some(h),
+                },
+            },
+            texture.size(),
+        )
+    };
+    staged(gpu, row as u64 * h as u64, copy, |mapped| {
+        mapped
+            .chunks_exact(row as usize)
+            .flat_map(|r| u32s(&r[..4 * w as usize]))
+            .collect()
+    })
+}
+
 pub(super) fn u32s(bytes: &[u8]) -> Vec<u32> {
     bytes
         .chunks_exact(4)

@@ -210,7 +210,7 @@ impl Recording<'_, '_> {
             &[&kb.k, &kb.base, &slots, &tail, &tail_count, &kb.counts],
             "capture",
         );
-        passes.dispatch(
+        passes.resolve(
             enc,
             resolve,
             &[

@@ -55,10 +55,10 @@ impl Recording<'_, '_> {
                 true,
             ),
             counts: fb.storage("features.count", 4 * px, true)?,
-            // The frame's vertices, or none (totals.wgsl's features_draw).
+            // The frame's transparent indices, or none (totals.wgsl's features_draw).
             draw: fb.init(
                 "features.draw",
-                bytemuck::cast_slice(&[passes.vertices, 1, 0, 0]),
+                bytemuck::cast_slice(&[passes.vertices, 1, 0, 0, 0]),
                 wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
                 true,
             ),

@@ -156,7 +156,7 @@ pub struct Gpu {
 /// Most buffers the pool keeps (beyond, a returned buffer is dropped).
 const POOL_MAX: usize = 64;
 /// Timestamped passes a frame has room for.
-const TIMED_PASSES: u32 = 16;
+const TIMED_PASSES: u32 = 24;
 
 impl Gpu {
     /// A buffer for a frame: the pooled one under `key` when its size and usage match (cleared
@@ -419,6 +419,10 @@ pub struct GpuFrame {
     pub features_drawn: Option<bool>,
     /// VKB: per pixel the count and the nearest fragment's `|n . e|`.
     pub vkb_nearest: Option<(Vec<u32>, Vec<f32>)>,
+    /// With diagnostics, where the scene has opaque surfaces: the opaque pass's colour and
+    /// depth per pixel ([`FragmentLists::opaque`] and `opaque_depth`; the A-buffer's
+    /// `fragments` carry them too).
+    pub opaque: Option<(Vec<u32>, Vec<f32>)>,
 }
 
 impl Gpu {
@@ -513,6 +517,8 @@ impl Gpu {
             out: Readback::default(),
             px,
         };
+        // The application's opaque pass, before any method's.
+        passes.opaque(&mut rec.enc);
         let image = match slots {
             None | Some(Slots::Mlab(_)) => rec.abuffer(slots.is_some(), width, height)?,
             Some(s) => {
@@ -541,6 +547,16 @@ impl Gpu {
         })?;
         let readback_ms = readback.elapsed().as_secs_f64() * 1e3;
         let pass_ms = timer.read(self)?;
+        let opaque = if self.diagnostics && inputs.opaque > 0 {
+            let color = read_texture(self, &inputs.opaque_color)?;
+            let depth = read_texture(self, &inputs.opaque_depth)?;
+            Some((
+                color,
+                depth.into_iter().map(f32::from_bits).collect::<Vec<f32>>(),
+            ))
+        } else {
+            None
+        };
         let Statistics {
             importance,
             stats,
@@ -552,6 +568,11 @@ impl Gpu {
             Statistics::default()
         };
         scopes.end()?;
+        let mut fragments = rec.out.fragments;
+        if let (Some(fl), Some((color, depth))) = (&mut fragments, &opaque) {
+            fl.opaque = color.clone();
+            fl.opaque_depth = depth.clone();
+        }
         Ok(GpuFrame {
             image: Image {
                 width,
@@ -561,12 +582,13 @@ impl Gpu {
             pass_ms,
             host_ms: vec![("scene upload", upload_ms), ("image readback", readback_ms)],
             allocated_bytes: rec.fb.allocated,
-            fragments: rec.out.fragments,
+            fragments,
             slots: rec.out.slots,
             importance,
             stats,
             features_drawn,
             vkb_nearest,
+            opaque,
         })
     }
 }
@@ -589,6 +611,7 @@ fn frame_params(
         view_proj: cam.view_proj.to_cols_array_2d(),
         forward: cam.forward.extend(0.0).to_array(),
         background: [background[0], background[1], background[2], 1.0],
+        eye: cam.eye.extend(1.0).to_array(),
         width,
         height,
         k_uniform,
@@ -601,7 +624,8 @@ fn frame_params(
         budget_ppm,
         append: 0,
         layer_major: 0,
-        _pad: [0; 28],
+        uniform_alpha: -1.0,
+        _pad: [0; 23],
     }
 }
 
@@ -625,13 +649,23 @@ impl Scopes {
     }
 }
 
-/// A frame's shared bindings and render target ([`Gpu::frame_inputs`]).
+/// A frame's shared bindings and render targets ([`Gpu::frame_inputs`]).
 struct FrameInputs {
     params: wgpu::Buffer,
-    positions: wgpu::Buffer,
-    colors: wgpu::Buffer,
+    /// Group 0 of every geometry pass after params: positions, colours, texture coordinates,
+    /// triangle materials, materials, texels (geometry.wgsl), then the sRGB table.
+    scene: [wgpu::Buffer; 7],
+    /// The transparent triangles' vertex indices, then the opaque ones'.
+    index: wgpu::Buffer,
+    /// Indices of the transparent triangles, and of the opaque ones after them.
+    transparent: u32,
+    opaque: u32,
+    /// The R8 target rasterization needs (never written; counted in the frame's bytes).
     target: wgpu::TextureView,
-    vertices: u32,
+    /// The opaque pass's depth (the transparent passes' occluder) and colour (RGBA8 in an R32,
+    /// A = 255 where covered): the application's, counted for no method.
+    opaque_depth: wgpu::Texture,
+    opaque_color: wgpu::Texture,
     pixels: u32,
 }
 
@@ -649,9 +683,15 @@ impl Gpu {
         Ok(Scopes { oom, validation })
     }
 
-    /// What every geometry pass binds (group 0: params, positions, colours) and the R8 target
-    /// rasterization needs (never written; counted in the frame's bytes).
+    /// What every geometry pass binds (group 0: params and the scene: positions, colours,
+    /// texture coordinates, materials, texels, the sRGB table), the index buffer, the R8 target
+    /// rasterization needs (never written; counted in the frame's bytes) and the opaque pass's
+    /// depth and colour targets.
     fn frame_inputs(&self, fb: &mut FrameBuffers, scene: &Scene, params: &Params) -> FrameInputs {
+        let params = &Params {
+            uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
+            ..*params
+        };
         let params_buf = fb.init(
             "params",
             bytemuck::bytes_of(params),
@@ -663,40 +703,76 @@ impl Gpu {
             .iter()
             .map(|p| p.extend(1.0).to_array())
             .collect();
-        let positions = fb.init(
-            "scene.positions",
-            bytemuck::cast_slice(&pos),
-            wgpu::BufferUsages::STORAGE,
+        let (materials, texels) = crate::wgsl::gpu_materials(scene);
+        let storage = wgpu::BufferUsages::STORAGE;
+        let mut upload = |label: &str, bytes: &[u8]| fb.init(label, bytes, storage, false);
+        let positions = upload("scene.positions", bytemuck::cast_slice(&pos));
+        let colors = upload("scene.colors", bytemuck::cast_slice(&scene.colors));
+        let uvs = upload("scene.uvs", bytemuck::cast_slice(&scene.uvs));
+        let tri_material = upload(
+            "scene.triangle_material",
+            bytemuck::cast_slice(&scene.triangle_material),
+        );
+        let mats = upload("scene.materials", bytemuck::cast_slice(&materials));
+        let texels = upload("scene.texels", bytemuck::cast_slice(&texels));
+        let srgb = fb.init(
+            "scene.srgb",
+            bytemuck::cast_slice(&crate::scene::material::srgb_table()),
+            wgpu::BufferUsages::UNIFORM,
             false,
         );
-        let colors = fb.init(
-            "scene.colors",
-            bytemuck::cast_slice(&scene.colors),
-            wgpu::BufferUsages::STORAGE,
+        // The transparent triangles' vertices first, then the opaque ones', each in
+        // submission order (the vertex stage pulls vertex `index`, so a fragment keeps its
+        // triangle's submission index).
+        let tris = scene.triangle_count() as u32;
+        let (transparent, opaque): (Vec<u32>, Vec<u32>) =
+            (0..tris).partition(|&t| scene.transparent(t as usize));
+        let indices: Vec<u32> = transparent
+            .iter()
+            .chain(&opaque)
+            .flat_map(|&t| [3 * t, 3 * t + 1, 3 * t + 2])
+            .collect();
+        let index = fb.init(
+            "scene.indices",
+            bytemuck::cast_slice(&indices),
+            wgpu::BufferUsages::INDEX,
             false,
         );
         let (width, height) = (params.width, params.height);
         fb.allocated += width as u64 * height as u64;
-        let target = self.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("raster.target"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: TARGET_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-            view_formats: &[],
-        });
+        let texture = |label: &str, format, usage| {
+            self.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let target = texture(
+            "raster.target",
+            TARGET_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        let sampled = wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC;
         FrameInputs {
             params: params_buf,
-            positions,
-            colors,
+            scene: [positions, colors, uvs, tri_material, mats, texels, srgb],
+            index,
+            transparent: 3 * transparent.len() as u32,
+            opaque: 3 * opaque.len() as u32,
             target: target.create_view(&Default::default()),
-            vertices: scene.positions.len() as u32,
+            opaque_depth: texture("application.opaque_depth", OPAQUE_DEPTH_FORMAT, sampled),
+            opaque_color: texture("application.opaque_color", OPAQUE_COLOR_FORMAT, sampled),
             pixels: params.pixels,
         }
     }

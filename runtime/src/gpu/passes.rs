@@ -7,9 +7,12 @@ use super::*;
 pub(super) struct Passes<'a> {
     pub(super) gpu: &'a Gpu,
     pub(super) timer: &'a Timer<'a>,
-    /// params, positions, colours: group 0 of every geometry pass.
-    pub(super) geometry: [&'a wgpu::Buffer; 3],
-    pub(super) target: &'a wgpu::TextureView,
+    pub(super) inputs: &'a FrameInputs,
+    /// The opaque pass's depth, as the transparent passes read it; its colour, as the
+    /// resolves do; its depth and colour as its attachments.
+    opaque_depth: wgpu::TextureView,
+    opaque_color: wgpu::TextureView,
+    /// The indices of the transparent triangles (the vertices every transparent pass draws).
     pub(super) vertices: u32,
     pub(super) pixels: u32,
 }
@@ -19,16 +22,88 @@ impl<'a> Passes<'a> {
         Passes {
             gpu,
             timer,
-            geometry: [&inputs.params, &inputs.positions, &inputs.colors],
-            target: &inputs.target,
-            vertices: inputs.vertices,
+            inputs,
+            opaque_depth: inputs.opaque_depth.create_view(&Default::default()),
+            opaque_color: inputs.opaque_color.create_view(&Default::default()),
+            vertices: inputs.transparent,
             pixels: inputs.pixels,
         }
     }
 
     /// The frame's parameter uniform (binding 0 of every pass).
     pub(super) fn params(&self) -> &'a wgpu::Buffer {
-        self.geometry[0]
+        &self.inputs.params
+    }
+
+    /// Group 0 of a geometry pass (geometry.wgsl): params, the scene's buffers, the sRGB
+    /// table, and for a transparent pass the opaque depth.
+    fn geometry_group(&self, layout: &wgpu::BindGroupLayout, transparent: bool) -> wgpu::BindGroup {
+        let i = self.inputs;
+        let mut entries: Vec<wgpu::BindGroupEntry> = std::iter::once(&i.params)
+            .chain(&i.scene)
+            .enumerate()
+            .map(|(b, buf)| wgpu::BindGroupEntry {
+                binding: b as u32,
+                resource: buf.as_entire_binding(),
+            })
+            .collect();
+        if transparent {
+            entries.push(wgpu::BindGroupEntry {
+                binding: 8,
+                resource: wgpu::BindingResource::TextureView(&self.opaque_depth),
+            });
+        }
+        self.gpu
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout,
+                entries: &entries,
+            })
+    }
+
+    /// The application's opaque pass (opaque.wgsl): its opaque triangles into the depth and
+    /// colour targets, cleared first (to 1 and 0; where the scene has none, that is all).
+    pub(super) fn opaque(&self, enc: &mut wgpu::CommandEncoder) {
+        let pipeline = &self.gpu.pipelines.opaque;
+        let g0 = self.geometry_group(&pipeline.get_bind_group_layout(0), false);
+        let (b, e) = self.timer.next("opaque");
+        let depth = self.inputs.opaque_depth.create_view(&Default::default());
+        let color = self.inputs.opaque_color.create_view(&Default::default());
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("opaque"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &color,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: Some(wgpu::RenderPassTimestampWrites {
+                query_set: self.timer.set(),
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: Some(e),
+            }),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        let i = self.inputs;
+        if i.opaque > 0 {
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &g0, &[]);
+            pass.set_index_buffer(i.index.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(i.transparent..i.transparent + i.opaque, 0, 0..1);
+        }
     }
 
     /// A geometry pass over every triangle, `buffers` bound as group 1.
@@ -42,8 +117,9 @@ impl<'a> Passes<'a> {
         self.geometry_pass(enc, pipeline, buffers, name, None);
     }
 
-    /// [`Passes::draw`] with its vertex count (all of the frame's, or none) read from `args`
-    /// (four words: vertices, instances, first vertex, first instance) on the device.
+    /// [`Passes::draw`] with its index count (all of the frame's transparent ones, or none)
+    /// read from `args` (five words: indices, instances, first index, base vertex, first
+    /// instance) on the device.
     pub(super) fn draw_indirect(
         &self,
         enc: &mut wgpu::CommandEncoder,
@@ -63,15 +139,13 @@ impl<'a> Passes<'a> {
         name: &'static str,
         indirect: Option<&wgpu::Buffer>,
     ) {
-        let g0 = self
-            .gpu
-            .bind(&pipeline.get_bind_group_layout(0), &self.geometry);
+        let g0 = self.geometry_group(&pipeline.get_bind_group_layout(0), true);
         let g1 = self.gpu.bind(&pipeline.get_bind_group_layout(1), buffers);
         let (b, e) = self.timer.next(name);
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some(name),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: self.target,
+                view: &self.inputs.target,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
@@ -91,10 +165,48 @@ impl<'a> Passes<'a> {
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &g0, &[]);
         pass.set_bind_group(1, &g1, &[]);
+        pass.set_index_buffer(self.inputs.index.slice(..), wgpu::IndexFormat::Uint32);
         match indirect {
-            Some(args) => pass.draw_indirect(args, 0),
-            None => pass.draw(0..self.vertices, 0..1),
+            Some(args) => pass.draw_indexed_indirect(args, 0),
+            None => pass.draw_indexed(0..self.vertices, 0, 0..1),
         }
+    }
+
+    /// A resolve (behind.wgsl): [`Passes::dispatch`] with the opaque pass's colour at binding
+    /// 15, what the resolve composites over.
+    pub(super) fn resolve(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::ComputePipeline,
+        buffers: &[&wgpu::Buffer],
+        name: &'static str,
+    ) {
+        let (gx, gy) = grid(self.pixels, PIXEL_GROUP);
+        let mut entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(b, buf)| wgpu::BindGroupEntry {
+                binding: b as u32,
+                resource: buf.as_entire_binding(),
+            })
+            .collect();
+        entries.push(wgpu::BindGroupEntry {
+            binding: 15,
+            resource: wgpu::BindingResource::TextureView(&self.opaque_color),
+        });
+        let g = self
+            .gpu
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &entries,
+            });
+        self.compute(enc, name, |pass| {
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &g, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        });
     }
 
     /// A timed compute pass `record` fills (several dispatches, one timestamp pair).

@@ -4,6 +4,8 @@
 use super::*;
 
 pub(super) struct Pipelines {
+    /// The application's opaque pass (opaque.wgsl), first in every frame.
+    pub(super) opaque: wgpu::RenderPipeline,
     pub(super) count: wgpu::RenderPipeline,
     pub(super) store: wgpu::RenderPipeline,
     pub(super) capture: wgpu::RenderPipeline,
@@ -39,6 +41,11 @@ pub(super) struct Pipelines {
 }
 
 pub(super) const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
+/// The opaque pass's depth attachment, which the transparent passes read as their occluder.
+pub(super) const OPAQUE_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// The opaque pass's colour: RGBA8 in one 32-bit word, A = 255 where an opaque surface covers
+/// the pixel (behind.wgsl reads it exactly).
+pub(super) const OPAQUE_COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 
 pub(super) fn module(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
     module_from(device, name, shaders::source(name).expect("known pass"))
@@ -410,6 +417,42 @@ impl Pipelines {
             })
         };
         let geometry = |name: &str| geometry_from(name, module(device, name));
+        let opaque_module = module(device, "opaque");
+        let opaque = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("opaque"),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module: &opaque_module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: OPAQUE_DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &opaque_module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: OPAQUE_COLOR_FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
         let module_with = |pass: &str, label: &str, from: &str, to: &str| {
             let mut src = shaders::source(pass).expect("known pass");
             redeclare(&mut src, pass, from, to);
@@ -432,6 +475,7 @@ impl Pipelines {
         let compute = |name: &str| compute_entry(name, "main");
         let network_layout = NetworkLayout::new(device);
         let p = Pipelines {
+            opaque,
             count: geometry("abuffer_count"),
             store: geometry("abuffer_store"),
             capture: geometry("capture"),

@@ -35,7 +35,7 @@ impl<'a> Passes<'a> {
             fb.scan_blocks = Some(fb.storage("scan.blocks", 4 * groups as u64, true)?);
         }
         let blocks = fb.scan_blocks.clone().expect("created above");
-        let params = self.geometry[0];
+        let params = self.params();
         // Auto layouts keep only the bindings an entry point uses: `values` only the first.
         let bind = |pl: &wgpu::ComputePipeline, all: bool| {
             let mut entries = vec![(0, params), (2, offsets), (3, &blocks)];

@@ -1,15 +1,19 @@
 //! glTF 2.0 loading (`.gltf` + `.bin` + images, and `.glb`) into a triangle soup.
 //!
 //! Every mesh primitive of the default scene (or of the first scene) is instanced through its
-//! node's world transform. Vertex colour is `baseColorFactor x COLOR_0 x baseColorTexture`, the
-//! texture being sampled once per vertex (nearest texel, sRGB decoded to linear, UV set of the
-//! texture info, wrap-repeat): the OIT pipeline then needs no texture bindings and the CPU and GPU
-//! shade identically. Alpha follows the material's `alphaMode` (OPAQUE -> 1, MASK -> 0 or 1 by
-//! the cutoff, BLEND -> alpha); the scene's [`super::Opacity`] may override it afterwards.
+//! node's world transform. Each vertex keeps its `COLOR_0` and the texture coordinates of its
+//! material's base colour texture (`KHR_texture_transform` applied, an affine map, so it commutes
+//! with perspective-correct interpolation); each triangle its material: base colour factor and
+//! texture with its sampler's wrap modes and magnification filter, `alphaMode` and
+//! `alphaCutoff`, `doubleSided`, `KHR_materials_transmission`'s factor and `KHR_materials_ior`
+//! (see [`super::material`] for what a fragment of each is). Images are decoded to RGBA8 and
+//! box-filtered down to [`MAX_TEXTURE_SIDE`] a side. A primitive without a material takes glTF's
+//! default material (white, OPAQUE, single-sided).
 //!
 //! Every accessor is bounds-checked before it is read, so a truncated or inconsistent file is an
 //! error naming the problem, never a panic.
 
+use super::material::{self, Coverage, MAX_TEXTURE_SIDE, Material, Texture, Wrap};
 use super::{Scene, SceneFault};
 use crate::error::{Error, Result};
 use glam::{Mat4, Vec3};
@@ -54,8 +58,10 @@ pub fn from_slice(bytes: &[u8], path: &Path) -> Result<Scene> {
         base,
         buffers: &buffers,
         textures: HashMap::new(),
+        materials: HashMap::new(),
         scene: Scene {
             name,
+            materials: Vec::new(),
             ..Scene::default()
         },
     };
@@ -113,37 +119,15 @@ fn precheck(bytes: &[u8], path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// A decoded base colour texture: linear RGBA.
-struct Texture {
-    width: u32,
-    height: u32,
-    texels: Vec<[f32; 4]>,
-}
-
-impl Texture {
-    fn sample(&self, uv: [f32; 2]) -> [f32; 4] {
-        let u = uv[0] - uv[0].floor();
-        let v = uv[1] - uv[1].floor();
-        let x = ((u * self.width as f32) as u32).min(self.width - 1);
-        let y = ((v * self.height as f32) as u32).min(self.height - 1);
-        self.texels[(y * self.width + x) as usize]
-    }
-}
-
 struct Loader<'a> {
     path: &'a Path,
     base: &'a Path,
     buffers: &'a [gltf::buffer::Data],
-    textures: HashMap<usize, Texture>,
+    /// glTF texture index -> the scene's.
+    textures: HashMap<usize, u32>,
+    /// glTF material index (None: the default material) -> the scene's.
+    materials: HashMap<Option<usize>, u32>,
     scene: Scene,
-}
-
-fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
 }
 
 impl Loader<'_> {
@@ -220,34 +204,85 @@ impl Loader<'_> {
         Ok(())
     }
 
-    fn texture(&mut self, tex: &gltf::Texture) -> Result<&Texture> {
-        let idx = tex.source().index();
-        if !self.textures.contains_key(&idx) {
-            let data = gltf::image::Data::from_source(
-                tex.source().source(),
-                Some(self.base),
-                self.buffers,
-            )
-            .map_err(|e| self.err(format!("cannot decode image {idx}: {e}")))?;
-            let texels = to_rgba(&data).ok_or_else(|| {
-                self.err(format!(
-                    "image {idx} has an unsupported pixel format {:?}",
-                    data.format
-                ))
-            })?;
-            if data.width == 0 || data.height == 0 {
-                return Err(self.err(format!("image {idx} is empty")));
-            }
-            self.textures.insert(
-                idx,
-                Texture {
-                    width: data.width,
-                    height: data.height,
-                    texels,
-                },
-            );
+    /// The scene's texture for a glTF texture (its image and sampler), decoded on first use.
+    fn texture(&mut self, tex: &gltf::Texture) -> Result<u32> {
+        if let Some(&t) = self.textures.get(&tex.index()) {
+            return Ok(t);
         }
-        Ok(&self.textures[&idx])
+        let idx = tex.source().index();
+        let data =
+            gltf::image::Data::from_source(tex.source().source(), Some(self.base), self.buffers)
+                .map_err(|e| self.err(format!("cannot decode image {idx}: {e}")))?;
+        if data.width == 0 || data.height == 0 {
+            return Err(self.err(format!("image {idx} is empty")));
+        }
+        let texels = to_rgba8(&data).ok_or_else(|| {
+            self.err(format!(
+                "image {idx} has an unsupported pixel format {:?}",
+                data.format
+            ))
+        })?;
+        use gltf::texture::{MagFilter, WrappingMode};
+        let sampler = tex.sampler();
+        let wrap = |m: WrappingMode| match m {
+            WrappingMode::Repeat => Wrap::Repeat,
+            WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+            WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+        };
+        let texture = Texture {
+            width: data.width,
+            height: data.height,
+            texels,
+            wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+            nearest: sampler.mag_filter() == Some(MagFilter::Nearest),
+        }
+        .limited(MAX_TEXTURE_SIDE);
+        let t = self.scene.add_texture(texture);
+        self.textures.insert(tex.index(), t);
+        Ok(t)
+    }
+
+    /// The scene's material for a primitive's, added on first use, and the texture
+    /// coordinate set and transform its base colour texture reads.
+    fn material(&mut self, m: &gltf::Material) -> Result<(u32, UvSet)> {
+        let pbr = m.pbr_metallic_roughness();
+        let info = pbr.base_color_texture();
+        let uv = match &info {
+            Some(i) => {
+                let t = i.texture_transform();
+                UvSet {
+                    set: t
+                        .as_ref()
+                        .and_then(|t| t.tex_coord())
+                        .unwrap_or(i.tex_coord()),
+                    transform: t.map(|t| (t.offset(), t.rotation(), t.scale())),
+                }
+            }
+            None => UvSet::default(),
+        };
+        if let Some(&i) = self.materials.get(&m.index()) {
+            return Ok((i, uv));
+        }
+        let texture = match &info {
+            Some(i) => Some(self.texture(&i.texture())?),
+            None => None,
+        };
+        let coverage = match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => Coverage::Opaque,
+            gltf::material::AlphaMode::Mask => Coverage::Mask(m.alpha_cutoff().unwrap_or(0.5)),
+            gltf::material::AlphaMode::Blend => Coverage::Blend,
+        };
+        let mat = Material {
+            base_color: pbr.base_color_factor(),
+            texture,
+            coverage,
+            transmission: m.transmission().map_or(0.0, |t| t.transmission_factor()),
+            ior: m.ior().unwrap_or(material::DEFAULT_IOR),
+            double_sided: m.double_sided(),
+        };
+        let i = self.scene.add_material(mat);
+        self.materials.insert(m.index(), i);
+        Ok((i, uv))
     }
 
     fn primitive(&mut self, prim: &gltf::Primitive, world: Mat4) -> Result<()> {
@@ -277,48 +312,32 @@ impl Loader<'_> {
             .map(|p| world.transform_point3(Vec3::from(p)))
             .collect();
         let n = positions.len();
-        let mut colors: Vec<[f32; 4]> = match reader.read_colors(0) {
+        let colors: Vec<[f32; 4]> = match reader.read_colors(0) {
             Some(c) => c.into_rgba_f32().collect(),
             None => vec![[1.0; 4]; n],
         };
         if colors.len() != n {
             return Err(self.err("COLOR_0 and POSITION have different counts"));
         }
-        let material = prim.material();
-        let pbr = material.pbr_metallic_roughness();
-        let factor = pbr.base_color_factor();
-        let tex_info = pbr.base_color_texture();
-        let uvs: Option<Vec<[f32; 2]>> = tex_info
-            .as_ref()
-            .and_then(|t| reader.read_tex_coords(t.tex_coord()))
-            .map(|t| t.into_f32().collect());
-        if let (Some(info), Some(uvs)) = (tex_info, uvs) {
-            if uvs.len() != n {
-                return Err(self.err("TEXCOORD and POSITION have different counts"));
-            }
-            let tex = self.texture(&info.texture())?;
-            for (c, uv) in colors.iter_mut().zip(&uvs) {
-                let t = tex.sample(*uv);
-                for i in 0..4 {
-                    c[i] *= t[i];
-                }
-            }
-        }
-        let (mode_alpha, cutoff) = match material.alpha_mode() {
-            gltf::material::AlphaMode::Opaque => (Some(1.0), None),
-            gltf::material::AlphaMode::Mask => (None, Some(material.alpha_cutoff().unwrap_or(0.5))),
-            gltf::material::AlphaMode::Blend => (None, None),
+        let (material, uv_set) = self.material(&prim.material())?;
+        let uvs: Vec<[f32; 2]> = match self.scene.materials[material as usize].texture {
+            Some(_) => match reader.read_tex_coords(uv_set.set) {
+                Some(t) => t.into_f32().map(|uv| uv_set.apply(uv)).collect(),
+                None => vec![[0.0; 2]; n],
+            },
+            None => vec![[0.0; 2]; n],
         };
-        for c in &mut colors {
-            for i in 0..4 {
-                c[i] *= factor[i];
-            }
-            if let Some(a) = mode_alpha {
-                c[3] = a;
-            }
-            if let Some(cut) = cutoff {
-                c[3] = if c[3] >= cut { 1.0 } else { 0.0 };
-            }
+        if uvs.len() != n {
+            return Err(self.err(format!(
+                "TEXCOORD_{} and POSITION have different counts",
+                uv_set.set
+            )));
+        }
+        if let Some(v) = uvs.iter().position(|uv| !uv.iter().all(|c| c.is_finite())) {
+            return Err(self.err(format!(
+                "vertex {v} has texture coordinates that are not finite: {:?}",
+                uvs[v]
+            )));
         }
         let indices: Vec<u32> = match reader.read_indices() {
             Some(i) => i.into_u32().collect(),
@@ -349,44 +368,86 @@ impl Loader<'_> {
                 .collect(),
         };
         for t in tris {
-            self.scene.push_triangle(
-                [positions[t[0]], positions[t[1]], positions[t[2]]],
-                [colors[t[0]], colors[t[1]], colors[t[2]]],
+            self.scene.push_textured(
+                t.map(|i| positions[i]),
+                t.map(|i| colors[i]),
+                t.map(|i| uvs[i]),
+                material,
             );
         }
         Ok(())
     }
 }
 
-/// Converts decoded image data into linear RGBA (colour channels sRGB-decoded).
-fn to_rgba(data: &gltf::image::Data) -> Option<Vec<[f32; 4]>> {
+/// The texture coordinate set a base colour texture reads, and its `KHR_texture_transform`
+/// (offset, rotation, scale).
+#[derive(Clone, Copy, Debug, Default)]
+struct UvSet {
+    set: u32,
+    transform: Option<([f32; 2], f32, [f32; 2])>,
+}
+
+impl UvSet {
+    /// `offset + R(rotation) S(scale) uv`, as the extension defines it.
+    fn apply(&self, uv: [f32; 2]) -> [f32; 2] {
+        let Some((o, r, s)) = self.transform else {
+            return uv;
+        };
+        let (sin, cos) = r.sin_cos();
+        let (u, v) = (s[0] * uv[0], s[1] * uv[1]);
+        [o[0] + cos * u + sin * v, o[1] - sin * u + cos * v]
+    }
+}
+
+/// Decoded image data as RGBA8 texels (R in the low byte), as stored: colour sRGB-encoded.
+fn to_rgba8(data: &gltf::image::Data) -> Option<Vec<u32>> {
     use gltf::image::Format;
     let px = &data.pixels;
-    let lin = |v: u8| srgb_to_linear(v as f32 / 255.0);
-    let out: Vec<[f32; 4]> = match data.format {
-        Format::R8 => px.iter().map(|&r| [lin(r), lin(r), lin(r), 1.0]).collect(),
+    let word = |r: u8, g: u8, b: u8, a: u8| u32::from_le_bytes([r, g, b, a]);
+    let out: Vec<u32> = match data.format {
+        Format::R8 => px.iter().map(|&r| word(r, r, r, 255)).collect(),
         Format::R8G8 => px
             .chunks_exact(2)
-            .map(|p| [lin(p[0]), lin(p[0]), lin(p[0]), p[1] as f32 / 255.0])
+            .map(|p| word(p[0], p[0], p[0], p[1]))
             .collect(),
         Format::R8G8B8 => px
             .chunks_exact(3)
-            .map(|p| [lin(p[0]), lin(p[1]), lin(p[2]), 1.0])
+            .map(|p| word(p[0], p[1], p[2], 255))
             .collect(),
         Format::R8G8B8A8 => px
             .chunks_exact(4)
-            .map(|p| [lin(p[0]), lin(p[1]), lin(p[2]), p[3] as f32 / 255.0])
+            .map(|p| word(p[0], p[1], p[2], p[3]))
+            .collect(),
+        // 16-bit channels: each one's high byte (the decoder's bytes are little-endian).
+        Format::R16 => px
+            .chunks_exact(2)
+            .map(|p| word(p[1], p[1], p[1], 255))
+            .collect(),
+        Format::R16G16 => px
+            .chunks_exact(4)
+            .map(|p| word(p[1], p[1], p[1], p[3]))
+            .collect(),
+        Format::R16G16B16 => px
+            .chunks_exact(6)
+            .map(|p| word(p[1], p[3], p[5], 255))
+            .collect(),
+        Format::R16G16B16A16 => px
+            .chunks_exact(8)
+            .map(|p| word(p[1], p[3], p[5], p[7]))
             .collect(),
         _ => return None,
     };
     (out.len() == (data.width * data.height) as usize).then_some(out)
 }
 
-/// Writes a scene as a binary glTF 2.0 file (`.glb`): one node, one mesh, one primitive of
-/// unindexed triangles in submission order with `POSITION` (f32 VEC3) and `COLOR_0` (f32 VEC4,
-/// linear, non-premultiplied), and a white `BLEND` material, so [`load`] with the material's
-/// alpha gives back the same triangles and colours bit for bit. Written to a temporary file and
-/// renamed, so a failed export leaves no half-written file.
+/// Writes a scene as a binary glTF 2.0 file (`.glb`): one node and one mesh, a primitive for
+/// each run of triangles of one material in submission order (unindexed, `POSITION` f32 VEC3,
+/// `COLOR_0` f32 VEC4 linear non-premultiplied, `TEXCOORD_0` f32 VEC2), the materials (base
+/// colour factor and texture, alpha mode and cutoff, double-sidedness, transmission and IOR)
+/// and their textures as PNG images with their samplers, so [`load`] gives back the same
+/// triangles, colours, coordinates, materials and texels bit for bit. A scene under one uniform
+/// opacity keeps it in every vertex alpha. Written to a temporary file and renamed, so a failed
+/// export leaves no half-written file.
 pub fn export(scene: &Scene, path: &Path) -> Result<()> {
     let bytes = to_glb(scene).map_err(|f| Error::scene(path, f.to_string()))?;
     crate::tensors::write_atomic(path, &bytes)
@@ -394,6 +455,7 @@ pub fn export(scene: &Scene, path: &Path) -> Result<()> {
 
 /// The `.glb` bytes of a scene (see [`export`]).
 pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, SceneFault> {
+    use serde_json::{Value, json};
     let n = scene.positions.len();
     if n == 0 || !n.is_multiple_of(3) || scene.colors.len() != n {
         return Err(SceneFault::Unpaired {
@@ -407,56 +469,149 @@ pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, SceneFault> {
             position: scene.positions[vertex],
         });
     }
-    let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
-    for p in &scene.positions {
-        for (c, v) in p.to_array().into_iter().enumerate() {
-            lo[c] = lo[c].min(v);
-            hi[c] = hi[c].max(v);
+    scene.check_materials()?;
+    let mut bin: Vec<u8> = Vec::with_capacity(n * 36);
+    let mut views: Vec<Value> = Vec::new();
+    let mut accessors: Vec<Value> = Vec::new();
+    // A buffer view of `bytes`, 4-byte aligned; returns its index.
+    let mut view = |bin: &mut Vec<u8>, bytes: &[u8]| {
+        while !bin.len().is_multiple_of(4) {
+            bin.push(0);
         }
-    }
-    let mut bin: Vec<u8> = Vec::with_capacity(n * 28);
-    bin.extend(
-        scene
-            .positions
+        views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len()}));
+        bin.extend_from_slice(bytes);
+        views.len() - 1
+    };
+    let mut primitives = Vec::new();
+    let tris = scene.triangle_count();
+    let mut t0 = 0;
+    while t0 < tris {
+        let m = scene.triangle_material[t0];
+        let t1 = (t0..tris)
+            .find(|&t| scene.triangle_material[t] != m)
+            .unwrap_or(tris);
+        let (v0, v1) = (3 * t0, 3 * t1);
+        let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+        for p in &scene.positions[v0..v1] {
+            for (c, v) in p.to_array().into_iter().enumerate() {
+                lo[c] = lo[c].min(v);
+                hi[c] = hi[c].max(v);
+            }
+        }
+        let pos: Vec<u8> = scene.positions[v0..v1]
             .iter()
             .flat_map(|p| p.to_array())
-            .flat_map(f32::to_le_bytes),
-    );
-    let pos_len = bin.len();
-    bin.extend(scene.colors.iter().flatten().flat_map(|c| c.to_le_bytes()));
-    let col_len = bin.len() - pos_len;
-    let json = serde_json::json!({
+            .flat_map(f32::to_le_bytes)
+            .collect();
+        let col: Vec<u8> = scene.colors[v0..v1]
+            .iter()
+            .flatten()
+            .flat_map(|c| c.to_le_bytes())
+            .collect();
+        let uv: Vec<u8> = scene.uvs[v0..v1]
+            .iter()
+            .flatten()
+            .flat_map(|c| c.to_le_bytes())
+            .collect();
+        let count = v1 - v0;
+        let a = accessors.len();
+        accessors.push(
+            json!({"bufferView": view(&mut bin, &pos), "componentType": 5126,
+            "count": count, "type": "VEC3", "min": lo, "max": hi}),
+        );
+        accessors.push(
+            json!({"bufferView": view(&mut bin, &col), "componentType": 5126,
+            "count": count, "type": "VEC4"}),
+        );
+        accessors.push(
+            json!({"bufferView": view(&mut bin, &uv), "componentType": 5126,
+            "count": count, "type": "VEC2"}),
+        );
+        primitives.push(json!({
+            "attributes": {"POSITION": a, "COLOR_0": a + 1, "TEXCOORD_0": a + 2},
+            "material": m,
+            "mode": 4
+        }));
+        t0 = t1;
+    }
+    let mut images = Vec::new();
+    let mut samplers = Vec::new();
+    let mut textures = Vec::new();
+    for (i, t) in scene.textures.iter().enumerate() {
+        let png = png_bytes(t);
+        images.push(json!({"bufferView": view(&mut bin, &png), "mimeType": "image/png"}));
+        let wrap = |w: Wrap| match w {
+            Wrap::Repeat => 10497,
+            Wrap::MirroredRepeat => 33648,
+            Wrap::ClampToEdge => 33071,
+        };
+        samplers.push(json!({
+            "magFilter": if t.nearest { 9728 } else { 9729 },
+            "wrapS": wrap(t.wrap[0]),
+            "wrapT": wrap(t.wrap[1])
+        }));
+        textures.push(json!({"source": i, "sampler": i}));
+    }
+    let mut used = std::collections::BTreeSet::new();
+    let materials: Vec<Value> = scene
+        .materials
+        .iter()
+        .map(|m| {
+            let mut pbr = json!({"baseColorFactor": m.base_color});
+            if let Some(t) = m.texture {
+                pbr["baseColorTexture"] = json!({"index": t});
+            }
+            let mut mat = json!({"pbrMetallicRoughness": pbr, "doubleSided": m.double_sided});
+            match m.coverage {
+                Coverage::Opaque => mat["alphaMode"] = json!("OPAQUE"),
+                Coverage::Mask(c) => {
+                    mat["alphaMode"] = json!("MASK");
+                    mat["alphaCutoff"] = json!(c);
+                }
+                Coverage::Blend => mat["alphaMode"] = json!("BLEND"),
+            }
+            let mut ext = serde_json::Map::new();
+            if m.transmission > 0.0 {
+                ext.insert(
+                    "KHR_materials_transmission".into(),
+                    json!({"transmissionFactor": m.transmission}),
+                );
+            }
+            if m.ior != material::DEFAULT_IOR {
+                ext.insert("KHR_materials_ior".into(), json!({"ior": m.ior}));
+            }
+            used.extend(ext.keys().cloned());
+            if !ext.is_empty() {
+                mat["extensions"] = Value::Object(ext);
+            }
+            mat
+        })
+        .collect();
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let mut root = json!({
         "asset": {"version": "2.0", "generator": "dhoit export"},
         "scene": 0,
         "scenes": [{"name": scene.name, "nodes": [0]}],
         "nodes": [{"mesh": 0, "name": scene.name}],
-        "meshes": [{"primitives": [{
-            "attributes": {"POSITION": 0, "COLOR_0": 1},
-            "material": 0,
-            "mode": 4
-        }]}],
-        "materials": [{
-            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0]},
-            "alphaMode": "BLEND",
-            "doubleSided": true
-        }],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": n, "type": "VEC3",
-             "min": lo, "max": hi},
-            {"bufferView": 1, "componentType": 5126, "count": n, "type": "VEC4"}
-        ],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": pos_len},
-            {"buffer": 0, "byteOffset": pos_len, "byteLength": col_len}
-        ],
+        "meshes": [{"primitives": primitives}],
+        "materials": materials,
+        "accessors": accessors,
+        "bufferViews": views,
         "buffers": [{"byteLength": bin.len()}]
     });
-    let mut json = serde_json::to_vec(&json).expect("a serde_json::Value always serialises");
+    if !textures.is_empty() {
+        root["images"] = json!(images);
+        root["samplers"] = json!(samplers);
+        root["textures"] = json!(textures);
+    }
+    if !used.is_empty() {
+        root["extensionsUsed"] = json!(used);
+    }
+    let mut json = serde_json::to_vec(&root).expect("a serde_json::Value always serialises");
     while !json.len().is_multiple_of(4) {
         json.push(b' ');
-    }
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();
     let total = u32::try_from(total).map_err(|_| SceneFault::TooBigForGlb { bytes: total })?;
@@ -471,4 +626,15 @@ pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, SceneFault> {
     out.extend(b"BIN\0");
     out.extend(bin);
     Ok(out)
+}
+
+/// A texture's texels as PNG bytes (RGBA8, as stored).
+fn png_bytes(t: &Texture) -> Vec<u8> {
+    use image::ImageEncoder;
+    let raw: Vec<u8> = t.texels.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(&raw, t.width, t.height, image::ExtendedColorType::Rgba8)
+        .expect("an RGBA8 image of its own size encodes to memory");
+    out
 }

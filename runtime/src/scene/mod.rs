@@ -1,12 +1,16 @@
-//! Scenes: triangle soups with per-vertex non-premultiplied RGBA, from glTF files or built-in
-//! procedural generators, and the deterministic orbit cameras they are seen from.
+//! Scenes: triangle soups with per-vertex non-premultiplied RGBA and texture coordinates, a
+//! material per triangle (glTF's: [`material`]), from glTF files or built-in procedural
+//! generators, and the deterministic orbit cameras they are seen from.
 //!
 //! A scene is stored unindexed (three vertices per triangle, in submission order), which is what
-//! both the CPU rasterizer and a non-indexed GPU draw consume; `shuffled` permutes whole
-//! triangles to test order independence.
+//! both the CPU rasterizer and the GPU's vertex stage (pulling vertices by index) consume;
+//! `shuffled` permutes whole triangles to test order independence.
 
 pub mod gltf;
+pub mod material;
 pub mod procedural;
+
+pub use material::{Coverage, Material, Texture, Wrap};
 
 use crate::error::{Error, Result};
 use crate::rng::Rng;
@@ -33,30 +37,89 @@ pub enum SceneFault {
     Unpaired { positions: usize, colors: usize },
     #[error("{bytes} bytes exceed a GLB's 4 GiB")]
     TooBigForGlb { bytes: usize },
+    #[error(
+        "{triangles} triangles, {uvs} texture coordinates and {materials} triangle materials do not match"
+    )]
+    Unmatched {
+        triangles: usize,
+        uvs: usize,
+        materials: usize,
+    },
+    #[error("triangle {triangle} names material {material} of {materials}")]
+    NoSuchMaterial {
+        triangle: usize,
+        material: u32,
+        materials: usize,
+    },
+    #[error("material {material} names texture {texture} of {textures}")]
+    NoSuchTexture {
+        material: usize,
+        texture: u32,
+        textures: usize,
+    },
+    #[error("texture {texture} is {width}x{height} with {texels} texels")]
+    BadTexture {
+        texture: usize,
+        width: u32,
+        height: u32,
+        texels: usize,
+    },
+    #[error("vertex {vertex} has texture coordinates that are not finite: {uv:?}")]
+    NonFiniteUv { vertex: usize, uv: [f32; 2] },
+    #[error("material {material} has a value that is not finite or out of range: {what}")]
+    BadMaterial { material: usize, what: String },
 }
+
+/// The opacity of the papers' protocol: every surface transparent with this one opacity.
+pub const PAPER_OPACITY: f32 = 0.33;
 
 /// How fragment opacity is decided.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum Opacity {
-    /// Every surface is transparent with this one opacity (the reference implementation uses 0.33).
+    /// Every surface is transparent with this one opacity (the papers' protocol; the reference
+    /// implementation uses [`PAPER_OPACITY`]).
     Uniform(f32),
-    /// Keep the material's alpha (base colour factor x vertex colour x texture alpha).
+    /// The materials decide ([`material`]): opaque, masked, blended and glass surfaces.
     Material,
+    /// The scene's own: its materials for glTF files and the built-in material families, one
+    /// opacity of [`PAPER_OPACITY`] for the papers' built-in families.
+    #[default]
+    Native,
 }
 
-impl Default for Opacity {
-    fn default() -> Self {
-        Opacity::Uniform(0.33)
-    }
-}
-
-/// A triangle soup: `positions.len() == colors.len() == 3 * triangle_count()`.
-#[derive(Clone, Debug, Default)]
+/// A triangle soup: `positions.len() == colors.len() == uvs.len() == 3 * triangle_count()`,
+/// `triangle_material.len() == triangle_count()`.
+#[derive(Clone, Debug)]
 pub struct Scene {
     pub name: String,
     pub positions: Vec<Vec3>,
-    /// Non-premultiplied linear RGBA per vertex.
+    /// Non-premultiplied linear RGBA per vertex (glTF's COLOR_0).
     pub colors: Vec<[f32; 4]>,
+    /// Texture coordinates per vertex, of the material's base colour texture (zero where the
+    /// material has none).
+    pub uvs: Vec<[f32; 2]>,
+    /// Per triangle, its material's index in `materials`.
+    pub triangle_material: Vec<u32>,
+    pub materials: Vec<Material>,
+    pub textures: Vec<Texture>,
+    /// One opacity for every surface (the papers' protocol), or `None`: the materials decide.
+    pub uniform_opacity: Option<f32>,
+}
+
+impl Default for Scene {
+    /// No triangles, one default material ([`Material::default`]), the materials deciding.
+    fn default() -> Self {
+        Scene {
+            name: String::new(),
+            positions: Vec::new(),
+            colors: Vec::new(),
+            uvs: Vec::new(),
+            triangle_material: Vec::new(),
+            materials: vec![Material::default()],
+            textures: Vec::new(),
+            uniform_opacity: None,
+        }
+    }
 }
 
 impl Scene {
@@ -64,9 +127,119 @@ impl Scene {
         self.positions.len() / 3
     }
 
+    /// A triangle of the first material, untextured.
     pub fn push_triangle(&mut self, p: [Vec3; 3], c: [[f32; 4]; 3]) {
+        self.push_textured(p, c, [[0.0; 2]; 3], 0);
+    }
+
+    /// A triangle with texture coordinates and a material.
+    pub fn push_textured(&mut self, p: [Vec3; 3], c: [[f32; 4]; 3], uv: [[f32; 2]; 3], m: u32) {
         self.positions.extend_from_slice(&p);
         self.colors.extend_from_slice(&c);
+        self.uvs.extend_from_slice(&uv);
+        self.triangle_material.push(m);
+    }
+
+    /// Adds a material, returning its index.
+    pub fn add_material(&mut self, m: Material) -> u32 {
+        self.materials.push(m);
+        (self.materials.len() - 1) as u32
+    }
+
+    /// Adds a texture, returning its index.
+    pub fn add_texture(&mut self, t: Texture) -> u32 {
+        self.textures.push(t);
+        (self.textures.len() - 1) as u32
+    }
+
+    /// Whether triangle `t` is transparent (the materials', or every triangle under one
+    /// uniform opacity); the others are drawn in the opaque pass.
+    pub fn transparent(&self, t: usize) -> bool {
+        self.uniform_opacity.is_some()
+            || self.materials[self.triangle_material[t] as usize].transparent()
+    }
+
+    /// Whether any triangle is opaque (then the frame has an opaque pass).
+    pub fn has_opaque(&self) -> bool {
+        (0..self.triangle_count()).any(|t| !self.transparent(t))
+    }
+
+    /// Triangle `t`'s material.
+    pub fn material_of(&self, t: usize) -> &Material {
+        &self.materials[self.triangle_material[t] as usize]
+    }
+
+    /// Whether the materials, textures and texture coordinates are consistent and finite.
+    pub(crate) fn check_materials(&self) -> std::result::Result<(), SceneFault> {
+        let n = self.triangle_count();
+        if self.uvs.len() != 3 * n || self.triangle_material.len() != n {
+            return Err(SceneFault::Unmatched {
+                triangles: n,
+                uvs: self.uvs.len(),
+                materials: self.triangle_material.len(),
+            });
+        }
+        if let Some(t) = self
+            .triangle_material
+            .iter()
+            .position(|&m| m as usize >= self.materials.len())
+        {
+            return Err(SceneFault::NoSuchMaterial {
+                triangle: t,
+                material: self.triangle_material[t],
+                materials: self.materials.len(),
+            });
+        }
+        if let Some(vertex) = self
+            .uvs
+            .iter()
+            .position(|uv| !uv.iter().all(|c| c.is_finite()))
+        {
+            return Err(SceneFault::NonFiniteUv {
+                vertex,
+                uv: self.uvs[vertex],
+            });
+        }
+        for (i, m) in self.materials.iter().enumerate() {
+            let bad = |what: &str| SceneFault::BadMaterial {
+                material: i,
+                what: what.into(),
+            };
+            if !m.base_color.iter().all(|c| c.is_finite() && *c >= 0.0) {
+                return Err(bad(&format!("base colour {:?}", m.base_color)));
+            }
+            if !(0.0..=1.0).contains(&m.transmission) {
+                return Err(bad(&format!("transmission {}", m.transmission)));
+            }
+            if !(m.ior.is_finite() && m.ior >= 1.0) {
+                return Err(bad(&format!("index of refraction {}", m.ior)));
+            }
+            if let Coverage::Mask(c) = m.coverage
+                && !c.is_finite()
+            {
+                return Err(bad(&format!("alpha cutoff {c}")));
+            }
+            if let Some(t) = m.texture
+                && t as usize >= self.textures.len()
+            {
+                return Err(SceneFault::NoSuchTexture {
+                    material: i,
+                    texture: t,
+                    textures: self.textures.len(),
+                });
+            }
+        }
+        for (i, t) in self.textures.iter().enumerate() {
+            if t.width == 0 || t.height == 0 || t.texels.len() != (t.width * t.height) as usize {
+                return Err(SceneFault::BadTexture {
+                    texture: i,
+                    width: t.width,
+                    height: t.height,
+                    texels: t.texels.len(),
+                });
+            }
+        }
+        Ok(())
     }
 
     /// Whether the scene can be rendered: some triangles, every position finite, a bounding
@@ -92,18 +265,25 @@ impl Scene {
                 triangles: self.triangle_count(),
             });
         }
-        Ok(())
+        self.check_materials()
     }
 
-    /// Applies an opacity mode: `Uniform(a)` overwrites every vertex alpha with `a`.
+    /// Applies an opacity mode: `Uniform(a)` makes every surface transparent with opacity `a`
+    /// (and writes it into every vertex alpha, as an exported file keeps it), `Material` lets
+    /// the materials decide, `Native` keeps what the scene came with.
     pub fn with_opacity(mut self, opacity: Opacity) -> Result<Self> {
-        if let Opacity::Uniform(a) = opacity {
-            if !(a.is_finite() && (0.0..=1.0).contains(&a)) {
-                return Err(Error::Invalid(format!("opacity {a} is not in [0, 1]")));
+        match opacity {
+            Opacity::Uniform(a) => {
+                if !(a.is_finite() && (0.0..=1.0).contains(&a)) {
+                    return Err(Error::Invalid(format!("opacity {a} is not in [0, 1]")));
+                }
+                for c in &mut self.colors {
+                    c[3] = a;
+                }
+                self.uniform_opacity = Some(a);
             }
-            for c in &mut self.colors {
-                c[3] = a;
-            }
+            Opacity::Material => self.uniform_opacity = None,
+            Opacity::Native => {}
         }
         Ok(self)
     }
@@ -115,11 +295,18 @@ impl Scene {
             name: self.name.clone(),
             positions: Vec::with_capacity(self.positions.len()),
             colors: Vec::with_capacity(self.colors.len()),
+            uvs: Vec::with_capacity(self.uvs.len()),
+            triangle_material: Vec::with_capacity(self.triangle_material.len()),
+            materials: self.materials.clone(),
+            textures: self.textures.clone(),
+            uniform_opacity: self.uniform_opacity,
         };
         for t in perm {
             out.positions
                 .extend_from_slice(&self.positions[3 * t..3 * t + 3]);
             out.colors.extend_from_slice(&self.colors[3 * t..3 * t + 3]);
+            out.uvs.extend_from_slice(&self.uvs[3 * t..3 * t + 3]);
+            out.triangle_material.push(self.triangle_material[t]);
         }
         out
     }
@@ -179,7 +366,11 @@ pub fn load(name_or_path: &str, opacity: Opacity) -> Result<Scene> {
     scene
         .check()
         .map_err(|f| Error::scene(name_or_path, f.to_string()))?;
-    scene.with_opacity(opacity)
+    // The scene's own opacity first (the papers' families: one opacity in every vertex too).
+    let native = scene
+        .uniform_opacity
+        .map_or(Opacity::Material, Opacity::Uniform);
+    scene.with_opacity(native)?.with_opacity(opacity)
 }
 
 /// A perspective camera on an orbit around the scene's bounding sphere.

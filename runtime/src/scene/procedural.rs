@@ -59,6 +59,8 @@ pub fn build(spec: &str) -> Option<Scene> {
         "shrub" => shrub(&mut s, &mut rng),
         _ => return None,
     }
+    // The papers' families: one uniform opacity unless a caller asks for their vertex alpha.
+    s.uniform_opacity = Some(super::PAPER_OPACITY);
     Some(s)
 }
 

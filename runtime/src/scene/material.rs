@@ -1,0 +1,306 @@
+//! Materials as glTF defines them, evaluated per fragment: the CPU twin of geometry.wgsl's
+//! `shade`, `sample_texture` and `glass_opacity`, written so the two read side by side.
+//!
+//! - Base colour: `baseColorFactor x COLOR_0 x baseColorTexture(uv)`, alpha the same product;
+//!   the texture sampled per fragment at perspective-correct UVs with the sampler's wrap modes
+//!   (REPEAT, MIRRORED_REPEAT, CLAMP_TO_EDGE) and its magnification filter (NEAREST, else
+//!   bilinear), texels sRGB-decoded through a 256-entry table before filtering (the GPU reads
+//!   the same table, so the decode is identical). No mipmaps: a texture larger than
+//!   [`MAX_TEXTURE_SIDE`] a side is box-filtered down to it when loaded.
+//! - `alphaMode`: OPAQUE and MASK surfaces are opaque (MASK after its test, alpha `>=
+//!   alphaCutoff` kept), drawn first with a depth buffer; BLEND surfaces are transparent.
+//! - Glass (`KHR_materials_transmission`, whatever the alpha mode): transparent, with the
+//!   opacity of what it does not transmit, `1 - T (1 - F)`, `F` Schlick's Fresnel reflectance
+//!   `F0 + (1 - F0)(1 - cos)^5` of `F0 = ((ior - 1) / (ior + 1))^2` (`KHR_materials_ior`,
+//!   default 1.5: 0.04 face-on, 1 at grazing angles), `cos` the angle between the triangle's
+//!   geometric normal and the direction from the eye to the fragment; times the base alpha
+//!   where the mode is BLEND, after the cutoff test where it is MASK. Its colour is the base
+//!   colour (a tint). Transmission and IOR textures are not read (their factors are).
+//! - Double-sidedness: a single-sided surface shows only its front face (counter-clockwise in
+//!   clip space, as glTF says), except under one uniform opacity (the papers' protocol draws
+//!   both faces).
+//!
+//! Under one uniform opacity ([`super::Opacity::Uniform`]) every surface is transparent with
+//! that opacity: alpha modes, transmission and the alpha of factors and textures are ignored;
+//! colours still come from the factor, the vertex colour and the texture.
+
+/// A texture's largest side once loaded (larger images are box-filtered down, halving).
+pub const MAX_TEXTURE_SIDE: u32 = 1024;
+
+/// Index of refraction where a material gives none (`KHR_materials_ior`'s default).
+pub const DEFAULT_IOR: f32 = 1.5;
+
+/// How a material's alpha decides what a fragment is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Coverage {
+    /// Opaque (glTF `OPAQUE`).
+    Opaque,
+    /// Opaque where alpha reaches the cutoff, absent elsewhere (glTF `MASK`).
+    Mask(f32),
+    /// Transparent with the fragment's alpha (glTF `BLEND`).
+    Blend,
+}
+
+/// A sampler's wrap mode along one axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wrap {
+    Repeat,
+    MirroredRepeat,
+    ClampToEdge,
+}
+
+impl Wrap {
+    /// The mode's code in the GPU's material record (geometry.wgsl's `wrap`).
+    pub fn code(self) -> u32 {
+        match self {
+            Wrap::Repeat => 0,
+            Wrap::MirroredRepeat => 1,
+            Wrap::ClampToEdge => 2,
+        }
+    }
+}
+
+/// Texel `i` of an axis of `n` texels as the wrap mode places it (geometry.wgsl's `wrap`).
+pub fn wrap(i: i32, n: i32, mode: Wrap) -> i32 {
+    match mode {
+        Wrap::Repeat => ((i % n) + n) % n,
+        Wrap::MirroredRepeat => {
+            let j = ((i % (2 * n)) + 2 * n) % (2 * n);
+            if j < n { j } else { 2 * n - 1 - j }
+        }
+        Wrap::ClampToEdge => i.clamp(0, n - 1),
+    }
+}
+
+/// The largest texel coordinate a sample takes before its floor (so the integer conversion
+/// cannot overflow): UVs millions of repeats out still wrap, beyond they stay put.
+pub const TEXEL_LIMIT: f32 = 16_777_216.0;
+
+/// A base colour texture with its sampler: RGBA8 texels, row-major from the top-left (UV
+/// (0, 0)), colour sRGB-encoded and alpha linear, as glTF images store them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Texture {
+    pub width: u32,
+    pub height: u32,
+    /// R in the low byte.
+    pub texels: Vec<u32>,
+    /// Along U (S) and V (T).
+    pub wrap: [Wrap; 2],
+    /// Magnification filter NEAREST (else bilinear).
+    pub nearest: bool,
+}
+
+/// `sRGB -> linear` for an 8-bit value, as glTF decodes base colour texels.
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// `linear -> sRGB` (encoding textures the project writes).
+pub fn linear_to_srgb(c: f32) -> f32 {
+    if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// The decode table the GPU reads too (a uniform of 256 floats): entry i is
+/// `srgb_to_linear(i / 255)`.
+pub fn srgb_table() -> [f32; 256] {
+    std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0))
+}
+
+impl Texture {
+    /// A texel decoded: colour through the sRGB table, alpha / 255.
+    fn texel(&self, table: &[f32; 256], x: i32, y: i32) -> [f32; 4] {
+        let v = self.texels[(y as u32 * self.width + x as u32) as usize];
+        [
+            table[(v & 0xff) as usize],
+            table[(v >> 8 & 0xff) as usize],
+            table[(v >> 16 & 0xff) as usize],
+            (v >> 24) as f32 / 255.0,
+        ]
+    }
+
+    /// The texture at `uv` (geometry.wgsl's `sample_texture`): nearest, or bilinear between
+    /// the four texels around `uv * size - 0.5`, each axis wrapped by its mode.
+    pub fn sample(&self, table: &[f32; 256], uv: [f32; 2]) -> [f32; 4] {
+        let (w, h) = (self.width as i32, self.height as i32);
+        let at = |c: f32, n: i32, half: f32| (c * n as f32 - half).clamp(-TEXEL_LIMIT, TEXEL_LIMIT);
+        if self.nearest {
+            let x = at(uv[0], w, 0.0).floor() as i32;
+            let y = at(uv[1], h, 0.0).floor() as i32;
+            return self.texel(table, wrap(x, w, self.wrap[0]), wrap(y, h, self.wrap[1]));
+        }
+        let (x, y) = (at(uv[0], w, 0.5), at(uv[1], h, 0.5));
+        let (xf, yf) = (x.floor(), y.floor());
+        let (fx, fy) = (x - xf, y - yf);
+        let (x0, y0) = (xf as i32, yf as i32);
+        let xs = [wrap(x0, w, self.wrap[0]), wrap(x0 + 1, w, self.wrap[0])];
+        let ys = [wrap(y0, h, self.wrap[1]), wrap(y0 + 1, h, self.wrap[1])];
+        let t00 = self.texel(table, xs[0], ys[0]);
+        let t10 = self.texel(table, xs[1], ys[0]);
+        let t01 = self.texel(table, xs[0], ys[1]);
+        let t11 = self.texel(table, xs[1], ys[1]);
+        std::array::from_fn(|i| {
+            let top = t00[i] * (1.0 - fx) + t10[i] * fx;
+            let bottom = t01[i] * (1.0 - fx) + t11[i] * fx;
+            top * (1.0 - fy) + bottom * fy
+        })
+    }
+
+    /// The texture box-filtered down (halving each side over `limit`, averaging in linear
+    /// colour) until both sides are at most `limit`.
+    pub fn limited(mut self, limit: u32) -> Texture {
+        let table = srgb_table();
+        while self.width > limit || self.height > limit {
+            let (w2, h2) = (self.width.div_ceil(2), self.height.div_ceil(2));
+            let mut out = Vec::with_capacity((w2 * h2) as usize);
+            for y in 0..h2 {
+                for x in 0..w2 {
+                    let mut sum = [0.0f32; 4];
+                    let mut n = 0.0;
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let (sx, sy) = (2 * x + dx, 2 * y + dy);
+                        if sx < self.width && sy < self.height {
+                            let t = self.texel(&table, sx as i32, sy as i32);
+                            for i in 0..4 {
+                                sum[i] += t[i];
+                            }
+                            n += 1.0;
+                        }
+                    }
+                    out.push(pack_texel(sum.map(|s| s / n)));
+                }
+            }
+            self.width = w2;
+            self.height = h2;
+            self.texels = out;
+        }
+        self
+    }
+}
+
+/// A linear RGBA colour as an RGBA8 texel (colour sRGB-encoded, alpha linear).
+pub fn pack_texel(c: [f32; 4]) -> u32 {
+    let q = |v: f32| crate::fragment::to_unorm8(v);
+    q(linear_to_srgb(c[0].clamp(0.0, 1.0)))
+        | q(linear_to_srgb(c[1].clamp(0.0, 1.0))) << 8
+        | q(linear_to_srgb(c[2].clamp(0.0, 1.0))) << 16
+        | q(c[3]) << 24
+}
+
+/// A surface's material.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    /// `baseColorFactor`, linear.
+    pub base_color: [f32; 4],
+    /// Index of the base colour texture in the scene's textures.
+    pub texture: Option<u32>,
+    pub coverage: Coverage,
+    /// `KHR_materials_transmission`'s factor (0: none).
+    pub transmission: f32,
+    pub ior: f32,
+    pub double_sided: bool,
+}
+
+impl Default for Material {
+    /// White, untextured, transparent with its vertex alpha, both faces: the built-in scenes'.
+    fn default() -> Self {
+        Material {
+            base_color: [1.0; 4],
+            texture: None,
+            coverage: Coverage::Blend,
+            transmission: 0.0,
+            ior: DEFAULT_IOR,
+            double_sided: true,
+        }
+    }
+}
+
+impl Material {
+    /// Whether its surfaces are transparent (BLEND or glass), else drawn in the opaque pass.
+    pub fn transparent(&self) -> bool {
+        self.coverage == Coverage::Blend || self.transmission > 0.0
+    }
+
+    /// Schlick's reflectance at normal incidence, `((ior - 1) / (ior + 1))^2`.
+    pub fn f0(&self) -> f32 {
+        let r = (self.ior - 1.0) / (self.ior + 1.0);
+        r * r
+    }
+
+    /// The alpha cutoff where the mode is MASK.
+    pub fn cutoff(&self) -> Option<f32> {
+        match self.coverage {
+            Coverage::Mask(c) => Some(c),
+            _ => None,
+        }
+    }
+}
+
+/// The opacity of glass at view cosine `cos` (geometry.wgsl's `glass_opacity`): what it does
+/// not transmit, `1 - T (1 - F)` with Schlick's `F = F0 + (1 - F0)(1 - cos)^5`.
+pub fn glass_opacity(transmission: f32, f0: f32, cos: f32) -> f32 {
+    let m = 1.0 - cos.clamp(0.0, 1.0);
+    let m2 = m * m;
+    let f = f0 + (1.0 - f0) * (m2 * m2 * m);
+    1.0 - transmission * (1.0 - f)
+}
+
+/// What a fragment of a material is, once shaded.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Shaded {
+    /// Drawn in the opaque pass with this colour (alpha unused).
+    Opaque([f32; 4]),
+    /// A transparent fragment of this non-premultiplied colour and opacity (not yet clamped).
+    Transparent([f32; 4]),
+    /// No fragment: a MASK test failed.
+    None,
+}
+
+/// A fragment of `m` (geometry.wgsl's `shade`): `vertex` the interpolated vertex colour with
+/// the headlight's shade on its RGB, `uv` its texture coordinates, `cos` the view cosine
+/// (glass), `uniform` the scene's one opacity where it has one.
+pub fn shade(
+    m: &Material,
+    textures: &[Texture],
+    table: &[f32; 256],
+    vertex: [f32; 4],
+    uv: [f32; 2],
+    cos: f32,
+    uniform: Option<f32>,
+) -> Shaded {
+    let mut c: [f32; 4] = std::array::from_fn(|i| vertex[i] * m.base_color[i]);
+    if let Some(t) = m.texture {
+        let s = textures[t as usize].sample(table, uv);
+        c = std::array::from_fn(|i| c[i] * s[i]);
+    }
+    if let Some(a) = uniform {
+        c[3] = a;
+        return Shaded::Transparent(c);
+    }
+    if let Coverage::Mask(cut) = m.coverage
+        && c[3] < cut
+    {
+        return Shaded::None;
+    }
+    if !m.transparent() {
+        return Shaded::Opaque(c);
+    }
+    let coverage = if m.coverage == Coverage::Blend {
+        c[3]
+    } else {
+        1.0
+    };
+    c[3] = if m.transmission > 0.0 {
+        coverage * glass_opacity(m.transmission, m.f0(), cos)
+    } else {
+        coverage
+    };
+    Shaded::Transparent(c)
+}
