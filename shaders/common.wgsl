@@ -49,21 +49,17 @@ struct Material {
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
-    @location(0) color: vec4<f32>,
+    // The triangle's three vertices in clip space (x, y, w): the fragment stage interpolates
+    // its attributes itself (geometry.wgsl's homogeneous_weights), as the CPU does.
+    @location(0) @interpolate(flat) v0: vec3<f32>,
     @location(1) @interpolate(flat) primitive: u32,
-    // |n . v| of the triangle (for the Fresnel importance).
+    // |n . v| of the triangle (for the Fresnel importance and the headlight).
     @location(2) @interpolate(flat) facing: f32,
-    // The triangle's colour when its three vertices share one (uniform_color 1): used as is,
-    // not interpolated, so that no rounding of the interpolation moves it across an 8-bit
-    // step (the CPU rasterizer does the same).
-    @location(3) @interpolate(flat) flat_color: vec4<f32>,
-    @location(4) @interpolate(flat) uniform_color: u32,
-    // Perspective-correct texture coordinates and world position; the triangle's geometric
-    // normal and material.
-    @location(5) uv: vec2<f32>,
-    @location(6) world: vec3<f32>,
-    @location(7) @interpolate(flat) normal: vec3<f32>,
-    @location(8) @interpolate(flat) material: u32,
+    @location(3) @interpolate(flat) v1: vec3<f32>,
+    @location(4) @interpolate(flat) v2: vec3<f32>,
+    // The triangle's geometric normal and material.
+    @location(5) @interpolate(flat) normal: vec3<f32>,
+    @location(6) @interpolate(flat) material: u32,
 };
 
 // 8-bit unorm with rounding half up, as fragment::to_unorm8.

@@ -3,7 +3,9 @@
 // come from storage buffers indexed by vertex_index (three vertices per triangle, in submission
 // order; an index buffer lists the transparent triangles' vertices, then the opaque ones'), so
 // the stage can read its triangle's other vertices for the face normal of the headlight
-// shading. Every transparent pass tests its fragments against the opaque pass's depth (LESS, as
+// shading, and hand the fragment stage all three in clip space: it interpolates colour,
+// texture coordinates and world position at weights it computes as raster.rs does
+// (homogeneous_weights), not at the hardware's, so the CPU and the GPU shade alike. Every transparent pass tests its fragments against the opaque pass's depth (LESS, as
 // a depth attachment would; read in the shader, so the test comes before the pass's atomics on
 // every device) and drops those of zero 8-bit opacity.
 
@@ -27,31 +29,71 @@ fn vs_main(@builtin(vertex_index) vid: u32) -> VertexOut {
     let p2 = positions[3u * tri + 2u].xyz;
     let n = normalize(cross(p1 - p0, p2 - p0));
     let facing = abs(dot(n, params.forward.xyz));
-    let shade = AMBIENT + (1.0 - AMBIENT) * facing;
-    let c = colors[vid];
-    let c0 = colors[3u * tri];
-    let same = all(c0 == colors[3u * tri + 1u]) && all(c0 == colors[3u * tri + 2u]);
+    let q0 = params.view_proj * vec4<f32>(p0, 1.0);
+    let q1 = params.view_proj * vec4<f32>(p1, 1.0);
+    let q2 = params.view_proj * vec4<f32>(p2, 1.0);
     var out: VertexOut;
-    out.flat_color = vec4<f32>(c0.rgb * shade, c0.a);
-    out.uniform_color = select(0u, 1u, same);
-    out.clip = params.view_proj * vec4<f32>(positions[vid].xyz, 1.0);
-    out.color = vec4<f32>(c.rgb * shade, c.a);
+    let corner = vid - 3u * tri;
+    out.clip = select(select(q2, q1, corner == 1u), q0, corner == 0u);
+    out.v0 = q0.xyw;
+    out.v1 = q1.xyw;
+    out.v2 = q2.xyw;
     out.primitive = tri;
     out.facing = facing;
-    out.uv = uvs[vid];
-    out.world = positions[vid].xyz;
     out.normal = n;
     out.material = triangle_material[tri];
     return out;
 }
 
-// Texel (x, y) of the texture at `m`, decoded: colour through the sRGB table, alpha / 255.
+// Perspective-correct barycentric weights of the pixel at NDC p from the triangle's clip-space
+// vertices (x, y, w): 2-D homogeneous edge functions, normalised (raster::homogeneous_weights).
+fn homogeneous_weights(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, p: vec2<f32>) -> vec3<f32> {
+    let e0 = (b.y * c.z - b.z * c.y) * p.x + (b.z * c.x - b.x * c.z) * p.y + (b.x * c.y - b.y * c.x);
+    let e1 = (c.y * a.z - c.z * a.y) * p.x + (c.z * a.x - c.x * a.z) * p.y + (c.x * a.y - c.y * a.x);
+    let e2 = (a.y * b.z - a.z * b.y) * p.x + (a.z * b.x - a.x * b.z) * p.y + (a.x * b.y - a.y * b.x);
+    let inv = 1.0 / (e0 + e1 + e2);
+    return vec3<f32>(e0 * inv, e1 * inv, e2 * inv);
+}
+
+// A fragment's interpolated attributes (raster.rs's Shading::shade).
+struct Attributes {
+    color: vec4<f32>,
+    uv: vec2<f32>,
+    world: vec3<f32>,
+};
+
+fn attributes(in: VertexOut) -> Attributes {
+    let p = vec2<f32>(
+        (in.clip.x / f32(params.width)) * 2.0 - 1.0,
+        1.0 - (in.clip.y / f32(params.height)) * 2.0,
+    );
+    let l = homogeneous_weights(in.v0, in.v1, in.v2, p);
+    let t = 3u * in.primitive;
+    let shade = AMBIENT + (1.0 - AMBIENT) * in.facing;
+    var out: Attributes;
+    let c0 = colors[t];
+    let c1 = colors[t + 1u];
+    let c2 = colors[t + 2u];
+    let s0 = vec4<f32>(c0.rgb * shade, c0.a);
+    let s1 = vec4<f32>(c1.rgb * shade, c1.a);
+    let s2 = vec4<f32>(c2.rgb * shade, c2.a);
+    // A channel the three vertices share is taken as is, not interpolated: no rounding of the
+    // weights moves it across an 8-bit step (alpha 0.3 is 76.5 / 255).
+    let same = (s0 == s1) & (s1 == s2);
+    out.color = select((s0 * l.x + s1 * l.y) + s2 * l.z, s0, same);
+    out.uv = (uvs[t] * l.x + uvs[t + 1u] * l.y) + uvs[t + 2u] * l.z;
+    out.world = (positions[t].xyz * l.x + positions[t + 1u].xyz * l.y) + positions[t + 2u].xyz * l.z;
+    return out;
+}
+
+// Texel (x, y) of the texture at `m`, decoded: colour through the sRGB table, alpha times
+// ALPHA_SCALE (material::Texture::texel).
 fn texel(m: Material, x: i32, y: i32) -> vec4<f32> {
     let v = texels[m.texels + u32(y) * m.width + u32(x)];
     let r = v & 0xffu;
     let g = (v >> 8u) & 0xffu;
     let b = (v >> 16u) & 0xffu;
-    return vec4<f32>(srgb[r >> 2u][r & 3u], srgb[g >> 2u][g & 3u], srgb[b >> 2u][b & 3u], f32(v >> 24u) / 255.0);
+    return vec4<f32>(srgb[r >> 2u][r & 3u], srgb[g >> 2u][g & 3u], srgb[b >> 2u][b & 3u], f32(v >> 24u) * ALPHA_SCALE);
 }
 
 // Texel i of an axis of n as the wrap mode places it (material::wrap): 0 repeat, 1 mirrored
@@ -122,10 +164,10 @@ fn shade(in: VertexOut, front: bool) -> Shaded {
     if (!uniform && (m.flags & MATERIAL_DOUBLE_SIDED) == 0u && !front) {
         return out;
     }
-    let vertex = select(in.color, in.flat_color, in.uniform_color != 0u);
-    var c = vertex * m.factor;
+    let at = attributes(in);
+    var c = at.color * m.factor;
     if (m.texels != NO_TEXTURE) {
-        c = c * sample_texture(m, in.uv);
+        c = c * sample_texture(m, at.uv);
     }
     out.color = c;
     if (uniform) {
@@ -144,7 +186,7 @@ fn shade(in: VertexOut, front: bool) -> Shaded {
     }
     let a = select(1.0, c.a, coverage == COVERAGE_BLEND);
     if (glass) {
-        let v = in.world - params.eye.xyz;
+        let v = at.world - params.eye.xyz;
         let cosine = abs(dot(in.normal, v)) / length(v);
         out.color.a = a * glass_opacity(m.transmission, m.f0, cosine);
     } else {

@@ -33,11 +33,11 @@
 const SKIP_FORCED: bool = true;
 
 // Sum r, g, b of pixel p's fragments (features.wgsl's packing: r and g 24 bits each in the first
-// 64-bit word, then n; b in the second's low half).
+// of three 64-bit words, then n; b in the second's low half).
 fn color_sums(p: u32) -> vec3<u32> {
-    let lo = sums[4u * p];
-    let hi = sums[4u * p + 1u];
-    return vec3<u32>(lo & 0xffffffu, (lo >> 24u) | ((hi & 0xffffu) << 8u), sums[4u * p + 2u]);
+    let lo = sums[6u * p];
+    let hi = sums[6u * p + 1u];
+    return vec3<u32>(lo & 0xffffffu, (lo >> 24u) | ((hi & 0xffffu) << 8u), sums[6u * p + 2u]);
 }
 
 fn luma(c: vec3<f32>) -> f32 {
@@ -81,7 +81,7 @@ fn network_inputs(p: u32) -> Net {
     let sum = color_sums(p);
     let mean = vec3<f32>(f32(sum.r) / 255.0 / nf, f32(sum.g) / 255.0 / nf, f32(sum.b) / 255.0 / nf);
     // n^2 var and n^2 dev in 8-bit units, exact integers.
-    var var_num = i64(c) * i64(sums[4u * p + 3u]);
+    var var_num = i64(c) * i64(sums[6u * p + 3u]);
     var dev_num = 0li;
     for (var ch = 0u; ch < 3u; ch++) {
         let s = i64(sum[ch]);
@@ -94,19 +94,20 @@ fn network_inputs(p: u32) -> Net {
     let dev = f32(dev_num) / scale;
     let mean_luma = luma(mean);
     let near_luma = luma(near);
+    let tau = f32(sums[6u * p + 4u]) * OPTICAL_DEPTH_UNIT;
     net.x = array<f32, 12>(
         log2(nf),
         nf / (total / covered),
         f32(budget_of(totals[0])) / total,
         log2(f32(max(budget_of(totals[0]), 1lu)) / covered),
         bitcast<f32>(u32(key >> 32u)),
-        near_luma - mean_luma,
+        f32(near8 >> 24u) / 255.0,
         log2(variance + LOG_FLOOR),
         log2(dev + LOG_FLOOR),
-        sqrt(variance),
+        f32(sums[6u * p + 5u]) / 255.0 / nf,
         mean_luma,
         near_luma,
-        sqrt(dev),
+        log2(tau + OPTICAL_DEPTH_UNIT),
     );
     net.runs = true;
     net.mark = mark;

@@ -31,10 +31,13 @@ pub(crate) struct ViewArgs {
     /// Number of orbit views around the scene (view I is at angle I/N of a turn).
     #[arg(long, default_value_t = scene::DEFAULT_VIEWS, value_parser = parse_views)]
     pub(crate) views: usize,
-    /// Uniform opacity of every surface (the reference uses 0.33).
-    #[arg(long, default_value_t = 0.33, conflicts_with = "material_alpha")]
-    pub(crate) opacity: f32,
-    /// Keep material alpha instead of one uniform opacity.
+    /// One uniform opacity for every surface, as the papers' protocol has it (the reference
+    /// uses 0.33): no opaque surfaces, alpha modes and glass ignored, both faces drawn. Without
+    /// it, each scene's own: glTF files and the built-in material families (`dhoit scenes`)
+    /// by their materials, the papers' built-in families at 0.33.
+    #[arg(long, conflicts_with = "material_alpha")]
+    pub(crate) opacity: Option<f32>,
+    /// Let the materials decide even for the papers' built-in families (their vertex alpha).
     #[arg(long)]
     pub(crate) material_alpha: bool,
     /// Permute the triangle submission order with this seed.
@@ -80,10 +83,10 @@ pub(crate) fn parse_repeat(s: &str) -> std::result::Result<usize, String> {
 }
 
 pub(crate) fn load_scene(name: &str, a: &ViewArgs) -> Result<Scene> {
-    let opacity = if a.material_alpha {
-        Opacity::Material
-    } else {
-        Opacity::Uniform(a.opacity)
+    let opacity = match (a.material_alpha, a.opacity) {
+        (true, _) => Opacity::Material,
+        (false, Some(o)) => Opacity::Uniform(o),
+        (false, None) => Opacity::Native,
     };
     let mut scene = scene::load(name, opacity)?;
     if let Some(seed) = a.shuffle {

@@ -62,8 +62,8 @@ const STATUS: (&str, u64) = ("status", 16);
 
 /// Deep k-buffer: network features, importance, k, offsets, tail, output. The features'
 /// keys, read by the importance pass, then hold the tail: the nearest (8 bytes) its count (4),
-/// the two farthest (16) its sums (16); their colour sums (16) then hold the image (16): 61
-/// bytes a pixel, as VKB's.
+/// the two farthest (16) its sums (16); their colour and opacity sums (24) then hold the image
+/// (16): 69 bytes a pixel, VKB's 61 and 8.
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
@@ -72,7 +72,7 @@ pub const DKB: Layout = Layout {
         ("features.count", 4),
         ("features.nearest", 8),
         ("features.farthest", 16),
-        ("features.color_sums", 16),
+        ("features.color_sums", 24),
         ("oit.importance", 4),
         ("alloc.flags", 4),
         ("oit.k", 4),
@@ -82,6 +82,8 @@ pub const DKB: Layout = Layout {
         ("mlp.weights", MLP_UNIFORM_BYTES),
         ("params", PARAMS_BYTES),
         ("features.totals", 24),
+        // importance::optical_depth_table, a uniform.
+        ("features.optical_depth", 1024),
         // The features pass's indirect draw (an indexed one: five words).
         ("features.draw", 20),
         // The network's pixel list lives in alloc.flags; its length and indirect dispatch.
@@ -364,7 +366,8 @@ impl Budget {
             Budget::Bytes(b) => Ok((b, layout.fragment_budget(b, pixels)?)),
             Budget::Share(ppm) => {
                 let slots = share_of(fragments, ppm);
-                if slots == 0 {
+                // A frame with nothing transparent in view (all hidden, or none) needs no slot.
+                if slots == 0 && fragments > 0 {
                     return Err(Error::Budget(
                         self.to_string(),
                         format!("leaves no fragment slot of the frame's {fragments} fragments"),

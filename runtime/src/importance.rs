@@ -11,13 +11,13 @@ pub const FEATURE_NAMES: [&str; 12] = [
     "budget_share",
     "log2_budget_per_pixel",
     "near_depth",
-    "near_luma_dev",
+    "near_alpha",
     "log2_color_var",
     "log2_near_dev",
-    "color_std",
+    "mean_alpha",
     "mean_luma",
     "near_luma",
-    "near_dev",
+    "log2_optical_depth",
 ];
 pub const FEATURES: usize = 12;
 
@@ -31,12 +31,26 @@ pub const LOG_FLOOR: f32 = 1e-6;
 /// colour variance is then meaningless (such pixels are far beyond any real scene's).
 pub const MAX_EXACT_COUNT: u32 = (u32::MAX as u64 / (3 * 255 * 255)) as u32;
 
+/// Units a fragment's optical depth is summed in by the features pass (1/256).
+pub const OPTICAL_DEPTH_UNIT: f32 = 1.0 / 256.0;
+
+/// A fragment's optical depth `-ln(1 - a)` for its 8-bit opacity, in [`OPTICAL_DEPTH_UNIT`]s
+/// rounded to the nearest (an opaque fragment counts as opacity 254.5 / 255): a table the GPU
+/// reads too, so the sums are the same integers. Its largest entry (about 1,600) times
+/// [`crate::raster::MAX_FRAGMENTS_PER_PIXEL`] fits 32 bits.
+pub fn optical_depth_table() -> [u32; 256] {
+    std::array::from_fn(|a| {
+        let a = (a as f64).min(254.5) / 255.0;
+        (-(1.0 - a).ln() / OPTICAL_DEPTH_UNIT as f64).round() as u32
+    })
+}
+
 /// Bit 63 of a key in [`PixelStats::farthest`]: the slot holds a fragment (window depths are
 /// non-negative, so a key's own bit 63 is clear).
 pub const OCCUPIED: u64 = 1 << 63;
 
 /// What the features pass accumulates per pixel, with integer atomics only, so any submission
-/// order gives the same result: 44 bytes a pixel, VKB's count and nearest key plus 32.
+/// order gives the same result: 52 bytes a pixel, VKB's count and nearest key plus 40.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PixelStats {
     pub count: u32,
@@ -50,6 +64,11 @@ pub struct PixelStats {
     /// Sum over fragments of `r^2 + g^2 + b^2` in 8-bit units (wrapping, see
     /// [`MAX_EXACT_COUNT`]).
     pub color_sq_sum: u32,
+    /// Sum of the fragments' optical depths ([`optical_depth_table`]): the pixel's
+    /// transmittance is `exp(-optical_depth OPTICAL_DEPTH_UNIT)`.
+    pub optical_depth: u32,
+    /// Sum of the fragments' 8-bit opacities.
+    pub alpha_sum: u32,
 }
 
 /// Rec. 709 luminance of a linear colour.
@@ -59,6 +78,7 @@ pub fn luma(c: [f32; 4]) -> f32 {
 
 /// The features pass: per-pixel statistics (CPU twin of the geometry pass with atomics).
 pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
+    let tau = optical_depth_table();
     (0..fl.pixel_count())
         .map(|p| {
             let mut s = PixelStats {
@@ -82,6 +102,9 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
                     s.color_sum[c] = s.color_sum[c].wrapping_add(v);
                     s.color_sq_sum = s.color_sq_sum.wrapping_add(v * v);
                 }
+                let a8 = rgba8 >> 24;
+                s.optical_depth += tau[a8 as usize];
+                s.alpha_sum += a8;
             }
             if s.count == 0 {
                 s.nearest_key = 0;
@@ -122,20 +145,24 @@ pub fn totals(stats: &[PixelStats]) -> Totals {
 }
 
 /// The 12 features of one covered pixel, in order ([`FEATURE_NAMES`]); colours in [0, 1],
-/// `C_near` the nearest fragment's, `mean` and `var` the mean and the variance (summed over
-/// R, G, B) of the pixel's fragment colours, `dev = |C_near - mean|^2`:
+/// `C_near` and `a_near` the nearest fragment's colour and opacity, `mean` and `var` the mean
+/// and the variance (summed over R, G, B) of the pixel's fragment colours,
+/// `dev = |C_near - mean|^2`, `tau` the sum of the fragments' optical depths `-ln(1 - a)`:
 /// 0 `log2 n`; 1 `n / mean n` over covered pixels; 2 `F / sum n`, the budget's share of the
-/// frame's fragments; 3 `log2(F / covered pixels)`; 4 the nearest window depth; 5
-/// `luma(C_near) - luma(mean)`; 6 `log2(var + LOG_FLOOR)`; 7 `log2(dev + LOG_FLOOR)`; 8
-/// `sqrt(var)`; 9 `luma(mean)`; 10 `luma(C_near)`; 11 `sqrt(dev)`.
+/// frame's fragments; 3 `log2(F / covered pixels)`; 4 the nearest window depth; 5 `a_near`;
+/// 6 `log2(var + LOG_FLOOR)`; 7 `log2(dev + LOG_FLOOR)`; 8 the mean opacity; 9 `luma(mean)`;
+/// 10 `luma(C_near)`; 11 `log2(tau + OPTICAL_DEPTH_UNIT)`.
 ///
 /// Why these: with opacity a, truncating a pixel after k fragments costs about
 /// `(1 - a)^(2k)` times how far the tail's front fragments stray from the tail's mean, so the
 /// slots a pixel deserves grow with the logarithm of its colour spread (a factor of 2.2 in
 /// variance is one slot at a = 0.33), and a pixel whose fragments share one colour needs none.
-/// The variance and deviation are exact integers before the last division, so that case is
-/// exactly zero on the CPU and the GPU. The paper's `n / sum n` and frame depth range say
-/// nothing about either and shrink with resolution (see the README's ablation).
+/// With the materials' opacities a varies from fragment to fragment: how fast the
+/// transmittance falls (the mean opacity, the optical depth) and whether the nearest fragment
+/// already hides the rest (`a_near`) decide it. The variance and deviation are exact integers
+/// before the last division, so one colour is exactly zero on the CPU and the GPU. The paper's
+/// `n / sum n` and frame depth range say nothing about any of it and shrink with resolution
+/// (see the README's ablation).
 pub fn pixel_features(s: &PixelStats, t: &Totals, budget_fragments: u64) -> [f32; FEATURES] {
     let total = t.fragments.max(1) as f32;
     let covered = t.covered.max(1) as f32;
@@ -159,19 +186,20 @@ pub fn pixel_features(s: &PixelStats, t: &Totals, budget_fragments: u64) -> [f32
     let dev = dev_num as f32 / scale;
     let mean_luma = luma([mean[0], mean[1], mean[2], 1.0]);
     let near_luma = luma(near);
+    let tau = s.optical_depth as f32 * OPTICAL_DEPTH_UNIT;
     [
         nf.log2(),
         nf / (total / covered),
         budget_fragments as f32 / total,
         (budget_fragments.max(1) as f32 / covered).log2(),
         f32::from_bits((s.nearest_key >> 32) as u32),
-        near_luma - mean_luma,
+        near[3],
         (var + LOG_FLOOR).log2(),
         (dev + LOG_FLOOR).log2(),
-        var.sqrt(),
+        s.alpha_sum as f32 / 255.0 / nf,
         mean_luma,
         near_luma,
-        dev.sqrt(),
+        (tau + OPTICAL_DEPTH_UNIT).log2(),
     ]
 }
 

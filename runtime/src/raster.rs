@@ -10,8 +10,11 @@
 //!   edge that is a top edge (horizontal, interior below) or a left edge (interior to the right);
 //! - depth interpolated linearly in screen space on the plane through the vertices' unsnapped
 //!   window positions (as Mesa's lavapipe does; snapped positions put depth up to 9e-4 away
-//!   from the GPU's on steep triangles), colour, texture coordinates and world position
-//!   perspective-correctly;
+//!   from the GPU's on steep triangles);
+//! - colour, texture coordinates and world position perspective-correctly, at weights from the
+//!   triangle's clip-space vertices by 2-D homogeneous edge functions ([`homogeneous_weights`],
+//!   which geometry.wgsl computes alike in the fragment stage rather than take the hardware's
+//!   interpolation, whose rounding moved one texel in ten by an 8-bit step on lavapipe);
 //! - triangles are clipped against the near and far planes in clip space;
 //! - a single-sided material's back faces (clockwise in clip space) are culled, except under
 //!   one uniform opacity (the papers' protocol draws both faces).
@@ -28,10 +31,10 @@
 //! `rgb = vertex_rgb * (AMBIENT + (1 - AMBIENT) |n . v|)` with `n` the triangle's geometric
 //! normal and `v` the camera's forward direction, then the material per fragment
 //! ([`crate::scene::material::shade`]: factor, texture, alpha mode, glass). Vertex colours are
-//! interpolated perspective-correctly, except on a triangle whose three vertices share one
-//! colour, which keeps it exactly (the GPU passes it flat): the interpolation's rounding would
-//! otherwise move a colour that sits on a half step, such as alpha 0.3 = 76.5 / 255, to one
-//! side on the CPU and the other on the GPU. Fragment colours are rounded to 8 bits per
+//! interpolated perspective-correctly, except a channel the triangle's three vertices share,
+//! which is kept exactly (the GPU alike): the interpolation's rounding would otherwise move a
+//! value that sits on a half step, such as alpha 0.3 = 76.5 / 255, to one side on the CPU and
+//! the other on the GPU. Fragment colours are rounded to 8 bits per
 //! channel, the precision the capture key stores. Each fragment keeps
 //! `|n . v|` (`facing`, for the Fresnel importance) and its triangle's submission index.
 //!
@@ -113,7 +116,9 @@ struct ScreenTri {
     /// Window x, y before snapping (the plane depth is interpolated on).
     xyf: [[f32; 2]; 3],
     z: [f32; 3],
-    inv_w: [f32; 3],
+    /// The triangle's own vertices (before clipping, in submission order): clip-space x, y, w,
+    /// their shaded colours, texture coordinates and world positions.
+    hclip: [[f32; 3]; 3],
     rgba: [Vec4; 3],
     uv: [[f32; 2]; 3],
     world: [Vec3; 3],
@@ -133,10 +138,6 @@ struct ScreenVertex {
     /// Snapped to 1/256 pixel (coverage).
     xy: [i64; 2],
     z: f32,
-    inv_w: f32,
-    rgba: Vec4,
-    uv: [f32; 2],
-    world: Vec3,
     /// Unsnapped (the depth plane).
     xyf: [f32; 2],
 }
@@ -144,18 +145,36 @@ struct ScreenVertex {
 #[derive(Clone, Copy)]
 struct ClipVertex {
     pos: Vec4,
-    rgba: Vec4,
-    uv: [f32; 2],
-    world: Vec3,
 }
 
 fn lerp_vertex(a: &ClipVertex, b: &ClipVertex, t: f32) -> ClipVertex {
     ClipVertex {
         pos: a.pos + (b.pos - a.pos) * t,
-        rgba: a.rgba + (b.rgba - a.rgba) * t,
-        uv: std::array::from_fn(|i| a.uv[i] + (b.uv[i] - a.uv[i]) * t),
-        world: a.world + (b.world - a.world) * t,
     }
+}
+
+/// Perspective-correct barycentric weights of the pixel whose centre is at NDC (`px`, `py`),
+/// from the triangle's clip-space vertices `v` (x, y, w): the 2-D homogeneous edge functions
+/// `e_i = (v_j x v_k) . (px, py, 1)` normalised to sum to one (Olano and Greer 1997). Valid for
+/// a triangle crossing the near plane as well, so no clipped vertex is needed. geometry.wgsl's
+/// `homogeneous_weights` computes the same, operation for operation.
+pub fn homogeneous_weights(v: [[f32; 3]; 3], px: f32, py: f32) -> [f32; 3] {
+    let edge = |b: [f32; 3], c: [f32; 3]| {
+        (b[1] * c[2] - b[2] * c[1]) * px
+            + (b[2] * c[0] - b[0] * c[2]) * py
+            + (b[0] * c[1] - b[1] * c[0])
+    };
+    let e = [edge(v[1], v[2]), edge(v[2], v[0]), edge(v[0], v[1])];
+    let inv = 1.0 / (e[0] + e[1] + e[2]);
+    [e[0] * inv, e[1] * inv, e[2] * inv]
+}
+
+/// NDC of pixel (x, y)'s centre in a `w` x `h` frame (x right, y up).
+pub fn pixel_ndc(x: u32, y: u32, w: u32, h: u32) -> (f32, f32) {
+    (
+        ((x as f32 + 0.5) / w as f32) * 2.0 - 1.0,
+        1.0 - ((y as f32 + 0.5) / h as f32) * 2.0,
+    )
 }
 
 /// Sutherland-Hodgman against `z >= 0` and `z <= w`.
@@ -210,16 +229,15 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Vec<ScreenTri>
             // Single-sided surfaces show their front faces only (not under one opacity).
             let cull = scene.uniform_opacity.is_none() && !scene.material_of(t).double_sided;
             let verts: Vec<ClipVertex> = (0..3)
-                .map(|i| {
-                    let c = scene.colors[3 * t + i];
-                    ClipVertex {
-                        pos: cam.view_proj * p[i].extend(1.0),
-                        rgba: Vec4::new(c[0] * shade, c[1] * shade, c[2] * shade, c[3]),
-                        uv: scene.uvs[3 * t + i],
-                        world: p[i],
-                    }
+                .map(|i| ClipVertex {
+                    pos: cam.view_proj * p[i].extend(1.0),
                 })
                 .collect();
+            let hclip = [0, 1, 2].map(|i| [verts[i].pos.x, verts[i].pos.y, verts[i].pos.w]);
+            let rgba = [0, 1, 2].map(|i| {
+                let c = scene.colors[3 * t + i];
+                Vec4::new(c[0] * shade, c[1] * shade, c[2] * shade, c[3])
+            });
             let poly = clip_polygon(verts);
             let screen: Vec<ScreenVertex> = poly
                 .iter()
@@ -233,10 +251,6 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Vec<ScreenTri>
                     ScreenVertex {
                         xy: [fx.clamp(-limit, limit), fy.clamp(-limit, limit)],
                         z,
-                        inv_w,
-                        rgba: v.rgba,
-                        uv: v.uv,
-                        world: v.world,
                         xyf: [xw, yw],
                     }
                 })
@@ -267,10 +281,10 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Vec<ScreenTri>
                     xy: v.map(|q| q.xy),
                     xyf: v.map(|q| q.xyf),
                     z: v.map(|q| q.z),
-                    inv_w: v.map(|q| q.inv_w),
-                    rgba: v.map(|q| q.rgba),
-                    uv: v.map(|q| q.uv),
-                    world: v.map(|q| q.world),
+                    hclip,
+                    rgba,
+                    uv: [0, 1, 2].map(|i| scene.uvs[3 * t + i]),
+                    world: [p[0], p[1], p[2]],
                     normal: n,
                     facing,
                     prim: t as u32,
@@ -311,18 +325,22 @@ struct Shading<'a> {
 }
 
 impl Shading<'_> {
-    /// The material's fragment of `t` at perspective weights `pw` (normalised by `norm`).
-    fn shade(&self, t: &ScreenTri, pw: [f32; 3], norm: f32) -> Shaded {
-        // A triangle of one colour keeps it exactly, as the GPU's flat colour does.
-        let vertex = if t.rgba[0] == t.rgba[1] && t.rgba[1] == t.rgba[2] {
-            t.rgba[0]
-        } else {
-            (t.rgba[0] * pw[0] + t.rgba[1] * pw[1] + t.rgba[2] * pw[2]) * norm
-        };
-        let uv = std::array::from_fn(|i| {
-            (t.uv[0][i] * pw[0] + t.uv[1][i] * pw[1] + t.uv[2][i] * pw[2]) * norm
-        });
-        let world = (t.world[0] * pw[0] + t.world[1] * pw[1] + t.world[2] * pw[2]) * norm;
+    /// The material's fragment of `t` at perspective-correct weights `l`
+    /// ([`homogeneous_weights`]), each attribute `(a0 l0 + a1 l1) + a2 l2` as the GPU sums it.
+    fn shade(&self, t: &ScreenTri, l: [f32; 3]) -> Shaded {
+        // A channel the three vertices share is taken as is (geometry.wgsl alike).
+        let lerp = (t.rgba[0] * l[0] + t.rgba[1] * l[1]) + t.rgba[2] * l[2];
+        let vertex = Vec4::from_array(std::array::from_fn(|i| {
+            let c = t.rgba.map(|v| v[i]);
+            if c[0] == c[1] && c[1] == c[2] {
+                c[0]
+            } else {
+                lerp[i]
+            }
+        }));
+        let uv =
+            std::array::from_fn(|i| (t.uv[0][i] * l[0] + t.uv[1][i] * l[1]) + t.uv[2][i] * l[2]);
+        let world = (t.world[0] * l[0] + t.world[1] * l[1]) + t.world[2] * l[2];
         let m = &self.scene.materials[t.material as usize];
         // Only glass reads the view angle.
         let cos = if m.transmission > 0.0 {
@@ -347,7 +365,7 @@ fn raster_band(
     tris: &[ScreenTri],
     ids: &[u32],
     shading: &Shading,
-    width: u32,
+    (width, height): (u32, u32),
     y0: u32,
     y1: u32,
 ) -> BandOut {
@@ -363,8 +381,6 @@ fn raster_band(
                 continue;
             }
             let [a, b, c] = t.xy;
-            let area = orient(a, b, c);
-            let inv_area = 1.0 / area as f64;
             let xmin = a[0].min(b[0]).min(c[0]);
             let xmax = a[0].max(b[0]).max(c[0]);
             let c0 = ((xmin - SUB / 2 + SUB - 1).div_euclid(SUB)).max(0);
@@ -390,10 +406,9 @@ fn raster_band(
                     if depth >= opaque_depth[pixel] {
                         continue;
                     }
-                    let l = w.map(|wi| (wi as f64 * inv_area) as f32);
-                    let pw = [l[0] * t.inv_w[0], l[1] * t.inv_w[1], l[2] * t.inv_w[2]];
-                    let norm = 1.0 / (pw[0] + pw[1] + pw[2]);
-                    match shading.shade(t, pw, norm) {
+                    let (px, py) = pixel_ndc(x as u32, y, width, height);
+                    let l = homogeneous_weights(t.hclip, px, py);
+                    match shading.shade(t, l) {
                         Shaded::Opaque(c) => {
                             let c = Vec4::from(c).clamp(Vec4::ZERO, Vec4::ONE);
                             opaque_depth[pixel] = depth;
@@ -629,7 +644,7 @@ pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result
                 &tris,
                 ids,
                 &shading,
-                width,
+                (width, height),
                 y0,
                 (y0 + BAND_ROWS).min(height),
             )

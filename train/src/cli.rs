@@ -670,9 +670,10 @@ pub struct ScoreArgs {
         default_value = "10%,25%,50%,75%,90%,0.25fpp,0.5fpp,1fpp,2fpp,4fpp"
     )]
     pub budgets: Vec<Level>,
-    /// Uniform opacity of every surface.
-    #[arg(long, default_value_t = 0.33)]
-    pub opacity: f32,
+    /// One uniform opacity for every surface (the papers' protocol). Default: each scene's
+    /// own (materials for glTF files and the material families, 0.33 for the papers' ones).
+    #[arg(long)]
+    pub opacity: Option<f32>,
     /// Also write every frame's totals as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,

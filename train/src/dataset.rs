@@ -26,7 +26,7 @@ use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::importance::{self, FEATURES};
 use dhoit_runtime::raster;
 use dhoit_runtime::rng::Rng;
-use dhoit_runtime::scene::{self, Camera, Opacity};
+use dhoit_runtime::scene::{self, Camera};
 use dhoit_runtime::tensors::{self, Entry, FormatError};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -112,8 +112,9 @@ pub struct DatasetConfig {
     /// Share of the eligible pixels kept per frame and level (uniform sample).
     pub sample: f64,
     pub seed: u64,
-    /// Uniform opacity of every surface.
-    pub opacity: f32,
+    /// One uniform opacity for every surface, or `None`: each scene's own (the papers'
+    /// families at 0.33, the material families and glTF files by their materials).
+    pub opacity: Option<f32>,
 }
 
 /// Seeds of the built-in generators the default dataset uses: the first ones for training,
@@ -161,7 +162,7 @@ impl Default for DatasetConfig {
             levels: default_levels(),
             sample: 0.06,
             seed: 0,
-            opacity: 0.33,
+            opacity: None,
         }
     }
 }
@@ -395,7 +396,7 @@ pub fn generate(
     let scenes: Vec<scene::Scene> = config
         .scenes
         .iter()
-        .map(|s| scene::load(s, Opacity::Uniform(config.opacity)))
+        .map(|s| scene::load(s, crate::score::opacity_of(config.opacity)))
         .collect::<std::result::Result<_, _>>()?;
     dhoit_runtime::tensors::create_folder(out)?;
     // A stale manifest must not describe shards about to be replaced.

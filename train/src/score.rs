@@ -20,6 +20,11 @@ use dhoit_runtime::scene::{self, Camera, Opacity};
 use rayon::prelude::*;
 use serde::Serialize;
 
+/// A scene's opacity: one for every surface, or (`None`) the scene's own.
+pub fn opacity_of(uniform: Option<f32>) -> Opacity {
+    uniform.map_or(Opacity::Native, Opacity::Uniform)
+}
+
 /// One frame at one budget.
 #[derive(Clone, Debug, Serialize)]
 pub struct FrameScore {
@@ -63,7 +68,8 @@ pub struct ScoreSpec<'a> {
     pub width: u32,
     pub height: u32,
     pub levels: &'a [Level],
-    pub opacity: f32,
+    /// One uniform opacity for every surface, or `None`: each scene's own.
+    pub opacity: Option<f32>,
     pub networks: &'a [Mlp],
 }
 
@@ -104,7 +110,7 @@ impl Prepared {
         let scenes = spec
             .scenes
             .iter()
-            .map(|name| scene::load(name, Opacity::Uniform(spec.opacity)))
+            .map(|name| scene::load(name, opacity_of(spec.opacity)))
             .collect::<std::result::Result<Vec<_>, _>>()?;
         let mut out = Vec::new();
         for (name, sc) in spec.scenes.iter().zip(scenes) {

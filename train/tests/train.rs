@@ -30,7 +30,7 @@ fn small_config() -> DatasetConfig {
         ],
         sample: 0.5,
         seed: 3,
-        opacity: 0.33,
+        opacity: Some(0.33),
     }
 }
 

@@ -384,19 +384,22 @@ impl Readback {
             Some([nearest, farthest, sums]) if features_drawn != Some(false) => {
                 let nearest = read_u64s(gpu, nearest, px, false)?;
                 let farthest = read_u64s(gpu, farthest, 2 * px, false)?;
-                let sums = u32s(&read_back(gpu, sums, 16 * px)?);
+                let sums = u32s(&read_back(gpu, sums, 24 * px)?);
                 Some(
                     (0..px as usize)
                         .map(|q| PixelStats {
                             count: counts[q],
                             nearest_key: if counts[q] > 0 { !nearest[q] } else { 0 },
-                            // features.wgsl's packing: r and g 24 bits each, then n; b.
+                            // features.wgsl's packing: r and g 24 bits each, then n; b;
+                            // the optical depth and the opacity.
                             color_sum: [
-                                sums[4 * q] & 0xff_ffff,
-                                (sums[4 * q] >> 24) | ((sums[4 * q + 1] & 0xffff) << 8),
-                                sums[4 * q + 2],
+                                sums[6 * q] & 0xff_ffff,
+                                (sums[6 * q] >> 24) | ((sums[6 * q + 1] & 0xffff) << 8),
+                                sums[6 * q + 2],
                             ],
-                            color_sq_sum: sums[4 * q + 3],
+                            color_sq_sum: sums[6 * q + 3],
+                            optical_depth: sums[6 * q + 4],
+                            alpha_sum: sums[6 * q + 5],
                             farthest: [farthest[2 * q], farthest[2 * q + 1]],
                         })
                         .collect(),

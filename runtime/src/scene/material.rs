@@ -114,15 +114,19 @@ pub fn srgb_table() -> [f32; 256] {
     std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0))
 }
 
+/// A texel's 8-bit alpha times this is its opacity (a product, which every device rounds
+/// alike, where a quotient may be computed through an approximate reciprocal).
+pub const ALPHA_SCALE: f32 = 1.0 / 255.0;
+
 impl Texture {
-    /// A texel decoded: colour through the sRGB table, alpha / 255.
+    /// A texel decoded: colour through the sRGB table, alpha times [`ALPHA_SCALE`].
     fn texel(&self, table: &[f32; 256], x: i32, y: i32) -> [f32; 4] {
         let v = self.texels[(y as u32 * self.width + x as u32) as usize];
         [
             table[(v & 0xff) as usize],
             table[(v >> 8 & 0xff) as usize],
             table[(v >> 16 & 0xff) as usize],
-            (v >> 24) as f32 / 255.0,
+            (v >> 24) as f32 * ALPHA_SCALE,
         ]
     }
 

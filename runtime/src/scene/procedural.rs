@@ -2,10 +2,16 @@
 //!
 //! They differ in kind and span maximum depth complexity from about ten fragments per pixel
 //! (`shells`) to well over a hundred (`particles`, `hair`). A name may carry a seed, as in
-//! `particles:7`; without one each scene uses its default seed. Vertex alpha is set per object
-//! for the material-alpha mode; the default uniform opacity overrides it.
+//! `particles:7`; without one each scene uses its default seed.
+//!
+//! Two kinds: the papers' families ([`BUILTIN`]'s first ten), seen at one uniform opacity
+//! (their vertex alpha, set per object, is what `--material-alpha` keeps), and the material
+//! families ([`MATERIAL_FAMILIES`]), whose own materials decide, as real scenes' do: opaque
+//! parts, glass in opaque frames, transparent covers, alpha-textured cards, soft particles and
+//! strands whose textures fade (procedural textures, sampled per fragment).
 
 use super::Scene;
+use super::material::{Coverage, Material, Texture, Wrap, pack_texel};
 use crate::rng::Rng;
 use glam::Vec3;
 use std::f32::consts::{PI, TAU};
@@ -31,7 +37,31 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "a scanned-looking closed figure with folds, stone texture",
     ),
     ("shrub", "a dense shrub of 5000 small leaves and flowers"),
+    (
+        "windows",
+        "materials: glass panes (clear, stained, frosted, broken) in opaque frames, objects behind",
+    ),
+    (
+        "covers",
+        "materials: opaque gears and shafts under transparent plastic covers and inserts",
+    ),
+    (
+        "cards",
+        "materials: alpha-textured leaf cards (masked and blended) on opaque branches",
+    ),
+    (
+        "smoke",
+        "materials: soft particles with a radial alpha texture around opaque chimneys",
+    ),
+    (
+        "strands",
+        "materials: hair strands whose alpha fades to the tips, around an opaque head",
+    ),
 ];
+
+/// The built-in families whose own materials decide (opaque parts, textured and varied
+/// opacity); the others are the papers' uniform-opacity families.
+pub const MATERIAL_FAMILIES: [&str; 5] = ["windows", "covers", "cards", "smoke", "strands"];
 
 const DEFAULT_SEED: u64 = 1;
 
@@ -57,10 +87,17 @@ pub fn build(spec: &str) -> Option<Scene> {
         "glass" => glass(&mut s, &mut rng),
         "statue" => statue(&mut s, &mut rng),
         "shrub" => shrub(&mut s, &mut rng),
+        "windows" => windows(&mut s, &mut rng),
+        "covers" => covers(&mut s, &mut rng),
+        "cards" => cards(&mut s, &mut rng),
+        "smoke" => smoke(&mut s, &mut rng),
+        "strands" => strands(&mut s, &mut rng),
         _ => return None,
     }
     // The papers' families: one uniform opacity unless a caller asks for their vertex alpha.
-    s.uniform_opacity = Some(super::PAPER_OPACITY);
+    if !MATERIAL_FAMILIES.contains(&name) {
+        s.uniform_opacity = Some(super::PAPER_OPACITY);
+    }
     Some(s)
 }
 
@@ -661,5 +698,655 @@ fn shrub(s: &mut Scene, rng: &mut Rng) {
             [centre + t * size, centre - t * size, centre - b * size],
             [c; 3],
         );
+    }
+}
+
+// ---- The material families ------------------------------------------------------------------
+
+/// Runs `f`, which adds triangles of material 0, and gives the triangles it added material `m`.
+fn with_material(s: &mut Scene, m: u32, f: impl FnOnce(&mut Scene)) {
+    let first = s.triangle_count();
+    f(s);
+    for t in &mut s.triangle_material[first..] {
+        *t = m;
+    }
+}
+
+/// A textured quad: corners `p` with texture coordinates `uv`, one colour, material `m`.
+fn tquad(s: &mut Scene, p: [Vec3; 4], uv: [[f32; 2]; 4], c: [f32; 4], m: u32) {
+    s.push_textured([p[0], p[1], p[2]], [c; 3], [uv[0], uv[1], uv[2]], m);
+    s.push_textured([p[0], p[2], p[3]], [c; 3], [uv[0], uv[2], uv[3]], m);
+}
+
+const UNIT_UV: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
+
+fn opaque(c: [f32; 3]) -> Material {
+    Material {
+        base_color: [c[0], c[1], c[2], 1.0],
+        coverage: Coverage::Opaque,
+        ..Material::default()
+    }
+}
+
+fn blend(c: [f32; 3], alpha: f32) -> Material {
+    Material {
+        base_color: [c[0], c[1], c[2], alpha],
+        coverage: Coverage::Blend,
+        ..Material::default()
+    }
+}
+
+fn glass_material(tint: [f32; 3], ior: f32) -> Material {
+    Material {
+        base_color: [tint[0], tint[1], tint[2], 1.0],
+        coverage: Coverage::Opaque,
+        transmission: 1.0,
+        ior,
+        ..Material::default()
+    }
+}
+
+/// A texture of `w` x `h` texels from a function of the texel centre's (u, v) in [0, 1] to
+/// linear RGBA.
+fn texture(w: u32, h: u32, wrap: Wrap, f: impl Fn(f32, f32) -> [f32; 4]) -> Texture {
+    let texels = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| pack_texel(f((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32)))
+        .collect();
+    Texture {
+        width: w,
+        height: h,
+        texels,
+        wrap: [wrap; 2],
+        nearest: false,
+    }
+}
+
+/// Value noise in [0, 1] on a lattice of `cells` a side (wrapping), from a seed.
+fn value_noise(seed: u64, cells: u32) -> impl Fn(f32, f32) -> f32 {
+    let mut rng = Rng::new(seed);
+    let lattice: Vec<f32> = (0..cells * cells).map(|_| rng.f32()).collect();
+    move |u: f32, v: f32| {
+        let (x, y) = (u * cells as f32, v * cells as f32);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let at = |i: f32, j: f32| {
+            let (i, j) = (
+                (i as i64).rem_euclid(cells as i64) as u32,
+                (j as i64).rem_euclid(cells as i64) as u32,
+            );
+            lattice[(j * cells + i) as usize]
+        };
+        let (sx, sy) = (fx * fx * (3.0 - 2.0 * fx), fy * fy * (3.0 - 2.0 * fy));
+        let top = at(x0, y0) * (1.0 - sx) + at(x0 + 1.0, y0) * sx;
+        let bottom = at(x0, y0 + 1.0) * (1.0 - sx) + at(x0 + 1.0, y0 + 1.0) * sx;
+        top * (1.0 - sy) + bottom * sy
+    }
+}
+
+/// An opaque floor under the scene, textured with tiles.
+fn floor(s: &mut Scene, rng: &mut Rng, y: f32, half: f32) {
+    let a = [
+        rng.range(0.3, 0.6),
+        rng.range(0.3, 0.5),
+        rng.range(0.25, 0.45),
+    ];
+    let b = a.map(|c| c * 0.6);
+    let tiles = texture(32, 32, Wrap::Repeat, |u, v| {
+        let odd = ((u * 4.0) as u32 + (v * 4.0) as u32) % 2 == 1;
+        let c = if odd { a } else { b };
+        [c[0], c[1], c[2], 1.0]
+    });
+    let t = s.add_texture(tiles);
+    let m = s.add_material(Material {
+        texture: Some(t),
+        ..opaque([1.0; 3])
+    });
+    let r = 3.0;
+    tquad(
+        s,
+        [
+            Vec3::new(-half, y, -half),
+            Vec3::new(half, y, -half),
+            Vec3::new(half, y, half),
+            Vec3::new(-half, y, half),
+        ],
+        [[0.0, 0.0], [r, 0.0], [r, r], [0.0, r]],
+        [1.0; 4],
+        m,
+    );
+}
+
+/// Glass panes in opaque frames: a room of two facades and a partition, each a grid of
+/// windows (clear and tinted glass with transmission, stained glass blended through a
+/// texture, frosted, and broken panes whose holes are masked), with opaque objects, glass
+/// vessels and a glass shelf between them.
+fn windows(s: &mut Scene, rng: &mut Rng) {
+    floor(s, rng, -0.9, 1.3);
+    let wood = opaque([rng.range(0.35, 0.55), rng.range(0.22, 0.32), 0.12]);
+    let frame = s.add_material(wood);
+    let stained = {
+        let cells: Vec<([f32; 2], [f32; 3])> = (0..14)
+            .map(|_| {
+                let c = hue(rng, 1.0);
+                ([rng.f32(), rng.f32()], [c[0], c[1], c[2]])
+            })
+            .collect();
+        let tex = texture(64, 64, Wrap::Repeat, |u, v| {
+            // Voronoi cells of colour, leading (near-opaque dark lines) where two meet.
+            let mut d: Vec<(f32, usize)> = cells
+                .iter()
+                .enumerate()
+                .map(|(i, (p, _))| {
+                    let dx = (u - p[0]).abs().min(1.0 - (u - p[0]).abs());
+                    let dy = (v - p[1]).abs().min(1.0 - (v - p[1]).abs());
+                    (dx * dx + dy * dy, i)
+                })
+                .collect();
+            d.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let edge = d[1].0.sqrt() - d[0].0.sqrt();
+            if edge < 0.02 {
+                [0.05, 0.05, 0.05, 0.95]
+            } else {
+                let c = cells[d[0].1].1;
+                [c[0], c[1], c[2], 0.45]
+            }
+        });
+        let t = s.add_texture(tex);
+        s.add_material(Material {
+            texture: Some(t),
+            ..blend([1.0; 3], 1.0)
+        })
+    };
+    let broken = {
+        let noise = value_noise(rng.next_u64(), 6);
+        let tex = texture(64, 64, Wrap::Repeat, |u, v| {
+            let a = if noise(u, v) > 0.62 { 0.0 } else { 1.0 };
+            [1.0, 1.0, 1.0, a]
+        });
+        let t = s.add_texture(tex);
+        s.add_material(Material {
+            texture: Some(t),
+            coverage: Coverage::Mask(0.5),
+            ..glass_material([0.8, 0.9, 1.0], 1.5)
+        })
+    };
+    let frosted = s.add_material(blend([0.92, 0.95, 0.97], rng.range(0.45, 0.7)));
+    let mut panes = vec![stained, broken, frosted];
+    for _ in 0..3 {
+        let tint = [
+            rng.range(0.7, 1.0),
+            rng.range(0.85, 1.0),
+            rng.range(0.8, 1.0),
+        ];
+        panes.push(s.add_material(glass_material(tint, rng.range(1.45, 1.7))));
+    }
+    // Three walls of windows at z = -0.8, 0.0 (a partition) and 0.8.
+    for (wall, z) in [-0.8f32, 0.0, 0.8].into_iter().enumerate() {
+        let (cols, rows) = (2 + rng.below(3), 2 + rng.below(2));
+        let (x0, x1, y0, y1) = (-1.2, 1.2, -0.9, 0.9);
+        let bar = 0.05;
+        with_material(s, frame, |s| {
+            for i in 0..=cols {
+                let x = x0 + (x1 - x0) * i as f32 / cols as f32;
+                let c = [1.0; 4];
+                boxed(
+                    s,
+                    Vec3::new(x, 0.0, z),
+                    Vec3::new(bar, (y1 - y0) / 2.0, bar),
+                    glam::Quat::IDENTITY,
+                    c,
+                );
+            }
+            for j in 0..=rows {
+                let y = y0 + (y1 - y0) * j as f32 / rows as f32;
+                boxed(
+                    s,
+                    Vec3::new(0.0, y, z),
+                    Vec3::new((x1 - x0) / 2.0, bar, bar),
+                    glam::Quat::IDENTITY,
+                    [1.0; 4],
+                );
+            }
+        });
+        for i in 0..cols {
+            for j in 0..rows {
+                // The partition leaves some openings empty.
+                if wall == 1 && rng.f32() < 0.3 {
+                    continue;
+                }
+                let xa = x0 + (x1 - x0) * i as f32 / cols as f32 + bar;
+                let xb = x0 + (x1 - x0) * (i + 1) as f32 / cols as f32 - bar;
+                let ya = y0 + (y1 - y0) * j as f32 / rows as f32 + bar;
+                let yb = y0 + (y1 - y0) * (j + 1) as f32 / rows as f32 - bar;
+                let m = panes[rng.below(panes.len())];
+                let scale = [rng.range(0.8, 1.6), rng.range(0.8, 1.6)];
+                tquad(
+                    s,
+                    [
+                        Vec3::new(xa, ya, z),
+                        Vec3::new(xb, ya, z),
+                        Vec3::new(xb, yb, z),
+                        Vec3::new(xa, yb, z),
+                    ],
+                    [
+                        [0.0, scale[1]],
+                        [scale[0], scale[1]],
+                        [scale[0], 0.0],
+                        [0.0, 0.0],
+                    ],
+                    [1.0; 4],
+                    m,
+                );
+            }
+        }
+    }
+    // Between the walls: opaque objects, glass vessels on a glass shelf.
+    for _ in 0..4 + rng.below(4) {
+        let c = hue(rng, 1.0);
+        let m = s.add_material(opaque([c[0], c[1], c[2]]));
+        let z = if rng.f32() < 0.5 { -0.4 } else { 0.4 };
+        let centre = Vec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-0.8, 0.2),
+            z + rng.range(-0.2, 0.2),
+        );
+        with_material(s, m, |s| {
+            if rng.f32() < 0.5 {
+                sphere(s, centre, rng.range(0.08, 0.2), 16, 8, [1.0; 4]);
+            } else {
+                let rot = glam::Quat::from_rotation_y(rng.range(0.0, PI));
+                boxed(s, centre, Vec3::splat(rng.range(0.06, 0.15)), rot, [1.0; 4]);
+            }
+        });
+    }
+    let shelf = s.add_material(glass_material([0.85, 0.95, 0.9], 1.5));
+    let sz = rng.range(0.3, 0.5);
+    with_material(s, shelf, |s| {
+        boxed(
+            s,
+            Vec3::new(0.0, -0.3, sz),
+            Vec3::new(1.0, 0.015, 0.15),
+            glam::Quat::IDENTITY,
+            [1.0; 4],
+        );
+    });
+    for i in 0..3 {
+        let tint = hue(rng, 1.0);
+        let m = s.add_material(glass_material(
+            [
+                0.6 + 0.4 * tint[0],
+                0.6 + 0.4 * tint[1],
+                0.6 + 0.4 * tint[2],
+            ],
+            1.5,
+        ));
+        let (belly, height) = (rng.range(0.08, 0.14), rng.range(0.25, 0.45));
+        let profile: Vec<(f32, f32)> = (0..=8)
+            .map(|j| {
+                let t = j as f32 / 8.0;
+                ((belly * (PI * t).sin()).max(0.03), t * height)
+            })
+            .collect();
+        let x = -0.6 + 0.6 * i as f32 + rng.range(-0.1, 0.1);
+        with_material(s, m, |s| {
+            lathe(s, Vec3::new(x, -0.285, sz), &profile, 20, [1.0; 4])
+        });
+    }
+}
+
+/// Opaque gears, shafts and a base plate under transparent plastic covers (a housing whose
+/// walls are blended, and smaller inserts and a reservoir inside).
+fn covers(s: &mut Scene, rng: &mut Rng) {
+    let steel = |rng: &mut Rng| {
+        let g = rng.range(0.45, 0.8);
+        opaque([g, g, g * rng.range(1.0, 1.15)])
+    };
+    let plate = s.add_material(steel(rng));
+    with_material(s, plate, |s| {
+        boxed(
+            s,
+            Vec3::new(0.0, -0.6, 0.0),
+            Vec3::new(1.1, 0.04, 0.8),
+            glam::Quat::IDENTITY,
+            [1.0; 4],
+        );
+    });
+    let shafts = 2 + rng.below(3);
+    for i in 0..shafts {
+        let z = -0.4 + 0.8 * (i as f32 + 0.5) / shafts as f32;
+        let y = rng.range(-0.25, 0.15);
+        let m = s.add_material(steel(rng));
+        let r = rng.range(0.04, 0.08);
+        with_material(s, m, |s| {
+            solid_cylinder(s, Vec3::new(-1.1, y, z), Vec3::X, 2.2, r, 16, [1.0; 4])
+        });
+        for _ in 0..1 + rng.below(3) {
+            let c = hue(rng, 1.0);
+            let m = s.add_material(opaque([c[0], c[1], c[2]]));
+            let x = rng.range(-0.7, 0.7);
+            let (radius, width, teeth) = (
+                rng.range(0.12, 0.3),
+                rng.range(0.04, 0.1),
+                10 + rng.below(14) as u32,
+            );
+            with_material(s, m, |s| {
+                gear(
+                    s,
+                    Vec3::new(x, y, z),
+                    Vec3::X,
+                    radius,
+                    width,
+                    teeth,
+                    [1.0; 4],
+                )
+            });
+        }
+    }
+    // The covers: a housing of tinted plastic, a second one around part of it, inserts.
+    let tint = {
+        let c = hue(rng, 1.0);
+        [0.5 + 0.5 * c[0], 0.5 + 0.5 * c[1], 0.5 + 0.5 * c[2]]
+    };
+    let shell = s.add_material(blend(tint, rng.range(0.15, 0.4)));
+    with_material(s, shell, |s| {
+        housing(
+            s,
+            Vec3::new(0.0, -0.1, 0.0),
+            Vec3::new(0.9, 0.45, 0.6),
+            0.04,
+            [1.0; 4],
+        );
+    });
+    let inner = s.add_material(blend([0.9, 0.9, 0.95], rng.range(0.25, 0.5)));
+    with_material(s, inner, |s| {
+        housing(
+            s,
+            Vec3::new(rng.range(-0.3, 0.3), -0.25, 0.0),
+            Vec3::new(0.35, 0.3, 0.45),
+            0.02,
+            [1.0; 4],
+        );
+    });
+    for _ in 0..3 + rng.below(3) {
+        let c = hue(rng, 1.0);
+        let m = s.add_material(blend([c[0], c[1], c[2]], rng.range(0.3, 0.8)));
+        let centre = Vec3::new(
+            rng.range(-0.7, 0.7),
+            rng.range(-0.4, 0.3),
+            rng.range(-0.4, 0.4),
+        );
+        let rot = glam::Quat::from_rotation_y(rng.range(0.0, PI));
+        let half = Vec3::new(
+            rng.range(0.05, 0.2),
+            rng.range(0.05, 0.15),
+            rng.range(0.02, 0.1),
+        );
+        with_material(s, m, |s| boxed(s, centre, half, rot, [1.0; 4]));
+    }
+    let fluid = s.add_material(blend([rng.range(0.2, 0.9), rng.range(0.3, 0.9), 0.9], 0.6));
+    let c = Vec3::new(rng.range(-0.5, 0.5), 0.0, rng.range(-0.3, 0.3));
+    with_material(s, fluid, |s| {
+        sphere(s, c, rng.range(0.1, 0.2), 20, 10, [1.0; 4])
+    });
+}
+
+/// A leaf card texture: `leaves` leaf shapes (veined, darker at the rim) on transparent
+/// texels, with soft edges where `soft`.
+fn leaf_texture(rng: &mut Rng, leaves: u32, soft: bool) -> Texture {
+    let spots: Vec<([f32; 2], f32, f32)> = (0..leaves)
+        .map(|i| {
+            let (cx, cy) = if leaves == 1 {
+                (0.5, 0.5)
+            } else {
+                ((i % 2) as f32 * 0.5 + 0.25, (i / 2) as f32 * 0.5 + 0.25)
+            };
+            ([cx, cy], rng.range(0.0, PI), rng.range(0.8, 1.0))
+        })
+        .collect();
+    let scale = if leaves == 1 { 1.0 } else { 0.5 };
+    let green = [
+        rng.range(0.1, 0.3),
+        rng.range(0.4, 0.75),
+        rng.range(0.08, 0.25),
+    ];
+    texture(64, 64, Wrap::ClampToEdge, |u, v| {
+        let mut best = [0.0f32; 4];
+        for (c, angle, size) in &spots {
+            let (dx, dy) = ((u - c[0]) / scale, (v - c[1]) / scale);
+            let (sn, cs) = angle.sin_cos();
+            let (x, y) = (dx * cs + dy * sn, -dx * sn + dy * cs);
+            // An ellipse pointed at both ends: |y| < w(x).
+            let t = (x / (0.45 * size)).clamp(-1.0, 1.0);
+            let w = 0.2 * size * (1.0 - t * t).max(0.0).powf(0.8);
+            let inside = w - y.abs();
+            let a = if soft {
+                (inside / 0.04).clamp(0.0, 1.0)
+            } else if inside > 0.0 {
+                1.0
+            } else {
+                0.0
+            };
+            if a > best[3] {
+                let vein = if y.abs() < 0.012 { 1.3 } else { 1.0 };
+                let rim = 0.7 + 0.3 * (inside / (w + 1e-3)).clamp(0.0, 1.0);
+                best = [
+                    (green[0] * vein * rim).min(1.0),
+                    (green[1] * vein * rim).min(1.0),
+                    (green[2] * vein * rim).min(1.0),
+                    a,
+                ];
+            }
+        }
+        best
+    })
+}
+
+/// Alpha-textured foliage: opaque bark-textured trunk and branches carrying leaf cards, some
+/// masked (a cutoff), some blended with soft edges and a card-wide opacity.
+fn cards(s: &mut Scene, rng: &mut Rng) {
+    floor(s, rng, -1.2, 1.0);
+    let bark = {
+        let noise = value_noise(rng.next_u64(), 8);
+        let tex = texture(32, 32, Wrap::Repeat, |u, v| {
+            let n = noise(u * 0.5, v);
+            [0.25 + 0.2 * n, 0.16 + 0.12 * n, 0.08 + 0.06 * n, 1.0]
+        });
+        let t = s.add_texture(tex);
+        s.add_material(Material {
+            texture: Some(t),
+            ..opaque([1.0; 3])
+        })
+    };
+    let trunk_top = Vec3::new(0.0, 0.1, 0.0);
+    let mut branch_ends = Vec::new();
+    with_material(s, bark, |s| {
+        solid_cylinder(
+            s,
+            Vec3::new(0.0, -1.2, 0.0),
+            Vec3::Y,
+            1.3,
+            0.08,
+            16,
+            [1.0; 4],
+        );
+        for _ in 0..6 + rng.below(4) {
+            let mut d = rng.unit_vector();
+            d.y = d.y.abs() * 0.8 + 0.2;
+            let d = d.normalize();
+            let len = rng.range(0.4, 0.8);
+            let start = trunk_top - Vec3::Y * rng.range(0.0, 0.4);
+            solid_cylinder(s, start, d, len, 0.025, 8, [1.0; 4]);
+            branch_ends.push((start, d, len));
+        }
+    });
+    let mut kinds = Vec::new();
+    for i in 0..4 {
+        let soft = i % 2 == 1;
+        let tex = leaf_texture(rng, if i < 2 { 1 } else { 4 }, soft);
+        let t = s.add_texture(tex);
+        let m = if soft {
+            Material {
+                texture: Some(t),
+                ..blend([1.0; 3], rng.range(0.6, 1.0))
+            }
+        } else {
+            Material {
+                texture: Some(t),
+                coverage: Coverage::Mask(0.5),
+                ..opaque([1.0; 3])
+            }
+        };
+        kinds.push(s.add_material(m));
+    }
+    for _ in 0..900 {
+        let (start, d, len) = branch_ends[rng.below(branch_ends.len())];
+        let along = start + d * len * rng.range(0.3, 1.0);
+        let centre = along + rng.unit_vector() * rng.range(0.05, 0.3);
+        let n = rng.unit_vector();
+        let t = n.any_orthonormal_vector();
+        let b = n.cross(t);
+        let size = rng.range(0.08, 0.16);
+        let shade = rng.range(0.7, 1.0);
+        let c = [shade, shade, shade * rng.range(0.8, 1.0), 1.0];
+        let m = kinds[rng.below(kinds.len())];
+        tquad(
+            s,
+            [
+                centre - t * size - b * size,
+                centre + t * size - b * size,
+                centre + t * size + b * size,
+                centre - t * size + b * size,
+            ],
+            UNIT_UV,
+            c,
+            m,
+        );
+    }
+}
+
+/// Soft particles: billboards of a radial alpha texture (smoke and embers, blended) in
+/// plumes rising from opaque chimneys and around an opaque ball.
+fn smoke(s: &mut Scene, rng: &mut Rng) {
+    floor(s, rng, -1.0, 1.1);
+    let puff = texture(32, 32, Wrap::ClampToEdge, |u, v| {
+        let (x, y) = (2.0 * u - 1.0, 2.0 * v - 1.0);
+        let r2 = x * x + y * y;
+        let a = (-(r2 * 3.5)).exp() * (1.0 - r2).max(0.0);
+        [1.0, 1.0, 1.0, a]
+    });
+    let t = s.add_texture(puff);
+    let brick = s.add_material(opaque([rng.range(0.4, 0.6), 0.25, 0.2]));
+    let chimneys: Vec<Vec3> = (0..2 + rng.below(2))
+        .map(|_| Vec3::new(rng.range(-0.8, 0.8), -1.0, rng.range(-0.5, 0.5)))
+        .collect();
+    with_material(s, brick, |s| {
+        for c in &chimneys {
+            boxed(
+                s,
+                *c + Vec3::Y * 0.3,
+                Vec3::new(0.1, 0.3, 0.1),
+                glam::Quat::IDENTITY,
+                [1.0; 4],
+            );
+        }
+    });
+    let ball = s.add_material(opaque([0.3, 0.35, rng.range(0.4, 0.7)]));
+    let bc = Vec3::new(
+        rng.range(-0.4, 0.4),
+        rng.range(-0.3, 0.3),
+        rng.range(-0.3, 0.3),
+    );
+    with_material(s, ball, |s| {
+        sphere(s, bc, rng.range(0.15, 0.3), 24, 12, [1.0; 4])
+    });
+    let mut mats = Vec::new();
+    for _ in 0..6 {
+        let grey = rng.range(0.35, 0.9);
+        let warm = rng.f32() < 0.3;
+        let c = if warm {
+            [1.0, rng.range(0.4, 0.7), 0.15]
+        } else {
+            [grey, grey, grey * rng.range(0.95, 1.05)]
+        };
+        mats.push(s.add_material(Material {
+            texture: Some(t),
+            ..blend(c, rng.range(0.2, 0.9))
+        }));
+    }
+    for _ in 0..6000 {
+        let c = chimneys[rng.below(chimneys.len())];
+        let h = rng.f32().powf(0.7) * 1.8;
+        let spread = 0.08 + 0.35 * h;
+        let centre = c + Vec3::new(
+            rng.normal() * spread + 0.3 * h * h,
+            0.6 + h,
+            rng.normal() * spread,
+        );
+        let n = rng.unit_vector();
+        let tt = n.any_orthonormal_vector();
+        let b = n.cross(tt);
+        let r = rng.range(0.05, 0.12) * (1.0 + h);
+        let m = mats[rng.below(mats.len())];
+        let fade = (1.0 - h / 2.0).clamp(0.2, 1.0);
+        tquad(
+            s,
+            [
+                centre - tt * r - b * r,
+                centre + tt * r - b * r,
+                centre + tt * r + b * r,
+                centre - tt * r + b * r,
+            ],
+            UNIT_UV,
+            [1.0, 1.0, 1.0, fade],
+            m,
+        );
+    }
+}
+
+/// Hair strands whose alpha fades along the strand (a texture in v) and across it (in u),
+/// growing from an opaque head.
+fn strands(s: &mut Scene, rng: &mut Rng) {
+    const SEGMENTS: usize = 8;
+    let skin = s.add_material(opaque([
+        rng.range(0.6, 0.9),
+        rng.range(0.45, 0.65),
+        rng.range(0.35, 0.5),
+    ]));
+    with_material(s, skin, |s| sphere(s, Vec3::ZERO, 0.48, 32, 16, [1.0; 4]));
+    let falloff = rng.range(0.5, 1.2);
+    let strand = texture(8, 64, Wrap::ClampToEdge, |u, v| {
+        let across = 1.0 - (2.0 * u - 1.0).powi(2);
+        let along = (1.0 - v).powf(falloff);
+        [1.0, 1.0, 1.0, (across * along).clamp(0.0, 1.0)]
+    });
+    let t = s.add_texture(strand);
+    let hair = s.add_material(Material {
+        texture: Some(t),
+        ..blend([1.0; 3], rng.range(0.6, 1.0))
+    });
+    let base = rng.range(0.2, 0.5);
+    for _ in 0..2500 {
+        let mut d = rng.unit_vector();
+        d.y = d.y.abs();
+        let mut p = d * 0.5;
+        let mut v = d * 0.08;
+        let tone = base * rng.range(0.8, 1.2);
+        let c = [(tone * 1.3).min(1.0), tone * 0.9, tone * 0.5, 1.0];
+        let width = rng.range(0.008, 0.016);
+        let side = d.cross(Vec3::Y).normalize_or(Vec3::X) * width;
+        for k in 0..SEGMENTS {
+            let next = p + v;
+            v = (v + Vec3::new(0.0, -0.035, 0.0) + rng.unit_vector() * 0.01) * 0.98;
+            let (v0, v1) = (k as f32 / SEGMENTS as f32, (k + 1) as f32 / SEGMENTS as f32);
+            tquad(
+                s,
+                [p - side, p + side, next + side, next - side],
+                [[0.0, v0], [1.0, v0], [1.0, v1], [0.0, v1]],
+                c,
+                hair,
+            );
+            p = next;
+        }
     }
 }
