@@ -44,21 +44,29 @@ golden: build
 	$(RUN) features --scene hair --view 2 --res 160x120 --budget 2fpp --limit 512 --out data/golden/features.safetensors
 	$(RUN) predict --weights data/weights.safetensors --input data/golden/features.safetensors --output data/golden/predictions.safetensors
 
-## Quality on scenes never used for training: the ten built-ins (seed 1) and, when present, the
-## real scenes in $(DHOIT_SCENES); budgets relative to each frame's fragments and in slots per
-## pixel; once at equal F and once at equal bytes. Small summaries -> docs/eval-slots.md and
-## docs/eval-bytes.md (committed), every frame, image and montage -> out/eval/.
+## Quality on scenes never used for training: the ten papers' built-ins (seed 1) and, when
+## present, the real scenes in $(DHOIT_SCENES), every surface at the papers' one opacity 0.33;
+## then with their own materials, the five material families (seed 1) and the real scenes;
+## budgets relative to each frame's fragments and in slots per pixel; once at equal F and once
+## at equal bytes. Small summaries -> docs/eval-slots.md, docs/eval-bytes.md,
+## docs/eval-materials-slots.md and docs/eval-materials-bytes.md (committed), every frame,
+## image and montage -> out/eval/.
 EVAL_BUILTIN := shells,spheres,foliage,plates,hair,particles,cad,glass,statue,shrub
 EVAL_REAL := StanfordBunny/StanfordBunny.glb GlassVaseFlowers/GlassVaseFlowers.glb FlightHelmet/glTF/FlightHelmet.gltf ToyCar/glTF/ToyCar.gltf TransmissionTest/TransmissionTest.glb
+EVAL_MATERIAL_BUILTIN := windows,covers,cards,smoke,strands
+EVAL_MATERIAL_REAL := $(EVAL_REAL) AlphaBlendModeTest/AlphaBlendModeTest.glb TextureSettingsTest/TextureSettingsTest.glb GlassBrokenWindow/GlassBrokenWindow.glb
 EVAL_BUDGETS := 10%,25%,50%,75%,90%,0.25fpp,0.5fpp,1fpp,2fpp,4fpp
 EVAL_ARGS := --view 1,3 --res 320x240 --budget $(EVAL_BUDGETS) --methods fkb,vkb,dkb,optimal,mlab
 eval: build
-	@scenes="$(EVAL_BUILTIN)"; \
+	@scenes="$(EVAL_BUILTIN)"; materials="$(EVAL_MATERIAL_BUILTIN)"; \
 	if [ -d "$(DHOIT_SCENES)" ]; then \
 	  for f in $(EVAL_REAL); do scenes="$$scenes,$(DHOIT_SCENES)/$$f"; done; \
+	  for f in $(EVAL_MATERIAL_REAL); do materials="$$materials,$(DHOIT_SCENES)/$$f"; done; \
 	else echo "eval: no real scenes at $(DHOIT_SCENES): the built-in scenes only" >&2; fi; \
-	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --equal slots --out out/eval/slots --summary docs/eval-slots.md && \
-	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --equal bytes --out out/eval/bytes --summary docs/eval-bytes.md
+	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --opacity 0.33 --equal slots --out out/eval/slots --summary docs/eval-slots.md && \
+	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --opacity 0.33 --equal bytes --out out/eval/bytes --summary docs/eval-bytes.md && \
+	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --equal slots --out out/eval/materials-slots --summary docs/eval-materials-slots.md && \
+	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --equal bytes --out out/eval/materials-bytes --summary docs/eval-materials-bytes.md
 
 ## The speed-accuracy trade of the shipped networks on the evaluation scenes: importance-pass
 ## time (GPU timestamps on the adapter at hand, at 640x480) against MSE and FLIP (320x240),
@@ -70,7 +78,7 @@ trade: build
 	if [ -d "$(DHOIT_SCENES)" ]; then \
 	  for f in $(EVAL_REAL); do scenes="$$scenes,$(DHOIT_SCENES)/$$f"; done; \
 	else echo "trade: no real scenes at $(DHOIT_SCENES): the built-in scenes only" >&2; fi; \
-	$(RUN) trade --scene "$$scenes" --view 1,3 --res 320x240 --budget $(TRADE_BUDGETS) --precision f32,f16 --time-res 640x480 --out out/trade --summary docs
+	$(RUN) trade --scene "$$scenes" --view 1,3 --res 320x240 --budget $(TRADE_BUDGETS) --opacity 0.33 --precision f32,f16 --time-res 640x480 --out out/trade --summary docs
 
 ## Long structured fuzzing of every file parser (glTF/GLB, weights, features, dumps): the
 ## property tests of tests/fuzz.rs with FUZZ_CASES mutated inputs each (CI runs 128). Keep

@@ -178,6 +178,11 @@ pub(crate) fn geomean(v: &[f64]) -> f64 {
     (v.iter().map(|x| x.ln()).sum::<f64>() / v.len() as f64).exp()
 }
 
+/// The arithmetic mean (NaN of nothing).
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len() as f64
+}
+
 /// One frame's MSE ratios.
 struct Ratio {
     scene: String,
@@ -185,6 +190,9 @@ struct Ratio {
     dkb_vkb: f64,
     dkb_optimal: f64,
     vkb_optimal: f64,
+    /// The frame's mean FLIP of DKB and of VKB.
+    dkb_flip: f64,
+    vkb_flip: f64,
 }
 
 /// DKB against VKB and the optimal allocation on every frame where all three ran and the
@@ -207,6 +215,8 @@ fn ratios(rows: &[Row]) -> Vec<Ratio> {
                 dkb_vkb: fl(d.mse) / fl(v.mse),
                 dkb_optimal: fl(d.mse) / fl(o.mse),
                 vkb_optimal: fl(v.mse) / fl(o.mse),
+                dkb_flip: d.flip,
+                vkb_flip: v.flip,
             })
         })
         .collect()
@@ -285,6 +295,14 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
                 "{:.3}",
                 geomean(&g.iter().map(|x| x.vkb_optimal).collect::<Vec<_>>())
             ),
+            format!(
+                "{:.4}",
+                mean(&g.iter().map(|x| x.dkb_flip).collect::<Vec<_>>())
+            ),
+            format!(
+                "{:.4}",
+                mean(&g.iter().map(|x| x.vkb_flip).collect::<Vec<_>>())
+            ),
         ]
     };
     let head = [
@@ -294,6 +312,8 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
         "worst DKB/VKB",
         "DKB/optimal",
         "VKB/optimal",
+        "DKB FLIP",
+        "VKB FLIP",
     ];
     let mut by_scene: Vec<Vec<String>> = Vec::new();
     for s in &scenes {
@@ -350,6 +370,17 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
         })
         .expect("some ratio");
     let frames_over = r.iter().filter(|x| x.dkb_vkb > 1.1).count();
+    // Scenes whose mean FLIP for DKB is above VKB's.
+    let flip_over: Vec<String> = scenes
+        .iter()
+        .filter(|s| {
+            let g: Vec<&Ratio> = r.iter().filter(|x| x.scene == **s).collect();
+            !g.is_empty()
+                && mean(&g.iter().map(|x| x.dkb_flip).collect::<Vec<_>>())
+                    > mean(&g.iter().map(|x| x.vkb_flip).collect::<Vec<_>>())
+        })
+        .cloned()
+        .collect();
     let opt = geomean(&r.iter().map(|x| x.dkb_optimal).collect::<Vec<_>>());
     let verdict = |ok: bool| if ok { "holds" } else { "does not hold" };
     let targets = vec![
@@ -368,6 +399,15 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
                 worst.budget
             ),
             verdict(frames_over == 0).to_string(),
+        ],
+        vec![
+            "DKB's mean FLIP <= VKB's on every scene".to_string(),
+            if flip_over.is_empty() {
+                "every scene".to_string()
+            } else {
+                format!("above on {}", flip_over.join(", "))
+            },
+            verdict(flip_over.is_empty()).to_string(),
         ],
         vec![
             "DKB/optimal <= 3 (geometric mean)".to_string(),

@@ -4,7 +4,7 @@
 mod common;
 
 use common::{scenes_dir, temp_dir};
-use dhoit_runtime::scene::{self, Opacity};
+use dhoit_runtime::scene::{self, Camera, Opacity};
 use std::path::{Path, PathBuf};
 
 #[test]
@@ -228,8 +228,16 @@ fn every_built_in_scene_round_trips_through_the_exporter() {
         let path = dir.join(format!("{name}.glb"));
         scene::gltf::export(&built, &path).unwrap();
         let back = load(&path).unwrap();
-        assert_eq!(back.positions, built.positions, "{name}: positions");
-        assert_eq!(back.colors, built.colors, "{name}: colours and alpha");
+        // (assert!, not assert_eq!: a difference is named, not printed whole)
+        assert!(back.positions == built.positions, "{name}: positions");
+        assert!(back.colors == built.colors, "{name}: colours and alpha");
+        assert!(back.uvs == built.uvs, "{name}: texture coordinates");
+        assert!(back.materials == built.materials, "{name}: materials");
+        assert!(back.textures == built.textures, "{name}: textures");
+        assert!(
+            back.triangle_material == built.triangle_material,
+            "{name}: triangle materials"
+        );
         assert_eq!(back.name, *name);
     }
     // A scene with nothing to write is refused, and nothing is left behind.
@@ -238,4 +246,192 @@ fn every_built_in_scene_round_trips_through_the_exporter() {
     let e = scene::gltf::export(&empty, &path).unwrap_err();
     assert!(e.to_string().contains("whole triangles"), "{e}");
     assert!(!path.exists());
+}
+
+/// A file of four quads side by side sharing one texture whose alpha rises from 0 to 1 across
+/// it: OPAQUE, MASK at cutoffs 0.25 and 0.75, and BLEND (AlphaBlendModeTest's arrangement),
+/// written by the exporter.
+fn alpha_modes_file(dir: &Path) -> PathBuf {
+    use scene::{Coverage, Material, Texture, Wrap};
+    let mut s = scene::Scene {
+        name: "alpha-modes".into(),
+        materials: Vec::new(),
+        ..scene::Scene::default()
+    };
+    let texels = (0..64 * 4)
+        .map(|i| {
+            let u = ((i % 64) as f32 + 0.5) / 64.0;
+            scene::material::pack_texel([0.8, 0.5, 0.2, u])
+        })
+        .collect();
+    let t = s.add_texture(Texture {
+        width: 64,
+        height: 4,
+        texels,
+        wrap: [Wrap::ClampToEdge; 2],
+        nearest: false,
+    });
+    let modes = [
+        Coverage::Opaque,
+        Coverage::Mask(0.25),
+        Coverage::Mask(0.75),
+        Coverage::Blend,
+    ];
+    for (i, coverage) in modes.into_iter().enumerate() {
+        let m = s.add_material(Material {
+            texture: Some(t),
+            coverage,
+            ..Material::default()
+        });
+        let x = -1.0 + 0.5 * i as f32;
+        let p = [(0.0, 0.0), (0.45, 0.0), (0.45, 1.0), (0.0, 1.0)]
+            .map(|(dx, y)| glam::Vec3::new(x + dx, y, 0.0));
+        let uv = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
+        s.push_textured([p[0], p[1], p[2]], [[1.0; 4]; 3], [uv[0], uv[1], uv[2]], m);
+        s.push_textured([p[0], p[2], p[3]], [[1.0; 4]; 3], [uv[0], uv[2], uv[3]], m);
+    }
+    let path = dir.join("alpha-modes.glb");
+    scene::gltf::export(&s, &path).unwrap();
+    path
+}
+
+/// glTF's alpha modes as the specification says: OPAQUE surfaces are opaque whatever their
+/// alpha, MASK ones opaque where alpha reaches the cutoff and absent elsewhere, BLEND ones
+/// transparent with their alpha. AlphaBlendModeTest when the real scenes are there (its masked
+/// quads share one alpha texture and UVs), else a file of the same kind written here.
+#[test]
+fn each_alpha_mode_loads_and_renders_as_the_specification_says() {
+    use dhoit_runtime::raster::rasterize;
+    use scene::Coverage;
+    let (path, real) = match scenes_dir() {
+        Some(d) => (d.join("AlphaBlendModeTest/AlphaBlendModeTest.glb"), true),
+        None => (alpha_modes_file(&temp_dir("alpha-modes")), false),
+    };
+    let s = load(&path).unwrap();
+    let coverages: Vec<Coverage> = s.materials.iter().map(|m| m.coverage).collect();
+    assert!(coverages.contains(&Coverage::Opaque), "{coverages:?}");
+    assert!(coverages.contains(&Coverage::Blend), "{coverages:?}");
+    let mut cutoffs: Vec<f32> = s.materials.iter().filter_map(|m| m.cutoff()).collect();
+    cutoffs.sort_by(f32::total_cmp);
+    let expected: &[f32] = if real {
+        &[0.25, 0.5, 0.75]
+    } else {
+        &[0.25, 0.75]
+    };
+    assert_eq!(
+        cutoffs, expected,
+        "MASK cutoffs, the default 0.5 where none is given"
+    );
+    // Opaque surfaces never give transparent fragments; blended ones only do.
+    for t in 0..s.triangle_count() {
+        let m = s.material_of(t);
+        assert_eq!(
+            s.transparent(t),
+            m.coverage == Coverage::Blend,
+            "triangle {t}"
+        );
+    }
+    // Each masked material alone: the share of its pixels the cutoff keeps falls as the
+    // cutoff rises, between all (alpha ignored) and none.
+    let (w, h) = (256, 192);
+    let mut kept = Vec::new();
+    for c in &cutoffs {
+        let alone = |coverage: Coverage| {
+            let mut one = s.clone();
+            let keep: Vec<bool> = (0..one.triangle_count())
+                .map(|t| one.material_of(t).cutoff() == Some(*c))
+                .collect();
+            for m in &mut one.materials {
+                if m.cutoff() == Some(*c) {
+                    m.coverage = coverage;
+                }
+            }
+            // Move every other triangle out of view (behind the camera's far plane).
+            let cam = Camera::orbit(&s, 0, 8, w, h);
+            for (t, k) in keep.iter().enumerate() {
+                if !k {
+                    for v in 0..3 {
+                        one.positions[3 * t + v] = one.positions[3 * t + v] - cam.forward * 1e6;
+                    }
+                }
+            }
+            let fl = rasterize(&one, &cam, w, h).unwrap();
+            fl.opaque.iter().filter(|&&o| o >> 24 != 0).count()
+        };
+        let (all, masked) = (alone(Coverage::Opaque), alone(Coverage::Mask(*c)));
+        assert!(all > 100, "cutoff {c}: {all} pixels");
+        let share = masked as f64 / all as f64;
+        eprintln!("cutoff {c}: {masked} of {all} pixels kept ({share:.3})");
+        assert!(share > 0.0 && share < 1.0, "cutoff {c} keeps {share}");
+        if !real {
+            // Alpha rises linearly across the quad: the cutoff keeps 1 - c of it.
+            assert!(
+                (share - (1.0 - *c as f64)).abs() < 0.05,
+                "cutoff {c} keeps {share}"
+            );
+        }
+        kept.push(share);
+    }
+    assert!(kept.windows(2).all(|k| k[0] > k[1]), "{kept:?}");
+}
+
+/// Texture coordinates outside [0, 1] wrap as the sampler says. TextureSettingsTest's samplers
+/// (repeat, mirrored repeat and clamp to edge along S and T, and its UVs beyond [0, 1]) load
+/// as written; sampling at texel centres far outside [0, 1] gives the texel the wrap mode
+/// names, by hand: texel i repeats every width, mirrors at each edge, clamps to the last.
+#[test]
+fn textures_wrap_as_their_samplers_say() {
+    use scene::{Texture, Wrap};
+    if let Some(dir) = scenes_dir() {
+        let s = load(&dir.join("TextureSettingsTest/TextureSettingsTest.glb")).unwrap();
+        let wraps: std::collections::BTreeSet<String> =
+            s.textures.iter().map(|t| format!("{:?}", t.wrap)).collect();
+        for w in [
+            "[Repeat, Repeat]",
+            "[Repeat, ClampToEdge]",
+            "[ClampToEdge, Repeat]",
+            "[Repeat, MirroredRepeat]",
+            "[MirroredRepeat, Repeat]",
+        ] {
+            assert!(wraps.contains(w), "{w} in {wraps:?}");
+        }
+        assert!(
+            s.uvs.iter().flatten().any(|&c| !(0.0..=1.0).contains(&c)),
+            "UVs outside [0, 1]"
+        );
+    }
+    let table = scene::material::srgb_table();
+    let n = 4u32;
+    let texels: Vec<u32> = (0..n * n).map(|i| 0xff00_0000 | (i * 15)).collect();
+    for wrap in [Wrap::Repeat, Wrap::MirroredRepeat, Wrap::ClampToEdge] {
+        for nearest in [false, true] {
+            let t = Texture {
+                width: n,
+                height: n,
+                texels: texels.clone(),
+                wrap: [wrap, Wrap::ClampToEdge],
+                nearest,
+            };
+            for k in -3i32..=3 {
+                for i in 0..n as i32 {
+                    // Texel i of row 0 repeated k widths away (u = i + 0.5 + k n texels).
+                    let u = (i as f32 + 0.5 + (k * n as i32) as f32) / n as f32;
+                    let x = k * n as i32 + i;
+                    let by_hand = match wrap {
+                        Wrap::Repeat => i,
+                        // Mirrored: even periods as they are, odd ones reversed.
+                        Wrap::MirroredRepeat if k.rem_euclid(2) == 0 => i,
+                        Wrap::MirroredRepeat => n as i32 - 1 - i,
+                        Wrap::ClampToEdge => x.clamp(0, n as i32 - 1),
+                    };
+                    let got = t.sample(&table, [u, 0.5 / n as f32]);
+                    let want = table[(by_hand as u32 * 15) as usize];
+                    assert_eq!(
+                        got[0], want,
+                        "{wrap:?} nearest {nearest}: u {u} (texel {x})"
+                    );
+                }
+            }
+        }
+    }
 }

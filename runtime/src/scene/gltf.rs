@@ -65,6 +65,11 @@ pub fn from_slice(bytes: &[u8], path: &Path) -> Result<Scene> {
             ..Scene::default()
         },
     };
+    // Every material in the file's order (so a scene written by `export` reads back with the
+    // same indices), the default one (for primitives without one) after them where used.
+    for m in doc.materials() {
+        loader.material(&m)?;
+    }
     let mut stack: Vec<(gltf::Node, Mat4, usize)> =
         gscene.nodes().map(|n| (n, Mat4::IDENTITY, 0)).collect();
     while let Some((node, parent, depth)) = stack.pop() {
@@ -320,11 +325,9 @@ impl Loader<'_> {
             return Err(self.err("COLOR_0 and POSITION have different counts"));
         }
         let (material, uv_set) = self.material(&prim.material())?;
-        let uvs: Vec<[f32; 2]> = match self.scene.materials[material as usize].texture {
-            Some(_) => match reader.read_tex_coords(uv_set.set) {
-                Some(t) => t.into_f32().map(|uv| uv_set.apply(uv)).collect(),
-                None => vec![[0.0; 2]; n],
-            },
+        // The set the base colour texture reads (else set 0), where the primitive has it.
+        let uvs: Vec<[f32; 2]> = match reader.read_tex_coords(uv_set.set) {
+            Some(t) => t.into_f32().map(|uv| uv_set.apply(uv)).collect(),
             None => vec![[0.0; 2]; n],
         };
         if uvs.len() != n {
