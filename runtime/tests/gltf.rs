@@ -351,7 +351,7 @@ fn each_alpha_mode_loads_and_renders_as_the_specification_says() {
             for (t, k) in keep.iter().enumerate() {
                 if !k {
                     for v in 0..3 {
-                        one.positions[3 * t + v] = one.positions[3 * t + v] - cam.forward * 1e6;
+                        one.positions[3 * t + v] -= cam.forward * 1e6;
                     }
                 }
             }
