@@ -18,21 +18,25 @@
 // to raster::MAX_FRAGMENTS_PER_PIXEL fragments (255 x 65,535 < 2^24), past which the resolve
 // refuses the frame whatever n the passes before it were given (resolve.wgsl's too_deep). The
 // second holds sum b (low half, at most 255 n) and sum (r^2 + g^2 + b^2) (high half, wrapping
-// as a 32-bit sum does). The third the opacity statistics: the sum of the fragments' optical
-// depths from importance::optical_depth_table (low half) and of their 8-bit opacities (high).
+// as a 32-bit sum does). A word in a buffer of its own holds the opacity statistics: the sum
+// of the fragments' optical depths from importance::optical_depth_table (low half) and of
+// their 8-bit opacities (high). No buffer above 16 bytes a pixel, so a 4K frame fits 128 MiB
+// bindings.
 
 // Per pixel: the nearest key (complemented); the frame reuses this buffer for the tail's count
 // once the importance pass has read it.
 @group(1) @binding(0) var<storage, read_write> nearest: array<atomic<u64>>;
 // Per pixel: the two largest keys, farthest first; reused for the tail's sums.
 @group(1) @binding(1) var<storage, read_write> farthest: array<atomic<u64>>;
-// Per pixel: sum r, sum g and n; sum b and sum (r^2 + g^2 + b^2); optical depth and opacity;
-// 8-bit units, as above (importance_dkb.wgsl's color_sums and totals.wgsl's from_sums read
-// them as 32-bit words). Reused for the image.
+// Per pixel: sum r, sum g and n; sum b and sum (r^2 + g^2 + b^2); 8-bit units, as above
+// (importance_dkb.wgsl's color_sums and totals.wgsl's from_sums read them as 32-bit words).
+// Reused for the image.
 @group(1) @binding(2) var<storage, read_write> sums: array<atomic<u64>>;
 // A fragment's optical depth by its 8-bit opacity (importance::optical_depth_table), four to a
 // vec4.
 @group(1) @binding(3) var<uniform> optical_depth: array<vec4<u32>, 64>;
+// Per pixel: the sum of optical depths (low half) and of 8-bit opacities (high half).
+@group(1) @binding(4) var<storage, read_write> opacity: array<atomic<u64>>;
 
 
 // Whether the nearest key is loaded first, and atomicMax issued only where it can change it
@@ -75,8 +79,8 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     let b = (rgba8 >> 16u) & 0xffu;
     let a = rgba8 >> 24u;
     let counted = select(0lu, 1lu << 48u, COUNT_FRAGMENTS);
-    atomicAdd(&sums[3u * p], u64(r) | (u64(g) << 24u) | counted);
-    atomicAdd(&sums[3u * p + 1u], u64(b) | (u64(r * r + g * g + b * b) << 32u));
-    atomicAdd(&sums[3u * p + 2u], u64(optical_depth[a >> 2u][a & 3u]) | (u64(a) << 32u));
+    atomicAdd(&sums[2u * p], u64(r) | (u64(g) << 24u) | counted);
+    atomicAdd(&sums[2u * p + 1u], u64(b) | (u64(r * r + g * g + b * b) << 32u));
+    atomicAdd(&opacity[p], u64(optical_depth[a >> 2u][a & 3u]) | (u64(a) << 32u));
     return vec4<f32>(0.0);
 }

@@ -23,6 +23,8 @@
 @group(0) @binding(9) var<storage, read_write> list_len: array<atomic<u32>, 4>;
 // The network entry's indirect dispatch: workgroups x, y, z.
 @group(0) @binding(10) var<storage, read_write> dispatch: array<u32, 4>;
+// Per pixel: the sums of optical depth and 8-bit opacity (features.wgsl).
+@group(0) @binding(12) var<storage, read> opacity: array<u32>;
 
 // Skip the network where k does not depend on it (Mlp::dkb_importance): a pixel whose useful
 // cap is the frame's smallest k, lo (mlp::forced: n <= lo + 1, or lo + 2 where its two farthest
@@ -33,11 +35,11 @@
 const SKIP_FORCED: bool = true;
 
 // Sum r, g, b of pixel p's fragments (features.wgsl's packing: r and g 24 bits each in the first
-// of three 64-bit words, then n; b in the second's low half).
+// 64-bit word, then n; b in the second's low half).
 fn color_sums(p: u32) -> vec3<u32> {
-    let lo = sums[6u * p];
-    let hi = sums[6u * p + 1u];
-    return vec3<u32>(lo & 0xffffffu, (lo >> 24u) | ((hi & 0xffffu) << 8u), sums[6u * p + 2u]);
+    let lo = sums[4u * p];
+    let hi = sums[4u * p + 1u];
+    return vec3<u32>(lo & 0xffffffu, (lo >> 24u) | ((hi & 0xffffu) << 8u), sums[4u * p + 2u]);
 }
 
 fn luma(c: vec3<f32>) -> f32 {
@@ -81,7 +83,7 @@ fn network_inputs(p: u32) -> Net {
     let sum = color_sums(p);
     let mean = vec3<f32>(f32(sum.r) / 255.0 / nf, f32(sum.g) / 255.0 / nf, f32(sum.b) / 255.0 / nf);
     // n^2 var and n^2 dev in 8-bit units, exact integers.
-    var var_num = i64(c) * i64(sums[6u * p + 3u]);
+    var var_num = i64(c) * i64(sums[4u * p + 3u]);
     var dev_num = 0li;
     for (var ch = 0u; ch < 3u; ch++) {
         let s = i64(sum[ch]);
@@ -94,7 +96,7 @@ fn network_inputs(p: u32) -> Net {
     let dev = f32(dev_num) / scale;
     let mean_luma = luma(mean);
     let near_luma = luma(near);
-    let tau = f32(sums[6u * p + 4u]) * OPTICAL_DEPTH_UNIT;
+    let tau = f32(opacity[2u * p]) * OPTICAL_DEPTH_UNIT;
     net.x = array<f32, 12>(
         log2(nf),
         nf / (total / covered),
@@ -104,7 +106,7 @@ fn network_inputs(p: u32) -> Net {
         f32(near8 >> 24u) / 255.0,
         log2(variance + LOG_FLOOR),
         log2(dev + LOG_FLOOR),
-        f32(sums[6u * p + 5u]) / 255.0 / nf,
+        f32(opacity[2u * p + 1u]) / 255.0 / nf,
         mean_luma,
         near_luma,
         log2(tau + OPTICAL_DEPTH_UNIT),

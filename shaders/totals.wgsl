@@ -62,7 +62,7 @@ fn from_sums(
 ) {
     let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (p < params.pixels) {
-        let c = sums[6u * p + 1u] >> 16u;
+        let c = sums[4u * p + 1u] >> 16u;
         count_out[p] = c;
         add_pixel(c);
     }

@@ -62,8 +62,8 @@ const STATUS: (&str, u64) = ("status", 16);
 
 /// Deep k-buffer: network features, importance, k, offsets, tail, output. The features'
 /// keys, read by the importance pass, then hold the tail: the nearest (8 bytes) its count (4),
-/// the two farthest (16) its sums (16); their colour and opacity sums (24) then hold the image
-/// (16): 69 bytes a pixel, VKB's 61 and 8.
+/// the two farthest (16) its sums (16); their colour sums (16) then hold the image (16); the
+/// opacity sums (8) are their own: 69 bytes a pixel, VKB's 61 and 8.
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
@@ -72,7 +72,8 @@ pub const DKB: Layout = Layout {
         ("features.count", 4),
         ("features.nearest", 8),
         ("features.farthest", 16),
-        ("features.color_sums", 24),
+        ("features.color_sums", 16),
+        ("features.opacity", 8),
         ("oit.importance", 4),
         ("alloc.flags", 4),
         ("oit.k", 4),

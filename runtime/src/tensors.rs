@@ -33,7 +33,9 @@ impl Entry {
     }
 }
 
-/// Writes tensors and string metadata to `path` atomically.
+/// Writes tensors and string metadata to `path` atomically. The header's keys (tensors and
+/// metadata) are written in sorted order, so the same tensors and metadata give the same bytes
+/// every time (the crate writes them in a hash map's order, which changes from run to run).
 pub fn write(path: &Path, entries: &[Entry], metadata: HashMap<String, String>) -> Result<()> {
     let views: Vec<(String, TensorView)> = entries
         .iter()
@@ -45,7 +47,24 @@ pub fn write(path: &Path, entries: &[Entry], metadata: HashMap<String, String>) 
         .collect::<Result<_>>()?;
     let bytes = safetensors::serialize(views, Some(metadata))
         .map_err(|e| Error::Invalid(format!("cannot serialise {}: {e}", path.display())))?;
-    write_atomic(path, &bytes)
+    write_atomic(path, &sorted_header(bytes))
+}
+
+/// A serialised file with its JSON header's objects in sorted key order (serde_json's map is
+/// ordered), padded with spaces to the header's length as before: the data offsets in it are
+/// relative to the end of the header, so they stay valid.
+fn sorted_header(mut bytes: Vec<u8>) -> Vec<u8> {
+    let n = u64::from_le_bytes(bytes[..8].try_into().expect("8 bytes")) as usize;
+    let header: serde_json::Value =
+        serde_json::from_slice(&bytes[8..8 + n]).expect("the crate writes a JSON header");
+    let mut sorted = serde_json::to_vec(&header).expect("a JSON value serialises");
+    if sorted.len() > n {
+        // Not the same text reordered (never seen): the crate's own order, as it wrote it.
+        return bytes;
+    }
+    sorted.resize(n, b' ');
+    bytes[8..8 + n].copy_from_slice(&sorted);
+    bytes
 }
 
 /// Creates `dir` and its parents (nothing for an empty path), the error naming it. Commands
@@ -199,5 +218,38 @@ impl<'a> File<'a> {
             key: key.into(),
             message: e.to_string(),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The same tensors and metadata give the same bytes: the header is written in sorted
+    /// order, not in the order of a hash map (which differs between two maps of the same
+    /// entries), and the file still reads back.
+    #[test]
+    fn the_same_contents_give_the_same_bytes() {
+        let dir = std::env::temp_dir().join(format!("dhoit-tensors-{}", std::process::id()));
+        let entries = || {
+            vec![
+                Entry::f32("b", vec![2], &[1.0, 2.0]),
+                Entry::u32("a", vec![3], &[1, 2, 3]),
+            ]
+        };
+        let meta = || -> HashMap<String, String> {
+            (0..32)
+                .map(|i| (format!("key{i}"), format!("{i}")))
+                .collect()
+        };
+        let (p, q) = (dir.join("p.safetensors"), dir.join("q.safetensors"));
+        write(&p, &entries(), meta()).unwrap();
+        write(&q, &entries(), meta()).unwrap();
+        let (a, b) = (std::fs::read(&p).unwrap(), std::fs::read(&q).unwrap());
+        assert!(a == b, "two writes of the same contents differ");
+        let f = File::parse(&a).unwrap();
+        assert_eq!(f.u32("a", Some(&[3])).unwrap().1, vec![1, 2, 3]);
+        assert_eq!(f.meta("key7").unwrap(), "7");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

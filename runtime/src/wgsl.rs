@@ -288,6 +288,7 @@ pub(crate) struct GpuMaterial {
 }
 
 /// A scene's materials as the GPU reads them, and every texture's texels one after another.
+#[cfg(feature = "gpu")]
 pub(crate) fn gpu_materials(scene: &crate::scene::Scene) -> (Vec<GpuMaterial>, Vec<u32>) {
     use crate::scene::Coverage;
     let mut starts = Vec::with_capacity(scene.textures.len());

@@ -129,21 +129,30 @@ fn equal_bytes_give_every_method_one_memory_budget() {
     }
 }
 
+/// Every feature against its definition, computed here in f64 from the fragment lists: on a
+/// scene of one opacity and on one whose opacities vary (strands fading to their tips, around
+/// an opaque head).
 #[test]
 fn features_match_their_definitions() {
-    let fl = frame("shells", 40, 30);
+    for (name, w, h) in [("shells", 40, 30), ("strands", 48, 36)] {
+        features_match_on(name, &frame(name, w, h));
+    }
+}
+
+fn features_match_on(name: &str, fl: &FragmentLists) {
     let f_budget = 1234u64;
-    let feats = importance::features(&fl, f_budget);
+    let feats = importance::features(fl, f_budget);
     let total = fl.fragment_count() as f64;
     let covered: Vec<usize> = (0..fl.pixel_count()).filter(|&p| fl.count(p) > 0).collect();
     let mean_n = total / covered.len() as f64;
     let close = |a: f32, b: f64, what: &str| {
         assert!(
             (a as f64 - b).abs() <= 1e-5 * (1.0 + b.abs()),
-            "{what}: {a} vs {b}"
+            "{name} {what}: {a} vs {b}"
         );
     };
     let luma = |c: [f64; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let mut alphas = std::collections::BTreeSet::new();
     for &p in &covered {
         let r = fl.range(p);
         let x = &feats[p];
@@ -156,21 +165,19 @@ fn features_match_their_definitions() {
             (f_budget as f64 / covered.len() as f64).log2(),
             "budget per pixel",
         );
-        // Colours as the pipeline stores them (RGBA8), in f64.
-        let rgb = |i: usize| -> [f64; 3] {
-            std::array::from_fn(|c| {
-                (fl.rgba[i][c].clamp(0.0, 1.0) * 255.0 + 0.5).floor() as f64 / 255.0
-            })
-        };
+        // Colours and opacities as the pipeline stores them (RGBA8), in f64.
+        let q = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5).floor() as f64 / 255.0;
+        let rgb = |i: usize| -> [f64; 3] { std::array::from_fn(|c| q(fl.rgba[i][c])) };
+        let alpha = |i: usize| q(fl.rgba[i][3]);
         let nearest = r
             .clone()
             .min_by(|&a, &b| {
                 fl.depth[a]
                     .total_cmp(&fl.depth[b])
-                    .then(importance_key(&fl, a).cmp(&importance_key(&fl, b)))
+                    .then(importance_key(fl, a).cmp(&importance_key(fl, b)))
             })
             .unwrap();
-        assert_eq!(x[4], fl.depth[nearest], "near depth");
+        assert_eq!(x[4], fl.depth[nearest], "{name} near depth");
         let mean: [f64; 3] = std::array::from_fn(|c| r.clone().map(|i| rgb(i)[c]).sum::<f64>() / n);
         let var: f64 = r
             .clone()
@@ -179,7 +186,7 @@ fn features_match_their_definitions() {
             / n;
         let near = rgb(nearest);
         let dev: f64 = (0..3).map(|c| (near[c] - mean[c]).powi(2)).sum();
-        close(x[5], luma(near) - luma(mean), "near luma deviation");
+        close(x[5], alpha(nearest), "nearest opacity");
         close(
             x[6],
             (var + importance::LOG_FLOOR as f64).log2(),
@@ -190,14 +197,31 @@ fn features_match_their_definitions() {
             (dev + importance::LOG_FLOOR as f64).log2(),
             "log2 dev",
         );
-        assert!((x[8] as f64 - var.sqrt()).abs() < 1e-4, "colour std");
+        close(x[8], r.clone().map(alpha).sum::<f64>() / n, "mean opacity");
         close(x[9], luma(mean), "mean luma");
         close(x[10], luma(near), "near luma");
-        assert!((x[11] as f64 - dev.sqrt()).abs() < 1e-4, "near deviation");
-        // A pixel whose fragments share one colour has exactly zero spread.
-        if r.clone().all(|i| rgb(i) == rgb(r.start)) {
-            assert_eq!((x[8], x[11]), (0.0, 0.0));
+        // Optical depth sum -ln(1 - a), an opaque fragment's as a = 254.5 / 255; the pass sums
+        // it in 1/256 units rounded per fragment (at most half a unit off each).
+        let tau: f64 = r
+            .clone()
+            .map(|i| -(1.0 - alpha(i).min(254.5 / 255.0)).ln())
+            .sum();
+        let unit = importance::OPTICAL_DEPTH_UNIT as f64;
+        let got = 2f64.powf(x[11] as f64) - unit;
+        assert!(
+            (got - tau).abs() <= 0.5 * unit * n + 1e-5 * tau,
+            "{name} optical depth: {got} vs {tau}"
+        );
+        for i in r {
+            alphas.insert((alpha(i) * 255.0).round() as u32);
         }
+    }
+    if name == "strands" {
+        assert!(
+            alphas.len() > 50,
+            "{name}: opacities vary ({} values)",
+            alphas.len()
+        );
     }
 }
 

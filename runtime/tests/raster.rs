@@ -292,10 +292,16 @@ fn the_fragment_estimate_clips_to_the_window_and_follows_the_count() {
             let cam = Camera::orbit(&s, view, 8, w, h);
             let e = estimate_fragments(&s, &cam, w, h).unwrap();
             let n = rasterize(&s, &cam, w, h).unwrap().fragment_count() as f64;
-            assert!(
-                (e / n - 1.0).abs() < 0.02,
-                "{name} view {view}: {e} against {n}"
-            );
+            if s.uniform_opacity.is_some() {
+                assert!(
+                    (e / n - 1.0).abs() < 0.02,
+                    "{name} view {view}: {e} against {n}"
+                );
+            } else {
+                // With materials, opaque surfaces hide fragments and masks, zero opacity and
+                // back faces drop some: the estimate (every triangle's area) bounds the count.
+                assert!(e >= n, "{name} view {view}: {e} against {n}");
+            }
         }
     }
 }

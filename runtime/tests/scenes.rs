@@ -11,16 +11,41 @@ fn built_in_scenes_span_shallow_to_very_deep() {
         let s = scene::load(name, Opacity::default()).unwrap();
         assert!(s.triangle_count() > 0, "{name}");
         let mut max = 0;
+        let material = procedural::MATERIAL_FAMILIES.contains(name);
+        assert_eq!(
+            s.uniform_opacity.is_none(),
+            material,
+            "{name}: its own opacity"
+        );
         for view in 0..2 {
             let cam = Camera::orbit(&s, view, scene::DEFAULT_VIEWS, 320, 240);
             let fl = rasterize(&s, &cam, 320, 240).unwrap();
-            assert!(
-                fl.covered_pixels() > 320 * 240 / 20,
-                "{name} view {view} fills the frame"
-            );
-            max = max.max(fl.max_depth_complexity());
+            let shown = (0..fl.pixel_count())
+                .filter(|&p| fl.count(p) > 0 || fl.opaque.get(p).is_some_and(|&o| o >> 24 != 0))
+                .count();
+            assert!(shown > 320 * 240 / 20, "{name} view {view} fills the frame");
+            if material {
+                // Opaque parts, and transparent fragments of many opacities.
+                assert!(
+                    !fl.opaque.is_empty() && fl.fragment_count() > 500,
+                    "{name} view {view}"
+                );
+                let alphas: std::collections::BTreeSet<u32> = fl
+                    .rgba
+                    .iter()
+                    .map(|c| (c[3] * 255.0).round() as u32)
+                    .collect();
+                assert!(
+                    alphas.len() >= 4,
+                    "{name} view {view}: opacities {alphas:?}"
+                );
+            } else {
+                max = max.max(fl.max_depth_complexity());
+            }
         }
-        depths.push((name, max));
+        if !material {
+            depths.push((name, max));
+        }
     }
     let lo = depths.iter().map(|d| d.1).min().unwrap();
     let hi = depths.iter().map(|d| d.1).max().unwrap();

@@ -208,3 +208,33 @@ fn trained_weights_load_in_the_runtime_and_agree_with_burn() {
         .fold(0.0f32, f32::max);
     assert!(max <= 1e-6, "max abs difference {max}");
 }
+
+/// The committed default weights are what `make train` writes on a fresh clone, bit for bit:
+/// the default dataset generated from nothing (into a folder of its own, so data/generated is
+/// left alone) and the default training, compared byte for byte with data/weights.safetensors
+/// (about two and a half minutes on two cores). A user regression-testing predictions can
+/// then rebuild the weights the golden predictions come from.
+#[test]
+fn the_committed_weights_are_what_make_train_writes() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let dir = temp("make-train");
+    let out = dir.join("weights.safetensors");
+    // The default dataset, as `make train` generates it where data/generated has none.
+    dataset::generate(&DatasetConfig::default(), &dir.join("dataset"), &|_, _| {}).unwrap();
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_dhoit-train"))
+        .arg("--data")
+        .arg(dir.join("dataset"))
+        .arg("--out")
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success(), "dhoit-train: {status}");
+    let fresh = std::fs::read(&out).unwrap();
+    let committed = std::fs::read(root.join(dhoit_train::cli::DEFAULT_WEIGHTS)).unwrap();
+    assert!(
+        fresh == committed,
+        "a fresh `make train` writes other weights than data/weights.safetensors: retrain and \
+         commit them (`make train`)"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

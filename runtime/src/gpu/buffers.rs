@@ -337,7 +337,7 @@ pub(super) struct Readback {
     pub(super) counts_buf: Option<wgpu::Buffer>,
     pub(super) importance_buf: Option<wgpu::Buffer>,
     /// DKB: the nearest keys, the two farthest keys and the colour sums.
-    pub(super) stats_bufs: Option<[wgpu::Buffer; 3]>,
+    pub(super) stats_bufs: Option<[wgpu::Buffer; 4]>,
     /// DKB: the features pass's indirect draw (its first word: the vertices it drew).
     pub(super) features_draw_buf: Option<wgpu::Buffer>,
     /// DKB: whether its features pass drew, where the host knows it (not recorded: false).
@@ -381,10 +381,11 @@ impl Readback {
         };
         let counts = u32s(&read_back(gpu, counts, 4 * px)?);
         let stats = match &self.stats_bufs {
-            Some([nearest, farthest, sums]) if features_drawn != Some(false) => {
+            Some([nearest, farthest, sums, opacity]) if features_drawn != Some(false) => {
                 let nearest = read_u64s(gpu, nearest, px, false)?;
                 let farthest = read_u64s(gpu, farthest, 2 * px, false)?;
-                let sums = u32s(&read_back(gpu, sums, 24 * px)?);
+                let sums = u32s(&read_back(gpu, sums, 16 * px)?);
+                let opacity = u32s(&read_back(gpu, opacity, 8 * px)?);
                 Some(
                     (0..px as usize)
                         .map(|q| PixelStats {
@@ -393,13 +394,13 @@ impl Readback {
                             // features.wgsl's packing: r and g 24 bits each, then n; b;
                             // the optical depth and the opacity.
                             color_sum: [
-                                sums[6 * q] & 0xff_ffff,
-                                (sums[6 * q] >> 24) | ((sums[6 * q + 1] & 0xffff) << 8),
-                                sums[6 * q + 2],
+                                sums[4 * q] & 0xff_ffff,
+                                (sums[4 * q] >> 24) | ((sums[4 * q + 1] & 0xffff) << 8),
+                                sums[4 * q + 2],
                             ],
-                            color_sq_sum: sums[6 * q + 3],
-                            optical_depth: sums[6 * q + 4],
-                            alpha_sum: sums[6 * q + 5],
+                            color_sq_sum: sums[4 * q + 3],
+                            optical_depth: opacity[2 * q],
+                            alpha_sum: opacity[2 * q + 1],
                             farthest: [farthest[2 * q], farthest[2 * q + 1]],
                         })
                         .collect(),

@@ -23,6 +23,8 @@ struct DkbBuffers {
     sums: wgpu::Buffer,
     /// The optical depth of each 8-bit opacity (importance::optical_depth_table).
     optical_depth: wgpu::Buffer,
+    /// Per pixel the sums of optical depth and opacity.
+    opacity: wgpu::Buffer,
     totals: wgpu::Buffer,
     importance: wgpu::Buffer,
     /// The pixels the network decides (the allocation's marks buffer, dead until then).
@@ -65,10 +67,12 @@ impl Recording<'_, '_> {
                 true,
             ),
             // The nearest key (8 bytes a pixel), then the tail's count; the two farthest keys
-            // (16), then the tail's sums; the colour and opacity sums (24), then the image.
+            // (16), then the tail's sums; the colour sums (16), then the image; the opacity
+            // sums (8). No buffer above 16 bytes a pixel, so a 4K frame fits 128 MiB bindings.
             nearest: fb.storage("features.nearest", 8 * px, true)?,
             farthest: fb.storage("features.farthest", 16 * px, true)?,
-            sums: fb.storage("features.color_sums", 24 * px, true)?,
+            sums: fb.storage("features.color_sums", 16 * px, true)?,
+            opacity: fb.storage("features.opacity", 8 * px, true)?,
             optical_depth: fb.init(
                 "features.optical_depth",
                 bytemuck::cast_slice(&crate::importance::optical_depth_table()),
@@ -142,7 +146,13 @@ impl Recording<'_, '_> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         // Where the pass counts (COUNT_FRAGMENTS), n goes in the sums (totals.wgsl's from_sums).
-        let bufs = [&b.nearest, &b.farthest, &b.sums, &b.optical_depth];
+        let bufs = [
+            &b.nearest,
+            &b.farthest,
+            &b.sums,
+            &b.optical_depth,
+            &b.opacity,
+        ];
         passes.draw_indirect(enc, features, &bufs, "features", &b.draw);
         if gpu.diagnostics {
             let mut copy = |b: &wgpu::Buffer, label: &str, bytes: u64| {
@@ -153,7 +163,8 @@ impl Recording<'_, '_> {
             self.out.stats_bufs = Some([
                 copy(&b.nearest, "features.nearest.readback", 8)?,
                 copy(&b.farthest, "features.farthest.readback", 16)?,
-                copy(&b.sums, "features.color_sums.readback", 24)?,
+                copy(&b.sums, "features.color_sums.readback", 16)?,
+                copy(&b.opacity, "features.opacity.readback", 8)?,
             ]);
             self.out.features_draw_buf = Some(b.draw.clone());
         }
@@ -208,6 +219,7 @@ impl Recording<'_, '_> {
                     &b.list_len,
                     dispatch_or_not,
                     &b.weights,
+                    &b.opacity,
                 ],
             )
         };

@@ -120,8 +120,8 @@ pub(super) fn compute_buffer_entry(
 
 /// The explicit layout importance_dkb's three entry points share (each uses some of it):
 /// params, weights, count, nearest, farthest, colour sums, totals (read), importance, list, its
-/// length, the indirect dispatch (written), and the weights again (their binary16 view, which
-/// only the f16-math pass reads).
+/// length, the indirect dispatch (written), the weights again (their binary16 view, which
+/// only the f16-math pass reads), and the opacity statistics (read).
 pub(super) struct NetworkLayout {
     pub(super) group: wgpu::BindGroupLayout,
     pub(super) pipeline: wgpu::PipelineLayout,
@@ -149,6 +149,8 @@ impl NetworkLayout {
                 entry(10, rw),
                 // The weights again, read as binary16 by the f16-math pass (mlp::Precision).
                 entry(11, uniform),
+                // The opacity statistics (features.wgsl).
+                entry(12, read),
             ],
         });
         let pipeline = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
