@@ -6,7 +6,7 @@ RUN := $(CARGO) run --release --quiet --
 # Real glTF scenes for tests and evaluation, read in place (never copied into the repository).
 export DHOIT_SCENES ?= $(abspath ../shared/scenes)
 
-.PHONY: all setup demo test fmt lint check bench devbin build train nets golden eval trade fuzz
+.PHONY: all setup demo test fmt lint check bench devbin build train nets golden eval trade fuzz pictures
 
 all: demo
 
@@ -67,6 +67,14 @@ eval: build
 	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --opacity 0.33 --equal bytes --out out/eval/bytes --summary docs/eval-bytes.md && \
 	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --equal slots --out out/eval/materials-slots --summary docs/eval-materials-slots.md && \
 	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --equal bytes --out out/eval/materials-bytes --summary docs/eval-materials-bytes.md
+
+## The README's pictures of per-fragment materials: alpha-textured leaf cards and a
+## stained-glass pane, the A-buffer, VKB and DKB side by side at 10% of the fragments
+## (640x480) -> docs/materials-cards.png, docs/materials-windows.png.
+pictures: build
+	$(RUN) compare --scene cards,windows --view 3 --res 640x480 --budget 10% --methods vkb,dkb --out out/pictures
+	cp "out/pictures/cards_v3_10%_montage.png" docs/materials-cards.png
+	cp "out/pictures/windows_v3_10%_montage.png" docs/materials-windows.png
 
 ## The speed-accuracy trade of the shipped networks on the evaluation scenes: importance-pass
 ## time (GPU timestamps on the adapter at hand, at 640x480) against MSE and FLIP (320x240),

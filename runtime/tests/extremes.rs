@@ -42,30 +42,13 @@ fn cpu_and_gpu_agree(g: &Gpu, s: &Scene, (w, h): (u32, u32), budget: Budget, wha
     let cam = identity();
     let fl = rasterize(s, &cam, w, h).unwrap();
     let mlp = Mlp::random(9);
-    let opts = || Options {
+    let opts = Options {
         weights: Some(&mlp),
         ..Options::new(budget, BG)
     };
     let mut worst = 0.0f32;
-    for m in [
-        Method::Abuffer,
-        Method::Fkb,
-        Method::Optimal,
-        Method::Vkb,
-        Method::Dkb,
-    ] {
-        let renderer = frame::Renderer::new(&fl, opts());
-        let allocation = match renderer.allocate(m) {
-            Ok(a) => a,
-            // FKB needs a slot for every pixel: below that it is refused (documented).
-            Err(dhoit_runtime::Error::Budget(..)) if m == Method::Fkb => continue,
-            Err(e) => panic!("{what}, {}: {e}", m.name()),
-        };
-        // The mapping render and bench use.
-        let slots = Slots::for_method(m, &allocation, &opts()).unwrap();
-        let cpu = renderer.composite(allocation.clone());
-        let gpu = g.render(s, &cam, w, h, BG, slots).unwrap();
-        let d = gpu.image.max_abs_diff(&cpu.image);
+    for (m, cpu, gpu) in common::cpu_and_gpu_frames(g, s, &cam, &fl, opts, &common::CPU_AND_GPU) {
+        let d = gpu.max_abs_diff(&cpu.image);
         assert!(
             d <= TOLERANCE,
             "{what}, {}: CPU and GPU images differ by {d} (F = {})",

@@ -10,7 +10,6 @@ use dhoit_runtime::budget::Budget;
 use dhoit_runtime::composite::{self, Image};
 use dhoit_runtime::fragment::FragmentLists;
 use dhoit_runtime::frame::{self, Method, Options};
-use dhoit_runtime::gpu::Slots;
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::material::pack_texel;
@@ -300,28 +299,13 @@ fn materials_render_alike_on_cpu_and_gpu() {
             off += o;
             for budget in ["50%", "2fpp"] {
                 let budget = Budget::parse(budget).unwrap();
-                let opts = || Options {
+                let opts = Options {
                     weights: Some(&mlp),
                     ..Options::new(budget, BG)
                 };
-                for m in [
-                    Method::Abuffer,
-                    Method::Fkb,
-                    Method::Optimal,
-                    Method::Vkb,
-                    Method::Dkb,
-                ] {
-                    let r = frame::Renderer::new(&fl, opts());
-                    let a = match r.allocate(m) {
-                        Ok(a) => a,
-                        // FKB needs a slot for every pixel: below that it is refused.
-                        Err(dhoit_runtime::Error::Budget(..)) if m == Method::Fkb => continue,
-                        Err(e) => panic!("{name} {m}: {e}"),
-                    };
-                    let slots = Slots::for_method(m, &a, &opts()).unwrap();
-                    let cpu = r.composite(a.clone());
-                    let gpu = g.render(&s, &cam, w, h, BG, slots).unwrap();
-                    let (n, worst) = differing(&cpu.image, &gpu.image, IMAGE_BOUND);
+                let methods = &common::CPU_AND_GPU;
+                for (m, cpu, gpu) in common::cpu_and_gpu_frames(g, &s, &cam, &fl, opts, methods) {
+                    let (n, worst) = differing(&cpu.image, &gpu, IMAGE_BOUND);
                     assert_eq!(
                         n, 0,
                         "{name} view {view} {budget} {m}: {n} pixels differ by more than \
@@ -499,17 +483,13 @@ fn real_scenes_with_their_materials_render_alike_on_cpu_and_gpu() {
             );
             channels += c + 4 * fl.opaque.len();
             off += o + opaque;
-            let opts = || Options {
+            let opts = Options {
                 weights: Some(&mlp),
                 ..Options::new(Budget::parse("25%").unwrap(), BG)
             };
-            for m in [Method::Abuffer, Method::Dkb] {
-                let r = frame::Renderer::new(&fl, opts());
-                let a = r.allocate(m).unwrap();
-                let slots = Slots::for_method(m, &a, &opts()).unwrap();
-                let cpu = r.composite(a.clone());
-                let gpu = g.render(&s, &cam, w, h, BG, slots).unwrap();
-                let (n, worst) = differing(&cpu.image, &gpu.image, IMAGE_BOUND);
+            let methods = [Method::Abuffer, Method::Dkb];
+            for (m, cpu, gpu) in common::cpu_and_gpu_frames(g, &s, &cam, &fl, opts, &methods) {
+                let (n, worst) = differing(&cpu.image, &gpu, IMAGE_BOUND);
                 // A channel one step apart moves a pixel by at most that step.
                 assert!(
                     worst <= STEP + IMAGE_BOUND && n as f64 <= 1e-3 * fl.pixel_count() as f64,

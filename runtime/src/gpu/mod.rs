@@ -427,12 +427,30 @@ pub struct GpuFrame {
 
 impl Gpu {
     fn bind(&self, layout: &wgpu::BindGroupLayout, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
-        let indexed: Vec<(u32, &wgpu::Buffer)> = buffers
+        self.bind_with(layout, buffers, Vec::new())
+    }
+
+    /// A bind group of `buffers` at bindings 0, 1, ... and the `extra` entries (textures).
+    fn bind_with<'b>(
+        &self,
+        layout: &wgpu::BindGroupLayout,
+        buffers: &[&'b wgpu::Buffer],
+        extra: Vec<wgpu::BindGroupEntry<'b>>,
+    ) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
-            .map(|(i, b)| (i as u32, *b))
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .chain(extra)
             .collect();
-        self.bind_at(layout, &indexed)
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout,
+            entries: &entries,
+        })
     }
 
     /// A bind group with buffers at the given binding indices.

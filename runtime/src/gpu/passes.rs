@@ -39,27 +39,13 @@ impl<'a> Passes<'a> {
     /// table, and for a transparent pass the opaque depth.
     fn geometry_group(&self, layout: &wgpu::BindGroupLayout, transparent: bool) -> wgpu::BindGroup {
         let i = self.inputs;
-        let mut entries: Vec<wgpu::BindGroupEntry> = std::iter::once(&i.params)
-            .chain(&i.scene)
-            .enumerate()
-            .map(|(b, buf)| wgpu::BindGroupEntry {
-                binding: b as u32,
-                resource: buf.as_entire_binding(),
-            })
-            .collect();
-        if transparent {
-            entries.push(wgpu::BindGroupEntry {
-                binding: 8,
-                resource: wgpu::BindingResource::TextureView(&self.opaque_depth),
-            });
-        }
-        self.gpu
-            .device
-            .create_bind_group(&wgpu::BindGroupDescriptor {
-                label: None,
-                layout,
-                entries: &entries,
-            })
+        let buffers: Vec<&wgpu::Buffer> = std::iter::once(&i.params).chain(&i.scene).collect();
+        let depth = wgpu::BindGroupEntry {
+            binding: 8,
+            resource: wgpu::BindingResource::TextureView(&self.opaque_depth),
+        };
+        let extra = if transparent { vec![depth] } else { Vec::new() };
+        self.gpu.bind_with(layout, &buffers, extra)
     }
 
     /// The application's opaque pass (opaque.wgsl): its opaque triangles into the depth and
@@ -67,36 +53,21 @@ impl<'a> Passes<'a> {
     pub(super) fn opaque(&self, enc: &mut wgpu::CommandEncoder) {
         let pipeline = &self.gpu.pipelines.opaque;
         let g0 = self.geometry_group(&pipeline.get_bind_group_layout(0), false);
-        let (b, e) = self.timer.next("opaque");
         let depth = self.inputs.opaque_depth.create_view(&Default::default());
         let color = self.inputs.opaque_color.create_view(&Default::default());
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("opaque"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &color,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &depth,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Store,
-                }),
-                stencil_ops: None,
+        let color_ops = wgpu::Operations {
+            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+            store: wgpu::StoreOp::Store,
+        };
+        let depth = wgpu::RenderPassDepthStencilAttachment {
+            view: &depth,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(1.0),
+                store: wgpu::StoreOp::Store,
             }),
-            timestamp_writes: Some(wgpu::RenderPassTimestampWrites {
-                query_set: self.timer.set(),
-                beginning_of_pass_write_index: Some(b),
-                end_of_pass_write_index: Some(e),
-            }),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+            stencil_ops: None,
+        };
+        let mut pass = self.render_pass(enc, "opaque", &color, color_ops, Some(depth));
         let i = self.inputs;
         if i.opaque > 0 {
             pass.set_pipeline(pipeline);
@@ -104,6 +75,35 @@ impl<'a> Passes<'a> {
             pass.set_index_buffer(i.index.slice(..), wgpu::IndexFormat::Uint32);
             pass.draw_indexed(i.transparent..i.transparent + i.opaque, 0, 0..1);
         }
+    }
+
+    /// A timed render pass of one colour attachment and, where given, a depth attachment.
+    fn render_pass<'e>(
+        &self,
+        enc: &'e mut wgpu::CommandEncoder,
+        name: &'static str,
+        color: &wgpu::TextureView,
+        ops: wgpu::Operations<wgpu::Color>,
+        depth: Option<wgpu::RenderPassDepthStencilAttachment>,
+    ) -> wgpu::RenderPass<'e> {
+        let (b, e) = self.timer.next(name);
+        enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some(name),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: color,
+                depth_slice: None,
+                resolve_target: None,
+                ops,
+            })],
+            depth_stencil_attachment: depth,
+            timestamp_writes: Some(wgpu::RenderPassTimestampWrites {
+                query_set: self.timer.set(),
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: Some(e),
+            }),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        })
     }
 
     /// A geometry pass over every triangle, `buffers` bound as group 1.
@@ -141,27 +141,12 @@ impl<'a> Passes<'a> {
     ) {
         let g0 = self.geometry_group(&pipeline.get_bind_group_layout(0), true);
         let g1 = self.gpu.bind(&pipeline.get_bind_group_layout(1), buffers);
-        let (b, e) = self.timer.next(name);
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some(name),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &self.inputs.target,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                    store: wgpu::StoreOp::Discard,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: Some(wgpu::RenderPassTimestampWrites {
-                query_set: self.timer.set(),
-                beginning_of_pass_write_index: Some(b),
-                end_of_pass_write_index: Some(e),
-            }),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        // The R8 target is never written (rasterization needs one).
+        let ops = wgpu::Operations {
+            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+            store: wgpu::StoreOp::Discard,
+        };
+        let mut pass = self.render_pass(enc, name, &self.inputs.target, ops, None);
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &g0, &[]);
         pass.set_bind_group(1, &g1, &[]);
@@ -181,30 +166,28 @@ impl<'a> Passes<'a> {
         buffers: &[&wgpu::Buffer],
         name: &'static str,
     ) {
-        let (gx, gy) = grid(self.pixels, PIXEL_GROUP);
-        let mut entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(b, buf)| wgpu::BindGroupEntry {
-                binding: b as u32,
-                resource: buf.as_entire_binding(),
-            })
-            .collect();
-        entries.push(wgpu::BindGroupEntry {
+        let opaque = wgpu::BindGroupEntry {
             binding: 15,
             resource: wgpu::BindingResource::TextureView(&self.opaque_color),
-        });
+        };
         let g = self
             .gpu
-            .device
-            .create_bind_group(&wgpu::BindGroupDescriptor {
-                label: None,
-                layout: &pipeline.get_bind_group_layout(0),
-                entries: &entries,
-            });
+            .bind_with(&pipeline.get_bind_group_layout(0), buffers, vec![opaque]);
+        self.dispatch_group(enc, pipeline, &g, name);
+    }
+
+    /// A per-pixel compute pass with its group 0.
+    fn dispatch_group(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::ComputePipeline,
+        group: &wgpu::BindGroup,
+        name: &'static str,
+    ) {
+        let (gx, gy) = grid(self.pixels, PIXEL_GROUP);
         self.compute(enc, name, |pass| {
             pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &g, &[]);
+            pass.set_bind_group(0, group, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
         });
     }
@@ -237,13 +220,8 @@ impl<'a> Passes<'a> {
         name: &'static str,
     ) {
         // Every dispatched pass is per pixel.
-        let (gx, gy) = grid(self.pixels, PIXEL_GROUP);
         let g = self.gpu.bind(&pipeline.get_bind_group_layout(0), buffers);
-        self.compute(enc, name, |pass| {
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &g, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
-        });
+        self.dispatch_group(enc, pipeline, &g, name);
     }
 
     /// The totals pass (totals.wgsl): the frame's fragments, covered pixels and largest count
@@ -272,11 +250,6 @@ impl<'a> Passes<'a> {
             &pipeline.get_bind_group_layout(0),
             &[(0, self.params()), (2, totals), (4, sums), (5, counts)],
         );
-        let (gx, gy) = grid(self.pixels, PIXEL_GROUP);
-        self.compute(enc, "totals", |pass| {
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
-        });
+        self.dispatch_group(enc, pipeline, &group, "totals");
     }
 }

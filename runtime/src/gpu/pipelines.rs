@@ -387,12 +387,17 @@ impl Gpu {
 impl Pipelines {
     pub(super) fn new(device: &wgpu::Device) -> Result<Pipelines> {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let geometry_from = |name: &str, m: wgpu::ShaderModule| {
+        // A geometry pass's pipeline: the shared vertex stage, both faces, `depth` and one
+        // colour target.
+        let render = |name: &str,
+                      m: &wgpu::ShaderModule,
+                      depth: Option<wgpu::DepthStencilState>,
+                      target: wgpu::ColorTargetState| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(name),
                 layout: None,
                 vertex: wgpu::VertexState {
-                    module: &m,
+                    module: m,
                     entry_point: Some("vs_main"),
                     compilation_options: Default::default(),
                     buffers: &[],
@@ -402,59 +407,45 @@ impl Pipelines {
                     cull_mode: None,
                     ..Default::default()
                 },
-                depth_stencil: None,
+                depth_stencil: depth,
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
-                    module: &m,
+                    module: m,
                     entry_point: Some("fs_main"),
                     compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: TARGET_FORMAT,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::empty(),
-                    })],
+                    targets: &[Some(target)],
                 }),
                 multiview_mask: None,
                 cache: None,
             })
         };
+        // The transparent passes: no depth attachment (they test the opaque depth in the
+        // shader), an R8 target never written.
+        let geometry_from = |name: &str, m: wgpu::ShaderModule| {
+            let target = wgpu::ColorTargetState {
+                format: TARGET_FORMAT,
+                blend: None,
+                write_mask: wgpu::ColorWrites::empty(),
+            };
+            render(name, &m, None, target)
+        };
         let geometry = |name: &str| geometry_from(name, module(device, name));
-        let opaque_module = module(device, "opaque");
-        let opaque = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("opaque"),
-            layout: None,
-            vertex: wgpu::VertexState {
-                module: &opaque_module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
+        let opaque = render(
+            "opaque",
+            &module(device, "opaque"),
+            Some(wgpu::DepthStencilState {
                 format: OPAQUE_DEPTH_FORMAT,
                 depth_write_enabled: Some(true),
                 depth_compare: Some(wgpu::CompareFunction::Less),
                 stencil: Default::default(),
                 bias: Default::default(),
             }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &opaque_module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: OPAQUE_COLOR_FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+            wgpu::ColorTargetState {
+                format: OPAQUE_COLOR_FORMAT,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            },
+        );
         let module_with = |pass: &str, label: &str, from: &str, to: &str| {
             let mut src = shaders::source(pass).expect("known pass");
             redeclare(&mut src, pass, from, to);

@@ -118,6 +118,17 @@ fn hue(rng: &mut Rng, alpha: f32) -> [f32; 4] {
     [mix(r), mix(g), mix(b), alpha]
 }
 
+/// The corners of a card of half-width `w` along `t` and half-height `h` along `b` around
+/// `centre`, counter-clockwise from (-w, -h).
+fn billboard(centre: Vec3, t: Vec3, b: Vec3, w: f32, h: f32) -> [Vec3; 4] {
+    [
+        centre - t * w - b * h,
+        centre + t * w - b * h,
+        centre + t * w + b * h,
+        centre - t * w + b * h,
+    ]
+}
+
 fn quad(s: &mut Scene, p: [Vec3; 4], c: [f32; 4]) {
     s.push_triangle([p[0], p[1], p[2]], [c; 3]);
     s.push_triangle([p[0], p[2], p[3]], [c; 3]);
@@ -227,16 +238,7 @@ fn foliage(s: &mut Scene, rng: &mut Rng) {
             rng.range(0.1, 0.3),
             rng.range(0.5, 0.9),
         ];
-        quad(
-            s,
-            [
-                centre - t * w - b * h,
-                centre + t * w - b * h,
-                centre + t * w + b * h,
-                centre - t * w + b * h,
-            ],
-            green,
-        );
+        quad(s, billboard(centre, t, b, w, h), green);
     }
 }
 
@@ -292,16 +294,7 @@ fn particles(s: &mut Scene, rng: &mut Rng) {
         let r = rng.range(0.05, 0.1);
         let alpha = rng.range(0.05, 0.4);
         let c = hue(rng, alpha);
-        quad(
-            s,
-            [
-                centre - t * r - b * r,
-                centre + t * r - b * r,
-                centre + t * r + b * r,
-                centre - t * r + b * r,
-            ],
-            c,
-        );
+        quad(s, billboard(centre, t, b, r, r), c);
     }
 }
 
@@ -1210,18 +1203,7 @@ fn cards(s: &mut Scene, rng: &mut Rng) {
         let shade = rng.range(0.7, 1.0);
         let c = [shade, shade, shade * rng.range(0.8, 1.0), 1.0];
         let m = kinds[rng.below(kinds.len())];
-        tquad(
-            s,
-            [
-                centre - t * size - b * size,
-                centre + t * size - b * size,
-                centre + t * size + b * size,
-                centre - t * size + b * size,
-            ],
-            UNIT_UV,
-            c,
-            m,
-        );
+        tquad(s, billboard(centre, t, b, size, size), UNIT_UV, c, m);
     }
 }
 
@@ -1291,12 +1273,7 @@ fn smoke(s: &mut Scene, rng: &mut Rng) {
         let fade = (1.0 - h / 2.0).clamp(0.2, 1.0);
         tquad(
             s,
-            [
-                centre - tt * r - b * r,
-                centre + tt * r - b * r,
-                centre + tt * r + b * r,
-                centre - tt * r + b * r,
-            ],
+            billboard(centre, tt, b, r, r),
             UNIT_UV,
             [1.0, 1.0, 1.0, fade],
             m,

@@ -75,3 +75,54 @@ pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
         .map(|(x, y)| (x - y).abs())
         .fold(0.0, f32::max)
 }
+
+#[cfg(feature = "gpu")]
+/// The methods that run on the CPU and the GPU alike: the A-buffer, FKB, the optimal
+/// allocation (uploaded), VKB and DKB.
+pub const CPU_AND_GPU: [dhoit_runtime::frame::Method; 5] = {
+    use dhoit_runtime::frame::Method;
+    [
+        Method::Abuffer,
+        Method::Fkb,
+        Method::Optimal,
+        Method::Vkb,
+        Method::Dkb,
+    ]
+};
+
+#[cfg(feature = "gpu")]
+/// Each of `methods` rendered from the CPU's fragments `fl` (of `s` seen by `cam`) by the CPU
+/// reference and by the GPU from the scene, through the mapping render and bench use
+/// (`Slots::for_method`): (method, CPU frame, GPU image). FKB is left out where the budget
+/// cannot give every pixel a slot (it is refused there, documented).
+pub fn cpu_and_gpu_frames(
+    g: &Gpu,
+    s: &dhoit_runtime::scene::Scene,
+    cam: &dhoit_runtime::scene::Camera,
+    fl: &dhoit_runtime::fragment::FragmentLists,
+    options: dhoit_runtime::frame::Options,
+    methods: &[dhoit_runtime::frame::Method],
+) -> Vec<(
+    dhoit_runtime::frame::Method,
+    dhoit_runtime::frame::Frame,
+    dhoit_runtime::composite::Image,
+)> {
+    use dhoit_runtime::frame::{Method, Renderer};
+    use dhoit_runtime::gpu::Slots;
+    let mut out = Vec::new();
+    for &m in methods {
+        let renderer = Renderer::new(fl, options);
+        let allocation = match renderer.allocate(m) {
+            Ok(a) => a,
+            Err(dhoit_runtime::Error::Budget(..)) if m == Method::Fkb => continue,
+            Err(e) => panic!("{}: {e}", m.name()),
+        };
+        let slots = Slots::for_method(m, &allocation, &options).unwrap();
+        let cpu = renderer.composite(allocation.clone());
+        let gpu = g
+            .render(s, cam, fl.width, fl.height, options.background, slots)
+            .unwrap();
+        out.push((m, cpu, gpu.image));
+    }
+    out
+}
