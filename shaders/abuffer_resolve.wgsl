@@ -1,10 +1,12 @@
-// A-buffer pass 3 (compute, one invocation a pixel): sort the pixel's fragments front to back
-// in place (sort.wgsl's insertion sort by capture key, then submission index) and blend them
-// exactly over what is behind the pixel (behind.wgsl), as composite::exact_sorted.
+// A-buffer pass 3 (compute, one invocation a pixel): sort the pixel's capture keys front to back
+// in place (sort.wgsl's insertion sort) and blend them exactly over what is behind the pixel
+// (behind.wgsl), as composite::exact_sorted.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> offsets: array<u32>;
-@group(0) @binding(2) var<storage, read_write> fragments: array<vec4<u32>>;
+@group(0) @binding(2) var<storage, read_write> keys: array<u64>;
+// Submission indices, where the store kept them (params.store_primitives): sorted alongside.
+@group(0) @binding(5) var<storage, read_write> primitives: array<u32>;
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
 // Set to 1 when a pixel's sort came close to lavapipe's loop limit; the deepest pixel over
 // MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word).
@@ -27,12 +29,12 @@ fn main(
         atomicMax(&status[1], deepest_word(end - start, p));
         return;
     }
-    sort_pixel(start, end, false);
+    sort_keys(start, end, params.store_primitives != 0u);
     var c = vec3<f32>(0.0);
     var t = 1.0;
     for (var i = start; i < end; i++) {
         tick();
-        let rgba = unpack_rgba8(fragments[i].y);
+        let rgba = unpack_rgba8(u32(keys[i] & 0xfffffffflu));
         c += t * rgba.a * rgba.rgb;
         t *= 1.0 - rgba.a;
     }

@@ -1,9 +1,13 @@
-// A-buffer pass 2 (geometry): store every fragment in its pixel's slice of the fragment pool.
-// A stored fragment is (depth bits, RGBA8, submission index, unused).
+// A-buffer pass 2 (geometry): store every fragment in its pixel's slice of the fragment pool as
+// its 64-bit capture key (window depth bits high, RGBA8 low: the k-buffer's slot, 8 bytes a
+// fragment), and where params.store_primitives is 1 (MLAB, which blends in submission order,
+// and the tests' readback) its submission index beside it.
 
 @group(1) @binding(0) var<storage, read> offsets: array<u32>;
+// The count pass's buffer, cleared after the prefix sum read it: each pixel's next place.
 @group(1) @binding(1) var<storage, read_write> cursor: array<atomic<u32>>;
-@group(1) @binding(2) var<storage, read_write> fragments: array<vec4<u32>>;
+@group(1) @binding(2) var<storage, read_write> keys: array<u64>;
+@group(1) @binding(3) var<storage, read_write> primitives: array<u32>;
 
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
@@ -13,6 +17,9 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     }
     let p = pixel_index(in.clip, params.width);
     let i = offsets[p] + atomicAdd(&cursor[p], 1u);
-    fragments[i] = vec4<u32>(bitcast<u32>(in.clip.z), f.rgba8, in.primitive, 0u);
+    keys[i] = fragment_key(in.clip.z, f.rgba8);
+    if (params.store_primitives != 0u) {
+        primitives[i] = in.primitive;
+    }
     return vec4<f32>(0.0);
 }

@@ -30,6 +30,8 @@ struct Params {
     layer_major: u32,
     // The scene's one opacity for every surface, or -1: the materials decide.
     uniform_alpha: f32,
+    // 1 when the A-buffer's store keeps each fragment's submission index (abuffer_store.wgsl).
+    store_primitives: u32,
 };
 
 // A material (wgsl::GpuMaterial; scene::material): base colour factor, its texture (where its

@@ -6,7 +6,8 @@
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> offsets: array<u32>;
-@group(0) @binding(2) var<storage, read_write> fragments: array<vec4<u32>>;
+@group(0) @binding(2) var<storage, read_write> keys: array<u64>;
+@group(0) @binding(5) var<storage, read_write> primitives: array<u32>;
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
 // Set to 1 when a pixel's sort came close to lavapipe's loop limit; the deepest pixel over
 // MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word).
@@ -35,7 +36,7 @@ fn main(
         atomicMax(&status[1], deepest_word(end - start, p));
         return;
     }
-    sort_pixel(start, end, true);
+    sort_by_submission(start, end);
     let m = clamp(params.k_uniform, 1u, MLAB_MAX_ROWS);
     var rows: array<Row, 17>;
     for (var r = 0u; r <= m; r++) {
@@ -44,9 +45,9 @@ fn main(
     }
     for (var i = start; i < end; i++) {
         tick();
-        let f = fragments[i];
-        let rgba = unpack_rgba8(f.y);
-        var cur = Row(rgba.rgb * rgba.a, 1.0 - rgba.a, fragment_key(bitcast<f32>(f.x), f.y));
+        let key = keys[i];
+        let rgba = unpack_rgba8(u32(key & 0xfffffffflu));
+        var cur = Row(rgba.rgb * rgba.a, 1.0 - rgba.a, key);
         for (var r = 0u; r < m; r++) {
             tick();
             if (cur.z <= rows[r].z) {

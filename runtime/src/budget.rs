@@ -60,10 +60,11 @@ const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 /// The resolve's status words: loops cut short, a pixel too deep (gpu's FrameStatus).
 const STATUS: (&str, u64) = ("status", 16);
 
-/// Deep k-buffer: network features, importance, k, offsets, tail, output. The features'
-/// keys, read by the importance pass, then hold the tail: the nearest (8 bytes) its count (4),
-/// the two farthest (16) its sums (16); their colour sums (16) then hold the image (16); the
-/// opacity sums (8) are their own: 69 bytes a pixel, VKB's 61 and 8.
+/// Deep k-buffer: network features, importance, k, offsets, tail. The features' keys, read by
+/// the importance pass, then hold the tail: the nearest (8 bytes) its count (4), the two
+/// farthest (16) its sums (16); their colour sums (16) then hold the image (16, the
+/// application's target where it gives one); the opacity sums (8) are their own: 69 bytes a
+/// pixel.
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
@@ -110,7 +111,6 @@ pub const OPT: Layout = Layout {
         ("oit.offsets", 4),
         HYBRID_TAIL,
         TAIL_COUNT,
-        ("oit.image", 16),
     ],
     fixed: &[
         ("params", PARAMS_BYTES),
@@ -135,7 +135,6 @@ pub const VKB: Layout = Layout {
         ("oit.offsets", 4),
         HYBRID_TAIL,
         TAIL_COUNT,
-        ("oit.image", 16),
     ],
     fixed: &[
         ("params", PARAMS_BYTES),
@@ -149,11 +148,12 @@ pub const VKB: Layout = Layout {
     scan: true,
 };
 
-/// Fixed k-buffer: k slots for every pixel, tail, output.
+/// Fixed k-buffer: k slots for every pixel, tail. (The output image is the application's
+/// target, counted for no method.)
 pub const FKB: Layout = Layout {
     method: "fkb",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[RASTER_TARGET, HYBRID_TAIL, TAIL_COUNT, ("oit.image", 16)],
+    per_pixel: &[RASTER_TARGET, HYBRID_TAIL, TAIL_COUNT],
     // The capture and resolve passes bind a per-pixel k, offsets and counts that FKB never
     // reads.
     fixed: &[
@@ -166,28 +166,29 @@ pub const FKB: Layout = Layout {
     scan: false,
 };
 
-/// MLAB: m rows of 8 bytes (RGB8 premultiplied, transmittance 8 bits, depth 32 bits), output.
+/// MLAB: m rows of 8 bytes (RGB8 premultiplied, transmittance 8 bits, depth 32 bits).
 pub const MLAB: Layout = Layout {
     method: "mlab",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[RASTER_TARGET, ("oit.image", 16)],
+    per_pixel: &[RASTER_TARGET],
     fixed: &[("params", PARAMS_BYTES)],
     scan: false,
 };
 
-/// A-buffer: counts, offsets, store cursors, every fragment (depth, RGBA8, submission index,
-/// padding: 16 bytes), output. Not budgeted: exact memory.
+/// A-buffer: counts (then the store's cursors), offsets, every fragment as the 8-byte capture
+/// key a k-buffer slot holds (paper 004's exact memory). Not budgeted: exact memory. The output
+/// image is the application's target, counted for no method.
 pub const ABUFFER: Layout = Layout {
     method: "abuffer",
-    slot_bytes: 16,
-    per_pixel: &[
-        RASTER_TARGET,
-        ("abuf.count", 4),
-        ("abuf.offsets", 4),
-        ("abuf.cursor", 4),
-        ("oit.image", 16),
+    slot_bytes: SLOT_BYTES,
+    per_pixel: &[RASTER_TARGET, ("abuf.count", 4), ("abuf.offsets", 4)],
+    fixed: &[
+        ("params", PARAMS_BYTES),
+        OFFSETS_END,
+        STATUS,
+        // The submission indices MLAB alone stores, bound empty.
+        ("abuf.no_primitives", 16),
     ],
-    fixed: &[("params", PARAMS_BYTES), OFFSETS_END, STATUS],
     scan: true,
 };
 

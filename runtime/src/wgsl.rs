@@ -253,7 +253,9 @@ pub(crate) struct Params {
     /// The scene's one opacity ([`crate::scene::Scene::uniform_opacity`]), or -1: the
     /// materials decide.
     pub(crate) uniform_alpha: f32,
-    pub(crate) _pad: [u32; 23],
+    /// 1 when the A-buffer's store keeps each fragment's submission index beside its key.
+    pub(crate) store_primitives: u32,
+    pub(crate) _pad: [u32; 22],
 }
 
 /// `Material.texels` of a material without a texture.
@@ -460,7 +462,7 @@ mod tests {
         let (span, wgsl) = wgsl_struct(&module, "Params");
         let rust = offsets!(Params; view_proj, forward, background, eye, width, height,
             k_uniform, pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed,
-            budget_ppm, append, layer_major, uniform_alpha);
+            budget_ppm, append, layer_major, uniform_alpha, store_primitives);
         assert_eq!(
             wgsl, rust,
             "Params: WGSL (left) and Rust (right) members and offsets"

@@ -1,8 +1,10 @@
 //! The exact A-buffer and MLAB: `abuffer_count.wgsl` (geometry) -> `scan.wgsl` (offsets) ->
-//! `abuffer_store.wgsl` (geometry, exact memory: the fragment pool is sized from the count) ->
-//! `abuffer_resolve.wgsl` (sort and blend; twin `composite::exact_sorted`) or
-//! `mlab_resolve.wgsl` (fragments in submission order into m blending rows; twin
-//! `composite::mlab_pixel`). Both sorts are `sort.wgsl`.
+//! `abuffer_store.wgsl` (geometry, exact memory: the pool of 8-byte capture keys is sized from
+//! the count, whose buffer then serves as the store's cursors) -> `abuffer_resolve.wgsl` (sort
+//! and blend; twin `composite::exact_sorted`) or `mlab_resolve.wgsl` (fragments in submission
+//! order into m blending rows; twin `composite::mlab_pixel`, which needs each fragment's
+//! submission index, stored beside its key for MLAB and for the tests' readback). Both sorts
+//! are `sort.wgsl`.
 
 use super::*;
 
@@ -16,28 +18,33 @@ impl Recording<'_, '_> {
         // The per-pixel sorts (sort and blend, MLAB) report a near loop limit here, and a
         // pixel too deep for any method.
         let status = fb.storage("status", FrameStatus::BYTES, true)?;
-        let image = fb.storage("oit.image", 16 * px, true)?;
+        let image = fb.storage("application.image", 16 * px, false)?;
         let counts = fb.storage("abuf.count", 4 * px, true)?;
         let offsets = fb.storage("abuf.offsets", 4 * (px + 1), true)?;
-        let cursor = fb.storage("abuf.cursor", 4 * px, true)?;
         passes.draw(enc, &p.count, &[&counts], "count");
         passes.prefix_sum(enc, fb, &counts, &offsets)?;
+        // The count, read by the prefix sum, serves as the store's cursors.
+        enc.clear_buffer(&counts, 0, None);
         fb.submit(enc);
-        // Exact memory: the pool holds what the count found.
+        // Exact memory: the pool holds what the count found, a capture key each.
         let total = read_words(gpu, &[(&offsets, 4 * px)])?[0] as u64;
-        let fragments = fb.storage("abuf.fragments", 16 * total, true)?;
-        passes.draw(enc, &p.store, &[&offsets, &cursor, &fragments], "store");
+        let keys = fb.storage("abuf.keys", 8 * total, true)?;
+        // Submission indices for MLAB's order (counted: its pipeline's), and for the tests'
+        // readback (not counted, like the readback copies); else an empty binding.
+        let none = fb.storage("abuf.no_primitives", 16, true)?;
+        let primitives = if mlab || gpu.diagnostics {
+            fb.storage("abuf.primitives", 4 * total, mlab)?
+        } else {
+            none
+        };
+        passes.draw(enc, &p.store, &[&offsets, &counts, &keys, &primitives], "store");
         let (resolve, name) = if mlab {
             (&p.mlab_resolve, "mlab blend")
         } else {
             (&p.abuffer_resolve, "sort and blend")
         };
-        passes.resolve(
-            enc,
-            resolve,
-            &[passes.params(), &offsets, &fragments, &image, &status],
-            name,
-        );
+        let bufs = [passes.params(), &offsets, &keys, &image, &status, &primitives];
+        passes.resolve(enc, resolve, &bufs, name);
         fb.submit(enc);
         if gpu.diagnostics {
             let mut fl = FragmentLists {
@@ -46,11 +53,11 @@ impl Recording<'_, '_> {
                 offsets: u32s(&read_back(gpu, &offsets, 4 * (px + 1))?),
                 ..Default::default()
             };
-            for f in u32s(&read_back(gpu, &fragments, 16 * total)?).chunks_exact(4) {
-                fl.depth.push(f32::from_bits(f[0]));
-                fl.rgba.push(crate::fragment::unpack_rgba8(f[1]));
-                fl.primitive.push(f[2]);
+            for key in read_u64s(gpu, &keys, total, false)? {
+                fl.depth.push(f32::from_bits((key >> 32) as u32));
+                fl.rgba.push(crate::fragment::unpack_rgba8(key as u32));
             }
+            fl.primitive = u32s(&read_back(gpu, &primitives, 4 * total)?);
             self.out.fragments = Some(fl);
         }
         self.out.status = Some(status);

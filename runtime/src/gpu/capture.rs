@@ -195,7 +195,7 @@ impl Recording<'_, '_> {
             None => (
                 fb.storage("oit.tail", 16 * px, true)?,
                 fb.storage("oit.tail_count", 4 * px, true)?,
-                fb.storage("oit.image", 16 * px, true)?,
+                fb.storage("application.image", 16 * px, false)?,
             ),
         };
         // Where k = n everywhere, the pipelines built for it (the same slots, tail and image).

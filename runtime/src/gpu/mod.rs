@@ -523,6 +523,7 @@ impl Gpu {
         .into();
         params.layer_major =
             (self.layer_major_fkb && matches!(slots, Some(Slots::Uniform(_)))).into();
+        params.store_primitives = (matches!(slots, Some(Slots::Mlab(_))) || self.diagnostics).into();
         let upload = std::time::Instant::now();
         let inputs = self.frame_inputs(&mut fb, scene, &params);
         let upload_ms = upload.elapsed().as_secs_f64() * 1e3;
@@ -643,7 +644,8 @@ fn frame_params(
         append: 0,
         layer_major: 0,
         uniform_alpha: -1.0,
-        _pad: [0; 23],
+        store_primitives: 0,
+        _pad: [0; 22],
     }
 }
 
