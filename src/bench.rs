@@ -345,7 +345,13 @@ fn gpu_bench(
                 if label == "dkb_f16_math" && half.is_none() {
                     continue;
                 }
-                let slots = match Slots::for_method(method, frame, &options)? {
+                // The experiments measure the method's own pipeline even where the budget holds
+                // every fragment (the method itself then renders the A-buffer).
+                let unrouted = dhoit_runtime::frame::Allocation {
+                    exact: frame.exact && label == method.name(),
+                    ..frame.clone()
+                };
+                let slots = match Slots::for_method(method, &unrouted, &options)? {
                     Some(Slots::Dkb(_, f)) if label == "dkb_16-8" => Some(Slots::Dkb(small, f)),
                     Some(Slots::Dkb(_, f)) if label == "dkb_f16_math" => {
                         half.map(|m| Slots::Dkb(m, f))
@@ -458,7 +464,14 @@ fn gpu_bench(
                 geometry("dkb_counting_features"),
             );
             let total = fl.fragment_count() as u64;
-            let dkb_f = match Slots::for_method(Method::Dkb, &cpu[4], &options)? {
+            let dkb_f = match Slots::for_method(
+                Method::Dkb,
+                &dhoit_runtime::frame::Allocation {
+                    exact: false,
+                    ..cpu[4].clone()
+                },
+                &options,
+            )? {
                 Some(Slots::Dkb(_, f)) => Some(f),
                 _ => None,
             };

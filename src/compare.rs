@@ -87,6 +87,8 @@ pub struct Row {
     pub budget_fragments: u64,
     pub budget_bytes: u64,
     pub allocated_bytes: u64,
+    /// What the exact A-buffer allocates for the same frame (paper 004's memory: 8-byte keys).
+    pub abuffer_bytes: u64,
     /// sum min(k, n) / F.
     pub budget_used: f64,
     pub raster_ms: f64,
@@ -106,7 +108,7 @@ impl Row {
     }
 }
 
-const HEADER: [&str; 8] = [
+const HEADER: [&str; 10] = [
     "method",
     "MSE",
     "FLIP",
@@ -114,10 +116,13 @@ const HEADER: [&str; 8] = [
     "F(M)",
     "sum k / F",
     "allocated",
+    "B/px",
+    "/ A-buffer",
     "ms",
 ];
 
-fn cells(r: &Row) -> [String; 8] {
+fn cells(r: &Row) -> [String; 10] {
+    let pixels = (r.width as u64 * r.height as u64).max(1) as f64;
     [
         r.method.to_string(),
         format!("{:.4e}", r.mse),
@@ -126,6 +131,11 @@ fn cells(r: &Row) -> [String; 8] {
         r.budget_fragments.to_string(),
         format!("{:.1}%", 100.0 * r.budget_used),
         format_bytes(r.allocated_bytes),
+        format!("{:.1}", r.allocated_bytes as f64 / pixels),
+        format!(
+            "{:.2}",
+            r.allocated_bytes as f64 / r.abuffer_bytes.max(1) as f64
+        ),
         format!("{:.1}", r.allocation_ms + r.composite_ms),
     ]
 }
@@ -276,6 +286,54 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
         let _ = write!(text, "\n{title}\n{t}");
         let _ = write!(md, "\n## {title}\n\n{m}");
     }
+    // Memory: bytes a frame pixel as each method allocates them, beside the exact A-buffer's
+    // for the same frames (8-byte keys; the output image counted for no method).
+    let mut mem_head = vec!["budget", "abuffer"];
+    mem_head.extend(methods.iter());
+    let per_pixel = |r: &Row| r.allocated_bytes as f64 / (r.width as f64 * r.height as f64);
+    let mem_rows: Vec<Vec<String>> = budgets
+        .iter()
+        .map(|b| {
+            let at = |m: &str| -> Vec<&Row> {
+                rows.iter()
+                    .filter(|r| r.budget == *b && r.method == m)
+                    .collect()
+            };
+            let mut row = vec![b.clone()];
+            let exact = at("abuffer");
+            row.push(format!(
+                "{:.1}",
+                mean(&exact.iter().map(|r| per_pixel(r)).collect::<Vec<_>>())
+            ));
+            for m in &methods {
+                let v = at(m);
+                row.push(if v.is_empty() {
+                    "n/a".into()
+                } else {
+                    let ratio: Vec<f64> = v
+                        .iter()
+                        .map(|r| r.allocated_bytes as f64 / r.abuffer_bytes.max(1) as f64)
+                        .collect();
+                    let worst = ratio.iter().copied().fold(0.0, f64::max);
+                    format!(
+                        "{:.1} ({:.2}x, worst {:.2}x)",
+                        mean(&v.iter().map(|r| per_pixel(r)).collect::<Vec<_>>()),
+                        geomean(&ratio),
+                        worst
+                    )
+                });
+            }
+            row
+        })
+        .collect();
+    let (t, m) = table(&mem_head, &mem_rows);
+    let title = format!(
+        "Bytes a frame pixel, mean over frames ({}; in brackets the geometric mean and the worst \
+         frame of each method's bytes over the exact A-buffer's)",
+        equal.name()
+    );
+    let _ = write!(text, "\n{title}\n{t}");
+    let _ = write!(md, "\n## {title}\n\n{m}");
     let r = ratios(rows);
     if r.is_empty() {
         return (text, md);
@@ -582,6 +640,10 @@ pub fn run(a: CompareArgs) -> Result<()> {
                             budget_fragments: f.budget_fragments,
                             budget_bytes: f.budget_bytes,
                             allocated_bytes: f.allocated_bytes,
+                            abuffer_bytes: dhoit_runtime::budget::ABUFFER.allocated_bytes(
+                                fl.pixel_count() as u64,
+                                fl.fragment_count() as u64,
+                            ),
                             budget_used: used,
                             raster_ms,
                             allocation_ms: f.allocation_ms,

@@ -86,6 +86,13 @@ impl Method {
         }
     }
 
+    /// Whether the method is a k-buffer (FKB, VKB, DKB and the allocations the CPU makes): it
+    /// renders exactly, with the A-buffer's memory, where its budget holds every fragment
+    /// ([`Renderer::allocate`]).
+    pub fn is_kbuffer(self) -> bool {
+        !matches!(self, Method::Abuffer | Method::Mlab)
+    }
+
     /// The buffers the method's GPU pipeline creates.
     pub fn layout(self) -> Layout {
         match self {
@@ -176,6 +183,9 @@ pub struct Allocation {
     pub allocation_ms: f64,
     /// The optimal allocation's report (optimal method only).
     pub optimal: Option<OptimalReport>,
+    /// Whether the budget holds every fragment, so the k-buffer method renders the exact
+    /// A-buffer (k = n) with its memory: a budget is a cap, not a quantity to spend.
+    pub exact: bool,
 }
 
 /// What the methods of one frame share, so that their errors compare.
@@ -302,13 +312,22 @@ impl<'a> Renderer<'a> {
         let total = fl.fragment_count() as u64;
         let layout = method.layout();
         let t0 = Instant::now();
-        let (budget_bytes, f) = match method {
-            Method::Abuffer => (layout.allocated_bytes(pixels, total), total),
-            _ => self.budget()?.resolve(&layout, pixels, total)?,
+        let budget = self.budget()?;
+        // A k-buffer whose budget holds every fragment (F slots for them, or the bytes of the
+        // exact A-buffer) renders the A-buffer: exact, and never more memory than it (a byte
+        // budget that holds the A-buffer may be below the method's own fixed cost).
+        let exact_bytes = budget::ABUFFER.allocated_bytes(pixels, total);
+        let bytes_hold = matches!(budget, Budget::Bytes(m) if m >= exact_bytes);
+        let (budget_bytes, f) = match (method, budget) {
+            (Method::Abuffer, _) => (exact_bytes, total),
+            (_, Budget::Bytes(m)) if bytes_hold && method.is_kbuffer() => (m, total),
+            _ => budget.resolve(&layout, pixels, total)?,
         };
+        let exact = method.is_kbuffer() && f >= total;
         let mut optimal = None;
         let k = match method {
             Method::Abuffer => counts,
+            _ if exact => counts,
             Method::Fkb | Method::Mlab => {
                 check_slot_per_pixel(method, opts.budget, f, fl.width, fl.height)?;
                 alloc::fixed(pixels as usize, f)
@@ -340,6 +359,7 @@ impl<'a> Renderer<'a> {
             budget_fragments: f,
             allocation_ms: t0.elapsed().as_secs_f64() * 1e3,
             optimal,
+            exact,
         })
     }
 
@@ -356,19 +376,24 @@ impl<'a> Renderer<'a> {
         let bg = self.options.background;
         let image = match method {
             Method::Abuffer => composite::composite(fl, Composite::Exact, bg),
+            _ if a.exact => composite::composite(fl, Composite::Exact, bg),
             Method::Mlab => composite::composite(fl, Composite::Mlab(k[0] as usize), bg),
             _ => composite::composite(fl, Composite::Hybrid(&k), bg),
         };
         let composite_ms = t1.elapsed().as_secs_f64() * 1e3;
-        // FKB and MLAB allocate their k for every pixel; the others exactly sum k.
-        let allocated_slots = match method {
-            Method::Fkb | Method::Mlab => k[0] as u64 * pixels,
-            _ => slots,
+        // FKB and MLAB allocate their k for every pixel; the others exactly sum k; a frame
+        // whose budget holds every fragment, what the A-buffer does.
+        let allocated_bytes = match method {
+            _ if a.exact => budget::ABUFFER.allocated_bytes(pixels, slots),
+            Method::Fkb | Method::Mlab => method
+                .layout()
+                .allocated_bytes(pixels, k[0] as u64 * pixels),
+            _ => method.layout().allocated_bytes(pixels, slots),
         };
         Frame {
             method,
             image,
-            allocated_bytes: method.layout().allocated_bytes(pixels, allocated_slots),
+            allocated_bytes,
             k,
             budget_bytes: a.budget_bytes,
             budget_fragments: a.budget_fragments,

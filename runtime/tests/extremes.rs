@@ -239,20 +239,17 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
             &format!("one fragment a pixel at {budget}"),
         );
     }
-    // A layered scene: 6 layers over most pixels.
+    // A layered scene: 24 layers over most pixels (deep enough that DKB's fixed cost is below
+    // the exact A-buffer's bytes: a budget that holds the A-buffer renders it).
     let mut s = Scene::default();
-    for i in 0..6 {
-        let z = 0.1 + 0.13 * i as f32;
-        let c = [
-            0.15 * i as f32,
-            0.9 - 0.1 * i as f32,
-            0.5,
-            0.3 + 0.1 * i as f32,
-        ];
+    for i in 0..24 {
+        let z = 0.05 + 0.035 * i as f32;
+        let t = i as f32 / 23.0;
+        let c = [0.9 * t, 0.9 - 0.6 * t, 0.5, 0.3 + 0.4 * t];
         quad(
             &mut s,
-            (-0.95 + 0.05 * i as f32, -0.9, 0.9, 0.95),
-            (z, z + 0.05),
+            (-0.95 + 0.0125 * i as f32, -0.9, 0.9, 0.95),
+            (z, z + 0.03),
             c,
         );
     }
@@ -261,6 +258,7 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
     let total = fl.fragment_count() as u64;
     // A budget of exactly the fixed cost leaves no slot: refused, saying what is needed.
     let fixed = budget::DKB.fixed_bytes(pixels);
+    assert!(fixed < budget::ABUFFER.allocated_bytes(pixels, total));
     let mlp = Mlp::random(1);
     let opts = |b| Options {
         weights: Some(&mlp),

@@ -29,7 +29,12 @@ fn with_every_fragment_in_budget_the_allocations_are_exact() {
         };
         let r = Renderer::new(&fl, opts);
         let exact = r.render(Method::Abuffer).unwrap().image;
+        // Every k-buffer, FKB too (whose one k is below the deepest pixel): the budget holds
+        // every fragment, so each renders the A-buffer, with its memory.
+        assert!(((total / pixels + 0.01).floor() as u32) < fl.max_depth_complexity());
+        let bytes = dhoit_runtime::budget::ABUFFER.allocated_bytes(pixels as u64, total as u64);
         for m in [
+            Method::Fkb,
             Method::Vkb,
             Method::Dkb,
             Method::Optimal,
@@ -39,18 +44,13 @@ fn with_every_fragment_in_budget_the_allocations_are_exact() {
             let f = r.render(m).unwrap();
             assert_eq!(f.k, fl.counts(), "{name} {}: k = n", m.name());
             assert_eq!(f.image, exact, "{name} {}", m.name());
+            assert_eq!(
+                f.allocated_bytes,
+                bytes,
+                "{name} {}: the A-buffer's bytes",
+                m.name()
+            );
         }
-        // FKB with the same slots is not exact: its k is below the deepest pixel...
-        let fkb = r.render(Method::Fkb).unwrap();
-        assert!(fkb.k[0] < fl.max_depth_complexity());
-        assert!(fkb.image.mse(&exact) > 0.0);
-        // ...until its k reaches the deepest pixel.
-        let deep = Options::new(
-            Budget::SlotsPerPixel(fl.max_depth_complexity() as f64),
-            [0.2, 0.3, 0.4],
-        );
-        let fkb = Renderer::new(&fl, deep).render(Method::Fkb).unwrap();
-        assert_eq!(fkb.image, exact, "{name} fkb at k = max n");
     }
 }
 
@@ -97,36 +97,83 @@ fn allocations_spend_exactly_the_budget_and_never_more_bytes() {
 fn equal_bytes_give_every_method_one_memory_budget() {
     use dhoit_runtime::frame::Equal;
     let mlp = Mlp::random(4);
-    let fl = frame("cad", 80, 60);
-    let px = fl.pixel_count() as u64;
-    for budget in ["25%", "90%", "0.5fpp", "3fpp"] {
-        let opts = Options {
-            weights: Some(&mlp),
-            equal: Equal::Bytes,
-            ..Options::new(Budget::parse(budget).unwrap(), [1.0; 3])
-        };
-        let r = Renderer::new(&fl, opts);
-        let frames: Vec<_> = [Method::Vkb, Method::Dkb, Method::Optimal]
-            .into_iter()
-            .map(|m| r.render(m).unwrap())
-            .collect();
-        let m = frames[0].budget_bytes;
-        for f in &frames {
-            assert_eq!(f.budget_bytes, m, "{budget} {}: one M", f.method.name());
-            assert!(f.allocated_bytes <= m, "{budget} {}", f.method.name());
-        }
-        // M is what DKB's layout needs for the budget's F; the leaner layouts get more slots.
-        let f_dkb = match Budget::parse(budget).unwrap() {
-            Budget::Share(ppm) => dhoit_runtime::budget::share_of(fl.fragment_count() as u64, ppm),
-            Budget::SlotsPerPixel(v) => (v * px as f64) as u64,
-            Budget::Bytes(_) => unreachable!(),
-        };
-        assert_eq!(frames[1].budget_fragments, f_dkb, "{budget}: DKB's F");
-        assert!(
-            frames[0].budget_fragments > f_dkb
-                && frames[2].budget_fragments > frames[0].budget_fragments
-        );
+    let (mut held, mut truncated) = (0, 0);
+    // A shallow scene, where equal bytes hold the exact A-buffer, and 100 stacked layers, deep
+    // enough (N / P above 10) that DKB's layout truncates within them.
+    let mut deep = scene::Scene::default();
+    // Facing view 0 of the orbit (25 degrees up, azimuth 0.5 rad), whatever the scene's size.
+    let e = 25f32.to_radians();
+    let dir = glam::Vec3::new(e.cos() * 0.5f32.cos(), e.sin(), e.cos() * 0.5f32.sin());
+    let u = dir.any_orthonormal_vector();
+    let v = dir.cross(u);
+    for i in 0..100 {
+        let o = dir * (-1.0 + 0.02 * i as f32);
+        let c = [0.008 * i as f32, 0.8 - 0.006 * i as f32, 0.5, 0.25];
+        let p =
+            [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)].map(|(a, b)| o + u * a + v * b);
+        deep.push_triangle([p[0], p[1], p[2]], [c; 3]);
+        deep.push_triangle([p[0], p[2], p[3]], [c; 3]);
     }
+    let cam = Camera::orbit(&deep, 0, scene::DEFAULT_VIEWS, 80, 60);
+    let layered = rasterize(&deep, &cam, 80, 60).unwrap();
+    for (name, fl) in [("cad", frame("cad", 80, 60)), ("layers", layered)] {
+        let (px, total) = (fl.pixel_count() as u64, fl.fragment_count() as u64);
+        let exact = dhoit_runtime::budget::ABUFFER.allocated_bytes(px, total);
+        for budget in ["25%", "90%", "0.5fpp", "3fpp"] {
+            let opts = Options {
+                weights: Some(&mlp),
+                equal: Equal::Bytes,
+                ..Options::new(Budget::parse(budget).unwrap(), [1.0; 3])
+            };
+            let r = Renderer::new(&fl, opts);
+            let frames: Vec<_> = [Method::Vkb, Method::Dkb, Method::Optimal]
+                .into_iter()
+                .map(|m| r.render(m).unwrap())
+                .collect();
+            let m = frames[0].budget_bytes;
+            for f in &frames {
+                assert_eq!(
+                    f.budget_bytes,
+                    m,
+                    "{name} {budget} {}: one M",
+                    f.method.name()
+                );
+                assert!(
+                    f.allocated_bytes <= m,
+                    "{name} {budget} {}",
+                    f.method.name()
+                );
+            }
+            if m >= exact {
+                // M holds the exact A-buffer: every method renders it, with its bytes.
+                for f in &frames {
+                    assert_eq!(f.budget_fragments, total, "{name} {budget} {}", f.method);
+                    assert_eq!(f.allocated_bytes, exact, "{name} {budget} {}", f.method);
+                }
+                held += 1;
+                continue;
+            }
+            // M is what DKB's layout needs for the budget's F; the leaner layouts get more slots.
+            let f_dkb = match Budget::parse(budget).unwrap() {
+                Budget::Share(ppm) => dhoit_runtime::budget::share_of(total, ppm),
+                Budget::SlotsPerPixel(v) => (v * px as f64) as u64,
+                Budget::Bytes(_) => unreachable!(),
+            };
+            assert_eq!(
+                frames[1].budget_fragments, f_dkb,
+                "{name} {budget}: DKB's F"
+            );
+            assert!(
+                frames[0].budget_fragments > f_dkb
+                    && frames[2].budget_fragments > frames[0].budget_fragments
+            );
+            truncated += 1;
+        }
+    }
+    assert!(
+        held > 0 && truncated > 0,
+        "{held} held, {truncated} truncated"
+    );
 }
 
 /// Every feature against its definition, computed here in f64 from the fragment lists: on a

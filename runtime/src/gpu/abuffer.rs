@@ -37,13 +37,25 @@ impl Recording<'_, '_> {
         } else {
             none
         };
-        passes.draw(enc, &p.store, &[&offsets, &counts, &keys, &primitives], "store");
+        passes.draw(
+            enc,
+            &p.store,
+            &[&offsets, &counts, &keys, &primitives],
+            "store",
+        );
         let (resolve, name) = if mlab {
             (&p.mlab_resolve, "mlab blend")
         } else {
             (&p.abuffer_resolve, "sort and blend")
         };
-        let bufs = [passes.params(), &offsets, &keys, &image, &status, &primitives];
+        let bufs = [
+            passes.params(),
+            &offsets,
+            &keys,
+            &image,
+            &status,
+            &primitives,
+        ];
         passes.resolve(enc, resolve, &bufs, name);
         fb.submit(enc);
         if gpu.diagnostics {

@@ -351,7 +351,8 @@ impl<'a> Slots<'a> {
     /// from [`crate::frame::Renderer::allocate_for_gpu`] or `allocate`): FKB and MLAB with the
     /// CPU's k; VKB and DKB allocating on the device at the CPU's F (a share of the fragments
     /// at equal F stays a share, resolved from the GPU's own count); every allocation only the
-    /// CPU makes (optimal, the greedies) uploaded as per-pixel k; `None` for the A-buffer. The
+    /// CPU makes (optimal, the greedies) uploaded as per-pixel k; `None` for the A-buffer, and
+    /// for any k-buffer whose budget holds every fragment (`Allocation::exact`). The
     /// one method-to-slots mapping: render, bench and the tests use it, so a method gets the
     /// same k whichever command renders it.
     pub fn for_method(
@@ -364,6 +365,10 @@ impl<'a> Slots<'a> {
             _ => FragmentBudget::Slots(cpu.budget_fragments),
         };
         let first = || cpu.k.first().copied().unwrap_or(0);
+        // Where the budget holds every fragment, the A-buffer (exact, with its memory).
+        if cpu.exact {
+            return Ok(None);
+        }
         Ok(match method {
             Method::Abuffer => None,
             Method::Fkb => Some(Slots::Uniform(first())),
@@ -523,7 +528,8 @@ impl Gpu {
         .into();
         params.layer_major =
             (self.layer_major_fkb && matches!(slots, Some(Slots::Uniform(_)))).into();
-        params.store_primitives = (matches!(slots, Some(Slots::Mlab(_))) || self.diagnostics).into();
+        params.store_primitives =
+            (matches!(slots, Some(Slots::Mlab(_))) || self.diagnostics).into();
         let upload = std::time::Instant::now();
         let inputs = self.frame_inputs(&mut fb, scene, &params);
         let upload_ms = upload.elapsed().as_secs_f64() * 1e3;
