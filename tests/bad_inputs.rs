@@ -312,15 +312,9 @@ fn gltf_no_scene() {
     bad_scene("gltf-no-scene", "s.glb", &glb(&j, &b), "no scene");
 }
 
-#[test]
-fn gltf_texture_that_is_not_an_image() {
-    let dir = case_dir("gltf-texture");
-    std::fs::write(dir.join("tex.png"), b"this is not a PNG").unwrap();
-    let uv: Vec<u8> = [[0.0f32, 0.0], [1.0, 0.0], [0.0, 1.0]]
-        .iter()
-        .flatten()
-        .flat_map(|v| v.to_le_bytes())
-        .collect();
+/// A GLB of one triangle textured from the image file `uri`, with texture coordinates `uv`.
+fn textured_glb(uv: [[f32; 2]; 3], uri: &str) -> Vec<u8> {
+    let uv: Vec<u8> = uv.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
     let (mut j, mut b) = gltf_json(&TRI, None, serde_json::json!({}));
     let off = b.len();
     b.extend(&uv);
@@ -337,10 +331,43 @@ fn gltf_texture_that_is_not_an_image() {
     j["materials"] =
         serde_json::json!([{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]);
     j["textures"] = serde_json::json!([{"source": 0}]);
-    j["images"] = serde_json::json!([{"uri": "tex.png"}]);
+    j["images"] = serde_json::json!([{ "uri": uri }]);
+    glb(&j, &b)
+}
+
+const UV: [[f32; 2]; 3] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+
+#[test]
+fn gltf_texture_that_is_not_an_image() {
+    let dir = case_dir("gltf-texture");
+    std::fs::write(dir.join("tex.png"), b"this is not a PNG").unwrap();
     let path = dir.join("s.glb");
-    std::fs::write(&path, glb(&j, &b)).unwrap();
-    render_scene(&dir, &path, "image");
+    std::fs::write(&path, textured_glb(UV, "tex.png")).unwrap();
+    // The message names the image's file, so a user knows which of a scene's textures is bad.
+    render_scene(&dir, &path, "cannot decode image 0 (tex.png)");
+}
+
+#[test]
+fn gltf_texture_file_missing() {
+    bad_scene(
+        "gltf-texture-missing",
+        "s.glb",
+        &textured_glb(UV, "missing.png"),
+        "image 0 (missing.png)",
+    );
+}
+
+#[test]
+fn gltf_texture_coordinates_not_finite() {
+    let dir = case_dir("gltf-texture-nan");
+    // A good image, so only the coordinates are wrong.
+    let mut tex = dhoit_runtime::composite::Image::new(2, 2);
+    tex.data.fill([1.0, 0.5, 0.25]);
+    dhoit_runtime::image_io::write_png(&dir.join("tex.png"), &tex).unwrap();
+    let path = dir.join("s.glb");
+    let uv = [[0.0, 0.0], [f32::NAN, 0.0], [0.0, f32::INFINITY]];
+    std::fs::write(&path, textured_glb(uv, "tex.png")).unwrap();
+    render_scene(&dir, &path, "texture coordinates that are not finite");
 }
 
 #[test]

@@ -215,9 +215,14 @@ impl Loader<'_> {
             return Ok(t);
         }
         let idx = tex.source().index();
+        // The image's file, where it has one, named in the error.
+        let name = match tex.source().source() {
+            gltf::image::Source::Uri { uri, .. } => format!(" ({uri})"),
+            gltf::image::Source::View { .. } => String::new(),
+        };
         let data =
             gltf::image::Data::from_source(tex.source().source(), Some(self.base), self.buffers)
-                .map_err(|e| self.err(format!("cannot decode image {idx}: {e}")))?;
+                .map_err(|e| self.err(format!("cannot decode image {idx}{name}: {e}")))?;
         if data.width == 0 || data.height == 0 {
             return Err(self.err(format!("image {idx} is empty")));
         }
