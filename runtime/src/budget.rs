@@ -17,10 +17,11 @@ use crate::error::{Error, Result};
 
 /// Bytes of one fragment slot: a 64-bit key, window depth bits high and RGBA8 low.
 pub const SLOT_BYTES: u64 = 8;
-/// Bytes of the MLP's uniform buffer: a 4-float header, 24 standardisation floats and the
-/// default network's 9,985 weights as the uniform lays them out (9,988, `mlp::MAX_PARAMETERS`),
-/// in vec4s (`mlp.wgsl` declares `MLP_VEC4S` of them, from this).
-pub const MLP_UNIFORM_BYTES: u64 = (4u64 + 24 + crate::mlp::MAX_PARAMETERS as u64).div_ceil(4) * 16;
+/// Bytes of the largest network's weights uniform (the default 12-128-64 network at f32,
+/// `mlp::uniform_bytes`): what [`DKB`] counts; a network's own layout counts its own
+/// ([`Layout::for_network`]).
+pub const MLP_UNIFORM_BYTES: u64 =
+    crate::mlp::uniform_bytes(crate::mlp::H1, crate::mlp::H2, crate::mlp::Precision::F32);
 /// Pixels per workgroup of the prefix sum (its [`SCAN_GROUP`] invocations take
 /// `SCAN_BLOCK / SCAN_GROUP` each); one u32 of block totals per block.
 pub const SCAN_BLOCK: u64 = 2048;
@@ -42,6 +43,10 @@ pub struct Layout {
     /// Whether a prefix sum over pixels is part of the pipeline (it keeps one u32 of block
     /// totals per [`SCAN_BLOCK`] pixels).
     pub scan: bool,
+    /// Bytes of the network's weights (the uniform `mlp.weights`), DKB's alone: sized to the
+    /// network and its precision ([`Layout::for_network`]); [`DKB`] counts the default network
+    /// at f32.
+    pub weights: u64,
 }
 
 /// The tail's integer sums: sum c8 a8 for r, g, b, sum a8 (four u32 a pixel), and its count.
@@ -81,7 +86,6 @@ pub const DKB: Layout = Layout {
         ("oit.offsets", 4),
     ],
     fixed: &[
-        ("mlp.weights", MLP_UNIFORM_BYTES),
         ("params", PARAMS_BYTES),
         ("features.totals", 24),
         // importance::optical_depth_table, a uniform.
@@ -98,6 +102,7 @@ pub const DKB: Layout = Layout {
         STATUS,
     ],
     scan: true,
+    weights: MLP_UNIFORM_BYTES,
 };
 
 /// Optimal allocation uploaded as k: the same capture and resolve as DKB, no network (and no
@@ -119,6 +124,7 @@ pub const OPT: Layout = Layout {
         STATUS,
     ],
     scan: true,
+    weights: 0,
 };
 
 /// Variable k-buffer with importance maps (paper 002). The nearest keys (8 bytes), read by the
@@ -146,6 +152,7 @@ pub const VKB: Layout = Layout {
         STATUS,
     ],
     scan: true,
+    weights: 0,
 };
 
 /// Fixed k-buffer: k slots for every pixel, tail. (The output image is the application's
@@ -164,6 +171,7 @@ pub const FKB: Layout = Layout {
         STATUS,
     ],
     scan: false,
+    weights: 0,
 };
 
 /// MLAB: m rows of 8 bytes (RGB8 premultiplied, transmittance 8 bits, depth 32 bits).
@@ -173,6 +181,7 @@ pub const MLAB: Layout = Layout {
     per_pixel: &[RASTER_TARGET],
     fixed: &[("params", PARAMS_BYTES)],
     scan: false,
+    weights: 0,
 };
 
 /// A-buffer: counts (then the store's cursors), offsets, every fragment as the 8-byte capture
@@ -190,6 +199,7 @@ pub const ABUFFER: Layout = Layout {
         ("abuf.no_primitives", 16),
     ],
     scan: true,
+    weights: 0,
 };
 
 impl Layout {
@@ -197,7 +207,21 @@ impl Layout {
     pub fn per_pixel_bytes(&self) -> u64 {
         self.per_pixel.iter().map(|b| b.1).sum()
     }
-    /// Bytes that do not depend on the number of slots: `|P| S_p + S_i` (scan scratch included).
+    /// The layout with `m`'s weights in place of the default network's: DKB's memory for the
+    /// network it runs, at the precision it is deployed at (a 16-8 network at f16 needs 832
+    /// bytes where the default at f32 needs 40,064). Other layouts hold no weights.
+    pub fn for_network(self, m: &crate::mlp::Mlp) -> Layout {
+        Layout {
+            weights: if self.weights > 0 {
+                m.uniform_bytes()
+            } else {
+                0
+            },
+            ..self
+        }
+    }
+    /// Bytes that do not depend on the number of slots: `|P| S_p + S_i` (scan scratch and
+    /// weights included).
     pub fn fixed_bytes(&self, pixels: u64) -> u64 {
         // The block totals; like every GPU buffer, at least 16 bytes.
         let scan = if self.scan {
@@ -205,7 +229,10 @@ impl Layout {
         } else {
             0
         };
-        pixels * self.per_pixel_bytes() + self.fixed.iter().map(|b| b.1).sum::<u64>() + scan
+        pixels * self.per_pixel_bytes()
+            + self.fixed.iter().map(|b| b.1).sum::<u64>()
+            + scan
+            + self.weights
     }
     /// Bytes allocated with `slots` fragment slots.
     pub fn allocated_bytes(&self, pixels: u64, slots: u64) -> u64 {

@@ -197,8 +197,9 @@ pub enum Equal {
     Slots,
     /// The same bytes M for every method, each method's F following from its own layout (the
     /// paper's protocol). A budget in slots or a share sets M to what DKB's layout (the largest
-    /// per-pixel cost, [`budget::DKB`]) needs for that F, so every per-pixel-k method fits and
-    /// the leaner ones get more slots than DKB for the same memory.
+    /// per-pixel cost, [`budget::DKB`], with its network's weights: [`Options::layout`]) needs
+    /// for that F, so every per-pixel-k method fits and the leaner ones get more slots than
+    /// DKB for the same memory.
     Bytes,
 }
 
@@ -250,6 +251,15 @@ impl Options<'_> {
             vkb: VkbParams::default(),
         }
     }
+
+    /// The buffers `method`'s GPU pipeline creates: DKB's with these weights' own bytes (a
+    /// smaller network, or f16, costs less), else [`Method::layout`].
+    pub fn layout(&self, method: Method) -> Layout {
+        match (method, self.weights) {
+            (Method::Dkb, Some(m)) => method.layout().for_network(m),
+            _ => method.layout(),
+        }
+    }
 }
 
 /// Renders one frame's fragment lists with any method, computing the error curves once.
@@ -282,7 +292,7 @@ impl<'a> Renderer<'a> {
             (Equal::Bytes, b @ (Budget::SlotsPerPixel(_) | Budget::Share(_))) => {
                 let fl = self.fragments;
                 let (bytes, _) = b.resolve(
-                    &budget::DKB,
+                    &opts.layout(Method::Dkb),
                     fl.pixel_count() as u64,
                     fl.fragment_count() as u64,
                 )?;
@@ -310,7 +320,7 @@ impl<'a> Renderer<'a> {
         let pixels = fl.pixel_count() as u64;
         let counts = fl.counts();
         let total = fl.fragment_count() as u64;
-        let layout = method.layout();
+        let layout = opts.layout(method);
         let t0 = Instant::now();
         let budget = self.budget()?;
         // A k-buffer whose budget holds every fragment (F slots for them, or the bytes of the
@@ -388,7 +398,7 @@ impl<'a> Renderer<'a> {
             Method::Fkb | Method::Mlab => method
                 .layout()
                 .allocated_bytes(pixels, k[0] as u64 * pixels),
-            _ => method.layout().allocated_bytes(pixels, slots),
+            _ => self.options.layout(method).allocated_bytes(pixels, slots),
         };
         Frame {
             method,

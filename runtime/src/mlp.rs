@@ -77,6 +77,22 @@ pub const fn uniform_parameter_count(h1: usize, h2: usize) -> usize {
     FEATURES * p1 + p1 + p1 * p2 + p2 + p2 + 4
 }
 
+/// Bytes of the GPU's weights uniform for a network of these sizes stored at `p`: the header
+/// and the standardisation in f32 words ([`crate::wgsl::MLP_W1_AT`] of them), then the
+/// [`uniform_parameter_count`] parameters, one f32 a word or two binary16 values a word
+/// ([`Precision::half_weights`]), in whole vec4s. What [`crate::wgsl::mlp_uniform`] writes, the
+/// network pass declares and DKB's budget counts ([`crate::budget::Layout::for_network`]): the
+/// default network's 40,064 bytes at f32 and 20,096 at f16, a 16-8 network's 1,536 and 832.
+pub const fn uniform_bytes(h1: usize, h2: usize, p: Precision) -> u64 {
+    let params = uniform_parameter_count(h1, h2);
+    let words = match p {
+        Precision::F32 => params,
+        // A multiple of four parameters: whole words.
+        Precision::F16 | Precision::F16Math => params / 2,
+    };
+    ((crate::wgsl::MLP_W1_AT + words).div_ceil(4) * 16) as u64
+}
+
 /// Whether a covered pixel's k is forced whatever its importance, in a frame whose smallest k
 /// is `lo` ([`crate::alloc::min_k`]: 1 where F covers every covered pixel): its useful cap
 /// ([`crate::alloc::useful_cap`]) is lo, so every allocation gives it lo below the top tiers
@@ -232,6 +248,11 @@ impl Mlp {
         round("out.weight", &mut m.w3)?;
         round("out.bias", std::slice::from_mut(&mut m.b3))?;
         Ok(m)
+    }
+
+    /// Bytes of this network's weights on the GPU, at its precision ([`uniform_bytes`]).
+    pub fn uniform_bytes(&self) -> u64 {
+        uniform_bytes(self.h1, self.h2, self.precision)
     }
 
     /// Weights and biases in the uniform's order (fc1 weight and bias, fc2 weight and bias, out

@@ -3,7 +3,6 @@
 //! network's weights) and the dispatch grid. None of it needs a GPU, so the trainer builds it
 //! without wgpu, and naga tests hold each layout to its WGSL declaration.
 
-use crate::budget;
 use crate::mlp::{self, Mlp, Precision};
 
 /// WGSL sources, embedded at build time.
@@ -345,8 +344,9 @@ pub(crate) fn gpu_materials(scene: &crate::scene::Scene) -> (Vec<GpuMaterial>, V
 /// `[12][p1]`, fc1 bias `[p1]`, fc2 weight `[p1][p2]`, fc2 bias `[p2]`, out weight `[p2]`, out
 /// bias and three zeros), so every group of four units starts on a vec4 (f32) or half a vec4
 /// (f16): f32 words, or at [`Precision::F16`] and [`Precision::F16Math`] binary16 values two
-/// to a word (the first in the low half, as `unpack2x16float` reads them); zero-padded to
-/// [`budget::MLP_UNIFORM_BYTES`].
+/// to a word (the first in the low half, as `unpack2x16float` reads them); zero-padded to a
+/// whole vec4 ([`Mlp::uniform_bytes`]: sized to the network and its precision, as the network
+/// pass built for it declares).
 pub fn mlp_uniform(m: &Mlp) -> Vec<u32> {
     let mut v: Vec<u32> = [m.h1 as f32, m.h2 as f32, 0.0, 0.0]
         .iter()
@@ -368,7 +368,7 @@ pub fn mlp_uniform(m: &Mlp) -> Vec<u32> {
             v.extend(halves.chunks(2).map(|p| p[0] | p[1] << 16));
         }
     }
-    v.resize((budget::MLP_UNIFORM_BYTES / 4) as usize, 0);
+    v.resize((m.uniform_bytes() / 4) as usize, 0);
     v
 }
 
@@ -428,6 +428,7 @@ pub fn grid(pixels: u32, size: u32) -> (u32, u32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::budget;
     use std::mem::{offset_of, size_of};
 
     /// A struct of a parsed pass: its size and (member, offset) list.
@@ -497,18 +498,11 @@ mod tests {
 
     #[test]
     fn the_weights_uniform_is_as_large_as_what_mlp_uniform_writes() {
+        // The passes as written declare the largest network's uniform, the default's at f32.
         for pass in ["predict", "importance_dkb"] {
             let module = parse(pass);
-            let weights = module
-                .global_variables
-                .iter()
-                .find(|(_, g)| g.name.as_deref() == Some("weights"))
-                .expect("mlp.wgsl's weights")
-                .1;
-            let size = module.types[weights.ty].inner.size(module.to_ctx());
-            assert_eq!(size as u64, budget::MLP_UNIFORM_BYTES, "{pass}");
+            assert_eq!(weights_size(&module), budget::MLP_UNIFORM_BYTES, "{pass}");
         }
-        // The largest network the loader accepts fills it; the default is the largest.
         let m = Mlp::random(1);
         assert_eq!(
             crate::mlp::uniform_parameter_count(m.h1, m.h2),
@@ -519,10 +513,11 @@ mod tests {
         assert_eq!(&v[MLP_MEAN_AT..MLP_STD_AT], &m.mean.map(f32::to_bits));
         assert_eq!(&v[MLP_STD_AT..MLP_W1_AT], &m.std.map(f32::to_bits));
         assert_eq!(v[MLP_W1_AT], m.w1[0].to_bits());
-        // At f16: the header as before, then two rounded values a word, low half first.
+        // At f16: the header as before, then two rounded values a word, low half first, in
+        // half the words.
         let h = m.at_precision(Precision::F16).unwrap();
         let v16 = mlp_uniform(&h);
-        assert_eq!(v16.len(), v.len());
+        assert_eq!(4 * v16.len() as u64, h.uniform_bytes());
         assert_eq!(&v16[..MLP_W1_AT], &v[..MLP_W1_AT]);
         let params: Vec<f32> = h.parameters().collect();
         for (i, &p) in params.iter().enumerate() {
@@ -539,6 +534,50 @@ mod tests {
                 .iter()
                 .all(|&w| w == 0)
         );
+    }
+
+    /// Bytes of a module's `weights` uniform.
+    fn weights_size(module: &naga::Module) -> u64 {
+        let weights = module
+            .global_variables
+            .iter()
+            .find(|(_, g)| g.name.as_deref() == Some("weights"))
+            .expect("mlp.wgsl's weights")
+            .1;
+        module.types[weights.ty].inner.size(module.to_ctx()) as u64
+    }
+
+    #[test]
+    fn a_network_s_weights_take_what_its_sizes_and_precision_need_and_no_more() {
+        // By hand: 28 header words, then the padded parameters (12 p1 + p1 + p1 p2 + p2 + p2
+        // + 4), one a word at f32 and two at f16, in whole vec4s.
+        let cases = [
+            (128, 64, Precision::F32, 40_064),
+            (128, 64, Precision::F16, 20_096),
+            (16, 8, Precision::F32, 1_536),
+            (16, 8, Precision::F16, 832),
+            // 5 and 3 units pad to 8 and 4: 96 + 8 + 32 + 4 + 4 + 4 = 148 parameters.
+            (5, 3, Precision::F32, 704),
+            (5, 3, Precision::F16Math, 416),
+        ];
+        for (h1, h2, p, bytes) in cases {
+            let m = Mlp::random_sized(3, h1, h2).at_precision(p).unwrap();
+            assert_eq!(m.uniform_bytes(), bytes, "{h1}-{h2} {p}");
+            // What the host writes is that size, and every parameter is in it.
+            let v = mlp_uniform(&m);
+            assert_eq!(4 * v.len() as u64, bytes, "{h1}-{h2} {p}");
+            let words =
+                crate::mlp::uniform_parameter_count(h1, h2) / if p.half_weights() { 2 } else { 1 };
+            assert!(MLP_W1_AT + words <= v.len() && v.len() < MLP_W1_AT + words + 4);
+            // The pass built for the network declares exactly that many bytes.
+            #[cfg(feature = "gpu")]
+            for pass in ["predict", "importance_dkb"] {
+                let src = crate::gpu::network_pass_source(pass, &m);
+                let module = naga::front::wgsl::parse_str(&src)
+                    .unwrap_or_else(|e| panic!("{pass} {h1}-{h2} {p}: {e}"));
+                assert_eq!(weights_size(&module), bytes, "{pass} {h1}-{h2} {p}");
+            }
+        }
     }
 
     #[test]

@@ -9,7 +9,7 @@ use common::gpu;
 use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::frame::{Method, Options, Renderer};
 use dhoit_runtime::gpu::Slots;
-use dhoit_runtime::mlp::Mlp;
+use dhoit_runtime::mlp::{Mlp, Precision};
 use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::{self, Camera};
 
@@ -71,7 +71,10 @@ fn a_budget_that_holds_every_fragment_allocates_and_renders_the_abuffer() {
             let a = match r.allocate(m) {
                 Ok(a) => a,
                 Err(dhoit_runtime::Error::Budget(..)) => {
-                    assert!(m.layout().fixed_bytes(px) > m_bytes, "{name} {m}: refused");
+                    assert!(
+                        opts.layout(m).fixed_bytes(px) > m_bytes,
+                        "{name} {m}: refused"
+                    );
                     eprintln!("{name} {m}: its fixed cost exceeds the A-buffer's whole frame");
                     continue;
                 }
@@ -97,4 +100,62 @@ fn a_budget_that_holds_every_fragment_allocates_and_renders_the_abuffer() {
     // The deep scene's VKB and optimal allocation ran below the A-buffer's bytes (DKB's
     // weights alone, 40 KiB, are more than that whole frame's A-buffer at 96x72).
     assert!(truncated >= 2, "{truncated} k-buffer frames one byte short");
+}
+
+#[test]
+fn dkb_counts_the_bytes_of_the_network_it_runs_on_the_cpu_and_the_gpu() {
+    let Some(g) = gpu() else { return };
+    let s = scene::load("particles", Default::default()).unwrap();
+    let (w, h) = (96, 72);
+    let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, w, h);
+    let fl = rasterize(&s, &cam, w, h).unwrap();
+    let px = fl.pixel_count() as u64;
+    // (network, precision, its weights' bytes by hand: 28 header words, then the padded
+    // parameters, 9,988 or 356, one a word at f32 and two at f16, in whole vec4s).
+    let nets = [
+        (Mlp::random(2), Precision::F32, 40_064),
+        (Mlp::random(2), Precision::F16, 20_096),
+        (Mlp::random_sized(2, 16, 8), Precision::F32, 1_536),
+        (Mlp::random_sized(2, 16, 8), Precision::F16, 832),
+    ];
+    for (net, p, weights) in nets {
+        let mlp = net.at_precision(p).unwrap();
+        let label = format!("{}-{} {p}", mlp.h1, mlp.h2);
+        let opts = Options {
+            weights: Some(&mlp),
+            ..Options::new(Budget::Share(250_000), BG)
+        };
+        // The layout: the default network's fixed cost less its weights, plus this one's.
+        let layout = opts.layout(Method::Dkb);
+        assert_eq!(
+            layout.fixed_bytes(px) + budget::MLP_UNIFORM_BYTES,
+            budget::DKB.fixed_bytes(px) + weights,
+            "{label}"
+        );
+        let r = Renderer::new(&fl, opts);
+        let a = r.allocate(Method::Dkb).unwrap();
+        assert!(!a.exact, "{label}: 25% truncates");
+        let slots = Slots::for_method(Method::Dkb, &a, &opts).unwrap();
+        let cpu = r.composite(a.clone());
+        let want = layout.allocated_bytes(px, cpu.k.iter().map(|&k| k as u64).sum());
+        assert_eq!(cpu.allocated_bytes, want, "{label}: CPU bytes");
+        // The GPU counts the buffers it creates: the weights uniform among them.
+        let gpu = g.render(&s, &cam, w, h, BG, slots).unwrap();
+        let gk: u64 = gpu.slots.as_ref().unwrap().1[px as usize] as u64;
+        assert_eq!(
+            gpu.allocated_bytes,
+            layout.allocated_bytes(px, gk),
+            "{label}: GPU bytes"
+        );
+        // Equal bytes give the others what DKB with this network needs.
+        let eq = Options {
+            equal: dhoit_runtime::frame::Equal::Bytes,
+            ..opts
+        };
+        let m = Renderer::new(&fl, eq).budget().unwrap();
+        let (dkb_m, _) = Budget::Share(250_000)
+            .resolve(&layout, px, fl.fragment_count() as u64)
+            .unwrap();
+        assert_eq!(m, Budget::Bytes(dkb_m), "{label}: equal bytes");
+    }
 }

@@ -57,6 +57,13 @@ use crate::wgsl::{
 };
 use wgpu::util::DeviceExt;
 
+/// The WGSL of network pass `pass` ("predict", "importance_dkb") as built for `m`: for the
+/// tests that hold its declarations to the host's buffers.
+#[cfg(test)]
+pub(crate) fn network_pass_source(pass: &'static str, m: &Mlp) -> String {
+    Variant::for_network(pass, m, true).source()
+}
+
 /// Features the pipeline cannot run without.
 pub fn required_features() -> wgpu::Features {
     wgpu::Features::SHADER_INT64

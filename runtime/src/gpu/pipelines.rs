@@ -96,6 +96,8 @@ pub(super) struct Variant {
     /// With a known shape and the weights in the uniform, the forward written out for that
     /// shape ([`unrolled_forward`]) instead of mlp.wgsl's loops.
     pub(super) unrolled: bool,
+    /// Vec4s of the network's weights uniform ([`crate::mlp::uniform_bytes`] / 16).
+    pub(super) weight_vec4s: u32,
     /// The entry point: "main" (predict), or importance_dkb's "select_pixels", "args",
     /// "network" (sharing [`NetworkLayout`]).
     pub(super) entry: &'static str,
@@ -200,6 +202,7 @@ impl Variant {
             skip_forced,
             precision: m.precision,
             shape: (p(m.h1), p(m.h2)),
+            weight_vec4s: (m.uniform_bytes() / 16) as u32,
             shared_weights: false,
             unrolled: true,
             entry: "main",
@@ -230,6 +233,15 @@ impl Variant {
             );
         }
         let (p1, p2) = self.shape;
+        // The weights uniform as large as this network's (mlp::uniform_bytes), not the
+        // largest network's: the buffer bound is sized to it.
+        set(
+            &format!(
+                "const MLP_VEC4S: u32 = {}u;",
+                budget::MLP_UNIFORM_BYTES / 16
+            ),
+            &format!("const MLP_VEC4S: u32 = {}u;", self.weight_vec4s),
+        );
         // Known sizes: the private sums hold exactly p2 floats.
         if p1 != 0 {
             set(
@@ -509,6 +521,7 @@ impl Pipelines {
                         skip_forced: true,
                         precision: Precision::F32,
                         shape: (p(crate::mlp::H1) as u32, p(crate::mlp::H2) as u32),
+                        weight_vec4s: (crate::budget::MLP_UNIFORM_BYTES / 16) as u32,
                         shared_weights: false,
                         unrolled: true,
                         entry,
