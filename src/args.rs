@@ -131,10 +131,11 @@ pub(crate) fn rasterize_view(
     Ok((fl, ms))
 }
 
-/// The weights DKB uses: --weights, else the default file when present, at `precision`.
+/// The weights DKB uses: --weights, else the default file when present, at `precision`, or
+/// at the one the file names when none is given.
 pub(crate) fn load_weights(
     a: &ViewArgs,
-    precision: Precision,
+    precision: Option<Precision>,
     required: bool,
 ) -> Result<Option<Mlp>> {
     let path = match &a.weights {
@@ -147,7 +148,11 @@ pub(crate) fn load_weights(
             None => return Ok(None),
         },
     };
-    Ok(Some(Mlp::load(&path)?.at_precision(precision)?))
+    let m = Mlp::load(&path)?;
+    match precision {
+        Some(p) => Ok(Some(m.at_precision(p)?)),
+        None => Ok(Some(m)),
+    }
 }
 
 /// The k each pixel uses, min(k, n).

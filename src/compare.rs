@@ -53,9 +53,10 @@ pub struct CompareArgs {
     /// Precision of the network for dkb: f32; f16 (binary16 weights, f32 arithmetic; the CPU
     /// twin computes with the same rounded weights); or f16-math (binary16 weights and
     /// hidden-layer arithmetic, for GPUs with fast half precision; the device needs
-    /// SHADER_F16).
-    #[arg(long, default_value = "f32")]
-    precision: Precision,
+    /// SHADER_F16). Default: the precision the weights file names (`dhoit fit` writes it),
+    /// else f32.
+    #[arg(long)]
+    precision: Option<Precision>,
     #[command(flatten)]
     common: ViewArgs,
     /// Directory for images, report.json, report.md and summary.md.

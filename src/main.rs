@@ -63,11 +63,11 @@ enum Command {
     /// JSON.
     Bench(bench::BenchArgs),
     /// The speed-accuracy trade: networks of several sizes (the default and those shipped in
-    /// data/nets/) on scenes, importance-pass time against MSE and FLIP, the Pareto front
-    /// marked; trade.json, trade.md and plots.
+    /// data/nets/) on scenes, importance-pass time and weights' bytes against MSE and FLIP,
+    /// the Pareto front marked; trade.json, trade.md and plots.
     Trade(trade::TradeArgs),
-    /// The smallest network whose MSE on a scene is within --target of the optimal
-    /// allocation's; writes its weights.
+    /// The network and precision with the fewest bytes of weights whose MSE on a scene is
+    /// within --target of the optimal allocation's; writes its weights, precision recorded.
     Fit(trade::FitArgs),
     /// Write a scene (a built-in, or a glTF file) as binary glTF 2.0: positions, vertex colours
     /// and alpha, to open it in other tools or to test the glTF loader without real scenes.

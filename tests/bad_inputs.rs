@@ -651,6 +651,28 @@ fn weights_unknown_target() {
     bad_weights("w-target", &b, "target");
 }
 
+#[test]
+fn weights_unknown_precision() {
+    let b = weights_with(|_, m| m.push(("precision", "f64".into())));
+    bad_weights("w-precision", &b, "metadata 'precision': 'f64'");
+}
+
+#[test]
+fn weights_at_f16_beyond_its_range() {
+    // A file that says f16 but holds a weight binary16 cannot store.
+    let b = weights_with(|t, m| {
+        let mut v = vec![0.01f32; 128 * 64];
+        v[7] = 1e5;
+        t[2] = ("fc2.weight", "F32", vec![128, 64], f32s(&v));
+        m.push(("precision", "f16".into()));
+    });
+    bad_weights(
+        "w-f16-range",
+        &b,
+        "fc2.weight[7] = 100000 is beyond f16's range",
+    );
+}
+
 /// Predicts with the committed weights on a features file.
 fn bad_features(name: &str, bytes: &[u8], needle: &str) {
     let dir = case_dir(name);

@@ -4,7 +4,7 @@ mod common;
 use common::{dhoit, skip_gpu, temp_dir};
 use dhoit_runtime::budget::Budget;
 use dhoit_runtime::frame::{self, Method, Options};
-use dhoit_runtime::mlp::Mlp;
+use dhoit_runtime::mlp::{Mlp, Precision};
 use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::{self, Camera, Opacity};
 use std::path::Path;
@@ -672,11 +672,12 @@ fn fine_tuning_on_a_scene_beats_the_default_on_its_held_out_views() {
     }
 }
 
-/// `dhoit trade` reports every network, precision and budget asked for, with a front that no
-/// point dominates; `dhoit fit` picks the smallest network that meets the target, and writes
-/// nothing when none does.
+/// `dhoit trade` reports every network, precision and budget asked for, each with its weights'
+/// bytes, with a front that no point dominates in time, bytes, MSE and FLIP; `dhoit fit` picks
+/// the network and precision with the fewest bytes that meets the target, records the
+/// precision in the file it writes, and writes nothing when none does.
 #[test]
-fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_smallest() {
+fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_fewest_bytes() {
     let dir = temp_dir("cli-trade");
     let small = dir.join("small.safetensors");
     let large = dir.join("large.safetensors");
@@ -707,6 +708,8 @@ fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_small
         "1",
         "--networks",
         &nets,
+        "--precision",
+        "f32,f16",
         "--timing",
         timing,
         "--repeat",
@@ -736,9 +739,34 @@ fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_small
             })
             .collect();
         nets.sort();
-        assert_eq!(nets, [("16-8", "f32"), ("32-16", "f32")], "{}", s["scene"]);
-        let key =
-            |p: &serde_json::Value| ["time_ms", "mse", "flip"].map(|k| p[k].as_f64().unwrap());
+        assert_eq!(
+            nets,
+            [
+                ("16-8", "f16"),
+                ("16-8", "f32"),
+                ("32-16", "f16"),
+                ("32-16", "f32")
+            ],
+            "{}",
+            s["scene"]
+        );
+        // Weights by hand: 28 header words, then the padded parameters (16-8: 356; 32-16:
+        // 964), one a word at f32 and two at f16, in whole vec4s.
+        for p in points {
+            let want = match (
+                p["network"].as_str().unwrap(),
+                p["precision"].as_str().unwrap(),
+            ) {
+                ("16-8", "f32") => 1_536,
+                ("16-8", "f16") => 832,
+                ("32-16", "f32") => 3_968,
+                _ => 2_048,
+            };
+            assert_eq!(p["weight_bytes"].as_u64().unwrap(), want, "{p}");
+        }
+        let key = |p: &serde_json::Value| {
+            ["time_ms", "weight_bytes", "mse", "flip"].map(|k| p[k].as_f64().unwrap())
+        };
         for p in points {
             let dominated = points.iter().any(|o| {
                 let (a, b) = (key(o), key(p));
@@ -757,27 +785,51 @@ fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_small
                 assert_eq!(budgets, ["25%", "50%", "1fpp"]);
             }
         }
-        assert!(points.iter().any(|p| p["front"].as_bool().unwrap()));
+        // The fewest bytes alone put a point on the front.
+        let least = points
+            .iter()
+            .min_by_key(|p| p["weight_bytes"].as_u64().unwrap())
+            .unwrap();
+        assert!(least["front"].as_bool().unwrap(), "{}", s["scene"]);
     }
-    // fit: any network meets a loose target, the smallest is written; none meets 1.0.
+    // fit: any network meets a loose target, the one with the fewest bytes is written: the
+    // small one at f16 (its precision recorded), or at f32 where only f32 is allowed (the same
+    // file); none meets 1.0.
     let fitted = dir.join("fitted.safetensors");
-    let o = dhoit(&[
-        "fit",
-        "--scene",
-        "spheres",
-        "--res",
-        "64x48",
-        "--budget",
-        "25%,50%",
-        "--view",
-        "1",
-        "--networks",
-        &nets,
-        "--target",
-        "1000",
-        "--out",
-        fitted.to_str().unwrap(),
-    ]);
+    let fit = |precisions: &str| {
+        dhoit(&[
+            "fit",
+            "--scene",
+            "spheres",
+            "--res",
+            "64x48",
+            "--budget",
+            "25%,50%",
+            "--view",
+            "1",
+            "--networks",
+            &nets,
+            "--precision",
+            precisions,
+            "--target",
+            "1000",
+            "--out",
+            fitted.to_str().unwrap(),
+        ])
+    };
+    let o = fit("f32,f16");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let chosen = Mlp::load(&fitted).unwrap();
+    let want = Mlp::load(&small)
+        .unwrap()
+        .at_precision(Precision::F16)
+        .unwrap();
+    assert_eq!(chosen.precision, Precision::F16);
+    assert_eq!(
+        chosen.parameters().collect::<Vec<_>>(),
+        want.parameters().collect::<Vec<_>>()
+    );
+    let o = fit("f32");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(
         std::fs::read(&fitted).unwrap(),

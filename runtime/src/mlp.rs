@@ -9,7 +9,9 @@
 //! burn's `Linear` keeps them (row i holds input i's weights to every output). Metadata:
 //! `format` = "dhoit-mlp-1", `features` (JSON list of the 12 names, in order), `input_mean` and
 //! `input_std` (JSON lists of 12 numbers), `layout` = "linear-in-out", and `target`, what the
-//! output means (see [`Target`]; files without it predate it and mean `k_over_max_k`).
+//! output means (see [`Target`]; files without it predate it and mean `k_over_max_k`), and
+//! optionally `precision`, the [`Precision`] the network is deployed at by default (f16 and
+//! f16-math files hold f32 values already rounded to binary16; without the key, f32).
 
 use crate::error::{Error, Result};
 use crate::importance::{FEATURE_NAMES, FEATURES};
@@ -430,6 +432,15 @@ impl Mlp {
                 message: format!("'{t}', expected k_over_n, k_over_max_k or slot_request"),
             })?,
         };
+        // The precision the network is meant to run at (`dhoit fit` chooses one); files without
+        // it run at f32 unless the user says otherwise.
+        let precision = match file.metadata.get("precision") {
+            None => Precision::F32,
+            Some(p) => p.parse::<Precision>().map_err(|_| Metadata {
+                key: "precision".into(),
+                message: format!("'{p}', expected f32, f16 or f16-math"),
+            })?,
+        };
         let mean = vec12("input_mean")?;
         let std = vec12("input_std")?;
         if let Some(i) =
@@ -494,7 +505,7 @@ impl Mlp {
                 uniform_parameter_count(h1, h2)
             )));
         }
-        Ok(Mlp {
+        Mlp {
             h1,
             h2,
             w1: get("fc1.weight", &[FEATURES, h1])?,
@@ -507,6 +518,11 @@ impl Mlp {
             std,
             target,
             precision: Precision::F32,
+        }
+        .at_precision(precision)
+        .map_err(|e| Metadata {
+            key: "precision".into(),
+            message: e.to_string(),
         })
     }
 
@@ -525,6 +541,13 @@ impl Mlp {
         meta.insert("format".into(), FORMAT.into());
         meta.insert("layout".into(), LAYOUT.into());
         meta.insert("target".into(), self.target.name().into());
+        // The weights are stored as f32 either way (rounded to binary16 already where the
+        // precision stores them so); the key says how to deploy them.
+        if self.precision != Precision::F32 {
+            meta.insert("precision".into(), self.precision.name().into());
+        } else {
+            meta.remove("precision");
+        }
         meta.insert(
             "features".into(),
             serde_json::to_string(&FEATURE_NAMES).expect("names"),

@@ -66,6 +66,25 @@ fn weights_round_trip_through_the_contract() {
     assert_eq!(Mlp::load(&path).unwrap(), m);
 }
 
+#[test]
+fn a_file_records_the_precision_it_is_deployed_at() {
+    use dhoit_runtime::mlp::Precision;
+    let m = Mlp::random_sized(5, 16, 8);
+    for p in [Precision::F32, Precision::F16, Precision::F16Math] {
+        let d = m.at_precision(p).unwrap();
+        let path = temp(&format!("precision-{p}.safetensors"));
+        // A stale key in the extra metadata does not survive: the network's own is written.
+        let extra = HashMap::from([("precision".to_string(), "f16-math".to_string())]);
+        d.save(&path, &extra).unwrap();
+        let back = Mlp::load(&path).unwrap();
+        assert_eq!(back, d, "{p}");
+        assert_eq!(back.precision, p);
+        // Loaded at f32 again: the rounded values, f32's uniform.
+        let f = back.at_precision(Precision::F32).unwrap();
+        assert_eq!(f.uniform_bytes(), 1_536, "{p}");
+    }
+}
+
 /// Writes a weights file with one tensor or metadata entry changed.
 fn broken(
     name: &str,
