@@ -169,6 +169,21 @@ fn networks(q: &QualityArgs) -> Result<Vec<Net>> {
     Ok(out)
 }
 
+/// Every network of [`networks`] at every precision of `precisions`, network by network.
+fn networks_at(q: &QualityArgs, precisions: &[Precision]) -> Result<Vec<Net>> {
+    networks(q)?
+        .into_iter()
+        .flat_map(|n| precisions.iter().map(move |&p| (n.clone(), p)))
+        .map(|(n, p)| {
+            Ok(Net {
+                mlp: n.mlp.at_precision(p)?,
+                precision: p,
+                ..n
+            })
+        })
+        .collect()
+}
+
 /// One network on one frame and budget.
 #[derive(Clone, Debug, Serialize)]
 pub struct Measure {
@@ -405,17 +420,7 @@ enum TimedFrame {
 
 pub fn trade(a: TradeArgs) -> Result<()> {
     // Every network at every precision: quality and time of each.
-    let nets: Vec<Net> = networks(&a.quality)?
-        .into_iter()
-        .flat_map(|n| a.precision.iter().map(move |&p| (n.clone(), p)))
-        .map(|(n, p)| -> Result<Net> {
-            Ok(Net {
-                mlp: n.mlp.at_precision(p)?,
-                precision: p,
-                ..n
-            })
-        })
-        .collect::<Result<_>>()?;
+    let nets: Vec<Net> = networks_at(&a.quality, &a.precision)?;
     let time_res = (a.time_res.width, a.time_res.height);
     let first_budget = *a
         .quality
@@ -650,17 +655,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
     }
     // Every network at every precision, fewest weight bytes first (then fewest parameters, then
     // the precisions in the order given): the first that meets the target is the cheapest.
-    let mut nets: Vec<Net> = networks(&a.quality)?
-        .into_iter()
-        .flat_map(|n| a.precision.iter().map(move |&p| (n.clone(), p)))
-        .map(|(n, p)| -> Result<Net> {
-            Ok(Net {
-                mlp: n.mlp.at_precision(p)?,
-                precision: p,
-                ..n
-            })
-        })
-        .collect::<Result<_>>()?;
+    let mut nets: Vec<Net> = networks_at(&a.quality, &a.precision)?;
     nets.sort_by_key(|n| (n.mlp.uniform_bytes(), n.parameters));
     let steps = a.quality.view_list.len() * a.quality.budgets.len();
     let pb = bar(steps as u64, "frames");

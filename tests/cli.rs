@@ -796,7 +796,7 @@ fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_fewes
     // small one at f16 (its precision recorded), or at f32 where only f32 is allowed (the same
     // file); none meets 1.0.
     let fitted = dir.join("fitted.safetensors");
-    let fit = |precisions: &str| {
+    let fit = |precisions: &str, target: &str, out: &Path| {
         dhoit(&[
             "fit",
             "--scene",
@@ -812,12 +812,12 @@ fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_fewes
             "--precision",
             precisions,
             "--target",
-            "1000",
+            target,
             "--out",
-            fitted.to_str().unwrap(),
+            out.to_str().unwrap(),
         ])
     };
-    let o = fit("f32,f16");
+    let o = fit("f32,f16", "1000", &fitted);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let chosen = Mlp::load(&fitted).unwrap();
     let want = Mlp::load(&small)
@@ -829,30 +829,14 @@ fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_fewes
         chosen.parameters().collect::<Vec<_>>(),
         want.parameters().collect::<Vec<_>>()
     );
-    let o = fit("f32");
+    let o = fit("f32", "1000", &fitted);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(
         std::fs::read(&fitted).unwrap(),
         std::fs::read(&small).unwrap()
     );
     let never = dir.join("never.safetensors");
-    let o = dhoit(&[
-        "fit",
-        "--scene",
-        "spheres",
-        "--res",
-        "64x48",
-        "--budget",
-        "25%,50%",
-        "--view",
-        "1",
-        "--networks",
-        &nets,
-        "--target",
-        "1",
-        "--out",
-        never.to_str().unwrap(),
-    ]);
+    let o = fit("f32,f16", "1", &never);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("no network meets"));
     assert!(!never.exists());
