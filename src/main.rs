@@ -59,8 +59,8 @@ enum Command {
     Features(features::FeaturesArgs),
     /// Measure every method's GPU frame (steady frames of a persistent renderer: GPU and wall
     /// ms, each pass, DKB/VKB and DKB/A-buffer, and DKB's layout and geometry options side by
-    /// side), then CPU rasterization, compositing, allocation and training throughput; prints
-    /// JSON.
+    /// side), then CPU rasterization, compositing, allocation and the network's training and
+    /// inference throughput (samples a second; `--network-only` for those alone); prints JSON.
     Bench(bench::BenchArgs),
     /// The speed-accuracy trade: networks of several sizes (the default and those shipped in
     /// data/nets/) on scenes, importance-pass time and weights' bytes against MSE and FLIP,

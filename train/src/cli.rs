@@ -546,7 +546,7 @@ pub struct PredictArgs {
 /// Where `predict` runs the network.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum PredictDevice {
-    /// burn, NdArray backend (what training runs).
+    /// burn, Flex CPU backend (what training runs).
     Cpu,
     /// The runtime's plain-Rust network (the renderer's CPU twin).
     Twin,

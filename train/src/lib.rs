@@ -4,13 +4,15 @@
 //! The network is 12-128-64-1 (ReLU, ReLU, sigmoid) on standardised features, trained with a
 //! loss (the regret of the k it asks for, by default; the paper's MSE as an option), L1 on the
 //! first hidden layer's weights, L2 on the second's, and SGD with momentum (paper 001). burn
-//! runs on its NdArray CPU backend with autodiff.
+//! runs on its Flex CPU backend: its modules and optimiser, and a training step whose backward
+//! pass is written out ([`step`]), held in tests to burn's autodiff.
 
 pub mod cli;
 pub mod dataset;
 pub mod model;
 pub mod plot;
 pub mod score;
+pub mod step;
 pub mod trainer;
 
 pub use dhoit_runtime::error::IoOp;

@@ -11,6 +11,7 @@ use burn::tensor::TensorData;
 use burn::tensor::activation::{relu, sigmoid};
 use dhoit_runtime::importance::FEATURES;
 use dhoit_runtime::mlp::{Mlp, Target};
+use rayon::prelude::*;
 
 #[derive(Module, Debug)]
 pub struct ImportanceNet {
@@ -19,10 +20,10 @@ pub struct ImportanceNet {
     pub out: Linear,
 }
 
-/// The CPU device (NdArray backend); `autodiff` adds gradient tracking for training.
-#[allow(deprecated)] // burn 0.22 deprecates NdArray in favour of Flex; the project pins NdArray.
+/// The CPU device (burn's Flex backend, its default CPU backend since 0.22); `autodiff` adds
+/// gradient tracking (the reference the fused training step is held to in tests).
 pub fn cpu_device(autodiff: bool) -> Device {
-    let d = Device::ndarray();
+    let d = Device::flex();
     if autodiff { d.autodiff() } else { d }
 }
 
@@ -86,6 +87,19 @@ impl ImportanceNet {
     }
 }
 
+/// Standardised inputs, row after row (FEATURES values a row).
+pub fn standardised(
+    rows: &[[f32; FEATURES]],
+    mean: &[f32; FEATURES],
+    std: &[f32; FEATURES],
+) -> Vec<f32> {
+    rows.iter()
+        .flat_map(|r| {
+            (0..FEATURES).map(move |i| dhoit_runtime::mlp::standardise(r[i], mean[i], std[i]))
+        })
+        .collect()
+}
+
 /// Standardised inputs as a tensor.
 pub fn input_tensor(
     rows: &[[f32; FEATURES]],
@@ -93,28 +107,24 @@ pub fn input_tensor(
     std: &[f32; FEATURES],
     device: &Device,
 ) -> Tensor<2> {
-    let flat: Vec<f32> = rows
-        .iter()
-        .flat_map(|r| {
-            (0..FEATURES).map(move |i| dhoit_runtime::mlp::standardise(r[i], mean[i], std[i]))
-        })
-        .collect();
+    let flat = standardised(rows, mean, std);
     Tensor::from_data(TensorData::new(flat, [rows.len(), FEATURES]), device)
 }
 
-/// burn inference over many rows, in chunks, on the plain CPU device.
+/// burn inference over many rows, in chunks run in parallel, on the plain CPU device.
 pub fn predict(m: &Mlp, rows: &[[f32; FEATURES]]) -> Vec<f32> {
     let device = cpu_device(false);
     let net = ImportanceNet::from_mlp(m, &device);
-    let mut out = Vec::with_capacity(rows.len());
-    for chunk in rows.chunks(8192) {
-        let y = net.forward(input_tensor(chunk, &m.mean, &m.std, &device));
-        // As `mlp::squash`: 0 where the sums overflowed both ways.
-        out.extend(
+    let chunks: Vec<Vec<f32>> = rows
+        .par_chunks(4096)
+        .map(|chunk| {
+            let y = net.forward(input_tensor(chunk, &m.mean, &m.std, &device));
+            // As `mlp::squash`: 0 where the sums overflowed both ways.
             values(y)
                 .into_iter()
-                .map(|v| if v.is_nan() { 0.0 } else { v }),
-        );
-    }
-    out
+                .map(|v| if v.is_nan() { 0.0 } else { v })
+                .collect()
+        })
+        .collect();
+    chunks.concat()
 }

@@ -14,7 +14,8 @@
 //! generator, not burn's global one.
 
 use crate::dataset::{REGRET_HALF, REGRET_WINDOW, Samples};
-use crate::model::{ImportanceNet, cpu_device, input_tensor, predict};
+use crate::model::{ImportanceNet, cpu_device, predict, standardised};
+use crate::step;
 use crate::{Error, Result};
 use burn::grad_clipping::GradientClippingConfig;
 use burn::optim::momentum::MomentumConfig;
@@ -25,6 +26,7 @@ use burn::tensor::activation::relu;
 use dhoit_runtime::importance::FEATURES;
 use dhoit_runtime::mlp::{self, Mlp, Target};
 use dhoit_runtime::rng::Rng;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -302,13 +304,17 @@ fn useful_cap(n: f32, lo: f32, pair: bool) -> f64 {
 /// (`alloc::useful_cap`). Returns s, or -L.
 pub fn fit(additive: bool, c: &[f32], n: &[f32], pairs: &[bool], k_opt: &[f32], lo: f32) -> f64 {
     let target: f64 = k_opt.iter().map(|&k| k as f64).sum();
+    let caps: Vec<f64> = n
+        .iter()
+        .zip(pairs)
+        .map(|(&n, &pair)| useful_cap(n, lo, pair))
+        .collect();
     let total = |x: f64| -> f64 {
         c.iter()
-            .zip(n)
-            .zip(pairs)
-            .map(|((&c, &n), &pair)| {
+            .zip(&caps)
+            .map(|(&c, &cap)| {
                 let k = if additive { c as f64 + x } else { c as f64 * x };
-                k.clamp(lo as f64, useful_cap(n, lo, pair))
+                k.clamp(lo as f64, cap)
             })
             .sum()
     };
@@ -330,9 +336,11 @@ pub fn fit(additive: bool, c: &[f32], n: &[f32], pairs: &[bool], k_opt: &[f32], 
     at(0.5 * (a + b))
 }
 
-/// The regret loss of one frame's batch (module docs): `(loss + reg, loss, reg)`. The frame's
-/// fit is taken as a constant (by the envelope theorem its gradient does not change the loss's
-/// at the fitted value).
+/// The regret loss of one frame's batch (module docs) in burn's autodiff: `(loss + reg, loss,
+/// reg)`. The frame's fit is taken as a constant (by the envelope theorem its gradient does not
+/// change the loss's at the fitted value). Training runs [`regret_gradient`], the same loss on
+/// plain numbers with its gradient written out; this formulation is the reference the tests
+/// hold it to.
 pub fn regret_loss(
     net: &ImportanceNet,
     loss: Loss,
@@ -433,51 +441,189 @@ pub fn regret_loss(
 /// The regret of one pixel that gets `k` (continuous) slots (the CPU twin of the interpolation
 /// in [`regret_loss`]).
 pub fn pixel_regret(k: f64, k_opt: u32, window: &[f32; REGRET_WINDOW]) -> f64 {
+    pixel_regret_slope(k, k_opt as f64, window).0
+}
+
+/// [`pixel_regret`] and its derivative with respect to k: the slope of the interpolated
+/// segment inside the window, the extension's outside (0 where either is flat).
+fn pixel_regret_slope(k: f64, k_opt: f64, window: &[f32; REGRET_WINDOW]) -> (f64, f64) {
     let half = REGRET_HALF as f64;
-    let d = k - k_opt as f64;
+    let d = k - k_opt;
     let inside = d.clamp(-half, half);
-    let mut v: f64 = (0..REGRET_WINDOW)
-        .map(|j| window[j] as f64 * (1.0 - (inside - (j as f64 - half)).abs()).max(0.0))
-        .sum();
+    let (mut v, mut slope) = (0.0, 0.0);
+    for (j, &r) in window.iter().enumerate() {
+        let t = inside - (j as f64 - half);
+        let hat = 1.0 - t.abs();
+        if hat > 0.0 {
+            v += r as f64 * hat;
+            // The hat's derivative, where the clamp passes d through.
+            if d > -half && d < half {
+                slope -= r as f64 * t.signum() * (t != 0.0) as u8 as f64;
+            }
+        }
+    }
     let w = REGRET_WINDOW;
     let slope_lo = (window[0] as f64 - window[1] as f64).max(0.0);
     let slope_hi = (window[w - 1] as f64 - window[w - 2] as f64).max(0.0);
     v += slope_lo * (-d - half).max(0.0) + slope_hi * (d - half).max(0.0);
-    v
+    if d < -half {
+        slope -= slope_lo;
+    } else if d > half {
+        slope += slope_hi;
+    }
+    (v, slope)
+}
+
+/// One frame's samples, as the regret loss reads them.
+pub struct Frame<'a> {
+    /// n, k* and the regret window of each pixel, and whether its two farthest fragments share
+    /// one colour.
+    pub counts: &'a [f32],
+    pub k_opts: &'a [f32],
+    pub pairs: &'a [bool],
+    pub regret: &'a [[f32; REGRET_WINDOW]],
+    /// The frame's smallest k.
+    pub lo: f32,
+    /// The share of the frame's pixels sampled.
+    pub share: f64,
+}
+
+/// The regret loss of one frame (module docs, [`regret_loss`]) for the network's outputs `r`,
+/// and its gradient with respect to each output: the training step's loss, on plain numbers.
+///
+/// The frame's fit (scale or level) is held constant, pixels the fit clamps keep their k (with
+/// the straight-through gradient where k* lies beyond the clamp), and the others share what is
+/// left, so that asking more leaves less for the rest: exactly what [`regret_loss`]'s graph
+/// differentiates.
+pub fn regret_gradient(loss: Loss, r: &[f32], f: &Frame) -> (f64, Vec<f32>) {
+    let rows = r.len();
+    let additive = loss == Loss::RegretLevel;
+    let per_output = |i: usize| -> f64 {
+        match loss {
+            Loss::RegretLevel => dhoit_runtime::alloc::REQUEST_SLOTS as f64,
+            _ => f.counts[i] as f64,
+        }
+    };
+    // The asks, as f32 (as the network's graph has them).
+    let c: Vec<f32> = (0..rows)
+        .map(|i| match loss {
+            Loss::RegretLevel => r[i] * dhoit_runtime::alloc::REQUEST_SLOTS,
+            _ => r[i] * f.counts[i],
+        })
+        .collect();
+    let shift = fit(additive, &c, f.counts, f.pairs, f.k_opts, f.lo);
+    let lo = f.lo as f64;
+    // Which pixels the fit clamps, at what k; the others are free.
+    let mut k = vec![0.0f64; rows];
+    let mut free = vec![false; rows];
+    let mut through = vec![false; rows];
+    let (mut fixed_sum, mut free_asks, mut n_free) = (0.0f64, 0.0f64, 0usize);
+    for i in 0..rows {
+        let moved = if additive {
+            c[i] as f64 + shift
+        } else {
+            c[i] as f64 * shift
+        };
+        let cap = useful_cap(f.counts[i], f.lo, f.pairs[i]);
+        if moved <= lo || moved >= cap {
+            k[i] = moved.clamp(lo, cap) as f32 as f64;
+            fixed_sum += k[i];
+            let ko = f.k_opts[i] as f64;
+            through[i] = (moved <= lo && ko > lo) || (moved >= cap && ko < cap);
+        } else {
+            free[i] = true;
+            free_asks += c[i] as f64;
+            n_free += 1;
+        }
+    }
+    let target: f64 = f.k_opts.iter().map(|&k| k as f64).sum();
+    // The free pixels' k: their asks moved by the level that spends what is left, or scaled by
+    // the scale that does.
+    let level = (target - fixed_sum - free_asks) / n_free.max(1) as f64;
+    let scale = (target - fixed_sum) / free_asks;
+    for i in (0..rows).filter(|&i| free[i]) {
+        k[i] = if additive {
+            c[i] as f64 + level
+        } else {
+            c[i] as f64 * scale
+        };
+    }
+    // The frame's E / E* - 1 from its sample, and its logarithm.
+    let mut slope = vec![0.0f64; rows];
+    let mut excess = 0.0;
+    for i in 0..rows {
+        let (v, s) = pixel_regret_slope(k[i], f.k_opts[i] as f64, &f.regret[i]);
+        excess += v;
+        slope[i] = s;
+    }
+    excess /= f.share;
+    let value = (1.0 + excess).max(1e-6).ln();
+    let d_excess = if 1.0 + excess > 1e-6 {
+        1.0 / (1.0 + excess) / f.share
+    } else {
+        0.0
+    };
+    // dL/dk of every pixel, then through k(c): a free pixel's k depends on every free ask.
+    let g_k: Vec<f64> = slope.iter().map(|s| s * d_excess).collect();
+    let (mut free_g, mut free_gc) = (0.0f64, 0.0f64);
+    for i in (0..rows).filter(|&i| free[i]) {
+        free_g += g_k[i];
+        free_gc += g_k[i] * c[i] as f64;
+    }
+    let grad = (0..rows)
+        .map(|j| {
+            let d_c = if free[j] {
+                if additive {
+                    g_k[j] - free_g / n_free as f64
+                } else {
+                    scale * g_k[j] - scale / free_asks * free_gc
+                }
+            } else if through[j] {
+                g_k[j] * if additive { 1.0 } else { shift }
+            } else {
+                0.0
+            };
+            (d_c * per_output(j)) as f32
+        })
+        .collect();
+    (value, grad)
 }
 
 /// The mean over frames of `ln(E / E*)` estimated from the samples, each frame fitted to its
 /// budget.
 fn frame_regret(loss: Loss, pred: &[f32], s: &Samples) -> f64 {
     let additive = loss == Loss::RegretLevel;
-    let (mut sum, mut frames) = (0.0, 0usize);
-    for idx in s.frames() {
-        let n: Vec<f32> = idx.iter().map(|&i| s.count[i] as f32).collect();
-        let ko: Vec<f32> = idx.iter().map(|&i| s.k_opt[i] as f32).collect();
-        let c: Vec<f32> = idx
-            .iter()
-            .zip(&n)
-            .map(|(&i, &n)| match loss {
-                Loss::RegretLevel => pred[i] * dhoit_runtime::alloc::REQUEST_SLOTS,
-                _ => pred[i] * n,
-            })
-            .collect();
-        let lo = s.frame_lo[s.frame[idx[0]] as usize] as f32;
-        let pairs: Vec<bool> = idx.iter().map(|&i| s.pair[i]).collect();
-        let shift = fit(additive, &c, &n, &pairs, &ko, lo);
-        let mut excess = 0.0;
-        for (j, &i) in idx.iter().enumerate() {
-            let k = if additive {
-                c[j] as f64 + shift
-            } else {
-                c[j] as f64 * shift
-            };
-            excess += pixel_regret(k, s.k_opt[i], &s.regret[i]);
-        }
-        sum += (1.0 + excess / s.share).max(1e-6).ln();
-        frames += 1;
-    }
-    sum / frames.max(1) as f64
+    let frames = s.frames();
+    // Each frame on its own thread, summed in frame order (the same on any number of threads).
+    let logs: Vec<f64> = frames
+        .par_iter()
+        .map(|idx| {
+            let n: Vec<f32> = idx.iter().map(|&i| s.count[i] as f32).collect();
+            let ko: Vec<f32> = idx.iter().map(|&i| s.k_opt[i] as f32).collect();
+            let c: Vec<f32> = idx
+                .iter()
+                .zip(&n)
+                .map(|(&i, &n)| match loss {
+                    Loss::RegretLevel => pred[i] * dhoit_runtime::alloc::REQUEST_SLOTS,
+                    _ => pred[i] * n,
+                })
+                .collect();
+            let lo = s.frame_lo[s.frame[idx[0]] as usize] as f32;
+            let pairs: Vec<bool> = idx.iter().map(|&i| s.pair[i]).collect();
+            let shift = fit(additive, &c, &n, &pairs, &ko, lo);
+            let mut excess = 0.0;
+            for (j, &i) in idx.iter().enumerate() {
+                let k = if additive {
+                    c[j] as f64 + shift
+                } else {
+                    c[j] as f64 * shift
+                };
+                excess += pixel_regret(k, s.k_opt[i], &s.regret[i]);
+            }
+            (1.0 + excess / s.share).max(1e-6).ln()
+        })
+        .collect();
+    logs.iter().sum::<f64>() / frames.len().max(1) as f64
 }
 
 fn scalar(t: Tensor<1>) -> f64 {
@@ -559,7 +705,10 @@ pub fn train_from(
             "no training samples left after holding out the validation scenes".into(),
         ));
     }
+    // The network lives on the autodiff device, as burn's optimiser steps it; each step runs on
+    // its plain copy (`valid`: the same tensors, no graph).
     let device = cpu_device(true);
+    let plain = cpu_device(false);
     let init = match init {
         Some(m) => {
             if [m.h1, m.h2] != [h1, h2] {
@@ -600,11 +749,15 @@ pub fn train_from(
     let mut history = Vec::new();
     let mut best: Option<(f64, usize, Mlp)> = None;
     let start = Instant::now();
-    let mut rows = Vec::with_capacity(config.batch);
+    // The features standardised once, in the row-major layout the step's tensors take; a
+    // batch gathers its rows from here.
+    let xs = standardised(&train_set.features, &mean, &std);
+    let mut rows = Vec::with_capacity(config.batch * FEATURES);
     let mut ys = Vec::with_capacity(config.batch);
     let mut ns = Vec::with_capacity(config.batch);
     let mut ks = Vec::with_capacity(config.batch);
-    let mut rs = Vec::with_capacity(config.batch * REGRET_WINDOW);
+    let mut pairs = Vec::with_capacity(config.batch);
+    let mut rs = Vec::with_capacity(config.batch);
     // The regret losses take one frame (scene, view, budget) a batch, as the budget is fitted
     // per frame; the MSE losses shuffled mini-batches of `batch` samples.
     let frames = if config.loss.regret() {
@@ -629,47 +782,46 @@ pub fn train_from(
         let (mut sum_mse, mut sum_reg, mut batches) = (0.0, 0.0, 0usize);
         for chunk in &batches_of {
             rows.clear();
-            rows.extend(chunk.iter().map(|&i| train_set.features[i]));
-            let x = input_tensor(&rows, &mean, &std, &device);
-            let b = chunk.len();
-            let column =
-                |v: &Vec<f32>| Tensor::from_data(TensorData::new(v.clone(), [b, 1]), &device);
-            let (total, m, r) = match config.loss {
+            for &i in chunk {
+                rows.extend_from_slice(&xs[i * FEATURES..(i + 1) * FEATURES]);
+            }
+            let valid = net.valid();
+            let (value, grads) = match config.loss {
                 l @ (Loss::Regret | Loss::RegretLevel) => {
+                    // The frame's fit needs every output: the forward pass, the loss's
+                    // gradient on plain numbers, then the backward pass.
+                    let pass = step::forward(&valid, &rows, &plain);
                     ns.clear();
                     ks.clear();
+                    pairs.clear();
                     rs.clear();
                     ns.extend(chunk.iter().map(|&i| train_set.count[i] as f32));
                     ks.extend(chunk.iter().map(|&i| train_set.k_opt[i] as f32));
-                    rs.extend(chunk.iter().flat_map(|&i| train_set.regret[i]));
-                    let batch = RegretBatch {
-                        count: column(&ns),
-                        k_opt: column(&ks),
-                        regret: Tensor::from_data(
-                            TensorData::new(rs.clone(), [b, REGRET_WINDOW]),
-                            &device,
-                        ),
+                    pairs.extend(chunk.iter().map(|&i| train_set.pair[i]));
+                    rs.extend(chunk.iter().map(|&i| train_set.regret[i]));
+                    let frame = Frame {
+                        counts: &ns,
+                        k_opts: &ks,
+                        pairs: &pairs,
+                        regret: &rs,
                         lo: train_set.frame_lo[train_set.frame[chunk[0]] as usize] as f32,
-                        counts: ns.clone(),
-                        pairs: chunk.iter().map(|&i| train_set.pair[i]).collect(),
-                        k_opts: ks.clone(),
                         share: train_set.share,
                     };
-                    regret_loss(&net, l, x, batch, config.l1, config.l2)
+                    let (value, d_out) = regret_gradient(l, &pass.out, &frame);
+                    let grads = step::gradients(&valid, pass, &d_out, config.l1, config.l2, &plain);
+                    (value, grads)
                 }
                 l => {
                     ys.clear();
                     ys.extend(chunk.iter().map(|&i| mse_target(l, &train_set, i)));
-                    loss(&net, x, column(&ys), config.l1, config.l2)
+                    step::mse_step(&valid, &rows, &ys, config.l1, config.l2, &plain)
                 }
             };
-            let grads = total.backward();
-            let grads = GradientsParams::from_grads(grads, &net);
+            sum_reg += scalar(regularisation(&valid, config.l1, config.l2));
             let done = (epoch * batches_of.len() + batches) as f64
                 / (config.epochs * batches_of.len()) as f64;
             net = optim.step(config.learning_rate(done), net, grads);
-            sum_mse += scalar(m);
-            sum_reg += scalar(r);
+            sum_mse += value;
             batches += 1;
         }
         let current = net.to_mlp(mean, std, config.loss.target());
@@ -712,33 +864,106 @@ pub fn train_from(
     })
 }
 
-/// Training throughput: samples per second of `steps` SGD steps at `batch` (forward, loss,
-/// backward, optimiser step) on random features, after one warm-up step.
-pub fn bench_training(batch: usize, steps: usize) -> f64 {
+/// What a training benchmark steps: the network, its optimiser (SGD, momentum 0.9, as
+/// `make train`), random features and targets.
+struct Bench {
+    /// The device the step's inputs are on: the plain one for the fused step, the autodiff one
+    /// for burn's graph (the network is on the autodiff device either way, as the optimiser
+    /// needs).
+    device: Device,
+    net: ImportanceNet,
+    optim: burn::optim::ModuleOptimizer,
+    x: Vec<f32>,
+    y: Vec<f32>,
+}
+
+fn bench_setup(rows: usize, autodiff: bool) -> Bench {
     let mut rng = Rng::new(1);
-    let device = cpu_device(true);
     let m = Mlp::random(1);
-    let mut net = ImportanceNet::from_mlp(&m, &device);
-    let mut optim = SgdConfig::new()
-        .with_momentum(Some(MomentumConfig::new().with_momentum(0.9)))
-        .init();
-    let rows: Vec<[f32; FEATURES]> = (0..batch)
-        .map(|_| std::array::from_fn(|_| rng.f32()))
-        .collect();
-    let ys: Vec<f32> = (0..batch).map(|_| rng.f32()).collect();
-    let mut start = Instant::now();
-    for step in 0..=steps {
-        if step == 1 {
-            start = Instant::now();
-        }
-        let x = input_tensor(&rows, &m.mean, &m.std, &device);
-        let y = Tensor::from_data(TensorData::new(ys.clone(), [batch, 1]), &device);
-        let (total, mse, _) = loss(&net, x, y, 1e-6, 1e-5);
-        let grads = GradientsParams::from_grads(total.backward(), &net);
-        net = optim.step(1e-3, net, grads);
-        scalar(mse);
+    Bench {
+        net: ImportanceNet::from_mlp(&m, &cpu_device(true)),
+        device: cpu_device(autodiff),
+        optim: SgdConfig::new()
+            .with_momentum(Some(MomentumConfig::new().with_momentum(0.9)))
+            .init(),
+        x: (0..rows * FEATURES)
+            .map(|_| rng.f32() * 2.0 - 1.0)
+            .collect(),
+        y: (0..rows).map(|_| rng.f32()).collect(),
     }
-    (batch * steps) as f64 / start.elapsed().as_secs_f64()
+}
+
+/// Samples per second of `steps` runs of `step` over `rows` samples, after one warm-up run.
+fn per_second(rows: usize, steps: usize, mut step: impl FnMut()) -> f64 {
+    step();
+    let start = Instant::now();
+    for _ in 0..steps {
+        step();
+    }
+    (rows * steps) as f64 / start.elapsed().as_secs_f64()
+}
+
+/// Training throughput: samples per second of `steps` SGD steps at `batch` of the MSE loss
+/// (forward, loss, backward, optimiser step: the fused step training runs), on random
+/// features.
+pub fn bench_training(batch: usize, steps: usize) -> f64 {
+    let mut b = bench_setup(batch, false);
+    per_second(batch, steps, || {
+        let valid = b.net.valid();
+        let (_, grads) = step::mse_step(&valid, &b.x, &b.y, 1e-6, 1e-5, &b.device);
+        b.net = b.optim.step(1e-3, b.net.clone(), grads);
+    })
+}
+
+/// [`bench_training`] through burn's autodiff graph instead of the fused step (what training
+/// ran before it, kept as the reference).
+pub fn bench_training_autodiff(batch: usize, steps: usize) -> f64 {
+    let mut b = bench_setup(batch, true);
+    per_second(batch, steps, || {
+        let x = Tensor::from_data(TensorData::new(b.x.clone(), [batch, FEATURES]), &b.device);
+        let y = Tensor::from_data(TensorData::new(b.y.clone(), [batch, 1]), &b.device);
+        let (total, mse, _) = loss(&b.net, x, y, 1e-6, 1e-5);
+        let grads = GradientsParams::from_grads(total.backward(), &b.net);
+        b.net = b.optim.step(1e-3, b.net.clone(), grads);
+        scalar(mse);
+    })
+}
+
+/// The regret-loss step's throughput (what `make train` runs): samples per second of `steps`
+/// steps on one frame of `rows` pixels with random counts, optima and convex regret windows,
+/// the frame's fit included.
+pub fn bench_regret_step(rows: usize, steps: usize) -> f64 {
+    let mut b = bench_setup(rows, false);
+    let mut rng = Rng::new(3);
+    let counts: Vec<f32> = (0..rows)
+        .map(|_| 1.0 + (rng.f32() * 30.0).floor())
+        .collect();
+    let k_opts: Vec<f32> = counts
+        .iter()
+        .map(|&n| 1.0 + (rng.f32() * n).floor().min(n - 1.0))
+        .collect();
+    let regret: Vec<[f32; REGRET_WINDOW]> = (0..rows)
+        .map(|_| {
+            let a = rng.f32() * 1e-3;
+            std::array::from_fn(|j| a * (j as f32 - REGRET_HALF as f32).powi(2))
+        })
+        .collect();
+    let pairs = vec![false; rows];
+    let frame = Frame {
+        counts: &counts,
+        k_opts: &k_opts,
+        pairs: &pairs,
+        regret: &regret,
+        lo: 1.0,
+        share: 0.5,
+    };
+    per_second(rows, steps, || {
+        let valid = b.net.valid();
+        let pass = step::forward(&valid, &b.x, &b.device);
+        let (_, d_out) = regret_gradient(Loss::RegretLevel, &pass.out, &frame);
+        let grads = step::gradients(&valid, pass, &d_out, 1e-6, 1e-5, &b.device);
+        b.net = b.optim.step(1e-3, b.net.clone(), grads);
+    })
 }
 
 /// burn inference throughput: samples per second of [`predict`] over `n` random rows.

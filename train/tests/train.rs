@@ -238,3 +238,190 @@ fn the_committed_weights_are_what_make_train_writes() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Each parameter's gradient from a set of burn `GradientsParams`, in the module's order.
+fn grads_of(net: &ImportanceNet, g: &burn::optim::GradientsParams) -> Vec<Vec<f32>> {
+    let flat2 = |id| {
+        g.get::<2>(id)
+            .expect("a weight's gradient")
+            .into_data()
+            .try_into_vec::<f32>()
+            .unwrap()
+    };
+    let flat1 = |id| {
+        g.get::<1>(id)
+            .expect("a bias's gradient")
+            .into_data()
+            .try_into_vec::<f32>()
+            .unwrap()
+    };
+    let bias = |l: &burn::nn::Linear| l.bias.as_ref().unwrap().id;
+    vec![
+        flat2(net.fc1.weight.id),
+        flat1(bias(&net.fc1)),
+        flat2(net.fc2.weight.id),
+        flat1(bias(&net.fc2)),
+        flat2(net.out.weight.id),
+        flat1(bias(&net.out)),
+    ]
+}
+
+/// The largest difference between two sets of gradients, relative to the largest gradient of
+/// each parameter.
+fn worst_relative(a: &[Vec<f32>], b: &[Vec<f32>]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(a, b)| {
+            let scale = a.iter().map(|v| v.abs()).fold(0.0f32, f32::max).max(1e-12) as f64;
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs() as f64 / scale)
+                .fold(0.0, f64::max)
+        })
+        .fold(0.0, f64::max)
+}
+
+/// A network and standardised rows for gradient checks: enough rows for several shards.
+fn gradient_case(rows: usize) -> (ImportanceNet, Vec<f32>) {
+    let m = Mlp::random_sized(5, 32, 16);
+    let mut rng = Rng::new(9);
+    let x: Vec<f32> = (0..rows * FEATURES).map(|_| rng.range(-2.0, 2.0)).collect();
+    (ImportanceNet::from_mlp(&m, &cpu_device(true)), x)
+}
+
+#[test]
+fn the_fused_step_s_mse_gradients_are_burn_autodiff_s() {
+    let rows = 700; // three shards of 233 and 234 rows
+    assert!(rows > 2 * dhoit_train::step::SHARD_ROWS);
+    let (net, x) = gradient_case(rows);
+    let mut rng = Rng::new(10);
+    let y: Vec<f32> = (0..rows).map(|_| rng.f32()).collect();
+    let (l1, l2) = (1e-3, 1e-2);
+    // burn's autodiff graph.
+    let device = cpu_device(true);
+    let xt = Tensor::<2>::from_data(TensorData::new(x.clone(), [rows, FEATURES]), &device);
+    let yt = Tensor::<2>::from_data(TensorData::new(y.clone(), [rows, 1]), &device);
+    let (total, mse, _) = trainer::loss(&net, xt, yt, l1, l2);
+    let mse = mse.into_data().try_into_vec::<f32>().unwrap()[0] as f64;
+    let reference = burn::optim::GradientsParams::from_grads(total.backward(), &net);
+    // The fused step, on the plain copy.
+    let valid = net.valid();
+    let plain = cpu_device(false);
+    let pass = dhoit_train::step::forward(&valid, &x, &plain);
+    let (value, d_out) = dhoit_train::step::mse_gradient(&pass.out, &y);
+    let fused = dhoit_train::step::gradients(&valid, pass, &d_out, l1, l2, &plain);
+    assert!((value - mse).abs() <= 1e-6 * mse, "loss {value} vs {mse}");
+    let worst = worst_relative(&grads_of(&net, &reference), &grads_of(&net, &fused));
+    eprintln!("mse: loss {value} vs {mse}, gradients within {worst:.2e} of their largest");
+    assert!(worst < 1e-5, "gradients differ by {worst} of their largest");
+    // The whole step in one task a shard (what training runs) gives the same gradients, bit for
+    // bit, and the loss up to the order of its f64 sum.
+    let (one_task, grads) = dhoit_train::step::mse_step(&valid, &x, &y, l1, l2, &plain);
+    assert!(
+        (one_task - value).abs() <= 1e-12 * value,
+        "{one_task} vs {value}"
+    );
+    assert_eq!(grads_of(&net, &grads), grads_of(&net, &fused));
+}
+
+#[test]
+fn the_regret_gradient_is_burn_autodiff_s_for_both_fits() {
+    use dhoit_train::dataset::{REGRET_HALF, REGRET_WINDOW};
+    let rows = 600;
+    let (net, x) = gradient_case(rows);
+    let mut rng = Rng::new(11);
+    let counts: Vec<f32> = (0..rows)
+        .map(|_| 1.0 + (rng.f32() * 12.0).floor())
+        .collect();
+    let k_opts: Vec<f32> = counts
+        .iter()
+        .map(|&n| 1.0 + (rng.f32() * n).floor().min(n - 1.0))
+        .collect();
+    // Convex windows, some with flat sides (no extension beyond the window).
+    let regret: Vec<[f32; REGRET_WINDOW]> = (0..rows)
+        .map(|i| {
+            let a = 1e-3 * (0.1 + rng.f32());
+            std::array::from_fn(|j| {
+                let d = j as f32 - REGRET_HALF as f32;
+                if i % 5 == 0 && d < 0.0 {
+                    0.0
+                } else {
+                    a * d * d
+                }
+            })
+        })
+        .collect();
+    let pairs: Vec<bool> = (0..rows).map(|i| i % 7 == 0).collect();
+    let device = cpu_device(true);
+    let plain = cpu_device(false);
+    let column =
+        |v: &[f32]| Tensor::<2>::from_data(TensorData::new(v.to_vec(), [rows, 1]), &device);
+    for loss in [trainer::Loss::Regret, trainer::Loss::RegretLevel] {
+        // burn's autodiff graph of the same loss.
+        let batch = trainer::RegretBatch {
+            count: column(&counts),
+            k_opt: column(&k_opts),
+            regret: Tensor::from_data(
+                TensorData::new(regret.concat(), [rows, REGRET_WINDOW]),
+                &device,
+            ),
+            lo: 1.0,
+            counts: counts.clone(),
+            pairs: pairs.clone(),
+            k_opts: k_opts.clone(),
+            share: 0.5,
+        };
+        let xt = Tensor::<2>::from_data(TensorData::new(x.clone(), [rows, FEATURES]), &device);
+        let (total, value, _) = trainer::regret_loss(&net, loss, xt, batch, 1e-4, 1e-3);
+        let reference_value = value.into_data().try_into_vec::<f32>().unwrap()[0] as f64;
+        let reference = burn::optim::GradientsParams::from_grads(total.backward(), &net);
+        // The fused step.
+        let frame = trainer::Frame {
+            counts: &counts,
+            k_opts: &k_opts,
+            pairs: &pairs,
+            regret: &regret,
+            lo: 1.0,
+            share: 0.5,
+        };
+        let valid = net.valid();
+        let pass = dhoit_train::step::forward(&valid, &x, &plain);
+        let (fused_value, d_out) = trainer::regret_gradient(loss, &pass.out, &frame);
+        // The frame has pixels the fit clamps and pixels it leaves free.
+        let grads = dhoit_train::step::gradients(&valid, pass, &d_out, 1e-4, 1e-3, &plain);
+        assert!(
+            (fused_value - reference_value).abs() <= 1e-4 * reference_value.abs().max(1e-3),
+            "{}: loss {fused_value} vs {reference_value}",
+            loss.name()
+        );
+        let worst = worst_relative(&grads_of(&net, &reference), &grads_of(&net, &grads));
+        eprintln!(
+            "{}: loss {fused_value} vs {reference_value}, gradients within {worst:.2e} of their largest",
+            loss.name()
+        );
+        assert!(
+            worst < 1e-5,
+            "{}: gradients differ by {worst} of their largest",
+            loss.name()
+        );
+    }
+}
+
+/// A run's weights depend on its seed and data, not on how many threads run it: the fused
+/// step cuts batches into shards by their row count and adds the shards' gradients in order.
+#[test]
+fn training_writes_the_same_weights_on_one_thread_and_on_many() {
+    let data = tiny_data(3, 3000);
+    let mut config = quick(5, 2);
+    config.batch = 700; // shards of 233 and 234 rows
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| trainer::train(&config, &data, &mut |_, _| {}).unwrap())
+    };
+    let one = on(1);
+    assert_eq!(one.mlp, on(3).mlp, "1 thread vs 3");
+    assert_eq!(one.mlp, on(8).mlp, "1 thread vs 8");
+}
