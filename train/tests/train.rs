@@ -212,7 +212,7 @@ fn trained_weights_load_in_the_runtime_and_agree_with_burn() {
 /// The committed default weights are what `make train` writes on a fresh clone, bit for bit:
 /// the default dataset generated from nothing (into a folder of its own, so data/generated is
 /// left alone) and the default training, compared byte for byte with data/weights.safetensors
-/// (about two and a half minutes on two cores). A user regression-testing predictions can
+/// (about a minute and a half on two cores). A user regression-testing predictions can
 /// then rebuild the weights the golden predictions come from.
 #[test]
 fn the_committed_weights_are_what_make_train_writes() {
