@@ -479,6 +479,41 @@ fn the_gpu_renders_from_the_command_line() {
     }
 }
 
+/// `bench --network-only` reports the training steps (the fused step and burn's autodiff at
+/// batch 512, the regret-loss step) and inference as samples a second, and nothing else.
+#[test]
+fn the_network_bench_reports_each_training_step() {
+    let dir = temp_dir("cli-bench-network");
+    let out = dir.join("network.json");
+    let o = dhoit(&[
+        "bench",
+        "--network-only",
+        "--repeat",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    for section in ["gpu", "cpu", "optimal_allocation"] {
+        assert!(
+            report.get(section).is_none(),
+            "--network-only ran {section}"
+        );
+    }
+    for key in [
+        "training_samples_per_s_batch_512",
+        "training_autodiff_samples_per_s_batch_512",
+        "training_regret_samples_per_s_frame_1024",
+        "burn_inference_samples_per_s",
+        "cpu_twin_inference_samples_per_s",
+    ] {
+        let v = report["network"][key].as_f64().unwrap_or(f64::NAN);
+        assert!(v.is_finite() && v > 0.0, "{key}: {v}");
+    }
+}
+
 /// `bench --gpu-only` (what scripts/device.sh runs on a lent GPU) writes every method's
 /// steady frames and passes, DKB's ratios and the measured options, and no CPU section.
 #[test]
