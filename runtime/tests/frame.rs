@@ -284,6 +284,31 @@ fn vkb_importance_follows_its_factors() {
         noise: 0.0,
         ..VkbParams::default()
     };
+    // Each factor against paper 002's formulas, computed by hand on a 4x4 frame (alpha 0.35,
+    // periphery exponent 3, no noise): I = (1 - r^3) (1 - (1 - |n.e|)^5 / 2) (alpha +
+    // (1 - alpha) n / max n), r the distance from the centre over half the diagonal.
+    let mut counts = vec![1u32; 16];
+    let mut facing = vec![1.0f32; 16];
+    counts[5] = 2; // (1, 1): r = 0.25
+    facing[5] = 0.5;
+    counts[6] = 8; // (2, 1): r = 0.25, the deepest pixel
+    counts[0] = 8; // (0, 0): r = 0.75
+    facing[0] = 0.0;
+    counts[15] = 0; // empty
+    let by_hand = importance::vkb_importance_from(&counts, &facing, 4, 4, &quiet);
+    let expect = [
+        (5, 0.984375 * 0.984375 * 0.5125),
+        (6, 0.984375),
+        (0, 0.2890625),
+        (15, 0.0),
+    ];
+    for (p, want) in expect {
+        assert!(
+            (by_hand[p] as f64 - want).abs() < 1e-6,
+            "pixel {p}: {} against {want} by hand",
+            by_hand[p]
+        );
+    }
     let imp = importance::vkb_importance(&fl, &quiet);
     assert_eq!(imp.len(), fl.pixel_count());
     for (p, &i) in imp.iter().enumerate() {
