@@ -304,6 +304,24 @@ fn the_f16_network_is_one_function_within_its_bound_of_f32() {
     assert!(e.contains("fc2.weight[5]") && e.contains("f16"), "{e}");
 }
 
+/// The GPU's batch pass refuses features that are not finite numbers, naming the first,
+/// before anything reaches the device: WGSL does not say what its `clamp` makes of a NaN.
+#[test]
+fn the_gpu_network_refuses_features_that_are_not_numbers() {
+    let Some(g) = gpu() else { return };
+    let mut rows = vec![[0.5f32; FEATURES]; 3];
+    rows[2][7] = f32::NAN;
+    let e = g
+        .predict(&default_weights(), &rows)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("row 2, column 7"), "{e}");
+    rows[2][7] = f32::NEG_INFINITY;
+    assert!(g.predict(&default_weights(), &rows).is_err());
+    rows[2][7] = 0.5;
+    assert_eq!(g.predict(&default_weights(), &rows).unwrap().len(), 3);
+}
+
 /// The f16-math network (binary16 weights and hidden-layer arithmetic, `Precision::F16Math`):
 /// its CPU twin moves the importance by at most `mlp::F16_MATH_BOUND` from the f32 network on
 /// every batch, the GPU's pass stays within `mlp::F16_MATH_GPU_BOUND` of the twin (a GPU may

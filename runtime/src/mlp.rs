@@ -56,6 +56,22 @@ pub fn squash(acc: f32) -> f32 {
     if s.is_nan() { 0.0 } else { s }
 }
 
+/// Refuses rows of features with a value that is not a finite number, naming the first (its
+/// row, column and feature): what the network would silently turn into 0 or a clamped value
+/// ([`Mlp::forward`]). `Gpu::predict` runs it before anything reaches the device, as the CLI
+/// does for a features file.
+pub fn check_features(rows: &[[f32; FEATURES]]) -> Result<()> {
+    for (r, row) in rows.iter().enumerate() {
+        if let Some(c) = row.iter().position(|v| !v.is_finite()) {
+            return Err(Error::Invalid(format!(
+                "feature row {r}, column {c} ({}): {} is not a finite number",
+                FEATURE_NAMES[c], row[c]
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Largest second hidden layer accepted (the GPU pass keeps its sums in a private array).
 pub const MAX_H2: usize = 128;
 
@@ -270,7 +286,12 @@ impl Mlp {
             .copied()
     }
 
-    /// The network on one feature vector: importance in (0, 1).
+    /// The network on one feature vector: importance in (0, 1). A feature that is not a
+    /// number makes every first hidden unit's sum one, which the ReLU (`max(0)`) turns into 0:
+    /// the output is then the network's with the first hidden layer off, whatever the other
+    /// features (the GPU need not do the same); an infinite feature is clamped as any other out
+    /// of range one. Callers with features from outside (a file, another renderer) check them
+    /// first: [`check_features`].
     pub fn forward(&self, f: &[f32; FEATURES]) -> f32 {
         self.forward_with(f, &mut Vec::new())
     }

@@ -205,3 +205,40 @@ fn weights_errors_say_which_tensor_and_where() {
         .unwrap();
     assert!(matches!(load(wide), FormatError::Unsupported(_)));
 }
+
+/// What the library does with features that are not finite numbers: `Mlp::forward` gives what
+/// its docs say (for a NaN, the network with its first hidden layer off, computed here by hand
+/// from the later layers; for an infinity, the clamped input), and `check_features` refuses
+/// them, naming the first by row, column and feature.
+#[test]
+fn features_that_are_not_numbers_give_what_forward_says_and_are_refused_by_the_check() {
+    let m = Mlp::random(4);
+    let mut f = [0.5f32; 12];
+    f[3] = f32::NAN;
+    let h2: Vec<f32> = m.b2.iter().map(|b| b.max(0.0)).collect();
+    let z: f32 = h2.iter().zip(&m.w3).map(|(h, w)| h * w).sum::<f32>() + m.b3;
+    let off = 1.0 / (1.0 + (-z).exp());
+    assert!(
+        (m.forward(&f) - off).abs() < 1e-6,
+        "a NaN feature: {} against the first layer off, {off}",
+        m.forward(&f)
+    );
+    f[3] = f32::INFINITY;
+    let at_inf = m.forward(&f);
+    f[3] = f32::MAX;
+    assert_eq!(
+        at_inf,
+        m.forward(&f),
+        "an infinite feature is clamped as f32::MAX is"
+    );
+    f[3] = f32::NAN;
+    let rows = [[0.5f32; 12], f];
+    assert!(dhoit_runtime::mlp::check_features(&rows[..1]).is_ok());
+    let e = dhoit_runtime::mlp::check_features(&rows)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("row 1, column 3") && e.contains(dhoit_runtime::importance::FEATURE_NAMES[3]),
+        "{e}"
+    );
+}

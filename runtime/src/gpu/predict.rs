@@ -6,12 +6,14 @@ use super::*;
 impl Gpu {
     /// The network on rows of features, on the GPU: the batch pass `predict.wgsl` runs the same
     /// WGSL network (`mlp.wgsl`) as the DKB importance pass. Rows go through in chunks that fit
-    /// the device's largest binding.
+    /// the device's largest binding. Rows with a feature that is not a finite number are
+    /// refused ([`crate::mlp::check_features`]): WGSL does not say what `clamp` makes of a NaN.
     pub fn predict(
         &self,
         mlp: &Mlp,
         rows: &[[f32; crate::importance::FEATURES]],
     ) -> Result<Vec<f32>> {
+        crate::mlp::check_features(rows)?;
         self.can_run(mlp)?;
         let weights = self
             .device
