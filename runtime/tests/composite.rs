@@ -69,6 +69,40 @@ proptest! {
         prop_assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits));
     }
 
+    /// Ties on purpose: depths from a few values, -0.0 and 0.0 among them (-0 counts as 0),
+    /// colours from a few, primitives from a few, so that fragments share a depth, a whole key,
+    /// or everything; the exact and every hybrid composite stay the same bits in any order.
+    #[test]
+    fn composites_do_not_depend_on_input_order_even_with_ties(
+        f in prop::collection::vec(
+            (
+                prop::sample::select(vec![0.0f32, -0.0, 0.25, 0.5, 1.0]),
+                prop::sample::select(vec![[1.0f32, 0.0, 0.0, 0.5], [0.0, 1.0, 0.0, 0.5], [0.2, 0.2, 0.2, 1.0]]),
+                0u32..3,
+            )
+                .prop_map(|(depth, rgba, primitive)| Fragment { depth, rgba, primitive }),
+            0..24,
+        ),
+        seed in any::<u64>(),
+    ) {
+        let perm = dhoit_runtime::rng::Rng::new(seed).permutation(f.len());
+        let g: Vec<Fragment> = perm.iter().map(|&i| f[i]).collect();
+        prop_assert_eq!(exact_pixel(&f, BG).map(f32::to_bits), exact_pixel(&g, BG).map(f32::to_bits));
+        for k in 0..=f.len() {
+            prop_assert_eq!(
+                hybrid_pixel(&f, k, BG).map(f32::to_bits),
+                hybrid_pixel(&g, k, BG).map(f32::to_bits),
+                "k = {}", k
+            );
+        }
+        // -0.0 is the nearest depth, as 0.0 is (not the farthest, as its bits would order it).
+        let zeroed: Vec<Fragment> = f
+            .iter()
+            .map(|x| Fragment { depth: if x.depth == 0.0 { 0.0 } else { x.depth }, ..*x })
+            .collect();
+        prop_assert_eq!(exact_pixel(&f, BG).map(f32::to_bits), exact_pixel(&zeroed, BG).map(f32::to_bits));
+    }
+
     #[test]
     fn mlab_with_enough_rows_is_exact(f in fragments(24), extra in 0usize..4) {
         let m = f.len().max(1) + extra;
