@@ -29,6 +29,40 @@ fn a_failed_write_leaves_the_previous_file_intact() {
     assert_eq!(std::fs::read(&path).unwrap(), vec![7u8; 1 << 16]);
 }
 
+/// What a killed or failing run relies on: while a file is rewritten, a reader (another
+/// process, or the user's renderer loading weights) sees the old bytes or the new ones, whole,
+/// never a truncated or half-written file. Four MiB a write, so that a write in place would be
+/// caught in the middle (checked: with `std::fs::write` in place of the rename, the reader saw
+/// partial files).
+#[test]
+fn a_reader_never_sees_a_half_written_file() {
+    let dir = temp_dir("durable-reader");
+    let path = dir.join("weights.safetensors");
+    let (a, b) = (vec![1u8; 4 << 20], vec![2u8; 4 << 20]);
+    tensors::write_atomic(&path, &a).unwrap();
+    let done = std::sync::atomic::AtomicBool::new(false);
+    let (reads, partial) = std::thread::scope(|s| {
+        let reader = s.spawn(|| {
+            let (mut reads, mut partial) = (0usize, 0usize);
+            while !done.load(std::sync::atomic::Ordering::Relaxed) {
+                let got = std::fs::read(&path).unwrap();
+                reads += 1;
+                if got != a && got != b {
+                    partial += 1;
+                }
+            }
+            (reads, partial)
+        });
+        for i in 0..60 {
+            tensors::write_atomic(&path, if i % 2 == 0 { &b } else { &a }).unwrap();
+        }
+        done.store(true, std::sync::atomic::Ordering::Relaxed);
+        reader.join().unwrap()
+    });
+    assert!(reads > 0);
+    assert_eq!(partial, 0, "{partial} of {reads} reads saw a partial file");
+}
+
 #[test]
 fn a_killed_training_run_leaves_the_previous_weights_intact() {
     let dir = temp_dir("durable-killed-train");
