@@ -249,6 +249,16 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
             g.render(&s, &cam, w, h, BG, Some(Slots::Dkb(mlp, f.into())))
                 .unwrap()
         });
+        // Each frame ran the network it was asked for.
+        assert!(
+            frames[0].variants.contains(&"network: written out")
+                && frames[1]
+                    .variants
+                    .contains(&"network: weights in workgroup memory"),
+            "{label}: {:?} / {:?}",
+            frames[0].variants,
+            frames[1].variants
+        );
         let (b, a) = (frames[1].clone(), &mut frames[0]);
         let (ia, ib) = (a.importance.take().unwrap(), b.importance.unwrap());
         let d = max_abs_diff(&ia, &ib);
@@ -310,6 +320,22 @@ fn features_and_network_layouts_give_the_same_frame(
                 format!("F {f} of {total}: preload {preload}, unrolled {unrolled}, {geometry:?}");
             let count_first = geometry == DkbGeometry::CountFirst;
             assert_eq!(counted_first(&frame), count_first, "{label}: count pass");
+            // The features pass and the network each ran the variant the options ask for.
+            let features = match (count_first, preload) {
+                (false, _) => "features: counting",
+                (true, true) => "features: preload",
+                (true, false) => "features: no preload",
+            };
+            let network = if unrolled {
+                "network: written out"
+            } else {
+                "network: loop over any shape"
+            };
+            assert!(
+                frame.variants.contains(&features) && frame.variants.contains(&network),
+                "{label}: ran {:?}",
+                frame.variants
+            );
             let drawn = !(holds && count_first);
             assert_eq!(frame.features_drawn, Some(drawn), "{label}");
             if drawn {
@@ -418,6 +444,13 @@ fn features_and_network_layouts_give_the_same_frame(
             .unwrap();
         let (image, keys, _) = &reference[&(method, truncates)];
         assert!(
+            frame
+                .variants
+                .contains(&"allocation search: 32 copies of the totals"),
+            "{method}: spread search ran {:?}",
+            frame.variants
+        );
+        assert!(
             frame.slots == *keys,
             "{method}: spread search: slots differ"
         );
@@ -448,7 +481,15 @@ fn layer_major_slots_capture_what_pixel_major_ones_do() {
                     .unwrap()
             });
             let (twin_keys, twin_tails) = twin_capture(&gfl, &vec![k; gfl.pixel_count()]);
-            for f in &frames {
+            for (f, layout) in frames
+                .iter()
+                .zip(["fkb slots: pixel-major", "fkb slots: layer-major"])
+            {
+                assert!(
+                    f.variants.contains(&layout),
+                    "{name} k = {k}: ran {:?}",
+                    f.variants
+                );
                 let (keys, _, tails) = f.slots.clone().unwrap();
                 assert!(
                     keys == twin_keys && tails == twin_tails,
@@ -1090,6 +1131,15 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
                 g.fits_pipelines = false;
                 let two_mode = g.render(&s, &cam, w, h, BG, Some(slots)).unwrap();
                 g.fits_pipelines = true;
+                assert!(
+                    frame
+                        .variants
+                        .contains(&"capture: built for frames that fit")
+                        && two_mode.variants.contains(&"capture: general"),
+                    "{label} F = {f}: ran {:?} / {:?}",
+                    frame.variants,
+                    two_mode.variants
+                );
                 assert!(
                     two_mode.slots == frame.slots
                         && image_bits(&two_mode.image) == image_bits(&frame.image),

@@ -198,15 +198,16 @@ impl<'a> Passes<'a> {
     }
 
     /// `al` recorded into `enc`: setup, weights, 12 rounds of search and choose, mark (one
-    /// timed pass), the prefix of the marks, apply (another).
+    /// timed pass), the prefix of the marks, apply (another). Returns the search's variant
+    /// ([`GpuFrame::variants`]).
     pub(super) fn allocate(
         &self,
         enc: &mut wgpu::CommandEncoder,
         fb: &mut FrameBuffers,
         al: &Allocation,
-    ) -> Result<()> {
+    ) -> Result<&'static str> {
         let a = &self.gpu.pipelines.allocate;
-        let search = a.search_for(self.gpu);
+        let (search, variant) = a.search_for(self.gpu);
         let (per_pixel, rounds, scan) = (0, 16, 32);
         let dispatches = &al.dispatches;
         self.compute(enc, "allocation", |pass| {
@@ -237,7 +238,7 @@ impl<'a> Passes<'a> {
             pass.set_pipeline(&a.apply);
             pass.dispatch_workgroups(gx, gy, 1);
         });
-        Ok(())
+        Ok(variant)
     }
 }
 
@@ -395,12 +396,12 @@ impl Allocate {
         }
     }
 
-    /// The search as [`Gpu::spread_search`] asks for it.
-    pub(super) fn search_for(&self, gpu: &Gpu) -> &wgpu::ComputePipeline {
+    /// The search as [`Gpu::spread_search`] asks for it, and its variant's name.
+    pub(super) fn search_for(&self, gpu: &Gpu) -> (&wgpu::ComputePipeline, &'static str) {
         if !gpu.spread_search {
-            return &self.search;
+            return (&self.search, "allocation search: one copy of the totals");
         }
-        self.search_spread.get_or_init(|| {
+        let p = self.search_spread.get_or_init(|| {
             let mut src = shaders::source("allocate").expect("known pass");
             redeclare(
                 &mut src,
@@ -410,7 +411,8 @@ impl Allocate {
             );
             let m = module_from(&gpu.device, "allocate (spread search)", src);
             pipeline(&gpu.device, &self.pipeline_layout, &m, "search")
-        })
+        });
+        (p, "allocation search: 32 copies of the totals")
     }
 }
 

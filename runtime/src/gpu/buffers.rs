@@ -343,6 +343,8 @@ pub(super) struct Readback {
     /// DKB: whether its features pass drew, where the host knows it (not recorded: false).
     pub(super) features_drawn: Option<bool>,
     pub(super) vkb_nearest_buf: Option<wgpu::Buffer>,
+    /// The pass variants chosen where a layout option chooses ([`GpuFrame::variants`]).
+    pub(super) variants: Vec<&'static str>,
 }
 
 /// What [`GpuFrame`] reports besides the image: importance, DKB's statistics and whether its

@@ -154,7 +154,8 @@ impl Recording<'_, '_> {
         }
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         self.out.importance_buf = copy_importance(fb, enc)?;
-        passes.allocate(enc, fb, &al)?;
+        let search = passes.allocate(enc, fb, &al)?;
+        self.out.variants.push(search);
         passes.prefix_sum(enc, fb, &k, &base)?;
         fb.submit(enc);
         // The slots (the bases' last entry) and the frame's fragments, without reading back
@@ -200,8 +201,10 @@ impl Recording<'_, '_> {
         };
         // Where k = n everywhere, the pipelines built for it (the same slots, tail and image).
         let (capture, resolve) = if gpu.two_mode_capture && gpu.fits_pipelines && kb.all_fit {
+            self.out.variants.push("capture: built for frames that fit");
             (&p.capture_fits, &p.resolve_fits)
         } else {
+            self.out.variants.push("capture: general");
             (&p.capture, &p.resolve)
         };
         passes.draw(

@@ -92,14 +92,15 @@ impl Recording<'_, '_> {
                 .last_truncated
                 .load(std::sync::atomic::Ordering::Relaxed),
         };
-        let features = if !count_first {
-            &p.features_counting
+        let (features, variant) = if !count_first {
+            (&p.features_counting, "features: counting")
         } else if gpu.features_preload {
-            &p.features
+            (&p.features, "features: preload")
         } else {
-            &p.features_no_preload
-        }
-        .clone();
+            (&p.features_no_preload, "features: no preload")
+        };
+        let features = features.clone();
+        self.out.variants.push(variant);
         if count_first {
             passes.draw(&mut self.enc, &p.count, &[&b.counts], "count");
             // Drawn, if at all, with the rest (where the frame is not expected to fit); once
@@ -112,15 +113,14 @@ impl Recording<'_, '_> {
             self.dkb_features(&b, &features)?;
             passes.totals_from_sums(&mut self.enc, &b.sums, &b.counts, &b.totals);
         }
-        let net = |entry| {
-            gpu.network_pass(Variant {
-                shared_weights: gpu.shared_weights,
-                unrolled: gpu.unrolled_network,
-                entry,
-                ..Variant::for_network("importance_dkb", mlp, gpu.skip_forced)
-            })
+        let variant = |entry| Variant {
+            shared_weights: gpu.shared_weights,
+            unrolled: gpu.unrolled_network,
+            entry,
+            ..Variant::for_network("importance_dkb", mlp, gpu.skip_forced)
         };
-        let network = [net("select_pixels"), net("args"), net("network")];
+        self.out.variants.push(variant("network").form());
+        let network = ["select_pixels", "args", "network"].map(|e| gpu.network_pass(variant(e)));
         let bufs = b.clone();
         let rest = pending(move |rec| rec.dkb_rest(&bufs, count_first, &features, &network));
         let pending = record_unless(self, rest, expect_fit)?;

@@ -435,6 +435,11 @@ pub struct GpuFrame {
     /// depth per pixel ([`FragmentLists::opaque`] and `opaque_depth`; the A-buffer's
     /// `fragments` carry them too).
     pub opaque: Option<(Vec<u32>, Vec<f32>)>,
+    /// The pass variants the frame recorded, where an option of the device chooses between
+    /// two ("features: preload", "network: written out", "allocation search: 32 copies",
+    /// "capture: built for frames that fit", "fkb slots: layer-major", ...): so a test that
+    /// compares an option on and off can see that the other path ran.
+    pub variants: Vec<&'static str>,
 }
 
 impl Gpu {
@@ -549,6 +554,13 @@ impl Gpu {
             out: Readback::default(),
             px,
         };
+        if matches!(slots, Some(Slots::Uniform(_))) {
+            rec.out.variants.push(if self.layer_major_fkb {
+                "fkb slots: layer-major"
+            } else {
+                "fkb slots: pixel-major"
+            });
+        }
         // The application's opaque pass, before any method's.
         passes.opaque(&mut rec.enc);
         let image = match slots {
@@ -621,6 +633,7 @@ impl Gpu {
             features_drawn,
             vkb_nearest,
             opaque,
+            variants: rec.out.variants,
         })
     }
 }

@@ -209,6 +209,22 @@ impl Variant {
         }
     }
 
+    /// The network's form in this pass, as [`Variant::source`] builds it and
+    /// [`GpuFrame::variants`] names it: written out for its shape at binary16 (f16-math has
+    /// that one form), its weights staged in workgroup memory, written out for its shape, or the
+    /// loop over any shape.
+    pub(super) fn form(&self) -> &'static str {
+        if self.precision == Precision::F16Math {
+            "network: written out at binary16"
+        } else if self.shared_weights {
+            "network: weights in workgroup memory"
+        } else if self.unrolled && self.shape.0 != 0 {
+            "network: written out"
+        } else {
+            "network: loop over any shape"
+        }
+    }
+
     /// Its source: the pass's, with the constants it changes replaced.
     pub(super) fn source(self) -> String {
         let mut src = shaders::source(self.pass).expect("known pass");
@@ -226,7 +242,8 @@ impl Variant {
                 "const F16_WEIGHTS: bool = true;",
             );
         }
-        if self.shared_weights && !half_math {
+        let form = self.form();
+        if form == "network: weights in workgroup memory" {
             set(
                 "const SHARED_WEIGHTS: bool = false;",
                 "const SHARED_WEIGHTS: bool = true;",
@@ -257,7 +274,7 @@ impl Variant {
                 &format!("const ACC2_VEC4S: u32 = {}u;", p2 / 4),
             );
             // f16-math has one form: written out (the twin's order of sums, at binary16).
-            if half_math || (self.unrolled && !self.shared_weights) {
+            if form == "network: written out at binary16" || form == "network: written out" {
                 set(
                     "fn mlp_forward(f: array<f32, 12>) -> f32 {",
                     "fn mlp_forward_any_shape(f: array<f32, 12>) -> f32 {",
