@@ -1719,3 +1719,47 @@ fn cpu_and_gpu_rasterizers_agree_on_depth_and_coverage() {
         );
     }
 }
+
+/// DKB's network runs on the compacted list of pixels whose k is not forced, not on every
+/// covered pixel with the forced ones zeroed: the list's length is the CPU's count of covered
+/// pixels that `mlp::forced` leaves to the network (their n, the frame's smallest k and their
+/// two farthest fragments' colours, from the GPU's own fragments), fewer than the covered
+/// pixels; with `skip_forced` off it is every covered pixel.
+#[test]
+fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
+    if gpu().is_none() {
+        return;
+    }
+    // A device of its own: the flag is the device's.
+    let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
+    let mlp = dhoit_runtime::mlp::Mlp::random(8);
+    let (w, h) = (64, 48);
+    for (name, view) in [("particles", 1), ("cad", 0)] {
+        let (s, cam) = frame(name, view, w, h);
+        let gfl = gpu_fragments(&g, &s, &cam, w, h);
+        let counts = gfl.counts();
+        let stats = importance::pixel_stats(&gfl);
+        let f = (gfl.fragment_count() / 3) as u64;
+        let lo = alloc::min_k(&counts, f);
+        let covered = counts.iter().filter(|&&n| n > 0).count() as u32;
+        let decided = (0..counts.len())
+            .filter(|&p| {
+                counts[p] > 0
+                    && !dhoit_runtime::mlp::forced(counts[p], importance::tail_pair(&stats[p]), lo)
+            })
+            .count() as u32;
+        assert!(decided < covered, "{name}: some pixels' k is forced");
+        for (skip, want) in [(true, decided), (false, covered)] {
+            g.skip_forced = skip;
+            let frame = g
+                .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
+                .unwrap();
+            assert_eq!(
+                frame.network_rows,
+                Some(want),
+                "{name}, skip_forced {skip}: pixels the network ran on"
+            );
+        }
+        g.skip_forced = true;
+    }
+}

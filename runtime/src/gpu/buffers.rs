@@ -345,6 +345,8 @@ pub(super) struct Readback {
     pub(super) vkb_nearest_buf: Option<wgpu::Buffer>,
     /// The pass variants chosen where a layout option chooses ([`GpuFrame::variants`]).
     pub(super) variants: Vec<&'static str>,
+    /// DKB: the length of the list of pixels its network ran on.
+    pub(super) network_rows_buf: Option<wgpu::Buffer>,
 }
 
 /// What [`GpuFrame`] reports besides the image: importance, DKB's statistics and whether its
@@ -355,6 +357,7 @@ pub(super) struct Statistics {
     pub(super) stats: Option<Vec<PixelStats>>,
     pub(super) features_drawn: Option<bool>,
     pub(super) vkb_nearest: Option<(Vec<u32>, Vec<f32>)>,
+    pub(super) network_rows: Option<u32>,
 }
 
 impl Readback {
@@ -374,10 +377,15 @@ impl Readback {
             Some(b) => Some(u32s(&read_back(gpu, b, 4)?)[0] > 0),
             None => self.features_drawn,
         };
+        let network_rows = match &self.network_rows_buf {
+            Some(b) => Some(u32s(&read_back(gpu, b, 16)?)[0]),
+            None => None,
+        };
         let Some(counts) = &self.counts_buf else {
             return Ok(Statistics {
                 importance,
                 features_drawn,
+                network_rows,
                 ..Default::default()
             });
         };
@@ -426,6 +434,7 @@ impl Readback {
             stats,
             features_drawn,
             vkb_nearest,
+            network_rows,
         })
     }
 }

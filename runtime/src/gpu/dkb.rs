@@ -236,6 +236,11 @@ impl Recording<'_, '_> {
             pass.set_bind_group(0, &network_group, &[]);
             pass.dispatch_workgroups_indirect(&b.dispatch, 0);
         });
+        if gpu.diagnostics {
+            let copy = self.fb.storage("importance.list_len.readback", 16, false)?;
+            self.enc.copy_buffer_to_buffer(&b.list_len, 0, &copy, 0, 16);
+            self.out.network_rows_buf = Some(copy);
+        }
         Ok(())
     }
 }

@@ -440,6 +440,10 @@ pub struct GpuFrame {
     /// "capture: built for frames that fit", "fkb slots: layer-major", ...): so a test that
     /// compares an option on and off can see that the other path ran.
     pub variants: Vec<&'static str>,
+    /// DKB, with diagnostics: how many pixels its network ran on (the length of the compacted
+    /// list its importance pass selects: covered pixels whose k is not forced, or every covered
+    /// pixel with `skip_forced` off); None where the frame did not record the network.
+    pub network_rows: Option<u32>,
 }
 
 impl Gpu {
@@ -606,6 +610,7 @@ impl Gpu {
             stats,
             features_drawn,
             vkb_nearest,
+            network_rows,
         } = if self.diagnostics {
             out.statistics(self, px)?
         } else {
@@ -634,6 +639,7 @@ impl Gpu {
             vkb_nearest,
             opaque,
             variants: rec.out.variants,
+            network_rows,
         })
     }
 }
