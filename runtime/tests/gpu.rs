@@ -1162,6 +1162,26 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
                     .filter(|&(&k, &n)| n > 0 && pred(k, n))
                     .count()
             };
+            // Which mode each pixel took on the GPU, from the tail counts the capture left
+            // (before the resolve): n where it appended, what it pushed out where it inserted.
+            // The capture built for frames that fit (k = n everywhere) appends every pixel.
+            let captured = frame.capture_counts.clone().unwrap();
+            let fits = frame
+                .variants
+                .contains(&"capture: built for frames that fit");
+            assert_eq!(fits, f >= total, "{label}: {:?}", frame.variants);
+            for (p, (&k, &n)) in k.iter().zip(&counts).enumerate() {
+                let want = if fits || composite::appends(k, n) {
+                    n
+                } else {
+                    n.saturating_sub(k)
+                };
+                assert_eq!(
+                    captured[p], want,
+                    "{label}: pixel {p} (k {k}, n {n}) took the other mode ({:?})",
+                    frame.variants
+                );
+            }
             let appended = modes(&|k, n| composite::appends(k, n));
             let spilled = modes(&|k, n| composite::appends(k, n) && k < n);
             let inserted = modes(&|k, n| !composite::appends(k, n));

@@ -347,6 +347,8 @@ pub(super) struct Readback {
     pub(super) variants: Vec<&'static str>,
     /// DKB: the length of the list of pixels its network ran on.
     pub(super) network_rows_buf: Option<wgpu::Buffer>,
+    /// k-buffers: each pixel's tail count after the capture, before the resolve.
+    pub(super) capture_counts: Option<Vec<u32>>,
 }
 
 /// What [`GpuFrame`] reports besides the image: importance, DKB's statistics and whether its

@@ -213,6 +213,16 @@ impl Recording<'_, '_> {
             &[&kb.k, &kb.base, &slots, &tail, &tail_count, &kb.counts],
             "capture",
         );
+        // With diagnostics, the tail counts as the capture left them, before the resolve sorts
+        // what the append mode spilled: n where a pixel appended, what insertion pushed out
+        // where it inserted ([`GpuFrame::capture_counts`]).
+        let captured = if gpu.diagnostics {
+            let copy = fb.storage("oit.tail_count.captured", 4 * px, false)?;
+            enc.copy_buffer_to_buffer(&tail_count, 0, &copy, 0, 4 * px);
+            Some(copy)
+        } else {
+            None
+        };
         passes.resolve(
             enc,
             resolve,
@@ -250,6 +260,9 @@ impl Recording<'_, '_> {
                 keys = (0..n * k).map(|q| keys[(q % k) * n + q / k]).collect();
             }
             self.out.slots = Some((keys, bases, tails));
+            if let Some(c) = &captured {
+                self.out.capture_counts = Some(u32s(&read_back(gpu, c, 4 * px)?));
+            }
         }
         Ok(image)
     }

@@ -444,6 +444,10 @@ pub struct GpuFrame {
     /// list its importance pass selects: covered pixels whose k is not forced, or every covered
     /// pixel with `skip_forced` off); None where the frame did not record the network.
     pub network_rows: Option<u32>,
+    /// k-buffers, with diagnostics: each pixel's tail count as the capture left it, before the
+    /// resolve: n where the two-mode capture appended (its cursor counts every fragment), the
+    /// fragments pushed out where it inserted; so a test can see which mode each pixel took.
+    pub capture_counts: Option<Vec<u32>>,
 }
 
 impl Gpu {
@@ -640,6 +644,7 @@ impl Gpu {
             opaque,
             variants: rec.out.variants,
             network_rows,
+            capture_counts: rec.out.capture_counts,
         })
     }
 }
