@@ -929,34 +929,67 @@ pub fn bench_training_autodiff(batch: usize, steps: usize) -> f64 {
     })
 }
 
+/// A made-up frame for the regret loss: `rows` pixels of 1 to `max_n` fragments, optima
+/// below n, convex regret windows (every fifth flat below its optimum, so that no extension
+/// reaches past the window there) and every seventh pixel's two farthest fragments of one
+/// colour. The benchmark steps on it; the tests hold the loss's gradient to autodiff on it.
+pub struct SyntheticFrame {
+    pub counts: Vec<f32>,
+    pub k_opts: Vec<f32>,
+    pub pairs: Vec<bool>,
+    pub regret: Vec<[f32; REGRET_WINDOW]>,
+}
+
+impl SyntheticFrame {
+    pub fn new(rows: usize, max_n: f32, seed: u64) -> SyntheticFrame {
+        let mut rng = Rng::new(seed);
+        let counts: Vec<f32> = (0..rows)
+            .map(|_| 1.0 + (rng.f32() * max_n).floor())
+            .collect();
+        let k_opts = counts
+            .iter()
+            .map(|&n| 1.0 + (rng.f32() * n).floor().min(n - 1.0))
+            .collect();
+        let regret = (0..rows)
+            .map(|i| {
+                let a = 1e-3 * (0.1 + rng.f32());
+                std::array::from_fn(|j| {
+                    let d = j as f32 - REGRET_HALF as f32;
+                    if i % 5 == 0 && d < 0.0 {
+                        0.0
+                    } else {
+                        a * d * d
+                    }
+                })
+            })
+            .collect();
+        SyntheticFrame {
+            counts,
+            k_opts,
+            pairs: (0..rows).map(|i| i % 7 == 0).collect(),
+            regret,
+        }
+    }
+
+    /// The frame as the loss reads it (smallest k 1, half its pixels sampled).
+    pub fn frame(&self) -> Frame<'_> {
+        Frame {
+            counts: &self.counts,
+            k_opts: &self.k_opts,
+            pairs: &self.pairs,
+            regret: &self.regret,
+            lo: 1.0,
+            share: 0.5,
+        }
+    }
+}
+
 /// The regret-loss step's throughput (what `make train` runs): samples per second of `steps`
-/// steps on one frame of `rows` pixels with random counts, optima and convex regret windows,
-/// the frame's fit included.
+/// steps on a [`SyntheticFrame`] of `rows` pixels, the frame's fit included.
 pub fn bench_regret_step(rows: usize, steps: usize) -> f64 {
     let mut b = bench_setup(rows, false);
-    let mut rng = Rng::new(3);
-    let counts: Vec<f32> = (0..rows)
-        .map(|_| 1.0 + (rng.f32() * 30.0).floor())
-        .collect();
-    let k_opts: Vec<f32> = counts
-        .iter()
-        .map(|&n| 1.0 + (rng.f32() * n).floor().min(n - 1.0))
-        .collect();
-    let regret: Vec<[f32; REGRET_WINDOW]> = (0..rows)
-        .map(|_| {
-            let a = rng.f32() * 1e-3;
-            std::array::from_fn(|j| a * (j as f32 - REGRET_HALF as f32).powi(2))
-        })
-        .collect();
-    let pairs = vec![false; rows];
-    let frame = Frame {
-        counts: &counts,
-        k_opts: &k_opts,
-        pairs: &pairs,
-        regret: &regret,
-        lo: 1.0,
-        share: 0.5,
-    };
+    let synthetic = SyntheticFrame::new(rows, 30.0, 3);
+    let frame = synthetic.frame();
     per_second(rows, steps, || {
         let valid = b.net.valid();
         let pass = step::forward(&valid, &b.x, &b.device);

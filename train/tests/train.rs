@@ -326,32 +326,16 @@ fn the_fused_step_s_mse_gradients_are_burn_autodiff_s() {
 
 #[test]
 fn the_regret_gradient_is_burn_autodiff_s_for_both_fits() {
-    use dhoit_train::dataset::{REGRET_HALF, REGRET_WINDOW};
+    use dhoit_train::dataset::REGRET_WINDOW;
     let rows = 600;
     let (net, x) = gradient_case(rows);
-    let mut rng = Rng::new(11);
-    let counts: Vec<f32> = (0..rows)
-        .map(|_| 1.0 + (rng.f32() * 12.0).floor())
-        .collect();
-    let k_opts: Vec<f32> = counts
-        .iter()
-        .map(|&n| 1.0 + (rng.f32() * n).floor().min(n - 1.0))
-        .collect();
-    // Convex windows, some with flat sides (no extension beyond the window).
-    let regret: Vec<[f32; REGRET_WINDOW]> = (0..rows)
-        .map(|i| {
-            let a = 1e-3 * (0.1 + rng.f32());
-            std::array::from_fn(|j| {
-                let d = j as f32 - REGRET_HALF as f32;
-                if i % 5 == 0 && d < 0.0 {
-                    0.0
-                } else {
-                    a * d * d
-                }
-            })
-        })
-        .collect();
-    let pairs: Vec<bool> = (0..rows).map(|i| i % 7 == 0).collect();
+    let synthetic = trainer::SyntheticFrame::new(rows, 12.0, 11);
+    let trainer::SyntheticFrame {
+        counts,
+        k_opts,
+        pairs,
+        regret,
+    } = &synthetic;
     let device = cpu_device(true);
     let plain = cpu_device(false);
     let column =
@@ -359,8 +343,8 @@ fn the_regret_gradient_is_burn_autodiff_s_for_both_fits() {
     for loss in [trainer::Loss::Regret, trainer::Loss::RegretLevel] {
         // burn's autodiff graph of the same loss.
         let batch = trainer::RegretBatch {
-            count: column(&counts),
-            k_opt: column(&k_opts),
+            count: column(counts),
+            k_opt: column(k_opts),
             regret: Tensor::from_data(
                 TensorData::new(regret.concat(), [rows, REGRET_WINDOW]),
                 &device,
@@ -376,18 +360,10 @@ fn the_regret_gradient_is_burn_autodiff_s_for_both_fits() {
         let reference_value = value.into_data().try_into_vec::<f32>().unwrap()[0] as f64;
         let reference = burn::optim::GradientsParams::from_grads(total.backward(), &net);
         // The fused step.
-        let frame = trainer::Frame {
-            counts: &counts,
-            k_opts: &k_opts,
-            pairs: &pairs,
-            regret: &regret,
-            lo: 1.0,
-            share: 0.5,
-        };
+        let frame = synthetic.frame();
         let valid = net.valid();
         let pass = dhoit_train::step::forward(&valid, &x, &plain);
         let (fused_value, d_out) = trainer::regret_gradient(loss, &pass.out, &frame);
-        // The frame has pixels the fit clamps and pixels it leaves free.
         let grads = dhoit_train::step::gradients(&valid, pass, &d_out, 1e-4, 1e-3, &plain);
         assert!(
             (fused_value - reference_value).abs() <= 1e-4 * reference_value.abs().max(1e-3),
