@@ -99,7 +99,7 @@ fn pixel_index(frag_coord: vec4<f32>, width: u32) -> u32 {
 // F for a frame of `total` fragments (budget::FragmentBudget::of).
 fn budget_of(total: u32) -> u64 {
     if (params.budget_ppm > 0u) {
-        return (u64(total) * u64(params.budget_ppm)) / 1000000lu;
+        return (u64(total) * u64(params.budget_ppm)) / u64(PPM);
     }
     return u64(params.budget_fragments);
 }

@@ -49,7 +49,7 @@ fn luma(c: vec3<f32>) -> f32 {
 // A pixel's network inputs (importance::pixel_features), or, where the network is not run (an
 // uncovered or forced pixel), its importance written here and `runs` false.
 struct Net {
-    x: array<f32, 12>,
+    x: array<f32, FEATURES>,
     mark: u32,
     runs: bool,
 }
@@ -97,7 +97,7 @@ fn network_inputs(p: u32) -> Net {
     let mean_luma = luma(mean);
     let near_luma = luma(near);
     let tau = f32(opacity[2u * p]) * OPTICAL_DEPTH_UNIT;
-    net.x = array<f32, 12>(
+    net.x = array<f32, FEATURES>(
         log2(nf),
         nf / (total / covered),
         f32(budget_of(totals[0])) / total,

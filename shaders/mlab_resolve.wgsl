@@ -38,7 +38,7 @@ fn main(
     }
     sort_by_submission(start, end);
     let m = clamp(params.k_uniform, 1u, MLAB_MAX_ROWS);
-    var rows: array<Row, 17>;
+    var rows: array<Row, MLAB_MAX_ROWS + 1u>;
     for (var r = 0u; r <= m; r++) {
         tick();
         rows[r] = Row(vec3<f32>(0.0), 1.0, 0xfffffffffffffffflu);

@@ -25,7 +25,7 @@ const TILE_UNITS: u32 = 16u;
 // A tile: fc1's 12 x TILE_UNITS weights (input-major), TILE_UNITS biases, then TILE_UNITS rows
 // of fc2 (p2 weights each), in vec4s.
 const TILE_W1: u32 = 0u;
-const TILE_B1: u32 = 12u * TILE_UNITS / 4u;
+const TILE_B1: u32 = FEATURES * TILE_UNITS / 4u;
 const TILE_W2: u32 = TILE_B1 + TILE_UNITS / 4u;
 var<workgroup> tile: array<vec4<f32>, TILE_W2 + TILE_UNITS * MAX_H2 / 4u>;
 
@@ -90,7 +90,7 @@ fn net_shape() -> vec2<u32> {
 // TILE_UNITS first-layer units at a time: every invocation of the workgroup calls it (its
 // barriers need them all), `runs` the ones whose output counts. The same sums in the same
 // order as mlp_forward.
-fn mlp_forward_shared(f: array<f32, 12>, runs: bool, lid: u32) -> f32 {
+fn mlp_forward_shared(f: array<f32, FEATURES>, runs: bool, lid: u32) -> f32 {
     let shape = net_shape();
     let p1 = shape.x;
     let p2 = shape.y;
@@ -99,7 +99,7 @@ fn mlp_forward_shared(f: array<f32, 12>, runs: bool, lid: u32) -> f32 {
     let x1 = standardised(vec4<f32>(f[4], f[5], f[6], f[7]), 1u);
     let x2 = standardised(vec4<f32>(f[8], f[9], f[10], f[11]), 2u);
     let w1 = MLP_W1_AT;
-    let b1 = w1 + 12u * p1;
+    let b1 = w1 + FEATURES * p1;
     let w2 = b1 + p1;
     let b2 = w2 + p1 * p2;
     let w3 = b2 + p2;
@@ -187,7 +187,7 @@ fn add_tile_row(acc2: ptr<function, array<vec4<f32>, ACC2_VEC4S>>, a: f32, row: 
     }
 }
 
-fn mlp_forward(f: array<f32, 12>) -> f32 {
+fn mlp_forward(f: array<f32, FEATURES>) -> f32 {
     let shape = net_shape();
     let p1 = shape.x;
     let p2 = shape.y;
@@ -196,7 +196,7 @@ fn mlp_forward(f: array<f32, 12>) -> f32 {
     let x1 = standardised(vec4<f32>(f[4], f[5], f[6], f[7]), 1u);
     let x2 = standardised(vec4<f32>(f[8], f[9], f[10], f[11]), 2u);
     let w1 = MLP_W1_AT;
-    let b1 = w1 + 12u * p1;
+    let b1 = w1 + FEATURES * p1;
     let w2 = b1 + p1;
     let b2 = w2 + p1 * p2;
     let w3 = b2 + p2;

@@ -15,9 +15,9 @@ fn main(
     if (r >= params.pixels) {
         return;
     }
-    var x: array<f32, 12>;
-    for (var i = 0u; i < 12u; i++) {
-        x[i] = rows[12u * r + i];
+    var x: array<f32, FEATURES>;
+    for (var i = 0u; i < FEATURES; i++) {
+        x[i] = rows[FEATURES * r + i];
     }
     predictions[r] = mlp_forward(x);
 }

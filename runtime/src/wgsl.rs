@@ -164,6 +164,7 @@ pub mod shaders {
             ("MLP_STD_AT", U32(MLP_STD_AT as u32)),
             ("MLP_W1_AT", U32(MLP_W1_AT as u32)),
             ("MLAB_MAX_ROWS", U32(MLAB_MAX_ROWS)),
+            ("FEATURES", U32(importance::FEATURES as u32)),
             ("MAX_F32", F32(f32::MAX)),
             ("APPEND_MAX", U32(crate::composite::APPEND_MAX)),
             ("APPEND_SPILL", U32(crate::composite::APPEND_SPILL)),
@@ -455,6 +456,28 @@ mod tests {
         ($t:ty; $($f:ident),*) => {
             vec![$((stringify!($f).to_string(), offset_of!($t, $f) as u32)),*]
         };
+    }
+
+    /// The passes spell the sizes Rust owns by the prelude's names, not as numbers a change
+    /// on the Rust side would leave stale: the feature count (12), the relative budget's parts
+    /// per million and MLAB's rows. Checked on every pass's source after the prelude, and held
+    /// to the values: the generated network (`unrolled_forward`) and the passes still build.
+    #[test]
+    fn the_passes_spell_the_shared_sizes_by_name() {
+        assert_eq!(crate::importance::FEATURES, 12);
+        for p in shaders::PASSES {
+            let src = shaders::source(p.name).unwrap();
+            let body = &src[shaders::prelude().len()..];
+            for stale in [
+                "array<f32, 12>",
+                "12u * ",
+                "i < 12u",
+                "1000000",
+                "array<Row, 17>",
+            ] {
+                assert!(!body.contains(stale), "{}: spells '{stale}'", p.name);
+            }
+        }
     }
 
     #[test]

@@ -276,8 +276,8 @@ impl Variant {
             // f16-math has one form: written out (the twin's order of sums, at binary16).
             if form == "network: written out at binary16" || form == "network: written out" {
                 set(
-                    "fn mlp_forward(f: array<f32, 12>) -> f32 {",
-                    "fn mlp_forward_any_shape(f: array<f32, 12>) -> f32 {",
+                    "fn mlp_forward(f: array<f32, FEATURES>) -> f32 {",
+                    "fn mlp_forward_any_shape(f: array<f32, FEATURES>) -> f32 {",
                 );
                 src.push_str(&unrolled_forward(p1, p2, half_math));
             }
@@ -340,7 +340,7 @@ fn param4h(i: u32) -> vec4<f16> {{
 }}"
         );
     }
-    let _ = writeln!(w, "fn mlp_forward(f: array<f32, 12>) -> f32 {{");
+    let _ = writeln!(w, "fn mlp_forward(f: array<f32, FEATURES>) -> f32 {{");
     for (i, at) in [(0, 0), (1, 4), (2, 8)] {
         let _ = writeln!(
             w,
@@ -352,7 +352,11 @@ fn param4h(i: u32) -> vec4<f16> {{
         );
     }
     let _ = writeln!(w, "    let w1 = MLP_W1_AT;");
-    let _ = writeln!(w, "    let b1 = w1 + {}u;", 12 * p1);
+    let _ = writeln!(
+        w,
+        "    let b1 = w1 + {}u;",
+        crate::importance::FEATURES as u32 * p1
+    );
     let _ = writeln!(w, "    let w2 = b1 + {p1}u;");
     let _ = writeln!(w, "    let b2 = w2 + {}u;", p1 * p2);
     let _ = writeln!(w, "    let w3 = b2 + {p2}u;");
