@@ -293,6 +293,15 @@ fn asks(loss: Loss, r: Tensor<2>, count: Tensor<2>) -> Tensor<2> {
     }
 }
 
+/// What one unit of the network's output asks for in a pixel of `n` fragments: 256 slots (a
+/// slot request) or `n` (a share of its fragments), as [`asks`] has it on tensors.
+fn ask_scale(loss: Loss, n: f32) -> f32 {
+    match loss {
+        Loss::RegretLevel => dhoit_runtime::alloc::REQUEST_SLOTS,
+        _ => n,
+    }
+}
+
 /// The most slots a pixel of `n` fragments can use (`alloc::useful_cap`), as a number.
 fn useful_cap(n: f32, lo: f32, pair: bool) -> f64 {
     dhoit_runtime::alloc::useful_cap(n as u32, lo as u32, pair) as f64
@@ -303,15 +312,23 @@ fn useful_cap(n: f32, lo: f32, pair: bool) -> f64 {
 /// `sum clamp(c - L, lo, cap) = sum k*`, cap the most slots a pixel can use
 /// (`alloc::useful_cap`). Returns s, or -L.
 pub fn fit(additive: bool, c: &[f32], n: &[f32], pairs: &[bool], k_opt: &[f32], lo: f32) -> f64 {
-    let target: f64 = k_opt.iter().map(|&k| k as f64).sum();
-    let caps: Vec<f64> = n
-        .iter()
+    fit_capped(additive, c, &caps(n, pairs, lo), k_opt, lo)
+}
+
+/// The most slots each pixel can use (`alloc::useful_cap`), as numbers.
+fn caps(n: &[f32], pairs: &[bool], lo: f32) -> Vec<f64> {
+    n.iter()
         .zip(pairs)
         .map(|(&n, &pair)| useful_cap(n, lo, pair))
-        .collect();
+        .collect()
+}
+
+/// [`fit`] with the pixels' caps ([`caps`]) given.
+fn fit_capped(additive: bool, c: &[f32], caps: &[f64], k_opt: &[f32], lo: f32) -> f64 {
+    let target: f64 = k_opt.iter().map(|&k| k as f64).sum();
     let total = |x: f64| -> f64 {
         c.iter()
-            .zip(&caps)
+            .zip(caps)
             .map(|(&c, &cap)| {
                 let k = if additive { c as f64 + x } else { c as f64 * x };
                 k.clamp(lo as f64, cap)
@@ -474,18 +491,67 @@ fn pixel_regret_slope(k: f64, k_opt: f64, window: &[f32; REGRET_WINDOW]) -> (f64
     (v, slope)
 }
 
-/// One frame's samples, as the regret loss reads them.
-pub struct Frame<'a> {
-    /// n, k* and the regret window of each pixel, and whether its two farthest fragments share
-    /// one colour.
-    pub counts: &'a [f32],
-    pub k_opts: &'a [f32],
-    pub pairs: &'a [bool],
-    pub regret: &'a [[f32; REGRET_WINDOW]],
-    /// The frame's smallest k.
+/// One frame's samples, as the regret loss reads them: each pixel's n, k* and regret window,
+/// and whether its two farthest fragments share one colour; the frame's smallest k and the
+/// share of its pixels sampled.
+pub struct FrameSamples {
+    pub counts: Vec<f32>,
+    pub k_opts: Vec<f32>,
+    pub pairs: Vec<bool>,
+    pub regret: Vec<[f32; REGRET_WINDOW]>,
     pub lo: f32,
-    /// The share of the frame's pixels sampled.
     pub share: f64,
+}
+
+impl FrameSamples {
+    /// The samples `idx` of `s`, one frame's.
+    pub fn of(s: &Samples, idx: &[usize]) -> FrameSamples {
+        FrameSamples {
+            counts: idx.iter().map(|&i| s.count[i] as f32).collect(),
+            k_opts: idx.iter().map(|&i| s.k_opt[i] as f32).collect(),
+            pairs: idx.iter().map(|&i| s.pair[i]).collect(),
+            regret: idx.iter().map(|&i| s.regret[i]).collect(),
+            lo: s.frame_lo[s.frame[idx[0]] as usize] as f32,
+            share: s.share,
+        }
+    }
+
+    /// A made-up frame: `rows` pixels of 1 to `max_n` fragments, optima below n, convex regret
+    /// windows (every fifth flat below its optimum, so that no extension reaches past the
+    /// window there), every seventh pixel's two farthest fragments of one colour, smallest k 1
+    /// and half its pixels sampled. The benchmark steps on it; the tests hold the loss's
+    /// gradient to autodiff on it.
+    pub fn synthetic(rows: usize, max_n: f32, seed: u64) -> FrameSamples {
+        let mut rng = Rng::new(seed);
+        let counts: Vec<f32> = (0..rows)
+            .map(|_| 1.0 + (rng.f32() * max_n).floor())
+            .collect();
+        let k_opts = counts
+            .iter()
+            .map(|&n| 1.0 + (rng.f32() * n).floor().min(n - 1.0))
+            .collect();
+        let regret = (0..rows)
+            .map(|i| {
+                let a = 1e-3 * (0.1 + rng.f32());
+                std::array::from_fn(|j| {
+                    let d = j as f32 - REGRET_HALF as f32;
+                    if i % 5 == 0 && d < 0.0 {
+                        0.0
+                    } else {
+                        a * d * d
+                    }
+                })
+            })
+            .collect();
+        FrameSamples {
+            counts,
+            k_opts,
+            pairs: (0..rows).map(|i| i % 7 == 0).collect(),
+            regret,
+            lo: 1.0,
+            share: 0.5,
+        }
+    }
 }
 
 /// The regret loss of one frame (module docs, [`regret_loss`]) for the network's outputs `r`,
@@ -495,23 +561,15 @@ pub struct Frame<'a> {
 /// the straight-through gradient where k* lies beyond the clamp), and the others share what is
 /// left, so that asking more leaves less for the rest: exactly what [`regret_loss`]'s graph
 /// differentiates.
-pub fn regret_gradient(loss: Loss, r: &[f32], f: &Frame) -> (f64, Vec<f32>) {
+pub fn regret_gradient(loss: Loss, r: &[f32], f: &FrameSamples) -> (f64, Vec<f32>) {
     let rows = r.len();
     let additive = loss == Loss::RegretLevel;
-    let per_output = |i: usize| -> f64 {
-        match loss {
-            Loss::RegretLevel => dhoit_runtime::alloc::REQUEST_SLOTS as f64,
-            _ => f.counts[i] as f64,
-        }
-    };
     // The asks, as f32 (as the network's graph has them).
     let c: Vec<f32> = (0..rows)
-        .map(|i| match loss {
-            Loss::RegretLevel => r[i] * dhoit_runtime::alloc::REQUEST_SLOTS,
-            _ => r[i] * f.counts[i],
-        })
+        .map(|i| r[i] * ask_scale(loss, f.counts[i]))
         .collect();
-    let shift = fit(additive, &c, f.counts, f.pairs, f.k_opts, f.lo);
+    let caps = caps(&f.counts, &f.pairs, f.lo);
+    let shift = fit_capped(additive, &c, &caps, &f.k_opts, f.lo);
     let lo = f.lo as f64;
     // Which pixels the fit clamps, at what k; the others are free.
     let mut k = vec![0.0f64; rows];
@@ -524,7 +582,7 @@ pub fn regret_gradient(loss: Loss, r: &[f32], f: &Frame) -> (f64, Vec<f32>) {
         } else {
             c[i] as f64 * shift
         };
-        let cap = useful_cap(f.counts[i], f.lo, f.pairs[i]);
+        let cap = caps[i];
         if moved <= lo || moved >= cap {
             k[i] = moved.clamp(lo, cap) as f32 as f64;
             fixed_sum += k[i];
@@ -583,7 +641,7 @@ pub fn regret_gradient(loss: Loss, r: &[f32], f: &Frame) -> (f64, Vec<f32>) {
             } else {
                 0.0
             };
-            (d_c * per_output(j)) as f32
+            (d_c * ask_scale(loss, f.counts[j]) as f64) as f32
         })
         .collect();
     (value, grad)
@@ -598,19 +656,13 @@ fn frame_regret(loss: Loss, pred: &[f32], s: &Samples) -> f64 {
     let logs: Vec<f64> = frames
         .par_iter()
         .map(|idx| {
-            let n: Vec<f32> = idx.iter().map(|&i| s.count[i] as f32).collect();
-            let ko: Vec<f32> = idx.iter().map(|&i| s.k_opt[i] as f32).collect();
+            let f = FrameSamples::of(s, idx);
             let c: Vec<f32> = idx
                 .iter()
-                .zip(&n)
-                .map(|(&i, &n)| match loss {
-                    Loss::RegretLevel => pred[i] * dhoit_runtime::alloc::REQUEST_SLOTS,
-                    _ => pred[i] * n,
-                })
+                .zip(&f.counts)
+                .map(|(&i, &n)| pred[i] * ask_scale(loss, n))
                 .collect();
-            let lo = s.frame_lo[s.frame[idx[0]] as usize] as f32;
-            let pairs: Vec<bool> = idx.iter().map(|&i| s.pair[i]).collect();
-            let shift = fit(additive, &c, &n, &pairs, &ko, lo);
+            let shift = fit(additive, &c, &f.counts, &f.pairs, &f.k_opts, f.lo);
             let mut excess = 0.0;
             for (j, &i) in idx.iter().enumerate() {
                 let k = if additive {
@@ -754,10 +806,6 @@ pub fn train_from(
     let xs = standardised(&train_set.features, &mean, &std);
     let mut rows = Vec::with_capacity(config.batch * FEATURES);
     let mut ys = Vec::with_capacity(config.batch);
-    let mut ns = Vec::with_capacity(config.batch);
-    let mut ks = Vec::with_capacity(config.batch);
-    let mut pairs = Vec::with_capacity(config.batch);
-    let mut rs = Vec::with_capacity(config.batch);
     // The regret losses take one frame (scene, view, budget) a batch, as the budget is fitted
     // per frame; the MSE losses shuffled mini-batches of `batch` samples.
     let frames = if config.loss.regret() {
@@ -791,22 +839,7 @@ pub fn train_from(
                     // The frame's fit needs every output: the forward pass, the loss's
                     // gradient on plain numbers, then the backward pass.
                     let pass = step::forward(&valid, &rows, &plain);
-                    ns.clear();
-                    ks.clear();
-                    pairs.clear();
-                    rs.clear();
-                    ns.extend(chunk.iter().map(|&i| train_set.count[i] as f32));
-                    ks.extend(chunk.iter().map(|&i| train_set.k_opt[i] as f32));
-                    pairs.extend(chunk.iter().map(|&i| train_set.pair[i]));
-                    rs.extend(chunk.iter().map(|&i| train_set.regret[i]));
-                    let frame = Frame {
-                        counts: &ns,
-                        k_opts: &ks,
-                        pairs: &pairs,
-                        regret: &rs,
-                        lo: train_set.frame_lo[train_set.frame[chunk[0]] as usize] as f32,
-                        share: train_set.share,
-                    };
+                    let frame = FrameSamples::of(&train_set, chunk);
                     let (value, d_out) = regret_gradient(l, &pass.out, &frame);
                     let grads = step::gradients(&valid, pass, &d_out, config.l1, config.l2, &plain);
                     (value, grads)
@@ -929,67 +962,11 @@ pub fn bench_training_autodiff(batch: usize, steps: usize) -> f64 {
     })
 }
 
-/// A made-up frame for the regret loss: `rows` pixels of 1 to `max_n` fragments, optima
-/// below n, convex regret windows (every fifth flat below its optimum, so that no extension
-/// reaches past the window there) and every seventh pixel's two farthest fragments of one
-/// colour. The benchmark steps on it; the tests hold the loss's gradient to autodiff on it.
-pub struct SyntheticFrame {
-    pub counts: Vec<f32>,
-    pub k_opts: Vec<f32>,
-    pub pairs: Vec<bool>,
-    pub regret: Vec<[f32; REGRET_WINDOW]>,
-}
-
-impl SyntheticFrame {
-    pub fn new(rows: usize, max_n: f32, seed: u64) -> SyntheticFrame {
-        let mut rng = Rng::new(seed);
-        let counts: Vec<f32> = (0..rows)
-            .map(|_| 1.0 + (rng.f32() * max_n).floor())
-            .collect();
-        let k_opts = counts
-            .iter()
-            .map(|&n| 1.0 + (rng.f32() * n).floor().min(n - 1.0))
-            .collect();
-        let regret = (0..rows)
-            .map(|i| {
-                let a = 1e-3 * (0.1 + rng.f32());
-                std::array::from_fn(|j| {
-                    let d = j as f32 - REGRET_HALF as f32;
-                    if i % 5 == 0 && d < 0.0 {
-                        0.0
-                    } else {
-                        a * d * d
-                    }
-                })
-            })
-            .collect();
-        SyntheticFrame {
-            counts,
-            k_opts,
-            pairs: (0..rows).map(|i| i % 7 == 0).collect(),
-            regret,
-        }
-    }
-
-    /// The frame as the loss reads it (smallest k 1, half its pixels sampled).
-    pub fn frame(&self) -> Frame<'_> {
-        Frame {
-            counts: &self.counts,
-            k_opts: &self.k_opts,
-            pairs: &self.pairs,
-            regret: &self.regret,
-            lo: 1.0,
-            share: 0.5,
-        }
-    }
-}
-
 /// The regret-loss step's throughput (what `make train` runs): samples per second of `steps`
-/// steps on a [`SyntheticFrame`] of `rows` pixels, the frame's fit included.
+/// steps on a [`FrameSamples::synthetic`] frame of `rows` pixels, the frame's fit included.
 pub fn bench_regret_step(rows: usize, steps: usize) -> f64 {
     let mut b = bench_setup(rows, false);
-    let synthetic = SyntheticFrame::new(rows, 30.0, 3);
-    let frame = synthetic.frame();
+    let frame = FrameSamples::synthetic(rows, 30.0, 3);
     per_second(rows, steps, || {
         let valid = b.net.valid();
         let pass = step::forward(&valid, &b.x, &b.device);

@@ -329,12 +329,13 @@ fn the_regret_gradient_is_burn_autodiff_s_for_both_fits() {
     use dhoit_train::dataset::REGRET_WINDOW;
     let rows = 600;
     let (net, x) = gradient_case(rows);
-    let synthetic = trainer::SyntheticFrame::new(rows, 12.0, 11);
-    let trainer::SyntheticFrame {
+    let synthetic = trainer::FrameSamples::synthetic(rows, 12.0, 11);
+    let trainer::FrameSamples {
         counts,
         k_opts,
         pairs,
         regret,
+        ..
     } = &synthetic;
     let device = cpu_device(true);
     let plain = cpu_device(false);
@@ -349,21 +350,20 @@ fn the_regret_gradient_is_burn_autodiff_s_for_both_fits() {
                 TensorData::new(regret.concat(), [rows, REGRET_WINDOW]),
                 &device,
             ),
-            lo: 1.0,
+            lo: synthetic.lo,
             counts: counts.clone(),
             pairs: pairs.clone(),
             k_opts: k_opts.clone(),
-            share: 0.5,
+            share: synthetic.share,
         };
         let xt = Tensor::<2>::from_data(TensorData::new(x.clone(), [rows, FEATURES]), &device);
         let (total, value, _) = trainer::regret_loss(&net, loss, xt, batch, 1e-4, 1e-3);
         let reference_value = value.into_data().try_into_vec::<f32>().unwrap()[0] as f64;
         let reference = burn::optim::GradientsParams::from_grads(total.backward(), &net);
         // The fused step.
-        let frame = synthetic.frame();
         let valid = net.valid();
         let pass = dhoit_train::step::forward(&valid, &x, &plain);
-        let (fused_value, d_out) = trainer::regret_gradient(loss, &pass.out, &frame);
+        let (fused_value, d_out) = trainer::regret_gradient(loss, &pass.out, &synthetic);
         let grads = dhoit_train::step::gradients(&valid, pass, &d_out, 1e-4, 1e-3, &plain);
         assert!(
             (fused_value - reference_value).abs() <= 1e-4 * reference_value.abs().max(1e-3),
