@@ -509,14 +509,7 @@ mod tests {
         assert_eq!(span as usize, size_of::<AllocParams>());
 
         // The search state holds what the host allocates for it.
-        let state = module
-            .global_variables
-            .iter()
-            .find(|(_, g)| g.name.as_deref() == Some("state"))
-            .expect("allocate.wgsl's state")
-            .1;
-        let size = module.types[state.ty].inner.size(module.to_ctx());
-        assert_eq!(size as u64, 8 * ALLOC_STATE_WORDS as u64);
+        assert_eq!(global_size(&module, "state"), 8 * ALLOC_STATE_WORDS as u64);
     }
 
     #[test]
@@ -524,7 +517,11 @@ mod tests {
         // The passes as written declare the largest network's uniform, the default's at f32.
         for pass in ["predict", "importance_dkb"] {
             let module = parse(pass);
-            assert_eq!(weights_size(&module), budget::MLP_UNIFORM_BYTES, "{pass}");
+            assert_eq!(
+                global_size(&module, "weights"),
+                budget::MLP_UNIFORM_BYTES,
+                "{pass}"
+            );
         }
         let m = Mlp::random(1);
         assert_eq!(
@@ -559,15 +556,15 @@ mod tests {
         );
     }
 
-    /// Bytes of a module's `weights` uniform.
-    fn weights_size(module: &naga::Module) -> u64 {
-        let weights = module
+    /// Bytes of a module's global variable `name` (a binding's declared size).
+    fn global_size(module: &naga::Module, name: &str) -> u64 {
+        let var = module
             .global_variables
             .iter()
-            .find(|(_, g)| g.name.as_deref() == Some("weights"))
-            .expect("mlp.wgsl's weights")
+            .find(|(_, g)| g.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("no global '{name}' in the WGSL"))
             .1;
-        module.types[weights.ty].inner.size(module.to_ctx()) as u64
+        module.types[var.ty].inner.size(module.to_ctx()) as u64
     }
 
     #[test]
@@ -598,7 +595,11 @@ mod tests {
                 let src = crate::gpu::network_pass_source(pass, &m);
                 let module = naga::front::wgsl::parse_str(&src)
                     .unwrap_or_else(|e| panic!("{pass} {h1}-{h2} {p}: {e}"));
-                assert_eq!(weights_size(&module), bytes, "{pass} {h1}-{h2} {p}");
+                assert_eq!(
+                    global_size(&module, "weights"),
+                    bytes,
+                    "{pass} {h1}-{h2} {p}"
+                );
             }
         }
     }
