@@ -23,7 +23,7 @@ build:
 ## then render a held-out built-in scene with it beside every baseline and print the tables.
 demo: setup build
 	$(RUN) train --out out/demo/weights.safetensors
-	$(RUN) compare --scene particles --res 640x480 --budget 1fpp,2fpp --weights out/demo/weights.safetensors --out out/demo
+	$(RUN) compare --scene particles --res 640x480 --budget 1fpp,2fpp --always-approximate --weights out/demo/weights.safetensors --out out/demo
 
 ## Train the default network from the built-in scenes: data/weights.safetensors, data/config.json,
 ## data/loss.svg, data/loss.png (the dataset is generated into data/generated/, which git ignores).
@@ -48,7 +48,9 @@ golden: build
 ## present, the real scenes in $(DHOIT_SCENES), every surface at the papers' one opacity 0.33;
 ## then with their own materials, the five material families (seed 1) and the real scenes;
 ## budgets relative to each frame's fragments and in slots per pixel; once at equal F and once
-## at equal bytes. Small summaries -> docs/eval-slots.md, docs/eval-bytes.md,
+## at equal bytes. At equal F each k-buffer renders its own approximation (--always-approximate)
+## even where the exact A-buffer would need fewer bytes: what measures the methods; the bytes
+## columns say what each would allocate. Small summaries -> docs/eval-slots.md, docs/eval-bytes.md,
 ## docs/eval-materials-slots.md and docs/eval-materials-bytes.md (committed), every frame,
 ## image and montage -> out/eval/.
 EVAL_BUILTIN := shells,spheres,foliage,plates,hair,particles,cad,glass,statue,shrub
@@ -63,16 +65,16 @@ eval: build
 	  for f in $(EVAL_REAL); do scenes="$$scenes,$(DHOIT_SCENES)/$$f"; done; \
 	  for f in $(EVAL_MATERIAL_REAL); do materials="$$materials,$(DHOIT_SCENES)/$$f"; done; \
 	else echo "eval: no real scenes at $(DHOIT_SCENES): the built-in scenes only" >&2; fi; \
-	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --opacity 0.33 --equal slots --out out/eval/slots --summary docs/eval-slots.md && \
+	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --opacity 0.33 --equal slots --always-approximate --out out/eval/slots --summary docs/eval-slots.md && \
 	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --opacity 0.33 --equal bytes --out out/eval/bytes --summary docs/eval-bytes.md && \
-	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --equal slots --out out/eval/materials-slots --summary docs/eval-materials-slots.md && \
+	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --equal slots --always-approximate --out out/eval/materials-slots --summary docs/eval-materials-slots.md && \
 	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --equal bytes --out out/eval/materials-bytes --summary docs/eval-materials-bytes.md
 
 ## The README's pictures of per-fragment materials: alpha-textured leaf cards and a
 ## stained-glass pane, the A-buffer, VKB and DKB side by side at 10% of the fragments
 ## (640x480) -> docs/materials-cards.png, docs/materials-windows.png.
 pictures: build
-	$(RUN) compare --scene cards,windows --view 3 --res 640x480 --budget 10% --methods vkb,dkb --out out/pictures
+	$(RUN) compare --scene cards,windows --view 3 --res 640x480 --budget 10% --methods vkb,dkb --always-approximate --out out/pictures
 	cp "out/pictures/cards_v3_10%_montage.png" docs/materials-cards.png
 	cp "out/pictures/windows_v3_10%_montage.png" docs/materials-windows.png
 

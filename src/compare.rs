@@ -50,6 +50,11 @@ pub struct CompareArgs {
     /// M, each method's F from its own layout; the paper's protocol).
     #[arg(long, default_value = "slots")]
     equal: Equal,
+    /// Render each k-buffer's approximation even where the exact A-buffer needs fewer bytes
+    /// than the method would at that budget (the papers' equal-F protocol: what measures the
+    /// approximation itself). Without it such a frame renders the A-buffer, marked "(exact)".
+    #[arg(long)]
+    always_approximate: bool,
     /// Precision of the network for dkb: f32; f16 (binary16 weights, f32 arithmetic; the CPU
     /// twin computes with the same rounded weights); or f16-math (binary16 weights and
     /// hidden-layer arithmetic, for GPUs with fast half precision; the device needs
@@ -92,6 +97,9 @@ pub struct Row {
     pub abuffer_bytes: u64,
     /// sum min(k, n) / F.
     pub budget_used: f64,
+    /// Whether the k-buffer method rendered the exact A-buffer: its budget held every
+    /// fragment, or the A-buffer needed no more bytes than the method would.
+    pub exact: bool,
     pub raster_ms: f64,
     pub allocation_ms: f64,
     pub composite_ms: f64,
@@ -125,7 +133,12 @@ const HEADER: [&str; 10] = [
 fn cells(r: &Row) -> [String; 10] {
     let pixels = (r.width as u64 * r.height as u64).max(1) as f64;
     [
-        r.method.to_string(),
+        // A k-buffer that truncates no fragment because the A-buffer is no dearer, marked.
+        if r.exact && r.counts() {
+            format!("{} (exact)", r.method)
+        } else {
+            r.method.to_string()
+        },
         format!("{:.4e}", r.mse),
         format!("{:.4}", r.flip),
         format!("{:.1}%", 100.0 * r.captured()),
@@ -590,6 +603,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
                 let options = Options {
                     weights: weights.as_ref(),
                     equal: a.equal,
+                    exact_when_cheaper: !a.always_approximate,
                     ..Options::new(*budget, a.common.background)
                 };
                 let renderer = Renderer::new(&fl, options);
@@ -646,6 +660,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
                                 fl.fragment_count() as u64,
                             ),
                             budget_used: used,
+                            exact: f.exact,
                             raster_ms,
                             allocation_ms: f.allocation_ms,
                             composite_ms: f.composite_ms,

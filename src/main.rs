@@ -26,7 +26,10 @@ mod trade;
         allocation), greedy-paper and greedy-increase (the paper's backward greedy, two heap \
         keys), mlab (multi-layer alpha blending).\n\n\
         Budgets are bytes with units (20MB, 40MiB), average fragment slots per pixel (2fpp), or \
-        a share of the frame's own visible transparent fragments (25%).\n\
+        a share of the frame's own visible transparent fragments (25%). A budget is a cap: \
+        where the exact A-buffer needs no more bytes than a k-buffer method would at its \
+        budget, `render` and `compare` render the A-buffer, exact, with its memory \
+        (--always-approximate renders the method's own approximation).\n\
         Scenes are built-in names (see `dhoit scenes`) or paths to .gltf/.glb files, each with \
         its own materials (opaque, masked, blended, glass; the papers' built-in families at one \
         opacity of 0.33); --opacity A gives every surface one opacity."

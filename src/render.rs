@@ -48,6 +48,11 @@ pub struct RenderArgs {
     /// needs for that F).
     #[arg(long, default_value = "slots")]
     equal: Equal,
+    /// Render the k-buffer's approximation even where the exact A-buffer needs fewer bytes than
+    /// the method would at this budget. Without it a k-buffer method never costs more than the
+    /// exact answer: such a frame renders the A-buffer, exact, with its memory.
+    #[arg(long)]
+    always_approximate: bool,
     /// Precision of the network for dkb: f32; f16 (binary16 weights, f32 arithmetic; the CPU
     /// twin computes with the same rounded weights); or f16-math (binary16 weights and
     /// hidden-layer arithmetic, for GPUs with fast half precision; the device needs
@@ -91,6 +96,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let options = Options {
         weights: weights.as_ref(),
         equal: a.equal,
+        exact_when_cheaper: !a.always_approximate,
         ..Options::new(budget, a.common.background)
     };
     let renderer = Renderer::new(&fl, options);
@@ -152,6 +158,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 allocation_ms: cpu.allocation_ms,
                 composite_ms: 0.0,
                 optimal: cpu.optimal,
+                exact: cpu.exact,
             }
         }
     };
@@ -167,6 +174,15 @@ pub fn run(a: RenderArgs) -> Result<()> {
         format_bytes(f.allocated_bytes),
         a.out.display()
     );
+    if f.exact && f.budget_fragments < f.fragments_total {
+        println!(
+            "{}: rendered the exact A-buffer, which needs {} here, no more than {} at this budget \
+             (--always-approximate renders the approximation)",
+            method.name(),
+            format_bytes(f.allocated_bytes),
+            method.name()
+        );
+    }
     if let Some(rep) = &f.optimal {
         println!(
             "optimal: total error {:.6e} ({}), lower bound {:.6e}, gap {:.3e}; greedy as printed {:.6e}, \

@@ -209,7 +209,11 @@ fn quality(
     for &view in &q.view_list {
         let (fl, _) = rasterize_view(s, view, &q.common)?;
         for b in budgets {
-            let plain = Renderer::new(&fl, Options::new(*b, q.common.background));
+            // The networks' own approximations are what the trade measures.
+            let plain = Renderer::new(
+                &fl,
+                Options::new(*b, q.common.background).always_approximate(),
+            );
             let exact = plain.render(Method::Abuffer)?;
             let exact8 = image_io::to_srgb8(&exact.image);
             let optimal = plain.render(Method::Optimal)?;
@@ -217,7 +221,7 @@ fn quality(
             for (i, n) in nets.iter().enumerate() {
                 let opts = Options {
                     weights: Some(&n.mlp),
-                    ..Options::new(*b, q.common.background)
+                    ..Options::new(*b, q.common.background).always_approximate()
                 };
                 let f = Renderer::new(&fl, opts).render(Method::Dkb)?;
                 let (flip, _) =

@@ -128,10 +128,12 @@ fn shuffled_submission_gives_bit_identical_abuffer_and_fkb_images() {
     }
 }
 
+/// The methods' own approximations (`--always-approximate` on the command line), which these
+/// tests hold to what the command renders.
 fn opts<'a>(b: Budget, bg: [f32; 3], mlp: &'a Mlp) -> Options<'a> {
     Options {
         weights: Some(mlp),
-        ..Options::new(b, bg)
+        ..Options::new(b, bg).always_approximate()
     }
 }
 
@@ -161,6 +163,7 @@ fn allocation_methods_render_from_the_command_line() {
             method,
             "--budget",
             "1.5fpp",
+            "--always-approximate",
             "--weights",
             weights.to_str().unwrap(),
             "--out",
@@ -224,9 +227,18 @@ fn allocation_methods_render_from_the_command_line() {
 }
 
 /// `render` of hair at 64x48 with `method`, then `rest`.
+/// `render` of the hair at 64x48, the method's own approximation (at the default 2fpp the
+/// exact A-buffer is cheaper on so small a frame).
 fn hair_render<'a>(method: &'a str, rest: &[&'a str]) -> Vec<&'a str> {
     let mut args = vec![
-        "render", "--scene", "hair", "--res", "64x48", "--method", method,
+        "render",
+        "--scene",
+        "hair",
+        "--res",
+        "64x48",
+        "--method",
+        method,
+        "--always-approximate",
     ];
     args.extend_from_slice(rest);
     args
@@ -365,6 +377,60 @@ fn compare_prints_a_table_and_writes_a_report() {
     assert_eq!(records[0]["method"], "abuffer");
     assert_eq!(records[0]["mse"], 0.0);
     assert!(records.iter().all(|r| r["mse"].as_f64().unwrap() >= 0.0));
+    // No k-buffer allocates more than the exact A-buffer; at 2fpp on this shallow frame some
+    // render it, exact, and the table says so.
+    let bytes = |r: &serde_json::Value, k: &str| r[k].as_u64().unwrap();
+    assert!(
+        records
+            .iter()
+            .all(|r| r["method"] == "mlab"
+                || bytes(r, "allocated_bytes") <= bytes(r, "abuffer_bytes"))
+    );
+    let capped: Vec<_> = records.iter().filter(|r| r["exact"] == true).collect();
+    assert!(!capped.is_empty(), "{stdout}");
+    assert!(capped.iter().all(|r| r["mse"] == 0.0));
+    assert!(stdout.contains("(exact)"), "{stdout}");
+}
+
+/// `render` takes the exact A-buffer where it needs no more bytes than the method at its budget,
+/// and says so; `--always-approximate` renders the method's own approximation.
+#[test]
+fn render_takes_the_exact_abuffer_where_it_is_cheaper() {
+    let dir = temp_dir("cli-cap");
+    let run = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "render", "--scene", "cad", "--res", "64x48", "--method", "vkb", "--budget", "25%",
+            "--out",
+        ];
+        args.push(out.to_str().unwrap());
+        args.extend_from_slice(extra);
+        let o = dhoit(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).to_string()
+    };
+    let (capped, own) = (dir.join("capped.png"), dir.join("own.png"));
+    let said = run(&[], &capped);
+    assert!(said.contains("rendered the exact A-buffer"), "{said}");
+    assert!(said.contains("100.0% of"), "{said}");
+    let said = run(&["--always-approximate"], &own);
+    assert!(!said.contains("rendered the exact A-buffer"), "{said}");
+    assert!(!said.contains("100.0% of"), "{said}");
+    let exact = dir.join("exact.png");
+    let o = dhoit(&[
+        "render",
+        "--scene",
+        "cad",
+        "--res",
+        "64x48",
+        "--method",
+        "abuffer",
+        "--out",
+        exact.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let read = |p: &Path| std::fs::read(p).unwrap();
+    assert_eq!(read(&capped), read(&exact));
+    assert_ne!(read(&own), read(&exact));
 }
 
 /// A font asked for by DHOIT_FONT that cannot be used is named, whether another font draws
@@ -402,7 +468,16 @@ fn the_gpu_renders_from_the_command_line() {
     // plates at 64x48 on the GPU with `method`, then `more` arguments.
     let render = |method: &str, more: &[&str]| {
         let mut args = vec![
-            "render", "--scene", "plates", "--res", "64x48", "--method", method, "--device", "gpu",
+            "render",
+            "--scene",
+            "plates",
+            "--res",
+            "64x48",
+            "--method",
+            method,
+            "--device",
+            "gpu",
+            "--always-approximate",
         ];
         args.extend_from_slice(more);
         dhoit(&args)

@@ -156,7 +156,16 @@ fn dkb_renders_with_the_default_weights() {
     let o = Command::new(env!("CARGO_BIN_EXE_dhoit"))
         .current_dir(root())
         .args([
-            "render", "--scene", "hair", "--res", "96x72", "--method", "dkb", "--budget", "1fpp",
+            "render",
+            "--scene",
+            "hair",
+            "--res",
+            "96x72",
+            "--method",
+            "dkb",
+            "--budget",
+            "1fpp",
+            "--always-approximate",
             "--out",
         ])
         .arg(&out)

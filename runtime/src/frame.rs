@@ -168,6 +168,8 @@ pub struct Frame {
     pub composite_ms: f64,
     /// Totals of the optimal allocation and the greedies (optimal method only).
     pub optimal: Option<OptimalReport>,
+    /// Whether the k-buffer method rendered the exact A-buffer ([`Allocation::exact`]).
+    pub exact: bool,
 }
 
 /// A method's k for one frame and the budget behind it, before compositing.
@@ -183,8 +185,9 @@ pub struct Allocation {
     pub allocation_ms: f64,
     /// The optimal allocation's report (optimal method only).
     pub optimal: Option<OptimalReport>,
-    /// Whether the budget holds every fragment, so the k-buffer method renders the exact
-    /// A-buffer (k = n) with its memory: a budget is a cap, not a quantity to spend.
+    /// Whether the k-buffer method renders the exact A-buffer (k = n) with its memory: where
+    /// the budget holds every fragment (a budget is a cap, not a quantity to spend), or where
+    /// the A-buffer needs no more bytes than the method would ([`Options::exact_when_cheaper`]).
     pub exact: bool,
 }
 
@@ -239,6 +242,11 @@ pub struct Options<'a> {
     /// Network weights, needed by DKB.
     pub weights: Option<&'a Mlp>,
     pub vkb: VkbParams,
+    /// Render the exact A-buffer wherever it needs no more bytes than the k-buffer method
+    /// would for its budget (a memory-bounded method never costs more than the exact answer):
+    /// on by default. Off, the method renders its approximation whatever it costs (the
+    /// papers' equal-F protocol, what measures the approximation itself).
+    pub exact_when_cheaper: bool,
 }
 
 impl Options<'_> {
@@ -249,6 +257,16 @@ impl Options<'_> {
             background,
             weights: None,
             vkb: VkbParams::default(),
+            exact_when_cheaper: true,
+        }
+    }
+
+    /// These options with the k-buffer methods rendering their approximation even where the
+    /// exact A-buffer would need fewer bytes ([`Options::exact_when_cheaper`] off).
+    pub fn always_approximate(self) -> Self {
+        Options {
+            exact_when_cheaper: false,
+            ..self
         }
     }
 
@@ -322,6 +340,11 @@ impl<'a> Renderer<'a> {
         let total = fl.fragment_count() as u64;
         let layout = opts.layout(method);
         let t0 = Instant::now();
+        let no_weights = || Error::Invalid("dkb needs network weights (--weights FILE)".into());
+        // Refused whatever the frame: even one the A-buffer renders exactly.
+        if method == Method::Dkb && opts.weights.is_none() {
+            return Err(no_weights());
+        }
         let budget = self.budget()?;
         // A k-buffer whose budget holds every fragment (F slots for them, or the bytes of the
         // exact A-buffer) renders the A-buffer: exact, and never more memory than it (a byte
@@ -333,7 +356,13 @@ impl<'a> Renderer<'a> {
             (_, Budget::Bytes(m)) if bytes_hold && method.is_kbuffer() => (m, total),
             _ => budget.resolve(&layout, pixels, total)?,
         };
-        let exact = method.is_kbuffer() && f >= total;
+        // Exact where the budget holds every fragment, and (unless told otherwise) where the
+        // A-buffer needs no more bytes than the method reserves for this budget: then the
+        // exact answer is both better and no dearer.
+        let exact = method.is_kbuffer()
+            && (f >= total
+                || (opts.exact_when_cheaper
+                    && reserved_bytes(method, &layout, pixels, f, total) >= exact_bytes));
         let mut optimal = None;
         let k = match method {
             Method::Abuffer => counts,
@@ -348,9 +377,7 @@ impl<'a> Renderer<'a> {
                 alloc::allocate(&imp, &counts, alloc::Target::RelativeK, f)
             }
             Method::Dkb => {
-                let mlp = opts.weights.ok_or_else(|| {
-                    Error::Invalid("dkb needs network weights (--weights FILE)".into())
-                })?;
+                let mlp = opts.weights.ok_or_else(no_weights)?;
                 let (feats, pairs) = importance::features_and_pairs(fl, f);
                 mlp.allocate(&feats, &counts, &pairs, f)
             }
@@ -412,12 +439,24 @@ impl<'a> Renderer<'a> {
             allocation_ms: a.allocation_ms,
             composite_ms,
             optimal: a.optimal,
+            exact: a.exact,
         }
     }
 
     pub fn render(&self, method: Method) -> Result<Frame> {
         Ok(self.composite(self.allocate(method)?))
     }
+}
+
+/// The most bytes a k-buffer method's frame can allocate at F: its fixed bytes and
+/// `min(F, n)` slots (the slots an allocation hands out at most; the GPU sizes its slots
+/// buffer from what it hands out), FKB and MLAB their uniform k for every pixel.
+pub fn reserved_bytes(method: Method, layout: &Layout, pixels: u64, f: u64, total: u64) -> u64 {
+    let slots = match method {
+        Method::Fkb | Method::Mlab => f / pixels.max(1) * pixels,
+        _ => f.min(total),
+    };
+    layout.allocated_bytes(pixels, slots)
 }
 
 /// Refuses a frame whose methods' CPU work ([`Method::frame_bytes`], the most of them) would

@@ -262,7 +262,7 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
     let mlp = Mlp::random(1);
     let opts = |b| Options {
         weights: Some(&mlp),
-        ..Options::new(b, BG)
+        ..Options::new(b, BG).always_approximate()
     };
     let err = frame::render(&fl, Method::Dkb, opts(Budget::Bytes(fixed))).unwrap_err();
     assert!(
@@ -361,7 +361,7 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
                 m,
                 Options {
                     weights: Some(&mlp),
-                    ..Options::new(b, BG)
+                    ..Options::new(b, BG).always_approximate()
                 },
             )
             .unwrap();

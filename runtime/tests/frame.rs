@@ -1,5 +1,7 @@
 //! Whole frames: every method under a full budget is exact, budgets hold, features and VKB.
 
+mod common;
+
 use dhoit_runtime::budget::Budget;
 use dhoit_runtime::fragment::FragmentLists;
 use dhoit_runtime::frame::{Method, Options, Renderer};
@@ -63,7 +65,7 @@ fn allocations_spend_exactly_the_budget_and_never_more_bytes() {
         let b = Budget::parse(budget).unwrap();
         let opts = Options {
             weights: Some(&mlp),
-            ..Options::new(b, [1.0; 3])
+            ..Options::new(b, [1.0; 3]).always_approximate()
         };
         let r = Renderer::new(&fl, opts);
         for m in [
@@ -100,20 +102,7 @@ fn equal_bytes_give_every_method_one_memory_budget() {
     let (mut held, mut truncated) = (0, 0);
     // A shallow scene, where equal bytes hold the exact A-buffer, and 100 stacked layers, deep
     // enough (N / P above 10) that DKB's layout truncates within them.
-    let mut deep = scene::Scene::default();
-    // Facing view 0 of the orbit (25 degrees up, azimuth 0.5 rad), whatever the scene's size.
-    let e = 25f32.to_radians();
-    let dir = glam::Vec3::new(e.cos() * 0.5f32.cos(), e.sin(), e.cos() * 0.5f32.sin());
-    let u = dir.any_orthonormal_vector();
-    let v = dir.cross(u);
-    for i in 0..100 {
-        let o = dir * (-1.0 + 0.02 * i as f32);
-        let c = [0.008 * i as f32, 0.8 - 0.006 * i as f32, 0.5, 0.25];
-        let p =
-            [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)].map(|(a, b)| o + u * a + v * b);
-        deep.push_triangle([p[0], p[1], p[2]], [c; 3]);
-        deep.push_triangle([p[0], p[2], p[3]], [c; 3]);
-    }
+    let deep = common::layers(100);
     let cam = Camera::orbit(&deep, 0, scene::DEFAULT_VIEWS, 80, 60);
     let layered = rasterize(&deep, &cam, 80, 60).unwrap();
     for (name, fl) in [("cad", frame("cad", 80, 60)), ("layers", layered)] {
@@ -123,7 +112,7 @@ fn equal_bytes_give_every_method_one_memory_budget() {
             let opts = Options {
                 weights: Some(&mlp),
                 equal: Equal::Bytes,
-                ..Options::new(Budget::parse(budget).unwrap(), [1.0; 3])
+                ..Options::new(Budget::parse(budget).unwrap(), [1.0; 3]).always_approximate()
             };
             let r = Renderer::new(&fl, opts);
             let frames: Vec<_> = [Method::Vkb, Method::Dkb, Method::Optimal]
@@ -357,7 +346,7 @@ fn the_gpu_path_gets_the_cpus_budget_without_its_composite() {
     for budget in ["1.5fpp", "30%", "40KiB"] {
         let options = Options {
             weights: Some(&mlp),
-            ..Options::new(Budget::parse(budget).unwrap(), [1.0; 3])
+            ..Options::new(Budget::parse(budget).unwrap(), [1.0; 3]).always_approximate()
         };
         let r = Renderer::new(&fl, options);
         for m in Method::ALL {
@@ -407,7 +396,7 @@ fn on_held_out_frames_the_allocations_keep_their_quality_order() {
         let fl = rasterize(&s, &Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, w, h), w, h).unwrap();
         let opts = Options {
             weights: Some(&mlp),
-            ..Options::new(budget, [0.2, 0.3, 0.4])
+            ..Options::new(budget, [0.2, 0.3, 0.4]).always_approximate()
         };
         let r = Renderer::new(&fl, opts);
         let exact = r.render(Method::Abuffer).unwrap().image;

@@ -1425,7 +1425,7 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
             );
             let opts = Options {
                 weights: Some(&mlp),
-                ..Options::new(Budget::Share(ppm), BG)
+                ..Options::new(Budget::Share(ppm), BG).always_approximate()
             };
             for m in [Method::Vkb, Method::Dkb, Method::Optimal] {
                 let fr = Renderer::new(&fl, opts).render(m).unwrap();

@@ -302,7 +302,7 @@ fn materials_render_alike_on_cpu_and_gpu() {
                 let budget = Budget::parse(budget).unwrap();
                 let opts = Options {
                     weights: Some(&mlp),
-                    ..Options::new(budget, BG)
+                    ..Options::new(budget, BG).always_approximate()
                 };
                 let methods = &common::CPU_AND_GPU;
                 for (m, cpu, gpu) in common::cpu_and_gpu_frames(g, &s, &cam, &fl, opts, methods) {
@@ -493,7 +493,7 @@ fn real_scenes_with_their_materials_render_alike_on_cpu_and_gpu() {
             off += o + opaque;
             let opts = Options {
                 weights: Some(&mlp),
-                ..Options::new(Budget::parse("25%").unwrap(), BG)
+                ..Options::new(Budget::parse("25%").unwrap(), BG).always_approximate()
             };
             let methods = [Method::Abuffer, Method::Dkb];
             for (m, cpu, gpu) in common::cpu_and_gpu_frames(g, &s, &cam, &fl, opts, &methods) {

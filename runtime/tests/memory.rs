@@ -7,7 +7,7 @@ mod common;
 
 use common::gpu;
 use dhoit_runtime::budget::{self, Budget};
-use dhoit_runtime::frame::{Method, Options, Renderer};
+use dhoit_runtime::frame::{self, Method, Options, Renderer};
 use dhoit_runtime::gpu::Slots;
 use dhoit_runtime::mlp::{Mlp, Precision};
 use dhoit_runtime::raster::rasterize;
@@ -123,7 +123,7 @@ fn dkb_counts_the_bytes_of_the_network_it_runs_on_the_cpu_and_the_gpu() {
         let label = format!("{}-{} {p}", mlp.h1, mlp.h2);
         let opts = Options {
             weights: Some(&mlp),
-            ..Options::new(Budget::Share(250_000), BG)
+            ..Options::new(Budget::Share(250_000), BG).always_approximate()
         };
         // The layout: the default network's fixed cost less its weights, plus this one's.
         let layout = opts.layout(Method::Dkb);
@@ -158,4 +158,103 @@ fn dkb_counts_the_bytes_of_the_network_it_runs_on_the_cpu_and_the_gpu() {
             .unwrap();
         assert_eq!(m, Budget::Bytes(dkb_m), "{label}: equal bytes");
     }
+}
+
+/// A memory-bounded method never costs more than the exact answer: with the default options a
+/// k-buffer whose budget would cost at least the exact A-buffer's bytes renders the A-buffer
+/// (exact, with its memory), on the CPU and on the GPU; a frame deep enough for the method to
+/// be cheaper runs the method. Off (`always_approximate`), the same shallow frames allocate
+/// more than the A-buffer: what the cap saves.
+#[test]
+fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
+    let Some(g) = gpu() else { return };
+    let mlp = Mlp::random(5);
+    let (w, h) = (96, 72);
+    let budgets = ["10%", "25%", "50%", "1fpp", "2fpp", "200KB"];
+    let kbuffers = [Method::Fkb, Method::Vkb, Method::Dkb, Method::Optimal];
+    let (mut capped, mut dearer_uncapped, mut cheaper) = (0, 0, 0);
+    let mut scenes: Vec<(String, scene::Scene)> = ["cad", "covers", "particles", "hair"]
+        .iter()
+        .map(|n| (n.to_string(), scene::load(n, Default::default()).unwrap()))
+        .collect();
+    scenes.push(("100 layers".into(), common::layers(100)));
+    for (name, s) in &scenes {
+        let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, w, h);
+        let fl = rasterize(s, &cam, w, h).unwrap();
+        let (px, n) = (fl.pixel_count() as u64, fl.fragment_count() as u64);
+        let exact = budget::ABUFFER.allocated_bytes(px, n);
+        let reference = g.render(s, &cam, w, h, BG, None).unwrap();
+        for b in budgets {
+            let opts = Options {
+                weights: Some(&mlp),
+                ..Options::new(Budget::parse(b).unwrap(), BG)
+            };
+            let r = Renderer::new(&fl, opts);
+            let abuffer = r.render(Method::Abuffer).unwrap();
+            let uncapped = Renderer::new(&fl, opts.always_approximate());
+            for m in kbuffers {
+                let a = match r.allocate(m) {
+                    Ok(a) => a,
+                    // FKB below a slot a pixel, or a byte budget below the method's fixed cost.
+                    Err(dhoit_runtime::Error::Budget(..)) => continue,
+                    Err(e) => panic!("{name} {b} {m}: {e}"),
+                };
+                let f = r.composite(a.clone());
+                assert!(
+                    f.allocated_bytes <= exact,
+                    "{name} {b} {m}: {} bytes, the A-buffer {exact}",
+                    f.allocated_bytes
+                );
+                if a.budget_fragments >= n {
+                    continue;
+                }
+                // Uncapped, FKB below a slot a pixel is refused.
+                let own = uncapped.render(m).ok();
+                if a.exact {
+                    // Capped: the A-buffer's image and bytes, where the method would spend at
+                    // least as much.
+                    assert_eq!(f.image, abuffer.image, "{name} {b} {m}");
+                    assert_eq!(f.allocated_bytes, exact, "{name} {b} {m}");
+                    let reserved =
+                        frame::reserved_bytes(m, &opts.layout(m), px, a.budget_fragments, n);
+                    assert!(reserved >= exact, "{name} {b} {m}");
+                    dearer_uncapped += usize::from(own.is_some_and(|o| o.allocated_bytes > exact));
+                    capped += 1;
+                } else {
+                    let own = own.expect("the method's own frame");
+                    assert_eq!(f.image, own.image, "{name} {b} {m}: the method itself");
+                    cheaper += 1;
+                }
+                // The GPU follows the CPU's decision, with the bytes it creates counted, held
+                // to its own A-buffer (its rasterizer may differ from the CPU's by a fragment
+                // where an edge passes through a pixel centre).
+                if m == Method::Dkb || (m == Method::Vkb && b == "25%") {
+                    let gpu_exact = reference.allocated_bytes;
+                    let slots = Slots::for_method(m, &a, &opts).unwrap();
+                    let gf = g.render(s, &cam, w, h, BG, slots).unwrap();
+                    assert!(
+                        gf.allocated_bytes <= gpu_exact,
+                        "{name} {b} {m}: GPU bytes {} (CPU {}), its A-buffer {gpu_exact}",
+                        gf.allocated_bytes,
+                        f.allocated_bytes
+                    );
+                    if a.exact {
+                        assert_eq!(gf.allocated_bytes, gpu_exact, "{name} {b} {m}: GPU bytes");
+                        assert_eq!(gf.image, reference.image, "{name} {b} {m}: GPU image");
+                    }
+                }
+            }
+        }
+    }
+    eprintln!(
+        "{capped} frames capped at the A-buffer ({dearer_uncapped} of them dearer uncapped), \
+         {cheaper} cheaper than it"
+    );
+    assert!(
+        capped >= 10 && dearer_uncapped >= 10,
+        "{capped} {dearer_uncapped}"
+    );
+    // The deep frame's methods run (every budget but the bytes one truncates below the
+    // A-buffer's 809 bytes a pixel).
+    assert!(cheaper >= 10, "{cheaper}");
 }

@@ -109,6 +109,9 @@ pub fn cpu_and_gpu_frames(
 )> {
     use dhoit_runtime::frame::{Method, Renderer};
     use dhoit_runtime::gpu::Slots;
+    // Each method's own passes: where the exact A-buffer is cheaper a k-buffer renders it
+    // (Options::exact_when_cheaper), which would hide the passes held to their twins here.
+    let options = options.always_approximate();
     let mut out = Vec::new();
     for &m in methods {
         let renderer = Renderer::new(fl, options);
@@ -125,4 +128,24 @@ pub fn cpu_and_gpu_frames(
         out.push((m, cpu, gpu.image));
     }
     out
+}
+
+/// `n` full-frame quads stacked along view 0's direction (25 degrees up, azimuth 0.5 rad),
+/// 0.02 apart, each its own colour at opacity 0.25: a frame as deep as `n` at every pixel,
+/// whatever its size.
+pub fn layers(n: usize) -> dhoit_runtime::scene::Scene {
+    let mut deep = dhoit_runtime::scene::Scene::default();
+    let e = 25f32.to_radians();
+    let dir = glam::Vec3::new(e.cos() * 0.5f32.cos(), e.sin(), e.cos() * 0.5f32.sin());
+    let u = dir.any_orthonormal_vector();
+    let v = dir.cross(u);
+    for i in 0..n {
+        let o = dir * (-1.0 + 0.02 * i as f32);
+        let c = [0.008 * i as f32, 0.8 - 0.006 * i as f32, 0.5, 0.25];
+        let p =
+            [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)].map(|(a, b)| o + u * a + v * b);
+        deep.push_triangle([p[0], p[1], p[2]], [c; 3]);
+        deep.push_triangle([p[0], p[2], p[3]], [c; 3]);
+    }
+    deep
 }
