@@ -2,7 +2,7 @@
 //! budget and memory figures every method reports.
 
 use crate::alloc::{self, ErrorCurves, GreedyKey, OptimalReport};
-use crate::budget::{self, Budget, Layout};
+use crate::budget::{self, Budget, FragmentBudget, Layout};
 use crate::composite::{self, Image, Method as Composite};
 use crate::error::{Error, Result};
 use crate::fragment::FragmentLists;
@@ -182,6 +182,9 @@ pub struct Allocation {
     pub budget_bytes: u64,
     /// F(M).
     pub budget_fragments: u64,
+    /// F as a GPU frame takes it: a share at equal F stays a share (the device resolves it from
+    /// its own count), every other budget F slots. Decided here, with [`Equal`], once.
+    pub fragment_budget: FragmentBudget,
     pub allocation_ms: f64,
     /// The optimal allocation's report (optimal method only).
     pub optimal: Option<OptimalReport>,
@@ -389,11 +392,17 @@ impl<'a> Renderer<'a> {
             Method::GreedyPaper => alloc::greedy(self.curves(), f, GreedyKey::NewError),
             Method::GreedyIncrease => alloc::greedy(self.curves(), f, GreedyKey::Increase),
         };
+        // At equal bytes a share has become bytes (Renderer::budget).
+        let fragment_budget = match budget {
+            Budget::Share(ppm) => FragmentBudget::Share(ppm),
+            _ => FragmentBudget::Slots(f),
+        };
         Ok(Allocation {
             method,
             k,
             budget_bytes,
             budget_fragments: f,
+            fragment_budget,
             allocation_ms: t0.elapsed().as_secs_f64() * 1e3,
             optimal,
             exact,

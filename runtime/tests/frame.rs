@@ -2,9 +2,9 @@
 
 mod common;
 
-use dhoit_runtime::budget::Budget;
+use dhoit_runtime::budget::{Budget, FragmentBudget};
 use dhoit_runtime::fragment::FragmentLists;
-use dhoit_runtime::frame::{Method, Options, Renderer};
+use dhoit_runtime::frame::{Equal, Method, Options, Renderer};
 use dhoit_runtime::importance::{self, VkbParams};
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::raster::rasterize;
@@ -97,7 +97,6 @@ fn allocations_spend_exactly_the_budget_and_never_more_bytes() {
 
 #[test]
 fn equal_bytes_give_every_method_one_memory_budget() {
-    use dhoit_runtime::frame::Equal;
     let mlp = Mlp::random(4);
     let (mut held, mut truncated) = (0, 0);
     // A shallow scene, where equal bytes hold the exact A-buffer, and 100 stacked layers, deep
@@ -357,6 +356,23 @@ fn the_gpu_path_gets_the_cpus_budget_without_its_composite() {
             };
             assert_eq!(gpu.budget_fragments, full.budget_fragments, "{m} {budget}");
             assert_eq!(gpu.budget_bytes, full.budget_bytes, "{m} {budget}");
+            // A share at equal F stays a share for the device to resolve from its own count;
+            // at equal bytes (and for bytes or slots a pixel) the device gets the CPU's F.
+            let want = match Budget::parse(budget).unwrap() {
+                Budget::Share(ppm) => FragmentBudget::Share(ppm),
+                _ => FragmentBudget::Slots(full.budget_fragments),
+            };
+            assert_eq!(gpu.fragment_budget, want, "{m} {budget}");
+            let eq = Renderer::new(
+                &fl,
+                Options {
+                    equal: Equal::Bytes,
+                    ..options
+                },
+            );
+            if let Ok(a) = eq.allocate_for_gpu(m) {
+                assert_eq!(a.fragment_budget, FragmentBudget::Slots(a.budget_fragments));
+            }
             if matches!(m, Method::Vkb | Method::Dkb) {
                 assert!(gpu.k.is_empty(), "{m}: k is the device's to compute");
             } else {

@@ -43,11 +43,11 @@ use pipelines::*;
 use timer::*;
 
 use crate::alloc::Target;
-use crate::budget::{self, Budget, FragmentBudget};
+use crate::budget::{self, FragmentBudget};
 use crate::composite::Image;
 use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
-use crate::frame::{Allocation, Equal, Method, Options};
+use crate::frame::{Allocation, Method, Options};
 use crate::importance::{PixelStats, VkbParams};
 use crate::mlp::{Mlp, Precision};
 use crate::scene::{Camera, Scene};
@@ -367,10 +367,7 @@ impl<'a> Slots<'a> {
         cpu: &'a Allocation,
         options: &Options<'a>,
     ) -> Result<Option<Slots<'a>>> {
-        let budget = match options.budget {
-            Budget::Share(ppm) if options.equal == Equal::Slots => FragmentBudget::Share(ppm),
-            _ => FragmentBudget::Slots(cpu.budget_fragments),
-        };
+        let budget = cpu.fragment_budget;
         let first = || cpu.k.first().copied().unwrap_or(0);
         // Where the budget holds every fragment, the A-buffer (exact, with its memory).
         if cpu.exact {
