@@ -10,6 +10,10 @@ fi
 log=$(mktemp)
 cargo test --release --workspace --all-targets "$@" 2>&1 | tee "$log"
 status=${PIPESTATUS[0]}
+# The documentation's examples (`--all-targets` leaves doc tests out), the GPU one on lavapipe.
+cargo test --release --workspace --doc "$@" 2>&1 | tee -a "$log"
+doc_status=${PIPESTATUS[0]}
+[ "$status" -eq 0 ] && status=$doc_status
 read -r passed failed < <(awk '/^test result:/ { for (i = 1; i < NF; i++) { if ($(i+1) ~ /^passed/) p += $i; if ($(i+1) ~ /^failed/) f += $i } } END { print p + 0, f + 0 }' "$log")
 rm -f "$log"
 scenes_dir=${DHOIT_SCENES:-$(cd "$(dirname "$0")/.." && pwd)/../shared/scenes}

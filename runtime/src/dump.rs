@@ -1,11 +1,11 @@
 //! The fragment dump (`render --dump DIR`): one safetensors file with the frame's fragment lists,
 //! the method's per-pixel k and its image.
 //!
-//! Tensors: `offsets` u32 [W*H+1] (pixel p's fragments are `offsets[p]..offsets[p+1]`, row-major
-//! from the top-left pixel), `depth` f32 [F], `rgba` f32 [F,4] (non-premultiplied), `primitive`
-//! u32 [F] (submission index), `k` u32 [W*H], `image` f32 [H,W,3] (linear); where the frame has
-//! opaque surfaces, `opaque` u32 [W*H] (each pixel's nearest opaque colour as RGBA8, A = 255;
-//! 0 where none) and `opaque_depth` f32 [W*H] (its depth; 1 where none). Metadata: `width`,
+//! Tensors: `offsets` u32 `[W*H+1]` (pixel p's fragments are `offsets[p]..offsets[p+1]`, row-major
+//! from the top-left pixel), `depth` f32 `[F]`, `rgba` f32 `[F,4]` (non-premultiplied), `primitive`
+//! u32 `[F]` (submission index), `k` u32 `[W*H]`, `image` f32 `[H,W,3]` (linear); where the frame has
+//! opaque surfaces, `opaque` u32 `[W*H]` (each pixel's nearest opaque colour as RGBA8, A = 255;
+//! 0 where none) and `opaque_depth` f32 `[W*H]` (its depth; 1 where none). Metadata: `width`,
 //! `height`, `method`, `budget_bytes`, `budget_fragments` (F(M)), `background` ("r,g,b"),
 //! `format` ("dhoit-dump-1").
 
@@ -68,7 +68,7 @@ pub fn write(dir: &Path, d: &Dump) -> Result<PathBuf> {
     Ok(path)
 }
 
-/// Reads a dump written by [`write`] (a directory or the file itself), checking every shape.
+/// Reads a dump written by [`write()`] (a directory or the file itself), checking every shape.
 pub fn read(path: &Path) -> Result<Dump> {
     let path = if path.is_dir() {
         path.join(FILE_NAME)

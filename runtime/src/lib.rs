@@ -3,6 +3,37 @@
 //! The CPU path is the reference the GPU renderer is held to: [`raster`] turns a [`scene`] into
 //! per-pixel fragment lists, [`frame`] allocates slots under a [`budget`] and composites with
 //! [`composite`]; [`dump`] writes the fragment dump contract.
+//!
+//! One frame, every step on the CPU: a built-in scene, its fragments, DKB with the shipped
+//! weights at a quarter of the frame's fragments, beside the exact A-buffer. Where the exact
+//! A-buffer needs no more bytes than DKB would, DKB renders it ([`frame::Options`]'s
+//! `exact_when_cheaper`); `always_approximate` renders the network's allocation whatever it
+//! costs.
+//!
+//! ```
+//! use dhoit_runtime::budget::Budget;
+//! use dhoit_runtime::frame::{Method, Options, Renderer};
+//! use dhoit_runtime::{mlp::Mlp, raster, scene};
+//!
+//! let s = scene::load("particles", scene::Opacity::default())?;
+//! let (w, h) = (160, 120);
+//! let cam = scene::Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, w, h);
+//! let fragments = raster::rasterize(&s, &cam, w, h)?;
+//! let weights = Mlp::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/weights.safetensors").as_ref())?;
+//! let options = Options {
+//!     weights: Some(&weights),
+//!     ..Options::new(Budget::parse("25%")?, [1.0; 3])
+//! };
+//! let frame = Renderer::new(&fragments, options).render(Method::Dkb)?;
+//! let exact = Renderer::new(&fragments, options).render(Method::Abuffer)?;
+//! // Never more memory than the exact answer.
+//! assert!(frame.allocated_bytes <= exact.allocated_bytes);
+//! // The network's own allocation: a quarter of the fragments in slots, an error above zero.
+//! let own = Renderer::new(&fragments, options.always_approximate()).render(Method::Dkb)?;
+//! assert_eq!(own.fragments_captured, fragments.fragment_count() as u64 / 4);
+//! assert!(own.image.mse(&exact.image) > 0.0);
+//! # Ok::<(), dhoit_runtime::Error>(())
+//! ```
 
 pub mod alloc;
 pub mod budget;

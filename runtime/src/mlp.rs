@@ -3,8 +3,8 @@
 //! the shader so the two read side by side. Smaller hidden layers (`dhoit train --hidden`) load
 //! too, up to [`MAX_PARAMETERS`], the size the GPU's uniform buffer and the budget account for.
 //!
-//! Weights file (safetensors): `fc1.weight` [12,H1], `fc1.bias` [H1], `fc2.weight` [H1,H2],
-//! `fc2.bias` [H2], `out.weight` [H2,1], `out.bias` [1] (H1 = 128, H2 = 64 by default), all
+//! Weights file (safetensors): `fc1.weight` `[12,H1]`, `fc1.bias` `[H1]`, `fc2.weight` `[H1,H2]`,
+//! `fc2.bias` `[H2]`, `out.weight` `[H2,1]`, `out.bias` `[1]` (H1 = 128, H2 = 64 by default), all
 //! f32, weights stored [in, out] as
 //! burn's `Linear` keeps them (row i holds input i's weights to every output). Metadata:
 //! `format` = "dhoit-mlp-1", `features` (JSON list of the 12 names, in order), `input_mean` and
@@ -130,7 +130,7 @@ pub struct Mlp {
     /// [H1][H2].
     pub w2: Vec<f32>,
     pub b2: Vec<f32>,
-    /// [H2][1].
+    /// `[H2][1]`.
     pub w3: Vec<f32>,
     pub b3: f32,
     pub mean: [f32; FEATURES],

@@ -17,9 +17,9 @@
 //! `passes.rs` (recording a pass), `buffers.rs` (pooled buffers, readback), `timer.rs`.
 //!
 //! Every buffer a method's frame allocates is labelled after the [`crate::budget::Layout`] entry
-//! it realises and counted, so [`GpuFrame::allocated_bytes`] is what the device really holds.
+//! it realises and counted, so [`GpuFrame::allocated_bytes`](crate::gpu::GpuFrame::allocated_bytes) is what the device really holds.
 //!
-//! The renderer persists across frames: pipelines are built once ([`Gpu::new`]; variants of the
+//! The renderer persists across frames: pipelines are built once ([`Gpu::new`](crate::gpu::Gpu::new); variants of the
 //! network's passes on first use), and a frame takes its buffers from those earlier frames left
 //! (cleared where reused), so a stream of like frames creates none.
 
@@ -72,6 +72,38 @@ pub fn required_features() -> wgpu::Features {
 }
 
 /// A device and queue with the pipeline's features, and the compiled passes.
+///
+/// A frame on the GPU takes the CPU's budget decision ([`Slots::for_method`] on the CPU's
+/// allocation: F, and k where only the CPU computes it) and runs every other pass on the
+/// device; [`GpuFrame`] says what it allocated and how long each pass took.
+///
+/// ```
+/// use dhoit_runtime::budget::Budget;
+/// use dhoit_runtime::frame::{Method, Options, Renderer};
+/// use dhoit_runtime::gpu::{Gpu, Slots};
+/// use dhoit_runtime::{mlp::Mlp, raster, scene};
+///
+/// let s = scene::load("hair", scene::Opacity::default())?;
+/// let (w, h) = (128, 96);
+/// let cam = scene::Camera::orbit(&s, 2, scene::DEFAULT_VIEWS, w, h);
+/// let fragments = raster::rasterize(&s, &cam, w, h)?;
+/// let weights = Mlp::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/weights.safetensors").as_ref())?;
+/// let options = Options {
+///     weights: Some(&weights),
+///     ..Options::new(Budget::parse("1fpp")?, [1.0; 3]).always_approximate()
+/// };
+/// let renderer = Renderer::new(&fragments, options);
+/// let cpu = renderer.allocate_for_gpu(Method::Dkb)?;
+/// let gpu = Gpu::new()?; // an adapter with 64-bit atomics, or a typed error naming what lacks
+/// let frame = gpu.render(&s, &cam, w, h, options.background, Slots::for_method(Method::Dkb, &cpu, &options)?)?;
+/// let twin = renderer.render(Method::Dkb)?;
+/// // The GPU rasterizes its own fragments, which can differ from the CPU's by one where an
+/// // edge passes through a pixel centre (here one pixel moves by 9.4e-4; the tests hold each
+/// // pass to its twin on the GPU's own fragments, within 1e-5).
+/// assert!(frame.image.mse(&twin.image) < 1e-9);
+/// assert!(frame.pass_ms.iter().any(|(pass, _)| *pass == "importance"));
+/// # Ok::<(), dhoit_runtime::Error>(())
+/// ```
 pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
