@@ -64,6 +64,13 @@ pub enum GpuError {
          VK_KHR_shader_atomic_int64, DX12 with shader model 6.6, Metal 2.4 on Apple7+): {lacking}"
     )]
     MissingFeatures { lacking: String },
+    /// The application's device was opened without a feature or a limit the passes need.
+    #[error(
+        "the device on {adapter} was opened without what dhoit's passes need: {missing} \
+         (request gpu::required_features(), 64-bit integers and 64-bit atomic min/max for the \
+         capture keys and timestamp queries, and gpu::required_limits() when opening it)"
+    )]
+    DeviceLacks { adapter: String, missing: String },
     /// The network was deployed at f16-math on a device without half-precision shaders.
     #[error(
         "{adapter} lacks SHADER_F16 (half-precision arithmetic in shaders), which the \

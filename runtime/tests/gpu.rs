@@ -1783,3 +1783,74 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
         g.skip_forced = true;
     }
 }
+
+/// dhoit on the application's own device (`Gpu::on_device`): a device opened without 64-bit
+/// atomics, or with wgpu's default limits, is refused with what it lacks named; one opened with
+/// `required_features()` and `required_limits()` (wgpu's defaults but for the storage buffers a
+/// stage binds) builds every pass and renders every method as dhoit's own device does, bit for
+/// bit, with the same bytes.
+#[test]
+fn the_renderer_runs_on_the_applications_device() {
+    let Some(g) = gpu() else { return };
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter = pollster::block_on(instance.request_adapter(&Default::default()))
+        .expect("the adapter the shared renderer found");
+    let info = adapter.get_info();
+    let open = |features, limits| {
+        pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("the application's"),
+            required_features: features,
+            required_limits: limits,
+            ..Default::default()
+        }))
+        .unwrap()
+    };
+    let (features, limits) = (
+        dhoit_runtime::gpu::required_features(),
+        dhoit_runtime::gpu::required_limits(),
+    );
+    let refused = |(d, q): (wgpu::Device, wgpu::Queue)| {
+        dhoit_runtime::gpu::Gpu::on_device(d, q, &info)
+            .err()
+            .expect("refused")
+            .to_string()
+    };
+    let e = refused(open(
+        wgpu::Features::SHADER_INT64 | wgpu::Features::TIMESTAMP_QUERY,
+        limits.clone(),
+    ));
+    assert!(
+        e.contains("SHADER_INT64_ATOMIC_ALL_OPS") && e.contains(&info.name),
+        "{e}"
+    );
+    // wgpu's defaults: 8 storage buffers a stage, where the capture's fragment stage binds 11.
+    let e = refused(open(features, wgpu::Limits::default()));
+    assert!(
+        e.contains("max_storage_buffers_per_shader_stage 8 (needs 11)"),
+        "{e}"
+    );
+    let (d, q) = open(features, limits);
+    let app = dhoit_runtime::gpu::Gpu::on_device(d.clone(), q.clone(), &info).unwrap();
+    assert!(app.device == d);
+    let (s, cam) = frame("particles", 1, 96, 72);
+    let fl = rasterize(&s, &cam, 96, 72).unwrap();
+    let mlp = dhoit_runtime::mlp::Mlp::random(4);
+    let opts = dhoit_runtime::frame::Options {
+        weights: Some(&mlp),
+        ..dhoit_runtime::frame::Options::new(Budget::Share(250_000), [1.0; 3]).always_approximate()
+    };
+    let r = dhoit_runtime::frame::Renderer::new(&fl, opts);
+    for m in common::CPU_AND_GPU {
+        let Ok(a) = r.allocate(m) else { continue };
+        let slots = || Slots::for_method(m, &a, &opts).unwrap();
+        let ours = g
+            .render(&s, &cam, 96, 72, opts.background, slots())
+            .unwrap();
+        let theirs = app
+            .render(&s, &cam, 96, 72, opts.background, slots())
+            .unwrap();
+        assert_eq!(theirs.image, ours.image, "{m}");
+        assert_eq!(theirs.allocated_bytes, ours.allocated_bytes, "{m}");
+    }
+}

@@ -71,6 +71,17 @@ pub fn required_features() -> wgpu::Features {
         | wgpu::Features::TIMESTAMP_QUERY
 }
 
+/// The limits the passes need of a device beyond wgpu's defaults ([`wgpu::Limits::default`]):
+/// 11 storage buffers a shader stage (the capture's fragment stage binds 11, DKB's importance
+/// pass 10; the default is 8). A frame's buffers are checked against the device's own binding
+/// size when they are made.
+pub fn required_limits() -> wgpu::Limits {
+    wgpu::Limits {
+        max_storage_buffers_per_shader_stage: 11,
+        ..wgpu::Limits::default()
+    }
+}
+
 /// A device and queue with the pipeline's features, and the compiled passes.
 ///
 /// A frame on the GPU takes the CPU's budget decision ([`Slots::for_method`] on the CPU's
@@ -313,6 +324,57 @@ impl Gpu {
             adapter: info.name.clone(),
             message: e.to_string(),
         })?;
+        Self::build(device, queue, &info)
+    }
+
+    /// dhoit on the application's own device and queue (clones of its handles: wgpu's are
+    /// shared), with `info` its adapter's ([`wgpu::Adapter::get_info`]). A device opened without
+    /// a feature the passes need ([`required_features`]: 64-bit integers and their atomics,
+    /// timestamps) or below a limit they need ([`required_limits`]) is refused with what it
+    /// lacks named, before any pipeline is built; with
+    /// `SHADER_F16` the importance pass also runs networks at f16-math. Frames allocate from
+    /// the device's own limits.
+    ///
+    /// ```
+    /// # let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    /// # let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+    /// // The application's device, opened as it likes, with the features dhoit needs.
+    /// let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+    ///     required_features: dhoit_runtime::gpu::required_features(),
+    ///     required_limits: dhoit_runtime::gpu::required_limits(),
+    ///     ..Default::default()
+    /// }))
+    /// .unwrap();
+    /// let gpu = dhoit_runtime::gpu::Gpu::on_device(device.clone(), queue.clone(), &adapter.get_info())?;
+    /// assert!(gpu.adapter.contains(&adapter.get_info().name));
+    /// # Ok::<(), dhoit_runtime::Error>(())
+    /// ```
+    pub fn on_device(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        info: &wgpu::AdapterInfo,
+    ) -> Result<Gpu> {
+        let features = required_features() - device.features();
+        let mut missing = Vec::new();
+        if !features.is_empty() {
+            missing.push(format!("{features:?}"));
+        }
+        required_limits().check_limits_with_fail_fn(&device.limits(), false, |name, need, has| {
+            missing.push(format!("{name} {has} (needs {need})"))
+        });
+        if !missing.is_empty() {
+            return Err(GpuError::DeviceLacks {
+                adapter: info.name.clone(),
+                missing: missing.join(", "),
+            }
+            .into());
+        }
+        Self::build(device, queue, info)
+    }
+
+    /// The passes' pipelines on an open device.
+    fn build(device: wgpu::Device, queue: wgpu::Queue, info: &wgpu::AdapterInfo) -> Result<Gpu> {
+        let features = device.features();
         let adapter_name = format!(
             "{} ({:?}, {:?}, {} {})",
             info.name, info.backend, info.device_type, info.driver, info.driver_info
