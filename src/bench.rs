@@ -248,24 +248,28 @@ fn write_report(report: serde_json::Value, out: Option<&std::path::Path>) -> Res
     Ok(())
 }
 
-/// The renderer's options for one of the bench's runs, by its label: the run's one option
-/// away from the default, every other option at its default (any other label: all defaults).
-fn configure(gpu: &mut dhoit_runtime::gpu::Gpu, label: &str) {
-    use dhoit_runtime::gpu::DkbGeometry;
-    gpu.skip_forced = label != "dkb_no_skip";
-    gpu.two_mode_capture = label != "dkb_insertion_only";
-    gpu.fits_pipelines = label != "dkb_two_mode_where_all_fit";
-    gpu.predict_fit = label != "dkb_every_pass";
-    gpu.spread_search = label == "dkb_spread_search";
-    gpu.shared_weights = label == "dkb_shared_weights";
-    gpu.unrolled_network = label != "dkb_array_network";
-    gpu.features_preload = label != "dkb_features_no_preload";
-    gpu.dkb_geometry = match label {
-        "dkb_count_first" => DkbGeometry::CountFirst,
-        "dkb_counting_features" => DkbGeometry::Counting,
-        _ => DkbGeometry::FollowLastFrame,
-    };
-    gpu.layer_major_fkb = label == "fkb_layer_major";
+/// The frame options of one of the bench's runs, by its label: the run's one option away from
+/// the default, every other option at its default (any other label: all defaults); steady-state
+/// frames read back their image only.
+fn configure(label: &str) -> dhoit_runtime::gpu::FrameOptions {
+    use dhoit_runtime::gpu::{DkbGeometry, FrameOptions};
+    FrameOptions {
+        skip_forced: label != "dkb_no_skip",
+        two_mode_capture: label != "dkb_insertion_only",
+        fits_pipelines: label != "dkb_two_mode_where_all_fit",
+        predict_fit: label != "dkb_every_pass",
+        spread_search: label == "dkb_spread_search",
+        shared_weights: label == "dkb_shared_weights",
+        unrolled_network: label != "dkb_array_network",
+        features_preload: label != "dkb_features_no_preload",
+        dkb_geometry: match label {
+            "dkb_count_first" => DkbGeometry::CountFirst,
+            "dkb_counting_features" => DkbGeometry::Counting,
+            _ => DkbGeometry::FollowLastFrame,
+        },
+        layer_major_fkb: label == "fkb_layer_major",
+        diagnostics: false,
+    }
 }
 
 /// Per-pass GPU times (timestamp queries) and whole-frame times per method: one cold frame,
@@ -281,12 +285,8 @@ fn gpu_bench(
     partial: &mut dyn FnMut(&serde_json::Value),
 ) -> serde_json::Value {
     use dhoit_runtime::gpu::{Gpu, Slots};
-    let mut gpu = match Gpu::new() {
-        Ok(mut g) => {
-            // Steady-state frames read back their image only.
-            g.diagnostics = false;
-            g
-        }
+    let gpu = match Gpu::new() {
+        Ok(g) => g,
         Err(e) => {
             eprintln!("GPU bench skipped: {e}");
             return serde_json::json!({ "error": e.to_string() });
@@ -330,7 +330,7 @@ fn gpu_bench(
     let summary = |scenes: &[serde_json::Value]| serde_json::json!({"adapter": adapter, "width": w, "height": h, "budget": budget.to_string(), "weights": weights, "weights_16_8": small_weights, "scenes": scenes});
     let mut scenes = Vec::new();
     for (name, s) in loaded {
-        let mut run = || -> Result<serde_json::Value> {
+        let run = || -> Result<serde_json::Value> {
             let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, w, h);
             let fl = raster::rasterize(s, &cam, w, h)?;
             // Each method's k and F as `render --device gpu` gives them (Slots::for_method on
@@ -351,7 +351,7 @@ fn gpu_bench(
             // once with every fragment inserted (no append mode in the capture), once with the
             // two-mode capture pipeline where the budget holds every fragment, once recording
             // every pass whatever the last frame (the device empties what it does not need:
-            // Gpu::predict_fit off), once with the search's totals spread over 32 copies, and
+            // FrameOptions::predict_fit off), once with the search's totals spread over 32 copies, and
             // once with the network's weights staged in workgroup memory; FKB once more with
             // its slots laid out layer-major; and DKB with the 16-8 network, and with the
             // default one at f16-math (binary16 hidden layers) where the device has them.
@@ -391,12 +391,12 @@ fn gpu_bench(
                     }
                     s => s,
                 };
-                configure(&mut gpu, label);
+                let opts = configure(label);
                 // One cold frame (its buffers are created), then `repeat` steady-state frames
                 // that reuse them and read back only the image: medians of those.
                 let timed = |gpu: &dhoit_runtime::gpu::Gpu| -> Result<(f64, f64, _)> {
                     let t = Instant::now();
-                    let g = gpu.render(s, &cam, w, h, [1.0; 3], slots)?;
+                    let g = gpu.render_with(&opts, s, &cam, (w, h), [1.0; 3], slots)?;
                     let wall = t.elapsed().as_secs_f64() * 1e3;
                     let passes: f64 = g.pass_ms.iter().map(|p| p.1).sum();
                     Ok((passes, wall, g))
@@ -459,8 +459,6 @@ fn gpu_bench(
                     }),
                 );
             }
-            // Back to the defaults (no run's label) for the next scene's cold frames.
-            configure(&mut gpu, "");
             let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
             let ratio = ms("dkb") / ms("vkb");
             let small_ratio = ms("dkb_16-8") / ms("vkb");

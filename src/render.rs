@@ -6,7 +6,7 @@ use clap::{Args, ValueEnum};
 use dhoit_runtime::budget::{Budget, format_bytes};
 use dhoit_runtime::dump;
 use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
-use dhoit_runtime::gpu::{DkbGeometry, Gpu, Slots};
+use dhoit_runtime::gpu::{DkbGeometry, FrameOptions, Gpu, Slots};
 use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::Precision;
 use dhoit_runtime::scene::Camera;
@@ -107,7 +107,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             // The CPU only decides what the GPU cannot (F, and k for FKB, MLAB and the CPU-only
             // allocations); nothing is composited on the CPU.
             let cpu = renderer.allocate_for_gpu(method)?;
-            let mut gpu = Gpu::new()?;
+            let gpu = Gpu::new()?;
             eprintln!("GPU: {}", gpu.adapter);
             let (w, h) = (fl.width, fl.height);
             let cam = Camera::orbit(&scene, a.view, a.common.views, w, h);
@@ -116,16 +116,17 @@ pub fn run(a: RenderArgs) -> Result<()> {
             // an allocated frame skips its importance and search, only where the budget holds
             // every fragment the CPU counted in this frame (no second submission where it
             // truncates; the images are the same either way, only the passes differ).
+            let mut opts = FrameOptions::default();
             if let Some(Slots::Dkb(_, f) | Slots::Vkb(_, f) | Slots::Importance(_, _, f)) = slots {
                 let holds = f.holds(fl.fragment_count() as u64);
-                gpu.predict_fit = holds;
-                gpu.dkb_geometry = if holds {
+                opts.predict_fit = holds;
+                opts.dkb_geometry = if holds {
                     DkbGeometry::CountFirst
                 } else {
                     DkbGeometry::Counting
                 };
             }
-            let g = gpu.render(&scene, &cam, w, h, a.common.background, slots)?;
+            let g = gpu.render_with(&opts, &scene, &cam, (w, h), a.common.background, slots)?;
             let passes: Vec<String> = g
                 .pass_ms
                 .iter()

@@ -389,10 +389,8 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
 /// frame: the importance map, k and the image are the same with the skip and without it.
 #[test]
 fn skipping_forced_pixels_leaves_the_frame_unchanged() {
-    if gpu().is_none() {
-        return;
-    }
-    let mut g = Gpu::new().unwrap();
+    let Some(g) = gpu() else { return };
+    let mut o = dhoit_runtime::gpu::FrameOptions::default();
     let mut s = Scene::default();
     // One fragment (forced), two of one colour (forced: a pair) and deeper pixels.
     quad(
@@ -433,9 +431,9 @@ fn skipping_forced_pixels_leaves_the_frame_unchanged() {
     ] {
         let mut frames = Vec::new();
         for skip in [true, false] {
-            g.skip_forced = skip;
+            o.skip_forced = skip;
             let fr = g
-                .render(&s, &identity(), w, h, BG, Some(Slots::Dkb(&mlp, f)))
+                .render_with(&o, &s, &identity(), (w, h), BG, Some(Slots::Dkb(&mlp, f)))
                 .unwrap();
             frames.push(fr);
         }

@@ -215,16 +215,17 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
 }
 
 /// DKB's importance pass with the network's weights staged in workgroup memory
-/// (`Gpu::shared_weights`) gives the importance and image of the pass that reads them from the
+/// (`FrameOptions::shared_weights`) gives the importance and image of the pass that reads them from the
 /// uniform (held to the CPU twin by the other tests): the default network, one whose first
 /// layer leaves a tile part empty (20 units in tiles of 16), and one at f16; then the other
 /// layouts' frames ([`features_and_network_layouts_give_the_same_frame`]).
 #[test]
 fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames() {
+    let mut o = dhoit_runtime::gpu::FrameOptions::default();
     if gpu().is_none() {
         return;
     }
-    // A device of its own: the flag is the device's.
+    // A device of its own: which passes a frame records follows the device's last frame.
     let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
     let (w, h) = (64, 48);
     let (s, cam) = frame("particles", 1, w, h);
@@ -245,8 +246,8 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
     let f = (3 * w * h / 2) as u64;
     for (label, mlp) in &nets {
         let mut frames = [false, true].map(|shared| {
-            g.shared_weights = shared;
-            g.render(&s, &cam, w, h, BG, Some(Slots::Dkb(mlp, f.into())))
+            o.shared_weights = shared;
+            g.render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Dkb(mlp, f.into())))
                 .unwrap()
         });
         // Each frame ran the network it was asked for.
@@ -268,20 +269,19 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
         let di = a.image.max_abs_diff(&b.image);
         assert!(di <= 1e-5, "{label}: image differs by {di}");
     }
-    g.shared_weights = false;
     // The features pass's and the network's other layouts, on the same device (one device
     // fewer in the test process: lavapipe runs each device's threads) and frame.
     features_and_network_layouts_give_the_same_frame(&mut g, (&s, &cam), (w, h), &nets[0].1);
 }
 
-/// The two ways the features pass may take a pixel's nearest key (`Gpu::features_preload`)
-/// gather the same statistics, the network written out for its shape (`Gpu::unrolled_network`)
+/// The two ways the features pass may take a pixel's nearest key (`FrameOptions::features_preload`)
+/// gather the same statistics, the network written out for its shape (`FrameOptions::unrolled_network`)
 /// gives the importance of mlp.wgsl's loops, and counting first (`DkbGeometry::CountFirst`)
 /// gives the frame of counting in the features pass (`DkbGeometry::Counting`): one frame per
 /// setting, at a budget that truncates and at one that holds every fragment, the same
 /// statistics as the CPU twin's where the features pass drew (always when it counts, else only
 /// where the budget truncates), the same importance and image bits. Then a stream of frames
-/// following the last (`DkbGeometry::FollowLastFrame` and `Gpu::predict_fit`, the defaults),
+/// following the last (`DkbGeometry::FollowLastFrame` and `FrameOptions::predict_fit`, the defaults),
 /// DKB's, VKB's and uploaded importance's, counts first and records nothing else before the
 /// capture after a frame the budget held, records every pass after one it truncated, or in a
 /// second submission where an expected fit truncates, with the slots, importance and image
@@ -292,6 +292,7 @@ fn features_and_network_layouts_give_the_same_frame(
     (w, h): (u32, u32),
     mlp: &dhoit_runtime::mlp::Mlp,
 ) {
+    let mut o = dhoit_runtime::gpu::FrameOptions::default();
     use dhoit_runtime::gpu::DkbGeometry;
     let gfl = gpu_fragments(g, s, cam, w, h);
     let stats = importance::pixel_stats(&gfl);
@@ -310,11 +311,11 @@ fn features_and_network_layouts_give_the_same_frame(
             (false, false, DkbGeometry::CountFirst),
             (true, true, DkbGeometry::Counting),
         ] {
-            g.features_preload = preload;
-            g.unrolled_network = unrolled;
-            g.dkb_geometry = geometry;
+            o.features_preload = preload;
+            o.unrolled_network = unrolled;
+            o.dkb_geometry = geometry;
             let frame = g
-                .render(s, cam, w, h, BG, Some(Slots::Dkb(mlp, f.into())))
+                .render_with(&o, s, cam, (w, h), BG, Some(Slots::Dkb(mlp, f.into())))
                 .unwrap();
             let label =
                 format!("F {f} of {total}: preload {preload}, unrolled {unrolled}, {geometry:?}");
@@ -364,10 +365,10 @@ fn features_and_network_layouts_give_the_same_frame(
             }
         }
     }
-    g.features_preload = true;
-    g.unrolled_network = true;
-    g.dkb_geometry = DkbGeometry::FollowLastFrame;
-    // Every pass recorded whatever the last frame (`Gpu::predict_fit` off): the references of
+    o.features_preload = true;
+    o.unrolled_network = true;
+    o.dkb_geometry = DkbGeometry::FollowLastFrame;
+    // Every pass recorded whatever the last frame (`FrameOptions::predict_fit` off): the references of
     // the stream below, DKB's, VKB's and uploaded importance's.
     let vkb = |f: u64| Slots::Vkb(Default::default(), f.into());
     let dkb = |f: u64| Slots::Dkb(mlp, f.into());
@@ -380,17 +381,17 @@ fn features_and_network_layouts_give_the_same_frame(
         _ => upload(f),
     };
     let methods = ["dkb", "vkb", "uploaded"];
-    g.predict_fit = false;
+    o.predict_fit = false;
     let mut reference = std::collections::HashMap::new();
     for f in [truncates, holds_all] {
         for (method, slots) in methods.map(|m| (m, slots(m, f))) {
-            let frame = g.render(s, cam, w, h, BG, Some(slots)).unwrap();
+            let frame = g.render_with(&o, s, cam, (w, h), BG, Some(slots)).unwrap();
             let bits = frame.importance.as_deref().map(float_bits);
             assert!(method != "dkb" || image_bits(&frame.image) == images[&f]);
             reference.insert((method, f), (image_bits(&frame.image), frame.slots, bits));
         }
     }
-    g.predict_fit = true;
+    o.predict_fit = true;
     // The last frame above was held by its budget: the stream starts counting first and
     // expects to fit. A frame expected to fit records its count alone (k = n: the slot bases
     // are the count's prefix sum) and, where the budget holds every fragment, neither totals,
@@ -407,7 +408,9 @@ fn features_and_network_layouts_give_the_same_frame(
         .into_iter()
         .enumerate()
         {
-            let frame = g.render(s, cam, w, h, BG, Some(slots(method, f))).unwrap();
+            let frame = g
+                .render_with(&o, s, cam, (w, h), BG, Some(slots(method, f)))
+                .unwrap();
             let label = format!("{method}: following frame {i}, F {f} of {total}");
             let passes = |name: &str| frame.pass_ms.iter().filter(|p| p.0 == name).count();
             let holds = f >= total;
@@ -435,12 +438,12 @@ fn features_and_network_layouts_give_the_same_frame(
             }
         }
     }
-    // The allocation's search adding into 32 copies of its totals (`Gpu::spread_search`):
+    // The allocation's search adding into 32 copies of its totals (`FrameOptions::spread_search`):
     // the same slots and images where the budget truncates.
-    g.spread_search = true;
+    o.spread_search = true;
     for method in methods {
         let frame = g
-            .render(s, cam, w, h, BG, Some(slots(method, truncates)))
+            .render_with(&o, s, cam, (w, h), BG, Some(slots(method, truncates)))
             .unwrap();
         let (image, keys, _) = &reference[&(method, truncates)];
         assert!(
@@ -459,25 +462,25 @@ fn features_and_network_layouts_give_the_same_frame(
             "{method}: spread search"
         );
     }
-    g.spread_search = false;
 }
 
-/// FKB's slots laid out layer-major (`Gpu::layer_major_fkb`) hold the same keys and tails,
+/// FKB's slots laid out layer-major (`FrameOptions::layer_major_fkb`) hold the same keys and tails,
 /// and draw the same image bits, as pixel-major ones and the CPU twin, in any submission order.
 #[test]
 fn layer_major_slots_capture_what_pixel_major_ones_do() {
+    let mut o = dhoit_runtime::gpu::FrameOptions::default();
     if gpu().is_none() {
         return;
     }
-    let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
+    let g = dhoit_runtime::gpu::Gpu::new().unwrap();
     let (w, h) = (80, 60);
     for (name, view) in [("particles", 1), ("hair", 0)] {
         let (s, cam) = frame(name, view, w, h);
         let gfl = gpu_fragments(&g, &s, &cam, w, h);
         for k in [1u32, 3] {
             let frames = [false, true].map(|layer_major| {
-                g.layer_major_fkb = layer_major;
-                g.render(&s, &cam, w, h, BG, Some(Slots::Uniform(k)))
+                o.layer_major_fkb = layer_major;
+                g.render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Uniform(k)))
                     .unwrap()
             });
             let (twin_keys, twin_tails) = twin_capture(&gfl, &vec![k; gfl.pixel_count()]);
@@ -500,11 +503,19 @@ fn layer_major_slots_capture_what_pixel_major_ones_do() {
                 image_bits(&frames[0].image) == image_bits(&frames[1].image),
                 "{name} k = {k}: image"
             );
+            // Layer-major, as the last frame.
             let shuffled = g
-                .render(&s.shuffled(5), &cam, w, h, BG, Some(Slots::Uniform(k)))
+                .render_with(
+                    &o,
+                    &s.shuffled(5),
+                    &cam,
+                    (w, h),
+                    BG,
+                    Some(Slots::Uniform(k)),
+                )
                 .unwrap();
             assert!(image_bits(&shuffled.image) == image_bits(&frames[1].image));
-            g.layer_major_fkb = false;
+            o.layer_major_fkb = false;
         }
     }
 }
@@ -518,8 +529,12 @@ fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
         return;
     }
     // A device of its own: the shared one's pool serves tests running in parallel.
-    let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
-    g.diagnostics = false;
+    let g = dhoit_runtime::gpu::Gpu::new().unwrap();
+    // Steady frames read back their image only.
+    let o = dhoit_runtime::gpu::FrameOptions {
+        diagnostics: false,
+        ..Default::default()
+    };
     let (w, h) = (96, 72);
     let (a, cam_a) = frame("particles", 0, w, h);
     let (b, cam_b) = frame("shells", 1, w, h);
@@ -536,7 +551,7 @@ fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
         Some(Slots::Dkb(&mlp, f.into())),
     ];
     let bits = |g: &dhoit_runtime::gpu::Gpu, s: &Scene, cam: &Camera, slots: Option<Slots>| {
-        image_bits(&g.render(s, cam, w, h, BG, slots).unwrap().image)
+        image_bits(&g.render_with(&o, s, cam, (w, h), BG, slots).unwrap().image)
     };
     for (i, &sl) in slots.iter().enumerate() {
         // The first frame of a method may take another path than those after it (a k-buffer
@@ -565,12 +580,10 @@ fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
             "method {i}: the last frame showed through"
         );
     }
-    // With the readbacks the tests use on, the same image again.
-    g.diagnostics = true;
+    // With the readbacks the tests use on (the defaults), the same image again.
     let with = g.render(&a, &cam_a, w, h, BG, slots[5]).unwrap();
     assert!(with.slots.is_some() && with.stats.is_some());
     let bits_with = image_bits(&with.image);
-    g.diagnostics = false;
     assert!(bits(&g, &a, &cam_a, slots[5]) == bits_with);
 }
 
@@ -1084,15 +1097,16 @@ fn a_large_allocation_matches_its_twin() {
 /// tests), and both end in the slots, tail and image of the CPU twin, bit for bit in the image
 /// whatever the submission order. A layered scene gives every case: pixels appended, pixels
 /// truncated, and pixels deeper than APPEND_MAX that insert although k >= n. Where the budget
-/// holds every fragment, the pipeline built for such frames (`Gpu::fits_pipelines`) gives the
+/// holds every fragment, the pipeline built for such frames (`FrameOptions::fits_pipelines`) gives the
 /// same slots, tails and image bits as the two-mode one.
 #[test]
 fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
+    let mut o = dhoit_runtime::gpu::FrameOptions::default();
     if gpu().is_none() {
         return;
     }
-    // A device of its own: the flag is the device's.
-    let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
+    // A device of its own: which passes a frame records follows the device's last frame.
+    let g = dhoit_runtime::gpu::Gpu::new().unwrap();
     let mut s = Scene::default();
     let v = glam::Vec3::new;
     // 70 layers over the left half, 3 over the right, 1 over a strip at the top: deep pixels
@@ -1126,11 +1140,15 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
             ("dkb", Slots::Dkb(&mlp, f.into())),
             ("vkb", Slots::Vkb(Default::default(), f.into())),
         ] {
-            let frame = g.render(&s, &cam, w, h, BG, Some(slots)).unwrap();
+            let frame = g
+                .render_with(&o, &s, &cam, (w, h), BG, Some(slots))
+                .unwrap();
             if f >= total {
-                g.fits_pipelines = false;
-                let two_mode = g.render(&s, &cam, w, h, BG, Some(slots)).unwrap();
-                g.fits_pipelines = true;
+                o.fits_pipelines = false;
+                let two_mode = g
+                    .render_with(&o, &s, &cam, (w, h), BG, Some(slots))
+                    .unwrap();
+                o.fits_pipelines = true;
                 assert!(
                     frame
                         .variants
@@ -1284,12 +1302,13 @@ fn deep_pixels(n: usize) -> (Scene, Camera) {
 /// fragment more, every method refuses the frame as the CPU rasterizer does.
 #[test]
 fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
+    let mut o = dhoit_runtime::gpu::FrameOptions::default();
     use dhoit_runtime::gpu::DkbGeometry;
     if gpu().is_none() {
         return;
     }
-    // A device of its own: the features pass's geometry is the device's.
-    let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
+    // A device of its own: which passes a frame records follows the device's last frame.
+    let g = dhoit_runtime::gpu::Gpu::new().unwrap();
     let max = dhoit_runtime::raster::MAX_FRAGMENTS_PER_PIXEL as usize;
     let mlp = dhoit_runtime::mlp::Mlp::load(
         &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
@@ -1303,10 +1322,12 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
     let twin_stats = importance::pixel_stats(&fl);
     let (f, vkb) = (8u64, Slots::Vkb(Default::default(), 8u64.into()));
     for geometry in [DkbGeometry::CountFirst, DkbGeometry::Counting] {
-        g.dkb_geometry = geometry;
+        o.dkb_geometry = geometry;
         let dkb = Slots::Dkb(&mlp, f.into());
         for (name, slots) in [("FKB", Slots::Uniform(2)), ("VKB", vkb), ("DKB", dkb)] {
-            let frame = g.render(&s, &cam, w, h, BG, Some(slots)).unwrap();
+            let frame = g
+                .render_with(&o, &s, &cam, (w, h), BG, Some(slots))
+                .unwrap();
             let bases = &frame.slots.as_ref().unwrap().1;
             let k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
             let twin = composite::composite(&fl, composite::Method::Hybrid(&k), BG);
@@ -1345,9 +1366,9 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
         ("VKB", Some(vkb)),
         ("DKB", Some(Slots::Dkb(&mlp, f.into()))),
     ];
-    g.dkb_geometry = DkbGeometry::FollowLastFrame;
+    o.dkb_geometry = DkbGeometry::FollowLastFrame;
     for (name, slots) in methods {
-        let Err(e) = g.render(&s, &cam, w, h, BG, slots) else {
+        let Err(e) = g.render_with(&o, &s, &cam, (w, h), BG, slots) else {
             panic!("{name}: a pixel of {} fragments gave a frame", max + 1)
         };
         let e = e.to_string();
@@ -1747,11 +1768,12 @@ fn cpu_and_gpu_rasterizers_agree_on_depth_and_coverage() {
 /// pixels; with `skip_forced` off it is every covered pixel.
 #[test]
 fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
+    let mut o = dhoit_runtime::gpu::FrameOptions::default();
     if gpu().is_none() {
         return;
     }
-    // A device of its own: the flag is the device's.
-    let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
+    // A device of its own: which passes a frame records follows the device's last frame.
+    let g = dhoit_runtime::gpu::Gpu::new().unwrap();
     let mlp = dhoit_runtime::mlp::Mlp::random(8);
     let (w, h) = (64, 48);
     for (name, view) in [("particles", 1), ("cad", 0)] {
@@ -1770,9 +1792,9 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
             .count() as u32;
         assert!(decided < covered, "{name}: some pixels' k is forced");
         for (skip, want) in [(true, decided), (false, covered)] {
-            g.skip_forced = skip;
+            o.skip_forced = skip;
             let frame = g
-                .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
+                .render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Dkb(&mlp, f.into())))
                 .unwrap();
             assert_eq!(
                 frame.network_rows,
@@ -1780,7 +1802,7 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
                 "{name}, skip_forced {skip}: pixels the network ran on"
             );
         }
-        g.skip_forced = true;
+        o.skip_forced = true;
     }
 }
 

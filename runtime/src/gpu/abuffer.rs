@@ -32,7 +32,7 @@ impl Recording<'_, '_> {
         // Submission indices for MLAB's order (counted: its pipeline's), and for the tests'
         // readback (not counted, like the readback copies); else an empty binding.
         let none = fb.storage("abuf.no_primitives", 16, true)?;
-        let primitives = if mlab || gpu.diagnostics {
+        let primitives = if mlab || self.passes.opts.diagnostics {
             fb.storage("abuf.primitives", 4 * total, mlab)?
         } else {
             none
@@ -58,7 +58,7 @@ impl Recording<'_, '_> {
         ];
         passes.resolve(enc, resolve, &bufs, name);
         fb.submit(enc);
-        if gpu.diagnostics {
+        if self.passes.opts.diagnostics {
             let mut fl = FragmentLists {
                 width,
                 height,

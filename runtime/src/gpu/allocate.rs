@@ -207,7 +207,7 @@ impl<'a> Passes<'a> {
         al: &Allocation,
     ) -> Result<&'static str> {
         let a = &self.gpu.pipelines.allocate;
-        let (search, variant) = a.search_for(self.gpu);
+        let (search, variant) = a.search_for(&self.gpu.device, self.opts.spread_search);
         let (per_pixel, rounds, scan) = (0, 16, 32);
         let dispatches = &al.dispatches;
         self.compute(enc, "allocation", |pass| {
@@ -286,7 +286,7 @@ impl Gpu {
         let params = frame_params(cam, width, height, [1.0; 3], 0, budget, Default::default());
         let inputs = self.frame_inputs(&mut fb, scene, &params);
         let timer = Timer::new(self);
-        let passes = Passes::new(self, &timer, &inputs);
+        let passes = Passes::new(self, &timer, &inputs, FrameOptions::default());
         let p = &self.pipelines;
         let mut enc = self.device.create_command_encoder(&Default::default());
         let counts = fb.storage("count", 4 * px, true)?;
@@ -336,7 +336,7 @@ pub(super) struct Allocate {
     pub(super) weights: wgpu::ComputePipeline,
     pub(super) setup: wgpu::ComputePipeline,
     pub(super) search: wgpu::ComputePipeline,
-    /// The search adding into 32 copies of the workgroup's totals ([`Gpu::spread_search`],
+    /// The search adding into 32 copies of the workgroup's totals ([`FrameOptions::spread_search`],
     /// off by default): built on first use.
     search_spread: std::sync::OnceLock<wgpu::ComputePipeline>,
     pipeline_layout: wgpu::PipelineLayout,
@@ -396,9 +396,13 @@ impl Allocate {
         }
     }
 
-    /// The search as [`Gpu::spread_search`] asks for it, and its variant's name.
-    pub(super) fn search_for(&self, gpu: &Gpu) -> (&wgpu::ComputePipeline, &'static str) {
-        if !gpu.spread_search {
+    /// The search as [`FrameOptions::spread_search`] asks for it, and its variant's name.
+    pub(super) fn search_for(
+        &self,
+        device: &wgpu::Device,
+        spread: bool,
+    ) -> (&wgpu::ComputePipeline, &'static str) {
+        if !spread {
             return (&self.search, "allocation search: one copy of the totals");
         }
         let p = self.search_spread.get_or_init(|| {
@@ -409,8 +413,8 @@ impl Allocate {
                 "const SEARCH_COPIES: u32 = 1u;",
                 "const SEARCH_COPIES: u32 = 32u;",
             );
-            let m = module_from(&gpu.device, "allocate (spread search)", src);
-            pipeline(&gpu.device, &self.pipeline_layout, &m, "search")
+            let m = module_from(device, "allocate (spread search)", src);
+            pipeline(device, &self.pipeline_layout, &m, "search")
         });
         (p, "allocation search: 32 copies of the totals")
     }

@@ -80,10 +80,10 @@ impl Recording<'_, '_> {
     }
 
     /// Whether this frame is recorded as one whose budget holds every fragment
-    /// ([`Gpu::predict_fit`]: as the renderer's last allocated frame's did).
+    /// ([`FrameOptions::predict_fit`]: as the renderer's last allocated frame's did).
     fn expect_fit(&self) -> bool {
         let gpu = self.passes.gpu;
-        gpu.predict_fit
+        self.passes.opts.predict_fit
             && !gpu
                 .last_truncated
                 .load(std::sync::atomic::Ordering::Relaxed)
@@ -121,7 +121,7 @@ impl Recording<'_, '_> {
         // before the allocation overwrites it with its fixed point; where no pass computed it
         // (k = n), it stays zero.
         let copy_importance = |fb: &mut FrameBuffers, enc: &mut wgpu::CommandEncoder| {
-            if !(gpu.diagnostics && i.computed) {
+            if !(self.passes.opts.diagnostics && i.computed) {
                 return Ok::<_, Error>(None);
             }
             let copy = fb.storage("importance.readback", 4 * px, false)?;
@@ -200,13 +200,14 @@ impl Recording<'_, '_> {
             ),
         };
         // Where k = n everywhere, the pipelines built for it (the same slots, tail and image).
-        let (capture, resolve) = if gpu.two_mode_capture && gpu.fits_pipelines && kb.all_fit {
-            self.out.variants.push("capture: built for frames that fit");
-            (&p.capture_fits, &p.resolve_fits)
-        } else {
-            self.out.variants.push("capture: general");
-            (&p.capture, &p.resolve)
-        };
+        let (capture, resolve) =
+            if self.passes.opts.two_mode_capture && self.passes.opts.fits_pipelines && kb.all_fit {
+                self.out.variants.push("capture: built for frames that fit");
+                (&p.capture_fits, &p.resolve_fits)
+            } else {
+                self.out.variants.push("capture: general");
+                (&p.capture, &p.resolve)
+            };
         passes.draw(
             enc,
             capture,
@@ -216,7 +217,7 @@ impl Recording<'_, '_> {
         // With diagnostics, the tail counts as the capture left them, before the resolve sorts
         // what the append mode spilled: n where a pixel appended, what insertion pushed out
         // where it inserted ([`GpuFrame::capture_counts`]).
-        let captured = if gpu.diagnostics {
+        let captured = if self.passes.opts.diagnostics {
             let copy = fb.storage("oit.tail_count.captured", 4 * px, false)?;
             enc.copy_buffer_to_buffer(&tail_count, 0, &copy, 0, 4 * px);
             Some(copy)
@@ -241,7 +242,7 @@ impl Recording<'_, '_> {
         );
         fb.submit(enc);
         self.out.status = Some(status);
-        if gpu.diagnostics {
+        if self.passes.opts.diagnostics {
             let bases = match s {
                 Slots::Uniform(k) => (0..=px as u32).map(|q| q * k.max(1)).collect(),
                 _ => u32s(&read_back(gpu, &kb.base, 4 * (px + 1))?),
@@ -254,7 +255,7 @@ impl Recording<'_, '_> {
                 .flat_map(|(s, c)| [s[0], s[1], s[2], s[3], c])
                 .collect();
             let mut keys = read_u64s(gpu, &slots, kb.slots, true)?;
-            if let (Slots::Uniform(k), true) = (s, gpu.layer_major_fkb) {
+            if let (Slots::Uniform(k), true) = (s, self.passes.opts.layer_major_fkb) {
                 // Pixel-major, as composite::capture gives them.
                 let (k, n) = (k.max(1) as usize, px as usize);
                 keys = (0..n * k).map(|q| keys[(q % k) * n + q / k]).collect();

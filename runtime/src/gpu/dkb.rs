@@ -5,7 +5,7 @@
 //! [`DkbGeometry`], its count packed in the colour sums and written out by `totals.wgsl`'s
 //! `from_sums`), then `importance_dkb.wgsl` (the 12 features, never stored, through the
 //! network of `mlp.wgsl`, built for the network's shape and precision by [`Variant`]; twin
-//! `Mlp::dkb_importance`). A frame expected to fit ([`Gpu::predict_fit`]) records the count
+//! `Mlp::dkb_importance`). A frame expected to fit ([`FrameOptions::predict_fit`]) records the count
 //! alone and leaves the rest to [`Recording::allocated`], which records it only where the
 //! budget truncates.
 
@@ -85,7 +85,7 @@ impl Recording<'_, '_> {
             list_len: fb.storage("importance.list_len", 16, true)?,
             dispatch,
         };
-        let count_first = match gpu.dkb_geometry {
+        let count_first = match self.passes.opts.dkb_geometry {
             DkbGeometry::CountFirst => true,
             DkbGeometry::Counting => false,
             DkbGeometry::FollowLastFrame => !gpu
@@ -94,7 +94,7 @@ impl Recording<'_, '_> {
         };
         let (features, variant) = if !count_first {
             (&p.features_counting, "features: counting")
-        } else if gpu.features_preload {
+        } else if self.passes.opts.features_preload {
             (&p.features, "features: preload")
         } else {
             (&p.features_no_preload, "features: no preload")
@@ -114,10 +114,10 @@ impl Recording<'_, '_> {
             passes.totals_from_sums(&mut self.enc, &b.sums, &b.counts, &b.totals);
         }
         let variant = |entry| Variant {
-            shared_weights: gpu.shared_weights,
-            unrolled: gpu.unrolled_network,
+            shared_weights: self.passes.opts.shared_weights,
+            unrolled: self.passes.opts.unrolled_network,
             entry,
-            ..Variant::for_network("importance_dkb", mlp, gpu.skip_forced)
+            ..Variant::for_network("importance_dkb", mlp, self.passes.opts.skip_forced)
         };
         self.out.variants.push(variant("network").form());
         let network = ["select_pixels", "args", "network"].map(|e| gpu.network_pass(variant(e)));
@@ -143,7 +143,7 @@ impl Recording<'_, '_> {
     /// The features pass (drawn indirectly), and with diagnostics the copies of its statistics
     /// (not counted; the buffers then serve the tail and the image).
     fn dkb_features(&mut self, b: &DkbBuffers, features: &wgpu::RenderPipeline) -> Result<()> {
-        let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
+        let (passes, px) = (self.passes, self.px);
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         // Where the pass counts (COUNT_FRAGMENTS), n goes in the sums (totals.wgsl's from_sums).
         let bufs = [
@@ -154,7 +154,7 @@ impl Recording<'_, '_> {
             &b.opacity,
         ];
         passes.draw_indirect(enc, features, &bufs, "features", &b.draw);
-        if gpu.diagnostics {
+        if self.passes.opts.diagnostics {
             let mut copy = |b: &wgpu::Buffer, label: &str, bytes: u64| {
                 let c = fb.storage(label, bytes * px, false)?;
                 enc.copy_buffer_to_buffer(b, 0, &c, 0, bytes * px);
@@ -236,7 +236,7 @@ impl Recording<'_, '_> {
             pass.set_bind_group(0, &network_group, &[]);
             pass.dispatch_workgroups_indirect(&b.dispatch, 0);
         });
-        if gpu.diagnostics {
+        if self.passes.opts.diagnostics {
             let copy = self.fb.storage("importance.list_len.readback", 16, false)?;
             self.enc.copy_buffer_to_buffer(&b.list_len, 0, &copy, 0, 16);
             self.out.network_rows_buf = Some(copy);

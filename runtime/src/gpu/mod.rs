@@ -122,12 +122,37 @@ pub struct Gpu {
     pub adapter: String,
     timestamp_period: f32,
     pipelines: Pipelines,
-    /// Whether DKB's importance pass skips the network where k does not depend on it (on by
-    /// default; the bench turns it off to show the time saved). The images are the same.
-    pub skip_forced: bool,
     /// Whether the device computes in binary16 (`SHADER_F16`): the importance pass runs a
     /// network deployed at [`Precision::F16Math`] only where it does.
     half_math: bool,
+    /// Whether the budget truncated the last frame this renderer allocated k for (DKB, VKB,
+    /// uploaded importance): what [`DkbGeometry::FollowLastFrame`] and [`FrameOptions::predict_fit`] go
+    /// by.
+    last_truncated: std::sync::atomic::AtomicBool,
+    /// Whether the device ends a shader invocation's loops early, silently (Mesa's lavapipe,
+    /// after 65,535 iterations): then a frame whose passes came close to that (common.wgsl's
+    /// LOOP_BUDGET) is refused. Other devices run loops to their end, and deep pixels render.
+    pub bounded_loops: bool,
+    /// Buffers of earlier frames, by label, reused when a frame asks for one of the same size
+    /// and usage (cleared first, as a new buffer is), so a steady stream of frames creates
+    /// none. Frames take their buffers out and put them back when done, so concurrent frames
+    /// never share one.
+    pool: std::sync::Mutex<std::collections::HashMap<String, wgpu::Buffer>>,
+    /// Timestamp query sets of earlier frames.
+    query_sets: std::sync::Mutex<Vec<wgpu::QuerySet>>,
+    /// Buffers created for frames since the device opened (reused ones not counted).
+    created: std::sync::atomic::AtomicU64,
+}
+
+/// How a frame lays out its passes, and what it reads back: each switch picks one of two
+/// implementations with the same images (the bench measures both; the tests hold each to the
+/// other), and the defaults are the fastest measured. [`Gpu::render`] takes the defaults,
+/// [`Gpu::render_with`] the caller's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameOptions {
+    /// Whether DKB's importance pass skips the network where k does not depend on it (on by
+    /// default; the bench turns it off to show the time saved). The images are the same.
+    pub skip_forced: bool,
     /// Whether the allocated k-buffers (DKB, VKB, uploaded importance), which know n(p) by the
     /// capture, append the pixels whose slots hold all but at most
     /// [`crate::composite::APPEND_SPILL`] fragments and insert the rest (capture.wgsl); off,
@@ -161,10 +186,6 @@ pub struct Gpu {
     /// How DKB counts its fragments and gathers its features ([`DkbGeometry`]; the images are
     /// the same).
     pub dkb_geometry: DkbGeometry,
-    /// Whether the budget truncated the last frame this renderer allocated k for (DKB, VKB,
-    /// uploaded importance): what [`DkbGeometry::FollowLastFrame`] and [`Gpu::predict_fit`] go
-    /// by.
-    last_truncated: std::sync::atomic::AtomicBool,
     /// Whether an allocated frame (DKB, VKB, uploaded importance) is recorded as one whose
     /// budget holds every fragment where the renderer's last allocated frame's did: then k = n
     /// whatever the importance, so the frame records its count, the count's prefix sum (the
@@ -188,19 +209,24 @@ pub struct Gpu {
     /// fragments, the k-buffer's slots and tails, importance and statistics): on by default;
     /// off, a frame reads back its image only (the bench's steady-state frames).
     pub diagnostics: bool,
-    /// Whether the device ends a shader invocation's loops early, silently (Mesa's lavapipe,
-    /// after 65,535 iterations): then a frame whose passes came close to that (common.wgsl's
-    /// LOOP_BUDGET) is refused. Other devices run loops to their end, and deep pixels render.
-    pub bounded_loops: bool,
-    /// Buffers of earlier frames, by label, reused when a frame asks for one of the same size
-    /// and usage (cleared first, as a new buffer is), so a steady stream of frames creates
-    /// none. Frames take their buffers out and put them back when done, so concurrent frames
-    /// never share one.
-    pool: std::sync::Mutex<std::collections::HashMap<String, wgpu::Buffer>>,
-    /// Timestamp query sets of earlier frames.
-    query_sets: std::sync::Mutex<Vec<wgpu::QuerySet>>,
-    /// Buffers created for frames since the device opened (reused ones not counted).
-    created: std::sync::atomic::AtomicU64,
+}
+
+impl Default for FrameOptions {
+    fn default() -> Self {
+        FrameOptions {
+            skip_forced: true,
+            two_mode_capture: true,
+            fits_pipelines: true,
+            shared_weights: false,
+            unrolled_network: true,
+            features_preload: true,
+            dkb_geometry: DkbGeometry::FollowLastFrame,
+            predict_fit: true,
+            spread_search: false,
+            layer_major_fkb: false,
+            diagnostics: true,
+        }
+    }
 }
 
 /// Most buffers the pool keeps (beyond, a returned buffer is dropped).
@@ -386,18 +412,7 @@ impl Gpu {
             queue,
             adapter: adapter_name,
             pipelines,
-            skip_forced: true,
-            two_mode_capture: true,
-            fits_pipelines: true,
-            shared_weights: false,
-            unrolled_network: true,
-            features_preload: true,
-            dkb_geometry: DkbGeometry::FollowLastFrame,
             last_truncated: false.into(),
-            predict_fit: true,
-            spread_search: false,
-            layer_major_fkb: false,
-            diagnostics: true,
             half_math: features.contains(wgpu::Features::SHADER_F16),
             bounded_loops: info.name.contains("llvmpipe") || info.driver.contains("llvmpipe"),
             pool: Default::default(),
@@ -518,7 +533,7 @@ pub struct GpuFrame {
     pub stats: Option<Vec<PixelStats>>,
     /// DKB: whether its features pass drew the frame's triangles: not when the budget holds
     /// every fragment (k = n whatever the importance), where the frame either did not record
-    /// the pass (it expected to fit: [`Gpu::predict_fit`]) or the device emptied its draw.
+    /// the pass (it expected to fit: [`FrameOptions::predict_fit`]) or the device emptied its draw.
     pub features_drawn: Option<bool>,
     /// VKB: per pixel the count and the nearest fragment's `|n . e|`.
     pub vkb_nearest: Option<(Vec<u32>, Vec<f32>)>,
@@ -612,6 +627,21 @@ impl Gpu {
         background: [f32; 3],
         slots: Option<Slots>,
     ) -> Result<GpuFrame> {
+        let opts = FrameOptions::default();
+        self.render_with(&opts, scene, cam, (width, height), background, slots)
+    }
+
+    /// [`Gpu::render`] with the passes laid out and read back as `opts` says.
+    pub fn render_with(
+        &self,
+        opts: &FrameOptions,
+        scene: &Scene,
+        cam: &Camera,
+        (width, height): (u32, u32),
+        background: [f32; 3],
+        slots: Option<Slots>,
+    ) -> Result<GpuFrame> {
+        let opts = *opts;
         let scopes = self.begin_frame(width, height)?;
         let px = width as u64 * height as u64;
         let mut fb = FrameBuffers::new(self);
@@ -631,21 +661,21 @@ impl Gpu {
         };
         let mut params = frame_params(cam, width, height, background, k_uniform, budget, vkb);
         // The allocated k-buffers know n(p) by the capture: two-mode capture (capture.wgsl).
-        params.append = (self.two_mode_capture
+        params.append = (opts.two_mode_capture
             && matches!(
                 slots,
                 Some(Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
             ))
         .into();
         params.layer_major =
-            (self.layer_major_fkb && matches!(slots, Some(Slots::Uniform(_)))).into();
+            (opts.layer_major_fkb && matches!(slots, Some(Slots::Uniform(_)))).into();
         params.store_primitives =
-            (matches!(slots, Some(Slots::Mlab(_))) || self.diagnostics).into();
+            (matches!(slots, Some(Slots::Mlab(_))) || opts.diagnostics).into();
         let upload = std::time::Instant::now();
         let inputs = self.frame_inputs(&mut fb, scene, &params);
         let upload_ms = upload.elapsed().as_secs_f64() * 1e3;
         let timer = Timer::new(self);
-        let passes = Passes::new(self, &timer, &inputs);
+        let passes = Passes::new(self, &timer, &inputs, opts);
         let mut rec = Recording {
             passes: &passes,
             enc: self.device.create_command_encoder(&Default::default()),
@@ -654,7 +684,7 @@ impl Gpu {
             px,
         };
         if matches!(slots, Some(Slots::Uniform(_))) {
-            rec.out.variants.push(if self.layer_major_fkb {
+            rec.out.variants.push(if opts.layer_major_fkb {
                 "fkb slots: layer-major"
             } else {
                 "fkb slots: pixel-major"
@@ -690,7 +720,7 @@ impl Gpu {
         })?;
         let readback_ms = readback.elapsed().as_secs_f64() * 1e3;
         let pass_ms = timer.read(self)?;
-        let opaque = if self.diagnostics && inputs.opaque > 0 {
+        let opaque = if opts.diagnostics && inputs.opaque > 0 {
             let color = read_texture(self, &inputs.opaque_color)?;
             let depth = read_texture(self, &inputs.opaque_depth)?;
             Some((
@@ -706,7 +736,7 @@ impl Gpu {
             features_drawn,
             vkb_nearest,
             network_rows,
-        } = if self.diagnostics {
+        } = if opts.diagnostics {
             out.statistics(self, px)?
         } else {
             Statistics::default()

@@ -6,6 +6,8 @@ use super::*;
 /// The frame's shared bindings and the pass timer: every pass is one call.
 pub(super) struct Passes<'a> {
     pub(super) gpu: &'a Gpu,
+    /// How the frame lays out its passes and what it reads back.
+    pub(super) opts: FrameOptions,
     pub(super) timer: &'a Timer<'a>,
     pub(super) inputs: &'a FrameInputs,
     /// The opaque pass's depth, as the transparent passes read it; its colour, as the
@@ -18,9 +20,15 @@ pub(super) struct Passes<'a> {
 }
 
 impl<'a> Passes<'a> {
-    pub(super) fn new(gpu: &'a Gpu, timer: &'a Timer<'a>, inputs: &'a FrameInputs) -> Self {
+    pub(super) fn new(
+        gpu: &'a Gpu,
+        timer: &'a Timer<'a>,
+        inputs: &'a FrameInputs,
+        opts: FrameOptions,
+    ) -> Self {
         Passes {
             gpu,
+            opts,
             timer,
             inputs,
             opaque_depth: inputs.opaque_depth.create_view(&Default::default()),

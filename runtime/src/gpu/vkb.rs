@@ -26,7 +26,7 @@ impl Recording<'_, '_> {
         });
         // The nearest keys are read: a copy for the frame's statistics (not counted), then the
         // buffer holds the allocation's marks.
-        if gpu.diagnostics {
+        if self.passes.opts.diagnostics {
             let copy = fb.storage("vkb.nearest.readback", 8 * px, false)?;
             enc.copy_buffer_to_buffer(&nearest, 0, &copy, 0, 8 * px);
             self.out.vkb_nearest_buf = Some(copy);
