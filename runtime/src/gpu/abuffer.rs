@@ -6,7 +6,10 @@
 //! submission index, stored beside its key for MLAB and for the tests' readback). Both sorts
 //! are `sort.wgsl`.
 
-use super::*;
+use super::Recording;
+use super::buffers::{FrameStatus, read_back, read_u64s, read_words, u32s};
+use crate::error::Result;
+use crate::fragment::FragmentLists;
 
 impl Recording<'_, '_> {
     /// The A-buffer's passes, or MLAB's when `mlab`; returns the image buffer. With

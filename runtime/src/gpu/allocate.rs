@@ -4,7 +4,20 @@
 //! a frame computes (`dkb.rs`, `vkb.rs`) or is given (the count pass and `totals.wgsl` first).
 //! [`Gpu::allocate`] runs it alone.
 
-use super::*;
+use super::buffers::{FrameBuffers, read_back, read_words, u32s};
+use super::passes::Passes;
+use super::pipelines::{compute_buffer_entry, module, module_from, redeclare};
+use super::timer::Timer;
+use super::{FrameOptions, Gpu, Recording, frame_params, weight_kind};
+use crate::alloc::Target;
+use crate::budget;
+use crate::budget::FragmentBudget;
+use crate::error::{Error, Result};
+use crate::scene::{Camera, Scene};
+use crate::wgsl::{
+    ALLOC_GROUP, ALLOC_ROUNDS_WORD, ALLOC_STATE_WORDS, AllocParams, SEARCH_PIXELS, SEARCH_ROUNDS,
+    grid, shaders,
+};
 
 /// Per-pixel importance on the device and what the allocation needs beside it.
 pub(super) struct Importance {

@@ -2,7 +2,10 @@
 //! back through pooled staging buffers, and what a frame reads back for the tests
 //! ([`Readback`]).
 
-use super::*;
+use super::Gpu;
+use crate::error::{Error, GpuError, Result};
+use crate::fragment::FragmentLists;
+use crate::importance::PixelStats;
 
 pub(super) struct FrameBuffers<'a> {
     pub(super) gpu: &'a Gpu,

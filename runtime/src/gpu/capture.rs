@@ -3,7 +3,11 @@
 //! capture, append or Loop64 insertion; twin `composite::capture`) and `resolve.wgsl` (the
 //! slots front to back over the tail's approximation; twin `composite::hybrid_sorted`).
 
-use super::*;
+use super::allocate::{AllocBuffers, Importance, Reuse};
+use super::buffers::{FrameBuffers, FrameStatus, read_back, read_u64s, read_words, u32s};
+use super::{Recording, Slots};
+use crate::budget::FragmentBudget;
+use crate::error::{Error, Result};
 
 /// A frame's k: per pixel, its slot bases and how many slots in all, and n(p) where the frame
 /// counted it (the two-mode capture reads it; else an unused buffer).

@@ -9,7 +9,12 @@
 //! alone and leaves the rest to [`Recording::allocated`], which records it only where the
 //! budget truncates.
 
-use super::*;
+use super::allocate::{Importance, Reuse, pending, record_unless};
+use super::pipelines::Variant;
+use super::{DkbGeometry, Recording, weight_kind};
+use crate::error::{Error, Result};
+use crate::mlp::Mlp;
+use crate::wgsl::{PIXEL_GROUP, grid, mlp_uniform};
 
 /// DKB's per-frame buffers.
 #[derive(Clone)]

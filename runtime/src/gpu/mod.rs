@@ -36,14 +36,13 @@ mod timer;
 mod vkb;
 
 pub use allocate::GpuAllocation;
-use allocate::*;
-use buffers::*;
-use passes::*;
-use pipelines::*;
-use timer::*;
+use buffers::{FrameBuffers, Readback, Statistics, read_frame, read_texture};
+use passes::Passes;
+use pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT, Pipelines, TARGET_FORMAT};
+use timer::Timer;
 
 use crate::alloc::Target;
-use crate::budget::{self, FragmentBudget};
+use crate::budget::FragmentBudget;
 use crate::composite::Image;
 use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
@@ -51,17 +50,13 @@ use crate::frame::{Allocation, Method, Options};
 use crate::importance::{PixelStats, VkbParams};
 use crate::mlp::{Mlp, Precision};
 use crate::scene::{Camera, Scene};
-use crate::wgsl::{
-    ALLOC_GROUP, ALLOC_ROUNDS_WORD, ALLOC_STATE_WORDS, AllocParams, MLAB_MAX_ROWS, PIXEL_GROUP,
-    Params, SEARCH_PIXELS, SEARCH_ROUNDS, grid, mlp_uniform, shaders,
-};
-use wgpu::util::DeviceExt;
+use crate::wgsl::{MLAB_MAX_ROWS, Params};
 
 /// The WGSL of network pass `pass` ("predict", "importance_dkb") as built for `m`: for the
 /// tests that hold its declarations to the host's buffers.
 #[cfg(test)]
 pub(crate) fn network_pass_source(pass: &'static str, m: &Mlp) -> String {
-    Variant::for_network(pass, m, true).source()
+    pipelines::Variant::for_network(pass, m, true).source()
 }
 
 /// Features the pipeline cannot run without.

@@ -1,7 +1,9 @@
 //! Recording a pass: a geometry pass over every triangle or a per-pixel compute dispatch, with
 //! the frame's shared bindings and timestamps.
 
-use super::*;
+use super::timer::Timer;
+use super::{FrameInputs, FrameOptions, Gpu};
+use crate::wgsl::{PIXEL_GROUP, grid};
 
 /// The frame's shared bindings and the pass timer: every pass is one call.
 pub(super) struct Passes<'a> {

@@ -1,7 +1,12 @@
 //! The compiled passes: built once per device ([`Pipelines::new`]), the network's passes per
 //! network shape, precision and SKIP_FORCED ([`Variant`], on first use).
 
-use super::*;
+use super::Gpu;
+use super::allocate::Allocate;
+use crate::budget;
+use crate::error::{GpuError, Result};
+use crate::mlp::{Mlp, Precision};
+use crate::wgsl::shaders;
 
 pub(super) struct Pipelines {
     /// The application's opaque pass (opaque.wgsl), first in every frame.

@@ -1,7 +1,13 @@
 //! Batch prediction: `predict.wgsl` runs the network of `mlp.wgsl` (as the DKB importance
 //! pass does) on rows of 12 features; the twins are `Mlp::forward` and the trainer's burn model.
 
-use super::*;
+use super::Gpu;
+use super::buffers::{read_back, u32s};
+use super::pipelines::Variant;
+use crate::error::Result;
+use crate::mlp::{Mlp, Precision};
+use crate::wgsl::{PIXEL_GROUP, Params, grid, mlp_uniform};
+use wgpu::util::DeviceExt;
 
 impl Gpu {
     /// The network on rows of features, on the GPU: the batch pass `predict.wgsl` runs the same

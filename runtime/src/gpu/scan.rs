@@ -2,7 +2,11 @@
 //! for the A-buffer's offsets and the k-buffer's slot bases; the twin is a running sum
 //! (`FragmentLists::offsets`, `alloc` tests).
 
-use super::*;
+use super::buffers::FrameBuffers;
+use super::passes::Passes;
+use crate::budget;
+use crate::error::Result;
+use crate::wgsl::grid;
 
 impl<'a> Passes<'a> {
     /// Exclusive prefix sum of `values` into `offsets` (pixels + 1 entries): three dispatches

@@ -1,6 +1,8 @@
 //! GPU timestamps around each pass.
 
-use super::*;
+use super::buffers::read_back;
+use super::{Gpu, TIMED_PASSES};
+use crate::error::Result;
 
 /// Timestamp queries around each pass (room for [`TIMED_PASSES`]; the set is reused by the
 /// next frame).

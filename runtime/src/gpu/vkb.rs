@@ -2,7 +2,10 @@
 //! the nearest fragment's depth and facing; twin `importance::nearest_facing`), `totals.wgsl`,
 //! then `importance_vkb.wgsl` (twin `importance::vkb_importance_from`).
 
-use super::*;
+use super::allocate::{Importance, pending, record_unless};
+use super::{Recording, weight_kind};
+use crate::alloc::Target;
+use crate::error::Result;
 
 impl Recording<'_, '_> {
     /// VKB's count, then totals and importance (left pending where the frame is expected to fit);
