@@ -57,7 +57,7 @@ struct Alloc {
 // slot past k(a)), so setup zeroes the three x and none of them runs a workgroup. Bound to
 // the state in every dispatch but setup's and choose's (a buffer read as a dispatch's arguments
 // is not bound writable in that dispatch).
-@group(0) @binding(8) var<storage, read_write> dispatches: array<u32, 12>;
+@group(0) @binding(8) var<storage, read_write> dispatches: array<u32, ALLOC_DISPATCHES * DISPATCH_WORDS>;
 
 
 // The workgroup's totals in SEARCH_COPIES copies: invocation lid adds to copy lid %
@@ -184,9 +184,9 @@ fn setup() {
         // candidate in every round (every total fits) and end at a = 2^44 - 1 with span 1 and
         // the total there sum n; that state is set here, the weights, the rounds' search, the
         // marks and their prefix sum dispatch no workgroup, and the choice returns at once.
-        dispatches[0] = 0u;
-        dispatches[4] = 0u;
-        dispatches[8] = 0u;
+        dispatches[DISPATCH_PER_PIXEL * DISPATCH_WORDS] = 0u;
+        dispatches[DISPATCH_ROUNDS * DISPATCH_WORDS] = 0u;
+        dispatches[DISPATCH_SCAN * DISPATCH_WORDS] = 0u;
         atomicStore(&state[1], (1lu << (4u * SEARCH_SPAN_DIGITS)) - 1lu);
         atomicStore(&state[2], 1lu);
         atomicStore(&state[4], all);
@@ -294,7 +294,7 @@ fn choose() {
     if (next_span == 1lu) {
         // Found: the remaining rounds' search dispatches no workgroup, and the next frame's
         // bracket centres on the answer.
-        dispatches[4] = 0u;
+        dispatches[DISPATCH_ROUNDS * DISPATCH_WORDS] = 0u;
         atomicStore(&state[last_answer_word()], atomicLoad(&state[1]));
     }
     for (var j = 0u; j < ALLOC_CANDIDATES; j++) {

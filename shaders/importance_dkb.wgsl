@@ -22,7 +22,7 @@
 @group(0) @binding(8) var<storage, read_write> list: array<u32>;
 @group(0) @binding(9) var<storage, read_write> list_len: array<atomic<u32>, 4>;
 // The network entry's indirect dispatch: workgroups x, y, z.
-@group(0) @binding(10) var<storage, read_write> dispatch: array<u32, 4>;
+@group(0) @binding(10) var<storage, read_write> dispatch: array<u32, DISPATCH_WORDS>;
 // Per pixel: the sums of optical depth and 8-bit opacity (features.wgsl).
 @group(0) @binding(12) var<storage, read> opacity: array<u32>;
 

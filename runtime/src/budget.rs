@@ -59,7 +59,10 @@ const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
 const ALLOC_PARAMS: (&str, u64) = ("alloc.params", 16);
 const ALLOC_STATE: (&str, u64) = ("alloc.state", 8 * crate::wgsl::ALLOC_STATE_WORDS as u64);
 /// The allocation's three indirect dispatches (empty when every fragment fits).
-const ALLOC_DISPATCHES: (&str, u64) = ("alloc.dispatches", 48);
+const ALLOC_DISPATCHES: (&str, u64) = (
+    "alloc.dispatches",
+    (4 * crate::wgsl::ALLOC_DISPATCHES * crate::wgsl::DISPATCH_WORDS) as u64,
+);
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 /// The resolve's status words: loops cut short, a pixel too deep (gpu's FrameStatus).
@@ -94,7 +97,10 @@ pub const DKB: Layout = Layout {
         ("features.draw", 20),
         // The network's pixel list lives in alloc.flags; its length and indirect dispatch.
         ("importance.list_len", 16),
-        ("importance.dispatch", 16),
+        (
+            "importance.dispatch",
+            4 * crate::wgsl::DISPATCH_WORDS as u64,
+        ),
         OFFSETS_END,
         ALLOC_PARAMS,
         ALLOC_STATE,

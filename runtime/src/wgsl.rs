@@ -144,6 +144,11 @@ pub mod shaders {
             ("SEARCH_ROUNDS", U32(super::SEARCH_ROUNDS)),
             ("SEARCH_SPAN_DIGITS", U32(super::SEARCH_SPAN_DIGITS)),
             ("ALLOC_ROUNDS_WORD", U32(super::ALLOC_ROUNDS_WORD)),
+            ("DISPATCH_WORDS", U32(super::DISPATCH_WORDS)),
+            ("DISPATCH_PER_PIXEL", U32(super::DISPATCH_PER_PIXEL)),
+            ("DISPATCH_ROUNDS", U32(super::DISPATCH_ROUNDS)),
+            ("DISPATCH_SCAN", U32(super::DISPATCH_SCAN)),
+            ("ALLOC_DISPATCHES", U32(super::ALLOC_DISPATCHES)),
             ("PPM", U32(budget::PPM as u32)),
             ("WEIGHT_BITS", U32(alloc::WEIGHT_BITS)),
             ("WEIGHT_MAX", U32(alloc::WEIGHT_MAX)),
@@ -220,6 +225,34 @@ pub const SEARCH_PIXELS: u32 = 4;
 pub const ALLOC_STATE_WORDS: u32 = 6 + ALLOC_CANDIDATES + 3;
 /// The state word counting the search's rounds (those that narrowed the interval).
 pub const ALLOC_ROUNDS_WORD: u32 = 6 + ALLOC_CANDIDATES;
+/// Words of one indirect dispatch's arguments: workgroups x, y, z and one unused (16 bytes, as
+/// the allocation's and the importance pass's argument buffers lay them out).
+pub const DISPATCH_WORDS: u32 = 4;
+/// The allocation's indirect dispatches, in its argument buffer's order: the per-pixel entry
+/// points (weights, mark), the search rounds, the marks' prefix sum.
+pub const DISPATCH_PER_PIXEL: u32 = 0;
+pub const DISPATCH_ROUNDS: u32 = 1;
+pub const DISPATCH_SCAN: u32 = 2;
+pub const ALLOC_DISPATCHES: u32 = 3;
+
+/// The allocation's argument buffer for these grids (per pixel, rounds, scan; each as x, y):
+/// [`DISPATCH_WORDS`] a dispatch, in the order of [`DISPATCH_PER_PIXEL`] and the others.
+pub fn alloc_dispatches(
+    grids: [(u32, u32); ALLOC_DISPATCHES as usize],
+) -> [u32; (ALLOC_DISPATCHES * DISPATCH_WORDS) as usize] {
+    let mut args = [0; (ALLOC_DISPATCHES * DISPATCH_WORDS) as usize];
+    for (i, (x, y)) in grids.into_iter().enumerate() {
+        let at = i * DISPATCH_WORDS as usize;
+        args[at..at + 3].copy_from_slice(&[x, y, 1]);
+    }
+    args
+}
+
+/// Byte offset of one of the allocation's dispatches in its argument buffer.
+pub const fn dispatch_offset(which: u32) -> u64 {
+    (which * DISPATCH_WORDS * 4) as u64
+}
+
 /// Where the network's uniform holds the standardisation means, deviations and the first
 /// weight matrix, in floats (after a header of h1, h2 and two unused).
 pub const MLP_MEAN_AT: usize = 4;
@@ -460,7 +493,7 @@ mod tests {
 
     /// The passes spell the sizes Rust owns by the prelude's names, not as numbers a change
     /// on the Rust side would leave stale: the feature count (12), the relative budget's parts
-    /// per million and MLAB's rows. Checked on every pass's source after the prelude, and held
+    /// per million, MLAB's rows and the indirect dispatches' argument layout. Checked on every pass's source after the prelude, and held
     /// to the values: the generated network (`unrolled_forward`) and the passes still build.
     #[test]
     fn the_passes_spell_the_shared_sizes_by_name() {
@@ -474,6 +507,11 @@ mod tests {
                 "i < 12u",
                 "1000000",
                 "array<Row, 17>",
+                "array<u32, 12>",
+                "array<u32, 4>",
+                "dispatches[0]",
+                "dispatches[4]",
+                "dispatches[8]",
             ] {
                 assert!(!body.contains(stale), "{}: spells '{stale}'", p.name);
             }
@@ -510,6 +548,15 @@ mod tests {
 
         // The search state holds what the host allocates for it.
         assert_eq!(global_size(&module, "state"), 8 * ALLOC_STATE_WORDS as u64);
+        // The dispatches' arguments: as many bytes as the host writes, laid out by hand.
+        let args = alloc_dispatches([(3, 4), (5, 6), (7, 8)]);
+        assert_eq!(args, [3, 4, 1, 0, 5, 6, 1, 0, 7, 8, 1, 0]);
+        assert_eq!(global_size(&module, "dispatches"), 4 * args.len() as u64);
+        assert_eq!(
+            [DISPATCH_PER_PIXEL, DISPATCH_ROUNDS, DISPATCH_SCAN].map(dispatch_offset),
+            [0, 16, 32]
+        );
+        assert_eq!(global_size(&parse("importance_dkb"), "dispatch"), 16);
     }
 
     #[test]

@@ -15,8 +15,9 @@ use crate::budget::FragmentBudget;
 use crate::error::{Error, Result};
 use crate::scene::{Camera, Scene};
 use crate::wgsl::{
-    ALLOC_GROUP, ALLOC_ROUNDS_WORD, ALLOC_STATE_WORDS, AllocParams, SEARCH_PIXELS, SEARCH_ROUNDS,
-    grid, shaders,
+    ALLOC_GROUP, ALLOC_ROUNDS_WORD, ALLOC_STATE_WORDS, AllocParams, DISPATCH_PER_PIXEL,
+    DISPATCH_ROUNDS, DISPATCH_SCAN, SEARCH_PIXELS, SEARCH_ROUNDS, alloc_dispatches,
+    dispatch_offset, grid, shaders,
 };
 
 /// Per-pixel importance on the device and what the allocation needs beside it.
@@ -176,7 +177,7 @@ impl<'a> Passes<'a> {
         let (cx, cy) = grid(self.pixels, budget::SCAN_BLOCK as u32);
         let dispatches = fb.init(
             "alloc.dispatches",
-            bytemuck::cast_slice(&[gx, gy, 1, 0, sx, sy, 1, 0, cx, cy, 1, 0]),
+            bytemuck::cast_slice(&alloc_dispatches([(gx, gy), (sx, sy), (cx, cy)])),
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
             true,
         );
@@ -221,7 +222,11 @@ impl<'a> Passes<'a> {
     ) -> Result<&'static str> {
         let a = &self.gpu.pipelines.allocate;
         let (search, variant) = a.search_for(&self.gpu.device, self.opts.spread_search);
-        let (per_pixel, rounds, scan) = (0, 16, 32);
+        let (per_pixel, rounds, scan) = (
+            dispatch_offset(DISPATCH_PER_PIXEL),
+            dispatch_offset(DISPATCH_ROUNDS),
+            dispatch_offset(DISPATCH_SCAN),
+        );
         let dispatches = &al.dispatches;
         self.compute(enc, "allocation", |pass| {
             pass.set_bind_group(0, &al.setup_group, &[]);

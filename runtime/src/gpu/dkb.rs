@@ -14,7 +14,7 @@ use super::pipelines::Variant;
 use super::{DkbGeometry, Recording, weight_kind};
 use crate::error::{Error, Result};
 use crate::mlp::Mlp;
-use crate::wgsl::{PIXEL_GROUP, grid, mlp_uniform};
+use crate::wgsl::{DISPATCH_WORDS, PIXEL_GROUP, grid, mlp_uniform};
 
 /// DKB's per-frame buffers.
 #[derive(Clone)]
@@ -47,15 +47,16 @@ impl Recording<'_, '_> {
         gpu.can_run(mlp)?;
         let p = &gpu.pipelines;
         let fb = &mut self.fb;
+        let args = 4 * DISPATCH_WORDS as u64;
         let dispatch = fb.take(
             "importance.dispatch",
-            16,
+            args,
             wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::INDIRECT
                 | wgpu::BufferUsages::COPY_DST,
             true,
         );
-        fb.allocated += 16;
+        fb.allocated += args;
         let b = DkbBuffers {
             weights: fb.init(
                 "mlp.weights",
