@@ -272,6 +272,365 @@ fn configure(label: &str) -> dhoit_runtime::gpu::FrameOptions {
     }
 }
 
+/// The networks the GPU bench runs: the committed default weights and the smallest shipped
+/// network (or seeded random ones of their sizes, which cost the same), where they came from,
+/// and the default at f16-math where the device computes in binary16.
+struct BenchNets {
+    mlp: dhoit_runtime::mlp::Mlp,
+    weights: String,
+    small: dhoit_runtime::mlp::Mlp,
+    small_weights: String,
+    half: Option<dhoit_runtime::mlp::Mlp>,
+}
+
+fn bench_nets(gpu: &dhoit_runtime::gpu::Gpu) -> BenchNets {
+    // The committed weights when found (under the working directory's data/, as on a machine
+    // the binary was carried to, else the source tree's), else seeded random ones of the same
+    // size (same cost).
+    let load = |rel: &str, seed: u64, (h1, h2): (usize, usize)| {
+        let local = std::path::PathBuf::from(rel);
+        let built = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(rel);
+        match [local, built].iter().find_map(|p| {
+            dhoit_runtime::mlp::Mlp::load(p)
+                .ok()
+                .map(|m| (m, p.clone()))
+        }) {
+            Some((m, p)) => (m, p.display().to_string()),
+            None => (
+                dhoit_runtime::mlp::Mlp::random_sized(seed, h1, h2),
+                format!("random ({rel} not found)"),
+            ),
+        }
+    };
+    let (mlp, weights) = load("data/weights.safetensors", 1, (128, 64));
+    // The smallest shipped network, which the trade finds as accurate (docs/trade.md).
+    let (small, small_weights) = load("data/nets/16-8/weights.safetensors", 2, (16, 8));
+    // The default network with binary16 hidden layers (mlp::Precision::F16Math), where the
+    // device computes in binary16 and the weights fit it.
+    let half = mlp
+        .at_precision(dhoit_runtime::mlp::Precision::F16Math)
+        .ok()
+        .filter(|_| gpu.has_half_math());
+    if half.is_none() {
+        eprintln!("GPU: no f16-math run (the device lacks SHADER_F16 or a weight exceeds f16)");
+    }
+    BenchNets {
+        mlp,
+        weights,
+        small,
+        small_weights,
+        half,
+    }
+}
+
+/// The runs of one scene: every method as `render --device gpu` runs it, then each one option
+/// away from the default. DKB once more with the network run on every covered pixel, even where
+/// k is forced, once with every fragment inserted (no append mode in the capture), once with the
+/// two-mode capture pipeline where the budget holds every fragment, once recording every pass
+/// whatever the last frame (the device empties what it does not need:
+/// FrameOptions::predict_fit off), once with the search's totals spread over 32 copies, and
+/// once with the network's weights staged in workgroup memory; FKB once more with its slots
+/// laid out layer-major; and DKB with the 16-8 network, and with the default one at f16-math
+/// (binary16 hidden layers) where the device has them. `cpu` is in [`GPU_METHODS`]' order.
+fn bench_runs(
+    cpu: &[dhoit_runtime::frame::Allocation],
+) -> Vec<(&'static str, Method, &dhoit_runtime::frame::Allocation)> {
+    GPU_METHODS
+        .iter()
+        .zip(cpu)
+        .map(|(m, f)| (m.name(), *m, f))
+        .chain([
+            ("dkb_no_skip", Method::Dkb, &cpu[4]),
+            ("dkb_insertion_only", Method::Dkb, &cpu[4]),
+            ("dkb_two_mode_where_all_fit", Method::Dkb, &cpu[4]),
+            ("dkb_every_pass", Method::Dkb, &cpu[4]),
+            ("dkb_spread_search", Method::Dkb, &cpu[4]),
+            ("dkb_shared_weights", Method::Dkb, &cpu[4]),
+            ("dkb_array_network", Method::Dkb, &cpu[4]),
+            ("dkb_features_no_preload", Method::Dkb, &cpu[4]),
+            ("dkb_count_first", Method::Dkb, &cpu[4]),
+            ("dkb_counting_features", Method::Dkb, &cpu[4]),
+            ("fkb_layer_major", Method::Fkb, &cpu[1]),
+            ("dkb_16-8", Method::Dkb, &cpu[4]),
+            ("dkb_f16_math", Method::Dkb, &cpu[4]),
+        ])
+        .collect()
+}
+
+/// One run's times: one cold frame (its buffers are created), warm-up frames for a quarter of a
+/// second, then `repeat` steady-state frames that reuse them and read back only the image:
+/// their medians, and the fastest one's passes.
+fn time_run(
+    gpu: &dhoit_runtime::gpu::Gpu,
+    opts: &dhoit_runtime::gpu::FrameOptions,
+    (s, cam): (&scene::Scene, &Camera),
+    (w, h): (u32, u32),
+    slots: Option<dhoit_runtime::gpu::Slots>,
+    repeat: usize,
+) -> Result<serde_json::Value> {
+    let timed = |gpu: &dhoit_runtime::gpu::Gpu| -> Result<(f64, f64, _)> {
+        let t = Instant::now();
+        let g = gpu.render_with(opts, s, cam, (w, h), [1.0; 3], slots)?;
+        let wall = t.elapsed().as_secs_f64() * 1e3;
+        let passes: f64 = g.pass_ms.iter().map(|p| p.1).sum();
+        Ok((passes, wall, g))
+    };
+    let (_, cold_wall, _) = timed(gpu)?;
+    // Warm-up frames for a quarter of a second at least: a real GPU raises its
+    // clocks under load (an H200 timed the same pass up to 2x apart between runs).
+    let warm = Instant::now();
+    while warm.elapsed().as_secs_f64() < 0.25 {
+        timed(gpu)?;
+    }
+    let created = gpu.buffers_created();
+    let mut steady = Vec::new();
+    for _ in 0..repeat.max(1) {
+        steady.push(timed(gpu)?);
+    }
+    let created_steady = gpu.buffers_created() - created;
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let gpu_ms = median(steady.iter().map(|f| f.0).collect());
+    let wall_ms = median(steady.iter().map(|f| f.1).collect());
+    // Host time outside the passes: the scene's upload and the image's readback.
+    let host = |name: &str| {
+        median(
+            steady
+                .iter()
+                .map(|f| {
+                    f.2.host_ms
+                        .iter()
+                        .find(|h| h.0 == name)
+                        .map_or(0.0, |h| h.1)
+                })
+                .collect(),
+        )
+    };
+    let (upload_ms, readback_ms) = (host("scene upload"), host("image readback"));
+    // Per-pass times of the fastest steady frame.
+    let fastest = steady
+        .into_iter()
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .expect("one frame")
+        .2;
+    let per: serde_json::Map<String, serde_json::Value> = fastest
+        .pass_ms
+        .into_iter()
+        .map(|(n, ms)| (n.to_string(), ms.into()))
+        .collect();
+    Ok(serde_json::json!({
+        "passes_ms": per, "frame_gpu_ms": gpu_ms, "frame_wall_ms": wall_ms,
+        "wall_over_gpu": wall_ms / gpu_ms, "first_frame_wall_ms": cold_wall,
+        "scene_upload_ms": upload_ms, "image_readback_ms": readback_ms,
+        "wall_over_gpu_plus_readback": wall_ms / (gpu_ms + readback_ms),
+        "steady_frames": repeat.max(1),
+        "buffers_created_in_steady_frames": created_steady,
+        "allocated_bytes": fastest.allocated_bytes,
+    }))
+}
+
+/// What one scene's runs show side by side, printed and as the scene's JSON: DKB against VKB
+/// and the A-buffer, and what each option saves.
+fn scene_figures(
+    name: &str,
+    fl: &dhoit_runtime::fragment::FragmentLists,
+    renderer: &Renderer,
+    cpu: &[dhoit_runtime::frame::Allocation],
+    methods: serde_json::Map<String, serde_json::Value>,
+) -> Result<serde_json::Value> {
+    use dhoit_runtime::gpu::Slots;
+    let options = renderer.options;
+    let has_half = methods.contains_key("dkb_f16_math");
+    let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
+    let ratio = ms("dkb") / ms("vkb");
+    let small_ratio = ms("dkb_16-8") / ms("vkb");
+    let over_abuffer = ms("dkb") / ms("abuffer");
+    // One pass of one run, in ms (NaN when that run has no such pass).
+    let pass = |m: &str, p: &str| methods[m]["passes_ms"][p].as_f64().unwrap_or(f64::NAN);
+    let imp = |m: &str| pass(m, "importance");
+    let (skip, all) = (imp("dkb"), imp("dkb_no_skip"));
+    let capture = |m: &str| pass(m, "capture");
+    let (two_mode, inserted) = (capture("dkb"), capture("dkb_insertion_only"));
+    let two_mode_where_all_fit = capture("dkb_two_mode_where_all_fit");
+    let staged = imp("dkb_shared_weights");
+    let looped = imp("dkb_array_network");
+    let half_ms = if methods.contains_key("dkb_f16_math") {
+        imp("dkb_f16_math")
+    } else {
+        f64::NAN
+    };
+    let (features, no_preload) = (
+        pass("dkb", "features"),
+        pass("dkb_features_no_preload", "features"),
+    );
+    let count_ms = pass("vkb", "count");
+    // DKB's geometry passes: its count (none when the features pass counts) and its
+    // features pass (a draw of no vertex when the budget holds every fragment).
+    let geometry = |m: &str| {
+        // A pass the frame did not record costs nothing (the features where it expected
+        // to fit, and did).
+        let or_0 = |ms: f64| if ms.is_nan() { 0.0 } else { ms };
+        or_0(pass(m, "count")) + or_0(pass(m, "features"))
+    };
+    let (count_first, counting) = (
+        geometry("dkb_count_first"),
+        geometry("dkb_counting_features"),
+    );
+    let total = fl.fragment_count() as u64;
+    let dkb_f = match Slots::for_method(
+        Method::Dkb,
+        &dhoit_runtime::frame::Allocation {
+            exact: false,
+            ..cpu[4].clone()
+        },
+        &options,
+    )? {
+        Some(Slots::Dkb(_, f)) => Some(f),
+        _ => None,
+    };
+    let holds_all = dkb_f.is_some_and(|f| f.holds(total));
+    // The frame's smallest k (1 where F covers every covered pixel).
+    let lo = dkb_f.map_or(0, |f| {
+        dhoit_runtime::alloc::min_k(&fl.counts(), f.of(total))
+    });
+    let fkb_slots = |m: &str| capture(m) + pass(m, "resolve");
+    let (pixel_major, layer_major) = (fkb_slots("fkb"), fkb_slots("fkb_layer_major"));
+    // Covered pixels DKB's capture appends (k from its CPU twin, which the GPU's equals).
+    let dkb_k = renderer.allocate(Method::Dkb)?.k;
+    let appended = dkb_k
+        .iter()
+        .zip(fl.counts())
+        .filter(|&(&k, n)| n > 0 && dhoit_runtime::composite::appends(k, n))
+        .count();
+    // Covered pixels whose k the network does not decide.
+    let stats = dhoit_runtime::importance::pixel_stats(fl);
+    let covered = stats.iter().filter(|st| st.count > 0).count();
+    let forced = stats
+        .iter()
+        .filter(|st| {
+            st.count > 0
+                && dhoit_runtime::mlp::forced(
+                    st.count,
+                    dhoit_runtime::importance::tail_pair(st),
+                    lo,
+                )
+        })
+        .count();
+    let importance_note = if skip.is_nan() {
+        "importance pass not recorded (the budget holds every fragment)".to_string()
+    } else {
+        format!(
+            "importance pass {skip:.2} ms skipping {:.1}% forced pixels, {all:.2} ms without",
+            100.0 * forced as f64 / covered.max(1) as f64
+        )
+    };
+    eprintln!(
+        "GPU {name}: DKB/VKB frame time {ratio:.2}, DKB/A-buffer {over_abuffer:.2}; DKB wall/GPU {:.2} steady (first frame {:.0} ms wall); {importance_note}",
+        methods["dkb"]["wall_over_gpu"].as_f64().unwrap_or(f64::NAN),
+        methods["dkb"]["first_frame_wall_ms"]
+            .as_f64()
+            .unwrap_or(f64::NAN),
+    );
+    eprintln!(
+        "GPU {name}: DKB capture {two_mode:.2} ms appending {:.1}% of covered pixels, {inserted:.2} ms inserting every fragment",
+        100.0 * appended as f64 / covered.max(1) as f64
+    );
+    eprintln!(
+        "GPU {name}: DKB importance {skip:.2} ms reading the weights from the uniform, {staged:.2} ms staging them in workgroup memory, {looped:.2} ms with mlp.wgsl's loops over an array"
+    );
+    eprintln!("GPU {name}: DKB/VKB frame time with the 16-8 network {small_ratio:.2}");
+    eprintln!(
+        "GPU {name}: DKB importance {half_ms:.2} ms with binary16 hidden layers (f16-math), {skip:.2} ms in f32"
+    );
+    eprintln!(
+        "GPU {name}: DKB features {features:.2} ms ({:.2}x VKB's count) with the nearest key's load, {no_preload:.2} ms without",
+        features / count_ms,
+    );
+    eprintln!(
+        "GPU {name}: DKB count and features {count_first:.2} ms counting first ({}), {counting:.2} ms counting in the features pass; frame {:.2} / {:.2} ms, {:.2} ms following the last frame",
+        if holds_all {
+            "the budget holds every fragment: no features drawn"
+        } else {
+            "the budget truncates: features drawn"
+        },
+        ms("dkb_count_first"),
+        ms("dkb_counting_features"),
+        ms("dkb"),
+    );
+    // The importance and allocation passes as recorded for a frame expected to fit (no
+    // importance, setup and apply alone), and as when every pass is recorded.
+    let small = |m: &str| {
+        ["importance", "allocation", "allocation apply"]
+            .iter()
+            .map(|p| pass(m, p))
+            .filter(|ms| !ms.is_nan())
+            .fold(0.0, |a, b| a + b)
+    };
+    if holds_all {
+        eprintln!(
+            "GPU {name}: DKB capture {two_mode:.2} ms with the pipeline built for frames whose fragments all fit, {two_mode_where_all_fit:.2} ms with the two-mode one (A-buffer store {:.2} ms)",
+            pass("abuffer", "store"),
+        );
+        eprintln!(
+            "GPU {name}: DKB importance and allocation {:.2} ms expecting the fit, {:.2} ms recording every pass; frame {:.2} / {:.2} ms",
+            small("dkb"),
+            small("dkb_every_pass"),
+            ms("dkb"),
+            ms("dkb_every_pass"),
+        );
+    }
+    eprintln!(
+        "GPU {name}: FKB capture and resolve {pixel_major:.2} ms pixel-major, {layer_major:.2} ms layer-major"
+    );
+    Ok(serde_json::json!({
+        "scene": name, "fragments": fl.fragment_count(), "dkb_over_vkb": ratio,
+        "dkb_16_8_over_vkb": small_ratio,
+        "dkb_over_abuffer": over_abuffer, "methods": methods,
+        "importance_skip_forced": {
+            "forced_share_of_covered": forced as f64 / covered.max(1) as f64,
+            "importance_ms": skip, "importance_ms_no_skip": all, "saved": 1.0 - skip / all,
+        },
+        "shared_weights": {"importance_ms": staged, "importance_ms_uniform": skip},
+        "unrolled_network": {"importance_ms": skip, "importance_ms_array_loops": looped},
+        "f16_math": {
+            "importance_ms": half_ms, "importance_ms_f32": skip,
+            "over_f32": half_ms / skip,
+            "frame_gpu_ms": if has_half { ms("dkb_f16_math") } else { f64::NAN },
+        },
+        "features_pass": {
+            "features_ms": features, "features_ms_no_preload": no_preload,
+            "vkb_count_ms": count_ms, "over_vkb_count": features / count_ms,
+            "count_and_features_over_vkb_count": count_first / count_ms,
+        },
+        "dkb_geometry": {
+            "budget_holds_every_fragment": holds_all,
+            "geometry_ms_count_first": count_first, "geometry_ms_counting": counting,
+            "frame_gpu_ms_count_first": ms("dkb_count_first"),
+            "frame_gpu_ms_counting": ms("dkb_counting_features"),
+            "frame_gpu_ms_following_last_frame": ms("dkb"),
+        },
+        "fkb_slot_layout": {"capture_resolve_ms_pixel_major": pixel_major, "capture_resolve_ms_layer_major": layer_major},
+        "two_mode_capture": {
+            "appended_share_of_covered": appended as f64 / covered.max(1) as f64,
+            "capture_ms": two_mode, "capture_ms_insertion_only": inserted,
+            "saved": 1.0 - two_mode / inserted,
+            "capture_ms_two_mode_where_all_fit": two_mode_where_all_fit,
+            "abuffer_store_ms": pass("abuffer", "store"),
+        },
+        "spread_search": {
+            "allocation_ms": pass("dkb", "allocation"),
+            "allocation_ms_spread": pass("dkb_spread_search", "allocation"),
+        },
+        "predict_fit": {
+            "importance_and_allocation_ms": small("dkb"),
+            "importance_and_allocation_ms_every_pass": small("dkb_every_pass"),
+            "frame_gpu_ms": ms("dkb"), "frame_gpu_ms_every_pass": ms("dkb_every_pass"),
+        },
+    }))
+}
+
 /// Per-pass GPU times (timestamp queries) and whole-frame times per method: one cold frame,
 /// warm-up frames for 0.25 s, then the medians of `repeat` steady-state frames (buffers reused,
 /// the image read back); an error entry when no suitable adapter exists.
@@ -293,41 +652,8 @@ fn gpu_bench(
         }
     };
     eprintln!("GPU: {}", gpu.adapter);
-    // The committed weights when found (under the working directory's data/, as on a machine
-    // the binary was carried to, else the source tree's), else seeded random ones of the same
-    // size (same cost).
-    let load = |rel: &str, seed: u64, (h1, h2): (usize, usize)| {
-        let local = std::path::PathBuf::from(rel);
-        let built = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(rel);
-        match [local, built].iter().find_map(|p| {
-            dhoit_runtime::mlp::Mlp::load(p)
-                .ok()
-                .map(|m| (m, p.clone()))
-        }) {
-            Some((m, p)) => (m, p.display().to_string()),
-            None => (
-                dhoit_runtime::mlp::Mlp::random_sized(seed, h1, h2),
-                format!("random ({rel} not found)"),
-            ),
-        }
-    };
-    let (mlp, weights) = load("data/weights.safetensors", 1, (128, 64));
-    let mlp = &mlp;
-    // The smallest shipped network, which the trade finds as accurate (docs/trade.md).
-    let (small, small_weights) = load("data/nets/16-8/weights.safetensors", 2, (16, 8));
-    let small = &small;
-    // The default network with binary16 hidden layers (mlp::Precision::F16Math), where the
-    // device computes in binary16 and the weights fit it.
-    let half = mlp
-        .at_precision(dhoit_runtime::mlp::Precision::F16Math)
-        .ok()
-        .filter(|_| gpu.has_half_math());
-    if half.is_none() {
-        eprintln!("GPU: no f16-math run (the device lacks SHADER_F16 or a weight exceeds f16)");
-    }
-    let half = half.as_ref();
-    let adapter = gpu.adapter.clone();
-    let summary = |scenes: &[serde_json::Value]| serde_json::json!({"adapter": adapter, "width": w, "height": h, "budget": budget.to_string(), "weights": weights, "weights_16_8": small_weights, "scenes": scenes});
+    let nets = bench_nets(&gpu);
+    let summary = |scenes: &[serde_json::Value]| serde_json::json!({"adapter": gpu.adapter, "width": w, "height": h, "budget": budget.to_string(), "weights": nets.weights, "weights_16_8": nets.small_weights, "scenes": scenes});
     let mut scenes = Vec::new();
     for (name, s) in loaded {
         let run = || -> Result<serde_json::Value> {
@@ -336,46 +662,18 @@ fn gpu_bench(
             // Each method's k and F as `render --device gpu` gives them (Slots::for_method on
             // the CPU's allocation), so a byte budget benches the k render uses.
             let options = Options {
-                weights: Some(mlp),
+                weights: Some(&nets.mlp),
                 // The methods' own passes are what the bench times.
                 ..Options::new(budget, [1.0; 3]).always_approximate()
             };
             let renderer = Renderer::new(&fl, options);
-            let mut methods = serde_json::Map::new();
-            let order = GPU_METHODS;
-            let cpu: Vec<dhoit_runtime::frame::Allocation> = order
+            let cpu: Vec<dhoit_runtime::frame::Allocation> = GPU_METHODS
                 .iter()
                 .map(|&m| renderer.allocate_for_gpu(m))
                 .collect::<Result<_, _>>()?;
-            // DKB once more with the network run on every covered pixel, even where k is forced,
-            // once with every fragment inserted (no append mode in the capture), once with the
-            // two-mode capture pipeline where the budget holds every fragment, once recording
-            // every pass whatever the last frame (the device empties what it does not need:
-            // FrameOptions::predict_fit off), once with the search's totals spread over 32 copies, and
-            // once with the network's weights staged in workgroup memory; FKB once more with
-            // its slots laid out layer-major; and DKB with the 16-8 network, and with the
-            // default one at f16-math (binary16 hidden layers) where the device has them.
-            let runs = order
-                .iter()
-                .zip(&cpu)
-                .map(|(m, f)| (m.name(), *m, f))
-                .chain([
-                    ("dkb_no_skip", Method::Dkb, &cpu[4]),
-                    ("dkb_insertion_only", Method::Dkb, &cpu[4]),
-                    ("dkb_two_mode_where_all_fit", Method::Dkb, &cpu[4]),
-                    ("dkb_every_pass", Method::Dkb, &cpu[4]),
-                    ("dkb_spread_search", Method::Dkb, &cpu[4]),
-                    ("dkb_shared_weights", Method::Dkb, &cpu[4]),
-                    ("dkb_array_network", Method::Dkb, &cpu[4]),
-                    ("dkb_features_no_preload", Method::Dkb, &cpu[4]),
-                    ("dkb_count_first", Method::Dkb, &cpu[4]),
-                    ("dkb_counting_features", Method::Dkb, &cpu[4]),
-                    ("fkb_layer_major", Method::Fkb, &cpu[1]),
-                    ("dkb_16-8", Method::Dkb, &cpu[4]),
-                    ("dkb_f16_math", Method::Dkb, &cpu[4]),
-                ]);
-            for (label, method, frame) in runs {
-                if label == "dkb_f16_math" && half.is_none() {
+            let mut methods = serde_json::Map::new();
+            for (label, method, frame) in bench_runs(&cpu) {
+                if label == "dkb_f16_math" && nets.half.is_none() {
                     continue;
                 }
                 // The experiments measure the method's own pipeline even where the budget holds
@@ -385,266 +683,18 @@ fn gpu_bench(
                     ..frame.clone()
                 };
                 let slots = match Slots::for_method(method, &unrouted, &options)? {
-                    Some(Slots::Dkb(_, f)) if label == "dkb_16-8" => Some(Slots::Dkb(small, f)),
+                    Some(Slots::Dkb(_, f)) if label == "dkb_16-8" => {
+                        Some(Slots::Dkb(&nets.small, f))
+                    }
                     Some(Slots::Dkb(_, f)) if label == "dkb_f16_math" => {
-                        half.map(|m| Slots::Dkb(m, f))
+                        nets.half.as_ref().map(|m| Slots::Dkb(m, f))
                     }
                     s => s,
                 };
-                let opts = configure(label);
-                // One cold frame (its buffers are created), then `repeat` steady-state frames
-                // that reuse them and read back only the image: medians of those.
-                let timed = |gpu: &dhoit_runtime::gpu::Gpu| -> Result<(f64, f64, _)> {
-                    let t = Instant::now();
-                    let g = gpu.render_with(&opts, s, &cam, (w, h), [1.0; 3], slots)?;
-                    let wall = t.elapsed().as_secs_f64() * 1e3;
-                    let passes: f64 = g.pass_ms.iter().map(|p| p.1).sum();
-                    Ok((passes, wall, g))
-                };
-                let (_, cold_wall, _) = timed(&gpu)?;
-                // Warm-up frames for a quarter of a second at least: a real GPU raises its
-                // clocks under load (an H200 timed the same pass up to 2x apart between runs).
-                let warm = Instant::now();
-                while warm.elapsed().as_secs_f64() < 0.25 {
-                    timed(&gpu)?;
-                }
-                let created = gpu.buffers_created();
-                let mut steady = Vec::new();
-                for _ in 0..repeat.max(1) {
-                    steady.push(timed(&gpu)?);
-                }
-                let created_steady = gpu.buffers_created() - created;
-                let median = |mut v: Vec<f64>| {
-                    v.sort_by(f64::total_cmp);
-                    v[v.len() / 2]
-                };
-                let gpu_ms = median(steady.iter().map(|f| f.0).collect());
-                let wall_ms = median(steady.iter().map(|f| f.1).collect());
-                // Host time outside the passes: the scene's upload and the image's readback.
-                let host = |name: &str| {
-                    median(
-                        steady
-                            .iter()
-                            .map(|f| {
-                                f.2.host_ms
-                                    .iter()
-                                    .find(|h| h.0 == name)
-                                    .map_or(0.0, |h| h.1)
-                            })
-                            .collect(),
-                    )
-                };
-                let (upload_ms, readback_ms) = (host("scene upload"), host("image readback"));
-                // Per-pass times of the fastest steady frame.
-                let fastest = steady
-                    .into_iter()
-                    .min_by(|a, b| a.0.total_cmp(&b.0))
-                    .expect("one frame")
-                    .2;
-                let per: serde_json::Map<String, serde_json::Value> = fastest
-                    .pass_ms
-                    .into_iter()
-                    .map(|(n, ms)| (n.to_string(), ms.into()))
-                    .collect();
-                methods.insert(
-                    label.into(),
-                    serde_json::json!({
-                        "passes_ms": per, "frame_gpu_ms": gpu_ms, "frame_wall_ms": wall_ms,
-                        "wall_over_gpu": wall_ms / gpu_ms, "first_frame_wall_ms": cold_wall,
-                        "scene_upload_ms": upload_ms, "image_readback_ms": readback_ms,
-                        "wall_over_gpu_plus_readback": wall_ms / (gpu_ms + readback_ms),
-                        "steady_frames": repeat.max(1),
-                        "buffers_created_in_steady_frames": created_steady,
-                        "allocated_bytes": fastest.allocated_bytes,
-                    }),
-                );
+                let run = time_run(&gpu, &configure(label), (s, &cam), (w, h), slots, repeat)?;
+                methods.insert(label.into(), run);
             }
-            let ms = |m: &str| methods[m]["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN);
-            let ratio = ms("dkb") / ms("vkb");
-            let small_ratio = ms("dkb_16-8") / ms("vkb");
-            let over_abuffer = ms("dkb") / ms("abuffer");
-            // One pass of one run, in ms (NaN when that run has no such pass).
-            let pass = |m: &str, p: &str| methods[m]["passes_ms"][p].as_f64().unwrap_or(f64::NAN);
-            let imp = |m: &str| pass(m, "importance");
-            let (skip, all) = (imp("dkb"), imp("dkb_no_skip"));
-            let capture = |m: &str| pass(m, "capture");
-            let (two_mode, inserted) = (capture("dkb"), capture("dkb_insertion_only"));
-            let two_mode_where_all_fit = capture("dkb_two_mode_where_all_fit");
-            let staged = imp("dkb_shared_weights");
-            let looped = imp("dkb_array_network");
-            let half_ms = if methods.contains_key("dkb_f16_math") {
-                imp("dkb_f16_math")
-            } else {
-                f64::NAN
-            };
-            let (features, no_preload) = (
-                pass("dkb", "features"),
-                pass("dkb_features_no_preload", "features"),
-            );
-            let count_ms = pass("vkb", "count");
-            // DKB's geometry passes: its count (none when the features pass counts) and its
-            // features pass (a draw of no vertex when the budget holds every fragment).
-            let geometry = |m: &str| {
-                // A pass the frame did not record costs nothing (the features where it expected
-                // to fit, and did).
-                let or_0 = |ms: f64| if ms.is_nan() { 0.0 } else { ms };
-                or_0(pass(m, "count")) + or_0(pass(m, "features"))
-            };
-            let (count_first, counting) = (
-                geometry("dkb_count_first"),
-                geometry("dkb_counting_features"),
-            );
-            let total = fl.fragment_count() as u64;
-            let dkb_f = match Slots::for_method(
-                Method::Dkb,
-                &dhoit_runtime::frame::Allocation {
-                    exact: false,
-                    ..cpu[4].clone()
-                },
-                &options,
-            )? {
-                Some(Slots::Dkb(_, f)) => Some(f),
-                _ => None,
-            };
-            let holds_all = dkb_f.is_some_and(|f| f.holds(total));
-            // The frame's smallest k (1 where F covers every covered pixel).
-            let lo = dkb_f.map_or(0, |f| {
-                dhoit_runtime::alloc::min_k(&fl.counts(), f.of(total))
-            });
-            let fkb_slots = |m: &str| capture(m) + pass(m, "resolve");
-            let (pixel_major, layer_major) = (fkb_slots("fkb"), fkb_slots("fkb_layer_major"));
-            // Covered pixels DKB's capture appends (k from its CPU twin, which the GPU's equals).
-            let dkb_k = renderer.allocate(Method::Dkb)?.k;
-            let appended = dkb_k
-                .iter()
-                .zip(fl.counts())
-                .filter(|&(&k, n)| n > 0 && dhoit_runtime::composite::appends(k, n))
-                .count();
-            // Covered pixels whose k the network does not decide.
-            let stats = dhoit_runtime::importance::pixel_stats(&fl);
-            let covered = stats.iter().filter(|st| st.count > 0).count();
-            let forced = stats
-                .iter()
-                .filter(|st| {
-                    st.count > 0
-                        && dhoit_runtime::mlp::forced(
-                            st.count,
-                            dhoit_runtime::importance::tail_pair(st),
-                            lo,
-                        )
-                })
-                .count();
-            let importance_note = if skip.is_nan() {
-                "importance pass not recorded (the budget holds every fragment)".to_string()
-            } else {
-                format!(
-                    "importance pass {skip:.2} ms skipping {:.1}% forced pixels, {all:.2} ms without",
-                    100.0 * forced as f64 / covered.max(1) as f64
-                )
-            };
-            eprintln!(
-                "GPU {name}: DKB/VKB frame time {ratio:.2}, DKB/A-buffer {over_abuffer:.2}; DKB wall/GPU {:.2} steady (first frame {:.0} ms wall); {importance_note}",
-                methods["dkb"]["wall_over_gpu"].as_f64().unwrap_or(f64::NAN),
-                methods["dkb"]["first_frame_wall_ms"]
-                    .as_f64()
-                    .unwrap_or(f64::NAN),
-            );
-            eprintln!(
-                "GPU {name}: DKB capture {two_mode:.2} ms appending {:.1}% of covered pixels, {inserted:.2} ms inserting every fragment",
-                100.0 * appended as f64 / covered.max(1) as f64
-            );
-            eprintln!(
-                "GPU {name}: DKB importance {skip:.2} ms reading the weights from the uniform, {staged:.2} ms staging them in workgroup memory, {looped:.2} ms with mlp.wgsl's loops over an array"
-            );
-            eprintln!("GPU {name}: DKB/VKB frame time with the 16-8 network {small_ratio:.2}");
-            eprintln!(
-                "GPU {name}: DKB importance {half_ms:.2} ms with binary16 hidden layers (f16-math), {skip:.2} ms in f32"
-            );
-            eprintln!(
-                "GPU {name}: DKB features {features:.2} ms ({:.2}x VKB's count) with the nearest key's load, {no_preload:.2} ms without",
-                features / count_ms,
-            );
-            eprintln!(
-                "GPU {name}: DKB count and features {count_first:.2} ms counting first ({}), {counting:.2} ms counting in the features pass; frame {:.2} / {:.2} ms, {:.2} ms following the last frame",
-                if holds_all {
-                    "the budget holds every fragment: no features drawn"
-                } else {
-                    "the budget truncates: features drawn"
-                },
-                ms("dkb_count_first"),
-                ms("dkb_counting_features"),
-                ms("dkb"),
-            );
-            // The importance and allocation passes as recorded for a frame expected to fit (no
-            // importance, setup and apply alone), and as when every pass is recorded.
-            let small = |m: &str| {
-                ["importance", "allocation", "allocation apply"]
-                    .iter()
-                    .map(|p| pass(m, p))
-                    .filter(|ms| !ms.is_nan())
-                    .fold(0.0, |a, b| a + b)
-            };
-            if holds_all {
-                eprintln!(
-                    "GPU {name}: DKB capture {two_mode:.2} ms with the pipeline built for frames whose fragments all fit, {two_mode_where_all_fit:.2} ms with the two-mode one (A-buffer store {:.2} ms)",
-                    pass("abuffer", "store"),
-                );
-                eprintln!(
-                    "GPU {name}: DKB importance and allocation {:.2} ms expecting the fit, {:.2} ms recording every pass; frame {:.2} / {:.2} ms",
-                    small("dkb"),
-                    small("dkb_every_pass"),
-                    ms("dkb"),
-                    ms("dkb_every_pass"),
-                );
-            }
-            eprintln!(
-                "GPU {name}: FKB capture and resolve {pixel_major:.2} ms pixel-major, {layer_major:.2} ms layer-major"
-            );
-            Ok(serde_json::json!({
-                "scene": name, "fragments": fl.fragment_count(), "dkb_over_vkb": ratio,
-                "dkb_16_8_over_vkb": small_ratio,
-                "dkb_over_abuffer": over_abuffer, "methods": methods,
-                "importance_skip_forced": {
-                    "forced_share_of_covered": forced as f64 / covered.max(1) as f64,
-                    "importance_ms": skip, "importance_ms_no_skip": all, "saved": 1.0 - skip / all,
-                },
-                "shared_weights": {"importance_ms": staged, "importance_ms_uniform": skip},
-                "unrolled_network": {"importance_ms": skip, "importance_ms_array_loops": looped},
-                "f16_math": {
-                    "importance_ms": half_ms, "importance_ms_f32": skip,
-                    "over_f32": half_ms / skip,
-                    "frame_gpu_ms": if half.is_some() { ms("dkb_f16_math") } else { f64::NAN },
-                },
-                "features_pass": {
-                    "features_ms": features, "features_ms_no_preload": no_preload,
-                    "vkb_count_ms": count_ms, "over_vkb_count": features / count_ms,
-                    "count_and_features_over_vkb_count": count_first / count_ms,
-                },
-                "dkb_geometry": {
-                    "budget_holds_every_fragment": holds_all,
-                    "geometry_ms_count_first": count_first, "geometry_ms_counting": counting,
-                    "frame_gpu_ms_count_first": ms("dkb_count_first"),
-                    "frame_gpu_ms_counting": ms("dkb_counting_features"),
-                    "frame_gpu_ms_following_last_frame": ms("dkb"),
-                },
-                "fkb_slot_layout": {"capture_resolve_ms_pixel_major": pixel_major, "capture_resolve_ms_layer_major": layer_major},
-                "two_mode_capture": {
-                    "appended_share_of_covered": appended as f64 / covered.max(1) as f64,
-                    "capture_ms": two_mode, "capture_ms_insertion_only": inserted,
-                    "saved": 1.0 - two_mode / inserted,
-                    "capture_ms_two_mode_where_all_fit": two_mode_where_all_fit,
-                    "abuffer_store_ms": pass("abuffer", "store"),
-                },
-                "spread_search": {
-                    "allocation_ms": pass("dkb", "allocation"),
-                    "allocation_ms_spread": pass("dkb_spread_search", "allocation"),
-                },
-                "predict_fit": {
-                    "importance_and_allocation_ms": small("dkb"),
-                    "importance_and_allocation_ms_every_pass": small("dkb_every_pass"),
-                    "frame_gpu_ms": ms("dkb"), "frame_gpu_ms_every_pass": ms("dkb_every_pass"),
-                },
-            }))
+            scene_figures(name, &fl, &renderer, &cpu, methods)
         };
         match run() {
             Ok(v) => scenes.push(v),
