@@ -246,25 +246,65 @@ fn ratios(rows: &[Row]) -> Vec<Ratio> {
         .collect()
 }
 
-/// The summary: mean MSE per budget and method, ratio tables per scene and per budget, and the
-/// accuracy targets of issue 9 with whether they hold.
-pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
-    let mut text = String::new();
-    let mut md = String::new();
-    let mut budgets: Vec<String> = Vec::new();
-    let mut methods: Vec<&str> = Vec::new();
-    let mut scenes: Vec<String> = Vec::new();
-    for r in rows {
-        if !budgets.contains(&r.budget) {
-            budgets.push(r.budget.clone());
+/// What the summary groups by, in the order the rows first name them (the A-buffer, the
+/// reference, is no method of its tables).
+struct Axes {
+    budgets: Vec<String>,
+    methods: Vec<&'static str>,
+    scenes: Vec<String>,
+}
+
+impl Axes {
+    fn of(rows: &[Row]) -> Axes {
+        let mut x = Axes {
+            budgets: Vec::new(),
+            methods: Vec::new(),
+            scenes: Vec::new(),
+        };
+        for r in rows {
+            if !x.budgets.contains(&r.budget) {
+                x.budgets.push(r.budget.clone());
+            }
+            if r.method != "abuffer" && !x.methods.contains(&r.method) {
+                x.methods.push(r.method);
+            }
+            if !x.scenes.contains(&r.scene) {
+                x.scenes.push(r.scene.clone());
+            }
         }
-        if r.method != "abuffer" && !methods.contains(&r.method) {
-            methods.push(r.method);
-        }
-        if !scenes.contains(&r.scene) {
-            scenes.push(r.scene.clone());
-        }
+        x
     }
+}
+
+/// The summary as aligned text and as Markdown, section by section.
+#[derive(Default)]
+struct Summary {
+    text: String,
+    md: String,
+}
+
+/// The summary: mean MSE and FLIP per budget and method, bytes a frame pixel, ratio tables per
+/// scene and per budget, the accuracy targets with whether they hold, and scene x budget
+/// matrices.
+pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
+    let axes = Axes::of(rows);
+    let mut out = Summary::default();
+    mean_tables(rows, &axes, equal, &mut out);
+    memory_table(rows, &axes, equal, &mut out);
+    let r = ratios(rows);
+    if !r.is_empty() {
+        ratio_tables(&r, &axes, equal, &mut out);
+        targets_table(&r, &axes, &mut out);
+        matrices(&r, &axes, &mut out);
+    }
+    (out.text, out.md)
+}
+
+/// Mean MSE and mean FLIP against the A-buffer, per budget and method.
+fn mean_tables(rows: &[Row], axes: &Axes, equal: Equal, out: &mut Summary) {
+    let Axes {
+        budgets, methods, ..
+    } = axes;
     let mut head = vec!["budget"];
     head.extend(methods.iter());
     type Metric = (&'static str, fn(&Row) -> f64, fn(f64) -> String);
@@ -277,7 +317,7 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
             .iter()
             .map(|b| {
                 let mut row = vec![b.clone()];
-                for m in &methods {
+                for m in methods {
                     let v: Vec<f64> = rows
                         .iter()
                         .filter(|r| r.budget == *b && r.method == *m)
@@ -297,9 +337,16 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
             "Mean {metric} against the A-buffer over all frames ({})",
             equal.name()
         );
-        let _ = write!(text, "\n{title}\n{t}");
-        let _ = write!(md, "\n## {title}\n\n{m}");
+        let _ = write!(out.text, "\n{title}\n{t}");
+        let _ = write!(out.md, "\n## {title}\n\n{m}");
     }
+}
+
+/// Bytes a frame pixel as each method allocates them, beside the exact A-buffer's.
+fn memory_table(rows: &[Row], axes: &Axes, equal: Equal, out: &mut Summary) {
+    let Axes {
+        budgets, methods, ..
+    } = axes;
     // Memory: bytes a frame pixel as each method allocates them, beside the exact A-buffer's
     // for the same frames (8-byte keys; the output image counted for no method).
     let mut mem_head = vec!["budget", "abuffer"];
@@ -319,7 +366,7 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
                 "{:.1}",
                 mean(&exact.iter().map(|r| per_pixel(r)).collect::<Vec<_>>())
             ));
-            for m in &methods {
+            for m in methods {
                 let v = at(m);
                 row.push(if v.is_empty() {
                     "n/a".into()
@@ -346,12 +393,15 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
          frame of each method's bytes over the exact A-buffer's)",
         equal.name()
     );
-    let _ = write!(text, "\n{title}\n{t}");
-    let _ = write!(md, "\n## {title}\n\n{m}");
-    let r = ratios(rows);
-    if r.is_empty() {
-        return (text, md);
-    }
+    let _ = write!(out.text, "\n{title}\n{t}");
+    let _ = write!(out.md, "\n## {title}\n\n{m}");
+}
+
+/// DKB against VKB and the optimal allocation, MSE ratios and FLIP, per scene and per budget.
+fn ratio_tables(r: &[Ratio], axes: &Axes, equal: Equal, out: &mut Summary) {
+    let Axes {
+        budgets, scenes, ..
+    } = axes;
     let group = |keep: &dyn Fn(&Ratio) -> bool| -> Vec<String> {
         let g: Vec<_> = r.iter().filter(|x| keep(x)).collect();
         let dv: Vec<f64> = g.iter().map(|x| x.dkb_vkb).collect();
@@ -388,7 +438,7 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
         "VKB FLIP",
     ];
     let mut by_scene: Vec<Vec<String>> = Vec::new();
-    for s in &scenes {
+    for s in scenes {
         if r.iter().any(|x| x.scene == *s) {
             let mut row = vec![s.clone()];
             row.extend(group(&|x| x.scene == *s));
@@ -399,7 +449,7 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
     all.extend(group(&|_| true));
     by_scene.push(all);
     let mut by_budget: Vec<Vec<String>> = Vec::new();
-    for b in &budgets {
+    for b in budgets {
         if r.iter().any(|x| x.budget == *b) {
             let mut row = vec![b.clone()];
             row.extend(group(&|x| x.budget == *b));
@@ -415,9 +465,14 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
         ("MSE ratios per budget", by_budget),
     ] {
         let (t, m) = table(&head, &rows);
-        let _ = write!(text, "\n{title} ({note})\n{t}");
-        let _ = write!(md, "\n## {title}\n\n{note}\n\n{m}");
+        let _ = write!(out.text, "\n{title} ({note})\n{t}");
+        let _ = write!(out.md, "\n## {title}\n\n{note}\n\n{m}");
     }
+}
+
+/// The accuracy targets and whether they hold.
+fn targets_table(r: &[Ratio], axes: &Axes, out: &mut Summary) {
+    let scenes = &axes.scenes;
     // The targets. A scene every method renders exact to the floor at every budget (all its
     // ratios 1) decides nothing: it is named, not counted against the per-scene target.
     let decided = |s: &String| {
@@ -514,9 +569,15 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
         ],
     ];
     let (t, m) = table(&["target", "measured", ""], &targets);
-    let _ = write!(text, "\nAccuracy targets\n{t}");
-    let _ = write!(md, "\n## Accuracy targets\n\n{m}");
-    // Scene x budget matrices (Markdown only: wide).
+    let _ = write!(out.text, "\nAccuracy targets\n{t}");
+    let _ = write!(out.md, "\n## Accuracy targets\n\n{m}");
+}
+
+/// Scene x budget matrices of DKB/VKB and DKB/optimal (Markdown only: wide).
+fn matrices(r: &[Ratio], axes: &Axes, out: &mut Summary) {
+    let Axes {
+        budgets, scenes, ..
+    } = axes;
     for (title, pick) in [
         (
             "DKB/VKB per scene and budget",
@@ -554,11 +615,10 @@ pub fn summary(rows: &[Row], equal: Equal) -> (String, String) {
             .collect();
         let (_, m) = table(&head, &rows);
         let _ = write!(
-            md,
+            out.md,
             "\n## {title}\n\nGeometric mean over the views; '-' where the budget holds every fragment.\n\n{m}"
         );
     }
-    (text, md)
 }
 
 pub fn run(a: CompareArgs) -> Result<()> {
