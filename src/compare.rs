@@ -666,20 +666,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
                     exact_when_cheaper: !a.always_approximate,
                     ..Options::new(*budget, a.common.background)
                 };
-                let renderer = Renderer::new(&fl, options);
-                // A method the budget cannot hold (FKB and MLAB need a slot for every pixel) is
-                // reported and left out of this frame; any other error stops the run.
-                let mut frames: Vec<Frame> = Vec::new();
-                let mut skipped: Vec<String> = Vec::new();
-                for &m in &methods {
-                    match renderer.render(m) {
-                        Ok(f) => frames.push(f),
-                        Err(e @ dhoit_runtime::Error::Budget(..)) if m != Method::Abuffer => {
-                            skipped.push(format!("{}: {e}", m.name()));
-                        }
-                        Err(e) => return Err(e.into()),
-                    }
-                }
+                let (frames, skipped) = render_methods(&Renderer::new(&fl, options), &methods)?;
                 let reference = frames[0].image.clone();
                 let reference8 = image_io::to_srgb8(&reference);
                 let flips: Vec<(f64, Vec<f32>)> = frames
@@ -689,78 +676,15 @@ pub fn run(a: CompareArgs) -> Result<()> {
                         image_io::flip(&reference8, &test, fl.width, fl.height)
                     })
                     .collect();
-                let counts = fl.counts();
-                let frame_rows: Vec<Row> = frames
-                    .iter()
-                    .zip(&flips)
-                    .map(|(f, (flip, _))| {
-                        let used =
-                            f.k.iter()
-                                .zip(&counts)
-                                .map(|(&k, &n)| k.min(n) as u64)
-                                .sum::<u64>() as f64
-                                / f.budget_fragments.max(1) as f64;
-                        Row {
-                            scene: scene.name.clone(),
-                            view,
-                            width: fl.width,
-                            height: fl.height,
-                            budget: budget.to_string(),
-                            equal: a.equal.name(),
-                            method: f.method.name(),
-                            mse: f.image.mse(&reference),
-                            flip: *flip,
-                            fragments_total: f.fragments_total,
-                            fragments_captured: f.fragments_captured,
-                            budget_fragments: f.budget_fragments,
-                            budget_bytes: f.budget_bytes,
-                            allocated_bytes: f.allocated_bytes,
-                            abuffer_bytes: dhoit_runtime::budget::ABUFFER.allocated_bytes(
-                                fl.pixel_count() as u64,
-                                fl.fragment_count() as u64,
-                            ),
-                            budget_used: used,
-                            exact: f.exact,
-                            raster_ms,
-                            allocation_ms: f.allocation_ms,
-                            composite_ms: f.composite_ms,
-                            optimal: f.optimal.map(|rep| {
-                                let mut v = serde_json::to_value(rep).expect("report");
-                                v["gap"] = rep.gap().into();
-                                v
-                            }),
-                        }
-                    })
-                    .collect();
-                let title = format!(
-                    "{} view {view}, {}x{}, budget {budget} ({}): {} fragments, max depth {}",
-                    scene.name,
-                    fl.width,
-                    fl.height,
-                    a.equal.name(),
-                    fl.fragment_count(),
-                    fl.max_depth_complexity()
-                );
-                let cell_rows: Vec<Vec<String>> =
-                    frame_rows.iter().map(|r| cells(r).to_vec()).collect();
-                let (t, m) = table(&HEADER, &cell_rows);
-                println!("\n{title}\n\n{t}");
-                md += &format!("\n## {title}\n\n{m}");
-                for sk in &skipped {
-                    println!("not run: {sk}");
-                    md += &format!("\nnot run: {sk}\n");
-                }
-                if let Some(rep) = frames.iter().find_map(|f| f.optimal) {
-                    let line = format!(
-                        "optimal allocation: total error {:.4e} ({}), certified gap {:.2e} ({:.2}% of the total)",
-                        rep.total,
-                        rep.chosen,
-                        rep.gap(),
-                        100.0 * rep.gap() / rep.total.max(1e-300)
-                    );
-                    println!("{line}");
-                    md += &format!("\n{line}\n");
-                }
+                let at = FrameAt {
+                    scene: &scene.name,
+                    view,
+                    budget: budget.to_string(),
+                    equal: a.equal,
+                    raster_ms,
+                };
+                let frame_rows = rows_of(&frames, &flips, &fl, &reference, &at);
+                md += &print_frame(&fl, &at, &frame_rows, &frames, &skipped);
                 if !a.no_images {
                     let tag = format!("{label}_v{view}_{}", budget.to_string().replace(' ', ""));
                     let budget_label = format!("{budget} ({})", a.equal.name());
@@ -783,10 +707,144 @@ pub fn run(a: CompareArgs) -> Result<()> {
             }
         }
     }
-    let (text, sum_md) = summary(&rows, a.equal);
+    write_reports(&a, &rows, md)?;
+    println!(
+        "\n{}report.json, report.md and summary.md -> {}",
+        if a.no_images {
+            ""
+        } else {
+            "images, side-by-side montages, "
+        },
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// Every method of one frame; a method the budget cannot hold (FKB and MLAB need a slot for
+/// every pixel) is reported and left out, any other error stops the run. The A-buffer first.
+fn render_methods(renderer: &Renderer, methods: &[Method]) -> Result<(Vec<Frame>, Vec<String>)> {
+    let mut frames: Vec<Frame> = Vec::new();
+    let mut skipped: Vec<String> = Vec::new();
+    for &m in methods {
+        match renderer.render(m) {
+            Ok(f) => frames.push(f),
+            Err(e @ dhoit_runtime::Error::Budget(..)) if m != Method::Abuffer => {
+                skipped.push(format!("{}: {e}", m.name()));
+            }
+            Err(e) => return Err(e.into()),
+        }
+    }
+    Ok((frames, skipped))
+}
+
+/// Which frame a row is of.
+struct FrameAt<'a> {
+    scene: &'a str,
+    view: usize,
+    budget: String,
+    equal: Equal,
+    raster_ms: f64,
+}
+
+/// The report's rows of one frame's methods, against the reference image.
+fn rows_of(
+    frames: &[Frame],
+    flips: &[(f64, Vec<f32>)],
+    fl: &dhoit_runtime::fragment::FragmentLists,
+    reference: &dhoit_runtime::composite::Image,
+    at: &FrameAt,
+) -> Vec<Row> {
+    let counts = fl.counts();
+    frames
+        .iter()
+        .zip(flips)
+        .map(|(f, (flip, _))| {
+            let used =
+                f.k.iter()
+                    .zip(&counts)
+                    .map(|(&k, &n)| k.min(n) as u64)
+                    .sum::<u64>() as f64
+                    / f.budget_fragments.max(1) as f64;
+            Row {
+                scene: at.scene.to_string(),
+                view: at.view,
+                width: fl.width,
+                height: fl.height,
+                budget: at.budget.clone(),
+                equal: at.equal.name(),
+                method: f.method.name(),
+                mse: f.image.mse(reference),
+                flip: *flip,
+                fragments_total: f.fragments_total,
+                fragments_captured: f.fragments_captured,
+                budget_fragments: f.budget_fragments,
+                budget_bytes: f.budget_bytes,
+                allocated_bytes: f.allocated_bytes,
+                abuffer_bytes: dhoit_runtime::budget::ABUFFER
+                    .allocated_bytes(fl.pixel_count() as u64, fl.fragment_count() as u64),
+                budget_used: used,
+                exact: f.exact,
+                raster_ms: at.raster_ms,
+                allocation_ms: f.allocation_ms,
+                composite_ms: f.composite_ms,
+                optimal: f.optimal.map(|rep| {
+                    let mut v = serde_json::to_value(rep).expect("report");
+                    v["gap"] = rep.gap().into();
+                    v
+                }),
+            }
+        })
+        .collect()
+}
+
+/// One frame's table, printed; its Markdown returned.
+fn print_frame(
+    fl: &dhoit_runtime::fragment::FragmentLists,
+    at: &FrameAt,
+    frame_rows: &[Row],
+    frames: &[Frame],
+    skipped: &[String],
+) -> String {
+    let title = format!(
+        "{} view {}, {}x{}, budget {} ({}): {} fragments, max depth {}",
+        at.scene,
+        at.view,
+        fl.width,
+        fl.height,
+        at.budget,
+        at.equal.name(),
+        fl.fragment_count(),
+        fl.max_depth_complexity()
+    );
+    let cell_rows: Vec<Vec<String>> = frame_rows.iter().map(|r| cells(r).to_vec()).collect();
+    let (t, m) = table(&HEADER, &cell_rows);
+    println!("\n{title}\n\n{t}");
+    let mut md = format!("\n## {title}\n\n{m}");
+    for sk in skipped {
+        println!("not run: {sk}");
+        md += &format!("\nnot run: {sk}\n");
+    }
+    if let Some(rep) = frames.iter().find_map(|f| f.optimal) {
+        let line = format!(
+            "optimal allocation: total error {:.4e} ({}), certified gap {:.2e} ({:.2}% of the total)",
+            rep.total,
+            rep.chosen,
+            rep.gap(),
+            100.0 * rep.gap() / rep.total.max(1e-300)
+        );
+        println!("{line}");
+        md += &format!("\n{line}\n");
+    }
+    md
+}
+
+/// report.json, report.md (the frames' tables, then the summary) and summary.md (and
+/// `--summary`'s copy), written whole.
+fn write_reports(a: &CompareArgs, rows: &[Row], mut md: String) -> Result<()> {
+    let (text, sum_md) = summary(rows, a.equal);
     println!("{text}");
     md += &sum_md;
-    let json = serde_json::to_string_pretty(&rows)?;
+    let json = serde_json::to_string_pretty(rows)?;
     dhoit_runtime::tensors::write_atomic(&a.out.join("report.json"), json.as_bytes())?;
     dhoit_runtime::tensors::write_atomic(&a.out.join("report.md"), md.as_bytes())?;
     let mut small = format!(
@@ -807,15 +865,6 @@ pub fn run(a: CompareArgs) -> Result<()> {
     if let Some(path) = &a.summary {
         dhoit_runtime::tensors::write_atomic(path, small.as_bytes())?;
     }
-    println!(
-        "\n{}report.json, report.md and summary.md -> {}",
-        if a.no_images {
-            ""
-        } else {
-            "images, side-by-side montages, "
-        },
-        a.out.display()
-    );
     Ok(())
 }
 
