@@ -258,3 +258,38 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
     // A-buffer's 809 bytes a pixel).
     assert!(cheaper >= 10, "{cheaper}");
 }
+
+/// The table of docs/device.md ("what each method needs from the device") is the layout tables'
+/// own: regenerated here from `budget::layout` and required to appear in the page verbatim, so
+/// the page cannot drift from the buffers the pipelines create.
+#[test]
+fn the_device_page_lists_the_buffers_the_layouts_count() {
+    let mut table = String::from(
+        "| method | bytes a pixel | its buffers (bytes a pixel) | a slot | fixed bytes | weights |\n\
+         |---|---:|---|---:|---:|---:|\n",
+    );
+    for m in ["abuffer", "fkb", "mlab", "optimal", "vkb", "dkb"] {
+        let l = budget::layout(m).unwrap();
+        let buffers: Vec<String> = l
+            .per_pixel
+            .iter()
+            .map(|(label, b)| format!("`{label}` {b}"))
+            .collect();
+        let fixed: u64 = l.fixed.iter().map(|b| b.1).sum();
+        table += &format!(
+            "| {m} | {} | {} | {} | {fixed} | {} |\n",
+            l.per_pixel_bytes(),
+            buffers.join(", "),
+            l.slot_bytes,
+            l.weights
+        );
+    }
+    let page = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/device.md"),
+    )
+    .unwrap();
+    assert!(
+        page.contains(&table),
+        "docs/device.md should hold the layout tables as they are:\n{table}"
+    );
+}
