@@ -324,6 +324,22 @@ pub fn share_of(total: u64, ppm: u32) -> u64 {
 }
 
 impl Budget {
+    /// A budget as the command line takes it: bytes with a unit, slots per pixel, or a share of
+    /// the frame's fragments; anything else is an error that says what is expected.
+    ///
+    /// ```
+    /// use dhoit_runtime::budget::{Budget, DKB};
+    /// assert_eq!(Budget::parse("20MB")?, Budget::Bytes(20_000_000));
+    /// assert_eq!(Budget::parse("2fpp")?, Budget::SlotsPerPixel(2.0));
+    /// assert_eq!(Budget::parse("25%")?, Budget::Share(250_000));
+    /// assert!(Budget::parse("25 apples").is_err());
+    /// // Bytes fix F through the method's layout: what is left after its fixed buffers, in slots.
+    /// let pixels = 640 * 480;
+    /// let (m, f) = Budget::parse("40MiB")?.resolve(&DKB, pixels, 0)?;
+    /// assert_eq!(m, 40 << 20);
+    /// assert_eq!(f, (m - DKB.fixed_bytes(pixels)) / 8);
+    /// # Ok::<(), dhoit_runtime::Error>(())
+    /// ```
     pub fn parse(s: &str) -> Result<Budget> {
         let t = s.trim();
         let bad = |m: &str| Error::Budget(s.to_string(), m.to_string());

@@ -284,6 +284,24 @@ impl Options<'_> {
 }
 
 /// Renders one frame's fragment lists with any method, computing the error curves once.
+///
+/// ```
+/// use dhoit_runtime::budget::Budget;
+/// use dhoit_runtime::frame::{Method, Options, Renderer};
+/// use dhoit_runtime::{raster, scene};
+///
+/// let s = scene::load("plates", scene::Opacity::default())?;
+/// let cam = scene::Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, 96, 72);
+/// let fragments = raster::rasterize(&s, &cam, 96, 72)?;
+/// // The methods' own approximations at one fragment slot a pixel.
+/// let r = Renderer::new(&fragments, Options::new(Budget::parse("1fpp")?, [1.0; 3]).always_approximate());
+/// let exact = r.render(Method::Abuffer)?;
+/// let (fkb, optimal) = (r.render(Method::Fkb)?, r.render(Method::Optimal)?);
+/// // The optimal allocation of the same F is never worse than one k for every pixel.
+/// assert!(optimal.image.mse(&exact.image) <= fkb.image.mse(&exact.image));
+/// assert_eq!(optimal.budget_fragments, 96 * 72);
+/// # Ok::<(), dhoit_runtime::Error>(())
+/// ```
 pub struct Renderer<'a> {
     pub fragments: &'a FragmentLists,
     pub options: Options<'a>,

@@ -413,7 +413,20 @@ impl Mlp {
             .collect()
     }
 
-    /// Reads and validates a weights file.
+    /// Reads and validates a weights file: a missing tensor, a wrong shape or a non-finite
+    /// value is an error naming it.
+    ///
+    /// ```
+    /// use dhoit_runtime::mlp::Mlp;
+    /// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/weights.safetensors");
+    /// let m = Mlp::load(path.as_ref())?;
+    /// assert_eq!((m.h1, m.h2), (128, 64));
+    /// // One pixel's 12 features to its request, in (0, 1).
+    /// let r = m.forward(&[0.5; 12]);
+    /// assert!(r > 0.0 && r < 1.0);
+    /// assert!(Mlp::load("no/such/weights.safetensors".as_ref()).is_err());
+    /// # Ok::<(), dhoit_runtime::Error>(())
+    /// ```
     pub fn load(path: &Path) -> Result<Mlp> {
         let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
         Self::from_bytes(&bytes).map_err(|fault| Error::Weights {
