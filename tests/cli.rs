@@ -69,7 +69,7 @@ fn a_corrupt_dump_is_a_clear_error() {
 }
 
 #[test]
-fn shuffled_submission_gives_bit_identical_abuffer_and_fkb_images() {
+fn shuffled_submission_gives_bit_identical_images() {
     let mlp = Mlp::random(8);
     for name in ["spheres", "particles", "plates"] {
         let s = scene::load(name, Opacity::default()).unwrap();
@@ -83,6 +83,7 @@ fn shuffled_submission_gives_bit_identical_abuffer_and_fkb_images() {
                 Method::Vkb,
                 Method::Dkb,
                 Method::Optimal,
+                Method::Wboit,
             ]
             .map(|m| {
                 let f = frame::render(&fl, m, opts(Budget::SlotsPerPixel(1.5), [1.0; 3], &mlp))
@@ -354,6 +355,7 @@ fn compare_prints_a_table_and_writes_a_report() {
         "greedy-paper",
         "greedy-increase",
         "mlab",
+        "wboit",
         "dkb",
     ] {
         assert!(stdout.contains(m), "{stdout}");
@@ -364,7 +366,7 @@ fn compare_prints_a_table_and_writes_a_report() {
     let records = report.as_array().unwrap();
     assert_eq!(
         records.len(),
-        8,
+        9,
         "every method, dkb with the committed default weights"
     );
     assert!(dir.join("report.md").is_file());

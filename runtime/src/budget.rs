@@ -190,6 +190,22 @@ pub const MLAB: Layout = Layout {
     weights: 0,
 };
 
+/// Weighted blended OIT, as McGuire and Bavoil lay it out: an RGBA16F accumulation target and an
+/// R8 revealage target a pixel, no slot and no order (the GPU computes the same sums from the
+/// A-buffer's lists, with the A-buffer's memory, as it does MLAB's rows).
+pub const WBOIT: Layout = Layout {
+    method: "wboit",
+    slot_bytes: SLOT_BYTES,
+    per_pixel: &[
+        RASTER_TARGET,
+        ("wboit.accumulation", 8),
+        ("wboit.revealage", 1),
+    ],
+    fixed: &[("params", PARAMS_BYTES)],
+    scan: false,
+    weights: 0,
+};
+
 /// A-buffer: counts (then the store's cursors), offsets, every fragment as the 8-byte capture
 /// key a k-buffer slot holds (paper 004's exact memory). Not budgeted: exact memory. The output
 /// image is the application's target, counted for no method.
@@ -268,7 +284,7 @@ impl Layout {
 
 /// Every budgeted layout, by method name.
 pub fn layout(method: &str) -> Option<Layout> {
-    [DKB, OPT, VKB, FKB, MLAB, ABUFFER]
+    [DKB, OPT, VKB, FKB, MLAB, WBOIT, ABUFFER]
         .into_iter()
         .find(|l| l.method == method)
 }

@@ -30,10 +30,12 @@ pub enum Method {
     GreedyIncrease,
     /// Multi-layer alpha blending with as many rows per pixel as FKB has slots.
     Mlab,
+    /// Weighted blended OIT (McGuire and Bavoil 2013): no slots, no order, fixed memory.
+    Wboit,
 }
 
 impl Method {
-    pub const ALL: [Method; 8] = [
+    pub const ALL: [Method; 9] = [
         Method::Abuffer,
         Method::Fkb,
         Method::Vkb,
@@ -42,6 +44,7 @@ impl Method {
         Method::GreedyPaper,
         Method::GreedyIncrease,
         Method::Mlab,
+        Method::Wboit,
     ];
 
     pub fn name(self) -> &'static str {
@@ -54,6 +57,7 @@ impl Method {
             Method::GreedyPaper => "greedy-paper",
             Method::GreedyIncrease => "greedy-increase",
             Method::Mlab => "mlab",
+            Method::Wboit => "wboit",
         }
     }
 
@@ -80,7 +84,7 @@ impl Method {
     /// hulls or heaps of the optimal and the greedy ones.
     pub fn frame_bytes(self) -> (u64, u64) {
         match self {
-            Method::Abuffer | Method::Fkb | Method::Vkb | Method::Mlab => (28, 40),
+            Method::Abuffer | Method::Fkb | Method::Vkb | Method::Mlab | Method::Wboit => (28, 40),
             Method::Dkb => (24, 120),
             Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => (70, 40),
         }
@@ -90,7 +94,7 @@ impl Method {
     /// renders exactly, with the A-buffer's memory, where its budget holds every fragment
     /// ([`Renderer::allocate`]).
     pub fn is_kbuffer(self) -> bool {
-        !matches!(self, Method::Abuffer | Method::Mlab)
+        !matches!(self, Method::Abuffer | Method::Mlab | Method::Wboit)
     }
 
     /// The buffers the method's GPU pipeline creates.
@@ -102,6 +106,7 @@ impl Method {
             Method::Dkb => budget::DKB,
             Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => budget::OPT,
             Method::Mlab => budget::MLAB,
+            Method::Wboit => budget::WBOIT,
         }
     }
 }
@@ -139,7 +144,8 @@ fn check_slot_per_pixel(method: Method, given: Budget, f: u64, w: u32, h: u32) -
 /// slots per pixel depends on the resolution alone; a share of the frame's fragments (and the
 /// exact A-buffer) passes here and is checked with each frame.
 pub fn check_budget(given: Budget, method: Method, w: u32, h: u32) -> Result<()> {
-    if method == Method::Abuffer || matches!(given, Budget::Share(_)) {
+    // The A-buffer and WBOIT take no budget: exact memory, fixed memory.
+    if matches!(method, Method::Abuffer | Method::Wboit) || matches!(given, Budget::Share(_)) {
         return Ok(());
     }
     let (_, f) = given.resolve(&method.layout(), w as u64 * h as u64, 0)?;
@@ -374,6 +380,8 @@ impl<'a> Renderer<'a> {
         let bytes_hold = matches!(budget, Budget::Bytes(m) if m >= exact_bytes);
         let (budget_bytes, f) = match (method, budget) {
             (Method::Abuffer, _) => (exact_bytes, total),
+            // Fixed memory whatever the budget: its accumulation targets, no slot.
+            (Method::Wboit, _) => (layout.fixed_bytes(pixels), 0),
             (_, Budget::Bytes(m)) if bytes_hold && method.is_kbuffer() => (m, total),
             _ => budget.resolve(&layout, pixels, total)?,
         };
@@ -388,6 +396,7 @@ impl<'a> Renderer<'a> {
         let k = match method {
             Method::Abuffer => counts,
             _ if exact => counts,
+            Method::Wboit => vec![0; pixels as usize],
             Method::Fkb | Method::Mlab => {
                 check_slot_per_pixel(method, opts.budget, f, fl.width, fl.height)?;
                 alloc::fixed(pixels as usize, f)
@@ -442,6 +451,7 @@ impl<'a> Renderer<'a> {
             Method::Abuffer => composite::composite(fl, Composite::Exact, bg),
             _ if a.exact => composite::composite(fl, Composite::Exact, bg),
             Method::Mlab => composite::composite(fl, Composite::Mlab(k[0] as usize), bg),
+            Method::Wboit => composite::composite(fl, Composite::Wboit, bg),
             _ => composite::composite(fl, Composite::Hybrid(&k), bg),
         };
         let composite_ms = t1.elapsed().as_secs_f64() * 1e3;

@@ -26,7 +26,7 @@ pub mod shaders {
         pub includes: &'static [&'static str],
     }
 
-    pub const PASSES: [Pass; 15] = [
+    pub const PASSES: [Pass; 16] = [
         Pass {
             name: "opaque",
             source: include_str!("../../shaders/opaque.wgsl"),
@@ -65,6 +65,11 @@ pub mod shaders {
         Pass {
             name: "mlab_resolve",
             source: include_str!("../../shaders/mlab_resolve.wgsl"),
+            includes: &[SORT, BEHIND],
+        },
+        Pass {
+            name: "wboit_resolve",
+            source: include_str!("../../shaders/wboit_resolve.wgsl"),
             includes: &[SORT, BEHIND],
         },
         Pass {

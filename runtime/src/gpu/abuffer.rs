@@ -3,7 +3,8 @@
 //! the count, whose buffer then serves as the store's cursors) -> `abuffer_resolve.wgsl` (sort
 //! and blend; twin `composite::exact_sorted`) or `mlab_resolve.wgsl` (fragments in submission
 //! order into m blending rows; twin `composite::mlab_pixel`, which needs each fragment's
-//! submission index, stored beside its key for MLAB and for the tests' readback). Both sorts
+//! submission index, stored beside its key for MLAB and for the tests' readback) or
+//! `wboit_resolve.wgsl` (WBOIT's weighted sums; twin `composite::wboit_sorted`). The sorts
 //! are `sort.wgsl`.
 
 use super::Recording;
@@ -11,10 +12,27 @@ use super::buffers::{FrameStatus, read_back, read_u64s, read_words, u32s};
 use crate::error::Result;
 use crate::fragment::FragmentLists;
 
+/// How the A-buffer's lists are blended.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(super) enum Blend {
+    /// Sorted front to back, exactly.
+    Exact,
+    /// MLAB's rows, in submission order.
+    Mlab,
+    /// WBOIT's weighted sums.
+    Wboit,
+}
+
 impl Recording<'_, '_> {
-    /// The A-buffer's passes, or MLAB's when `mlab`; returns the image buffer. With
+    /// The A-buffer's passes, blended as `blend` says; returns the image buffer. With
     /// diagnostics, the GPU's fragments are read back (front to back within a pixel).
-    pub(super) fn abuffer(&mut self, mlab: bool, width: u32, height: u32) -> Result<wgpu::Buffer> {
+    pub(super) fn abuffer(
+        &mut self,
+        blend: Blend,
+        width: u32,
+        height: u32,
+    ) -> Result<wgpu::Buffer> {
+        let mlab = blend == Blend::Mlab;
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
@@ -46,10 +64,10 @@ impl Recording<'_, '_> {
             &[&offsets, &counts, &keys, &primitives],
             "store",
         );
-        let (resolve, name) = if mlab {
-            (&p.mlab_resolve, "mlab blend")
-        } else {
-            (&p.abuffer_resolve, "sort and blend")
+        let (resolve, name) = match blend {
+            Blend::Mlab => (&p.mlab_resolve, "mlab blend"),
+            Blend::Wboit => (&p.wboit_resolve, "wboit blend"),
+            Blend::Exact => (&p.abuffer_resolve, "sort and blend"),
         };
         let bufs = [
             passes.params(),

@@ -79,7 +79,7 @@ impl Recording<'_, '_> {
                 let i = self.dkb_importance(mlp, expect_fit)?;
                 self.allocated(i, budget, expect_fit)
             }
-            Slots::Mlab(_) => unreachable!("MLAB blends from the A-buffer"),
+            Slots::Mlab(_) | Slots::Wboit => unreachable!("MLAB and WBOIT blend from the A-buffer"),
         }
     }
 

@@ -35,6 +35,7 @@ mod scan;
 mod timer;
 mod vkb;
 
+use abuffer::Blend;
 pub use allocate::GpuAllocation;
 use buffers::{FrameBuffers, Readback, Statistics, read_frame, read_texture};
 use passes::Passes;
@@ -445,6 +446,9 @@ pub enum Slots<'a> {
     /// MLAB with this many rows (at most [`MLAB_MAX_ROWS`]), blended from the A-buffer's
     /// fragments taken in submission order.
     Mlab(u32),
+    /// Weighted blended OIT, its sums taken from the A-buffer's fragments
+    /// (`wboit_resolve.wgsl`, the twin of `composite::wboit_sorted`).
+    Wboit,
     /// Per-pixel importance (computed elsewhere), what it means and F: the GPU counts
     /// fragments, allocates k (`allocate.wgsl`, the twin of `alloc::allocate`), then captures
     /// and resolves.
@@ -482,6 +486,7 @@ impl<'a> Slots<'a> {
             Method::Fkb => Some(Slots::Uniform(first())),
             // MLAB on the GPU blends from the A-buffer (exact memory, not the budget's rows).
             Method::Mlab => Some(Slots::Mlab(first())),
+            Method::Wboit => Some(Slots::Wboit),
             Method::Vkb => Some(Slots::Vkb(options.vkb, budget)),
             Method::Dkb => Some(Slots::Dkb(
                 options.weights.ok_or_else(|| {
@@ -652,7 +657,7 @@ impl Gpu {
                 }
                 (0.into(), VkbParams::default(), m)
             }
-            Some(Slots::PerPixel(_)) | None => (0.into(), VkbParams::default(), 0),
+            Some(Slots::PerPixel(_) | Slots::Wboit) | None => (0.into(), VkbParams::default(), 0),
         };
         let mut params = frame_params(cam, width, height, background, k_uniform, budget, vkb);
         // The allocated k-buffers know n(p) by the capture: two-mode capture (capture.wgsl).
@@ -688,7 +693,9 @@ impl Gpu {
         // The application's opaque pass, before any method's.
         passes.opaque(&mut rec.enc);
         let image = match slots {
-            None | Some(Slots::Mlab(_)) => rec.abuffer(slots.is_some(), width, height)?,
+            None => rec.abuffer(Blend::Exact, width, height)?,
+            Some(Slots::Mlab(_)) => rec.abuffer(Blend::Mlab, width, height)?,
+            Some(Slots::Wboit) => rec.abuffer(Blend::Wboit, width, height)?,
             Some(s) => {
                 let k = rec.k_for(s, budget)?;
                 rec.capture_and_resolve(s, k)?

@@ -24,6 +24,7 @@ pub(super) struct Pipelines {
     /// resolve.wgsl built for frames whose budget holds every fragment (k = n).
     pub(super) resolve_fits: wgpu::ComputePipeline,
     pub(super) mlab_resolve: wgpu::ComputePipeline,
+    pub(super) wboit_resolve: wgpu::ComputePipeline,
     pub(super) allocate: Allocate,
     pub(super) features: wgpu::RenderPipeline,
     /// The features pass without the nearest key's load first (PRELOAD_NEAREST false).
@@ -518,6 +519,7 @@ impl Pipelines {
             resolve: compute("resolve"),
             resolve_fits: compute_pipeline(device, "resolve", &fits("resolve"), "main"),
             mlab_resolve: compute("mlab_resolve"),
+            wboit_resolve: compute("wboit_resolve"),
             allocate: Allocate::new(device),
             features: geometry("features"),
             features_no_preload: features_with(

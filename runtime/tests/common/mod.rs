@@ -78,8 +78,8 @@ pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
 
 #[cfg(feature = "gpu")]
 /// The methods that run on the CPU and the GPU alike: the A-buffer, FKB, the optimal
-/// allocation (uploaded), VKB and DKB.
-pub const CPU_AND_GPU: [dhoit_runtime::frame::Method; 5] = {
+/// allocation (uploaded), VKB, DKB and WBOIT.
+pub const CPU_AND_GPU: [dhoit_runtime::frame::Method; 6] = {
     use dhoit_runtime::frame::Method;
     [
         Method::Abuffer,
@@ -87,6 +87,7 @@ pub const CPU_AND_GPU: [dhoit_runtime::frame::Method; 5] = {
         Method::Optimal,
         Method::Vkb,
         Method::Dkb,
+        Method::Wboit,
     ]
 };
 
