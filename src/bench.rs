@@ -41,12 +41,13 @@ pub struct BenchArgs {
 }
 
 /// The methods the GPU bench measures, in its order (its variants are of FKB and DKB).
-const GPU_METHODS: [Method; 5] = [
+const GPU_METHODS: [Method; 6] = [
     Method::Abuffer,
     Method::Fkb,
     Method::Optimal,
     Method::Vkb,
     Method::Dkb,
+    Method::Wboit,
 ];
 
 /// Fastest of `n` runs of `f`, in seconds, with the last result.
@@ -136,7 +137,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
             "fragments": fl.fragment_count(), "max_depth_complexity": fl.max_depth_complexity(),
             "raster_ms": t_raster * 1e3, "raster_fragments_per_s": frags / t_raster,
         });
-        for m in [Method::Abuffer, Method::Fkb, Method::Vkb, Method::Mlab] {
+        for m in [
+            Method::Abuffer,
+            Method::Fkb,
+            Method::Vkb,
+            Method::Mlab,
+            Method::Wboit,
+        ] {
             let (t, _) = best(a.repeat, || {
                 Ok(
                     Renderer::new(&fl, Options::new(budget, [1.0; 3]).always_approximate())

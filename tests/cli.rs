@@ -632,6 +632,7 @@ fn the_gpu_bench_reports_every_method_and_option() {
         "optimal",
         "vkb",
         "dkb",
+        "wboit",
         "dkb_no_skip",
         "dkb_insertion_only",
         "dkb_two_mode_where_all_fit",
