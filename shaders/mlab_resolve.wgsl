@@ -4,14 +4,7 @@
 // m + 1 rows, then the last two merged), and the rows blended over what is behind the pixel
 // (behind.wgsl), as composite::mlab_pixel.
 
-@group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> offsets: array<u32>;
-@group(0) @binding(2) var<storage, read_write> keys: array<u64>;
-@group(0) @binding(5) var<storage, read_write> primitives: array<u32>;
-@group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
-// Set to 1 when a pixel's sort came close to lavapipe's loop limit; the deepest pixel over
-// MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word).
-@group(0) @binding(4) var<storage, read_write> status: array<atomic<u64>, 2>;
+// Its bindings, the pixel's stored range and the image write are sort.wgsl's.
 
 struct Row {
     a: vec3<f32>,
@@ -29,13 +22,12 @@ fn main(
     if (p >= params.pixels) {
         return;
     }
-    let start = offsets[p];
-    let end = offsets[p + 1u];
-    if (end - start > MAX_FRAGMENTS_PER_PIXEL) {
-        // The frame is refused: no sort of that length.
-        atomicMax(&status[1], deepest_word(end - start, p));
+    let list = stored(p);
+    if (!list.ok) {
         return;
     }
+    let start = list.start;
+    let end = list.end;
     sort_by_submission(start, end);
     let m = clamp(params.k_uniform, 1u, MLAB_MAX_ROWS);
     var rows: array<Row, MLAB_MAX_ROWS + 1u>;
@@ -69,8 +61,5 @@ fn main(
         c += t * rows[r].a;
         t *= rows[r].t;
     }
-    if (ticks > LOOP_BUDGET) {
-        atomicMax(&status[0], 1lu);
-    }
-    image[p] = vec4<f32>(c + t * behind(p), 1.0);
+    write_pixel(p, c + t * behind(p));
 }

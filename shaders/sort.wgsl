@@ -1,10 +1,48 @@
-// The A-buffer's per-pixel insertion sort, in place over `keys[start..end)` (each the 64-bit
-// capture key, depth bits high and RGBA8 low), prepended to the passes that sort a pixel's
-// stored fragments and declare `keys` (and `primitives`, each fragment's submission index,
-// which the A-buffer stores only for MLAB and the tests' readback): front to back by key for
-// the exact blend (equal keys are equal fragments: any order blends alike, as
-// fragment::sort_front_to_back), submission order for MLAB (the primitives sorted alongside).
-// Every step ticks the loop counter (lavapipe's limit, see common.wgsl).
+// What the A-buffer's list resolves share (the exact sort and blend, MLAB's rows, WBOIT's sums;
+// prepended to each): their bindings, a pixel's stored range, the per-pixel insertion sort and
+// the image write. The sort runs in place over `keys[start..end)` (each the 64-bit capture key,
+// depth bits high and RGBA8 low), front to back by key for the exact blend and WBOIT (equal keys
+// are equal fragments: any order blends alike, as fragment::sort_front_to_back), submission order
+// for MLAB (the `primitives` sorted alongside, each fragment's submission index, which the
+// A-buffer stores only for MLAB and the tests' readback). Every step ticks the loop counter
+// (lavapipe's limit, see common.wgsl).
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> offsets: array<u32>;
+@group(0) @binding(2) var<storage, read_write> keys: array<u64>;
+// Submission indices, where the store kept them (params.store_primitives): sorted alongside.
+@group(0) @binding(5) var<storage, read_write> primitives: array<u32>;
+@group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
+// Set to 1 when a pixel's sort came close to lavapipe's loop limit; the deepest pixel over
+// MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word).
+@group(0) @binding(4) var<storage, read_write> status: array<atomic<u64>, 2>;
+
+// Pixel p's stored fragments, keys[start..end).
+struct Stored {
+    start: u32,
+    end: u32,
+    // False where the pixel holds more than MAX_FRAGMENTS_PER_PIXEL: the frame is refused (its
+    // depth is reported), and no sort of that length runs.
+    ok: bool,
+}
+
+fn stored(p: u32) -> Stored {
+    let start = offsets[p];
+    let end = offsets[p + 1u];
+    if (end - start > MAX_FRAGMENTS_PER_PIXEL) {
+        atomicMax(&status[1], deepest_word(end - start, p));
+        return Stored(start, end, false);
+    }
+    return Stored(start, end, true);
+}
+
+// The pixel's colour into the image, and whether its loops came close to the device's limit.
+fn write_pixel(p: u32, c: vec3<f32>) {
+    if (ticks > LOOP_BUDGET) {
+        atomicMax(&status[0], 1lu);
+    }
+    image[p] = vec4<f32>(c, 1.0);
+}
 
 // Front to back by key; with `with_primitives` the submission indices move alongside and break
 // ties, as fragment::sort_front_to_back (the tests read them back).

@@ -4,15 +4,7 @@
 // accumulation and revealage targets would hold them, and resolved over what is behind the
 // pixel (behind.wgsl), as composite::wboit_sorted.
 
-@group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> offsets: array<u32>;
-@group(0) @binding(2) var<storage, read_write> keys: array<u64>;
-// Submission indices, where the store kept them (params.store_primitives): sorted alongside.
-@group(0) @binding(5) var<storage, read_write> primitives: array<u32>;
-@group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
-// Set to 1 when a pixel's sort came close to lavapipe's loop limit; the deepest pixel over
-// MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word).
-@group(0) @binding(4) var<storage, read_write> status: array<atomic<u64>, 2>;
+// Its bindings, the pixel's stored range and the image write are sort.wgsl's.
 
 // Their eq. 10: a max(10^-2, 3 10^3 (1 - z)^3), z the window depth (composite::wboit_weight).
 fn weight(z: f32, a: f32) -> f32 {
@@ -30,15 +22,14 @@ fn main(
     if (p >= params.pixels) {
         return;
     }
-    let start = offsets[p];
-    let end = offsets[p + 1u];
-    if (end - start > MAX_FRAGMENTS_PER_PIXEL) {
-        // The frame is refused: no sort of that length.
-        atomicMax(&status[1], deepest_word(end - start, p));
+    let list = stored(p);
+    if (!list.ok) {
         return;
     }
+    let start = list.start;
+    let end = list.end;
     if (end == start) {
-        image[p] = vec4<f32>(behind(p), 1.0);
+        write_pixel(p, behind(p));
         return;
     }
     sort_keys(start, end, params.store_primitives != 0u);
@@ -54,9 +45,6 @@ fn main(
         acc_a += rgba.a * w;
         reveal *= 1.0 - rgba.a;
     }
-    if (ticks > LOOP_BUDGET) {
-        atomicMax(&status[0], 1lu);
-    }
     let inv = 1.0 / clamp(acc_a, 1e-4, 5e4);
-    image[p] = vec4<f32>(acc * inv * (1.0 - reveal) + reveal * behind(p), 1.0);
+    write_pixel(p, acc * inv * (1.0 - reveal) + reveal * behind(p));
 }
