@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::gpu;
+use common::{gpu, identity, quad};
 use dhoit_runtime::budget::{self, Budget, FragmentBudget};
 use dhoit_runtime::composite::Image;
 use dhoit_runtime::frame::{self, Method, Options};
@@ -13,28 +13,11 @@ use dhoit_runtime::gpu::{Gpu, Slots};
 use dhoit_runtime::importance::VkbParams;
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::raster::rasterize;
-use dhoit_runtime::scene::{Camera, Scene};
+use dhoit_runtime::scene::Scene;
 use glam::Vec3;
 
 const BG: [f32; 3] = [0.9, 0.85, 0.8];
 const TOLERANCE: f32 = 1e-5;
-
-/// Clip space is world space: x, y in [-1, 1], window depth = z.
-fn identity() -> Camera {
-    Camera {
-        view_proj: glam::Mat4::IDENTITY,
-        forward: Vec3::NEG_Z,
-        eye: Vec3::ZERO,
-    }
-}
-
-/// A quad from (x0, y0) to (x1, y1) whose depth runs from z0 at x0 to z1 at x1.
-fn quad(s: &mut Scene, (x0, y0, x1, y1): (f32, f32, f32, f32), (z0, z1): (f32, f32), c: [f32; 4]) {
-    let (a, b) = (Vec3::new(x0, y0, z0), Vec3::new(x1, y0, z1));
-    let (d, e) = (Vec3::new(x1, y1, z1), Vec3::new(x0, y1, z0));
-    s.push_triangle([a, b, d], [c; 3]);
-    s.push_triangle([a, d, e], [c; 3]);
-}
 
 /// Every method that runs on both sides, CPU frame against GPU frame, on one scene and budget:
 /// the largest difference over every pixel of every method.

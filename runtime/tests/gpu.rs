@@ -1125,11 +1125,7 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
         s.push_triangle([v(x0, -1.0, z), v(x1, -1.0, z), v(x0, y1, z)], [c; 3]);
         s.push_triangle([v(x1, -1.0, z), v(x1, y1, z), v(x0, y1, z)], [c; 3]);
     }
-    let cam = Camera {
-        view_proj: glam::Mat4::IDENTITY,
-        forward: glam::Vec3::NEG_Z,
-        eye: glam::Vec3::ZERO,
-    };
+    let cam = common::identity();
     let (w, h) = (48, 32);
     let gfl = gpu_fragments(&g, &s, &cam, w, h);
     let counts = gfl.counts();
@@ -1245,11 +1241,7 @@ fn a_pixel_too_deep_for_the_devices_loops_is_refused_not_wrong() {
             [[0.5, 0.5, 0.5, 0.2]; 3],
         );
     }
-    let cam = Camera {
-        view_proj: glam::Mat4::IDENTITY,
-        forward: glam::Vec3::NEG_Z,
-        eye: glam::Vec3::ZERO,
-    };
+    let cam = common::identity();
     let r = g.render(&s, &cam, 4, 4, BG, None);
     if g.bounded_loops {
         let Err(e) = r else {
@@ -1288,11 +1280,7 @@ fn deep_pixels(n: usize) -> (Scene, Camera) {
             [c; 3],
         );
     }
-    let cam = Camera {
-        view_proj: glam::Mat4::IDENTITY,
-        forward: glam::Vec3::NEG_Z,
-        eye: glam::Vec3::ZERO,
-    };
+    let cam = common::identity();
     (s, cam)
 }
 

@@ -5,32 +5,20 @@
 
 mod common;
 
-use common::gpu;
+use common::{gpu, identity, quad};
 use dhoit_runtime::budget::Budget;
 use dhoit_runtime::composite::{self, Image};
 use dhoit_runtime::fragment::Fragment;
 use dhoit_runtime::frame::{self, Method, Options};
 use dhoit_runtime::gpu::Slots;
 use dhoit_runtime::raster::rasterize;
-use dhoit_runtime::scene::{Camera, Scene};
-use glam::Vec3;
+use dhoit_runtime::scene::Scene;
 
 const BG: [f32; 3] = [0.9, 0.85, 0.8];
 
-/// Clip space is world space: x, y in [-1, 1], window depth = z.
-fn identity() -> Camera {
-    Camera {
-        view_proj: glam::Mat4::IDENTITY,
-        forward: Vec3::NEG_Z,
-        eye: Vec3::ZERO,
-    }
-}
-
 /// A full-frame quad at depth `z`.
 fn layer(s: &mut Scene, z: f32, c: [f32; 4]) {
-    let v = |x, y| Vec3::new(x, y, z);
-    s.push_triangle([v(-1.0, -1.0), v(1.0, -1.0), v(1.0, 1.0)], [c; 3]);
-    s.push_triangle([v(-1.0, -1.0), v(1.0, 1.0), v(-1.0, 1.0)], [c; 3]);
+    quad(s, (-1.0, -1.0, 1.0, 1.0), (z, z), c);
 }
 
 fn render(fl: &dhoit_runtime::fragment::FragmentLists, m: Method) -> Image {

@@ -150,3 +150,27 @@ pub fn layers(n: usize) -> dhoit_runtime::scene::Scene {
     }
     deep
 }
+
+/// Clip space is world space: x, y in [-1, 1], window depth = z.
+pub fn identity() -> dhoit_runtime::scene::Camera {
+    dhoit_runtime::scene::Camera {
+        view_proj: glam::Mat4::IDENTITY,
+        forward: glam::Vec3::NEG_Z,
+        eye: glam::Vec3::ZERO,
+    }
+}
+
+/// A quad from (x0, y0) to (x1, y1) whose depth runs from z0 at x0 to z1 at x1 (seen through
+/// [`identity`]).
+pub fn quad(
+    s: &mut dhoit_runtime::scene::Scene,
+    (x0, y0, x1, y1): (f32, f32, f32, f32),
+    (z0, z1): (f32, f32),
+    c: [f32; 4],
+) {
+    use glam::Vec3;
+    let (a, b) = (Vec3::new(x0, y0, z0), Vec3::new(x1, y0, z1));
+    let (d, e) = (Vec3::new(x1, y1, z1), Vec3::new(x0, y1, z0));
+    s.push_triangle([a, b, d], [c; 3]);
+    s.push_triangle([a, d, e], [c; 3]);
+}
