@@ -283,6 +283,15 @@ struct Summary {
     md: String,
 }
 
+impl Summary {
+    /// A titled table, in both.
+    fn section(&mut self, title: &str, header: &[&str], rows: &[Vec<String>]) {
+        let (t, m) = table(header, rows);
+        let _ = write!(self.text, "\n{title}\n{t}");
+        let _ = write!(self.md, "\n## {title}\n\n{m}");
+    }
+}
+
 /// The summary: mean MSE and FLIP per budget and method, bytes a frame pixel, ratio tables per
 /// scene and per budget, the accuracy targets with whether they hold, and scene x budget
 /// matrices.
@@ -332,13 +341,11 @@ fn mean_tables(rows: &[Row], axes: &Axes, equal: Equal, out: &mut Summary) {
                 row
             })
             .collect();
-        let (t, m) = table(&head, &mean_rows);
         let title = format!(
             "Mean {metric} against the A-buffer over all frames ({})",
             equal.name()
         );
-        let _ = write!(out.text, "\n{title}\n{t}");
-        let _ = write!(out.md, "\n## {title}\n\n{m}");
+        out.section(&title, &head, &mean_rows);
     }
 }
 
@@ -387,14 +394,12 @@ fn memory_table(rows: &[Row], axes: &Axes, equal: Equal, out: &mut Summary) {
             row
         })
         .collect();
-    let (t, m) = table(&mem_head, &mem_rows);
     let title = format!(
         "Bytes a frame pixel, mean over frames ({}; in brackets the geometric mean and the worst \
          frame of each method's bytes over the exact A-buffer's)",
         equal.name()
     );
-    let _ = write!(out.text, "\n{title}\n{t}");
-    let _ = write!(out.md, "\n## {title}\n\n{m}");
+    out.section(&title, &mem_head, &mem_rows);
 }
 
 /// DKB against VKB and the optimal allocation, MSE ratios and FLIP, per scene and per budget.
@@ -568,9 +573,7 @@ fn targets_table(r: &[Ratio], axes: &Axes, out: &mut Summary) {
             verdict(opt <= 1.3).to_string(),
         ],
     ];
-    let (t, m) = table(&["target", "measured", ""], &targets);
-    let _ = write!(out.text, "\nAccuracy targets\n{t}");
-    let _ = write!(out.md, "\n## Accuracy targets\n\n{m}");
+    out.section("Accuracy targets", &["target", "measured", ""], &targets);
 }
 
 /// Scene x budget matrices of DKB/VKB and DKB/optimal (Markdown only: wide).
