@@ -275,6 +275,8 @@ fn configure(label: &str) -> dhoit_runtime::gpu::FrameOptions {
             _ => DkbGeometry::FollowLastFrame,
         },
         layer_major_fkb: label == "fkb_layer_major",
+        // The methods themselves, at equal F (the runs are always approximate).
+        exact_when_cheaper: false,
         diagnostics: false,
     }
 }

@@ -116,7 +116,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
             // an allocated frame skips its importance and search, only where the budget holds
             // every fragment the CPU counted in this frame (no second submission where it
             // truncates; the images are the same either way, only the passes differ).
-            let mut opts = FrameOptions::default();
+            // The GPU decides on its own count whether the exact A-buffer is no dearer, as
+            // the CPU did (the two counts can differ by an edge's fragment).
+            let mut opts = FrameOptions {
+                exact_when_cheaper: options.exact_when_cheaper,
+                ..FrameOptions::default()
+            };
             if let Some(Slots::Dkb(_, f) | Slots::Vkb(_, f) | Slots::Importance(_, _, f)) = slots {
                 let holds = f.holds(fl.fragment_count() as u64);
                 opts.predict_fit = holds;
@@ -136,6 +141,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             // The GPU's own k (VKB and DKB allocate on the device); what it captures follows.
             let k: Vec<u32> = match &g.slots {
                 Some((_, bases, _)) => bases.windows(2).map(|b| b[1] - b[0]).collect(),
+                None if g.exact => fl.counts(),
                 None => cpu.k.clone(),
             };
             let captured = k.iter().zip(fl.counts()).map(|(&k, n)| k.min(n) as u64);
@@ -159,7 +165,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 allocation_ms: cpu.allocation_ms,
                 composite_ms: 0.0,
                 optimal: cpu.optimal,
-                exact: cpu.exact,
+                exact: cpu.exact || g.exact,
             }
         }
     };

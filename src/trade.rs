@@ -380,11 +380,15 @@ impl Timer {
         for _ in 0..repeat.max(1) {
             let t = match (self, frame) {
                 (Timer::Gpu(g), TimedFrame::Gpu { cam, f, w, h }) => g
-                    .render(
+                    .render_with(
+                        // The network's own pass, whatever the exact A-buffer would cost.
+                        &dhoit_runtime::gpu::FrameOptions {
+                            exact_when_cheaper: false,
+                            ..Default::default()
+                        },
                         s,
                         cam,
-                        *w,
-                        *h,
+                        (*w, *h),
                         [1.0; 3],
                         Some(dhoit_runtime::gpu::Slots::Dkb(mlp, *f)),
                     )?

@@ -391,7 +391,7 @@ impl<'a> Renderer<'a> {
         let exact = method.is_kbuffer()
             && (f >= total
                 || (opts.exact_when_cheaper
-                    && reserved_bytes(method, &layout, pixels, f, total) >= exact_bytes));
+                    && exact_is_no_dearer(method, &layout, pixels, f, total)));
         let mut optimal = None;
         let k = match method {
             Method::Abuffer => counts,
@@ -494,6 +494,21 @@ pub fn reserved_bytes(method: Method, layout: &Layout, pixels: u64, f: u64, tota
         _ => f.min(total),
     };
     layout.allocated_bytes(pixels, slots)
+}
+
+/// Whether the exact A-buffer of a frame of `total` fragments needs no more bytes than a
+/// k-buffer method reserves for it at F ([`reserved_bytes`]): then the A-buffer is both better
+/// and no dearer, and [`Options::exact_when_cheaper`] (on the CPU) and
+/// `gpu::FrameOptions::exact_when_cheaper` (on the GPU, from its own count) render it instead.
+pub fn exact_is_no_dearer(
+    method: Method,
+    layout: &Layout,
+    pixels: u64,
+    f: u64,
+    total: u64,
+) -> bool {
+    reserved_bytes(method, layout, pixels, f, total)
+        >= budget::ABUFFER.allocated_bytes(pixels, total)
 }
 
 /// Refuses a frame whose methods' CPU work ([`Method::frame_bytes`], the most of them) would

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{gpu, identity, quad};
+use common::{RenderMethod, gpu, identity, quad};
 use dhoit_runtime::budget::{self, Budget, FragmentBudget};
 use dhoit_runtime::composite::Image;
 use dhoit_runtime::frame::{self, Method, Options};
@@ -286,7 +286,10 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
     // A budget of every fragment or more: every k-buffer method's image is the A-buffer's,
     // exactly on the CPU, within float rounding on the GPU.
     let exact = frame::render(&fl, Method::Abuffer, opts(Budget::Share(1_000_000))).unwrap();
-    let gpu_exact = g.render(&s, &identity(), w, h, BG, None).unwrap().image;
+    let gpu_exact = g
+        .render_method(&s, &identity(), w, h, BG, None)
+        .unwrap()
+        .image;
     for b in [
         Budget::Share(1_000_000),
         Budget::SlotsPerPixel((total + 5) as f64 / pixels as f64),
@@ -298,7 +301,7 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
         let fb = FragmentBudget::Slots(b.resolve(&budget::DKB, pixels, total).unwrap().1);
         for slots in [Slots::Dkb(&mlp, fb), Slots::Vkb(VkbParams::default(), fb)] {
             let img: Image = g
-                .render(&s, &identity(), w, h, BG, Some(slots))
+                .render_method(&s, &identity(), w, h, BG, Some(slots))
                 .unwrap()
                 .image;
             let d = img.max_abs_diff(&gpu_exact);
@@ -354,7 +357,7 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
                 Method::Dkb => Slots::Dkb(&mlp, f),
                 _ => Slots::PerPixel(&cpu.k),
             };
-            match g.render(&s, &identity(), w, h, BG, Some(slots)) {
+            match g.render_method(&s, &identity(), w, h, BG, Some(slots)) {
                 Ok(frame) => {
                     let d = frame.image.max_abs_diff(&cpu.image);
                     assert!(d <= TOLERANCE, "{} at {b}: GPU differs by {d}", m.name());
@@ -373,7 +376,7 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
 #[test]
 fn skipping_forced_pixels_leaves_the_frame_unchanged() {
     let Some(g) = gpu() else { return };
-    let mut o = dhoit_runtime::gpu::FrameOptions::default();
+    let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
     let mut s = Scene::default();
     // One fragment (forced), two of one colour (forced: a pair) and deeper pixels.
     quad(

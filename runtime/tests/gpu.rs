@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{gpu, max_abs_diff};
+use common::{RenderMethod, gpu, max_abs_diff};
 
 use dhoit_runtime::alloc;
 use dhoit_runtime::budget::{self, Budget};
@@ -89,7 +89,10 @@ fn gpu_fragments(
     w: u32,
     h: u32,
 ) -> FragmentLists {
-    g.render(s, cam, w, h, BG, None).unwrap().fragments.unwrap()
+    g.render_method(s, cam, w, h, BG, None)
+        .unwrap()
+        .fragments
+        .unwrap()
 }
 
 #[test]
@@ -98,7 +101,7 @@ fn abuffer_matches_the_cpu_on_its_own_fragments() {
     for (name, view) in [("shells", 0), ("plates", 1), ("particles", 2), (REAL, 1)] {
         let (w, h) = (96, 72);
         let (s, cam) = frame(name, view, w, h);
-        let f = g.render(&s, &cam, w, h, BG, None).unwrap();
+        let f = g.render_method(&s, &cam, w, h, BG, None).unwrap();
         let gfl = f.fragments.as_ref().unwrap();
         // Coverage against the CPU rasterizer.
         let cpu = rasterize(&s, &cam, w, h).unwrap();
@@ -153,7 +156,7 @@ fn kbuffers_match_the_cpu_slot_for_slot() {
             } else {
                 Slots::PerPixel(&k)
             };
-            let f = g.render(&s, &cam, w, h, BG, Some(slots)).unwrap();
+            let f = g.render_method(&s, &cam, w, h, BG, Some(slots)).unwrap();
             let (keys, bases, tails) = f.slots.clone().unwrap();
             let (twin_keys, twin_tails) = twin_capture(&gfl, &k);
             assert_eq!(
@@ -206,7 +209,7 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
             Some(Slots::Vkb(vkb, f.into())),
             Some(Slots::Dkb(&mlp, f.into())),
         ]
-        .map(|slots| image_bits(&g.render(sc, &cam, w, h, BG, slots).unwrap().image))
+        .map(|slots| image_bits(&g.render_method(sc, &cam, w, h, BG, slots).unwrap().image))
     };
     let base = images(&s);
     for seed in 0..10 {
@@ -221,7 +224,7 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
 /// layouts' frames ([`features_and_network_layouts_give_the_same_frame`]).
 #[test]
 fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames() {
-    let mut o = dhoit_runtime::gpu::FrameOptions::default();
+    let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
     if gpu().is_none() {
         return;
     }
@@ -292,7 +295,7 @@ fn features_and_network_layouts_give_the_same_frame(
     (w, h): (u32, u32),
     mlp: &dhoit_runtime::mlp::Mlp,
 ) {
-    let mut o = dhoit_runtime::gpu::FrameOptions::default();
+    let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
     use dhoit_runtime::gpu::DkbGeometry;
     let gfl = gpu_fragments(g, s, cam, w, h);
     let stats = importance::pixel_stats(&gfl);
@@ -468,7 +471,7 @@ fn features_and_network_layouts_give_the_same_frame(
 /// and draw the same image bits, as pixel-major ones and the CPU twin, in any submission order.
 #[test]
 fn layer_major_slots_capture_what_pixel_major_ones_do() {
-    let mut o = dhoit_runtime::gpu::FrameOptions::default();
+    let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
     if gpu().is_none() {
         return;
     }
@@ -534,7 +537,8 @@ fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
     let o = dhoit_runtime::gpu::FrameOptions {
         diagnostics: false,
         ..Default::default()
-    };
+    }
+    .always_approximate();
     let (w, h) = (96, 72);
     let (a, cam_a) = frame("particles", 0, w, h);
     let (b, cam_b) = frame("shells", 1, w, h);
@@ -581,7 +585,7 @@ fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
         );
     }
     // With the readbacks the tests use on (the defaults), the same image again.
-    let with = g.render(&a, &cam_a, w, h, BG, slots[5]).unwrap();
+    let with = g.render_method(&a, &cam_a, w, h, BG, slots[5]).unwrap();
     assert!(with.slots.is_some() && with.stats.is_some());
     let bits_with = image_bits(&with.image);
     assert!(bits(&g, &a, &cam_a, slots[5]) == bits_with);
@@ -602,7 +606,7 @@ fn allocated_bytes_never_exceed_the_budget() {
                 && f >= px
             {
                 let frame = g
-                    .render(&s, &cam, w, h, BG, Some(Slots::Uniform((f / px) as u32)))
+                    .render_method(&s, &cam, w, h, BG, Some(Slots::Uniform((f / px) as u32)))
                     .unwrap();
                 assert!(
                     frame.allocated_bytes <= m,
@@ -613,7 +617,7 @@ fn allocated_bytes_never_exceed_the_budget() {
             }
             if let Ok((m, f)) = budget.resolve(&budget::VKB, px, 0) {
                 let frame = g
-                    .render(
+                    .render_method(
                         &s,
                         &cam,
                         w,
@@ -631,7 +635,7 @@ fn allocated_bytes_never_exceed_the_budget() {
             }
             if let Ok((m, f)) = budget.resolve(&budget::DKB, px, 0) {
                 let frame = g
-                    .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
+                    .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
                     .unwrap();
                 assert!(
                     frame.allocated_bytes <= m,
@@ -657,7 +661,9 @@ fn mlab_matches_the_cpu_in_submission_order() {
         let (w, h) = (64, 48);
         let (s, cam) = frame(name, 1, w, h);
         let gfl = gpu_fragments(g, &s, &cam, w, h);
-        let f = g.render(&s, &cam, w, h, BG, Some(Slots::Mlab(m))).unwrap();
+        let f = g
+            .render_method(&s, &cam, w, h, BG, Some(Slots::Mlab(m)))
+            .unwrap();
         // The CPU twin takes each pixel's fragments in submission order.
         let twin: Vec<[f32; 3]> = (0..gfl.pixel_count())
             .map(|p| {
@@ -679,7 +685,7 @@ fn mlab_matches_the_cpu_in_submission_order() {
         );
     }
     assert!(
-        g.render(
+        g.render_method(
             &frame("shells", 0, 8, 8).0,
             &frame("shells", 0, 8, 8).1,
             8,
@@ -793,7 +799,7 @@ fn the_allocation_pass_matches_its_cpu_twin() {
             total + 100,
         ] {
             let frame = g
-                .render(
+                .render_method(
                     &s,
                     &cam,
                     w,
@@ -850,7 +856,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             // fragment, not after a count pass (the shared device follows its last DKB frame,
             // which another test may have drawn: the layouts' test pins each way).
             let d = g
-                .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
+                .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
                 .unwrap();
             let twin = importance::pixel_stats(&gfl);
             let holds = f >= total;
@@ -901,7 +907,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             // VKB.
             let params = VkbParams::default();
             let v = g
-                .render(&s, &cam, w, h, BG, Some(Slots::Vkb(params, f.into())))
+                .render_method(&s, &cam, w, h, BG, Some(Slots::Vkb(params, f.into())))
                 .unwrap();
             let (vc, facing) = v.vkb_nearest.clone().unwrap();
             assert_eq!(vc, gfl.counts(), "{name} vkb counts");
@@ -987,7 +993,7 @@ fn dkb_frames_run_the_f16_math_network_like_its_twin() {
             "{name}: the budget truncates"
         );
         let d = g
-            .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&half, f.into())))
+            .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&half, f.into())))
             .unwrap();
         let (feats, counts, pairs) = network_inputs(&importance::pixel_stats(&gfl), f);
         let twin = half.dkb_importance(&feats, &counts, &pairs, f);
@@ -1052,7 +1058,7 @@ fn the_prefix_sum_is_exact_over_millions_of_pixels() {
         .map(|p| (p % 5 == 0) as u32 + (p % 7 == 0) as u32)
         .collect();
     let f = g
-        .render(&s, &cam, w, h, BG, Some(Slots::PerPixel(&k)))
+        .render_method(&s, &cam, w, h, BG, Some(Slots::PerPixel(&k)))
         .unwrap();
     let (_, bases, _) = f.slots.unwrap();
     let mut acc = 0u32;
@@ -1073,7 +1079,7 @@ fn a_large_allocation_matches_its_twin() {
     for fpp in [0.5, 1.0] {
         let f = (fpp * (w * h) as f64) as u64;
         let v = g
-            .render(
+            .render_method(
                 &s,
                 &cam,
                 w,
@@ -1101,7 +1107,7 @@ fn a_large_allocation_matches_its_twin() {
 /// same slots, tails and image bits as the two-mode one.
 #[test]
 fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
-    let mut o = dhoit_runtime::gpu::FrameOptions::default();
+    let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
     if gpu().is_none() {
         return;
     }
@@ -1214,7 +1220,7 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
             // Any submission order: the same image bits.
             for seed in 0..3 {
                 let shuffled = g
-                    .render(&s.shuffled(seed), &cam, w, h, BG, Some(slots))
+                    .render_method(&s.shuffled(seed), &cam, w, h, BG, Some(slots))
                     .unwrap();
                 assert!(
                     image_bits(&shuffled.image) == image_bits(&frame.image),
@@ -1242,7 +1248,7 @@ fn a_pixel_too_deep_for_the_devices_loops_is_refused_not_wrong() {
         );
     }
     let cam = common::identity();
-    let r = g.render(&s, &cam, 4, 4, BG, None);
+    let r = g.render_method(&s, &cam, 4, 4, BG, None);
     if g.bounded_loops {
         let Err(e) = r else {
             panic!("lavapipe cannot sort 600 fragments a pixel, yet it returned a frame")
@@ -1290,7 +1296,7 @@ fn deep_pixels(n: usize) -> (Scene, Camera) {
 /// fragment more, every method refuses the frame as the CPU rasterizer does.
 #[test]
 fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
-    let mut o = dhoit_runtime::gpu::FrameOptions::default();
+    let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
     use dhoit_runtime::gpu::DkbGeometry;
     if gpu().is_none() {
         return;
@@ -1404,7 +1410,7 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
                     mlp.target,
                 ),
             ] {
-                let frame = g.render(&s, &cam, w, h, BG, Some(slots)).unwrap();
+                let frame = g.render_method(&s, &cam, w, h, BG, Some(slots)).unwrap();
                 let (_, bases, _) = frame.slots.clone().unwrap();
                 assert_eq!(
                     bases[px as usize] as u64, want,
@@ -1481,7 +1487,7 @@ fn gpu_faults_are_typed_errors_not_hangs_or_wrong_images() {
     // A frame whose buffers exceed what the device binds: refused before allocating, with the
     // numbers.
     let (s, cam) = frame("shells", 0, 1024, 1024);
-    match g.render(&s, &cam, 1024, 1024, BG, Some(Slots::Uniform(20_000))) {
+    match g.render_method(&s, &cam, 1024, 1024, BG, Some(Slots::Uniform(20_000))) {
         Err(Error::Gpu(GpuError::BufferTooLarge { label, need, max })) => {
             assert_eq!(label, "oit.slots");
             assert_eq!(need, 1024 * 1024 * 20_000 * 8);
@@ -1492,7 +1498,7 @@ fn gpu_faults_are_typed_errors_not_hangs_or_wrong_images() {
     }
     // The device still works after refusing.
     let (s, cam) = frame("shells", 0, 16, 12);
-    assert!(g.render(&s, &cam, 16, 12, BG, None).is_ok());
+    assert!(g.render_method(&s, &cam, 16, 12, BG, None).is_ok());
 }
 
 /// A sparse scene for large frames: eight overlapping triangles in a small cluster (a few
@@ -1543,7 +1549,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
         let px = w as u64 * h as u64;
         if 16 * px > limit {
-            match g.render(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, 1000.into()))) {
+            match g.render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, 1000.into()))) {
                 Err(dhoit_runtime::Error::Gpu(dhoit_runtime::GpuError::BufferTooLarge {
                     label,
                     need,
@@ -1563,7 +1569,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         let f = total / 3;
         // DKB: features, importance, allocation and prefix sums over every pixel, as the twin.
         let d = g
-            .render(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
+            .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
             .unwrap();
         let stats = d.stats.clone().unwrap();
         assert_eq!(stats, importance::pixel_stats(&gfl), "{w}x{h}: statistics");
@@ -1573,7 +1579,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         assert!(sum > 0.0, "{w}x{h}: importance sum");
         // VKB and FKB too.
         let v = g
-            .render(
+            .render_method(
                 &s,
                 &cam,
                 w,
@@ -1591,7 +1597,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
             &format!("vkb {w}x{h}"),
         );
         let fk = g
-            .render(&s, &cam, w, h, BG, Some(Slots::Uniform(1)))
+            .render_method(&s, &cam, w, h, BG, Some(Slots::Uniform(1)))
             .unwrap();
         let twin = composite::composite(
             &gfl,
@@ -1600,10 +1606,12 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         );
         assert!(fk.image.max_abs_diff(&twin) <= 1e-5, "fkb {w}x{h}");
         // MLAB and the exact A-buffer's image.
-        let ml = g.render(&s, &cam, w, h, BG, Some(Slots::Mlab(4))).unwrap();
+        let ml = g
+            .render_method(&s, &cam, w, h, BG, Some(Slots::Mlab(4)))
+            .unwrap();
         let twin = composite::composite(&gfl, composite::Method::Mlab(4), BG);
         assert!(ml.image.max_abs_diff(&twin) <= 1e-5, "mlab {w}x{h}");
-        let a = g.render(&s, &cam, w, h, BG, None).unwrap();
+        let a = g.render_method(&s, &cam, w, h, BG, None).unwrap();
         let twin = composite::composite(&gfl, composite::Method::Exact, BG);
         assert!(a.image.max_abs_diff(&twin) <= 1e-5, "abuffer {w}x{h}");
         eprintln!(
@@ -1756,7 +1764,7 @@ fn cpu_and_gpu_rasterizers_agree_on_depth_and_coverage() {
 /// pixels; with `skip_forced` off it is every covered pixel.
 #[test]
 fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
-    let mut o = dhoit_runtime::gpu::FrameOptions::default();
+    let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
     if gpu().is_none() {
         return;
     }
@@ -1855,10 +1863,10 @@ fn the_renderer_runs_on_the_applications_device() {
         let Ok(a) = r.allocate(m) else { continue };
         let slots = || Slots::for_method(m, &a, &opts).unwrap();
         let ours = g
-            .render(&s, &cam, 96, 72, opts.background, slots())
+            .render_method(&s, &cam, 96, 72, opts.background, slots())
             .unwrap();
         let theirs = app
-            .render(&s, &cam, 96, 72, opts.background, slots())
+            .render_method(&s, &cam, 96, 72, opts.background, slots())
             .unwrap();
         assert_eq!(theirs.image, ours.image, "{m}");
         assert_eq!(theirs.allocated_bytes, ours.allocated_bytes, "{m}");

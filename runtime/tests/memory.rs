@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::gpu;
+use common::{RenderMethod, gpu};
 use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::frame::{self, Method, Options, Renderer};
 use dhoit_runtime::gpu::Slots;
@@ -140,7 +140,7 @@ fn dkb_counts_the_bytes_of_the_network_it_runs_on_the_cpu_and_the_gpu() {
         let want = layout.allocated_bytes(px, cpu.k.iter().map(|&k| k as u64).sum());
         assert_eq!(cpu.allocated_bytes, want, "{label}: CPU bytes");
         // The GPU counts the buffers it creates: the weights uniform among them.
-        let gpu = g.render(&s, &cam, w, h, BG, slots).unwrap();
+        let gpu = g.render_method(&s, &cam, w, h, BG, slots).unwrap();
         let gk: u64 = gpu.slots.as_ref().unwrap().1[px as usize] as u64;
         assert_eq!(
             gpu.allocated_bytes,
@@ -173,6 +173,7 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
     let budgets = ["10%", "25%", "50%", "1fpp", "2fpp", "200KB"];
     let kbuffers = [Method::Fkb, Method::Vkb, Method::Dkb, Method::Optimal];
     let (mut capped, mut dearer_uncapped, mut cheaper) = (0, 0, 0);
+    let (mut gpu_capped, mut gpu_dearer_uncapped, mut gpu_cheaper) = (0, 0, 0);
     let mut scenes: Vec<(String, scene::Scene)> = ["cad", "covers", "particles", "hair"]
         .iter()
         .map(|n| (n.to_string(), scene::load(n, Default::default()).unwrap()))
@@ -184,6 +185,7 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
         let (px, n) = (fl.pixel_count() as u64, fl.fragment_count() as u64);
         let exact = budget::ABUFFER.allocated_bytes(px, n);
         let reference = g.render(s, &cam, w, h, BG, None).unwrap();
+        let gpu_n = reference.fragments.as_ref().unwrap().fragment_count() as u64;
         for b in budgets {
             let opts = Options {
                 weights: Some(&mlp),
@@ -242,6 +244,41 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
                         assert_eq!(gf.allocated_bytes, gpu_exact, "{name} {b} {m}: GPU bytes");
                         assert_eq!(gf.image, reference.image, "{name} {b} {m}: GPU image");
                     }
+                    // Given its slots directly, as an application calls it (no CPU count or
+                    // allocation), the GPU decides on its own count.
+                    let direct = match m {
+                        Method::Dkb => Slots::Dkb(&mlp, a.fragment_budget),
+                        _ => Slots::Vkb(opts.vkb, a.fragment_budget),
+                    };
+                    let gd = g.render(s, &cam, w, h, BG, Some(direct)).unwrap();
+                    let f = a.fragment_budget.of(gpu_n);
+                    let decide =
+                        f >= gpu_n || frame::exact_is_no_dearer(m, &opts.layout(m), px, f, gpu_n);
+                    assert_eq!(gd.exact, decide, "{name} {b} {m}: the GPU's decision");
+                    assert!(
+                        gd.allocated_bytes <= gpu_exact,
+                        "{name} {b} {m}: GPU bytes {} given its slots, its A-buffer {gpu_exact}",
+                        gd.allocated_bytes
+                    );
+                    // The method's own frame, from the buffers it creates: dearer than the
+                    // A-buffer only where the GPU took the A-buffer.
+                    let own = g.render_method(s, &cam, w, h, BG, Some(direct)).unwrap();
+                    assert!(
+                        !own.exact && own.slots.is_some(),
+                        "{name} {b} {m}: the method"
+                    );
+                    if decide {
+                        assert_eq!(gd.image, reference.image, "{name} {b} {m}: GPU image");
+                        assert_eq!(gd.allocated_bytes, gpu_exact, "{name} {b} {m}: GPU bytes");
+                        assert!(gd.slots.is_none(), "{name} {b} {m}: the A-buffer's passes");
+                        gpu_capped += 1;
+                        gpu_dearer_uncapped += usize::from(own.allocated_bytes > gpu_exact);
+                    } else {
+                        assert!(own.allocated_bytes < gpu_exact, "{name} {b} {m}: own bytes");
+                        assert_eq!(gd.image, own.image, "{name} {b} {m}: the method itself");
+                        assert_eq!(gd.allocated_bytes, own.allocated_bytes, "{name} {b} {m}");
+                        gpu_cheaper += 1;
+                    }
                 }
             }
         }
@@ -257,6 +294,14 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
     // The deep frame's methods run (every budget but the bytes one truncates below the
     // A-buffer's 809 bytes a pixel).
     assert!(cheaper >= 10, "{cheaper}");
+    eprintln!(
+        "GPU given its slots: {gpu_capped} frames capped ({gpu_dearer_uncapped} of them dearer \
+         uncapped), {gpu_cheaper} cheaper"
+    );
+    assert!(
+        gpu_capped >= 10 && gpu_dearer_uncapped >= 10 && gpu_cheaper >= 3,
+        "{gpu_capped} {gpu_dearer_uncapped} {gpu_cheaper}"
+    );
 }
 
 /// The table of docs/device.md ("what each method needs from the device") is the layout tables'

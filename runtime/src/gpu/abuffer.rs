@@ -23,11 +23,58 @@ pub(super) enum Blend {
     Wboit,
 }
 
+/// The count pass and its prefix sum, with the frame's fragment count read back: what the
+/// A-buffer sizes its pool from, and what an allocated k-buffer decides by whether the exact
+/// A-buffer is no dearer than its own reservation ([`super::FrameOptions::exact_when_cheaper`]);
+/// where it is not, the method takes these two buffers as its count and slot bases.
+pub(super) struct Counted {
+    /// n(p).
+    pub(super) counts: wgpu::Buffer,
+    /// The exclusive prefix sums of n (`pixels + 1` entries).
+    pub(super) offsets: wgpu::Buffer,
+    /// The frame's fragments.
+    pub(super) total: u64,
+}
+
 impl Recording<'_, '_> {
+    /// The count and its prefix sum, submitted, and the frame's fragments read back (the
+    /// offsets' last entry).
+    pub(super) fn count(&mut self) -> Result<Counted> {
+        let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
+        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        let counts = fb.storage("abuf.count", 4 * px, true)?;
+        let offsets = fb.storage("abuf.offsets", 4 * (px + 1), true)?;
+        passes.draw(enc, &gpu.pipelines.count, &[&counts], "count");
+        passes.prefix_sum(enc, fb, &counts, &offsets)?;
+        fb.submit(enc);
+        let total = read_words(gpu, &[(&offsets, 4 * px)])?[0] as u64;
+        Ok(Counted {
+            counts,
+            offsets,
+            total,
+        })
+    }
+
     /// The A-buffer's passes, blended as `blend` says; returns the image buffer. With
     /// diagnostics, the GPU's fragments are read back (front to back within a pixel).
     pub(super) fn abuffer(
         &mut self,
+        blend: Blend,
+        width: u32,
+        height: u32,
+    ) -> Result<wgpu::Buffer> {
+        let counted = self.count()?;
+        self.abuffer_counted(counted, blend, width, height)
+    }
+
+    /// [`Recording::abuffer`] after its count.
+    pub(super) fn abuffer_counted(
+        &mut self,
+        Counted {
+            counts,
+            offsets,
+            total,
+        }: Counted,
         blend: Blend,
         width: u32,
         height: u32,
@@ -40,15 +87,9 @@ impl Recording<'_, '_> {
         // pixel too deep for any method.
         let status = fb.storage("status", FrameStatus::BYTES, true)?;
         let image = fb.storage("application.image", 16 * px, false)?;
-        let counts = fb.storage("abuf.count", 4 * px, true)?;
-        let offsets = fb.storage("abuf.offsets", 4 * (px + 1), true)?;
-        passes.draw(enc, &p.count, &[&counts], "count");
-        passes.prefix_sum(enc, fb, &counts, &offsets)?;
         // The count, read by the prefix sum, serves as the store's cursors.
         enc.clear_buffer(&counts, 0, None);
-        fb.submit(enc);
         // Exact memory: the pool holds what the count found, a capture key each.
-        let total = read_words(gpu, &[(&offsets, 4 * px)])?[0] as u64;
         let keys = fb.storage("abuf.keys", 8 * total, true)?;
         // Submission indices for MLAB's order (counted: its pipeline's), and for the tests'
         // readback (not counted, like the readback copies); else an empty binding.

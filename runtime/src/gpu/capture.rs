@@ -87,7 +87,9 @@ impl Recording<'_, '_> {
     /// ([`FrameOptions::predict_fit`]: as the renderer's last allocated frame's did).
     fn expect_fit(&self) -> bool {
         let gpu = self.passes.gpu;
-        self.passes.opts.predict_fit
+        // A frame that counted first knows it truncates (else it rendered the A-buffer).
+        self.counted.is_none()
+            && self.passes.opts.predict_fit
             && !gpu
                 .last_truncated
                 .load(std::sync::atomic::Ordering::Relaxed)
@@ -107,7 +109,11 @@ impl Recording<'_, '_> {
     ) -> Result<KBuffer> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let k = self.fb.storage("oit.k", 4 * px, true)?;
-        let base = self.fb.storage("oit.offsets", 4 * (px + 1), true)?;
+        // The slot bases: the count's prefix sums' buffer where the frame counted first.
+        let base = match self.counted.take() {
+            Some(c) => c.offsets,
+            None => self.fb.storage("oit.offsets", 4 * (px + 1), true)?,
+        };
         let al = passes.allocation(
             &mut self.fb,
             AllocBuffers {

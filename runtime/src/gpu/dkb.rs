@@ -64,7 +64,11 @@ impl Recording<'_, '_> {
                 wgpu::BufferUsages::UNIFORM,
                 true,
             ),
-            counts: fb.storage("features.count", 4 * px, true)?,
+            // The frame's count where it counted first.
+            counts: match &self.counted {
+                Some(c) => c.counts.clone(),
+                None => fb.storage("features.count", 4 * px, true)?,
+            },
             // The frame's transparent indices, or none (totals.wgsl's features_draw).
             draw: fb.init(
                 "features.draw",
@@ -91,13 +95,15 @@ impl Recording<'_, '_> {
             list_len: fb.storage("importance.list_len", 16, true)?,
             dispatch,
         };
-        let count_first = match self.passes.opts.dkb_geometry {
-            DkbGeometry::CountFirst => true,
-            DkbGeometry::Counting => false,
-            DkbGeometry::FollowLastFrame => !gpu
-                .last_truncated
-                .load(std::sync::atomic::Ordering::Relaxed),
-        };
+        let counted = self.counted.is_some();
+        let count_first = counted
+            || match self.passes.opts.dkb_geometry {
+                DkbGeometry::CountFirst => true,
+                DkbGeometry::Counting => false,
+                DkbGeometry::FollowLastFrame => !gpu
+                    .last_truncated
+                    .load(std::sync::atomic::Ordering::Relaxed),
+            };
         let (features, variant) = if !count_first {
             (&p.features_counting, "features: counting")
         } else if self.passes.opts.features_preload {
@@ -108,7 +114,9 @@ impl Recording<'_, '_> {
         let features = features.clone();
         self.out.variants.push(variant);
         if count_first {
-            passes.draw(&mut self.enc, &p.count, &[&b.counts], "count");
+            if !counted {
+                passes.draw(&mut self.enc, &p.count, &[&b.counts], "count");
+            }
             // Drawn, if at all, with the rest (where the frame is not expected to fit); once
             // recorded, its draw's arguments say whether it drew.
             self.out.features_drawn = Some(false);

@@ -43,11 +43,12 @@ use pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT, Pipelines, TARGET_FORM
 use timer::Timer;
 
 use crate::alloc::Target;
+use crate::budget;
 use crate::budget::FragmentBudget;
 use crate::composite::Image;
 use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
-use crate::frame::{Allocation, Method, Options};
+use crate::frame::{Allocation, Method, Options, exact_is_no_dearer};
 use crate::importance::{PixelStats, VkbParams};
 use crate::mlp::{Mlp, Precision};
 use crate::scene::{Camera, Scene};
@@ -82,12 +83,15 @@ pub fn required_limits() -> wgpu::Limits {
 ///
 /// A frame on the GPU takes the CPU's budget decision ([`Slots::for_method`] on the CPU's
 /// allocation: F, and k where only the CPU computes it) and runs every other pass on the
-/// device; [`GpuFrame`] says what it allocated and how long each pass took.
+/// device; [`GpuFrame`] says what it allocated and how long each pass took. A DKB or VKB frame
+/// counts first and renders the exact A-buffer where that needs no more bytes than the method
+/// would ([`FrameOptions::exact_when_cheaper`], [`GpuFrame::exact`]); the example asks for the
+/// approximation itself, as its CPU options do.
 ///
 /// ```
 /// use dhoit_runtime::budget::Budget;
 /// use dhoit_runtime::frame::{Method, Options, Renderer};
-/// use dhoit_runtime::gpu::{Gpu, Slots};
+/// use dhoit_runtime::gpu::{FrameOptions, Gpu, Slots};
 /// use dhoit_runtime::{mlp::Mlp, raster, scene};
 ///
 /// let s = scene::load("hair", scene::Opacity::default())?;
@@ -102,7 +106,9 @@ pub fn required_limits() -> wgpu::Limits {
 /// let renderer = Renderer::new(&fragments, options);
 /// let cpu = renderer.allocate_for_gpu(Method::Dkb)?;
 /// let gpu = Gpu::new()?; // an adapter with 64-bit atomics, or a typed error naming what lacks
-/// let frame = gpu.render(&s, &cam, w, h, options.background, Slots::for_method(Method::Dkb, &cpu, &options)?)?;
+/// let slots = Slots::for_method(Method::Dkb, &cpu, &options)?;
+/// let approximate = FrameOptions::default().always_approximate();
+/// let frame = gpu.render_with(&approximate, &s, &cam, (w, h), options.background, slots)?;
 /// let twin = renderer.render(Method::Dkb)?;
 /// // The GPU rasterizes its own fragments, which can differ from the CPU's by one where an
 /// // edge passes through a pixel centre (here one pixel moves by 9.4e-4; the tests hold each
@@ -201,6 +207,17 @@ pub struct FrameOptions {
     /// fragments of neighbouring pixels touch neighbouring words) rather than pixel-major
     /// (off by default; the bench measures both). The images are the same.
     pub layer_major_fkb: bool,
+    /// Whether a DKB or VKB frame, once it has counted its fragments, renders the exact A-buffer
+    /// where that needs no more bytes than the method would reserve at its budget
+    /// ([`crate::frame::exact_is_no_dearer`], on the GPU's own count), and where the budget
+    /// holds every fragment: exact, with the A-buffer's memory, whatever slots the caller
+    /// asked for ([`GpuFrame::exact`]). Then the frame counts first, reads its fragment count
+    /// back and takes the method's buffers only where it runs the method (whose count and slot
+    /// bases are then that count's buffers; VKB counts once more, with its nearest fragment).
+    /// On by default, as [`crate::frame::Options::exact_when_cheaper`] is; off, the method
+    /// runs at any budget (the bench's and the twins' comparisons). FKB's, uploaded k's and
+    /// uploaded importance's frames render as asked either way.
+    pub exact_when_cheaper: bool,
     /// Whether a frame reads back what the tests compare besides the image (the A-buffer's
     /// fragments, the k-buffer's slots and tails, importance and statistics): on by default;
     /// off, a frame reads back its image only (the bench's steady-state frames).
@@ -220,7 +237,19 @@ impl Default for FrameOptions {
             predict_fit: true,
             spread_search: false,
             layer_major_fkb: false,
+            exact_when_cheaper: true,
             diagnostics: true,
+        }
+    }
+}
+
+impl FrameOptions {
+    /// These options with [`FrameOptions::exact_when_cheaper`] off: a DKB or VKB frame runs its
+    /// method at any budget (as [`crate::frame::Options::always_approximate`] on the CPU).
+    pub fn always_approximate(self) -> FrameOptions {
+        FrameOptions {
+            exact_when_cheaper: false,
+            ..self
         }
     }
 }
@@ -521,6 +550,9 @@ pub struct GpuFrame {
     pub host_ms: Vec<(&'static str, f64)>,
     /// Bytes of every buffer and target the method allocated for this frame.
     pub allocated_bytes: u64,
+    /// Whether a DKB or VKB frame rendered the exact A-buffer in its place
+    /// ([`FrameOptions::exact_when_cheaper`]): its image, bytes and fragments are the A-buffer's.
+    pub exact: bool,
     /// A-buffer: the GPU's own fragments (sorted front to back within each pixel).
     pub fragments: Option<FragmentLists>,
     /// k-buffer: the slots (capture keys, front to back; `u64::MAX` where empty), their bases
@@ -614,6 +646,9 @@ struct Recording<'f, 'a> {
     out: Readback,
     /// Pixels.
     px: u64,
+    /// The frame's count, where it counted before deciding how to render
+    /// ([`FrameOptions::exact_when_cheaper`]): the method's count and slot bases.
+    counted: Option<abuffer::Counted>,
 }
 
 impl Gpu {
@@ -682,6 +717,7 @@ impl Gpu {
             fb,
             out: Readback::default(),
             px,
+            counted: None,
         };
         if matches!(slots, Some(Slots::Uniform(_))) {
             rec.out.variants.push(if opts.layer_major_fkb {
@@ -692,13 +728,37 @@ impl Gpu {
         }
         // The application's opaque pass, before any method's.
         passes.opaque(&mut rec.enc);
+        let mut exact = false;
         let image = match slots {
             None => rec.abuffer(Blend::Exact, width, height)?,
             Some(Slots::Mlab(_)) => rec.abuffer(Blend::Mlab, width, height)?,
             Some(Slots::Wboit) => rec.abuffer(Blend::Wboit, width, height)?,
             Some(s) => {
-                let k = rec.k_for(s, budget)?;
-                rec.capture_and_resolve(s, k)?
+                let method = match s {
+                    Slots::Dkb(mlp, _) if opts.exact_when_cheaper => {
+                        Some((Method::Dkb, budget::DKB.for_network(mlp)))
+                    }
+                    Slots::Vkb(..) if opts.exact_when_cheaper => Some((Method::Vkb, budget::VKB)),
+                    _ => None,
+                };
+                if let Some((method, layout)) = method {
+                    // Counted first: the A-buffer where it is no dearer, else the method on
+                    // this count.
+                    let counted = rec.count()?;
+                    let f = budget.of(counted.total);
+                    exact = f >= counted.total
+                        || exact_is_no_dearer(method, &layout, px, f, counted.total);
+                    if exact {
+                        rec.abuffer_counted(counted, Blend::Exact, width, height)?
+                    } else {
+                        rec.counted = Some(counted);
+                        let k = rec.k_for(s, budget)?;
+                        rec.capture_and_resolve(s, k)?
+                    }
+                } else {
+                    let k = rec.k_for(s, budget)?;
+                    rec.capture_and_resolve(s, k)?
+                }
             }
         };
         let out = &rec.out;
@@ -758,6 +818,7 @@ impl Gpu {
             pass_ms,
             host_ms: vec![("scene upload", upload_ms), ("image readback", readback_ms)],
             allocated_bytes: rec.fb.allocated,
+            exact,
             fragments,
             slots: rec.out.slots,
             importance,

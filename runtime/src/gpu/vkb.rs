@@ -14,7 +14,15 @@ impl Recording<'_, '_> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
-        let counts = fb.storage("vkb.count", 4 * px, true)?;
+        // The frame's count where it counted first, counted again here with the nearest
+        // fragment (vkb_count.wgsl adds to it).
+        let counts = match &self.counted {
+            Some(c) => {
+                enc.clear_buffer(&c.counts, 0, None);
+                c.counts.clone()
+            }
+            None => fb.storage("vkb.count", 4 * px, true)?,
+        };
         let nearest = fb.storage("vkb.nearest", 8 * px, true)?;
         let totals = fb.storage("vkb.totals", 16, true)?;
         let importance = fb.storage("oit.importance", 4 * px, true)?;
