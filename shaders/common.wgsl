@@ -32,6 +32,9 @@ struct Params {
     uniform_alpha: f32,
     // 1 when the A-buffer's store keeps each fragment's submission index (abuffer_store.wgsl).
     store_primitives: u32,
+    // MBOIT's moment bias and overestimation (composite::MboitParams).
+    mboit_bias: f32,
+    mboit_overestimation: f32,
 };
 
 // A material (wgsl::GpuMaterial; scene::material): base colour factor, its texture (where its

@@ -41,13 +41,14 @@ pub struct BenchArgs {
 }
 
 /// The methods the GPU bench measures, in its order (its variants are of FKB and DKB).
-const GPU_METHODS: [Method; 6] = [
+const GPU_METHODS: [Method; 7] = [
     Method::Abuffer,
     Method::Fkb,
     Method::Optimal,
     Method::Vkb,
     Method::Dkb,
     Method::Wboit,
+    Method::Mboit,
 ];
 
 /// Fastest of `n` runs of `f`, in seconds, with the last result.
@@ -143,6 +144,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
             Method::Vkb,
             Method::Mlab,
             Method::Wboit,
+            Method::Mboit,
         ] {
             let (t, _) = best(a.repeat, || {
                 Ok(

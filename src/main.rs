@@ -25,7 +25,8 @@ mod trade;
         k-buffer), dkb (deep k-buffer: the network's importance), optimal (the optimal \
         allocation), greedy-paper and greedy-increase (the paper's backward greedy, two heap \
         keys), mlab (multi-layer alpha blending), wboit (weighted blended OIT, McGuire and \
-        Bavoil 2013: fixed memory, no order).\n\n\
+        Bavoil 2013: fixed memory, no order), mboit (moment-based OIT, Munstermann et al. 2018: \
+        four power moments, fixed memory, no order).\n\n\
         Budgets are bytes with units (20MB, 40MiB), average fragment slots per pixel (2fpp), or \
         a share of the frame's own visible transparent fragments (25%). A budget is a cap: \
         where the exact A-buffer needs no more bytes than a k-buffer method would at its \

@@ -84,6 +84,7 @@ fn shuffled_submission_gives_bit_identical_images() {
                 Method::Dkb,
                 Method::Optimal,
                 Method::Wboit,
+                Method::Mboit,
             ]
             .map(|m| {
                 let f = frame::render(&fl, m, opts(Budget::SlotsPerPixel(1.5), [1.0; 3], &mlp))
@@ -356,6 +357,7 @@ fn compare_prints_a_table_and_writes_a_report() {
         "greedy-increase",
         "mlab",
         "wboit",
+        "mboit",
         "dkb",
     ] {
         assert!(stdout.contains(m), "{stdout}");
@@ -366,7 +368,7 @@ fn compare_prints_a_table_and_writes_a_report() {
     let records = report.as_array().unwrap();
     assert_eq!(
         records.len(),
-        9,
+        10,
         "every method, dkb with the committed default weights"
     );
     assert!(dir.join("report.md").is_file());
@@ -633,6 +635,7 @@ fn the_gpu_bench_reports_every_method_and_option() {
         "vkb",
         "dkb",
         "wboit",
+        "mboit",
         "dkb_no_skip",
         "dkb_insertion_only",
         "dkb_two_mode_where_all_fit",

@@ -206,6 +206,26 @@ pub const WBOIT: Layout = Layout {
     weights: 0,
 };
 
+/// Moment-based OIT, four power moments in 32 bits, as Munstermann et al. lay it out: an R32F
+/// target for b_0 and an RGBA32F one for b_1..b_4 (the first additive pass), an RGBA16F one for
+/// the transmittance-weighted colour and its weight (the second), no slot and no order (the GPU
+/// computes the same sums from the A-buffer's lists, with the A-buffer's memory, as it does
+/// WBOIT's and MLAB's).
+pub const MBOIT: Layout = Layout {
+    method: "mboit",
+    slot_bytes: SLOT_BYTES,
+    per_pixel: &[
+        RASTER_TARGET,
+        ("mboit.b0", 4),
+        ("mboit.moments", 16),
+        ("mboit.accumulation", 8),
+    ],
+    // composite::mboit_absorbance_table, a uniform.
+    fixed: &[("params", PARAMS_BYTES), ("mboit.absorbance", 1024)],
+    scan: false,
+    weights: 0,
+};
+
 /// A-buffer: counts (then the store's cursors), offsets, every fragment as the 8-byte capture
 /// key a k-buffer slot holds (paper 004's exact memory). Not budgeted: exact memory. The output
 /// image is the application's target, counted for no method.
@@ -284,7 +304,7 @@ impl Layout {
 
 /// Every budgeted layout, by method name.
 pub fn layout(method: &str) -> Option<Layout> {
-    [DKB, OPT, VKB, FKB, MLAB, WBOIT, ABUFFER]
+    [DKB, OPT, VKB, FKB, MLAB, WBOIT, MBOIT, ABUFFER]
         .into_iter()
         .find(|l| l.method == method)
 }

@@ -19,6 +19,16 @@
 //!   the accumulation clamped to [10^-4, 5 10^4] as theirs. Exact for one fragment; wrong
 //!   where opacity is high and surfaces lie close in depth (their weights barely differ, so a
 //!   near opaque surface does not hide the one just behind it).
+//! - MBOIT (Munstermann, Krumpen, Klein and Peters 2018), four power moments in 32 bits: each
+//!   fragment's absorbance `A_i = -ln(1 - a_i)` (at most 10) at depth `z_i = 2 d_i - 1` adds to
+//!   `b_0 = sum A_i` and `b_j = sum A_i z_i^j`, j = 1..4 (the first additive pass); a
+//!   fragment's transmittance `T(z)` is reconstructed from `b_j / b_0`, biased towards
+//!   `(0, 0.375, 0, 0.375)` by `beta` (5e-7), as the three-point distribution those moments
+//!   admit with one point at `z` weighted by `overestimation` (0.25) ([`mboit_transmittance`]);
+//!   the second pass sums `L = sum T(z_i) a_i C_i` and `W = sum T(z_i) a_i`, and
+//!   `C = (1 - e^{-b_0}) L / W + e^{-b_0} C_bg`. Exact for one fragment; bounded memory whatever
+//!   the depth; smooth where surfaces lie close in depth, too soft where one opaque surface
+//!   should hide another.
 //!
 //! "Front to back" is the order of [`crate::fragment::fragment_key`] (see [`crate::fragment`]).
 
@@ -115,6 +125,150 @@ pub fn wboit_sorted(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
     }
     let inv = 1.0 / acc_a.clamp(1e-4, 5e4);
     std::array::from_fn(|i| acc[i] * inv * (1.0 - reveal) + reveal * bg[i])
+}
+
+/// MBOIT's parameters: the moment bias and the overestimation, the paper's defaults for four
+/// power moments in 32 bits ([`MboitParams::default`]). Four power moments only (the paper's
+/// six and eight are not built).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MboitParams {
+    /// How far the normalized moments are pulled towards `(0, 0.375, 0, 0.375)` before the
+    /// reconstruction (the paper's 5e-7 for four power moments in 32 bits): what keeps the
+    /// Hankel matrix of one or two fragments' moments invertible in float.
+    pub bias: f32,
+    /// The weight of the reconstruction's point at the fragment's own depth that counts as in
+    /// front of it (0: none of the fragment's own absorbance, 1: all; the paper's 0.25).
+    pub overestimation: f32,
+}
+
+impl Default for MboitParams {
+    fn default() -> Self {
+        MboitParams {
+            bias: 5e-7,
+            overestimation: 0.25,
+        }
+    }
+}
+
+/// MBOIT's largest absorbance of one fragment (opacity 1 - e^-10): a fragment of opacity 1
+/// adds this, not infinity.
+pub const MBOIT_MAX_ABSORBANCE: f32 = 10.0;
+
+/// MBOIT's smallest `b_0` a pixel blends (the absorbance of opacity 0.001); below, the pixel
+/// shows what is behind it.
+pub const MBOIT_MIN_B0: f32 = 0.001_000_500_3;
+
+/// MBOIT's absorbance `min(-ln(1 - a), 10)` of each 8-bit opacity, computed in f64: a table the
+/// GPU reads too (a uniform), so both sides sum the same floats; the moments of surfaces close
+/// in depth are ill-conditioned in 32 bits, and a logarithm rounded differently on the device
+/// moves their reconstruction by 1e-4.
+pub fn mboit_absorbance_table() -> [f32; 256] {
+    std::array::from_fn(|a| {
+        let a = a as f64 / 255.0;
+        (-(1.0 - a).ln()).min(MBOIT_MAX_ABSORBANCE as f64) as f32
+    })
+}
+
+/// MBOIT's absorbance of a fragment of opacity `a` (an 8-bit value, as every fragment's is):
+/// [`mboit_absorbance_table`]'s entry.
+pub fn mboit_absorbance(a: f32) -> f32 {
+    static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(mboit_absorbance_table)[to_unorm8(a) as usize]
+}
+
+/// The transmittance in front of depth `z` (in [-1, 1]) that four power moments admit: `b0`
+/// and the moments `b = (b_1, .., b_4)` divided by `b0`. The moments, biased, form the 3x3
+/// Hankel matrix `B = (b_{i+j})`, i, j = 0..2 (b_0 = 1); `B c = (1, z, z^2)` (solved by
+/// `B = L D L^T`) gives the polynomial `c_0 + c_1 x + c_2 x^2` whose roots `z_1 <= z_2` are the
+/// other two points of the distribution; the quadratic through `(z, overestimation)`,
+/// `(z_1, [z_1 < z])`, `(z_2, [z_2 < z])`, integrated against the moments, is the share of the
+/// absorbance in front of `z`. mboit_resolve.wgsl's `transmittance`, operation for operation.
+pub fn mboit_transmittance(b0: f32, b: [f32; 4], z: f32, p: MboitParams) -> f32 {
+    (-b0 * mboit_share(b, z, p)).exp().clamp(0.0, 1.0)
+}
+
+/// The share of a pixel's absorbance in front of `z` ([`mboit_transmittance`]). Where 32-bit
+/// floats cannot separate the points (surfaces at one depth, whose Hankel matrix the bias keeps
+/// invertible only in exact arithmetic), every fragment counts as at `z`: the share is the
+/// overestimation, as it is for one surface. So no infinity or NaN is ever formed (which WGSL
+/// lets a device assume away).
+fn mboit_share(b: [f32; 4], z: f32, p: MboitParams) -> f32 {
+    let beta = p.bias;
+    let pull = [0.0, 0.375, 0.0, 0.375];
+    let m: [f32; 4] = std::array::from_fn(|i| b[i] * (1.0 - beta) + pull[i] * beta);
+    let one_depth = p.overestimation;
+    // B = L D L^T: D = (1, d2, d3), L's lower entries b1, b2 and l32.
+    let d2 = m[1] - m[0] * m[0];
+    if d2 <= 0.0 {
+        return one_depth;
+    }
+    let l32 = (m[2] - m[0] * m[1]) / d2;
+    let d3 = m[3] - m[1] * m[1] - l32 * l32 * d2;
+    if d3 <= 0.0 {
+        return one_depth;
+    }
+    // L y = (1, z, z^2), then D, then L^T c = y.
+    let y2 = (z - m[0]) / d2;
+    let y3 = (z * z - m[1] - l32 * (z - m[0])) / d3;
+    let c2 = y3;
+    let c1 = y2 - l32 * c2;
+    let c0 = 1.0 - m[0] * c1 - m[1] * c2;
+    if c2 == 0.0 {
+        return one_depth;
+    }
+    // The other two points: c_2 x^2 + c_1 x + c_0 = 0.
+    let half = -0.5 * c1 / c2;
+    let disc = half * half - c0 / c2;
+    let r = if disc > 0.0 { disc.sqrt() } else { 0.0 };
+    let (z1, z2) = (half - r, half + r);
+    if z1 == z || z2 == z1 || z2 == z {
+        return one_depth;
+    }
+    // Newton's divided differences of the weights at z, z1, z2, expanded to a_0 + a_1 x + a_2 x^2.
+    let f0 = p.overestimation;
+    let f1 = if z1 < z { 1.0 } else { 0.0 };
+    let f2 = if z2 < z { 1.0 } else { 0.0 };
+    let f01 = (f1 - f0) / (z1 - z);
+    let f12 = (f2 - f1) / (z2 - z1);
+    let f012 = (f12 - f01) / (z2 - z);
+    let a2 = f012;
+    let a1 = f01 - f012 * (z + z1);
+    let a0 = f0 - f01 * z + f012 * z * z1;
+    a0 + a1 * m[0] + a2 * m[1]
+}
+
+/// Moment-based OIT of a pixel's fragments, both passes summed front to back (the order
+/// changes the float sums only; the GPU sums in the same order, so the image does not depend
+/// on submission).
+pub fn mboit_sorted(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 3] {
+    let mut b0 = 0.0f32;
+    let mut b = [0.0f32; 4];
+    for f in frags {
+        let a = mboit_absorbance(f.rgba[3]);
+        let z = 2.0 * f.depth - 1.0;
+        let z2 = z * z;
+        b0 += a;
+        b[0] += a * z;
+        b[1] += a * z2;
+        b[2] += a * z2 * z;
+        b[3] += a * z2 * z2;
+    }
+    if b0 < MBOIT_MIN_B0 {
+        return bg;
+    }
+    let m = b.map(|x| x / b0);
+    let mut l = [0.0f32; 3];
+    let mut w = 0.0f32;
+    for f in frags {
+        let t = mboit_transmittance(b0, m, 2.0 * f.depth - 1.0, p) * f.rgba[3];
+        for (s, c) in l.iter_mut().zip(f.rgba) {
+            *s += t * c;
+        }
+        w += t;
+    }
+    let total = (-b0).exp();
+    let inv = if w > 0.0 { 1.0 / w } else { 0.0 };
+    std::array::from_fn(|i| (1.0 - total) * l[i] * inv + total * bg[i])
 }
 
 /// Running sums of a hybrid tail in integers, exactly as the GPU's atomics add them: with
@@ -241,6 +395,8 @@ pub enum Method<'a> {
     Mlab(usize),
     /// Weighted blended OIT.
     Wboit,
+    /// Moment-based OIT, four power moments.
+    Mboit(MboitParams),
 }
 
 /// Composites every pixel of `fl` over what is behind it: its opaque surface where one covers
@@ -273,6 +429,10 @@ pub fn composite(fl: &FragmentLists, method: Method, bg: [f32; 3]) -> Image {
                     Method::Wboit => {
                         fl.sorted_into(p, scratch);
                         wboit_sorted(scratch, bg)
+                    }
+                    Method::Mboit(params) => {
+                        fl.sorted_into(p, scratch);
+                        mboit_sorted(scratch, bg, params)
                     }
                 };
             }

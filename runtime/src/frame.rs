@@ -3,7 +3,7 @@
 
 use crate::alloc::{self, ErrorCurves, GreedyKey, OptimalReport};
 use crate::budget::{self, Budget, FragmentBudget, Layout};
-use crate::composite::{self, Image, Method as Composite};
+use crate::composite::{self, Image, MboitParams, Method as Composite};
 use crate::error::{Error, Result};
 use crate::fragment::FragmentLists;
 use crate::importance::{self, VkbParams};
@@ -32,10 +32,13 @@ pub enum Method {
     Mlab,
     /// Weighted blended OIT (McGuire and Bavoil 2013): no slots, no order, fixed memory.
     Wboit,
+    /// Moment-based OIT (Munstermann et al. 2018), four power moments: no slots, no order,
+    /// fixed memory.
+    Mboit,
 }
 
 impl Method {
-    pub const ALL: [Method; 9] = [
+    pub const ALL: [Method; 10] = [
         Method::Abuffer,
         Method::Fkb,
         Method::Vkb,
@@ -45,6 +48,7 @@ impl Method {
         Method::GreedyIncrease,
         Method::Mlab,
         Method::Wboit,
+        Method::Mboit,
     ];
 
     pub fn name(self) -> &'static str {
@@ -58,6 +62,7 @@ impl Method {
             Method::GreedyIncrease => "greedy-increase",
             Method::Mlab => "mlab",
             Method::Wboit => "wboit",
+            Method::Mboit => "mboit",
         }
     }
 
@@ -84,7 +89,12 @@ impl Method {
     /// hulls or heaps of the optimal and the greedy ones.
     pub fn frame_bytes(self) -> (u64, u64) {
         match self {
-            Method::Abuffer | Method::Fkb | Method::Vkb | Method::Mlab | Method::Wboit => (28, 40),
+            Method::Abuffer
+            | Method::Fkb
+            | Method::Vkb
+            | Method::Mlab
+            | Method::Wboit
+            | Method::Mboit => (28, 40),
             Method::Dkb => (24, 120),
             Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => (70, 40),
         }
@@ -94,7 +104,10 @@ impl Method {
     /// renders exactly, with the A-buffer's memory, where its budget holds every fragment
     /// ([`Renderer::allocate`]).
     pub fn is_kbuffer(self) -> bool {
-        !matches!(self, Method::Abuffer | Method::Mlab | Method::Wboit)
+        !matches!(
+            self,
+            Method::Abuffer | Method::Mlab | Method::Wboit | Method::Mboit
+        )
     }
 
     /// The buffers the method's GPU pipeline creates.
@@ -107,6 +120,7 @@ impl Method {
             Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => budget::OPT,
             Method::Mlab => budget::MLAB,
             Method::Wboit => budget::WBOIT,
+            Method::Mboit => budget::MBOIT,
         }
     }
 }
@@ -144,8 +158,10 @@ fn check_slot_per_pixel(method: Method, given: Budget, f: u64, w: u32, h: u32) -
 /// slots per pixel depends on the resolution alone; a share of the frame's fragments (and the
 /// exact A-buffer) passes here and is checked with each frame.
 pub fn check_budget(given: Budget, method: Method, w: u32, h: u32) -> Result<()> {
-    // The A-buffer and WBOIT take no budget: exact memory, fixed memory.
-    if matches!(method, Method::Abuffer | Method::Wboit) || matches!(given, Budget::Share(_)) {
+    // The A-buffer, WBOIT and MBOIT take no budget: exact memory, fixed memory.
+    if matches!(method, Method::Abuffer | Method::Wboit | Method::Mboit)
+        || matches!(given, Budget::Share(_))
+    {
         return Ok(());
     }
     let (_, f) = given.resolve(&method.layout(), w as u64 * h as u64, 0)?;
@@ -251,6 +267,8 @@ pub struct Options<'a> {
     /// Network weights, needed by DKB.
     pub weights: Option<&'a Mlp>,
     pub vkb: VkbParams,
+    /// MBOIT's moment bias and overestimation (the paper's defaults).
+    pub mboit: MboitParams,
     /// Render the exact A-buffer wherever it needs no more bytes than the k-buffer method
     /// would for its budget (a memory-bounded method never costs more than the exact answer):
     /// on by default. Off, the method renders its approximation whatever it costs (the
@@ -266,6 +284,7 @@ impl Options<'_> {
             background,
             weights: None,
             vkb: VkbParams::default(),
+            mboit: MboitParams::default(),
             exact_when_cheaper: true,
         }
     }
@@ -381,7 +400,7 @@ impl<'a> Renderer<'a> {
         let (budget_bytes, f) = match (method, budget) {
             (Method::Abuffer, _) => (exact_bytes, total),
             // Fixed memory whatever the budget: its accumulation targets, no slot.
-            (Method::Wboit, _) => (layout.fixed_bytes(pixels), 0),
+            (Method::Wboit | Method::Mboit, _) => (layout.fixed_bytes(pixels), 0),
             (_, Budget::Bytes(m)) if bytes_hold && method.is_kbuffer() => (m, total),
             _ => budget.resolve(&layout, pixels, total)?,
         };
@@ -396,7 +415,7 @@ impl<'a> Renderer<'a> {
         let k = match method {
             Method::Abuffer => counts,
             _ if exact => counts,
-            Method::Wboit => vec![0; pixels as usize],
+            Method::Wboit | Method::Mboit => vec![0; pixels as usize],
             Method::Fkb | Method::Mlab => {
                 check_slot_per_pixel(method, opts.budget, f, fl.width, fl.height)?;
                 alloc::fixed(pixels as usize, f)
@@ -452,6 +471,7 @@ impl<'a> Renderer<'a> {
             _ if a.exact => composite::composite(fl, Composite::Exact, bg),
             Method::Mlab => composite::composite(fl, Composite::Mlab(k[0] as usize), bg),
             Method::Wboit => composite::composite(fl, Composite::Wboit, bg),
+            Method::Mboit => composite::composite(fl, Composite::Mboit(self.options.mboit), bg),
             _ => composite::composite(fl, Composite::Hybrid(&k), bg),
         };
         let composite_ms = t1.elapsed().as_secs_f64() * 1e3;

@@ -26,7 +26,7 @@ pub mod shaders {
         pub includes: &'static [&'static str],
     }
 
-    pub const PASSES: [Pass; 16] = [
+    pub const PASSES: [Pass; 17] = [
         Pass {
             name: "opaque",
             source: include_str!("../../shaders/opaque.wgsl"),
@@ -70,6 +70,11 @@ pub mod shaders {
         Pass {
             name: "wboit_resolve",
             source: include_str!("../../shaders/wboit_resolve.wgsl"),
+            includes: &[SORT, BEHIND],
+        },
+        Pass {
+            name: "mboit_resolve",
+            source: include_str!("../../shaders/mboit_resolve.wgsl"),
             includes: &[SORT, BEHIND],
         },
         Pass {
@@ -177,6 +182,11 @@ pub mod shaders {
             ("FEATURES", U32(importance::FEATURES as u32)),
             ("MAX_F32", F32(f32::MAX)),
             ("APPEND_MAX", U32(crate::composite::APPEND_MAX)),
+            (
+                "MBOIT_MAX_ABSORBANCE",
+                F32(crate::composite::MBOIT_MAX_ABSORBANCE),
+            ),
+            ("MBOIT_MIN_B0", F32(crate::composite::MBOIT_MIN_B0)),
             ("APPEND_SPILL", U32(crate::composite::APPEND_SPILL)),
             (
                 "MAX_FRAGMENTS_PER_PIXEL",
@@ -293,7 +303,10 @@ pub(crate) struct Params {
     pub(crate) uniform_alpha: f32,
     /// 1 when the A-buffer's store keeps each fragment's submission index beside its key.
     pub(crate) store_primitives: u32,
-    pub(crate) _pad: [u32; 22],
+    /// MBOIT's moment bias and overestimation ([`crate::composite::MboitParams`]).
+    pub(crate) mboit_bias: f32,
+    pub(crate) mboit_overestimation: f32,
+    pub(crate) _pad: [u32; 20],
 }
 
 /// `Material.texels` of a material without a texture.
@@ -529,7 +542,8 @@ mod tests {
         let (span, wgsl) = wgsl_struct(&module, "Params");
         let rust = offsets!(Params; view_proj, forward, background, eye, width, height,
             k_uniform, pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed,
-            budget_ppm, append, layer_major, uniform_alpha, store_primitives);
+            budget_ppm, append, layer_major, uniform_alpha, store_primitives, mboit_bias,
+            mboit_overestimation);
         assert_eq!(
             wgsl, rust,
             "Params: WGSL (left) and Rust (right) members and offsets"

@@ -313,7 +313,9 @@ fn the_device_page_lists_the_buffers_the_layouts_count() {
         "| method | bytes a pixel | its buffers (bytes a pixel) | a slot | fixed bytes | weights |\n\
          |---|---:|---|---:|---:|---:|\n",
     );
-    for m in ["abuffer", "fkb", "mlab", "wboit", "optimal", "vkb", "dkb"] {
+    for m in [
+        "abuffer", "fkb", "mlab", "wboit", "mboit", "optimal", "vkb", "dkb",
+    ] {
         let l = budget::layout(m).unwrap();
         let buffers: Vec<String> = l
             .per_pixel

@@ -4,7 +4,8 @@
 //! and blend; twin `composite::exact_sorted`) or `mlab_resolve.wgsl` (fragments in submission
 //! order into m blending rows; twin `composite::mlab_pixel`, which needs each fragment's
 //! submission index, stored beside its key for MLAB and for the tests' readback) or
-//! `wboit_resolve.wgsl` (WBOIT's weighted sums; twin `composite::wboit_sorted`). The sorts
+//! `wboit_resolve.wgsl` (WBOIT's weighted sums; twin `composite::wboit_sorted`) or
+//! `mboit_resolve.wgsl` (MBOIT's moments and weighted sums; twin `composite::mboit_sorted`). The sorts
 //! are `sort.wgsl`.
 
 use super::Recording;
@@ -21,6 +22,8 @@ pub(super) enum Blend {
     Mlab,
     /// WBOIT's weighted sums.
     Wboit,
+    /// MBOIT's moments and transmittance-weighted sums.
+    Mboit,
 }
 
 /// The count pass and its prefix sum, with the frame's fragment count read back: what the
@@ -108,9 +111,10 @@ impl Recording<'_, '_> {
         let (resolve, name) = match blend {
             Blend::Mlab => (&p.mlab_resolve, "mlab blend"),
             Blend::Wboit => (&p.wboit_resolve, "wboit blend"),
+            Blend::Mboit => (&p.mboit_resolve, "mboit blend"),
             Blend::Exact => (&p.abuffer_resolve, "sort and blend"),
         };
-        let bufs = [
+        let mut bufs = vec![
             passes.params(),
             &offsets,
             &keys,
@@ -118,6 +122,17 @@ impl Recording<'_, '_> {
             &status,
             &primitives,
         ];
+        // MBOIT's absorbance of each 8-bit opacity (composite::mboit_absorbance_table).
+        let table;
+        if blend == Blend::Mboit {
+            table = fb.init(
+                "mboit.absorbance",
+                bytemuck::cast_slice(&crate::composite::mboit_absorbance_table()),
+                wgpu::BufferUsages::UNIFORM,
+                true,
+            );
+            bufs.push(&table);
+        }
         passes.resolve(enc, resolve, &bufs, name);
         fb.submit(enc);
         if self.passes.opts.diagnostics {

@@ -45,7 +45,7 @@ use timer::Timer;
 use crate::alloc::Target;
 use crate::budget;
 use crate::budget::FragmentBudget;
-use crate::composite::Image;
+use crate::composite::{Image, MboitParams};
 use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
 use crate::frame::{Allocation, Method, Options, exact_is_no_dearer};
@@ -478,6 +478,9 @@ pub enum Slots<'a> {
     /// Weighted blended OIT, its sums taken from the A-buffer's fragments
     /// (`wboit_resolve.wgsl`, the twin of `composite::wboit_sorted`).
     Wboit,
+    /// Moment-based OIT with these parameters, its moments and sums taken from the A-buffer's
+    /// fragments (`mboit_resolve.wgsl`, the twin of `composite::mboit_sorted`).
+    Mboit(MboitParams),
     /// Per-pixel importance (computed elsewhere), what it means and F: the GPU counts
     /// fragments, allocates k (`allocate.wgsl`, the twin of `alloc::allocate`), then captures
     /// and resolves.
@@ -516,6 +519,7 @@ impl<'a> Slots<'a> {
             // MLAB on the GPU blends from the A-buffer (exact memory, not the budget's rows).
             Method::Mlab => Some(Slots::Mlab(first())),
             Method::Wboit => Some(Slots::Wboit),
+            Method::Mboit => Some(Slots::Mboit(options.mboit)),
             Method::Vkb => Some(Slots::Vkb(options.vkb, budget)),
             Method::Dkb => Some(Slots::Dkb(
                 options.weights.ok_or_else(|| {
@@ -692,7 +696,9 @@ impl Gpu {
                 }
                 (0.into(), VkbParams::default(), m)
             }
-            Some(Slots::PerPixel(_) | Slots::Wboit) | None => (0.into(), VkbParams::default(), 0),
+            Some(Slots::PerPixel(_) | Slots::Wboit | Slots::Mboit(_)) | None => {
+                (0.into(), VkbParams::default(), 0)
+            }
         };
         let mut params = frame_params(cam, width, height, background, k_uniform, budget, vkb);
         // The allocated k-buffers know n(p) by the capture: two-mode capture (capture.wgsl).
@@ -704,6 +710,10 @@ impl Gpu {
         .into();
         params.layer_major =
             (opts.layer_major_fkb && matches!(slots, Some(Slots::Uniform(_)))).into();
+        if let Some(Slots::Mboit(m)) = slots {
+            params.mboit_bias = m.bias;
+            params.mboit_overestimation = m.overestimation;
+        }
         params.store_primitives =
             (matches!(slots, Some(Slots::Mlab(_))) || opts.diagnostics).into();
         let upload = std::time::Instant::now();
@@ -733,6 +743,7 @@ impl Gpu {
             None => rec.abuffer(Blend::Exact, width, height)?,
             Some(Slots::Mlab(_)) => rec.abuffer(Blend::Mlab, width, height)?,
             Some(Slots::Wboit) => rec.abuffer(Blend::Wboit, width, height)?,
+            Some(Slots::Mboit(_)) => rec.abuffer(Blend::Mboit, width, height)?,
             Some(s) => {
                 let method = match s {
                     Slots::Dkb(mlp, _) if opts.exact_when_cheaper => {
@@ -866,7 +877,9 @@ fn frame_params(
         layer_major: 0,
         uniform_alpha: -1.0,
         store_primitives: 0,
-        _pad: [0; 22],
+        mboit_bias: 0.0,
+        mboit_overestimation: 0.0,
+        _pad: [0; 20],
     }
 }
 

@@ -25,6 +25,7 @@ pub(super) struct Pipelines {
     pub(super) resolve_fits: wgpu::ComputePipeline,
     pub(super) mlab_resolve: wgpu::ComputePipeline,
     pub(super) wboit_resolve: wgpu::ComputePipeline,
+    pub(super) mboit_resolve: wgpu::ComputePipeline,
     pub(super) allocate: Allocate,
     pub(super) features: wgpu::RenderPipeline,
     /// The features pass without the nearest key's load first (PRELOAD_NEAREST false).
@@ -520,6 +521,7 @@ impl Pipelines {
             resolve_fits: compute_pipeline(device, "resolve", &fits("resolve"), "main"),
             mlab_resolve: compute("mlab_resolve"),
             wboit_resolve: compute("wboit_resolve"),
+            mboit_resolve: compute("mboit_resolve"),
             allocate: Allocate::new(device),
             features: geometry("features"),
             features_no_preload: features_with(

@@ -78,8 +78,8 @@ pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
 
 #[cfg(feature = "gpu")]
 /// The methods that run on the CPU and the GPU alike: the A-buffer, FKB, the optimal
-/// allocation (uploaded), VKB, DKB and WBOIT.
-pub const CPU_AND_GPU: [dhoit_runtime::frame::Method; 6] = {
+/// allocation (uploaded), VKB, DKB, WBOIT and MBOIT.
+pub const CPU_AND_GPU: [dhoit_runtime::frame::Method; 7] = {
     use dhoit_runtime::frame::Method;
     [
         Method::Abuffer,
@@ -88,6 +88,7 @@ pub const CPU_AND_GPU: [dhoit_runtime::frame::Method; 6] = {
         Method::Vkb,
         Method::Dkb,
         Method::Wboit,
+        Method::Mboit,
     ]
 };
 
@@ -153,10 +154,21 @@ pub fn cpu_and_gpu_frames(
             Err(e) => panic!("{}: {e}", m.name()),
         };
         let slots = Slots::for_method(m, &allocation, &options).unwrap();
-        let cpu = renderer.composite(allocation.clone());
+        let mut cpu = renderer.composite(allocation.clone());
         let gpu = g
             .render_method(s, cam, fl.width, fl.height, options.background, slots)
             .unwrap();
+        // MBOIT's twin on the GPU's own fragments: where surfaces are coplanar or one 8-bit
+        // step apart, a fragment's depth or opacity rasterized one unit differently moves its
+        // moments' reconstruction by up to 0.1 (the method's own sensitivity, in 32 bits).
+        if m == Method::Mboit {
+            let own = gpu
+                .fragments
+                .as_ref()
+                .expect("diagnostics read the fragments back");
+            let blend = dhoit_runtime::composite::Method::Mboit(options.mboit);
+            cpu.image = dhoit_runtime::composite::composite(own, blend, options.background);
+        }
         out.push((m, cpu, gpu.image));
     }
     out
