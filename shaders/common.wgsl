@@ -35,6 +35,8 @@ struct Params {
     // MBOIT's moment bias and overestimation (composite::MboitParams).
     mboit_bias: f32,
     mboit_overestimation: f32,
+    // The linked list's fragments a pixel sorted at resolve (list_resolve.wgsl).
+    list_sorted: u32,
 };
 
 // A material (wgsl::GpuMaterial; scene::material): base colour factor, its texture (where its

@@ -41,7 +41,7 @@ pub struct BenchArgs {
 }
 
 /// The methods the GPU bench measures, in its order (its variants are of FKB and DKB).
-const GPU_METHODS: [Method; 7] = [
+const GPU_METHODS: [Method; 8] = [
     Method::Abuffer,
     Method::Fkb,
     Method::Optimal,
@@ -49,6 +49,7 @@ const GPU_METHODS: [Method; 7] = [
     Method::Dkb,
     Method::Wboit,
     Method::Mboit,
+    Method::LinkedList,
 ];
 
 /// Fastest of `n` runs of `f`, in seconds, with the last result.

@@ -26,7 +26,9 @@ mod trade;
         allocation), greedy-paper and greedy-increase (the paper's backward greedy, two heap \
         keys), mlab (multi-layer alpha blending), wboit (weighted blended OIT, McGuire and \
         Bavoil 2013: fixed memory, no order), mboit (moment-based OIT, Munstermann et al. 2018: \
-        four power moments, fixed memory, no order).\n\n\
+        four power moments, fixed memory, no order), linked-list (a budgeted per-pixel linked \
+        list, as Bevy ships it: fragments kept first come, first served until the budget's nodes \
+        are spent, the rest dropped; the nearest 8 of a pixel sorted).\n\n\
         Budgets are bytes with units (20MB, 40MiB), average fragment slots per pixel (2fpp), or \
         a share of the frame's own visible transparent fragments (25%). A budget is a cap: \
         where the exact A-buffer needs no more bytes than a k-buffer method would at its \

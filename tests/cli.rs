@@ -358,6 +358,7 @@ fn compare_prints_a_table_and_writes_a_report() {
         "mlab",
         "wboit",
         "mboit",
+        "linked-list",
         "dkb",
     ] {
         assert!(stdout.contains(m), "{stdout}");
@@ -368,7 +369,7 @@ fn compare_prints_a_table_and_writes_a_report() {
     let records = report.as_array().unwrap();
     assert_eq!(
         records.len(),
-        10,
+        11,
         "every method, dkb with the committed default weights"
     );
     assert!(dir.join("report.md").is_file());
@@ -636,6 +637,7 @@ fn the_gpu_bench_reports_every_method_and_option() {
         "dkb",
         "wboit",
         "mboit",
+        "linked-list",
         "dkb_no_skip",
         "dkb_insertion_only",
         "dkb_two_mode_where_all_fit",

@@ -226,6 +226,18 @@ pub const MBOIT: Layout = Layout {
     weights: 0,
 };
 
+/// The budgeted per-pixel linked list, as Bevy lays it out: a 4-byte head a pixel, 12 bytes a
+/// node (the 8-byte capture key and the next node's index), the pool of F nodes allocated whole,
+/// and the atomic counter that hands them out.
+pub const LINKED_LIST: Layout = Layout {
+    method: "linked-list",
+    slot_bytes: 12,
+    per_pixel: &[RASTER_TARGET, ("list.heads", 4)],
+    fixed: &[("params", PARAMS_BYTES), ("list.counter", 16), STATUS],
+    scan: false,
+    weights: 0,
+};
+
 /// A-buffer: counts (then the store's cursors), offsets, every fragment as the 8-byte capture
 /// key a k-buffer slot holds (paper 004's exact memory). Not budgeted: exact memory. The output
 /// image is the application's target, counted for no method.
@@ -304,7 +316,7 @@ impl Layout {
 
 /// Every budgeted layout, by method name.
 pub fn layout(method: &str) -> Option<Layout> {
-    [DKB, OPT, VKB, FKB, MLAB, WBOIT, MBOIT, ABUFFER]
+    [DKB, OPT, VKB, FKB, MLAB, WBOIT, MBOIT, LINKED_LIST, ABUFFER]
         .into_iter()
         .find(|l| l.method == method)
 }

@@ -271,6 +271,40 @@ pub fn mboit_sorted(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 3
     std::array::from_fn(|i| (1.0 - total) * l[i] * inv + total * bg[i])
 }
 
+/// The budgeted per-pixel linked list (as Bevy ships it) keeps fragments first come, first
+/// served, until the frame's `capacity` of nodes is spent; what arrives after is dropped. The
+/// order of arrival is the order of submission (triangle by triangle; within a triangle, pixel
+/// by pixel in rows, as the CPU rasterizer walks it): one flag a fragment of `fl`, in list
+/// order, saying whether it was kept. A GPU appends in the order its atomics happen to run, so
+/// where the capacity truncates, which fragments it keeps differs from run to run.
+pub fn linked_list_kept(fl: &FragmentLists, capacity: u64) -> Vec<bool> {
+    let n = fl.fragment_count();
+    let mut keep = vec![false; n];
+    if capacity >= n as u64 {
+        keep.fill(true);
+        return keep;
+    }
+    let mut arrival: Vec<(u32, u32, u32)> = Vec::with_capacity(n);
+    for p in 0..fl.pixel_count() {
+        for i in fl.range(p) {
+            arrival.push((fl.primitive[i], p as u32, i as u32));
+        }
+    }
+    arrival.sort_unstable();
+    for &(_, _, i) in &arrival[..capacity as usize] {
+        keep[i as usize] = true;
+    }
+    keep
+}
+
+/// The linked list's nearest fragments a pixel sorted and blended at resolve (the rest as a
+/// hybrid tail): Bevy's default.
+pub const LIST_SORTED: u32 = 8;
+
+/// The most a pixel's sorted fragments may be ([`LIST_SORTED`] is the default): the resolve
+/// keeps them in a private array of this size.
+pub const LIST_MAX_SORTED: u32 = 16;
+
 /// Running sums of a hybrid tail in integers, exactly as the GPU's atomics add them: with
 /// 8-bit colour `c8` and alpha `a8`, `sum c8 a8` (units of 1/255^2), `sum a8` (units of 1/255)
 /// and the fragment count. Integer sums are exact and the same in every order; they hold up to

@@ -111,6 +111,32 @@ impl FragmentLists {
         }
     }
 
+    /// These lists with only the fragments `keep` marks (one flag a fragment, in list order):
+    /// the same pixels, opaque surfaces and per-pixel order.
+    pub fn retain(&self, keep: &[bool]) -> FragmentLists {
+        let mut out = FragmentLists {
+            width: self.width,
+            height: self.height,
+            offsets: Vec::with_capacity(self.offsets.len()),
+            opaque: self.opaque.clone(),
+            opaque_depth: self.opaque_depth.clone(),
+            ..Default::default()
+        };
+        out.offsets.push(0);
+        for p in 0..self.pixel_count() {
+            for i in self.range(p).filter(|&i| keep[i]) {
+                out.depth.push(self.depth[i]);
+                out.rgba.push(self.rgba[i]);
+                out.primitive.push(self.primitive[i]);
+                if let Some(&f) = self.facing.get(i) {
+                    out.facing.push(f);
+                }
+            }
+            out.offsets.push(out.depth.len() as u32);
+        }
+        out
+    }
+
     /// Pixel p's fragments in list (submission) order.
     pub fn fragments(&self, p: usize) -> impl ExactSizeIterator<Item = Fragment> + '_ {
         self.range(p).map(|i| Fragment {

@@ -35,10 +35,15 @@ pub enum Method {
     /// Moment-based OIT (Munstermann et al. 2018), four power moments: no slots, no order,
     /// fixed memory.
     Mboit,
+    /// A budgeted per-pixel linked list, as Bevy ships it: fragments appended first come, first
+    /// served until the frame's F nodes are spent (the rest dropped), each pixel's nearest
+    /// [`Options::list_sorted`] sorted and blended at resolve, the rest as a hybrid tail.
+    /// Order-dependent where F truncates.
+    LinkedList,
 }
 
 impl Method {
-    pub const ALL: [Method; 10] = [
+    pub const ALL: [Method; 11] = [
         Method::Abuffer,
         Method::Fkb,
         Method::Vkb,
@@ -49,6 +54,7 @@ impl Method {
         Method::Mlab,
         Method::Wboit,
         Method::Mboit,
+        Method::LinkedList,
     ];
 
     pub fn name(self) -> &'static str {
@@ -63,6 +69,7 @@ impl Method {
             Method::Mlab => "mlab",
             Method::Wboit => "wboit",
             Method::Mboit => "mboit",
+            Method::LinkedList => "linked-list",
         }
     }
 
@@ -94,7 +101,8 @@ impl Method {
             | Method::Vkb
             | Method::Mlab
             | Method::Wboit
-            | Method::Mboit => (28, 40),
+            | Method::Mboit
+            | Method::LinkedList => (28, 40),
             Method::Dkb => (24, 120),
             Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => (70, 40),
         }
@@ -106,7 +114,7 @@ impl Method {
     pub fn is_kbuffer(self) -> bool {
         !matches!(
             self,
-            Method::Abuffer | Method::Mlab | Method::Wboit | Method::Mboit
+            Method::Abuffer | Method::Mlab | Method::Wboit | Method::Mboit | Method::LinkedList
         )
     }
 
@@ -121,6 +129,7 @@ impl Method {
             Method::Mlab => budget::MLAB,
             Method::Wboit => budget::WBOIT,
             Method::Mboit => budget::MBOIT,
+            Method::LinkedList => budget::LINKED_LIST,
         }
     }
 }
@@ -269,6 +278,9 @@ pub struct Options<'a> {
     pub vkb: VkbParams,
     /// MBOIT's moment bias and overestimation (the paper's defaults).
     pub mboit: MboitParams,
+    /// The linked list's fragments a pixel sorted at resolve, 1 to
+    /// [`composite::LIST_MAX_SORTED`] ([`composite::LIST_SORTED`], Bevy's 8, by default).
+    pub list_sorted: u32,
     /// Render the exact A-buffer wherever it needs no more bytes than the k-buffer method
     /// would for its budget (a memory-bounded method never costs more than the exact answer):
     /// on by default. Off, the method renders its approximation whatever it costs (the
@@ -285,6 +297,7 @@ impl Options<'_> {
             weights: None,
             vkb: VkbParams::default(),
             mboit: MboitParams::default(),
+            list_sorted: composite::LIST_SORTED,
             exact_when_cheaper: true,
         }
     }
@@ -391,6 +404,15 @@ impl<'a> Renderer<'a> {
         if method == Method::Dkb && opts.weights.is_none() {
             return Err(no_weights());
         }
+        if method == Method::LinkedList
+            && !(1..=composite::LIST_MAX_SORTED).contains(&opts.list_sorted)
+        {
+            return Err(Error::Invalid(format!(
+                "the linked list sorts 1 to {} fragments a pixel, not {}",
+                composite::LIST_MAX_SORTED,
+                opts.list_sorted
+            )));
+        }
         let budget = self.budget()?;
         // A k-buffer whose budget holds every fragment (F slots for them, or the bytes of the
         // exact A-buffer) renders the A-buffer: exact, and never more memory than it (a byte
@@ -416,6 +438,8 @@ impl<'a> Renderer<'a> {
             Method::Abuffer => counts,
             _ if exact => counts,
             Method::Wboit | Method::Mboit => vec![0; pixels as usize],
+            // The fragments the list kept, by pixel.
+            Method::LinkedList => fl.retain(&composite::linked_list_kept(fl, f)).counts(),
             Method::Fkb | Method::Mlab => {
                 check_slot_per_pixel(method, opts.budget, f, fl.width, fl.height)?;
                 alloc::fixed(pixels as usize, f)
@@ -472,6 +496,11 @@ impl<'a> Renderer<'a> {
             Method::Mlab => composite::composite(fl, Composite::Mlab(k[0] as usize), bg),
             Method::Wboit => composite::composite(fl, Composite::Wboit, bg),
             Method::Mboit => composite::composite(fl, Composite::Mboit(self.options.mboit), bg),
+            Method::LinkedList => {
+                let kept = fl.retain(&composite::linked_list_kept(fl, a.budget_fragments));
+                let sorted = vec![self.options.list_sorted; pixels as usize];
+                composite::composite(&kept, Composite::Hybrid(&sorted), bg)
+            }
             _ => composite::composite(fl, Composite::Hybrid(&k), bg),
         };
         let composite_ms = t1.elapsed().as_secs_f64() * 1e3;
@@ -479,6 +508,8 @@ impl<'a> Renderer<'a> {
         // whose budget holds every fragment, what the A-buffer does.
         let allocated_bytes = match method {
             _ if a.exact => budget::ABUFFER.allocated_bytes(pixels, slots),
+            // Its whole pool of F nodes, however many arrived.
+            Method::LinkedList => method.layout().allocated_bytes(pixels, a.budget_fragments),
             Method::Fkb | Method::Mlab => method
                 .layout()
                 .allocated_bytes(pixels, k[0] as u64 * pixels),

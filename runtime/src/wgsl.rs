@@ -26,7 +26,7 @@ pub mod shaders {
         pub includes: &'static [&'static str],
     }
 
-    pub const PASSES: [Pass; 17] = [
+    pub const PASSES: [Pass; 19] = [
         Pass {
             name: "opaque",
             source: include_str!("../../shaders/opaque.wgsl"),
@@ -76,6 +76,16 @@ pub mod shaders {
             name: "mboit_resolve",
             source: include_str!("../../shaders/mboit_resolve.wgsl"),
             includes: &[SORT, BEHIND],
+        },
+        Pass {
+            name: "list_store",
+            source: include_str!("../../shaders/list_store.wgsl"),
+            includes: &[GEOMETRY],
+        },
+        Pass {
+            name: "list_resolve",
+            source: include_str!("../../shaders/list_resolve.wgsl"),
+            includes: &[BEHIND],
         },
         Pass {
             name: "allocate",
@@ -187,6 +197,7 @@ pub mod shaders {
                 F32(crate::composite::MBOIT_MAX_ABSORBANCE),
             ),
             ("MBOIT_MIN_B0", F32(crate::composite::MBOIT_MIN_B0)),
+            ("LIST_MAX_SORTED", U32(crate::composite::LIST_MAX_SORTED)),
             ("APPEND_SPILL", U32(crate::composite::APPEND_SPILL)),
             (
                 "MAX_FRAGMENTS_PER_PIXEL",
@@ -306,7 +317,9 @@ pub(crate) struct Params {
     /// MBOIT's moment bias and overestimation ([`crate::composite::MboitParams`]).
     pub(crate) mboit_bias: f32,
     pub(crate) mboit_overestimation: f32,
-    pub(crate) _pad: [u32; 20],
+    /// The linked list's fragments a pixel sorted at resolve.
+    pub(crate) list_sorted: u32,
+    pub(crate) _pad: [u32; 19],
 }
 
 /// `Material.texels` of a material without a texture.
@@ -543,7 +556,7 @@ mod tests {
         let rust = offsets!(Params; view_proj, forward, background, eye, width, height,
             k_uniform, pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed,
             budget_ppm, append, layer_major, uniform_alpha, store_primitives, mboit_bias,
-            mboit_overestimation);
+            mboit_overestimation, list_sorted);
         assert_eq!(
             wgsl, rust,
             "Params: WGSL (left) and Rust (right) members and offsets"

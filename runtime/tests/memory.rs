@@ -314,7 +314,15 @@ fn the_device_page_lists_the_buffers_the_layouts_count() {
          |---|---:|---|---:|---:|---:|\n",
     );
     for m in [
-        "abuffer", "fkb", "mlab", "wboit", "mboit", "optimal", "vkb", "dkb",
+        "abuffer",
+        "fkb",
+        "mlab",
+        "wboit",
+        "mboit",
+        "linked-list",
+        "optimal",
+        "vkb",
+        "dkb",
     ] {
         let l = budget::layout(m).unwrap();
         let buffers: Vec<String> = l

@@ -352,6 +352,8 @@ pub(super) struct Readback {
     pub(super) network_rows_buf: Option<wgpu::Buffer>,
     /// k-buffers: each pixel's tail count after the capture, before the resolve.
     pub(super) capture_counts: Option<Vec<u32>>,
+    /// The linked list: the fragments that arrived at its store, kept or dropped.
+    pub(super) list_arrived: Option<u64>,
 }
 
 /// What [`GpuFrame`] reports besides the image: importance, DKB's statistics and whether its

@@ -79,8 +79,8 @@ impl Recording<'_, '_> {
                 let i = self.dkb_importance(mlp, expect_fit)?;
                 self.allocated(i, budget, expect_fit)
             }
-            Slots::Mlab(_) | Slots::Wboit | Slots::Mboit(_) => {
-                unreachable!("MLAB, WBOIT and MBOIT blend from the A-buffer")
+            Slots::Mlab(_) | Slots::Wboit | Slots::Mboit(_) | Slots::LinkedList { .. } => {
+                unreachable!("MLAB, WBOIT, MBOIT and the linked list have passes of their own")
             }
         }
     }

@@ -28,6 +28,7 @@ mod allocate;
 mod buffers;
 mod capture;
 mod dkb;
+mod list;
 mod passes;
 mod pipelines;
 mod predict;
@@ -481,6 +482,10 @@ pub enum Slots<'a> {
     /// Moment-based OIT with these parameters, its moments and sums taken from the A-buffer's
     /// fragments (`mboit_resolve.wgsl`, the twin of `composite::mboit_sorted`).
     Mboit(MboitParams),
+    /// The budgeted linked list (`list_store.wgsl`, `list_resolve.wgsl`): a pool of `nodes`
+    /// fragments handed out first come, first served, each pixel's nearest `sorted` blended in
+    /// order over the rest's tail (1 to [`crate::composite::LIST_MAX_SORTED`]).
+    LinkedList { nodes: u64, sorted: u32 },
     /// Per-pixel importance (computed elsewhere), what it means and F: the GPU counts
     /// fragments, allocates k (`allocate.wgsl`, the twin of `alloc::allocate`), then captures
     /// and resolves.
@@ -520,6 +525,10 @@ impl<'a> Slots<'a> {
             Method::Mlab => Some(Slots::Mlab(first())),
             Method::Wboit => Some(Slots::Wboit),
             Method::Mboit => Some(Slots::Mboit(options.mboit)),
+            Method::LinkedList => Some(Slots::LinkedList {
+                nodes: cpu.budget_fragments,
+                sorted: options.list_sorted,
+            }),
             Method::Vkb => Some(Slots::Vkb(options.vkb, budget)),
             Method::Dkb => Some(Slots::Dkb(
                 options.weights.ok_or_else(|| {
@@ -590,6 +599,9 @@ pub struct GpuFrame {
     /// resolve: n where the two-mode capture appended (its cursor counts every fragment), the
     /// fragments pushed out where it inserted; so a test can see which mode each pixel took.
     pub capture_counts: Option<Vec<u32>>,
+    /// The linked list, with diagnostics: the fragments that arrived at its store, kept or
+    /// dropped (its `fragments` are those it kept).
+    pub list_arrived: Option<u64>,
 }
 
 impl Gpu {
@@ -696,6 +708,15 @@ impl Gpu {
                 }
                 (0.into(), VkbParams::default(), m)
             }
+            Some(Slots::LinkedList { nodes, sorted }) => {
+                if !(1..=crate::composite::LIST_MAX_SORTED).contains(&sorted) {
+                    return Err(Error::Invalid(format!(
+                        "the linked list sorts 1 to {} fragments a pixel, not {sorted}",
+                        crate::composite::LIST_MAX_SORTED
+                    )));
+                }
+                (nodes.into(), VkbParams::default(), 0)
+            }
             Some(Slots::PerPixel(_) | Slots::Wboit | Slots::Mboit(_)) | None => {
                 (0.into(), VkbParams::default(), 0)
             }
@@ -710,6 +731,9 @@ impl Gpu {
         .into();
         params.layer_major =
             (opts.layer_major_fkb && matches!(slots, Some(Slots::Uniform(_)))).into();
+        if let Some(Slots::LinkedList { sorted, .. }) = slots {
+            params.list_sorted = sorted;
+        }
         if let Some(Slots::Mboit(m)) = slots {
             params.mboit_bias = m.bias;
             params.mboit_overestimation = m.overestimation;
@@ -744,6 +768,7 @@ impl Gpu {
             Some(Slots::Mlab(_)) => rec.abuffer(Blend::Mlab, width, height)?,
             Some(Slots::Wboit) => rec.abuffer(Blend::Wboit, width, height)?,
             Some(Slots::Mboit(_)) => rec.abuffer(Blend::Mboit, width, height)?,
+            Some(Slots::LinkedList { nodes, .. }) => rec.linked_list(nodes, width, height)?,
             Some(s) => {
                 let method = match s {
                     Slots::Dkb(mlp, _) if opts.exact_when_cheaper => {
@@ -840,6 +865,7 @@ impl Gpu {
             variants: rec.out.variants,
             network_rows,
             capture_counts: rec.out.capture_counts,
+            list_arrived: rec.out.list_arrived,
         })
     }
 }
@@ -879,7 +905,8 @@ fn frame_params(
         store_primitives: 0,
         mboit_bias: 0.0,
         mboit_overestimation: 0.0,
-        _pad: [0; 20],
+        list_sorted: 0,
+        _pad: [0; 19],
     }
 }
 

@@ -26,6 +26,8 @@ pub(super) struct Pipelines {
     pub(super) mlab_resolve: wgpu::ComputePipeline,
     pub(super) wboit_resolve: wgpu::ComputePipeline,
     pub(super) mboit_resolve: wgpu::ComputePipeline,
+    pub(super) list_store: wgpu::RenderPipeline,
+    pub(super) list_resolve: wgpu::ComputePipeline,
     pub(super) allocate: Allocate,
     pub(super) features: wgpu::RenderPipeline,
     /// The features pass without the nearest key's load first (PRELOAD_NEAREST false).
@@ -522,6 +524,8 @@ impl Pipelines {
             mlab_resolve: compute("mlab_resolve"),
             wboit_resolve: compute("wboit_resolve"),
             mboit_resolve: compute("mboit_resolve"),
+            list_store: geometry("list_store"),
+            list_resolve: compute("list_resolve"),
             allocate: Allocate::new(device),
             features: geometry("features"),
             features_no_preload: features_with(

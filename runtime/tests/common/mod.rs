@@ -78,8 +78,8 @@ pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
 
 #[cfg(feature = "gpu")]
 /// The methods that run on the CPU and the GPU alike: the A-buffer, FKB, the optimal
-/// allocation (uploaded), VKB, DKB, WBOIT and MBOIT.
-pub const CPU_AND_GPU: [dhoit_runtime::frame::Method; 7] = {
+/// allocation (uploaded), VKB, DKB, WBOIT, MBOIT and the linked list.
+pub const CPU_AND_GPU: [dhoit_runtime::frame::Method; 8] = {
     use dhoit_runtime::frame::Method;
     [
         Method::Abuffer,
@@ -89,6 +89,7 @@ pub const CPU_AND_GPU: [dhoit_runtime::frame::Method; 7] = {
         Method::Dkb,
         Method::Wboit,
         Method::Mboit,
+        Method::LinkedList,
     ]
 };
 
@@ -168,6 +169,17 @@ pub fn cpu_and_gpu_frames(
                 .expect("diagnostics read the fragments back");
             let blend = dhoit_runtime::composite::Method::Mboit(options.mboit);
             cpu.image = dhoit_runtime::composite::composite(own, blend, options.background);
+        }
+        // The linked list's twin on the fragments the GPU kept: where F truncates, which
+        // arrive first is the device's order, not submission's (the CPU reference's).
+        if m == Method::LinkedList {
+            let kept = gpu
+                .fragments
+                .as_ref()
+                .expect("diagnostics read the kept fragments");
+            let k = vec![options.list_sorted; kept.pixel_count()];
+            let blend = dhoit_runtime::composite::Method::Hybrid(&k);
+            cpu.image = dhoit_runtime::composite::composite(kept, blend, options.background);
         }
         out.push((m, cpu, gpu.image));
     }

@@ -1,0 +1,72 @@
+//! The budgeted per-pixel linked list, as Bevy ships it: `list_store.wgsl` (geometry: a node a
+//! fragment from one atomic counter while the frame's F nodes last, the rest dropped) ->
+//! `list_resolve.wgsl` (each pixel's nearest `list_sorted` sorted and blended over the rest's
+//! hybrid tail; twin `composite::hybrid_sorted` of the kept fragments). With diagnostics, the
+//! fragments the list kept are read back as the frame's fragments, and the counter as the
+//! fragments that arrived.
+
+use super::Recording;
+use super::buffers::{FrameStatus, read_back, read_u64s, read_words, u32s};
+use crate::error::Result;
+use crate::fragment::FragmentLists;
+
+impl Recording<'_, '_> {
+    /// The list's store of at most `nodes` fragments and its resolve; returns the image buffer.
+    pub(super) fn linked_list(
+        &mut self,
+        nodes: u64,
+        width: u32,
+        height: u32,
+    ) -> Result<wgpu::Buffer> {
+        let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
+        let p = &gpu.pipelines;
+        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        let status = fb.storage("status", FrameStatus::BYTES, true)?;
+        let image = fb.storage("application.image", 16 * px, false)?;
+        let heads = fb.storage("list.heads", 4 * px, true)?;
+        // The pool, allocated whole: 12 bytes a node.
+        let next = fb.storage("list.next", 4 * nodes, true)?;
+        let keys = fb.storage("list.keys", 8 * nodes, true)?;
+        let counter = fb.storage("list.counter", 16, true)?;
+        passes.draw(
+            enc,
+            &p.list_store,
+            &[&heads, &next, &keys, &counter],
+            "store",
+        );
+        let bufs = [passes.params(), &heads, &next, &keys, &image, &status];
+        passes.resolve(enc, &p.list_resolve, &bufs, "sort and blend");
+        fb.submit(enc);
+        if self.passes.opts.diagnostics {
+            let arrived = read_words(gpu, &[(&counter, 0)])?[0] as u64;
+            let heads = u32s(&read_back(gpu, &heads, 4 * px)?);
+            let stored = arrived.min(nodes);
+            let next = u32s(&read_back(gpu, &next, 4 * stored)?);
+            let keys = read_u64s(gpu, &keys, stored, false)?;
+            let mut fl = FragmentLists {
+                width,
+                height,
+                ..Default::default()
+            };
+            fl.offsets.push(0);
+            for &head in &heads {
+                let mut node = head;
+                // A list longer than the nodes stored is a broken one: stop there.
+                let mut left = stored;
+                while node != 0 && left > 0 {
+                    let key = keys[node as usize - 1];
+                    fl.depth.push(f32::from_bits((key >> 32) as u32));
+                    fl.rgba.push(crate::fragment::unpack_rgba8(key as u32));
+                    fl.primitive.push(0);
+                    node = next[node as usize - 1];
+                    left -= 1;
+                }
+                fl.offsets.push(fl.depth.len() as u32);
+            }
+            self.out.fragments = Some(fl);
+            self.out.list_arrived = Some(arrived);
+        }
+        self.out.status = Some(status);
+        Ok(image)
+    }
+}

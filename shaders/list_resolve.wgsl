@@ -1,0 +1,95 @@
+// The budgeted linked list's resolve (compute, one invocation a pixel): the pixel's list is
+// walked once; its nearest params.list_sorted keys are kept sorted in private memory (each
+// arriving key inserted, the one it pushes past the last place, or itself, added to the tail's
+// integer sums, as composite::Tail adds), then blended front to back over the tail's
+// approximation over what is behind the pixel (behind.wgsl): composite::hybrid_sorted of the
+// kept fragments with k = list_sorted.
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> heads: array<u32>;
+@group(0) @binding(2) var<storage, read> next: array<u32>;
+@group(0) @binding(3) var<storage, read> keys: array<u64>;
+@group(0) @binding(4) var<storage, read_write> image: array<vec4<f32>>;
+// Set to 1 when a pixel's walk came close to lavapipe's loop limit; the deepest pixel over
+// MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word).
+@group(0) @binding(5) var<storage, read_write> status: array<atomic<u64>, 2>;
+
+@compute @workgroup_size(PIXEL_GROUP)
+fn main(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (p >= params.pixels) {
+        return;
+    }
+    let s = params.list_sorted;
+    var near: array<u64, LIST_MAX_SORTED>;
+    var held = 0u;
+    // Sum c8 a8 for r, g, b; sum a8; the count.
+    var sums = vec4<u32>(0u);
+    var tail_n = 0u;
+    var node = heads[p];
+    var n = 0u;
+    loop {
+        if (node == 0u) {
+            break;
+        }
+        tick();
+        n++;
+        if (n > MAX_FRAGMENTS_PER_PIXEL) {
+            atomicMax(&status[1], deepest_word(n, p));
+            return;
+        }
+        var carry = keys[node - 1u];
+        node = next[node - 1u];
+        // Insertion into the sorted places: a key nearer than the last moves it on.
+        if (held < s) {
+            var j = held;
+            while (j > 0u && carry < near[j - 1u]) {
+                tick();
+                near[j] = near[j - 1u];
+                j--;
+            }
+            near[j] = carry;
+            held++;
+            continue;
+        }
+        if (carry < near[s - 1u]) {
+            let out = near[s - 1u];
+            var j = s - 1u;
+            while (j > 0u && carry < near[j - 1u]) {
+                tick();
+                near[j] = near[j - 1u];
+                j--;
+            }
+            near[j] = carry;
+            carry = out;
+        }
+        let c = u32(carry & 0xfffffffflu);
+        let a = c >> 24u;
+        sums += vec4<u32>((c & 0xffu) * a, ((c >> 8u) & 0xffu) * a, ((c >> 16u) & 0xffu) * a, a);
+        tail_n++;
+    }
+    // composite::Tail::over, then the sorted places front to back.
+    let bg = behind(p);
+    var over = bg;
+    if (tail_n > 0u && sums.w > 0u) {
+        let a_avg = min(f32(sums.w) / (255.0 * f32(tail_n)), 1.0);
+        let a_tail = 1.0 - pow(1.0 - a_avg, f32(tail_n));
+        let inv = 1.0 / (255.0 * f32(sums.w));
+        over = a_tail * (vec3<f32>(sums.xyz) * inv) + (1.0 - a_tail) * bg;
+    }
+    var c = vec3<f32>(0.0);
+    var t = 1.0;
+    for (var i = 0u; i < held; i++) {
+        let rgba = unpack_rgba8(u32(near[i] & 0xfffffffflu));
+        c += t * rgba.a * rgba.rgb;
+        t *= 1.0 - rgba.a;
+    }
+    if (ticks > LOOP_BUDGET) {
+        atomicMax(&status[0], 1lu);
+    }
+    image[p] = vec4<f32>(c + t * over, 1.0);
+}
