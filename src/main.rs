@@ -12,6 +12,7 @@ mod predict;
 mod render;
 mod scenes;
 mod trade;
+mod versus;
 
 #[derive(Parser)]
 #[command(
@@ -73,6 +74,10 @@ enum Command {
     /// data/nets/) on scenes, importance-pass time and weights' bytes against MSE and FLIP,
     /// the Pareto front marked; trade.json, trade.md and plots.
     Trade(trade::TradeArgs),
+    /// Every OIT method at equal bytes (the A-buffer, FKB, VKB, DKB, WBOIT, MBOIT, the budgeted
+    /// linked list): GPU frame time against MSE and FLIP, one chart a budget, the Pareto front
+    /// marked; versus.json, versus.md and plots.
+    Versus(versus::VersusArgs),
     /// The network and precision with the fewest bytes of weights whose MSE on a scene is
     /// within --target of the optimal allocation's; writes its weights, precision recorded.
     Fit(trade::FitArgs),
@@ -95,6 +100,7 @@ fn main() {
         Command::Features(a) => features::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Trade(a) => trade::trade(a),
+        Command::Versus(a) => versus::run(a),
         Command::Fit(a) => trade::fit(a),
     };
     if let Err(e) = result {

@@ -959,3 +959,79 @@ fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_fewes
     assert!(String::from_utf8_lossy(&o.stderr).contains("no network meets"));
     assert!(!never.exists());
 }
+
+/// `dhoit versus` measures every method at one memory: a method whose memory does not fit in M
+/// does not run there, a k-buffer at the A-buffer's own bytes renders it exactly, every method
+/// that ran every frame and is not on the front is dominated by one that is, and each memory
+/// has its plot.
+#[test]
+fn versus_puts_every_method_at_one_memory_and_marks_the_front() {
+    if skip_gpu("versus times GPU frames") {
+        return;
+    }
+    let dir = temp_dir("cli-versus");
+    let out = dir.join("out");
+    let o = dhoit(&[
+        "versus",
+        "--scene",
+        "particles,hair",
+        "--res",
+        "64x48",
+        "--opacity",
+        "0.33",
+        "--memory",
+        "0.5,1",
+        "--repeat",
+        "1",
+        "--weights",
+        "data/weights.safetensors",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("versus.json")).unwrap()).unwrap();
+    let budgets = r["budgets"].as_array().unwrap();
+    assert_eq!(budgets.len(), 2);
+    for b in budgets {
+        let points = b["points"].as_array().unwrap();
+        let x = b["memory"].as_f64().unwrap();
+        for p in points {
+            let frames = p["frames"].as_array().unwrap();
+            for f in frames {
+                // What ran fits in M (the A-buffer's bytes are 9 + 8 n a pixel, at least 9).
+                assert!(f["bytes_per_pixel"].as_f64().unwrap() > 0.0);
+            }
+            let method = p["method"].as_str().unwrap();
+            if x == 1.0 && ["fkb", "vkb", "dkb"].contains(&method) {
+                assert!(frames.iter().all(|f| f["exact"] == true), "{method} at 1x");
+                assert!(frames.iter().all(|f| f["mse"].as_f64() == Some(0.0)));
+            }
+            if x < 1.0 {
+                assert_ne!(
+                    method, "abuffer",
+                    "the A-buffer does not fit in half its bytes"
+                );
+            }
+        }
+        let full: Vec<&serde_json::Value> = points
+            .iter()
+            .filter(|p| p["frames"].as_array().unwrap().len() == 2)
+            .collect();
+        let key = |p: &serde_json::Value| ["gpu_ms", "mse", "flip"].map(|k| p[k].as_f64().unwrap());
+        for p in &full {
+            let dominated = full.iter().any(|o| {
+                let (a, b) = (key(o), key(p));
+                a.iter().zip(&b).all(|(x, y)| x <= y) && a.iter().zip(&b).any(|(x, y)| x < y)
+            });
+            assert_eq!(p["front"].as_bool().unwrap(), !dominated, "{}", p["method"]);
+        }
+        assert!(full.iter().any(|p| p["front"] == true));
+    }
+    assert!(out.join("versus_0p5x.svg").is_file() && out.join("versus_1x.png").is_file());
+    assert!(
+        std::fs::read_to_string(out.join("versus.md"))
+            .unwrap()
+            .contains("| linked-list |")
+    );
+}

@@ -1,0 +1,399 @@
+//! `dhoit versus`: every OIT method at equal bytes on one chart per budget, GPU frame time
+//! (timestamp queries on the adapter at hand) against MSE and FLIP, the Pareto front marked: where
+//! DKB sits among what an engine could use instead (WBOIT, MBOIT, the budgeted linked list, FKB,
+//! VKB, the exact A-buffer).
+
+use crate::args::{ViewArgs, check_view, load_scenes, load_weights, parse_repeat, rasterize_view};
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use dhoit_runtime::budget::{self, Budget};
+use dhoit_runtime::frame::{Method, Options, Renderer};
+use dhoit_runtime::gpu::{FrameOptions, Gpu, Slots};
+use dhoit_runtime::image_io;
+use dhoit_train::cli::bar;
+use dhoit_train::plot::{self, TradePoint};
+use serde::Serialize;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct VersusArgs {
+    /// Scenes, comma separated: built-in names or .gltf/.glb paths.
+    #[arg(
+        long = "scene",
+        value_delimiter = ',',
+        default_value = "particles,hair"
+    )]
+    scenes: Vec<String>,
+    /// Orbit views, comma separated.
+    #[arg(long = "view", value_delimiter = ',', default_value = "1")]
+    view_list: Vec<usize>,
+    /// Memories M, comma separated, as multiples of each frame's exact A-buffer bytes (0.5: half
+    /// what the exact answer needs). Every method gets the same M in bytes, its F (or its
+    /// moments, or its accumulation targets) from its own layout; a method whose memory does
+    /// not fit in M does not run at that M (the table counts its frames).
+    #[arg(
+        long = "memory",
+        value_delimiter = ',',
+        default_value = "0.25,0.5,0.75,1"
+    )]
+    memories: Vec<f64>,
+    /// Methods, comma separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "abuffer,fkb,vkb,dkb,wboit,mboit,linked-list"
+    )]
+    methods: Vec<String>,
+    /// Timed repetitions of each GPU frame; the fastest is kept.
+    #[arg(long, default_value_t = 3, value_parser = parse_repeat)]
+    repeat: usize,
+    /// Directory for versus.json, versus.md and the plots (versus_BUDGET.svg/.png).
+    #[arg(long, default_value = "out/versus")]
+    out: PathBuf,
+    /// Also write versus.json, versus.md and the plots into this directory (small, committed:
+    /// `make versus` writes docs/).
+    #[arg(long)]
+    summary: Option<PathBuf>,
+    #[command(flatten)]
+    common: ViewArgs,
+}
+
+/// One method on one frame.
+#[derive(Clone, Debug, Serialize)]
+pub struct Measure {
+    pub scene: String,
+    pub view: usize,
+    pub mse: f64,
+    pub flip: f64,
+    /// The GPU frame's passes, milliseconds (the fastest of the repetitions).
+    pub gpu_ms: f64,
+    /// Bytes the method allocated, a frame pixel.
+    pub bytes_per_pixel: f64,
+    /// Whether the k-buffer rendered the exact A-buffer, no dearer at this M.
+    pub exact: bool,
+}
+
+/// One method at one budget, over every scene and view.
+#[derive(Clone, Debug, Serialize)]
+pub struct Point {
+    pub method: String,
+    /// Geometric means (MSE floored as `compare`'s summary does), FLIP's arithmetic mean.
+    pub gpu_ms: f64,
+    pub mse: f64,
+    pub flip: f64,
+    pub bytes_per_pixel: f64,
+    /// Frames on which no other method is as fast and as accurate (MSE and FLIP).
+    pub front_frames: usize,
+    /// On the front of the means: no other method that ran every frame is at least as good in
+    /// time, MSE and FLIP, and better in one (false for a method that ran fewer frames).
+    pub front: bool,
+    pub frames: Vec<Measure>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct BudgetTrade {
+    pub budget: String,
+    /// M as a multiple of each frame's exact A-buffer bytes.
+    pub memory: f64,
+    /// The frames (a method that did not fit in M ran fewer).
+    pub frames: usize,
+    pub points: Vec<Point>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub adapter: String,
+    pub resolution: String,
+    pub views: Vec<usize>,
+    pub scenes: Vec<String>,
+    pub budgets: Vec<BudgetTrade>,
+}
+
+/// Whether `a` dominates `b` on (time, MSE, FLIP).
+fn dominates(a: [f64; 3], b: [f64; 3]) -> bool {
+    a.iter().zip(&b).all(|(x, y)| x <= y) && a.iter().zip(&b).any(|(x, y)| x < y)
+}
+
+/// Flags the keys no other key dominates.
+pub fn front(keys: &[[f64; 3]]) -> Vec<bool> {
+    (0..keys.len())
+        .map(|i| {
+            !keys
+                .iter()
+                .enumerate()
+                .any(|(j, o)| j != i && dominates(*o, keys[i]))
+        })
+        .collect()
+}
+
+pub fn run(a: VersusArgs) -> Result<()> {
+    let methods: Vec<Method> = a
+        .methods
+        .iter()
+        .map(|m| Method::parse(m))
+        .collect::<std::result::Result<_, _>>()?;
+    if methods.is_empty() || a.memories.is_empty() {
+        bail!("give at least one method and one memory");
+    }
+    if let Some(x) = a.memories.iter().find(|x| !(x.is_finite() && **x > 0.0)) {
+        bail!("a memory is a positive multiple of the A-buffer's bytes, not {x}");
+    }
+    for &view in &a.view_list {
+        check_view(view, a.common.views)?;
+    }
+    let weights = load_weights(&a.common, None, methods.contains(&Method::Dkb))?;
+    let loaded = load_scenes(&a.scenes, &a.common)?;
+    let gpu = Gpu::new().context("versus times every method's GPU frame")?;
+    eprintln!("versus: GPU frames timed on {}", gpu.adapter);
+    dhoit_runtime::tensors::create_folder(&a.out)?;
+    let steps = a.scenes.len() * a.view_list.len() * a.memories.len();
+    let pb = bar(steps as u64, "frames");
+    // measures[budget][method]: one a frame.
+    let mut measures: Vec<Vec<Vec<Measure>>> =
+        vec![vec![Vec::new(); methods.len()]; a.memories.len()];
+    let frame_opts = FrameOptions {
+        diagnostics: false,
+        ..FrameOptions::default()
+    };
+    for (name, s) in a.scenes.iter().zip(&loaded) {
+        for &view in &a.view_list {
+            let (fl, _) = rasterize_view(s, view, &a.common)?;
+            let (w, h) = (fl.width, fl.height);
+            let cam = dhoit_runtime::scene::Camera::orbit(s, view, a.common.views, w, h);
+            let px = fl.pixel_count() as f64;
+            let exact_bytes = budget::ABUFFER
+                .allocated_bytes(fl.pixel_count() as u64, fl.fragment_count() as u64);
+            for (bi, &x) in a.memories.iter().enumerate() {
+                let m_bytes = (x * exact_bytes as f64).floor() as u64;
+                let opts = Options {
+                    weights: weights.as_ref(),
+                    ..Options::new(Budget::Bytes(m_bytes), a.common.background)
+                };
+                let r = Renderer::new(&fl, opts);
+                let exact = r.render(Method::Abuffer)?;
+                let exact8 = image_io::to_srgb8(&exact.image);
+                for (mi, &m) in methods.iter().enumerate() {
+                    let cpu = match r.allocate(m) {
+                        Ok(al) => al,
+                        // A fixed cost above M (or FKB below a slot a pixel): not run.
+                        Err(dhoit_runtime::Error::Budget(..)) => continue,
+                        Err(e) => return Err(e.into()),
+                    };
+                    let f = r.composite(cpu.clone());
+                    // Memory that does not follow the budget (the A-buffer's, WBOIT's, MBOIT's)
+                    // either fits in M or the method does not run there.
+                    if f.allocated_bytes > m_bytes {
+                        continue;
+                    }
+                    let slots = Slots::for_method(m, &cpu, &opts)?;
+                    let mut best = f64::INFINITY;
+                    for _ in 0..a.repeat {
+                        let g =
+                            gpu.render_with(&frame_opts, s, &cam, (w, h), opts.background, slots)?;
+                        best = best.min(g.pass_ms.iter().map(|p| p.1).sum());
+                    }
+                    let (flip, _) = image_io::flip(&exact8, &image_io::to_srgb8(&f.image), w, h);
+                    measures[bi][mi].push(Measure {
+                        scene: name.clone(),
+                        view,
+                        mse: f.image.mse(&exact.image),
+                        flip,
+                        gpu_ms: best,
+                        bytes_per_pixel: f.allocated_bytes as f64 / px,
+                        exact: cpu.exact,
+                    });
+                }
+                pb.inc(1);
+            }
+        }
+    }
+    pb.finish_and_clear();
+    let floor = crate::compare::MSE_FLOOR;
+    let geomean = |v: Vec<f64>| crate::compare::geomean(&v);
+    let mut report = Report {
+        adapter: gpu.adapter.clone(),
+        resolution: format!("{}x{}", a.common.res.width, a.common.res.height),
+        views: a.view_list.clone(),
+        scenes: a.scenes.clone(),
+        budgets: Vec::new(),
+    };
+    for (bi, x) in a.memories.iter().enumerate() {
+        let mut points: Vec<Point> = methods
+            .iter()
+            .enumerate()
+            .filter(|(mi, _)| !measures[bi][*mi].is_empty())
+            .map(|(mi, m)| {
+                let fr = &measures[bi][mi];
+                Point {
+                    method: m.name().to_string(),
+                    gpu_ms: geomean(fr.iter().map(|x| x.gpu_ms).collect()),
+                    mse: geomean(fr.iter().map(|x| x.mse.max(floor)).collect()),
+                    flip: fr.iter().map(|x| x.flip).sum::<f64>() / fr.len() as f64,
+                    bytes_per_pixel: fr.iter().map(|x| x.bytes_per_pixel).sum::<f64>()
+                        / fr.len() as f64,
+                    front_frames: 0,
+                    front: false,
+                    frames: fr.clone(),
+                }
+            })
+            .collect();
+        // The front of the means, among the methods that ran every frame (a mean over fewer
+        // frames is not comparable).
+        let total = a.scenes.len() * a.view_list.len();
+        let keys: Vec<[f64; 3]> = points
+            .iter()
+            .map(|p| match p.frames.len() == total {
+                true => [p.gpu_ms, p.mse, p.flip],
+                false => [f64::INFINITY; 3],
+            })
+            .collect();
+        for (p, on) in points.iter_mut().zip(front(&keys)) {
+            p.front = on && p.frames.len() == total;
+        }
+        // Per frame: the methods that ran it (FKB does not where M holds no slot a pixel),
+        // each on that frame's front or not.
+        let mut frames: Vec<(String, usize)> = Vec::new();
+        for p in &points {
+            for x in &p.frames {
+                if !frames.contains(&(x.scene.clone(), x.view)) {
+                    frames.push((x.scene.clone(), x.view));
+                }
+            }
+        }
+        for (scene, view) in &frames {
+            let at = |p: &Point| {
+                p.frames
+                    .iter()
+                    .find(|x| &x.scene == scene && x.view == *view)
+                    .map(|x| [x.gpu_ms, x.mse.max(floor), x.flip])
+            };
+            let keys: Vec<[f64; 3]> = points
+                .iter()
+                .map(|p| at(p).unwrap_or([f64::INFINITY; 3]))
+                .collect();
+            for (p, on) in points.iter_mut().zip(front(&keys)) {
+                p.front_frames += usize::from(on && at(p).is_some());
+            }
+        }
+        report.budgets.push(BudgetTrade {
+            budget: format!("{x}x the A-buffer's bytes"),
+            memory: *x,
+            frames: total,
+            points,
+        });
+    }
+    let md = table(&report);
+    print!("{md}");
+    let text = serde_json::to_string_pretty(&report)?;
+    dhoit_runtime::tensors::write_atomic(&a.out.join("versus.json"), text.as_bytes())?;
+    dhoit_runtime::tensors::write_atomic(&a.out.join("versus.md"), md.as_bytes())?;
+    let mut plots = Vec::new();
+    for b in &report.budgets {
+        let pts: Vec<TradePoint> = b
+            .points
+            .iter()
+            .map(|p| TradePoint {
+                // A mean over fewer frames says so: it is not the others' mean.
+                label: match p.frames.len() == b.frames {
+                    true => p.method.clone(),
+                    false => format!("{} ({} of {} frames)", p.method, p.frames.len(), b.frames),
+                },
+                time_ms: p.gpu_ms,
+                mse: p.mse,
+                flip: p.flip,
+                front: p.front,
+            })
+            .collect();
+        let stem = a.out.join(format!("versus_{}", file_part(b.memory)));
+        let title = format!("every method at equal bytes, {}", b.budget);
+        let time = format!("GPU frame, ms ({})", report.adapter);
+        plots.extend(plot::trade(&stem, &title, &time, &pts));
+    }
+    if let Some(dir) = &a.summary {
+        dhoit_runtime::tensors::create_folder(dir)?;
+        dhoit_runtime::tensors::write_atomic(&dir.join("versus.json"), text.as_bytes())?;
+        dhoit_runtime::tensors::write_atomic(&dir.join("versus.md"), md.as_bytes())?;
+        for p in &plots {
+            let to = dir.join(p.file_name().context("a plot's name")?);
+            std::fs::copy(p, &to).with_context(|| format!("cannot copy {}", p.display()))?;
+        }
+    }
+    println!(
+        "versus.json, versus.md and {} plots -> {}",
+        plots.len(),
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// A memory as part of a file name, with no dot for the extension to take (`0.5` -> `0p5x`).
+fn file_part(memory: f64) -> String {
+    format!("{memory}x").replace('.', "p")
+}
+
+fn table(r: &Report) -> String {
+    let mut md = format!(
+        "# Every method at equal bytes\n\n`dhoit versus` on {} (views {:?}, {}), GPU frames \
+         timed on {}: one memory M for every method, a multiple of each frame's exact A-buffer \
+         bytes (each method's own F, moments or targets from its own layout; a method whose \
+         memory does not fit in M does not run there: *frames* counts where it did), a \
+         k-buffer rendering the exact A-buffer where that is no dearer. Geometric means over \
+         the frames a method ran (MSE against the exact A-buffer, floored at {:e}; FLIP its \
+         mean); *front*: no other method that ran every frame is as fast and as accurate in \
+         MSE and FLIP over the means (n/a: it ran fewer); *front frames*: the frames on which \
+         no other method is as fast and as accurate.\n",
+        r.scenes.join(", "),
+        r.views,
+        r.resolution,
+        r.adapter,
+        crate::compare::MSE_FLOOR
+    );
+    for b in &r.budgets {
+        md += &format!(
+            "\n## M = {}\n\n| method | frames | GPU ms | MSE | FLIP | bytes a pixel | exact \
+             frames | front | front frames |\n|---|---:|---:|---:|---:|---:|---:|---|---:|\n",
+            b.budget
+        );
+        for p in &b.points {
+            md += &format!(
+                "| {} | {} of {} | {:.2} | {:.3e} | {:.4} | {:.1} | {} of {} | {} | {} of {} |\n",
+                p.method,
+                p.frames.len(),
+                b.frames,
+                p.gpu_ms,
+                p.mse,
+                p.flip,
+                p.bytes_per_pixel,
+                p.frames.iter().filter(|f| f.exact).count(),
+                p.frames.len(),
+                match (p.front, p.frames.len() == b.frames) {
+                    (true, _) => "yes",
+                    (false, true) => "",
+                    (false, false) => "n/a",
+                },
+                p.front_frames,
+                p.frames.len()
+            );
+        }
+    }
+    md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::front;
+
+    #[test]
+    fn the_front_keeps_the_undominated() {
+        // (time, MSE, FLIP): the second is beaten by the first in all three, the third is
+        // fastest, the fourth most accurate; a tie dominates nothing.
+        let keys = [
+            [1.0, 1e-5, 0.1],
+            [2.0, 2e-5, 0.2],
+            [0.5, 1e-3, 0.3],
+            [5.0, 1e-7, 0.01],
+            [1.0, 1e-5, 0.1],
+        ];
+        assert_eq!(front(&keys), [true, false, true, true, true]);
+    }
+}
