@@ -155,7 +155,7 @@ pub fn run(a: VersusArgs) -> Result<()> {
         diagnostics: false,
         ..FrameOptions::default()
     };
-    for (name, s) in a.scenes.iter().zip(&loaded) {
+    for s in &loaded {
         for &view in &a.view_list {
             let (fl, _) = rasterize_view(s, view, &a.common)?;
             let (w, h) = (fl.width, fl.height);
@@ -194,7 +194,7 @@ pub fn run(a: VersusArgs) -> Result<()> {
                     }
                     let (flip, _) = image_io::flip(&exact8, &image_io::to_srgb8(&f.image), w, h);
                     measures[bi][mi].push(Measure {
-                        scene: name.clone(),
+                        scene: s.name.clone(),
                         view,
                         mse: f.image.mse(&exact.image),
                         flip,
@@ -214,7 +214,7 @@ pub fn run(a: VersusArgs) -> Result<()> {
         adapter: gpu.adapter.clone(),
         resolution: format!("{}x{}", a.common.res.width, a.common.res.height),
         views: a.view_list.clone(),
-        scenes: a.scenes.clone(),
+        scenes: loaded.iter().map(|s| s.name.clone()).collect(),
         budgets: Vec::new(),
     };
     for (bi, x) in a.memories.iter().enumerate() {
