@@ -51,6 +51,69 @@ pub(crate) struct ViewArgs {
     pub(crate) weights: Option<PathBuf>,
 }
 
+/// The engines' methods' own parameters, at their published defaults.
+#[derive(Args, Clone)]
+pub(crate) struct MethodParams {
+    /// MBOIT's moment bias: how far the normalized moments are pulled towards a symmetric
+    /// distribution before the reconstruction (the paper's 5e-7 for four power moments in 32
+    /// bits; in [0, 1)).
+    #[arg(long, default_value_t = 5e-7, value_parser = parse_unit_open)]
+    pub(crate) mboit_bias: f32,
+    /// MBOIT's overestimation: the share of a fragment's own absorbance that counts as in front
+    /// of it (the paper's 0.25; in [0, 1]).
+    #[arg(long, default_value_t = 0.25, value_parser = parse_unit)]
+    pub(crate) mboit_overestimation: f32,
+    /// The linked list's fragments a pixel sorted and blended in order at resolve, the rest as
+    /// a tail (Bevy's 8; 1 to 16).
+    #[arg(long, default_value_t = dhoit_runtime::composite::LIST_SORTED, value_parser = parse_list_sorted)]
+    pub(crate) list_sorted: u32,
+}
+
+impl MethodParams {
+    /// `o` with these parameters.
+    pub(crate) fn apply<'a>(
+        &self,
+        o: dhoit_runtime::frame::Options<'a>,
+    ) -> dhoit_runtime::frame::Options<'a> {
+        dhoit_runtime::frame::Options {
+            mboit: dhoit_runtime::composite::MboitParams {
+                bias: self.mboit_bias,
+                overestimation: self.mboit_overestimation,
+            },
+            list_sorted: self.list_sorted,
+            ..o
+        }
+    }
+}
+
+fn parse_unit_with(s: &str, open: bool) -> std::result::Result<f32, String> {
+    let v: f32 = s.parse().map_err(|_| format!("'{s}' is not a number"))?;
+    let ok = v.is_finite() && v >= 0.0 && if open { v < 1.0 } else { v <= 1.0 };
+    match ok {
+        true => Ok(v),
+        false if open => Err(format!("{v} is not in [0, 1)")),
+        false => Err(format!("{v} is not in [0, 1]")),
+    }
+}
+
+fn parse_unit(s: &str) -> std::result::Result<f32, String> {
+    parse_unit_with(s, false)
+}
+
+fn parse_unit_open(s: &str) -> std::result::Result<f32, String> {
+    parse_unit_with(s, true)
+}
+
+fn parse_list_sorted(s: &str) -> std::result::Result<u32, String> {
+    let max = dhoit_runtime::composite::LIST_MAX_SORTED;
+    match s.parse::<u32>() {
+        Ok(n) if (1..=max).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "'{s}': the linked list sorts 1 to {max} fragments a pixel"
+        )),
+    }
+}
+
 fn parse_rgb(s: &str) -> std::result::Result<[f32; 3], String> {
     let v: Vec<f32> = s
         .split(',')

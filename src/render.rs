@@ -32,6 +32,8 @@ pub struct RenderArgs {
     view: usize,
     #[command(flatten)]
     common: ViewArgs,
+    #[command(flatten)]
+    params: crate::args::MethodParams,
     /// Method (see `dhoit --help`).
     #[arg(long, default_value = "abuffer")]
     method: Method,
@@ -93,12 +95,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(dir) = &a.dump {
         tensors::create_folder(dir)?;
     }
-    let options = Options {
+    let options = a.params.apply(Options {
         weights: weights.as_ref(),
         equal: a.equal,
         exact_when_cheaper: !a.always_approximate,
         ..Options::new(budget, a.common.background)
-    };
+    });
     let renderer = Renderer::new(&fl, options);
     let mut gpu_fragments = None;
     let f = match a.device {

@@ -56,6 +56,8 @@ pub struct VersusArgs {
     summary: Option<PathBuf>,
     #[command(flatten)]
     common: ViewArgs,
+    #[command(flatten)]
+    params: crate::args::MethodParams,
 }
 
 /// One method on one frame.
@@ -165,10 +167,10 @@ pub fn run(a: VersusArgs) -> Result<()> {
                 .allocated_bytes(fl.pixel_count() as u64, fl.fragment_count() as u64);
             for (bi, &x) in a.memories.iter().enumerate() {
                 let m_bytes = (x * exact_bytes as f64).floor() as u64;
-                let opts = Options {
+                let opts = a.params.apply(Options {
                     weights: weights.as_ref(),
                     ..Options::new(Budget::Bytes(m_bytes), a.common.background)
-                };
+                });
                 let r = Renderer::new(&fl, opts);
                 let exact = r.render(Method::Abuffer)?;
                 let exact8 = image_io::to_srgb8(&exact.image);

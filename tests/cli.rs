@@ -296,6 +296,30 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
         &out,
     );
     expect_failure(
+        &base(&[
+            "--scene",
+            "shells",
+            "--method",
+            "mboit",
+            "--mboit-bias",
+            "1",
+        ]),
+        "is not in [0, 1)",
+        &out,
+    );
+    expect_failure(
+        &base(&[
+            "--scene",
+            "shells",
+            "--method",
+            "linked-list",
+            "--list-sorted",
+            "0",
+        ]),
+        "sorts 1 to 16 fragments a pixel",
+        &out,
+    );
+    expect_failure(
         &base(&["--scene", "shells", "--view", "9"]),
         "view 9 does not exist",
         &out,
