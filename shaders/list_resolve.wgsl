@@ -2,8 +2,8 @@
 // walked once; its nearest params.list_sorted keys are kept sorted in private memory (each
 // arriving key inserted, the one it pushes past the last place, or itself, added to the tail's
 // integer sums, as composite::Tail adds), then blended front to back over the tail's
-// approximation over what is behind the pixel (behind.wgsl): composite::hybrid_sorted of the
-// kept fragments with k = list_sorted.
+// approximation over what is behind the pixel (behind.wgsl; an application's own image in
+// `onto`): composite::hybrid_sorted of the kept fragments with k = list_sorted.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> heads: array<u32>;
@@ -14,16 +14,14 @@
 // MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word).
 @group(0) @binding(5) var<storage, read_write> status: array<atomic<u64>, 2>;
 
-@compute @workgroup_size(PIXEL_GROUP)
-fn main(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
-    if (p >= params.pixels) {
-        return;
-    }
+// A pixel's colour over `bg`, or ok false where its list is deeper than any method takes (the
+// frame is refused: status[1]).
+struct Resolved {
+    ok: bool,
+    color: vec3<f32>,
+}
+
+fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
     let s = params.list_sorted;
     var near: array<u64, LIST_MAX_SORTED>;
     var held = 0u;
@@ -40,7 +38,7 @@ fn main(
         n++;
         if (n > MAX_FRAGMENTS_PER_PIXEL) {
             atomicMax(&status[1], deepest_word(n, p));
-            return;
+            return Resolved(false, bg);
         }
         var carry = keys[node - 1u];
         node = next[node - 1u];
@@ -73,7 +71,6 @@ fn main(
         tail_n++;
     }
     // composite::Tail::over, then the sorted places front to back.
-    let bg = behind(p);
     var over = bg;
     if (tail_n > 0u && sums.w > 0u) {
         let a_avg = min(f32(sums.w) / (255.0 * f32(tail_n)), 1.0);
@@ -91,5 +88,44 @@ fn main(
     if (ticks > LOOP_BUDGET) {
         atomicMax(&status[0], 1lu);
     }
-    image[p] = vec4<f32>(c + t * over, 1.0);
+    return Resolved(true, c + t * over);
+}
+
+// dhoit's own frames: over what is behind the pixel, into the image buffer.
+@compute @workgroup_size(PIXEL_GROUP)
+fn main(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (p >= params.pixels) {
+        return;
+    }
+    let r = list_color(p, behind(p));
+    if (r.ok) {
+        image[p] = vec4<f32>(r.color, 1.0);
+    }
+}
+
+// An application's frame (gpu::ListOit::resolve): over its own image `under`, onto its target.
+@group(0) @binding(6) var under: texture_2d<f32>;
+@group(0) @binding(7) var onto_target: texture_storage_2d<rgba32float, write>;
+
+@compute @workgroup_size(PIXEL_GROUP)
+fn onto(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (p >= params.pixels) {
+        return;
+    }
+    let xy = vec2<u32>(p % params.width, p / params.width);
+    let bg = textureLoad(under, xy, 0).rgb;
+    let r = list_color(p, bg);
+    if (r.ok) {
+        textureStore(onto_target, xy, vec4<f32>(r.color, 1.0));
+    }
 }

@@ -26,6 +26,10 @@ pub mod shaders {
         pub includes: &'static [&'static str],
     }
 
+    /// The linked list's bindings and `oit_store` for an application's fragment shader
+    /// (`gpu::ListOit::wgsl`), its group index `OIT_GROUP` to be replaced.
+    pub const OIT_LIST_STORE: &str = include_str!("../../shaders/oit_list_store.wgsl");
+
     pub const PASSES: [Pass; 19] = [
         Pass {
             name: "opaque",

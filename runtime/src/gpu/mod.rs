@@ -29,6 +29,7 @@ mod buffers;
 mod capture;
 mod dkb;
 mod list;
+mod oit;
 mod passes;
 mod pipelines;
 mod predict;
@@ -39,6 +40,7 @@ mod vkb;
 use abuffer::Blend;
 pub use allocate::GpuAllocation;
 use buffers::{FrameBuffers, Readback, Statistics, read_frame, read_texture};
+pub use oit::{ListOit, TARGET_FORMATS};
 use passes::Passes;
 use pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT, Pipelines, TARGET_FORMAT};
 use timer::Timer;
@@ -406,21 +408,7 @@ impl Gpu {
         queue: wgpu::Queue,
         info: &wgpu::AdapterInfo,
     ) -> Result<Gpu> {
-        let features = required_features() - device.features();
-        let mut missing = Vec::new();
-        if !features.is_empty() {
-            missing.push(format!("{features:?}"));
-        }
-        required_limits().check_limits_with_fail_fn(&device.limits(), false, |name, need, has| {
-            missing.push(format!("{name} {has} (needs {need})"))
-        });
-        if !missing.is_empty() {
-            return Err(GpuError::DeviceLacks {
-                adapter: info.name.clone(),
-                missing: missing.join(", "),
-            }
-            .into());
-        }
+        check_device(&device, &info.name)?;
         Self::build(device, queue, info)
     }
 
@@ -541,6 +529,27 @@ impl<'a> Slots<'a> {
             }
         })
     }
+}
+
+/// Refuses a device without [`required_features`] or [`required_limits`], naming what it lacks
+/// (`adapter` names the device in the error).
+pub(super) fn check_device(device: &wgpu::Device, adapter: &str) -> Result<()> {
+    let features = required_features() - device.features();
+    let mut missing = Vec::new();
+    if !features.is_empty() {
+        missing.push(format!("{features:?}"));
+    }
+    required_limits().check_limits_with_fail_fn(&device.limits(), false, |name, need, has| {
+        missing.push(format!("{name} {has} (needs {need})"))
+    });
+    if !missing.is_empty() {
+        return Err(GpuError::DeviceLacks {
+            adapter: adapter.to_string(),
+            missing: missing.join(", "),
+        }
+        .into());
+    }
+    Ok(())
 }
 
 /// The allocation pass's weight kind for a target (`Alloc.kind` in allocate.wgsl).

@@ -1,0 +1,398 @@
+//! dhoit's linked list in an application's own renderer, written as an outside user would: its
+//! own device, vertex buffer and layout, WGSL vertex and fragment shaders (the fragment shader
+//! ending in dhoit's `oit_store`), its own image under the transparency and its own target.
+//! The image must be the one dhoit's own renderer gives for the same frame. Needs a GPU adapter
+//! (lavapipe in CI); DHOIT_SKIP_GPU=1 skips explicitly.
+
+mod common;
+
+use common::{gpu, identity, quad};
+use dhoit_runtime::gpu::{self, ListOit, Slots};
+use dhoit_runtime::scene::Scene;
+
+const BG: [f32; 3] = [0.9, 0.85, 0.8];
+
+/// The application's device, with dhoit's features and limits.
+fn app_device() -> (wgpu::Device, wgpu::Queue) {
+    let instance = wgpu::Instance::default();
+    let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+    pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        required_features: gpu::required_features(),
+        required_limits: gpu::required_limits(),
+        ..Default::default()
+    }))
+    .unwrap()
+}
+
+/// The application's shaders: positions already in clip space, a colour a vertex, no shading.
+const APP_SHADER: &str = r#"
+struct V {
+    @builtin(position) position: vec4<f32>,
+    @location(0) @interpolate(flat) color: vec4<f32>,
+};
+
+@vertex
+fn vs(@location(0) p: vec3<f32>, @location(1) c: vec4<f32>) -> V {
+    return V(vec4<f32>(p, 1.0), c);
+}
+
+@fragment
+fn fs(in: V) {
+    oit_store(in.position, in.color);
+}
+
+@fragment
+fn fs_opaque(in: V) -> @location(0) vec4<f32> {
+    return in.color;
+}
+"#;
+
+/// Renders `s` (seen through the identity camera) with the application's pipeline and dhoit's
+/// list; returns the target's RGB, row-major.
+fn app_frame(s: &Scene, (w, h): (u32, u32), nodes: u64, sorted: u32) -> Vec<[f32; 3]> {
+    let (device, queue) = app_device();
+    let oit = ListOit::new(&device, &queue, (w, h), nodes, sorted).unwrap();
+    // Interleaved position (3 floats) and colour (4 floats), its own layout: the opaque
+    // triangles first, then the transparent ones.
+    let mut vertices: Vec<f32> = Vec::new();
+    let opaque = |t: usize| {
+        s.materials[s.triangle_material[t] as usize].coverage
+            == dhoit_runtime::scene::Coverage::Opaque
+    };
+    let triangles = s.positions.len() / 3;
+    let order: Vec<usize> = (0..triangles)
+        .filter(|&t| opaque(t))
+        .chain((0..triangles).filter(|&t| !opaque(t)))
+        .collect();
+    let opaque_vertices = 3 * (0..triangles).filter(|&t| opaque(t)).count() as u32;
+    for &t in &order {
+        for v in 3 * t..3 * t + 3 {
+            let (p, c) = (s.positions[v], s.colors[v]);
+            vertices.extend_from_slice(&[p.x, p.y, p.z]);
+            vertices.extend_from_slice(&c);
+        }
+    }
+    let vbuf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("app vertices"),
+        size: (4 * vertices.len()) as u64,
+        usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    queue.write_buffer(&vbuf, 0, bytemuck::cast_slice(&vertices));
+    let src = ListOit::wgsl(1) + APP_SHADER;
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("app transparent"),
+        source: wgpu::ShaderSource::Wgsl(src.into()),
+    });
+    // Group 0 is the application's (empty here); dhoit's at 1, as it chose.
+    let own = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("app"),
+        entries: &[],
+    });
+    let own_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("app"),
+        layout: &own,
+        entries: &[],
+    });
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("app transparent"),
+        bind_group_layouts: &[Some(&own), Some(oit.bind_group_layout())],
+        immediate_size: 0,
+    });
+    let vertex_layout = [Some(wgpu::VertexBufferLayout {
+        array_stride: 28,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4],
+    })];
+    // Its opaque pass writes colour and depth; its transparent pass writes neither: the
+    // fragments go to dhoit's list, which tests them against that depth (the occluder).
+    // The opaque pass has its own layout, without dhoit's group (whose depth texture it writes).
+    let opaque_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("app opaque"),
+        bind_group_layouts: &[Some(&own)],
+        immediate_size: 0,
+    });
+    let pipeline_for = |entry: &str, format, depth: bool, writes| {
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(entry),
+            layout: Some(if depth { &opaque_layout } else { &layout }),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs"),
+                compilation_options: Default::default(),
+                buffers: &vertex_layout,
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: depth.then(|| wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format,
+                    blend: None,
+                    write_mask: writes,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+    };
+    let opaque_pipeline = pipeline_for(
+        "fs_opaque",
+        wgpu::TextureFormat::Rgba32Float,
+        true,
+        wgpu::ColorWrites::ALL,
+    );
+    // A target the transparent pass never writes: a render pass needs an attachment.
+    let pipeline = pipeline_for(
+        "fs",
+        wgpu::TextureFormat::R8Unorm,
+        false,
+        wgpu::ColorWrites::empty(),
+    );
+    let texture = |label, format, usage| {
+        device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    };
+    // Its opaque image (here the background alone), its target, and a render target for the
+    // transparent pass, which writes no colour.
+    let f32x4 = wgpu::TextureFormat::Rgba32Float;
+    let under = texture(
+        "app image",
+        f32x4,
+        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT,
+    );
+    let target = texture(
+        "app target",
+        f32x4,
+        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+    );
+    let raster = texture(
+        "app raster",
+        wgpu::TextureFormat::R8Unorm,
+        wgpu::TextureUsages::RENDER_ATTACHMENT,
+    );
+    // Its opaque depth, dhoit's occluder.
+    let depth = texture(
+        "app depth",
+        wgpu::TextureFormat::Depth32Float,
+        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+    );
+    let depth_view = depth.create_view(&Default::default());
+    let oit_group = oit.bind_group(&depth_view);
+    let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+    let mut enc = device.create_command_encoder(&Default::default());
+    {
+        let clear = wgpu::Color {
+            r: BG[0] as f64,
+            g: BG[1] as f64,
+            b: BG[2] as f64,
+            a: 1.0,
+        };
+        let under_view = view(&under);
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("app opaque"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &under_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(clear),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            ..Default::default()
+        });
+        pass.set_pipeline(&opaque_pipeline);
+        pass.set_bind_group(0, &own_group, &[]);
+        pass.set_vertex_buffer(0, vbuf.slice(..));
+        pass.draw(0..opaque_vertices, 0..1);
+    }
+    oit.clear(&mut enc);
+    {
+        let raster_view = view(&raster);
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("app transparent"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &raster_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                    store: wgpu::StoreOp::Discard,
+                },
+            })],
+            ..Default::default()
+        });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &own_group, &[]);
+        pass.set_bind_group(1, &oit_group, &[]);
+        pass.set_vertex_buffer(0, vbuf.slice(..));
+        pass.draw(opaque_vertices..s.positions.len() as u32, 0..1);
+    }
+    oit.resolve(&mut enc, &view(&under), &view(&target), f32x4)
+        .unwrap();
+    let row = (16 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("app readback"),
+        size: (row * h) as u64,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    enc.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture: &target,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer: &staging,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(h),
+            },
+        },
+        target.size(),
+    );
+    queue.submit([enc.finish()]);
+    staging
+        .slice(..)
+        .map_async(wgpu::MapMode::Read, |r| r.unwrap());
+    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let data = staging.slice(..).get_mapped_range().unwrap();
+    let floats: &[f32] = bytemuck::cast_slice(&data);
+    (0..h as usize)
+        .flat_map(|y| {
+            (0..w as usize).map(move |x| {
+                let i = y * row as usize / 4 + 4 * x;
+                [floats[i], floats[i + 1], floats[i + 2]]
+            })
+        })
+        .collect()
+}
+
+#[test]
+fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
+    let Some(g) = gpu() else { return };
+    let (w, h) = (64, 48);
+    // Overlapping quads of several colours, opacities and depths, facing the camera (dhoit's
+    // scenes are lit by a headlight, which the application's shader does not model: facing it,
+    // the light is 1).
+    let mut s = Scene::default();
+    for i in 0..7 {
+        let f = i as f32;
+        let c = [
+            (f * 0.37) % 1.0,
+            (f * 0.61) % 1.0,
+            1.0 - f / 7.0,
+            0.25 + 0.1 * f,
+        ];
+        let x0 = -0.9 + 0.15 * f;
+        let z = 0.2 + 0.1 * f;
+        quad(&mut s, (x0, -0.8 + 0.1 * f, x0 + 1.0, 0.7), (z, z), c);
+    }
+    // The application's opaque occluder, between the layers: what is behind it is hidden.
+    // Its colour is 8-bit exact (dhoit's opaque image is RGBA8).
+    s.materials.push(dhoit_runtime::scene::Material {
+        coverage: dhoit_runtime::scene::Coverage::Opaque,
+        ..Default::default()
+    });
+    let occluder = [51.0 / 255.0, 102.0 / 255.0, 153.0 / 255.0, 1.0];
+    let (a, b) = (
+        glam::Vec3::new(-0.5, -0.5, 0.55),
+        glam::Vec3::new(0.3, -0.5, 0.55),
+    );
+    let (c, d) = (
+        glam::Vec3::new(0.3, 0.2, 0.55),
+        glam::Vec3::new(-0.5, 0.2, 0.55),
+    );
+    s.push_textured([a, b, c], [occluder; 3], [[0.0; 2]; 3], 1);
+    s.push_textured([a, c, d], [occluder; 3], [[0.0; 2]; 3], 1);
+    let total = g
+        .render(&s, &identity(), w, h, BG, None)
+        .unwrap()
+        .fragments
+        .unwrap()
+        .fragment_count() as u64;
+    assert!(total > 2 * (w * h) as u64 / 2, "{total} fragments");
+    for sorted in [8, 2] {
+        // A pool that holds every fragment: which arrive first does not matter.
+        let nodes = total + 5;
+        let harness = g
+            .render(
+                &s,
+                &identity(),
+                w,
+                h,
+                BG,
+                Some(Slots::LinkedList { nodes, sorted }),
+            )
+            .unwrap();
+        let app = app_frame(&s, (w, h), nodes, sorted);
+        let worst = app
+            .iter()
+            .zip(&harness.image.data)
+            .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0f32, f32::max))
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst <= 1e-5,
+            "sorted {sorted}: the application's image differs by {worst}"
+        );
+        // Not the background: the application's fragments reached the list.
+        let covered = app.iter().filter(|c| (c[0] - BG[0]).abs() > 1e-3).count();
+        assert!(covered > (w * h / 2) as usize, "{covered} pixels covered");
+    }
+}
+
+#[test]
+fn the_list_refuses_what_it_cannot_hold_or_write() {
+    let (device, queue) = app_device();
+    assert!(ListOit::new(&device, &queue, (0, 48), 16, 8).is_err());
+    assert!(ListOit::new(&device, &queue, (64, 48), 0, 8).is_err());
+    assert!(ListOit::new(&device, &queue, (64, 48), 16, 0).is_err());
+    assert!(ListOit::new(&device, &queue, (64, 48), 16, 17).is_err());
+    let big = ListOit::new(&device, &queue, (64, 48), 1 << 40, 8);
+    assert!(big.is_err(), "a pool over 32-bit node indices");
+    // A device without dhoit's features is named as lacking them.
+    let instance = wgpu::Instance::default();
+    let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+    let (plain, plain_queue) =
+        pollster::block_on(adapter.request_device(&Default::default())).unwrap();
+    let e = ListOit::new(&plain, &plain_queue, (64, 48), 16, 8)
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("opened without"), "{e}");
+    let oit = ListOit::new(&device, &queue, (4, 4), 16, 8).unwrap();
+    assert_eq!(oit.allocated_bytes(), 4 * 16 + 12 * 16 + 48);
+    assert_eq!(oit.nodes(), 16);
+}
