@@ -19,21 +19,29 @@
 
 // Pixel p's stored fragments, keys[start..end).
 struct Stored {
+    p: u32,
     start: u32,
     end: u32,
-    // False where the pixel holds more than MAX_FRAGMENTS_PER_PIXEL: the frame is refused (its
-    // depth is reported), and no sort of that length runs.
+    // False past the frame's last pixel, and where the pixel holds more than
+    // MAX_FRAGMENTS_PER_PIXEL: the frame is refused (its depth is reported), and no sort of that
+    // length runs.
     ok: bool,
 }
 
-fn stored(p: u32) -> Stored {
+// The pixel of an invocation of a resolve (dispatched as gpu::grid's 2-D grid) and its stored
+// range.
+fn stored(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> Stored {
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (p >= params.pixels) {
+        return Stored(p, 0u, 0u, false);
+    }
     let start = offsets[p];
     let end = offsets[p + 1u];
     if (end - start > MAX_FRAGMENTS_PER_PIXEL) {
         atomicMax(&status[1], deepest_word(end - start, p));
-        return Stored(start, end, false);
+        return Stored(p, start, end, false);
     }
-    return Stored(start, end, true);
+    return Stored(p, start, end, true);
 }
 
 // The pixel's colour into the image, and whether its loops came close to the device's limit.

@@ -18,14 +18,11 @@ fn main(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
-    if (p >= params.pixels) {
-        return;
-    }
-    let list = stored(p);
+    let list = stored(wid, nwg, lid);
     if (!list.ok) {
         return;
     }
+    let p = list.p;
     let start = list.start;
     let end = list.end;
     if (end == start) {

@@ -5,30 +5,18 @@
 
 mod common;
 
-use common::{gpu, identity, quad};
-use dhoit_runtime::budget::Budget;
+use common::{gpu, identity, layer};
 use dhoit_runtime::composite::{self, Image};
 use dhoit_runtime::fragment::Fragment;
-use dhoit_runtime::frame::{self, Method, Options};
+use dhoit_runtime::frame::Method;
 use dhoit_runtime::gpu::Slots;
 use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::Scene;
 
 const BG: [f32; 3] = [0.9, 0.85, 0.8];
 
-/// A full-frame quad at depth `z`.
-fn layer(s: &mut Scene, z: f32, c: [f32; 4]) {
-    quad(s, (-1.0, -1.0, 1.0, 1.0), (z, z), c);
-}
-
 fn render(fl: &dhoit_runtime::fragment::FragmentLists, m: Method) -> Image {
-    frame::render(
-        fl,
-        m,
-        Options::new(Budget::SlotsPerPixel(1.0), BG).always_approximate(),
-    )
-    .unwrap()
-    .image
+    common::render_one_fpp(fl, m, BG)
 }
 
 #[test]

@@ -186,6 +186,29 @@ pub fn cpu_and_gpu_frames(
     out
 }
 
+/// A full-frame quad at depth `z` (seen through [`identity`]).
+pub fn layer(s: &mut dhoit_runtime::scene::Scene, z: f32, c: [f32; 4]) {
+    quad(s, (-1.0, -1.0, 1.0, 1.0), (z, z), c);
+}
+
+/// `fl` rendered by `m` on the CPU at one slot a pixel, the method's own approximation
+/// (no budget decides the methods without slots).
+pub fn render_one_fpp(
+    fl: &dhoit_runtime::fragment::FragmentLists,
+    m: dhoit_runtime::frame::Method,
+    bg: [f32; 3],
+) -> dhoit_runtime::composite::Image {
+    use dhoit_runtime::budget::Budget;
+    use dhoit_runtime::frame::Options;
+    dhoit_runtime::frame::render(
+        fl,
+        m,
+        Options::new(Budget::SlotsPerPixel(1.0), bg).always_approximate(),
+    )
+    .unwrap()
+    .image
+}
+
 /// `n` full-frame quads stacked along view 0's direction (25 degrees up, azimuth 0.5 rad),
 /// 0.02 apart, each its own colour at opacity 0.25: a frame as deep as `n` at every pixel,
 /// whatever its size.
