@@ -258,7 +258,7 @@ fn app_frame(s: &Scene, (w, h): (u32, u32), nodes: u64, sorted: u32) -> Vec<[f32
         pass.set_vertex_buffer(0, vbuf.slice(..));
         pass.draw(opaque_vertices..s.positions.len() as u32, 0..1);
     }
-    oit.resolve(&mut enc, &view(&under), &view(&target), f32x4)
+    oit.resolve(&mut enc, &view(&under), &view(&target), f32x4, None)
         .unwrap();
     let row = (16 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
     let staging = device.create_buffer(&wgpu::BufferDescriptor {

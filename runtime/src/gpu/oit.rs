@@ -37,7 +37,7 @@
 //! // Once: let group = oit.bind_group(&its_opaque_depth_view). Per frame: oit.clear(&mut
 //! // encoder); its opaque pass; its transparent draws with `group` at group 0 (no depth
 //! // attachment needed: oit_store tests the opaque depth); oit.resolve(&mut encoder,
-//! // &its_opaque_image, &its_target, format).
+//! // &its_opaque_image, &its_target, format, None).
 //! # let _ = module;
 //! # Ok::<(), dhoit_runtime::Error>(())
 //! ```
@@ -271,13 +271,15 @@ impl ListOit {
     /// Composites the frame's list over the application's image `under` (a float-sampled
     /// texture of the frame's size: its opaque pass) onto `target`, a storage texture of the
     /// frame's size in one of [`TARGET_FORMATS`] (it may be a copy the application blits or
-    /// presents).
+    /// presents). `timestamps`, where given, time the resolve's compute pass in the
+    /// application's query set.
     pub fn resolve(
         &self,
         enc: &mut wgpu::CommandEncoder,
         under: &wgpu::TextureView,
         target: &wgpu::TextureView,
         format: wgpu::TextureFormat,
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
     ) -> Result<()> {
         let pipeline = self.resolve_for(format)?;
         let mut entries: Vec<wgpu::BindGroupEntry> = self
@@ -305,7 +307,7 @@ impl ListOit {
         let (gx, gy) = grid(self.width * self.height, PIXEL_GROUP);
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("dhoit linked list resolve"),
-            timestamp_writes: None,
+            timestamp_writes: timestamps,
         });
         pass.set_pipeline(&pipeline);
         pass.set_bind_group(0, &group, &[]);
