@@ -663,9 +663,9 @@ fn gpu_bench(
             return serde_json::json!({ "error": e.to_string() });
         }
     };
-    eprintln!("GPU: {}", gpu.adapter);
+    eprintln!("GPU: {}", gpu.adapter());
     let nets = bench_nets(&gpu);
-    let summary = |scenes: &[serde_json::Value]| serde_json::json!({"adapter": gpu.adapter, "width": w, "height": h, "budget": budget.to_string(), "weights": nets.weights, "weights_16_8": nets.small_weights, "scenes": scenes});
+    let summary = |scenes: &[serde_json::Value]| serde_json::json!({"adapter": gpu.adapter(), "width": w, "height": h, "budget": budget.to_string(), "weights": nets.weights, "weights_16_8": nets.small_weights, "scenes": scenes});
     let mut scenes = Vec::new();
     for (name, s) in loaded {
         let run = || -> Result<serde_json::Value> {

@@ -10,7 +10,7 @@ pub fn run(a: PredictArgs) -> Result<()> {
         return Ok(dhoit_train::cli::predict(a)?);
     }
     let gpu = Gpu::new()?;
-    eprintln!("predict: on {}", gpu.adapter);
+    eprintln!("predict: on {}", gpu.adapter());
     Ok(dhoit_train::cli::predict_with(&a, &|mlp, rows| {
         Ok(gpu.predict(mlp, rows)?)
     })?)

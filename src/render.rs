@@ -110,7 +110,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             // allocations); nothing is composited on the CPU.
             let cpu = renderer.allocate_for_gpu(method)?;
             let gpu = Gpu::new()?;
-            eprintln!("GPU: {}", gpu.adapter);
+            eprintln!("GPU: {}", gpu.adapter());
             let (w, h) = (fl.width, fl.height);
             let cam = Camera::orbit(&scene, a.view, a.common.views, w, h);
             let slots = Slots::for_method(method, &cpu, &options)?;

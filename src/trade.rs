@@ -346,7 +346,7 @@ enum Timer {
 impl Timer {
     fn name(&self) -> String {
         match self {
-            Timer::Gpu(g) => format!("gpu timestamps: {}", g.adapter),
+            Timer::Gpu(g) => format!("gpu timestamps: {}", g.adapter()),
             Timer::Cpu => format!("cpu twin ({} threads)", rayon::current_num_threads()),
         }
     }
@@ -527,7 +527,7 @@ pub fn trade(a: TradeArgs) -> Result<()> {
         // The adapter's short name: "llvmpipe (LLVM ...)" -> "llvmpipe".
         Timer::Gpu(g) => format!(
             "importance pass, ms (GPU timestamps, {})",
-            g.adapter.split(" (").next().unwrap_or("GPU")
+            g.adapter().split(" (").next().unwrap_or("GPU")
         ),
         Timer::Cpu => "importance pass, ms (CPU twin)".to_string(),
     };

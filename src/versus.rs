@@ -146,7 +146,7 @@ pub fn run(a: VersusArgs) -> Result<()> {
     let weights = load_weights(&a.common, None, methods.contains(&Method::Dkb))?;
     let loaded = load_scenes(&a.scenes, &a.common)?;
     let gpu = Gpu::new().context("versus times every method's GPU frame")?;
-    eprintln!("versus: GPU frames timed on {}", gpu.adapter);
+    eprintln!("versus: GPU frames timed on {}", gpu.adapter());
     dhoit_runtime::tensors::create_folder(&a.out)?;
     let steps = a.scenes.len() * a.view_list.len() * a.memories.len();
     let pb = bar(steps as u64, "frames");
@@ -213,7 +213,7 @@ pub fn run(a: VersusArgs) -> Result<()> {
     let floor = crate::compare::MSE_FLOOR;
     let geomean = |v: Vec<f64>| crate::compare::geomean(&v);
     let mut report = Report {
-        adapter: gpu.adapter.clone(),
+        adapter: gpu.adapter().to_string(),
         resolution: format!("{}x{}", a.common.res.width, a.common.res.height),
         views: a.view_list.clone(),
         scenes: loaded.iter().map(|s| s.name.clone()).collect(),

@@ -347,7 +347,7 @@ fn the_f16_math_network_stays_within_its_bounds_of_f32_and_its_twin() {
             assert!(e.contains("SHADER_F16") && e.contains("f16-math"), "{e}");
             eprintln!(
                 "{} lacks SHADER_F16 (refused: {e}): its f16-math pass is not compared",
-                g.adapter
+                g.adapter()
             );
         }
         g.has_half_math()

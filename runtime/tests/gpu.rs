@@ -976,7 +976,7 @@ fn network_inputs(
 fn dkb_frames_run_the_f16_math_network_like_its_twin() {
     use dhoit_runtime::mlp::{self, Mlp, Precision};
     let Some(g) = gpu() else { return };
-    assert!(g.has_half_math(), "{} lacks SHADER_F16", g.adapter);
+    assert!(g.has_half_math(), "{} lacks SHADER_F16", g.adapter());
     let f32_net = Mlp::load(std::path::Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../data/weights.safetensors"
@@ -1249,7 +1249,7 @@ fn a_pixel_too_deep_for_the_devices_loops_is_refused_not_wrong() {
     }
     let cam = common::identity();
     let r = g.render_method(&s, &cam, 4, 4, BG, None);
-    if g.bounded_loops {
+    if g.bounded_loops() {
         let Err(e) = r else {
             panic!("lavapipe cannot sort 600 fragments a pixel, yet it returned a frame")
         };
@@ -1544,7 +1544,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
     // lavapipe's 128 MiB bindings and renders here. 8K needs larger bindings than lavapipe
     // offers: there the frame is refused before anything is allocated, with the numbers; on
     // a device with larger bindings it is checked like the others.
-    let limit = g.device.limits().max_storage_buffer_binding_size;
+    let limit = g.device().limits().max_storage_buffer_binding_size;
     for (w, h) in [(2400u32, 2300u32), (3840, 2160), (7680, 4320)] {
         let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
         let px = w as u64 * h as u64;
@@ -1698,7 +1698,7 @@ fn cpu_and_gpu_rasterizers_agree_on_depth_and_coverage() {
     // interpolated so. There the bounds are the snapping's: 1e-2 for the worst fragment,
     // 1e-3 for all but the worst 1%, and the median within a few ulps.
     let Some(g) = gpu() else { return };
-    let (max_bound, p99_bound, median_bound) = if g.adapter.contains("llvmpipe") {
+    let (max_bound, p99_bound, median_bound) = if g.adapter().contains("llvmpipe") {
         (5e-5, 5e-5, 5e-5)
     } else {
         (1e-2, 1e-3, 2e-5)
@@ -1850,7 +1850,7 @@ fn the_renderer_runs_on_the_applications_device() {
     );
     let (d, q) = open(features, limits);
     let app = dhoit_runtime::gpu::Gpu::on_device(d.clone(), q.clone(), &info).unwrap();
-    assert!(app.device == d);
+    assert!(*app.device() == d);
     let (s, cam) = frame("particles", 1, 96, 72);
     let fl = rasterize(&s, &cam, 96, 72).unwrap();
     let mlp = dhoit_runtime::mlp::Mlp::random(4);

@@ -121,10 +121,10 @@ pub fn required_limits() -> wgpu::Limits {
 /// # Ok::<(), dhoit_runtime::Error>(())
 /// ```
 pub struct Gpu {
-    pub device: wgpu::Device,
-    pub queue: wgpu::Queue,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
     /// "name (backend, device type, driver)".
-    pub adapter: String,
+    adapter: String,
     timestamp_period: f32,
     pipelines: Pipelines,
     /// Whether the device computes in binary16 (`SHADER_F16`): the importance pass runs a
@@ -137,7 +137,7 @@ pub struct Gpu {
     /// Whether the device ends a shader invocation's loops early, silently (Mesa's lavapipe,
     /// after 65,535 iterations): then a frame whose passes came close to that (common.wgsl's
     /// LOOP_BUDGET) is refused. Other devices run loops to their end, and deep pixels render.
-    pub bounded_loops: bool,
+    bounded_loops: bool,
     /// Buffers of earlier frames, by label, reused when a frame asks for one of the same size
     /// and usage (cleared first, as a new buffer is), so a steady stream of frames creates
     /// none. Frames take their buffers out and put them back when done, so concurrent frames
@@ -303,6 +303,27 @@ impl Gpu {
 
     /// Whether the device runs networks deployed at [`Precision::F16Math`] (it has
     /// `SHADER_F16`).
+    /// "name (backend, device type, driver)".
+    pub fn adapter(&self) -> &str {
+        &self.adapter
+    }
+
+    /// The device the passes run on (the application's, with [`Gpu::on_device`]).
+    pub fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    /// The queue the frames are submitted to.
+    pub fn queue(&self) -> &wgpu::Queue {
+        &self.queue
+    }
+
+    /// Whether the device ends a shader invocation's loops early, silently (Mesa's lavapipe,
+    /// after 65,535 iterations): then a frame whose passes came close to that is refused.
+    pub fn bounded_loops(&self) -> bool {
+        self.bounded_loops
+    }
+
     pub fn has_half_math(&self) -> bool {
         self.half_math
     }
@@ -400,7 +421,7 @@ impl Gpu {
     /// }))
     /// .unwrap();
     /// let gpu = dhoit_runtime::gpu::Gpu::on_device(device.clone(), queue.clone(), &adapter.get_info())?;
-    /// assert!(gpu.adapter.contains(&adapter.get_info().name));
+    /// assert!(gpu.adapter().contains(&adapter.get_info().name));
     /// # Ok::<(), dhoit_runtime::Error>(())
     /// ```
     pub fn on_device(

@@ -55,7 +55,7 @@ pub fn gpu() -> Option<&'static Gpu> {
     static GPU: std::sync::OnceLock<Option<Gpu>> = std::sync::OnceLock::new();
     GPU.get_or_init(|| match Gpu::new() {
         Ok(g) => {
-            eprintln!("GPU tests on {}", g.adapter);
+            eprintln!("GPU tests on {}", g.adapter());
             Some(g)
         }
         Err(e) if std::env::var("DHOIT_SKIP_GPU").as_deref() == Ok("1") => {
