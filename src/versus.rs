@@ -377,6 +377,35 @@ fn table(r: &Report) -> String {
                 p.frames.len()
             );
         }
+        // Per scene: each method's MSE (its views' geometric mean), "-" where it did not fit.
+        md += &format!(
+            "\nPer scene, MSE:\n\n| scene | {} |\n|---|{}\n",
+            b.points
+                .iter()
+                .map(|p| p.method.as_str())
+                .collect::<Vec<_>>()
+                .join(" | "),
+            "---:|".repeat(b.points.len())
+        );
+        for scene in &r.scenes {
+            let cells: Vec<String> = b
+                .points
+                .iter()
+                .map(|p| {
+                    let v: Vec<f64> = p
+                        .frames
+                        .iter()
+                        .filter(|f| &f.scene == scene)
+                        .map(|f| f.mse.max(crate::compare::MSE_FLOOR))
+                        .collect();
+                    match v.is_empty() {
+                        true => "-".to_string(),
+                        false => format!("{:.2e}", crate::compare::geomean(&v)),
+                    }
+                })
+                .collect();
+            md += &format!("| {scene} | {} |\n", cells.join(" | "));
+        }
     }
     md
 }
