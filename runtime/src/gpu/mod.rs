@@ -301,8 +301,6 @@ impl Gpu {
         }
     }
 
-    /// Whether the device runs networks deployed at [`Precision::F16Math`] (it has
-    /// `SHADER_F16`).
     /// "name (backend, device type, driver)".
     pub fn adapter(&self) -> &str {
         &self.adapter
@@ -324,6 +322,8 @@ impl Gpu {
         self.bounded_loops
     }
 
+    /// Whether the device runs networks deployed at [`Precision::F16Math`] (it has
+    /// `SHADER_F16`).
     pub fn has_half_math(&self) -> bool {
         self.half_math
     }
