@@ -105,13 +105,12 @@ fn parse_unit_open(s: &str) -> std::result::Result<f32, String> {
 }
 
 fn parse_list_sorted(s: &str) -> std::result::Result<u32, String> {
-    let max = dhoit_runtime::composite::LIST_MAX_SORTED;
-    match s.parse::<u32>() {
-        Ok(n) if (1..=max).contains(&n) => Ok(n),
-        _ => Err(format!(
-            "'{s}': the linked list sorts 1 to {max} fragments a pixel"
-        )),
-    }
+    let n = s
+        .parse::<u32>()
+        .map_err(|_| format!("'{s}' is not a whole number of fragments a pixel"))?;
+    dhoit_runtime::composite::check_list_sorted(n)
+        .map(|()| n)
+        .map_err(|e| e.to_string())
 }
 
 fn parse_rgb(s: &str) -> std::result::Result<[f32; 3], String> {

@@ -305,6 +305,16 @@ pub const LIST_SORTED: u32 = 8;
 /// keeps them in a private array of this size.
 pub const LIST_MAX_SORTED: u32 = 16;
 
+/// Refuses a linked list's sorted count outside 1 to [`LIST_MAX_SORTED`], with the range.
+pub fn check_list_sorted(sorted: u32) -> crate::error::Result<()> {
+    if (1..=LIST_MAX_SORTED).contains(&sorted) {
+        return Ok(());
+    }
+    Err(crate::error::Error::Invalid(format!(
+        "the linked list sorts 1 to {LIST_MAX_SORTED} fragments a pixel, not {sorted}"
+    )))
+}
+
 /// Running sums of a hybrid tail in integers, exactly as the GPU's atomics add them: with
 /// 8-bit colour `c8` and alpha `a8`, `sum c8 a8` (units of 1/255^2), `sum a8` (units of 1/255)
 /// and the fragment count. Integer sums are exact and the same in every order; they hold up to

@@ -404,14 +404,8 @@ impl<'a> Renderer<'a> {
         if method == Method::Dkb && opts.weights.is_none() {
             return Err(no_weights());
         }
-        if method == Method::LinkedList
-            && !(1..=composite::LIST_MAX_SORTED).contains(&opts.list_sorted)
-        {
-            return Err(Error::Invalid(format!(
-                "the linked list sorts 1 to {} fragments a pixel, not {}",
-                composite::LIST_MAX_SORTED,
-                opts.list_sorted
-            )));
+        if method == Method::LinkedList {
+            composite::check_list_sorted(opts.list_sorted)?;
         }
         let budget = self.budget()?;
         // A k-buffer whose budget holds every fragment (F slots for them, or the bytes of the

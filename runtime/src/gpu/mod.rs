@@ -739,12 +739,7 @@ impl Gpu {
                 (0.into(), VkbParams::default(), m)
             }
             Some(Slots::LinkedList { nodes, sorted }) => {
-                if !(1..=crate::composite::LIST_MAX_SORTED).contains(&sorted) {
-                    return Err(Error::Invalid(format!(
-                        "the linked list sorts 1 to {} fragments a pixel, not {sorted}",
-                        crate::composite::LIST_MAX_SORTED
-                    )));
-                }
+                crate::composite::check_list_sorted(sorted)?;
                 (nodes.into(), VkbParams::default(), 0)
             }
             Some(Slots::PerPixel(_) | Slots::Wboit | Slots::Mboit(_)) | None => {
@@ -799,33 +794,16 @@ impl Gpu {
             Some(Slots::Wboit) => rec.abuffer(Blend::Wboit, width, height)?,
             Some(Slots::Mboit(_)) => rec.abuffer(Blend::Mboit, width, height)?,
             Some(Slots::LinkedList { nodes, .. }) => rec.linked_list(nodes, width, height)?,
-            Some(s) => {
-                let method = match s {
-                    Slots::Dkb(mlp, _) if opts.exact_when_cheaper => {
-                        Some((Method::Dkb, budget::DKB.for_network(mlp)))
-                    }
-                    Slots::Vkb(..) if opts.exact_when_cheaper => Some((Method::Vkb, budget::VKB)),
-                    _ => None,
-                };
-                if let Some((method, layout)) = method {
-                    // Counted first: the A-buffer where it is no dearer, else the method on
-                    // this count.
-                    let counted = rec.count()?;
-                    let f = budget.of(counted.total);
-                    exact = f >= counted.total
-                        || exact_is_no_dearer(method, &layout, px, f, counted.total);
-                    if exact {
-                        rec.abuffer_counted(counted, Blend::Exact, width, height)?
-                    } else {
-                        rec.counted = Some(counted);
-                        let k = rec.k_for(s, budget)?;
-                        rec.capture_and_resolve(s, k)?
-                    }
-                } else {
+            Some(s) => match rec.exact_when_cheaper(s, budget, (width, height))? {
+                Some(abuffer) => {
+                    exact = true;
+                    abuffer
+                }
+                None => {
                     let k = rec.k_for(s, budget)?;
                     rec.capture_and_resolve(s, k)?
                 }
-            }
+            },
         };
         let out = &rec.out;
         // The frame's passes finish first, so the readback's time is its own.
@@ -897,6 +875,37 @@ impl Gpu {
             capture_counts: rec.out.capture_counts,
             list_arrived: rec.out.list_arrived,
         })
+    }
+}
+
+impl Recording<'_, '_> {
+    /// [`FrameOptions::exact_when_cheaper`] for a DKB or VKB frame: counts first and renders
+    /// the A-buffer where that is no dearer (its image), else keeps the count for the method
+    /// (None). Other slots, or the option off: None, nothing recorded.
+    fn exact_when_cheaper(
+        &mut self,
+        s: Slots,
+        budget: FragmentBudget,
+        (width, height): (u32, u32),
+    ) -> Result<Option<wgpu::Buffer>> {
+        let (method, layout) = match s {
+            _ if !self.passes.opts.exact_when_cheaper => return Ok(None),
+            Slots::Dkb(mlp, _) => (Method::Dkb, budget::DKB.for_network(mlp)),
+            Slots::Vkb(..) => (Method::Vkb, budget::VKB),
+            _ => return Ok(None),
+        };
+        let counted = self.count()?;
+        let (f, n) = (budget.of(counted.total), counted.total);
+        if f >= n || exact_is_no_dearer(method, &layout, self.px, f, n) {
+            return Ok(Some(self.abuffer_counted(
+                counted,
+                Blend::Exact,
+                width,
+                height,
+            )?));
+        }
+        self.counted = Some(counted);
+        Ok(None)
     }
 }
 

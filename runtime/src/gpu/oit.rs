@@ -91,12 +91,7 @@ impl ListOit {
                 "a {width}x{height} frame has no pixels"
             )));
         }
-        let max = crate::composite::LIST_MAX_SORTED;
-        if !(1..=max).contains(&sorted) {
-            return Err(Error::Invalid(format!(
-                "the linked list sorts 1 to {max} fragments a pixel, not {sorted}"
-            )));
-        }
+        crate::composite::check_list_sorted(sorted)?;
         if nodes == 0 || nodes > u32::MAX as u64 - 1 {
             return Err(Error::Invalid(format!(
                 "a pool of {nodes} nodes: 1 to {} (node indices are 32-bit)",
