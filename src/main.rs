@@ -26,8 +26,9 @@ mod versus;
         k-buffer), dkb (deep k-buffer: the network's importance), optimal (the optimal \
         allocation), greedy-paper and greedy-increase (the paper's backward greedy, two heap \
         keys), mlab (multi-layer alpha blending), wboit (weighted blended OIT, McGuire and \
-        Bavoil 2013: fixed memory, no order), mboit (moment-based OIT, Munstermann et al. 2018: \
-        four power moments, fixed memory, no order), linked-list (a budgeted per-pixel linked \
+        Bavoil 2013: one pass into an RGBA16F and an R8 target, no sorting), mboit (moment-based \
+        OIT, Munstermann et al. 2018: four power moments in 32-bit targets, two passes), \
+        linked-list (a budgeted per-pixel linked \
         list, as Bevy ships it: fragments kept first come, first served until the budget's nodes \
         are spent, the rest dropped; the nearest 8 of a pixel sorted).\n\n\
         Budgets are bytes with units (20MB, 40MiB), average fragment slots per pixel (2fpp), or \

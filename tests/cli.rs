@@ -69,7 +69,7 @@ fn a_corrupt_dump_is_a_clear_error() {
 }
 
 #[test]
-fn shuffled_submission_gives_bit_identical_images() {
+fn shuffled_submission_gives_bit_identical_images_but_for_blended_targets_rounding() {
     let mlp = Mlp::random(8);
     for name in ["spheres", "particles", "plates"] {
         let s = scene::load(name, Opacity::default()).unwrap();
@@ -83,8 +83,6 @@ fn shuffled_submission_gives_bit_identical_images() {
                 Method::Vkb,
                 Method::Dkb,
                 Method::Optimal,
-                Method::Wboit,
-                Method::Mboit,
             ]
             .map(|m| {
                 let f = frame::render(&fl, m, opts(Budget::SlotsPerPixel(1.5), [1.0; 3], &mlp))
@@ -100,6 +98,22 @@ fn shuffled_submission_gives_bit_identical_images() {
         let base = images(None);
         for seed in [1, 2] {
             assert_eq!(images(Some(seed)), base, "{name}, shuffle {seed}");
+        }
+        // WBOIT and MBOIT add into binary16 (and WBOIT's 8-bit revealage) in submission order,
+        // as their targets do on a device: the order moves them by that rounding only.
+        let blended = |seed: Option<u64>, m| {
+            let sc = seed.map_or_else(|| s.clone(), |x| s.shuffled(x));
+            let fl = rasterize(&sc, &cam, 80, 60).unwrap();
+            frame::render(&fl, m, opts(Budget::SlotsPerPixel(1.5), [1.0; 3], &mlp))
+                .unwrap()
+                .image
+        };
+        for m in [Method::Wboit, Method::Mboit] {
+            let base = blended(None, m);
+            for seed in [1, 2] {
+                let d = blended(Some(seed), m).max_abs_diff(&base);
+                assert!(d <= 1e-2, "{name} {m}, shuffle {seed}: {d}");
+            }
         }
     }
     // Through the command line too: two seeds, identical PNGs.

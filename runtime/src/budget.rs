@@ -191,8 +191,8 @@ pub const MLAB: Layout = Layout {
 };
 
 /// Weighted blended OIT, as McGuire and Bavoil lay it out: an RGBA16F accumulation target and an
-/// R8 revealage target a pixel, no slot and no order (the GPU computes the same sums from the
-/// A-buffer's lists, with the A-buffer's memory, as it does MLAB's rows).
+/// R8 revealage target a pixel, no slot (the GPU's frame creates exactly these targets,
+/// `gpu::blend`).
 pub const WBOIT: Layout = Layout {
     method: "wboit",
     slot_bytes: SLOT_BYTES,
@@ -208,9 +208,8 @@ pub const WBOIT: Layout = Layout {
 
 /// Moment-based OIT, four power moments in 32 bits, as Munstermann et al. lay it out: an R32F
 /// target for b_0 and an RGBA32F one for b_1..b_4 (the first additive pass), an RGBA16F one for
-/// the transmittance-weighted colour and its weight (the second), no slot and no order (the GPU
-/// computes the same sums from the A-buffer's lists, with the A-buffer's memory, as it does
-/// WBOIT's and MLAB's).
+/// the transmittance-weighted colour and its weight (the second), no slot (the GPU's frame
+/// creates exactly these targets, `gpu::blend`).
 pub const MBOIT: Layout = Layout {
     method: "mboit",
     slot_bytes: SLOT_BYTES,

@@ -99,14 +99,15 @@ pub fn exact_pixel(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
 }
 
 /// WBOIT's weight of a fragment at window depth `z` with opacity `a` (McGuire and Bavoil 2013,
-/// eq. 10; wboit_resolve.wgsl's `weight`).
+/// eq. 10; wboit_accumulate.wgsl's `weight`).
 pub fn wboit_weight(z: f32, a: f32) -> f32 {
     let d = 1.0 - z;
     a * (3e3 * d * d * d).max(1e-2)
 }
 
-/// Weighted blended OIT of a pixel's fragments, summed front to back (the order changes the
-/// float sums only; the GPU sums in the same order, so the image does not depend on submission).
+/// Weighted blended OIT of a pixel's fragments in exact targets, summed front to back in f32:
+/// the paper's formula, which [`wboit_blended`] computes at the precision of the targets
+/// engines give it.
 pub fn wboit_sorted(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
     if frags.is_empty() {
         return bg;
@@ -124,6 +125,48 @@ pub fn wboit_sorted(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
         reveal *= 1.0 - a;
     }
     let inv = 1.0 / acc_a.clamp(1e-4, 5e4);
+    std::array::from_fn(|i| acc[i] * inv * (1.0 - reveal) + reveal * bg[i])
+}
+
+/// A value as a binary16 target stores it (round to nearest even): what a device's blend
+/// unit writes into an RGBA16F target after each fragment.
+fn to_binary16(v: f32) -> f32 {
+    half::f16::from_f32(v).to_f32()
+}
+
+/// Fragments in submission order: the order a device blends one draw's fragments into a pixel
+/// (primitive order), whatever order a list holds them in.
+fn in_submission_order(frags: &[Fragment]) -> Vec<Fragment> {
+    let mut v = frags.to_vec();
+    v.sort_by_key(|f| f.primitive);
+    v
+}
+
+/// WBOIT as engines ship it and the GPU renders it (`gpu::blend`): the fragments in submission
+/// order, each adding its weighted colour and weight into a binary16 accumulation (rounded to
+/// binary16 after each add, as the blend unit stores it) and multiplying an 8-bit revealage by
+/// `1 - a` (rounded to the nearest 1/255). [`wboit_sorted`]'s formula at its targets'
+/// precision: the rounding depends on the submission order, by at most a few binary16 steps of
+/// the accumulation and a few 1/255 of the revealage.
+pub fn wboit_blended(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
+    let mut acc = [0.0f32; 4];
+    let mut reveal8 = 255u32;
+    for f in in_submission_order(frags) {
+        let a = f.rgba[3];
+        let w = wboit_weight(f.depth, a);
+        let src = [
+            f.rgba[0] * a * w,
+            f.rgba[1] * a * w,
+            f.rgba[2] * a * w,
+            a * w,
+        ];
+        for (s, v) in acc.iter_mut().zip(src) {
+            *s = to_binary16(*s + v);
+        }
+        reveal8 = (reveal8 * (255 - to_unorm8(a)) + 127) / 255;
+    }
+    let reveal = reveal8 as f32 / 255.0;
+    let inv = 1.0 / acc[3].clamp(1e-4, 5e4);
     std::array::from_fn(|i| acc[i] * inv * (1.0 - reveal) + reveal * bg[i])
 }
 
@@ -182,7 +225,7 @@ pub fn mboit_absorbance(a: f32) -> f32 {
 /// `B = L D L^T`) gives the polynomial `c_0 + c_1 x + c_2 x^2` whose roots `z_1 <= z_2` are the
 /// other two points of the distribution; the quadratic through `(z, overestimation)`,
 /// `(z_1, [z_1 < z])`, `(z_2, [z_2 < z])`, integrated against the moments, is the share of the
-/// absorbance in front of `z`. mboit_resolve.wgsl's `transmittance`, operation for operation.
+/// absorbance in front of `z`. mboit.wgsl's `transmittance`, operation for operation.
 pub fn mboit_transmittance(b0: f32, b: [f32; 4], z: f32, p: MboitParams) -> f32 {
     (-b0 * mboit_share(b, z, p)).exp().clamp(0.0, 1.0)
 }
@@ -237,9 +280,9 @@ fn mboit_share(b: [f32; 4], z: f32, p: MboitParams) -> f32 {
     a0 + a1 * m[0] + a2 * m[1]
 }
 
-/// Moment-based OIT of a pixel's fragments, both passes summed front to back (the order
-/// changes the float sums only; the GPU sums in the same order, so the image does not depend
-/// on submission).
+/// Moment-based OIT of a pixel's fragments, both passes summed front to back in f32: the
+/// paper's passes in exact order, which [`mboit_blended`] computes in submission order with its
+/// colour target in binary16.
 pub fn mboit_sorted(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 3] {
     let mut b0 = 0.0f32;
     let mut b = [0.0f32; 4];
@@ -269,6 +312,41 @@ pub fn mboit_sorted(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 3
     let total = (-b0).exp();
     let inv = if w > 0.0 { 1.0 / w } else { 0.0 };
     std::array::from_fn(|i| (1.0 - total) * l[i] * inv + total * bg[i])
+}
+
+/// MBOIT as Munstermann et al. lay it out and the GPU renders it (`gpu::blend`): the fragments
+/// in submission order, b_0 and the moments added in f32 (their targets' precision), then each
+/// fragment's transmittance-weighted colour added into a binary16 target (rounded after each
+/// add). [`mboit_sorted`]'s passes at their targets' precision and order.
+pub fn mboit_blended(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 3] {
+    let frags = in_submission_order(frags);
+    let mut b0 = 0.0f32;
+    let mut b = [0.0f32; 4];
+    for f in &frags {
+        let a = mboit_absorbance(f.rgba[3]);
+        let z = 2.0 * f.depth - 1.0;
+        let z2 = z * z;
+        b0 += a;
+        b[0] += a * z;
+        b[1] += a * z2;
+        b[2] += a * z2 * z;
+        b[3] += a * z2 * z2;
+    }
+    if b0 < MBOIT_MIN_B0 {
+        return bg;
+    }
+    let m = b.map(|x| x / b0);
+    let mut acc = [0.0f32; 4];
+    for f in &frags {
+        let t = mboit_transmittance(b0, m, 2.0 * f.depth - 1.0, p) * f.rgba[3];
+        let src = [t * f.rgba[0], t * f.rgba[1], t * f.rgba[2], t];
+        for (s, v) in acc.iter_mut().zip(src) {
+            *s = to_binary16(*s + v);
+        }
+    }
+    let total = (-b0).exp();
+    let inv = if acc[3] > 0.0 { 1.0 / acc[3] } else { 0.0 };
+    std::array::from_fn(|i| (1.0 - total) * acc[i] * inv + total * bg[i])
 }
 
 /// The budgeted per-pixel linked list (as Bevy ships it) keeps fragments first come, first
@@ -470,13 +548,16 @@ pub fn composite(fl: &FragmentLists, method: Method, bg: [f32; 3]) -> Image {
                         scratch.extend(fl.fragments(p));
                         mlab_pixel(scratch, m, bg)
                     }
+                    // The blended methods at their targets' precision, in submission order.
                     Method::Wboit => {
-                        fl.sorted_into(p, scratch);
-                        wboit_sorted(scratch, bg)
+                        scratch.clear();
+                        scratch.extend(fl.fragments(p));
+                        wboit_blended(scratch, bg)
                     }
                     Method::Mboit(params) => {
-                        fl.sorted_into(p, scratch);
-                        mboit_sorted(scratch, bg, params)
+                        scratch.clear();
+                        scratch.extend(fl.fragments(p));
+                        mboit_blended(scratch, bg, params)
                     }
                 };
             }

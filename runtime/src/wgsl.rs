@@ -16,6 +16,8 @@ pub mod shaders {
     pub const SORT: &str = include_str!("../../shaders/sort.wgsl");
     /// What the resolves composite over (the opaque pass's colour, else the background).
     pub const BEHIND: &str = include_str!("../../shaders/behind.wgsl");
+    /// MBOIT's depth mapping and reconstruction, prepended to its two geometry passes.
+    pub const MBOIT: &str = include_str!("../../shaders/mboit.wgsl");
 
     /// One WGSL pass: its name, its source, and the shared code prepended to it after the
     /// prelude and COMMON: GEOMETRY (the vertex stage) for geometry passes, MLP for the passes
@@ -30,7 +32,7 @@ pub mod shaders {
     /// (`gpu::ListOit::wgsl`), its group index `OIT_GROUP` to be replaced.
     pub const OIT_LIST_STORE: &str = include_str!("../../shaders/oit_list_store.wgsl");
 
-    pub const PASSES: [Pass; 19] = [
+    pub const PASSES: [Pass; 21] = [
         Pass {
             name: "opaque",
             source: include_str!("../../shaders/opaque.wgsl"),
@@ -72,14 +74,24 @@ pub mod shaders {
             includes: &[SORT, BEHIND],
         },
         Pass {
-            name: "wboit_resolve",
-            source: include_str!("../../shaders/wboit_resolve.wgsl"),
-            includes: &[SORT, BEHIND],
+            name: "wboit_accumulate",
+            source: include_str!("../../shaders/wboit_accumulate.wgsl"),
+            includes: &[GEOMETRY],
         },
         Pass {
-            name: "mboit_resolve",
-            source: include_str!("../../shaders/mboit_resolve.wgsl"),
-            includes: &[SORT, BEHIND],
+            name: "mboit_moments",
+            source: include_str!("../../shaders/mboit_moments.wgsl"),
+            includes: &[GEOMETRY, MBOIT],
+        },
+        Pass {
+            name: "mboit_accumulate",
+            source: include_str!("../../shaders/mboit_accumulate.wgsl"),
+            includes: &[GEOMETRY, MBOIT],
+        },
+        Pass {
+            name: "blend_composite",
+            source: include_str!("../../shaders/blend_composite.wgsl"),
+            includes: &[BEHIND],
         },
         Pass {
             name: "list_store",

@@ -33,7 +33,7 @@ fn cpu_and_gpu_agree(g: &Gpu, s: &Scene, (w, h): (u32, u32), budget: Budget, wha
     for (m, cpu, gpu) in common::cpu_and_gpu_frames(g, s, &cam, &fl, opts, &common::CPU_AND_GPU) {
         let d = gpu.max_abs_diff(&cpu.image);
         assert!(
-            d <= TOLERANCE,
+            d <= common::twin_bound(m, TOLERANCE),
             "{what}, {}: CPU and GPU images differ by {d} (F = {})",
             m.name(),
             cpu.budget_fragments

@@ -1806,7 +1806,8 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
 /// atomics, or with wgpu's default limits, is refused with what it lacks named; one opened with
 /// `required_features()` and `required_limits()` (wgpu's defaults but for the storage buffers a
 /// stage binds) builds every pass and renders every method as dhoit's own device does, bit for
-/// bit, with the same bytes.
+/// bit, with the same bytes (MBOIT where the application also asks for `FLOAT32_BLENDABLE`;
+/// without it, MBOIT's frames are refused with the feature named).
 #[test]
 fn the_renderer_runs_on_the_applications_device() {
     let Some(g) = gpu() else { return };
@@ -1848,7 +1849,19 @@ fn the_renderer_runs_on_the_applications_device() {
         e.contains("max_storage_buffers_per_shader_stage 8 (needs 11)"),
         "{e}"
     );
-    let (d, q) = open(features, limits);
+    // Without FLOAT32_BLENDABLE every pass builds but MBOIT's, whose frames are refused with
+    // the feature named.
+    let (d, q) = open(features, limits.clone());
+    let plain = dhoit_runtime::gpu::Gpu::on_device(d, q, &info).unwrap();
+    let (s, cam) = frame("hair", 1, 32, 24);
+    let mboit = Slots::Mboit(Default::default());
+    let e = plain
+        .render(&s, &cam, 32, 24, [1.0; 3], Some(mboit))
+        .unwrap_err();
+    assert!(e.to_string().contains("FLOAT32_BLENDABLE"), "{e}");
+    let wboit = plain.render(&s, &cam, 32, 24, [1.0; 3], Some(Slots::Wboit));
+    assert!(wboit.is_ok());
+    let (d, q) = open(features | wgpu::Features::FLOAT32_BLENDABLE, limits);
     let app = dhoit_runtime::gpu::Gpu::on_device(d.clone(), q.clone(), &info).unwrap();
     assert!(*app.device() == d);
     let (s, cam) = frame("particles", 1, 96, 72);

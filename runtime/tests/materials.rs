@@ -306,11 +306,12 @@ fn materials_render_alike_on_cpu_and_gpu() {
                 };
                 let methods = &common::CPU_AND_GPU;
                 for (m, cpu, gpu) in common::cpu_and_gpu_frames(g, &s, &cam, &fl, opts, methods) {
-                    let (n, worst) = differing(&cpu.image, &gpu, IMAGE_BOUND);
+                    let bound = common::twin_bound(m, IMAGE_BOUND);
+                    let (n, worst) = differing(&cpu.image, &gpu, bound);
                     assert_eq!(
                         n, 0,
                         "{name} view {view} {budget} {m}: {n} pixels differ by more than \
-                         {IMAGE_BOUND} (worst {worst})"
+                         {bound} (worst {worst})"
                     );
                 }
             }

@@ -7,9 +7,10 @@
 mod common;
 
 use common::{gpu, identity, layer};
+use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::composite::{self, Image, MboitParams};
 use dhoit_runtime::fragment::Fragment;
-use dhoit_runtime::frame::Method;
+use dhoit_runtime::frame::{self, Method, Options};
 use dhoit_runtime::gpu::Slots;
 use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::{self, Camera, Scene};
@@ -19,6 +20,11 @@ const BG: [f32; 3] = [0.9, 0.85, 0.8];
 fn render(fl: &dhoit_runtime::fragment::FragmentLists, m: Method) -> Image {
     common::render_one_fpp(fl, m, BG)
 }
+
+/// The most a submission order moves an MBOIT pixel: the colour target's binary16 steps and the
+/// moments' float rounding, through a reconstruction that is ill-conditioned where surfaces
+/// lie close in depth.
+const ORDER_BOUND: f32 = 1e-2;
 
 /// The moments of `frags` as the first pass sums them: b_0 and b_1..b_4 / b_0.
 fn moments(frags: &[(f32, f32)]) -> (f32, [f32; 4]) {
@@ -105,12 +111,13 @@ fn mboit_reconstructs_two_surfaces_transmittance_as_the_paper_says() {
     assert!((at_far - ta).abs() < 2e-3, "{at_far}");
 }
 
-/// The GPU's image is the CPU twin's (on the GPU's own fragments), bit for bit the same under
-/// any submission order, and nearer the exact image than WBOIT's where two near opaque
-/// surfaces lie close in depth (WBOIT's weights barely differ there; the moments still place
-/// them).
+/// The GPU's image (b_0 and the moments in 32-bit float targets, the weighted colour in
+/// RGBA16F) is the CPU twin's at those targets' precision (on the GPU's own fragments), in every
+/// submission order; the order moves it only by the targets' rounding; and it is nearer the
+/// exact image than WBOIT's where two near opaque surfaces lie close in depth (WBOIT's weights
+/// barely differ there; the moments still place them).
 #[test]
-fn mboit_on_the_gpu_is_its_twin_order_free_and_better_than_wboit_where_opacity_is_high() {
+fn mboit_on_the_gpu_is_its_twin_in_every_order_and_better_than_wboit_where_opacity_is_high() {
     let Some(g) = gpu() else { return };
     let cam = identity();
     let (w, h) = (32, 24);
@@ -135,24 +142,40 @@ fn mboit_on_the_gpu_is_its_twin_order_free_and_better_than_wboit_where_opacity_i
             g.render(scene, cam, w, h, BG, Some(Slots::Mboit(p)))
                 .unwrap()
         };
-        let frame = gpu(s);
-        let own = frame
-            .fragments
-            .as_ref()
-            .expect("diagnostics read the fragments back");
-        let twin = composite::composite(own, composite::Method::Mboit(p), BG);
-        let diff = frame.image.max_abs_diff(&twin);
-        assert!(diff <= 1e-5, "{name}: GPU and twin differ by {diff}");
-        assert!(frame.image.data.iter().flatten().all(|c| c.is_finite()));
+        let twin = |scene: &Scene| {
+            let own = common::own_fragments(g, scene, cam, (w, h), BG);
+            composite::composite(&own, composite::Method::Mboit(p), BG)
+        };
         let fl = rasterize(s, cam, w, h).unwrap();
+        let bound = common::BLENDED_BOUND;
+        let frame = gpu(s);
+        // Its memory is its own targets', as its layout table counts them, on both sides.
+        let layout_bytes = budget::MBOIT.allocated_bytes(fl.pixel_count() as u64, 0);
+        assert_eq!(frame.allocated_bytes, layout_bytes, "{name}: GPU bytes");
+        let cpu = frame::render(
+            &fl,
+            Method::Mboit,
+            Options::new(Budget::SlotsPerPixel(1.0), BG),
+        );
+        assert_eq!(
+            cpu.unwrap().allocated_bytes,
+            layout_bytes,
+            "{name}: CPU bytes"
+        );
+        let diff = frame.image.max_abs_diff(&twin(s));
+        eprintln!("{name}: GPU and twin differ by {diff:e} (bound {bound:e})");
+        assert!(diff <= bound, "{name}: GPU and twin differ by {diff}");
+        assert!(frame.image.data.iter().flatten().all(|c| c.is_finite()));
+        let mut moved = 0.0f32;
         for seed in [1, 2] {
-            assert!(
-                gpu(&s.shuffled(seed)).image == frame.image,
-                "{name}: shuffle {seed}"
-            );
-            let shuffled = rasterize(&s.shuffled(seed), cam, w, h).unwrap();
-            assert!(render(&shuffled, Method::Mboit) == render(&fl, Method::Mboit));
+            let shuffled = s.shuffled(seed);
+            let image = gpu(&shuffled).image;
+            let diff = image.max_abs_diff(&twin(&shuffled));
+            assert!(diff <= bound, "{name}, shuffle {seed}: {diff}");
+            moved = moved.max(image.max_abs_diff(&frame.image));
         }
+        eprintln!("{name}: a submission order moves a pixel by up to {moved:e}");
+        assert!(moved <= ORDER_BOUND, "{name}: {moved}");
         let exact = render(&fl, Method::Abuffer);
         let (mb, wb) = (
             render(&fl, Method::Mboit).mse(&exact),

@@ -6,9 +6,10 @@
 mod common;
 
 use common::{gpu, identity, layer};
+use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::composite::{self, Image};
 use dhoit_runtime::fragment::Fragment;
-use dhoit_runtime::frame::Method;
+use dhoit_runtime::frame::{self, Method, Options};
 use dhoit_runtime::gpu::Slots;
 use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::Scene;
@@ -64,20 +65,24 @@ fn wboit_is_the_papers_formula() {
     assert_eq!(composite::wboit_sorted(&[], BG), BG);
 }
 
-/// One fragment a pixel: WBOIT is exact. Several: the GPU's image is the CPU twin's (on the
-/// GPU's own fragments), bit for bit the same under any submission order, and far from exact
-/// where near opaque surfaces lie close in depth, close where they are faint.
+/// One fragment a pixel: WBOIT is exact (to its binary16 accumulation). Several: the GPU's image (an RGBA16F accumulation and
+/// an R8 revealage, as engines lay WBOIT out) is the CPU twin's at those targets' precision (on
+/// the GPU's own fragments), in every submission order; the order moves it only by the targets'
+/// rounding; and it is far from exact where near opaque surfaces lie close in depth, close
+/// where they are faint.
 #[test]
-fn wboit_on_the_gpu_is_its_twin_order_free_and_wrong_where_opacity_is_high() {
+fn wboit_on_the_gpu_is_its_twin_in_every_order_and_wrong_where_opacity_is_high() {
     let Some(g) = gpu() else { return };
     let cam = identity();
     let (w, h) = (32, 24);
     let mut one = Scene::default();
     layer(&mut one, 0.4, [0.2, 0.6, 0.9, 0.7]);
     let fl = rasterize(&one, &cam, w, h).unwrap();
+    // Exact but for the binary16 accumulation's rounding of C a w and a w (2^-11 each).
     let d = render(&fl, Method::Wboit).max_abs_diff(&render(&fl, Method::Abuffer));
-    assert!(d < 1e-6, "one fragment: {d}");
+    assert!(d < 1e-3, "one fragment: {d}");
     let mut errors = Vec::new();
+    let mut moved = 0.0f32;
     // A red surface just in front of a blue one, both near opaque, then both faint: their
     // weights barely differ, so WBOIT averages them where the near one should hide the other.
     for near_alpha in [0.95, 0.1] {
@@ -85,32 +90,82 @@ fn wboit_on_the_gpu_is_its_twin_order_free_and_wrong_where_opacity_is_high() {
         layer(&mut s, 0.5, [1.0, 0.0, 0.0, near_alpha]);
         layer(&mut s, 0.52, [0.0, 0.3, 1.0, near_alpha]);
         layer(&mut s, 0.7, [0.1, 0.9, 0.2, 0.2]);
-        let fl = rasterize(&s, &cam, w, h).unwrap();
         let gpu = |scene: &Scene| g.render(scene, &cam, w, h, BG, Some(Slots::Wboit)).unwrap();
+        let twin = |scene: &Scene| {
+            let own = common::own_fragments(g, scene, &cam, (w, h), BG);
+            composite::composite(&own, composite::Method::Wboit, BG)
+        };
+        let fl = rasterize(&s, &cam, w, h).unwrap();
+        let bound = common::BLENDED_BOUND;
         let frame = gpu(&s);
-        let own = frame
-            .fragments
-            .as_ref()
-            .expect("diagnostics read the fragments back");
-        let twin = composite::composite(own, composite::Method::Wboit, BG);
-        let diff = frame.image.max_abs_diff(&twin);
+        // Its memory is its own targets', as its layout table counts them, on both sides.
+        let layout_bytes = budget::WBOIT.allocated_bytes(fl.pixel_count() as u64, 0);
+        assert_eq!(frame.allocated_bytes, layout_bytes, "GPU bytes");
+        let cpu = frame::render(
+            &fl,
+            Method::Wboit,
+            Options::new(Budget::SlotsPerPixel(1.0), BG),
+        );
+        assert_eq!(cpu.unwrap().allocated_bytes, layout_bytes, "CPU bytes");
+        let diff = frame.image.max_abs_diff(&twin(&s));
+        eprintln!("alpha {near_alpha}: GPU and twin differ by {diff:e}");
         assert!(
-            diff <= 1e-5,
+            diff <= bound,
             "alpha {near_alpha}: GPU and twin differ by {diff}"
         );
         for seed in [1, 2] {
-            assert!(
-                gpu(&s.shuffled(seed)).image == frame.image,
-                "alpha {near_alpha}: shuffle {seed}"
-            );
-            let shuffled = rasterize(&s.shuffled(seed), &cam, w, h).unwrap();
-            assert!(render(&shuffled, Method::Wboit) == render(&fl, Method::Wboit));
+            let shuffled = s.shuffled(seed);
+            let image = gpu(&shuffled).image;
+            let diff = image.max_abs_diff(&twin(&shuffled));
+            assert!(diff <= bound, "alpha {near_alpha}, shuffle {seed}: {diff}");
+            let d = image.max_abs_diff(&frame.image);
+            assert!(d <= ORDER_BOUND, "alpha {near_alpha}, shuffle {seed}: {d}");
+            moved = moved.max(d);
         }
         errors.push(render(&fl, Method::Wboit).mse(&render(&fl, Method::Abuffer)));
     }
     eprintln!(
-        "WBOIT MSE: both surfaces at 0.95 {:e}, both at 0.1 {:e}",
+        "WBOIT MSE: both surfaces at 0.95 {:e}, both at 0.1 {:e}; a submission order moves a \
+         pixel by up to {moved:e}",
         errors[0], errors[1]
     );
     assert!(errors[0] > 100.0 * errors[1], "{errors:?}");
+}
+
+/// The most a submission order moves a WBOIT pixel of three layers: the accumulation's binary16
+/// steps and the revealage's 1/255 ones.
+const ORDER_BOUND: f32 = 1e-2;
+
+/// WBOIT's targets' precision, against the paper's formula in exact sums: the twin at binary16
+/// and 8 bits stays within a few of their steps, and the 8-bit revealage is a product rounded
+/// after each fragment (by hand: 255 -> 64 -> 16 for two fragments of opacity 191/255).
+#[test]
+fn wboit_blended_is_the_formula_at_its_targets_precision() {
+    let f = |depth: f32, rgba: [f32; 4], primitive| Fragment {
+        depth,
+        rgba,
+        primitive,
+    };
+    let frags = [
+        f(0.3, [1.0, 0.2, 0.0, 0.6], 1),
+        f(0.5, [0.0, 0.4, 1.0, 0.3], 0),
+        f(0.9, [0.2, 0.9, 0.4, 0.5], 2),
+    ];
+    let exact = composite::wboit_sorted(&frags, BG);
+    let blended = composite::wboit_blended(&frags, BG);
+    for i in 0..3 {
+        assert!(
+            (exact[i] - blended[i]).abs() < 1e-2,
+            "{exact:?} {blended:?}"
+        );
+    }
+    // Revealage by hand: 255 (1 - 191/255) = 64, 64 (1 - 191/255) = 16.06 -> 16.
+    let a = 191.0 / 255.0;
+    let two = [f(0.5, [1.0, 1.0, 1.0, a], 0), f(0.6, [1.0, 1.0, 1.0, a], 1)];
+    let got = composite::wboit_blended(&two, [0.0; 3]);
+    // White over black: C = (1 - R), R = 16/255.
+    assert!((got[0] - (1.0 - 16.0 / 255.0)).abs() < 1e-6, "{got:?}");
+    let exact = composite::wboit_sorted(&two, [0.0; 3]);
+    assert!((exact[0] - (1.0 - (1.0 - a) * (1.0 - a))).abs() < 1e-6);
+    assert!(got != exact);
 }

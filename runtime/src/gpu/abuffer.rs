@@ -3,9 +3,7 @@
 //! the count, whose buffer then serves as the store's cursors) -> `abuffer_resolve.wgsl` (sort
 //! and blend; twin `composite::exact_sorted`) or `mlab_resolve.wgsl` (fragments in submission
 //! order into m blending rows; twin `composite::mlab_pixel`, which needs each fragment's
-//! submission index, stored beside its key for MLAB and for the tests' readback) or
-//! `wboit_resolve.wgsl` (WBOIT's weighted sums; twin `composite::wboit_sorted`) or
-//! `mboit_resolve.wgsl` (MBOIT's moments and weighted sums; twin `composite::mboit_sorted`). The sorts
+//! submission index, stored beside its key for MLAB and for the tests' readback). The sorts
 //! are `sort.wgsl`.
 
 use super::Recording;
@@ -20,10 +18,6 @@ pub(super) enum Blend {
     Exact,
     /// MLAB's rows, in submission order.
     Mlab,
-    /// WBOIT's weighted sums.
-    Wboit,
-    /// MBOIT's moments and transmittance-weighted sums.
-    Mboit,
 }
 
 /// The count pass and its prefix sum, with the frame's fragment count read back: what the
@@ -110,11 +104,9 @@ impl Recording<'_, '_> {
         );
         let (resolve, name) = match blend {
             Blend::Mlab => (&p.mlab_resolve, "mlab blend"),
-            Blend::Wboit => (&p.wboit_resolve, "wboit blend"),
-            Blend::Mboit => (&p.mboit_resolve, "mboit blend"),
             Blend::Exact => (&p.abuffer_resolve, "sort and blend"),
         };
-        let mut bufs = vec![
+        let bufs = [
             passes.params(),
             &offsets,
             &keys,
@@ -122,17 +114,6 @@ impl Recording<'_, '_> {
             &status,
             &primitives,
         ];
-        // MBOIT's absorbance of each 8-bit opacity (composite::mboit_absorbance_table).
-        let table;
-        if blend == Blend::Mboit {
-            table = fb.init(
-                "mboit.absorbance",
-                bytemuck::cast_slice(&crate::composite::mboit_absorbance_table()),
-                wgpu::BufferUsages::UNIFORM,
-                true,
-            );
-            bufs.push(&table);
-        }
         passes.resolve(enc, resolve, &bufs, name);
         fb.submit(enc);
         if self.passes.opts.diagnostics {

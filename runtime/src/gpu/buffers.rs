@@ -124,6 +124,31 @@ impl<'a> FrameBuffers<'a> {
         b
     }
 
+    /// A render target of the frame's size that later passes read, counted in the frame's
+    /// allocation (its texels' bytes); a view of it.
+    pub(super) fn target(
+        &mut self,
+        t: super::blend::Target,
+        (width, height): (u32, u32),
+    ) -> wgpu::TextureView {
+        self.allocated += width as u64 * height as u64 * t.texel_bytes();
+        let texture = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(t.label),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: t.format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        texture.create_view(&Default::default())
+    }
+
     /// Submits `enc` (after the clears of the buffers taken since the last submission) and
     /// starts a new encoder in its place.
     pub(super) fn submit(&mut self, enc: &mut wgpu::CommandEncoder) {

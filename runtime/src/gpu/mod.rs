@@ -25,6 +25,7 @@
 
 mod abuffer;
 mod allocate;
+mod blend;
 mod buffers;
 mod capture;
 mod dkb;
@@ -371,8 +372,9 @@ impl Gpu {
             return Err(GpuError::NoAdapter.into());
         }
         let need = required_features() | extra;
-        // Requested where offered: the importance pass's f16-math variant needs it.
-        let optional = wgpu::Features::SHADER_F16;
+        // Requested where offered: the importance pass's f16-math variant needs the first,
+        // MBOIT's moments the second.
+        let optional = wgpu::Features::SHADER_F16 | wgpu::Features::FLOAT32_BLENDABLE;
         let mut lacking = Vec::new();
         let adapter = adapters.into_iter().find(|a| {
             let missing = need - a.features();
@@ -407,7 +409,8 @@ impl Gpu {
     /// a feature the passes need ([`required_features`]: 64-bit integers and their atomics,
     /// timestamps) or below a limit they need ([`required_limits`]) is refused with what it
     /// lacks named, before any pipeline is built; with
-    /// `SHADER_F16` the importance pass also runs networks at f16-math. Frames allocate from
+    /// `SHADER_F16` the importance pass also runs networks at f16-math, and with
+    /// `FLOAT32_BLENDABLE` MBOIT runs (its frames are refused, the feature named, without it). Frames allocate from
     /// the device's own limits.
     ///
     /// ```
@@ -485,11 +488,13 @@ pub enum Slots<'a> {
     /// MLAB with this many rows (at most [`MLAB_MAX_ROWS`]), blended from the A-buffer's
     /// fragments taken in submission order.
     Mlab(u32),
-    /// Weighted blended OIT, its sums taken from the A-buffer's fragments
-    /// (`wboit_resolve.wgsl`, the twin of `composite::wboit_sorted`).
+    /// Weighted blended OIT, as engines ship it: one geometry pass into an RGBA16F accumulation
+    /// and an R8 revealage, then a composite (the twin: `composite::wboit_blended`).
     Wboit,
-    /// Moment-based OIT with these parameters, its moments and sums taken from the A-buffer's
-    /// fragments (`mboit_resolve.wgsl`, the twin of `composite::mboit_sorted`).
+    /// Moment-based OIT with these parameters, as Munstermann et al. lay it out: a pass adding
+    /// b_0 and four power moments into 32-bit float targets, a pass adding the
+    /// transmittance-weighted colour into an RGBA16F one, a composite (the twin:
+    /// `composite::mboit_blended`). Needs `FLOAT32_BLENDABLE`.
     Mboit(MboitParams),
     /// The budgeted linked list (`list_store.wgsl`, `list_resolve.wgsl`): a pool of `nodes`
     /// fragments handed out first come, first served, each pixel's nearest `sorted` blended in
@@ -791,8 +796,8 @@ impl Gpu {
         let image = match slots {
             None => rec.abuffer(Blend::Exact, width, height)?,
             Some(Slots::Mlab(_)) => rec.abuffer(Blend::Mlab, width, height)?,
-            Some(Slots::Wboit) => rec.abuffer(Blend::Wboit, width, height)?,
-            Some(Slots::Mboit(_)) => rec.abuffer(Blend::Mboit, width, height)?,
+            Some(Slots::Wboit) => rec.wboit((width, height))?,
+            Some(Slots::Mboit(_)) => rec.mboit((width, height))?,
             Some(Slots::LinkedList { nodes, .. }) => rec.linked_list(nodes, width, height)?,
             Some(s) => match rec.exact_when_cheaper(s, budget, (width, height))? {
                 Some(abuffer) => {

@@ -77,7 +77,7 @@ impl<'a> Passes<'a> {
             }),
             stencil_ops: None,
         };
-        let mut pass = self.render_pass(enc, "opaque", &color, color_ops, Some(depth));
+        let mut pass = self.render_pass(enc, "opaque", &[(&color, color_ops)], Some(depth));
         let i = self.inputs;
         if i.opaque > 0 {
             pass.set_pipeline(pipeline);
@@ -87,24 +87,29 @@ impl<'a> Passes<'a> {
         }
     }
 
-    /// A timed render pass of one colour attachment and, where given, a depth attachment.
+    /// A timed render pass of its colour attachments and, where given, a depth attachment.
     fn render_pass<'e>(
         &self,
         enc: &'e mut wgpu::CommandEncoder,
         name: &'static str,
-        color: &wgpu::TextureView,
-        ops: wgpu::Operations<wgpu::Color>,
+        colors: &[(&wgpu::TextureView, wgpu::Operations<wgpu::Color>)],
         depth: Option<wgpu::RenderPassDepthStencilAttachment>,
     ) -> wgpu::RenderPass<'e> {
         let (b, e) = self.timer.next(name);
+        let colors: Vec<Option<wgpu::RenderPassColorAttachment>> = colors
+            .iter()
+            .map(|&(view, ops)| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops,
+                })
+            })
+            .collect();
         enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some(name),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: color,
-                depth_slice: None,
-                resolve_target: None,
-                ops,
-            })],
+            color_attachments: &colors,
             depth_stencil_attachment: depth,
             timestamp_writes: Some(wgpu::RenderPassTimestampWrites {
                 query_set: self.timer.set(),
@@ -156,7 +161,7 @@ impl<'a> Passes<'a> {
             load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
             store: wgpu::StoreOp::Discard,
         };
-        let mut pass = self.render_pass(enc, name, &self.inputs.target, ops, None);
+        let mut pass = self.render_pass(enc, name, &[(&self.inputs.target, ops)], None);
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &g0, &[]);
         pass.set_bind_group(1, &g1, &[]);
@@ -165,6 +170,65 @@ impl<'a> Passes<'a> {
             Some(args) => pass.draw_indexed_indirect(args, 0),
             None => pass.draw_indexed(0..self.vertices, 0, 0..1),
         }
+    }
+
+    /// A blended method's geometry pass (gpu::blend) over every transparent triangle: its
+    /// targets cleared to the given colours and kept, `group` (where the pass has one) as
+    /// group 1.
+    pub(super) fn blend(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::RenderPipeline,
+        group: Option<&wgpu::BindGroup>,
+        targets: &[(&wgpu::TextureView, wgpu::Color)],
+        name: &'static str,
+    ) {
+        let g0 = self.geometry_group(&pipeline.get_bind_group_layout(0), true);
+        let colors: Vec<_> = targets
+            .iter()
+            .map(|&(view, clear)| {
+                let ops = wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(clear),
+                    store: wgpu::StoreOp::Store,
+                };
+                (view, ops)
+            })
+            .collect();
+        let mut pass = self.render_pass(enc, name, &colors, None);
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &g0, &[]);
+        if let Some(g) = group {
+            pass.set_bind_group(1, g, &[]);
+        }
+        pass.set_index_buffer(self.inputs.index.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..self.vertices, 0, 0..1);
+    }
+
+    /// A blended method's composite (blend_composite.wgsl): `targets` read at bindings 2 and 3,
+    /// composited over the opaque pass's colour (binding 15) into `image` (binding 1).
+    pub(super) fn composite(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::ComputePipeline,
+        image: &wgpu::Buffer,
+        targets: [&wgpu::TextureView; 2],
+        name: &'static str,
+    ) {
+        let view = |binding, view| wgpu::BindGroupEntry {
+            binding,
+            resource: wgpu::BindingResource::TextureView(view),
+        };
+        let extra = vec![
+            view(2, targets[0]),
+            view(3, targets[1]),
+            view(15, &self.opaque_color),
+        ];
+        let g = self.gpu.bind_with(
+            &pipeline.get_bind_group_layout(0),
+            &[self.params(), image],
+            extra,
+        );
+        self.dispatch_group(enc, pipeline, &g, name);
     }
 
     /// A resolve (behind.wgsl): [`Passes::dispatch`] with the opaque pass's colour at binding

@@ -24,8 +24,13 @@ pub(super) struct Pipelines {
     /// resolve.wgsl built for frames whose budget holds every fragment (k = n).
     pub(super) resolve_fits: wgpu::ComputePipeline,
     pub(super) mlab_resolve: wgpu::ComputePipeline,
-    pub(super) wboit_resolve: wgpu::ComputePipeline,
-    pub(super) mboit_resolve: wgpu::ComputePipeline,
+    /// WBOIT's accumulation pass and composite (gpu::blend).
+    pub(super) wboit_accumulate: wgpu::RenderPipeline,
+    pub(super) wboit_composite: wgpu::ComputePipeline,
+    /// MBOIT's two passes, where the device blends 32-bit floats (`FLOAT32_BLENDABLE`), and its
+    /// composite.
+    pub(super) mboit: Option<(wgpu::RenderPipeline, wgpu::RenderPipeline)>,
+    pub(super) mboit_composite: wgpu::ComputePipeline,
     pub(super) list_store: wgpu::RenderPipeline,
     pub(super) list_resolve: wgpu::ComputePipeline,
     pub(super) allocate: Allocate,
@@ -434,7 +439,7 @@ impl Pipelines {
         let render = |name: &str,
                       m: &wgpu::ShaderModule,
                       depth: Option<wgpu::DepthStencilState>,
-                      target: wgpu::ColorTargetState| {
+                      targets: &[Option<wgpu::ColorTargetState>]| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(name),
                 layout: None,
@@ -455,7 +460,7 @@ impl Pipelines {
                     module: m,
                     entry_point: Some("fs_main"),
                     compilation_options: Default::default(),
-                    targets: &[Some(target)],
+                    targets,
                 }),
                 multiview_mask: None,
                 cache: None,
@@ -469,8 +474,23 @@ impl Pipelines {
                 blend: None,
                 write_mask: wgpu::ColorWrites::empty(),
             };
-            render(name, &m, None, target)
+            render(name, &m, None, &[Some(target)])
         };
+        // The blended methods' passes: their targets written through `blend` (gpu::blend).
+        let blended = |name: &str, targets: &[(wgpu::TextureFormat, wgpu::BlendState)]| {
+            let targets: Vec<Option<wgpu::ColorTargetState>> = targets
+                .iter()
+                .map(|&(format, blend)| {
+                    Some(wgpu::ColorTargetState {
+                        format,
+                        blend: Some(blend),
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })
+                })
+                .collect();
+            render(name, &module(device, name), None, &targets)
+        };
+        use super::blend::{ADD, MULTIPLY_BY_ONE_MINUS, Target};
         let geometry = |name: &str| geometry_from(name, module(device, name));
         let opaque = render(
             "opaque",
@@ -482,11 +502,11 @@ impl Pipelines {
                 stencil: Default::default(),
                 bias: Default::default(),
             }),
-            wgpu::ColorTargetState {
+            &[Some(wgpu::ColorTargetState {
                 format: OPAQUE_COLOR_FORMAT,
                 blend: None,
                 write_mask: wgpu::ColorWrites::ALL,
-            },
+            })],
         );
         let module_with = |pass: &str, label: &str, from: &str, to: &str| {
             let mut src = shaders::source(pass).expect("known pass");
@@ -522,8 +542,33 @@ impl Pipelines {
             resolve: compute("resolve"),
             resolve_fits: compute_pipeline(device, "resolve", &fits("resolve"), "main"),
             mlab_resolve: compute("mlab_resolve"),
-            wboit_resolve: compute("wboit_resolve"),
-            mboit_resolve: compute("mboit_resolve"),
+            wboit_accumulate: blended(
+                "wboit_accumulate",
+                &[
+                    (Target::WBOIT_ACCUMULATION.format, ADD),
+                    (Target::WBOIT_REVEALAGE.format, MULTIPLY_BY_ONE_MINUS),
+                ],
+            ),
+            wboit_composite: compute_entry("blend_composite", "wboit"),
+            mboit: device
+                .features()
+                .contains(wgpu::Features::FLOAT32_BLENDABLE)
+                .then(|| {
+                    (
+                        blended(
+                            "mboit_moments",
+                            &[
+                                (Target::MBOIT_B0.format, ADD),
+                                (Target::MBOIT_MOMENTS.format, ADD),
+                            ],
+                        ),
+                        blended(
+                            "mboit_accumulate",
+                            &[(Target::MBOIT_ACCUMULATION.format, ADD)],
+                        ),
+                    )
+                }),
+            mboit_composite: compute_entry("blend_composite", "mboit"),
             list_store: geometry("list_store"),
             list_resolve: compute("list_resolve"),
             allocate: Allocate::new(device),

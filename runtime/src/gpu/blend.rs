@@ -1,0 +1,206 @@
+//! The blended methods, as engines ship them: no slot, no list, no sort; targets the device's
+//! blending adds into, then a composite. WBOIT (McGuire and Bavoil): `wboit_accumulate.wgsl`
+//! (one geometry pass into an RGBA16F accumulation and an R8 revealage) -> `blend_composite.wgsl`
+//! (`wboit`). MBOIT (Munstermann et al.): `mboit_moments.wgsl` (b_0 into R32F, four power
+//! moments into RGBA32F) -> `mboit_accumulate.wgsl` (the transmittance-weighted colour into
+//! RGBA16F) -> `blend_composite.wgsl` (`mboit`). Each frame creates exactly the targets its
+//! layout table lists ([`crate::budget::WBOIT`], [`crate::budget::MBOIT`]), their bytes taken
+//! from their formats.
+//!
+//! Twins: `composite::wboit_blended` and `composite::mboit_blended`, which add in submission
+//! order (the order a device blends one draw's fragments in) at the targets' precision: binary16
+//! colour sums rounded after each add, an 8-bit revealage product, f32 moments. So the image
+//! depends on the submission order by that rounding, as an engine's does.
+
+use super::Recording;
+use crate::error::{GpuError, Result};
+
+/// A blended method's render target: its label in the layout tables and its format (whose
+/// texel size is the bytes a pixel the table counts).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Target {
+    pub(super) label: &'static str,
+    pub(super) format: wgpu::TextureFormat,
+}
+
+impl Target {
+    pub(super) const WBOIT_ACCUMULATION: Target = Target {
+        label: "wboit.accumulation",
+        format: wgpu::TextureFormat::Rgba16Float,
+    };
+    pub(super) const WBOIT_REVEALAGE: Target = Target {
+        label: "wboit.revealage",
+        format: wgpu::TextureFormat::R8Unorm,
+    };
+    pub(super) const MBOIT_B0: Target = Target {
+        label: "mboit.b0",
+        format: wgpu::TextureFormat::R32Float,
+    };
+    pub(super) const MBOIT_MOMENTS: Target = Target {
+        label: "mboit.moments",
+        format: wgpu::TextureFormat::Rgba32Float,
+    };
+    pub(super) const MBOIT_ACCUMULATION: Target = Target {
+        label: "mboit.accumulation",
+        format: wgpu::TextureFormat::Rgba16Float,
+    };
+    #[cfg(test)]
+    pub(super) const ALL: [Target; 5] = [
+        Target::WBOIT_ACCUMULATION,
+        Target::WBOIT_REVEALAGE,
+        Target::MBOIT_B0,
+        Target::MBOIT_MOMENTS,
+        Target::MBOIT_ACCUMULATION,
+    ];
+
+    /// Bytes of one texel.
+    pub(super) fn texel_bytes(self) -> u64 {
+        self.format.block_copy_size(None).expect("a colour format") as u64
+    }
+}
+
+/// Additive blending (`src + dst`) of every channel.
+pub(super) const ADD: wgpu::BlendState = wgpu::BlendState {
+    color: wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::One,
+        dst_factor: wgpu::BlendFactor::One,
+        operation: wgpu::BlendOperation::Add,
+    },
+    alpha: wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::One,
+        dst_factor: wgpu::BlendFactor::One,
+        operation: wgpu::BlendOperation::Add,
+    },
+};
+
+/// `dst (1 - src)`: the revealage's product of `1 - alpha`.
+pub(super) const MULTIPLY_BY_ONE_MINUS: wgpu::BlendState = wgpu::BlendState {
+    color: wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::Zero,
+        dst_factor: wgpu::BlendFactor::OneMinusSrc,
+        operation: wgpu::BlendOperation::Add,
+    },
+    alpha: wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::Zero,
+        dst_factor: wgpu::BlendFactor::OneMinusSrc,
+        operation: wgpu::BlendOperation::Add,
+    },
+};
+
+/// Cleared to 0, or to 1 (the revealage).
+const ZERO: wgpu::Color = wgpu::Color::TRANSPARENT;
+const ONE: wgpu::Color = wgpu::Color::WHITE;
+
+impl Recording<'_, '_> {
+    /// WBOIT's accumulation and composite; returns the image buffer.
+    pub(super) fn wboit(&mut self, size: (u32, u32)) -> Result<wgpu::Buffer> {
+        let (passes, px) = (self.passes, self.px);
+        let p = &passes.gpu.pipelines;
+        let accumulation = self.fb.target(Target::WBOIT_ACCUMULATION, size);
+        let revealage = self.fb.target(Target::WBOIT_REVEALAGE, size);
+        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        passes.blend(
+            enc,
+            &p.wboit_accumulate,
+            None,
+            &[(&accumulation, ZERO), (&revealage, ONE)],
+            "accumulate",
+        );
+        let image = fb.storage("application.image", 16 * px, false)?;
+        passes.composite(
+            enc,
+            &p.wboit_composite,
+            &image,
+            [&accumulation, &revealage],
+            "wboit composite",
+        );
+        fb.submit(enc);
+        Ok(image)
+    }
+
+    /// MBOIT's two passes and composite; returns the image buffer. A device that cannot blend
+    /// 32-bit floats is refused.
+    pub(super) fn mboit(&mut self, size: (u32, u32)) -> Result<wgpu::Buffer> {
+        let (passes, px) = (self.passes, self.px);
+        let gpu = passes.gpu;
+        let Some((moments_pass, accumulate_pass)) = &gpu.pipelines.mboit else {
+            return Err(GpuError::DeviceLacks {
+                adapter: gpu.adapter().to_string(),
+                missing: "FLOAT32_BLENDABLE (MBOIT adds its moments into 32-bit float targets)"
+                    .into(),
+            }
+            .into());
+        };
+        let b0 = self.fb.target(Target::MBOIT_B0, size);
+        let moments = self.fb.target(Target::MBOIT_MOMENTS, size);
+        let accumulation = self.fb.target(Target::MBOIT_ACCUMULATION, size);
+        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        // The absorbance of each 8-bit opacity (composite::mboit_absorbance_table).
+        let table = fb.init(
+            "mboit.absorbance",
+            bytemuck::cast_slice(&crate::composite::mboit_absorbance_table()),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        );
+        let group = gpu.bind(&moments_pass.get_bind_group_layout(1), &[&table]);
+        passes.blend(
+            enc,
+            moments_pass,
+            Some(&group),
+            &[(&b0, ZERO), (&moments, ZERO)],
+            "moments",
+        );
+        let view = |binding, view| wgpu::BindGroupEntry {
+            binding,
+            resource: wgpu::BindingResource::TextureView(view),
+        };
+        let group = gpu.bind_with(
+            &accumulate_pass.get_bind_group_layout(1),
+            &[],
+            vec![view(0, &b0), view(1, &moments)],
+        );
+        passes.blend(
+            enc,
+            accumulate_pass,
+            Some(&group),
+            &[(&accumulation, ZERO)],
+            "accumulate",
+        );
+        let image = fb.storage("application.image", 16 * px, false)?;
+        passes.composite(
+            enc,
+            &gpu.pipelines.mboit_composite,
+            &image,
+            [&accumulation, &b0],
+            "mboit composite",
+        );
+        fb.submit(enc);
+        Ok(image)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Target;
+
+    /// Each target's texel is the bytes a pixel its method's layout table counts under its
+    /// label, so the tables and the textures the frames create cannot drift apart.
+    #[test]
+    fn blended_targets_are_the_layout_tables_entries() {
+        for t in Target::ALL {
+            let method = t.label.split('.').next().unwrap();
+            let layout = crate::budget::layout(method).unwrap();
+            let counted = layout.per_pixel.iter().find(|(l, _)| *l == t.label);
+            assert_eq!(counted, Some(&(t.label, t.texel_bytes())), "{}", t.label);
+        }
+        // Every per-pixel entry of both tables but the shared raster target is one of them.
+        for method in ["wboit", "mboit"] {
+            for (label, _) in crate::budget::layout(method).unwrap().per_pixel {
+                assert!(
+                    *label == "raster.target" || Target::ALL.iter().any(|t| t.label == *label),
+                    "{label}"
+                );
+            }
+        }
+    }
+}

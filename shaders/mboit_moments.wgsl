@@ -1,0 +1,30 @@
+// MBOIT's first pass (geometry), as Munstermann et al. lay it out: each visible transparent
+// fragment adds its absorbance to an R32F target (b_0) and its absorbance times z, z^2, z^3,
+// z^4 to an RGBA32F one (blend one, one), z the window depth mapped to [-1, 1]. The sums are in
+// float, in the order the device runs the fragments (composite::mboit_sorted's first loop sums
+// the same terms front to back).
+
+// The absorbance of each 8-bit opacity (composite::mboit_absorbance_table), four to a vec4, so
+// both sides add the same floats.
+@group(1) @binding(0) var<uniform> absorbance_table: array<vec4<f32>, 64>;
+
+struct Targets {
+    @location(0) b0: vec4<f32>,
+    @location(1) moments: vec4<f32>,
+};
+
+@fragment
+fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> Targets {
+    let f = transparent_fragment(in, front);
+    if (!f.visible) {
+        discard;
+    }
+    let alpha8 = f.rgba8 >> 24u;
+    let a = absorbance_table[alpha8 >> 2u][alpha8 & 3u];
+    let z = mboit_depth(in.clip.z);
+    let z2 = z * z;
+    var out: Targets;
+    out.b0 = vec4<f32>(a, 0.0, 0.0, 0.0);
+    out.moments = vec4<f32>(a * z, a * z2, a * z2 * z, a * z2 * z2);
+    return out;
+}
