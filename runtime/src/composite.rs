@@ -109,22 +109,50 @@ pub fn wboit_weight(z: f32, a: f32) -> f32 {
 /// the paper's formula, which [`wboit_blended`] computes at the precision of the targets
 /// engines give it.
 pub fn wboit_sorted(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
-    if frags.is_empty() {
-        return bg;
+    wboit_sums(frags, bg, Sums::Exact)
+}
+
+/// How the blended methods' sums are held: exactly (f32), or as engines' targets hold them
+/// (binary16 colour sums rounded after each add; WBOIT's revealage in 8 bits).
+#[derive(Clone, Copy, PartialEq)]
+enum Sums {
+    Exact,
+    Targets,
+}
+
+impl Sums {
+    fn add(self, sum: f32, v: f32) -> f32 {
+        match self {
+            Sums::Exact => sum + v,
+            Sums::Targets => to_binary16(sum + v),
+        }
     }
-    let mut acc = [0.0f32; 3];
-    let mut acc_a = 0.0f32;
+}
+
+/// WBOIT over `frags` in their order, summed as `sums` says.
+fn wboit_sums(frags: &[Fragment], bg: [f32; 3], sums: Sums) -> [f32; 3] {
+    let mut acc = [0.0f32; 4];
     let mut reveal = 1.0f32;
+    let mut reveal8 = 255u32;
     for f in frags {
         let a = f.rgba[3];
         let w = wboit_weight(f.depth, a);
-        for (s, c) in acc.iter_mut().zip(f.rgba) {
-            *s += c * a * w;
+        let src = [
+            f.rgba[0] * a * w,
+            f.rgba[1] * a * w,
+            f.rgba[2] * a * w,
+            a * w,
+        ];
+        for (s, v) in acc.iter_mut().zip(src) {
+            *s = sums.add(*s, v);
         }
-        acc_a += a * w;
         reveal *= 1.0 - a;
+        reveal8 = (reveal8 * (255 - to_unorm8(a)) + 127) / 255;
     }
-    let inv = 1.0 / acc_a.clamp(1e-4, 5e4);
+    if sums == Sums::Targets {
+        reveal = reveal8 as f32 / 255.0;
+    }
+    let inv = 1.0 / acc[3].clamp(1e-4, 5e4);
     std::array::from_fn(|i| acc[i] * inv * (1.0 - reveal) + reveal * bg[i])
 }
 
@@ -149,25 +177,7 @@ fn in_submission_order(frags: &[Fragment]) -> Vec<Fragment> {
 /// precision: the rounding depends on the submission order, by at most a few binary16 steps of
 /// the accumulation and a few 1/255 of the revealage.
 pub fn wboit_blended(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
-    let mut acc = [0.0f32; 4];
-    let mut reveal8 = 255u32;
-    for f in in_submission_order(frags) {
-        let a = f.rgba[3];
-        let w = wboit_weight(f.depth, a);
-        let src = [
-            f.rgba[0] * a * w,
-            f.rgba[1] * a * w,
-            f.rgba[2] * a * w,
-            a * w,
-        ];
-        for (s, v) in acc.iter_mut().zip(src) {
-            *s = to_binary16(*s + v);
-        }
-        reveal8 = (reveal8 * (255 - to_unorm8(a)) + 127) / 255;
-    }
-    let reveal = reveal8 as f32 / 255.0;
-    let inv = 1.0 / acc[3].clamp(1e-4, 5e4);
-    std::array::from_fn(|i| acc[i] * inv * (1.0 - reveal) + reveal * bg[i])
+    wboit_sums(&in_submission_order(frags), bg, Sums::Targets)
 }
 
 /// MBOIT's parameters: the moment bias and the overestimation, the paper's defaults for four
@@ -284,34 +294,7 @@ fn mboit_share(b: [f32; 4], z: f32, p: MboitParams) -> f32 {
 /// paper's passes in exact order, which [`mboit_blended`] computes in submission order with its
 /// colour target in binary16.
 pub fn mboit_sorted(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 3] {
-    let mut b0 = 0.0f32;
-    let mut b = [0.0f32; 4];
-    for f in frags {
-        let a = mboit_absorbance(f.rgba[3]);
-        let z = 2.0 * f.depth - 1.0;
-        let z2 = z * z;
-        b0 += a;
-        b[0] += a * z;
-        b[1] += a * z2;
-        b[2] += a * z2 * z;
-        b[3] += a * z2 * z2;
-    }
-    if b0 < MBOIT_MIN_B0 {
-        return bg;
-    }
-    let m = b.map(|x| x / b0);
-    let mut l = [0.0f32; 3];
-    let mut w = 0.0f32;
-    for f in frags {
-        let t = mboit_transmittance(b0, m, 2.0 * f.depth - 1.0, p) * f.rgba[3];
-        for (s, c) in l.iter_mut().zip(f.rgba) {
-            *s += t * c;
-        }
-        w += t;
-    }
-    let total = (-b0).exp();
-    let inv = if w > 0.0 { 1.0 / w } else { 0.0 };
-    std::array::from_fn(|i| (1.0 - total) * l[i] * inv + total * bg[i])
+    mboit_passes(frags, bg, p, Sums::Exact)
 }
 
 /// MBOIT as Munstermann et al. lay it out and the GPU renders it (`gpu::blend`): the fragments
@@ -319,10 +302,14 @@ pub fn mboit_sorted(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 3
 /// fragment's transmittance-weighted colour added into a binary16 target (rounded after each
 /// add). [`mboit_sorted`]'s passes at their targets' precision and order.
 pub fn mboit_blended(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 3] {
-    let frags = in_submission_order(frags);
+    mboit_passes(&in_submission_order(frags), bg, p, Sums::Targets)
+}
+
+/// MBOIT's two passes over `frags` in their order, the colour summed as `sums` says.
+fn mboit_passes(frags: &[Fragment], bg: [f32; 3], p: MboitParams, sums: Sums) -> [f32; 3] {
     let mut b0 = 0.0f32;
     let mut b = [0.0f32; 4];
-    for f in &frags {
+    for f in frags {
         let a = mboit_absorbance(f.rgba[3]);
         let z = 2.0 * f.depth - 1.0;
         let z2 = z * z;
@@ -337,11 +324,11 @@ pub fn mboit_blended(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 
     }
     let m = b.map(|x| x / b0);
     let mut acc = [0.0f32; 4];
-    for f in &frags {
+    for f in frags {
         let t = mboit_transmittance(b0, m, 2.0 * f.depth - 1.0, p) * f.rgba[3];
         let src = [t * f.rgba[0], t * f.rgba[1], t * f.rgba[2], t];
         for (s, v) in acc.iter_mut().zip(src) {
-            *s = to_binary16(*s + v);
+            *s = sums.add(*s, v);
         }
     }
     let total = (-b0).exp();

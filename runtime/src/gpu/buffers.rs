@@ -132,20 +132,8 @@ impl<'a> FrameBuffers<'a> {
         (width, height): (u32, u32),
     ) -> wgpu::TextureView {
         self.allocated += width as u64 * height as u64 * t.texel_bytes();
-        let texture = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(t.label),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: t.format,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
+        let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+        let texture = frame_texture(&self.gpu.device, t.label, (width, height), t.format, usage);
         texture.create_view(&Default::default())
     }
 
@@ -169,6 +157,30 @@ impl Drop for FrameBuffers<'_> {
             self.gpu.release(key, b);
         }
     }
+}
+
+/// A 2-D texture of the frame's size, one level, one sample.
+pub(super) fn frame_texture(
+    device: &wgpu::Device,
+    label: &str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
 }
 
 pub(super) fn read_back(gpu: &Gpu, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>> {

@@ -1066,20 +1066,7 @@ impl Gpu {
         let (width, height) = (params.width, params.height);
         fb.allocated += width as u64 * height as u64;
         let texture = |label: &str, format, usage| {
-            self.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
+            buffers::frame_texture(&self.device, label, (width, height), format, usage)
         };
         let target = texture(
             "raster.target",
