@@ -24,8 +24,8 @@
 // so instead of 11 (2 for the frame before's answer again; 4 for VKB's scale near 2^9 and 7
 // for DKB's levels near 2^24 from 0). The answer itself does not depend on the bracket: it is
 // the largest t whose total fits, and the totals grow with t.
-//   mark:    flags[p] = 1 where k rises at a + 1 (then prefix-summed by the scan)
-//   apply:   k = k(a) + 1 for the first (target - total(a)) marked pixels
+//   mark:    flags[p] = 1 where k rises at a + 1 (then prefix-summed in place by the scan)
+//   apply:   k = k(a) + 1 for the first (target - total(a)) marked pixels, in the weight's place
 
 struct Alloc {
     // F, when ppm is 0.
@@ -41,9 +41,10 @@ struct Alloc {
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<uniform> alloc: Alloc;
 @group(0) @binding(2) var<storage, read> counts: array<u32>;
-// Importance (f32) in, the weights (u32) in place.
+// Importance (f32) in, the weights (u32) in place, then k in place (apply), which the scan then
+// turns into the slot bases in place (scan.wgsl's scan_blocks_in_place): one word a pixel for
+// the three, each read by the time the next is written.
 @group(0) @binding(3) var<storage, read_write> w: array<u32>;
-@group(0) @binding(4) var<storage, read_write> k: array<u32>;
 // 0 target, 1 a, 2 span, 3 lo, 4 total at a, 5 F, 6..21 the candidates' totals, 22 the rounds
 // the search took, 23 and 24 the last answers of a level and of a scale (last_answer_word).
 @group(0) @binding(5) var<storage, read_write> state: array<atomic<u64>, ALLOC_STATE_WORDS>;
@@ -330,7 +331,7 @@ fn apply(
     }
     let n = counts[p];
     if (n == 0u) {
-        k[p] = 0u;
+        w[p] = 0u;
         return;
     }
     let a = atomicLoad(&state[1]);
@@ -338,6 +339,7 @@ fn apply(
     let left = atomicLoad(&state[0]) - atomicLoad(&state[4]);
     let base = k_at(a, w[p], n, lo);
     let rises = k_at(a + 1lu, w[p], n, lo) > base;
-    // `flags` holds the exclusive prefix of the marks: marked pixels before p.
-    k[p] = base + select(0u, 1u, rises && u64(flags[p]) < left);
+    // `flags` holds the exclusive prefix of the marks: marked pixels before p. The weight read,
+    // k takes its place.
+    w[p] = base + select(0u, 1u, rises && u64(flags[p]) < left);
 }

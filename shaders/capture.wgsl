@@ -20,22 +20,23 @@
 // Built a second time with EVERY_FRAGMENT_FITS for the frames whose budget holds every fragment
 // (the pixels' modes then follow from the slot bases alone; see below).
 
-@group(1) @binding(0) var<storage, read> k_of: array<u32>;
-@group(1) @binding(1) var<storage, read> slot_base: array<u32>;
-@group(1) @binding(2) var<storage, read_write> slots: array<atomic<u64>>;
+// Per pixel (pixels + 1 entries): its slot bases, the exclusive prefix sums of k, so a pixel's
+// k is its bases' difference (k is not stored beside them).
+@group(1) @binding(0) var<storage, read> slot_base: array<u32>;
+@group(1) @binding(1) var<storage, read_write> slots: array<atomic<u64>>;
 // Per pixel: sum c8 a8 for r, g, b, sum a8 (four 32-bit words, as resolve.wgsl reads them),
 // added two to a 64-bit word: r and g, then b and a. No low half carries into its high half:
 // a sum of c8 a8 stays below 2^32 up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (65,535 x
 // 255^2 < 2^32). And the tail's count (the append mode's cursor).
-@group(1) @binding(3) var<storage, read_write> tail: array<atomic<u64>>;
-@group(1) @binding(4) var<storage, read_write> tail_count: array<atomic<u32>>;
+@group(1) @binding(2) var<storage, read_write> tail: array<atomic<u64>>;
+@group(1) @binding(3) var<storage, read_write> tail_count: array<atomic<u32>>;
 // n(p), read when params.append is 1.
-@group(1) @binding(5) var<storage, read> count: array<u32>;
+@group(1) @binding(4) var<storage, read> count: array<u32>;
 
 // Whether the frame's budget holds every fragment, so k(p) = n(p) for every pixel (a pipeline
 // of its own, built with this set true): each pixel's k is its slot bases' difference, nothing
 // goes to the tail, and a pixel of at most APPEND_MAX fragments appends with no other load; the
-// deeper ones insert as above (nothing is pushed out). k_of and count are not read.
+// deeper ones insert as above (nothing is pushed out). count is not read.
 const EVERY_FRAGMENT_FITS: bool = false;
 
 // Loop64 insertion of `key` (complemented) into the pixel's k slots from `base`; returns the
@@ -87,8 +88,8 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     var k = params.k_uniform;
     var base = p * params.k_uniform;
     if (k == 0u) {
-        k = k_of[p];
         base = slot_base[p];
+        k = slot_base[p + 1u] - base;
     }
     if (params.append != 0u) {
         let n = count[p];

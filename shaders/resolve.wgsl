@@ -7,19 +7,19 @@
 // whatever the mode.
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> k_of: array<u32>;
-@group(0) @binding(2) var<storage, read> slot_base: array<u32>;
-@group(0) @binding(3) var<storage, read_write> slots: array<u64>;
+// The slot bases (pixels + 1 entries; k is their difference, capture.wgsl).
+@group(0) @binding(1) var<storage, read> slot_base: array<u32>;
+@group(0) @binding(2) var<storage, read_write> slots: array<u64>;
 // Per pixel: sum c8 a8 for r, g, b, sum a8; and the tail's count.
-@group(0) @binding(4) var<storage, read_write> tail: array<u32>;
-@group(0) @binding(5) var<storage, read_write> tail_count: array<u32>;
-@group(0) @binding(6) var<storage, read_write> image: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> tail: array<u32>;
+@group(0) @binding(4) var<storage, read_write> tail_count: array<u32>;
+@group(0) @binding(5) var<storage, read_write> image: array<vec4<f32>>;
 // n(p), read when params.append is 1.
-@group(0) @binding(7) var<storage, read> count: array<u32>;
+@group(0) @binding(6) var<storage, read> count: array<u32>;
 // Word 1: the deepest pixel over MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word), from the
 // fragments the capture saw (its cursor, or the slots filled and the tail's count), so it holds
 // whatever n(p) the frame was given. Word 0 (loop limits) is not set here.
-@group(0) @binding(8) var<storage, read_write> status: array<atomic<u64>, 2>;
+@group(0) @binding(7) var<storage, read_write> status: array<atomic<u64>, 2>;
 
 // The slots blend_slots found filled.
 var<private> filled: u32 = 0u;
@@ -36,7 +36,7 @@ fn too_deep(p: u32, n: u32) -> bool {
 // Whether the frame's budget holds every fragment, so k(p) = n(p) for every pixel (a pipeline
 // of its own, built with this set true, beside capture.wgsl's): k is the slot bases'
 // difference, the tail is empty, and only the appended pixels (at most APPEND_MAX fragments)
-// are sorted. k_of, count and the tail's sums are not read.
+// are sorted. count and the tail's sums are not read.
 const EVERY_FRAGMENT_FITS: bool = false;
 
 // The keys of slots [base, base + n) in decreasing order (nearest first), by insertion (at most
@@ -131,8 +131,8 @@ fn main(
     var k = params.k_uniform;
     var base = p * params.k_uniform;
     if (k == 0u) {
-        k = k_of[p];
         base = slot_base[p];
+        k = slot_base[p + 1u] - base;
     }
     if (params.append != 0u) {
         let n = count[p];

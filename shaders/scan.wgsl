@@ -3,7 +3,13 @@
 //   scan_blocks: each workgroup scans its SCAN_BLOCK values into offsets and writes the block total;
 //   scan_sums:   one workgroup scans the block totals in place, SCAN_BLOCK at a time;
 //   scan_add:    each value gets its block's offset; the last entry gets the total.
-// offsets[p] = sum of values[q] for q < p, offsets[pixels] = the total.
+// offsets[p] = sum of values[q] for q < p, offsets[pixels] = the total (where offsets holds
+// pixels + 1 entries: the allocation's marks, scanned in place, need no total).
+//
+// scan_blocks_in_place reads the values from offsets itself, in place (a workgroup reads its
+// whole block before it writes any of it): the k-buffer's per-pixel word holds the importance,
+// the allocation's weights and k in turn, and then k's prefix sums, the slot bases, so k is
+// never stored beside them (a pixel's k is its bases' difference).
 //
 // A workgroup's SCAN_GROUP invocations take SCAN_ITEMS consecutive values each: a running sum
 // over its own values, then a Hillis-Steele scan over the invocations' sums, so a block of
@@ -60,6 +66,21 @@ fn scan_items(lid: u32) -> u32 {
     return total;
 }
 
+// The block's scan from `items`, stored into offsets, and its total into `blocks`.
+fn store_block(b: u32, first: u32, lid: u32) {
+    workgroupBarrier();
+    let total = scan_items(lid);
+    for (var j = 0u; j < SCAN_ITEMS; j++) {
+        let i = first + j * SCAN_GROUP + lid;
+        if (i < params.pixels) {
+            offsets[i] = items[at(j * SCAN_GROUP + lid)];
+        }
+    }
+    if (lid == 0u && b < (params.pixels + SCAN_BLOCK - 1u) / SCAN_BLOCK) {
+        blocks[b] = total;
+    }
+}
+
 @compute @workgroup_size(SCAN_GROUP)
 fn scan_blocks(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -76,17 +97,26 @@ fn scan_blocks(
         }
         items[at(j * SCAN_GROUP + lid)] = v;
     }
-    workgroupBarrier();
-    let total = scan_items(lid);
+    store_block(b, first, lid);
+}
+
+@compute @workgroup_size(SCAN_GROUP)
+fn scan_blocks_in_place(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let b = wid.y * nwg.x + wid.x;
+    let first = b * SCAN_BLOCK;
     for (var j = 0u; j < SCAN_ITEMS; j++) {
         let i = first + j * SCAN_GROUP + lid;
+        var v = 0u;
         if (i < params.pixels) {
-            offsets[i] = items[at(j * SCAN_GROUP + lid)];
+            v = offsets[i];
         }
+        items[at(j * SCAN_GROUP + lid)] = v;
     }
-    if (lid == 0u && b < (params.pixels + SCAN_BLOCK - 1u) / SCAN_BLOCK) {
-        blocks[b] = total;
-    }
+    store_block(b, first, lid);
 }
 
 @compute @workgroup_size(SCAN_GROUP)
@@ -120,7 +150,7 @@ fn scan_sums(@builtin(local_invocation_index) lid: u32) {
         }
         workgroupBarrier();
     }
-    if (lid == 0u) {
+    if (lid == 0u && params.pixels < arrayLength(&offsets)) {
         offsets[params.pixels] = carry;
     }
 }

@@ -68,11 +68,12 @@ const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 /// The resolve's status words: loops cut short, a pixel too deep (gpu's FrameStatus).
 const STATUS: (&str, u64) = ("status", 16);
 
-/// Deep k-buffer: network features, importance, k, offsets, tail. The features' keys, read by
-/// the importance pass, then hold the tail: the nearest (8 bytes) its count (4), the two
-/// farthest (16) its sums (16); their colour sums (16) then hold the image (16, the
-/// application's target where it gives one); the opacity sums (8) are their own: 69 bytes a
-/// pixel.
+/// Deep k-buffer: network features, one word for the importance, k and the slot bases, tail.
+/// The features' keys, read by the importance pass, then hold the tail: the nearest (8 bytes)
+/// its count (4), the two farthest (16) its sums (16); their colour sums (16) then hold the
+/// image (16, the application's target where it gives one); the opacity sums (8) are their
+/// own. The importance, the allocation's weights, k and the slot bases share `oit.offsets` in
+/// turn (k is the bases' difference): 61 bytes a pixel.
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
@@ -83,9 +84,7 @@ pub const DKB: Layout = Layout {
         ("features.farthest", 16),
         ("features.color_sums", 16),
         ("features.opacity", 8),
-        ("oit.importance", 4),
         ("alloc.flags", 4),
-        ("oit.k", 4),
         ("oit.offsets", 4),
     ],
     fixed: &[
@@ -112,17 +111,12 @@ pub const DKB: Layout = Layout {
 };
 
 /// Optimal allocation uploaded as k: the same capture and resolve as DKB, no network (and no
-/// counts: its capture inserts every fragment, and binds an unused counts buffer).
+/// counts: its capture inserts every fragment, and binds an unused counts buffer). k is
+/// uploaded into the slot bases' buffer and scanned in place.
 pub const OPT: Layout = Layout {
     method: "optimal",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[
-        RASTER_TARGET,
-        ("oit.k", 4),
-        ("oit.offsets", 4),
-        HYBRID_TAIL,
-        TAIL_COUNT,
-    ],
+    per_pixel: &[RASTER_TARGET, ("oit.offsets", 4), HYBRID_TAIL, TAIL_COUNT],
     fixed: &[
         ("params", PARAMS_BYTES),
         OFFSETS_END,
@@ -134,7 +128,8 @@ pub const OPT: Layout = Layout {
 };
 
 /// Variable k-buffer with importance maps (paper 002). The nearest keys (8 bytes), read by the
-/// importance pass, then hold the allocation's marks (4).
+/// importance pass, then hold the allocation's marks (4); the importance, k and the slot bases
+/// share `oit.offsets` in turn.
 pub const VKB: Layout = Layout {
     method: "vkb",
     slot_bytes: SLOT_BYTES,
@@ -142,8 +137,6 @@ pub const VKB: Layout = Layout {
         RASTER_TARGET,
         ("vkb.count", 4),
         ("vkb.nearest", 8),
-        ("oit.importance", 4),
-        ("oit.k", 4),
         ("oit.offsets", 4),
         HYBRID_TAIL,
         TAIL_COUNT,
@@ -167,11 +160,9 @@ pub const FKB: Layout = Layout {
     method: "fkb",
     slot_bytes: SLOT_BYTES,
     per_pixel: &[RASTER_TARGET, HYBRID_TAIL, TAIL_COUNT],
-    // The capture and resolve passes bind a per-pixel k, offsets and counts that FKB never
-    // reads.
+    // The capture and resolve passes bind per-pixel slot bases and counts that FKB never reads.
     fixed: &[
         ("params", PARAMS_BYTES),
-        ("fkb.unused_k", 16),
         ("fkb.unused_offsets", 16),
         ("fkb.unused_counts", 16),
         STATUS,

@@ -7,6 +7,7 @@
 use super::buffers::{FrameBuffers, read_back, read_words, u32s};
 use super::passes::Passes;
 use super::pipelines::{compute_buffer_entry, module, module_from, redeclare};
+use super::scan::Scan;
 use super::timer::Timer;
 use super::{FrameOptions, Gpu, Recording, frame_params, weight_kind};
 use crate::alloc::Target;
@@ -23,7 +24,8 @@ use crate::wgsl::{
 /// Per-pixel importance on the device and what the allocation needs beside it.
 pub(super) struct Importance {
     pub(super) counts: wgpu::Buffer,
-    /// Importance in; the allocation's fixed-point weights in place.
+    /// Importance in, the allocation's fixed-point weights and k in place, then the slot bases
+    /// ([`Recording::pixel_word`]).
     pub(super) importance: wgpu::Buffer,
     pub(super) totals: wgpu::Buffer,
     /// Whether the frame computed the importance (read back with diagnostics).
@@ -63,6 +65,16 @@ pub(super) fn record_unless(
     Ok(None)
 }
 
+/// What [`Recording::pixel_word`] holds when it is taken.
+pub(super) enum Word<'v> {
+    /// Zeros (a pass writes it: the importance pass).
+    Zeroed,
+    /// These values (uploaded k).
+    Holding(&'v [u32]),
+    /// Whatever it held (the caller writes every pixel's word before any pass reads it).
+    WrittenLater,
+}
+
 /// Per-pixel buffers whose contents are read by the time of the capture.
 pub(super) struct Reuse {
     /// 16 bytes a pixel.
@@ -74,6 +86,32 @@ pub(super) struct Reuse {
 }
 
 impl Recording<'_, '_> {
+    /// The frame's one word a pixel for the importance, the allocation's weights and k in turn,
+    /// then the slot bases (`pixels + 1` entries, `oit.offsets`; k is their difference): the
+    /// count's prefix sums' buffer where the frame counted first (read by then), else a new one;
+    /// holding what `word` says.
+    pub(super) fn pixel_word(&mut self, word: Word) -> Result<wgpu::Buffer> {
+        let px = self.px;
+        match (&self.counted, word) {
+            (Some(c), Word::Holding(v)) => {
+                self.passes
+                    .gpu
+                    .queue
+                    .write_buffer(&c.offsets, 0, bytemuck::cast_slice(v));
+                Ok(c.offsets.clone())
+            }
+            (Some(c), _) => Ok(c.offsets.clone()),
+            (None, Word::Holding(v)) => Ok(self.fb.init(
+                "oit.offsets",
+                bytemuck::cast_slice(&with_end(v)),
+                wgpu::BufferUsages::STORAGE,
+                true,
+            )),
+            (None, Word::Zeroed) => self.fb.storage("oit.offsets", 4 * (px + 1), true),
+            (None, Word::WrittenLater) => self.fb.storage_kept("oit.offsets", 4 * (px + 1), true),
+        }
+    }
+
     /// The count and totals (left pending where the frame is expected to fit) for importance
     /// computed elsewhere, uploaded.
     pub(super) fn uploaded_importance(
@@ -90,18 +128,18 @@ impl Recording<'_, '_> {
                 imp.len()
             )));
         }
+        let importance = self.pixel_word(Word::WrittenLater)?;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         let counts = fb.storage("count", 4 * px, true)?;
-        let importance = fb.init(
-            "oit.importance",
-            bytemuck::cast_slice(imp),
-            wgpu::BufferUsages::STORAGE,
-            true,
-        );
         let totals = fb.storage("totals", 16, true)?;
         passes.draw(enc, &p.count, &[&counts], "count");
-        let (c, t) = (counts.clone(), totals.clone());
+        let (c, t, word) = (counts.clone(), totals.clone(), importance.clone());
+        // The importance goes into its word with the rest: a frame expected to fit writes the
+        // count's prefix sums there first. (Not cleared: a clear would run after the write, at
+        // the frame's first submission.)
+        let values: Vec<u8> = bytemuck::cast_slice(imp).to_vec();
         let rest = pending(move |rec| {
+            rec.passes.gpu.queue.write_buffer(&word, 0, &values);
             rec.passes.totals(&mut rec.enc, &c, &t);
             Ok(())
         });
@@ -122,14 +160,13 @@ impl Recording<'_, '_> {
 /// An allocation's buffers and bind groups (taken whether or not the frame records it, so a
 /// frame's memory is the same either way).
 pub(super) struct Allocation {
+    /// The marks, then their exclusive prefix sums in place.
     flags: wgpu::Buffer,
-    prefix: wgpu::Buffer,
     dispatches: wgpu::Buffer,
     /// The search's state (allocate.wgsl), kept from frame to frame.
     state: wgpu::Buffer,
     setup_group: wgpu::BindGroup,
     group: wgpu::BindGroup,
-    apply_group: wgpu::BindGroup,
     grid: (u32, u32),
 }
 
@@ -181,7 +218,7 @@ impl<'a> Passes<'a> {
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
             true,
         );
-        let bind = |marks: &wgpu::Buffer, args: &wgpu::Buffer| {
+        let bind = |args: &wgpu::Buffer| {
             gpu.bind_at(
                 &a.layout,
                 &[
@@ -189,9 +226,8 @@ impl<'a> Passes<'a> {
                     (1, &params),
                     (2, b.counts),
                     (3, b.weights),
-                    (4, b.k),
                     (5, &state),
-                    (6, marks),
+                    (6, &flags),
                     (7, b.totals),
                     (8, args),
                 ],
@@ -200,11 +236,9 @@ impl<'a> Passes<'a> {
         // Setup and choose write the dispatches' arguments; the dispatches that read them bind
         // the state in their place.
         Ok(Allocation {
-            setup_group: bind(&flags, &dispatches),
-            group: bind(&flags, &state),
-            apply_group: bind(b.prefix, &state),
+            setup_group: bind(&dispatches),
+            group: bind(&state),
             flags,
-            prefix: b.prefix.clone(),
             dispatches,
             state,
             grid: (gx, gy),
@@ -249,10 +283,10 @@ impl<'a> Passes<'a> {
             pass.set_pipeline(&a.mark);
             pass.dispatch_workgroups_indirect(dispatches, per_pixel);
         });
-        self.prefix_sum_of(enc, fb, &al.flags, &al.prefix, Some((dispatches, scan)))?;
+        self.prefix_sum_of(enc, fb, Scan::InPlace(&al.flags), Some((dispatches, scan)))?;
         let (gx, gy) = al.grid;
         self.compute(enc, "allocation apply", |pass| {
-            pass.set_bind_group(0, &al.apply_group, &[]);
+            pass.set_bind_group(0, &al.group, &[]);
             pass.set_pipeline(&a.apply);
             pass.dispatch_workgroups(gx, gy, 1);
         });
@@ -265,7 +299,7 @@ impl<'a> Passes<'a> {
 pub struct GpuAllocation {
     /// n(p), the GPU's own count.
     pub counts: Vec<u32>,
-    /// k(p).
+    /// k(p): the bases' differences (k is not stored beside them on the device).
     pub k: Vec<u32>,
     /// Exclusive prefix sums of k (`pixels + 1` entries): the slot bases.
     pub bases: Vec<u32>,
@@ -280,8 +314,9 @@ impl Gpu {
     /// The allocation alone, on the GPU: the count pass, totals, the allocation of k from
     /// `importance` (one value a pixel, meaning what `target` says) at `budget`, and the
     /// prefix sums of k; no capture. The twin is `alloc::allocate` on the returned counts.
-    /// Five buffers of 4 bytes a pixel, so a 7680x4320 frame fits a device whose bindings
-    /// hold 133 MB (lavapipe's 128 MiB do), where a whole k-buffer frame does not.
+    /// Three buffers of 4 bytes a pixel (the count, the marks, and one word for the importance,
+    /// the weights, k and the slot bases in turn), so a 7680x4320 frame fits a device whose
+    /// bindings hold 133 MB (lavapipe's 128 MiB do), where a whole k-buffer frame does not.
     pub fn allocate(
         &self,
         scene: &Scene,
@@ -308,15 +343,13 @@ impl Gpu {
         let p = &self.pipelines;
         let mut enc = self.device.create_command_encoder(&Default::default());
         let counts = fb.storage("count", 4 * px, true)?;
-        let imp = fb.init(
-            "oit.importance",
-            bytemuck::cast_slice(importance),
+        let base = fb.init(
+            "oit.offsets",
+            bytemuck::cast_slice(&with_end(importance)),
             wgpu::BufferUsages::STORAGE,
             true,
         );
         let totals = fb.storage("totals", 16, true)?;
-        let k = fb.storage("oit.k", 4 * px, true)?;
-        let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
         passes.opaque(&mut enc);
         passes.draw(&mut enc, &p.count, &[&counts], "count");
         passes.totals(&mut enc, &counts, &totals);
@@ -324,9 +357,7 @@ impl Gpu {
             &mut fb,
             AllocBuffers {
                 counts: &counts,
-                weights: &imp,
-                k: &k,
-                prefix: &base,
+                weights: &base,
                 totals: &totals,
                 flags: None,
             },
@@ -334,12 +365,13 @@ impl Gpu {
             weight_kind(target),
         )?;
         passes.allocate(&mut enc, &mut fb, &al)?;
-        passes.prefix_sum(&mut enc, &mut fb, &k, &base)?;
+        passes.prefix_sum_of(&mut enc, &mut fb, Scan::InPlace(&base), None)?;
         fb.submit(&mut enc);
+        let bases = u32s(&read_back(self, &base, 4 * (px + 1))?);
         let out = GpuAllocation {
             counts: u32s(&read_back(self, &counts, 4 * px)?),
-            k: u32s(&read_back(self, &k, 4 * px)?),
-            bases: u32s(&read_back(self, &base, 4 * (px + 1))?),
+            k: bases.windows(2).map(|b| b[1] - b[0]).collect(),
+            bases,
             pass_ms: timer.read(self)?,
             search_rounds: read_words(self, &[(&al.state, 8 * ALLOC_ROUNDS_WORD as u64)])?[0],
         };
@@ -366,11 +398,9 @@ pub(super) struct Allocate {
 /// The buffers the allocation reads and writes.
 pub(super) struct AllocBuffers<'a> {
     pub(super) counts: &'a wgpu::Buffer,
-    /// Importance in; the fixed-point weights in place.
+    /// Importance in; the fixed-point weights in place, then k in place (`pixels + 1` words:
+    /// the scan then turns k into the slot bases in place).
     pub(super) weights: &'a wgpu::Buffer,
-    pub(super) k: &'a wgpu::Buffer,
-    /// Scratch for the prefix of the marks (the slot offsets, computed after).
-    pub(super) prefix: &'a wgpu::Buffer,
     pub(super) totals: &'a wgpu::Buffer,
     /// A dead buffer of at least 4 bytes a pixel to hold the marks (else one is allocated).
     pub(super) flags: Option<&'a wgpu::Buffer>,
@@ -387,7 +417,6 @@ impl Allocate {
                 entry(1, wgpu::BufferBindingType::Uniform),
                 entry(2, wgpu::BufferBindingType::Storage { read_only: true }),
                 entry(3, rw),
-                entry(4, rw),
                 entry(5, rw),
                 entry(6, rw),
                 entry(7, wgpu::BufferBindingType::Storage { read_only: true }),
@@ -453,4 +482,10 @@ fn pipeline(
         compilation_options: Default::default(),
         cache: None,
     })
+}
+
+/// `values` and one word more (zero), so a buffer of per-pixel values can hold the slot bases'
+/// `pixels + 1` entries in place.
+pub(super) fn with_end<T: bytemuck::Pod + Default>(values: &[T]) -> Vec<T> {
+    values.iter().copied().chain([T::default()]).collect()
 }

@@ -3,16 +3,17 @@
 //! capture, append or Loop64 insertion; twin `composite::capture`) and `resolve.wgsl` (the
 //! slots front to back over the tail's approximation; twin `composite::hybrid_sorted`).
 
-use super::allocate::{AllocBuffers, Importance, Reuse};
+use super::allocate::{AllocBuffers, Importance, Reuse, Word};
 use super::buffers::{FrameBuffers, FrameStatus, read_back, read_u64s, read_words, u32s};
+use super::scan::Scan;
 use super::{Recording, Slots};
 use crate::budget::FragmentBudget;
 use crate::error::{Error, Result};
 
-/// A frame's k: per pixel, its slot bases and how many slots in all, and n(p) where the frame
-/// counted it (the two-mode capture reads it; else an unused buffer).
+/// A frame's k: per pixel, its slot bases (`pixels + 1` entries: k is their difference, not
+/// stored) and how many slots in all, and n(p) where the frame counted it (the two-mode capture
+/// reads it; else an unused buffer).
 pub(super) struct KBuffer {
-    pub(super) k: wgpu::Buffer,
     pub(super) base: wgpu::Buffer,
     pub(super) slots: u64,
     pub(super) counts: wgpu::Buffer,
@@ -31,7 +32,6 @@ impl Recording<'_, '_> {
                 // FKB reads none of these, but the shared capture layout binds them.
                 let fb = &mut self.fb;
                 Ok(KBuffer {
-                    k: fb.storage("fkb.unused_k", 16, true)?,
                     base: fb.storage("fkb.unused_offsets", 16, true)?,
                     slots: k.max(1) as u64 * px,
                     counts: fb.storage("fkb.unused_counts", 16, true)?,
@@ -46,17 +46,11 @@ impl Recording<'_, '_> {
                         k.len()
                     )));
                 }
+                // k uploaded into the bases' buffer, then their prefix sums in place.
+                let base = self.pixel_word(Word::Holding(k))?;
                 let fb = &mut self.fb;
-                let k_of = fb.init(
-                    "oit.k",
-                    bytemuck::cast_slice(k),
-                    wgpu::BufferUsages::STORAGE,
-                    true,
-                );
-                let base = fb.storage("oit.offsets", 4 * (px + 1), true)?;
-                passes.prefix_sum(&mut self.enc, fb, &k_of, &base)?;
+                passes.prefix_sum_of(&mut self.enc, fb, Scan::InPlace(&base), None)?;
                 Ok(KBuffer {
-                    k: k_of,
                     base,
                     slots: k.iter().map(|&x| x as u64).sum(),
                     counts: fb.storage("oit.unused_counts", 16, true)?,
@@ -110,19 +104,15 @@ impl Recording<'_, '_> {
         expect_fit: bool,
     ) -> Result<KBuffer> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
-        let k = self.fb.storage("oit.k", 4 * px, true)?;
-        // The slot bases: the count's prefix sums' buffer where the frame counted first.
-        let base = match self.counted.take() {
-            Some(c) => c.offsets,
-            None => self.fb.storage("oit.offsets", 4 * (px + 1), true)?,
-        };
+        // The importance's word becomes k, then the slot bases (the count's prefix sums'
+        // buffer where the frame counted first: Recording::pixel_word).
+        self.counted = None;
+        let base = i.importance.clone();
         let al = passes.allocation(
             &mut self.fb,
             AllocBuffers {
                 counts: &i.counts,
-                weights: &i.importance,
-                k: &k,
-                prefix: &base,
+                weights: &base,
                 totals: &i.totals,
                 flags: i.marks.as_ref(),
             },
@@ -147,11 +137,14 @@ impl Recording<'_, '_> {
             fb.submit(enc);
             let total = read_words(gpu, &[(&base, 4 * px)])?[0] as u64;
             if budget.holds(total) {
-                self.out.importance_buf = copy_importance(fb, enc)?;
+                // No pass computed the importance (k = n): it reads back as zeros.
+                if self.passes.opts.diagnostics && i.computed {
+                    self.out.importance_buf =
+                        Some(fb.storage("importance.readback", 4 * px, false)?);
+                }
                 gpu.last_truncated
                     .store(false, std::sync::atomic::Ordering::Relaxed);
                 return Ok(KBuffer {
-                    k: i.counts.clone(),
                     base,
                     slots: total,
                     counts: i.counts,
@@ -168,7 +161,7 @@ impl Recording<'_, '_> {
         self.out.importance_buf = copy_importance(fb, enc)?;
         let search = passes.allocate(enc, fb, &al)?;
         self.out.variants.push(search);
-        passes.prefix_sum(enc, fb, &k, &base)?;
+        passes.prefix_sum_of(enc, fb, Scan::InPlace(&base), None)?;
         fb.submit(enc);
         // The slots (the bases' last entry) and the frame's fragments, without reading back
         // the bases.
@@ -178,7 +171,6 @@ impl Recording<'_, '_> {
         gpu.last_truncated
             .store(!all_fit, std::sync::atomic::Ordering::Relaxed);
         Ok(KBuffer {
-            k,
             base,
             slots,
             counts: i.counts,
@@ -223,7 +215,7 @@ impl Recording<'_, '_> {
         passes.draw(
             enc,
             capture,
-            &[&kb.k, &kb.base, &slots, &tail, &tail_count, &kb.counts],
+            &[&kb.base, &slots, &tail, &tail_count, &kb.counts],
             "capture",
         );
         // With diagnostics, the tail counts as the capture left them, before the resolve sorts
@@ -241,7 +233,6 @@ impl Recording<'_, '_> {
             resolve,
             &[
                 passes.params(),
-                &kb.k,
                 &kb.base,
                 &slots,
                 &tail,

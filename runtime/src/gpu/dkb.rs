@@ -9,7 +9,7 @@
 //! alone and leaves the rest to [`Recording::allocated`], which records it only where the
 //! budget truncates.
 
-use super::allocate::{Importance, Reuse, pending, record_unless};
+use super::allocate::{Importance, Reuse, Word, pending, record_unless};
 use super::pipelines::Variant;
 use super::{DkbGeometry, Recording, weight_kind};
 use crate::error::{Error, Result};
@@ -46,6 +46,7 @@ impl Recording<'_, '_> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         gpu.can_run(mlp)?;
         let p = &gpu.pipelines;
+        let importance = self.pixel_word(Word::Zeroed)?;
         let fb = &mut self.fb;
         let args = 4 * DISPATCH_WORDS as u64;
         let dispatch = fb.take(
@@ -90,7 +91,7 @@ impl Recording<'_, '_> {
                 true,
             ),
             totals: fb.storage("features.totals", 24, true)?,
-            importance: fb.storage("oit.importance", 4 * px, true)?,
+            importance,
             list: fb.storage("alloc.flags", 4 * px, true)?,
             list_len: fb.storage("importance.list_len", 16, true)?,
             dispatch,

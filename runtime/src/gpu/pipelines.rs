@@ -17,6 +17,8 @@ pub(super) struct Pipelines {
     /// capture.wgsl built for frames whose budget holds every fragment (k = n).
     pub(super) capture_fits: wgpu::RenderPipeline,
     pub(super) scan_blocks: wgpu::ComputePipeline,
+    /// scan.wgsl's per-block scan of a buffer's own values, in place.
+    pub(super) scan_blocks_in_place: wgpu::ComputePipeline,
     pub(super) scan_sums: wgpu::ComputePipeline,
     pub(super) scan_add: wgpu::ComputePipeline,
     pub(super) abuffer_resolve: wgpu::ComputePipeline,
@@ -536,6 +538,7 @@ impl Pipelines {
             capture: geometry("capture"),
             capture_fits: geometry_from("capture", fits("capture")),
             scan_blocks: compute_entry("scan", "scan_blocks"),
+            scan_blocks_in_place: compute_entry("scan", "scan_blocks_in_place"),
             scan_sums: compute_entry("scan", "scan_sums"),
             scan_add: compute_entry("scan", "scan_add"),
             abuffer_resolve: compute("abuffer_resolve"),

@@ -8,6 +8,16 @@ use crate::budget;
 use crate::error::Result;
 use crate::wgsl::grid;
 
+/// What a prefix sum reads and writes.
+#[derive(Clone, Copy)]
+pub(super) enum Scan<'b> {
+    /// `values` into `offsets` (`pixels + 1` entries).
+    From(&'b wgpu::Buffer, &'b wgpu::Buffer),
+    /// The buffer's own values, in place (`scan_blocks_in_place`); its last entry gets the total
+    /// where it holds `pixels + 1`.
+    InPlace(&'b wgpu::Buffer),
+}
+
 impl<'a> Passes<'a> {
     /// Exclusive prefix sum of `values` into `offsets` (pixels + 1 entries): three dispatches
     /// with a block-total buffer of one u32 per [`budget::SCAN_BLOCK`] pixels.
@@ -18,18 +28,17 @@ impl<'a> Passes<'a> {
         values: &wgpu::Buffer,
         offsets: &wgpu::Buffer,
     ) -> Result<()> {
-        self.prefix_sum_of(enc, fb, values, offsets, None)
+        self.prefix_sum_of(enc, fb, Scan::From(values, offsets), None)
     }
 
-    /// [`Passes::prefix_sum`] with its per-block dispatches' grid read from `args` at an offset
-    /// (the device may empty it: then only the block totals' scan runs, over stale totals, and
-    /// `offsets` is left undefined).
+    /// The prefix sum `scan` says, with its per-block dispatches' grid read from `args` at an
+    /// offset where given (the device may empty it: then only the block totals' scan runs, over
+    /// stale totals, and the offsets are left undefined).
     pub(super) fn prefix_sum_of(
         &self,
         enc: &mut wgpu::CommandEncoder,
         fb: &mut FrameBuffers,
-        values: &wgpu::Buffer,
-        offsets: &wgpu::Buffer,
+        scan: Scan,
         args: Option<(&wgpu::Buffer, u64)>,
     ) -> Result<()> {
         let p = &self.gpu.pipelines;
@@ -40,23 +49,28 @@ impl<'a> Passes<'a> {
         }
         let blocks = fb.scan_blocks.clone().expect("created above");
         let params = self.params();
-        // Auto layouts keep only the bindings an entry point uses: `values` only the first.
-        let bind = |pl: &wgpu::ComputePipeline, all: bool| {
+        let (values, offsets, first) = match scan {
+            Scan::From(v, o) => (Some(v), o, &p.scan_blocks),
+            Scan::InPlace(o) => (None, o, &p.scan_blocks_in_place),
+        };
+        // Auto layouts keep only the bindings an entry point uses: `values` only the first
+        // entry's, where it reads another buffer.
+        let bind = |pl: &wgpu::ComputePipeline, first: bool| {
             let mut entries = vec![(0, params), (2, offsets), (3, &blocks)];
-            if all {
-                entries.push((1, values));
+            if let (true, Some(v)) = (first, values) {
+                entries.push((1, v));
             }
             self.gpu.bind_at(&pl.get_bind_group_layout(0), &entries)
         };
         let (gx, gy) = grid(px, budget::SCAN_BLOCK as u32);
         self.compute(enc, "prefix sum", |pass| {
-            // (pipeline, over every block, binds `values`)
-            for (pl, per_block, all) in [
-                (&p.scan_blocks, true, true),
+            // (pipeline, over every block, the first)
+            for (pl, per_block, is_first) in [
+                (first, true, true),
                 (&p.scan_sums, false, false),
                 (&p.scan_add, true, false),
             ] {
-                let g = bind(pl, all);
+                let g = bind(pl, is_first);
                 pass.set_pipeline(pl);
                 pass.set_bind_group(0, &g, &[]);
                 match (per_block, args) {

@@ -2,7 +2,7 @@
 //! the nearest fragment's depth and facing; twin `importance::nearest_facing`), `totals.wgsl`,
 //! then `importance_vkb.wgsl` (twin `importance::vkb_importance_from`).
 
-use super::allocate::{Importance, pending, record_unless};
+use super::allocate::{Importance, Word, pending, record_unless};
 use super::{Recording, weight_kind};
 use crate::alloc::Target;
 use crate::error::Result;
@@ -13,6 +13,7 @@ impl Recording<'_, '_> {
     pub(super) fn vkb_importance(&mut self, expect_fit: bool) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
+        let importance = self.pixel_word(Word::Zeroed)?;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         // The frame's count where it counted first, counted again here with the nearest
         // fragment (vkb_count.wgsl adds to it).
@@ -25,7 +26,6 @@ impl Recording<'_, '_> {
         };
         let nearest = fb.storage("vkb.nearest", 8 * px, true)?;
         let totals = fb.storage("vkb.totals", 16, true)?;
-        let importance = fb.storage("oit.importance", 4 * px, true)?;
         passes.draw(enc, &p.vkb_count, &[&counts, &nearest], "count");
         let [c, n, t, i] = [&counts, &nearest, &totals, &importance].map(|b| b.clone());
         let rest = pending(move |rec| {
