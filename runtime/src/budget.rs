@@ -22,13 +22,7 @@ pub const SLOT_BYTES: u64 = 8;
 /// ([`Layout::for_network`]).
 pub const MLP_UNIFORM_BYTES: u64 =
     crate::mlp::uniform_bytes(crate::mlp::H1, crate::mlp::H2, crate::mlp::Precision::F32);
-/// Pixels per workgroup of the prefix sum (its [`SCAN_GROUP`] invocations take
-/// `SCAN_BLOCK / SCAN_GROUP` each); one u32 of block totals per block.
-pub const SCAN_BLOCK: u64 = 2048;
-/// Invocations per workgroup of the prefix sum.
-pub const SCAN_GROUP: u64 = 256;
-/// Bytes of the per-frame parameter uniform (resolution, budget, background, totals).
-pub const PARAMS_BYTES: u64 = 256;
+pub use crate::shared::{PARAMS_BYTES, PPM, SCAN_BLOCK, SCAN_GROUP};
 
 /// The buffers one method allocates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -57,11 +51,11 @@ const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
 /// The allocation's parameters (F, share, weight kind) and its search state (25 u64: target,
 /// interval, sums of 16 candidates, rounds, the last answers).
 const ALLOC_PARAMS: (&str, u64) = ("alloc.params", 16);
-const ALLOC_STATE: (&str, u64) = ("alloc.state", 8 * crate::wgsl::ALLOC_STATE_WORDS as u64);
+const ALLOC_STATE: (&str, u64) = ("alloc.state", 8 * crate::shared::ALLOC_STATE_WORDS as u64);
 /// The allocation's three indirect dispatches (empty when every fragment fits).
 const ALLOC_DISPATCHES: (&str, u64) = (
     "alloc.dispatches",
-    (4 * crate::wgsl::ALLOC_DISPATCHES * crate::wgsl::DISPATCH_WORDS) as u64,
+    (4 * crate::shared::ALLOC_DISPATCHES * crate::shared::DISPATCH_WORDS) as u64,
 );
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
@@ -98,7 +92,7 @@ pub const DKB: Layout = Layout {
         ("importance.list_len", 16),
         (
             "importance.dispatch",
-            4 * crate::wgsl::DISPATCH_WORDS as u64,
+            4 * crate::shared::DISPATCH_WORDS as u64,
         ),
         OFFSETS_END,
         ALLOC_PARAMS,
@@ -352,9 +346,6 @@ impl From<u64> for FragmentBudget {
         FragmentBudget::Slots(f)
     }
 }
-
-/// Parts per million of a whole share.
-pub const PPM: u64 = 1_000_000;
 
 /// F of a relative budget: `floor(total ppm / 10^6)` (the GPU computes the same integer).
 pub fn share_of(total: u64, ppm: u32) -> u64 {

@@ -51,6 +51,7 @@ pub mod mlp;
 pub mod raster;
 pub mod rng;
 pub mod scene;
+pub mod shared;
 pub mod tensors;
 pub mod wgsl;
 

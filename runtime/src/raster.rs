@@ -50,14 +50,10 @@ use rayon::prelude::*;
 
 pub const SUBPIXEL_BITS: u32 = 8;
 const SUB: i64 = 1 << SUBPIXEL_BITS;
-/// Ambient share of the headlight shading.
-pub const AMBIENT: f32 = 0.3;
+pub use crate::shared::{AMBIENT, MAX_FRAGMENTS_PER_PIXEL};
 const BAND_ROWS: u32 = 8;
 /// Largest accepted width or height.
 pub const MAX_DIM: u32 = 16384;
-/// Most fragments one pixel may hold: the tail's 32-bit integer sums add up to 255^2 per
-/// fragment.
-pub const MAX_FRAGMENTS_PER_PIXEL: u32 = 65_535;
 
 /// A frame size, given as `WIDTHxHEIGHT` on command lines (parsed by [`parse_resolution`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -4,6 +4,10 @@
 //! without wgpu, and naga tests hold each layout to its WGSL declaration.
 
 use crate::mlp::{self, Mlp, Precision};
+pub use crate::shared::{
+    ALLOC_CANDIDATES, ALLOC_DISPATCHES, ALLOC_ROUNDS_WORD, ALLOC_STATE_WORDS, DISPATCH_PER_PIXEL,
+    DISPATCH_ROUNDS, DISPATCH_SCAN, DISPATCH_WORDS,
+};
 
 /// WGSL sources, embedded at build time.
 pub mod shaders {
@@ -166,13 +170,14 @@ pub mod shaders {
             ALLOC_CANDIDATES, ALLOC_GROUP, ALLOC_STATE_WORDS, MLAB_MAX_ROWS, MLP_MEAN_AT,
             MLP_STD_AT, MLP_W1_AT, PIXEL_GROUP, SEARCH_PIXELS,
         };
-        use crate::{alloc, budget, importance, mlp, raster};
+        use crate::shared::{AMBIENT, MAX_FRAGMENTS_PER_PIXEL, PPM, SCAN_BLOCK, SCAN_GROUP};
+        use crate::{alloc, importance, mlp};
         use Value::{F32, U32, U64};
         vec![
-            ("AMBIENT", F32(raster::AMBIENT)),
+            ("AMBIENT", F32(AMBIENT)),
             ("PIXEL_GROUP", U32(PIXEL_GROUP)),
-            ("SCAN_BLOCK", U32(budget::SCAN_BLOCK as u32)),
-            ("SCAN_GROUP", U32(budget::SCAN_GROUP as u32)),
+            ("SCAN_BLOCK", U32(SCAN_BLOCK as u32)),
+            ("SCAN_GROUP", U32(SCAN_GROUP as u32)),
             ("ALLOC_GROUP", U32(ALLOC_GROUP)),
             ("ALLOC_CANDIDATES", U32(ALLOC_CANDIDATES)),
             ("SEARCH_PIXELS", U32(SEARCH_PIXELS)),
@@ -185,7 +190,7 @@ pub mod shaders {
             ("DISPATCH_ROUNDS", U32(super::DISPATCH_ROUNDS)),
             ("DISPATCH_SCAN", U32(super::DISPATCH_SCAN)),
             ("ALLOC_DISPATCHES", U32(super::ALLOC_DISPATCHES)),
-            ("PPM", U32(budget::PPM as u32)),
+            ("PPM", U32(PPM as u32)),
             ("WEIGHT_BITS", U32(alloc::WEIGHT_BITS)),
             ("WEIGHT_MAX", U32(alloc::WEIGHT_MAX)),
             ("LAMBDA_BITS", U32(alloc::LAMBDA_BITS)),
@@ -200,7 +205,10 @@ pub mod shaders {
             ("OPTICAL_DEPTH_UNIT", F32(importance::OPTICAL_DEPTH_UNIT)),
             ("MAX_STANDARDISED", F32(mlp::MAX_STANDARDISED)),
             ("MAX_H2", U32(mlp::MAX_H2 as u32)),
-            ("MLP_VEC4S", U32((budget::MLP_UNIFORM_BYTES / 16) as u32)),
+            (
+                "MLP_VEC4S",
+                U32((mlp::uniform_bytes(mlp::H1, mlp::H2, mlp::Precision::F32) / 16) as u32),
+            ),
             ("MLP_MEAN_AT", U32(MLP_MEAN_AT as u32)),
             ("MLP_STD_AT", U32(MLP_STD_AT as u32)),
             ("MLP_W1_AT", U32(MLP_W1_AT as u32)),
@@ -215,10 +223,7 @@ pub mod shaders {
             ("MBOIT_MIN_B0", F32(crate::composite::MBOIT_MIN_B0)),
             ("LIST_MAX_SORTED", U32(crate::composite::LIST_MAX_SORTED)),
             ("APPEND_SPILL", U32(crate::composite::APPEND_SPILL)),
-            (
-                "MAX_FRAGMENTS_PER_PIXEL",
-                U32(raster::MAX_FRAGMENTS_PER_PIXEL),
-            ),
+            ("MAX_FRAGMENTS_PER_PIXEL", U32(MAX_FRAGMENTS_PER_PIXEL)),
             ("TEXEL_LIMIT", F32(crate::scene::material::TEXEL_LIMIT)),
             ("ALPHA_SCALE", F32(crate::scene::material::ALPHA_SCALE)),
             ("NO_TEXTURE", U32(super::NO_TEXTURE)),
@@ -256,26 +261,9 @@ pub mod shaders {
 pub const PIXEL_GROUP: u32 = 64;
 /// Invocations a workgroup of the allocation's per-pixel entry points.
 pub const ALLOC_GROUP: u32 = 256;
-/// Candidates the allocation's search tries per round (a 16-way search).
-pub const ALLOC_CANDIDATES: u32 = 16;
 /// Pixels each invocation of the allocation's search sums before its workgroup's atomics: a
 /// quarter of the shared atomics, and a quarter of the workgroups.
 pub const SEARCH_PIXELS: u32 = 4;
-/// The allocation's search state in u64s: target, interval start, span, lo, total at the start,
-/// F, the candidates' totals, the rounds the search took, and the last answers found for a
-/// level and for a scale (kept from frame to frame: the next search's bracket centres on them).
-pub const ALLOC_STATE_WORDS: u32 = 6 + ALLOC_CANDIDATES + 3;
-/// The state word counting the search's rounds (those that narrowed the interval).
-pub const ALLOC_ROUNDS_WORD: u32 = 6 + ALLOC_CANDIDATES;
-/// Words of one indirect dispatch's arguments: workgroups x, y, z and one unused (16 bytes, as
-/// the allocation's and the importance pass's argument buffers lay them out).
-pub const DISPATCH_WORDS: u32 = 4;
-/// The allocation's indirect dispatches, in its argument buffer's order: the per-pixel entry
-/// points (weights, mark), the search rounds, the marks' prefix sum.
-pub const DISPATCH_PER_PIXEL: u32 = 0;
-pub const DISPATCH_ROUNDS: u32 = 1;
-pub const DISPATCH_SCAN: u32 = 2;
-pub const ALLOC_DISPATCHES: u32 = 3;
 
 /// The allocation's argument buffer for these grids (per pixel, rounds, scan; each as x, y):
 /// [`DISPATCH_WORDS`] a dispatch, in the order of [`DISPATCH_PER_PIXEL`] and the others.
@@ -581,7 +569,7 @@ mod tests {
             span as usize <= size_of::<Params>(),
             "Params: WGSL {span} bytes"
         );
-        assert_eq!(size_of::<Params>() as u64, budget::PARAMS_BYTES);
+        assert_eq!(size_of::<Params>() as u64, crate::shared::PARAMS_BYTES);
 
         let (span, wgsl) = wgsl_struct(&parse("capture"), "Material");
         let rust = offsets!(GpuMaterial; factor, texels, width, height, flags, cutoff,
