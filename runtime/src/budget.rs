@@ -122,15 +122,15 @@ pub const OPT: Layout = Layout {
 };
 
 /// Variable k-buffer with importance maps (paper 002). The nearest keys (8 bytes), read by the
-/// importance pass, then hold the allocation's marks (4); the importance, k and the slot bases
-/// share `oit.offsets` in turn.
+/// importance pass, live in the tail's sums, and the allocation's marks (4) in the tail's
+/// count, both dead by the capture; the importance, k and the slot bases share `oit.offsets` in
+/// turn.
 pub const VKB: Layout = Layout {
     method: "vkb",
     slot_bytes: SLOT_BYTES,
     per_pixel: &[
         RASTER_TARGET,
         ("vkb.count", 4),
-        ("vkb.nearest", 8),
         ("oit.offsets", 4),
         HYBRID_TAIL,
         TAIL_COUNT,

@@ -2,14 +2,16 @@
 //! the nearest fragment's depth and facing; twin `importance::nearest_facing`), `totals.wgsl`,
 //! then `importance_vkb.wgsl` (twin `importance::vkb_importance_from`).
 
-use super::allocate::{Importance, Word, pending, record_unless};
+use super::allocate::{Importance, Reuse, Word, pending, record_unless};
 use super::{Recording, weight_kind};
 use crate::alloc::Target;
 use crate::error::Result;
 
 impl Recording<'_, '_> {
-    /// VKB's count, then totals and importance (left pending where the frame is expected to fit);
-    /// its nearest keys, once read, hold the allocation's marks.
+    /// VKB's count, then totals and importance (left pending where the frame is expected to fit).
+    /// Its nearest keys live in the tail's sums (8 of their 16 bytes a pixel) and the
+    /// allocation's marks in the tail's count, both dead by the capture, which clears them: VKB
+    /// takes no per-pixel buffer beyond the count, the shared word and the tail.
     pub(super) fn vkb_importance(&mut self, expect_fit: bool) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
@@ -24,7 +26,10 @@ impl Recording<'_, '_> {
             }
             None => fb.storage("vkb.count", 4 * px, true)?,
         };
-        let nearest = fb.storage("vkb.nearest", 8 * px, true)?;
+        let nearest = fb.storage("oit.tail", 16 * px, true)?;
+        let tail_count = fb.storage("oit.tail_count", 4 * px, true)?;
+        // The application's target where it gives one: counted for no method.
+        let image = fb.storage("application.image", 16 * px, false)?;
         let totals = fb.storage("vkb.totals", 16, true)?;
         passes.draw(enc, &p.vkb_count, &[&counts, &nearest], "count");
         let [c, n, t, i] = [&counts, &nearest, &totals, &importance].map(|b| b.clone());
@@ -35,8 +40,7 @@ impl Recording<'_, '_> {
             passes.dispatch(enc, &p.importance_vkb, &bufs, "importance");
             Ok(())
         });
-        // The nearest keys are read: a copy for the frame's statistics (not counted), then the
-        // buffer holds the allocation's marks.
+        // A copy of the nearest keys for the frame's statistics (not counted).
         if self.passes.opts.diagnostics {
             let copy = fb.storage("vkb.nearest.readback", 8 * px, false)?;
             enc.copy_buffer_to_buffer(&nearest, 0, &copy, 0, 8 * px);
@@ -49,8 +53,12 @@ impl Recording<'_, '_> {
             totals,
             computed: true,
             kind: weight_kind(Target::RelativeK),
-            marks: Some(nearest),
-            reuse: None,
+            marks: Some(tail_count.clone()),
+            reuse: Some(Reuse {
+                tail: nearest,
+                tail_count,
+                image,
+            }),
             pending,
         })
     }
