@@ -129,6 +129,31 @@ pub fn front(keys: &[[f64; 3]]) -> Vec<bool> {
 }
 
 pub fn run(a: VersusArgs) -> Result<()> {
+    let methods = checked_methods(&a)?;
+    let weights = load_weights(&a.common, None, methods.contains(&Method::Dkb))?;
+    let loaded = load_scenes(&a.scenes, &a.common)?;
+    let gpu = Gpu::new().context("versus times every method's GPU frame")?;
+    eprintln!("versus: GPU frames timed on {}", gpu.adapter());
+    dhoit_runtime::tensors::create_folder(&a.out)?;
+    let measures = measure(&a, &methods, &loaded, weights.as_ref(), &gpu)?;
+    let frames = a.scenes.len() * a.view_list.len();
+    let report = Report {
+        adapter: gpu.adapter().to_string(),
+        resolution: format!("{}x{}", a.common.res.width, a.common.res.height),
+        views: a.view_list.clone(),
+        scenes: loaded.iter().map(|s| s.name.clone()).collect(),
+        budgets: a
+            .memories
+            .iter()
+            .zip(&measures)
+            .map(|(&x, at_x)| trade_at(x, &methods, at_x, frames))
+            .collect(),
+    };
+    write_outputs(&a, &report)
+}
+
+/// The methods asked for, once the memories and views are known to be valid.
+fn checked_methods(a: &VersusArgs) -> Result<Vec<Method>> {
     let methods: Vec<Method> = a
         .methods
         .iter()
@@ -143,21 +168,29 @@ pub fn run(a: VersusArgs) -> Result<()> {
     for &view in &a.view_list {
         check_view(view, a.common.views)?;
     }
-    let weights = load_weights(&a.common, None, methods.contains(&Method::Dkb))?;
-    let loaded = load_scenes(&a.scenes, &a.common)?;
-    let gpu = Gpu::new().context("versus times every method's GPU frame")?;
-    eprintln!("versus: GPU frames timed on {}", gpu.adapter());
-    dhoit_runtime::tensors::create_folder(&a.out)?;
-    let steps = a.scenes.len() * a.view_list.len() * a.memories.len();
-    let pb = bar(steps as u64, "frames");
-    // measures[budget][method]: one a frame.
-    let mut measures: Vec<Vec<Vec<Measure>>> =
-        vec![vec![Vec::new(); methods.len()]; a.memories.len()];
+    Ok(methods)
+}
+
+/// Every frame of every method at every memory: `[memory][method]`, one [`Measure`] a frame
+/// the method runs in that memory (a method whose fixed cost, or whose memory that does not
+/// follow the budget, exceeds M does not run there).
+fn measure(
+    a: &VersusArgs,
+    methods: &[Method],
+    loaded: &[dhoit_runtime::scene::Scene],
+    weights: Option<&dhoit_runtime::mlp::Mlp>,
+    gpu: &Gpu,
+) -> Result<Vec<Vec<Vec<Measure>>>> {
+    let pb = bar(
+        (loaded.len() * a.view_list.len() * a.memories.len()) as u64,
+        "frames",
+    );
+    let mut measures = vec![vec![Vec::new(); methods.len()]; a.memories.len()];
     let frame_opts = FrameOptions {
         diagnostics: false,
         ..FrameOptions::default()
     };
-    for s in &loaded {
+    for s in loaded {
         for &view in &a.view_list {
             let (fl, _) = rasterize_view(s, view, &a.common)?;
             let (w, h) = (fl.width, fl.height);
@@ -168,7 +201,7 @@ pub fn run(a: VersusArgs) -> Result<()> {
             for (bi, &x) in a.memories.iter().enumerate() {
                 let m_bytes = (x * exact_bytes as f64).floor() as u64;
                 let opts = a.params.apply(Options {
-                    weights: weights.as_ref(),
+                    weights,
                     ..Options::new(Budget::Bytes(m_bytes), a.common.background)
                 });
                 let r = Renderer::new(&fl, opts);
@@ -210,83 +243,86 @@ pub fn run(a: VersusArgs) -> Result<()> {
         }
     }
     pb.finish_and_clear();
+    Ok(measures)
+}
+
+/// One memory's trade: each method's means over the frames it ran (`at_x[method]`), the front of
+/// the means among the methods that ran all `frames`, and each method's count of per-frame
+/// fronts it is on.
+fn trade_at(x: f64, methods: &[Method], at_x: &[Vec<Measure>], frames: usize) -> BudgetTrade {
     let floor = crate::compare::MSE_FLOOR;
     let geomean = |v: Vec<f64>| crate::compare::geomean(&v);
-    let mut report = Report {
-        adapter: gpu.adapter().to_string(),
-        resolution: format!("{}x{}", a.common.res.width, a.common.res.height),
-        views: a.view_list.clone(),
-        scenes: loaded.iter().map(|s| s.name.clone()).collect(),
-        budgets: Vec::new(),
-    };
-    for (bi, x) in a.memories.iter().enumerate() {
-        let mut points: Vec<Point> = methods
-            .iter()
-            .enumerate()
-            .filter(|(mi, _)| !measures[bi][*mi].is_empty())
-            .map(|(mi, m)| {
-                let fr = &measures[bi][mi];
-                Point {
-                    method: m.name().to_string(),
-                    gpu_ms: geomean(fr.iter().map(|x| x.gpu_ms).collect()),
-                    mse: geomean(fr.iter().map(|x| x.mse.max(floor)).collect()),
-                    flip: fr.iter().map(|x| x.flip).sum::<f64>() / fr.len() as f64,
-                    bytes_per_pixel: fr.iter().map(|x| x.bytes_per_pixel).sum::<f64>()
-                        / fr.len() as f64,
-                    front_frames: 0,
-                    front: false,
-                    frames: fr.clone(),
-                }
-            })
-            .collect();
-        // The front of the means, among the methods that ran every frame (a mean over fewer
-        // frames is not comparable).
-        let total = a.scenes.len() * a.view_list.len();
+    let mut points: Vec<Point> = methods
+        .iter()
+        .zip(at_x)
+        .filter(|(_, fr)| !fr.is_empty())
+        .map(|(m, fr)| Point {
+            method: m.name().to_string(),
+            gpu_ms: geomean(fr.iter().map(|x| x.gpu_ms).collect()),
+            mse: geomean(fr.iter().map(|x| x.mse.max(floor)).collect()),
+            flip: fr.iter().map(|x| x.flip).sum::<f64>() / fr.len() as f64,
+            bytes_per_pixel: fr.iter().map(|x| x.bytes_per_pixel).sum::<f64>() / fr.len() as f64,
+            front_frames: 0,
+            front: false,
+            frames: fr.clone(),
+        })
+        .collect();
+    // The front of the means, among the methods that ran every frame (a mean over fewer frames
+    // is not comparable).
+    let keys: Vec<[f64; 3]> = points
+        .iter()
+        .map(|p| match p.frames.len() == frames {
+            true => [p.gpu_ms, p.mse, p.flip],
+            false => [f64::INFINITY; 3],
+        })
+        .collect();
+    for (p, on) in points.iter_mut().zip(front(&keys)) {
+        p.front = on && p.frames.len() == frames;
+    }
+    count_frame_fronts(&mut points);
+    BudgetTrade {
+        budget: format!("{x}x the A-buffer's bytes"),
+        memory: x,
+        frames,
+        points,
+    }
+}
+
+/// Per frame, the methods that ran it (FKB does not where M holds no slot a pixel), each on
+/// that frame's front or not: counted into [`Point::front_frames`].
+fn count_frame_fronts(points: &mut [Point]) {
+    let floor = crate::compare::MSE_FLOOR;
+    let mut frames: Vec<(String, usize)> = Vec::new();
+    for p in points.iter() {
+        for x in &p.frames {
+            if !frames.contains(&(x.scene.clone(), x.view)) {
+                frames.push((x.scene.clone(), x.view));
+            }
+        }
+    }
+    for (scene, view) in &frames {
+        let at = |p: &Point| {
+            p.frames
+                .iter()
+                .find(|x| &x.scene == scene && x.view == *view)
+                .map(|x| [x.gpu_ms, x.mse.max(floor), x.flip])
+        };
         let keys: Vec<[f64; 3]> = points
             .iter()
-            .map(|p| match p.frames.len() == total {
-                true => [p.gpu_ms, p.mse, p.flip],
-                false => [f64::INFINITY; 3],
-            })
+            .map(|p| at(p).unwrap_or([f64::INFINITY; 3]))
             .collect();
         for (p, on) in points.iter_mut().zip(front(&keys)) {
-            p.front = on && p.frames.len() == total;
+            p.front_frames += usize::from(on && at(p).is_some());
         }
-        // Per frame: the methods that ran it (FKB does not where M holds no slot a pixel),
-        // each on that frame's front or not.
-        let mut frames: Vec<(String, usize)> = Vec::new();
-        for p in &points {
-            for x in &p.frames {
-                if !frames.contains(&(x.scene.clone(), x.view)) {
-                    frames.push((x.scene.clone(), x.view));
-                }
-            }
-        }
-        for (scene, view) in &frames {
-            let at = |p: &Point| {
-                p.frames
-                    .iter()
-                    .find(|x| &x.scene == scene && x.view == *view)
-                    .map(|x| [x.gpu_ms, x.mse.max(floor), x.flip])
-            };
-            let keys: Vec<[f64; 3]> = points
-                .iter()
-                .map(|p| at(p).unwrap_or([f64::INFINITY; 3]))
-                .collect();
-            for (p, on) in points.iter_mut().zip(front(&keys)) {
-                p.front_frames += usize::from(on && at(p).is_some());
-            }
-        }
-        report.budgets.push(BudgetTrade {
-            budget: format!("{x}x the A-buffer's bytes"),
-            memory: *x,
-            frames: total,
-            points,
-        });
     }
-    let md = table(&report);
+}
+
+/// The report as Markdown (printed too) and JSON, one chart a memory, into `--out` and, where
+/// asked, the summary folder.
+fn write_outputs(a: &VersusArgs, report: &Report) -> Result<()> {
+    let md = table(report);
     print!("{md}");
-    let text = serde_json::to_string_pretty(&report)?;
+    let text = serde_json::to_string_pretty(report)?;
     dhoit_runtime::tensors::write_atomic(&a.out.join("versus.json"), text.as_bytes())?;
     dhoit_runtime::tensors::write_atomic(&a.out.join("versus.md"), md.as_bytes())?;
     let mut plots = Vec::new();
