@@ -1,24 +1,29 @@
 // DKB importance (compute): the 12 features of importance::pixel_features from the features
 // pass's statistics and the totals, computed here and never stored, standardised, through the
-// MLP of mlp.wgsl (the same source `dhoit predict --device gpu` runs). Three entry points in
+// MLP of mlp.wgsl (the same source `dhoit predict --device gpu` runs). Four entry points in
 // one compute pass, sharing one explicit layout (gpu::Pipelines::network_layout):
 //   select:  one invocation a pixel: a pixel the network decides is appended to a list (its
-//            index; the list lives in the allocation's marks buffer, dead until then), every
-//            other pixel gets its importance here (0, or its pair mark where forced);
+//            index; the list lives in the frame's shared word, dead until then), every other
+//            pixel gets its importance here (0, or its pair mark where forced);
 //   args:    the list's length -> the workgroups of an indirect dispatch (a 2-D grid);
-//   network: one invocation a listed pixel: its features again, the network, its importance.
+//   network: one invocation a listed pixel: its features again, the network, its importance;
+//   gather:  one invocation a pixel: its importance into the shared word.
+// A pixel's importance waits in its nearest key's place (read by then), so DKB needs no buffer
+// of its own for the list or the importance.
 // So the network's invocations all run it (no forced pixel idles a SIMD lane), and a frame whose
 // pixels are all forced never enters the network's code.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(2) var<storage, read> count: array<u32>;
 // Per pixel: the nearest key (complemented); the two farthest keys (features.wgsl).
-@group(0) @binding(3) var<storage, read> nearest: array<u64>;
+// The nearest keys are read_write: once a pixel's features are read, its importance takes its
+// nearest key's place (set_importance), and `gather` moves it to the frame's shared word.
+@group(0) @binding(3) var<storage, read_write> nearest: array<u64>;
 @group(0) @binding(4) var<storage, read> farthest: array<u64>;
 @group(0) @binding(5) var<storage, read> sums: array<u32>;
 @group(0) @binding(6) var<storage, read> totals: array<u32>;
-@group(0) @binding(7) var<storage, read_write> importance: array<f32>;
-// The pixels the network decides, and how many (list_len[0]).
+// The pixels the network decides (the frame's shared word, Recording::pixel_word, dead until
+// then), and how many (list_len[0]); then, after `gather`, every pixel's importance.
 @group(0) @binding(8) var<storage, read_write> list: array<u32>;
 @group(0) @binding(9) var<storage, read_write> list_len: array<atomic<u32>, 4>;
 // The network entry's indirect dispatch: workgroups x, y, z.
@@ -54,11 +59,17 @@ struct Net {
     runs: bool,
 }
 
+// Pixel p's importance, in its nearest key's place: only p's own invocation reads that key, and
+// it has read it by now.
+fn set_importance(p: u32, v: f32) {
+    nearest[p] = u64(bitcast<u32>(v));
+}
+
 fn network_inputs(p: u32) -> Net {
     var net: Net;
     let c = count[p];
     if (c == 0u || holds_every_fragment(totals[0])) {
-        importance[p] = 0.0;
+        set_importance(p, 0.0);
         return net;
     }
     // The sign bit marks a pixel whose two farthest fragments share one colour
@@ -70,7 +81,7 @@ fn network_inputs(p: u32) -> Net {
     // alloc::min_k, as the allocation's setup finds it.
     let lo = select(0u, 1u, budget_of(totals[0]) >= u64(totals[1]));
     if (SKIP_FORCED && c <= lo + 1u + select(0u, 1u, pair)) {
-        importance[p] = bitcast<f32>(mark);
+        set_importance(p, bitcast<f32>(mark));
         return net;
     }
     // importance::pixel_features, operation for operation.
@@ -159,9 +170,23 @@ fn network(
         // Every invocation of the workgroup stages the weights, listed or not.
         let out = mlp_forward_shared(net.x, net.runs, lid);
         if (net.runs) {
-            importance[p] = bitcast<f32>(bitcast<u32>(out) | net.mark);
+            set_importance(p, bitcast<f32>(bitcast<u32>(out) | net.mark));
         }
     } else if (net.runs) {
-        importance[p] = bitcast<f32>(bitcast<u32>(mlp_forward(net.x)) | net.mark);
+        set_importance(p, bitcast<f32>(bitcast<u32>(mlp_forward(net.x)) | net.mark));
+    }
+}
+
+// Every pixel's importance from its nearest key's place into the shared word, where the
+// allocation reads it (the list there is read by now).
+@compute @workgroup_size(PIXEL_GROUP)
+fn gather(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (p < params.pixels) {
+        list[p] = u32(nearest[p] & 0xfffffffflu);
     }
 }

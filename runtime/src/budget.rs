@@ -66,8 +66,10 @@ const STATUS: (&str, u64) = ("status", 16);
 /// The features' keys, read by the importance pass, then hold the tail: the nearest (8 bytes)
 /// its count (4), the two farthest (16) its sums (16); their colour sums (16) then hold the
 /// image (16, the application's target where it gives one); the opacity sums (8) are their
-/// own. The importance, the allocation's weights, k and the slot bases share `oit.offsets` in
-/// turn (k is the bases' difference): 61 bytes a pixel.
+/// own. The network's pixel list, the importance, the allocation's weights, k and the slot
+/// bases share `oit.offsets` in turn (k is the bases' difference); a pixel's importance waits in
+/// its nearest key's place until it is gathered there, and the allocation's marks then take
+/// that place: 57 bytes a pixel.
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
@@ -78,7 +80,6 @@ pub const DKB: Layout = Layout {
         ("features.farthest", 16),
         ("features.color_sums", 16),
         ("features.opacity", 8),
-        ("alloc.flags", 4),
         ("oit.offsets", 4),
     ],
     fixed: &[
@@ -88,7 +89,7 @@ pub const DKB: Layout = Layout {
         ("features.optical_depth", 1024),
         // The features pass's indirect draw (an indexed one: five words).
         ("features.draw", 20),
-        // The network's pixel list lives in alloc.flags; its length and indirect dispatch.
+        // The network's pixel list lives in the shared word; its length and indirect dispatch.
         ("importance.list_len", 16),
         (
             "importance.dispatch",

@@ -32,8 +32,6 @@ struct DkbBuffers {
     opacity: wgpu::Buffer,
     totals: wgpu::Buffer,
     importance: wgpu::Buffer,
-    /// The pixels the network decides (the allocation's marks buffer, dead until then).
-    list: wgpu::Buffer,
     list_len: wgpu::Buffer,
     dispatch: wgpu::Buffer,
 }
@@ -92,7 +90,6 @@ impl Recording<'_, '_> {
             ),
             totals: fb.storage("features.totals", 24, true)?,
             importance,
-            list: fb.storage("alloc.flags", 4 * px, true)?,
             list_len: fb.storage("importance.list_len", 16, true)?,
             dispatch,
         };
@@ -135,7 +132,8 @@ impl Recording<'_, '_> {
             ..Variant::for_network("importance_dkb", mlp, self.passes.opts.skip_forced)
         };
         self.out.variants.push(variant("network").form());
-        let network = ["select_pixels", "args", "network"].map(|e| gpu.network_pass(variant(e)));
+        let network =
+            ["select_pixels", "args", "network", "gather"].map(|e| gpu.network_pass(variant(e)));
         let bufs = b.clone();
         let rest = pending(move |rec| rec.dkb_rest(&bufs, count_first, &features, &network));
         let pending = record_unless(self, rest, expect_fit)?;
@@ -145,7 +143,8 @@ impl Recording<'_, '_> {
             totals: b.totals,
             computed: true,
             kind: weight_kind(mlp.target),
-            marks: Some(b.list),
+            // The nearest keys, where the importance waited, are dead once gathered.
+            marks: Some(b.nearest.clone()),
             reuse: Some(Reuse {
                 tail: b.farthest,
                 tail_count: b.nearest,
@@ -194,7 +193,7 @@ impl Recording<'_, '_> {
         b: &DkbBuffers,
         count_first: bool,
         features: &wgpu::RenderPipeline,
-        [select, args, network]: &[wgpu::ComputePipeline; 3],
+        [select, args, network, gather]: &[wgpu::ComputePipeline; 4],
     ) -> Result<()> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
@@ -218,23 +217,23 @@ impl Recording<'_, '_> {
             });
             self.dkb_features(b, features)?;
         }
+        // The list, then the importance, in the frame's shared word (binding 8).
         let bind = |dispatch_or_not: &wgpu::Buffer| {
-            gpu.bind(
+            gpu.bind_at(
                 &p.network_layout.group,
                 &[
-                    passes.params(),
-                    &b.weights,
-                    &b.counts,
-                    &b.nearest,
-                    &b.farthest,
-                    &b.sums,
-                    &b.totals,
-                    &b.importance,
-                    &b.list,
-                    &b.list_len,
-                    dispatch_or_not,
-                    &b.weights,
-                    &b.opacity,
+                    (0, passes.params()),
+                    (1, &b.weights),
+                    (2, &b.counts),
+                    (3, &b.nearest),
+                    (4, &b.farthest),
+                    (5, &b.sums),
+                    (6, &b.totals),
+                    (8, &b.importance),
+                    (9, &b.list_len),
+                    (10, dispatch_or_not),
+                    (11, &b.weights),
+                    (12, &b.opacity),
                 ],
             )
         };
@@ -250,6 +249,8 @@ impl Recording<'_, '_> {
             pass.set_pipeline(network);
             pass.set_bind_group(0, &network_group, &[]);
             pass.dispatch_workgroups_indirect(&b.dispatch, 0);
+            pass.set_pipeline(gather);
+            pass.dispatch_workgroups(gx, gy, 1);
         });
         if self.passes.opts.diagnostics {
             let copy = self.fb.storage("importance.list_len.readback", 16, false)?;

@@ -157,11 +157,12 @@ impl NetworkLayout {
                 entry(0, uniform),
                 entry(1, uniform),
                 entry(2, read),
-                entry(3, read),
+                // The nearest keys, then each pixel's importance in its key's place.
+                entry(3, rw),
                 entry(4, read),
                 entry(5, read),
                 entry(6, read),
-                entry(7, rw),
+                // The list, then the importance: the frame's shared word.
                 entry(8, rw),
                 entry(9, rw),
                 entry(10, rw),
@@ -594,6 +595,7 @@ impl Pipelines {
                     ("importance_dkb", "select_pixels"),
                     ("importance_dkb", "args"),
                     ("importance_dkb", "network"),
+                    ("importance_dkb", "gather"),
                     ("predict", "main"),
                 ]
                 .map(|(pass, entry)| {
