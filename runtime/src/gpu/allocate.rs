@@ -67,12 +67,12 @@ pub(super) fn record_unless(
 
 /// What [`Recording::pixel_word`] holds when it is taken.
 pub(super) enum Word<'v> {
-    /// Zeros (a pass writes it: the importance pass).
-    Zeroed,
     /// These values (uploaded k).
     Holding(&'v [u32]),
-    /// Whatever it held (the caller writes every pixel's word before any pass reads it).
-    WrittenLater,
+    /// Whatever it held: every pixel's word is written before any pass reads it (by the
+    /// importance pass, or the uploaded importance with the passes after the count), and the
+    /// last entry by the prefix sum.
+    Written,
 }
 
 /// Per-pixel buffers whose contents are read by the time of the capture.
@@ -92,23 +92,11 @@ impl Recording<'_, '_> {
     /// holding what `word` says.
     pub(super) fn pixel_word(&mut self, word: Word) -> Result<wgpu::Buffer> {
         let px = self.px;
-        match (&self.counted, word) {
-            (Some(c), Word::Holding(v)) => {
-                self.passes
-                    .gpu
-                    .queue
-                    .write_buffer(&c.offsets, 0, bytemuck::cast_slice(v));
-                Ok(c.offsets.clone())
-            }
-            (Some(c), _) => Ok(c.offsets.clone()),
-            (None, Word::Holding(v)) => Ok(self.fb.init(
-                "oit.offsets",
-                bytemuck::cast_slice(&with_end(v)),
-                wgpu::BufferUsages::STORAGE,
-                true,
-            )),
-            (None, Word::Zeroed) => self.fb.storage("oit.offsets", 4 * (px + 1), true),
-            (None, Word::WrittenLater) => self.fb.storage_kept("oit.offsets", 4 * (px + 1), true),
+        match (word, &self.counted) {
+            (Word::Holding(v), _) => Ok(word_holding(&mut self.fb, v)),
+            // Only DKB and VKB frames count first (FrameOptions::exact_when_cheaper).
+            (Word::Written, Some(c)) => Ok(c.offsets.clone()),
+            (Word::Written, None) => self.fb.storage_kept("oit.offsets", 4 * (px + 1), true),
         }
     }
 
@@ -128,15 +116,15 @@ impl Recording<'_, '_> {
                 imp.len()
             )));
         }
-        let importance = self.pixel_word(Word::WrittenLater)?;
+        let importance = self.pixel_word(Word::Written)?;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         let counts = fb.storage("count", 4 * px, true)?;
         let totals = fb.storage("totals", 16, true)?;
         passes.draw(enc, &p.count, &[&counts], "count");
         let (c, t, word) = (counts.clone(), totals.clone(), importance.clone());
         // The importance goes into its word with the rest: a frame expected to fit writes the
-        // count's prefix sums there first. (Not cleared: a clear would run after the write, at
-        // the frame's first submission.)
+        // count's prefix sums there first. (The word is not cleared: a clear would run after
+        // the write, at the frame's first submission.)
         let values: Vec<u8> = bytemuck::cast_slice(imp).to_vec();
         let rest = pending(move |rec| {
             rec.passes.gpu.queue.write_buffer(&word, 0, &values);
@@ -343,12 +331,7 @@ impl Gpu {
         let p = &self.pipelines;
         let mut enc = self.device.create_command_encoder(&Default::default());
         let counts = fb.storage("count", 4 * px, true)?;
-        let base = fb.init(
-            "oit.offsets",
-            bytemuck::cast_slice(&with_end(importance)),
-            wgpu::BufferUsages::STORAGE,
-            true,
-        );
+        let base = word_holding(&mut fb, bytemuck::cast_slice(importance));
         let totals = fb.storage("totals", 16, true)?;
         passes.opaque(&mut enc);
         passes.draw(&mut enc, &p.count, &[&counts], "count");
@@ -484,8 +467,14 @@ fn pipeline(
     })
 }
 
-/// `values` and one word more (zero), so a buffer of per-pixel values can hold the slot bases'
-/// `pixels + 1` entries in place.
-pub(super) fn with_end<T: bytemuck::Pod + Default>(values: &[T]) -> Vec<T> {
-    values.iter().copied().chain([T::default()]).collect()
+/// The per-pixel word (`oit.offsets`) holding `values` and one word more (zero), so it can
+/// hold the slot bases' `pixels + 1` entries in place.
+fn word_holding(fb: &mut FrameBuffers, values: &[u32]) -> wgpu::Buffer {
+    let words: Vec<u32> = values.iter().copied().chain([0]).collect();
+    fb.init(
+        "oit.offsets",
+        bytemuck::cast_slice(&words),
+        wgpu::BufferUsages::STORAGE,
+        true,
+    )
 }

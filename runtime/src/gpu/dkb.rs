@@ -44,7 +44,7 @@ impl Recording<'_, '_> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         gpu.can_run(mlp)?;
         let p = &gpu.pipelines;
-        let importance = self.pixel_word(Word::Zeroed)?;
+        let importance = self.pixel_word(Word::Written)?;
         let fb = &mut self.fb;
         let args = 4 * DISPATCH_WORDS as u64;
         let dispatch = fb.take(

@@ -15,7 +15,7 @@ impl Recording<'_, '_> {
     pub(super) fn vkb_importance(&mut self, expect_fit: bool) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
-        let importance = self.pixel_word(Word::Zeroed)?;
+        let importance = self.pixel_word(Word::Written)?;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         // The frame's count where it counted first, counted again here with the nearest
         // fragment (vkb_count.wgsl adds to it).
