@@ -1,5 +1,5 @@
-//! An application's own wgpu renderer with dhoit's budgeted linked list for its transparency,
-//! headless: it loads a glTF file (or a built-in scene), draws its opaque and alpha-masked
+//! An application's own wgpu renderer with dhoit for its transparency (the budgeted linked list,
+//! or the fixed k-buffer with `--method fkb`), headless: it loads a glTF file (or a built-in scene), draws its opaque and alpha-masked
 //! materials with a depth buffer, hands its transparent fragments to dhoit from its own WGSL
 //! (`oit_store`), resolves onto its own target over its opaque image, and writes one PNG per
 //! orbit view with each pass's GPU time.
@@ -12,13 +12,13 @@
 //! The twenty lines that matter are marked `dhoit:`. Colours are the vertices' times the
 //! materials' base colour times their base colour texture, sampled per fragment by the
 //! application's own sampler (sRGB decoded by the texture format). What it does not do yet:
-//! glass's view-dependent opacity (its face-on opacity instead), and methods other than the
-//! linked list, whose passes are dhoit's own (`gpu::Gpu`).
+//! glass's view-dependent opacity (its face-on opacity instead), and the methods that need more
+//! than one geometry pass (the A-buffer, VKB, DKB), whose passes are dhoit's own (`gpu::Gpu`).
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
 use dhoit_runtime::composite::Image;
-use dhoit_runtime::gpu::{self, ListOit};
+use dhoit_runtime::gpu::{self, ApplicationOit, KBufferOit, ListOit};
 use dhoit_runtime::scene::{self, Camera, Coverage, Opacity};
 use std::path::PathBuf;
 
@@ -32,12 +32,20 @@ struct Args {
     /// Orbit views to render, one PNG each.
     #[arg(long, default_value_t = 4)]
     views: usize,
+    /// dhoit's method: `linked-list` (a pool of --fpp fragments a frame pixel, what overflows
+    /// it dropped) or `fkb` (--k slots a pixel, the rest approximated in a tail; any draw
+    /// order gives the same image).
+    #[arg(long, default_value = "linked-list", value_parser = ["linked-list", "fkb"])]
+    method: String,
     /// The list's pool, in fragments a frame pixel (Bevy's default is 4).
     #[arg(long, default_value_t = 4.0)]
     fpp: f64,
-    /// Fragments a pixel sorted and blended in order.
+    /// Fragments a pixel sorted and blended in order (the linked list).
     #[arg(long, default_value_t = dhoit_runtime::composite::LIST_SORTED)]
     sorted: u32,
+    /// Slots a pixel (FKB).
+    #[arg(long, default_value_t = 4)]
+    k: u32,
     /// Folder for the PNG frames.
     #[arg(long, default_value = "out/viewer")]
     out: PathBuf,
@@ -83,7 +91,7 @@ fn fs_opaque(in: V) -> @location(0) vec4<f32> {
 
 @fragment
 fn fs_transparent(in: V) {
-    oit_store(in.position, shaded(in)); // dhoit: the fragment goes to the list
+    oit_store(in.position, shaded(in)); // dhoit: the fragment goes to its method
 }
 "#;
 
@@ -151,13 +159,25 @@ fn main() -> Result<()> {
         usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    // dhoit: the list, its pool a budget of fragments a frame pixel.
+    // dhoit: the list, its pool a budget of fragments a frame pixel, or the k-buffer.
     let nodes = (a.fpp * (w as f64 * h as f64)).ceil() as u64;
-    let oit = ListOit::new(&device, &queue, (w, h), nodes, a.sorted)?;
+    let (oit, method): (Box<dyn ApplicationOit>, String) = match a.method.as_str() {
+        "fkb" => (
+            Box::new(KBufferOit::new(&device, &queue, (w, h), a.k)?),
+            format!("FKB, {} slots a pixel", a.k),
+        ),
+        _ => (
+            Box::new(ListOit::new(&device, &queue, (w, h), nodes, a.sorted)?),
+            format!(
+                "linked list, {} fragments a pixel of pool, the nearest {} sorted",
+                a.fpp, a.sorted
+            ),
+        ),
+    };
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("viewer"),
         // dhoit: its bindings and oit_store, at group 2.
-        source: wgpu::ShaderSource::Wgsl((ListOit::wgsl(2) + SHADER).into()),
+        source: wgpu::ShaderSource::Wgsl((oit.store_module(2) + SHADER).into()),
     });
     let own_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("camera"),
@@ -306,7 +326,7 @@ fn main() -> Result<()> {
     let view = |t: &wgpu::Texture| t.create_view(&Default::default());
     let (image_view, depth_view, raster_view, target_view) =
         (view(&image), view(&depth), view(&raster), view(&target));
-    // dhoit: its group holds the list and this opaque depth, the occluder.
+    // dhoit: its group holds its buffers and this opaque depth, the occluder.
     let oit_group = oit.bind_group(&depth_view);
     let layout = |groups: &[Option<&wgpu::BindGroupLayout>]| {
         device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -407,7 +427,7 @@ fn main() -> Result<()> {
             bytemuck::cast_slice(&cam.view_proj.to_cols_array()),
         );
         let mut enc = device.create_command_encoder(&Default::default());
-        oit.clear(&mut enc); // dhoit: an empty list for the frame
+        oit.clear(&mut enc); // dhoit: empty for the frame
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("opaque"),
@@ -463,7 +483,7 @@ fn main() -> Result<()> {
                 pass.draw(first..first + n, 0..1);
             }
         }
-        // dhoit: the list over the opaque image, onto the target.
+        // dhoit: its fragments over the opaque image, onto the target.
         let resolve_times = wgpu::ComputePassTimestampWrites {
             query_set: &queries,
             beginning_of_pass_write_index: Some(4),
@@ -536,11 +556,6 @@ fn main() -> Result<()> {
             path.display()
         );
     }
-    println!(
-        "{} fragments a pixel of pool ({} bytes of list), the nearest {} sorted",
-        a.fpp,
-        oit.allocated_bytes(),
-        a.sorted
-    );
+    println!("{method}: {} bytes on the device", oit.allocated_bytes());
     Ok(())
 }

@@ -15,16 +15,18 @@ cargo test --release --workspace --doc "$@" 2>&1 | tee -a "$log"
 doc_status=${PIPESTATUS[0]}
 [ "$status" -eq 0 ] && status=$doc_status
 # The viewer example, headless, as a user runs it: an application's own renderer around the
-# linked list, one PNG a view.
-viewer_out=$(mktemp -d)
-if cargo run --release --example viewer -- particles --res 160x120 --views 2 --out "$viewer_out" \
-  && [ -s "$viewer_out/view0.png" ] && [ -s "$viewer_out/view1.png" ]; then
-  echo "viewer example: wrote its frames"
-else
-  echo "viewer example: FAILED" >&2
-  [ "$status" -eq 0 ] && status=1
-fi
-rm -rf "$viewer_out"
+# linked list, then the fixed k-buffer, one PNG a view.
+for method in linked-list fkb; do
+  viewer_out=$(mktemp -d)
+  if cargo run --release --example viewer -- particles --res 160x120 --views 2 --method "$method" \
+    --out "$viewer_out" && [ -s "$viewer_out/view0.png" ] && [ -s "$viewer_out/view1.png" ]; then
+    echo "viewer example ($method): wrote its frames"
+  else
+    echo "viewer example ($method): FAILED" >&2
+    [ "$status" -eq 0 ] && status=1
+  fi
+  rm -rf "$viewer_out"
+done
 read -r passed failed < <(awk '/^test result:/ { for (i = 1; i < NF; i++) { if ($(i+1) ~ /^passed/) p += $i; if ($(i+1) ~ /^failed/) f += $i } } END { print p + 0, f + 0 }' "$log")
 rm -f "$log"
 scenes_dir=${DHOIT_SCENES:-$(cd "$(dirname "$0")/.." && pwd)/../shared/scenes}

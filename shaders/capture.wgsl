@@ -9,13 +9,11 @@
 //   four sum words, and the resolve sorts the pixel's n keys, as the A-buffer does, keeps the k
 //   nearest and sums the rest into the tail.
 // - insertion (every other pixel, and every pixel when n is unknown: FKB, uploaded k): NVIDIA's
-//   lock-free Loop64. Slots hold the bitwise complement of the capture key (so a cleared, zero
-//   slot is empty and atomicMax keeps the nearest): for each slot, old = atomicMax(slot, cur);
-//   an empty old ends the insertion, otherwise the farther of the two is carried on. A key
-//   still carried after the last slot is the one this insertion pushed out; it goes to the
-//   tail's integer sums. Two early tests skip the atomics that could not change a slot: the
-//   slots only ever grow and stay in decreasing order, so a key no greater than the last slot
-//   goes straight to the tail, and one no greater than the middle slot starts after it.
+//   lock-free Loop64 (kbuffer_insert.wgsl, which an application's shader runs too). Slots hold
+//   the bitwise complement of the capture key (so a cleared, zero slot is empty and atomicMax
+//   keeps the nearest): for each slot, old = atomicMax(slot, cur); an empty old ends the
+//   insertion, otherwise the farther of the two is carried on. A key still carried after the
+//   last slot is the one this insertion pushed out; it goes to the tail's integer sums.
 //
 // Built a second time with EVERY_FRAGMENT_FITS for the frames whose budget holds every fragment
 // (the pixels' modes then follow from the slot bases alone; see below).
@@ -23,13 +21,13 @@
 // Per pixel (pixels + 1 entries): its slot bases, the exclusive prefix sums of k, so a pixel's
 // k is its bases' difference (k is not stored beside them).
 @group(1) @binding(0) var<storage, read> slot_base: array<u32>;
-@group(1) @binding(1) var<storage, read_write> slots: array<atomic<u64>>;
+@group(1) @binding(1) var<storage, read_write> oit_slots: array<atomic<u64>>;
 // Per pixel: sum c8 a8 for r, g, b, sum a8 (four 32-bit words, as resolve.wgsl reads them),
 // added two to a 64-bit word: r and g, then b and a. No low half carries into its high half:
 // a sum of c8 a8 stays below 2^32 up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (65,535 x
 // 255^2 < 2^32). And the tail's count (the append mode's cursor).
-@group(1) @binding(2) var<storage, read_write> tail: array<atomic<u64>>;
-@group(1) @binding(3) var<storage, read_write> tail_count: array<atomic<u32>>;
+@group(1) @binding(2) var<storage, read_write> oit_tail: array<atomic<u64>>;
+@group(1) @binding(3) var<storage, read_write> oit_tail_count: array<atomic<u32>>;
 // n(p), read when params.append is 1.
 @group(1) @binding(4) var<storage, read> count: array<u32>;
 
@@ -39,29 +37,9 @@
 // deeper ones insert as above (nothing is pushed out). count is not read.
 const EVERY_FRAGMENT_FITS: bool = false;
 
-// Loop64 insertion of `key` (complemented) into the pixel's k slots from `base`; returns the
-// key pushed out past the last slot, or 0 where the insertion ended in an empty slot.
-fn insert(p: u32, base: u32, k: u32, key: u64) -> u64 {
-    var cur = key;
-    var i = 0u;
-    if (k > 0u) {
-        if (atomicLoad(&slots[slot_at(base, k - 1u, p)]) >= cur) {
-            i = k;
-        } else if (k > 2u) {
-            let m = k / 2u;
-            if (atomicLoad(&slots[slot_at(base, m, p)]) >= cur) {
-                i = m + 1u;
-            }
-        }
-    }
-    for (; i < k; i++) {
-        let old = atomicMax(&slots[slot_at(base, i, p)], cur);
-        if (old == 0lu) {
-            return 0lu;
-        }
-        cur = min(old, cur);
-    }
-    return cur;
+// Where slot i of pixel p lies (kbuffer_insert.wgsl's oit_insert and oit_to_tail run here).
+fn oit_slot_at(base: u32, i: u32, p: u32) -> u32 {
+    return slot_at(base, i, p);
 }
 
 @fragment
@@ -75,13 +53,13 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     if (EVERY_FRAGMENT_FITS) {
         // As the A-buffer's store: the cursor's atomic does not wait for the bases' loads
         // (deeper pixels count too, unused; the resolve clears every pixel's count).
-        let i = atomicAdd(&tail_count[p], 1u);
+        let i = atomicAdd(&oit_tail_count[p], 1u);
         let base = slot_base[p];
         let n = slot_base[p + 1u] - base;
         if (n <= APPEND_MAX) {
-            atomicStore(&slots[base + i], key);
+            atomicStore(&oit_slots[base + i], key);
         } else {
-            insert(p, base, n, key);
+            oit_insert(p, base, n, key);
         }
         return vec4<f32>(0.0);
     }
@@ -94,28 +72,20 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     if (params.append != 0u) {
         let n = count[p];
         if (appends(k, n)) {
-            let i = atomicAdd(&tail_count[p], 1u);
+            let i = atomicAdd(&oit_tail_count[p], 1u);
             if (i < k) {
-                atomicStore(&slots[base + i], key);
+                atomicStore(&oit_slots[base + i], key);
             } else {
                 // A spilled key in two of the tail's sum words, low half first.
-                atomicStore(&tail[2u * p + (i - k)], key);
+                atomicStore(&oit_tail[2u * p + (i - k)], key);
             }
             return vec4<f32>(0.0);
         }
     }
-    let out = insert(p, base, k, key);
+    let out = oit_insert(p, base, k, key);
     if (out == 0lu) {
         return vec4<f32>(0.0);
     }
-    let rgba = u32((~out) & 0xfffffffflu);
-    let a = rgba >> 24u;
-    // Three atomics a fragment pushed out, not five.
-    let r = u64((rgba & 0xffu) * a);
-    let g = u64(((rgba >> 8u) & 0xffu) * a);
-    let b = u64(((rgba >> 16u) & 0xffu) * a);
-    atomicAdd(&tail[2u * p], r | (g << 32u));
-    atomicAdd(&tail[2u * p + 1u], b | (u64(a) << 32u));
-    atomicAdd(&tail_count[p], 1u);
+    oit_to_tail(p, out);
     return vec4<f32>(0.0);
 }

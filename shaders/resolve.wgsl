@@ -103,16 +103,14 @@ fn sort_appended(p: u32, base: u32, k: u32, n: u32) {
     tail_count[p] = n - held;
 }
 
-@compute @workgroup_size(PIXEL_GROUP)
-fn main(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
-    if (p >= params.pixels) {
-        return;
-    }
+// A pixel's colour over `bg`, or ok false where it saw more fragments than any method takes
+// (the frame is refused: status[1]).
+struct Resolved {
+    ok: bool,
+    color: vec4<f32>,
+}
+
+fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
     if (EVERY_FRAGMENT_FITS) {
         let base = slot_base[p];
         let n = slot_base[p + 1u] - base;
@@ -120,13 +118,12 @@ fn main(
         let seen = tail_count[p];
         tail_count[p] = 0u;
         if (too_deep(p, max(n, seen))) {
-            return;
+            return Resolved(false, vec4<f32>(0.0));
         }
         if (n <= APPEND_MAX) {
             sort_slots(base, n);
         }
-        image[p] = blend_slots(p, base, n, behind(p));
-        return;
+        return Resolved(true, blend_slots(p, base, n, bg));
     }
     var k = params.k_uniform;
     var base = p * params.k_uniform;
@@ -139,13 +136,12 @@ fn main(
         if (appends(k, n)) {
             // Every fragment took a place from the cursor.
             if (too_deep(p, max(n, tail_count[p]))) {
-                return;
+                return Resolved(false, vec4<f32>(0.0));
             }
             sort_appended(p, base, k, n);
         }
     }
     // The tail over what is behind the pixel.
-    let bg = behind(p);
     var over = bg;
     let tail_n = tail_count[p];
     let sum_a = tail[4u * p + 3u];
@@ -156,7 +152,47 @@ fn main(
         let c_tail = vec3<f32>(f32(tail[4u * p]), f32(tail[4u * p + 1u]), f32(tail[4u * p + 2u])) * inv;
         over = a_tail * c_tail + (1.0 - a_tail) * bg;
     }
-    image[p] = blend_slots(p, base, k, over);
+    let color = blend_slots(p, base, k, over);
     // Where the capture inserted: every fragment is in a slot or in the tail.
     too_deep(p, filled + tail_n);
+    return Resolved(true, color);
+}
+
+@compute @workgroup_size(PIXEL_GROUP)
+fn main(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (p >= params.pixels) {
+        return;
+    }
+    let r = resolve_pixel(p, behind(p));
+    if (r.ok) {
+        image[p] = r.color;
+    }
+}
+
+// An application's frame (gpu::KBufferOit::resolve): over its own image `under`, onto its
+// target; the slots and the tail are left as the capture filled them, and cleared by the
+// application's next frame (KBufferOit::clear).
+@group(0) @binding(8) var under: texture_2d<f32>;
+@group(0) @binding(9) var onto_target: texture_storage_2d<rgba32float, write>;
+
+@compute @workgroup_size(PIXEL_GROUP)
+fn onto(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (p >= params.pixels) {
+        return;
+    }
+    let xy = vec2<u32>(p % params.width, p / params.width);
+    let r = resolve_pixel(p, textureLoad(under, xy, 0).rgb);
+    if (r.ok) {
+        textureStore(onto_target, xy, r.color);
+    }
 }

@@ -32,9 +32,23 @@ pub mod shaders {
         pub includes: &'static [&'static str],
     }
 
+    /// The k-buffer's Loop64 insertion and tail, shared by the capture and an application's
+    /// fragment shader (`gpu::KBufferOit::wgsl`).
+    pub const KBUFFER_INSERT: &str = include_str!("../../shaders/kbuffer_insert.wgsl");
+    /// The key an application's fragment hands dhoit, prepended to its store modules.
+    pub const OIT_FRAGMENT: &str = include_str!("../../shaders/oit_fragment.wgsl");
     /// The linked list's bindings and `oit_store` for an application's fragment shader
     /// (`gpu::ListOit::wgsl`), its group index `OIT_GROUP` to be replaced.
     pub const OIT_LIST_STORE: &str = include_str!("../../shaders/oit_list_store.wgsl");
+    /// The fixed k-buffer's bindings and `oit_store` for an application's fragment shader
+    /// (`gpu::KBufferOit::wgsl`), its group index `OIT_GROUP` to be replaced.
+    pub const OIT_KBUFFER_STORE: &str = include_str!("../../shaders/oit_kbuffer_store.wgsl");
+
+    /// The module an application's transparent fragment shader starts with: `parts` (what
+    /// the store module includes, then the module) joined, their bindings at `group`.
+    pub fn application_module(parts: &[&str], group: u32) -> String {
+        parts.join("\n").replace("OIT_GROUP", &group.to_string())
+    }
 
     pub const PASSES: [Pass; 21] = [
         Pass {
@@ -65,7 +79,7 @@ pub mod shaders {
         Pass {
             name: "capture",
             source: include_str!("../../shaders/capture.wgsl"),
-            includes: &[GEOMETRY],
+            includes: &[GEOMETRY, KBUFFER_INSERT],
         },
         Pass {
             name: "resolve",

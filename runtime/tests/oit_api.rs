@@ -7,7 +7,7 @@
 mod common;
 
 use common::{gpu, identity, quad};
-use dhoit_runtime::gpu::{self, ListOit, Slots};
+use dhoit_runtime::gpu::{self, ApplicationOit, KBufferOit, ListOit, Slots};
 use dhoit_runtime::scene::Scene;
 
 const BG: [f32; 3] = [0.9, 0.85, 0.8];
@@ -47,11 +47,18 @@ fn fs_opaque(in: V) -> @location(0) vec4<f32> {
 }
 "#;
 
-/// Renders `s` (seen through the identity camera) with the application's pipeline and dhoit's
-/// list; returns the target's RGB, row-major.
-fn app_frame(s: &Scene, (w, h): (u32, u32), nodes: u64, sorted: u32) -> Vec<[f32; 3]> {
+/// Renders `s` (seen through the identity camera) with the application's pipeline and one of
+/// dhoit's methods, made on the application's device by `make`; returns the target's RGB,
+/// row-major.
+/// The application draws its transparent triangles in the scene's order, or reversed.
+fn app_frame<O: ApplicationOit>(
+    s: &Scene,
+    (w, h): (u32, u32),
+    reversed: bool,
+    make: impl FnOnce(&wgpu::Device, &wgpu::Queue) -> O,
+) -> Vec<[f32; 3]> {
     let (device, queue) = app_device();
-    let oit = ListOit::new(&device, &queue, (w, h), nodes, sorted).unwrap();
+    let oit = make(&device, &queue);
     // Interleaved position (3 floats) and colour (4 floats), its own layout: the opaque
     // triangles first, then the transparent ones.
     let mut vertices: Vec<f32> = Vec::new();
@@ -60,9 +67,13 @@ fn app_frame(s: &Scene, (w, h): (u32, u32), nodes: u64, sorted: u32) -> Vec<[f32
             == dhoit_runtime::scene::Coverage::Opaque
     };
     let triangles = s.positions.len() / 3;
+    let mut transparent: Vec<usize> = (0..triangles).filter(|&t| !opaque(t)).collect();
+    if reversed {
+        transparent.reverse();
+    }
     let order: Vec<usize> = (0..triangles)
         .filter(|&t| opaque(t))
-        .chain((0..triangles).filter(|&t| !opaque(t)))
+        .chain(transparent)
         .collect();
     let opaque_vertices = 3 * (0..triangles).filter(|&t| opaque(t)).count() as u32;
     for &t in &order {
@@ -79,7 +90,7 @@ fn app_frame(s: &Scene, (w, h): (u32, u32), nodes: u64, sorted: u32) -> Vec<[f32
         mapped_at_creation: false,
     });
     queue.write_buffer(&vbuf, 0, bytemuck::cast_slice(&vertices));
-    let src = ListOit::wgsl(1) + APP_SHADER;
+    let src = oit.store_module(1) + APP_SHADER;
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("app transparent"),
         source: wgpu::ShaderSource::Wgsl(src.into()),
@@ -301,13 +312,10 @@ fn app_frame(s: &Scene, (w, h): (u32, u32), nodes: u64, sorted: u32) -> Vec<[f32
         .collect()
 }
 
-#[test]
-fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
-    let Some(g) = gpu() else { return };
-    let (w, h) = (64, 48);
-    // Overlapping quads of several colours, opacities and depths, facing the camera (dhoit's
-    // scenes are lit by a headlight, which the application's shader does not model: facing it,
-    // the light is 1).
+/// Overlapping quads of several colours, opacities and depths, facing the camera (dhoit's
+/// scenes are lit by a headlight, which the application's shader does not model: facing it, the
+/// light is 1), up to 7 deep, and an opaque occluder between the layers.
+fn layered_scene() -> Scene {
     let mut s = Scene::default();
     for i in 0..7 {
         let f = i as f32;
@@ -338,6 +346,14 @@ fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
     );
     s.push_textured([a, b, c], [occluder; 3], [[0.0; 2]; 3], 1);
     s.push_textured([a, c, d], [occluder; 3], [[0.0; 2]; 3], 1);
+    s
+}
+
+#[test]
+fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
+    let Some(g) = gpu() else { return };
+    let (w, h) = (64, 48);
+    let s = layered_scene();
     let total = g
         .render(&s, &identity(), w, h, BG, None)
         .unwrap()
@@ -358,12 +374,10 @@ fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
                 Some(Slots::LinkedList { nodes, sorted }),
             )
             .unwrap();
-        let app = app_frame(&s, (w, h), nodes, sorted);
-        let worst = app
-            .iter()
-            .zip(&harness.image.data)
-            .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0f32, f32::max))
-            .fold(0.0f32, f32::max);
+        let app = app_frame(&s, (w, h), false, |d, q| {
+            ListOit::new(d, q, (w, h), nodes, sorted).unwrap()
+        });
+        let worst = worst_difference(&app, &harness.image.data);
         assert!(
             worst <= 1e-5,
             "sorted {sorted}: the application's image differs by {worst}"
@@ -372,6 +386,83 @@ fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
         let covered = app.iter().filter(|c| (c[0] - BG[0]).abs() > 1e-3).count();
         assert!(covered > (w * h / 2) as usize, "{covered} pixels covered");
     }
+}
+
+/// The largest difference of one channel between two images.
+fn worst_difference(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
+    a.iter()
+        .zip(b)
+        .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0f32, f32::max))
+        .fold(0.0f32, f32::max)
+}
+
+#[test]
+fn an_application_draws_through_dhoits_k_buffer_and_gets_dhoits_fkb_image_in_any_order() {
+    let Some(g) = gpu() else { return };
+    let (w, h) = (64, 48);
+    let s = layered_scene();
+    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
+    for k in [1, 3, 8] {
+        let harness = g
+            .render(&s, &identity(), w, h, BG, Some(Slots::Uniform(k)))
+            .unwrap();
+        for reversed in [false, true] {
+            let app = app_frame(&s, (w, h), reversed, |d, q| {
+                KBufferOit::new(d, q, (w, h), k).unwrap()
+            });
+            let worst = worst_difference(&app, &harness.image.data);
+            assert!(
+                worst <= 1e-5,
+                "k = {k}, reversed {reversed}: the application's image differs from dhoit's \
+                 FKB by {worst}"
+            );
+        }
+        // Below the scene's depth the slots truncate: the image is not the exact one (so the
+        // tail, not only the slots, was compared), and at 8 slots it is.
+        let off = worst_difference(&harness.image.data, &exact.image.data);
+        if k < 7 {
+            assert!(
+                off > 1e-3,
+                "k = {k}: FKB is exact ({off}): nothing truncated"
+            );
+        } else {
+            assert!(off <= 1e-5, "k = {k}: FKB is not exact ({off})");
+        }
+    }
+}
+
+#[test]
+fn the_k_buffer_counts_its_buffers_and_refuses_what_it_cannot_hold() {
+    let (device, queue) = app_device();
+    let (w, h) = (64u32, 48u32);
+    let px = (w * h) as u64;
+    for k in [1, 4] {
+        let oit = KBufferOit::new(&device, &queue, (w, h), k).unwrap();
+        assert_eq!(oit.k(), k);
+        // budget::FKB's buffers for k slots a pixel, less the raster target (the
+        // application's), and the application's 16-byte uniform.
+        let fkb = dhoit_runtime::budget::FKB;
+        assert_eq!(
+            oit.allocated_bytes(),
+            fkb.allocated_bytes(px, k as u64 * px) - px + 16
+        );
+        // A hand count: 8 bytes a slot, 16 + 4 a pixel for the tail, params, status, two
+        // unused 16-byte bindings, the application's uniform.
+        assert_eq!(
+            oit.allocated_bytes(),
+            8 * k as u64 * px + 20 * px + 256 + 16 + 32 + 16
+        );
+    }
+    assert!(KBufferOit::new(&device, &queue, (w, h), 0).is_err());
+    assert!(KBufferOit::new(&device, &queue, (0, h), 2).is_err());
+    let e = KBufferOit::new(&device, &queue, (8192, 8192), 1 << 10)
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("32-bit"), "{e}");
+    let e = KBufferOit::new(&device, &queue, (4096, 4096), 64)
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("oit.slots"), "{e}");
 }
 
 #[test]
@@ -393,6 +484,12 @@ fn the_list_refuses_what_it_cannot_hold_or_write() {
         .unwrap();
     assert!(e.to_string().contains("opened without"), "{e}");
     let oit = ListOit::new(&device, &queue, (4, 4), 16, 8).unwrap();
-    assert_eq!(oit.allocated_bytes(), 4 * 16 + 12 * 16 + 48);
+    // budget::LINKED_LIST's buffers, less the raster target, and the application's uniform.
+    let list = dhoit_runtime::budget::LINKED_LIST;
+    assert_eq!(
+        oit.allocated_bytes(),
+        list.allocated_bytes(16, 16) - 16 + 16
+    );
+    assert_eq!(oit.allocated_bytes(), 4 * 16 + 12 * 16 + 256 + 16 + 16 + 16);
     assert_eq!(oit.nodes(), 16);
 }

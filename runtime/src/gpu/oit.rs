@@ -1,13 +1,14 @@
-//! dhoit's budgeted linked list in an application's own renderer: the application owns the
-//! device, its vertex layouts, pipelines, opaque pass and target; dhoit owns the list's buffers,
-//! a WGSL function its fragment shader calls ([`ListOit::wgsl`]: `oit_store`) through one bind
-//! group at the index the application chooses, and the resolve onto the application's image
-//! ([`ListOit::resolve`]). The same store and resolve as dhoit's own frames
-//! (`list_store.wgsl`, `list_resolve.wgsl`), so the image is the one dhoit renders for the same
-//! fragments.
+//! dhoit's one-pass methods in an application's own renderer: the budgeted linked list
+//! ([`ListOit`]) and the fixed k-buffer ([`KBufferOit`]). The application owns the device, its
+//! vertex layouts, pipelines, opaque pass and target; dhoit owns the method's buffers, a WGSL
+//! function its fragment shader calls (`wgsl`: `oit_store`) through one bind group at the index
+//! the application chooses, and the resolve onto the application's image (`resolve`). The same
+//! store and resolve as dhoit's own frames (the list's `list_store.wgsl` and
+//! `list_resolve.wgsl`; the k-buffer's `kbuffer_insert.wgsl`, which dhoit's capture runs, and
+//! `resolve.wgsl`), so the image is the one dhoit renders for the same fragments.
 //!
 //! ```
-//! use dhoit_runtime::gpu::{self, ListOit};
+//! use dhoit_runtime::gpu::{self, ApplicationOit, ListOit};
 //!
 //! // The application's device: dhoit's features and limits on top of its own.
 //! let instance = wgpu::Instance::default();
@@ -47,187 +48,169 @@ use super::pipelines::{compute_pipeline, module_from, redeclare};
 use crate::error::{Error, GpuError, Result};
 use crate::wgsl::{PIXEL_GROUP, Params, grid, shaders};
 
-/// The formats [`ListOit::resolve`] writes (storage textures every device supports).
+/// The formats the resolves write onto (storage textures every device supports).
 pub const TARGET_FORMATS: [wgpu::TextureFormat; 3] = [
     wgpu::TextureFormat::Rgba8Unorm,
     wgpu::TextureFormat::Rgba16Float,
     wgpu::TextureFormat::Rgba32Float,
 ];
 
-/// The budgeted linked list's buffers and passes on an application's device.
-pub struct ListOit {
+/// What dhoit keeps on an application's device for one method: the buffers it creates (each
+/// counted), the group the application's transparent pipeline binds (its buffers, its
+/// uniform, the application's opaque depth), and the resolve onto each target format.
+struct AppSide {
     device: wgpu::Device,
     width: u32,
     height: u32,
-    nodes: u64,
-    heads: wgpu::Buffer,
-    counter: wgpu::Buffer,
-    layout: wgpu::BindGroupLayout,
-    /// The application's group's buffers: heads, next, keys, counter, its uniform.
-    store_buffers: [wgpu::Buffer; 5],
-    /// The resolve's own buffers: params, heads, next, keys and status, with the views bound
-    /// at each call.
-    resolve_buffers: [wgpu::Buffer; 5],
-    /// The resolve for each of [`TARGET_FORMATS`], built on first use.
+    /// The method, as labels and errors name it.
+    name: &'static str,
+    /// The resolve's pass (`wgsl::shaders::PASSES`), whose entry `onto` reads the
+    /// application's image at `under_at` and writes its target at `under_at + 1`.
+    pass: &'static str,
+    under_at: u32,
+    limit: u64,
+    allocated: u64,
+    layout: Option<wgpu::BindGroupLayout>,
+    /// The application's group: storage buffers, then its uniform, then the depth texture.
+    store: Vec<wgpu::Buffer>,
+    /// The resolve's buffers and their bindings.
+    resolve: Vec<(u32, wgpu::Buffer)>,
+    /// Cleared before each frame's transparent draws.
+    cleared: Vec<wgpu::Buffer>,
     resolves: std::sync::Mutex<Vec<(wgpu::TextureFormat, wgpu::ComputePipeline)>>,
 }
 
-impl ListOit {
-    /// The list for frames of `width` x `height` with a pool of `nodes` fragments (12 bytes
-    /// each: what overflows it is dropped) and the nearest `sorted` of a pixel (1 to
-    /// [`crate::composite::LIST_MAX_SORTED`]) blended in order. Refuses a device that lacks
-    /// what the passes need (named), and sizes it cannot bind.
-    pub fn new(
+impl AppSide {
+    /// Refuses a device that lacks what the passes need (named) and a frame with no pixels.
+    fn new(
         device: &wgpu::Device,
-        queue: &wgpu::Queue,
         (width, height): (u32, u32),
-        nodes: u64,
-        sorted: u32,
-    ) -> Result<ListOit> {
+        name: &'static str,
+        (pass, under_at): (&'static str, u32),
+    ) -> Result<AppSide> {
         check_device(device, "the application's device")?;
-        let have = device.limits();
         if width == 0 || height == 0 {
             return Err(Error::Invalid(format!(
                 "a {width}x{height} frame has no pixels"
             )));
         }
-        crate::composite::check_list_sorted(sorted)?;
-        if nodes == 0 || nodes > u32::MAX as u64 - 1 {
-            return Err(Error::Invalid(format!(
-                "a pool of {nodes} nodes: 1 to {} (node indices are 32-bit)",
-                u32::MAX - 1
-            )));
-        }
-        let px = width as u64 * height as u64;
-        let limit = have
-            .max_storage_buffer_binding_size
-            .min(have.max_buffer_size);
-        let storage = |label: &str, size: u64| -> Result<wgpu::Buffer> {
-            let size = size.max(16).next_multiple_of(4);
-            if size > limit {
-                return Err(GpuError::BufferTooLarge {
-                    label: label.to_string(),
-                    need: size,
-                    max: limit,
-                }
-                .into());
+        let have = device.limits();
+        Ok(AppSide {
+            device: device.clone(),
+            width,
+            height,
+            name,
+            pass,
+            under_at,
+            limit: have
+                .max_storage_buffer_binding_size
+                .min(have.max_buffer_size),
+            allocated: 0,
+            layout: None,
+            store: Vec::new(),
+            resolve: Vec::new(),
+            cleared: Vec::new(),
+            resolves: Default::default(),
+        })
+    }
+
+    fn pixels(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+
+    /// A storage buffer of `size` bytes (at least 16), refused where the device cannot bind it.
+    fn storage(&mut self, label: &str, size: u64) -> Result<wgpu::Buffer> {
+        let size = size.max(16).next_multiple_of(4);
+        if size > self.limit {
+            return Err(GpuError::BufferTooLarge {
+                label: label.to_string(),
+                need: size,
+                max: self.limit,
             }
-            Ok(device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }))
-        };
-        let heads = storage("list.heads", 4 * px)?;
-        let next = storage("list.next", 4 * nodes)?;
-        let keys = storage("list.keys", 8 * nodes)?;
-        let counter = storage("list.counter", 16)?;
-        let status = storage("status", 16)?;
-        // The application's uniform (width, nodes) and the resolve's own (dhoit's Params).
-        let store_params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("list.store_params"),
-            size: 16,
+            .into());
+        }
+        self.allocated += size;
+        Ok(self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        }))
+    }
+
+    /// A uniform holding `bytes`.
+    fn uniform(&mut self, queue: &wgpu::Queue, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+        let b = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes.len() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        queue.write_buffer(
-            &store_params,
-            0,
-            bytemuck::cast_slice(&[width, nodes as u32, 0, 0]),
-        );
+        queue.write_buffer(&b, 0, bytes);
+        self.allocated += bytes.len() as u64;
+        b
+    }
+
+    /// dhoit's `Params` for the resolve, with the method's own fields set by `set`.
+    fn resolve_params(
+        &mut self,
+        queue: &wgpu::Queue,
+        set: impl FnOnce(&mut Params),
+    ) -> wgpu::Buffer {
         let mut params: Params = bytemuck::Zeroable::zeroed();
-        params.width = width;
-        params.height = height;
-        params.pixels = width * height;
-        params.budget_fragments = nodes as u32;
-        params.list_sorted = sorted;
-        let resolve_params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("list.params"),
-            size: std::mem::size_of::<Params>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        queue.write_buffer(&resolve_params, 0, bytemuck::bytes_of(&params));
-        let rw = |binding| wgpu::BindGroupLayoutEntry {
+        params.width = self.width;
+        params.height = self.height;
+        params.pixels = self.width * self.height;
+        set(&mut params);
+        self.uniform(queue, "oit.params", bytemuck::bytes_of(&params))
+    }
+
+    /// The application's group: `storage` (read-write storage at bindings 0..), `uniform` at
+    /// the next binding, the opaque depth after it.
+    fn store_group(&mut self, storage: &[&wgpu::Buffer], uniform: wgpu::Buffer) {
+        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::FRAGMENT,
             ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only: false },
+                ty,
                 has_dynamic_offset: false,
                 min_binding_size: None,
             },
             count: None,
         };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("dhoit linked list"),
-            entries: &[
-                rw(0),
-                rw(1),
-                rw(2),
-                rw(3),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 4,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 5,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Depth,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-            ],
+        let n = storage.len() as u32;
+        let mut entries: Vec<_> = (0..n)
+            .map(|i| buffer(i, wgpu::BufferBindingType::Storage { read_only: false }))
+            .collect();
+        entries.push(buffer(n, wgpu::BufferBindingType::Uniform));
+        entries.push(wgpu::BindGroupLayoutEntry {
+            binding: n + 1,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Depth,
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
         });
-        Ok(ListOit {
-            device: device.clone(),
-            width,
-            height,
-            nodes,
-            resolve_buffers: [
-                resolve_params,
-                heads.clone(),
-                next.clone(),
-                keys.clone(),
-                status,
-            ],
-            store_buffers: [heads.clone(), next, keys, counter.clone(), store_params],
-            heads,
-            counter,
-            layout,
-            resolves: Default::default(),
-        })
+        let label = format!("dhoit {}", self.name);
+        self.layout = Some(self.device.create_bind_group_layout(
+            &wgpu::BindGroupLayoutDescriptor {
+                label: Some(&label),
+                entries: &entries,
+            },
+        ));
+        self.store = storage.iter().map(|&b| b.clone()).collect();
+        self.store.push(uniform);
     }
 
-    /// The WGSL the application's transparent fragment shader starts with: the list's bindings
-    /// at `group` and `fn oit_store(frag_coord: vec4<f32>, color: vec4<f32>)`, which it calls
-    /// with its fragment's `@builtin(position)` and straight colour. Needs the shader-int64
-    /// feature ([`super::required_features`] has it).
-    pub fn wgsl(group: u32) -> String {
-        shaders::OIT_LIST_STORE.replace("OIT_GROUP", &group.to_string())
+    fn layout(&self) -> &wgpu::BindGroupLayout {
+        self.layout.as_ref().expect("built with its group")
     }
 
-    /// The layout of the list's bind group, for the application's pipeline layout.
-    pub fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
-        &self.layout
-    }
-
-    /// The bind group the application sets at the group it gave [`ListOit::wgsl`] for its
-    /// transparent draws, with its opaque depth (a depth texture of the frame's size with
-    /// `TEXTURE_BINDING` usage, written by its opaque pass; cleared to 1 where it has none)
-    /// as the occluder. Made once and kept while the depth texture lives.
-    pub fn bind_group(&self, opaque_depth: &wgpu::TextureView) -> wgpu::BindGroup {
+    fn bind_group(&self, opaque_depth: &wgpu::TextureView) -> wgpu::BindGroup {
         let mut entries: Vec<wgpu::BindGroupEntry> = self
-            .store_buffers
+            .store
             .iter()
             .enumerate()
             .map(|(i, b)| wgpu::BindGroupEntry {
@@ -236,39 +219,23 @@ impl ListOit {
             })
             .collect();
         entries.push(wgpu::BindGroupEntry {
-            binding: 5,
+            binding: self.store.len() as u32,
             resource: wgpu::BindingResource::TextureView(opaque_depth),
         });
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("dhoit linked list"),
-            layout: &self.layout,
+            label: Some(&format!("dhoit {}", self.name)),
+            layout: self.layout(),
             entries: &entries,
         })
     }
 
-    /// The pool's size in nodes.
-    pub fn nodes(&self) -> u64 {
-        self.nodes
+    fn clear(&self, enc: &mut wgpu::CommandEncoder) {
+        for b in &self.cleared {
+            enc.clear_buffer(b, 0, None);
+        }
     }
 
-    /// Bytes of the list's buffers (as `budget::LINKED_LIST` counts them, less the raster
-    /// target, which is the application's).
-    pub fn allocated_bytes(&self) -> u64 {
-        4 * self.width as u64 * self.height as u64 + 12 * self.nodes + 16 + 16 + 16
-    }
-
-    /// Empties the list for a new frame: recorded before the frame's transparent draws.
-    pub fn clear(&self, enc: &mut wgpu::CommandEncoder) {
-        enc.clear_buffer(&self.heads, 0, None);
-        enc.clear_buffer(&self.counter, 0, None);
-    }
-
-    /// Composites the frame's list over the application's image `under` (a float-sampled
-    /// texture of the frame's size: its opaque pass) onto `target`, a storage texture of the
-    /// frame's size in one of [`TARGET_FORMATS`] (it may be a copy the application blits or
-    /// presents). `timestamps`, where given, time the resolve's compute pass in the
-    /// application's query set.
-    pub fn resolve(
+    fn resolve(
         &self,
         enc: &mut wgpu::CommandEncoder,
         under: &wgpu::TextureView,
@@ -278,30 +245,30 @@ impl ListOit {
     ) -> Result<()> {
         let pipeline = self.resolve_for(format)?;
         let mut entries: Vec<wgpu::BindGroupEntry> = self
-            .resolve_buffers
+            .resolve
             .iter()
-            .zip([0u32, 1, 2, 3, 5])
-            .map(|(b, i)| wgpu::BindGroupEntry {
-                binding: i,
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: *i,
                 resource: b.as_entire_binding(),
             })
             .collect();
         entries.push(wgpu::BindGroupEntry {
-            binding: 6,
+            binding: self.under_at,
             resource: wgpu::BindingResource::TextureView(under),
         });
         entries.push(wgpu::BindGroupEntry {
-            binding: 7,
+            binding: self.under_at + 1,
             resource: wgpu::BindingResource::TextureView(target),
         });
+        let label = format!("dhoit {} resolve", self.name);
         let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("dhoit linked list resolve"),
+            label: Some(&label),
             layout: &pipeline.get_bind_group_layout(0),
             entries: &entries,
         });
         let (gx, gy) = grid(self.width * self.height, PIXEL_GROUP);
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("dhoit linked list resolve"),
+            label: Some(&label),
             timestamp_writes: timestamps,
         });
         pass.set_pipeline(&pipeline);
@@ -317,7 +284,8 @@ impl ListOit {
             wgpu::TextureFormat::Rgba32Float => "rgba32float",
             other => {
                 return Err(Error::Invalid(format!(
-                    "the linked list resolves onto {TARGET_FORMATS:?}, not {other:?}"
+                    "the {} resolves onto {TARGET_FORMATS:?}, not {other:?}",
+                    self.name
                 )));
             }
         };
@@ -325,16 +293,261 @@ impl ListOit {
         if let Some((_, p)) = built.iter().find(|(f, _)| *f == format) {
             return Ok(p.clone());
         }
-        let mut src = shaders::source("list_resolve").expect("known pass");
+        let mut src = shaders::source(self.pass).expect("known pass");
         redeclare(
             &mut src,
-            "list_resolve",
+            self.pass,
             "texture_storage_2d<rgba32float, write>",
             &format!("texture_storage_2d<{name}, write>"),
         );
-        let m = module_from(&self.device, "list_resolve (onto)", src);
-        let p = compute_pipeline(&self.device, "list_resolve (onto)", &m, "onto");
+        let label = format!("{} (onto)", self.pass);
+        let m = module_from(&self.device, &label, src);
+        let p = compute_pipeline(&self.device, &label, &m, "onto");
         built.push((format, p.clone()));
         Ok(p)
     }
 }
+
+/// The budgeted linked list's buffers and passes on an application's device.
+pub struct ListOit {
+    side: AppSide,
+    nodes: u64,
+}
+
+impl ListOit {
+    /// The list for frames of `width` x `height` with a pool of `nodes` fragments (12 bytes
+    /// each: what overflows it is dropped) and the nearest `sorted` of a pixel (1 to
+    /// [`crate::composite::LIST_MAX_SORTED`]) blended in order. Refuses a device that lacks
+    /// what the passes need (named), and sizes it cannot bind.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        size: (u32, u32),
+        nodes: u64,
+        sorted: u32,
+    ) -> Result<ListOit> {
+        let mut side = AppSide::new(device, size, "linked list", ("list_resolve", 6))?;
+        crate::composite::check_list_sorted(sorted)?;
+        if nodes == 0 || nodes > u32::MAX as u64 - 1 {
+            return Err(Error::Invalid(format!(
+                "a pool of {nodes} nodes: 1 to {} (node indices are 32-bit)",
+                u32::MAX - 1
+            )));
+        }
+        let px = side.pixels();
+        let heads = side.storage("list.heads", 4 * px)?;
+        let next = side.storage("list.next", 4 * nodes)?;
+        let keys = side.storage("list.keys", 8 * nodes)?;
+        let counter = side.storage("list.counter", 16)?;
+        let status = side.storage("status", 16)?;
+        // The application's uniform (width, nodes) and the resolve's own (dhoit's Params).
+        let store_params = side.uniform(
+            queue,
+            "list.store_params",
+            bytemuck::cast_slice(&[size.0, nodes as u32, 0, 0]),
+        );
+        let params = side.resolve_params(queue, |p| {
+            p.budget_fragments = nodes as u32;
+            p.list_sorted = sorted;
+        });
+        side.store_group(&[&heads, &next, &keys, &counter], store_params);
+        side.resolve = vec![
+            (0, params),
+            (1, heads.clone()),
+            (2, next),
+            (3, keys),
+            (5, status),
+        ];
+        side.cleared = vec![heads, counter];
+        Ok(ListOit { side, nodes })
+    }
+
+    /// The WGSL the application's transparent fragment shader starts with: the list's bindings
+    /// at `group` and `fn oit_store(frag_coord: vec4<f32>, color: vec4<f32>)`, which it calls
+    /// with its fragment's `@builtin(position)` and straight colour. Needs the shader-int64
+    /// feature ([`super::required_features`] has it).
+    pub fn wgsl(group: u32) -> String {
+        shaders::application_module(&[shaders::OIT_FRAGMENT, shaders::OIT_LIST_STORE], group)
+    }
+
+    /// The pool's size in nodes.
+    pub fn nodes(&self) -> u64 {
+        self.nodes
+    }
+}
+
+/// The fixed k-buffer (FKB: k slots a pixel, the rest approximated in its tail) on an
+/// application's device: one geometry pass (the application's transparent draws) and the
+/// resolve. Any draw order gives the same image.
+///
+/// ```
+/// use dhoit_runtime::gpu::{self, ApplicationOit, KBufferOit};
+///
+/// let instance = wgpu::Instance::default();
+/// let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+/// let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+///     required_features: gpu::required_features(),
+///     required_limits: gpu::required_limits(),
+///     ..Default::default()
+/// }))
+/// .unwrap();
+/// // Four slots a pixel for a 64x48 frame: 8 bytes a slot, 20 a pixel for the tail.
+/// let oit = KBufferOit::new(&device, &queue, (64, 48), 4)?;
+/// assert!(oit.allocated_bytes() >= (8 * 4 + 20) * 64 * 48);
+/// // Its transparent fragment shader: dhoit's module at group 1, then its own code.
+/// let src = KBufferOit::wgsl(1)
+///     + "@fragment fn fs(@builtin(position) p: vec4<f32>) { oit_store(p, vec4<f32>(0.2, 0.4, 0.6, 0.5)); }";
+/// let _module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+///     label: None,
+///     source: wgpu::ShaderSource::Wgsl(src.into()),
+/// });
+/// // Per frame, as with ListOit: oit.clear(&mut encoder); its opaque pass; its transparent
+/// // draws with oit.bind_group(&its_opaque_depth_view) at group 1; oit.resolve(...).
+/// # Ok::<(), dhoit_runtime::Error>(())
+/// ```
+pub struct KBufferOit {
+    side: AppSide,
+    k: u32,
+}
+
+impl KBufferOit {
+    /// The k-buffer for frames of `width` x `height` with `k` slots a pixel (at least 1; slot
+    /// indices are 32-bit). Refuses a device that lacks what the passes need (named), and
+    /// sizes it cannot bind.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        size: (u32, u32),
+        k: u32,
+    ) -> Result<KBufferOit> {
+        let mut side = AppSide::new(device, size, "k-buffer", ("resolve", 8))?;
+        let px = side.pixels();
+        if k == 0 || k as u64 * px > u32::MAX as u64 {
+            return Err(Error::Invalid(format!(
+                "k = {k} for {px} pixels: at least 1 slot a pixel, and at most {} slots in all \
+                 (slot indices are 32-bit)",
+                u32::MAX
+            )));
+        }
+        let slots = side.storage("oit.slots", 8 * k as u64 * px)?;
+        let tail = side.storage("oit.tail", 16 * px)?;
+        let tail_count = side.storage("oit.tail_count", 4 * px)?;
+        let status = side.storage("status", 16)?;
+        // The resolve's slot bases and counts, which a uniform k never reads.
+        let unused_offsets = side.storage("fkb.unused_offsets", 16)?;
+        let unused_counts = side.storage("fkb.unused_counts", 16)?;
+        let store_params = side.uniform(
+            queue,
+            "kbuffer.store_params",
+            bytemuck::cast_slice(&[size.0, k, 0, 0]),
+        );
+        let params = side.resolve_params(queue, |p| p.k_uniform = k);
+        side.store_group(&[&slots, &tail, &tail_count], store_params);
+        side.resolve = vec![
+            (0, params),
+            (1, unused_offsets),
+            (2, slots.clone()),
+            (3, tail.clone()),
+            (4, tail_count.clone()),
+            (6, unused_counts),
+            (7, status),
+        ];
+        side.cleared = vec![slots, tail, tail_count];
+        Ok(KBufferOit { side, k })
+    }
+
+    /// The WGSL the application's transparent fragment shader starts with: the k-buffer's
+    /// bindings at `group` and `fn oit_store(frag_coord: vec4<f32>, color: vec4<f32>)`, which
+    /// it calls with its fragment's `@builtin(position)` and straight colour. Its names start
+    /// with `oit_`. Needs the shader-int64 feature ([`super::required_features`] has it).
+    pub fn wgsl(group: u32) -> String {
+        shaders::application_module(
+            &[
+                shaders::OIT_FRAGMENT,
+                shaders::KBUFFER_INSERT,
+                shaders::OIT_KBUFFER_STORE,
+            ],
+            group,
+        )
+    }
+
+    /// Slots a pixel.
+    pub fn k(&self) -> u32 {
+        self.k
+    }
+}
+
+/// What an application does with one of dhoit's methods on its own device, whichever it is:
+/// bind its group in the transparent pipeline, clear it each frame, resolve it onto its target.
+pub trait ApplicationOit {
+    /// The WGSL the application's transparent fragment shader starts with, the method's
+    /// bindings at `group` (the type's own `wgsl`): it ends its fragment shader in a call to
+    /// `oit_store(frag_coord: vec4<f32>, color: vec4<f32>)` with its fragment's
+    /// `@builtin(position)` and straight (not premultiplied) colour.
+    fn store_module(&self, group: u32) -> String;
+
+    /// The layout of the method's bind group, for the application's pipeline layout.
+    fn bind_group_layout(&self) -> &wgpu::BindGroupLayout;
+
+    /// The bind group the application sets at the group it gave the module for its
+    /// transparent draws, with its opaque depth (a depth texture of the frame's size with
+    /// `TEXTURE_BINDING` usage, written by its opaque pass; cleared to 1 where it has none) as
+    /// the occluder. Made once and kept while the depth texture lives.
+    fn bind_group(&self, opaque_depth: &wgpu::TextureView) -> wgpu::BindGroup;
+
+    /// Bytes of the buffers the method created: its `budget` layout's, less the raster target
+    /// (the application's), and the application's 16-byte uniform.
+    fn allocated_bytes(&self) -> u64;
+
+    /// Empties the method's buffers for a new frame: recorded before its transparent draws.
+    fn clear(&self, enc: &mut wgpu::CommandEncoder);
+
+    /// Composites the frame's fragments over the application's image `under` (a float-sampled
+    /// texture of the frame's size: its opaque pass) onto `target`, a storage texture of the
+    /// frame's size in one of [`TARGET_FORMATS`] (it may be a copy the application blits or
+    /// presents). `timestamps`, where given, time the resolve's compute pass in the
+    /// application's query set.
+    fn resolve(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        under: &wgpu::TextureView,
+        target: &wgpu::TextureView,
+        format: wgpu::TextureFormat,
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
+    ) -> Result<()>;
+}
+
+macro_rules! application_oit {
+    ($t:ty) => {
+        impl ApplicationOit for $t {
+            fn store_module(&self, group: u32) -> String {
+                <$t>::wgsl(group)
+            }
+            fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
+                self.side.layout()
+            }
+            fn bind_group(&self, opaque_depth: &wgpu::TextureView) -> wgpu::BindGroup {
+                self.side.bind_group(opaque_depth)
+            }
+            fn allocated_bytes(&self) -> u64 {
+                self.side.allocated
+            }
+            fn clear(&self, enc: &mut wgpu::CommandEncoder) {
+                self.side.clear(enc)
+            }
+            fn resolve(
+                &self,
+                enc: &mut wgpu::CommandEncoder,
+                under: &wgpu::TextureView,
+                target: &wgpu::TextureView,
+                format: wgpu::TextureFormat,
+                timestamps: Option<wgpu::ComputePassTimestampWrites>,
+            ) -> Result<()> {
+                self.side.resolve(enc, under, target, format, timestamps)
+            }
+        }
+    };
+}
+
+application_oit!(ListOit);
+application_oit!(KBufferOit);
