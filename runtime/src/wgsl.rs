@@ -43,6 +43,9 @@ pub mod shaders {
     /// The fixed k-buffer's bindings and `oit_store` for an application's fragment shader
     /// (`gpu::KBufferOit::wgsl`), its group index `OIT_GROUP` to be replaced.
     pub const OIT_KBUFFER_STORE: &str = include_str!("../../shaders/oit_kbuffer_store.wgsl");
+    /// The exact A-buffer's bindings and `oit_store` for an application's fragment shader
+    /// (`gpu::ExactOit::wgsl`), its group index `OIT_GROUP` to be replaced.
+    pub const OIT_ABUFFER_STORE: &str = include_str!("../../shaders/oit_abuffer_store.wgsl");
 
     /// The module an application's transparent fragment shader starts with: `parts` (what
     /// the store module includes, then the module) joined, their bindings at `group`.

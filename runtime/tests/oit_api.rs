@@ -7,7 +7,7 @@
 mod common;
 
 use common::{gpu, identity, quad};
-use dhoit_runtime::gpu::{self, ApplicationOit, KBufferOit, ListOit, Slots};
+use dhoit_runtime::gpu::{self, ApplicationOit, ExactOit, KBufferOit, ListOit, Slots};
 use dhoit_runtime::scene::Scene;
 
 const BG: [f32; 3] = [0.9, 0.85, 0.8];
@@ -50,12 +50,34 @@ fn fs_opaque(in: V) -> @location(0) vec4<f32> {
 /// Renders `s` (seen through the identity camera) with the application's pipeline and one of
 /// dhoit's methods, made on the application's device by `make`; returns the target's RGB,
 /// row-major.
+/// One of dhoit's methods on the application's device: one drawn once, or the exact A-buffer,
+/// drawn twice (count, then store).
+enum AppOit {
+    Once(Box<dyn ApplicationOit>),
+    Exact(Box<ExactOit>),
+}
+
+impl AppOit {
+    fn store_module(&self, group: u32) -> String {
+        match self {
+            AppOit::Once(o) => o.store_module(group),
+            AppOit::Exact(_) => ExactOit::wgsl(group),
+        }
+    }
+    fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
+        match self {
+            AppOit::Once(o) => o.bind_group_layout(),
+            AppOit::Exact(o) => o.bind_group_layout(),
+        }
+    }
+}
+
 /// The application draws its transparent triangles in the scene's order, or reversed.
-fn app_frame<O: ApplicationOit>(
+fn app_frame(
     s: &Scene,
     (w, h): (u32, u32),
     reversed: bool,
-    make: impl FnOnce(&wgpu::Device, &wgpu::Queue) -> O,
+    make: impl FnOnce(&wgpu::Device, &wgpu::Queue) -> AppOit,
 ) -> Vec<[f32; 3]> {
     let (device, queue) = app_device();
     let oit = make(&device, &queue);
@@ -210,7 +232,6 @@ fn app_frame<O: ApplicationOit>(
         wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
     );
     let depth_view = depth.create_view(&Default::default());
-    let oit_group = oit.bind_group(&depth_view);
     let view = |t: &wgpu::Texture| t.create_view(&Default::default());
     let mut enc = device.create_command_encoder(&Default::default());
     {
@@ -247,9 +268,9 @@ fn app_frame<O: ApplicationOit>(
         pass.set_vertex_buffer(0, vbuf.slice(..));
         pass.draw(0..opaque_vertices, 0..1);
     }
-    oit.clear(&mut enc);
-    {
-        let raster_view = view(&raster);
+    let raster_view = view(&raster);
+    // Its transparent draws, with dhoit's group at 1.
+    let draw = |enc: &mut wgpu::CommandEncoder, group: &wgpu::BindGroup| {
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("app transparent"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -265,12 +286,37 @@ fn app_frame<O: ApplicationOit>(
         });
         pass.set_pipeline(&pipeline);
         pass.set_bind_group(0, &own_group, &[]);
-        pass.set_bind_group(1, &oit_group, &[]);
+        pass.set_bind_group(1, group, &[]);
         pass.set_vertex_buffer(0, vbuf.slice(..));
         pass.draw(opaque_vertices..s.positions.len() as u32, 0..1);
+    };
+    let (under_view, target_view) = (view(&under), view(&target));
+    match &oit {
+        AppOit::Once(oit) => {
+            oit.clear(&mut enc);
+            draw(&mut enc, &oit.bind_group(&depth_view));
+            oit.resolve(&mut enc, &under_view, &target_view, f32x4, None)
+                .unwrap();
+        }
+        AppOit::Exact(oit) => {
+            oit.clear(&mut enc);
+            draw(&mut enc, &oit.count_group(&depth_view));
+            let total = oit.count(enc, &queue).unwrap();
+            assert_eq!(total, oit.fragments());
+            // Exact memory: budget::ABUFFER's for the frame's fragments, less the raster
+            // target (the application's), and the application's two uniforms.
+            let px = (w * h) as u64;
+            let abuffer = dhoit_runtime::budget::ABUFFER;
+            assert_eq!(
+                oit.allocated_bytes(),
+                abuffer.allocated_bytes(px, total.max(2)) - px + 32
+            );
+            enc = device.create_command_encoder(&Default::default());
+            draw(&mut enc, &oit.store_group(&depth_view));
+            oit.resolve(&mut enc, &under_view, &target_view, f32x4, None)
+                .unwrap();
+        }
     }
-    oit.resolve(&mut enc, &view(&under), &view(&target), f32x4, None)
-        .unwrap();
     let row = (16 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
     let staging = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("app readback"),
@@ -375,7 +421,7 @@ fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
             )
             .unwrap();
         let app = app_frame(&s, (w, h), false, |d, q| {
-            ListOit::new(d, q, (w, h), nodes, sorted).unwrap()
+            AppOit::Once(Box::new(ListOit::new(d, q, (w, h), nodes, sorted).unwrap()))
         });
         let worst = worst_difference(&app, &harness.image.data);
         assert!(
@@ -408,7 +454,7 @@ fn an_application_draws_through_dhoits_k_buffer_and_gets_dhoits_fkb_image_in_any
             .unwrap();
         for reversed in [false, true] {
             let app = app_frame(&s, (w, h), reversed, |d, q| {
-                KBufferOit::new(d, q, (w, h), k).unwrap()
+                AppOit::Once(Box::new(KBufferOit::new(d, q, (w, h), k).unwrap()))
             });
             let worst = worst_difference(&app, &harness.image.data);
             assert!(
@@ -429,6 +475,35 @@ fn an_application_draws_through_dhoits_k_buffer_and_gets_dhoits_fkb_image_in_any
             assert!(off <= 1e-5, "k = {k}: FKB is not exact ({off})");
         }
     }
+}
+
+#[test]
+fn an_application_draws_twice_through_dhoits_a_buffer_and_gets_the_exact_image_in_any_order() {
+    let Some(g) = gpu() else { return };
+    let (w, h) = (64, 48);
+    let s = layered_scene();
+    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
+    let fragments = exact.fragments.as_ref().unwrap().fragment_count() as u64;
+    for reversed in [false, true] {
+        let app = app_frame(&s, (w, h), reversed, |d, q| {
+            AppOit::Exact(Box::new(ExactOit::new(d, q, (w, h)).unwrap()))
+        });
+        let worst = worst_difference(&app, &exact.image.data);
+        assert!(
+            worst <= 1e-5,
+            "reversed {reversed}: the application's image differs from dhoit's A-buffer by {worst}"
+        );
+    }
+    // Before any count, the pool is empty (a 16-byte binding).
+    let (device, queue) = app_device();
+    let oit = ExactOit::new(&device, &queue, (w, h)).unwrap();
+    let px = (w * h) as u64;
+    let abuffer = dhoit_runtime::budget::ABUFFER;
+    assert_eq!(
+        oit.allocated_bytes(),
+        abuffer.allocated_bytes(px, 2) - px + 32
+    );
+    assert!(fragments > px / 2, "{fragments} fragments");
 }
 
 #[test]

@@ -41,7 +41,7 @@ mod vkb;
 use abuffer::Blend;
 pub use allocate::GpuAllocation;
 use buffers::{FrameBuffers, Readback, Statistics, read_frame, read_texture};
-pub use oit::{ApplicationOit, KBufferOit, ListOit, TARGET_FORMATS};
+pub use oit::{ApplicationOit, ExactOit, KBufferOit, ListOit, TARGET_FORMATS};
 use passes::Passes;
 use pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT, Pipelines, TARGET_FORMAT};
 use timer::Timer;

@@ -1,11 +1,13 @@
-//! dhoit's one-pass methods in an application's own renderer: the budgeted linked list
-//! ([`ListOit`]) and the fixed k-buffer ([`KBufferOit`]). The application owns the device, its
+//! dhoit's methods in an application's own renderer: the budgeted linked list ([`ListOit`]) and
+//! the fixed k-buffer ([`KBufferOit`]), drawn once, and the exact A-buffer ([`ExactOit`]), drawn
+//! twice. The application owns the device, its
 //! vertex layouts, pipelines, opaque pass and target; dhoit owns the method's buffers, a WGSL
 //! function its fragment shader calls (`wgsl`: `oit_store`) through one bind group at the index
 //! the application chooses, and the resolve onto the application's image (`resolve`). The same
 //! store and resolve as dhoit's own frames (the list's `list_store.wgsl` and
 //! `list_resolve.wgsl`; the k-buffer's `kbuffer_insert.wgsl`, which dhoit's capture runs, and
-//! `resolve.wgsl`), so the image is the one dhoit renders for the same fragments.
+//! `resolve.wgsl`; the A-buffer's `scan.wgsl` and `abuffer_resolve.wgsl`), so the image is the
+//! one dhoit renders for the same fragments.
 //!
 //! ```
 //! use dhoit_runtime::gpu::{self, ApplicationOit, ListOit};
@@ -133,7 +135,10 @@ impl AppSide {
         Ok(self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            // Copied from where a method reads a total back (ExactOit::count).
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         }))
     }
@@ -243,9 +248,21 @@ impl AppSide {
         format: wgpu::TextureFormat,
         timestamps: Option<wgpu::ComputePassTimestampWrites>,
     ) -> Result<()> {
+        let buffers: Vec<(u32, &wgpu::Buffer)> =
+            self.resolve.iter().map(|(i, b)| (*i, b)).collect();
+        self.resolve_with(enc, &buffers, (under, target, format), timestamps)
+    }
+
+    /// The resolve with these buffers at these bindings.
+    fn resolve_with(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        buffers: &[(u32, &wgpu::Buffer)],
+        (under, target, format): (&wgpu::TextureView, &wgpu::TextureView, wgpu::TextureFormat),
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
+    ) -> Result<()> {
         let pipeline = self.resolve_for(format)?;
-        let mut entries: Vec<wgpu::BindGroupEntry> = self
-            .resolve
+        let mut entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .map(|(i, b)| wgpu::BindGroupEntry {
                 binding: *i,
@@ -474,6 +491,279 @@ impl KBufferOit {
     /// Slots a pixel.
     pub fn k(&self) -> u32 {
         self.k
+    }
+}
+
+/// The exact A-buffer on an application's device: every fragment stored (exact memory: the
+/// pool is sized to the frame's fragments), sorted and blended front to back. The application
+/// draws its transparent geometry twice with the one pipeline it built on [`ExactOit::wgsl`]:
+/// with [`ExactOit::count_group`], then, once [`ExactOit::count`] has summed the counts and
+/// sized the pool (it submits and waits for the frame's fragment count, as dhoit's own
+/// A-buffer does), with [`ExactOit::store_group`]; then [`ExactOit::resolve`].
+///
+/// ```
+/// use dhoit_runtime::gpu::{self, ExactOit};
+///
+/// let instance = wgpu::Instance::default();
+/// let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+/// let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+///     required_features: gpu::required_features(),
+///     required_limits: gpu::required_limits(),
+///     ..Default::default()
+/// }))
+/// .unwrap();
+/// let oit = ExactOit::new(&device, &queue, (64, 48))?;
+/// let _src = ExactOit::wgsl(1) + "@fragment fn fs(@builtin(position) p: vec4<f32>) { oit_store(p, vec4<f32>(1.0)); }";
+/// // A frame with no transparent draw: the count finds no fragment, the pool stays empty.
+/// let mut enc = device.create_command_encoder(&Default::default());
+/// oit.clear(&mut enc);
+/// assert_eq!(oit.count(enc, &queue)?, 0);
+/// // Per frame: oit.clear; its opaque pass; its transparent draws with
+/// // oit.count_group(&depth) at group 1; oit.count(encoder, &queue); the same draws with
+/// // oit.store_group(&depth); oit.resolve(...).
+/// # Ok::<(), dhoit_runtime::Error>(())
+/// ```
+pub struct ExactOit {
+    side: AppSide,
+    counts: wgpu::Buffer,
+    offsets: wgpu::Buffer,
+    blocks: wgpu::Buffer,
+    params: wgpu::Buffer,
+    status: wgpu::Buffer,
+    unused_primitives: wgpu::Buffer,
+    /// The application's uniforms for the count and the store (their phase).
+    phases: [wgpu::Buffer; 2],
+    /// The pool (8 bytes a fragment) and its capacity in fragments, grown as frames need.
+    pool: std::sync::Mutex<(wgpu::Buffer, u64)>,
+    fragments: std::sync::atomic::AtomicU64,
+    scan: [wgpu::ComputePipeline; 3],
+}
+
+impl ExactOit {
+    /// The A-buffer for frames of `width` x `height`. Refuses a device that lacks what the
+    /// passes need (named), and sizes it cannot bind.
+    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, size: (u32, u32)) -> Result<ExactOit> {
+        let mut side = AppSide::new(device, size, "A-buffer", ("abuffer_resolve", 8))?;
+        let px = side.pixels();
+        let counts = side.storage("abuf.count", 4 * px)?;
+        let offsets = side.storage("abuf.offsets", 4 * (px + 1))?;
+        let blocks = side.storage("scan.blocks", 4 * px.div_ceil(crate::budget::SCAN_BLOCK))?;
+        let status = side.storage("status", 16)?;
+        let unused_primitives = side.storage("abuf.no_primitives", 16)?;
+        // The pool, sized by each count (8 bytes a fragment); empty until the first.
+        let pool = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("abuf.keys"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let phases = [0u32, 1].map(|phase| {
+            side.uniform(
+                queue,
+                "abuffer.store_params",
+                bytemuck::cast_slice(&[size.0, phase, 0, 0]),
+            )
+        });
+        let params = side.resolve_params(queue, |_| {});
+        side.store_group(&[&counts, &offsets, &pool], phases[0].clone());
+        side.cleared = vec![counts.clone()];
+        let src = shaders::source("scan").expect("known pass");
+        let m = module_from(device, "scan (application)", src);
+        let scan = ["scan_blocks", "scan_sums", "scan_add"]
+            .map(|e| compute_pipeline(device, "scan (application)", &m, e));
+        Ok(ExactOit {
+            side,
+            counts,
+            offsets,
+            blocks,
+            params,
+            status,
+            unused_primitives,
+            phases,
+            pool: std::sync::Mutex::new((pool, 0)),
+            fragments: Default::default(),
+            scan,
+        })
+    }
+
+    /// The WGSL the application's transparent fragment shader starts with: the A-buffer's
+    /// bindings at `group` and `fn oit_store(frag_coord: vec4<f32>, color: vec4<f32>)`, which
+    /// it calls with its fragment's `@builtin(position)` and straight colour, in both draws.
+    pub fn wgsl(group: u32) -> String {
+        shaders::application_module(&[shaders::OIT_FRAGMENT, shaders::OIT_ABUFFER_STORE], group)
+    }
+
+    /// The layout of the A-buffer's bind groups, for the application's pipeline layout.
+    pub fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
+        self.side.layout()
+    }
+
+    /// Empties the counts for a new frame: recorded before its first transparent draw.
+    pub fn clear(&self, enc: &mut wgpu::CommandEncoder) {
+        self.side.clear(enc)
+    }
+
+    fn group(&self, phase: usize, opaque_depth: &wgpu::TextureView) -> wgpu::BindGroup {
+        let pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
+        let entries = [
+            self.counts.as_entire_binding(),
+            self.offsets.as_entire_binding(),
+            pool.0.as_entire_binding(),
+            self.phases[phase].as_entire_binding(),
+            wgpu::BindingResource::TextureView(opaque_depth),
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = entries
+            .into_iter()
+            .enumerate()
+            .map(|(i, resource)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource,
+            })
+            .collect();
+        self.side
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("dhoit A-buffer"),
+                layout: self.side.layout(),
+                entries: &entries,
+            })
+    }
+
+    /// The group for the first draw, which counts each pixel's fragments, with the
+    /// application's opaque depth as the occluder (as [`ListOit::bind_group`]).
+    pub fn count_group(&self, opaque_depth: &wgpu::TextureView) -> wgpu::BindGroup {
+        self.group(0, opaque_depth)
+    }
+
+    /// After the count's draws, recorded in `enc`: the prefix sum of the counts, submitted with
+    /// them, and the frame's fragment count read back; the pool grows to hold them. Returns
+    /// the frame's fragments. Make the store's group after it ([`ExactOit::store_group`]).
+    pub fn count(&self, mut enc: wgpu::CommandEncoder, queue: &wgpu::Queue) -> Result<u64> {
+        let device = &self.side.device;
+        let px = self.side.pixels();
+        let (gx, gy) = grid(px as u32, crate::budget::SCAN_BLOCK as u32);
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("dhoit A-buffer prefix sum"),
+                timestamp_writes: None,
+            });
+            for (i, pl) in self.scan.iter().enumerate() {
+                let mut entries = vec![(0, &self.params), (2, &self.offsets), (3, &self.blocks)];
+                if i == 0 {
+                    entries.push((1, &self.counts));
+                }
+                let entries: Vec<wgpu::BindGroupEntry> = entries
+                    .into_iter()
+                    .map(|(binding, b)| wgpu::BindGroupEntry {
+                        binding,
+                        resource: b.as_entire_binding(),
+                    })
+                    .collect();
+                let g = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("dhoit A-buffer prefix sum"),
+                    layout: &pl.get_bind_group_layout(0),
+                    entries: &entries,
+                });
+                pass.set_pipeline(pl);
+                pass.set_bind_group(0, &g, &[]);
+                if i == 1 {
+                    pass.dispatch_workgroups(1, 1, 1);
+                } else {
+                    pass.dispatch_workgroups(gx, gy, 1);
+                }
+            }
+        }
+        // The counts, summed, become the store's cursors.
+        enc.clear_buffer(&self.counts, 0, None);
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("dhoit A-buffer total"),
+            size: 4,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        enc.copy_buffer_to_buffer(&self.offsets, 4 * px, &staging, 0, 4);
+        queue.submit([enc.finish()]);
+        staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Validation(e.to_string()))?;
+        let total = {
+            let data = staging
+                .slice(..)
+                .get_mapped_range()
+                .map_err(|e| GpuError::Validation(e.to_string()))?;
+            bytemuck::cast_slice::<u8, u32>(&data)[0] as u64
+        };
+        let mut pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
+        if total > pool.1 {
+            let size = (8 * total).max(16);
+            if size > self.side.limit {
+                return Err(GpuError::BufferTooLarge {
+                    label: "abuf.keys".to_string(),
+                    need: size,
+                    max: self.side.limit,
+                }
+                .into());
+            }
+            *pool = (
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("abuf.keys"),
+                    size,
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: false,
+                }),
+                total,
+            );
+        }
+        self.fragments
+            .store(total, std::sync::atomic::Ordering::Relaxed);
+        Ok(total)
+    }
+
+    /// The group for the second draw, which stores each fragment, made after
+    /// [`ExactOit::count`] (the pool it binds may have grown).
+    pub fn store_group(&self, opaque_depth: &wgpu::TextureView) -> wgpu::BindGroup {
+        self.group(1, opaque_depth)
+    }
+
+    /// The last counted frame's fragments.
+    pub fn fragments(&self) -> u64 {
+        self.fragments.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Bytes of the buffers the A-buffer holds: `budget::ABUFFER`'s for the largest frame it
+    /// counted (its pool 8 bytes a fragment), less the raster target (the application's), and
+    /// the application's two 16-byte uniforms.
+    pub fn allocated_bytes(&self) -> u64 {
+        let pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
+        self.side.allocated + pool.0.size()
+    }
+
+    /// Sorts each pixel's fragments and blends them over the application's image `under` onto
+    /// `target` (as [`ListOit::resolve`]).
+    pub fn resolve(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        under: &wgpu::TextureView,
+        target: &wgpu::TextureView,
+        format: wgpu::TextureFormat,
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
+    ) -> Result<()> {
+        let pool = self
+            .pool
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .0
+            .clone();
+        let buffers = [
+            (0, &self.params),
+            (1, &self.offsets),
+            (2, &pool),
+            (4, &self.status),
+            (5, &self.unused_primitives),
+        ];
+        self.side
+            .resolve_with(enc, &buffers, (under, target, format), timestamps)
     }
 }
 
