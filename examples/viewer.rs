@@ -1,5 +1,6 @@
 //! An application's own wgpu renderer with dhoit for its transparency (the budgeted linked list,
-//! or the fixed k-buffer with `--method fkb`), headless: it loads a glTF file (or a built-in scene), draws its opaque and alpha-masked
+//! the fixed k-buffer with `--method fkb`, or the exact A-buffer with `--method abuffer`, which
+//! draws the transparent geometry twice), headless: it loads a glTF file (or a built-in scene), draws its opaque and alpha-masked
 //! materials with a depth buffer, hands its transparent fragments to dhoit from its own WGSL
 //! (`oit_store`), resolves onto its own target over its opaque image, and writes one PNG per
 //! orbit view with each pass's GPU time.
@@ -12,13 +13,13 @@
 //! The twenty lines that matter are marked `dhoit:`. Colours are the vertices' times the
 //! materials' base colour times their base colour texture, sampled per fragment by the
 //! application's own sampler (sRGB decoded by the texture format). What it does not do yet:
-//! glass's view-dependent opacity (its face-on opacity instead), and the methods that need more
-//! than one geometry pass (the A-buffer, VKB, DKB), whose passes are dhoit's own (`gpu::Gpu`).
+//! glass's view-dependent opacity (its face-on opacity instead), and VKB and DKB, whose passes
+//! are dhoit's own (`gpu::Gpu`).
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
 use dhoit_runtime::composite::Image;
-use dhoit_runtime::gpu::{self, ApplicationOit, KBufferOit, ListOit};
+use dhoit_runtime::gpu::{self, ApplicationOit, ExactOit, KBufferOit, ListOit};
 use dhoit_runtime::scene::{self, Camera, Coverage, Opacity};
 use std::path::PathBuf;
 
@@ -34,8 +35,9 @@ struct Args {
     views: usize,
     /// dhoit's method: `linked-list` (a pool of --fpp fragments a frame pixel, what overflows
     /// it dropped) or `fkb` (--k slots a pixel, the rest approximated in a tail; any draw
-    /// order gives the same image).
-    #[arg(long, default_value = "linked-list", value_parser = ["linked-list", "fkb"])]
+    /// order gives the same image) or `abuffer` (every fragment, exact memory: the transparent
+    /// geometry drawn twice, to count and to store).
+    #[arg(long, default_value = "linked-list", value_parser = ["linked-list", "fkb", "abuffer"])]
     method: String,
     /// The list's pool, in fragments a frame pixel (Bevy's default is 4).
     #[arg(long, default_value_t = 4.0)]
@@ -161,13 +163,23 @@ fn main() -> Result<()> {
     });
     // dhoit: the list, its pool a budget of fragments a frame pixel, or the k-buffer.
     let nodes = (a.fpp * (w as f64 * h as f64)).ceil() as u64;
-    let (oit, method): (Box<dyn ApplicationOit>, String) = match a.method.as_str() {
+    let (oit, method) = match a.method.as_str() {
+        "abuffer" => (
+            Oit::Exact(Box::new(ExactOit::new(&device, &queue, (w, h))?)),
+            "the exact A-buffer".to_string(),
+        ),
         "fkb" => (
-            Box::new(KBufferOit::new(&device, &queue, (w, h), a.k)?),
+            Oit::Once(Box::new(KBufferOit::new(&device, &queue, (w, h), a.k)?)),
             format!("FKB, {} slots a pixel", a.k),
         ),
         _ => (
-            Box::new(ListOit::new(&device, &queue, (w, h), nodes, a.sorted)?),
+            Oit::Once(Box::new(ListOit::new(
+                &device,
+                &queue,
+                (w, h),
+                nodes,
+                a.sorted,
+            )?)),
             format!(
                 "linked list, {} fragments a pixel of pool, the nearest {} sorted",
                 a.fpp, a.sorted
@@ -327,7 +339,10 @@ fn main() -> Result<()> {
     let (image_view, depth_view, raster_view, target_view) =
         (view(&image), view(&depth), view(&raster), view(&target));
     // dhoit: its group holds its buffers and this opaque depth, the occluder.
-    let oit_group = oit.bind_group(&depth_view);
+    let oit_group = match &oit {
+        Oit::Once(o) => o.bind_group(&depth_view),
+        Oit::Exact(o) => o.count_group(&depth_view), // the A-buffer's first draw counts
+    };
     let layout = |groups: &[Option<&wgpu::BindGroupLayout>]| {
         device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: None,
@@ -399,18 +414,18 @@ fn main() -> Result<()> {
     let queries = device.create_query_set(&wgpu::QuerySetDescriptor {
         label: Some("pass times"),
         ty: wgpu::QueryType::Timestamp,
-        count: 6,
+        count: 8,
     });
     let resolved = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("pass times"),
-        size: 48,
+        size: 64,
         usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
     let row = (16 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
     let staging = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("readback"),
-        size: row as u64 * h as u64 + 48,
+        size: row as u64 * h as u64 + 64,
         usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
         mapped_at_creation: false,
     });
@@ -459,7 +474,8 @@ fn main() -> Result<()> {
                 pass.draw(first..first + n, 0..1);
             }
         }
-        {
+        // The transparent draws, with dhoit's group for them.
+        let transparent = |enc: &mut wgpu::CommandEncoder, group: &wgpu::BindGroup, times| {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("transparent"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -471,17 +487,25 @@ fn main() -> Result<()> {
                         store: wgpu::StoreOp::Discard,
                     },
                 })],
-                timestamp_writes: Some(pass_times(1)),
+                timestamp_writes: Some(times),
                 ..Default::default()
             });
             pass.set_pipeline(&transparent_pipeline);
             pass.set_bind_group(0, &own_group, &[]);
-            pass.set_bind_group(2, &oit_group, &[]); // dhoit: its group for the draws
+            pass.set_bind_group(2, group, &[]); // dhoit: its group for the draws
             pass.set_vertex_buffer(0, vertices.slice(..));
             for &(m, first, n, _) in draws.iter().filter(|d| d.3) {
                 pass.set_bind_group(1, &material_groups[m], &[]);
                 pass.draw(first..first + n, 0..1);
             }
+        };
+        transparent(&mut enc, &oit_group, pass_times(1));
+        if let Oit::Exact(exact) = &oit {
+            // dhoit: the counts summed and the pool sized (submitted and waited for), then the
+            // same draws store the fragments.
+            exact.count(enc, &queue)?;
+            enc = device.create_command_encoder(&Default::default());
+            transparent(&mut enc, &exact.store_group(&depth_view), pass_times(3));
         }
         // dhoit: its fragments over the opaque image, onto the target.
         let resolve_times = wgpu::ComputePassTimestampWrites {
@@ -491,12 +515,11 @@ fn main() -> Result<()> {
         };
         oit.resolve(
             &mut enc,
-            &image_view,
-            &target_view,
+            (&image_view, &target_view),
             rgba,
             Some(resolve_times),
         )?;
-        enc.resolve_query_set(&queries, 0..6, &resolved, 0);
+        enc.resolve_query_set(&queries, 0..8, &resolved, 0);
         enc.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
                 texture: &target,
@@ -514,7 +537,7 @@ fn main() -> Result<()> {
             },
             target.size(),
         );
-        enc.copy_buffer_to_buffer(&resolved, 0, &staging, row as u64 * h as u64, 48);
+        enc.copy_buffer_to_buffer(&resolved, 0, &staging, row as u64 * h as u64, 64);
         queue.submit([enc.finish()]);
         staging.slice(..).map_async(wgpu::MapMode::Read, |r| {
             r.expect("the readback maps");
@@ -533,9 +556,13 @@ fn main() -> Result<()> {
                 .collect();
             let stamps: &[u64] = bytemuck::cast_slice(&data[(row * h) as usize..]);
             let period = queue.get_timestamp_period() as f64 * 1e-6;
-            let ms: Vec<f64> = (0..3)
+            let mut ms: Vec<f64> = (0..4)
                 .map(|i| stamps[2 * i + 1].saturating_sub(stamps[2 * i]) as f64 * period)
                 .collect();
+            // The A-buffer's store draw is transparent time too.
+            if matches!(oit, Oit::Exact(_)) {
+                ms[1] += ms[3];
+            }
             (
                 Image {
                     width: w,
@@ -558,4 +585,49 @@ fn main() -> Result<()> {
     }
     println!("{method}: {} bytes on the device", oit.allocated_bytes());
     Ok(())
+}
+
+/// dhoit's method: one drawn once, or the exact A-buffer, drawn twice.
+enum Oit {
+    Once(Box<dyn ApplicationOit>),
+    Exact(Box<ExactOit>),
+}
+
+impl Oit {
+    fn store_module(&self, group: u32) -> String {
+        match self {
+            Oit::Once(o) => o.store_module(group),
+            Oit::Exact(_) => ExactOit::wgsl(group),
+        }
+    }
+    fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
+        match self {
+            Oit::Once(o) => o.bind_group_layout(),
+            Oit::Exact(o) => o.bind_group_layout(),
+        }
+    }
+    fn clear(&self, enc: &mut wgpu::CommandEncoder) {
+        match self {
+            Oit::Once(o) => o.clear(enc),
+            Oit::Exact(o) => o.clear(enc),
+        }
+    }
+    fn resolve(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        views: (&wgpu::TextureView, &wgpu::TextureView),
+        format: wgpu::TextureFormat,
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
+    ) -> dhoit_runtime::Result<()> {
+        match self {
+            Oit::Once(o) => o.resolve(enc, views.0, views.1, format, timestamps),
+            Oit::Exact(o) => o.resolve(enc, views.0, views.1, format, timestamps),
+        }
+    }
+    fn allocated_bytes(&self) -> u64 {
+        match self {
+            Oit::Once(o) => o.allocated_bytes(),
+            Oit::Exact(o) => o.allocated_bytes(),
+        }
+    }
 }
