@@ -51,6 +51,11 @@ struct Args {
     /// Folder for the PNG frames.
     #[arg(long, default_value = "out/viewer")]
     out: PathBuf,
+    /// Open an interactive window where a display exists, instead of writing PNG frames
+    /// (needs the viewer built with `--features window`): drag to orbit, 1/2/3 for the linked
+    /// list, FKB and the A-buffer, +/- for the budget, the GPU times in the title.
+    #[arg(long)]
+    window: bool,
 }
 
 const SHADER: &str = r#"
@@ -100,14 +105,21 @@ fn fs_transparent(in: V) {
 fn main() -> Result<()> {
     let a = Args::parse();
     let (w, h) = (a.res.width, a.res.height);
+    let method = Method::of(&a)?;
     let s = scene::load(&a.scene, Opacity::Native)?;
-    if !(a.fpp.is_finite() && a.fpp > 0.0) {
-        bail!(
-            "--fpp is a positive number of fragments a pixel, not {}",
-            a.fpp
-        );
+    if !a.window {
+        dhoit_runtime::tensors::create_folder(&a.out)?;
     }
-    dhoit_runtime::tensors::create_folder(&a.out)?;
+    // A window needs its display before anything else is built.
+    #[cfg(feature = "window")]
+    let event_loop = match a.window {
+        true => Some(window::event_loop()?),
+        false => None,
+    };
+    #[cfg(not(feature = "window"))]
+    if a.window {
+        bail!("--window needs the viewer built with `--features window`");
+    }
     // The application's device, with what dhoit needs on top.
     let instance = wgpu::Instance::default();
     let adapter = pollster::block_on(instance.request_adapter(&Default::default()))
@@ -118,415 +130,24 @@ fn main() -> Result<()> {
         ..Default::default()
     }))?;
     println!("{} on {}", s.name, adapter.get_info().name);
-    // The application's vertices: position, colour (vertex x base colour; glass at its face-on
-    // opacity), texture coordinates and the alpha cutoff (MASK; 0 for OPAQUE), by material,
-    // opaque and masked materials first: one draw a material.
-    let triangles = s.positions.len() / 3;
-    let mut order: Vec<usize> = (0..triangles).collect();
-    let material = |t: usize| s.triangle_material[t] as usize;
-    order.sort_by_key(|&t| (s.materials[material(t)].transparent(), material(t)));
-    let mut all = Vec::<f32>::new();
-    // (material, first vertex, vertices, transparent)
-    let mut draws: Vec<(usize, u32, u32, bool)> = Vec::new();
-    for &t in &order {
-        let m = &s.materials[material(t)];
-        match draws.last_mut() {
-            Some(d) if d.0 == material(t) => d.2 += 3,
-            _ => draws.push((material(t), (all.len() / 10) as u32, 3, m.transparent())),
-        }
-        for v in 3 * t..3 * t + 3 {
-            let p = s.positions[v];
-            let mut c: [f32; 4] = std::array::from_fn(|i| s.colors[v][i] * m.base_color[i]);
-            if m.transmission > 0.0 {
-                c[3] *= scene::material::glass_opacity(m.transmission, m.f0(), 1.0);
-            }
-            let cutoff = match m.coverage {
-                Coverage::Mask(cut) => cut,
-                _ => 0.0,
-            };
-            let uv = s.uvs[v];
-            all.extend_from_slice(&[p.x, p.y, p.z, c[0], c[1], c[2], c[3], uv[0], uv[1], cutoff]);
-        }
+    let app = App::new(device, queue, s);
+    #[cfg(feature = "window")]
+    if let Some(event_loop) = event_loop {
+        return window::run(event_loop, &instance, &adapter, app, method, (w, h));
     }
-    let vertices = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("vertices"),
-        size: (4 * all.len()).max(16) as u64,
-        usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    queue.write_buffer(&vertices, 0, bytemuck::cast_slice(&all));
-    let camera = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("camera"),
-        size: 64,
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    // dhoit: the list, its pool a budget of fragments a frame pixel, or the k-buffer.
-    let nodes = (a.fpp * (w as f64 * h as f64)).ceil() as u64;
-    let (oit, method) = match a.method.as_str() {
-        "abuffer" => (
-            Oit::Exact(Box::new(ExactOit::new(&device, &queue, (w, h))?)),
-            "the exact A-buffer".to_string(),
-        ),
-        "fkb" => (
-            Oit::Once(Box::new(KBufferOit::new(&device, &queue, (w, h), a.k)?)),
-            format!("FKB, {} slots a pixel", a.k),
-        ),
-        _ => (
-            Oit::Once(Box::new(ListOit::new(
-                &device,
-                &queue,
-                (w, h),
-                nodes,
-                a.sorted,
-            )?)),
-            format!(
-                "linked list, {} fragments a pixel of pool, the nearest {} sorted",
-                a.fpp, a.sorted
-            ),
-        ),
-    };
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("viewer"),
-        // dhoit: its bindings and oit_store, at group 2.
-        source: wgpu::ShaderSource::Wgsl((oit.store_module(2) + SHADER).into()),
-    });
-    let own_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("camera"),
-        entries: &[wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::VERTEX,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        }],
-    });
-    let own_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("camera"),
-        layout: &own_layout,
-        entries: &[wgpu::BindGroupEntry {
-            binding: 0,
-            resource: camera.as_entire_binding(),
-        }],
-    });
-    // Each material's texture and sampler, its own bind group.
-    let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("material"),
-        entries: &[
-            wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
-            },
-            wgpu::BindGroupLayoutEntry {
-                binding: 1,
-                visibility: wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                count: None,
-            },
-        ],
-    });
-    let white = scene::Texture {
-        width: 1,
-        height: 1,
-        texels: vec![u32::MAX],
-        wrap: [scene::Wrap::Repeat; 2],
-        nearest: true,
-    };
-    let address = |w: scene::Wrap| match w {
-        scene::Wrap::Repeat => wgpu::AddressMode::Repeat,
-        scene::Wrap::MirroredRepeat => wgpu::AddressMode::MirrorRepeat,
-        scene::Wrap::ClampToEdge => wgpu::AddressMode::ClampToEdge,
-    };
-    let material_groups: Vec<wgpu::BindGroup> = s
-        .materials
-        .iter()
-        .map(|m| {
-            let t = m.texture.map_or(&white, |i| &s.textures[i as usize]);
-            let size = wgpu::Extent3d {
-                width: t.width,
-                height: t.height,
-                depth_or_array_layers: 1,
-            };
-            let tex = device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("base colour"),
-                size,
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba8UnormSrgb,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            });
-            queue.write_texture(
-                tex.as_image_copy(),
-                bytemuck::cast_slice(&t.texels),
-                wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(4 * t.width),
-                    rows_per_image: Some(t.height),
-                },
-                size,
-            );
-            let filter = match t.nearest {
-                true => wgpu::FilterMode::Nearest,
-                false => wgpu::FilterMode::Linear,
-            };
-            let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
-                address_mode_u: address(t.wrap[0]),
-                address_mode_v: address(t.wrap[1]),
-                mag_filter: filter,
-                min_filter: wgpu::FilterMode::Linear,
-                ..Default::default()
-            });
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("material"),
-                layout: &material_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: wgpu::BindingResource::TextureView(
-                            &tex.create_view(&Default::default()),
-                        ),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::Sampler(&sampler),
-                    },
-                ],
-            })
-        })
-        .collect();
-    let texture = |label, format, usage| {
-        device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage,
-            view_formats: &[],
-        })
-    };
-    let rgba = wgpu::TextureFormat::Rgba32Float;
-    let use_both = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
-    let image = texture("opaque image", rgba, use_both);
-    let depth = texture("opaque depth", wgpu::TextureFormat::Depth32Float, use_both);
-    let raster = texture(
-        "raster",
-        wgpu::TextureFormat::R8Unorm,
-        wgpu::TextureUsages::RENDER_ATTACHMENT,
-    );
-    let target = texture(
-        "target",
-        rgba,
-        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-    );
-    let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-    let (image_view, depth_view, raster_view, target_view) =
-        (view(&image), view(&depth), view(&raster), view(&target));
-    // dhoit: its group holds its buffers and this opaque depth, the occluder.
-    let oit_group = match &oit {
-        Oit::Once(o) => o.bind_group(&depth_view),
-        Oit::Exact(o) => o.count_group(&depth_view), // the A-buffer's first draw counts
-    };
-    let layout = |groups: &[Option<&wgpu::BindGroupLayout>]| {
-        device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: None,
-            bind_group_layouts: groups,
-            immediate_size: 0,
-        })
-    };
-    let opaque_layout = layout(&[Some(&own_layout), Some(&material_layout)]);
-    // dhoit: the transparent pipeline's layout has its group beside the application's.
-    let transparent_layout = layout(&[
-        Some(&own_layout),
-        Some(&material_layout),
-        Some(oit.bind_group_layout()),
-    ]);
-    let attributes =
-        wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4, 2 => Float32x2, 3 => Float32];
-    let buffers = [Some(wgpu::VertexBufferLayout {
-        array_stride: 40,
-        step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &attributes,
-    })];
-    let pipeline = |layout, entry, format, depth: bool, writes| {
-        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some(entry),
-            layout: Some(layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs"),
-                compilation_options: Default::default(),
-                buffers: &buffers,
-            },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: depth.then(|| wgpu::DepthStencilState {
-                format: wgpu::TextureFormat::Depth32Float,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format,
-                    blend: None,
-                    write_mask: writes,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        })
-    };
-    let opaque_pipeline = pipeline(
-        &opaque_layout,
-        "fs_opaque",
-        rgba,
-        true,
-        wgpu::ColorWrites::ALL,
-    );
-    let transparent_pipeline = pipeline(
-        &transparent_layout,
-        "fs_transparent",
-        wgpu::TextureFormat::R8Unorm,
-        false,
-        wgpu::ColorWrites::empty(),
-    );
-    let queries = device.create_query_set(&wgpu::QuerySetDescriptor {
-        label: Some("pass times"),
-        ty: wgpu::QueryType::Timestamp,
-        count: 8,
-    });
-    let resolved = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("pass times"),
-        size: 64,
-        usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
+    let frame = app.frame(method, (w, h))?;
     let row = (16 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+    let staging = app.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("readback"),
-        size: row as u64 * h as u64 + 64,
+        size: row as u64 * h as u64,
         usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
         mapped_at_creation: false,
     });
-    let pass_times = |i: u32| wgpu::RenderPassTimestampWrites {
-        query_set: &queries,
-        beginning_of_pass_write_index: Some(2 * i),
-        end_of_pass_write_index: Some(2 * i + 1),
-    };
     for v in 0..a.views {
-        let cam = Camera::orbit(&s, v, a.views, w, h);
-        queue.write_buffer(
-            &camera,
-            0,
-            bytemuck::cast_slice(&cam.view_proj.to_cols_array()),
-        );
-        let mut enc = device.create_command_encoder(&Default::default());
-        oit.clear(&mut enc); // dhoit: empty for the frame
-        {
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("opaque"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &image_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::WHITE),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: Some(pass_times(0)),
-                ..Default::default()
-            });
-            pass.set_pipeline(&opaque_pipeline);
-            pass.set_bind_group(0, &own_group, &[]);
-            pass.set_vertex_buffer(0, vertices.slice(..));
-            for &(m, first, n, _) in draws.iter().filter(|d| !d.3) {
-                pass.set_bind_group(1, &material_groups[m], &[]);
-                pass.draw(first..first + n, 0..1);
-            }
-        }
-        // The transparent draws, with dhoit's group for them.
-        let transparent = |enc: &mut wgpu::CommandEncoder, group: &wgpu::BindGroup, times| {
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("transparent"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &raster_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                        store: wgpu::StoreOp::Discard,
-                    },
-                })],
-                timestamp_writes: Some(times),
-                ..Default::default()
-            });
-            pass.set_pipeline(&transparent_pipeline);
-            pass.set_bind_group(0, &own_group, &[]);
-            pass.set_bind_group(2, group, &[]); // dhoit: its group for the draws
-            pass.set_vertex_buffer(0, vertices.slice(..));
-            for &(m, first, n, _) in draws.iter().filter(|d| d.3) {
-                pass.set_bind_group(1, &material_groups[m], &[]);
-                pass.draw(first..first + n, 0..1);
-            }
-        };
-        transparent(&mut enc, &oit_group, pass_times(1));
-        if let Oit::Exact(exact) = &oit {
-            // dhoit: the counts summed and the pool sized (submitted and waited for), then the
-            // same draws store the fragments.
-            exact.count(enc, &queue)?;
-            enc = device.create_command_encoder(&Default::default());
-            transparent(&mut enc, &exact.store_group(&depth_view), pass_times(3));
-        }
-        // dhoit: its fragments over the opaque image, onto the target.
-        let resolve_times = wgpu::ComputePassTimestampWrites {
-            query_set: &queries,
-            beginning_of_pass_write_index: Some(4),
-            end_of_pass_write_index: Some(5),
-        };
-        oit.resolve(
-            &mut enc,
-            (&image_view, &target_view),
-            rgba,
-            Some(resolve_times),
-        )?;
-        enc.resolve_query_set(&queries, 0..8, &resolved, 0);
+        let cam = Camera::orbit(&app.scene, v, a.views, w, h);
+        let mut enc = app.draw(&frame, &cam)?;
         enc.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: &target,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
+            frame.target.as_image_copy(),
             wgpu::TexelCopyBufferInfo {
                 buffer: &staging,
                 layout: wgpu::TexelCopyBufferLayout {
@@ -535,17 +156,16 @@ fn main() -> Result<()> {
                     rows_per_image: Some(h),
                 },
             },
-            target.size(),
+            frame.target.size(),
         );
-        enc.copy_buffer_to_buffer(&resolved, 0, &staging, row as u64 * h as u64, 64);
-        queue.submit([enc.finish()]);
+        app.queue.submit([enc.finish()]);
         staging.slice(..).map_async(wgpu::MapMode::Read, |r| {
             r.expect("the readback maps");
         });
-        device.poll(wgpu::PollType::wait_indefinitely())?;
-        let (img, ms) = {
+        let ms = app.pass_ms(&frame)?;
+        let img = {
             let data = staging.slice(..).get_mapped_range()?;
-            let floats: &[f32] = bytemuck::cast_slice(&data[..(row * h) as usize]);
+            let floats: &[f32] = bytemuck::cast_slice(&data);
             let pixels = (0..h as usize)
                 .flat_map(|y| {
                     (0..w as usize).map(move |x| {
@@ -554,23 +174,11 @@ fn main() -> Result<()> {
                     })
                 })
                 .collect();
-            let stamps: &[u64] = bytemuck::cast_slice(&data[(row * h) as usize..]);
-            let period = queue.get_timestamp_period() as f64 * 1e-6;
-            let mut ms: Vec<f64> = (0..4)
-                .map(|i| stamps[2 * i + 1].saturating_sub(stamps[2 * i]) as f64 * period)
-                .collect();
-            // The A-buffer's store draw is transparent time too.
-            if matches!(oit, Oit::Exact(_)) {
-                ms[1] += ms[3];
+            Image {
+                width: w,
+                height: h,
+                data: pixels,
             }
-            (
-                Image {
-                    width: w,
-                    height: h,
-                    data: pixels,
-                },
-                ms,
-            )
         };
         staging.unmap();
         let path = a.out.join(format!("view{v}.png"));
@@ -583,8 +191,571 @@ fn main() -> Result<()> {
             path.display()
         );
     }
-    println!("{method}: {} bytes on the device", oit.allocated_bytes());
+    println!(
+        "{}: {} bytes on the device",
+        method.describe(),
+        frame.oit.allocated_bytes()
+    );
     Ok(())
+}
+
+/// dhoit's method and its budget, as the arguments (or the window's keys) choose them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Method {
+    List { fpp: f64, sorted: u32 },
+    Fkb { k: u32 },
+    Exact,
+}
+
+impl Method {
+    fn of(a: &Args) -> Result<Method> {
+        if !(a.fpp.is_finite() && a.fpp > 0.0) {
+            bail!(
+                "--fpp is a positive number of fragments a pixel, not {}",
+                a.fpp
+            );
+        }
+        Ok(match a.method.as_str() {
+            "abuffer" => Method::Exact,
+            "fkb" => Method::Fkb { k: a.k },
+            _ => Method::List {
+                fpp: a.fpp,
+                sorted: a.sorted,
+            },
+        })
+    }
+
+    fn describe(&self) -> String {
+        match self {
+            Method::Exact => "the exact A-buffer".into(),
+            Method::Fkb { k } => format!("FKB, {k} slots a pixel"),
+            Method::List { fpp, sorted } => {
+                format!("linked list, {fpp} fragments a pixel of pool, the nearest {sorted} sorted")
+            }
+        }
+    }
+
+    /// dhoit: the list, its pool a budget of fragments a frame pixel, or the k-buffer, or the
+    /// A-buffer, for a frame of `(w, h)`.
+    fn build(&self, device: &wgpu::Device, queue: &wgpu::Queue, (w, h): (u32, u32)) -> Result<Oit> {
+        Ok(match *self {
+            Method::Exact => Oit::Exact(Box::new(ExactOit::new(device, queue, (w, h))?)),
+            Method::Fkb { k } => Oit::Once(Box::new(KBufferOit::new(device, queue, (w, h), k)?)),
+            Method::List { fpp, sorted } => {
+                let nodes = (fpp * (w as f64 * h as f64)).ceil() as u64;
+                Oit::Once(Box::new(ListOit::new(
+                    device,
+                    queue,
+                    (w, h),
+                    nodes,
+                    sorted,
+                )?))
+            }
+        })
+    }
+}
+
+/// One draw: a material, its first vertex, its vertices, whether it is transparent.
+struct Draw {
+    material: usize,
+    first: u32,
+    vertices: u32,
+    transparent: bool,
+}
+
+/// What the application keeps whatever dhoit's method and the frame's size: its device, the
+/// scene's vertices, its camera and its materials.
+struct App {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    scene: scene::Scene,
+    vertices: wgpu::Buffer,
+    camera: wgpu::Buffer,
+    own_layout: wgpu::BindGroupLayout,
+    own_group: wgpu::BindGroup,
+    material_layout: wgpu::BindGroupLayout,
+    material_groups: Vec<wgpu::BindGroup>,
+    draws: Vec<Draw>,
+}
+
+/// What depends on the method and the size: dhoit's object, the pipelines built with its
+/// module, the frame's textures and its timestamp queries.
+struct Frame {
+    oit: Oit,
+    opaque_pipeline: wgpu::RenderPipeline,
+    transparent_pipeline: wgpu::RenderPipeline,
+    image_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    raster_view: wgpu::TextureView,
+    target: wgpu::Texture,
+    target_view: wgpu::TextureView,
+    oit_group: wgpu::BindGroup,
+    queries: wgpu::QuerySet,
+    resolved: wgpu::Buffer,
+    times: wgpu::Buffer,
+}
+
+/// The format of the application's images (opaque and resolved).
+const RGBA: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+
+impl App {
+    fn new(device: wgpu::Device, queue: wgpu::Queue, s: scene::Scene) -> App {
+        // The application's vertices: position, colour (vertex x base colour; glass at its
+        // face-on opacity), texture coordinates and the alpha cutoff (MASK; 0 for OPAQUE), by
+        // material, opaque and masked materials first: one draw a material.
+        let triangles = s.positions.len() / 3;
+        let mut order: Vec<usize> = (0..triangles).collect();
+        let material = |t: usize| s.triangle_material[t] as usize;
+        order.sort_by_key(|&t| (s.materials[material(t)].transparent(), material(t)));
+        let mut all = Vec::<f32>::new();
+        let mut draws: Vec<Draw> = Vec::new();
+        for &t in &order {
+            let m = &s.materials[material(t)];
+            match draws.last_mut() {
+                Some(d) if d.material == material(t) => d.vertices += 3,
+                _ => draws.push(Draw {
+                    material: material(t),
+                    first: (all.len() / 10) as u32,
+                    vertices: 3,
+                    transparent: m.transparent(),
+                }),
+            }
+            for v in 3 * t..3 * t + 3 {
+                let p = s.positions[v];
+                let mut c: [f32; 4] = std::array::from_fn(|i| s.colors[v][i] * m.base_color[i]);
+                if m.transmission > 0.0 {
+                    c[3] *= scene::material::glass_opacity(m.transmission, m.f0(), 1.0);
+                }
+                let cutoff = match m.coverage {
+                    Coverage::Mask(cut) => cut,
+                    _ => 0.0,
+                };
+                let uv = s.uvs[v];
+                all.extend_from_slice(&[
+                    p.x, p.y, p.z, c[0], c[1], c[2], c[3], uv[0], uv[1], cutoff,
+                ]);
+            }
+        }
+        let vertices = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vertices"),
+            size: (4 * all.len()).max(16) as u64,
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        queue.write_buffer(&vertices, 0, bytemuck::cast_slice(&all));
+        let camera = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("camera"),
+            size: 64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let own_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("camera"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let own_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("camera"),
+            layout: &own_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: camera.as_entire_binding(),
+            }],
+        });
+        // Each material's texture and sampler, its own bind group.
+        let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("material"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let white = scene::Texture {
+            width: 1,
+            height: 1,
+            texels: vec![u32::MAX],
+            wrap: [scene::Wrap::Repeat; 2],
+            nearest: true,
+        };
+        let address = |w: scene::Wrap| match w {
+            scene::Wrap::Repeat => wgpu::AddressMode::Repeat,
+            scene::Wrap::MirroredRepeat => wgpu::AddressMode::MirrorRepeat,
+            scene::Wrap::ClampToEdge => wgpu::AddressMode::ClampToEdge,
+        };
+        let material_groups: Vec<wgpu::BindGroup> = s
+            .materials
+            .iter()
+            .map(|m| {
+                let t = m.texture.map_or(&white, |i| &s.textures[i as usize]);
+                let size = wgpu::Extent3d {
+                    width: t.width,
+                    height: t.height,
+                    depth_or_array_layers: 1,
+                };
+                let tex = device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some("base colour"),
+                    size,
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: wgpu::TextureFormat::Rgba8UnormSrgb,
+                    usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                    view_formats: &[],
+                });
+                queue.write_texture(
+                    tex.as_image_copy(),
+                    bytemuck::cast_slice(&t.texels),
+                    wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(4 * t.width),
+                        rows_per_image: Some(t.height),
+                    },
+                    size,
+                );
+                let filter = match t.nearest {
+                    true => wgpu::FilterMode::Nearest,
+                    false => wgpu::FilterMode::Linear,
+                };
+                let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+                    address_mode_u: address(t.wrap[0]),
+                    address_mode_v: address(t.wrap[1]),
+                    mag_filter: filter,
+                    min_filter: wgpu::FilterMode::Linear,
+                    ..Default::default()
+                });
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("material"),
+                    layout: &material_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: wgpu::BindingResource::TextureView(
+                                &tex.create_view(&Default::default()),
+                            ),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: wgpu::BindingResource::Sampler(&sampler),
+                        },
+                    ],
+                })
+            })
+            .collect();
+        App {
+            device,
+            queue,
+            scene: s,
+            vertices,
+            camera,
+            own_layout,
+            own_group,
+            material_layout,
+            material_groups,
+            draws,
+        }
+    }
+
+    /// dhoit's object for `method` at `(w, h)`, the pipelines with its module and the frame's
+    /// textures.
+    fn frame(&self, method: Method, (w, h): (u32, u32)) -> Result<Frame> {
+        let device = &self.device;
+        let oit = method.build(device, &self.queue, (w, h))?;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("viewer"),
+            // dhoit: its bindings and oit_store, at group 2.
+            source: wgpu::ShaderSource::Wgsl((oit.store_module(2) + SHADER).into()),
+        });
+        let texture = |label, format, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let use_both =
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+        let image = texture("opaque image", RGBA, use_both);
+        let depth = texture("opaque depth", wgpu::TextureFormat::Depth32Float, use_both);
+        let raster = texture(
+            "raster",
+            wgpu::TextureFormat::R8Unorm,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        // Copied out (headless) or drawn onto the window's surface.
+        let target = texture(
+            "target",
+            RGBA,
+            wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::COPY_SRC
+                | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let depth_view = view(&depth);
+        // dhoit: its group holds its buffers and this opaque depth, the occluder.
+        let oit_group = match &oit {
+            Oit::Once(o) => o.bind_group(&depth_view),
+            Oit::Exact(o) => o.count_group(&depth_view), // the A-buffer's first draw counts
+        };
+        let layout = |groups: &[Option<&wgpu::BindGroupLayout>]| {
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: None,
+                bind_group_layouts: groups,
+                immediate_size: 0,
+            })
+        };
+        let opaque_layout = layout(&[Some(&self.own_layout), Some(&self.material_layout)]);
+        // dhoit: the transparent pipeline's layout has its group beside the application's.
+        let transparent_layout = layout(&[
+            Some(&self.own_layout),
+            Some(&self.material_layout),
+            Some(oit.bind_group_layout()),
+        ]);
+        let attributes =
+            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4, 2 => Float32x2, 3 => Float32];
+        let buffers = [Some(wgpu::VertexBufferLayout {
+            array_stride: 40,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &attributes,
+        })];
+        let pipeline = |layout, entry, format, depth: bool, writes| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(entry),
+                layout: Some(layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs"),
+                    compilation_options: Default::default(),
+                    buffers: &buffers,
+                },
+                primitive: wgpu::PrimitiveState::default(),
+                depth_stencil: depth.then(|| wgpu::DepthStencilState {
+                    format: wgpu::TextureFormat::Depth32Float,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format,
+                        blend: None,
+                        write_mask: writes,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let opaque_pipeline = pipeline(
+            &opaque_layout,
+            "fs_opaque",
+            RGBA,
+            true,
+            wgpu::ColorWrites::ALL,
+        );
+        let transparent_pipeline = pipeline(
+            &transparent_layout,
+            "fs_transparent",
+            wgpu::TextureFormat::R8Unorm,
+            false,
+            wgpu::ColorWrites::empty(),
+        );
+        let queries = device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("pass times"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 8,
+        });
+        let buffer = |label, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 64,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let resolved = buffer(
+            "pass times",
+            wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+        );
+        let times = buffer(
+            "pass times readback",
+            wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        );
+        Ok(Frame {
+            oit,
+            opaque_pipeline,
+            transparent_pipeline,
+            image_view: view(&image),
+            depth_view,
+            raster_view: view(&raster),
+            target_view: view(&target),
+            target,
+            oit_group,
+            queries,
+            resolved,
+            times,
+        })
+    }
+
+    /// One frame from `cam`: the opaque pass, the transparent draws through dhoit, its resolve
+    /// onto `frame.target`; the encoder is left open for the caller's copy or presentation.
+    /// The A-buffer's count is submitted (and waited for) on the way.
+    fn draw(&self, frame: &Frame, cam: &Camera) -> Result<wgpu::CommandEncoder> {
+        let (device, queue) = (&self.device, &self.queue);
+        queue.write_buffer(
+            &self.camera,
+            0,
+            bytemuck::cast_slice(&cam.view_proj.to_cols_array()),
+        );
+        let pass_times = |i: u32| wgpu::RenderPassTimestampWrites {
+            query_set: &frame.queries,
+            beginning_of_pass_write_index: Some(2 * i),
+            end_of_pass_write_index: Some(2 * i + 1),
+        };
+        let mut enc = device.create_command_encoder(&Default::default());
+        frame.oit.clear(&mut enc); // dhoit: empty for the frame
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("opaque"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &frame.image_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::WHITE),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &frame.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: Some(pass_times(0)),
+                ..Default::default()
+            });
+            pass.set_pipeline(&frame.opaque_pipeline);
+            pass.set_bind_group(0, &self.own_group, &[]);
+            pass.set_vertex_buffer(0, self.vertices.slice(..));
+            for d in self.draws.iter().filter(|d| !d.transparent) {
+                pass.set_bind_group(1, &self.material_groups[d.material], &[]);
+                pass.draw(d.first..d.first + d.vertices, 0..1);
+            }
+        }
+        // The transparent draws, with dhoit's group for them.
+        let transparent = |enc: &mut wgpu::CommandEncoder, group: &wgpu::BindGroup, times| {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("transparent"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &frame.raster_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Discard,
+                    },
+                })],
+                timestamp_writes: Some(times),
+                ..Default::default()
+            });
+            pass.set_pipeline(&frame.transparent_pipeline);
+            pass.set_bind_group(0, &self.own_group, &[]);
+            pass.set_bind_group(2, group, &[]); // dhoit: its group for the draws
+            pass.set_vertex_buffer(0, self.vertices.slice(..));
+            for d in self.draws.iter().filter(|d| d.transparent) {
+                pass.set_bind_group(1, &self.material_groups[d.material], &[]);
+                pass.draw(d.first..d.first + d.vertices, 0..1);
+            }
+        };
+        transparent(&mut enc, &frame.oit_group, pass_times(1));
+        if let Oit::Exact(exact) = &frame.oit {
+            // dhoit: the counts summed and the pool sized (submitted and waited for), then the
+            // same draws store the fragments.
+            exact.count(enc, queue)?;
+            enc = device.create_command_encoder(&Default::default());
+            transparent(
+                &mut enc,
+                &exact.store_group(&frame.depth_view),
+                pass_times(3),
+            );
+        }
+        // dhoit: its fragments over the opaque image, onto the target.
+        let resolve_times = wgpu::ComputePassTimestampWrites {
+            query_set: &frame.queries,
+            beginning_of_pass_write_index: Some(4),
+            end_of_pass_write_index: Some(5),
+        };
+        frame.oit.resolve(
+            &mut enc,
+            (&frame.image_view, &frame.target_view),
+            RGBA,
+            Some(resolve_times),
+        )?;
+        enc.resolve_query_set(&frame.queries, 0..8, &frame.resolved, 0);
+        enc.copy_buffer_to_buffer(&frame.resolved, 0, &frame.times, 0, 64);
+        Ok(enc)
+    }
+
+    /// Waits for the frame submitted last and reads its GPU times: opaque, transparent (both
+    /// draws of the A-buffer) and resolve, in milliseconds.
+    fn pass_ms(&self, frame: &Frame) -> Result<[f64; 3]> {
+        frame
+            .times
+            .slice(..)
+            .map_async(wgpu::MapMode::Read, |r| r.expect("the times map"));
+        self.device.poll(wgpu::PollType::wait_indefinitely())?;
+        let ms = {
+            let data = frame.times.slice(..).get_mapped_range()?;
+            let stamps: &[u64] = bytemuck::cast_slice(&data);
+            let period = self.queue.get_timestamp_period() as f64 * 1e-6;
+            let ms = |i: usize| stamps[2 * i + 1].saturating_sub(stamps[2 * i]) as f64 * period;
+            let store = match frame.oit {
+                Oit::Exact(_) => ms(3),
+                Oit::Once(_) => 0.0,
+            };
+            [ms(0), ms(1) + store, ms(2)]
+        };
+        frame.times.unmap();
+        Ok(ms)
+    }
 }
 
 /// dhoit's method: one drawn once, or the exact A-buffer, drawn twice.
@@ -628,6 +799,332 @@ impl Oit {
         match self {
             Oit::Once(o) => o.allocated_bytes(),
             Oit::Exact(o) => o.allocated_bytes(),
+        }
+    }
+}
+
+/// `--window`: the same frames in an interactive window (built with `--features window`).
+/// Drag with the left button to orbit; `1`, `2` and `3` switch to the linked list, FKB and
+/// the A-buffer; `+` and `-` double and halve the budget (the list's fragments a pixel, FKB's
+/// k); `Esc` or `q` quits. The title shows the method, the GPU time of each pass and the frame
+/// time. The image is resolved as headless, then drawn onto the window's surface.
+#[cfg(feature = "window")]
+mod window {
+    use super::{App, Frame, Method, RGBA};
+    use anyhow::{Context, Result, anyhow};
+    use dhoit_runtime::scene::Camera;
+    use std::sync::Arc;
+    use winit::application::ApplicationHandler;
+    use winit::event::{ElementState, MouseButton, WindowEvent};
+    use winit::event_loop::{ActiveEventLoop, EventLoop};
+    use winit::keyboard::{Key, NamedKey};
+    use winit::window::{Window, WindowId};
+
+    /// The display's event loop, or an error saying there is none.
+    pub fn event_loop() -> Result<EventLoop<()>> {
+        EventLoop::new().context(
+            "--window found no display (DISPLAY or WAYLAND_DISPLAY); without --window the \
+             viewer writes its frames as PNG files",
+        )
+    }
+
+    /// Draws the resolved image onto the surface: one triangle over the window, a texel each.
+    const PRESENT: &str = r#"
+@group(0) @binding(0) var image: texture_2d<f32>;
+@vertex
+fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
+}
+@fragment
+fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
+    return vec4<f32>(textureLoad(image, vec2<i32>(p.xy), 0).rgb, 1.0);
+}
+"#;
+
+    struct Shown {
+        window: Arc<Window>,
+        surface: wgpu::Surface<'static>,
+        config: wgpu::SurfaceConfiguration,
+        present: wgpu::RenderPipeline,
+        frame: Frame,
+        group: wgpu::BindGroup,
+    }
+
+    struct Viewer<'a> {
+        instance: &'a wgpu::Instance,
+        adapter: &'a wgpu::Adapter,
+        app: App,
+        method: Method,
+        size: (u32, u32),
+        shown: Option<Shown>,
+        azimuth: f32,
+        elevation: f32,
+        drag: Option<(f64, f64)>,
+        cursor: (f64, f64),
+        last: std::time::Instant,
+        error: Option<anyhow::Error>,
+    }
+
+    pub fn run(
+        event_loop: EventLoop<()>,
+        instance: &wgpu::Instance,
+        adapter: &wgpu::Adapter,
+        app: App,
+        method: Method,
+        size: (u32, u32),
+    ) -> Result<()> {
+        let mut viewer = Viewer {
+            instance,
+            adapter,
+            app,
+            method,
+            size,
+            shown: None,
+            azimuth: 0.5,
+            elevation: 25f32.to_radians(),
+            drag: None,
+            cursor: (0.0, 0.0),
+            last: std::time::Instant::now(),
+            error: None,
+        };
+        event_loop.run_app(&mut viewer)?;
+        viewer.error.map_or(Ok(()), Err)
+    }
+
+    impl Viewer<'_> {
+        fn open(&mut self, el: &ActiveEventLoop) -> Result<()> {
+            let (w, h) = self.size;
+            let attributes = Window::default_attributes()
+                .with_title("dhoit viewer")
+                .with_inner_size(winit::dpi::PhysicalSize::new(w, h));
+            let window = Arc::new(el.create_window(attributes)?);
+            let surface = self.instance.create_surface(window.clone())?;
+            let size = window.inner_size();
+            let mut config = surface
+                .get_default_config(self.adapter, size.width.max(1), size.height.max(1))
+                .ok_or_else(|| anyhow!("the adapter cannot present to this window"))?;
+            let caps = surface.get_capabilities(self.adapter);
+            // The image is linear: an sRGB surface encodes it as the PNG files are.
+            if let Some(&f) = caps.formats.iter().find(|f| f.is_srgb()) {
+                config.format = f;
+            }
+            surface.configure(&self.app.device, &config);
+            let device = &self.app.device;
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("present"),
+                source: wgpu::ShaderSource::Wgsl(PRESENT.into()),
+            });
+            let present = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("present"),
+                layout: None,
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: Default::default(),
+                depth_stencil: None,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(config.format.into())],
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
+            self.size = (config.width, config.height);
+            let frame = self.app.frame(self.method, self.size)?;
+            let group = present_group(device, &present, &frame);
+            self.shown = Some(Shown {
+                window,
+                surface,
+                config,
+                present,
+                frame,
+                group,
+            });
+            Ok(())
+        }
+
+        /// The method or size changed: dhoit's object and the frame's textures anew.
+        fn rebuild(&mut self) -> Result<()> {
+            let Some(shown) = &mut self.shown else {
+                return Ok(());
+            };
+            shown.frame = self.app.frame(self.method, self.size)?;
+            shown.group = present_group(&self.app.device, &shown.present, &shown.frame);
+            Ok(())
+        }
+
+        fn redraw(&mut self) -> Result<()> {
+            let Some(shown) = &self.shown else {
+                return Ok(());
+            };
+            let texture = match shown.surface.get_current_texture() {
+                wgpu::CurrentSurfaceTexture::Success(t)
+                | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+                wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                    shown.surface.configure(&self.app.device, &shown.config);
+                    return Ok(());
+                }
+                _ => return Ok(()),
+            };
+            let (w, h) = self.size;
+            let cam = Camera::orbit_at(&self.app.scene, self.azimuth, self.elevation, w, h);
+            let mut enc = self.app.draw(&shown.frame, &cam)?;
+            {
+                let view = texture.texture.create_view(&Default::default());
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("present"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    ..Default::default()
+                });
+                pass.set_pipeline(&shown.present);
+                pass.set_bind_group(0, &shown.group, &[]);
+                pass.draw(0..3, 0..1);
+            }
+            self.app.queue.submit([enc.finish()]);
+            shown.window.pre_present_notify();
+            self.app.queue.present(texture);
+            let ms = self.app.pass_ms(&shown.frame)?;
+            let now = std::time::Instant::now();
+            let frame_ms = now.duration_since(self.last).as_secs_f64() * 1e3;
+            self.last = now;
+            shown.window.set_title(&format!(
+                "dhoit viewer: {}, {w}x{h}: opaque {:.2} ms, transparent {:.2} ms, resolve {:.2} ms \
+                 (GPU); frame {frame_ms:.1} ms",
+                self.method.describe(),
+                ms[0],
+                ms[1],
+                ms[2]
+            ));
+            shown.window.request_redraw();
+            Ok(())
+        }
+
+        /// The keys: a method, a budget twice or half as large; whether to rebuild.
+        fn key(&mut self, el: &ActiveEventLoop, key: &Key) -> bool {
+            let m = self.method;
+            self.method = match key.as_ref() {
+                Key::Named(NamedKey::Escape) | Key::Character("q") => {
+                    el.exit();
+                    return false;
+                }
+                Key::Character("1") => Method::List {
+                    fpp: 4.0,
+                    sorted: dhoit_runtime::composite::LIST_SORTED,
+                },
+                Key::Character("2") => Method::Fkb { k: 4 },
+                Key::Character("3") => Method::Exact,
+                Key::Character("+" | "=") => match m {
+                    Method::List { fpp, sorted } => Method::List {
+                        fpp: (fpp * 2.0).min(64.0),
+                        sorted,
+                    },
+                    Method::Fkb { k } => Method::Fkb { k: (k * 2).min(64) },
+                    Method::Exact => m,
+                },
+                Key::Character("-") => match m {
+                    Method::List { fpp, sorted } => Method::List {
+                        fpp: (fpp / 2.0).max(0.125),
+                        sorted,
+                    },
+                    Method::Fkb { k } => Method::Fkb { k: (k / 2).max(1) },
+                    Method::Exact => m,
+                },
+                _ => m,
+            };
+            self.method != m
+        }
+    }
+
+    fn present_group(
+        device: &wgpu::Device,
+        present: &wgpu::RenderPipeline,
+        frame: &Frame,
+    ) -> wgpu::BindGroup {
+        debug_assert_eq!(frame.target.format(), RGBA);
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("present"),
+            layout: &present.get_bind_group_layout(0),
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(&frame.target_view),
+            }],
+        })
+    }
+
+    impl ApplicationHandler for Viewer<'_> {
+        fn resumed(&mut self, el: &ActiveEventLoop) {
+            if self.shown.is_none()
+                && let Err(e) = self.open(el)
+            {
+                self.error = Some(e);
+                el.exit();
+            }
+        }
+
+        fn window_event(&mut self, el: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
+            let done = match event {
+                WindowEvent::CloseRequested => {
+                    el.exit();
+                    Ok(())
+                }
+                WindowEvent::Resized(s) if s.width > 0 && s.height > 0 => {
+                    self.size = (s.width, s.height);
+                    if let Some(shown) = &mut self.shown {
+                        shown.config.width = s.width;
+                        shown.config.height = s.height;
+                        shown.surface.configure(&self.app.device, &shown.config);
+                    }
+                    self.rebuild()
+                }
+                WindowEvent::RedrawRequested => self.redraw(),
+                WindowEvent::MouseInput {
+                    state,
+                    button: MouseButton::Left,
+                    ..
+                } => {
+                    self.drag = (state == ElementState::Pressed).then_some(self.cursor);
+                    Ok(())
+                }
+                WindowEvent::CursorMoved { position, .. } => {
+                    self.cursor = (position.x, position.y);
+                    if let Some((x, y)) = self.drag {
+                        self.azimuth += 0.01 * (position.x - x) as f32;
+                        self.elevation =
+                            (self.elevation + 0.01 * (position.y - y) as f32).clamp(-1.5, 1.5);
+                        self.drag = Some(self.cursor);
+                    }
+                    Ok(())
+                }
+                WindowEvent::KeyboardInput { event, .. }
+                    if event.state == ElementState::Pressed =>
+                {
+                    if self.key(el, &event.logical_key) {
+                        self.rebuild()
+                    } else {
+                        Ok(())
+                    }
+                }
+                _ => Ok(()),
+            };
+            if let Err(e) = done {
+                self.error = Some(e);
+                el.exit();
+            }
         }
     }
 }

@@ -27,6 +27,24 @@ for method in linked-list fkb abuffer; do
   fi
   rm -rf "$viewer_out"
 done
+# The viewer's interactive window (winit) builds; with no display it says so and exits non-zero.
+if cargo build --release --example viewer --features window; then
+  echo "viewer example (--features window): builds"
+  if [ -z "${DISPLAY:-}" ] && [ -z "${WAYLAND_DISPLAY:-}" ]; then
+    if window_err=$(cargo run --release --example viewer --features window -- particles --res 160x120 --window 2>&1); then
+      echo "viewer --window without a display: exited 0 (FAILED)" >&2
+      [ "$status" -eq 0 ] && status=1
+    elif grep -q "found no display" <<<"$window_err"; then
+      echo "viewer --window without a display: refused, naming the display"
+    else
+      echo "viewer --window without a display: FAILED without naming the display" >&2
+      [ "$status" -eq 0 ] && status=1
+    fi
+  fi
+else
+  echo "viewer example (--features window): FAILED to build" >&2
+  [ "$status" -eq 0 ] && status=1
+fi
 read -r passed failed < <(awk '/^test result:/ { for (i = 1; i < NF; i++) { if ($(i+1) ~ /^passed/) p += $i; if ($(i+1) ~ /^failed/) f += $i } } END { print p + 0, f + 0 }' "$log")
 rm -f "$log"
 scenes_dir=${DHOIT_SCENES:-$(cd "$(dirname "$0")/.." && pwd)/../shared/scenes}

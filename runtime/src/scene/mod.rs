@@ -404,7 +404,6 @@ impl Camera {
     /// looking down (25 degrees) and up (-15 degrees), framing the whole sphere with a 45 degree
     /// vertical field of view. Near and far planes hug the sphere, so no geometry is clipped.
     pub fn orbit(scene: &Scene, view: usize, views: usize, width: u32, height: u32) -> Camera {
-        let (centre, radius) = scene.bounding_sphere();
         let views = views.max(1);
         let azimuth = std::f32::consts::TAU * (view % views) as f32 / views as f32 + 0.5;
         let elevation = if view.is_multiple_of(2) {
@@ -413,6 +412,20 @@ impl Camera {
             -15f32
         }
         .to_radians();
+        Camera::orbit_at(scene, azimuth, elevation, width, height)
+    }
+
+    /// The camera on the bounding sphere's orbit at `azimuth` and `elevation` (radians), framed
+    /// as [`Camera::orbit`] frames its views (which are this at their angles): what an
+    /// interactive viewer turns with the mouse.
+    pub fn orbit_at(
+        scene: &Scene,
+        azimuth: f32,
+        elevation: f32,
+        width: u32,
+        height: u32,
+    ) -> Camera {
+        let (centre, radius) = scene.bounding_sphere();
         let dir = Vec3::new(
             elevation.cos() * azimuth.cos(),
             elevation.sin(),
