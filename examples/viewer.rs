@@ -1,6 +1,7 @@
 //! An application's own wgpu renderer with dhoit for its transparency (the budgeted linked list,
-//! the fixed k-buffer with `--method fkb`, or the exact A-buffer with `--method abuffer`, which
-//! draws the transparent geometry twice), headless: it loads a glTF file (or a built-in scene), draws its opaque and alpha-masked
+//! the fixed k-buffer with `--method fkb`, the exact A-buffer with `--method abuffer`, which
+//! draws the transparent geometry twice, or the deep k-buffer with `--method dkb --budget 25%`,
+//! whose frame calls the application back to draw into each of its geometry passes), headless: it loads a glTF file (or a built-in scene), draws its opaque and alpha-masked
 //! materials with a depth buffer, hands its transparent fragments to dhoit from its own WGSL
 //! (`oit_store`), resolves onto its own target over its opaque image, and writes one PNG per
 //! orbit view with each pass's GPU time.
@@ -13,13 +14,17 @@
 //! The twenty lines that matter are marked `dhoit:`. Colours are the vertices' times the
 //! materials' base colour times their base colour texture, sampled per fragment by the
 //! application's own sampler (sRGB decoded by the texture format). What it does not do yet:
-//! glass's view-dependent opacity (its face-on opacity instead), and VKB and DKB, whose passes
-//! are dhoit's own (`gpu::Gpu`).
+//! glass's view-dependent opacity (its face-on opacity instead), and VKB, whose passes are
+//! dhoit's own (`gpu::Gpu`).
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
+use dhoit_runtime::budget::Budget;
 use dhoit_runtime::composite::Image;
-use dhoit_runtime::gpu::{self, ApplicationOit, ExactOit, KBufferOit, ListOit};
+use dhoit_runtime::gpu::{
+    self, ApplicationOit, DeepFrame, DeepOit, DeepPhase, ExactOit, KBufferOit, ListOit,
+};
+use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::scene::{self, Camera, Coverage, Opacity};
 use std::path::PathBuf;
 
@@ -36,9 +41,21 @@ struct Args {
     /// dhoit's method: `linked-list` (a pool of --fpp fragments a frame pixel, what overflows
     /// it dropped) or `fkb` (--k slots a pixel, the rest approximated in a tail; any draw
     /// order gives the same image) or `abuffer` (every fragment, exact memory: the transparent
-    /// geometry drawn twice, to count and to store).
-    #[arg(long, default_value = "linked-list", value_parser = ["linked-list", "fkb", "abuffer"])]
+    /// geometry drawn twice, to count and to store) or `dkb` (the network decides each pixel's
+    /// slots within --budget; the exact A-buffer where that needs no more bytes).
+    #[arg(long, default_value = "linked-list", value_parser = ["linked-list", "fkb", "abuffer", "dkb"])]
     method: String,
+    /// DKB's budget: bytes (`20MB`), slots a pixel (`2fpp`) or a share of the frame's
+    /// fragments (`25%`).
+    #[arg(long, default_value = "25%")]
+    budget: Budget,
+    /// Run DKB at its budget even where the exact A-buffer needs no more bytes (by default such
+    /// a frame is the A-buffer's: a k-buffer never costs more than the exact answer).
+    #[arg(long)]
+    always_approximate: bool,
+    /// DKB's network (safetensors, as `dhoit train` writes it).
+    #[arg(long, default_value = "data/weights.safetensors")]
+    weights: PathBuf,
     /// The list's pool, in fragments a frame pixel (Bevy's default is 4).
     #[arg(long, default_value_t = 4.0)]
     fpp: f64,
@@ -52,8 +69,9 @@ struct Args {
     #[arg(long, default_value = "out/viewer")]
     out: PathBuf,
     /// Open an interactive window where a display exists, instead of writing PNG frames
-    /// (needs the viewer built with `--features window`): drag to orbit, 1/2/3 for the linked
-    /// list, FKB and the A-buffer, +/- for the budget, the GPU times in the title.
+    /// (needs the viewer built with `--features window`): drag to orbit, 1/2/3/4 for the linked
+    /// list, FKB, the A-buffer and DKB, +/- for the budget, n for DKB's next network (those
+    /// under data/nets), a to toggle --always-approximate, the GPU times in the title.
     #[arg(long)]
     window: bool,
 }
@@ -106,6 +124,21 @@ fn main() -> Result<()> {
     let a = Args::parse();
     let (w, h) = (a.res.width, a.res.height);
     let method = Method::of(&a)?;
+    // DKB's networks: --weights, then (for the window's `n`) the smaller ones that ship.
+    let weights = Mlp::load(&a.weights);
+    if let (Method::Dkb { .. }, Err(e)) = (method, &weights) {
+        bail!("--method dkb: {e}");
+    }
+    let mut networks: Vec<(String, Mlp)> = weights
+        .into_iter()
+        .map(|m| (a.weights.display().to_string(), m))
+        .collect();
+    for net in ["16-8", "32-16", "64-32"] {
+        let path = PathBuf::from(format!("data/nets/{net}/weights.safetensors"));
+        if let (true, Ok(m)) = (a.window, Mlp::load(&path)) {
+            networks.push((net.to_string(), m));
+        }
+    }
     let s = scene::load(&a.scene, Opacity::Native)?;
     if !a.window {
         dhoit_runtime::tensors::create_folder(&a.out)?;
@@ -130,7 +163,7 @@ fn main() -> Result<()> {
         ..Default::default()
     }))?;
     println!("{} on {}", s.name, adapter.get_info().name);
-    let app = App::new(device, queue, s);
+    let app = App::new(device, queue, s, networks);
     #[cfg(feature = "window")]
     if let Some(event_loop) = event_loop {
         return window::run(event_loop, &instance, &adapter, app, method, (w, h));
@@ -183,17 +216,22 @@ fn main() -> Result<()> {
         staging.unmap();
         let path = a.out.join(format!("view{v}.png"));
         dhoit_runtime::image_io::write_png(&path, &img)?;
+        let dkb = match ms[3] {
+            0.0 => String::new(),
+            c => format!(", dhoit's compute {c:.2} ms"),
+        };
         println!(
-            "view {v}: opaque {:.2} ms, transparent {:.2} ms, resolve {:.2} ms -> {}",
+            "view {v}: opaque {:.2} ms, transparent {:.2} ms{dkb}, resolve {:.2} ms -> {}{}",
             ms[0],
             ms[1],
             ms[2],
-            path.display()
+            path.display(),
+            frame.oit.exact_note()
         );
     }
     println!(
         "{}: {} bytes on the device",
-        method.describe(),
+        app.describe(method),
         frame.oit.allocated_bytes()
     );
     Ok(())
@@ -202,9 +240,21 @@ fn main() -> Result<()> {
 /// dhoit's method and its budget, as the arguments (or the window's keys) choose them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Method {
-    List { fpp: f64, sorted: u32 },
-    Fkb { k: u32 },
+    List {
+        fpp: f64,
+        sorted: u32,
+    },
+    Fkb {
+        k: u32,
+    },
     Exact,
+    /// The budget, which of the application's networks, and whether it runs where the exact
+    /// A-buffer is no dearer.
+    Dkb {
+        budget: Budget,
+        net: usize,
+        always: bool,
+    },
 }
 
 impl Method {
@@ -218,6 +268,11 @@ impl Method {
         Ok(match a.method.as_str() {
             "abuffer" => Method::Exact,
             "fkb" => Method::Fkb { k: a.k },
+            "dkb" => Method::Dkb {
+                budget: a.budget,
+                net: 0,
+                always: a.always_approximate,
+            },
             _ => Method::List {
                 fpp: a.fpp,
                 sorted: a.sorted,
@@ -228,6 +283,7 @@ impl Method {
     fn describe(&self) -> String {
         match self {
             Method::Exact => "the exact A-buffer".into(),
+            Method::Dkb { budget, .. } => format!("DKB at {budget}"),
             Method::Fkb { k } => format!("FKB, {k} slots a pixel"),
             Method::List { fpp, sorted } => {
                 format!("linked list, {fpp} fragments a pixel of pool, the nearest {sorted} sorted")
@@ -236,9 +292,25 @@ impl Method {
     }
 
     /// dhoit: the list, its pool a budget of fragments a frame pixel, or the k-buffer, or the
-    /// A-buffer, for a frame of `(w, h)`.
-    fn build(&self, device: &wgpu::Device, queue: &wgpu::Queue, (w, h): (u32, u32)) -> Result<Oit> {
+    /// A-buffer, or DKB with one of `networks`, for a frame of `(w, h)`.
+    fn build(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        (w, h): (u32, u32),
+        networks: &[(String, Mlp)],
+    ) -> Result<Oit> {
         Ok(match *self {
+            Method::Dkb {
+                budget,
+                net,
+                always,
+            } => {
+                let (_, weights) = networks.get(net).context("no network for DKB")?;
+                let dkb = DeepOit::new(device, queue, (w, h), weights, budget, RGBA)?
+                    .exact_when_cheaper(!always);
+                Oit::Deep(Box::new(dkb), Default::default())
+            }
             Method::Exact => Oit::Exact(Box::new(ExactOit::new(device, queue, (w, h))?)),
             Method::Fkb { k } => Oit::Once(Box::new(KBufferOit::new(device, queue, (w, h), k)?)),
             Method::List { fpp, sorted } => {
@@ -276,6 +348,8 @@ struct App {
     material_layout: wgpu::BindGroupLayout,
     material_groups: Vec<wgpu::BindGroup>,
     draws: Vec<Draw>,
+    /// DKB's networks, by name.
+    networks: Vec<(String, Mlp)>,
 }
 
 /// What depends on the method and the size: dhoit's object, the pipelines built with its
@@ -283,13 +357,15 @@ struct App {
 struct Frame {
     oit: Oit,
     opaque_pipeline: wgpu::RenderPipeline,
-    transparent_pipeline: wgpu::RenderPipeline,
+    /// One transparent pipeline, or DKB's one a phase.
+    transparent_pipelines: Vec<(Option<DeepPhase>, wgpu::RenderPipeline)>,
     image_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
     raster_view: wgpu::TextureView,
     target: wgpu::Texture,
     target_view: wgpu::TextureView,
-    oit_group: wgpu::BindGroup,
+    /// The group for the (first) draw; DKB hands one out for each of its passes.
+    oit_group: Option<wgpu::BindGroup>,
     queries: wgpu::QuerySet,
     resolved: wgpu::Buffer,
     times: wgpu::Buffer,
@@ -299,7 +375,12 @@ struct Frame {
 const RGBA: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 
 impl App {
-    fn new(device: wgpu::Device, queue: wgpu::Queue, s: scene::Scene) -> App {
+    fn new(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        s: scene::Scene,
+        networks: Vec<(String, Mlp)>,
+    ) -> App {
         // The application's vertices: position, colour (vertex x base colour; glass at its
         // face-on opacity), texture coordinates and the alpha cutoff (MASK; 0 for OPAQUE), by
         // material, opaque and masked materials first: one draw a material.
@@ -474,6 +555,18 @@ impl App {
             material_layout,
             material_groups,
             draws,
+            networks,
+        }
+    }
+
+    /// The method, and for DKB its network.
+    fn describe(&self, method: Method) -> String {
+        match method {
+            Method::Dkb { net, .. } => {
+                let name = self.networks.get(net).map_or("?", |n| n.0.as_str());
+                format!("{}, network {name}", method.describe())
+            }
+            _ => method.describe(),
         }
     }
 
@@ -481,12 +574,18 @@ impl App {
     /// textures.
     fn frame(&self, method: Method, (w, h): (u32, u32)) -> Result<Frame> {
         let device = &self.device;
-        let oit = method.build(device, &self.queue, (w, h))?;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("viewer"),
-            // dhoit: its bindings and oit_store, at group 2.
-            source: wgpu::ShaderSource::Wgsl((oit.store_module(2) + SHADER).into()),
-        });
+        let oit = method.build(device, &self.queue, (w, h), &self.networks)?;
+        let modules: Vec<wgpu::ShaderModule> = oit
+            .phases()
+            .into_iter()
+            .map(|phase| {
+                device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("viewer"),
+                    // dhoit: its bindings and oit_store, at group 2 (DKB: one module a pass).
+                    source: wgpu::ShaderSource::Wgsl((oit.store_module(2, phase) + SHADER).into()),
+                })
+            })
+            .collect();
         let texture = |label, format, usage| {
             device.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
@@ -524,8 +623,9 @@ impl App {
         let depth_view = view(&depth);
         // dhoit: its group holds its buffers and this opaque depth, the occluder.
         let oit_group = match &oit {
-            Oit::Once(o) => o.bind_group(&depth_view),
-            Oit::Exact(o) => o.count_group(&depth_view), // the A-buffer's first draw counts
+            Oit::Once(o) => Some(o.bind_group(&depth_view)),
+            Oit::Exact(o) => Some(o.count_group(&depth_view)), // the A-buffer's first draw counts
+            Oit::Deep(..) => None,                             // DKB's groups come with its passes
         };
         let layout = |groups: &[Option<&wgpu::BindGroupLayout>]| {
             device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -536,11 +636,13 @@ impl App {
         };
         let opaque_layout = layout(&[Some(&self.own_layout), Some(&self.material_layout)]);
         // dhoit: the transparent pipeline's layout has its group beside the application's.
-        let transparent_layout = layout(&[
-            Some(&self.own_layout),
-            Some(&self.material_layout),
-            Some(oit.bind_group_layout()),
-        ]);
+        let transparent_layout = |phase| {
+            layout(&[
+                Some(&self.own_layout),
+                Some(&self.material_layout),
+                Some(oit.bind_group_layout(phase)),
+            ])
+        };
         let attributes =
             wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4, 2 => Float32x2, 3 => Float32];
         let buffers = [Some(wgpu::VertexBufferLayout {
@@ -548,12 +650,17 @@ impl App {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &attributes,
         })];
-        let pipeline = |layout, entry, format, depth: bool, writes| {
+        let pipeline = |module: &wgpu::ShaderModule,
+                        layout: &wgpu::PipelineLayout,
+                        entry: &str,
+                        format,
+                        depth: bool,
+                        writes| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(entry),
                 layout: Some(layout),
                 vertex: wgpu::VertexState {
-                    module: &module,
+                    module,
                     entry_point: Some("vs"),
                     compilation_options: Default::default(),
                     buffers: &buffers,
@@ -568,7 +675,7 @@ impl App {
                 }),
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
-                    module: &module,
+                    module,
                     entry_point: Some(entry),
                     compilation_options: Default::default(),
                     targets: &[Some(wgpu::ColorTargetState {
@@ -582,19 +689,30 @@ impl App {
             })
         };
         let opaque_pipeline = pipeline(
+            &modules[0],
             &opaque_layout,
             "fs_opaque",
             RGBA,
             true,
             wgpu::ColorWrites::ALL,
         );
-        let transparent_pipeline = pipeline(
-            &transparent_layout,
-            "fs_transparent",
-            wgpu::TextureFormat::R8Unorm,
-            false,
-            wgpu::ColorWrites::empty(),
-        );
+        let transparent_pipelines = oit
+            .phases()
+            .into_iter()
+            .zip(&modules)
+            .map(|(phase, module)| {
+                let layout = transparent_layout(phase);
+                let p = pipeline(
+                    module,
+                    &layout,
+                    "fs_transparent",
+                    wgpu::TextureFormat::R8Unorm,
+                    false,
+                    wgpu::ColorWrites::empty(),
+                );
+                (phase, p)
+            })
+            .collect();
         let queries = device.create_query_set(&wgpu::QuerySetDescriptor {
             label: Some("pass times"),
             ty: wgpu::QueryType::Timestamp,
@@ -619,7 +737,7 @@ impl App {
         Ok(Frame {
             oit,
             opaque_pipeline,
-            transparent_pipeline,
+            transparent_pipelines,
             image_view: view(&image),
             depth_view,
             raster_view: view(&raster),
@@ -680,32 +798,25 @@ impl App {
                 pass.draw(d.first..d.first + d.vertices, 0..1);
             }
         }
-        // The transparent draws, with dhoit's group for them.
-        let transparent = |enc: &mut wgpu::CommandEncoder, group: &wgpu::BindGroup, times| {
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("transparent"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &frame.raster_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                        store: wgpu::StoreOp::Discard,
-                    },
-                })],
-                timestamp_writes: Some(times),
-                ..Default::default()
-            });
-            pass.set_pipeline(&frame.transparent_pipeline);
-            pass.set_bind_group(0, &self.own_group, &[]);
-            pass.set_bind_group(2, group, &[]); // dhoit: its group for the draws
-            pass.set_vertex_buffer(0, self.vertices.slice(..));
-            for d in self.draws.iter().filter(|d| d.transparent) {
-                pass.set_bind_group(1, &self.material_groups[d.material], &[]);
-                pass.draw(d.first..d.first + d.vertices, 0..1);
-            }
+        let transparent = |enc: &mut wgpu::CommandEncoder, group, phase, times| {
+            self.transparent(frame, enc, group, phase, times)
         };
-        transparent(&mut enc, &frame.oit_group, pass_times(1));
+        if let Oit::Deep(dkb, last) = &frame.oit {
+            // dhoit: the opaque pass submitted, DKB's frame calls the draws back for each of its
+            // geometry passes (count, features, capture; or the A-buffer's store), resolves
+            // onto the target and says what it did.
+            enc.resolve_query_set(&frame.queries, 0..2, &frame.resolved, 0);
+            enc.copy_buffer_to_buffer(&frame.resolved, 0, &frame.times, 0, 16);
+            queue.submit([enc.finish()]);
+            let views = (&frame.depth_view, &frame.image_view, &frame.target_view);
+            let done = dkb.render(views.0, views.1, views.2, &mut |enc, d| {
+                self.transparent(frame, enc, d.group, Some(d.phase), d.timestamps)
+            })?;
+            *last.lock().unwrap_or_else(|e| e.into_inner()) = Some(done);
+            return Ok(device.create_command_encoder(&Default::default()));
+        }
+        let group = frame.oit_group.as_ref().expect("a group for the draws");
+        transparent(&mut enc, group, None, pass_times(1));
         if let Oit::Exact(exact) = &frame.oit {
             // dhoit: the counts summed and the pool sized (submitted and waited for), then the
             // same draws store the fragments.
@@ -714,6 +825,7 @@ impl App {
             transparent(
                 &mut enc,
                 &exact.store_group(&frame.depth_view),
+                None,
                 pass_times(3),
             );
         }
@@ -734,9 +846,48 @@ impl App {
         Ok(enc)
     }
 
+    /// The transparent draws, with dhoit's group for them (and DKB's pass).
+    fn transparent(
+        &self,
+        frame: &Frame,
+        enc: &mut wgpu::CommandEncoder,
+        group: &wgpu::BindGroup,
+        phase: Option<DeepPhase>,
+        times: wgpu::RenderPassTimestampWrites<'_>,
+    ) {
+        let pipeline = &frame
+            .transparent_pipelines
+            .iter()
+            .find(|(p, _)| *p == phase)
+            .expect("a pipeline for each of dhoit's passes")
+            .1;
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("transparent"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &frame.raster_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                    store: wgpu::StoreOp::Discard,
+                },
+            })],
+            timestamp_writes: Some(times),
+            ..Default::default()
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &self.own_group, &[]);
+        pass.set_bind_group(2, group, &[]); // dhoit: its group for the draws
+        pass.set_vertex_buffer(0, self.vertices.slice(..));
+        for d in self.draws.iter().filter(|d| d.transparent) {
+            pass.set_bind_group(1, &self.material_groups[d.material], &[]);
+            pass.draw(d.first..d.first + d.vertices, 0..1);
+        }
+    }
+
     /// Waits for the frame submitted last and reads its GPU times: opaque, transparent (both
-    /// draws of the A-buffer) and resolve, in milliseconds.
-    fn pass_ms(&self, frame: &Frame) -> Result<[f64; 3]> {
+    /// draws of the A-buffer, DKB's three), resolve and DKB's compute passes, in milliseconds.
+    fn pass_ms(&self, frame: &Frame) -> Result<[f64; 4]> {
         frame
             .times
             .slice(..)
@@ -747,40 +898,80 @@ impl App {
             let stamps: &[u64] = bytemuck::cast_slice(&data);
             let period = self.queue.get_timestamp_period() as f64 * 1e-6;
             let ms = |i: usize| stamps[2 * i + 1].saturating_sub(stamps[2 * i]) as f64 * period;
-            let store = match frame.oit {
-                Oit::Exact(_) => ms(3),
-                Oit::Once(_) => 0.0,
-            };
-            [ms(0), ms(1) + store, ms(2)]
+            match &frame.oit {
+                Oit::Exact(_) => [ms(0), ms(1) + ms(3), ms(2), 0.0],
+                Oit::Once(_) => [ms(0), ms(1), ms(2), 0.0],
+                Oit::Deep(_, last) => {
+                    let last = last.lock().unwrap_or_else(|e| e.into_inner());
+                    let passes = last.as_ref().map_or(&[][..], |f| &f.pass_ms[..]);
+                    let sum = |names: &[&str], of: bool| {
+                        let p = passes.iter().filter(|(n, _)| names.contains(n) == of);
+                        p.map(|(_, t)| t).sum::<f64>()
+                    };
+                    let geometry = ["count", "store", "features", "capture"];
+                    let resolve = ["resolve", "sort and blend"];
+                    let (g, r) = (sum(&geometry, true), sum(&resolve, true));
+                    [
+                        ms(0),
+                        g,
+                        r,
+                        sum(&[&geometry[..], &resolve[..]].concat(), false),
+                    ]
+                }
+            }
         };
         frame.times.unmap();
         Ok(ms)
     }
 }
 
-/// dhoit's method: one drawn once, or the exact A-buffer, drawn twice.
+/// dhoit's method: one drawn once, the exact A-buffer, drawn twice, or DKB, drawn into each of
+/// its passes (with what its last frame did).
 enum Oit {
     Once(Box<dyn ApplicationOit>),
     Exact(Box<ExactOit>),
+    Deep(Box<DeepOit>, std::sync::Mutex<Option<DeepFrame>>),
 }
 
 impl Oit {
-    fn store_module(&self, group: u32) -> String {
+    /// The passes the application builds a transparent pipeline for: one, or DKB's.
+    fn phases(&self) -> Vec<Option<DeepPhase>> {
         match self {
-            Oit::Once(o) => o.store_module(group),
-            Oit::Exact(_) => ExactOit::wgsl(group),
+            Oit::Deep(..) => DeepPhase::ALL.map(Some).to_vec(),
+            _ => vec![None],
         }
     }
-    fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
-        match self {
-            Oit::Once(o) => o.bind_group_layout(),
-            Oit::Exact(o) => o.bind_group_layout(),
+    fn store_module(&self, group: u32, phase: Option<DeepPhase>) -> String {
+        match (self, phase) {
+            (Oit::Once(o), _) => o.store_module(group),
+            (Oit::Exact(_), _) => ExactOit::wgsl(group),
+            (Oit::Deep(o, _), Some(phase)) => o.store_module(phase, group),
+            (Oit::Deep(..), None) => unreachable!("DKB's modules are one a pass"),
+        }
+    }
+    fn bind_group_layout(&self, phase: Option<DeepPhase>) -> &wgpu::BindGroupLayout {
+        match (self, phase) {
+            (Oit::Once(o), _) => o.bind_group_layout(),
+            (Oit::Exact(o), _) => o.bind_group_layout(),
+            (Oit::Deep(o, _), Some(phase)) => o.bind_group_layout(phase),
+            (Oit::Deep(..), None) => unreachable!("DKB's groups are one a pass"),
         }
     }
     fn clear(&self, enc: &mut wgpu::CommandEncoder) {
         match self {
             Oit::Once(o) => o.clear(enc),
             Oit::Exact(o) => o.clear(enc),
+            Oit::Deep(..) => {} // DKB's frame clears its own
+        }
+    }
+    /// Whether DKB's last frame rendered the exact A-buffer instead, as a note.
+    fn exact_note(&self) -> &'static str {
+        match self {
+            Oit::Deep(_, last) => match &*last.lock().unwrap_or_else(|e| e.into_inner()) {
+                Some(f) if f.exact => " (exact: the A-buffer needed no more bytes)",
+                _ => "",
+            },
+            _ => "",
         }
     }
     fn resolve(
@@ -793,25 +984,34 @@ impl Oit {
         match self {
             Oit::Once(o) => o.resolve(enc, views.0, views.1, format, timestamps),
             Oit::Exact(o) => o.resolve(enc, views.0, views.1, format, timestamps),
+            Oit::Deep(..) => Ok(()), // resolved by its frame
         }
     }
+    /// Bytes the method holds (DKB: its last frame's).
     fn allocated_bytes(&self) -> u64 {
         match self {
             Oit::Once(o) => o.allocated_bytes(),
             Oit::Exact(o) => o.allocated_bytes(),
+            Oit::Deep(_, last) => last
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .as_ref()
+                .map_or(0, |f| f.allocated_bytes),
         }
     }
 }
 
 /// `--window`: the same frames in an interactive window (built with `--features window`).
-/// Drag with the left button to orbit; `1`, `2` and `3` switch to the linked list, FKB and
-/// the A-buffer; `+` and `-` double and halve the budget (the list's fragments a pixel, FKB's
-/// k); `Esc` or `q` quits. The title shows the method, the GPU time of each pass and the frame
+/// Drag with the left button to orbit; `1`, `2`, `3` and `4` switch to the linked list, FKB,
+/// the A-buffer and DKB; `+` and `-` double and halve the budget (the list's fragments a pixel,
+/// FKB's k, DKB's budget); `n` takes DKB's next network, `a` toggles --always-approximate;
+/// `Esc` or `q` quits. The title shows the method, the GPU time of each pass and the frame
 /// time. The image is resolved as headless, then drawn onto the window's surface.
 #[cfg(feature = "window")]
 mod window {
     use super::{App, Frame, Method, RGBA};
     use anyhow::{Context, Result, anyhow};
+    use dhoit_runtime::budget::Budget;
     use dhoit_runtime::scene::Camera;
     use std::sync::Arc;
     use winit::application::ApplicationHandler;
@@ -1003,12 +1203,14 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
             let frame_ms = now.duration_since(self.last).as_secs_f64() * 1e3;
             self.last = now;
             shown.window.set_title(&format!(
-                "dhoit viewer: {}, {w}x{h}: opaque {:.2} ms, transparent {:.2} ms, resolve {:.2} ms \
-                 (GPU); frame {frame_ms:.1} ms",
-                self.method.describe(),
+                "dhoit viewer: {}, {w}x{h}: opaque {:.2} ms, transparent {:.2} ms, dhoit's compute \
+                 {:.2} ms, resolve {:.2} ms (GPU); frame {frame_ms:.1} ms{}",
+                self.app.describe(self.method),
                 ms[0],
                 ms[1],
-                ms[2]
+                ms[3],
+                ms[2],
+                shown.frame.oit.exact_note()
             ));
             shown.window.request_redraw();
             Ok(())
@@ -1028,12 +1230,35 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                 },
                 Key::Character("2") => Method::Fkb { k: 4 },
                 Key::Character("3") => Method::Exact,
+                Key::Character("4") if !self.app.networks.is_empty() => Method::Dkb {
+                    budget: Budget::Share(250_000),
+                    net: 0,
+                    always: false,
+                },
+                Key::Character("n") => match m {
+                    Method::Dkb { net, .. } => Method::Dkb {
+                        net: (net + 1) % self.app.networks.len().max(1),
+                        ..m
+                    },
+                    _ => m,
+                },
+                Key::Character("a") => match m {
+                    Method::Dkb { always, .. } => Method::Dkb {
+                        always: !always,
+                        ..m
+                    },
+                    _ => m,
+                },
                 Key::Character("+" | "=") => match m {
                     Method::List { fpp, sorted } => Method::List {
                         fpp: (fpp * 2.0).min(64.0),
                         sorted,
                     },
                     Method::Fkb { k } => Method::Fkb { k: (k * 2).min(64) },
+                    Method::Dkb { budget, .. } => Method::Dkb {
+                        budget: scaled(budget, 2.0),
+                        ..m
+                    },
                     Method::Exact => m,
                 },
                 Key::Character("-") => match m {
@@ -1042,11 +1267,24 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                         sorted,
                     },
                     Method::Fkb { k } => Method::Fkb { k: (k / 2).max(1) },
+                    Method::Dkb { budget, .. } => Method::Dkb {
+                        budget: scaled(budget, 0.5),
+                        ..m
+                    },
                     Method::Exact => m,
                 },
                 _ => m,
             };
             self.method != m
+        }
+    }
+
+    /// A budget `by` times as large (a share at most the whole frame).
+    fn scaled(b: Budget, by: f64) -> Budget {
+        match b {
+            Budget::Share(ppm) => Budget::Share(((ppm as f64 * by) as u32).clamp(1_000, 1_000_000)),
+            Budget::SlotsPerPixel(f) => Budget::SlotsPerPixel((f * by).clamp(0.0625, 64.0)),
+            Budget::Bytes(n) => Budget::Bytes(((n as f64 * by) as u64).max(1 << 20)),
         }
     }
 

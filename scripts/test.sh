@@ -15,10 +15,12 @@ cargo test --release --workspace --doc "$@" 2>&1 | tee -a "$log"
 doc_status=${PIPESTATUS[0]}
 [ "$status" -eq 0 ] && status=$doc_status
 # The viewer example, headless, as a user runs it: an application's own renderer around the
-# linked list, the fixed k-buffer and the exact A-buffer, one PNG a view.
-for method in linked-list fkb abuffer; do
+# linked list, the fixed k-buffer, the exact A-buffer and DKB (exact where that is cheaper, and
+# at its budget), one PNG a view.
+for method in linked-list fkb abuffer dkb "dkb --always-approximate"; do
   viewer_out=$(mktemp -d)
-  if cargo run --release --example viewer -- particles --res 160x120 --views 2 --method "$method" \
+  # shellcheck disable=SC2086 # the method's words are its flags
+  if cargo run --release --example viewer -- particles --res 160x120 --views 2 --method $method \
     --out "$viewer_out" && [ -s "$viewer_out/view0.png" ] && [ -s "$viewer_out/view1.png" ]; then
     echo "viewer example ($method): wrote its frames"
   else

@@ -53,6 +53,47 @@ pub mod shaders {
         parts.join("\n").replace("OIT_GROUP", &group.to_string())
     }
 
+    /// What an application's fragment shader runs in place of dhoit's own geometry pass
+    /// (`gpu::DeepOit`). The pass's code, not a copy.
+    pub const OIT_PHASE: &str = include_str!("../../shaders/oit_phase.wgsl");
+
+    /// Geometry pass `name`'s source, with each (from, to) of `redeclare` replaced (a variant of
+    /// the pass), as the module an application's transparent fragment shader starts with. Its
+    /// group 1 moves to `group`, the parameters and the opaque depth join it at bindings 14
+    /// and 15 (oit_phase.wgsl), and its fragment entry becomes the function that
+    /// `oit_store(frag_coord, color)` calls. None for a pass that is not a geometry pass, or
+    /// a declaration the pass lacks.
+    pub fn application_pass(name: &str, redeclare: &[(&str, &str)], group: u32) -> Option<String> {
+        const ENTRY: &str = "@fragment\nfn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {";
+        let p = PASSES.iter().find(|p| p.name == name)?;
+        if !p.includes.contains(&GEOMETRY) || !p.source.contains(ENTRY) {
+            return None;
+        }
+        let mut src = p.source.to_string();
+        for (from, to) in redeclare {
+            if !src.contains(from) {
+                return None;
+            }
+            src = src.replace(from, to);
+        }
+        let src = src
+            .replace(
+                ENTRY,
+                "fn oit_phase(in: VertexOut, front: bool) -> vec4<f32> {",
+            )
+            .replace("@group(1)", "@group(OIT_GROUP)");
+        let includes: Vec<&str> = p
+            .includes
+            .iter()
+            .copied()
+            .filter(|i| *i != GEOMETRY)
+            .collect();
+        Some(application_module(
+            &[&prelude(), COMMON, OIT_PHASE, &includes.join("\n"), &src],
+            group,
+        ))
+    }
+
     pub const PASSES: [Pass; 21] = [
         Pass {
             name: "opaque",

@@ -7,7 +7,12 @@
 mod common;
 
 use common::{gpu, identity, quad};
-use dhoit_runtime::gpu::{self, ApplicationOit, ExactOit, KBufferOit, ListOit, Slots};
+use dhoit_runtime::budget::{self, Budget};
+use dhoit_runtime::gpu::{
+    self, ApplicationOit, DeepFrame, DeepOit, DeepPhase, ExactOit, KBufferOit, ListOit, Slots,
+};
+use dhoit_runtime::gpu::{DkbGeometry, FrameOptions};
+use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::scene::Scene;
 
 const BG: [f32; 3] = [0.9, 0.85, 0.8];
@@ -50,35 +55,49 @@ fn fs_opaque(in: V) -> @location(0) vec4<f32> {
 /// Renders `s` (seen through the identity camera) with the application's pipeline and one of
 /// dhoit's methods, made on the application's device by `make`; returns the target's RGB,
 /// row-major.
-/// One of dhoit's methods on the application's device: one drawn once, or the exact A-buffer,
-/// drawn twice (count, then store).
+/// One of dhoit's methods on the application's device: one drawn once, the exact A-buffer,
+/// drawn twice (count, then store), or DKB, drawn into each geometry pass it records (one
+/// pipeline a phase).
 enum AppOit {
     Once(Box<dyn ApplicationOit>),
     Exact(Box<ExactOit>),
+    Deep(Box<DeepOit>),
 }
 
 impl AppOit {
-    fn store_module(&self, group: u32) -> String {
+    /// The phases the application builds a transparent pipeline for (DKB's; one for the rest).
+    fn phases(&self) -> Vec<Option<DeepPhase>> {
         match self {
-            AppOit::Once(o) => o.store_module(group),
-            AppOit::Exact(_) => ExactOit::wgsl(group),
+            AppOit::Deep(_) => DeepPhase::ALL.map(Some).to_vec(),
+            _ => vec![None],
         }
     }
-    fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
-        match self {
-            AppOit::Once(o) => o.bind_group_layout(),
-            AppOit::Exact(o) => o.bind_group_layout(),
+    fn store_module(&self, group: u32, phase: Option<DeepPhase>) -> String {
+        match (self, phase) {
+            (AppOit::Once(o), _) => o.store_module(group),
+            (AppOit::Exact(_), _) => ExactOit::wgsl(group),
+            (AppOit::Deep(o), Some(phase)) => o.store_module(phase, group),
+            (AppOit::Deep(_), None) => unreachable!("DKB's pipelines are one a phase"),
+        }
+    }
+    fn bind_group_layout(&self, phase: Option<DeepPhase>) -> &wgpu::BindGroupLayout {
+        match (self, phase) {
+            (AppOit::Once(o), _) => o.bind_group_layout(),
+            (AppOit::Exact(o), _) => o.bind_group_layout(),
+            (AppOit::Deep(o), Some(phase)) => o.bind_group_layout(phase),
+            (AppOit::Deep(_), None) => unreachable!("DKB's pipelines are one a phase"),
         }
     }
 }
 
-/// The application draws its transparent triangles in the scene's order, or reversed.
+/// The application draws its transparent triangles in the scene's order, or reversed. Returns
+/// its target's colours, and what DKB's frame says of itself.
 fn app_frame(
     s: &Scene,
     (w, h): (u32, u32),
     reversed: bool,
     make: impl FnOnce(&wgpu::Device, &wgpu::Queue) -> AppOit,
-) -> Vec<[f32; 3]> {
+) -> (Vec<[f32; 3]>, Option<DeepFrame>) {
     let (device, queue) = app_device();
     let oit = make(&device, &queue);
     // Interleaved position (3 floats) and colour (4 floats), its own layout: the opaque
@@ -112,11 +131,17 @@ fn app_frame(
         mapped_at_creation: false,
     });
     queue.write_buffer(&vbuf, 0, bytemuck::cast_slice(&vertices));
-    let src = oit.store_module(1) + APP_SHADER;
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("app transparent"),
-        source: wgpu::ShaderSource::Wgsl(src.into()),
-    });
+    let modules: Vec<wgpu::ShaderModule> = oit
+        .phases()
+        .into_iter()
+        .map(|phase| {
+            let src = oit.store_module(1, phase) + APP_SHADER;
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("app transparent"),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            })
+        })
+        .collect();
     // Group 0 is the application's (empty here); dhoit's at 1, as it chose.
     let own = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("app"),
@@ -127,11 +152,13 @@ fn app_frame(
         layout: &own,
         entries: &[],
     });
-    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("app transparent"),
-        bind_group_layouts: &[Some(&own), Some(oit.bind_group_layout())],
-        immediate_size: 0,
-    });
+    let layout_for = |phase| {
+        device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("app transparent"),
+            bind_group_layouts: &[Some(&own), Some(oit.bind_group_layout(phase))],
+            immediate_size: 0,
+        })
+    };
     let vertex_layout = [Some(wgpu::VertexBufferLayout {
         array_stride: 28,
         step_mode: wgpu::VertexStepMode::Vertex,
@@ -145,12 +172,17 @@ fn app_frame(
         bind_group_layouts: &[Some(&own)],
         immediate_size: 0,
     });
-    let pipeline_for = |entry: &str, format, depth: bool, writes| {
+    let pipeline_for = |module: &wgpu::ShaderModule,
+                        layout: &wgpu::PipelineLayout,
+                        entry: &str,
+                        format,
+                        depth: bool,
+                        writes| {
         device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some(entry),
-            layout: Some(if depth { &opaque_layout } else { &layout }),
+            layout: Some(layout),
             vertex: wgpu::VertexState {
-                module: &module,
+                module,
                 entry_point: Some("vs"),
                 compilation_options: Default::default(),
                 buffers: &vertex_layout,
@@ -165,7 +197,7 @@ fn app_frame(
             }),
             multisample: Default::default(),
             fragment: Some(wgpu::FragmentState {
-                module: &module,
+                module,
                 entry_point: Some(entry),
                 compilation_options: Default::default(),
                 targets: &[Some(wgpu::ColorTargetState {
@@ -179,18 +211,38 @@ fn app_frame(
         })
     };
     let opaque_pipeline = pipeline_for(
+        &modules[0],
+        &opaque_layout,
         "fs_opaque",
         wgpu::TextureFormat::Rgba32Float,
         true,
         wgpu::ColorWrites::ALL,
     );
-    // A target the transparent pass never writes: a render pass needs an attachment.
-    let pipeline = pipeline_for(
-        "fs",
-        wgpu::TextureFormat::R8Unorm,
-        false,
-        wgpu::ColorWrites::empty(),
-    );
+    // A target the transparent pass never writes: a render pass needs an attachment. One
+    // pipeline a phase of DKB's.
+    let pipelines: Vec<(Option<DeepPhase>, wgpu::RenderPipeline)> = oit
+        .phases()
+        .into_iter()
+        .zip(&modules)
+        .map(|(phase, module)| {
+            let p = pipeline_for(
+                module,
+                &layout_for(phase),
+                "fs",
+                wgpu::TextureFormat::R8Unorm,
+                false,
+                wgpu::ColorWrites::empty(),
+            );
+            (phase, p)
+        })
+        .collect();
+    let pipeline_of = |phase: Option<DeepPhase>| {
+        &pipelines
+            .iter()
+            .find(|(p, _)| *p == phase)
+            .expect("a pipeline for each phase")
+            .1
+    };
     let texture = |label, format, usage| {
         device.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
@@ -270,7 +322,10 @@ fn app_frame(
     }
     let raster_view = view(&raster);
     // Its transparent draws, with dhoit's group at 1.
-    let draw = |enc: &mut wgpu::CommandEncoder, group: &wgpu::BindGroup| {
+    let draw = |enc: &mut wgpu::CommandEncoder,
+                group: &wgpu::BindGroup,
+                phase: Option<DeepPhase>,
+                timestamp_writes: Option<wgpu::RenderPassTimestampWrites>| {
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("app transparent"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -282,25 +337,27 @@ fn app_frame(
                     store: wgpu::StoreOp::Discard,
                 },
             })],
+            timestamp_writes,
             ..Default::default()
         });
-        pass.set_pipeline(&pipeline);
+        pass.set_pipeline(pipeline_of(phase));
         pass.set_bind_group(0, &own_group, &[]);
         pass.set_bind_group(1, group, &[]);
         pass.set_vertex_buffer(0, vbuf.slice(..));
         pass.draw(opaque_vertices..s.positions.len() as u32, 0..1);
     };
     let (under_view, target_view) = (view(&under), view(&target));
+    let mut deep = None;
     match &oit {
         AppOit::Once(oit) => {
             oit.clear(&mut enc);
-            draw(&mut enc, &oit.bind_group(&depth_view));
+            draw(&mut enc, &oit.bind_group(&depth_view), None, None);
             oit.resolve(&mut enc, &under_view, &target_view, f32x4, None)
                 .unwrap();
         }
         AppOit::Exact(oit) => {
             oit.clear(&mut enc);
-            draw(&mut enc, &oit.count_group(&depth_view));
+            draw(&mut enc, &oit.count_group(&depth_view), None, None);
             let total = oit.count(enc, &queue).unwrap();
             assert_eq!(total, oit.fragments());
             // Exact memory: budget::ABUFFER's for the frame's fragments, less the raster
@@ -312,9 +369,20 @@ fn app_frame(
                 abuffer.allocated_bytes(px, total.max(2)) - px + 32
             );
             enc = device.create_command_encoder(&Default::default());
-            draw(&mut enc, &oit.store_group(&depth_view));
+            draw(&mut enc, &oit.store_group(&depth_view), None, None);
             oit.resolve(&mut enc, &under_view, &target_view, f32x4, None)
                 .unwrap();
+        }
+        AppOit::Deep(oit) => {
+            // Its opaque pass first, then DKB's frame, which calls it back for each pass.
+            queue.submit([enc.finish()]);
+            let frame = oit
+                .render(&depth_view, &under_view, &target_view, &mut |enc, d| {
+                    draw(enc, d.group, Some(d.phase), Some(d.timestamps))
+                })
+                .unwrap();
+            deep = Some(frame);
+            enc = device.create_command_encoder(&Default::default());
         }
     }
     let row = (16 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
@@ -348,14 +416,15 @@ fn app_frame(
     device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
     let data = staging.slice(..).get_mapped_range().unwrap();
     let floats: &[f32] = bytemuck::cast_slice(&data);
-    (0..h as usize)
+    let image = (0..h as usize)
         .flat_map(|y| {
             (0..w as usize).map(move |x| {
                 let i = y * row as usize / 4 + 4 * x;
                 [floats[i], floats[i + 1], floats[i + 2]]
             })
         })
-        .collect()
+        .collect();
+    (image, deep)
 }
 
 /// Overlapping quads of several colours, opacities and depths, facing the camera (dhoit's
@@ -422,7 +491,8 @@ fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
             .unwrap();
         let app = app_frame(&s, (w, h), false, |d, q| {
             AppOit::Once(Box::new(ListOit::new(d, q, (w, h), nodes, sorted).unwrap()))
-        });
+        })
+        .0;
         let worst = worst_difference(&app, &harness.image.data);
         assert!(
             worst <= 1e-5,
@@ -455,7 +525,8 @@ fn an_application_draws_through_dhoits_k_buffer_and_gets_dhoits_fkb_image_in_any
         for reversed in [false, true] {
             let app = app_frame(&s, (w, h), reversed, |d, q| {
                 AppOit::Once(Box::new(KBufferOit::new(d, q, (w, h), k).unwrap()))
-            });
+            })
+            .0;
             let worst = worst_difference(&app, &harness.image.data);
             assert!(
                 worst <= 1e-5,
@@ -487,7 +558,8 @@ fn an_application_draws_twice_through_dhoits_a_buffer_and_gets_the_exact_image_i
     for reversed in [false, true] {
         let app = app_frame(&s, (w, h), reversed, |d, q| {
             AppOit::Exact(Box::new(ExactOit::new(d, q, (w, h)).unwrap()))
-        });
+        })
+        .0;
         let worst = worst_difference(&app, &exact.image.data);
         assert!(
             worst <= 1e-5,
@@ -504,6 +576,88 @@ fn an_application_draws_twice_through_dhoits_a_buffer_and_gets_the_exact_image_i
         abuffer.allocated_bytes(px, 2) - px + 32
     );
     assert!(fragments > px / 2, "{fragments} fragments");
+}
+
+/// DKB through the application's draws: the count, the features and the capture are its own
+/// pipelines (one a phase), every compute pass dhoit's; the image is dhoit's own DKB frame's
+/// (one that truncates: not the exact image), in either draw order, with the same buffers but
+/// the raster target (the application's), and each of its passes timed by its timestamps.
+/// By default, where the A-buffer needs no more bytes (this small frame), the frame is exact.
+#[test]
+fn an_application_draws_through_dhoits_dkb_and_gets_dhoits_dkb_image_in_any_order() {
+    let Some(g) = gpu() else { return };
+    let (w, h) = (64, 48);
+    let px = (w * h) as u64;
+    let s = layered_scene();
+    let weights = Mlp::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
+    )
+    .unwrap();
+    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
+    let f32x4 = wgpu::TextureFormat::Rgba32Float;
+    for text in ["1fpp", "25%"] {
+        let b = Budget::parse(text).unwrap();
+        let f = b
+            .fragment_budget(&budget::DKB.for_network(&weights), px)
+            .unwrap();
+        let opts = FrameOptions {
+            dkb_geometry: DkbGeometry::CountFirst,
+            ..FrameOptions::default().always_approximate()
+        };
+        let harness = g
+            .render_with(
+                &opts,
+                &s,
+                &identity(),
+                (w, h),
+                BG,
+                Some(Slots::Dkb(&weights, f)),
+            )
+            .unwrap();
+        assert!(!harness.exact);
+        let off = worst_difference(&harness.image.data, &exact.image.data);
+        assert!(
+            off > 1e-3,
+            "{text}: DKB is exact ({off}): nothing truncated"
+        );
+        for reversed in [false, true] {
+            let (app, frame) = app_frame(&s, (w, h), reversed, |d, q| {
+                let dkb = DeepOit::new(d, q, (w, h), &weights, b, f32x4).unwrap();
+                AppOit::Deep(Box::new(dkb.exact_when_cheaper(false)))
+            });
+            let frame = frame.unwrap();
+            let worst = worst_difference(&app, &harness.image.data);
+            assert!(
+                worst <= 1e-5,
+                "{text}, reversed {reversed}: the application's image differs from dhoit's \
+                 DKB by {worst}"
+            );
+            assert!(!frame.exact);
+            assert_eq!(frame.allocated_bytes, harness.allocated_bytes - px);
+            for pass in ["count", "features", "importance", "capture", "resolve"] {
+                let ms = frame.pass_ms.iter().find(|(p, _)| *p == pass);
+                assert!(
+                    ms.is_some_and(|(_, ms)| *ms > 0.0),
+                    "{pass}: {:?}",
+                    frame.pass_ms
+                );
+            }
+        }
+    }
+    let (app, frame) = app_frame(&s, (w, h), false, |d, q| {
+        let b = Budget::parse("25%").unwrap();
+        AppOit::Deep(Box::new(
+            DeepOit::new(d, q, (w, h), &weights, b, f32x4).unwrap(),
+        ))
+    });
+    let frame = frame.unwrap();
+    assert!(frame.exact, "the A-buffer is cheaper here");
+    let worst = worst_difference(&app, &exact.image.data);
+    assert!(
+        worst <= 1e-5,
+        "exact where cheaper: {worst} from the A-buffer"
+    );
+    assert_eq!(frame.allocated_bytes, exact.allocated_bytes - px);
 }
 
 #[test]

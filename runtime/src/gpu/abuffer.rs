@@ -114,7 +114,7 @@ impl Recording<'_, '_> {
             &status,
             &primitives,
         ];
-        passes.resolve(enc, resolve, &bufs, name);
+        passes.resolve(enc, resolve, &bufs, 3, name);
         fb.submit(enc);
         if self.passes.opts.diagnostics {
             let mut fl = FragmentLists {

@@ -325,9 +325,9 @@ impl Gpu {
         }
         let mut fb = FrameBuffers::new(self);
         let params = frame_params(cam, width, height, [1.0; 3], 0, budget, Default::default());
-        let inputs = self.frame_inputs(&mut fb, scene, &params);
+        let inputs = self.frame_inputs(&mut fb, scene, &params, false);
         let timer = Timer::new(self);
-        let passes = Passes::new(self, &timer, &inputs, FrameOptions::default());
+        let passes = Passes::new(self, &timer, &inputs, FrameOptions::default(), None);
         let p = &self.pipelines;
         let mut enc = self.device.create_command_encoder(&Default::default());
         let counts = fb.storage("count", 4 * px, true)?;

@@ -241,6 +241,7 @@ impl Recording<'_, '_> {
                 &kb.counts,
                 &status,
             ],
+            5,
             "resolve",
         );
         fb.submit(enc);

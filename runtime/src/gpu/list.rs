@@ -35,7 +35,7 @@ impl Recording<'_, '_> {
             "store",
         );
         let bufs = [passes.params(), &heads, &next, &keys, &image, &status];
-        passes.resolve(enc, &p.list_resolve, &bufs, "sort and blend");
+        passes.resolve(enc, &p.list_resolve, &bufs, 4, "sort and blend");
         fb.submit(enc);
         if self.passes.opts.diagnostics {
             let arrived = read_words(gpu, &[(&counter, 0)])?[0] as u64;

@@ -28,6 +28,7 @@ mod allocate;
 mod blend;
 mod buffers;
 mod capture;
+mod deep;
 mod dkb;
 mod list;
 mod oit;
@@ -41,6 +42,7 @@ mod vkb;
 use abuffer::Blend;
 pub use allocate::GpuAllocation;
 use buffers::{FrameBuffers, Readback, Statistics, read_frame, read_texture};
+pub use deep::{DeepDraw, DeepFrame, DeepOit, DeepPhase};
 pub use oit::{ApplicationOit, ExactOit, KBufferOit, ListOit, TARGET_FORMATS};
 use passes::Passes;
 use pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT, Pipelines, TARGET_FORMAT};
@@ -727,6 +729,24 @@ impl Gpu {
         background: [f32; 3],
         slots: Option<Slots>,
     ) -> Result<GpuFrame> {
+        let size = (width, height);
+        self.render_frame(opts, scene, cam, size, background, slots, None)
+    }
+
+    /// [`Gpu::render_with`], or with `app` an application's frame: its draws in place of the
+    /// geometry passes (scene empty), its target in place of the image (not read back: the
+    /// frame's image is empty).
+    #[allow(clippy::too_many_arguments)]
+    fn render_frame(
+        &self,
+        opts: &FrameOptions,
+        scene: &Scene,
+        cam: &Camera,
+        (width, height): (u32, u32),
+        background: [f32; 3],
+        slots: Option<Slots>,
+        app: Option<&dyn deep::AppGeometry>,
+    ) -> Result<GpuFrame> {
         let opts = *opts;
         let scopes = self.begin_frame(width, height)?;
         let px = width as u64 * height as u64;
@@ -771,10 +791,10 @@ impl Gpu {
         params.store_primitives =
             (matches!(slots, Some(Slots::Mlab(_))) || opts.diagnostics).into();
         let upload = std::time::Instant::now();
-        let inputs = self.frame_inputs(&mut fb, scene, &params);
+        let inputs = self.frame_inputs(&mut fb, scene, &params, app.is_some());
         let upload_ms = upload.elapsed().as_secs_f64() * 1e3;
         let timer = Timer::new(self);
-        let passes = Passes::new(self, &timer, &inputs, opts);
+        let passes = Passes::new(self, &timer, &inputs, opts, app);
         let mut rec = Recording {
             passes: &passes,
             enc: self.device.create_command_encoder(&Default::default()),
@@ -790,8 +810,10 @@ impl Gpu {
                 "fkb slots: pixel-major"
             });
         }
-        // The application's opaque pass, before any method's.
-        passes.opaque(&mut rec.enc);
+        // The application's opaque pass, before any method's (an application draws its own).
+        if app.is_none() {
+            passes.opaque(&mut rec.enc);
+        }
         let mut exact = false;
         let image = match slots {
             None => rec.abuffer(Blend::Exact, width, height)?,
@@ -822,7 +844,9 @@ impl Gpu {
         // RGBA f32 a pixel, straight from the mapped buffer into the image, unless the
         // resolve's status refuses the frame.
         let status = out.status.as_ref();
-        let data = read_frame(self, &image, 16 * px, status, width, |bytes| {
+        // An application's frame is in its target: its status alone.
+        let image_bytes = if app.is_some() { 0 } else { 16 * px };
+        let data = read_frame(self, &image, image_bytes, status, width, |bytes| {
             let f = |c: &[u8]| f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
             bytes
                 .chunks_exact(16)
@@ -1012,7 +1036,15 @@ impl Gpu {
     /// texture coordinates, materials, texels, the sRGB table), the index buffer, the R8 target
     /// rasterization needs (never written; counted in the frame's bytes) and the opaque pass's
     /// depth and colour targets.
-    fn frame_inputs(&self, fb: &mut FrameBuffers, scene: &Scene, params: &Params) -> FrameInputs {
+    /// For an application's frame (`app`), the R8 target is a texel (its draws have their own
+    /// attachments) and counted for no method.
+    fn frame_inputs(
+        &self,
+        fb: &mut FrameBuffers,
+        scene: &Scene,
+        params: &Params,
+        app: bool,
+    ) -> FrameInputs {
         let params = &Params {
             uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
             ..*params
@@ -1063,10 +1095,15 @@ impl Gpu {
             wgpu::BufferUsages::INDEX,
             false,
         );
-        let (width, height) = (params.width, params.height);
-        fb.allocated += width as u64 * height as u64;
+        // An application's frame binds its own targets: these are a texel each, unused.
+        let size = if app {
+            (1, 1)
+        } else {
+            fb.allocated += params.width as u64 * params.height as u64;
+            (params.width, params.height)
+        };
         let texture = |label: &str, format, usage| {
-            buffers::frame_texture(&self.device, label, (width, height), format, usage)
+            buffers::frame_texture(&self.device, label, size, format, usage)
         };
         let target = texture(
             "raster.target",

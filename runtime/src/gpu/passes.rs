@@ -1,6 +1,7 @@
 //! Recording a pass: a geometry pass over every triangle or a per-pixel compute dispatch, with
 //! the frame's shared bindings and timestamps.
 
+use super::deep::AppGeometry;
 use super::timer::Timer;
 use super::{FrameInputs, FrameOptions, Gpu};
 use crate::wgsl::{PIXEL_GROUP, grid};
@@ -19,6 +20,9 @@ pub(super) struct Passes<'a> {
     /// The indices of the transparent triangles (the vertices every transparent pass draws).
     pub(super) vertices: u32,
     pub(super) pixels: u32,
+    /// An application's frame ([`super::DeepOit`]): its draws in place of dhoit's geometry
+    /// passes, and its target in place of the image.
+    app: Option<&'a dyn AppGeometry>,
 }
 
 impl<'a> Passes<'a> {
@@ -27,6 +31,7 @@ impl<'a> Passes<'a> {
         timer: &'a Timer<'a>,
         inputs: &'a FrameInputs,
         opts: FrameOptions,
+        app: Option<&'a dyn AppGeometry>,
     ) -> Self {
         Passes {
             gpu,
@@ -37,6 +42,7 @@ impl<'a> Passes<'a> {
             opaque_color: inputs.opaque_color.create_view(&Default::default()),
             vertices: inputs.transparent,
             pixels: inputs.pixels,
+            app,
         }
     }
 
@@ -154,6 +160,17 @@ impl<'a> Passes<'a> {
         name: &'static str,
         indirect: Option<&wgpu::Buffer>,
     ) {
+        if let Some(app) = self.app {
+            // The application draws (always: its draw counts are its own).
+            let (b, e) = self.timer.next(name);
+            let timestamps = wgpu::RenderPassTimestampWrites {
+                query_set: self.timer.set(),
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: Some(e),
+            };
+            app.draw(self.gpu, enc, pipeline, buffers, self.params(), timestamps);
+            return;
+        }
         let g0 = self.geometry_group(&pipeline.get_bind_group_layout(0), true);
         let g1 = self.gpu.bind(&pipeline.get_bind_group_layout(1), buffers);
         // The R8 target is never written (rasterization needs one).
@@ -232,14 +249,24 @@ impl<'a> Passes<'a> {
     }
 
     /// A resolve (behind.wgsl): [`Passes::dispatch`] with the opaque pass's colour at binding
-    /// 15, what the resolve composites over.
+    /// 15, what the resolve composites over. In an application's frame, the resolve's `onto`
+    /// entry over the application's image onto its target instead, without the image
+    /// (`buffers[image_at]`).
     pub(super) fn resolve(
         &self,
         enc: &mut wgpu::CommandEncoder,
         pipeline: &wgpu::ComputePipeline,
         buffers: &[&wgpu::Buffer],
+        image_at: usize,
         name: &'static str,
     ) {
+        if let Some(app) = self.app {
+            let (gx, gy) = grid(self.pixels, PIXEL_GROUP);
+            self.compute(enc, name, |pass| {
+                app.resolve(self.gpu, pass, pipeline, buffers, image_at, (gx, gy))
+            });
+            return;
+        }
         let opaque = wgpu::BindGroupEntry {
             binding: 15,
             resource: wgpu::BindingResource::TextureView(&self.opaque_color),

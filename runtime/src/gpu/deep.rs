@@ -1,0 +1,502 @@
+//! The deep k-buffer (DKB: the network's k per pixel within a budget) in an application's own
+//! renderer. dhoit runs its own frame, every compute pass as [`Gpu::render`] runs it, on the
+//! application's device; where that frame would draw one of its geometry passes, the
+//! application draws its own transparent geometry, with its own pipeline built on the module
+//! [`DeepOit::store_module`] gives for that pass (dhoit's pass code, not a copy) and the group
+//! dhoit hands it. The resolve composites onto the application's target over its image.
+
+use std::cell::RefCell;
+
+use super::pipelines::{compute_pipeline, module_from, redeclare};
+use super::{DkbGeometry, FrameOptions, Gpu, Slots};
+use crate::budget::{self, Budget, FragmentBudget};
+use crate::error::{Error, Result};
+use crate::mlp::Mlp;
+use crate::scene::{Camera, Scene};
+use crate::wgsl::shaders;
+
+/// One of dhoit's geometry passes that the application draws its transparent geometry into
+/// (with one pipeline each, built on [`DeepOit::store_module`] for it). A DKB frame draws
+/// `Count` (each pixel's fragments), then either `Store` (where the exact A-buffer needs no
+/// more bytes than DKB would: [`DeepFrame::exact`]) or `Features` and `Capture` (or
+/// `CaptureFits`, where the budget turns out to hold every fragment).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum DeepPhase {
+    /// The count (abuffer_count.wgsl).
+    Count,
+    /// The exact A-buffer's store (abuffer_store.wgsl).
+    Store,
+    /// The network's features (features.wgsl).
+    Features,
+    /// The capture into each pixel's k slots and its tail (capture.wgsl).
+    Capture,
+    /// The capture built for frames whose budget holds every fragment.
+    CaptureFits,
+}
+
+/// What a phase's group holds before the parameters (14) and the opaque depth (15).
+#[derive(Clone, Copy)]
+enum Binding {
+    Read,
+    ReadWrite,
+    Uniform,
+}
+
+impl DeepPhase {
+    /// Every phase, in the order [`DeepOit::bind_group_layout`] indexes them.
+    pub const ALL: [DeepPhase; 5] = [
+        DeepPhase::Count,
+        DeepPhase::Store,
+        DeepPhase::Features,
+        DeepPhase::Capture,
+        DeepPhase::CaptureFits,
+    ];
+
+    /// The pass's name (`wgsl::shaders::PASSES`) and the declarations its variant changes.
+    fn pass(self) -> (&'static str, &'static [(&'static str, &'static str)]) {
+        match self {
+            DeepPhase::Count => ("abuffer_count", &[]),
+            DeepPhase::Store => ("abuffer_store", &[]),
+            DeepPhase::Features => ("features", &[]),
+            DeepPhase::Capture => ("capture", &[]),
+            DeepPhase::CaptureFits => (
+                "capture",
+                &[(
+                    "const EVERY_FRAGMENT_FITS: bool = false;",
+                    "const EVERY_FRAGMENT_FITS: bool = true;",
+                )],
+            ),
+        }
+    }
+
+    /// The pass's group 1, binding by binding (as its WGSL declares it).
+    fn bindings(self) -> &'static [Binding] {
+        use Binding::*;
+        match self {
+            DeepPhase::Count => &[ReadWrite],
+            DeepPhase::Store => &[Read, ReadWrite, ReadWrite, ReadWrite],
+            DeepPhase::Features => &[ReadWrite, ReadWrite, ReadWrite, Uniform, ReadWrite],
+            DeepPhase::Capture | DeepPhase::CaptureFits => {
+                &[Read, ReadWrite, ReadWrite, ReadWrite, Read]
+            }
+        }
+    }
+
+    fn index(self) -> usize {
+        DeepPhase::ALL
+            .iter()
+            .position(|&p| p == self)
+            .expect("every phase")
+    }
+
+    /// The phase of dhoit's geometry pipeline `pipeline`.
+    fn of(gpu: &Gpu, pipeline: &wgpu::RenderPipeline) -> DeepPhase {
+        let p = &gpu.pipelines;
+        [
+            (&p.count, DeepPhase::Count),
+            (&p.store, DeepPhase::Store),
+            (&p.features, DeepPhase::Features),
+            (&p.capture, DeepPhase::Capture),
+            (&p.capture_fits, DeepPhase::CaptureFits),
+        ]
+        .into_iter()
+        .find(|(q, _)| *q == pipeline)
+        .map(|(_, phase)| phase)
+        .expect("a DeepOit frame draws only DeepPhase's passes (its FrameOptions fix them)")
+    }
+}
+
+/// What the application's draw callback gets for one of the frame's geometry passes: which
+/// pass (the pipeline to set), dhoit's group (at the index it built the module for) and the
+/// timestamps its render pass should write (`timestamp_writes: Some(draw.timestamps)`), so
+/// [`DeepFrame::pass_ms`] times the pass; without them the pass reads 0 ms.
+pub struct DeepDraw<'a> {
+    pub phase: DeepPhase,
+    pub group: &'a wgpu::BindGroup,
+    pub timestamps: wgpu::RenderPassTimestampWrites<'a>,
+}
+
+/// What one frame did.
+#[derive(Clone, Debug)]
+pub struct DeepFrame {
+    /// Bytes of the buffers the frame held: the DKB layout's (`budget::DKB` for the network,
+    /// less the raster target, the application's), or the A-buffer's where it rendered that.
+    pub allocated_bytes: u64,
+    /// Whether the frame rendered the exact A-buffer, which needed no more bytes than DKB would
+    /// at its budget (or the budget held every fragment).
+    pub exact: bool,
+    /// GPU time of each pass, in ms, in the order recorded.
+    pub pass_ms: Vec<(&'static str, f64)>,
+}
+
+/// DKB on an application's device: the network's weights, the budget, the frame's size and the
+/// format of the target it resolves onto, fixed when made. Each frame ([`DeepOit::render`])
+/// calls the application back for each geometry pass ([`DeepPhase`]) it records.
+///
+/// ```
+/// use dhoit_runtime::budget::Budget;
+/// use dhoit_runtime::gpu::{self, DeepOit, DeepPhase};
+/// use dhoit_runtime::mlp::Mlp;
+///
+/// let instance = wgpu::Instance::default();
+/// let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+/// let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+///     required_features: gpu::required_features(),
+///     required_limits: gpu::required_limits(),
+///     ..Default::default()
+/// }))
+/// .unwrap();
+/// let weights = Mlp::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/weights.safetensors").as_ref())?;
+/// let format = wgpu::TextureFormat::Rgba16Float;
+/// let dkb = DeepOit::new(&device, &queue, (64, 48), &weights, Budget::parse("25%")?, format)?;
+/// // One transparent pipeline a phase: dhoit's module at group 1, then the application's code.
+/// for phase in DeepPhase::ALL {
+///     let src = dkb.store_module(phase, 1)
+///         + "@fragment fn fs(@builtin(position) p: vec4<f32>) { oit_store(p, vec4<f32>(0.2, 0.4, 0.6, 0.5)); }";
+///     let _module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+///         label: None,
+///         source: wgpu::ShaderSource::Wgsl(src.into()),
+///     });
+///     let _layout = dkb.bind_group_layout(phase); // the pipeline layout's group 1
+/// }
+/// // Per frame: its opaque pass, submitted; then
+/// // dkb.render(&depth, &opaque_image, &target, &mut |encoder, draw| {
+/// //     /* a render pass on `encoder` with timestamp_writes: Some(draw.timestamps), the
+/// //        pipeline for draw.phase, draw.group at 1, its transparent draws */ })?;
+/// # Ok::<(), dhoit_runtime::Error>(())
+/// ```
+pub struct DeepOit {
+    gpu: Gpu,
+    size: (u32, u32),
+    weights: Mlp,
+    budget: FragmentBudget,
+    layouts: Vec<wgpu::BindGroupLayout>,
+    /// The resolves' `onto` entries at the target's format: the general capture's, the one
+    /// built for frames that fit, the A-buffer's.
+    onto: [wgpu::ComputePipeline; 3],
+    /// The frame dhoit records holds no geometry of its own.
+    empty: Scene,
+    exact_when_cheaper: bool,
+}
+
+impl DeepOit {
+    /// DKB for frames of `width` x `height` with the network `weights` (deployed at their
+    /// precision), `budget` (bytes, slots a pixel or a share of each frame's fragments, as
+    /// [`Budget::parse`] reads them; bytes count DKB's layout for this network), resolving onto
+    /// targets of `format` (one of [`super::TARGET_FORMATS`]). Refuses a device that lacks what
+    /// the passes need (named), a precision it cannot compute, a frame size it cannot hold and
+    /// a byte budget below DKB's fixed cost, before anything is built.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        (width, height): (u32, u32),
+        weights: &Mlp,
+        budget: Budget,
+        format: wgpu::TextureFormat,
+    ) -> Result<DeepOit> {
+        crate::raster::check_resolution(width, height)?;
+        let name = match format {
+            wgpu::TextureFormat::Rgba8Unorm => "rgba8unorm",
+            wgpu::TextureFormat::Rgba16Float => "rgba16float",
+            wgpu::TextureFormat::Rgba32Float => "rgba32float",
+            other => {
+                return Err(Error::Invalid(format!(
+                    "DKB resolves onto {:?}, not {other:?}",
+                    super::TARGET_FORMATS
+                )));
+            }
+        };
+        let px = width as u64 * height as u64;
+        let budget = budget.fragment_budget(&budget::DKB.for_network(weights), px)?;
+        let gpu = Gpu::on_device(device.clone(), queue.clone(), &device.adapter_info())?;
+        gpu.can_run(weights)?;
+        let layouts = DeepPhase::ALL
+            .iter()
+            .map(|&phase| phase_layout(device, phase))
+            .collect();
+        let onto = [
+            ("resolve", false, "resolve (onto)"),
+            ("resolve", true, "resolve (onto, every fragment fits)"),
+            ("abuffer_resolve", false, "abuffer_resolve (onto)"),
+        ]
+        .map(|(pass, fits, label)| {
+            let mut src = shaders::source(pass).expect("known pass");
+            redeclare(
+                &mut src,
+                pass,
+                "texture_storage_2d<rgba32float, write>",
+                &format!("texture_storage_2d<{name}, write>"),
+            );
+            if fits {
+                redeclare(
+                    &mut src,
+                    pass,
+                    "const EVERY_FRAGMENT_FITS: bool = false;",
+                    "const EVERY_FRAGMENT_FITS: bool = true;",
+                );
+            }
+            compute_pipeline(device, label, &module_from(device, label, src), "onto")
+        });
+        Ok(DeepOit {
+            gpu,
+            size: (width, height),
+            weights: weights.clone(),
+            budget,
+            layouts,
+            onto,
+            empty: Scene::default(),
+            exact_when_cheaper: true,
+        })
+    }
+
+    /// With `exact` false, every frame runs DKB at its budget, even where the exact A-buffer
+    /// would need fewer bytes (on by default: a k-buffer never costs more than the exact
+    /// answer, and where it does not, the frame is the A-buffer's).
+    pub fn exact_when_cheaper(self, exact: bool) -> DeepOit {
+        DeepOit {
+            exact_when_cheaper: exact,
+            ..self
+        }
+    }
+
+    /// The WGSL the application's fragment shader for `phase` starts with: dhoit's pass, its
+    /// bindings at `group` and `fn oit_store(frag_coord: vec4<f32>, color: vec4<f32>)`, which
+    /// the application calls with its fragment's `@builtin(position)` and straight colour. It
+    /// declares dhoit's names (`Params`, `VertexOut`, `params` and the pass's buffers among
+    /// them): the application's own must differ. Needs the shader-int64 feature
+    /// ([`super::required_features`] has it).
+    pub fn store_module(&self, phase: DeepPhase, group: u32) -> String {
+        Self::wgsl(phase, group)
+    }
+
+    /// [`DeepOit::store_module`], without a DeepOit.
+    pub fn wgsl(phase: DeepPhase, group: u32) -> String {
+        let (pass, redeclare) = phase.pass();
+        shaders::application_pass(pass, redeclare, group).expect("a geometry pass")
+    }
+
+    /// The layout of `phase`'s group, for the application's pipeline layout of that phase.
+    pub fn bind_group_layout(&self, phase: DeepPhase) -> &wgpu::BindGroupLayout {
+        &self.layouts[phase.index()]
+    }
+
+    /// The frame's size.
+    pub fn size(&self) -> (u32, u32) {
+        self.size
+    }
+
+    /// One frame: dhoit records and submits its passes on the application's queue; for each of
+    /// its geometry passes it calls `draw` with an encoder, into which the application records
+    /// its transparent draws ([`DeepDraw`]), with `opaque_depth` (a depth texture of the
+    /// frame's size, written by its opaque pass, which it has submitted) as the occluder. The
+    /// resolve composites over `under` (its opaque image) onto `target`, a storage texture of
+    /// the format this DKB was made for. Waits for the frame (it reads back how many slots to
+    /// allocate, and the resolve's status).
+    pub fn render(
+        &self,
+        opaque_depth: &wgpu::TextureView,
+        under: &wgpu::TextureView,
+        target: &wgpu::TextureView,
+        draw: &mut dyn FnMut(&mut wgpu::CommandEncoder, DeepDraw<'_>),
+    ) -> Result<DeepFrame> {
+        let app = AppDraws {
+            draw: RefCell::new(draw),
+            layouts: &self.layouts,
+            opaque_depth,
+            under,
+            target,
+            onto: &self.onto,
+        };
+        let opts = FrameOptions {
+            dkb_geometry: DkbGeometry::CountFirst,
+            diagnostics: false,
+            exact_when_cheaper: self.exact_when_cheaper,
+            ..FrameOptions::default()
+        };
+        let cam = Camera {
+            view_proj: glam::Mat4::IDENTITY,
+            forward: glam::Vec3::Z,
+            eye: glam::Vec3::ZERO,
+        };
+        let slots = Some(Slots::Dkb(&self.weights, self.budget));
+        let frame = self.gpu.render_frame(
+            &opts,
+            &self.empty,
+            &cam,
+            self.size,
+            [0.0; 3],
+            slots,
+            Some(&app),
+        )?;
+        Ok(DeepFrame {
+            allocated_bytes: frame.allocated_bytes,
+            exact: frame.exact,
+            pass_ms: frame.pass_ms,
+        })
+    }
+}
+
+/// A phase's group layout: the pass's buffers, the parameters (14), the opaque depth (15).
+fn phase_layout(device: &wgpu::Device, phase: DeepPhase) -> wgpu::BindGroupLayout {
+    let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let mut entries: Vec<_> = phase
+        .bindings()
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let ty = match b {
+                Binding::Read => wgpu::BufferBindingType::Storage { read_only: true },
+                Binding::ReadWrite => wgpu::BufferBindingType::Storage { read_only: false },
+                Binding::Uniform => wgpu::BufferBindingType::Uniform,
+            };
+            buffer(i as u32, ty)
+        })
+        .collect();
+    entries.push(buffer(14, wgpu::BufferBindingType::Uniform));
+    entries.push(wgpu::BindGroupLayoutEntry {
+        binding: 15,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Depth,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    });
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(&format!("dhoit DKB {phase:?}")),
+        entries: &entries,
+    })
+}
+
+/// An application's frame, as the frame's passes see it ([`super::passes::Passes`]).
+pub(super) trait AppGeometry {
+    /// The application's draws for dhoit's geometry pass `pipeline`, `buffers` its group 1.
+    fn draw(
+        &self,
+        gpu: &Gpu,
+        enc: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::RenderPipeline,
+        buffers: &[&wgpu::Buffer],
+        params: &wgpu::Buffer,
+        timestamps: wgpu::RenderPassTimestampWrites<'_>,
+    );
+
+    /// Dhoit's resolve `pipeline`'s `onto` entry in `pass`: `buffers` but the image
+    /// (`buffers[image_at]`), over the application's image onto its target, on a grid.
+    fn resolve(
+        &self,
+        gpu: &Gpu,
+        pass: &mut wgpu::ComputePass,
+        pipeline: &wgpu::ComputePipeline,
+        buffers: &[&wgpu::Buffer],
+        image_at: usize,
+        grid: (u32, u32),
+    );
+}
+
+/// The application's draw callback ([`DeepOit::render`]).
+type DrawFn<'d> = dyn FnMut(&mut wgpu::CommandEncoder, DeepDraw<'_>) + 'd;
+
+struct AppDraws<'a, 'd> {
+    draw: RefCell<&'a mut DrawFn<'d>>,
+    layouts: &'a [wgpu::BindGroupLayout],
+    opaque_depth: &'a wgpu::TextureView,
+    under: &'a wgpu::TextureView,
+    target: &'a wgpu::TextureView,
+    onto: &'a [wgpu::ComputePipeline; 3],
+}
+
+impl AppGeometry for AppDraws<'_, '_> {
+    fn draw(
+        &self,
+        gpu: &Gpu,
+        enc: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::RenderPipeline,
+        buffers: &[&wgpu::Buffer],
+        params: &wgpu::Buffer,
+        timestamps: wgpu::RenderPassTimestampWrites<'_>,
+    ) {
+        let phase = DeepPhase::of(gpu, pipeline);
+        let mut entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        entries.push(wgpu::BindGroupEntry {
+            binding: 14,
+            resource: params.as_entire_binding(),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 15,
+            resource: wgpu::BindingResource::TextureView(self.opaque_depth),
+        });
+        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("dhoit DKB"),
+            layout: &self.layouts[phase.index()],
+            entries: &entries,
+        });
+        (self.draw.borrow_mut())(
+            enc,
+            DeepDraw {
+                phase,
+                group: &group,
+                timestamps,
+            },
+        );
+    }
+
+    fn resolve(
+        &self,
+        gpu: &Gpu,
+        pass: &mut wgpu::ComputePass,
+        pipeline: &wgpu::ComputePipeline,
+        buffers: &[&wgpu::Buffer],
+        image_at: usize,
+        (gx, gy): (u32, u32),
+    ) {
+        let p = &gpu.pipelines;
+        let onto = [&p.resolve, &p.resolve_fits, &p.abuffer_resolve]
+            .iter()
+            .position(|q| *q == pipeline)
+            .map(|i| &self.onto[i])
+            .expect("a DeepOit frame resolves only with DKB's and the A-buffer's resolves");
+        let mut entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != image_at)
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        entries.push(wgpu::BindGroupEntry {
+            binding: 8,
+            resource: wgpu::BindingResource::TextureView(self.under),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 9,
+            resource: wgpu::BindingResource::TextureView(self.target),
+        });
+        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("dhoit DKB resolve"),
+            layout: &onto.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        pass.set_pipeline(onto);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(gx, gy, 1);
+    }
+}
