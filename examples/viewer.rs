@@ -22,7 +22,7 @@ use clap::Parser;
 use dhoit_runtime::budget::Budget;
 use dhoit_runtime::composite::Image;
 use dhoit_runtime::gpu::{
-    self, ApplicationOit, DeepFrame, DeepOit, DeepPhase, ExactOit, KBufferOit, ListOit,
+    self, AllocatedFrame, AllocatedOit, ApplicationOit, ExactOit, KBufferOit, ListOit, Phase,
 };
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::scene::{self, Camera, Coverage, Opacity};
@@ -42,14 +42,15 @@ struct Args {
     /// it dropped) or `fkb` (--k slots a pixel, the rest approximated in a tail; any draw
     /// order gives the same image) or `abuffer` (every fragment, exact memory: the transparent
     /// geometry drawn twice, to count and to store) or `dkb` (the network decides each pixel's
-    /// slots within --budget; the exact A-buffer where that needs no more bytes).
-    #[arg(long, default_value = "linked-list", value_parser = ["linked-list", "fkb", "abuffer", "dkb"])]
+    /// slots within --budget; the exact A-buffer where that needs no more bytes) or `vkb` (paper
+    /// 002's importance maps decide them, as DKB).
+    #[arg(long, default_value = "linked-list", value_parser = ["linked-list", "fkb", "abuffer", "dkb", "vkb"])]
     method: String,
-    /// DKB's budget: bytes (`20MB`), slots a pixel (`2fpp`) or a share of the frame's
+    /// DKB's and VKB's budget: bytes (`20MB`), slots a pixel (`2fpp`) or a share of the frame's
     /// fragments (`25%`).
     #[arg(long, default_value = "25%")]
     budget: Budget,
-    /// Run DKB at its budget even where the exact A-buffer needs no more bytes (by default such
+    /// Run DKB or VKB at its budget even where the exact A-buffer needs no more bytes (by default such
     /// a frame is the A-buffer's: a k-buffer never costs more than the exact answer).
     #[arg(long)]
     always_approximate: bool,
@@ -69,15 +70,15 @@ struct Args {
     #[arg(long, default_value = "out/viewer")]
     out: PathBuf,
     /// Open an interactive window where a display exists, instead of writing PNG frames
-    /// (needs the viewer built with `--features window`): drag to orbit, 1/2/3/4 for the linked
-    /// list, FKB, the A-buffer and DKB, +/- for the budget, n for DKB's next network (those
+    /// (needs the viewer built with `--features window`): drag to orbit, 1-5 for the linked
+    /// list, FKB, the A-buffer, DKB and VKB, +/- for the budget, n for DKB's next network (those
     /// under data/nets), a to toggle --always-approximate, the GPU times in the title.
     #[arg(long)]
     window: bool,
 }
 
 const SHADER: &str = r#"
-struct Camera { view_proj: mat4x4<f32> };
+struct Camera { view_proj: mat4x4<f32>, forward: vec4<f32> };
 @group(0) @binding(0) var<uniform> camera: Camera;
 
 // The material's base colour texture (a white texel where it has none) and its sampler.
@@ -89,6 +90,8 @@ struct V {
     @location(0) color: vec4<f32>,
     @location(1) uv: vec2<f32>,
     @location(2) @interpolate(flat) cutoff: f32,
+    // |n . v| of the triangle (its normal against the camera's forward direction).
+    @location(3) @interpolate(flat) facing: f32,
 };
 
 @vertex
@@ -97,8 +100,10 @@ fn vs(
     @location(1) c: vec4<f32>,
     @location(2) uv: vec2<f32>,
     @location(3) cutoff: f32,
+    @location(4) normal: vec3<f32>,
 ) -> V {
-    return V(camera.view_proj * vec4<f32>(p, 1.0), c, uv, cutoff);
+    let facing = abs(dot(normal, camera.forward.xyz));
+    return V(camera.view_proj * vec4<f32>(p, 1.0), c, uv, cutoff, facing);
 }
 
 fn shaded(in: V) -> vec4<f32> {
@@ -116,7 +121,8 @@ fn fs_opaque(in: V) -> @location(0) vec4<f32> {
 
 @fragment
 fn fs_transparent(in: V) {
-    oit_store(in.position, shaded(in)); // dhoit: the fragment goes to its method
+    // dhoit: the fragment goes to its method (the facing is VKB's; the others ignore it)
+    oit_store_facing(in.position, shaded(in), in.facing);
 }
 "#;
 
@@ -255,6 +261,11 @@ enum Method {
         net: usize,
         always: bool,
     },
+    /// VKB: the budget, and whether it runs where the exact A-buffer is no dearer.
+    Vkb {
+        budget: Budget,
+        always: bool,
+    },
 }
 
 impl Method {
@@ -273,6 +284,10 @@ impl Method {
                 net: 0,
                 always: a.always_approximate,
             },
+            "vkb" => Method::Vkb {
+                budget: a.budget,
+                always: a.always_approximate,
+            },
             _ => Method::List {
                 fpp: a.fpp,
                 sorted: a.sorted,
@@ -284,6 +299,7 @@ impl Method {
         match self {
             Method::Exact => "the exact A-buffer".into(),
             Method::Dkb { budget, .. } => format!("DKB at {budget}"),
+            Method::Vkb { budget, .. } => format!("VKB at {budget}"),
             Method::Fkb { k } => format!("FKB, {k} slots a pixel"),
             Method::List { fpp, sorted } => {
                 format!("linked list, {fpp} fragments a pixel of pool, the nearest {sorted} sorted")
@@ -307,9 +323,15 @@ impl Method {
                 always,
             } => {
                 let (_, weights) = networks.get(net).context("no network for DKB")?;
-                let dkb = DeepOit::new(device, queue, (w, h), weights, budget, RGBA)?
+                let dkb = AllocatedOit::dkb(device, queue, (w, h), weights, budget, RGBA)?
                     .exact_when_cheaper(!always);
                 Oit::Deep(Box::new(dkb), Default::default())
+            }
+            Method::Vkb { budget, always } => {
+                let params = dhoit_runtime::importance::VkbParams::default();
+                let vkb = AllocatedOit::vkb(device, queue, (w, h), params, budget, RGBA)?
+                    .exact_when_cheaper(!always);
+                Oit::Deep(Box::new(vkb), Default::default())
             }
             Method::Exact => Oit::Exact(Box::new(ExactOit::new(device, queue, (w, h))?)),
             Method::Fkb { k } => Oit::Once(Box::new(KBufferOit::new(device, queue, (w, h), k)?)),
@@ -358,7 +380,7 @@ struct Frame {
     oit: Oit,
     opaque_pipeline: wgpu::RenderPipeline,
     /// One transparent pipeline, or DKB's one a phase.
-    transparent_pipelines: Vec<(Option<DeepPhase>, wgpu::RenderPipeline)>,
+    transparent_pipelines: Vec<(Option<Phase>, wgpu::RenderPipeline)>,
     image_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
     raster_view: wgpu::TextureView,
@@ -396,11 +418,14 @@ impl App {
                 Some(d) if d.material == material(t) => d.vertices += 3,
                 _ => draws.push(Draw {
                     material: material(t),
-                    first: (all.len() / 10) as u32,
+                    first: (all.len() / 13) as u32,
                     vertices: 3,
                     transparent: m.transparent(),
                 }),
             }
+            // The triangle's geometric normal, for its facing.
+            let [p0, p1, p2] = [0, 1, 2].map(|i| s.positions[3 * t + i]);
+            let n = (p1 - p0).cross(p2 - p0).normalize_or_zero();
             for v in 3 * t..3 * t + 3 {
                 let p = s.positions[v];
                 let mut c: [f32; 4] = std::array::from_fn(|i| s.colors[v][i] * m.base_color[i]);
@@ -413,7 +438,7 @@ impl App {
                 };
                 let uv = s.uvs[v];
                 all.extend_from_slice(&[
-                    p.x, p.y, p.z, c[0], c[1], c[2], c[3], uv[0], uv[1], cutoff,
+                    p.x, p.y, p.z, c[0], c[1], c[2], c[3], uv[0], uv[1], cutoff, n.x, n.y, n.z,
                 ]);
             }
         }
@@ -426,7 +451,7 @@ impl App {
         queue.write_buffer(&vertices, 0, bytemuck::cast_slice(&all));
         let camera = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("camera"),
-            size: 64,
+            size: 80,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -643,10 +668,9 @@ impl App {
                 Some(oit.bind_group_layout(phase)),
             ])
         };
-        let attributes =
-            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4, 2 => Float32x2, 3 => Float32];
+        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4, 2 => Float32x2, 3 => Float32, 4 => Float32x3];
         let buffers = [Some(wgpu::VertexBufferLayout {
-            array_stride: 40,
+            array_stride: 52,
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &attributes,
         })];
@@ -755,11 +779,9 @@ impl App {
     /// The A-buffer's count is submitted (and waited for) on the way.
     fn draw(&self, frame: &Frame, cam: &Camera) -> Result<wgpu::CommandEncoder> {
         let (device, queue) = (&self.device, &self.queue);
-        queue.write_buffer(
-            &self.camera,
-            0,
-            bytemuck::cast_slice(&cam.view_proj.to_cols_array()),
-        );
+        let mut camera = cam.view_proj.to_cols_array().to_vec();
+        camera.extend_from_slice(&cam.forward.extend(0.0).to_array());
+        queue.write_buffer(&self.camera, 0, bytemuck::cast_slice(&camera));
         let pass_times = |i: u32| wgpu::RenderPassTimestampWrites {
             query_set: &frame.queries,
             beginning_of_pass_write_index: Some(2 * i),
@@ -852,7 +874,7 @@ impl App {
         frame: &Frame,
         enc: &mut wgpu::CommandEncoder,
         group: &wgpu::BindGroup,
-        phase: Option<DeepPhase>,
+        phase: Option<Phase>,
         times: wgpu::RenderPassTimestampWrites<'_>,
     ) {
         let pipeline = &frame
@@ -930,18 +952,18 @@ impl App {
 enum Oit {
     Once(Box<dyn ApplicationOit>),
     Exact(Box<ExactOit>),
-    Deep(Box<DeepOit>, std::sync::Mutex<Option<DeepFrame>>),
+    Deep(Box<AllocatedOit>, std::sync::Mutex<Option<AllocatedFrame>>),
 }
 
 impl Oit {
     /// The passes the application builds a transparent pipeline for: one, or DKB's.
-    fn phases(&self) -> Vec<Option<DeepPhase>> {
+    fn phases(&self) -> Vec<Option<Phase>> {
         match self {
-            Oit::Deep(..) => DeepPhase::ALL.map(Some).to_vec(),
+            Oit::Deep(o, _) => o.phases().iter().copied().map(Some).collect(),
             _ => vec![None],
         }
     }
-    fn store_module(&self, group: u32, phase: Option<DeepPhase>) -> String {
+    fn store_module(&self, group: u32, phase: Option<Phase>) -> String {
         match (self, phase) {
             (Oit::Once(o), _) => o.store_module(group),
             (Oit::Exact(_), _) => ExactOit::wgsl(group),
@@ -949,7 +971,7 @@ impl Oit {
             (Oit::Deep(..), None) => unreachable!("DKB's modules are one a pass"),
         }
     }
-    fn bind_group_layout(&self, phase: Option<DeepPhase>) -> &wgpu::BindGroupLayout {
+    fn bind_group_layout(&self, phase: Option<Phase>) -> &wgpu::BindGroupLayout {
         match (self, phase) {
             (Oit::Once(o), _) => o.bind_group_layout(),
             (Oit::Exact(o), _) => o.bind_group_layout(),
@@ -1002,8 +1024,8 @@ impl Oit {
 }
 
 /// `--window`: the same frames in an interactive window (built with `--features window`).
-/// Drag with the left button to orbit; `1`, `2`, `3` and `4` switch to the linked list, FKB,
-/// the A-buffer and DKB; `+` and `-` double and halve the budget (the list's fragments a pixel,
+/// Drag with the left button to orbit; `1` to `5` switch to the linked list, FKB, the A-buffer,
+/// DKB and VKB; `+` and `-` double and halve the budget (the list's fragments a pixel,
 /// FKB's k, DKB's budget); `n` takes DKB's next network, `a` toggles --always-approximate;
 /// `Esc` or `q` quits. The title shows the method, the GPU time of each pass and the frame
 /// time. The image is resolved as headless, then drawn onto the window's surface.
@@ -1235,17 +1257,35 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                     net: 0,
                     always: false,
                 },
+                Key::Character("5") => Method::Vkb {
+                    budget: Budget::Share(250_000),
+                    always: false,
+                },
                 Key::Character("n") => match m {
-                    Method::Dkb { net, .. } => Method::Dkb {
+                    Method::Dkb {
+                        budget,
+                        net,
+                        always,
+                    } => Method::Dkb {
+                        budget,
                         net: (net + 1) % self.app.networks.len().max(1),
-                        ..m
+                        always,
                     },
                     _ => m,
                 },
                 Key::Character("a") => match m {
-                    Method::Dkb { always, .. } => Method::Dkb {
+                    Method::Dkb {
+                        budget,
+                        net,
+                        always,
+                    } => Method::Dkb {
+                        budget,
+                        net,
                         always: !always,
-                        ..m
+                    },
+                    Method::Vkb { budget, always } => Method::Vkb {
+                        budget,
+                        always: !always,
                     },
                     _ => m,
                 },
@@ -1255,9 +1295,18 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                         sorted,
                     },
                     Method::Fkb { k } => Method::Fkb { k: (k * 2).min(64) },
-                    Method::Dkb { budget, .. } => Method::Dkb {
+                    Method::Dkb {
+                        budget,
+                        net,
+                        always,
+                    } => Method::Dkb {
                         budget: scaled(budget, 2.0),
-                        ..m
+                        net,
+                        always,
+                    },
+                    Method::Vkb { budget, always } => Method::Vkb {
+                        budget: scaled(budget, 2.0),
+                        always,
                     },
                     Method::Exact => m,
                 },
@@ -1267,9 +1316,18 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                         sorted,
                     },
                     Method::Fkb { k } => Method::Fkb { k: (k / 2).max(1) },
-                    Method::Dkb { budget, .. } => Method::Dkb {
+                    Method::Dkb {
+                        budget,
+                        net,
+                        always,
+                    } => Method::Dkb {
                         budget: scaled(budget, 0.5),
-                        ..m
+                        net,
+                        always,
+                    },
+                    Method::Vkb { budget, always } => Method::Vkb {
+                        budget: scaled(budget, 0.5),
+                        always,
                     },
                     Method::Exact => m,
                 },

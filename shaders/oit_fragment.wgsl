@@ -29,3 +29,9 @@ fn oit_fragment_key(frag_coord: vec4<f32>, color: vec4<f32>) -> u64 {
 fn oit_pixel(frag_coord: vec4<f32>, width: u32) -> u32 {
     return u32(frag_coord.y) * width + u32(frag_coord.x);
 }
+
+// The fragment with its triangle's facing `|n . v|`, which only VKB reads (gpu::AllocatedOit):
+// every method's module has it, so one application shader serves them all.
+fn oit_store_facing(frag_coord: vec4<f32>, color: vec4<f32>, facing: f32) {
+    oit_store(frag_coord, color);
+}

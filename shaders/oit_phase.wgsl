@@ -36,10 +36,17 @@ fn transparent_fragment(in: VertexOut, front: bool) -> Transparent {
 }
 
 // Hands the fragment at `frag_coord` (the fragment's @builtin(position)) with straight colour
-// `color` to the pass this module was built for.
-fn oit_store(frag_coord: vec4<f32>, color: vec4<f32>) {
+// `color` to the pass this module was built for, its triangle's facing `|n . v|` (n its
+// geometric normal, v the camera's forward direction) for VKB's importance.
+fn oit_store_facing(frag_coord: vec4<f32>, color: vec4<f32>, facing: f32) {
     var v: VertexOut;
     v.clip = frag_coord;
+    v.facing = facing;
     oit_color = color;
     _ = oit_phase(v, true);
+}
+
+// oit_store_facing, face-on (all a method but VKB reads).
+fn oit_store(frag_coord: vec4<f32>, color: vec4<f32>) {
+    oit_store_facing(frag_coord, color, 1.0);
 }

@@ -54,7 +54,7 @@ pub mod shaders {
     }
 
     /// What an application's fragment shader runs in place of dhoit's own geometry pass
-    /// (`gpu::DeepOit`). The pass's code, not a copy.
+    /// (`gpu::AllocatedOit`). The pass's code, not a copy.
     pub const OIT_PHASE: &str = include_str!("../../shaders/oit_phase.wgsl");
 
     /// Geometry pass `name`'s source, with each (from, to) of `redeclare` replaced (a variant of

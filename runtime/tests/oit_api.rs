@@ -9,9 +9,9 @@ mod common;
 use common::{gpu, identity, quad};
 use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::gpu::{
-    self, ApplicationOit, DeepFrame, DeepOit, DeepPhase, ExactOit, KBufferOit, ListOit, Slots,
+    self, AllocatedFrame, AllocatedOit, ApplicationOit, ExactOit, KBufferOit, ListOit, Phase, Slots,
 };
-use dhoit_runtime::gpu::{DkbGeometry, FrameOptions};
+use dhoit_runtime::gpu::{AllocatedMethod, DkbGeometry, FrameOptions};
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::scene::Scene;
 
@@ -61,18 +61,18 @@ fn fs_opaque(in: V) -> @location(0) vec4<f32> {
 enum AppOit {
     Once(Box<dyn ApplicationOit>),
     Exact(Box<ExactOit>),
-    Deep(Box<DeepOit>),
+    Deep(Box<AllocatedOit>),
 }
 
 impl AppOit {
     /// The phases the application builds a transparent pipeline for (DKB's; one for the rest).
-    fn phases(&self) -> Vec<Option<DeepPhase>> {
+    fn phases(&self) -> Vec<Option<Phase>> {
         match self {
-            AppOit::Deep(_) => DeepPhase::ALL.map(Some).to_vec(),
+            AppOit::Deep(o) => o.phases().iter().copied().map(Some).collect(),
             _ => vec![None],
         }
     }
-    fn store_module(&self, group: u32, phase: Option<DeepPhase>) -> String {
+    fn store_module(&self, group: u32, phase: Option<Phase>) -> String {
         match (self, phase) {
             (AppOit::Once(o), _) => o.store_module(group),
             (AppOit::Exact(_), _) => ExactOit::wgsl(group),
@@ -80,7 +80,7 @@ impl AppOit {
             (AppOit::Deep(_), None) => unreachable!("DKB's pipelines are one a phase"),
         }
     }
-    fn bind_group_layout(&self, phase: Option<DeepPhase>) -> &wgpu::BindGroupLayout {
+    fn bind_group_layout(&self, phase: Option<Phase>) -> &wgpu::BindGroupLayout {
         match (self, phase) {
             (AppOit::Once(o), _) => o.bind_group_layout(),
             (AppOit::Exact(o), _) => o.bind_group_layout(),
@@ -97,7 +97,7 @@ fn app_frame(
     (w, h): (u32, u32),
     reversed: bool,
     make: impl FnOnce(&wgpu::Device, &wgpu::Queue) -> AppOit,
-) -> (Vec<[f32; 3]>, Option<DeepFrame>) {
+) -> (Vec<[f32; 3]>, Option<AllocatedFrame>) {
     let (device, queue) = app_device();
     let oit = make(&device, &queue);
     // Interleaved position (3 floats) and colour (4 floats), its own layout: the opaque
@@ -220,7 +220,7 @@ fn app_frame(
     );
     // A target the transparent pass never writes: a render pass needs an attachment. One
     // pipeline a phase of DKB's.
-    let pipelines: Vec<(Option<DeepPhase>, wgpu::RenderPipeline)> = oit
+    let pipelines: Vec<(Option<Phase>, wgpu::RenderPipeline)> = oit
         .phases()
         .into_iter()
         .zip(&modules)
@@ -236,7 +236,7 @@ fn app_frame(
             (phase, p)
         })
         .collect();
-    let pipeline_of = |phase: Option<DeepPhase>| {
+    let pipeline_of = |phase: Option<Phase>| {
         &pipelines
             .iter()
             .find(|(p, _)| *p == phase)
@@ -324,7 +324,7 @@ fn app_frame(
     // Its transparent draws, with dhoit's group at 1.
     let draw = |enc: &mut wgpu::CommandEncoder,
                 group: &wgpu::BindGroup,
-                phase: Option<DeepPhase>,
+                phase: Option<Phase>,
                 timestamp_writes: Option<wgpu::RenderPassTimestampWrites>| {
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("app transparent"),
@@ -578,13 +578,14 @@ fn an_application_draws_twice_through_dhoits_a_buffer_and_gets_the_exact_image_i
     assert!(fragments > px / 2, "{fragments} fragments");
 }
 
-/// DKB through the application's draws: the count, the features and the capture are its own
-/// pipelines (one a phase), every compute pass dhoit's; the image is dhoit's own DKB frame's
-/// (one that truncates: not the exact image), in either draw order, with the same buffers but
-/// the raster target (the application's), and each of its passes timed by its timestamps.
-/// By default, where the A-buffer needs no more bytes (this small frame), the frame is exact.
+/// DKB and VKB through the application's draws: the count, the features (VKB's count with the
+/// nearest fragment) and the capture are its own pipelines (one a phase), every compute pass
+/// dhoit's; the image is dhoit's own frame's (one that truncates: not the exact image), in
+/// either draw order, with the same buffers but the raster target (the application's), and
+/// each of its passes timed by its timestamps. By default, where the A-buffer needs no more
+/// bytes (this small frame), the frame is exact.
 #[test]
-fn an_application_draws_through_dhoits_dkb_and_gets_dhoits_dkb_image_in_any_order() {
+fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_order() {
     let Some(g) = gpu() else { return };
     let (w, h) = (64, 48);
     let px = (w * h) as u64;
@@ -595,69 +596,78 @@ fn an_application_draws_through_dhoits_dkb_and_gets_dhoits_dkb_image_in_any_orde
     .unwrap();
     let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
     let f32x4 = wgpu::TextureFormat::Rgba32Float;
-    for text in ["1fpp", "25%"] {
-        let b = Budget::parse(text).unwrap();
-        let f = b
-            .fragment_budget(&budget::DKB.for_network(&weights), px)
-            .unwrap();
-        let opts = FrameOptions {
-            dkb_geometry: DkbGeometry::CountFirst,
-            ..FrameOptions::default().always_approximate()
+    let vkb = dhoit_runtime::importance::VkbParams::default();
+    let methods = [
+        (
+            "dkb",
+            AllocatedMethod::Dkb(Box::new(weights.clone())),
+            "features",
+        ),
+        ("vkb", AllocatedMethod::Vkb(vkb), "count"),
+    ];
+    for (name, method, statistics) in &methods {
+        let layout = match method {
+            AllocatedMethod::Dkb(m) => budget::DKB.for_network(m),
+            AllocatedMethod::Vkb(_) => budget::VKB,
         };
-        let harness = g
-            .render_with(
-                &opts,
-                &s,
-                &identity(),
-                (w, h),
-                BG,
-                Some(Slots::Dkb(&weights, f)),
-            )
-            .unwrap();
-        assert!(!harness.exact);
-        let off = worst_difference(&harness.image.data, &exact.image.data);
-        assert!(
-            off > 1e-3,
-            "{text}: DKB is exact ({off}): nothing truncated"
-        );
-        for reversed in [false, true] {
-            let (app, frame) = app_frame(&s, (w, h), reversed, |d, q| {
-                let dkb = DeepOit::new(d, q, (w, h), &weights, b, f32x4).unwrap();
-                AppOit::Deep(Box::new(dkb.exact_when_cheaper(false)))
-            });
-            let frame = frame.unwrap();
-            let worst = worst_difference(&app, &harness.image.data);
+        for text in ["1fpp", "25%"] {
+            let b = Budget::parse(text).unwrap();
+            let f = b.fragment_budget(&layout, px).unwrap();
+            let opts = FrameOptions {
+                dkb_geometry: DkbGeometry::CountFirst,
+                ..FrameOptions::default().always_approximate()
+            };
+            let slots = match method {
+                AllocatedMethod::Dkb(m) => Slots::Dkb(m, f),
+                AllocatedMethod::Vkb(v) => Slots::Vkb(*v, f),
+            };
+            let harness = g
+                .render_with(&opts, &s, &identity(), (w, h), BG, Some(slots))
+                .unwrap();
+            assert!(!harness.exact);
+            let off = worst_difference(&harness.image.data, &exact.image.data);
             assert!(
-                worst <= 1e-5,
-                "{text}, reversed {reversed}: the application's image differs from dhoit's \
-                 DKB by {worst}"
+                off > 1e-3,
+                "{name} at {text} is exact ({off}): nothing truncated"
             );
-            assert!(!frame.exact);
-            assert_eq!(frame.allocated_bytes, harness.allocated_bytes - px);
-            for pass in ["count", "features", "importance", "capture", "resolve"] {
-                let ms = frame.pass_ms.iter().find(|(p, _)| *p == pass);
+            for reversed in [false, true] {
+                let (app, frame) = app_frame(&s, (w, h), reversed, |d, q| {
+                    let oit = AllocatedOit::new(d, q, (w, h), method.clone(), b, f32x4).unwrap();
+                    AppOit::Deep(Box::new(oit.exact_when_cheaper(false)))
+                });
+                let frame = frame.unwrap();
+                let worst = worst_difference(&app, &harness.image.data);
                 assert!(
-                    ms.is_some_and(|(_, ms)| *ms > 0.0),
-                    "{pass}: {:?}",
-                    frame.pass_ms
+                    worst <= 1e-5,
+                    "{name} at {text}, reversed {reversed}: the application's image differs \
+                     from dhoit's by {worst}"
                 );
+                assert!(!frame.exact);
+                assert_eq!(frame.allocated_bytes, harness.allocated_bytes - px);
+                for pass in ["count", statistics, "importance", "capture", "resolve"] {
+                    let ms = frame.pass_ms.iter().find(|(p, _)| p == &pass);
+                    assert!(
+                        ms.is_some_and(|(_, ms)| *ms > 0.0),
+                        "{name}, {pass}: {:?}",
+                        frame.pass_ms
+                    );
+                }
             }
         }
+        let (app, frame) = app_frame(&s, (w, h), false, |d, q| {
+            let b = Budget::parse("25%").unwrap();
+            let oit = AllocatedOit::new(d, q, (w, h), method.clone(), b, f32x4).unwrap();
+            AppOit::Deep(Box::new(oit))
+        });
+        let frame = frame.unwrap();
+        assert!(frame.exact, "{name}: the A-buffer is cheaper here");
+        let worst = worst_difference(&app, &exact.image.data);
+        assert!(
+            worst <= 1e-5,
+            "{name}, exact where cheaper: {worst} from the A-buffer"
+        );
+        assert_eq!(frame.allocated_bytes, exact.allocated_bytes - px);
     }
-    let (app, frame) = app_frame(&s, (w, h), false, |d, q| {
-        let b = Budget::parse("25%").unwrap();
-        AppOit::Deep(Box::new(
-            DeepOit::new(d, q, (w, h), &weights, b, f32x4).unwrap(),
-        ))
-    });
-    let frame = frame.unwrap();
-    assert!(frame.exact, "the A-buffer is cheaper here");
-    let worst = worst_difference(&app, &exact.image.data);
-    assert!(
-        worst <= 1e-5,
-        "exact where cheaper: {worst} from the A-buffer"
-    );
-    assert_eq!(frame.allocated_bytes, exact.allocated_bytes - px);
 }
 
 #[test]

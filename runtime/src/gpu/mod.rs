@@ -25,10 +25,10 @@
 
 mod abuffer;
 mod allocate;
+mod allocated;
 mod blend;
 mod buffers;
 mod capture;
-mod deep;
 mod dkb;
 mod list;
 mod oit;
@@ -41,8 +41,8 @@ mod vkb;
 
 use abuffer::Blend;
 pub use allocate::GpuAllocation;
+pub use allocated::{AllocatedFrame, AllocatedMethod, AllocatedOit, Phase, PhaseDraw};
 use buffers::{FrameBuffers, Readback, Statistics, read_frame, read_texture};
-pub use deep::{DeepDraw, DeepFrame, DeepOit, DeepPhase};
 pub use oit::{ApplicationOit, ExactOit, KBufferOit, ListOit, TARGET_FORMATS};
 use passes::Passes;
 use pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT, Pipelines, TARGET_FORMAT};
@@ -745,7 +745,7 @@ impl Gpu {
         (width, height): (u32, u32),
         background: [f32; 3],
         slots: Option<Slots>,
-        app: Option<&dyn deep::AppGeometry>,
+        app: Option<&dyn allocated::AppGeometry>,
     ) -> Result<GpuFrame> {
         let opts = *opts;
         let scopes = self.begin_frame(width, height)?;

@@ -1,7 +1,7 @@
 //! Recording a pass: a geometry pass over every triangle or a per-pixel compute dispatch, with
 //! the frame's shared bindings and timestamps.
 
-use super::deep::AppGeometry;
+use super::allocated::AppGeometry;
 use super::timer::Timer;
 use super::{FrameInputs, FrameOptions, Gpu};
 use crate::wgsl::{PIXEL_GROUP, grid};
@@ -20,7 +20,7 @@ pub(super) struct Passes<'a> {
     /// The indices of the transparent triangles (the vertices every transparent pass draws).
     pub(super) vertices: u32,
     pub(super) pixels: u32,
-    /// An application's frame ([`super::DeepOit`]): its draws in place of dhoit's geometry
+    /// An application's frame ([`super::AllocatedOit`]): its draws in place of dhoit's geometry
     /// passes, and its target in place of the image.
     app: Option<&'a dyn AppGeometry>,
 }

@@ -1,8 +1,8 @@
-//! The deep k-buffer (DKB: the network's k per pixel within a budget) in an application's own
-//! renderer. dhoit runs its own frame, every compute pass as [`Gpu::render`] runs it, on the
+//! The allocated k-buffers (DKB: the network's k per pixel within a budget; VKB: paper 002's
+//! importance maps) in an application's own renderer. dhoit runs its own frame, every compute pass as [`Gpu::render`] runs it, on the
 //! application's device; where that frame would draw one of its geometry passes, the
 //! application draws its own transparent geometry, with its own pipeline built on the module
-//! [`DeepOit::store_module`] gives for that pass (dhoit's pass code, not a copy) and the group
+//! [`AllocatedOit::store_module`] gives for that pass (dhoit's pass code, not a copy) and the group
 //! dhoit hands it. The resolve composites onto the application's target over its image.
 
 use std::cell::RefCell;
@@ -11,23 +11,27 @@ use super::pipelines::{compute_pipeline, module_from, redeclare};
 use super::{DkbGeometry, FrameOptions, Gpu, Slots};
 use crate::budget::{self, Budget, FragmentBudget};
 use crate::error::{Error, Result};
+use crate::importance::VkbParams;
 use crate::mlp::Mlp;
 use crate::scene::{Camera, Scene};
 use crate::wgsl::shaders;
 
 /// One of dhoit's geometry passes that the application draws its transparent geometry into
-/// (with one pipeline each, built on [`DeepOit::store_module`] for it). A DKB frame draws
+/// (with one pipeline each, built on [`AllocatedOit::store_module`] for it). A frame draws
 /// `Count` (each pixel's fragments), then either `Store` (where the exact A-buffer needs no
-/// more bytes than DKB would: [`DeepFrame::exact`]) or `Features` and `Capture` (or
-/// `CaptureFits`, where the budget turns out to hold every fragment).
+/// more bytes than the method would: [`AllocatedFrame::exact`]) or the method's statistics
+/// (DKB's `Features`, VKB's `VkbCount`) and `Capture` (or `CaptureFits`, where the budget
+/// turns out to hold every fragment): [`AllocatedOit::phases`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum DeepPhase {
+pub enum Phase {
     /// The count (abuffer_count.wgsl).
     Count,
     /// The exact A-buffer's store (abuffer_store.wgsl).
     Store,
     /// The network's features (features.wgsl).
     Features,
+    /// VKB's count with the nearest fragment's depth and facing (vkb_count.wgsl).
+    VkbCount,
     /// The capture into each pixel's k slots and its tail (capture.wgsl).
     Capture,
     /// The capture built for frames whose budget holds every fragment.
@@ -42,24 +46,26 @@ enum Binding {
     Uniform,
 }
 
-impl DeepPhase {
-    /// Every phase, in the order [`DeepOit::bind_group_layout`] indexes them.
-    pub const ALL: [DeepPhase; 5] = [
-        DeepPhase::Count,
-        DeepPhase::Store,
-        DeepPhase::Features,
-        DeepPhase::Capture,
-        DeepPhase::CaptureFits,
+impl Phase {
+    /// Every phase.
+    pub const ALL: [Phase; 6] = [
+        Phase::Count,
+        Phase::Store,
+        Phase::Features,
+        Phase::VkbCount,
+        Phase::Capture,
+        Phase::CaptureFits,
     ];
 
     /// The pass's name (`wgsl::shaders::PASSES`) and the declarations its variant changes.
     fn pass(self) -> (&'static str, &'static [(&'static str, &'static str)]) {
         match self {
-            DeepPhase::Count => ("abuffer_count", &[]),
-            DeepPhase::Store => ("abuffer_store", &[]),
-            DeepPhase::Features => ("features", &[]),
-            DeepPhase::Capture => ("capture", &[]),
-            DeepPhase::CaptureFits => (
+            Phase::Count => ("abuffer_count", &[]),
+            Phase::Store => ("abuffer_store", &[]),
+            Phase::Features => ("features", &[]),
+            Phase::VkbCount => ("vkb_count", &[]),
+            Phase::Capture => ("capture", &[]),
+            Phase::CaptureFits => (
                 "capture",
                 &[(
                     "const EVERY_FRAGMENT_FITS: bool = false;",
@@ -73,69 +79,80 @@ impl DeepPhase {
     fn bindings(self) -> &'static [Binding] {
         use Binding::*;
         match self {
-            DeepPhase::Count => &[ReadWrite],
-            DeepPhase::Store => &[Read, ReadWrite, ReadWrite, ReadWrite],
-            DeepPhase::Features => &[ReadWrite, ReadWrite, ReadWrite, Uniform, ReadWrite],
-            DeepPhase::Capture | DeepPhase::CaptureFits => {
-                &[Read, ReadWrite, ReadWrite, ReadWrite, Read]
-            }
+            Phase::Count => &[ReadWrite],
+            Phase::Store => &[Read, ReadWrite, ReadWrite, ReadWrite],
+            Phase::Features => &[ReadWrite, ReadWrite, ReadWrite, Uniform, ReadWrite],
+            Phase::VkbCount => &[ReadWrite, ReadWrite],
+            Phase::Capture | Phase::CaptureFits => &[Read, ReadWrite, ReadWrite, ReadWrite, Read],
         }
     }
 
     fn index(self) -> usize {
-        DeepPhase::ALL
+        Phase::ALL
             .iter()
             .position(|&p| p == self)
             .expect("every phase")
     }
 
     /// The phase of dhoit's geometry pipeline `pipeline`.
-    fn of(gpu: &Gpu, pipeline: &wgpu::RenderPipeline) -> DeepPhase {
+    fn of(gpu: &Gpu, pipeline: &wgpu::RenderPipeline) -> Phase {
         let p = &gpu.pipelines;
         [
-            (&p.count, DeepPhase::Count),
-            (&p.store, DeepPhase::Store),
-            (&p.features, DeepPhase::Features),
-            (&p.capture, DeepPhase::Capture),
-            (&p.capture_fits, DeepPhase::CaptureFits),
+            (&p.count, Phase::Count),
+            (&p.store, Phase::Store),
+            (&p.features, Phase::Features),
+            (&p.vkb_count, Phase::VkbCount),
+            (&p.capture, Phase::Capture),
+            (&p.capture_fits, Phase::CaptureFits),
         ]
         .into_iter()
         .find(|(q, _)| *q == pipeline)
         .map(|(_, phase)| phase)
-        .expect("a DeepOit frame draws only DeepPhase's passes (its FrameOptions fix them)")
+        .expect("an AllocatedOit frame draws only Phase's passes (its FrameOptions fix them)")
     }
 }
 
 /// What the application's draw callback gets for one of the frame's geometry passes: which
 /// pass (the pipeline to set), dhoit's group (at the index it built the module for) and the
 /// timestamps its render pass should write (`timestamp_writes: Some(draw.timestamps)`), so
-/// [`DeepFrame::pass_ms`] times the pass; without them the pass reads 0 ms.
-pub struct DeepDraw<'a> {
-    pub phase: DeepPhase,
+/// [`AllocatedFrame::pass_ms`] times the pass; without them the pass reads 0 ms.
+pub struct PhaseDraw<'a> {
+    pub phase: Phase,
     pub group: &'a wgpu::BindGroup,
     pub timestamps: wgpu::RenderPassTimestampWrites<'a>,
 }
 
 /// What one frame did.
 #[derive(Clone, Debug)]
-pub struct DeepFrame {
-    /// Bytes of the buffers the frame held: the DKB layout's (`budget::DKB` for the network,
-    /// less the raster target, the application's), or the A-buffer's where it rendered that.
+pub struct AllocatedFrame {
+    /// Bytes of the buffers the frame held: the method's layout's (`budget::DKB` for the
+    /// network, or `budget::VKB`, less the raster target, the application's), or the
+    /// A-buffer's where it rendered that.
     pub allocated_bytes: u64,
-    /// Whether the frame rendered the exact A-buffer, which needed no more bytes than DKB would
-    /// at its budget (or the budget held every fragment).
+    /// Whether the frame rendered the exact A-buffer, which needed no more bytes than the
+    /// method would at its budget (or the budget held every fragment).
     pub exact: bool,
     /// GPU time of each pass, in ms, in the order recorded.
     pub pass_ms: Vec<(&'static str, f64)>,
 }
 
-/// DKB on an application's device: the network's weights, the budget, the frame's size and the
-/// format of the target it resolves onto, fixed when made. Each frame ([`DeepOit::render`])
-/// calls the application back for each geometry pass ([`DeepPhase`]) it records.
+/// Which allocated k-buffer, with what it needs.
+#[derive(Clone, Debug)]
+pub enum AllocatedMethod {
+    /// DKB with this network (deployed at its precision).
+    Dkb(Box<Mlp>),
+    /// VKB with these parameters (paper 002's; `VkbParams::default()` has its defaults).
+    Vkb(VkbParams),
+}
+
+/// DKB or VKB on an application's device: the method, the budget, the frame's size and the
+/// format of the target it resolves onto, fixed when made. Each frame
+/// ([`AllocatedOit::render`]) calls the application back for each geometry pass ([`Phase`]) it
+/// records.
 ///
 /// ```
 /// use dhoit_runtime::budget::Budget;
-/// use dhoit_runtime::gpu::{self, DeepOit, DeepPhase};
+/// use dhoit_runtime::gpu::{self, AllocatedOit};
 /// use dhoit_runtime::mlp::Mlp;
 ///
 /// let instance = wgpu::Instance::default();
@@ -148,9 +165,9 @@ pub struct DeepFrame {
 /// .unwrap();
 /// let weights = Mlp::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/weights.safetensors").as_ref())?;
 /// let format = wgpu::TextureFormat::Rgba16Float;
-/// let dkb = DeepOit::new(&device, &queue, (64, 48), &weights, Budget::parse("25%")?, format)?;
+/// let dkb = AllocatedOit::dkb(&device, &queue, (64, 48), &weights, Budget::parse("25%")?, format)?;
 /// // One transparent pipeline a phase: dhoit's module at group 1, then the application's code.
-/// for phase in DeepPhase::ALL {
+/// for &phase in dkb.phases() {
 ///     let src = dkb.store_module(phase, 1)
 ///         + "@fragment fn fs(@builtin(position) p: vec4<f32>) { oit_store(p, vec4<f32>(0.2, 0.4, 0.6, 0.5)); }";
 ///     let _module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -165,10 +182,10 @@ pub struct DeepFrame {
 /// //        pipeline for draw.phase, draw.group at 1, its transparent draws */ })?;
 /// # Ok::<(), dhoit_runtime::Error>(())
 /// ```
-pub struct DeepOit {
+pub struct AllocatedOit {
     gpu: Gpu,
     size: (u32, u32),
-    weights: Mlp,
+    method: AllocatedMethod,
     budget: FragmentBudget,
     layouts: Vec<wgpu::BindGroupLayout>,
     /// The resolves' `onto` entries at the target's format: the general capture's, the one
@@ -179,21 +196,56 @@ pub struct DeepOit {
     exact_when_cheaper: bool,
 }
 
-impl DeepOit {
+impl AllocatedOit {
     /// DKB for frames of `width` x `height` with the network `weights` (deployed at their
     /// precision), `budget` (bytes, slots a pixel or a share of each frame's fragments, as
     /// [`Budget::parse`] reads them; bytes count DKB's layout for this network), resolving onto
     /// targets of `format` (one of [`super::TARGET_FORMATS`]). Refuses a device that lacks what
     /// the passes need (named), a precision it cannot compute, a frame size it cannot hold and
     /// a byte budget below DKB's fixed cost, before anything is built.
+    pub fn dkb(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        size: (u32, u32),
+        weights: &Mlp,
+        budget: Budget,
+        format: wgpu::TextureFormat,
+    ) -> Result<AllocatedOit> {
+        let method = AllocatedMethod::Dkb(Box::new(weights.clone()));
+        Self::new(device, queue, size, method, budget, format)
+    }
+
+    /// VKB (paper 002's importance maps, `params`), as [`AllocatedOit::dkb`]. Its importance
+    /// reads each pixel's nearest fragment's facing, `|n . v|` of its triangle: the
+    /// application hands it with `oit_store_facing(frag_coord, color, facing)` (its shader's
+    /// `oit_store` hands 1, face-on).
+    pub fn vkb(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        size: (u32, u32),
+        params: VkbParams,
+        budget: Budget,
+        format: wgpu::TextureFormat,
+    ) -> Result<AllocatedOit> {
+        Self::new(
+            device,
+            queue,
+            size,
+            AllocatedMethod::Vkb(params),
+            budget,
+            format,
+        )
+    }
+
+    /// The method, as [`AllocatedOit::dkb`] and [`AllocatedOit::vkb`] make it.
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         (width, height): (u32, u32),
-        weights: &Mlp,
+        method: AllocatedMethod,
         budget: Budget,
         format: wgpu::TextureFormat,
-    ) -> Result<DeepOit> {
+    ) -> Result<AllocatedOit> {
         crate::raster::check_resolution(width, height)?;
         let name = match format {
             wgpu::TextureFormat::Rgba8Unorm => "rgba8unorm",
@@ -201,16 +253,22 @@ impl DeepOit {
             wgpu::TextureFormat::Rgba32Float => "rgba32float",
             other => {
                 return Err(Error::Invalid(format!(
-                    "DKB resolves onto {:?}, not {other:?}",
+                    "the allocated k-buffers resolve onto {:?}, not {other:?}",
                     super::TARGET_FORMATS
                 )));
             }
         };
         let px = width as u64 * height as u64;
-        let budget = budget.fragment_budget(&budget::DKB.for_network(weights), px)?;
+        let layout = match &method {
+            AllocatedMethod::Dkb(weights) => budget::DKB.for_network(weights),
+            AllocatedMethod::Vkb(_) => budget::VKB,
+        };
+        let budget = budget.fragment_budget(&layout, px)?;
         let gpu = Gpu::on_device(device.clone(), queue.clone(), &device.adapter_info())?;
-        gpu.can_run(weights)?;
-        let layouts = DeepPhase::ALL
+        if let AllocatedMethod::Dkb(weights) = &method {
+            gpu.can_run(weights)?;
+        }
+        let layouts = Phase::ALL
             .iter()
             .map(|&phase| phase_layout(device, phase))
             .collect();
@@ -237,10 +295,10 @@ impl DeepOit {
             }
             compute_pipeline(device, label, &module_from(device, label, src), "onto")
         });
-        Ok(DeepOit {
+        Ok(AllocatedOit {
             gpu,
             size: (width, height),
-            weights: weights.clone(),
+            method,
             budget,
             layouts,
             onto,
@@ -249,11 +307,31 @@ impl DeepOit {
         })
     }
 
-    /// With `exact` false, every frame runs DKB at its budget, even where the exact A-buffer
+    /// The geometry passes this method's frames draw, each needing the application's pipeline.
+    pub fn phases(&self) -> &'static [Phase] {
+        match self.method {
+            AllocatedMethod::Dkb(_) => &[
+                Phase::Count,
+                Phase::Store,
+                Phase::Features,
+                Phase::Capture,
+                Phase::CaptureFits,
+            ],
+            AllocatedMethod::Vkb(_) => &[
+                Phase::Count,
+                Phase::Store,
+                Phase::VkbCount,
+                Phase::Capture,
+                Phase::CaptureFits,
+            ],
+        }
+    }
+
+    /// With `exact` false, every frame runs the method at its budget, even where the exact A-buffer
     /// would need fewer bytes (on by default: a k-buffer never costs more than the exact
     /// answer, and where it does not, the frame is the A-buffer's).
-    pub fn exact_when_cheaper(self, exact: bool) -> DeepOit {
-        DeepOit {
+    pub fn exact_when_cheaper(self, exact: bool) -> AllocatedOit {
+        AllocatedOit {
             exact_when_cheaper: exact,
             ..self
         }
@@ -265,18 +343,18 @@ impl DeepOit {
     /// declares dhoit's names (`Params`, `VertexOut`, `params` and the pass's buffers among
     /// them): the application's own must differ. Needs the shader-int64 feature
     /// ([`super::required_features`] has it).
-    pub fn store_module(&self, phase: DeepPhase, group: u32) -> String {
+    pub fn store_module(&self, phase: Phase, group: u32) -> String {
         Self::wgsl(phase, group)
     }
 
-    /// [`DeepOit::store_module`], without a DeepOit.
-    pub fn wgsl(phase: DeepPhase, group: u32) -> String {
+    /// [`AllocatedOit::store_module`], without an AllocatedOit.
+    pub fn wgsl(phase: Phase, group: u32) -> String {
         let (pass, redeclare) = phase.pass();
         shaders::application_pass(pass, redeclare, group).expect("a geometry pass")
     }
 
     /// The layout of `phase`'s group, for the application's pipeline layout of that phase.
-    pub fn bind_group_layout(&self, phase: DeepPhase) -> &wgpu::BindGroupLayout {
+    pub fn bind_group_layout(&self, phase: Phase) -> &wgpu::BindGroupLayout {
         &self.layouts[phase.index()]
     }
 
@@ -287,18 +365,18 @@ impl DeepOit {
 
     /// One frame: dhoit records and submits its passes on the application's queue; for each of
     /// its geometry passes it calls `draw` with an encoder, into which the application records
-    /// its transparent draws ([`DeepDraw`]), with `opaque_depth` (a depth texture of the
+    /// its transparent draws ([`PhaseDraw`]), with `opaque_depth` (a depth texture of the
     /// frame's size, written by its opaque pass, which it has submitted) as the occluder. The
     /// resolve composites over `under` (its opaque image) onto `target`, a storage texture of
-    /// the format this DKB was made for. Waits for the frame (it reads back how many slots to
+    /// the format this k-buffer was made for. Waits for the frame (it reads back how many slots to
     /// allocate, and the resolve's status).
     pub fn render(
         &self,
         opaque_depth: &wgpu::TextureView,
         under: &wgpu::TextureView,
         target: &wgpu::TextureView,
-        draw: &mut dyn FnMut(&mut wgpu::CommandEncoder, DeepDraw<'_>),
-    ) -> Result<DeepFrame> {
+        draw: &mut dyn FnMut(&mut wgpu::CommandEncoder, PhaseDraw<'_>),
+    ) -> Result<AllocatedFrame> {
         let app = AppDraws {
             draw: RefCell::new(draw),
             layouts: &self.layouts,
@@ -318,7 +396,10 @@ impl DeepOit {
             forward: glam::Vec3::Z,
             eye: glam::Vec3::ZERO,
         };
-        let slots = Some(Slots::Dkb(&self.weights, self.budget));
+        let slots = Some(match &self.method {
+            AllocatedMethod::Dkb(weights) => Slots::Dkb(weights, self.budget),
+            AllocatedMethod::Vkb(params) => Slots::Vkb(*params, self.budget),
+        });
         let frame = self.gpu.render_frame(
             &opts,
             &self.empty,
@@ -328,7 +409,7 @@ impl DeepOit {
             slots,
             Some(&app),
         )?;
-        Ok(DeepFrame {
+        Ok(AllocatedFrame {
             allocated_bytes: frame.allocated_bytes,
             exact: frame.exact,
             pass_ms: frame.pass_ms,
@@ -337,7 +418,7 @@ impl DeepOit {
 }
 
 /// A phase's group layout: the pass's buffers, the parameters (14), the opaque depth (15).
-fn phase_layout(device: &wgpu::Device, phase: DeepPhase) -> wgpu::BindGroupLayout {
+fn phase_layout(device: &wgpu::Device, phase: Phase) -> wgpu::BindGroupLayout {
     let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::FRAGMENT,
@@ -373,7 +454,7 @@ fn phase_layout(device: &wgpu::Device, phase: DeepPhase) -> wgpu::BindGroupLayou
         count: None,
     });
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some(&format!("dhoit DKB {phase:?}")),
+        label: Some(&format!("dhoit {phase:?}")),
         entries: &entries,
     })
 }
@@ -404,8 +485,8 @@ pub(super) trait AppGeometry {
     );
 }
 
-/// The application's draw callback ([`DeepOit::render`]).
-type DrawFn<'d> = dyn FnMut(&mut wgpu::CommandEncoder, DeepDraw<'_>) + 'd;
+/// The application's draw callback ([`AllocatedOit::render`]).
+type DrawFn<'d> = dyn FnMut(&mut wgpu::CommandEncoder, PhaseDraw<'_>) + 'd;
 
 struct AppDraws<'a, 'd> {
     draw: RefCell<&'a mut DrawFn<'d>>,
@@ -426,7 +507,7 @@ impl AppGeometry for AppDraws<'_, '_> {
         params: &wgpu::Buffer,
         timestamps: wgpu::RenderPassTimestampWrites<'_>,
     ) {
-        let phase = DeepPhase::of(gpu, pipeline);
+        let phase = Phase::of(gpu, pipeline);
         let mut entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
@@ -444,13 +525,13 @@ impl AppGeometry for AppDraws<'_, '_> {
             resource: wgpu::BindingResource::TextureView(self.opaque_depth),
         });
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("dhoit DKB"),
+            label: Some("dhoit k-buffer"),
             layout: &self.layouts[phase.index()],
             entries: &entries,
         });
         (self.draw.borrow_mut())(
             enc,
-            DeepDraw {
+            PhaseDraw {
                 phase,
                 group: &group,
                 timestamps,
@@ -472,7 +553,7 @@ impl AppGeometry for AppDraws<'_, '_> {
             .iter()
             .position(|q| *q == pipeline)
             .map(|i| &self.onto[i])
-            .expect("a DeepOit frame resolves only with DKB's and the A-buffer's resolves");
+            .expect("an AllocatedOit frame resolves only with the k-buffer's and the A-buffer's resolves");
         let mut entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
@@ -491,7 +572,7 @@ impl AppGeometry for AppDraws<'_, '_> {
             resource: wgpu::BindingResource::TextureView(self.target),
         });
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("dhoit DKB resolve"),
+            label: Some("dhoit k-buffer resolve"),
             layout: &onto.get_bind_group_layout(0),
             entries: &entries,
         });
