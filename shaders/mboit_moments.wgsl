@@ -28,3 +28,42 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> Targets {
     out.moments = vec4<f32>(a * z, a * z2, a * z2 * z, a * z2 * z2);
     return out;
 }
+
+// Six and eight power moments: b_1..b_4 in the RGBA32F target, b_5, b_6 (and b_7, b_8) in a
+// third, RG32F (RGBA32F) one, the terms as composite::mboit_terms computes them.
+struct Targets8 {
+    @location(0) b0: vec4<f32>,
+    @location(1) moments: vec4<f32>,
+    @location(2) extra: vec4<f32>,
+};
+
+fn moments8(in: VertexOut, front: bool) -> Targets8 {
+    var out: Targets8;
+    out.b0 = vec4<f32>(0.0);
+    out.moments = vec4<f32>(0.0);
+    out.extra = vec4<f32>(0.0);
+    let f = transparent_fragment(in, front);
+    if (!f.visible) {
+        discard;
+    }
+    let alpha8 = f.rgba8 >> 24u;
+    let a = absorbance_table[alpha8 >> 2u][alpha8 & 3u];
+    let z = mboit_depth(in.clip.z);
+    let z2 = z * z;
+    let z4 = z2 * z2;
+    let z6 = z4 * z2;
+    out.b0 = vec4<f32>(a, 0.0, 0.0, 0.0);
+    out.moments = vec4<f32>(a * z, a * z2, a * z2 * z, a * z2 * z2);
+    out.extra = vec4<f32>(a * z4 * z, a * z4 * z2, a * z6 * z, a * z4 * z4);
+    return out;
+}
+
+@fragment
+fn fs_main6(in: VertexOut, @builtin(front_facing) front: bool) -> Targets8 {
+    return moments8(in, front);
+}
+
+@fragment
+fn fs_main8(in: VertexOut, @builtin(front_facing) front: bool) -> Targets8 {
+    return moments8(in, front);
+}

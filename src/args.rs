@@ -54,11 +54,15 @@ pub(crate) struct ViewArgs {
 /// The engines' methods' own parameters, at their published defaults.
 #[derive(Args, Clone)]
 pub(crate) struct MethodParams {
+    /// MBOIT's power moments beside b_0: 4, 6 or 8 (32-bit float targets: 20, 28 or 36 bytes a
+    /// pixel, and 8 for the colour; default 4, and in `versus` the most that fit each memory).
+    #[arg(long, value_parser = parse_mboit_moments)]
+    pub(crate) mboit_moments: Option<u32>,
     /// MBOIT's moment bias: how far the normalized moments are pulled towards a symmetric
-    /// distribution before the reconstruction (the paper's 5e-7 for four power moments in 32
-    /// bits; in [0, 1)).
-    #[arg(long, default_value_t = 5e-7, value_parser = parse_unit_open)]
-    pub(crate) mboit_bias: f32,
+    /// distribution before the reconstruction, in [0, 1) (default: the paper's for the
+    /// moments, 5e-7, 5e-6 or 5e-5 for 4, 6 or 8 in 32 bits).
+    #[arg(long, value_parser = parse_unit_open)]
+    pub(crate) mboit_bias: Option<f32>,
     /// MBOIT's overestimation: the share of a fragment's own absorbance that counts as in front
     /// of it (the paper's 0.25; in [0, 1]).
     #[arg(long, default_value_t = 0.25, value_parser = parse_unit)]
@@ -70,16 +74,25 @@ pub(crate) struct MethodParams {
 }
 
 impl MethodParams {
+    /// MBOIT's parameters with `moments` power moments (4, 6 or 8): the given bias, else the
+    /// paper's for them.
+    pub(crate) fn mboit(&self, moments: u32) -> dhoit_runtime::composite::MboitParams {
+        let paper =
+            dhoit_runtime::composite::MboitParams::with_moments(moments).unwrap_or_default();
+        dhoit_runtime::composite::MboitParams {
+            bias: self.mboit_bias.unwrap_or(paper.bias),
+            overestimation: self.mboit_overestimation,
+            ..paper
+        }
+    }
+
     /// `o` with these parameters.
     pub(crate) fn apply<'a>(
         &self,
         o: dhoit_runtime::frame::Options<'a>,
     ) -> dhoit_runtime::frame::Options<'a> {
         dhoit_runtime::frame::Options {
-            mboit: dhoit_runtime::composite::MboitParams {
-                bias: self.mboit_bias,
-                overestimation: self.mboit_overestimation,
-            },
+            mboit: self.mboit(self.mboit_moments.unwrap_or(4)),
             list_sorted: self.list_sorted,
             ..o
         }
@@ -102,6 +115,15 @@ fn parse_unit(s: &str) -> std::result::Result<f32, String> {
 
 fn parse_unit_open(s: &str) -> std::result::Result<f32, String> {
     parse_unit_with(s, true)
+}
+
+fn parse_mboit_moments(s: &str) -> std::result::Result<u32, String> {
+    let n = s
+        .parse::<u32>()
+        .map_err(|_| format!("'{s}' is not a number of power moments (4, 6 or 8)"))?;
+    dhoit_runtime::composite::MboitParams::with_moments(n)
+        .map(|_| n)
+        .map_err(|e| e.to_string())
 }
 
 fn parse_list_sorted(s: &str) -> std::result::Result<u32, String> {

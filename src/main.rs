@@ -27,7 +27,7 @@ mod versus;
         allocation), greedy-paper and greedy-increase (the paper's backward greedy, two heap \
         keys), mlab (multi-layer alpha blending), wboit (weighted blended OIT, McGuire and \
         Bavoil 2013: one pass into an RGBA16F and an R8 target, no sorting), mboit (moment-based \
-        OIT, Munstermann et al. 2018: four power moments in 32-bit targets, two passes), \
+        OIT, Munstermann et al. 2018: 4, 6 or 8 power moments in 32-bit targets, two passes), \
         linked-list (a budgeted per-pixel linked \
         list, as Bevy ships it: fragments kept first come, first served until the budget's nodes \
         are spent, the rest dropped; the nearest 8 of a pixel sorted).\n\n\

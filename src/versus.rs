@@ -207,7 +207,23 @@ fn measure(
                 let r = Renderer::new(&fl, opts);
                 let exact = r.render(Method::Abuffer)?;
                 let exact8 = image_io::to_srgb8(&exact.image);
+                // MBOIT takes the most power moments whose targets fit M (unless given).
+                let mboit_opts = Options {
+                    mboit: a.params.mboit(a.params.mboit_moments.unwrap_or_else(|| {
+                        let px = fl.pixel_count() as u64;
+                        [8, 6, 4]
+                            .into_iter()
+                            .find(|&n| budget::mboit(n).allocated_bytes(px, 0) <= m_bytes)
+                            .unwrap_or(4)
+                    })),
+                    ..opts
+                };
+                let r_mboit = Renderer::new(&fl, mboit_opts);
                 for (mi, &m) in methods.iter().enumerate() {
+                    let (r, opts) = match m {
+                        Method::Mboit => (&r_mboit, mboit_opts),
+                        _ => (&r, opts),
+                    };
                     let cpu = match r.allocate(m) {
                         Ok(al) => al,
                         // A fixed cost above M (or FKB below a slot a pixel): not run.

@@ -326,6 +326,18 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
             "--scene",
             "shells",
             "--method",
+            "mboit",
+            "--mboit-moments",
+            "5",
+        ]),
+        "MBOIT takes 4, 6 or 8 power moments, not 5",
+        &out,
+    );
+    expect_failure(
+        &base(&[
+            "--scene",
+            "shells",
+            "--method",
             "linked-list",
             "--list-sorted",
             "0",

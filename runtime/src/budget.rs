@@ -211,6 +211,48 @@ pub const MBOIT: Layout = Layout {
     weights: 0,
 };
 
+/// MBOIT with six power moments: b_5 and b_6 in an RG32F target beside [`MBOIT`]'s.
+pub const MBOIT6: Layout = Layout {
+    method: "mboit",
+    slot_bytes: SLOT_BYTES,
+    per_pixel: &[
+        RASTER_TARGET,
+        ("mboit.b0", 4),
+        ("mboit.moments", 16),
+        ("mboit.extra", 8),
+        ("mboit.accumulation", 8),
+    ],
+    fixed: MBOIT.fixed,
+    scan: false,
+    weights: 0,
+};
+
+/// MBOIT with eight power moments: b_5..b_8 in an RGBA32F target beside [`MBOIT`]'s.
+pub const MBOIT8: Layout = Layout {
+    method: "mboit",
+    slot_bytes: SLOT_BYTES,
+    per_pixel: &[
+        RASTER_TARGET,
+        ("mboit.b0", 4),
+        ("mboit.moments", 16),
+        ("mboit.extra", 16),
+        ("mboit.accumulation", 8),
+    ],
+    fixed: MBOIT.fixed,
+    scan: false,
+    weights: 0,
+};
+
+/// MBOIT's layout for `moments` power moments ([`MBOIT`], [`MBOIT6`], [`MBOIT8`]; any other
+/// count is refused where the parameters are made, `composite::MboitParams::with_moments`).
+pub fn mboit(moments: u32) -> Layout {
+    match moments {
+        6 => MBOIT6,
+        8 => MBOIT8,
+        _ => MBOIT,
+    }
+}
+
 /// The budgeted per-pixel linked list, as Bevy lays it out: a 4-byte head a pixel, 12 bytes a
 /// node (the 8-byte capture key and the next node's index), the pool of F nodes allocated whole,
 /// and the atomic counter that hands them out.

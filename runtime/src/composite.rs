@@ -26,7 +26,10 @@
 //!   `(0, 0.375, 0, 0.375)` by `beta` (5e-7), as the three-point distribution those moments
 //!   admit with one point at `z` weighted by `overestimation` (0.25) ([`mboit_transmittance`]);
 //!   the second pass sums `L = sum T(z_i) a_i C_i` and `W = sum T(z_i) a_i`, and
-//!   `C = (1 - e^{-b_0}) L / W + e^{-b_0} C_bg`. Exact for one fragment; bounded memory whatever
+//!   `C = (1 - e^{-b_0}) L / W + e^{-b_0} C_bg`.
+//!   Six and eight power moments (b_1..b_6 or b_1..b_8, biased towards the paper's vectors by
+//!   5e-6 or 5e-5) place four or five points, the other roots of a cubic or a quartic
+//!   ([`mboit_transmittance_n`]). Exact for one fragment; bounded memory whatever
 //!   the depth; smooth where surfaces lie close in depth, too soft where one opaque surface
 //!   should hide another.
 //!
@@ -180,11 +183,13 @@ pub fn wboit_blended(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
     wboit_sums(&in_submission_order(frags), bg, Sums::Targets)
 }
 
-/// MBOIT's parameters: the moment bias and the overestimation, the paper's defaults for four
-/// power moments in 32 bits ([`MboitParams::default`]). Four power moments only (the paper's
-/// six and eight are not built).
+/// MBOIT's parameters: the number of power moments (4, 6 or 8), the moment bias and the
+/// overestimation; the paper's defaults for four power moments in 32 bits
+/// ([`MboitParams::default`]), or for six and eight ([`MboitParams::with_moments`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MboitParams {
+    /// Power moments b_1..b_n beside b_0: 4, 6 or 8 (the paper's; 32-bit float targets).
+    pub moments: u32,
     /// How far the normalized moments are pulled towards `(0, 0.375, 0, 0.375)` before the
     /// reconstruction (the paper's 5e-7 for four power moments in 32 bits): what keeps the
     /// Hankel matrix of one or two fragments' moments invertible in float.
@@ -197,9 +202,36 @@ pub struct MboitParams {
 impl Default for MboitParams {
     fn default() -> Self {
         MboitParams {
-            bias: 5e-7,
+            moments: 4,
+            bias: MBOIT_BIAS[0],
             overestimation: 0.25,
         }
+    }
+}
+
+/// The paper's moment bias for 4, 6 and 8 power moments in 32-bit floats (Munstermann et al.
+/// 2018, table 1: 5e-7, 5e-6, 5e-5).
+pub const MBOIT_BIAS: [f32; 3] = [5e-7, 5e-6, 5e-5];
+
+impl MboitParams {
+    /// The paper's defaults for `moments` power moments (4, 6 or 8): its bias for them
+    /// ([`MBOIT_BIAS`]) and the overestimation 0.25; another count is an error.
+    pub fn with_moments(moments: u32) -> crate::error::Result<MboitParams> {
+        let bias = match moments {
+            4 => MBOIT_BIAS[0],
+            6 => MBOIT_BIAS[1],
+            8 => MBOIT_BIAS[2],
+            n => {
+                return Err(crate::error::Error::Invalid(format!(
+                    "MBOIT takes 4, 6 or 8 power moments, not {n}"
+                )));
+            }
+        };
+        Ok(MboitParams {
+            moments,
+            bias,
+            ..MboitParams::default()
+        })
     }
 }
 
@@ -238,6 +270,259 @@ pub fn mboit_absorbance(a: f32) -> f32 {
 /// absorbance in front of `z`. mboit.wgsl's `transmittance`, operation for operation.
 pub fn mboit_transmittance(b0: f32, b: [f32; 4], z: f32, p: MboitParams) -> f32 {
     (-b0 * mboit_share(b, z, p)).exp().clamp(0.0, 1.0)
+}
+
+/// [`mboit_transmittance`] from `p.moments` power moments `b` (b_1..b_n over b_0; the rest
+/// unread): four as there; six and eight as the paper reconstructs them (the 4x4 or 5x5 Hankel
+/// matrix's Cholesky factorization, the cubic or quartic whose roots are the distribution's
+/// other points, the interpolation polynomial through them). mboit.wgsl's
+/// `transmittance_n`, operation for operation. Where 32-bit floats cannot form that
+/// distribution (a pivot or a root difference of zero, a root that is not a finite real), the
+/// first four moments' reconstruction stands in, so no infinity or NaN is ever formed.
+pub fn mboit_transmittance_n(b0: f32, b: [f32; 8], z: f32, p: MboitParams) -> f32 {
+    let four = [b[0], b[1], b[2], b[3]];
+    let share = match p.moments {
+        6 => mboit_share6(b, z, p),
+        8 => mboit_share8(b, z, p),
+        _ => None,
+    };
+    let share = share.unwrap_or_else(|| mboit_share(four, z, p));
+    (-b0 * share).exp().clamp(0.0, 1.0)
+}
+
+/// The paper's bias vectors for six and eight power moments (what the moments are pulled
+/// towards).
+const MBOIT_PULL6: [f32; 6] = [0.0, 0.48, 0.0, 0.451, 0.0, 0.45];
+const MBOIT_PULL8: [f32; 8] = [0.0, 0.75, 0.0, 0.676_666_7, 0.0, 0.63, 0.0, 0.600_303_03];
+
+/// Whether every value is finite.
+fn finite(v: &[f32]) -> bool {
+    v.iter().all(|x| x.is_finite())
+}
+
+/// The share of the absorbance in front of `z` that six power moments admit (four points: `z`
+/// and the roots of a cubic), or None where floats cannot form it.
+fn mboit_share6(b: [f32; 8], z: f32, p: MboitParams) -> Option<f32> {
+    let beta = p.bias;
+    let b: [f32; 6] = std::array::from_fn(|i| b[i] * (1.0 - beta) + MBOIT_PULL6[i] * beta);
+    // The Hankel matrix's L D L^T, its non-trivial entries.
+    let d11 = b[1] - b[0] * b[0];
+    let l21d11 = b[2] - b[0] * b[1];
+    let l21 = l21d11 / d11;
+    let d22 = (b[3] - b[1] * b[1]) - l21d11 * l21;
+    let l31d11 = b[3] - b[0] * b[2];
+    let l31 = l31d11 / d11;
+    let l32d22 = (b[4] - b[1] * b[2]) - l21d11 * l31;
+    let l32 = l32d22 / d22;
+    let d33 = (b[5] - b[2] * b[2]) - (l31d11 * l31 + l32d22 * l32);
+    if !(d11 > 0.0 && d22 > 0.0 && d33 > 0.0) {
+        return None;
+    }
+    // B c = (1, z, z^2, z^3): forward, scale, backward.
+    let mut c = [1.0, z, z * z, z * z * z];
+    c[1] -= b[0];
+    c[2] -= b[1] + l21 * c[1];
+    c[3] -= b[2] + (l31 * c[1] + l32 * c[2]);
+    c[1] /= d11;
+    c[2] /= d22;
+    c[3] /= d33;
+    c[2] -= l32 * c[3];
+    c[1] -= l21 * c[2] + l31 * c[3];
+    c[0] -= b[0] * c[1] + b[1] * c[2] + b[2] * c[3];
+    let r = mboit_cubic_roots(c)?;
+    let zs = [z, r[0], r[1], r[2]];
+    let f = weights_in_front(&zs, p.overestimation);
+    let a = newton_to_monomial(&zs, &f)?;
+    let share = a[0] + a[1] * b[0] + a[2] * b[1] + a[3] * b[2];
+    share.is_finite().then_some(share)
+}
+
+/// The share in front of `z` that eight power moments admit (five points: `z` and the roots of
+/// a quartic), or None where floats cannot form it.
+fn mboit_share8(b: [f32; 8], z: f32, p: MboitParams) -> Option<f32> {
+    let beta = p.bias;
+    let b: [f32; 8] = std::array::from_fn(|i| b[i] * (1.0 - beta) + MBOIT_PULL8[i] * beta);
+    let d22 = b[1] - b[0] * b[0];
+    let l32d22 = b[2] - b[1] * b[0];
+    let l32 = l32d22 / d22;
+    let l42d22 = b[3] - b[2] * b[0];
+    let l42 = l42d22 / d22;
+    let l52d22 = b[4] - b[3] * b[0];
+    let l52 = l52d22 / d22;
+    let d33 = (b[3] - b[1] * b[1]) - l32 * l32d22;
+    let l43d33 = (b[4] - b[2] * b[1]) - l42 * l32d22;
+    let l43 = l43d33 / d33;
+    let l53d33 = (b[5] - b[3] * b[1]) - l52 * l32d22;
+    let l53 = l53d33 / d33;
+    let d44 = (b[5] - b[2] * b[2]) - (l42 * l42d22 + l43 * l43d33);
+    let l54d44 = (b[6] - b[3] * b[2]) - (l52 * l42d22 + l53 * l43d33);
+    let l54 = l54d44 / d44;
+    let d55 = (b[7] - b[3] * b[3]) - (l52 * l52d22 + l53 * l53d33 + l54 * l54d44);
+    if !(d22 > 0.0 && d33 > 0.0 && d44 > 0.0 && d55 > 0.0) {
+        return None;
+    }
+    let mut c = [1.0, z, z * z, z * z * z, z * z * z * z];
+    c[1] -= b[0];
+    c[2] -= b[1] + l32 * c[1];
+    c[3] -= b[2] + (l42 * c[1] + l43 * c[2]);
+    c[4] -= b[3] + (l52 * c[1] + l53 * c[2] + l54 * c[3]);
+    c[1] /= d22;
+    c[2] /= d33;
+    c[3] /= d44;
+    c[4] /= d55;
+    c[3] -= l54 * c[4];
+    c[2] -= l53 * c[4] + l43 * c[3];
+    c[1] -= l52 * c[4] + l42 * c[3] + l32 * c[2];
+    c[0] -= b[3] * c[4] + b[2] * c[3] + b[1] * c[2] + b[0] * c[1];
+    let r = mboit_quartic_roots(c)?;
+    let zs = [z, r[0], r[1], r[2], r[3]];
+    let f = weights_in_front(&zs, p.overestimation);
+    let a = newton_to_monomial(&zs, &f)?;
+    let share = a[0] + a[1] * b[0] + a[2] * b[1] + a[3] * b[2] + a[4] * b[3];
+    share.is_finite().then_some(share)
+}
+
+/// The weight of each point of the distribution that counts as in front of `zs[0]`: the
+/// overestimation for itself, 1 for a point nearer, 0 for one farther.
+fn weights_in_front<const N: usize>(zs: &[f32; N], overestimation: f32) -> [f32; N] {
+    std::array::from_fn(|i| match i {
+        0 => overestimation,
+        _ if zs[i] < zs[0] => 1.0,
+        _ => 0.0,
+    })
+}
+
+/// The coefficients (constant first) of the polynomial through (zs[i], f[i]): Newton's divided
+/// differences, expanded. None where two points coincide in float.
+fn newton_to_monomial<const N: usize>(zs: &[f32; N], f: &[f32; N]) -> Option<[f32; N]> {
+    // d[i] = f[z_0 .. z_i] after the loop.
+    let mut d = *f;
+    for level in 1..N {
+        for i in (level..N).rev() {
+            let dz = zs[i] - zs[i - level];
+            if dz == 0.0 {
+                return None;
+            }
+            d[i] = (d[i] - d[i - 1]) / dz;
+        }
+    }
+    // Horner from the last difference: p = d[N-1]; p = p (x - z_i) + d[i].
+    let mut a = [0.0f32; N];
+    a[0] = d[N - 1];
+    for i in (0..N - 1).rev() {
+        // a <- a (x - z_i) + d[i]
+        for j in (1..N).rev() {
+            a[j] = a[j - 1] - a[j] * zs[i];
+        }
+        a[0] = d[i] - a[0] * zs[i];
+    }
+    finite(&a).then_some(a)
+}
+
+/// The three real roots of `c[0] + c[1] x + c[2] x^2 + c[3] x^3` (Peters' trigonometric
+/// solution, as the paper's code), or None where they are not finite reals.
+fn mboit_cubic_roots(c: [f32; 4]) -> Option<[f32; 3]> {
+    if c[3] == 0.0 {
+        return None;
+    }
+    let (c0, c1, c2) = (c[0] / c[3], c[1] / c[3] / 3.0, c[2] / c[3] / 3.0);
+    let delta = [c1 - c2 * c2, c0 - c1 * c2, c2 * c0 - c1 * c1];
+    let discriminant = 4.0 * delta[0] * delta[2] - delta[1] * delta[1];
+    let depressed = [delta[1] - 2.0 * c2 * delta[0], delta[0]];
+    if !(discriminant >= 0.0 && depressed[1] <= 0.0) {
+        return None;
+    }
+    let theta = discriminant.sqrt().atan2(-depressed[0]) / 3.0;
+    let (sin, cos) = (theta.sin(), theta.cos());
+    let half_sqrt3 = 0.5 * 3.0f32.sqrt();
+    let scale = 2.0 * (-depressed[1]).sqrt();
+    let roots = [
+        scale * cos - c2,
+        scale * (-0.5 * cos - half_sqrt3 * sin) - c2,
+        scale * (-0.5 * cos + half_sqrt3 * sin) - c2,
+    ];
+    finite(&roots).then_some(roots)
+}
+
+/// The smallest root of the cubic `c[0] + c[1] x + c[2] x^2 + x^3` with three real roots
+/// (Blinn's), for the quartic's resolvent.
+fn cubic_smallest_root(c: [f32; 3]) -> Option<f32> {
+    let (c0, c1, c2) = (c[0], c[1] / 3.0, c[2] / 3.0);
+    let delta = [c1 - c2 * c2, c0 - c2 * c1, c2 * c0 - c1 * c1];
+    let discriminant = 4.0 * delta[0] * delta[2] - delta[1] * delta[1];
+    let depressed = [delta[2], -c0 * delta[1] + 2.0 * c1 * delta[2]];
+    if !(discriminant >= 0.0 && depressed[0] <= 0.0) {
+        return None;
+    }
+    let theta = (c0 * discriminant.sqrt()).atan2(-depressed[1]).abs() / 3.0;
+    let (sin, cos) = (theta.sin(), theta.cos());
+    let t = 2.0 * (-depressed[0]).sqrt();
+    let x = [t * cos, t * (-0.5 * cos - 0.5 * 3.0f32.sqrt() * sin)];
+    let s = if x[0] + x[1] < 2.0 * c1 {
+        [-c0, x[0] + c1]
+    } else {
+        [-c0, x[1] + c1]
+    };
+    let root = s[0] / s[1];
+    root.is_finite().then_some(root)
+}
+
+/// The two roots of `x^2 + b x + c` (numerically stable), or None where they are not real.
+fn quadratic_roots(b: f32, c: f32) -> Option<[f32; 2]> {
+    let half = 0.5 * b;
+    let disc = half * half - c;
+    // Not real (or NaN: the comparison is false).
+    if disc.is_nan() || disc < 0.0 {
+        return None;
+    }
+    let r = disc.sqrt();
+    let roots = if half >= 0.0 {
+        [-c / (half + r), -half - r]
+    } else {
+        [-half + r, c / (-half + r)]
+    };
+    finite(&roots).then_some(roots)
+}
+
+/// The four real roots of `c[0] + .. + c[4] x^4` (Neumark's factorization into two
+/// quadratics, chosen as Herbison-Evans proposes, as the paper's code), or None where they are
+/// not finite reals.
+fn mboit_quartic_roots(c: [f32; 5]) -> Option<[f32; 4]> {
+    if c[4] == 0.0 {
+        return None;
+    }
+    let (b, cc, d, e) = (c[3] / c[4], c[2] / c[4], c[1] / c[4], c[0] / c[4]);
+    // The cubic resolvent's smallest root.
+    let p = -2.0 * cc;
+    let q = cc * cc + b * d - 4.0 * e;
+    let r = d * d + b * b * e - b * cc * d;
+    let y = cubic_smallest_root([r, q, p])?;
+    let bb = b * b;
+    let fy = 4.0 * y;
+    let bb_fy = bb - fy;
+    let zz0 = cc - y;
+    let zz = zz0 * zz0;
+    let fe = 4.0 * e;
+    let zz_fe = zz - fe;
+    let (g1, g2, h1, h2);
+    if y < 0.0 || (zz + fe) * bb_fy > zz_fe * (bb + fy) {
+        let t = bb_fy.sqrt();
+        g1 = (b + t) * 0.5;
+        g2 = (b - t) * 0.5;
+        let t = (b * zz0 - 2.0 * d) / (2.0 * t);
+        h1 = zz0 * 0.5 + t;
+        h2 = zz0 * 0.5 - t;
+    } else {
+        let t = zz_fe.sqrt();
+        h1 = (zz0 + t) * 0.5;
+        h2 = (zz0 - t) * 0.5;
+        let t = (b * zz0 - 2.0 * d) / (2.0 * t);
+        g1 = b * 0.5 + t;
+        g2 = b * 0.5 - t;
+    }
+    let [r0, r1] = quadratic_roots(g1, h1)?;
+    let [r2, r3] = quadratic_roots(g2, h2)?;
+    Some([r0, r1, r2, r3])
 }
 
 /// The share of a pixel's absorbance in front of `z` ([`mboit_transmittance`]). Where 32-bit
@@ -290,6 +575,25 @@ fn mboit_share(b: [f32; 4], z: f32, p: MboitParams) -> f32 {
     a0 + a1 * m[0] + a2 * m[1]
 }
 
+/// A fragment's terms `a z^j`, j = 1..8, as the moments pass computes them
+/// (mboit_moments.wgsl), products left to right: a z, a z2, a z2 z, a z2 z2, then with
+/// z4 = z2 z2 and z6 = z4 z2: a z4 z, a z4 z2, a z6 z, a z4 z4.
+pub fn mboit_terms(a: f32, z: f32) -> [f32; 8] {
+    let z2 = z * z;
+    let z4 = z2 * z2;
+    let z6 = z4 * z2;
+    [
+        a * z,
+        a * z2,
+        a * z2 * z,
+        a * z2 * z2,
+        a * z4 * z,
+        a * z4 * z2,
+        a * z6 * z,
+        a * z4 * z4,
+    ]
+}
+
 /// Moment-based OIT of a pixel's fragments, both passes summed front to back in f32: the
 /// paper's passes in exact order, which [`mboit_blended`] computes in submission order with its
 /// colour target in binary16.
@@ -308,16 +612,13 @@ pub fn mboit_blended(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 
 /// MBOIT's two passes over `frags` in their order, the colour summed as `sums` says.
 fn mboit_passes(frags: &[Fragment], bg: [f32; 3], p: MboitParams, sums: Sums) -> [f32; 3] {
     let mut b0 = 0.0f32;
-    let mut b = [0.0f32; 4];
+    let mut b = [0.0f32; 8];
     for f in frags {
         let a = mboit_absorbance(f.rgba[3]);
-        let z = 2.0 * f.depth - 1.0;
-        let z2 = z * z;
         b0 += a;
-        b[0] += a * z;
-        b[1] += a * z2;
-        b[2] += a * z2 * z;
-        b[3] += a * z2 * z2;
+        for (j, v) in mboit_terms(a, 2.0 * f.depth - 1.0).iter().enumerate() {
+            b[j] += v;
+        }
     }
     if b0 < MBOIT_MIN_B0 {
         return bg;
@@ -325,7 +626,11 @@ fn mboit_passes(frags: &[Fragment], bg: [f32; 3], p: MboitParams, sums: Sums) ->
     let m = b.map(|x| x / b0);
     let mut acc = [0.0f32; 4];
     for f in frags {
-        let t = mboit_transmittance(b0, m, 2.0 * f.depth - 1.0, p) * f.rgba[3];
+        let z = 2.0 * f.depth - 1.0;
+        let t = match p.moments {
+            4 => mboit_transmittance(b0, [m[0], m[1], m[2], m[3]], z, p),
+            _ => mboit_transmittance_n(b0, m, z, p),
+        } * f.rgba[3];
         let src = [t * f.rgba[0], t * f.rgba[1], t * f.rgba[2], t];
         for (s, v) in acc.iter_mut().zip(src) {
             *s = sums.add(*s, v);

@@ -32,8 +32,8 @@ pub enum Method {
     Mlab,
     /// Weighted blended OIT (McGuire and Bavoil 2013): no slots, no order, fixed memory.
     Wboit,
-    /// Moment-based OIT (Munstermann et al. 2018), four power moments: no slots, no order,
-    /// fixed memory.
+    /// Moment-based OIT (Munstermann et al. 2018), 4, 6 or 8 power moments
+    /// ([`crate::composite::MboitParams`]): no slots, no order, fixed memory.
     Mboit,
     /// A budgeted per-pixel linked list, as Bevy ships it: fragments appended first come, first
     /// served until the frame's F nodes are spent (the rest dropped), each pixel's nearest
@@ -312,10 +312,12 @@ impl Options<'_> {
     }
 
     /// The buffers `method`'s GPU pipeline creates: DKB's with these weights' own bytes (a
-    /// smaller network, or f16, costs less), else [`Method::layout`].
+    /// smaller network, or f16, costs less), MBOIT's for its number of moments, else
+    /// [`Method::layout`].
     pub fn layout(&self, method: Method) -> Layout {
         match (method, self.weights) {
             (Method::Dkb, Some(m)) => method.layout().for_network(m),
+            (Method::Mboit, _) => budget::mboit(self.mboit.moments),
             _ => method.layout(),
         }
     }
@@ -406,6 +408,9 @@ impl<'a> Renderer<'a> {
         }
         if method == Method::LinkedList {
             composite::check_list_sorted(opts.list_sorted)?;
+        }
+        if method == Method::Mboit {
+            composite::MboitParams::with_moments(opts.mboit.moments)?;
         }
         let budget = self.budget()?;
         // A k-buffer whose budget holds every fragment (F slots for them, or the bytes of the

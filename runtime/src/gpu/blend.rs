@@ -40,6 +40,16 @@ impl Target {
         label: "mboit.moments",
         format: wgpu::TextureFormat::Rgba32Float,
     };
+    /// b_5 and b_6 of six power moments.
+    pub(super) const MBOIT_EXTRA6: Target = Target {
+        label: "mboit.extra",
+        format: wgpu::TextureFormat::Rg32Float,
+    };
+    /// b_5..b_8 of eight power moments.
+    pub(super) const MBOIT_EXTRA8: Target = Target {
+        label: "mboit.extra",
+        format: wgpu::TextureFormat::Rgba32Float,
+    };
     pub(super) const MBOIT_ACCUMULATION: Target = Target {
         label: "mboit.accumulation",
         format: wgpu::TextureFormat::Rgba16Float,
@@ -51,6 +61,27 @@ impl Target {
         Target::MBOIT_B0,
         Target::MBOIT_MOMENTS,
         Target::MBOIT_ACCUMULATION,
+    ];
+    /// The targets of 4, 6 and 8 power moments' frames (beside the accumulation).
+    #[cfg(test)]
+    pub(super) const MBOIT_BY_MOMENTS: [&'static [Target]; 3] = [
+        &[
+            Target::MBOIT_B0,
+            Target::MBOIT_MOMENTS,
+            Target::MBOIT_ACCUMULATION,
+        ],
+        &[
+            Target::MBOIT_B0,
+            Target::MBOIT_MOMENTS,
+            Target::MBOIT_EXTRA6,
+            Target::MBOIT_ACCUMULATION,
+        ],
+        &[
+            Target::MBOIT_B0,
+            Target::MBOIT_MOMENTS,
+            Target::MBOIT_EXTRA8,
+            Target::MBOIT_ACCUMULATION,
+        ],
     ];
 
     /// Bytes of one texel.
@@ -118,12 +149,23 @@ impl Recording<'_, '_> {
         Ok(image)
     }
 
-    /// MBOIT's two passes and composite; returns the image buffer. A device that cannot blend
-    /// 32-bit floats is refused.
-    pub(super) fn mboit(&mut self, size: (u32, u32)) -> Result<wgpu::Buffer> {
+    /// MBOIT's two passes and composite with `moments` power moments (4, 6 or 8); returns the
+    /// image buffer. A device that cannot blend 32-bit floats is refused.
+    pub(super) fn mboit(&mut self, size: (u32, u32), moments: u32) -> Result<wgpu::Buffer> {
         let (passes, px) = (self.passes, self.px);
         let gpu = passes.gpu;
-        let Some((moments_pass, accumulate_pass)) = &gpu.pipelines.mboit else {
+        let (at, extra) = match moments {
+            4 => (0, None),
+            6 => (1, Some(Target::MBOIT_EXTRA6)),
+            8 => (2, Some(Target::MBOIT_EXTRA8)),
+            n => {
+                return Err(crate::error::Error::Invalid(format!(
+                    "MBOIT takes 4, 6 or 8 power moments, not {n}"
+                )));
+            }
+        };
+        let Some((moments_pass, accumulate_pass)) = gpu.pipelines.mboit.as_ref().map(|m| &m[at])
+        else {
             return Err(GpuError::DeviceLacks {
                 adapter: gpu.adapter().to_string(),
                 missing: "FLOAT32_BLENDABLE (MBOIT adds its moments into 32-bit float targets)"
@@ -133,6 +175,7 @@ impl Recording<'_, '_> {
         };
         let b0 = self.fb.target(Target::MBOIT_B0, size);
         let moments = self.fb.target(Target::MBOIT_MOMENTS, size);
+        let extra = extra.map(|t| self.fb.target(t, size));
         let accumulation = self.fb.target(Target::MBOIT_ACCUMULATION, size);
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         // The absorbance of each 8-bit opacity (composite::mboit_absorbance_table).
@@ -147,7 +190,10 @@ impl Recording<'_, '_> {
             enc,
             moments_pass,
             Some(&group),
-            &[(&b0, ZERO), (&moments, ZERO)],
+            &[(&b0, ZERO), (&moments, ZERO)]
+                .into_iter()
+                .chain(extra.as_ref().map(|e| (e, ZERO)))
+                .collect::<Vec<_>>(),
             "moments",
         );
         let view = |binding, view| wgpu::BindGroupEntry {
@@ -157,7 +203,10 @@ impl Recording<'_, '_> {
         let group = gpu.bind_with(
             &accumulate_pass.get_bind_group_layout(1),
             &[],
-            vec![view(0, &b0), view(1, &moments)],
+            [view(0, &b0), view(1, &moments)]
+                .into_iter()
+                .chain(extra.as_ref().map(|e| view(2, e)))
+                .collect(),
         );
         passes.blend(
             enc,
@@ -192,6 +241,20 @@ mod tests {
             let layout = crate::budget::layout(method).unwrap();
             let counted = layout.per_pixel.iter().find(|(l, _)| *l == t.label);
             assert_eq!(counted, Some(&(t.label, t.texel_bytes())), "{}", t.label);
+        }
+        // MBOIT's frames of 4, 6 and 8 moments create exactly their layouts' targets.
+        for (targets, moments) in Target::MBOIT_BY_MOMENTS.iter().zip([4, 6, 8]) {
+            let layout = crate::budget::mboit(moments);
+            let mut counted: Vec<_> = layout
+                .per_pixel
+                .iter()
+                .filter(|(l, _)| *l != "raster.target")
+                .copied()
+                .collect();
+            let mut made: Vec<_> = targets.iter().map(|t| (t.label, t.texel_bytes())).collect();
+            counted.sort();
+            made.sort();
+            assert_eq!(counted, made, "{moments} moments");
         }
         // Every per-pixel entry of both tables but the shared raster target is one of them.
         for method in ["wboit", "mboit"] {

@@ -819,7 +819,7 @@ impl Gpu {
             None => rec.abuffer(Blend::Exact, width, height)?,
             Some(Slots::Mlab(_)) => rec.abuffer(Blend::Mlab, width, height)?,
             Some(Slots::Wboit) => rec.wboit((width, height))?,
-            Some(Slots::Mboit(_)) => rec.mboit((width, height))?,
+            Some(Slots::Mboit(m)) => rec.mboit((width, height), m.moments)?,
             Some(Slots::LinkedList { nodes, .. }) => rec.linked_list(nodes, width, height)?,
             Some(s) => match rec.exact_when_cheaper(s, budget, (width, height))? {
                 Some(abuffer) => {

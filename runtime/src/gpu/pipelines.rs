@@ -31,7 +31,8 @@ pub(super) struct Pipelines {
     pub(super) wboit_composite: wgpu::ComputePipeline,
     /// MBOIT's two passes, where the device blends 32-bit floats (`FLOAT32_BLENDABLE`), and its
     /// composite.
-    pub(super) mboit: Option<(wgpu::RenderPipeline, wgpu::RenderPipeline)>,
+    /// For 4, 6 and 8 power moments.
+    pub(super) mboit: Option<[(wgpu::RenderPipeline, wgpu::RenderPipeline); 3]>,
     pub(super) mboit_composite: wgpu::ComputePipeline,
     pub(super) list_store: wgpu::RenderPipeline,
     pub(super) list_resolve: wgpu::ComputePipeline,
@@ -439,10 +440,11 @@ impl Pipelines {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         // A geometry pass's pipeline: the shared vertex stage, both faces, `depth` and one
         // colour target.
-        let render = |name: &str,
-                      m: &wgpu::ShaderModule,
-                      depth: Option<wgpu::DepthStencilState>,
-                      targets: &[Option<wgpu::ColorTargetState>]| {
+        let render_entry = |name: &str,
+                            entry: &str,
+                            m: &wgpu::ShaderModule,
+                            depth: Option<wgpu::DepthStencilState>,
+                            targets: &[Option<wgpu::ColorTargetState>]| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(name),
                 layout: None,
@@ -461,13 +463,19 @@ impl Pipelines {
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
                     module: m,
-                    entry_point: Some("fs_main"),
+                    entry_point: Some(entry),
                     compilation_options: Default::default(),
                     targets,
                 }),
                 multiview_mask: None,
                 cache: None,
             })
+        };
+        let render = |name: &str,
+                      m: &wgpu::ShaderModule,
+                      depth: Option<wgpu::DepthStencilState>,
+                      targets: &[Option<wgpu::ColorTargetState>]| {
+            render_entry(name, "fs_main", m, depth, targets)
         };
         // The transparent passes: no depth attachment (they test the opaque depth in the
         // shader), an R8 target never written.
@@ -480,18 +488,22 @@ impl Pipelines {
             render(name, &m, None, &[Some(target)])
         };
         // The blended methods' passes: their targets written through `blend` (gpu::blend).
-        let blended = |name: &str, targets: &[(wgpu::TextureFormat, wgpu::BlendState)]| {
-            let targets: Vec<Option<wgpu::ColorTargetState>> = targets
-                .iter()
-                .map(|&(format, blend)| {
-                    Some(wgpu::ColorTargetState {
-                        format,
-                        blend: Some(blend),
-                        write_mask: wgpu::ColorWrites::ALL,
+        let blended_entry =
+            |name: &str, entry: &str, targets: &[(wgpu::TextureFormat, wgpu::BlendState)]| {
+                let targets: Vec<Option<wgpu::ColorTargetState>> = targets
+                    .iter()
+                    .map(|&(format, blend)| {
+                        Some(wgpu::ColorTargetState {
+                            format,
+                            blend: Some(blend),
+                            write_mask: wgpu::ColorWrites::ALL,
+                        })
                     })
-                })
-                .collect();
-            render(name, &module(device, name), None, &targets)
+                    .collect();
+                render_entry(name, entry, &module(device, name), None, &targets)
+            };
+        let blended = |name: &str, targets: &[(wgpu::TextureFormat, wgpu::BlendState)]| {
+            blended_entry(name, "fs_main", targets)
         };
         use super::blend::{ADD, MULTIPLY_BY_ONE_MINUS, Target};
         let geometry = |name: &str| geometry_from(name, module(device, name));
@@ -558,19 +570,24 @@ impl Pipelines {
                 .features()
                 .contains(wgpu::Features::FLOAT32_BLENDABLE)
                 .then(|| {
-                    (
-                        blended(
-                            "mboit_moments",
-                            &[
-                                (Target::MBOIT_B0.format, ADD),
-                                (Target::MBOIT_MOMENTS.format, ADD),
-                            ],
-                        ),
-                        blended(
-                            "mboit_accumulate",
-                            &[(Target::MBOIT_ACCUMULATION.format, ADD)],
-                        ),
-                    )
+                    // 4, 6 and 8 power moments: 6 and 8 add a third target (RG32F, RGBA32F).
+                    let extra = [None, Some(Target::MBOIT_EXTRA6), Some(Target::MBOIT_EXTRA8)];
+                    let entry = ["fs_main", "fs_main6", "fs_main8"];
+                    std::array::from_fn(|i| {
+                        let mut targets = vec![
+                            (Target::MBOIT_B0.format, ADD),
+                            (Target::MBOIT_MOMENTS.format, ADD),
+                        ];
+                        targets.extend(extra[i].map(|t| (t.format, ADD)));
+                        (
+                            blended_entry("mboit_moments", entry[i], &targets),
+                            blended_entry(
+                                "mboit_accumulate",
+                                entry[i],
+                                &[(Target::MBOIT_ACCUMULATION.format, ADD)],
+                            ),
+                        )
+                    })
                 }),
             mboit_composite: compute_entry("blend_composite", "mboit"),
             list_store: geometry("list_store"),
