@@ -28,17 +28,8 @@ const ORDER_BOUND: f32 = 1e-2;
 
 /// The moments of `frags` as the first pass sums them: b_0 and b_1..b_4 / b_0.
 fn moments(frags: &[(f32, f32)]) -> (f32, [f32; 4]) {
-    let mut b0 = 0.0f64;
-    let mut b = [0.0f64; 4];
-    for &(d, a) in frags {
-        let ab = -(1.0 - a as f64).ln();
-        let z = 2.0 * d as f64 - 1.0;
-        b0 += ab;
-        for (j, bj) in b.iter_mut().enumerate() {
-            *bj += ab * z.powi(j as i32 + 1);
-        }
-    }
-    (b0 as f32, b.map(|x| (x / b0) as f32))
+    let (b0, b) = moments8(frags);
+    (b0, [b[0], b[1], b[2], b[3]])
 }
 
 #[test]

@@ -670,6 +670,67 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
     }
 }
 
+/// DKB and VKB refuse, before building anything, a target format the resolve cannot write, a
+/// budget below the method's fixed cost, a frame without pixels and a device without dhoit's
+/// features, each named.
+#[test]
+fn the_allocated_k_buffers_refuse_what_they_cannot_do() {
+    let (device, queue) = app_device();
+    let weights = Mlp::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
+    )
+    .unwrap();
+    let b = Budget::parse("25%").unwrap();
+    let f32x4 = wgpu::TextureFormat::Rgba32Float;
+    let error = |r: dhoit_runtime::Result<AllocatedOit>| r.err().expect("refused").to_string();
+    let e = error(AllocatedOit::dkb(
+        &device,
+        &queue,
+        (64, 48),
+        &weights,
+        b,
+        wgpu::TextureFormat::Bgra8Unorm,
+    ));
+    assert!(
+        e.contains("resolves onto") && e.contains("Bgra8Unorm"),
+        "{e}"
+    );
+    let tiny = Budget::parse("1KB").unwrap();
+    let e = error(AllocatedOit::dkb(
+        &device,
+        &queue,
+        (64, 48),
+        &weights,
+        tiny,
+        f32x4,
+    ));
+    assert!(e.contains("dkb needs"), "{e}");
+    let vkb = dhoit_runtime::importance::VkbParams::default();
+    let e = error(AllocatedOit::vkb(
+        &device,
+        &queue,
+        (64, 48),
+        vkb,
+        tiny,
+        f32x4,
+    ));
+    assert!(e.contains("vkb needs"), "{e}");
+    assert!(AllocatedOit::vkb(&device, &queue, (0, 48), vkb, b, f32x4).is_err());
+    let instance = wgpu::Instance::default();
+    let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+    let (plain, plain_queue) =
+        pollster::block_on(adapter.request_device(&Default::default())).unwrap();
+    let e = error(AllocatedOit::vkb(
+        &plain,
+        &plain_queue,
+        (64, 48),
+        vkb,
+        b,
+        f32x4,
+    ));
+    assert!(e.contains("opened without"), "{e}");
+}
+
 #[test]
 fn the_k_buffer_counts_its_buffers_and_refuses_what_it_cannot_hold() {
     let (device, queue) = app_device();

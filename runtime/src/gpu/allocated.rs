@@ -7,10 +7,10 @@
 
 use std::cell::RefCell;
 
-use super::pipelines::{compute_pipeline, module_from, redeclare};
+use super::oit::{check_target_format, onto_pipeline};
 use super::{DkbGeometry, FrameOptions, Gpu, Slots};
 use crate::budget::{self, Budget, FragmentBudget};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::importance::VkbParams;
 use crate::mlp::Mlp;
 use crate::scene::{Camera, Scene};
@@ -247,17 +247,8 @@ impl AllocatedOit {
         format: wgpu::TextureFormat,
     ) -> Result<AllocatedOit> {
         crate::raster::check_resolution(width, height)?;
-        let name = match format {
-            wgpu::TextureFormat::Rgba8Unorm => "rgba8unorm",
-            wgpu::TextureFormat::Rgba16Float => "rgba16float",
-            wgpu::TextureFormat::Rgba32Float => "rgba32float",
-            other => {
-                return Err(Error::Invalid(format!(
-                    "the allocated k-buffers resolve onto {:?}, not {other:?}",
-                    super::TARGET_FORMATS
-                )));
-            }
-        };
+        let what = "allocated k-buffer";
+        check_target_format(format, what)?;
         let px = width as u64 * height as u64;
         let layout = match &method {
             AllocatedMethod::Dkb(weights) => budget::DKB.for_network(weights),
@@ -273,28 +264,10 @@ impl AllocatedOit {
             .map(|&phase| phase_layout(device, phase))
             .collect();
         let onto = [
-            ("resolve", false, "resolve (onto)"),
-            ("resolve", true, "resolve (onto, every fragment fits)"),
-            ("abuffer_resolve", false, "abuffer_resolve (onto)"),
-        ]
-        .map(|(pass, fits, label)| {
-            let mut src = shaders::source(pass).expect("known pass");
-            redeclare(
-                &mut src,
-                pass,
-                "texture_storage_2d<rgba32float, write>",
-                &format!("texture_storage_2d<{name}, write>"),
-            );
-            if fits {
-                redeclare(
-                    &mut src,
-                    pass,
-                    "const EVERY_FRAGMENT_FITS: bool = false;",
-                    "const EVERY_FRAGMENT_FITS: bool = true;",
-                );
-            }
-            compute_pipeline(device, label, &module_from(device, label, src), "onto")
-        });
+            onto_pipeline(device, "resolve", format, false, what)?,
+            onto_pipeline(device, "resolve", format, true, what)?,
+            onto_pipeline(device, "abuffer_resolve", format, false, what)?,
+        ];
         Ok(AllocatedOit {
             gpu,
             size: (width, height),

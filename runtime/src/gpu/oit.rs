@@ -295,34 +295,61 @@ impl AppSide {
     }
 
     fn resolve_for(&self, format: wgpu::TextureFormat) -> Result<wgpu::ComputePipeline> {
-        let name = match format {
-            wgpu::TextureFormat::Rgba8Unorm => "rgba8unorm",
-            wgpu::TextureFormat::Rgba16Float => "rgba16float",
-            wgpu::TextureFormat::Rgba32Float => "rgba32float",
-            other => {
-                return Err(Error::Invalid(format!(
-                    "the {} resolves onto {TARGET_FORMATS:?}, not {other:?}",
-                    self.name
-                )));
-            }
-        };
         let mut built = self.resolves.lock().unwrap_or_else(|e| e.into_inner());
         if let Some((_, p)) = built.iter().find(|(f, _)| *f == format) {
             return Ok(p.clone());
         }
-        let mut src = shaders::source(self.pass).expect("known pass");
-        redeclare(
-            &mut src,
-            self.pass,
-            "texture_storage_2d<rgba32float, write>",
-            &format!("texture_storage_2d<{name}, write>"),
-        );
-        let label = format!("{} (onto)", self.pass);
-        let m = module_from(&self.device, &label, src);
-        let p = compute_pipeline(&self.device, &label, &m, "onto");
+        let p = onto_pipeline(&self.device, self.pass, format, false, self.name)?;
         built.push((format, p.clone()));
         Ok(p)
     }
+}
+
+/// The WGSL name of `format`, one of [`TARGET_FORMATS`]; another is refused, naming `what`
+/// resolves.
+pub(super) fn check_target_format(format: wgpu::TextureFormat, what: &str) -> Result<&'static str> {
+    match format {
+        wgpu::TextureFormat::Rgba8Unorm => Ok("rgba8unorm"),
+        wgpu::TextureFormat::Rgba16Float => Ok("rgba16float"),
+        wgpu::TextureFormat::Rgba32Float => Ok("rgba32float"),
+        other => Err(Error::Invalid(format!(
+            "the {what} resolves onto {TARGET_FORMATS:?}, not {other:?}"
+        ))),
+    }
+}
+
+/// Resolve pass `pass`'s `onto` entry writing a target of `format` (one of
+/// [`TARGET_FORMATS`]; another is refused, naming `what` resolves), built for frames whose
+/// budget holds every fragment where `fits`.
+pub(super) fn onto_pipeline(
+    device: &wgpu::Device,
+    pass: &'static str,
+    format: wgpu::TextureFormat,
+    fits: bool,
+    what: &str,
+) -> Result<wgpu::ComputePipeline> {
+    let name = check_target_format(format, what)?;
+    let mut src = shaders::source(pass).expect("known pass");
+    redeclare(
+        &mut src,
+        pass,
+        "texture_storage_2d<rgba32float, write>",
+        &format!("texture_storage_2d<{name}, write>"),
+    );
+    if fits {
+        redeclare(
+            &mut src,
+            pass,
+            "const EVERY_FRAGMENT_FITS: bool = false;",
+            "const EVERY_FRAGMENT_FITS: bool = true;",
+        );
+    }
+    let label = format!(
+        "{pass} (onto{})",
+        if fits { ", every fragment fits" } else { "" }
+    );
+    let m = module_from(device, &label, src);
+    Ok(compute_pipeline(device, &label, &m, "onto"))
 }
 
 /// The budgeted linked list's buffers and passes on an application's device.
