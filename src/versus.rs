@@ -333,8 +333,83 @@ fn count_frame_fronts(points: &mut [Point]) {
     }
 }
 
+/// One scene at one memory: each method that ran all of the scene's frames there, its
+/// (GPU ms, MSE, FLIP) over them (geometric means, FLIP's mean), and whether it is on that
+/// scene's front (no other such method as fast and as accurate).
+fn scene_front(b: &BudgetTrade, scene: &str) -> Vec<(String, [f64; 3], bool)> {
+    let floor = crate::compare::MSE_FLOOR;
+    let views = b
+        .points
+        .iter()
+        .map(|p| p.frames.iter().filter(|f| f.scene == scene).count())
+        .max()
+        .unwrap_or(0);
+    let ran: Vec<(String, [f64; 3])> = b
+        .points
+        .iter()
+        .filter_map(|p| {
+            let fr: Vec<&Measure> = p.frames.iter().filter(|f| f.scene == scene).collect();
+            (views > 0 && fr.len() == views).then(|| {
+                let g = |v: Vec<f64>| crate::compare::geomean(&v);
+                let key = [
+                    g(fr.iter().map(|f| f.gpu_ms).collect()),
+                    g(fr.iter().map(|f| f.mse.max(floor)).collect()),
+                    fr.iter().map(|f| f.flip).sum::<f64>() / fr.len() as f64,
+                ];
+                (p.method.clone(), key)
+            })
+        })
+        .collect();
+    let keys: Vec<[f64; 3]> = ran.iter().map(|r| r.1).collect();
+    ran.into_iter()
+        .zip(front(&keys))
+        .map(|((m, k), on)| (m, k, on))
+        .collect()
+}
+
+/// Per scene, one chart of every method at every memory, the front over all of them marked,
+/// into `dir/versus_scene_NAME`.
+fn scene_charts(dir: &std::path::Path, report: &Report) -> Vec<std::path::PathBuf> {
+    let mut plots = Vec::new();
+    for scene in &report.scenes {
+        let mut pts: Vec<TradePoint> = report
+            .budgets
+            .iter()
+            .flat_map(|b| {
+                scene_front(b, scene)
+                    .into_iter()
+                    .map(move |(m, k, _)| TradePoint {
+                        label: format!("{m} at {}x", b.memory),
+                        time_ms: k[0],
+                        mse: k[1],
+                        flip: k[2],
+                        front: false,
+                    })
+            })
+            .collect();
+        // The chart's front is over every method at every memory: the line a reader follows
+        // for the best time and accuracy on this scene (the table has each memory's).
+        let keys: Vec<[f64; 3]> = pts.iter().map(|p| [p.time_ms, p.mse, p.flip]).collect();
+        for (p, on) in pts.iter_mut().zip(front(&keys)) {
+            p.front = on;
+        }
+        if pts.is_empty() {
+            continue;
+        }
+        let name: String = scene
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+            .collect();
+        let stem = dir.join(format!("versus_scene_{name}"));
+        let title = format!("{scene}: every method at each memory");
+        let time = format!("GPU frame, ms ({})", report.adapter);
+        plots.extend(plot::trade(&stem, &title, &time, &pts));
+    }
+    plots
+}
+
 /// The report as Markdown (printed too) and JSON, one chart a memory, into `--out` and, where
-/// asked, the summary folder.
+/// asked, the summary folder; one chart a scene into `--out`.
 fn write_outputs(a: &VersusArgs, report: &Report) -> Result<()> {
     let md = table(report);
     print!("{md}");
@@ -363,6 +438,7 @@ fn write_outputs(a: &VersusArgs, report: &Report) -> Result<()> {
         let time = format!("GPU frame, ms ({})", report.adapter);
         plots.extend(plot::trade(&stem, &title, &time, &pts));
     }
+    let scenes = scene_charts(&a.out, report);
     if let Some(dir) = &a.summary {
         dhoit_runtime::tensors::create_folder(dir)?;
         dhoit_runtime::tensors::write_atomic(&dir.join("versus.json"), text.as_bytes())?;
@@ -373,8 +449,9 @@ fn write_outputs(a: &VersusArgs, report: &Report) -> Result<()> {
         }
     }
     println!(
-        "versus.json, versus.md and {} plots -> {}",
+        "versus.json, versus.md, {} plots and {} a scene -> {}",
         plots.len(),
+        scenes.len(),
         a.out.display()
     );
     Ok(())
@@ -459,12 +536,110 @@ fn table(r: &Report) -> String {
             md += &format!("| {scene} | {} |\n", cells.join(" | "));
         }
     }
+    // Per scene, the front at each memory among the methods that ran its frames there.
+    md += &format!(
+        "\n## The front per scene\n\nAt each memory, the methods that ran every view of the \
+         scene and that no other such method beats in GPU time, MSE and FLIP (one chart a \
+         scene, every method at every memory with the front over all of them: \
+         `versus_scene_NAME.png` in `--out`, out/versus for `make versus`).\n\n| scene | {} |\n|---|{}\n",
+        r.budgets
+            .iter()
+            .map(|b| format!("{}x", b.memory))
+            .collect::<Vec<_>>()
+            .join(" | "),
+        "---|".repeat(r.budgets.len())
+    );
+    for scene in &r.scenes {
+        let cells: Vec<String> = r
+            .budgets
+            .iter()
+            .map(|b| {
+                let on: Vec<String> = scene_front(b, scene)
+                    .into_iter()
+                    .filter(|x| x.2)
+                    .map(|x| x.0)
+                    .collect();
+                match on.is_empty() {
+                    true => "(none fits)".to_string(),
+                    false => on.join(", "),
+                }
+            })
+            .collect();
+        md += &format!("| {scene} | {} |\n", cells.join(" | "));
+    }
     md
 }
 
 #[cfg(test)]
 mod tests {
-    use super::front;
+    use super::{BudgetTrade, Measure, Point, front, scene_front};
+
+    fn measure(scene: &str, view: usize, gpu_ms: f64, mse: f64) -> Measure {
+        Measure {
+            scene: scene.into(),
+            view,
+            mse,
+            flip: 0.1,
+            gpu_ms,
+            bytes_per_pixel: 10.0,
+            exact: false,
+        }
+    }
+
+    fn point(method: &str, frames: Vec<Measure>) -> Point {
+        Point {
+            method: method.into(),
+            gpu_ms: 0.0,
+            mse: 0.0,
+            flip: 0.0,
+            bytes_per_pixel: 0.0,
+            front_frames: 0,
+            front: false,
+            frames,
+        }
+    }
+
+    /// A scene's front takes the methods that ran every one of its views, each over those
+    /// views (geometric means), and marks the undominated; a method missing a view is left out.
+    #[test]
+    fn a_scenes_front_is_over_its_own_views() {
+        let b = BudgetTrade {
+            budget: "0.5x".into(),
+            memory: 0.5,
+            frames: 4,
+            points: vec![
+                // Faster and more accurate on "a" (over both views), slower on "b".
+                point(
+                    "fast",
+                    vec![
+                        measure("a", 1, 1.0, 1e-6),
+                        measure("a", 3, 4.0, 1e-4),
+                        measure("b", 1, 9.0, 1e-3),
+                    ],
+                ),
+                point(
+                    "slow",
+                    vec![
+                        measure("a", 1, 3.0, 1e-5),
+                        measure("a", 3, 3.0, 1e-4),
+                        measure("b", 1, 1.0, 1e-4),
+                    ],
+                ),
+                // Ran one view of "a" only.
+                point("partial", vec![measure("a", 1, 0.1, 1e-9)]),
+            ],
+        };
+        let a = scene_front(&b, "a");
+        assert_eq!(
+            a.iter().map(|x| (x.0.as_str(), x.2)).collect::<Vec<_>>(),
+            [("fast", true), ("slow", false)]
+        );
+        assert!((a[0].1[0] - 2.0).abs() < 1e-12 && (a[0].1[1] - 1e-5).abs() < 1e-17);
+        let on_b: Vec<_> = scene_front(&b, "b").into_iter().filter(|x| x.2).collect();
+        assert_eq!(on_b.len(), 1);
+        assert_eq!(on_b[0].0, "slow");
+        assert!(scene_front(&b, "c").is_empty());
+    }
 
     #[test]
     fn the_front_keeps_the_undominated() {
