@@ -1864,6 +1864,22 @@ fn the_renderer_runs_on_the_applications_device() {
     let (d, q) = open(features | wgpu::Features::FLOAT32_BLENDABLE, limits);
     let app = dhoit_runtime::gpu::Gpu::on_device(d.clone(), q.clone(), &info).unwrap();
     assert!(*app.device() == d);
+    // wgpu's default 32 bytes of colour attachments a sample hold MBOIT's four and six power
+    // moments (20 and 28) but not eight (36): those frames are refused, the limit named.
+    let (s8, cam8) = frame("hair", 1, 32, 24);
+    for moments in [4, 6, 8] {
+        let p = dhoit_runtime::composite::MboitParams::with_moments(moments).unwrap();
+        let r = app.render(&s8, &cam8, 32, 24, [1.0; 3], Some(Slots::Mboit(p)));
+        if moments == 8 && app.device().limits().max_color_attachment_bytes_per_sample < 36 {
+            let e = r.unwrap_err().to_string();
+            assert!(
+                e.contains("max_color_attachment_bytes_per_sample 36"),
+                "{e}"
+            );
+        } else {
+            assert!(r.is_ok(), "{moments} moments: {:?}", r.err());
+        }
+    }
     let (s, cam) = frame("particles", 1, 96, 72);
     let fl = rasterize(&s, &cam, 96, 72).unwrap();
     let mlp = dhoit_runtime::mlp::Mlp::random(4);

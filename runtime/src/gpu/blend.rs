@@ -164,12 +164,23 @@ impl Recording<'_, '_> {
                 )));
             }
         };
-        let Some((moments_pass, accumulate_pass)) = gpu.pipelines.mboit.as_ref().map(|m| &m[at])
-        else {
+        let Some((moments_pass, accumulate_pass)) = &gpu.pipelines.mboit[at] else {
+            let device = &gpu.device;
+            let missing = if !device
+                .features()
+                .contains(wgpu::Features::FLOAT32_BLENDABLE)
+            {
+                "FLOAT32_BLENDABLE (MBOIT adds its moments into 32-bit float targets)".to_string()
+            } else {
+                format!(
+                    "max_color_attachment_bytes_per_sample 36 for {moments} power moments (it \
+                     has {}; open the device with the adapter's limits)",
+                    device.limits().max_color_attachment_bytes_per_sample
+                )
+            };
             return Err(GpuError::DeviceLacks {
                 adapter: gpu.adapter().to_string(),
-                missing: "FLOAT32_BLENDABLE (MBOIT adds its moments into 32-bit float targets)"
-                    .into(),
+                missing,
             }
             .into());
         };

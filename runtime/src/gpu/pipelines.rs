@@ -31,8 +31,8 @@ pub(super) struct Pipelines {
     pub(super) wboit_composite: wgpu::ComputePipeline,
     /// MBOIT's two passes, where the device blends 32-bit floats (`FLOAT32_BLENDABLE`), and its
     /// composite.
-    /// For 4, 6 and 8 power moments.
-    pub(super) mboit: Option<[(wgpu::RenderPipeline, wgpu::RenderPipeline); 3]>,
+    /// For 4, 6 and 8 power moments, where the device can run them.
+    pub(super) mboit: [Option<(wgpu::RenderPipeline, wgpu::RenderPipeline)>; 3],
     pub(super) mboit_composite: wgpu::ComputePipeline,
     pub(super) list_store: wgpu::RenderPipeline,
     pub(super) list_resolve: wgpu::ComputePipeline,
@@ -566,19 +566,27 @@ impl Pipelines {
                 ],
             ),
             wboit_composite: compute_entry("blend_composite", "wboit"),
-            mboit: device
-                .features()
-                .contains(wgpu::Features::FLOAT32_BLENDABLE)
-                .then(|| {
-                    // 4, 6 and 8 power moments: 6 and 8 add a third target (RG32F, RGBA32F).
-                    let extra = [None, Some(Target::MBOIT_EXTRA6), Some(Target::MBOIT_EXTRA8)];
-                    let entry = ["fs_main", "fs_main6", "fs_main8"];
-                    std::array::from_fn(|i| {
-                        let mut targets = vec![
-                            (Target::MBOIT_B0.format, ADD),
-                            (Target::MBOIT_MOMENTS.format, ADD),
-                        ];
-                        targets.extend(extra[i].map(|t| (t.format, ADD)));
+            // 4, 6 and 8 power moments: 6 and 8 add a third target (RG32F, RGBA32F). Each
+            // where the device blends 32-bit floats and its colour attachments hold the
+            // moments' bytes a sample (eight take 36; wgpu's default limit is 32).
+            mboit: {
+                let blends = device
+                    .features()
+                    .contains(wgpu::Features::FLOAT32_BLENDABLE);
+                let room = device.limits().max_color_attachment_bytes_per_sample;
+                let extra = [None, Some(Target::MBOIT_EXTRA6), Some(Target::MBOIT_EXTRA8)];
+                let entry = ["fs_main", "fs_main6", "fs_main8"];
+                std::array::from_fn(|i| {
+                    let mut targets = vec![
+                        (Target::MBOIT_B0.format, ADD),
+                        (Target::MBOIT_MOMENTS.format, ADD),
+                    ];
+                    targets.extend(extra[i].map(|t| (t.format, ADD)));
+                    let bytes: u64 = targets
+                        .iter()
+                        .map(|t| t.0.block_copy_size(None).unwrap_or(0) as u64)
+                        .sum();
+                    (blends && bytes <= room as u64).then(|| {
                         (
                             blended_entry("mboit_moments", entry[i], &targets),
                             blended_entry(
@@ -588,7 +596,8 @@ impl Pipelines {
                             ),
                         )
                     })
-                }),
+                })
+            },
             mboit_composite: compute_entry("blend_composite", "mboit"),
             list_store: geometry("list_store"),
             list_resolve: compute("list_resolve"),
