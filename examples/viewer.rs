@@ -325,13 +325,13 @@ impl Method {
                 let (_, weights) = networks.get(net).context("no network for DKB")?;
                 let dkb = AllocatedOit::dkb(device, queue, (w, h), weights, budget, RGBA)?
                     .exact_when_cheaper(!always);
-                Oit::Deep(Box::new(dkb), Default::default())
+                Oit::Allocated(Box::new(dkb), Default::default())
             }
             Method::Vkb { budget, always } => {
                 let params = dhoit_runtime::importance::VkbParams::default();
                 let vkb = AllocatedOit::vkb(device, queue, (w, h), params, budget, RGBA)?
                     .exact_when_cheaper(!always);
-                Oit::Deep(Box::new(vkb), Default::default())
+                Oit::Allocated(Box::new(vkb), Default::default())
             }
             Method::Exact => Oit::Exact(Box::new(ExactOit::new(device, queue, (w, h))?)),
             Method::Fkb { k } => Oit::Once(Box::new(KBufferOit::new(device, queue, (w, h), k)?)),
@@ -379,7 +379,7 @@ struct App {
 struct Frame {
     oit: Oit,
     opaque_pipeline: wgpu::RenderPipeline,
-    /// One transparent pipeline, or DKB's one a phase.
+    /// One transparent pipeline, or DKB's and VKB's one a phase.
     transparent_pipelines: Vec<(Option<Phase>, wgpu::RenderPipeline)>,
     image_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
@@ -650,7 +650,7 @@ impl App {
         let oit_group = match &oit {
             Oit::Once(o) => Some(o.bind_group(&depth_view)),
             Oit::Exact(o) => Some(o.count_group(&depth_view)), // the A-buffer's first draw counts
-            Oit::Deep(..) => None,                             // DKB's groups come with its passes
+            Oit::Allocated(..) => None,                        // DKB's groups come with its passes
         };
         let layout = |groups: &[Option<&wgpu::BindGroupLayout>]| {
             device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -823,7 +823,7 @@ impl App {
         let transparent = |enc: &mut wgpu::CommandEncoder, group, phase, times| {
             self.transparent(frame, enc, group, phase, times)
         };
-        if let Oit::Deep(dkb, last) = &frame.oit {
+        if let Oit::Allocated(dkb, last) = &frame.oit {
             // dhoit: the opaque pass submitted, DKB's frame calls the draws back for each of its
             // geometry passes (count, features, capture; or the A-buffer's store), resolves
             // onto the target and says what it did.
@@ -923,7 +923,7 @@ impl App {
             match &frame.oit {
                 Oit::Exact(_) => [ms(0), ms(1) + ms(3), ms(2), 0.0],
                 Oit::Once(_) => [ms(0), ms(1), ms(2), 0.0],
-                Oit::Deep(_, last) => {
+                Oit::Allocated(_, last) => {
                     let last = last.lock().unwrap_or_else(|e| e.into_inner());
                     let passes = last.as_ref().map_or(&[][..], |f| &f.pass_ms[..]);
                     let sum = |names: &[&str], of: bool| {
@@ -947,19 +947,19 @@ impl App {
     }
 }
 
-/// dhoit's method: one drawn once, the exact A-buffer, drawn twice, or DKB, drawn into each of
-/// its passes (with what its last frame did).
+/// dhoit's method: one drawn once, the exact A-buffer, drawn twice, or DKB or VKB, drawn into
+/// each of its passes (with what its last frame did).
 enum Oit {
     Once(Box<dyn ApplicationOit>),
     Exact(Box<ExactOit>),
-    Deep(Box<AllocatedOit>, std::sync::Mutex<Option<AllocatedFrame>>),
+    Allocated(Box<AllocatedOit>, std::sync::Mutex<Option<AllocatedFrame>>),
 }
 
 impl Oit {
-    /// The passes the application builds a transparent pipeline for: one, or DKB's.
+    /// The passes the application builds a transparent pipeline for: one, or DKB's or VKB's.
     fn phases(&self) -> Vec<Option<Phase>> {
         match self {
-            Oit::Deep(o, _) => o.phases().iter().copied().map(Some).collect(),
+            Oit::Allocated(o, _) => o.phases().iter().copied().map(Some).collect(),
             _ => vec![None],
         }
     }
@@ -967,29 +967,29 @@ impl Oit {
         match (self, phase) {
             (Oit::Once(o), _) => o.store_module(group),
             (Oit::Exact(_), _) => ExactOit::wgsl(group),
-            (Oit::Deep(o, _), Some(phase)) => o.store_module(phase, group),
-            (Oit::Deep(..), None) => unreachable!("DKB's modules are one a pass"),
+            (Oit::Allocated(o, _), Some(phase)) => o.store_module(phase, group),
+            (Oit::Allocated(..), None) => unreachable!("DKB's modules are one a pass"),
         }
     }
     fn bind_group_layout(&self, phase: Option<Phase>) -> &wgpu::BindGroupLayout {
         match (self, phase) {
             (Oit::Once(o), _) => o.bind_group_layout(),
             (Oit::Exact(o), _) => o.bind_group_layout(),
-            (Oit::Deep(o, _), Some(phase)) => o.bind_group_layout(phase),
-            (Oit::Deep(..), None) => unreachable!("DKB's groups are one a pass"),
+            (Oit::Allocated(o, _), Some(phase)) => o.bind_group_layout(phase),
+            (Oit::Allocated(..), None) => unreachable!("DKB's groups are one a pass"),
         }
     }
     fn clear(&self, enc: &mut wgpu::CommandEncoder) {
         match self {
             Oit::Once(o) => o.clear(enc),
             Oit::Exact(o) => o.clear(enc),
-            Oit::Deep(..) => {} // DKB's frame clears its own
+            Oit::Allocated(..) => {} // DKB's frame clears its own
         }
     }
     /// Whether DKB's last frame rendered the exact A-buffer instead, as a note.
     fn exact_note(&self) -> &'static str {
         match self {
-            Oit::Deep(_, last) => match &*last.lock().unwrap_or_else(|e| e.into_inner()) {
+            Oit::Allocated(_, last) => match &*last.lock().unwrap_or_else(|e| e.into_inner()) {
                 Some(f) if f.exact => " (exact: the A-buffer needed no more bytes)",
                 _ => "",
             },
@@ -1006,7 +1006,7 @@ impl Oit {
         match self {
             Oit::Once(o) => o.resolve(enc, views.0, views.1, format, timestamps),
             Oit::Exact(o) => o.resolve(enc, views.0, views.1, format, timestamps),
-            Oit::Deep(..) => Ok(()), // resolved by its frame
+            Oit::Allocated(..) => Ok(()), // resolved by its frame
         }
     }
     /// Bytes the method holds (DKB: its last frame's).
@@ -1014,7 +1014,7 @@ impl Oit {
         match self {
             Oit::Once(o) => o.allocated_bytes(),
             Oit::Exact(o) => o.allocated_bytes(),
-            Oit::Deep(_, last) => last
+            Oit::Allocated(_, last) => last
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .as_ref()
@@ -1289,51 +1289,44 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                     },
                     _ => m,
                 },
-                Key::Character("+" | "=") => match m {
-                    Method::List { fpp, sorted } => Method::List {
-                        fpp: (fpp * 2.0).min(64.0),
-                        sorted,
-                    },
-                    Method::Fkb { k } => Method::Fkb { k: (k * 2).min(64) },
-                    Method::Dkb {
-                        budget,
-                        net,
-                        always,
-                    } => Method::Dkb {
-                        budget: scaled(budget, 2.0),
-                        net,
-                        always,
-                    },
-                    Method::Vkb { budget, always } => Method::Vkb {
-                        budget: scaled(budget, 2.0),
-                        always,
-                    },
-                    Method::Exact => m,
-                },
-                Key::Character("-") => match m {
-                    Method::List { fpp, sorted } => Method::List {
-                        fpp: (fpp / 2.0).max(0.125),
-                        sorted,
-                    },
-                    Method::Fkb { k } => Method::Fkb { k: (k / 2).max(1) },
-                    Method::Dkb {
-                        budget,
-                        net,
-                        always,
-                    } => Method::Dkb {
-                        budget: scaled(budget, 0.5),
-                        net,
-                        always,
-                    },
-                    Method::Vkb { budget, always } => Method::Vkb {
-                        budget: scaled(budget, 0.5),
-                        always,
-                    },
-                    Method::Exact => m,
-                },
+                Key::Character("+" | "=") => resized(m, true),
+                Key::Character("-") => resized(m, false),
                 _ => m,
             };
             self.method != m
+        }
+    }
+
+    /// `m` with its budget doubled (`up`) or halved: the list's fragments a pixel, FKB's k,
+    /// DKB's and VKB's budget.
+    fn resized(m: Method, up: bool) -> Method {
+        let by = if up { 2.0 } else { 0.5 };
+        match m {
+            Method::List { fpp, sorted } => Method::List {
+                fpp: if up {
+                    (fpp * 2.0).min(64.0)
+                } else {
+                    (fpp / 2.0).max(0.125)
+                },
+                sorted,
+            },
+            Method::Fkb { k } => Method::Fkb {
+                k: if up { (k * 2).min(64) } else { (k / 2).max(1) },
+            },
+            Method::Dkb {
+                budget,
+                net,
+                always,
+            } => Method::Dkb {
+                budget: scaled(budget, by),
+                net,
+                always,
+            },
+            Method::Vkb { budget, always } => Method::Vkb {
+                budget: scaled(budget, by),
+                always,
+            },
+            Method::Exact => m,
         }
     }
 

@@ -37,11 +37,11 @@ struct Targets8 {
     @location(2) extra: vec4<f32>,
 };
 
-fn moments8(in: VertexOut, front: bool) -> Targets8 {
+// Both six and eight moments' pass: the third target's format (RG32F or RGBA32F) keeps what
+// it holds.
+@fragment
+fn fs_extra(in: VertexOut, @builtin(front_facing) front: bool) -> Targets8 {
     var out: Targets8;
-    out.b0 = vec4<f32>(0.0);
-    out.moments = vec4<f32>(0.0);
-    out.extra = vec4<f32>(0.0);
     let f = transparent_fragment(in, front);
     if (!f.visible) {
         discard;
@@ -56,14 +56,4 @@ fn moments8(in: VertexOut, front: bool) -> Targets8 {
     out.moments = vec4<f32>(a * z, a * z2, a * z2 * z, a * z2 * z2);
     out.extra = vec4<f32>(a * z4 * z, a * z4 * z2, a * z6 * z, a * z4 * z4);
     return out;
-}
-
-@fragment
-fn fs_main6(in: VertexOut, @builtin(front_facing) front: bool) -> Targets8 {
-    return moments8(in, front);
-}
-
-@fragment
-fn fs_main8(in: VertexOut, @builtin(front_facing) front: bool) -> Targets8 {
-    return moments8(in, front);
 }

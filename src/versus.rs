@@ -265,22 +265,36 @@ fn measure(
 /// One memory's trade: each method's means over the frames it ran (`at_x[method]`), the front of
 /// the means among the methods that ran all `frames`, and each method's count of per-frame
 /// fronts it is on.
-fn trade_at(x: f64, methods: &[Method], at_x: &[Vec<Measure>], frames: usize) -> BudgetTrade {
+/// (GPU ms, MSE, FLIP) over `frames`: geometric means (MSE floored as `compare`'s summary
+/// does), FLIP's arithmetic mean.
+fn means(frames: &[Measure]) -> [f64; 3] {
     let floor = crate::compare::MSE_FLOOR;
     let geomean = |v: Vec<f64>| crate::compare::geomean(&v);
+    [
+        geomean(frames.iter().map(|x| x.gpu_ms).collect()),
+        geomean(frames.iter().map(|x| x.mse.max(floor)).collect()),
+        frames.iter().map(|x| x.flip).sum::<f64>() / frames.len() as f64,
+    ]
+}
+
+fn trade_at(x: f64, methods: &[Method], at_x: &[Vec<Measure>], frames: usize) -> BudgetTrade {
     let mut points: Vec<Point> = methods
         .iter()
         .zip(at_x)
         .filter(|(_, fr)| !fr.is_empty())
-        .map(|(m, fr)| Point {
-            method: m.name().to_string(),
-            gpu_ms: geomean(fr.iter().map(|x| x.gpu_ms).collect()),
-            mse: geomean(fr.iter().map(|x| x.mse.max(floor)).collect()),
-            flip: fr.iter().map(|x| x.flip).sum::<f64>() / fr.len() as f64,
-            bytes_per_pixel: fr.iter().map(|x| x.bytes_per_pixel).sum::<f64>() / fr.len() as f64,
-            front_frames: 0,
-            front: false,
-            frames: fr.clone(),
+        .map(|(m, fr)| {
+            let [gpu_ms, mse, flip] = means(fr);
+            Point {
+                method: m.name().to_string(),
+                gpu_ms,
+                mse,
+                flip,
+                bytes_per_pixel: fr.iter().map(|x| x.bytes_per_pixel).sum::<f64>()
+                    / fr.len() as f64,
+                front_frames: 0,
+                front: false,
+                frames: fr.clone(),
+            }
         })
         .collect();
     // The front of the means, among the methods that ran every frame (a mean over fewer frames
@@ -337,7 +351,6 @@ fn count_frame_fronts(points: &mut [Point]) {
 /// (GPU ms, MSE, FLIP) over them (geometric means, FLIP's mean), and whether it is on that
 /// scene's front (no other such method as fast and as accurate).
 fn scene_front(b: &BudgetTrade, scene: &str) -> Vec<(String, [f64; 3], bool)> {
-    let floor = crate::compare::MSE_FLOOR;
     let views = b
         .points
         .iter()
@@ -348,16 +361,13 @@ fn scene_front(b: &BudgetTrade, scene: &str) -> Vec<(String, [f64; 3], bool)> {
         .points
         .iter()
         .filter_map(|p| {
-            let fr: Vec<&Measure> = p.frames.iter().filter(|f| f.scene == scene).collect();
-            (views > 0 && fr.len() == views).then(|| {
-                let g = |v: Vec<f64>| crate::compare::geomean(&v);
-                let key = [
-                    g(fr.iter().map(|f| f.gpu_ms).collect()),
-                    g(fr.iter().map(|f| f.mse.max(floor)).collect()),
-                    fr.iter().map(|f| f.flip).sum::<f64>() / fr.len() as f64,
-                ];
-                (p.method.clone(), key)
-            })
+            let fr: Vec<Measure> = p
+                .frames
+                .iter()
+                .filter(|f| f.scene == scene)
+                .cloned()
+                .collect();
+            (views > 0 && fr.len() == views).then(|| (p.method.clone(), means(&fr)))
         })
         .collect();
     let keys: Vec<[f64; 3]> = ran.iter().map(|r| r.1).collect();

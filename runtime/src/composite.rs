@@ -273,7 +273,7 @@ pub fn mboit_transmittance(b0: f32, b: [f32; 4], z: f32, p: MboitParams) -> f32 
 }
 
 /// [`mboit_transmittance`] from `p.moments` power moments `b` (b_1..b_n over b_0; the rest
-/// unread): four as there; six and eight as the paper reconstructs them (the 4x4 or 5x5 Hankel
+/// unread): four (or any count but six and eight) as there; six and eight as the paper reconstructs them (the 4x4 or 5x5 Hankel
 /// matrix's Cholesky factorization, the cubic or quartic whose roots are the distribution's
 /// other points, the interpolation polynomial through them). mboit.wgsl's
 /// `transmittance_n`, operation for operation. Where 32-bit floats cannot form that
@@ -627,10 +627,7 @@ fn mboit_passes(frags: &[Fragment], bg: [f32; 3], p: MboitParams, sums: Sums) ->
     let mut acc = [0.0f32; 4];
     for f in frags {
         let z = 2.0 * f.depth - 1.0;
-        let t = match p.moments {
-            4 => mboit_transmittance(b0, [m[0], m[1], m[2], m[3]], z, p),
-            _ => mboit_transmittance_n(b0, m, z, p),
-        } * f.rgba[3];
+        let t = mboit_transmittance_n(b0, m, z, p) * f.rgba[3];
         let src = [t * f.rgba[0], t * f.rgba[1], t * f.rgba[2], t];
         for (s, v) in acc.iter_mut().zip(src) {
             *s = sums.add(*s, v);

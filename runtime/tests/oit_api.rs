@@ -79,19 +79,19 @@ fn fs_opaque(in: V) -> @location(0) vec4<f32> {
 /// dhoit's methods, made on the application's device by `make`; returns the target's RGB,
 /// row-major.
 /// One of dhoit's methods on the application's device: one drawn once, the exact A-buffer,
-/// drawn twice (count, then store), or DKB, drawn into each geometry pass it records (one
+/// drawn twice (count, then store), or DKB or VKB, drawn into each geometry pass it records (one
 /// pipeline a phase).
 enum AppOit {
     Once(Box<dyn ApplicationOit>),
     Exact(Box<ExactOit>),
-    Deep(Box<AllocatedOit>),
+    Allocated(Box<AllocatedOit>),
 }
 
 impl AppOit {
     /// The phases the application builds a transparent pipeline for (DKB's; one for the rest).
     fn phases(&self) -> Vec<Option<Phase>> {
         match self {
-            AppOit::Deep(o) => o.phases().iter().copied().map(Some).collect(),
+            AppOit::Allocated(o) => o.phases().iter().copied().map(Some).collect(),
             _ => vec![None],
         }
     }
@@ -99,16 +99,16 @@ impl AppOit {
         match (self, phase) {
             (AppOit::Once(o), _) => o.store_module(group),
             (AppOit::Exact(_), _) => ExactOit::wgsl(group),
-            (AppOit::Deep(o), Some(phase)) => o.store_module(phase, group),
-            (AppOit::Deep(_), None) => unreachable!("DKB's pipelines are one a phase"),
+            (AppOit::Allocated(o), Some(phase)) => o.store_module(phase, group),
+            (AppOit::Allocated(_), None) => unreachable!("DKB's pipelines are one a phase"),
         }
     }
     fn bind_group_layout(&self, phase: Option<Phase>) -> &wgpu::BindGroupLayout {
         match (self, phase) {
             (AppOit::Once(o), _) => o.bind_group_layout(),
             (AppOit::Exact(o), _) => o.bind_group_layout(),
-            (AppOit::Deep(o), Some(phase)) => o.bind_group_layout(phase),
-            (AppOit::Deep(_), None) => unreachable!("DKB's pipelines are one a phase"),
+            (AppOit::Allocated(o), Some(phase)) => o.bind_group_layout(phase),
+            (AppOit::Allocated(_), None) => unreachable!("DKB's pipelines are one a phase"),
         }
     }
 }
@@ -434,7 +434,7 @@ fn app_frame_from(
             oit.resolve(&mut enc, &under_view, &target_view, f32x4, None)
                 .unwrap();
         }
-        AppOit::Deep(oit) => {
+        AppOit::Allocated(oit) => {
             // Its opaque pass first, then DKB's frame, which calls it back for each pass.
             queue.submit([enc.finish()]);
             let frame = oit
@@ -694,7 +694,7 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
             for reversed in [false, true] {
                 let (app, frame) = app_frame(&s, (w, h), reversed, |d, q| {
                     let oit = AllocatedOit::new(d, q, (w, h), method.clone(), b, f32x4).unwrap();
-                    AppOit::Deep(Box::new(oit.exact_when_cheaper(false)))
+                    AppOit::Allocated(Box::new(oit.exact_when_cheaper(false)))
                 });
                 let frame = frame.unwrap();
                 let worst = worst_difference(&app, &harness.image.data);
@@ -718,7 +718,7 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
         let (app, frame) = app_frame(&s, (w, h), false, |d, q| {
             let b = Budget::parse("25%").unwrap();
             let oit = AllocatedOit::new(d, q, (w, h), method.clone(), b, f32x4).unwrap();
-            AppOit::Deep(Box::new(oit))
+            AppOit::Allocated(Box::new(oit))
         });
         let frame = frame.unwrap();
         assert!(frame.exact, "{name}: the A-buffer is cheaper here");
@@ -793,7 +793,7 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
                         _ => AllocatedMethod::Vkb(vkb),
                     };
                     let oit = AllocatedOit::new(d, q, (w, h), method, b, f32x4).unwrap();
-                    AppOit::Deep(Box::new(oit.exact_when_cheaper(false)))
+                    AppOit::Allocated(Box::new(oit.exact_when_cheaper(false)))
                 }
             });
             let worst = worst_difference(&app, &harness.image.data);

@@ -1,13 +1,14 @@
 //! The allocated k-buffers (DKB: the network's k per pixel within a budget; VKB: paper 002's
-//! importance maps) in an application's own renderer. dhoit runs its own frame, every compute pass as [`Gpu::render`] runs it, on the
-//! application's device; where that frame would draw one of its geometry passes, the
-//! application draws its own transparent geometry, with its own pipeline built on the module
-//! [`AllocatedOit::store_module`] gives for that pass (dhoit's pass code, not a copy) and the group
-//! dhoit hands it. The resolve composites onto the application's target over its image.
+//! importance maps) in an application's own renderer. dhoit runs its own frame, every compute
+//! pass as [`Gpu::render`] runs it, on the application's device; where that frame would draw
+//! one of its geometry passes, the application draws its own transparent geometry, with its
+//! own pipeline built on the module [`AllocatedOit::store_module`] gives for that pass
+//! (dhoit's pass code, not a copy) and the group dhoit hands it. The resolve composites onto
+//! the application's target over its image.
 
 use std::cell::RefCell;
 
-use super::oit::{check_target_format, onto_pipeline};
+use super::oit::{check_target_format, fragment_group_layout, onto_pipeline};
 use super::{DkbGeometry, FrameOptions, Gpu, Slots};
 use crate::budget::{self, Budget, FragmentBudget};
 use crate::error::Result;
@@ -87,11 +88,9 @@ impl Phase {
         }
     }
 
+    /// Its place in [`Phase::ALL`] (declaration order).
     fn index(self) -> usize {
-        Phase::ALL
-            .iter()
-            .position(|&p| p == self)
-            .expect("every phase")
+        self as usize
     }
 
     /// The phase of dhoit's geometry pipeline `pipeline`.
@@ -392,17 +391,7 @@ impl AllocatedOit {
 
 /// A phase's group layout: the pass's buffers, the parameters (14), the opaque depth (15).
 fn phase_layout(device: &wgpu::Device, phase: Phase) -> wgpu::BindGroupLayout {
-    let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::FRAGMENT,
-        ty: wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    };
-    let mut entries: Vec<_> = phase
+    let mut buffers: Vec<_> = phase
         .bindings()
         .iter()
         .enumerate()
@@ -412,24 +401,11 @@ fn phase_layout(device: &wgpu::Device, phase: Phase) -> wgpu::BindGroupLayout {
                 Binding::ReadWrite => wgpu::BufferBindingType::Storage { read_only: false },
                 Binding::Uniform => wgpu::BufferBindingType::Uniform,
             };
-            buffer(i as u32, ty)
+            (i as u32, ty)
         })
         .collect();
-    entries.push(buffer(14, wgpu::BufferBindingType::Uniform));
-    entries.push(wgpu::BindGroupLayoutEntry {
-        binding: 15,
-        visibility: wgpu::ShaderStages::FRAGMENT,
-        ty: wgpu::BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Depth,
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
-    });
-    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some(&format!("dhoit {phase:?}")),
-        entries: &entries,
-    })
+    buffers.push((14, wgpu::BufferBindingType::Uniform));
+    fragment_group_layout(device, &format!("dhoit {phase:?}"), &buffers, 15)
 }
 
 /// An application's frame, as the frame's passes see it ([`super::passes::Passes`]).
@@ -481,27 +457,17 @@ impl AppGeometry for AppDraws<'_, '_> {
         timestamps: wgpu::RenderPassTimestampWrites<'_>,
     ) {
         let phase = Phase::of(gpu, pipeline);
-        let mut entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        entries.push(wgpu::BindGroupEntry {
-            binding: 14,
-            resource: params.as_entire_binding(),
-        });
-        entries.push(wgpu::BindGroupEntry {
-            binding: 15,
-            resource: wgpu::BindingResource::TextureView(self.opaque_depth),
-        });
-        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("dhoit k-buffer"),
-            layout: &self.layouts[phase.index()],
-            entries: &entries,
-        });
+        let extra = vec![
+            wgpu::BindGroupEntry {
+                binding: 14,
+                resource: params.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 15,
+                resource: wgpu::BindingResource::TextureView(self.opaque_depth),
+            },
+        ];
+        let group = gpu.bind_with(&self.layouts[phase.index()], buffers, extra);
         (self.draw.borrow_mut())(
             enc,
             PhaseDraw {
@@ -527,7 +493,8 @@ impl AppGeometry for AppDraws<'_, '_> {
             .position(|q| *q == pipeline)
             .map(|i| &self.onto[i])
             .expect("an AllocatedOit frame resolves only with the k-buffer's and the A-buffer's resolves");
-        let mut entries: Vec<wgpu::BindGroupEntry> = buffers
+        // The buffers at their bindings but the image (the application's target instead).
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
             .filter(|(i, _)| *i != image_at)
@@ -535,20 +502,18 @@ impl AppGeometry for AppDraws<'_, '_> {
                 binding: i as u32,
                 resource: b.as_entire_binding(),
             })
+            .chain([
+                wgpu::BindGroupEntry {
+                    binding: 8,
+                    resource: wgpu::BindingResource::TextureView(self.under),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 9,
+                    resource: wgpu::BindingResource::TextureView(self.target),
+                },
+            ])
             .collect();
-        entries.push(wgpu::BindGroupEntry {
-            binding: 8,
-            resource: wgpu::BindingResource::TextureView(self.under),
-        });
-        entries.push(wgpu::BindGroupEntry {
-            binding: 9,
-            resource: wgpu::BindingResource::TextureView(self.target),
-        });
-        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("dhoit k-buffer resolve"),
-            layout: &onto.get_bind_group_layout(0),
-            entries: &entries,
-        });
+        let group = gpu.bind_with(&onto.get_bind_group_layout(0), &[], entries);
         pass.set_pipeline(onto);
         pass.set_bind_group(0, &group, &[]);
         pass.dispatch_workgroups(gx, gy, 1);

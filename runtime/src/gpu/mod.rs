@@ -1036,8 +1036,9 @@ impl Gpu {
     /// texture coordinates, materials, texels, the sRGB table), the index buffer, the R8 target
     /// rasterization needs (never written; counted in the frame's bytes) and the opaque pass's
     /// depth and colour targets.
-    /// For an application's frame (`app`), the R8 target is a texel (its draws have their own
-    /// attachments) and counted for no method.
+    /// For an application's frame (`app`), the R8 target and the opaque targets are a texel each
+    /// (its draws have their own attachments, its opaque pass its own targets), counted for no
+    /// method.
     fn frame_inputs(
         &self,
         fb: &mut FrameBuffers,

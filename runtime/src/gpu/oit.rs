@@ -173,38 +173,13 @@ impl AppSide {
     /// The application's group: `storage` (read-write storage at bindings 0..), `uniform` at
     /// the next binding, the opaque depth after it.
     fn store_group(&mut self, storage: &[&wgpu::Buffer], uniform: wgpu::Buffer) {
-        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
         let n = storage.len() as u32;
-        let mut entries: Vec<_> = (0..n)
-            .map(|i| buffer(i, wgpu::BufferBindingType::Storage { read_only: false }))
+        let mut buffers: Vec<_> = (0..n)
+            .map(|i| (i, wgpu::BufferBindingType::Storage { read_only: false }))
             .collect();
-        entries.push(buffer(n, wgpu::BufferBindingType::Uniform));
-        entries.push(wgpu::BindGroupLayoutEntry {
-            binding: n + 1,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Depth,
-                view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
-            },
-            count: None,
-        });
+        buffers.push((n, wgpu::BufferBindingType::Uniform));
         let label = format!("dhoit {}", self.name);
-        self.layout = Some(self.device.create_bind_group_layout(
-            &wgpu::BindGroupLayoutDescriptor {
-                label: Some(&label),
-                entries: &entries,
-            },
-        ));
+        self.layout = Some(fragment_group_layout(&self.device, &label, &buffers, n + 1));
         self.store = storage.iter().map(|&b| b.clone()).collect();
         self.store.push(uniform);
     }
@@ -303,6 +278,43 @@ impl AppSide {
         built.push((format, p.clone()));
         Ok(p)
     }
+}
+
+/// The layout of the group an application's transparent fragment stage binds: `buffers` at
+/// their bindings, each of its type, and the opaque depth texture at `depth_at`.
+pub(super) fn fragment_group_layout(
+    device: &wgpu::Device,
+    label: &str,
+    buffers: &[(u32, wgpu::BufferBindingType)],
+    depth_at: u32,
+) -> wgpu::BindGroupLayout {
+    let mut entries: Vec<_> = buffers
+        .iter()
+        .map(|&(binding, ty)| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        })
+        .collect();
+    entries.push(wgpu::BindGroupLayoutEntry {
+        binding: depth_at,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Depth,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    });
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &entries,
+    })
 }
 
 /// The WGSL name of `format`, one of [`TARGET_FORMATS`]; another is refused, naming `what`

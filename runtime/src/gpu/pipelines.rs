@@ -575,6 +575,8 @@ impl Pipelines {
                     .contains(wgpu::Features::FLOAT32_BLENDABLE);
                 let room = device.limits().max_color_attachment_bytes_per_sample;
                 let extra = [None, Some(Target::MBOIT_EXTRA6), Some(Target::MBOIT_EXTRA8)];
+                // The moments pass of six and eight is one entry; the accumulation's two.
+                let moments_entry = ["fs_main", "fs_extra", "fs_extra"];
                 let entry = ["fs_main", "fs_main6", "fs_main8"];
                 std::array::from_fn(|i| {
                     let mut targets = vec![
@@ -588,7 +590,7 @@ impl Pipelines {
                         .sum();
                     (blends && bytes <= room as u64).then(|| {
                         (
-                            blended_entry("mboit_moments", entry[i], &targets),
+                            blended_entry("mboit_moments", moments_entry[i], &targets),
                             blended_entry(
                                 "mboit_accumulate",
                                 entry[i],
