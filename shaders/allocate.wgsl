@@ -26,6 +26,7 @@
 // the largest t whose total fits, and the totals grow with t.
 //   mark:    flags[p] = 1 where k rises at a + 1 (then prefix-summed in place by the scan)
 //   apply:   k = k(a) + 1 for the first (target - total(a)) marked pixels, in the weight's place
+//            (its span, k and its tail's words, where the tails are pooled: params.pooled_tail)
 
 struct Alloc {
     // F, when ppm is 0.
@@ -340,6 +341,7 @@ fn apply(
     let base = k_at(a, w[p], n, lo);
     let rises = k_at(a + 1lu, w[p], n, lo) > base;
     // `flags` holds the exclusive prefix of the marks: marked pixels before p. The weight read,
-    // k takes its place.
-    w[p] = base + select(0u, 1u, rises && u64(flags[p]) < left);
+    // k takes its place, or with the tails pooled its span (common.wgsl's span_of).
+    let k = base + select(0u, 1u, rises && u64(flags[p]) < left);
+    w[p] = select(k, span_of(k, n), params.pooled_tail != 0u);
 }

@@ -19,7 +19,9 @@
 // (the pixels' modes then follow from the slot bases alone; see below).
 
 // Per pixel (pixels + 1 entries): its slot bases, the exclusive prefix sums of k, so a pixel's
-// k is its bases' difference (k is not stored beside them).
+// k is its bases' difference (k is not stored beside them); with the tails pooled
+// (params.pooled_tail), of its span: k slots, then TAIL_WORDS words of its tail where it keeps
+// one (common.wgsl's has_tail), the per-pixel tail buffers then unused.
 @group(1) @binding(0) var<storage, read> slot_base: array<u32>;
 @group(1) @binding(1) var<storage, read_write> oit_slots: array<atomic<u64>>;
 // Per pixel: sum c8 a8 for r, g, b, sum a8 (four 32-bit words, as resolve.wgsl reads them),
@@ -42,6 +44,18 @@ fn oit_slot_at(base: u32, i: u32, p: u32) -> u32 {
     return slot_at(base, i, p);
 }
 
+// No pooled tail (a pixel without one: k = n <= 1, common.wgsl's has_tail).
+const NO_TAIL: u32 = 0xffffffffu;
+
+// The key `out` pushed out of a pixel's slots into its pooled tail at pool word t: the two sum
+// words, then the count in the third word's low half.
+fn pooled_to_tail(t: u32, out: u64) {
+    let w = oit_tail_words(out);
+    atomicAdd(&oit_slots[t], w.x);
+    atomicAdd(&oit_slots[t + 1u], w.y);
+    atomicAdd(&oit_slots[t + 2u], 1lu);
+}
+
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
     let f = transparent_fragment(in, front);
@@ -51,11 +65,28 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     let p = pixel_index(in.clip, params.width);
     let key = ~fragment_key(in.clip.z, f.rgba8);
     if (EVERY_FRAGMENT_FITS) {
+        let base = slot_base[p];
+        var n = slot_base[p + 1u] - base;
+        if (params.pooled_tail != 0u) {
+            // The bases hold spans: n slots, and a tail (the cursor) where n >= 2.
+            let span = n;
+            n = k_of_span(span);
+            if (span < 2u) {
+                // Its one fragment.
+                oit_insert(p, base, n, key);
+                return vec4<f32>(0.0);
+            }
+            let i = u32(atomicAdd(&oit_slots[base + n + 2u], 1lu));
+            if (n > APPEND_MAX) {
+                oit_insert(p, base, n, key);
+            } else if (i < n) {
+                atomicStore(&oit_slots[base + i], key);
+            }
+            return vec4<f32>(0.0);
+        }
         // As the A-buffer's store: the cursor's atomic does not wait for the bases' loads
         // (deeper pixels count too, unused; the resolve clears every pixel's count).
         let i = atomicAdd(&oit_tail_count[p], 1u);
-        let base = slot_base[p];
-        let n = slot_base[p + 1u] - base;
         if (n <= APPEND_MAX) {
             atomicStore(&oit_slots[base + i], key);
         } else {
@@ -65,16 +96,35 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     }
     var k = params.k_uniform;
     var base = p * params.k_uniform;
+    var tail = NO_TAIL;
     if (k == 0u) {
         base = slot_base[p];
         k = slot_base[p + 1u] - base;
+        if (params.pooled_tail != 0u) {
+            let span = k;
+            k = k_of_span(span);
+            if (span >= 2u) {
+                tail = base + k;
+            }
+        }
     }
+    let pooled = params.pooled_tail != 0u;
     if (params.append != 0u) {
         let n = count[p];
-        if (appends(k, n)) {
-            let i = atomicAdd(&oit_tail_count[p], 1u);
+        if (appends(k, n) && !(pooled && tail == NO_TAIL)) {
+            var i = 0u;
+            if (pooled) {
+                i = u32(atomicAdd(&oit_slots[tail + 2u], 1lu));
+            } else {
+                i = atomicAdd(&oit_tail_count[p], 1u);
+            }
             if (i < k) {
                 atomicStore(&oit_slots[base + i], key);
+            } else if (pooled) {
+                // A spilled key in the tail's two sum words.
+                if (i - k < APPEND_SPILL) {
+                    atomicStore(&oit_slots[tail + (i - k)], key);
+                }
             } else {
                 // A spilled key in two of the tail's sum words, low half first.
                 atomicStore(&oit_tail[2u * p + (i - k)], key);
@@ -82,10 +132,16 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
             return vec4<f32>(0.0);
         }
     }
+    // Where a pixel keeps no pooled tail, its k = n <= 1 slots hold all it has: nothing is
+    // pushed out.
     let out = oit_insert(p, base, k, key);
     if (out == 0lu) {
         return vec4<f32>(0.0);
     }
-    oit_to_tail(p, out);
+    if (!pooled) {
+        oit_to_tail(p, out);
+    } else if (tail != NO_TAIL) {
+        pooled_to_tail(tail, out);
+    }
     return vec4<f32>(0.0);
 }

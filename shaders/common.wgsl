@@ -37,6 +37,8 @@ struct Params {
     mboit_overestimation: f32,
     // The linked list's fragments a pixel sorted at resolve (list_resolve.wgsl).
     list_sorted: u32,
+    // 1 when the k-buffer's tails live in its slot pool after each pixel's k slots (wgsl::Params).
+    pooled_tail: u32,
 };
 
 // A material (wgsl::GpuMaterial; scene::material): base colour factor, its texture (where its
@@ -124,6 +126,22 @@ fn slot_at(base: u32, i: u32, p: u32) -> u32 {
         return i * params.pixels + p;
     }
     return base + i;
+}
+
+// The pooled tail (params.pooled_tail, shared::has_tail): a pixel keeps TAIL_WORDS words after
+// its k slots wherever it may truncate or holds two fragments or more, so the slot bases are the
+// prefix sums of its span, k + TAIL_WORDS or (no tail: k = n <= 1) k.
+fn has_tail(k: u32, n: u32) -> bool {
+    return k < n || n >= 2u;
+}
+
+fn span_of(k: u32, n: u32) -> u32 {
+    return k + select(0u, TAIL_WORDS, has_tail(k, n));
+}
+
+// k from a pixel's span; a span of 2 or more holds a tail (shared::k_of_span).
+fn k_of_span(span: u32) -> u32 {
+    return select(span, span - TAIL_WORDS, span >= 2u);
 }
 
 // The capture's mode for a pixel of k slots and n fragments (composite::appends): append

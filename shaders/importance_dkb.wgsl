@@ -1,35 +1,33 @@
 // DKB importance (compute): the 12 features of importance::pixel_features from the features
-// pass's statistics and the totals, computed here and never stored, standardised, through the
-// MLP of mlp.wgsl (the same source `dhoit predict --device gpu` runs). Four entry points in
-// one compute pass, sharing one explicit layout (gpu::Pipelines::network_layout):
-//   select:  one invocation a pixel: a pixel the network decides is appended to a list (its
-//            index; the list lives in the frame's shared word, dead until then), every other
-//            pixel gets its importance here (0, or its pair mark where forced);
+// pass's records and the totals, computed here and never stored, standardised, through the MLP
+// of mlp.wgsl (the same source `dhoit predict --device gpu` runs). Four entry points in one
+// compute pass, sharing one explicit layout (gpu::Pipelines::network_layout):
+//   select:  one invocation a record (a pixel of two fragments or more; records.wgsl): a
+//            record the network decides is appended to a list (its index), every other gets
+//            its importance here (0, or its pair mark where forced);
 //   args:    the list's length -> the workgroups of an indirect dispatch (a 2-D grid);
-//   network: one invocation a listed pixel: its features again, the network, its importance;
-//   gather:  one invocation a pixel: its importance into the shared word.
-// A pixel's importance waits in its nearest key's place (read by then), so DKB needs no buffer
-// of its own for the list or the importance.
-// So the network's invocations all run it (no forced pixel idles a SIMD lane), and a frame whose
+//   network: one invocation a listed record: its features again, the network, its importance;
+//   gather:  one invocation a pixel: its record's importance (0 for a pixel without one: at
+//            most one fragment, forced) into the shared word, in its record index's place.
+// A record's importance waits in its nearest key's place (read by then).
+// So the network's invocations all run it (no forced record idles a SIMD lane), and a frame whose
 // pixels are all forced never enters the network's code.
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(2) var<storage, read> count: array<u32>;
-// Per pixel: the nearest key (complemented); the two farthest keys (features.wgsl).
-// The nearest keys are read_write: once a pixel's features are read, its importance takes its
-// nearest key's place (set_importance), and `gather` moves it to the frame's shared word.
-@group(0) @binding(3) var<storage, read_write> nearest: array<u64>;
-@group(0) @binding(4) var<storage, read> farthest: array<u64>;
-@group(0) @binding(5) var<storage, read> sums: array<u32>;
+// RECORD_WORDS words a record (features.wgsl): the nearest key (complemented), the two farthest
+// keys, the colour sums (n in bits 48-63 of the first), the opacity sums. Read_write: once a
+// record's features are read, its importance takes its nearest key's place (set_importance).
+@group(0) @binding(3) var<storage, read_write> records: array<u64>;
+// The records the network decides, and how many (list_len[0]).
+@group(0) @binding(4) var<storage, read_write> list: array<u32>;
+// fragments, covered, max count, deep (the records), ... (totals.wgsl).
 @group(0) @binding(6) var<storage, read> totals: array<u32>;
-// The pixels the network decides (the frame's shared word, Recording::pixel_word, dead until
-// then), and how many (list_len[0]); then, after `gather`, every pixel's importance.
-@group(0) @binding(8) var<storage, read_write> list: array<u32>;
+// Per pixel: its record's index (NO_RECORD for none), then, after `gather`, its importance:
+// the frame's shared word.
+@group(0) @binding(8) var<storage, read_write> shared_word: array<u32>;
 @group(0) @binding(9) var<storage, read_write> list_len: array<atomic<u32>, 4>;
 // The network entry's indirect dispatch: workgroups x, y, z.
 @group(0) @binding(10) var<storage, read_write> dispatch: array<u32, DISPATCH_WORDS>;
-// Per pixel: the sums of optical depth and 8-bit opacity (features.wgsl).
-@group(0) @binding(12) var<storage, read> opacity: array<u32>;
 
 // Skip the network where k does not depend on it (Mlp::dkb_importance): a pixel whose useful
 // cap is the frame's smallest k, lo (mlp::forced: n <= lo + 1, or lo + 2 where its two farthest
@@ -39,12 +37,11 @@
 // either way: its features pass drew nothing (features.wgsl), and k = n whatever it gets.
 const SKIP_FORCED: bool = true;
 
-// Sum r, g, b of pixel p's fragments (features.wgsl's packing: r and g 24 bits each in the first
-// 64-bit word, then n; b in the second's low half).
-fn color_sums(p: u32) -> vec3<u32> {
-    let lo = sums[4u * p];
-    let hi = sums[4u * p + 1u];
-    return vec3<u32>(lo & 0xffffffu, (lo >> 24u) | ((hi & 0xffffu) << 8u), sums[4u * p + 2u]);
+// Sum r, g, b of record r's fragments (features.wgsl's packing: r and g 24 bits each in the
+// first colour-sum word, then n; b in the second's low half).
+fn color_sums(at: u32) -> vec3<u32> {
+    let w = records[at + 3u];
+    return vec3<u32>(u32(w & 0xfffffflu), u32((w >> 24u) & 0xfffffflu), u32(records[at + 4u] & 0xfffffffflu));
 }
 
 fn luma(c: vec3<f32>) -> f32 {
@@ -59,42 +56,43 @@ struct Net {
     runs: bool,
 }
 
-// Pixel p's importance, in its nearest key's place: only p's own invocation reads that key, and
-// it has read it by now.
-fn set_importance(p: u32, v: f32) {
-    nearest[p] = u64(bitcast<u32>(v));
+// Record r's importance, in its nearest key's place: only r's own invocation reads that key,
+// and it has read it by now.
+fn set_importance(r: u32, v: f32) {
+    records[RECORD_WORDS * r] = u64(bitcast<u32>(v));
 }
 
-fn network_inputs(p: u32) -> Net {
+fn network_inputs(r: u32) -> Net {
     var net: Net;
-    let c = count[p];
-    if (c == 0u || holds_every_fragment(totals[0])) {
-        set_importance(p, 0.0);
+    let at = RECORD_WORDS * r;
+    let c = u32(records[at + 3u] >> 48u);
+    if (holds_every_fragment(totals[0])) {
+        set_importance(r, 0.0);
         return net;
     }
     // The sign bit marks a pixel whose two farthest fragments share one colour
     // (importance::tail_pair, alloc::mark_pair): the allocation lets it use a slot fewer.
-    let f0 = farthest[2u * p];
-    let f1 = farthest[2u * p + 1u];
+    let f0 = records[at + 1u];
+    let f1 = records[at + 2u];
     let pair = (f1 & OCCUPIED) != 0lu && u32(f0 & 0xfffffffflu) == u32(f1 & 0xfffffffflu);
     let mark = select(0u, PAIR_BIT, pair);
     // alloc::min_k, as the allocation's setup finds it.
     let lo = select(0u, 1u, budget_of(totals[0]) >= u64(totals[1]));
     if (SKIP_FORCED && c <= lo + 1u + select(0u, 1u, pair)) {
-        set_importance(p, bitcast<f32>(mark));
+        set_importance(r, bitcast<f32>(mark));
         return net;
     }
     // importance::pixel_features, operation for operation.
     let total = f32(max(totals[0], 1u));
     let covered = f32(max(totals[1], 1u));
     let nf = f32(c);
-    let key = ~nearest[p];
+    let key = ~records[at];
     let near8 = u32(key & 0xfffffffflu);
     let near = unpack_rgba8(near8).rgb;
-    let sum = color_sums(p);
+    let sum = color_sums(at);
     let mean = vec3<f32>(f32(sum.r) / 255.0 / nf, f32(sum.g) / 255.0 / nf, f32(sum.b) / 255.0 / nf);
     // n^2 var and n^2 dev in 8-bit units, exact integers.
-    var var_num = i64(c) * i64(sums[4u * p + 3u]);
+    var var_num = i64(c) * i64(u32(records[at + 4u] >> 32u));
     var dev_num = 0li;
     for (var ch = 0u; ch < 3u; ch++) {
         let s = i64(sum[ch]);
@@ -107,7 +105,7 @@ fn network_inputs(p: u32) -> Net {
     let dev = f32(dev_num) / scale;
     let mean_luma = luma(mean);
     let near_luma = luma(near);
-    let tau = f32(opacity[2u * p]) * OPTICAL_DEPTH_UNIT;
+    let tau = f32(u32(records[at + 5u] & 0xfffffffflu)) * OPTICAL_DEPTH_UNIT;
     net.x = array<f32, FEATURES>(
         log2(nf),
         nf / (total / covered),
@@ -117,7 +115,7 @@ fn network_inputs(p: u32) -> Net {
         f32(near8 >> 24u) / 255.0,
         log2(variance + LOG_FLOOR),
         log2(dev + LOG_FLOOR),
-        f32(opacity[2u * p + 1u]) / 255.0 / nf,
+        f32(u32(records[at + 5u] >> 32u)) / 255.0 / nf,
         mean_luma,
         near_luma,
         log2(tau + OPTICAL_DEPTH_UNIT),
@@ -133,12 +131,12 @@ fn select_pixels(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
-    if (p >= params.pixels) {
+    let r = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (r >= totals[3]) {
         return;
     }
-    if (network_inputs(p).runs) {
-        list[atomicAdd(&list_len[0], 1u)] = p;
+    if (network_inputs(r).runs) {
+        list[atomicAdd(&list_len[0], 1u)] = r;
     }
 }
 
@@ -160,25 +158,25 @@ fn network(
 ) {
     let i = grid_index(wid, nwg, lid, PIXEL_GROUP);
     let listed = i < atomicLoad(&list_len[0]);
-    var p = 0u;
+    var r = 0u;
     var net: Net;
     if (listed) {
-        p = list[i];
-        net = network_inputs(p);
+        r = list[i];
+        net = network_inputs(r);
     }
     if (SHARED_WEIGHTS) {
         // Every invocation of the workgroup stages the weights, listed or not.
         let out = mlp_forward_shared(net.x, net.runs, lid);
         if (net.runs) {
-            set_importance(p, bitcast<f32>(bitcast<u32>(out) | net.mark));
+            set_importance(r, bitcast<f32>(bitcast<u32>(out) | net.mark));
         }
     } else if (net.runs) {
-        set_importance(p, bitcast<f32>(bitcast<u32>(mlp_forward(net.x)) | net.mark));
+        set_importance(r, bitcast<f32>(bitcast<u32>(mlp_forward(net.x)) | net.mark));
     }
 }
 
-// Every pixel's importance from its nearest key's place into the shared word, where the
-// allocation reads it (the list there is read by now).
+// Every pixel's importance from its record's nearest key's place into the shared word, where
+// the allocation reads it, in place of its record's index (0 for a pixel without a record).
 @compute @workgroup_size(PIXEL_GROUP)
 fn gather(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -187,6 +185,11 @@ fn gather(
 ) {
     let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (p < params.pixels) {
-        list[p] = u32(nearest[p] & 0xfffffffflu);
+        let r = shared_word[p];
+        var importance = 0u;
+        if (r != NO_RECORD) {
+            importance = u32(records[RECORD_WORDS * r] & 0xfffffffflu);
+        }
+        shared_word[p] = importance;
     }
 }

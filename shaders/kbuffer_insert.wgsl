@@ -39,12 +39,18 @@ fn oit_insert(p: u32, base: u32, k: u32, key: u64) -> u64 {
 // raster::MAX_FRAGMENTS_PER_PIXEL fragments: 65,535 x 255^2 < 2^32), and the tail's count.
 // Three atomics a fragment pushed out, not five.
 fn oit_to_tail(p: u32, out: u64) {
+    let w = oit_tail_words(out);
+    atomicAdd(&oit_tail[2u * p], w.x);
+    atomicAdd(&oit_tail[2u * p + 1u], w.y);
+    atomicAdd(&oit_tail_count[p], 1u);
+}
+
+// What the key `out` (complemented) adds to a tail's two sum words: r and g, then b and a.
+fn oit_tail_words(out: u64) -> vec2<u64> {
     let rgba = u32((~out) & 0xfffffffflu);
     let a = rgba >> 24u;
     let r = u64((rgba & 0xffu) * a);
     let g = u64(((rgba >> 8u) & 0xffu) * a);
     let b = u64(((rgba >> 16u) & 0xffu) * a);
-    atomicAdd(&oit_tail[2u * p], r | (g << 32u));
-    atomicAdd(&oit_tail[2u * p + 1u], b | (u64(a) << 32u));
-    atomicAdd(&oit_tail_count[p], 1u);
+    return vec2<u64>(r | (g << 32u), b | (u64(a) << 32u));
 }

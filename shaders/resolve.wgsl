@@ -10,7 +10,8 @@
 // The slot bases (pixels + 1 entries; k is their difference, capture.wgsl).
 @group(0) @binding(1) var<storage, read> slot_base: array<u32>;
 @group(0) @binding(2) var<storage, read_write> slots: array<u64>;
-// Per pixel: sum c8 a8 for r, g, b, sum a8; and the tail's count.
+// Per pixel: sum c8 a8 for r, g, b, sum a8; and the tail's count (unused where the tails are
+// pooled: then TAIL_WORDS words after a pixel's k slots, read_tail).
 @group(0) @binding(3) var<storage, read_write> tail: array<u32>;
 @group(0) @binding(4) var<storage, read_write> tail_count: array<u32>;
 @group(0) @binding(5) var<storage, read_write> image: array<vec4<f32>>;
@@ -23,6 +24,56 @@
 
 // The slots blend_slots found filled.
 var<private> filled: u32 = 0u;
+
+// Where the pixel's pooled tail starts in `slots` (params.pooled_tail), or NO_TAIL: it keeps
+// none (k = n <= 1), or the tails are per pixel.
+const NO_TAIL: u32 = 0xffffffffu;
+var<private> pooled_at: u32 = NO_TAIL;
+
+// Pixel p's tail: sum c8 a8 for r, g, b, sum a8, and its count, from the tail's buffers or the
+// pool.
+struct Tail {
+    sums: vec4<u32>,
+    count: u32,
+}
+
+fn read_tail(p: u32) -> Tail {
+    if (params.pooled_tail == 0u) {
+        return Tail(vec4<u32>(tail[4u * p], tail[4u * p + 1u], tail[4u * p + 2u], tail[4u * p + 3u]), tail_count[p]);
+    }
+    let t = pooled_at;
+    if (t == NO_TAIL) {
+        return Tail(vec4<u32>(0u), 0u);
+    }
+    let rg = slots[t];
+    let ba = slots[t + 1u];
+    return Tail(vec4<u32>(u32(rg & 0xfffffffflu), u32(rg >> 32u), u32(ba & 0xfffffffflu), u32(ba >> 32u)), u32(slots[t + 2u] & 0xfffffffflu));
+}
+
+fn write_tail(p: u32, sums: vec4<u32>, count: u32) {
+    if (params.pooled_tail == 0u) {
+        tail[4u * p] = sums.x;
+        tail[4u * p + 1u] = sums.y;
+        tail[4u * p + 2u] = sums.z;
+        tail[4u * p + 3u] = sums.w;
+        tail_count[p] = count;
+        return;
+    }
+    let t = pooled_at;
+    if (t != NO_TAIL) {
+        slots[t] = u64(sums.x) | (u64(sums.y) << 32u);
+        slots[t + 1u] = u64(sums.z) | (u64(sums.w) << 32u);
+        slots[t + 2u] = u64(count);
+    }
+}
+
+// The append mode's spilled key s (of at most APPEND_SPILL), in the tail's sum words.
+fn spilled_key(p: u32, s: u32) -> u64 {
+    if (params.pooled_tail != 0u) {
+        return slots[pooled_at + s];
+    }
+    return u64(tail[4u * p + 2u * s]) | (u64(tail[4u * p + 2u * s + 1u]) << 32u);
+}
 
 // Whether a pixel that saw `n` fragments is over MAX_FRAGMENTS_PER_PIXEL (then recorded).
 fn too_deep(p: u32, n: u32) -> bool {
@@ -80,7 +131,7 @@ fn sort_appended(p: u32, base: u32, k: u32, n: u32) {
     sort_slots(base, held);
     var sums = vec4<u32>(0u);
     for (var s = 0u; s < n - held; s++) {
-        var key = u64(tail[4u * p + 2u * s]) | (u64(tail[4u * p + 2u * s + 1u]) << 32u);
+        var key = spilled_key(p, s);
         if (held > 0u && slots[base + held - 1u] < key) {
             // Nearer than the last slot: it takes its place in order, the last is left out.
             let out = slots[base + held - 1u];
@@ -96,11 +147,7 @@ fn sort_appended(p: u32, base: u32, k: u32, n: u32) {
         let a = rgba >> 24u;
         sums += vec4<u32>((rgba & 0xffu) * a, ((rgba >> 8u) & 0xffu) * a, ((rgba >> 16u) & 0xffu) * a, a);
     }
-    tail[4u * p] = sums.x;
-    tail[4u * p + 1u] = sums.y;
-    tail[4u * p + 2u] = sums.z;
-    tail[4u * p + 3u] = sums.w;
-    tail_count[p] = n - held;
+    write_tail(p, sums, n - held);
 }
 
 // A pixel's colour over `bg`, or ok false where it saw more fragments than any method takes
@@ -113,10 +160,22 @@ struct Resolved {
 fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
     if (EVERY_FRAGMENT_FITS) {
         let base = slot_base[p];
-        let n = slot_base[p + 1u] - base;
+        var n = slot_base[p + 1u] - base;
         // The capture's cursor: the tail is empty.
-        let seen = tail_count[p];
-        tail_count[p] = 0u;
+        var seen = 0u;
+        if (params.pooled_tail != 0u) {
+            let span = n;
+            n = k_of_span(span);
+            seen = n;
+            if (span >= 2u) {
+                pooled_at = base + n;
+                seen = read_tail(p).count;
+                write_tail(p, vec4<u32>(0u), 0u);
+            }
+        } else {
+            seen = tail_count[p];
+            tail_count[p] = 0u;
+        }
         if (too_deep(p, max(n, seen))) {
             return Resolved(false, vec4<f32>(0.0));
         }
@@ -130,12 +189,20 @@ fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
     if (k == 0u) {
         base = slot_base[p];
         k = slot_base[p + 1u] - base;
+        if (params.pooled_tail != 0u) {
+            let span = k;
+            k = k_of_span(span);
+            if (span >= 2u) {
+                pooled_at = base + k;
+            }
+        }
     }
     if (params.append != 0u) {
         let n = count[p];
-        if (appends(k, n)) {
+        // A pixel without a pooled tail holds its k = n <= 1 fragments in its slots.
+        if (appends(k, n) && !(params.pooled_tail != 0u && pooled_at == NO_TAIL)) {
             // Every fragment took a place from the cursor.
-            if (too_deep(p, max(n, tail_count[p]))) {
+            if (too_deep(p, max(n, read_tail(p).count))) {
                 return Resolved(false, vec4<f32>(0.0));
             }
             sort_appended(p, base, k, n);
@@ -143,13 +210,14 @@ fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
     }
     // The tail over what is behind the pixel.
     var over = bg;
-    let tail_n = tail_count[p];
-    let sum_a = tail[4u * p + 3u];
+    let tl = read_tail(p);
+    let tail_n = tl.count;
+    let sum_a = tl.sums.w;
     if (tail_n > 0u && sum_a > 0u) {
         let a_avg = min(f32(sum_a) / (255.0 * f32(tail_n)), 1.0);
         let a_tail = 1.0 - pow(1.0 - a_avg, f32(tail_n));
         let inv = 1.0 / (255.0 * f32(sum_a));
-        let c_tail = vec3<f32>(f32(tail[4u * p]), f32(tail[4u * p + 1u]), f32(tail[4u * p + 2u])) * inv;
+        let c_tail = vec3<f32>(f32(tl.sums.x), f32(tl.sums.y), f32(tl.sums.z)) * inv;
         over = a_tail * c_tail + (1.0 - a_tail) * bg;
     }
     let color = blend_slots(p, base, k, over);

@@ -1,9 +1,10 @@
-// Frame totals (compute, one invocation a pixel): sum of n, covered pixels and the largest n,
-// with integer atomics (importance::totals).
+// Frame totals (compute, one invocation a pixel): sum of n, covered pixels, the largest n and
+// the pixels of two fragments or more (budget::Occupancy's deep ones, which bound the pooled
+// tails), with integer atomics (importance::totals).
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> count: array<u32>;
-// fragments, covered, max count, unused
+// fragments, covered, max count, deep, the records handed out (assign_records)
 @group(0) @binding(2) var<storage, read_write> totals: array<atomic<u32>>;
 
 // A workgroup's sums, added to the frame's totals by one invocation: three atomics on the
@@ -12,6 +13,7 @@
 var<workgroup> group_fragments: atomic<u32>;
 var<workgroup> group_covered: atomic<u32>;
 var<workgroup> group_max: atomic<u32>;
+var<workgroup> group_deep: atomic<u32>;
 
 @compute @workgroup_size(PIXEL_GROUP)
 fn main(
@@ -31,6 +33,9 @@ fn add_pixel(c: u32) {
         atomicAdd(&group_fragments, c);
         atomicAdd(&group_covered, 1u);
         atomicMax(&group_max, c);
+        if (c >= 2u) {
+            atomicAdd(&group_deep, 1u);
+        }
     }
 }
 
@@ -44,40 +49,48 @@ fn add_group(lid: u32) {
             atomicAdd(&totals[0], atomicLoad(&group_fragments));
             atomicAdd(&totals[1], covered);
             atomicMax(&totals[2], atomicLoad(&group_max));
+            atomicAdd(&totals[3], atomicLoad(&group_deep));
         }
     }
 }
 
-// DKB's features pass, where it counts, keeps n in bits 48-63 of its first colour-sum word
-// (features.wgsl): this entry writes it out as the count the passes after it read, and adds it
-// to the totals as main does.
-@group(0) @binding(4) var<storage, read> sums: array<u32>;
-@group(0) @binding(5) var<storage, read_write> count_out: array<u32>;
+// DKB's records (features.wgsl): one for each pixel of two fragments or more, RECORD_WORDS
+// words in the slot pool, its index in the frame's shared word (NO_RECORD for the others), n
+// in its colour sums' first word (bits 48-63). Indices from one atomic a workgroup, in any
+// order: a record is its pixel's alone, so the order changes no result.
+@group(0) @binding(6) var<storage, read_write> record_of: array<u32>;
+@group(0) @binding(7) var<storage, read_write> records: array<u64>;
+
+var<workgroup> group_records: atomic<u32>;
+var<workgroup> group_first: u32;
 
 @compute @workgroup_size(PIXEL_GROUP)
-fn from_sums(
+fn assign_records(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
     let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    var n = 0u;
     if (p < params.pixels) {
-        let c = sums[4u * p + 1u] >> 16u;
-        count_out[p] = c;
-        add_pixel(c);
+        n = count[p];
     }
-    add_group(lid);
-}
-
-// DKB's features pass is drawn indirectly from these arguments (an indexed draw: indices,
-// instances, first index, base vertex, first instance; the host writes the frame's
-// transparent indices): with none when the budget holds every fragment, since k = n then
-// whatever the importance (allocate.wgsl's setup, mlp::Mlp::dkb_importance).
-@group(0) @binding(3) var<storage, read_write> features_draw_args: array<u32, 5>;
-
-@compute @workgroup_size(1)
-fn features_draw() {
-    if (holds_every_fragment(atomicLoad(&totals[0]))) {
-        features_draw_args[0] = 0u;
+    var local = 0u;
+    if (n >= 2u) {
+        local = atomicAdd(&group_records, 1u);
+    }
+    workgroupBarrier();
+    if (lid == 0u) {
+        group_first = atomicAdd(&totals[4], atomicLoad(&group_records));
+    }
+    workgroupBarrier();
+    if (p < params.pixels) {
+        if (n >= 2u) {
+            let r = group_first + local;
+            record_of[p] = r;
+            records[RECORD_WORDS * r + 3u] = u64(n) << 48u;
+        } else {
+            record_of[p] = NO_RECORD;
+        }
     }
 }

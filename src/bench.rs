@@ -262,21 +262,16 @@ fn write_report(report: serde_json::Value, out: Option<&std::path::Path>) -> Res
 /// the default, every other option at its default (any other label: all defaults); steady-state
 /// frames read back their image only.
 fn configure(label: &str) -> dhoit_runtime::gpu::FrameOptions {
-    use dhoit_runtime::gpu::{DkbGeometry, FrameOptions};
+    use dhoit_runtime::gpu::FrameOptions;
     FrameOptions {
         skip_forced: label != "dkb_no_skip",
         two_mode_capture: label != "dkb_insertion_only",
         fits_pipelines: label != "dkb_two_mode_where_all_fit",
-        predict_fit: label != "dkb_every_pass",
+        predict_fit: label != "vkb_every_pass",
         spread_search: label == "dkb_spread_search",
         shared_weights: label == "dkb_shared_weights",
         unrolled_network: label != "dkb_array_network",
         features_preload: label != "dkb_features_no_preload",
-        dkb_geometry: match label {
-            "dkb_count_first" => DkbGeometry::CountFirst,
-            "dkb_counting_features" => DkbGeometry::Counting,
-            _ => DkbGeometry::FollowLastFrame,
-        },
         layer_major_fkb: label == "fkb_layer_major",
         // The methods themselves, at equal F (the runs are always approximate).
         exact_when_cheaper: false,
@@ -338,9 +333,9 @@ fn bench_nets(gpu: &dhoit_runtime::gpu::Gpu) -> BenchNets {
 /// The runs of one scene: every method as `render --device gpu` runs it, then each one option
 /// away from the default. DKB once more with the network run on every covered pixel, even where
 /// k is forced, once with every fragment inserted (no append mode in the capture), once with the
-/// two-mode capture pipeline where the budget holds every fragment, once recording every pass
-/// whatever the last frame (the device empties what it does not need:
-/// FrameOptions::predict_fit off), once with the search's totals spread over 32 copies, and
+/// two-mode capture pipeline where the budget holds every fragment, VKB once recording every
+/// pass whatever the last frame (the device empties what it does not need:
+/// FrameOptions::predict_fit off; DKB reads its count back and knows), once with the search's totals spread over 32 copies, and
 /// once with the network's weights staged in workgroup memory; FKB once more with its slots
 /// laid out layer-major; and DKB with the 16-8 network, and with the default one at f16-math
 /// (binary16 hidden layers) where the device has them. `cpu` is in [`GPU_METHODS`]' order.
@@ -355,13 +350,11 @@ fn bench_runs(
             ("dkb_no_skip", Method::Dkb, &cpu[4]),
             ("dkb_insertion_only", Method::Dkb, &cpu[4]),
             ("dkb_two_mode_where_all_fit", Method::Dkb, &cpu[4]),
-            ("dkb_every_pass", Method::Dkb, &cpu[4]),
+            ("vkb_every_pass", Method::Vkb, &cpu[3]),
             ("dkb_spread_search", Method::Dkb, &cpu[4]),
             ("dkb_shared_weights", Method::Dkb, &cpu[4]),
             ("dkb_array_network", Method::Dkb, &cpu[4]),
             ("dkb_features_no_preload", Method::Dkb, &cpu[4]),
-            ("dkb_count_first", Method::Dkb, &cpu[4]),
-            ("dkb_counting_features", Method::Dkb, &cpu[4]),
             ("fkb_layer_major", Method::Fkb, &cpu[1]),
             ("dkb_16-8", Method::Dkb, &cpu[4]),
             ("dkb_f16_math", Method::Dkb, &cpu[4]),
@@ -478,18 +471,13 @@ fn scene_figures(
         pass("dkb_features_no_preload", "features"),
     );
     let count_ms = pass("vkb", "count");
-    // DKB's geometry passes: its count (none when the features pass counts) and its
-    // features pass (a draw of no vertex when the budget holds every fragment).
+    // DKB's geometry passes: its count and its features pass (not drawn when the budget
+    // holds every fragment: a pass the frame did not record costs nothing).
     let geometry = |m: &str| {
-        // A pass the frame did not record costs nothing (the features where it expected
-        // to fit, and did).
         let or_0 = |ms: f64| if ms.is_nan() { 0.0 } else { ms };
         or_0(pass(m, "count")) + or_0(pass(m, "features"))
     };
-    let (count_first, counting) = (
-        geometry("dkb_count_first"),
-        geometry("dkb_counting_features"),
-    );
+    let count_first = geometry("dkb");
     let total = fl.fragment_count() as u64;
     let dkb_f = match Slots::for_method(
         Method::Dkb,
@@ -561,15 +549,12 @@ fn scene_figures(
         features / count_ms,
     );
     eprintln!(
-        "GPU {name}: DKB count and features {count_first:.2} ms counting first ({}), {counting:.2} ms counting in the features pass; frame {:.2} / {:.2} ms, {:.2} ms following the last frame",
+        "GPU {name}: DKB count and features {count_first:.2} ms ({})",
         if holds_all {
             "the budget holds every fragment: no features drawn"
         } else {
             "the budget truncates: features drawn"
         },
-        ms("dkb_count_first"),
-        ms("dkb_counting_features"),
-        ms("dkb"),
     );
     // The importance and allocation passes as recorded for a frame expected to fit (no
     // importance, setup and apply alone), and as when every pass is recorded.
@@ -586,11 +571,11 @@ fn scene_figures(
             pass("abuffer", "store"),
         );
         eprintln!(
-            "GPU {name}: DKB importance and allocation {:.2} ms expecting the fit, {:.2} ms recording every pass; frame {:.2} / {:.2} ms",
-            small("dkb"),
-            small("dkb_every_pass"),
-            ms("dkb"),
-            ms("dkb_every_pass"),
+            "GPU {name}: VKB importance and allocation {:.2} ms expecting the fit, {:.2} ms recording every pass; frame {:.2} / {:.2} ms",
+            small("vkb"),
+            small("vkb_every_pass"),
+            ms("vkb"),
+            ms("vkb_every_pass"),
         );
     }
     eprintln!(
@@ -618,10 +603,7 @@ fn scene_figures(
         },
         "dkb_geometry": {
             "budget_holds_every_fragment": holds_all,
-            "geometry_ms_count_first": count_first, "geometry_ms_counting": counting,
-            "frame_gpu_ms_count_first": ms("dkb_count_first"),
-            "frame_gpu_ms_counting": ms("dkb_counting_features"),
-            "frame_gpu_ms_following_last_frame": ms("dkb"),
+            "geometry_ms": count_first,
         },
         "fkb_slot_layout": {"capture_resolve_ms_pixel_major": pixel_major, "capture_resolve_ms_layer_major": layer_major},
         "two_mode_capture": {
@@ -636,9 +618,9 @@ fn scene_figures(
             "allocation_ms_spread": pass("dkb_spread_search", "allocation"),
         },
         "predict_fit": {
-            "importance_and_allocation_ms": small("dkb"),
-            "importance_and_allocation_ms_every_pass": small("dkb_every_pass"),
-            "frame_gpu_ms": ms("dkb"), "frame_gpu_ms_every_pass": ms("dkb_every_pass"),
+            "importance_and_allocation_ms": small("vkb"),
+            "importance_and_allocation_ms_every_pass": small("vkb_every_pass"),
+            "frame_gpu_ms": ms("vkb"), "frame_gpu_ms_every_pass": ms("vkb_every_pass"),
         },
     }))
 }

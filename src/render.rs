@@ -6,7 +6,7 @@ use clap::{Args, ValueEnum};
 use dhoit_runtime::budget::{Budget, format_bytes};
 use dhoit_runtime::dump;
 use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
-use dhoit_runtime::gpu::{DkbGeometry, FrameOptions, Gpu, Slots};
+use dhoit_runtime::gpu::{FrameOptions, Gpu, Slots};
 use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::Precision;
 use dhoit_runtime::scene::Camera;
@@ -127,11 +127,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
             if let Some(Slots::Dkb(_, f) | Slots::Vkb(_, f) | Slots::Importance(_, _, f)) = slots {
                 let holds = f.holds(fl.fragment_count() as u64);
                 opts.predict_fit = holds;
-                opts.dkb_geometry = if holds {
-                    DkbGeometry::CountFirst
-                } else {
-                    DkbGeometry::Counting
-                };
             }
             let g = gpu.render_with(&opts, &scene, &cam, (w, h), a.common.background, slots)?;
             let passes: Vec<String> = g

@@ -41,6 +41,78 @@ pub struct Layout {
     /// network and its precision ([`Layout::for_network`]); [`DKB`] counts the default network
     /// at f32.
     pub weights: u64,
+    /// Bytes of one pooled tail ([`POOLED_TAIL`]: in the slot pool, after the slots of each
+    /// pixel [`crate::shared::has_tail`] names), for the allocated k-buffers (DKB, VKB); 0
+    /// where the tails are per pixel (in [`Layout::per_pixel`]) or there are none.
+    pub tail_bytes: u64,
+    /// What the layout keeps in its slot pool before the slots (DKB), or None: the pool is
+    /// the slots and tails alone, made for what the allocation hands out.
+    pub pool_state: Option<PoolState>,
+}
+
+/// State a layout keeps in the slot pool before the capture fills it (DKB's): the pool is made
+/// for the frame's budget and occupancy before the first pass that writes it, as large as the
+/// most it holds at once ([`Layout::pool_bytes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PoolState {
+    /// Bytes of a deep pixel's record (features.wgsl; in the pool until the importance is
+    /// gathered).
+    pub record_bytes: u64,
+    /// Bytes a pixel of the allocation's marks (in the pool until k is known).
+    pub marks_bytes: u64,
+    /// Buffers of their own, bytes for each deep pixel (each at least 16 bytes in all).
+    pub per_deep: &'static [(&'static str, u64)],
+}
+
+/// Bytes of a tail in the slot pool: [`crate::shared::TAIL_WORDS`] words.
+pub const POOLED_TAIL: u64 = 8 * crate::shared::TAIL_WORDS as u64;
+
+/// What a frame's count says about its pixels, which the pooled tails are bounded by: its
+/// fragments, the pixels holding one or more, and those holding two or more.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Occupancy {
+    pub fragments: u64,
+    pub covered: u64,
+    pub deep: u64,
+}
+
+impl Occupancy {
+    /// The occupancy of a frame whose pixels hold `counts` fragments.
+    pub fn of(counts: &[u32]) -> Occupancy {
+        counts.iter().fold(Occupancy::default(), |o, &n| Occupancy {
+            fragments: o.fragments + n as u64,
+            covered: o.covered + (n >= 1) as u64,
+            deep: o.deep + (n >= 2) as u64,
+        })
+    }
+
+    /// The most a frame of `pixels` pixels can hold as the tails see it: every pixel deep.
+    pub fn most(pixels: u64) -> Occupancy {
+        Occupancy {
+            fragments: u64::MAX,
+            covered: pixels,
+            deep: pixels,
+        }
+    }
+
+    /// The most pixels that keep a pooled tail when F = `f` ([`crate::shared::has_tail`]):
+    /// where F covers every covered pixel, each gets a slot (the allocation's smallest k is 1),
+    /// so only the deep ones can keep one; otherwise any covered pixel can.
+    pub fn tails_at(&self, f: u64) -> u64 {
+        if f >= self.covered {
+            self.deep
+        } else {
+            self.covered
+        }
+    }
+}
+
+/// The pooled tails a frame's allocation `k` keeps, for pixels of `counts` fragments.
+pub fn tails_kept(k: &[u32], counts: &[u32]) -> u64 {
+    k.iter()
+        .zip(counts)
+        .filter(|&(&k, &n)| crate::shared::has_tail(k, n))
+        .count() as u64
 }
 
 /// The tail's integer sums: sum c8 a8 for r, g, b, sum a8 (four u32 a pixel), and its count.
@@ -62,34 +134,24 @@ const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 /// The resolve's status words: loops cut short, a pixel too deep (gpu's FrameStatus).
 const STATUS: (&str, u64) = ("status", 16);
 
-/// Deep k-buffer: network features, one word for the importance, k and the slot bases, tail.
-/// The features' keys, read by the importance pass, then hold the tail: the nearest (8 bytes)
-/// its count (4), the two farthest (16) its sums (16); their colour sums (16) then hold the
-/// image (16, the application's target where it gives one); the opacity sums (8) are their
-/// own. The network's pixel list, the importance, the allocation's weights, k and the slot
-/// bases share `oit.offsets` in turn (k is the bases' difference); a pixel's importance waits in
-/// its nearest key's place until it is gathered there, and the allocation's marks then take
-/// that place: 57 bytes a pixel.
+/// Deep k-buffer: the count, the shared word and the raster target a pixel; the rest in the slot
+/// pool before the slots fill it ([`PoolState`]): a record of the network's statistics for each
+/// pixel of two fragments or more (48 bytes: the nearest key, the two farthest, the colour and
+/// opacity sums; a pixel of one fragment has its k forced whatever they are), then the
+/// allocation's marks (4 bytes a pixel), then the slots and the pooled tails. The shared word
+/// (`oit.offsets`) holds a pixel's record index, its importance, the allocation's weights, k
+/// and the slot bases in turn; the network's list of records takes 4 bytes a deep pixel.
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[
-        RASTER_TARGET,
-        ("features.count", 4),
-        ("features.nearest", 8),
-        ("features.farthest", 16),
-        ("features.color_sums", 16),
-        ("features.opacity", 8),
-        ("oit.offsets", 4),
-    ],
+    per_pixel: &[RASTER_TARGET, ("features.count", 4), ("oit.offsets", 4)],
     fixed: &[
         ("params", PARAMS_BYTES),
         ("features.totals", 24),
         // importance::optical_depth_table, a uniform.
         ("features.optical_depth", 1024),
-        // The features pass's indirect draw (an indexed one: five words).
-        ("features.draw", 20),
-        // The network's pixel list lives in the shared word; its length and indirect dispatch.
+        // The network's list's length and indirect dispatch (then the capture's unused
+        // per-pixel tail).
         ("importance.list_len", 16),
         (
             "importance.dispatch",
@@ -103,6 +165,12 @@ pub const DKB: Layout = Layout {
     ],
     scan: true,
     weights: MLP_UNIFORM_BYTES,
+    tail_bytes: POOLED_TAIL,
+    pool_state: Some(PoolState {
+        record_bytes: 8 * crate::shared::RECORD_WORDS as u64,
+        marks_bytes: 4,
+        per_deep: &[("importance.list", 4)],
+    }),
 };
 
 /// Optimal allocation uploaded as k: the same capture and resolve as DKB, no network (and no
@@ -120,12 +188,13 @@ pub const OPT: Layout = Layout {
     ],
     scan: true,
     weights: 0,
+    tail_bytes: 0,
+    pool_state: None,
 };
 
 /// Variable k-buffer with importance maps (paper 002). The nearest keys (8 bytes), read by the
-/// importance pass, live in the tail's sums, and the allocation's marks (4) in the tail's
-/// count, both dead by the capture; the importance, k and the slot bases share `oit.offsets` in
-/// turn.
+/// importance pass, and the allocation's marks (4); the importance, k and the slot bases share
+/// `oit.offsets` in turn; the tails in the slot pool ([`POOLED_TAIL`]).
 pub const VKB: Layout = Layout {
     method: "vkb",
     slot_bytes: SLOT_BYTES,
@@ -133,8 +202,8 @@ pub const VKB: Layout = Layout {
         RASTER_TARGET,
         ("vkb.count", 4),
         ("oit.offsets", 4),
-        HYBRID_TAIL,
-        TAIL_COUNT,
+        ("vkb.nearest", 8),
+        ("vkb.marks", 4),
     ],
     fixed: &[
         ("params", PARAMS_BYTES),
@@ -147,6 +216,8 @@ pub const VKB: Layout = Layout {
     ],
     scan: true,
     weights: 0,
+    tail_bytes: POOLED_TAIL,
+    pool_state: None,
 };
 
 /// Fixed k-buffer: k slots for every pixel, tail. (The output image is the application's
@@ -164,6 +235,8 @@ pub const FKB: Layout = Layout {
     ],
     scan: false,
     weights: 0,
+    tail_bytes: 0,
+    pool_state: None,
 };
 
 /// MLAB: m rows of 8 bytes (RGB8 premultiplied, transmittance 8 bits, depth 32 bits).
@@ -174,6 +247,8 @@ pub const MLAB: Layout = Layout {
     fixed: &[("params", PARAMS_BYTES)],
     scan: false,
     weights: 0,
+    tail_bytes: 0,
+    pool_state: None,
 };
 
 /// Weighted blended OIT, as McGuire and Bavoil lay it out: an RGBA16F accumulation target and an
@@ -190,6 +265,8 @@ pub const WBOIT: Layout = Layout {
     fixed: &[("params", PARAMS_BYTES)],
     scan: false,
     weights: 0,
+    tail_bytes: 0,
+    pool_state: None,
 };
 
 /// Moment-based OIT, four power moments in 32 bits, as Munstermann et al. lay it out: an R32F
@@ -209,6 +286,8 @@ pub const MBOIT: Layout = Layout {
     fixed: &[("params", PARAMS_BYTES), ("mboit.absorbance", 1024)],
     scan: false,
     weights: 0,
+    tail_bytes: 0,
+    pool_state: None,
 };
 
 /// MBOIT with six power moments: b_5 and b_6 in an RG32F target beside [`MBOIT`]'s.
@@ -225,6 +304,8 @@ pub const MBOIT6: Layout = Layout {
     fixed: MBOIT.fixed,
     scan: false,
     weights: 0,
+    tail_bytes: 0,
+    pool_state: None,
 };
 
 /// MBOIT with eight power moments: b_5..b_8 in an RGBA32F target beside [`MBOIT`]'s.
@@ -241,6 +322,8 @@ pub const MBOIT8: Layout = Layout {
     fixed: MBOIT.fixed,
     scan: false,
     weights: 0,
+    tail_bytes: 0,
+    pool_state: None,
 };
 
 /// MBOIT's layout for `moments` power moments ([`MBOIT`], [`MBOIT6`], [`MBOIT8`]; any other
@@ -263,6 +346,8 @@ pub const LINKED_LIST: Layout = Layout {
     fixed: &[("params", PARAMS_BYTES), ("list.counter", 16), STATUS],
     scan: false,
     weights: 0,
+    tail_bytes: 0,
+    pool_state: None,
 };
 
 /// A-buffer: counts (then the store's cursors), offsets, every fragment as the 8-byte capture
@@ -281,6 +366,8 @@ pub const ABUFFER: Layout = Layout {
     ],
     scan: true,
     weights: 0,
+    tail_bytes: 0,
+    pool_state: None,
 };
 
 impl Layout {
@@ -315,12 +402,109 @@ impl Layout {
             + scan
             + self.weights
     }
-    /// Bytes allocated with `slots` fragment slots.
+    /// Bytes allocated with `slots` fragment slots (and no pooled tail: see
+    /// [`Layout::allocated_with_tails`]).
     pub fn allocated_bytes(&self, pixels: u64, slots: u64) -> u64 {
         self.fixed_bytes(pixels) + slots * self.slot_bytes
     }
+    /// Bytes allocated with `slots` fragment slots and `tails` pooled tails.
+    pub fn allocated_with_tails(&self, pixels: u64, slots: u64, tails: u64) -> u64 {
+        self.allocated_bytes(pixels, slots) + tails * self.tail_bytes
+    }
+    /// Bytes of the buffers a deep pixel has of its own ([`PoolState::per_deep`]).
+    pub fn deep_bytes(&self, occ: &Occupancy) -> u64 {
+        self.pool_state.map_or(0, |ps| {
+            ps.per_deep.iter().map(|b| (b.1 * occ.deep).max(16)).sum()
+        })
+    }
+    /// The slot pool a frame of occupancy `occ` makes at F = `f` where the layout keeps state
+    /// there ([`PoolState`]): the most it holds at once, the records, the marks, or `min(F, n)`
+    /// slots with the tails its pixels may keep ([`Occupancy::tails_at`]); at least 16 bytes.
+    pub fn pool_bytes(&self, pixels: u64, f: u64, occ: &Occupancy) -> u64 {
+        let slots = self.slot_bytes * f.min(occ.fragments) + self.tail_bytes * occ.tails_at(f);
+        slots.max(self.pool_least(pixels, occ.deep))
+    }
+    /// The pool's least size whatever F: the state it holds first for `deep` deep pixels (16
+    /// bytes at least, as every buffer).
+    fn pool_least(&self, pixels: u64, deep: u64) -> u64 {
+        self.pool_state
+            .map_or(0, |ps| {
+                (ps.record_bytes * deep).max(ps.marks_bytes * pixels)
+            })
+            .max(16)
+    }
+    /// The most bytes a frame of occupancy `occ` can allocate at F = `f`: its fixed bytes,
+    /// `min(F, n)` slots (the most an allocation hands out) and, pooled, a tail for each pixel
+    /// that may keep one ([`Occupancy::tails_at`]); where the pool holds state first, the pool
+    /// it makes ([`Layout::pool_bytes`]: what such a frame allocates whatever its k) and its
+    /// buffers for deep pixels.
+    pub fn reserved_bytes(&self, pixels: u64, f: u64, occ: &Occupancy) -> u64 {
+        if self.pool_state.is_some() {
+            return self.fixed_bytes(pixels)
+                + self.deep_bytes(occ)
+                + self.pool_bytes(pixels, f, occ);
+        }
+        let tails = if self.tail_bytes > 0 {
+            occ.tails_at(f)
+        } else {
+            0
+        };
+        self.allocated_with_tails(pixels, f.min(occ.fragments), tails)
+    }
+    /// F(M) for a frame of occupancy `occ`: the most slots whose bytes, with the tails they
+    /// may keep (and the state the pool holds first), stay within `bytes`
+    /// ([`Layout::fragment_budget`] where the tails are not pooled). Where F covers every
+    /// covered pixel only the deep ones keep a tail.
+    pub fn fragment_budget_counted(&self, bytes: u64, pixels: u64, occ: &Occupancy) -> Result<u64> {
+        if self.tail_bytes == 0 {
+            return self.slots_after_fixed(bytes, pixels);
+        }
+        let fixed = self.fixed_bytes(pixels) + self.deep_bytes(occ);
+        // The pool's least size whatever F: the state it holds first.
+        let least = if self.pool_state.is_some() {
+            self.pool_least(pixels, occ.deep)
+        } else {
+            0
+        };
+        let pool = bytes.checked_sub(fixed).filter(|&p| p >= least);
+        let slots_after = |tails: u64| {
+            pool.and_then(|p| p.checked_sub(tails * self.tail_bytes))
+                .map(|b| b / self.slot_bytes)
+        };
+        match (slots_after(occ.deep), slots_after(occ.covered)) {
+            (Some(f), _) if f >= occ.covered => Ok(f),
+            (_, Some(f)) if f > 0 => Ok(f),
+            _ => Err(Error::Budget(
+                format_bytes(bytes),
+                format!(
+                    "{} needs {} for {} pixels before any fragment slot ({} B per pixel + {} \
+                     fixed{}), and {} B for the tail of each of the frame's {} covered pixels",
+                    self.method,
+                    format_bytes(fixed + least),
+                    pixels,
+                    self.per_pixel_bytes(),
+                    format_bytes(fixed - pixels * self.per_pixel_bytes()),
+                    match self.pool_state {
+                        Some(_) => format!(
+                            ", a pool of {} for the {} pixels of two fragments or more",
+                            format_bytes(least),
+                            occ.deep
+                        ),
+                        None => String::new(),
+                    },
+                    self.tail_bytes,
+                    occ.covered
+                ),
+            )),
+        }
+    }
     /// F(M): the fragment slots a budget of `bytes` leaves, or an error saying what is needed.
+    /// Before a frame is counted, a layout with pooled tails leaves room for one a pixel (the
+    /// most a frame can keep); [`Layout::fragment_budget_counted`] knows the frame's.
     pub fn fragment_budget(&self, bytes: u64, pixels: u64) -> Result<u64> {
+        self.fragment_budget_counted(bytes, pixels, &Occupancy::most(pixels))
+    }
+    fn slots_after_fixed(&self, bytes: u64, pixels: u64) -> Result<u64> {
         let fixed = self.fixed_bytes(pixels);
         if bytes < fixed + pixels.min(1) * self.slot_bytes {
             return Err(Error::Budget(
@@ -406,10 +590,12 @@ impl Budget {
     /// assert_eq!(Budget::parse("25%")?, Budget::Share(250_000));
     /// assert!(Budget::parse("25 apples").is_err());
     /// // Bytes fix F through the method's layout: what is left after its fixed buffers, in slots.
+    /// // Before a frame is counted, DKB leaves room for what every pixel could need: a list
+    /// // entry (4 bytes) and a pooled tail (24) each.
     /// let pixels = 640 * 480;
     /// let (m, f) = Budget::parse("40MiB")?.resolve(&DKB, pixels, 0)?;
     /// assert_eq!(m, 40 << 20);
-    /// assert_eq!(f, (m - DKB.fixed_bytes(pixels)) / 8);
+    /// assert_eq!(f, (m - DKB.fixed_bytes(pixels) - 4 * pixels - 24 * pixels) / 8);
     /// # Ok::<(), dhoit_runtime::Error>(())
     /// ```
     pub fn parse(s: &str) -> Result<Budget> {
@@ -483,10 +669,43 @@ impl Budget {
     }
 
     /// Resolves to (bytes M, fragment slots F(M)) for a layout, a pixel count and the frame's
-    /// fragment total (which only a relative budget reads).
+    /// fragment total (which only a relative budget reads). A layout with pooled tails is held
+    /// to a tail for every pixel; [`Budget::resolve_counted`] knows the frame's pixels.
     pub fn resolve(&self, layout: &Layout, pixels: u64, fragments: u64) -> Result<(u64, u64)> {
+        // Only a share reads the fragments; the others hold as many slots as they fix.
+        let occ = Occupancy {
+            fragments: match self {
+                Budget::Share(_) => fragments,
+                _ => u64::MAX,
+            },
+            ..Occupancy::most(pixels)
+        };
+        self.resolve_counted(layout, pixels, &occ)
+    }
+
+    /// [`Budget::resolve`] for a counted frame: bytes leave room for the pooled tails its
+    /// pixels may keep, and the bytes of a share or of slots per pixel are what the method
+    /// reserves for it ([`Layout::reserved_bytes`]).
+    pub fn resolve_counted(
+        &self,
+        layout: &Layout,
+        pixels: u64,
+        occ: &Occupancy,
+    ) -> Result<(u64, u64)> {
+        let fragments = occ.fragments;
+        let bytes_of = |slots: u64| {
+            if layout.pool_state.is_some() {
+                return layout.reserved_bytes(pixels, slots, occ);
+            }
+            let tails = if layout.tail_bytes > 0 {
+                occ.tails_at(slots)
+            } else {
+                0
+            };
+            layout.allocated_with_tails(pixels, slots, tails)
+        };
         match *self {
-            Budget::Bytes(b) => Ok((b, layout.fragment_budget(b, pixels)?)),
+            Budget::Bytes(b) => Ok((b, layout.fragment_budget_counted(b, pixels, occ)?)),
             Budget::Share(ppm) => {
                 let slots = share_of(fragments, ppm);
                 // A frame with nothing transparent in view (all hidden, or none) needs no slot.
@@ -496,7 +715,7 @@ impl Budget {
                         format!("leaves no fragment slot of the frame's {fragments} fragments"),
                     ));
                 }
-                Ok((layout.allocated_bytes(pixels, slots), slots))
+                Ok((bytes_of(slots), slots))
             }
             Budget::SlotsPerPixel(f) => {
                 let slots = (f * pixels as f64).floor() as u64;
@@ -506,7 +725,7 @@ impl Budget {
                         format!("leaves no fragment slot for {pixels} pixels"),
                     ));
                 }
-                Ok((layout.allocated_bytes(pixels, slots), slots))
+                Ok((bytes_of(slots), slots))
             }
         }
     }

@@ -2,7 +2,7 @@
 //! budget and memory figures every method reports.
 
 use crate::alloc::{self, ErrorCurves, GreedyKey, OptimalReport};
-use crate::budget::{self, Budget, FragmentBudget, Layout};
+use crate::budget::{self, Budget, FragmentBudget, Layout, Occupancy};
 use crate::composite::{self, Image, MboitParams, Method as Composite};
 use crate::error::{Error, Result};
 use crate::fragment::FragmentLists;
@@ -370,10 +370,10 @@ impl<'a> Renderer<'a> {
         match (opts.equal, opts.budget) {
             (Equal::Bytes, b @ (Budget::SlotsPerPixel(_) | Budget::Share(_))) => {
                 let fl = self.fragments;
-                let (bytes, _) = b.resolve(
+                let (bytes, _) = b.resolve_counted(
                     &opts.layout(Method::Dkb),
                     fl.pixel_count() as u64,
-                    fl.fragment_count() as u64,
+                    &Occupancy::of(&fl.counts()),
                 )?;
                 Ok(Budget::Bytes(bytes))
             }
@@ -399,6 +399,7 @@ impl<'a> Renderer<'a> {
         let pixels = fl.pixel_count() as u64;
         let counts = fl.counts();
         let total = fl.fragment_count() as u64;
+        let occ = Occupancy::of(&counts);
         let layout = opts.layout(method);
         let t0 = Instant::now();
         let no_weights = || Error::Invalid("dkb needs network weights (--weights FILE)".into());
@@ -423,7 +424,7 @@ impl<'a> Renderer<'a> {
             // Fixed memory whatever the budget: its accumulation targets, no slot.
             (Method::Wboit | Method::Mboit, _) => (layout.fixed_bytes(pixels), 0),
             (_, Budget::Bytes(m)) if bytes_hold && method.is_kbuffer() => (m, total),
-            _ => budget.resolve(&layout, pixels, total)?,
+            _ => budget.resolve_counted(&layout, pixels, &occ)?,
         };
         // Exact where the budget holds every fragment, and (unless told otherwise) where the
         // A-buffer needs no more bytes than the method reserves for this budget: then the
@@ -431,7 +432,7 @@ impl<'a> Renderer<'a> {
         let exact = method.is_kbuffer()
             && (f >= total
                 || (opts.exact_when_cheaper
-                    && exact_is_no_dearer(method, &layout, pixels, f, total)));
+                    && exact_is_no_dearer(method, &layout, pixels, f, &occ)));
         let mut optimal = None;
         let k = match method {
             Method::Abuffer => counts,
@@ -512,7 +513,22 @@ impl<'a> Renderer<'a> {
             Method::Fkb | Method::Mlab => method
                 .layout()
                 .allocated_bytes(pixels, k[0] as u64 * pixels),
-            _ => self.options.layout(method).allocated_bytes(pixels, slots),
+            // Its slots, and the tails it keeps in their pool (none where they are per pixel);
+            // a pool made before the allocation for state it holds first (DKB), the size it
+            // is made at for the frame's budget and occupancy.
+            _ => {
+                let layout = self.options.layout(method);
+                let counts = fl.counts();
+                if layout.pool_state.is_some() {
+                    let occ = Occupancy::of(&counts);
+                    layout.reserved_bytes(pixels, a.budget_fragments, &occ)
+                } else if layout.tail_bytes > 0 {
+                    let tails = budget::tails_kept(&k, &counts);
+                    layout.allocated_with_tails(pixels, slots, tails)
+                } else {
+                    layout.allocated_bytes(pixels, slots)
+                }
+            }
         };
         Frame {
             method,
@@ -535,18 +551,24 @@ impl<'a> Renderer<'a> {
     }
 }
 
-/// The most bytes a k-buffer method's frame can allocate at F: its fixed bytes and
-/// `min(F, n)` slots (the slots an allocation hands out at most; the GPU sizes its slots
-/// buffer from what it hands out), FKB and MLAB their uniform k for every pixel.
-pub fn reserved_bytes(method: Method, layout: &Layout, pixels: u64, f: u64, total: u64) -> u64 {
-    let slots = match method {
-        Method::Fkb | Method::Mlab => f / pixels.max(1) * pixels,
-        _ => f.min(total),
-    };
-    layout.allocated_bytes(pixels, slots)
+/// The most bytes a k-buffer method's frame of occupancy `occ` can allocate at F: its fixed
+/// bytes, `min(F, n)` slots (the slots an allocation hands out at most; the GPU sizes its slots
+/// buffer from what it hands out) and the pooled tails its pixels may keep
+/// ([`Layout::reserved_bytes`]), FKB and MLAB their uniform k for every pixel.
+pub fn reserved_bytes(
+    method: Method,
+    layout: &Layout,
+    pixels: u64,
+    f: u64,
+    occ: &Occupancy,
+) -> u64 {
+    match method {
+        Method::Fkb | Method::Mlab => layout.allocated_bytes(pixels, f / pixels.max(1) * pixels),
+        _ => layout.reserved_bytes(pixels, f, occ),
+    }
 }
 
-/// Whether the exact A-buffer of a frame of `total` fragments needs no more bytes than a
+/// Whether the exact A-buffer of a frame of occupancy `occ` needs no more bytes than a
 /// k-buffer method reserves for it at F ([`reserved_bytes`]): then the A-buffer is both better
 /// and no dearer, and [`Options::exact_when_cheaper`] (on the CPU) and
 /// `gpu::FrameOptions::exact_when_cheaper` (on the GPU, from its own count) render it instead.
@@ -555,10 +577,10 @@ pub fn exact_is_no_dearer(
     layout: &Layout,
     pixels: u64,
     f: u64,
-    total: u64,
+    occ: &Occupancy,
 ) -> bool {
-    reserved_bytes(method, layout, pixels, f, total)
-        >= budget::ABUFFER.allocated_bytes(pixels, total)
+    reserved_bytes(method, layout, pixels, f, occ)
+        >= budget::ABUFFER.allocated_bytes(pixels, occ.fragments)
 }
 
 /// Refuses a frame whose methods' CPU work ([`Method::frame_bytes`], the most of them) would

@@ -36,3 +36,37 @@ pub const AMBIENT: f32 = 0.3;
 /// Most fragments one pixel may hold: the tail's 32-bit integer sums add up to 255^2 per
 /// fragment.
 pub const MAX_FRAGMENTS_PER_PIXEL: u32 = 65_535;
+
+/// 64-bit words of a pooled tail (the allocated k-buffers, `Params::pooled_tail`): sum c8 a8
+/// for r and g, for b and sum a8 (two to a word, as the per-pixel tail), and its count (the
+/// append mode's cursor) in the low half of the third. A pixel that keeps one holds them
+/// right after its k slots, so the slot pool holds the tails too and a pixel that cannot
+/// truncate holds none: no per-pixel tail buffer.
+pub const TAIL_WORDS: u32 = 3;
+
+/// Whether a pixel of `k` slots and `n` fragments keeps a pooled tail: wherever it truncates,
+/// and wherever it holds two fragments or more. So a pixel without one has at most one
+/// fragment, all of it in its slots (k = n <= 1), and its span ([`span`]) says which: below 2
+/// without a tail, k + [`TAIL_WORDS`] >= 3 with one.
+pub const fn has_tail(k: u32, n: u32) -> bool {
+    k < n || n >= 2
+}
+
+/// The pool words a pixel takes: its k slots, and its tail where it keeps one ([`has_tail`]).
+/// The slot bases are the spans' prefix sums.
+pub const fn span(k: u32, n: u32) -> u32 {
+    if has_tail(k, n) { k + TAIL_WORDS } else { k }
+}
+
+/// k from a pixel's span (the inverse of [`span`] on every (k, n) it takes).
+pub const fn k_of_span(span: u32) -> u32 {
+    if span >= 2 { span - TAIL_WORDS } else { span }
+}
+
+/// 64-bit words of DKB's per-pixel record (features.wgsl): the nearest key, the two farthest,
+/// two of colour sums, one of opacity sums. Only a pixel of two fragments or more has one, in
+/// the slot pool until the capture.
+pub const RECORD_WORDS: u32 = 6;
+
+/// A pixel without a record (records.wgsl).
+pub const NO_RECORD: u32 = u32::MAX;

@@ -281,6 +281,9 @@ pub mod shaders {
             ("MBOIT_MIN_B0", F32(crate::composite::MBOIT_MIN_B0)),
             ("LIST_MAX_SORTED", U32(crate::composite::LIST_MAX_SORTED)),
             ("APPEND_SPILL", U32(crate::composite::APPEND_SPILL)),
+            ("TAIL_WORDS", U32(crate::shared::TAIL_WORDS)),
+            ("RECORD_WORDS", U32(crate::shared::RECORD_WORDS)),
+            ("NO_RECORD", U32(crate::shared::NO_RECORD)),
             ("MAX_FRAGMENTS_PER_PIXEL", U32(MAX_FRAGMENTS_PER_PIXEL)),
             ("TEXEL_LIMIT", F32(crate::scene::material::TEXEL_LIMIT)),
             ("ALPHA_SCALE", F32(crate::scene::material::ALPHA_SCALE)),
@@ -381,7 +384,11 @@ pub(crate) struct Params {
     pub(crate) mboit_overestimation: f32,
     /// The linked list's fragments a pixel sorted at resolve.
     pub(crate) list_sorted: u32,
-    pub(crate) _pad: [u32; 19],
+    /// 1 when the k-buffer's tails live in its slot pool, after each pixel's k slots, where
+    /// [`crate::shared::has_tail`] says (the allocated k-buffers, which know n(p)); 0: one
+    /// tail a pixel in buffers of their own (FKB, an uploaded k).
+    pub(crate) pooled_tail: u32,
+    pub(crate) _pad: [u32; 18],
 }
 
 /// `Material.texels` of a material without a texture.
@@ -618,7 +625,7 @@ mod tests {
         let rust = offsets!(Params; view_proj, forward, background, eye, width, height,
             k_uniform, pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed,
             budget_ppm, append, layer_major, uniform_alpha, store_primitives, mboit_bias,
-            mboit_overestimation, list_sorted);
+            mboit_overestimation, list_sorted, pooled_tail);
         assert_eq!(
             wgsl, rust,
             "Params: WGSL (left) and Rust (right) members and offsets"

@@ -27,6 +27,7 @@ fn budgets_parse_with_units() {
 
 #[test]
 fn fragment_budget_follows_the_layout_and_never_overspends() {
+    // DKB's pool holds state first (pooled_tails_leave_the_largest_budget_that_fits).
     for layout in [
         budget::DKB,
         budget::VKB,
@@ -34,14 +35,25 @@ fn fragment_budget_follows_the_layout_and_never_overspends() {
         budget::OPT,
         budget::MLAB,
     ] {
+        if layout.pool_state.is_some() {
+            continue;
+        }
         for pixels in [1u64, 1000, 640 * 480, 1430 * 960] {
+            // Before a frame is counted, pooled tails are held to one a pixel.
+            let tails = pixels * layout.tail_bytes;
             for extra in [0u64, 7, 8, 1 << 20, 12_345_679] {
-                let m = layout.fixed_bytes(pixels) + pixels * budget::SLOT_BYTES + extra;
+                let m = layout.fixed_bytes(pixels) + tails + pixels * budget::SLOT_BYTES + extra;
                 let f = layout.fragment_budget(m, pixels).unwrap();
                 // F(M) = floor((M - |P| S_p - S_i) / S_f), and it is the largest that fits.
-                assert_eq!(f, (m - layout.fixed_bytes(pixels)) / budget::SLOT_BYTES);
-                assert!(layout.allocated_bytes(pixels, f) <= m);
-                assert!(layout.allocated_bytes(pixels, f + 1) > m);
+                assert_eq!(
+                    f,
+                    (m - layout.fixed_bytes(pixels) - tails) / budget::SLOT_BYTES
+                );
+                assert!(layout.allocated_with_tails(pixels, f, pixels) <= m);
+                assert!(layout.allocated_with_tails(pixels, f + 1, pixels) > m);
+            }
+            if layout.tail_bytes > 0 {
+                continue;
             }
             // Below the fixed cost plus one slot per pixel: an error that says what is needed.
             let need = layout.fixed_bytes(pixels) + pixels * budget::SLOT_BYTES;
@@ -56,5 +68,54 @@ fn fragment_budget_follows_the_layout_and_never_overspends() {
         .resolve(&budget::DKB, 100, 0)
         .unwrap();
     assert_eq!(f, 200);
-    assert_eq!(m, budget::DKB.allocated_bytes(100, 200));
+    // Before a frame is counted: every pixel deep, with a record (48 bytes) and a list entry (4),
+    // in a pool of the records (4,800 bytes), which hold more than 200 slots and their tails.
+    let most = budget::Occupancy {
+        fragments: 200,
+        covered: 100,
+        deep: 100,
+    };
+    assert_eq!(m, budget::DKB.reserved_bytes(100, 200, &most));
+    assert_eq!(m, budget::DKB.fixed_bytes(100) + 4 * 100 + 48 * 100);
+}
+
+/// A counted frame's F(M) with pooled tails is the largest F whose fixed bytes, slots and the
+/// tails its pixels may keep then (a tail for every covered pixel below one slot each, for the
+/// deep ones above) fit M: held to an exhaustive search over F.
+#[test]
+fn pooled_tails_leave_the_largest_budget_that_fits() {
+    let pixels = 64u64;
+    let mut both = [false; 2];
+    for layout in [budget::VKB, budget::DKB] {
+        for (covered, deep) in [(0u64, 0u64), (1, 0), (40, 3), (40, 39), (64, 64), (20, 20)] {
+            let occ = budget::Occupancy {
+                fragments: 10_000,
+                covered,
+                deep,
+            };
+            let fixed = layout.fixed_bytes(pixels);
+            for m in (fixed..fixed + 2_400).step_by(3) {
+                let fits = |f: u64| layout.reserved_bytes(pixels, f, &occ) <= m;
+                let best = (0..=400u64).rev().find(|&f| fits(f));
+                match (layout.fragment_budget_counted(m, pixels, &occ), best) {
+                    (Ok(f), Some(b)) => {
+                        assert_eq!(
+                            f, b,
+                            "{} M {m} covered {covered} deep {deep}",
+                            layout.method
+                        );
+                        both[usize::from(f >= covered)] = true;
+                    }
+                    // Refused: not even one slot fits (an empty frame needs none).
+                    (Err(e), b) => {
+                        assert!(b.is_none_or(|b| b == 0), "{} M {m}: {e}", layout.method);
+                        assert!(e.to_string().contains("tail"), "{e}");
+                    }
+                    (Ok(f), None) => panic!("{} M {m}: F {f} where nothing fits", layout.method),
+                }
+            }
+        }
+    }
+    // Budgets below a slot for every covered pixel and above it.
+    assert_eq!(both, [true, true]);
 }

@@ -252,15 +252,28 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
         err.to_string().contains("before any fragment slot"),
         "{err}"
     );
-    // One slot more than the fixed cost: F = 1, one pixel captures one fragment.
-    let f1 = frame::render(
-        &fl,
-        Method::Dkb,
-        opts(Budget::Bytes(fixed + budget::DKB.slot_bytes)),
-    )
-    .unwrap();
-    assert_eq!(f1.budget_fragments, 1);
-    assert_eq!(f1.k.iter().map(|&k| k as u64).sum::<u64>(), 1);
+    // The least bytes that run: the fixed cost, the network's list (4 bytes a deep pixel) and a
+    // pool of the most it holds: the records (48 bytes a deep pixel), the marks (4 a pixel), or
+    // one slot and a pooled tail for each covered pixel (with fewer slots than those, any may
+    // keep one). What the pool holds beyond one slot and the tails is slots: F by hand.
+    let occ = budget::Occupancy::of(&fl.counts());
+    let deep = occ.deep;
+    let pool = (48 * deep).max(4 * pixels).max(8 + 24 * covered);
+    let one = fixed + (4 * deep).max(16) + pool;
+    assert_eq!(one, budget::DKB.reserved_bytes(pixels, 1, &occ));
+    let f1 = frame::render(&fl, Method::Dkb, opts(Budget::Bytes(one))).unwrap();
+    assert!(frame::render(&fl, Method::Dkb, opts(Budget::Bytes(one - 1))).is_err());
+    let by_hand = match (pool - 24 * deep) / 8 {
+        f if f >= covered => f,
+        _ => (pool - 24 * covered) / 8,
+    };
+    assert!(by_hand >= 1);
+    assert_eq!(f1.budget_fragments, by_hand);
+    assert_eq!(
+        f1.k.iter().map(|&k| k as u64).sum::<u64>(),
+        by_hand.min(total)
+    );
+    assert!(f1.allocated_bytes <= one);
     // Fewer slots than covered pixels: the documented behaviour is that k may be 0 (the pixel
     // is all tail), the slots are all handed out, and CPU and GPU agree.
     let few = covered / 3;

@@ -141,20 +141,30 @@ fn equal_bytes_give_every_method_one_memory_budget() {
                 held += 1;
                 continue;
             }
-            // M is what DKB's layout needs for the budget's F; the leaner layouts get more slots.
+            // M is what DKB's layout reserves for the budget's F (its pool may hold more slots
+            // than F in the records' room: F(M) is at least F); every method gets the most
+            // slots whose bytes fit M, by its own layout and the frame's occupancy.
             let f_dkb = match Budget::parse(budget).unwrap() {
                 Budget::Share(ppm) => dhoit_runtime::budget::share_of(total, ppm),
                 Budget::SlotsPerPixel(v) => (v * px as f64) as u64,
                 Budget::Bytes(_) => unreachable!(),
             };
-            assert_eq!(
-                frames[1].budget_fragments, f_dkb,
+            let occ = dhoit_runtime::budget::Occupancy::of(&fl.counts());
+            let dkb = opts.layout(Method::Dkb);
+            assert_eq!(m, dkb.reserved_bytes(px, f_dkb, &occ), "{name} {budget}: M");
+            assert!(
+                frames[1].budget_fragments >= f_dkb,
                 "{name} {budget}: DKB's F"
             );
-            assert!(
-                frames[0].budget_fragments > f_dkb
-                    && frames[2].budget_fragments > frames[0].budget_fragments
-            );
+            for f in &frames {
+                let layout = opts.layout(f.method);
+                let fits = |x: u64| layout.reserved_bytes(px, x, &occ) <= m;
+                assert!(
+                    fits(f.budget_fragments) && !fits(f.budget_fragments + 1),
+                    "{name} {budget} {}: the most slots that fit",
+                    f.method
+                );
+            }
             truncated += 1;
         }
     }

@@ -278,17 +278,18 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
 }
 
 /// The two ways the features pass may take a pixel's nearest key (`FrameOptions::features_preload`)
-/// gather the same statistics, the network written out for its shape (`FrameOptions::unrolled_network`)
-/// gives the importance of mlp.wgsl's loops, and counting first (`DkbGeometry::CountFirst`)
-/// gives the frame of counting in the features pass (`DkbGeometry::Counting`): one frame per
+/// gather the same statistics, and the network written out for its shape
+/// (`FrameOptions::unrolled_network`) gives the importance of mlp.wgsl's loops: one frame per
 /// setting, at a budget that truncates and at one that holds every fragment, the same
-/// statistics as the CPU twin's where the features pass drew (always when it counts, else only
-/// where the budget truncates), the same importance and image bits. Then a stream of frames
-/// following the last (`DkbGeometry::FollowLastFrame` and `FrameOptions::predict_fit`, the defaults),
-/// DKB's, VKB's and uploaded importance's, counts first and records nothing else before the
-/// capture after a frame the budget held, records every pass after one it truncated, or in a
-/// second submission where an expected fit truncates, with the slots, importance and image
-/// bits of frames that record every pass; and so does the allocation's spread search.
+/// statistics as the CPU twin's for every pixel of two fragments or more (the pixels with a
+/// record) where the features pass drew (only where the budget truncates: DKB counts first and
+/// reads its count back), the same importance and image bits. Then a stream of frames following
+/// the last (`FrameOptions::predict_fit`, the default), DKB's, VKB's and uploaded importance's:
+/// DKB records its features, importance and allocation exactly where its count says the budget
+/// truncates; the others count first and record nothing else before the capture after a frame
+/// the budget held, record every pass after one it truncated, or in a second submission where
+/// an expected fit truncates; all with the slots, importance and image bits of frames that
+/// record every pass; and so does the allocation's spread search.
 fn features_and_network_layouts_give_the_same_frame(
     g: &mut dhoit_runtime::gpu::Gpu,
     (s, cam): (&Scene, &Camera),
@@ -296,9 +297,10 @@ fn features_and_network_layouts_give_the_same_frame(
     mlp: &dhoit_runtime::mlp::Mlp,
 ) {
     let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
-    use dhoit_runtime::gpu::DkbGeometry;
     let gfl = gpu_fragments(g, s, cam, w, h);
-    let stats = importance::pixel_stats(&gfl);
+    // The GPU gathers statistics for the pixels that have a record (two fragments or more).
+    let stats = common::recorded_stats(&gfl);
+    assert!(stats.iter().any(|st| st.count == 1) && stats.iter().any(|st| st.count >= 2));
     let total = gfl.fragment_count() as u64;
     let (truncates, holds_all) = ((3 * w * h / 2) as u64, total);
     assert!(truncates < total);
@@ -307,28 +309,19 @@ fn features_and_network_layouts_give_the_same_frame(
     for f in [truncates, holds_all] {
         let holds = f >= total;
         let mut first: Option<dhoit_runtime::gpu::GpuFrame> = None;
-        for (preload, unrolled, geometry) in [
-            (true, true, DkbGeometry::CountFirst),
-            (false, true, DkbGeometry::CountFirst),
-            (true, false, DkbGeometry::CountFirst),
-            (false, false, DkbGeometry::CountFirst),
-            (true, true, DkbGeometry::Counting),
-        ] {
+        for (preload, unrolled) in [(true, true), (false, true), (true, false), (false, false)] {
             o.features_preload = preload;
             o.unrolled_network = unrolled;
-            o.dkb_geometry = geometry;
             let frame = g
                 .render_with(&o, s, cam, (w, h), BG, Some(Slots::Dkb(mlp, f.into())))
                 .unwrap();
-            let label =
-                format!("F {f} of {total}: preload {preload}, unrolled {unrolled}, {geometry:?}");
-            let count_first = geometry == DkbGeometry::CountFirst;
-            assert_eq!(counted_first(&frame), count_first, "{label}: count pass");
+            let label = format!("F {f} of {total}: preload {preload}, unrolled {unrolled}");
+            assert!(counted_first(&frame), "{label}: count pass");
             // The features pass and the network each ran the variant the options ask for.
-            let features = match (count_first, preload) {
-                (false, _) => "features: counting",
-                (true, true) => "features: preload",
-                (true, false) => "features: no preload",
+            let features = if preload {
+                "features: preload"
+            } else {
+                "features: no preload"
             };
             let network = if unrolled {
                 "network: written out"
@@ -336,11 +329,11 @@ fn features_and_network_layouts_give_the_same_frame(
                 "network: loop over any shape"
             };
             assert!(
-                frame.variants.contains(&features) && frame.variants.contains(&network),
+                frame.variants.contains(&features) && (holds || frame.variants.contains(&network)),
                 "{label}: ran {:?}",
                 frame.variants
             );
-            let drawn = !(holds && count_first);
+            let drawn = !holds;
             assert_eq!(frame.features_drawn, Some(drawn), "{label}");
             if drawn {
                 assert_eq!(frame.stats.as_ref().unwrap(), &stats, "{label}: statistics");
@@ -370,7 +363,6 @@ fn features_and_network_layouts_give_the_same_frame(
     }
     o.features_preload = true;
     o.unrolled_network = true;
-    o.dkb_geometry = DkbGeometry::FollowLastFrame;
     // Every pass recorded whatever the last frame (`FrameOptions::predict_fit` off): the references of
     // the stream below, DKB's, VKB's and uploaded importance's.
     let vkb = |f: u64| Slots::Vkb(Default::default(), f.into());
@@ -417,17 +409,21 @@ fn features_and_network_layouts_give_the_same_frame(
             let label = format!("{method}: following frame {i}, F {f} of {total}");
             let passes = |name: &str| frame.pass_ms.iter().filter(|p| p.0 == name).count();
             let holds = f >= total;
-            if method == "dkb" {
-                let count_first = expect_fit;
-                assert_eq!(counted_first(&frame), count_first, "{label}: count pass");
-                let drawn = !(holds && count_first);
-                assert_eq!(frame.features_drawn, Some(drawn), "{label}");
+            // DKB knows from its count whether the budget truncates, whatever the last frame.
+            let dkb = method == "dkb";
+            if dkb {
+                assert!(counted_first(&frame), "{label}: count pass");
+                assert_eq!(frame.features_drawn, Some(!holds), "{label}");
             }
-            let recorded = !(holds && expect_fit);
+            let recorded = !(holds && (expect_fit || dkb));
             // Uploaded importance has no importance pass.
             let computed = (method != "uploaded") as usize;
             for (name, times) in [("totals", 1), ("importance", computed), ("allocation", 1)] {
-                assert_eq!(passes(name), times * recorded as usize, "{label}: {name}");
+                let want = match (dkb, name) {
+                    (true, "totals") => 1,
+                    _ => times * recorded as usize,
+                };
+                assert_eq!(passes(name), want, "{label}: {name}");
             }
             let (image, keys, importance) = &reference[&(method, f)];
             let bits = frame.importance.as_deref().map(float_bits);
@@ -852,16 +848,18 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
         for f in budgets {
             let fpp = format!("{:.2}", f as f64 / pixels as f64);
             // DKB: the features pass against pixel_stats on the GPU's own fragments, where the
-            // device drew it: always where the budget truncates; where it holds every
-            // fragment, not after a count pass (the shared device follows its last DKB frame,
-            // which another test may have drawn: the layouts' test pins each way).
+            // device drew it: where the budget truncates (DKB counts first and reads its count
+            // back), for each pixel with a record (two fragments or more).
             let d = g
                 .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
                 .unwrap();
             let twin = importance::pixel_stats(&gfl);
             let holds = f >= total;
-            let counted_first = d.pass_ms.iter().any(|p| p.0 == "count");
-            let drawn = !(holds && counted_first);
+            assert!(
+                d.pass_ms.iter().any(|p| p.0 == "count"),
+                "{name}: count pass"
+            );
+            let drawn = !holds;
             assert_eq!(d.features_drawn, Some(drawn), "{name} F {f} of {total}");
             let stats = if !drawn {
                 assert!(d.stats.is_none(), "{name}: statistics of an undrawn pass");
@@ -869,8 +867,13 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             } else {
                 let stats = d.stats.clone().unwrap();
                 for (p, (a, b)) in stats.iter().zip(&twin).enumerate() {
-                    // Integer statistics: identical, whatever order the fragments came in.
-                    assert_eq!(a, b, "{name} pixel {p}");
+                    // Integer statistics: identical, whatever order the fragments came in; none
+                    // gathered for a pixel of one fragment (its k is forced).
+                    if b.count >= 2 {
+                        assert_eq!(a, b, "{name} pixel {p}");
+                    } else {
+                        assert_eq!(a.count, b.count, "{name} pixel {p}");
+                    }
                 }
                 stats
             };
@@ -901,8 +904,11 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
                 mlp.target,
                 &format!("{name} dkb {fpp}fpp"),
             );
-            let expect = budget::DKB
-                .allocated_bytes(pixels as u64, d.slots.as_ref().unwrap().1[pixels] as u64);
+            let k_of = |f: &dhoit_runtime::gpu::GpuFrame| -> Vec<u32> {
+                let bases = &f.slots.as_ref().unwrap().1;
+                bases.windows(2).map(|b| b[1] - b[0]).collect()
+            };
+            let expect = common::kbuffer_bytes(&budget::DKB, &k_of(&d), &gfl.counts(), f);
             assert_eq!(d.allocated_bytes, expect, "{name} dkb bytes");
             // VKB.
             let params = VkbParams::default();
@@ -935,8 +941,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
                 alloc::Target::RelativeK,
                 &format!("{name} vkb {fpp}fpp"),
             );
-            let expect = budget::VKB
-                .allocated_bytes(pixels as u64, v.slots.as_ref().unwrap().1[pixels] as u64);
+            let expect = common::kbuffer_bytes(&budget::VKB, &k_of(&v), &gfl.counts(), f);
             assert_eq!(v.allocated_bytes, expect, "{name} vkb bytes");
         }
     }
@@ -1191,7 +1196,10 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
                 .contains(&"capture: built for frames that fit");
             assert_eq!(fits, f >= total, "{label}: {:?}", frame.variants);
             for (p, (&k, &n)) in k.iter().zip(&counts).enumerate() {
-                let want = if fits || composite::appends(k, n) {
+                // A pixel that keeps no pooled tail (k = n <= 1) has no cursor either.
+                let want = if !dhoit_runtime::shared::has_tail(k, n) {
+                    0
+                } else if fits || composite::appends(k, n) {
                     n
                 } else {
                     n.saturating_sub(k)
@@ -1291,13 +1299,12 @@ fn deep_pixels(n: usize) -> (Scene, Camera) {
 }
 
 /// At raster::MAX_FRAGMENTS_PER_PIXEL fragments a pixel, the k-buffers' images are their twins'
-/// and DKB's features pass (counting or after a count pass) gathers the twin's counts and
-/// colour sums, its fields full, and the importance pass reads them as the twin does; one
-/// fragment more, every method refuses the frame as the CPU rasterizer does.
+/// and DKB's features pass gathers the twin's counts and colour sums (for each pixel with a
+/// record: two fragments or more), its fields full, and the importance pass reads them as the
+/// twin does; one fragment more, every method refuses the frame as the CPU rasterizer does.
 #[test]
 fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
-    let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
-    use dhoit_runtime::gpu::DkbGeometry;
+    let o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
     if gpu().is_none() {
         return;
     }
@@ -1315,8 +1322,7 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
     assert_eq!(fl.count(0) as usize, max);
     let twin_stats = importance::pixel_stats(&fl);
     let (f, vkb) = (8u64, Slots::Vkb(Default::default(), 8u64.into()));
-    for geometry in [DkbGeometry::CountFirst, DkbGeometry::Counting] {
-        o.dkb_geometry = geometry;
+    {
         let dkb = Slots::Dkb(&mlp, f.into());
         for (name, slots) in [("FKB", Slots::Uniform(2)), ("VKB", vkb), ("DKB", dkb)] {
             let frame = g
@@ -1337,13 +1343,23 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
             let stats = frame.stats.clone().unwrap();
             for (a, b) in stats.iter().zip(&twin_stats) {
                 let sums = |s: &importance::PixelStats| (s.count, s.color_sum, s.color_sq_sum);
-                assert_eq!(sums(a), sums(b), "{geometry:?}: statistics");
+                if b.count >= 2 {
+                    assert_eq!(sums(a), sums(b), "statistics");
+                } else {
+                    assert_eq!(
+                        a,
+                        &importance::PixelStats {
+                            count: b.count,
+                            ..Default::default()
+                        }
+                    );
+                }
             }
             assert_eq!(stats[0].color_sum[1], 255 * (max as u32 - 2));
             let (feats, counts, pairs) = network_inputs(&stats, f);
             let imp_twin = mlp.dkb_importance(&feats, &counts, &pairs, f);
             let d = max_abs_diff(frame.importance.as_ref().unwrap(), &imp_twin);
-            assert!(d <= 1e-5, "{geometry:?}: importance {d} from the twin");
+            assert!(d <= 1e-5, "importance {d} from the twin");
         }
     }
     // One more: the CPU refuses it, and so does every GPU method (not an image whose tail
@@ -1360,7 +1376,6 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
         ("VKB", Some(vkb)),
         ("DKB", Some(Slots::Dkb(&mlp, f.into()))),
     ];
-    o.dkb_geometry = DkbGeometry::FollowLastFrame;
     for (name, slots) in methods {
         let Err(e) = g.render_with(&o, &s, &cam, (w, h), BG, slots) else {
             panic!("{name}: a pixel of {} fragments gave a frame", max + 1)
@@ -1416,10 +1431,11 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
                     bases[px as usize] as u64, want,
                     "{name} {pct} {label}: sum k"
                 );
+                let k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
                 assert_eq!(
                     frame.allocated_bytes,
-                    layout.allocated_bytes(px, want),
-                    "{name} {pct} {label}: memory for exactly sum k slots"
+                    common::kbuffer_bytes(&layout, &k, &gfl.counts(), f),
+                    "{name} {pct} {label}: memory for exactly sum k slots and their tails"
                 );
                 let imp = frame.importance.clone().unwrap();
                 check_allocation_and_capture(
@@ -1451,12 +1467,12 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
                     "{name} {pct} {m:?}"
                 );
                 // Where the share holds every fragment, the A-buffer's memory (it renders it).
-                let layout = if f >= total {
-                    budget::ABUFFER
+                let bytes = if f >= total {
+                    budget::ABUFFER.allocated_bytes(px, want)
                 } else {
-                    m.layout()
+                    common::kbuffer_bytes(&opts.layout(m), &fr.k, &fl.counts(), f)
                 };
-                assert_eq!(fr.allocated_bytes, layout.allocated_bytes(px, want));
+                assert_eq!(fr.allocated_bytes, bytes, "{name} {pct} {m:?}: bytes");
             }
         }
     }
@@ -1572,7 +1588,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
             .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
             .unwrap();
         let stats = d.stats.clone().unwrap();
-        assert_eq!(stats, importance::pixel_stats(&gfl), "{w}x{h}: statistics");
+        assert_eq!(stats, common::recorded_stats(&gfl), "{w}x{h}: statistics");
         let imp = d.importance.clone().unwrap();
         check_allocation_and_capture(&gfl, &d, &imp, f, mlp.target, &format!("dkb {w}x{h}"));
         let sum: f64 = imp.iter().map(|&i| i.abs() as f64).sum();
@@ -1787,7 +1803,14 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
             })
             .count() as u32;
         assert!(decided < covered, "{name}: some pixels' k is forced");
-        for (skip, want) in [(true, decided), (false, covered)] {
+        // Without the skip the network runs on every pixel with a record (two fragments or
+        // more: a pixel of one has no features gathered, and its k is forced).
+        let recorded = counts.iter().filter(|&&n| n >= 2).count() as u32;
+        assert!(
+            decided < recorded && recorded < covered,
+            "{name}: {decided} {recorded} {covered}"
+        );
+        for (skip, want) in [(true, decided), (false, recorded)] {
             o.skip_forced = skip;
             let frame = g
                 .render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Dkb(&mlp, f.into())))

@@ -71,8 +71,10 @@ fn a_budget_that_holds_every_fragment_allocates_and_renders_the_abuffer() {
             let a = match r.allocate(m) {
                 Ok(a) => a,
                 Err(dhoit_runtime::Error::Budget(..)) => {
+                    // Its fixed cost, one slot and the tails its pixels may keep then.
+                    let occ = budget::Occupancy::of(&fl.counts());
                     assert!(
-                        opts.layout(m).fixed_bytes(px) > m_bytes,
+                        opts.layout(m).reserved_bytes(px, 1, &occ) > m_bytes,
                         "{name} {m}: refused"
                     );
                     eprintln!("{name} {m}: its fixed cost exceeds the A-buffer's whole frame");
@@ -137,16 +139,16 @@ fn dkb_counts_the_bytes_of_the_network_it_runs_on_the_cpu_and_the_gpu() {
         assert!(!a.exact, "{label}: 25% truncates");
         let slots = Slots::for_method(Method::Dkb, &a, &opts).unwrap();
         let cpu = r.composite(a.clone());
-        let want = layout.allocated_bytes(px, cpu.k.iter().map(|&k| k as u64).sum());
+        // Its fixed bytes, the network's list and the pool made for F and the occupancy.
+        let want = common::kbuffer_bytes(&layout, &cpu.k, &fl.counts(), a.budget_fragments);
         assert_eq!(cpu.allocated_bytes, want, "{label}: CPU bytes");
         // The GPU counts the buffers it creates: the weights uniform among them.
         let gpu = g.render_method(&s, &cam, w, h, BG, slots).unwrap();
-        let gk: u64 = gpu.slots.as_ref().unwrap().1[px as usize] as u64;
-        assert_eq!(
-            gpu.allocated_bytes,
-            layout.allocated_bytes(px, gk),
-            "{label}: GPU bytes"
-        );
+        let bases = &gpu.slots.as_ref().unwrap().1;
+        let gpu_k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
+        // n(p) as the CPU counts it (this frame's rasterizers agree on every pixel's count).
+        let bytes = common::kbuffer_bytes(&layout, &gpu_k, &fl.counts(), a.budget_fragments);
+        assert_eq!(gpu.allocated_bytes, bytes, "{label}: GPU bytes");
         // Equal bytes give the others what DKB with this network needs.
         let eq = Options {
             equal: dhoit_runtime::frame::Equal::Bytes,
@@ -154,7 +156,7 @@ fn dkb_counts_the_bytes_of_the_network_it_runs_on_the_cpu_and_the_gpu() {
         };
         let m = Renderer::new(&fl, eq).budget().unwrap();
         let (dkb_m, _) = Budget::Share(250_000)
-            .resolve(&layout, px, fl.fragment_count() as u64)
+            .resolve_counted(&layout, px, &budget::Occupancy::of(&fl.counts()))
             .unwrap();
         assert_eq!(m, Budget::Bytes(dkb_m), "{label}: equal bytes");
     }
@@ -186,6 +188,8 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
         let exact = budget::ABUFFER.allocated_bytes(px, n);
         let reference = g.render(s, &cam, w, h, BG, None).unwrap();
         let gpu_n = reference.fragments.as_ref().unwrap().fragment_count() as u64;
+        let occ = budget::Occupancy::of(&fl.counts());
+        let gpu_occ = budget::Occupancy::of(&reference.fragments.as_ref().unwrap().counts());
         for b in budgets {
             let opts = Options {
                 weights: Some(&mlp),
@@ -218,7 +222,7 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
                     assert_eq!(f.image, abuffer.image, "{name} {b} {m}");
                     assert_eq!(f.allocated_bytes, exact, "{name} {b} {m}");
                     let reserved =
-                        frame::reserved_bytes(m, &opts.layout(m), px, a.budget_fragments, n);
+                        frame::reserved_bytes(m, &opts.layout(m), px, a.budget_fragments, &occ);
                     assert!(reserved >= exact, "{name} {b} {m}");
                     dearer_uncapped += usize::from(own.is_some_and(|o| o.allocated_bytes > exact));
                     capped += 1;
@@ -252,8 +256,8 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
                     };
                     let gd = g.render(s, &cam, w, h, BG, Some(direct)).unwrap();
                     let f = a.fragment_budget.of(gpu_n);
-                    let decide =
-                        f >= gpu_n || frame::exact_is_no_dearer(m, &opts.layout(m), px, f, gpu_n);
+                    let decide = f >= gpu_n
+                        || frame::exact_is_no_dearer(m, &opts.layout(m), px, f, &gpu_occ);
                     assert_eq!(gd.exact, decide, "{name} {b} {m}: the GPU's decision");
                     assert!(
                         gd.allocated_bytes <= gpu_exact,
@@ -310,8 +314,8 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
 #[test]
 fn the_device_page_lists_the_buffers_the_layouts_count() {
     let mut table = String::from(
-        "| method | bytes a pixel | its buffers (bytes a pixel) | a slot | fixed bytes | weights |\n\
-         |---|---:|---|---:|---:|---:|\n",
+        "| method | bytes a pixel | its buffers (bytes a pixel) | a slot | a pooled tail | in the pool first | fixed bytes | weights |\n\
+         |---|---:|---|---:|---:|---|---:|---:|\n",
     );
     for m in [
         "abuffer",
@@ -332,10 +336,24 @@ fn the_device_page_lists_the_buffers_the_layouts_count() {
             .collect();
         let fixed: u64 = l.fixed.iter().map(|b| b.1).sum();
         table += &format!(
-            "| {m} | {} | {} | {} | {fixed} | {} |\n",
+            "| {m} | {} | {} | {} | {} | {} | {fixed} | {} |\n",
             l.per_pixel_bytes(),
             buffers.join(", "),
             l.slot_bytes,
+            l.tail_bytes,
+            match l.pool_state {
+                Some(ps) => format!(
+                    "a record of {} B a deep pixel, the marks {} B a pixel; {} a deep pixel",
+                    ps.record_bytes,
+                    ps.marks_bytes,
+                    ps.per_deep
+                        .iter()
+                        .map(|(label, b)| format!("`{label}` {b}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+                None => "-".into(),
+            },
             l.weights
         );
     }

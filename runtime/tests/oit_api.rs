@@ -11,7 +11,7 @@ use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::gpu::{
     self, AllocatedFrame, AllocatedOit, ApplicationOit, ExactOit, KBufferOit, ListOit, Phase, Slots,
 };
-use dhoit_runtime::gpu::{AllocatedMethod, DkbGeometry, FrameOptions};
+use dhoit_runtime::gpu::{AllocatedMethod, FrameOptions};
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::scene::Camera;
 use dhoit_runtime::scene::Scene;
@@ -675,7 +675,6 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
             let b = Budget::parse(text).unwrap();
             let f = b.fragment_budget(&layout, px).unwrap();
             let opts = FrameOptions {
-                dkb_geometry: DkbGeometry::CountFirst,
                 ..FrameOptions::default().always_approximate()
             };
             let slots = match method {
@@ -763,7 +762,6 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
     .unwrap();
     let b = Budget::parse("1fpp").unwrap();
     let opts = FrameOptions {
-        dkb_geometry: DkbGeometry::CountFirst,
         ..FrameOptions::default().always_approximate()
     };
     let dkb_f = b

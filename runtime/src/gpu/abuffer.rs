@@ -8,6 +8,7 @@
 
 use super::Recording;
 use super::buffers::{FrameStatus, read_back, read_u64s, read_words, u32s};
+use crate::budget::Occupancy;
 use crate::error::Result;
 use crate::fragment::FragmentLists;
 
@@ -31,6 +32,25 @@ pub(super) struct Counted {
     pub(super) offsets: wgpu::Buffer,
     /// The frame's fragments.
     pub(super) total: u64,
+}
+
+impl Counted {
+    /// The count's buffers, its fragments and its occupancy read back, for the decision between
+    /// the exact A-buffer and an allocated k-buffer whose tails the occupancy bounds.
+    pub(super) fn occupancy(&self, rec: &mut Recording) -> Result<Occupancy> {
+        let (gpu, passes) = (rec.passes.gpu, rec.passes);
+        let (fb, enc) = (&mut rec.fb, &mut rec.enc);
+        // Read by the host to decide, like a staging buffer: not the method's memory.
+        let totals = fb.storage("count.occupancy.readback", 16, false)?;
+        passes.totals(enc, &self.counts, &totals);
+        fb.submit(enc);
+        let w = read_words(gpu, &[(&totals, 0), (&totals, 4), (&totals, 12)])?;
+        Ok(Occupancy {
+            fragments: w[0] as u64,
+            covered: w[1] as u64,
+            deep: w[2] as u64,
+        })
+    }
 }
 
 impl Recording<'_, '_> {

@@ -38,6 +38,9 @@ pub(super) struct Importance {
     pub(super) reuse: Option<Reuse>,
     /// The passes after the count, where the frame expected to fit and did not record them.
     pub(super) pending: Option<Pending>,
+    /// Whether the frame knows already that its budget holds every fragment (DKB reads its
+    /// count back first): then it records no allocation, as a frame expected to fit.
+    pub(super) fits: bool,
 }
 
 /// The passes after the count that a frame expected to fit leaves unrecorded (totals,
@@ -83,6 +86,9 @@ pub(super) struct Reuse {
     pub(super) tail_count: wgpu::Buffer,
     /// 16 bytes a pixel.
     pub(super) image: wgpu::Buffer,
+    /// The slot pool, made before the capture (DKB's: it holds the records and the marks
+    /// first), cleared there; else the capture makes it for the slots the allocation hands out.
+    pub(super) pool: Option<wgpu::Buffer>,
 }
 
 impl Recording<'_, '_> {
@@ -141,6 +147,7 @@ impl Recording<'_, '_> {
             marks: None,
             reuse: None,
             pending,
+            fits: false,
         })
     }
 }

@@ -9,7 +9,7 @@
 use std::cell::RefCell;
 
 use super::oit::{check_target_format, fragment_group_layout, onto_pipeline};
-use super::{DkbGeometry, FrameOptions, Gpu, Slots};
+use super::{FrameOptions, Gpu, Slots};
 use crate::budget::{self, Budget, FragmentBudget};
 use crate::error::Result;
 use crate::importance::VkbParams;
@@ -82,7 +82,7 @@ impl Phase {
         match self {
             Phase::Count => &[ReadWrite],
             Phase::Store => &[Read, ReadWrite, ReadWrite, ReadWrite],
-            Phase::Features => &[ReadWrite, ReadWrite, ReadWrite, Uniform, ReadWrite],
+            Phase::Features => &[Read, ReadWrite, Uniform],
             Phase::VkbCount => &[ReadWrite, ReadWrite],
             Phase::Capture | Phase::CaptureFits => &[Read, ReadWrite, ReadWrite, ReadWrite, Read],
         }
@@ -358,7 +358,6 @@ impl AllocatedOit {
             onto: &self.onto,
         };
         let opts = FrameOptions {
-            dkb_geometry: DkbGeometry::CountFirst,
             diagnostics: false,
             exact_when_cheaper: self.exact_when_cheaper,
             ..FrameOptions::default()

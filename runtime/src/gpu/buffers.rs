@@ -376,10 +376,8 @@ pub(super) struct Readback {
     pub(super) slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
     pub(super) counts_buf: Option<wgpu::Buffer>,
     pub(super) importance_buf: Option<wgpu::Buffer>,
-    /// DKB: the nearest keys, the two farthest keys and the colour sums.
-    pub(super) stats_bufs: Option<[wgpu::Buffer; 4]>,
-    /// DKB: the features pass's indirect draw (its first word: the vertices it drew).
-    pub(super) features_draw_buf: Option<wgpu::Buffer>,
+    /// DKB: each pixel's record index, and the records (features.wgsl).
+    pub(super) stats_bufs: Option<[wgpu::Buffer; 2]>,
     /// DKB: whether its features pass drew, where the host knows it (not recorded: false).
     pub(super) features_drawn: Option<bool>,
     pub(super) vkb_nearest_buf: Option<wgpu::Buffer>,
@@ -417,10 +415,7 @@ impl Readback {
             ),
             None => None,
         };
-        let features_drawn = match &self.features_draw_buf {
-            Some(b) => Some(u32s(&read_back(gpu, b, 4)?)[0] > 0),
-            None => self.features_drawn,
-        };
+        let features_drawn = self.features_drawn;
         let network_rows = match &self.network_rows_buf {
             Some(b) => Some(u32s(&read_back(gpu, b, 16)?)[0]),
             None => None,
@@ -435,27 +430,39 @@ impl Readback {
         };
         let counts = u32s(&read_back(gpu, counts, 4 * px)?);
         let stats = match &self.stats_bufs {
-            Some([nearest, farthest, sums, opacity]) if features_drawn != Some(false) => {
-                let nearest = read_u64s(gpu, nearest, px, false)?;
-                let farthest = read_u64s(gpu, farthest, 2 * px, false)?;
-                let sums = u32s(&read_back(gpu, sums, 16 * px)?);
-                let opacity = u32s(&read_back(gpu, opacity, 8 * px)?);
+            Some([record_of, records]) if features_drawn != Some(false) => {
+                let record_of = u32s(&read_back(gpu, record_of, 4 * px)?);
+                let deep = counts.iter().filter(|&&n| n >= 2).count() as u64;
+                let words = crate::shared::RECORD_WORDS as usize;
+                let records = read_u64s(gpu, records, words as u64 * deep, false)?;
                 Some(
                     (0..px as usize)
-                        .map(|q| PixelStats {
-                            count: counts[q],
-                            nearest_key: if counts[q] > 0 { !nearest[q] } else { 0 },
-                            // features.wgsl's packing: r and g 24 bits each, then n; b;
-                            // the optical depth and the opacity.
-                            color_sum: [
-                                sums[4 * q] & 0xff_ffff,
-                                (sums[4 * q] >> 24) | ((sums[4 * q + 1] & 0xffff) << 8),
-                                sums[4 * q + 2],
-                            ],
-                            color_sq_sum: sums[4 * q + 3],
-                            optical_depth: opacity[2 * q],
-                            alpha_sum: opacity[2 * q + 1],
-                            farthest: [farthest[2 * q], farthest[2 * q + 1]],
+                        .map(|q| {
+                            let r = record_of[q];
+                            if r == crate::shared::NO_RECORD {
+                                // No record (one fragment or none): nothing gathered.
+                                return PixelStats {
+                                    count: counts[q],
+                                    ..Default::default()
+                                };
+                            }
+                            let w = &records[words * r as usize..words * (r as usize + 1)];
+                            let lo = |v: u64| (v & 0xffff_ffff) as u32;
+                            PixelStats {
+                                count: counts[q],
+                                nearest_key: !w[0],
+                                // features.wgsl's packing: r and g 24 bits each, then n; b and
+                                // the squares; the optical depth and the opacity.
+                                color_sum: [
+                                    (w[3] & 0xff_ffff) as u32,
+                                    ((w[3] >> 24) & 0xff_ffff) as u32,
+                                    lo(w[4]),
+                                ],
+                                color_sq_sum: (w[4] >> 32) as u32,
+                                optical_depth: lo(w[5]),
+                                alpha_sum: (w[5] >> 32) as u32,
+                                farthest: [w[1], w[2]],
+                            }
                         })
                         .collect(),
                 )

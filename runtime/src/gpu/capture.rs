@@ -20,6 +20,9 @@ pub(super) struct KBuffer {
     pub(super) reuse: Option<Reuse>,
     /// Whether the budget holds every fragment the frame counted (then k = n everywhere).
     pub(super) all_fit: bool,
+    /// Whether the tails live in the slot pool (`Params::pooled_tail`: the bases are the
+    /// prefix sums of each pixel's span, `shared::span`, and `slots` counts the tails' words).
+    pub(super) pooled: bool,
 }
 
 impl Recording<'_, '_> {
@@ -37,6 +40,7 @@ impl Recording<'_, '_> {
                     counts: fb.storage("fkb.unused_counts", 16, true)?,
                     reuse: None,
                     all_fit: false,
+                    pooled: false,
                 })
             }
             Slots::PerPixel(k) => {
@@ -56,6 +60,7 @@ impl Recording<'_, '_> {
                     counts: fb.storage("oit.unused_counts", 16, true)?,
                     reuse: None,
                     all_fit: false,
+                    pooled: false,
                 })
             }
             Slots::Importance(imp, target, _) => {
@@ -69,9 +74,10 @@ impl Recording<'_, '_> {
                 self.allocated(i, budget, expect_fit)
             }
             Slots::Dkb(mlp, _) => {
-                let expect_fit = self.expect_fit();
-                let i = self.dkb_importance(mlp, expect_fit)?;
-                self.allocated(i, budget, expect_fit)
+                // DKB reads its count back first (its pool is sized from it).
+                let i = self.dkb_importance(mlp, budget)?;
+                let fits = i.fits;
+                self.allocated(i, budget, fits)
             }
             Slots::Mlab(_) | Slots::Wboit | Slots::Mboit(_) | Slots::LinkedList { .. } => {
                 unreachable!("MLAB, WBOIT, MBOIT and the linked list have passes of their own")
@@ -137,6 +143,11 @@ impl Recording<'_, '_> {
             fb.submit(enc);
             let total = read_words(gpu, &[(&base, 4 * px)])?[0] as u64;
             if budget.holds(total) {
+                // The bases of the spans of k = n (each tail's words after its slots), and the
+                // pool's words they end with.
+                passes.prefix_sum_of(enc, fb, Scan::Spans(&i.counts, &base), None)?;
+                fb.submit(enc);
+                let words = read_words(gpu, &[(&base, 4 * px)])?[0] as u64;
                 // No pass computed the importance (k = n): it reads back as zeros.
                 if self.passes.opts.diagnostics && i.computed {
                     self.out.importance_buf =
@@ -146,10 +157,11 @@ impl Recording<'_, '_> {
                     .store(false, std::sync::atomic::Ordering::Relaxed);
                 return Ok(KBuffer {
                     base,
-                    slots: total,
+                    slots: words,
                     counts: i.counts,
                     reuse: i.reuse,
                     all_fit: true,
+                    pooled: true,
                 });
             }
             // Expected to fit, truncated: the rest after all.
@@ -163,8 +175,8 @@ impl Recording<'_, '_> {
         self.out.variants.push(search);
         passes.prefix_sum_of(enc, fb, Scan::InPlace(&base), None)?;
         fb.submit(enc);
-        // The slots (the bases' last entry) and the frame's fragments, without reading back
-        // the bases.
+        // The pool's words (the bases' last entry: slots and tails) and the frame's fragments,
+        // without reading back the bases.
         let words = read_words(gpu, &[(&base, 4 * px), (&i.totals, 0)])?;
         let (slots, fragments) = (words[0] as u64, words[1] as u64);
         let all_fit = budget.holds(fragments);
@@ -176,6 +188,7 @@ impl Recording<'_, '_> {
             counts: i.counts,
             reuse: i.reuse,
             all_fit,
+            pooled: true,
         })
     }
 
@@ -186,18 +199,33 @@ impl Recording<'_, '_> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
-        let slots = fb.storage("oit.slots", 8 * kb.slots, true)?;
+        // The pool made before (and used for other state until now), cleared, or made here.
+        let slots = match kb.reuse.as_ref().and_then(|r| r.pool.clone()) {
+            Some(pool) => {
+                enc.clear_buffer(&pool, 0, None);
+                pool
+            }
+            None => fb.storage("oit.slots", 8 * kb.slots, true)?,
+        };
         let status = fb.storage("status", FrameStatus::BYTES, true)?;
         // The tail: sum c8 a8 for r, g, b and sum a8 (16 bytes a pixel), and its count; and the
         // image: their own buffers, or DKB's features once read.
-        let (tail, tail_count, image) = match kb.reuse {
-            Some(r) => {
+        // Pooled, the tails are in the slots (cleared with them), and the tail buffers the
+        // shared layout binds are unused.
+        let (tail, tail_count, image) = match (kb.reuse, kb.pooled) {
+            (Some(r), true) => (r.tail, r.tail_count, r.image),
+            (Some(r), false) => {
                 // The tail starts from zero.
                 enc.clear_buffer(&r.tail, 0, None);
                 enc.clear_buffer(&r.tail_count, 0, None);
                 (r.tail, r.tail_count, r.image)
             }
-            None => (
+            (None, true) => (
+                fb.storage("oit.unused_tail", 16, true)?,
+                fb.storage("oit.unused_tail_count", 16, true)?,
+                fb.storage("application.image", 16 * px, false)?,
+            ),
+            (None, false) => (
                 fb.storage("oit.tail", 16 * px, true)?,
                 fb.storage("oit.tail_count", 4 * px, true)?,
                 fb.storage("application.image", 16 * px, false)?,
@@ -221,12 +249,20 @@ impl Recording<'_, '_> {
         // With diagnostics, the tail counts as the capture left them, before the resolve sorts
         // what the append mode spilled: n where a pixel appended, what insertion pushed out
         // where it inserted ([`GpuFrame::capture_counts`]).
-        let captured = if self.passes.opts.diagnostics {
-            let copy = fb.storage("oit.tail_count.captured", 4 * px, false)?;
-            enc.copy_buffer_to_buffer(&tail_count, 0, &copy, 0, 4 * px);
-            Some(copy)
-        } else {
-            None
+        let captured = match (self.passes.opts.diagnostics, kb.pooled) {
+            (false, _) => None,
+            // The pool as the capture left it (its tails' counts read from it below).
+            (true, true) => {
+                let bytes = 8 * kb.slots.max(1);
+                let copy = fb.storage("oit.slots.captured", bytes, false)?;
+                enc.copy_buffer_to_buffer(&slots, 0, &copy, 0, 8 * kb.slots);
+                Some(copy)
+            }
+            (true, false) => {
+                let copy = fb.storage("oit.tail_count.captured", 4 * px, false)?;
+                enc.copy_buffer_to_buffer(&tail_count, 0, &copy, 0, 4 * px);
+                Some(copy)
+            }
         };
         passes.resolve(
             enc,
@@ -246,7 +282,18 @@ impl Recording<'_, '_> {
         );
         fb.submit(enc);
         self.out.status = Some(status);
-        if self.passes.opts.diagnostics {
+        if self.passes.opts.diagnostics && kb.pooled {
+            // Each pixel's k slots and its tail out of the pool, as composite::capture gives them.
+            let spans = u32s(&read_back(gpu, &kb.base, 4 * (px + 1))?);
+            let pool = read_u64s(gpu, &slots, kb.slots, false)?;
+            let pooled = unpool(&spans, &pool);
+            if let Some(c) = &captured {
+                let at_capture = read_u64s(gpu, c, kb.slots, false)?;
+                self.out.capture_counts = Some(unpool(&spans, &at_capture).3);
+            }
+            let (keys, bases, tails, _) = pooled;
+            self.out.slots = Some((keys, bases, tails));
+        } else if self.passes.opts.diagnostics {
             let bases = match s {
                 Slots::Uniform(k) => (0..=px as u32).map(|q| q * k.max(1)).collect(),
                 _ => u32s(&read_back(gpu, &kb.base, 4 * (px + 1))?),
@@ -271,4 +318,42 @@ impl Recording<'_, '_> {
         }
         Ok(image)
     }
+}
+
+/// A pooled k-buffer's pool (as stored: keys complemented; `spans`: the bases of each pixel's span, `pixels + 1` entries) as
+/// per-pixel buffers: the slots' keys (pixel-major), their bases (prefix sums of k), the tails
+/// (five words a pixel: sum c8 a8 for r, g, b, sum a8, the count; zeros where a pixel keeps
+/// none) and the tails' counts alone.
+fn unpool(spans: &[u32], pool: &[u64]) -> (Vec<u64>, Vec<u32>, Vec<u32>, Vec<u32>) {
+    let px = spans.len().saturating_sub(1);
+    let (mut keys, mut bases, mut tails, mut counts) = (
+        Vec::with_capacity(pool.len()),
+        Vec::with_capacity(px + 1),
+        Vec::with_capacity(5 * px),
+        Vec::with_capacity(px),
+    );
+    bases.push(0);
+    for w in spans.windows(2) {
+        let (at, span) = (w[0] as usize, w[1] - w[0]);
+        let k = crate::shared::k_of_span(span) as usize;
+        // Slots hold complemented keys.
+        keys.extend(pool[at..at + k].iter().map(|&v| !v));
+        bases.push(bases.last().copied().unwrap_or(0) + k as u32);
+        let t = if span >= 2 {
+            let t = &pool[at + k..at + k + crate::shared::TAIL_WORDS as usize];
+            let lo = |w: u64| (w & 0xffff_ffff) as u32;
+            [
+                lo(t[0]),
+                (t[0] >> 32) as u32,
+                lo(t[1]),
+                (t[1] >> 32) as u32,
+                lo(t[2]),
+            ]
+        } else {
+            [0; 5]
+        };
+        counts.push(t[4]);
+        tails.extend_from_slice(&t);
+    }
+    (keys, bases, tails, counts)
 }

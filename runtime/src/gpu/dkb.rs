@@ -1,17 +1,24 @@
-//! The deep k-buffer's importance: the count (`abuffer_count.wgsl`), `totals.wgsl`, then
-//! `features.wgsl` (geometry: nearest and two farthest keys, colour sums; twin
-//! `importance::pixel_stats`), drawn only when the budget truncates (`totals.wgsl`'s
-//! `features_draw` sets its indirect draw; or counting in the features pass, drawn always:
-//! [`DkbGeometry`], its count packed in the colour sums and written out by `totals.wgsl`'s
-//! `from_sums`), then `importance_dkb.wgsl` (the 12 features, never stored, through the
-//! network of `mlp.wgsl`, built for the network's shape and precision by [`Variant`]; twin
-//! `Mlp::dkb_importance`). A frame expected to fit ([`FrameOptions::predict_fit`]) records the count
-//! alone and leaves the rest to [`Recording::allocated`], which records it only where the
-//! budget truncates.
+//! The deep k-buffer's importance: the count (`abuffer_count.wgsl`) and `totals.wgsl`, read
+//! back (the frame's occupancy, [`Occupancy`]: its fragments, covered and deep pixels), then
+//! where the budget truncates `totals.wgsl`'s `assign_records` (a record for each pixel of two
+//! fragments or more, in the slot pool), `features.wgsl` (geometry: each record's nearest and
+//! two farthest keys, colour and opacity sums; twin `importance::pixel_stats`), then
+//! `importance_dkb.wgsl` (the 12 features, never stored, through the network of `mlp.wgsl`,
+//! built for the network's shape and precision by [`Variant`]; twin `Mlp::dkb_importance`).
+//! Where the budget holds every fragment none of those runs: k = n whatever the importance.
+//!
+//! DKB's per-pixel state is the count, the shared word (`oit.offsets`: a pixel's record index,
+//! its importance, the allocation's weights, k and the slot bases in turn) and the raster
+//! target; what only some pixels need lives in the slot pool before the slots do: the records
+//! until the importance is gathered, the allocation's marks until k is known, then the slots
+//! and the pooled tails. The pool is sized for the frame's budget and occupancy
+//! ([`crate::budget::Layout::pool_bytes`]) before the features pass.
 
-use super::allocate::{Importance, Reuse, Word, pending, record_unless};
+use super::allocate::{Importance, Reuse, Word};
+use super::buffers::{FrameBuffers, read_words};
 use super::pipelines::Variant;
-use super::{DkbGeometry, Recording, weight_kind};
+use super::{Recording, weight_kind};
+use crate::budget::{self, FragmentBudget, Occupancy};
 use crate::error::{Error, Result};
 use crate::mlp::Mlp;
 use crate::wgsl::{DISPATCH_WORDS, PIXEL_GROUP, grid, mlp_uniform};
@@ -21,31 +28,55 @@ use crate::wgsl::{DISPATCH_WORDS, PIXEL_GROUP, grid, mlp_uniform};
 struct DkbBuffers {
     weights: wgpu::Buffer,
     counts: wgpu::Buffer,
-    /// The features pass's indirect draw.
-    draw: wgpu::Buffer,
-    nearest: wgpu::Buffer,
-    farthest: wgpu::Buffer,
-    sums: wgpu::Buffer,
+    /// The records, the marks, then the slots and tails.
+    pool: wgpu::Buffer,
     /// The optical depth of each 8-bit opacity (importance::optical_depth_table).
     optical_depth: wgpu::Buffer,
-    /// Per pixel the sums of optical depth and opacity.
-    opacity: wgpu::Buffer,
+    /// fragments, covered, max count, deep, records handed out (totals.wgsl).
     totals: wgpu::Buffer,
+    /// The shared word: record index, importance, weights, k, slot bases.
     importance: wgpu::Buffer,
+    /// The records the network decides (one word a deep pixel), its length and dispatch.
+    list: wgpu::Buffer,
     list_len: wgpu::Buffer,
     dispatch: wgpu::Buffer,
 }
 
 impl Recording<'_, '_> {
-    /// DKB's count (or the features pass counting), then its totals, features and importance,
-    /// left pending where the frame is expected to fit (k = n needs none of them). The
-    /// features' buffers, once read, hold the tail and the image.
-    pub(super) fn dkb_importance(&mut self, mlp: &Mlp, expect_fit: bool) -> Result<Importance> {
+    /// DKB's count and occupancy (read back: the pool's size follows from them), then, where
+    /// the budget truncates, its records, features and importance.
+    pub(super) fn dkb_importance(
+        &mut self,
+        mlp: &Mlp,
+        budget: FragmentBudget,
+    ) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         gpu.can_run(mlp)?;
         let p = &gpu.pipelines;
+        let layout = budget::DKB.for_network(mlp);
         let importance = self.pixel_word(Word::Written)?;
         let fb = &mut self.fb;
+        // The frame's count where it counted first (FrameOptions::exact_when_cheaper).
+        let counts = match &self.counted {
+            Some(c) => c.counts.clone(),
+            None => {
+                let c = fb.storage("features.count", 4 * px, true)?;
+                passes.draw(&mut self.enc, &p.count, &[&c], "count");
+                c
+            }
+        };
+        let totals = fb.storage("features.totals", 24, true)?;
+        passes.totals(&mut self.enc, &counts, &totals);
+        fb.submit(&mut self.enc);
+        let w = read_words(gpu, &[(&totals, 0), (&totals, 4), (&totals, 12)])?;
+        let occ = Occupancy {
+            fragments: w[0] as u64,
+            covered: w[1] as u64,
+            deep: w[2] as u64,
+        };
+        let f = budget.of(occ.fragments);
+        let fb = &mut self.fb;
+        let pool = fb.storage("oit.slots", layout.pool_bytes(px, f, &occ), true)?;
         let args = 4 * DISPATCH_WORDS as u64;
         let dispatch = fb.take(
             "importance.dispatch",
@@ -63,177 +94,134 @@ impl Recording<'_, '_> {
                 wgpu::BufferUsages::UNIFORM,
                 true,
             ),
-            // The frame's count where it counted first.
-            counts: match &self.counted {
-                Some(c) => c.counts.clone(),
-                None => fb.storage("features.count", 4 * px, true)?,
-            },
-            // The frame's transparent indices, or none (totals.wgsl's features_draw).
-            draw: fb.init(
-                "features.draw",
-                bytemuck::cast_slice(&[passes.vertices, 1, 0, 0, 0]),
-                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
-                true,
-            ),
-            // The nearest key (8 bytes a pixel), then the tail's count; the two farthest keys
-            // (16), then the tail's sums; the colour sums (16), then the image; the opacity
-            // sums (8). No buffer above 16 bytes a pixel, so a 4K frame fits 128 MiB bindings.
-            nearest: fb.storage("features.nearest", 8 * px, true)?,
-            farthest: fb.storage("features.farthest", 16 * px, true)?,
-            sums: fb.storage("features.color_sums", 16 * px, true)?,
-            opacity: fb.storage("features.opacity", 8 * px, true)?,
+            counts,
+            pool,
             optical_depth: fb.init(
                 "features.optical_depth",
                 bytemuck::cast_slice(&crate::importance::optical_depth_table()),
                 wgpu::BufferUsages::UNIFORM,
                 true,
             ),
-            totals: fb.storage("features.totals", 24, true)?,
+            totals,
             importance,
+            list: fb.storage("importance.list", (4 * occ.deep).max(16), true)?,
             list_len: fb.storage("importance.list_len", 16, true)?,
             dispatch,
         };
-        let counted = self.counted.is_some();
-        let count_first = counted
-            || match self.passes.opts.dkb_geometry {
-                DkbGeometry::CountFirst => true,
-                DkbGeometry::Counting => false,
-                DkbGeometry::FollowLastFrame => !gpu
-                    .last_truncated
-                    .load(std::sync::atomic::Ordering::Relaxed),
+        self.counted = None;
+        let truncates = f < occ.fragments;
+        // Where every fragment fits, k = n: no record, feature or importance (the shared word
+        // the allocation reads as weights is ignored then).
+        self.out.features_drawn = Some(truncates);
+        if truncates {
+            let variant = |entry| Variant {
+                shared_weights: self.passes.opts.shared_weights,
+                unrolled: self.passes.opts.unrolled_network,
+                entry,
+                ..Variant::for_network("importance_dkb", mlp, self.passes.opts.skip_forced)
             };
-        let (features, variant) = if !count_first {
-            (&p.features_counting, "features: counting")
-        } else if self.passes.opts.features_preload {
-            (&p.features, "features: preload")
-        } else {
-            (&p.features_no_preload, "features: no preload")
-        };
-        let features = features.clone();
-        self.out.variants.push(variant);
-        if count_first {
-            if !counted {
-                passes.draw(&mut self.enc, &p.count, &[&b.counts], "count");
-            }
-            // Drawn, if at all, with the rest (where the frame is not expected to fit); once
-            // recorded, its draw's arguments say whether it drew.
-            self.out.features_drawn = Some(false);
-        } else {
-            // One pass counts and gathers the features, drawn always: where the budget
-            // truncates (as the last frame's did), one geometry pass fewer. Its count goes
-            // out of the sums (and into the totals) at once, for a frame expected to fit.
-            self.dkb_features(&b, &features)?;
-            passes.totals_from_sums(&mut self.enc, &b.sums, &b.counts, &b.totals);
+            self.out.variants.push(variant("network").form());
+            let network = ["select_pixels", "args", "network", "gather"]
+                .map(|e| gpu.network_pass(variant(e)));
+            self.dkb_records_and_features(&b, occ.deep)?;
+            self.dkb_network(&b, occ.deep, &network)?;
         }
-        let variant = |entry| Variant {
-            shared_weights: self.passes.opts.shared_weights,
-            unrolled: self.passes.opts.unrolled_network,
-            entry,
-            ..Variant::for_network("importance_dkb", mlp, self.passes.opts.skip_forced)
+        let variant = if self.passes.opts.features_preload {
+            "features: preload"
+        } else {
+            "features: no preload"
         };
-        self.out.variants.push(variant("network").form());
-        let network =
-            ["select_pixels", "args", "network", "gather"].map(|e| gpu.network_pass(variant(e)));
-        let bufs = b.clone();
-        let rest = pending(move |rec| rec.dkb_rest(&bufs, count_first, &features, &network));
-        let pending = record_unless(self, rest, expect_fit)?;
+        self.out.variants.push(variant);
+        // The unused per-pixel tail of the capture's shared layout: two small buffers dead by
+        // the capture (the tails are pooled).
+        let image = self.fb.storage("application.image", 16 * px, false)?;
         Ok(Importance {
             counts: b.counts,
             importance: b.importance,
             totals: b.totals,
             computed: true,
             kind: weight_kind(mlp.target),
-            // The nearest keys, where the importance waited, are dead once gathered.
-            marks: Some(b.nearest.clone()),
+            // The allocation's marks in the pool, the records gathered by then.
+            marks: Some(b.pool.clone()),
             reuse: Some(Reuse {
-                tail: b.farthest,
-                tail_count: b.nearest,
-                image: b.sums,
+                tail: b.list_len,
+                tail_count: b.dispatch,
+                image,
+                pool: Some(b.pool),
             }),
-            pending,
+            pending: None,
+            fits: !truncates,
         })
     }
 
-    /// The features pass (drawn indirectly), and with diagnostics the copies of its statistics
-    /// (not counted; the buffers then serve the tail and the image).
-    fn dkb_features(&mut self, b: &DkbBuffers, features: &wgpu::RenderPipeline) -> Result<()> {
-        let (passes, px) = (self.passes, self.px);
+    /// The records (a pool index for each deep pixel) and the features pass, and with
+    /// diagnostics the copies of its statistics (not counted).
+    fn dkb_records_and_features(&mut self, b: &DkbBuffers, deep: u64) -> Result<()> {
+        let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
+        let p = &gpu.pipelines;
+        let (gx, gy) = grid(px as u32, PIXEL_GROUP);
+        let group = gpu.bind_at(
+            &p.assign_records.get_bind_group_layout(0),
+            &[
+                (0, passes.params()),
+                (1, &b.counts),
+                (2, &b.totals),
+                (6, &b.importance),
+                (7, &b.pool),
+            ],
+        );
+        passes.compute(&mut self.enc, "records", |pass| {
+            pass.set_pipeline(&p.assign_records);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        });
+        let features = if self.passes.opts.features_preload {
+            &p.features
+        } else {
+            &p.features_no_preload
+        };
         let (fb, enc) = (&mut self.fb, &mut self.enc);
-        // Where the pass counts (COUNT_FRAGMENTS), n goes in the sums (totals.wgsl's from_sums).
-        let bufs = [
-            &b.nearest,
-            &b.farthest,
-            &b.sums,
-            &b.optical_depth,
-            &b.opacity,
-        ];
-        passes.draw_indirect(enc, features, &bufs, "features", &b.draw);
+        let bufs = [&b.importance, &b.pool, &b.optical_depth];
+        passes.draw(enc, features, &bufs, "features");
         if self.passes.opts.diagnostics {
+            let record_bytes = 8 * crate::shared::RECORD_WORDS as u64 * deep;
             let mut copy = |b: &wgpu::Buffer, label: &str, bytes: u64| {
-                let c = fb.storage(label, bytes * px, false)?;
-                enc.copy_buffer_to_buffer(b, 0, &c, 0, bytes * px);
+                let c = fb.storage(label, bytes.max(16), false)?;
+                enc.copy_buffer_to_buffer(b, 0, &c, 0, bytes);
                 Ok::<_, Error>(c)
             };
             self.out.stats_bufs = Some([
-                copy(&b.nearest, "features.nearest.readback", 8)?,
-                copy(&b.farthest, "features.farthest.readback", 16)?,
-                copy(&b.sums, "features.color_sums.readback", 16)?,
-                copy(&b.opacity, "features.opacity.readback", 8)?,
+                copy(&b.importance, "features.record_of.readback", 4 * px)?,
+                copy(&b.pool, "features.records.readback", record_bytes)?,
             ]);
-            self.out.features_draw_buf = Some(b.draw.clone());
         }
         Ok(())
     }
 
-    /// After DKB's count: where the count came first, the totals and the features (drawn only
-    /// where the budget truncates: when it holds every fragment, k = n whatever the importance,
-    /// and `features_draw` empties the draw); then the network's pass.
-    fn dkb_rest(
+    /// The network's pass over the records, its importance gathered into the shared word.
+    fn dkb_network(
         &mut self,
         b: &DkbBuffers,
-        count_first: bool,
-        features: &wgpu::RenderPipeline,
+        deep: u64,
         [select, args, network, gather]: &[wgpu::ComputePipeline; 4],
     ) -> Result<()> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
         let (gx, gy) = grid(px as u32, PIXEL_GROUP);
-        if count_first {
-            let sum = gpu.bind(
-                &p.totals.get_bind_group_layout(0),
-                &[passes.params(), &b.counts, &b.totals],
-            );
-            let draw_args = gpu.bind_at(
-                &p.features_draw.get_bind_group_layout(0),
-                &[(0, passes.params()), (2, &b.totals), (3, &b.draw)],
-            );
-            passes.compute(&mut self.enc, "totals", |pass| {
-                pass.set_pipeline(&p.totals);
-                pass.set_bind_group(0, &sum, &[]);
-                pass.dispatch_workgroups(gx, gy, 1);
-                pass.set_pipeline(&p.features_draw);
-                pass.set_bind_group(0, &draw_args, &[]);
-                pass.dispatch_workgroups(1, 1, 1);
-            });
-            self.dkb_features(b, features)?;
-        }
-        // The list, then the importance, in the frame's shared word (binding 8).
+        let (rx, ry) = grid(deep.max(1) as u32, PIXEL_GROUP);
         let bind = |dispatch_or_not: &wgpu::Buffer| {
             gpu.bind_at(
                 &p.network_layout.group,
                 &[
                     (0, passes.params()),
                     (1, &b.weights),
-                    (2, &b.counts),
-                    (3, &b.nearest),
-                    (4, &b.farthest),
-                    (5, &b.sums),
+                    (3, &b.pool),
+                    (4, &b.list),
                     (6, &b.totals),
                     (8, &b.importance),
                     (9, &b.list_len),
                     (10, dispatch_or_not),
                     (11, &b.weights),
-                    (12, &b.opacity),
                 ],
             )
         };
@@ -243,7 +231,7 @@ impl Recording<'_, '_> {
         passes.compute(&mut self.enc, "importance", |pass| {
             pass.set_bind_group(0, &group, &[]);
             pass.set_pipeline(select);
-            pass.dispatch_workgroups(gx, gy, 1);
+            pass.dispatch_workgroups(rx, ry, 1);
             pass.set_pipeline(args);
             pass.dispatch_workgroups(1, 1, 1);
             pass.set_pipeline(network);
@@ -253,7 +241,8 @@ impl Recording<'_, '_> {
             pass.dispatch_workgroups(gx, gy, 1);
         });
         if self.passes.opts.diagnostics {
-            let copy = self.fb.storage("importance.list_len.readback", 16, false)?;
+            let fb: &mut FrameBuffers = &mut self.fb;
+            let copy = fb.storage("importance.list_len.readback", 16, false)?;
             self.enc.copy_buffer_to_buffer(&b.list_len, 0, &copy, 0, 16);
             self.out.network_rows_buf = Some(copy);
         }

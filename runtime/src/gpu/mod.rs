@@ -134,8 +134,7 @@ pub struct Gpu {
     /// network deployed at [`Precision::F16Math`] only where it does.
     half_math: bool,
     /// Whether the budget truncated the last frame this renderer allocated k for (DKB, VKB,
-    /// uploaded importance): what [`DkbGeometry::FollowLastFrame`] and [`FrameOptions::predict_fit`] go
-    /// by.
+    /// uploaded importance): what [`FrameOptions::predict_fit`] goes by.
     last_truncated: std::sync::atomic::AtomicBool,
     /// Whether the device ends a shader invocation's loops early, silently (Mesa's lavapipe,
     /// after 65,535 iterations): then a frame whose passes came close to that (common.wgsl's
@@ -191,10 +190,8 @@ pub struct FrameOptions {
     /// 8.6 / 3.2 without: particles, plates, shells, foliage, glass). The bench measures both;
     /// the features are the same.
     pub features_preload: bool,
-    /// How DKB counts its fragments and gathers its features ([`DkbGeometry`]; the images are
-    /// the same).
-    pub dkb_geometry: DkbGeometry,
-    /// Whether an allocated frame (DKB, VKB, uploaded importance) is recorded as one whose
+    /// Whether an allocated frame (VKB, uploaded importance; DKB reads its count back first,
+    /// whatever this says, to size its slot pool) is recorded as one whose
     /// budget holds every fragment where the renderer's last allocated frame's did: then k = n
     /// whatever the importance, so the frame records its count, the count's prefix sum (the
     /// slot bases), the capture and the resolve, as the A-buffer does; no totals, features,
@@ -239,7 +236,6 @@ impl Default for FrameOptions {
             shared_weights: false,
             unrolled_network: true,
             features_preload: true,
-            dkb_geometry: DkbGeometry::FollowLastFrame,
             predict_fit: true,
             spread_search: false,
             layer_major_fkb: false,
@@ -460,24 +456,6 @@ impl Gpu {
             created: Default::default(),
         })
     }
-}
-
-/// How DKB's frame counts its fragments and gathers its features (count, nearest and farthest
-/// keys, colour sums). Where the budget holds every fragment, k = n whatever the importance,
-/// and the features are not needed; where it truncates, they are. The images are the same.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DkbGeometry {
-    /// A count pass first, then the features pass drawn only where the budget truncates (an
-    /// indirect draw the device sets from the count): about a count pass where the budget holds
-    /// every fragment, one geometry pass more than [`DkbGeometry::Counting`] where it truncates.
-    CountFirst,
-    /// The features pass counts too, drawn always: no count pass.
-    Counting,
-    /// [`DkbGeometry::CountFirst`], unless the last frame the renderer allocated k for (DKB,
-    /// VKB, uploaded importance) was truncated by its budget, then [`DkbGeometry::Counting`] (a
-    /// stream of like frames takes the cheaper one; the first frame counts first). The
-    /// default.
-    FollowLastFrame,
 }
 
 /// How the k-buffer gets its k.
@@ -779,6 +757,12 @@ impl Gpu {
                 Some(Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
             ))
         .into();
+        // The allocated k-buffers know n(p) when they allocate: tails in the slot pool.
+        params.pooled_tail = matches!(
+            slots,
+            Some(Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
+        )
+        .into();
         params.layer_major =
             (opts.layer_major_fkb && matches!(slots, Some(Slots::Uniform(_)))).into();
         if let Some(Slots::LinkedList { sorted, .. }) = slots {
@@ -924,8 +908,9 @@ impl Recording<'_, '_> {
             _ => return Ok(None),
         };
         let counted = self.count()?;
+        let occ = counted.occupancy(self)?;
         let (f, n) = (budget.of(counted.total), counted.total);
-        if f >= n || exact_is_no_dearer(method, &layout, self.px, f, n) {
+        if f >= n || exact_is_no_dearer(method, &layout, self.px, f, &occ) {
             return Ok(Some(self.abuffer_counted(
                 counted,
                 Blend::Exact,
@@ -974,7 +959,8 @@ fn frame_params(
         mboit_bias: 0.0,
         mboit_overestimation: 0.0,
         list_sorted: 0,
-        _pad: [0; 19],
+        pooled_tail: 0,
+        _pad: [0; 18],
     }
 }
 

@@ -135,21 +135,7 @@ impl<'a> Passes<'a> {
         buffers: &[&wgpu::Buffer],
         name: &'static str,
     ) {
-        self.geometry_pass(enc, pipeline, buffers, name, None);
-    }
-
-    /// [`Passes::draw`] with its index count (all of the frame's transparent ones, or none)
-    /// read from `args` (five words: indices, instances, first index, base vertex, first
-    /// instance) on the device.
-    pub(super) fn draw_indirect(
-        &self,
-        enc: &mut wgpu::CommandEncoder,
-        pipeline: &wgpu::RenderPipeline,
-        buffers: &[&wgpu::Buffer],
-        name: &'static str,
-        args: &wgpu::Buffer,
-    ) {
-        self.geometry_pass(enc, pipeline, buffers, name, Some(args));
+        self.geometry_pass(enc, pipeline, buffers, name);
     }
 
     fn geometry_pass(
@@ -158,7 +144,6 @@ impl<'a> Passes<'a> {
         pipeline: &wgpu::RenderPipeline,
         buffers: &[&wgpu::Buffer],
         name: &'static str,
-        indirect: Option<&wgpu::Buffer>,
     ) {
         if let Some(app) = self.app {
             // The application draws (always: its draw counts are its own).
@@ -183,10 +168,7 @@ impl<'a> Passes<'a> {
         pass.set_bind_group(0, &g0, &[]);
         pass.set_bind_group(1, &g1, &[]);
         pass.set_index_buffer(self.inputs.index.slice(..), wgpu::IndexFormat::Uint32);
-        match indirect {
-            Some(args) => pass.draw_indexed_indirect(args, 0),
-            None => pass.draw_indexed(0..self.vertices, 0, 0..1),
-        }
+        pass.draw_indexed(0..self.vertices, 0, 0..1);
     }
 
     /// A blended method's geometry pass (gpu::blend) over every transparent triangle: its
@@ -335,22 +317,5 @@ impl<'a> Passes<'a> {
     ) {
         let pipeline = &self.gpu.pipelines.totals;
         self.dispatch(enc, pipeline, &[self.params(), counts, totals], "totals");
-    }
-
-    /// The totals pass from DKB's counting features pass (totals.wgsl's from_sums): the count
-    /// packed in `sums` written out into `counts`, and the totals into `totals`.
-    pub(super) fn totals_from_sums(
-        &self,
-        enc: &mut wgpu::CommandEncoder,
-        sums: &wgpu::Buffer,
-        counts: &wgpu::Buffer,
-        totals: &wgpu::Buffer,
-    ) {
-        let pipeline = &self.gpu.pipelines.totals_from_sums;
-        let group = self.gpu.bind_at(
-            &pipeline.get_bind_group_layout(0),
-            &[(0, self.params()), (2, totals), (4, sums), (5, counts)],
-        );
-        self.dispatch_group(enc, pipeline, &group, "totals");
     }
 }

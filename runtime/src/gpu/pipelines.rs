@@ -19,6 +19,8 @@ pub(super) struct Pipelines {
     pub(super) scan_blocks: wgpu::ComputePipeline,
     /// scan.wgsl's per-block scan of a buffer's own values, in place.
     pub(super) scan_blocks_in_place: wgpu::ComputePipeline,
+    /// scan.wgsl's per-block scan of the spans of k = n (the pooled tails' bases from a count).
+    pub(super) scan_blocks_spans: wgpu::ComputePipeline,
     pub(super) scan_sums: wgpu::ComputePipeline,
     pub(super) scan_add: wgpu::ComputePipeline,
     pub(super) abuffer_resolve: wgpu::ComputePipeline,
@@ -40,13 +42,9 @@ pub(super) struct Pipelines {
     pub(super) features: wgpu::RenderPipeline,
     /// The features pass without the nearest key's load first (PRELOAD_NEAREST false).
     pub(super) features_no_preload: wgpu::RenderPipeline,
-    /// The features pass that counts the fragments too (COUNT_FRAGMENTS; no count pass first).
-    pub(super) features_counting: wgpu::RenderPipeline,
     pub(super) totals: wgpu::ComputePipeline,
-    /// The totals from the counting features pass's sums, writing its count out (from_sums).
-    pub(super) totals_from_sums: wgpu::ComputePipeline,
-    /// DKB's features pass's indirect draw: no vertex when the budget holds every fragment.
-    pub(super) features_draw: wgpu::ComputePipeline,
+    /// DKB's records: an index for each pixel of two fragments or more (totals.wgsl).
+    pub(super) assign_records: wgpu::ComputePipeline,
     /// The network's passes (DKB importance, predict), built for one network shape, precision
     /// and SKIP_FORCED each ([`Variant`]): the default network's at f32 at start-up, the others
     /// when first asked for ([`Gpu::network_pass`]).
@@ -137,10 +135,10 @@ pub(super) fn compute_buffer_entry(
     }
 }
 
-/// The explicit layout importance_dkb's three entry points share (each uses some of it):
-/// params, weights, count, nearest, farthest, colour sums, totals (read), importance, list, its
-/// length, the indirect dispatch (written), the weights again (their binary16 view, which
-/// only the f16-math pass reads), and the opacity statistics (read).
+/// The explicit layout importance_dkb's four entry points share (each uses some of it):
+/// params, weights, the records, the list, totals (read), the shared word, the list's length,
+/// the indirect dispatch (written), and the weights again (their binary16 view, which only the
+/// f16-math pass reads).
 pub(super) struct NetworkLayout {
     pub(super) group: wgpu::BindGroupLayout,
     pub(super) pipeline: wgpu::PipelineLayout,
@@ -157,20 +155,18 @@ impl NetworkLayout {
             entries: &[
                 entry(0, uniform),
                 entry(1, uniform),
-                entry(2, read),
-                // The nearest keys, then each pixel's importance in its key's place.
+                // The records (in the slot pool), then each record's importance in its
+                // nearest key's place.
                 entry(3, rw),
-                entry(4, read),
-                entry(5, read),
+                // The list of records the network decides.
+                entry(4, rw),
                 entry(6, read),
-                // The list, then the importance: the frame's shared word.
+                // The record indices, then the importance: the frame's shared word.
                 entry(8, rw),
                 entry(9, rw),
                 entry(10, rw),
                 // The weights again, read as binary16 by the f16-math pass (mlp::Precision).
                 entry(11, uniform),
-                // The opacity statistics (features.wgsl).
-                entry(12, read),
             ],
         });
         let pipeline = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -552,6 +548,7 @@ impl Pipelines {
             capture_fits: geometry_from("capture", fits("capture")),
             scan_blocks: compute_entry("scan", "scan_blocks"),
             scan_blocks_in_place: compute_entry("scan", "scan_blocks_in_place"),
+            scan_blocks_spans: compute_entry("scan", "scan_blocks_spans"),
             scan_sums: compute_entry("scan", "scan_sums"),
             scan_add: compute_entry("scan", "scan_add"),
             abuffer_resolve: compute("abuffer_resolve"),
@@ -610,14 +607,8 @@ impl Pipelines {
                 "const PRELOAD_NEAREST: bool = true;",
                 "const PRELOAD_NEAREST: bool = false;",
             ),
-            features_counting: features_with(
-                "features (counting)",
-                "const COUNT_FRAGMENTS: bool = false;",
-                "const COUNT_FRAGMENTS: bool = true;",
-            ),
             totals: compute("totals"),
-            features_draw: compute_entry("totals", "features_draw"),
-            totals_from_sums: compute_entry("totals", "from_sums"),
+            assign_records: compute_entry("totals", "assign_records"),
             variants: std::sync::Mutex::new(
                 [
                     ("importance_dkb", "select_pixels"),

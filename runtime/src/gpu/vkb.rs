@@ -9,9 +9,9 @@ use crate::error::Result;
 
 impl Recording<'_, '_> {
     /// VKB's count, then totals and importance (left pending where the frame is expected to fit).
-    /// Its nearest keys live in the tail's sums (8 of their 16 bytes a pixel) and the
-    /// allocation's marks in the tail's count, both dead by the capture, which clears them: VKB
-    /// takes no per-pixel buffer beyond the count, the shared word and the tail.
+    /// Its nearest keys (8 bytes a pixel) and the allocation's marks (4) have buffers of their
+    /// own, both dead by the capture; the tails live in the slot pool (`Params::pooled_tail`),
+    /// where the capture's layout binds these two in the per-pixel tail's place, unused.
     pub(super) fn vkb_importance(&mut self, expect_fit: bool) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
@@ -26,8 +26,8 @@ impl Recording<'_, '_> {
             }
             None => fb.storage("vkb.count", 4 * px, true)?,
         };
-        let nearest = fb.storage("oit.tail", 16 * px, true)?;
-        let tail_count = fb.storage("oit.tail_count", 4 * px, true)?;
+        let nearest = fb.storage("vkb.nearest", 8 * px, true)?;
+        let tail_count = fb.storage("vkb.marks", 4 * px, true)?;
         // The application's target where it gives one: counted for no method.
         let image = fb.storage("application.image", 16 * px, false)?;
         let totals = fb.storage("vkb.totals", 16, true)?;
@@ -58,8 +58,10 @@ impl Recording<'_, '_> {
                 tail: nearest,
                 tail_count,
                 image,
+                pool: None,
             }),
             pending,
+            fits: false,
         })
     }
 }

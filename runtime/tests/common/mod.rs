@@ -292,3 +292,47 @@ pub fn quad(
     s.push_triangle([a, b, d], [c; 3]);
     s.push_triangle([a, d, e], [c; 3]);
 }
+
+/// The bytes a k-buffer frame of `layout` allocates for the allocation `k` of pixels holding
+/// `counts` fragments at F = `f`, by the layout tables: its slots and the pooled tails its k
+/// keeps (`shared::has_tail`), or, where the pool holds state before the slots (DKB), the pool
+/// it makes for the frame's budget and occupancy.
+#[allow(dead_code)]
+pub fn kbuffer_bytes(
+    layout: &dhoit_runtime::budget::Layout,
+    k: &[u32],
+    counts: &[u32],
+    f: u64,
+) -> u64 {
+    use dhoit_runtime::budget;
+    let px = k.len() as u64;
+    if layout.pool_state.is_some() {
+        return layout.reserved_bytes(px, f, &budget::Occupancy::of(counts));
+    }
+    let slots = k.iter().map(|&k| k as u64).sum();
+    let tails = if layout.tail_bytes > 0 {
+        budget::tails_kept(k, counts)
+    } else {
+        0
+    };
+    layout.allocated_with_tails(px, slots, tails)
+}
+
+/// `importance::pixel_stats` as DKB's GPU frame gathers them: for each pixel with a record (two
+/// fragments or more); a pixel of one fragment or none has its count alone (its k is forced
+/// whatever its features).
+#[allow(dead_code)]
+pub fn recorded_stats(
+    fl: &dhoit_runtime::fragment::FragmentLists,
+) -> Vec<dhoit_runtime::importance::PixelStats> {
+    dhoit_runtime::importance::pixel_stats(fl)
+        .into_iter()
+        .map(|st| match st.count {
+            0 | 1 => dhoit_runtime::importance::PixelStats {
+                count: st.count,
+                ..Default::default()
+            },
+            _ => st,
+        })
+        .collect()
+}
