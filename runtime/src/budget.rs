@@ -477,9 +477,13 @@ impl Layout {
             _ => Err(Error::Budget(
                 format_bytes(bytes),
                 format!(
-                    "{} needs {} for {} pixels before any fragment slot ({} B per pixel + {} \
-                     fixed{}), and {} B for the tail of each of the frame's {} covered pixels",
+                    "{} needs {} for one slot in this frame: {} for {} pixels before any \
+                     fragment slot ({} B per pixel + {} fixed{}), and {} B for the tail of each \
+                     of the frame's {} covered pixels",
                     self.method,
+                    format_bytes(
+                        fixed + least.max(self.slot_bytes + self.tail_bytes * occ.tails_at(1))
+                    ),
                     format_bytes(fixed + least),
                     pixels,
                     self.per_pixel_bytes(),
