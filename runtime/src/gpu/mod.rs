@@ -592,8 +592,7 @@ pub struct GpuFrame {
     /// DKB: the features pass's per-pixel statistics, where it drew.
     pub stats: Option<Vec<PixelStats>>,
     /// DKB: whether its features pass drew the frame's triangles: not when the budget holds
-    /// every fragment (k = n whatever the importance), where the frame either did not record
-    /// the pass (it expected to fit: [`FrameOptions::predict_fit`]) or the device emptied its draw.
+    /// every fragment (k = n whatever the importance: its count, read back first, says so).
     pub features_drawn: Option<bool>,
     /// VKB: per pixel the count and the nearest fragment's `|n . e|`.
     pub vkb_nearest: Option<(Vec<u32>, Vec<f32>)>,
