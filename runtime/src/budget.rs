@@ -292,8 +292,6 @@ pub const MBOIT: Layout = Layout {
 
 /// MBOIT with six power moments: b_5 and b_6 in an RG32F target beside [`MBOIT`]'s.
 pub const MBOIT6: Layout = Layout {
-    method: "mboit",
-    slot_bytes: SLOT_BYTES,
     per_pixel: &[
         RASTER_TARGET,
         ("mboit.b0", 4),
@@ -301,17 +299,11 @@ pub const MBOIT6: Layout = Layout {
         ("mboit.extra", 8),
         ("mboit.accumulation", 8),
     ],
-    fixed: MBOIT.fixed,
-    scan: false,
-    weights: 0,
-    tail_bytes: 0,
-    pool_state: None,
+    ..MBOIT
 };
 
 /// MBOIT with eight power moments: b_5..b_8 in an RGBA32F target beside [`MBOIT`]'s.
 pub const MBOIT8: Layout = Layout {
-    method: "mboit",
-    slot_bytes: SLOT_BYTES,
     per_pixel: &[
         RASTER_TARGET,
         ("mboit.b0", 4),
@@ -319,11 +311,7 @@ pub const MBOIT8: Layout = Layout {
         ("mboit.extra", 16),
         ("mboit.accumulation", 8),
     ],
-    fixed: MBOIT.fixed,
-    scan: false,
-    weights: 0,
-    tail_bytes: 0,
-    pool_state: None,
+    ..MBOIT
 };
 
 /// MBOIT's layout for `moments` power moments ([`MBOIT`], [`MBOIT6`], [`MBOIT8`]; any other
@@ -407,7 +395,8 @@ impl Layout {
     pub fn allocated_bytes(&self, pixels: u64, slots: u64) -> u64 {
         self.fixed_bytes(pixels) + slots * self.slot_bytes
     }
-    /// Bytes allocated with `slots` fragment slots and `tails` pooled tails.
+    /// Bytes allocated with `slots` fragment slots and `tails` pooled tails (none where the
+    /// layout pools no tail: [`Layout::tail_bytes`] 0).
     pub fn allocated_with_tails(&self, pixels: u64, slots: u64, tails: u64) -> u64 {
         self.allocated_bytes(pixels, slots) + tails * self.tail_bytes
     }
@@ -444,12 +433,7 @@ impl Layout {
                 + self.deep_bytes(occ)
                 + self.pool_bytes(pixels, f, occ);
         }
-        let tails = if self.tail_bytes > 0 {
-            occ.tails_at(f)
-        } else {
-            0
-        };
-        self.allocated_with_tails(pixels, f.min(occ.fragments), tails)
+        self.allocated_with_tails(pixels, f.min(occ.fragments), occ.tails_at(f))
     }
     /// F(M) for a frame of occupancy `occ`: the most slots whose bytes, with the tails they
     /// may keep (and the state the pool holds first), stay within `bytes`
@@ -701,12 +685,7 @@ impl Budget {
             if layout.pool_state.is_some() {
                 return layout.reserved_bytes(pixels, slots, occ);
             }
-            let tails = if layout.tail_bytes > 0 {
-                occ.tails_at(slots)
-            } else {
-                0
-            };
-            layout.allocated_with_tails(pixels, slots, tails)
+            layout.allocated_with_tails(pixels, slots, occ.tails_at(slots))
         };
         match *self {
             Budget::Bytes(b) => Ok((b, layout.fragment_budget_counted(b, pixels, occ)?)),

@@ -522,11 +522,8 @@ impl<'a> Renderer<'a> {
                 if layout.pool_state.is_some() {
                     let occ = Occupancy::of(&counts);
                     layout.reserved_bytes(pixels, a.budget_fragments, &occ)
-                } else if layout.tail_bytes > 0 {
-                    let tails = budget::tails_kept(&k, &counts);
-                    layout.allocated_with_tails(pixels, slots, tails)
                 } else {
-                    layout.allocated_bytes(pixels, slots)
+                    layout.allocated_with_tails(pixels, slots, budget::tails_kept(&k, &counts))
                 }
             }
         };

@@ -32,43 +32,51 @@ pub(super) struct Counted {
     pub(super) offsets: wgpu::Buffer,
     /// The frame's fragments.
     pub(super) total: u64,
-}
-
-impl Counted {
-    /// The count's buffers, its fragments and its occupancy read back, for the decision between
-    /// the exact A-buffer and an allocated k-buffer whose tails the occupancy bounds.
-    pub(super) fn occupancy(&self, rec: &mut Recording) -> Result<Occupancy> {
-        let (gpu, passes) = (rec.passes.gpu, rec.passes);
-        let (fb, enc) = (&mut rec.fb, &mut rec.enc);
-        // Read by the host to decide, like a staging buffer: not the method's memory.
-        let totals = fb.storage("count.occupancy.readback", 16, false)?;
-        passes.totals(enc, &self.counts, &totals);
-        fb.submit(enc);
-        let w = read_words(gpu, &[(&totals, 0), (&totals, 4), (&totals, 12)])?;
-        Ok(Occupancy {
-            fragments: w[0] as u64,
-            covered: w[1] as u64,
-            deep: w[2] as u64,
-        })
-    }
+    /// Where asked for, the frame's occupancy (totals.wgsl) and the words it was read from
+    /// (fragments, covered, max count, deep; 16 bytes read by the host to decide, like a
+    /// staging buffer: not the method's memory), which DKB then copies as its totals.
+    pub(super) occupancy: Option<(Occupancy, wgpu::Buffer)>,
 }
 
 impl Recording<'_, '_> {
     /// The count and its prefix sum, submitted, and the frame's fragments read back (the
-    /// offsets' last entry).
-    pub(super) fn count(&mut self) -> Result<Counted> {
+    /// offsets' last entry); with `occupancy`, the count's totals too, in the same submission
+    /// and readback: for the decision between the exact A-buffer and an allocated k-buffer
+    /// whose tails the occupancy bounds.
+    pub(super) fn count(&mut self, occupancy: bool) -> Result<Counted> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         let counts = fb.storage("abuf.count", 4 * px, true)?;
         let offsets = fb.storage("abuf.offsets", 4 * (px + 1), true)?;
         passes.draw(enc, &gpu.pipelines.count, &[&counts], "count");
         passes.prefix_sum(enc, fb, &counts, &offsets)?;
+        let totals = match occupancy {
+            true => Some(fb.storage("count.occupancy.readback", 16, false)?),
+            false => None,
+        };
+        if let Some(t) = &totals {
+            passes.totals(enc, &counts, t);
+        }
         fb.submit(enc);
-        let total = read_words(gpu, &[(&offsets, 4 * px)])?[0] as u64;
+        let mut words = vec![(&offsets, 4 * px)];
+        if let Some(t) = &totals {
+            words.extend([(t, 4), (t, 12)]);
+        }
+        let w = read_words(gpu, &words)?;
+        let total = w[0] as u64;
+        let occupancy = totals.map(|t| {
+            let occ = Occupancy {
+                fragments: total,
+                covered: w[1] as u64,
+                deep: w[2] as u64,
+            };
+            (occ, t)
+        });
         Ok(Counted {
             counts,
             offsets,
             total,
+            occupancy,
         })
     }
 
@@ -80,7 +88,7 @@ impl Recording<'_, '_> {
         width: u32,
         height: u32,
     ) -> Result<wgpu::Buffer> {
-        let counted = self.count()?;
+        let counted = self.count(false)?;
         self.abuffer_counted(counted, blend, width, height)
     }
 
@@ -91,6 +99,7 @@ impl Recording<'_, '_> {
             counts,
             offsets,
             total,
+            ..
         }: Counted,
         blend: Blend,
         width: u32,

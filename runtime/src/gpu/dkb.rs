@@ -14,6 +14,7 @@
 //! and the pooled tails. The pool is sized for the frame's budget and occupancy
 //! ([`crate::budget::Layout::pool_bytes`]) before the features pass.
 
+use super::abuffer::Counted;
 use super::allocate::{Importance, Reuse, Word};
 use super::buffers::{FrameBuffers, read_words};
 use super::pipelines::Variant;
@@ -56,23 +57,31 @@ impl Recording<'_, '_> {
         let layout = budget::DKB.for_network(mlp);
         let importance = self.pixel_word(Word::Written)?;
         let fb = &mut self.fb;
-        // The frame's count where it counted first (FrameOptions::exact_when_cheaper).
-        let counts = match &self.counted {
-            Some(c) => c.counts.clone(),
-            None => {
+        let totals = fb.storage("features.totals", 24, true)?;
+        // The frame's count and occupancy where it counted first to decide
+        // (FrameOptions::exact_when_cheaper): its totals copied, no second readback.
+        let (counts, occ) = match &self.counted {
+            Some(Counted {
+                counts,
+                occupancy: Some((occ, words)),
+                ..
+            }) => {
+                self.enc.copy_buffer_to_buffer(words, 0, &totals, 0, 16);
+                (counts.clone(), *occ)
+            }
+            _ => {
                 let c = fb.storage("features.count", 4 * px, true)?;
                 passes.draw(&mut self.enc, &p.count, &[&c], "count");
-                c
+                passes.totals(&mut self.enc, &c, &totals);
+                fb.submit(&mut self.enc);
+                let w = read_words(gpu, &[(&totals, 0), (&totals, 4), (&totals, 12)])?;
+                let occ = Occupancy {
+                    fragments: w[0] as u64,
+                    covered: w[1] as u64,
+                    deep: w[2] as u64,
+                };
+                (c, occ)
             }
-        };
-        let totals = fb.storage("features.totals", 24, true)?;
-        passes.totals(&mut self.enc, &counts, &totals);
-        fb.submit(&mut self.enc);
-        let w = read_words(gpu, &[(&totals, 0), (&totals, 4), (&totals, 12)])?;
-        let occ = Occupancy {
-            fragments: w[0] as u64,
-            covered: w[1] as u64,
-            deep: w[2] as u64,
         };
         let f = budget.of(occ.fragments);
         let fb = &mut self.fb;
@@ -108,7 +117,6 @@ impl Recording<'_, '_> {
             list_len: fb.storage("importance.list_len", 16, true)?,
             dispatch,
         };
-        self.counted = None;
         let truncates = f < occ.fragments;
         // Where every fragment fits, k = n: no record, feature or importance (the shared word
         // the allocation reads as weights is ignored then).
@@ -132,8 +140,7 @@ impl Recording<'_, '_> {
             "features: no preload"
         };
         self.out.variants.push(variant);
-        // The unused per-pixel tail of the capture's shared layout: two small buffers dead by
-        // the capture (the tails are pooled).
+        // The application's target where it gives one: counted for no method.
         let image = self.fb.storage("application.image", 16 * px, false)?;
         Ok(Importance {
             counts: b.counts,
@@ -143,6 +150,8 @@ impl Recording<'_, '_> {
             kind: weight_kind(mlp.target),
             // The allocation's marks in the pool, the records gathered by then.
             marks: Some(b.pool.clone()),
+            // The capture's shared layout binds a per-pixel tail, unused where the tails are
+            // pooled: two small buffers dead by the capture.
             reuse: Some(Reuse {
                 tail: b.list_len,
                 tail_count: b.dispatch,

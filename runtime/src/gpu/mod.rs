@@ -906,8 +906,12 @@ impl Recording<'_, '_> {
             Slots::Vkb(..) => (Method::Vkb, budget::VKB),
             _ => return Ok(None),
         };
-        let counted = self.count()?;
-        let occ = counted.occupancy(self)?;
+        let counted = self.count(true)?;
+        let occ = counted
+            .occupancy
+            .as_ref()
+            .expect("counted with its occupancy")
+            .0;
         let (f, n) = (budget.of(counted.total), counted.total);
         if f >= n || exact_is_no_dearer(method, &layout, self.px, f, &occ) {
             return Ok(Some(self.abuffer_counted(

@@ -310,12 +310,7 @@ pub fn kbuffer_bytes(
         return layout.reserved_bytes(px, f, &budget::Occupancy::of(counts));
     }
     let slots = k.iter().map(|&k| k as u64).sum();
-    let tails = if layout.tail_bytes > 0 {
-        budget::tails_kept(k, counts)
-    } else {
-        0
-    };
-    layout.allocated_with_tails(px, slots, tails)
+    layout.allocated_with_tails(px, slots, budget::tails_kept(k, counts))
 }
 
 /// `importance::pixel_stats` as DKB's GPU frame gathers them: for each pixel with a record (two
