@@ -166,10 +166,13 @@ fn weights(
         return;
     }
     let n = counts[p];
-    // The importance's sign bit is the pair flag (alloc::pixel_weight).
+    // The importance's sign bit is the pair flag (alloc::pixel_weight), which every pixel has
+    // where the tails are pooled (alloc::allocate_pooled: a pixel left out by no more than a
+    // tail's TAIL_WORDS fragments keeps them all, shared::stored_k).
     let bits = w[p];
     let i = bitcast<f32>(bits & ~PAIR_BIT);
-    w[p] = select(0u, weight(i, n) | (bits & PAIR_BIT), n > 0u);
+    let pair = (bits & PAIR_BIT) | select(0u, PAIR_BIT, params.pooled_tail != 0u);
+    w[p] = select(0u, weight(i, n) | pair, n > 0u);
 }
 
 @compute @workgroup_size(1)

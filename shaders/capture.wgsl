@@ -4,10 +4,12 @@
 // append mode's once the resolve has sorted them):
 //
 // - append (n <= k + APPEND_SPILL and n <= APPEND_MAX): at most two fragments are truncated, so
-//   no insertion is needed; each fragment takes the next place from a cursor (the tail's
-//   count): one of the k slots, or past them one of the APPEND_SPILL keys kept in the tail's
-//   four sum words, and the resolve sorts the pixel's n keys, as the A-buffer does, keeps the k
-//   nearest and sums the rest into the tail.
+//   no insertion is needed; each fragment takes the next place from a cursor: one of the k
+//   slots, or past them one of the APPEND_SPILL keys kept in the tail's four sum words, and
+//   the resolve sorts the pixel's n keys, as the A-buffer does, keeps the k nearest and sums
+//   the rest into the tail. With the tails pooled (params.pooled_tail) a pixel that appends
+//   keeps no tail (it truncates by at most APPEND_SPILL = TAIL_WORDS fragments, so it holds all
+//   n: shared::stored_k) and its cursor is its count, taken down to 0 (the resolve puts n back).
 // - insertion (every other pixel, and every pixel when n is unknown: FKB, uploaded k): NVIDIA's
 //   lock-free Loop64 (kbuffer_insert.wgsl, which an application's shader runs too). Slots hold
 //   the bitwise complement of the capture key (so a cleared, zero slot is empty and atomicMax
@@ -30,8 +32,11 @@
 // 255^2 < 2^32). And the tail's count (the append mode's cursor).
 @group(1) @binding(2) var<storage, read_write> oit_tail: array<atomic<u64>>;
 @group(1) @binding(3) var<storage, read_write> oit_tail_count: array<atomic<u32>>;
-// n(p), read when params.append is 1.
-@group(1) @binding(4) var<storage, read> count: array<u32>;
+// n(p), read when params.append is 1, and with the tails pooled where the frame allocated
+// (a pixel's span says whether it keeps a tail only beside n); a pooled pixel that appends
+// takes its places from it, down to 0 (resolve.wgsl restores it). A pixel that appends never
+// has a tail and one with a tail never appends, so a load of it sees n wherever n decides.
+@group(1) @binding(4) var<storage, read_write> count: array<atomic<u32>>;
 
 // Whether the frame's budget holds every fragment, so k(p) = n(p) for every pixel (a pipeline
 // of its own, built with this set true): each pixel's k is its slot bases' difference, nothing
@@ -44,16 +49,24 @@ fn oit_slot_at(base: u32, i: u32, p: u32) -> u32 {
     return slot_at(base, i, p);
 }
 
-// No pooled tail (a pixel without one: k = n <= 1, common.wgsl's has_tail).
+// No pooled tail (a pixel that holds all its n fragments: common.wgsl's has_tail).
 const NO_TAIL: u32 = 0xffffffffu;
 
-// The key `out` pushed out of a pixel's slots into its pooled tail at pool word t: the two sum
-// words, then the count in the third word's low half.
+// The key `out` pushed out of a pixel's slots into its pooled tail at pool word t: its two sum
+// words (its count is n - k).
 fn pooled_to_tail(t: u32, out: u64) {
     let w = oit_tail_words(out);
     atomicAdd(&oit_slots[t], w.x);
     atomicAdd(&oit_slots[t + 1u], w.y);
-    atomicAdd(&oit_slots[t + 2u], 1lu);
+}
+
+// A pooled pixel of n = k fragments (no tail) that appends: the next of its k places, from its
+// count taken down (n - 1 first).
+fn pooled_append(p: u32, base: u32, k: u32, key: u64) {
+    let i = atomicSub(&count[p], 1u) - 1u;
+    if (i < k) {
+        atomicStore(&oit_slots[base + i], key);
+    }
 }
 
 @fragment
@@ -66,21 +79,13 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     let key = ~fragment_key(in.clip.z, f.rgba8);
     if (EVERY_FRAGMENT_FITS) {
         let base = slot_base[p];
-        var n = slot_base[p + 1u] - base;
+        let n = slot_base[p + 1u] - base;
         if (params.pooled_tail != 0u) {
-            // The bases hold spans: n slots, and a tail (the cursor) where n >= 2.
-            let span = n;
-            n = k_of_span(span);
-            if (span < 2u) {
-                // Its one fragment.
-                oit_insert(p, base, n, key);
-                return vec4<f32>(0.0);
-            }
-            let i = u32(atomicAdd(&oit_slots[base + n + 2u], 1lu));
+            // The bases hold spans: n slots, no tail (k = n).
             if (n > APPEND_MAX) {
                 oit_insert(p, base, n, key);
-            } else if (i < n) {
-                atomicStore(&oit_slots[base + i], key);
+            } else {
+                pooled_append(p, base, n, key);
             }
             return vec4<f32>(0.0);
         }
@@ -102,29 +107,23 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         k = slot_base[p + 1u] - base;
         if (params.pooled_tail != 0u) {
             let span = k;
-            k = k_of_span(span);
-            if (span >= 2u) {
+            let n = atomicLoad(&count[p]);
+            k = k_of_span(span, n);
+            if (span < n) {
                 tail = base + k;
+            } else if (params.append != 0u && k <= APPEND_MAX) {
+                pooled_append(p, base, k, key);
+                return vec4<f32>(0.0);
             }
         }
     }
     let pooled = params.pooled_tail != 0u;
-    if (params.append != 0u) {
-        let n = count[p];
-        if (appends(k, n) && !(pooled && tail == NO_TAIL)) {
-            var i = 0u;
-            if (pooled) {
-                i = u32(atomicAdd(&oit_slots[tail + 2u], 1lu));
-            } else {
-                i = atomicAdd(&oit_tail_count[p], 1u);
-            }
+    if (params.append != 0u && !pooled) {
+        let n = atomicLoad(&count[p]);
+        if (appends(k, n)) {
+            let i = atomicAdd(&oit_tail_count[p], 1u);
             if (i < k) {
                 atomicStore(&oit_slots[base + i], key);
-            } else if (pooled) {
-                // A spilled key in the tail's two sum words.
-                if (i - k < APPEND_SPILL) {
-                    atomicStore(&oit_slots[tail + (i - k)], key);
-                }
             } else {
                 // A spilled key in two of the tail's sum words, low half first.
                 atomicStore(&oit_tail[2u * p + (i - k)], key);
@@ -132,8 +131,8 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
             return vec4<f32>(0.0);
         }
     }
-    // Where a pixel keeps no pooled tail, its k = n <= 1 slots hold all it has: nothing is
-    // pushed out.
+    // Where a pixel keeps no pooled tail, its k = n slots hold all it has: nothing is pushed
+    // out.
     let out = oit_insert(p, base, k, key);
     if (out == 0lu) {
         return vec4<f32>(0.0);

@@ -129,19 +129,20 @@ fn slot_at(base: u32, i: u32, p: u32) -> u32 {
 }
 
 // The pooled tail (params.pooled_tail, shared::has_tail): a pixel keeps TAIL_WORDS words after
-// its k slots wherever it may truncate or holds two fragments or more, so the slot bases are the
-// prefix sums of its span, k + TAIL_WORDS or (no tail: k = n <= 1) k.
+// its k slots where it truncates by more than TAIL_WORDS fragments, and else all its n
+// fragments (shared::stored_k), so the slot bases are the prefix sums of its span,
+// min(n, k + TAIL_WORDS). The tail's count is n - k.
 fn has_tail(k: u32, n: u32) -> bool {
-    return k < n || n >= 2u;
+    return n > k + TAIL_WORDS;
 }
 
 fn span_of(k: u32, n: u32) -> u32 {
-    return k + select(0u, TAIL_WORDS, has_tail(k, n));
+    return select(n, k + TAIL_WORDS, has_tail(k, n));
 }
 
-// k from a pixel's span; a span of 2 or more holds a tail (shared::k_of_span).
-fn k_of_span(span: u32) -> u32 {
-    return select(span, span - TAIL_WORDS, span >= 2u);
+// k from a pixel's span and n: a span below n holds a tail (shared::k_of_span).
+fn k_of_span(span: u32, n: u32) -> u32 {
+    return select(span, span - TAIL_WORDS, span < n);
 }
 
 // The capture's mode for a pixel of k slots and n fragments (composite::appends): append

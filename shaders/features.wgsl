@@ -1,34 +1,33 @@
-// DKB features pass (geometry): per pixel of two fragments or more (its record: records.wgsl),
-// with integer atomics only (so any order gives the same result), the statistics
-// importance::pixel_stats gathers beside the count: the nearest fragment's capture key, and the
-// sums of the fragments' 8-bit R, G, B and of r^2 + g^2 + b^2. A pixel of one fragment has no
-// record: its k is forced whatever its features (mlp::forced), so nothing is gathered for it.
-// The nearest key is kept complemented so a cleared (zero) word means "none yet" and atomicMax
-// finds the minimum. The two largest keys (the farthest fragments) are kept by a two-slot
-// insertion with atomicMax, each key marked with bit 63 (importance::OCCUPIED) so a slot is
-// never mistaken for empty. RECORD_WORDS (6) 64-bit words a record, in the slot pool, which the
-// capture clears and fills once the importance pass has read them.
+// DKB features pass (geometry): per pixel of more than TAIL_WORDS fragments (its record:
+// totals.wgsl's assign_records), with integer atomics only (so any order gives the same
+// result), the statistics importance::pixel_stats gathers beside the count: the nearest
+// fragment's capture key, and the sums of the fragments' 8-bit R, G, B and of r^2 + g^2 + b^2.
+// A pixel of fewer has no record: it keeps all its fragments whatever its k (shared::stored_k),
+// its k is forced (mlp::forced), so nothing is gathered for it. The nearest key is kept
+// complemented so a cleared (zero) word means "none yet" and atomicMax finds the minimum.
+// RECORD_WORDS (4) 64-bit words a record, in the slot pool, which the capture clears and fills
+// once the importance pass has read them.
 //
 // The frame counts its fragments first (abuffer_count.wgsl), reads back how many pixels hold two
 // or more (totals.wgsl), and sizes the records from that; it draws this pass only where the budget
 // truncates, since otherwise k = n whatever the network says.
 //
-// Three atomic adds a fragment, and atomicMax only where it can change a key: the colour sums
-// and the opacity statistics go in three 64-bit adds, and the keys only grow, so a key that the
+// Three atomic adds a fragment, and atomicMax only where it can change the key: the colour sums
+// and the opacity statistics go in three 64-bit adds, and the key only grows, so a key that the
 // stored one already beats is skipped after a plain atomic load, as Loop64's early test does.
 // The colour sums' first word holds sum r (bits 0-23), sum g (24-47) and n (48-63, written by
-// records.wgsl): exact up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (255 x 65,535 < 2^24),
+// assign_records): exact up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (255 x 65,535 < 2^24),
 // past which the resolve refuses the frame (resolve.wgsl's too_deep). The second holds sum b
 // (low half, at most 255 n) and sum (r^2 + g^2 + b^2) (high half, wrapping as a 32-bit sum
 // does). The last holds the opacity statistics: the sum of the fragments' optical depths from
 // importance::optical_depth_table (low half) and of their 8-bit opacities (high).
 
-// Per pixel: its record's index, or NO_RECORD (records.wgsl: a record for each pixel of two
-// fragments or more), in the frame's shared word until the importance pass.
+// Per pixel: its record's index, or NO_RECORD (assign_records: a record for each pixel of more
+// than TAIL_WORDS fragments), in the frame's shared word until the importance pass.
 @group(1) @binding(0) var<storage, read> record_of: array<u32>;
 // RECORD_WORDS words a record (importance::pixel_stats of its pixel), in the slot pool until the
-// capture: the nearest key (complemented), the two largest keys, the colour sums (sum r, sum g
-// and n, which records.wgsl wrote; sum b and sum (r^2 + g^2 + b^2)) and the opacity sums.
+// capture: the nearest key (complemented), the colour sums (sum r, sum g and n, which
+// assign_records wrote; sum b and sum (r^2 + g^2 + b^2)) and the opacity sums.
 @group(1) @binding(1) var<storage, read_write> records: array<atomic<u64>>;
 // A fragment's optical depth by its 8-bit opacity (importance::optical_depth_table), four to a
 // vec4.
@@ -47,7 +46,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     }
     let p = pixel_index(in.clip, params.width);
     let r = record_of[p];
-    // A pixel of one fragment: forced, whatever its statistics (mlp::forced).
+    // A pixel of at most TAIL_WORDS fragments: forced, whatever its statistics (mlp::forced).
     if (r == NO_RECORD) {
         return vec4<f32>(0.0);
     }
@@ -58,25 +57,12 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     if (!PRELOAD_NEAREST || atomicLoad(&records[at]) < ~key) {
         atomicMax(&records[at], ~key);
     }
-    // Insertion into two slots kept in decreasing order: the larger key stays, the smaller
-    // moves on; a key that finds an empty slot stops there. A key no greater than the second
-    // slot changes neither.
-    var carry = key | OCCUPIED;
-    if (atomicLoad(&records[at + 2u]) < carry) {
-        for (var i = 0u; i < 2u; i++) {
-            let old = atomicMax(&records[at + 1u + i], carry);
-            if (old == 0lu) {
-                break;
-            }
-            carry = min(old, carry);
-        }
-    }
     let cr = rgba8 & 0xffu;
     let cg = (rgba8 >> 8u) & 0xffu;
     let cb = (rgba8 >> 16u) & 0xffu;
     let a = rgba8 >> 24u;
-    atomicAdd(&records[at + 3u], u64(cr) | (u64(cg) << 24u));
-    atomicAdd(&records[at + 4u], u64(cb) | (u64(cr * cr + cg * cg + cb * cb) << 32u));
-    atomicAdd(&records[at + 5u], u64(optical_depth[a >> 2u][a & 3u]) | (u64(a) << 32u));
+    atomicAdd(&records[at + 1u], u64(cr) | (u64(cg) << 24u));
+    atomicAdd(&records[at + 2u], u64(cb) | (u64(cr * cr + cg * cg + cb * cb) << 32u));
+    atomicAdd(&records[at + 3u], u64(optical_depth[a >> 2u][a & 3u]) | (u64(a) << 32u));
     return vec4<f32>(0.0);
 }

@@ -2,25 +2,27 @@
 // pass's records and the totals, computed here and never stored, standardised, through the MLP
 // of mlp.wgsl (the same source `dhoit predict --device gpu` runs). Four entry points in one
 // compute pass, sharing one explicit layout (gpu::Pipelines::network_layout):
-//   select:  one invocation a record (a pixel of two fragments or more; records.wgsl): a
-//            record the network decides is appended to a list (its index), every other gets
-//            its importance here (0, or its pair mark where forced);
+//   select:  one invocation a record (a pixel of more than TAIL_WORDS fragments;
+//            totals.wgsl's assign_records): a record the network decides is appended to a list
+//            (its index), every other gets its importance here (0 with the pair mark where
+//            forced);
 //   args:    the list's length -> the workgroups of an indirect dispatch (a 2-D grid);
 //   network: one invocation a listed record: its features again, the network, its importance;
 //   gather:  one invocation a pixel: its record's importance (0 for a pixel without one: at
-//            most one fragment, forced) into the shared word, in its record index's place.
+//            most TAIL_WORDS fragments, forced) into the shared word, in its record index's
+//            place.
 // A record's importance waits in its nearest key's place (read by then).
 // So the network's invocations all run it (no forced record idles a SIMD lane), and a frame whose
 // pixels are all forced never enters the network's code.
 
 @group(0) @binding(0) var<uniform> params: Params;
-// RECORD_WORDS words a record (features.wgsl): the nearest key (complemented), the two farthest
-// keys, the colour sums (n in bits 48-63 of the first), the opacity sums. Read_write: once a
+// RECORD_WORDS words a record (features.wgsl): the nearest key (complemented), the colour sums
+// (n in bits 48-63 of the first), the opacity sums. Read_write: once a
 // record's features are read, its importance takes its nearest key's place (set_importance).
 @group(0) @binding(3) var<storage, read_write> records: array<u64>;
 // The records the network decides, and how many (list_len[0]).
 @group(0) @binding(4) var<storage, read_write> list: array<u32>;
-// fragments, covered, max count, deep (the records), ... (totals.wgsl).
+// fragments, covered, max count, deep, the records handed out, deeper (the records: totals.wgsl).
 @group(0) @binding(6) var<storage, read> totals: array<u32>;
 // Per pixel: its record's index (NO_RECORD for none), then, after `gather`, its importance:
 // the frame's shared word.
@@ -30,8 +32,8 @@
 @group(0) @binding(10) var<storage, read_write> dispatch: array<u32, DISPATCH_WORDS>;
 
 // Skip the network where k does not depend on it (Mlp::dkb_importance): a pixel whose useful
-// cap is the frame's smallest k, lo (mlp::forced: n <= lo + 1, or lo + 2 where its two farthest
-// fragments share one colour; lo is 1 where F covers every covered pixel, as at 2 fpp) gets
+// cap is the frame's smallest k, lo (mlp::forced: n <= lo + 2, the pair mark on every pixel as
+// the tails are pooled; lo is 1 where F covers every covered pixel, as at 2 fpp) gets
 // importance 0 with its pair mark. The bench builds this pass once more with it false
 // (Gpu::skip_forced) to show the time saved. Every pixel of a frame whose budget holds all its fragments gets 0, unmarked,
 // either way: its features pass drew nothing (features.wgsl), and k = n whatever it gets.
@@ -40,8 +42,8 @@ const SKIP_FORCED: bool = true;
 // Sum r, g, b of record r's fragments (features.wgsl's packing: r and g 24 bits each in the
 // first colour-sum word, then n; b in the second's low half).
 fn color_sums(at: u32) -> vec3<u32> {
-    let w = records[at + 3u];
-    return vec3<u32>(u32(w & 0xfffffflu), u32((w >> 24u) & 0xfffffflu), u32(records[at + 4u] & 0xfffffffflu));
+    let w = records[at + 1u];
+    return vec3<u32>(u32(w & 0xfffffflu), u32((w >> 24u) & 0xfffffflu), u32(records[at + 2u] & 0xfffffffflu));
 }
 
 fn luma(c: vec3<f32>) -> f32 {
@@ -65,16 +67,16 @@ fn set_importance(r: u32, v: f32) {
 fn network_inputs(r: u32) -> Net {
     var net: Net;
     let at = RECORD_WORDS * r;
-    let c = u32(records[at + 3u] >> 48u);
+    let c = u32(records[at + 1u] >> 48u);
     if (holds_every_fragment(totals[0])) {
         set_importance(r, 0.0);
         return net;
     }
-    // The sign bit marks a pixel whose two farthest fragments share one colour
-    // (importance::tail_pair, alloc::mark_pair): the allocation lets it use a slot fewer.
-    let f0 = records[at + 1u];
-    let f1 = records[at + 2u];
-    let pair = (f1 & OCCUPIED) != 0lu && u32(f0 & 0xfffffffflu) == u32(f1 & 0xfffffffflu);
+    // The sign bit marks a pixel whose two farthest fragments composite exactly without their
+    // slots (alloc::mark_pair): the allocation lets it use a slot fewer. With the tails pooled
+    // (DKB's always are) every pixel is so: one that would leave out no more than a tail's
+    // TAIL_WORDS fragments keeps them all (shared::stored_k).
+    let pair = true;
     let mark = select(0u, PAIR_BIT, pair);
     // alloc::min_k, as the allocation's setup finds it.
     let lo = select(0u, 1u, budget_of(totals[0]) >= u64(totals[1]));
@@ -92,7 +94,7 @@ fn network_inputs(r: u32) -> Net {
     let sum = color_sums(at);
     let mean = vec3<f32>(f32(sum.r) / 255.0 / nf, f32(sum.g) / 255.0 / nf, f32(sum.b) / 255.0 / nf);
     // n^2 var and n^2 dev in 8-bit units, exact integers.
-    var var_num = i64(c) * i64(u32(records[at + 4u] >> 32u));
+    var var_num = i64(c) * i64(u32(records[at + 2u] >> 32u));
     var dev_num = 0li;
     for (var ch = 0u; ch < 3u; ch++) {
         let s = i64(sum[ch]);
@@ -105,7 +107,7 @@ fn network_inputs(r: u32) -> Net {
     let dev = f32(dev_num) / scale;
     let mean_luma = luma(mean);
     let near_luma = luma(near);
-    let tau = f32(u32(records[at + 5u] & 0xfffffffflu)) * OPTICAL_DEPTH_UNIT;
+    let tau = f32(u32(records[at + 3u] & 0xfffffffflu)) * OPTICAL_DEPTH_UNIT;
     net.x = array<f32, FEATURES>(
         log2(nf),
         nf / (total / covered),
@@ -115,7 +117,7 @@ fn network_inputs(r: u32) -> Net {
         f32(near8 >> 24u) / 255.0,
         log2(variance + LOG_FLOOR),
         log2(dev + LOG_FLOOR),
-        f32(u32(records[at + 5u] >> 32u)) / 255.0 / nf,
+        f32(u32(records[at + 3u] >> 32u)) / 255.0 / nf,
         mean_luma,
         near_luma,
         log2(tau + OPTICAL_DEPTH_UNIT),
@@ -132,7 +134,7 @@ fn select_pixels(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let r = grid_index(wid, nwg, lid, PIXEL_GROUP);
-    if (r >= totals[3]) {
+    if (r >= totals[5]) {
         return;
     }
     if (network_inputs(r).runs) {

@@ -11,12 +11,13 @@
 @group(0) @binding(1) var<storage, read> slot_base: array<u32>;
 @group(0) @binding(2) var<storage, read_write> slots: array<u64>;
 // Per pixel: sum c8 a8 for r, g, b, sum a8; and the tail's count (unused where the tails are
-// pooled: then TAIL_WORDS words after a pixel's k slots, read_tail).
+// pooled: then TAIL_WORDS words after a pixel's k slots, its count n - k, read_tail).
 @group(0) @binding(3) var<storage, read_write> tail: array<u32>;
 @group(0) @binding(4) var<storage, read_write> tail_count: array<u32>;
 @group(0) @binding(5) var<storage, read_write> image: array<vec4<f32>>;
-// n(p), read when params.append is 1.
-@group(0) @binding(6) var<storage, read> count: array<u32>;
+// n(p), read when params.append is 1 or the tails are pooled; a pooled pixel that appended
+// took its count down to 0 as its cursor (capture.wgsl), and it is put back here.
+@group(0) @binding(6) var<storage, read_write> count: array<u32>;
 // Word 1: the deepest pixel over MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word), from the
 // fragments the capture saw (its cursor, or the slots filled and the tail's count), so it holds
 // whatever n(p) the frame was given. Word 0 (loop limits) is not set here.
@@ -26,9 +27,10 @@
 var<private> filled: u32 = 0u;
 
 // Where the pixel's pooled tail starts in `slots` (params.pooled_tail), or NO_TAIL: it keeps
-// none (k = n <= 1), or the tails are per pixel.
+// none (k = n), or the tails are per pixel; and its count, n - k.
 const NO_TAIL: u32 = 0xffffffffu;
 var<private> pooled_at: u32 = NO_TAIL;
+var<private> pooled_count: u32 = 0u;
 
 // Pixel p's tail: sum c8 a8 for r, g, b, sum a8, and its count, from the tail's buffers or the
 // pool.
@@ -47,7 +49,7 @@ fn read_tail(p: u32) -> Tail {
     }
     let rg = slots[t];
     let ba = slots[t + 1u];
-    return Tail(vec4<u32>(u32(rg & 0xfffffffflu), u32(rg >> 32u), u32(ba & 0xfffffffflu), u32(ba >> 32u)), u32(slots[t + 2u] & 0xfffffffflu));
+    return Tail(vec4<u32>(u32(rg & 0xfffffffflu), u32(rg >> 32u), u32(ba & 0xfffffffflu), u32(ba >> 32u)), pooled_count);
 }
 
 fn write_tail(p: u32, sums: vec4<u32>, count: u32) {
@@ -59,19 +61,12 @@ fn write_tail(p: u32, sums: vec4<u32>, count: u32) {
         tail_count[p] = count;
         return;
     }
-    let t = pooled_at;
-    if (t != NO_TAIL) {
-        slots[t] = u64(sums.x) | (u64(sums.y) << 32u);
-        slots[t + 1u] = u64(sums.z) | (u64(sums.w) << 32u);
-        slots[t + 2u] = u64(count);
-    }
+    // A pooled tail is written only where its pixel appended, and such a pixel keeps none.
 }
 
-// The append mode's spilled key s (of at most APPEND_SPILL), in the tail's sum words.
+// The append mode's spilled key s (of at most APPEND_SPILL), in the tail's sum words (per
+// pixel: a pooled pixel that appends keeps all its fragments).
 fn spilled_key(p: u32, s: u32) -> u64 {
-    if (params.pooled_tail != 0u) {
-        return slots[pooled_at + s];
-    }
     return u64(tail[4u * p + 2u * s]) | (u64(tail[4u * p + 2u * s + 1u]) << 32u);
 }
 
@@ -160,18 +155,13 @@ struct Resolved {
 fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
     if (EVERY_FRAGMENT_FITS) {
         let base = slot_base[p];
-        var n = slot_base[p + 1u] - base;
+        let n = slot_base[p + 1u] - base;
         // The capture's cursor: the tail is empty.
-        var seen = 0u;
+        var seen = n;
         if (params.pooled_tail != 0u) {
-            let span = n;
-            n = k_of_span(span);
-            seen = n;
-            if (span >= 2u) {
-                pooled_at = base + n;
-                seen = read_tail(p).count;
-                write_tail(p, vec4<u32>(0u), 0u);
-            }
+            // The bases hold spans of k = n, no tail; the count the capture took down as its
+            // cursor put back.
+            count[p] = n;
         } else {
             seen = tail_count[p];
             tail_count[p] = 0u;
@@ -190,17 +180,29 @@ fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
         base = slot_base[p];
         k = slot_base[p + 1u] - base;
         if (params.pooled_tail != 0u) {
+            // A span below n holds a tail (its count n - k); else the pixel holds its n = span
+            // fragments, and where it appended (k <= APPEND_MAX) the capture took its count
+            // down to 0: put back, and its slots sorted.
             let span = k;
-            k = k_of_span(span);
-            if (span >= 2u) {
+            let c = count[p];
+            if (span < c) {
+                k = k_of_span(span, c);
                 pooled_at = base + k;
+                pooled_count = c - k;
+            } else {
+                count[p] = span;
+                if (params.append != 0u && k <= APPEND_MAX) {
+                    sort_slots(base, k);
+                }
+            }
+            if (too_deep(p, max(c, span))) {
+                return Resolved(false, vec4<f32>(0.0));
             }
         }
     }
-    if (params.append != 0u) {
+    if (params.append != 0u && params.pooled_tail == 0u) {
         let n = count[p];
-        // A pixel without a pooled tail holds its k = n <= 1 fragments in its slots.
-        if (appends(k, n) && !(params.pooled_tail != 0u && pooled_at == NO_TAIL)) {
+        if (appends(k, n)) {
             // Every fragment took a place from the cursor.
             if (too_deep(p, max(n, read_tail(p).count))) {
                 return Resolved(false, vec4<f32>(0.0));

@@ -1,10 +1,11 @@
-// Frame totals (compute, one invocation a pixel): sum of n, covered pixels, the largest n and
-// the pixels of two fragments or more (budget::Occupancy's deep ones, which bound the pooled
-// tails), with integer atomics (importance::totals).
+// Frame totals (compute, one invocation a pixel): sum of n, covered pixels, the largest n, the
+// pixels of two fragments or more and, where the buffer has a sixth word, of more than
+// TAIL_WORDS (budget::Occupancy's deep and deeper ones, which bound the pooled tails), with
+// integer atomics (importance::totals).
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> count: array<u32>;
-// fragments, covered, max count, deep, the records handed out (assign_records)
+// fragments, covered, max count, deep, the records handed out (assign_records), deeper
 @group(0) @binding(2) var<storage, read_write> totals: array<atomic<u32>>;
 
 // A workgroup's sums, added to the frame's totals by one invocation: three atomics on the
@@ -14,6 +15,7 @@ var<workgroup> group_fragments: atomic<u32>;
 var<workgroup> group_covered: atomic<u32>;
 var<workgroup> group_max: atomic<u32>;
 var<workgroup> group_deep: atomic<u32>;
+var<workgroup> group_deeper: atomic<u32>;
 
 @compute @workgroup_size(PIXEL_GROUP)
 fn main(
@@ -36,6 +38,9 @@ fn add_pixel(c: u32) {
         if (c >= 2u) {
             atomicAdd(&group_deep, 1u);
         }
+        if (c > TAIL_WORDS) {
+            atomicAdd(&group_deeper, 1u);
+        }
     }
 }
 
@@ -50,13 +55,17 @@ fn add_group(lid: u32) {
             atomicAdd(&totals[1], covered);
             atomicMax(&totals[2], atomicLoad(&group_max));
             atomicAdd(&totals[3], atomicLoad(&group_deep));
+            if (arrayLength(&totals) > 5u) {
+                atomicAdd(&totals[5], atomicLoad(&group_deeper));
+            }
         }
     }
 }
 
-// DKB's records (features.wgsl): one for each pixel of two fragments or more, RECORD_WORDS
-// words in the slot pool, its index in the frame's shared word (NO_RECORD for the others), n
-// in its colour sums' first word (bits 48-63). Indices from one atomic a workgroup, in any
+// DKB's records (features.wgsl): one for each pixel of more than TAIL_WORDS fragments (any
+// fewer are all kept whatever k: shared::stored_k), RECORD_WORDS words in the slot pool, its
+// index in the frame's shared word (NO_RECORD for the others), n in its colour sums' first
+// word (bits 48-63). Indices from one atomic a workgroup, in any
 // order: a record is its pixel's alone, so the order changes no result.
 @group(0) @binding(6) var<storage, read_write> record_of: array<u32>;
 @group(0) @binding(7) var<storage, read_write> records: array<u64>;
@@ -76,7 +85,7 @@ fn assign_records(
         n = count[p];
     }
     var local = 0u;
-    if (n >= 2u) {
+    if (n > TAIL_WORDS) {
         local = atomicAdd(&group_records, 1u);
     }
     workgroupBarrier();
@@ -85,10 +94,10 @@ fn assign_records(
     }
     workgroupBarrier();
     if (p < params.pixels) {
-        if (n >= 2u) {
+        if (n > TAIL_WORDS) {
             let r = group_first + local;
             record_of[p] = r;
-            records[RECORD_WORDS * r + 3u] = u64(n) << 48u;
+            records[RECORD_WORDS * r + 1u] = u64(n) << 48u;
         } else {
             record_of[p] = NO_RECORD;
         }

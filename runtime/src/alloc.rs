@@ -51,6 +51,23 @@ impl ErrorCurves {
             .map(|w| (w[1] - w[0] - 1) as u32)
             .collect()
     }
+    /// The curves of a k-buffer whose tails share its slots' pool (VKB, DKB): a pixel given k
+    /// slots stores `shared::stored_k(k, n)`, all n where its tail would hold no more than a
+    /// tail's words, so its error at k is e at that: 0 from `n - TAIL_WORDS` on. The optimum
+    /// of these ([`optimal`]) is the least error such a k-buffer can reach with F slots.
+    pub fn pooled(&self) -> ErrorCurves {
+        let mut values = self.values.clone();
+        for (p, n) in self.counts().into_iter().enumerate() {
+            let c = &mut values[self.start[p]..self.start[p + 1]];
+            for k in 0..=n {
+                c[k as usize] = self.curve(p)[crate::shared::stored_k(k, n) as usize];
+            }
+        }
+        ErrorCurves {
+            start: self.start.clone(),
+            values,
+        }
+    }
     /// Total error of an allocation.
     pub fn total(&self, k: &[u32]) -> f64 {
         (0..self.pixels())
@@ -862,6 +879,16 @@ pub fn allocate(importance: &[f32], counts: &[u32], target: Target, f: u64) -> V
     } else {
         water_fill(&w, counts, f)
     }
+}
+
+/// [`allocate`] for a k-buffer whose tails share its slots' pool (VKB, DKB, an allocated
+/// importance on the GPU, where the allocation pass marks every pixel): every covered pixel
+/// marked with the [`PAIR_BIT`], whatever its importance's sign. A pooled pixel left out by no
+/// more than a tail's `shared::TAIL_WORDS` (two) fragments keeps them all (`shared::stored_k`),
+/// so, as for a pair, its slots past all but its two farthest fragments save nothing.
+pub fn allocate_pooled(importance: &[f32], counts: &[u32], target: Target, f: u64) -> Vec<u32> {
+    let marked: Vec<f32> = importance.iter().map(|&i| mark_pair(i, true)).collect();
+    allocate(&marked, counts, target, f)
 }
 
 /// A covered pixel's weight or request from its importance, with the [`PAIR_BIT`] the

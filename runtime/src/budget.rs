@@ -55,12 +55,12 @@ pub struct Layout {
 /// most it holds at once ([`Layout::pool_bytes`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PoolState {
-    /// Bytes of a deep pixel's record (features.wgsl; in the pool until the importance is
-    /// gathered).
+    /// Bytes of a deeper pixel's record (features.wgsl: one for each pixel of more than
+    /// [`crate::shared::TAIL_WORDS`] fragments; in the pool until the importance is gathered).
     pub record_bytes: u64,
     /// Bytes a pixel of the allocation's marks (in the pool until k is known).
     pub marks_bytes: u64,
-    /// Buffers of their own, bytes for each deep pixel (each at least 16 bytes in all).
+    /// Buffers of their own, bytes for each deeper pixel (each at least 16 bytes in all).
     pub per_deep: &'static [(&'static str, u64)],
 }
 
@@ -68,13 +68,18 @@ pub struct PoolState {
 pub const POOLED_TAIL: u64 = 8 * crate::shared::TAIL_WORDS as u64;
 
 /// What a frame's count says about its pixels, which the pooled tails are bounded by: its
-/// fragments, the pixels holding one or more, and those holding two or more.
+/// fragments, the pixels holding one or more, two or more, and more than a tail's
+/// [`crate::shared::TAIL_WORDS`] (three or more).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Occupancy {
     pub fragments: u64,
     pub covered: u64,
     pub deep: u64,
+    pub deeper: u64,
 }
+
+// Occupancy::extra_words_at counts a pixel's words past its k slots by these thresholds.
+const _: () = assert!(crate::shared::TAIL_WORDS == 2);
 
 impl Occupancy {
     /// The occupancy of a frame whose pixels hold `counts` fragments.
@@ -83,6 +88,7 @@ impl Occupancy {
             fragments: o.fragments + n as u64,
             covered: o.covered + (n >= 1) as u64,
             deep: o.deep + (n >= 2) as u64,
+            deeper: o.deeper + (n > crate::shared::TAIL_WORDS) as u64,
         })
     }
 
@@ -92,22 +98,34 @@ impl Occupancy {
             fragments: u64::MAX,
             covered: pixels,
             deep: pixels,
+            deeper: pixels,
         }
     }
 
-    /// The most pixels that keep a pooled tail when F = `f` ([`crate::shared::has_tail`]):
-    /// where F covers every covered pixel, each gets a slot (the allocation's smallest k is 1),
-    /// so only the deep ones can keep one; otherwise any covered pixel can.
-    pub fn tails_at(&self, f: u64) -> u64 {
+    /// The most words a frame's pooled pixels take beyond its F slots when F = `f`: a pixel
+    /// of n fragments and k slots takes `min(n, k + TAIL_WORDS)` words ([`crate::shared::span`]),
+    /// `k + min(n - k, 2)`, and k is at least the allocation's smallest, 1 where F covers every
+    /// covered pixel (then `min(n - 1, 2)` a pixel: one for each deep pixel and one for each
+    /// deeper), else 0 (`min(n, 2)`: one for each covered pixel and one for each deep).
+    pub fn extra_words_at(&self, f: u64) -> u64 {
         if f >= self.covered {
-            self.deep
+            self.deep + self.deeper
         } else {
-            self.covered
+            self.covered + self.deep
         }
+    }
+
+    /// The most words a frame's pooled slots and tails take at F = `f`: `min(F, n)` slots and
+    /// [`Occupancy::extra_words_at`], and never more than its fragments (a pixel takes at most
+    /// its n).
+    pub fn pool_words_at(&self, f: u64) -> u64 {
+        let n = self.fragments;
+        n.min(f.min(n).saturating_add(self.extra_words_at(f)))
     }
 }
 
-/// The pooled tails a frame's allocation `k` keeps, for pixels of `counts` fragments.
+/// The pooled tails a frame's allocation `k` (or its [`crate::shared::stored`] k) keeps, for
+/// pixels of `counts` fragments.
 pub fn tails_kept(k: &[u32], counts: &[u32]) -> u64 {
     k.iter()
         .zip(counts)
@@ -136,11 +154,12 @@ const STATUS: (&str, u64) = ("status", 16);
 
 /// Deep k-buffer: the count, the shared word and the raster target a pixel; the rest in the slot
 /// pool before the slots fill it ([`PoolState`]): a record of the network's statistics for each
-/// pixel of two fragments or more (48 bytes: the nearest key, the two farthest, the colour and
-/// opacity sums; a pixel of one fragment has its k forced whatever they are), then the
-/// allocation's marks (4 bytes a pixel), then the slots and the pooled tails. The shared word
-/// (`oit.offsets`) holds a pixel's record index, its importance, the allocation's weights, k
-/// and the slot bases in turn; the network's list of records takes 4 bytes a deep pixel.
+/// pixel of three fragments or more (32 bytes: the nearest key, the colour and opacity sums; a
+/// pixel of fewer keeps them all whatever its k, `shared::stored_k`, so its k is forced), then
+/// the allocation's marks (4 bytes a pixel), then the slots and the pooled tails (two words,
+/// where a pixel leaves out more than two fragments). The shared word (`oit.offsets`) holds a
+/// pixel's record index, its importance, the allocation's weights, k and the slot bases in
+/// turn; the network's list of records takes 4 bytes a record.
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
@@ -400,40 +419,44 @@ impl Layout {
     pub fn allocated_with_tails(&self, pixels: u64, slots: u64, tails: u64) -> u64 {
         self.allocated_bytes(pixels, slots) + tails * self.tail_bytes
     }
-    /// Bytes of the buffers a deep pixel has of its own ([`PoolState::per_deep`]).
+    /// Bytes of the buffers a deeper pixel (one with a record) has of its own
+    /// ([`PoolState::per_deep`]).
     pub fn deep_bytes(&self, occ: &Occupancy) -> u64 {
         self.pool_state.map_or(0, |ps| {
-            ps.per_deep.iter().map(|b| (b.1 * occ.deep).max(16)).sum()
+            ps.per_deep.iter().map(|b| (b.1 * occ.deeper).max(16)).sum()
         })
     }
     /// The slot pool a frame of occupancy `occ` makes at F = `f` where the layout keeps state
-    /// there ([`PoolState`]): the most it holds at once, the records, the marks, or `min(F, n)`
-    /// slots with the tails its pixels may keep ([`Occupancy::tails_at`]); at least 16 bytes.
+    /// there ([`PoolState`]): the most it holds at once, the records, the marks, or the words
+    /// its slots and tails may take ([`Occupancy::pool_words_at`]); at least 16 bytes.
     pub fn pool_bytes(&self, pixels: u64, f: u64, occ: &Occupancy) -> u64 {
-        let slots = self.slot_bytes * f.min(occ.fragments) + self.tail_bytes * occ.tails_at(f);
-        slots.max(self.pool_least(pixels, occ.deep))
+        let slots = self.slot_bytes * occ.pool_words_at(f);
+        slots.max(self.pool_least(pixels, occ.deeper))
     }
-    /// The pool's least size whatever F: the state it holds first for `deep` deep pixels (16
-    /// bytes at least, as every buffer).
-    fn pool_least(&self, pixels: u64, deep: u64) -> u64 {
+    /// The pool's least size whatever F: the state it holds first for `records` pixels with a
+    /// record (16 bytes at least, as every buffer).
+    fn pool_least(&self, pixels: u64, records: u64) -> u64 {
         self.pool_state
             .map_or(0, |ps| {
-                (ps.record_bytes * deep).max(ps.marks_bytes * pixels)
+                (ps.record_bytes * records).max(ps.marks_bytes * pixels)
             })
             .max(16)
     }
     /// The most bytes a frame of occupancy `occ` can allocate at F = `f`: its fixed bytes,
-    /// `min(F, n)` slots (the most an allocation hands out) and, pooled, a tail for each pixel
-    /// that may keep one ([`Occupancy::tails_at`]); where the pool holds state first, the pool
-    /// it makes ([`Layout::pool_bytes`]: what such a frame allocates whatever its k) and its
-    /// buffers for deep pixels.
+    /// `min(F, n)` slots (the most an allocation hands out) and, pooled, the words its pixels'
+    /// tails and whole pixels may take beyond them ([`Occupancy::pool_words_at`]); where the
+    /// pool holds state first, the pool it makes ([`Layout::pool_bytes`]: what such a frame
+    /// allocates whatever its k) and its buffers for deep pixels.
     pub fn reserved_bytes(&self, pixels: u64, f: u64, occ: &Occupancy) -> u64 {
         if self.pool_state.is_some() {
             return self.fixed_bytes(pixels)
                 + self.deep_bytes(occ)
                 + self.pool_bytes(pixels, f, occ);
         }
-        self.allocated_with_tails(pixels, f.min(occ.fragments), occ.tails_at(f))
+        if self.tail_bytes > 0 {
+            return self.allocated_bytes(pixels, occ.pool_words_at(f));
+        }
+        self.allocated_bytes(pixels, f.min(occ.fragments))
     }
     /// F(M) for a frame of occupancy `occ`: the most slots whose bytes, with the tails they
     /// may keep (and the state the pool holds first), stay within `bytes`
@@ -446,37 +469,42 @@ impl Layout {
         let fixed = self.fixed_bytes(pixels) + self.deep_bytes(occ);
         // The pool's least size whatever F: the state it holds first.
         let least = if self.pool_state.is_some() {
-            self.pool_least(pixels, occ.deep)
+            self.pool_least(pixels, occ.deeper)
         } else {
             0
         };
         let pool = bytes.checked_sub(fixed).filter(|&p| p >= least);
-        let slots_after = |tails: u64| {
-            pool.and_then(|p| p.checked_sub(tails * self.tail_bytes))
-                .map(|b| b / self.slot_bytes)
+        // The slots left beside the words the pixels may take past them where k is at least
+        // lo ([`Occupancy::extra_words_at`]): F at or above the covered pixels (lo 1), or
+        // below (lo 0). Where the first is below the covered pixels, so is the second.
+        let slots_after = |extra: u64| {
+            pool.map(|p| p / self.slot_bytes)
+                .and_then(|w| w.checked_sub(extra))
         };
-        match (slots_after(occ.deep), slots_after(occ.covered)) {
+        match (
+            slots_after(occ.extra_words_at(occ.covered)),
+            slots_after(occ.extra_words_at(0)),
+        ) {
             (Some(f), _) if f >= occ.covered => Ok(f),
             (_, Some(f)) if f > 0 => Ok(f),
             _ => Err(Error::Budget(
                 format_bytes(bytes),
                 format!(
                     "{} needs {} for one slot in this frame: {} for {} pixels before any \
-                     fragment slot ({} B per pixel + {} fixed{}), and {} B for the tail of each \
-                     of the frame's {} covered pixels",
+                     fragment slot ({} B per pixel + {} fixed{}), and {} B for the tail (or \
+                     the fragments, where a tail would hold no more) of each of the frame's {} \
+                     covered pixels",
                     self.method,
-                    format_bytes(
-                        fixed + least.max(self.slot_bytes + self.tail_bytes * occ.tails_at(1))
-                    ),
+                    format_bytes(fixed + least.max(self.slot_bytes * occ.pool_words_at(1))),
                     format_bytes(fixed + least),
                     pixels,
                     self.per_pixel_bytes(),
                     format_bytes(fixed - pixels * self.per_pixel_bytes()),
                     match self.pool_state {
                         Some(_) => format!(
-                            ", a pool of {} for the {} pixels of two fragments or more",
+                            ", a pool of {} for the {} pixels of three fragments or more",
                             format_bytes(least),
-                            occ.deep
+                            occ.deeper
                         ),
                         None => String::new(),
                     },
@@ -579,11 +607,11 @@ impl Budget {
     /// assert!(Budget::parse("25 apples").is_err());
     /// // Bytes fix F through the method's layout: what is left after its fixed buffers, in slots.
     /// // Before a frame is counted, DKB leaves room for what every pixel could need: a list
-    /// // entry (4 bytes) and a pooled tail (24) each.
+    /// // entry (4 bytes) and a pooled tail (two words, 16 bytes) each.
     /// let pixels = 640 * 480;
     /// let (m, f) = Budget::parse("40MiB")?.resolve(&DKB, pixels, 0)?;
     /// assert_eq!(m, 40 << 20);
-    /// assert_eq!(f, (m - DKB.fixed_bytes(pixels) - 4 * pixels - 24 * pixels) / 8);
+    /// assert_eq!(f, (m - DKB.fixed_bytes(pixels) - 4 * pixels - 16 * pixels) / 8);
     /// # Ok::<(), dhoit_runtime::Error>(())
     /// ```
     pub fn parse(s: &str) -> Result<Budget> {
@@ -682,10 +710,10 @@ impl Budget {
     ) -> Result<(u64, u64)> {
         let fragments = occ.fragments;
         let bytes_of = |slots: u64| {
-            if layout.pool_state.is_some() {
+            if layout.tail_bytes > 0 {
                 return layout.reserved_bytes(pixels, slots, occ);
             }
-            layout.allocated_with_tails(pixels, slots, occ.tails_at(slots))
+            layout.allocated_bytes(pixels, slots)
         };
         match *self {
             Budget::Bytes(b) => Ok((b, layout.fragment_budget_counted(b, pixels, occ)?)),

@@ -445,14 +445,15 @@ impl<'a> Renderer<'a> {
                 alloc::fixed(pixels as usize, f)
             }
             Method::Vkb | Method::Dkb if !cpu_k => Vec::new(),
+            // Their tails pooled: every pixel is a pair (alloc::allocate_pooled).
             Method::Vkb => {
                 let imp = importance::vkb_importance(fl, &opts.vkb);
-                alloc::allocate(&imp, &counts, alloc::Target::RelativeK, f)
+                alloc::allocate_pooled(&imp, &counts, alloc::Target::RelativeK, f)
             }
             Method::Dkb => {
                 let mlp = opts.weights.ok_or_else(no_weights)?;
-                let (feats, pairs) = importance::features_and_pairs(fl, f);
-                mlp.allocate(&feats, &counts, &pairs, f)
+                let (feats, _) = importance::features_and_pairs(fl, f);
+                mlp.allocate_pooled(&feats, &counts, f)
             }
             Method::Optimal => {
                 let (k, rep) = alloc::optimal(self.curves(), f);
@@ -485,7 +486,13 @@ impl<'a> Renderer<'a> {
         let pixels = fl.pixel_count() as u64;
         let counts = fl.counts();
         let method = a.method;
-        let k = a.k;
+        // A k-buffer whose tails share its slots' pool keeps all of a pixel's fragments where
+        // a tail would hold no more (shared::stored_k): the k it stores.
+        let pooled = !a.exact && self.options.layout(method).tail_bytes > 0;
+        let k = match pooled {
+            true => crate::shared::stored(&a.k, &counts),
+            false => a.k,
+        };
         let slots: u64 = k.iter().map(|&x| x as u64).sum();
         let captured: u64 = k.iter().zip(&counts).map(|(&a, &b)| a.min(b) as u64).sum();
         let t1 = Instant::now();
@@ -518,7 +525,6 @@ impl<'a> Renderer<'a> {
             // is made at for the frame's budget and occupancy.
             _ => {
                 let layout = self.options.layout(method);
-                let counts = fl.counts();
                 if layout.pool_state.is_some() {
                     let occ = Occupancy::of(&counts);
                     layout.reserved_bytes(pixels, a.budget_fragments, &occ)

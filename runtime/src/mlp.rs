@@ -379,6 +379,44 @@ impl Mlp {
         crate::alloc::allocate(&imp, counts, self.target, f)
     }
 
+    /// DKB's allocation of `f` slots as its frames make it, their tails pooled: every pixel a
+    /// pair (`alloc::allocate_pooled`: a pixel left out by no more than a tail's two fragments
+    /// keeps them all, `shared::stored_k`), so no farthest key is gathered, and the importance
+    /// of [`Mlp::dkb_importance_pooled`].
+    pub fn allocate_pooled(
+        &self,
+        features: &[[f32; FEATURES]],
+        counts: &[u32],
+        f: u64,
+    ) -> Vec<u32> {
+        let imp = self.dkb_importance_pooled(features, counts, f);
+        crate::alloc::allocate_pooled(&imp, counts, self.target, f)
+    }
+
+    /// DKB's importance map as its GPU frames write it, their tails pooled: every pixel with a
+    /// record (more than `shared::TAIL_WORDS` fragments) marked as a pair, its importance the
+    /// network's output or 0 where forced (at most lo + 2 fragments: [`forced`]); 0 unmarked
+    /// at a pixel without one (nothing gathered: it keeps all it has whatever its k) and
+    /// wherever [`Mlp::dkb_importance`] gives it.
+    pub fn dkb_importance_pooled(
+        &self,
+        features: &[[f32; FEATURES]],
+        counts: &[u32],
+        f: u64,
+    ) -> Vec<f32> {
+        let pairs: Vec<bool> = counts
+            .iter()
+            .map(|&n| n > crate::shared::TAIL_WORDS)
+            .collect();
+        let mut imp = self.dkb_importance(features, counts, &pairs, f);
+        for (i, &n) in imp.iter_mut().zip(counts) {
+            if n <= crate::shared::TAIL_WORDS {
+                *i = 0.0;
+            }
+        }
+        imp
+    }
+
     /// DKB's importance map, as the GPU's importance pass writes it: the network's output with
     /// the pair mark, and 0 wherever k does not depend on it, without running the network
     /// there: with the mark at a pixel whose useful cap is the frame's lo ([`forced`]);

@@ -38,35 +38,56 @@ pub const AMBIENT: f32 = 0.3;
 pub const MAX_FRAGMENTS_PER_PIXEL: u32 = 65_535;
 
 /// 64-bit words of a pooled tail (the allocated k-buffers, `Params::pooled_tail`): sum c8 a8
-/// for r and g, for b and sum a8 (two to a word, as the per-pixel tail), and its count (the
-/// append mode's cursor) in the low half of the third. A pixel that keeps one holds them
-/// right after its k slots, so the slot pool holds the tails too and a pixel that cannot
-/// truncate holds none: no per-pixel tail buffer.
-pub const TAIL_WORDS: u32 = 3;
+/// for r and g, for b and sum a8 (two to a word, as the per-pixel tail). Its count is n - k
+/// (every fragment a pixel does not keep in its k slots is in its tail), so it is not stored.
+/// A pixel that keeps one holds it right after its k slots, so the slot pool holds the tails
+/// too: no per-pixel tail buffer.
+pub const TAIL_WORDS: u32 = 2;
 
-/// Whether a pixel of `k` slots and `n` fragments keeps a pooled tail: wherever it truncates,
-/// and wherever it holds two fragments or more. So a pixel without one has at most one
-/// fragment, all of it in its slots (k = n <= 1), and its span ([`span`]) says which: below 2
-/// without a tail, k + [`TAIL_WORDS`] >= 3 with one.
+/// Whether a pixel of `k` slots and `n` fragments keeps a pooled tail: where it truncates by
+/// more than [`TAIL_WORDS`] fragments. A tail takes TAIL_WORDS words of the pool, as many as
+/// that many fragments' keys, so a pixel that would leave out no more than that keeps them all
+/// instead ([`stored_k`]): exact, in no more memory than the tail.
 pub const fn has_tail(k: u32, n: u32) -> bool {
-    k < n || n >= 2
+    n > k.saturating_add(TAIL_WORDS)
 }
 
-/// The pool words a pixel takes: its k slots, and its tail where it keeps one ([`has_tail`]).
-/// The slot bases are the spans' prefix sums.
+/// The slots a pooled pixel keeps for an allocation's `k` of its `n` fragments: k where it
+/// keeps a tail ([`has_tail`]), else all n (a tail would take as many words as what it left
+/// out). Never fewer than k's fragments, never more words ([`span`]) than k slots and a tail.
+pub const fn stored_k(k: u32, n: u32) -> u32 {
+    if has_tail(k, n) { k } else { n }
+}
+
+/// [`stored_k`] of every pixel: the k a pooled k-buffer's frame stores for an allocation `k`
+/// of a frame of `counts`.
+pub fn stored(k: &[u32], counts: &[u32]) -> Vec<u32> {
+    k.iter()
+        .zip(counts)
+        .map(|(&k, &n)| stored_k(k, n))
+        .collect()
+}
+
+/// The pool words a pixel takes: its k slots and its tail where it keeps one ([`has_tail`]),
+/// else its n fragments: `min(n, k + TAIL_WORDS)`. The slot bases are the spans' prefix sums.
 pub const fn span(k: u32, n: u32) -> u32 {
-    if has_tail(k, n) { k + TAIL_WORDS } else { k }
+    if has_tail(k, n) { k + TAIL_WORDS } else { n }
 }
 
-/// k from a pixel's span (the inverse of [`span`] on every (k, n) it takes).
-pub const fn k_of_span(span: u32) -> u32 {
-    if span >= 2 { span - TAIL_WORDS } else { span }
+/// The k a pixel of `n` fragments stores, from its span (the inverse of [`span`] on every
+/// (k, n) it takes): a span below n holds a tail after its slots.
+pub const fn k_of_span(span: u32, n: u32) -> u32 {
+    if span < n {
+        span.saturating_sub(TAIL_WORDS)
+    } else {
+        span
+    }
 }
 
-/// 64-bit words of DKB's per-pixel record (features.wgsl): the nearest key, the two farthest,
-/// two of colour sums, one of opacity sums. Only a pixel of two fragments or more has one, in
-/// the slot pool until the capture.
-pub const RECORD_WORDS: u32 = 6;
+/// 64-bit words of DKB's per-pixel record (features.wgsl): the nearest key, two of colour sums,
+/// one of opacity sums. Only a pixel of more than [`TAIL_WORDS`] fragments has one (any fewer
+/// are all kept whatever k: [`stored_k`]), in the slot pool until the capture.
+pub const RECORD_WORDS: u32 = 4;
 
 /// A pixel without a record (records.wgsl).
 pub const NO_RECORD: u32 = u32::MAX;

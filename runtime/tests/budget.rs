@@ -68,30 +68,41 @@ fn fragment_budget_follows_the_layout_and_never_overspends() {
         .resolve(&budget::DKB, 100, 0)
         .unwrap();
     assert_eq!(f, 200);
-    // Before a frame is counted: every pixel deep, with a record (48 bytes) and a list entry (4),
-    // in a pool of the records (4,800 bytes), which hold more than 200 slots and their tails.
+    // Before a frame is counted: every pixel deeper, with a record (32 bytes) and a list entry
+    // (4), in a pool of the records (3,200 bytes), which hold 200 slots (the most words the
+    // frame's 200 fragments take).
     let most = budget::Occupancy {
         fragments: 200,
         covered: 100,
         deep: 100,
+        deeper: 100,
     };
     assert_eq!(m, budget::DKB.reserved_bytes(100, 200, &most));
-    assert_eq!(m, budget::DKB.fixed_bytes(100) + 4 * 100 + 48 * 100);
+    assert_eq!(m, budget::DKB.fixed_bytes(100) + 4 * 100 + 32 * 100);
 }
 
 /// A counted frame's F(M) with pooled tails is the largest F whose fixed bytes, slots and the
-/// tails its pixels may keep then (a tail for every covered pixel below one slot each, for the
-/// deep ones above) fit M: held to an exhaustive search over F.
+/// words its pixels may take past them (a tail of two words, or the fragments it would hold:
+/// up to two a covered pixel below one slot each, one a deep pixel and one a deeper above)
+/// fit M: held to an exhaustive search over F.
 #[test]
 fn pooled_tails_leave_the_largest_budget_that_fits() {
     let pixels = 64u64;
     let mut both = [false; 2];
     for layout in [budget::VKB, budget::DKB] {
-        for (covered, deep) in [(0u64, 0u64), (1, 0), (40, 3), (40, 39), (64, 64), (20, 20)] {
+        for (covered, deep, deeper) in [
+            (0u64, 0u64, 0u64),
+            (1, 0, 0),
+            (40, 3, 1),
+            (40, 39, 20),
+            (64, 64, 64),
+            (20, 20, 0),
+        ] {
             let occ = budget::Occupancy {
                 fragments: 10_000,
                 covered,
                 deep,
+                deeper,
             };
             let fixed = layout.fixed_bytes(pixels);
             for m in (fixed..fixed + 2_400).step_by(3) {

@@ -252,25 +252,31 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
         err.to_string().contains("before any fragment slot"),
         "{err}"
     );
-    // The least bytes that run: the fixed cost, the network's list (4 bytes a deep pixel) and a
-    // pool of the most it holds: the records (48 bytes a deep pixel), the marks (4 a pixel), or
-    // one slot and a pooled tail for each covered pixel (with fewer slots than those, any may
-    // keep one). What the pool holds beyond one slot and the tails is slots: F by hand.
+    // The least bytes that run: the fixed cost, the network's list (4 bytes a record) and a pool
+    // of the most it holds: the records (32 bytes for each pixel of three fragments or more),
+    // the marks (4 a pixel), or one slot and, for each covered pixel (with fewer slots than
+    // those, any may have k = 0), the two words of a tail or of the two fragments it would hold,
+    // one word for a pixel of one. What the pool holds beyond them is slots: F by hand.
     let occ = budget::Occupancy::of(&fl.counts());
-    let deep = occ.deep;
-    let pool = (48 * deep).max(4 * pixels).max(8 + 24 * covered);
-    let one = fixed + (4 * deep).max(16) + pool;
+    let (deep, deeper) = (occ.deep, occ.deeper);
+    let pool = (32 * deeper)
+        .max(4 * pixels)
+        .max(8 * (1 + covered + deep).min(total));
+    let one = fixed + (4 * deeper).max(16) + pool;
     assert_eq!(one, budget::DKB.reserved_bytes(pixels, 1, &occ));
     let f1 = frame::render(&fl, Method::Dkb, opts(Budget::Bytes(one))).unwrap();
     assert!(frame::render(&fl, Method::Dkb, opts(Budget::Bytes(one - 1))).is_err());
-    let by_hand = match (pool - 24 * deep) / 8 {
+    let by_hand = match (pool / 8).saturating_sub(deep + deeper) {
         f if f >= covered => f,
-        _ => (pool - 24 * covered) / 8,
+        _ => pool / 8 - (covered + deep),
     };
     assert!(by_hand >= 1);
     assert_eq!(f1.budget_fragments, by_hand);
+    let a1 = frame::Renderer::new(&fl, opts(Budget::Bytes(one)))
+        .allocate(Method::Dkb)
+        .unwrap();
     assert_eq!(
-        f1.k.iter().map(|&k| k as u64).sum::<u64>(),
+        a1.k.iter().map(|&k| k as u64).sum::<u64>(),
         by_hand.min(total)
     );
     assert!(f1.allocated_bytes <= one);
@@ -284,10 +290,17 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
     )
     .unwrap();
     assert!(fr.budget_fragments < covered);
+    let few_k = frame::Renderer::new(&fl, opts(Budget::SlotsPerPixel(few as f64 / pixels as f64)))
+        .allocate(Method::Dkb)
+        .unwrap()
+        .k;
     assert_eq!(
-        fr.k.iter().map(|&k| k as u64).sum::<u64>(),
+        few_k.iter().map(|&k| k as u64).sum::<u64>(),
         fr.budget_fragments
     );
+    // The frame stores that allocation (all of a pixel's fragments where its tail would hold
+    // no more than two), and some pixels are all tail.
+    assert_eq!(fr.k, dhoit_runtime::shared::stored(&few_k, &fl.counts()));
     assert!(fr.k.iter().zip(fl.counts()).any(|(&k, n)| n > 0 && k == 0));
     cpu_and_gpu_agree(
         g,
@@ -391,7 +404,8 @@ fn skipping_forced_pixels_leaves_the_frame_unchanged() {
     let Some(g) = gpu() else { return };
     let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
     let mut s = Scene::default();
-    // One fragment (forced), two of one colour (forced: a pair) and deeper pixels.
+    // One fragment and two (forced: all kept whatever k), three (forced where every covered
+    // pixel has a slot) and deeper pixels.
     quad(
         &mut s,
         (-1.0, -1.0, 0.0, 1.0),
@@ -424,8 +438,10 @@ fn skipping_forced_pixels_leaves_the_frame_unchanged() {
     );
     let mlp = Mlp::random(6);
     let (w, h) = (64u32, 48u32);
+    // 75% holds a slot for every covered pixel (lo = 1): a pixel of three fragments has a
+    // record and its k is forced (a pooled pixel keeps all three from k = 1).
     for f in [
-        FragmentBudget::Share(400_000),
+        FragmentBudget::Share(750_000),
         FragmentBudget::Share(1_000_000),
     ] {
         let mut frames = Vec::new();
@@ -449,7 +465,7 @@ fn skipping_forced_pixels_leaves_the_frame_unchanged() {
         );
         let differ = ia.iter().zip(ib).filter(|(x, y)| x != y).count();
         // The skipped pixels read 0 instead of the network's output: some differ, yet k does not.
-        if f == FragmentBudget::Share(400_000) {
+        if f == FragmentBudget::Share(750_000) {
             assert!(differ > 0, "some pixels were skipped");
         }
     }

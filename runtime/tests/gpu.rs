@@ -806,7 +806,11 @@ fn the_allocation_pass_matches_its_cpu_twin() {
                 .unwrap();
             let (keys, bases, tails) = frame.slots.unwrap();
             let k_gpu: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
-            let k_cpu = alloc::allocate(imp, &counts, target, f);
+            // The k the pooled frame stores (shared::stored_k) of the twin's allocation.
+            let k_cpu = dhoit_runtime::shared::stored(
+                &alloc::allocate_pooled(imp, &counts, target, f),
+                &counts,
+            );
             assert!(
                 k_gpu == k_cpu,
                 "{label} {target:?}, F = {f}: GPU allocation differs from the CPU twin"
@@ -868,9 +872,14 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
                 let stats = d.stats.clone().unwrap();
                 for (p, (a, b)) in stats.iter().zip(&twin).enumerate() {
                     // Integer statistics: identical, whatever order the fragments came in; none
-                    // gathered for a pixel of one fragment (its k is forced).
-                    if b.count >= 2 {
-                        assert_eq!(a, b, "{name} pixel {p}");
+                    // gathered for a pixel of at most two fragments (its k is forced), nor the
+                    // farthest keys (every pooled pixel is a pair).
+                    if b.count > dhoit_runtime::shared::TAIL_WORDS {
+                        let b = importance::PixelStats {
+                            farthest: [0; 2],
+                            ..*b
+                        };
+                        assert_eq!(a, &b, "{name} pixel {p}");
                     } else {
                         assert_eq!(a.count, b.count, "{name} pixel {p}");
                     }
@@ -878,8 +887,8 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
                 stats
             };
             // Importance: the network on the GPU's statistics, within 1e-5.
-            let (feats, counts, pairs) = network_inputs(&stats, f);
-            let imp_twin: Vec<f32> = mlp.dkb_importance(&feats, &counts, &pairs, f);
+            let (feats, counts) = network_inputs(&stats, f);
+            let imp_twin: Vec<f32> = mlp.dkb_importance_pooled(&feats, &counts, f);
             let imp = d.importance.clone().unwrap();
             if holds {
                 // k = n whatever the importance: 0 everywhere, unmarked, as the twin's.
@@ -949,10 +958,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
 
 /// What DKB's network reads from a frame's statistics at F = `f`: each pixel's features (zeros
 /// where uncovered), its count, and whether its two farthest fragments share one colour.
-fn network_inputs(
-    stats: &[importance::PixelStats],
-    f: u64,
-) -> (Vec<[f32; 12]>, Vec<u32>, Vec<bool>) {
+fn network_inputs(stats: &[importance::PixelStats], f: u64) -> (Vec<[f32; 12]>, Vec<u32>) {
     let t = importance::totals(stats);
     let feats = stats
         .iter()
@@ -965,11 +971,7 @@ fn network_inputs(
         })
         .collect();
     let counts = stats.iter().map(|st| st.count).collect();
-    (
-        feats,
-        counts,
-        stats.iter().map(importance::tail_pair).collect(),
-    )
+    (feats, counts)
 }
 
 /// DKB's importance pass with the network deployed at f16-math (binary16 hidden layers,
@@ -1000,8 +1002,8 @@ fn dkb_frames_run_the_f16_math_network_like_its_twin() {
         let d = g
             .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&half, f.into())))
             .unwrap();
-        let (feats, counts, pairs) = network_inputs(&importance::pixel_stats(&gfl), f);
-        let twin = half.dkb_importance(&feats, &counts, &pairs, f);
+        let (feats, counts) = network_inputs(&importance::pixel_stats(&gfl), f);
+        let twin = half.dkb_importance_pooled(&feats, &counts, f);
         let imp = d.importance.clone().unwrap();
         assert!(imp.iter().any(|i| i.abs() > 0.0), "{name}: no importance");
         assert!(
@@ -1010,7 +1012,7 @@ fn dkb_frames_run_the_f16_math_network_like_its_twin() {
                 .all(|(a, b)| a.is_sign_negative() == b.is_sign_negative())
         );
         let diff = max_abs_diff(&imp, &twin);
-        let full = f32_net.dkb_importance(&feats, &counts, &pairs, f);
+        let full = f32_net.dkb_importance_pooled(&feats, &counts, f);
         let moved = max_abs_diff(&imp, &full);
         eprintln!("{name}: f16-math |GPU - twin| {diff:e}, |GPU - f32 network| {moved:e}");
         assert!(
@@ -1037,8 +1039,12 @@ fn check_allocation_and_capture(
 ) {
     let (keys, bases, tails) = f.slots.clone().unwrap();
     let k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
+    // The k the pooled frame stores: the allocation's, or all of a pixel's fragments where
+    // its tail would hold no more (shared::stored_k).
+    let counts = gfl.counts();
+    let allocated = alloc::allocate_pooled(imp, &counts, target, budget);
     assert!(
-        k == alloc::allocate(imp, &gfl.counts(), target, budget),
+        k == dhoit_runtime::shared::stored(&allocated, &counts),
         "{label}: allocation differs"
     );
     let (twin_keys, twin_tails) = twin_capture(gfl, &k);
@@ -1096,18 +1102,22 @@ fn a_large_allocation_matches_its_twin() {
         let imp = v.importance.clone().unwrap();
         let (_, bases, _) = v.slots.unwrap();
         let k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
+        let counts = gfl.counts();
+        let twin = alloc::allocate_pooled(&imp, &counts, alloc::Target::RelativeK, f);
         assert!(
-            k == alloc::allocate(&imp, &gfl.counts(), alloc::Target::RelativeK, f),
+            k == dhoit_runtime::shared::stored(&twin, &counts),
             "{fpp}fpp: allocation differs"
         );
     }
 }
 
-/// The capture's two modes (capture.wgsl): pixels whose k holds all their fragments append
-/// them and are sorted at resolve, the others insert through their slots (with Loop64's early
-/// tests), and both end in the slots, tail and image of the CPU twin, bit for bit in the image
-/// whatever the submission order. A layered scene gives every case: pixels appended, pixels
-/// truncated, and pixels deeper than APPEND_MAX that insert although k >= n. Where the budget
+/// The capture's two modes (capture.wgsl) with the tails pooled: pixels that hold all their
+/// fragments (k = n, or k within a tail's words of n: `shared::stored_k`) append them and are
+/// sorted at resolve, the others insert through their slots (with Loop64's early tests) and
+/// push the rest into their two-word tails, and both end in the slots, tail and image of the
+/// CPU twin, bit for bit in the image whatever the submission order. A layered scene gives
+/// every case: pixels appended, pixels truncated, and pixels deeper than APPEND_MAX that insert
+/// although k >= n. Where the budget
 /// holds every fragment, the pipeline built for such frames (`FrameOptions::fits_pipelines`) gives the
 /// same slots, tails and image bits as the two-mode one.
 #[test]
@@ -1187,40 +1197,48 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
                     .filter(|&(&k, &n)| n > 0 && pred(k, n))
                     .count()
             };
-            // Which mode each pixel took on the GPU, from the tail counts the capture left
-            // (before the resolve): n where it appended, what it pushed out where it inserted.
-            // The capture built for frames that fit (k = n everywhere) appends every pixel.
+            // Which mode each pixel took on the GPU, from the counts the capture left (before
+            // the resolve put them back): 0 where it appended (its cursor took the count down),
+            // n where it inserted. A pixel appends where it holds all its fragments and no more
+            // than APPEND_MAX, in the capture built for frames that fit (k = n everywhere) too.
             let captured = frame.capture_counts.clone().unwrap();
             let fits = frame
                 .variants
                 .contains(&"capture: built for frames that fit");
             assert_eq!(fits, f >= total, "{label}: {:?}", frame.variants);
+            let appends = |k: u32, n: u32| {
+                n > 0 && !dhoit_runtime::shared::has_tail(k, n) && n <= composite::APPEND_MAX
+            };
             for (p, (&k, &n)) in k.iter().zip(&counts).enumerate() {
-                // A pixel that keeps no pooled tail (k = n <= 1) has no cursor either.
-                let want = if !dhoit_runtime::shared::has_tail(k, n) {
-                    0
-                } else if fits || composite::appends(k, n) {
-                    n
-                } else {
-                    n.saturating_sub(k)
-                };
+                let want = if appends(k, n) { 0 } else { n };
                 assert_eq!(
                     captured[p], want,
                     "{label}: pixel {p} (k {k}, n {n}) took the other mode ({:?})",
                     frame.variants
                 );
             }
-            let appended = modes(&|k, n| composite::appends(k, n));
-            let spilled = modes(&|k, n| composite::appends(k, n) && k < n);
-            let inserted = modes(&|k, n| !composite::appends(k, n));
-            let deep_whole = modes(&|k, n| k >= n && !composite::appends(k, n));
+            let appended = modes(&|k, n| appends(k, n));
+            // Held whole where the allocation left out a fragment or two (stored_k).
+            let raw = alloc::allocate_pooled(&imp, &counts, target, f);
+            let upgraded = raw
+                .iter()
+                .zip(&k)
+                .zip(&counts)
+                .filter(|&((&r, &k), &n)| r < n && k == n)
+                .count();
+            let inserted = modes(&|k, n| !appends(k, n));
+            let truncated = modes(&|k, n| k < n);
+            let deep_whole = modes(&|k, n| k >= n && !appends(k, n));
             eprintln!(
-                "{label}: {appended} pixels appended ({spilled} with a tail), {inserted} \
-                 inserted ({deep_whole} held whole)"
+                "{label}: {appended} pixels appended ({upgraded}), {inserted} inserted \
+                 ({truncated} truncated, {deep_whole} held whole)"
             );
             assert!(appended > 0 && inserted > 0, "{label}: one mode only");
-            if f == total / 2 {
-                assert!(spilled > 0, "{label}: no appended pixel with a tail");
+            if f <= total / 2 {
+                assert!(truncated > 0, "{label}: no pixel truncated");
+            }
+            if f < total {
+                assert!(upgraded > 0, "{label}: no truncation held whole");
             }
             if f >= total {
                 assert!(deep_whole > 0, "{label}: no deep pixel held whole");
@@ -1343,7 +1361,7 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
             let stats = frame.stats.clone().unwrap();
             for (a, b) in stats.iter().zip(&twin_stats) {
                 let sums = |s: &importance::PixelStats| (s.count, s.color_sum, s.color_sq_sum);
-                if b.count >= 2 {
+                if b.count > dhoit_runtime::shared::TAIL_WORDS {
                     assert_eq!(sums(a), sums(b), "statistics");
                 } else {
                     assert_eq!(
@@ -1356,8 +1374,8 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
                 }
             }
             assert_eq!(stats[0].color_sum[1], 255 * (max as u32 - 2));
-            let (feats, counts, pairs) = network_inputs(&stats, f);
-            let imp_twin = mlp.dkb_importance(&feats, &counts, &pairs, f);
+            let (feats, counts) = network_inputs(&stats, f);
+            let imp_twin = mlp.dkb_importance_pooled(&feats, &counts, f);
             let d = max_abs_diff(frame.importance.as_ref().unwrap(), &imp_twin);
             assert!(d <= 1e-5, "importance {d} from the twin");
         }
@@ -1427,9 +1445,21 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
             ] {
                 let frame = g.render_method(&s, &cam, w, h, BG, Some(slots)).unwrap();
                 let (_, bases, _) = frame.slots.clone().unwrap();
+                // The allocation of the frame's importance hands out exactly min(F, sum n)
+                // slots, and the frame stores it (shared::stored_k).
+                let counts = gfl.counts();
+                let raw =
+                    alloc::allocate_pooled(frame.importance.as_ref().unwrap(), &counts, target, f);
                 assert_eq!(
-                    bases[px as usize] as u64, want,
+                    raw.iter().map(|&k| k as u64).sum::<u64>(),
+                    want,
                     "{name} {pct} {label}: sum k"
+                );
+                let stored = dhoit_runtime::shared::stored(&raw, &counts);
+                assert_eq!(
+                    bases[px as usize] as u64,
+                    stored.iter().map(|&k| k as u64).sum::<u64>(),
+                    "{name} {pct} {label}: the k stored"
                 );
                 let k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
                 assert_eq!(
@@ -1459,13 +1489,21 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
                 ..Options::new(Budget::Share(ppm), BG).always_approximate()
             };
             for m in [Method::Vkb, Method::Dkb, Method::Optimal] {
-                let fr = Renderer::new(&fl, opts).render(m).unwrap();
-                assert_eq!(fr.budget_fragments, f, "{name} {pct} {m:?}: F");
+                let r = Renderer::new(&fl, opts);
+                let a = r.allocate(m).unwrap();
                 assert_eq!(
-                    fr.k.iter().map(|&k| k as u64).sum::<u64>(),
+                    a.k.iter().map(|&k| k as u64).sum::<u64>(),
                     want,
                     "{name} {pct} {m:?}"
                 );
+                // VKB and DKB pool their tails: the k they store (shared::stored_k).
+                let stored = match m {
+                    Method::Optimal => a.k.clone(),
+                    _ => dhoit_runtime::shared::stored(&a.k, &fl.counts()),
+                };
+                let fr = r.composite(a);
+                assert_eq!(fr.budget_fragments, f, "{name} {pct} {m:?}: F");
+                assert!(fr.exact || fr.k == stored, "{name} {pct} {m:?}: k stored");
                 // Where the share holds every fragment, the A-buffer's memory (it renders it).
                 let bytes = if f >= total {
                     budget::ABUFFER.allocated_bytes(px, want)
@@ -1792,20 +1830,20 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
         let (s, cam) = frame(name, view, w, h);
         let gfl = gpu_fragments(&g, &s, &cam, w, h);
         let counts = gfl.counts();
-        let stats = importance::pixel_stats(&gfl);
-        let f = (gfl.fragment_count() / 3) as u64;
-        let lo = alloc::min_k(&counts, f);
         let covered = counts.iter().filter(|&&n| n > 0).count() as u32;
+        // A slot for every covered pixel (lo = 1): a pixel of three fragments has a record and
+        // its k is forced (every pooled pixel is a pair: it keeps all three from k = 1).
+        let f = (gfl.fragment_count() as u64 / 3).max(covered as u64);
+        let lo = alloc::min_k(&counts, f);
+        assert_eq!(lo, 1);
         let decided = (0..counts.len())
-            .filter(|&p| {
-                counts[p] > 0
-                    && !dhoit_runtime::mlp::forced(counts[p], importance::tail_pair(&stats[p]), lo)
-            })
+            .filter(|&p| counts[p] > 0 && !dhoit_runtime::mlp::forced(counts[p], true, lo))
             .count() as u32;
         assert!(decided < covered, "{name}: some pixels' k is forced");
-        // Without the skip the network runs on every pixel with a record (two fragments or
-        // more: a pixel of one has no features gathered, and its k is forced).
-        let recorded = counts.iter().filter(|&&n| n >= 2).count() as u32;
+        // Without the skip the network runs on every pixel with a record (more than two
+        // fragments: a pixel of fewer has no features gathered, and its k is forced).
+        let tail = dhoit_runtime::shared::TAIL_WORDS;
+        let recorded = counts.iter().filter(|&&n| n > tail).count() as u32;
         assert!(
             decided < recorded && recorded < covered,
             "{name}: {decided} {recorded} {covered}"

@@ -343,7 +343,7 @@ fn the_device_page_lists_the_buffers_the_layouts_count() {
             l.tail_bytes,
             match l.pool_state {
                 Some(ps) => format!(
-                    "a record of {} B a deep pixel, the marks {} B a pixel; {} a deep pixel",
+                    "a record of {} B a pixel of 3 fragments or more, the marks {} B a pixel; {} a record",
                     ps.record_bytes,
                     ps.marks_bytes,
                     ps.per_deep

@@ -33,7 +33,8 @@ pub(super) struct Counted {
     /// The frame's fragments.
     pub(super) total: u64,
     /// Where asked for, the frame's occupancy (totals.wgsl) and the words it was read from
-    /// (fragments, covered, max count, deep; 16 bytes read by the host to decide, like a
+    /// (fragments, covered, max count, deep, an unused word, deeper; 24 bytes read by the host
+    /// to decide, like a
     /// staging buffer: not the method's memory), which DKB then copies as its totals.
     pub(super) occupancy: Option<(Occupancy, wgpu::Buffer)>,
 }
@@ -51,7 +52,7 @@ impl Recording<'_, '_> {
         passes.draw(enc, &gpu.pipelines.count, &[&counts], "count");
         passes.prefix_sum(enc, fb, &counts, &offsets)?;
         let totals = match occupancy {
-            true => Some(fb.storage("count.occupancy.readback", 16, false)?),
+            true => Some(fb.storage("count.occupancy.readback", 24, false)?),
             false => None,
         };
         if let Some(t) = &totals {
@@ -60,7 +61,7 @@ impl Recording<'_, '_> {
         fb.submit(enc);
         let mut words = vec![(&offsets, 4 * px)];
         if let Some(t) = &totals {
-            words.extend([(t, 4), (t, 12)]);
+            words.extend([(t, 4), (t, 12), (t, 20)]);
         }
         let w = read_words(gpu, &words)?;
         let total = w[0] as u64;
@@ -69,6 +70,7 @@ impl Recording<'_, '_> {
                 fragments: total,
                 covered: w[1] as u64,
                 deep: w[2] as u64,
+                deeper: w[3] as u64,
             };
             (occ, t)
         });

@@ -84,7 +84,9 @@ impl Phase {
             Phase::Store => &[Read, ReadWrite, ReadWrite, ReadWrite],
             Phase::Features => &[Read, ReadWrite, Uniform],
             Phase::VkbCount => &[ReadWrite, ReadWrite],
-            Phase::Capture | Phase::CaptureFits => &[Read, ReadWrite, ReadWrite, ReadWrite, Read],
+            Phase::Capture | Phase::CaptureFits => {
+                &[Read, ReadWrite, ReadWrite, ReadWrite, ReadWrite]
+            }
         }
     }
 

@@ -432,15 +432,16 @@ impl Readback {
         let stats = match &self.stats_bufs {
             Some([record_of, records]) if features_drawn != Some(false) => {
                 let record_of = u32s(&read_back(gpu, record_of, 4 * px)?);
-                let deep = counts.iter().filter(|&&n| n >= 2).count() as u64;
+                let tail = crate::shared::TAIL_WORDS;
+                let deeper = counts.iter().filter(|&&n| n > tail).count() as u64;
                 let words = crate::shared::RECORD_WORDS as usize;
-                let records = read_u64s(gpu, records, words as u64 * deep, false)?;
+                let records = read_u64s(gpu, records, words as u64 * deeper, false)?;
                 Some(
                     (0..px as usize)
                         .map(|q| {
                             let r = record_of[q];
                             if r == crate::shared::NO_RECORD {
-                                // No record (one fragment or none): nothing gathered.
+                                // No record (TAIL_WORDS fragments or fewer): nothing gathered.
                                 return PixelStats {
                                     count: counts[q],
                                     ..Default::default()
@@ -454,14 +455,15 @@ impl Readback {
                                 // features.wgsl's packing: r and g 24 bits each, then n; b and
                                 // the squares; the optical depth and the opacity.
                                 color_sum: [
-                                    (w[3] & 0xff_ffff) as u32,
-                                    ((w[3] >> 24) & 0xff_ffff) as u32,
-                                    lo(w[4]),
+                                    (w[1] & 0xff_ffff) as u32,
+                                    ((w[1] >> 24) & 0xff_ffff) as u32,
+                                    lo(w[2]),
                                 ],
-                                color_sq_sum: (w[4] >> 32) as u32,
-                                optical_depth: lo(w[5]),
-                                alpha_sum: (w[5] >> 32) as u32,
-                                farthest: [w[1], w[2]],
+                                color_sq_sum: (w[2] >> 32) as u32,
+                                optical_depth: lo(w[3]),
+                                alpha_sum: (w[3] >> 32) as u32,
+                                // Not gathered: the tails pooled, every pixel is a pair.
+                                farthest: [0; 2],
                             }
                         })
                         .collect(),

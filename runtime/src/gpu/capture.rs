@@ -250,16 +250,16 @@ impl Recording<'_, '_> {
             &[&kb.base, &slots, &tail, &tail_count, &kb.counts],
             "capture",
         );
-        // With diagnostics, the tail counts as the capture left them, before the resolve sorts
-        // what the append mode spilled: n where a pixel appended, what insertion pushed out
-        // where it inserted ([`GpuFrame::capture_counts`]).
+        // With diagnostics, the cursors as the capture left them, before the resolve sorts
+        // what the append mode spilled ([`GpuFrame::capture_counts`]): per pixel, the tail
+        // counts (n where a pixel appended, what insertion pushed out where it inserted), or
+        // with the tails pooled the counts (0 where a pixel appended, its cursor having taken
+        // them down; n where it inserted).
         let captured = match (self.passes.opts.diagnostics, kb.pooled) {
             (false, _) => None,
-            // The pool as the capture left it (its tails' counts read from it below).
             (true, true) => {
-                let bytes = 8 * kb.slots.max(1);
-                let copy = fb.storage("oit.slots.captured", bytes, false)?;
-                enc.copy_buffer_to_buffer(&slots, 0, &copy, 0, 8 * kb.slots);
+                let copy = fb.storage("oit.count.captured", 4 * px, false)?;
+                enc.copy_buffer_to_buffer(&kb.counts, 0, &copy, 0, 4 * px);
                 Some(copy)
             }
             (true, false) => {
@@ -290,13 +290,12 @@ impl Recording<'_, '_> {
             // Each pixel's k slots and its tail out of the pool, as composite::capture gives them.
             let spans = u32s(&read_back(gpu, &kb.base, 4 * (px + 1))?);
             let pool = read_u64s(gpu, &slots, kb.slots, false)?;
-            let pooled = unpool(&spans, &pool);
+            // n, as the resolve put it back.
+            let counts = u32s(&read_back(gpu, &kb.counts, 4 * px)?);
             if let Some(c) = &captured {
-                let at_capture = read_u64s(gpu, c, kb.slots, false)?;
-                self.out.capture_counts = Some(unpool(&spans, &at_capture).3);
+                self.out.capture_counts = Some(u32s(&read_back(gpu, c, 4 * px)?));
             }
-            let (keys, bases, tails, _) = pooled;
-            self.out.slots = Some((keys, bases, tails));
+            self.out.slots = Some(unpool(&spans, &counts, &pool));
         } else if self.passes.opts.diagnostics {
             let bases = match s {
                 Slots::Uniform(k) => (0..=px as u32).map(|q| q * k.max(1)).collect(),
@@ -324,26 +323,25 @@ impl Recording<'_, '_> {
     }
 }
 
-/// A pooled k-buffer's pool (as stored: keys complemented; `spans`: the bases of each pixel's span, `pixels + 1` entries) as
-/// per-pixel buffers: the slots' keys (pixel-major), their bases (prefix sums of k), the tails
-/// (five words a pixel: sum c8 a8 for r, g, b, sum a8, the count; zeros where a pixel keeps
-/// none) and the tails' counts alone.
-fn unpool(spans: &[u32], pool: &[u64]) -> (Vec<u64>, Vec<u32>, Vec<u32>, Vec<u32>) {
+/// A pooled k-buffer's pool (as stored: keys complemented; `spans`: the bases of each pixel's
+/// span, `pixels + 1` entries; `counts`: n) as per-pixel buffers: the slots' keys
+/// (pixel-major), their bases (prefix sums of k) and the tails (five words a pixel: sum c8 a8
+/// for r, g, b, sum a8, the count n - k; zeros where a pixel keeps none).
+fn unpool(spans: &[u32], counts: &[u32], pool: &[u64]) -> (Vec<u64>, Vec<u32>, Vec<u32>) {
     let px = spans.len().saturating_sub(1);
-    let (mut keys, mut bases, mut tails, mut counts) = (
+    let (mut keys, mut bases, mut tails) = (
         Vec::with_capacity(pool.len()),
         Vec::with_capacity(px + 1),
         Vec::with_capacity(5 * px),
-        Vec::with_capacity(px),
     );
     bases.push(0);
-    for w in spans.windows(2) {
+    for (w, &n) in spans.windows(2).zip(counts) {
         let (at, span) = (w[0] as usize, w[1] - w[0]);
-        let k = crate::shared::k_of_span(span) as usize;
+        let k = crate::shared::k_of_span(span, n) as usize;
         // Slots hold complemented keys.
         keys.extend(pool[at..at + k].iter().map(|&v| !v));
         bases.push(bases.last().copied().unwrap_or(0) + k as u32);
-        let t = if span >= 2 {
+        let t = if span < n {
             let t = &pool[at + k..at + k + crate::shared::TAIL_WORDS as usize];
             let lo = |w: u64| (w & 0xffff_ffff) as u32;
             [
@@ -351,13 +349,12 @@ fn unpool(spans: &[u32], pool: &[u64]) -> (Vec<u64>, Vec<u32>, Vec<u32>, Vec<u32
                 (t[0] >> 32) as u32,
                 lo(t[1]),
                 (t[1] >> 32) as u32,
-                lo(t[2]),
+                n - k as u32,
             ]
         } else {
             [0; 5]
         };
-        counts.push(t[4]);
         tails.extend_from_slice(&t);
     }
-    (keys, bases, tails, counts)
+    (keys, bases, tails)
 }

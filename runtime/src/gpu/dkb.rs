@@ -1,8 +1,9 @@
 //! The deep k-buffer's importance: the count (`abuffer_count.wgsl`) and `totals.wgsl`, read
-//! back (the frame's occupancy, [`Occupancy`]: its fragments, covered and deep pixels), then
-//! where the budget truncates `totals.wgsl`'s `assign_records` (a record for each pixel of two
-//! fragments or more, in the slot pool), `features.wgsl` (geometry: each record's nearest and
-//! two farthest keys, colour and opacity sums; twin `importance::pixel_stats`), then
+//! back (the frame's occupancy, [`Occupancy`]: its fragments, covered, deep and deeper
+//! pixels), then where the budget truncates `totals.wgsl`'s `assign_records` (a record for each
+//! pixel of more than `shared::TAIL_WORDS` fragments, in the slot pool: a pixel of fewer keeps
+//! them all whatever its k), `features.wgsl` (geometry: each record's nearest key, colour and
+//! opacity sums; twin `importance::pixel_stats`), then
 //! `importance_dkb.wgsl` (the 12 features, never stored, through the network of `mlp.wgsl`,
 //! built for the network's shape and precision by [`Variant`]; twin `Mlp::dkb_importance`).
 //! Where the budget holds every fragment none of those runs: k = n whatever the importance.
@@ -33,11 +34,11 @@ struct DkbBuffers {
     pool: wgpu::Buffer,
     /// The optical depth of each 8-bit opacity (importance::optical_depth_table).
     optical_depth: wgpu::Buffer,
-    /// fragments, covered, max count, deep, records handed out (totals.wgsl).
+    /// fragments, covered, max count, deep, records handed out, deeper (totals.wgsl).
     totals: wgpu::Buffer,
     /// The shared word: record index, importance, weights, k, slot bases.
     importance: wgpu::Buffer,
-    /// The records the network decides (one word a deep pixel), its length and dispatch.
+    /// The records the network decides (one word a record), its length and dispatch.
     list: wgpu::Buffer,
     list_len: wgpu::Buffer,
     dispatch: wgpu::Buffer,
@@ -66,7 +67,7 @@ impl Recording<'_, '_> {
                 occupancy: Some((occ, words)),
                 ..
             }) => {
-                self.enc.copy_buffer_to_buffer(words, 0, &totals, 0, 16);
+                self.enc.copy_buffer_to_buffer(words, 0, &totals, 0, 24);
                 (counts.clone(), *occ)
             }
             _ => {
@@ -74,11 +75,15 @@ impl Recording<'_, '_> {
                 passes.draw(&mut self.enc, &p.count, &[&c], "count");
                 passes.totals(&mut self.enc, &c, &totals);
                 fb.submit(&mut self.enc);
-                let w = read_words(gpu, &[(&totals, 0), (&totals, 4), (&totals, 12)])?;
+                let w = read_words(
+                    gpu,
+                    &[(&totals, 0), (&totals, 4), (&totals, 12), (&totals, 20)],
+                )?;
                 let occ = Occupancy {
                     fragments: w[0] as u64,
                     covered: w[1] as u64,
                     deep: w[2] as u64,
+                    deeper: w[3] as u64,
                 };
                 (c, occ)
             }
@@ -113,7 +118,7 @@ impl Recording<'_, '_> {
             ),
             totals,
             importance,
-            list: fb.storage("importance.list", (4 * occ.deep).max(16), true)?,
+            list: fb.storage("importance.list", (4 * occ.deeper).max(16), true)?,
             list_len: fb.storage("importance.list_len", 16, true)?,
             dispatch,
         };
@@ -131,8 +136,8 @@ impl Recording<'_, '_> {
             self.out.variants.push(variant("network").form());
             let network = ["select_pixels", "args", "network", "gather"]
                 .map(|e| gpu.network_pass(variant(e)));
-            self.dkb_records_and_features(&b, occ.deep)?;
-            self.dkb_network(&b, occ.deep, &network)?;
+            self.dkb_records_and_features(&b, occ.deeper)?;
+            self.dkb_network(&b, occ.deeper, &network)?;
         }
         let variant = if self.passes.opts.features_preload {
             "features: preload"
@@ -163,9 +168,10 @@ impl Recording<'_, '_> {
         })
     }
 
-    /// The records (a pool index for each deep pixel) and the features pass, and with
-    /// diagnostics the copies of its statistics (not counted).
-    fn dkb_records_and_features(&mut self, b: &DkbBuffers, deep: u64) -> Result<()> {
+    /// The records (a pool index for each of the `records` pixels of more than TAIL_WORDS
+    /// fragments) and the features pass, and with diagnostics the copies of its statistics
+    /// (not counted).
+    fn dkb_records_and_features(&mut self, b: &DkbBuffers, records: u64) -> Result<()> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
         let (gx, gy) = grid(px as u32, PIXEL_GROUP);
@@ -193,7 +199,7 @@ impl Recording<'_, '_> {
         let bufs = [&b.importance, &b.pool, &b.optical_depth];
         passes.draw(enc, features, &bufs, "features");
         if self.passes.opts.diagnostics {
-            let record_bytes = 8 * crate::shared::RECORD_WORDS as u64 * deep;
+            let record_bytes = 8 * crate::shared::RECORD_WORDS as u64 * records;
             let mut copy = |b: &wgpu::Buffer, label: &str, bytes: u64| {
                 let c = fb.storage(label, bytes.max(16), false)?;
                 enc.copy_buffer_to_buffer(b, 0, &c, 0, bytes);
@@ -211,13 +217,13 @@ impl Recording<'_, '_> {
     fn dkb_network(
         &mut self,
         b: &DkbBuffers,
-        deep: u64,
+        records: u64,
         [select, args, network, gather]: &[wgpu::ComputePipeline; 4],
     ) -> Result<()> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
         let (gx, gy) = grid(px as u32, PIXEL_GROUP);
-        let (rx, ry) = grid(deep.max(1) as u32, PIXEL_GROUP);
+        let (rx, ry) = grid(records.max(1) as u32, PIXEL_GROUP);
         let bind = |dispatch_or_not: &wgpu::Buffer| {
             gpu.bind_at(
                 &p.network_layout.group,

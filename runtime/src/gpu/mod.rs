@@ -609,9 +609,12 @@ pub struct GpuFrame {
     /// list its importance pass selects: covered pixels whose k is not forced, or every covered
     /// pixel with `skip_forced` off); None where the frame did not record the network.
     pub network_rows: Option<u32>,
-    /// k-buffers, with diagnostics: each pixel's tail count as the capture left it, before the
-    /// resolve: n where the two-mode capture appended (its cursor counts every fragment), the
-    /// fragments pushed out where it inserted; so a test can see which mode each pixel took.
+    /// k-buffers, with diagnostics: each pixel's cursor as the capture left it, before the
+    /// resolve, so a test can see which mode each pixel took. With per-pixel tails (FKB, an
+    /// uploaded k) the tail's count: n where the two-mode capture appended (its cursor counts
+    /// every fragment), the fragments pushed out where it inserted. With the tails pooled
+    /// (DKB, VKB, an allocated importance) the count: 0 where it appended (its cursor takes
+    /// it down), n where it inserted.
     pub capture_counts: Option<Vec<u32>>,
     /// The linked list, with diagnostics: the fragments that arrived at its store, kept or
     /// dropped (its `fragments` are those it kept).

@@ -313,9 +313,10 @@ pub fn kbuffer_bytes(
     layout.allocated_with_tails(px, slots, budget::tails_kept(k, counts))
 }
 
-/// `importance::pixel_stats` as DKB's GPU frame gathers them: for each pixel with a record (two
-/// fragments or more); a pixel of one fragment or none has its count alone (its k is forced
-/// whatever its features).
+/// `importance::pixel_stats` as DKB's GPU frame gathers them: for each pixel with a record (more
+/// than `shared::TAIL_WORDS` fragments), but for the farthest keys (every pooled pixel is a
+/// pair); a pixel of fewer has its count alone (it keeps them all whatever its k, which is
+/// forced).
 #[allow(dead_code)]
 pub fn recorded_stats(
     fl: &dhoit_runtime::fragment::FragmentLists,
@@ -323,11 +324,14 @@ pub fn recorded_stats(
     dhoit_runtime::importance::pixel_stats(fl)
         .into_iter()
         .map(|st| match st.count {
-            0 | 1 => dhoit_runtime::importance::PixelStats {
+            n if n <= dhoit_runtime::shared::TAIL_WORDS => dhoit_runtime::importance::PixelStats {
                 count: st.count,
                 ..Default::default()
             },
-            _ => st,
+            _ => dhoit_runtime::importance::PixelStats {
+                farthest: [0; 2],
+                ..st
+            },
         })
         .collect()
 }
