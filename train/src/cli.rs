@@ -374,6 +374,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         "validation_samples": trained.validation_samples,
         "seconds": trained.seconds,
         "samples_per_second": trained.samples_per_second,
+        "float_fingerprint": crate::trainer::float_fingerprint(),
     });
     let meta: HashMap<String, String> = [
         (

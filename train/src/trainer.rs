@@ -976,6 +976,40 @@ pub fn bench_regret_step(rows: usize, steps: usize) -> f64 {
     })
 }
 
+/// How this machine computes training's floats, as a hex digest: the parameters' bits after four
+/// regret-loss steps (the step `make train` runs: burn's kernels on this CPU, whose SIMD paths
+/// differ between machines) on a synthetic frame, from a fixed network. Training records it
+/// (config.json, the weights' metadata), so a test can tell "this machine computes floats as the
+/// one that trained the committed weights did" (then a fresh training must give them bit for
+/// bit) from "it does not" (then no run can, and it is held to their validation loss). About a
+/// millisecond.
+pub fn float_fingerprint() -> String {
+    let rows = 256;
+    let mut b = bench_setup(rows, false);
+    let frame = FrameSamples::synthetic(rows, 30.0, 3);
+    for _ in 0..4 {
+        let valid = b.net.valid();
+        let pass = step::forward(&valid, &b.x, &b.device);
+        let (_, d_out) = regret_gradient(Loss::RegretLevel, &pass.out, &frame);
+        let grads = step::gradients(&valid, pass, &d_out, 1e-6, 1e-5, &b.device);
+        b.net = b.optim.step(1e-3, b.net.clone(), grads);
+    }
+    let m = b
+        .net
+        .valid()
+        .to_mlp([0.0; FEATURES], [1.0; FEATURES], Target::RelativeK);
+    // FNV-1a over every parameter's bits.
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for v in [&m.w1, &m.b1, &m.w2, &m.b2, &m.w3, &vec![m.b3]] {
+        for x in v.iter() {
+            for byte in x.to_bits().to_le_bytes() {
+                h = (h ^ byte as u64).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+    }
+    format!("{h:016x}")
+}
+
 /// burn inference throughput: samples per second of [`predict`] over `n` random rows.
 pub fn bench_inference(n: usize) -> f64 {
     let mut rng = Rng::new(2);
