@@ -1,21 +1,17 @@
-// k-buffer capture (geometry), in two modes chosen per pixel from k(p) and n(p) (the pixel's
-// fragment count, known when params.append is 1), so every fragment ends in a slot or in the
-// tail exactly once, in any submission order, and the slots end sorted front to back (the
-// append mode's once the resolve has sorted them):
+// k-buffer capture (geometry), in two modes chosen per pixel, so every fragment ends in a slot
+// or in the tail exactly once, in any submission order, and the slots end sorted front to back
+// (the append mode's once the resolve has sorted them):
 //
-// - append (n <= k + APPEND_SPILL and n <= APPEND_MAX): at most two fragments are truncated, so
-//   no insertion is needed; each fragment takes the next place from a cursor: one of the k
-//   slots, or past them one of the APPEND_SPILL keys kept in the tail's four sum words, and
-//   the resolve sorts the pixel's n keys, as the A-buffer does, keeps the k nearest and sums
-//   the rest into the tail. With the tails pooled (params.pooled_tail) a pixel that appends
-//   keeps no tail (it truncates by at most APPEND_SPILL = TAIL_WORDS fragments, so it holds all
-//   n: shared::stored_k) and its cursor is its count, taken down to 0 (the resolve puts n back).
-// - insertion (every other pixel, and every pixel when n is unknown: FKB, uploaded k): NVIDIA's
-//   lock-free Loop64 (kbuffer_insert.wgsl, which an application's shader runs too). Slots hold
-//   the bitwise complement of the capture key (so a cleared, zero slot is empty and atomicMax
-//   keeps the nearest): for each slot, old = atomicMax(slot, cur); an empty old ends the
-//   insertion, otherwise the farther of the two is carried on. A key still carried after the
-//   last slot is the one this insertion pushed out; it goes to the tail's integer sums.
+// - append (the allocated k-buffers, params.append 1, whose tails are pooled: a pixel that
+//   keeps all its n fragments, shared::stored_k, and no more than APPEND_MAX; composite::appends):
+//   no insertion is needed; each fragment takes the next of the pixel's n places from a cursor,
+//   its count taken down to 0 (the resolve sorts the slots and puts n back).
+// - insertion (every other pixel, and every pixel of FKB or an uploaded k): NVIDIA's lock-free
+//   Loop64 (kbuffer_insert.wgsl, which an application's shader runs too). Slots hold the
+//   bitwise complement of the capture key (so a cleared, zero slot is empty and atomicMax keeps
+//   the nearest): for each slot, old = atomicMax(slot, cur); an empty old ends the insertion,
+//   otherwise the farther of the two is carried on. A key still carried after the last slot is
+//   the one this insertion pushed out; it goes to the tail's integer sums.
 //
 // Built a second time with EVERY_FRAGMENT_FITS for the frames whose budget holds every fragment
 // (the pixels' modes then follow from the slot bases alone; see below).
@@ -29,19 +25,20 @@
 // Per pixel: sum c8 a8 for r, g, b, sum a8 (four 32-bit words, as resolve.wgsl reads them),
 // added two to a 64-bit word: r and g, then b and a. No low half carries into its high half:
 // a sum of c8 a8 stays below 2^32 up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (65,535 x
-// 255^2 < 2^32). And the tail's count (the append mode's cursor).
+// 255^2 < 2^32). And the tail's count. Both unused where the tails are pooled.
 @group(1) @binding(2) var<storage, read_write> oit_tail: array<atomic<u64>>;
 @group(1) @binding(3) var<storage, read_write> oit_tail_count: array<atomic<u32>>;
-// n(p), read when params.append is 1, and with the tails pooled where the frame allocated
-// (a pixel's span says whether it keeps a tail only beside n); a pooled pixel that appends
+// n(p), read where the tails are pooled (a pixel's span says whether it keeps a tail only
+// beside n; an unused buffer otherwise); a pixel that appends
 // takes its places from it, down to 0 (resolve.wgsl restores it). A pixel that appends never
 // has a tail and one with a tail never appends, so a load of it sees n wherever n decides.
 @group(1) @binding(4) var<storage, read_write> count: array<atomic<u32>>;
 
 // Whether the frame's budget holds every fragment, so k(p) = n(p) for every pixel (a pipeline
-// of its own, built with this set true): each pixel's k is its slot bases' difference, nothing
-// goes to the tail, and a pixel of at most APPEND_MAX fragments appends with no other load; the
-// deeper ones insert as above (nothing is pushed out). count is not read.
+// of its own, built with this set true, for the allocated k-buffers alone: their tails
+// pooled, such a frame keeps none): each pixel's k is its slot bases' difference, and a pixel
+// of at most APPEND_MAX fragments appends with no other load; the deeper ones insert as above
+// (nothing is pushed out).
 const EVERY_FRAGMENT_FITS: bool = false;
 
 // Where slot i of pixel p lies (kbuffer_insert.wgsl's oit_insert and oit_to_tail run here).
@@ -78,34 +75,24 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     let p = pixel_index(in.clip, params.width);
     let key = ~fragment_key(in.clip.z, f.rgba8);
     if (EVERY_FRAGMENT_FITS) {
+        // The bases hold spans of k = n: no tail.
         let base = slot_base[p];
         let n = slot_base[p + 1u] - base;
-        if (params.pooled_tail != 0u) {
-            // The bases hold spans: n slots, no tail (k = n).
-            if (n > APPEND_MAX) {
-                oit_insert(p, base, n, key);
-            } else {
-                pooled_append(p, base, n, key);
-            }
-            return vec4<f32>(0.0);
-        }
-        // As the A-buffer's store: the cursor's atomic does not wait for the bases' loads
-        // (deeper pixels count too, unused; the resolve clears every pixel's count).
-        let i = atomicAdd(&oit_tail_count[p], 1u);
-        if (n <= APPEND_MAX) {
-            atomicStore(&oit_slots[base + i], key);
-        } else {
+        if (n > APPEND_MAX) {
             oit_insert(p, base, n, key);
+        } else {
+            pooled_append(p, base, n, key);
         }
         return vec4<f32>(0.0);
     }
     var k = params.k_uniform;
     var base = p * params.k_uniform;
     var tail = NO_TAIL;
+    let pooled = params.pooled_tail != 0u;
     if (k == 0u) {
         base = slot_base[p];
         k = slot_base[p + 1u] - base;
-        if (params.pooled_tail != 0u) {
+        if (pooled) {
             let span = k;
             let n = atomicLoad(&count[p]);
             k = k_of_span(span, n);
@@ -115,20 +102,6 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
                 pooled_append(p, base, k, key);
                 return vec4<f32>(0.0);
             }
-        }
-    }
-    let pooled = params.pooled_tail != 0u;
-    if (params.append != 0u && !pooled) {
-        let n = atomicLoad(&count[p]);
-        if (appends(k, n)) {
-            let i = atomicAdd(&oit_tail_count[p], 1u);
-            if (i < k) {
-                atomicStore(&oit_slots[base + i], key);
-            } else {
-                // A spilled key in two of the tail's sum words, low half first.
-                atomicStore(&oit_tail[2u * p + (i - k)], key);
-            }
-            return vec4<f32>(0.0);
         }
     }
     // Where a pixel keeps no pooled tail, its k = n slots hold all it has: nothing is pushed

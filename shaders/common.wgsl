@@ -145,12 +145,6 @@ fn k_of_span(span: u32, n: u32) -> u32 {
     return select(span, span - TAIL_WORDS, span < n);
 }
 
-// The capture's mode for a pixel of k slots and n fragments (composite::appends): append
-// (true) or insertion.
-fn appends(k: u32, n: u32) -> bool {
-    return n <= k + APPEND_SPILL && n <= APPEND_MAX;
-}
-
 // Mesa's lavapipe ends a shader invocation's loops after 65,535 iterations in all, silently.
 // Passes with long loops count theirs with tick() and report through a status word when they
 // came close, so the host can refuse the frame instead of returning a wrong one.

@@ -1,10 +1,9 @@
 // k-buffer resolve (compute, one invocation a pixel): the core slots blended front to back,
 // then the tail approximated over what is behind the pixel (behind.wgsl), as
-// composite::hybrid_sorted with
-// composite::Tail. A pixel the capture appended (common.wgsl's appends) first has its n keys
-// sorted here, the k nearest written back in order and the rest summed into its tail: after
-// this pass the slots and the tail are those of the insertion mode (composite::capture),
-// whatever the mode.
+// composite::hybrid_sorted with composite::Tail. A pixel the capture appended (composite::appends:
+// it keeps all its fragments, its tails pooled) first has its slots sorted here and its count,
+// the capture's cursor, put back: after this pass the slots and the tail are those of the
+// insertion mode (composite::capture), whatever the mode.
 
 @group(0) @binding(0) var<uniform> params: Params;
 // The slot bases (pixels + 1 entries; k is their difference, capture.wgsl).
@@ -15,8 +14,8 @@
 @group(0) @binding(3) var<storage, read_write> tail: array<u32>;
 @group(0) @binding(4) var<storage, read_write> tail_count: array<u32>;
 @group(0) @binding(5) var<storage, read_write> image: array<vec4<f32>>;
-// n(p), read when params.append is 1 or the tails are pooled; a pooled pixel that appended
-// took its count down to 0 as its cursor (capture.wgsl), and it is put back here.
+// n(p), read where the tails are pooled; a pixel that appended took its count down to 0 as its
+// cursor (capture.wgsl), and it is put back here.
 @group(0) @binding(6) var<storage, read_write> count: array<u32>;
 // Word 1: the deepest pixel over MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word), from the
 // fragments the capture saw (its cursor, or the slots filled and the tail's count), so it holds
@@ -52,24 +51,6 @@ fn read_tail(p: u32) -> Tail {
     return Tail(vec4<u32>(u32(rg & 0xfffffffflu), u32(rg >> 32u), u32(ba & 0xfffffffflu), u32(ba >> 32u)), pooled_count);
 }
 
-fn write_tail(p: u32, sums: vec4<u32>, count: u32) {
-    if (params.pooled_tail == 0u) {
-        tail[4u * p] = sums.x;
-        tail[4u * p + 1u] = sums.y;
-        tail[4u * p + 2u] = sums.z;
-        tail[4u * p + 3u] = sums.w;
-        tail_count[p] = count;
-        return;
-    }
-    // A pooled tail is written only where its pixel appended, and such a pixel keeps none.
-}
-
-// The append mode's spilled key s (of at most APPEND_SPILL), in the tail's sum words (per
-// pixel: a pooled pixel that appends keeps all its fragments).
-fn spilled_key(p: u32, s: u32) -> u64 {
-    return u64(tail[4u * p + 2u * s]) | (u64(tail[4u * p + 2u * s + 1u]) << 32u);
-}
-
 // Whether a pixel that saw `n` fragments is over MAX_FRAGMENTS_PER_PIXEL (then recorded).
 fn too_deep(p: u32, n: u32) -> bool {
     if (n > MAX_FRAGMENTS_PER_PIXEL) {
@@ -80,9 +61,9 @@ fn too_deep(p: u32, n: u32) -> bool {
 }
 
 // Whether the frame's budget holds every fragment, so k(p) = n(p) for every pixel (a pipeline
-// of its own, built with this set true, beside capture.wgsl's): k is the slot bases'
-// difference, the tail is empty, and only the appended pixels (at most APPEND_MAX fragments)
-// are sorted. count and the tail's sums are not read.
+// of its own, built with this set true, beside capture.wgsl's, for the allocated k-buffers
+// alone): k is the slot bases' difference, no pixel keeps a tail, and only the appended pixels
+// (at most APPEND_MAX fragments) are sorted, their counts put back.
 const EVERY_FRAGMENT_FITS: bool = false;
 
 // The keys of slots [base, base + n) in decreasing order (nearest first), by insertion (at most
@@ -116,35 +97,6 @@ fn blend_slots(p: u32, base: u32, k: u32, under: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(c + t * under, 1.0);
 }
 
-// An appended pixel's n keys (complemented: the nearest is the largest), sorted in place:
-// those in its slots by insertion in decreasing order (at most APPEND_MAX (APPEND_MAX - 1) / 2
-// steps), then each of the at most APPEND_SPILL keys past them (in the tail's sum words,
-// capture.wgsl) swapped in where it is nearer than the last slot; what is left out is summed
-// into the tail.
-fn sort_appended(p: u32, base: u32, k: u32, n: u32) {
-    let held = min(k, n);
-    sort_slots(base, held);
-    var sums = vec4<u32>(0u);
-    for (var s = 0u; s < n - held; s++) {
-        var key = spilled_key(p, s);
-        if (held > 0u && slots[base + held - 1u] < key) {
-            // Nearer than the last slot: it takes its place in order, the last is left out.
-            let out = slots[base + held - 1u];
-            var j = held - 1u;
-            while (j > 0u && slots[base + j - 1u] < key) {
-                slots[base + j] = slots[base + j - 1u];
-                j--;
-            }
-            slots[base + j] = key;
-            key = out;
-        }
-        let rgba = u32((~key) & 0xfffffffflu);
-        let a = rgba >> 24u;
-        sums += vec4<u32>((rgba & 0xffu) * a, ((rgba >> 8u) & 0xffu) * a, ((rgba >> 16u) & 0xffu) * a, a);
-    }
-    write_tail(p, sums, n - held);
-}
-
 // A pixel's colour over `bg`, or ok false where it saw more fragments than any method takes
 // (the frame is refused: status[1]).
 struct Resolved {
@@ -154,19 +106,12 @@ struct Resolved {
 
 fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
     if (EVERY_FRAGMENT_FITS) {
+        // The bases hold spans of k = n, no tail; the count the capture took down as its
+        // cursor put back.
         let base = slot_base[p];
         let n = slot_base[p + 1u] - base;
-        // The capture's cursor: the tail is empty.
-        var seen = n;
-        if (params.pooled_tail != 0u) {
-            // The bases hold spans of k = n, no tail; the count the capture took down as its
-            // cursor put back.
-            count[p] = n;
-        } else {
-            seen = tail_count[p];
-            tail_count[p] = 0u;
-        }
-        if (too_deep(p, max(n, seen))) {
+        count[p] = n;
+        if (too_deep(p, n)) {
             return Resolved(false, vec4<f32>(0.0));
         }
         if (n <= APPEND_MAX) {
@@ -198,16 +143,6 @@ fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
             if (too_deep(p, max(c, span))) {
                 return Resolved(false, vec4<f32>(0.0));
             }
-        }
-    }
-    if (params.append != 0u && params.pooled_tail == 0u) {
-        let n = count[p];
-        if (appends(k, n)) {
-            // Every fragment took a place from the cursor.
-            if (too_deep(p, max(n, read_tail(p).count))) {
-                return Resolved(false, vec4<f32>(0.0));
-            }
-            sort_appended(p, base, k, n);
         }
     }
     // The tail over what is behind the pixel.

@@ -81,42 +81,23 @@ fn store_block(b: u32, first: u32, lid: u32) {
     }
 }
 
-// Block b's values from `values` into `items` (the spans of k = n, common.wgsl's span_of,
-// where `spans`), then its scan stored.
-fn scan_values(b: u32, lid: u32, spans: bool) {
-    let first = b * SCAN_BLOCK;
-    for (var j = 0u; j < SCAN_ITEMS; j++) {
-        let i = first + j * SCAN_GROUP + lid;
-        var v = 0u;
-        if (i < params.pixels) {
-            v = values[i];
-            if (spans) {
-                v = span_of(v, v);
-            }
-        }
-        items[at(j * SCAN_GROUP + lid)] = v;
-    }
-    store_block(b, first, lid);
-}
-
 @compute @workgroup_size(SCAN_GROUP)
 fn scan_blocks(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    scan_values(wid.y * nwg.x + wid.x, lid, false);
-}
-
-// scan_blocks of the spans of k = n: the slot bases of a frame whose budget holds every
-// fragment, with the tails pooled, from its count.
-@compute @workgroup_size(SCAN_GROUP)
-fn scan_blocks_spans(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    scan_values(wid.y * nwg.x + wid.x, lid, true);
+    let b = wid.y * nwg.x + wid.x;
+    let first = b * SCAN_BLOCK;
+    for (var j = 0u; j < SCAN_ITEMS; j++) {
+        let i = first + j * SCAN_GROUP + lid;
+        var v = 0u;
+        if (i < params.pixels) {
+            v = values[i];
+        }
+        items[at(j * SCAN_GROUP + lid)] = v;
+    }
+    store_block(b, first, lid);
 }
 
 @compute @workgroup_size(SCAN_GROUP)

@@ -511,11 +511,8 @@ fn scene_figures(
         .iter()
         .filter(|st| {
             st.count > 0
-                && dhoit_runtime::mlp::forced(
-                    st.count,
-                    dhoit_runtime::importance::tail_pair(st),
-                    lo,
-                )
+                // DKB's tails are pooled: every pixel is a pair (alloc::allocate_pooled).
+                && dhoit_runtime::mlp::forced(st.count, true, lo)
         })
         .count();
     let importance_note = if skip.is_nan() {

@@ -858,18 +858,14 @@ pub fn composite(fl: &FragmentLists, method: Method, bg: [f32; 3]) -> Image {
 /// sorts at most this many keys in private memory.
 pub const APPEND_MAX: u32 = 64;
 
-/// The most fragments of an appended pixel its k slots may leave out: their keys wait in the
-/// tail's four sum words (two 32-bit halves each) until the resolve sorts the pixel.
-pub const APPEND_SPILL: u32 = 2;
-
-/// Whether the GPU capture appends a pixel of `k` slots and `n` fragments rather than inserting
-/// each fragment through its slots: at most [`APPEND_SPILL`] fragments go to the tail (the
-/// allocation's useful cap leaves out one, or two of one colour, so most pixels a budget
-/// covers whole are such), and few enough to sort at resolve. Both modes end in the slots and
-/// tail [`capture`] computes.
+/// Whether the GPU capture of an allocated k-buffer (its tails pooled, its count known: the
+/// two-mode capture) appends a covered pixel of `k` slots (the allocation's, or the k it
+/// stores) and `n` fragments rather than inserting each fragment through its slots: where it
+/// keeps them all (no tail: `shared::stored_k`) and few enough to sort at resolve. Both modes
+/// end in the slots and tail [`capture`] computes. FKB and an uploaded k always insert.
 #[inline]
 pub fn appends(k: u32, n: u32) -> bool {
-    n <= k.saturating_add(APPEND_SPILL) && n <= APPEND_MAX
+    n > 0 && !crate::shared::has_tail(k, n) && n <= APPEND_MAX
 }
 
 /// The CPU twin of the GPU capture pass: per pixel the `k[p]` nearest capture keys in front-to-

@@ -280,7 +280,6 @@ pub mod shaders {
             ),
             ("MBOIT_MIN_B0", F32(crate::composite::MBOIT_MIN_B0)),
             ("LIST_MAX_SORTED", U32(crate::composite::LIST_MAX_SORTED)),
-            ("APPEND_SPILL", U32(crate::composite::APPEND_SPILL)),
             ("TAIL_WORDS", U32(crate::shared::TAIL_WORDS)),
             ("RECORD_WORDS", U32(crate::shared::RECORD_WORDS)),
             ("NO_RECORD", U32(crate::shared::NO_RECORD)),

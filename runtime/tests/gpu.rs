@@ -1206,9 +1206,7 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
                 .variants
                 .contains(&"capture: built for frames that fit");
             assert_eq!(fits, f >= total, "{label}: {:?}", frame.variants);
-            let appends = |k: u32, n: u32| {
-                n > 0 && !dhoit_runtime::shared::has_tail(k, n) && n <= composite::APPEND_MAX
-            };
+            let appends = composite::appends;
             for (p, (&k, &n)) in k.iter().zip(&counts).enumerate() {
                 let want = if appends(k, n) { 0 } else { n };
                 assert_eq!(

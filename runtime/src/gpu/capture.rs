@@ -139,19 +139,14 @@ impl Recording<'_, '_> {
         self.out.counts_buf = Some(i.counts.clone());
         if expect_fit {
             let (fb, enc) = (&mut self.fb, &mut self.enc);
-            // A frame that knows it fits (DKB read its count back) needs no check; the others
-            // read their fragment count from the count's prefix sum.
-            let holds = i.fits || {
-                passes.prefix_sum(enc, fb, &i.counts, &base)?;
-                fb.submit(enc);
-                budget.holds(read_words(gpu, &[(&base, 4 * px)])?[0] as u64)
-            };
-            if holds {
-                // The bases of the spans of k = n (each tail's words after its slots), and the
-                // pool's words they end with.
-                passes.prefix_sum_of(enc, fb, Scan::Spans(&i.counts, &base), None)?;
-                fb.submit(enc);
-                let words = read_words(gpu, &[(&base, 4 * px)])?[0] as u64;
+            // The count's prefix sum: where k = n everywhere, the slot bases (a pixel keeping
+            // all its fragments has no tail: its span is n), ending in the pool's words, which
+            // are the frame's fragments. A frame that knows it fits (DKB read its count back)
+            // needs no check; the others check that sum.
+            passes.prefix_sum(enc, fb, &i.counts, &base)?;
+            fb.submit(enc);
+            let words = read_words(gpu, &[(&base, 4 * px)])?[0] as u64;
+            if i.fits || budget.holds(words) {
                 // No pass computed the importance (k = n): it reads back as zeros.
                 if self.passes.opts.diagnostics && i.computed {
                     self.out.importance_buf =

@@ -161,9 +161,9 @@ pub struct FrameOptions {
     /// default; the bench turns it off to show the time saved). The images are the same.
     pub skip_forced: bool,
     /// Whether the allocated k-buffers (DKB, VKB, uploaded importance), which know n(p) by the
-    /// capture, append the pixels whose slots hold all but at most
-    /// [`crate::composite::APPEND_SPILL`] fragments and insert the rest (capture.wgsl); off,
-    /// every fragment is inserted (the bench's comparison). The images are the same.
+    /// capture, append the pixels that keep all their fragments
+    /// ([`crate::composite::appends`]) and insert the rest (capture.wgsl); off, every fragment
+    /// is inserted (the bench's comparison). The images are the same.
     pub two_mode_capture: bool,
     /// Whether, with the two-mode capture, a frame whose budget holds every fragment (so
     /// k(p) = n(p) everywhere) captures and resolves with the pipelines of capture.wgsl and

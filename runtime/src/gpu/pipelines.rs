@@ -19,8 +19,6 @@ pub(super) struct Pipelines {
     pub(super) scan_blocks: wgpu::ComputePipeline,
     /// scan.wgsl's per-block scan of a buffer's own values, in place.
     pub(super) scan_blocks_in_place: wgpu::ComputePipeline,
-    /// scan.wgsl's per-block scan of the spans of k = n (the pooled tails' bases from a count).
-    pub(super) scan_blocks_spans: wgpu::ComputePipeline,
     pub(super) scan_sums: wgpu::ComputePipeline,
     pub(super) scan_add: wgpu::ComputePipeline,
     pub(super) abuffer_resolve: wgpu::ComputePipeline,
@@ -548,7 +546,6 @@ impl Pipelines {
             capture_fits: geometry_from("capture", fits("capture")),
             scan_blocks: compute_entry("scan", "scan_blocks"),
             scan_blocks_in_place: compute_entry("scan", "scan_blocks_in_place"),
-            scan_blocks_spans: compute_entry("scan", "scan_blocks_spans"),
             scan_sums: compute_entry("scan", "scan_sums"),
             scan_add: compute_entry("scan", "scan_add"),
             abuffer_resolve: compute("abuffer_resolve"),

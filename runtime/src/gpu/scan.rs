@@ -13,9 +13,6 @@ use crate::wgsl::grid;
 pub(super) enum Scan<'b> {
     /// `values` into `offsets` (`pixels + 1` entries).
     From(&'b wgpu::Buffer, &'b wgpu::Buffer),
-    /// The spans of k = n for the counts `values` (`shared::span`: with the tails pooled) into
-    /// `offsets`: the slot bases of a frame whose budget holds every fragment.
-    Spans(&'b wgpu::Buffer, &'b wgpu::Buffer),
     /// The buffer's own values, in place (`scan_blocks_in_place`); its last entry gets the total
     /// where it holds `pixels + 1`.
     InPlace(&'b wgpu::Buffer),
@@ -54,7 +51,6 @@ impl<'a> Passes<'a> {
         let params = self.params();
         let (values, offsets, first) = match scan {
             Scan::From(v, o) => (Some(v), o, &p.scan_blocks),
-            Scan::Spans(v, o) => (Some(v), o, &p.scan_blocks_spans),
             Scan::InPlace(o) => (None, o, &p.scan_blocks_in_place),
         };
         // Auto layouts keep only the bindings an entry point uses: `values` only the first
