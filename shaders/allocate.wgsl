@@ -24,7 +24,8 @@
 // so instead of 11 (2 for the frame before's answer again; 4 for VKB's scale near 2^9 and 7
 // for DKB's levels near 2^24 from 0). The answer itself does not depend on the bracket: it is
 // the largest t whose total fits, and the totals grow with t.
-//   mark:    flags[p] = 1 where k rises at a + 1 (then prefix-summed in place by the scan)
+//   mark:    a bit a pixel where k rises at a + 1, a word of them every MARK_BITS pixels, and
+//            each word's popcount (then prefix-summed in place by the scan, over those words)
 //   apply:   k = k(a) + 1 for the first (target - total(a)) marked pixels, in the weight's place
 //            (its span, k and its tail's words, where the tails are pooled: params.pooled_tail)
 
@@ -49,7 +50,8 @@ struct Alloc {
 // 0 target, 1 a, 2 span, 3 lo, 4 total at a, 5 F, 6..21 the candidates' totals, 22 the rounds
 // the search took, 23 and 24 the last answers of a level and of a scale (last_answer_word).
 @group(0) @binding(5) var<storage, read_write> state: array<atomic<u64>, ALLOC_STATE_WORDS>;
-// The marks (mark), or their exclusive prefix (apply).
+// The marks (shared::marks_words): the popcounts of their words (mark), then those counts'
+// exclusive prefix sums and their total (apply), and the words of bits after them.
 @group(0) @binding(6) var<storage, read_write> flags: array<u32>;
 // fragments, covered, max count (totals.wgsl).
 @group(0) @binding(7) var<storage, read> totals: array<u32>;
@@ -307,6 +309,9 @@ fn choose() {
     }
 }
 
+// A workgroup's marks, a bit a pixel: ALLOC_GROUP consecutive pixels, whole words of them.
+var<workgroup> mark_bits: array<atomic<u32>, ALLOC_GROUP / MARK_BITS>;
+
 @compute @workgroup_size(ALLOC_GROUP)
 fn mark(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -314,13 +319,29 @@ fn mark(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let p = pixel(wid, nwg, lid);
-    if (p >= params.pixels) {
-        return;
+    let words = ALLOC_GROUP / MARK_BITS;
+    if (lid < words) {
+        atomicStore(&mark_bits[lid], 0u);
     }
-    let a = atomicLoad(&state[1]);
-    let lo = u32(atomicLoad(&state[3]));
-    let n = counts[p];
-    flags[p] = select(0u, 1u, n > 0u && k_at(a + 1lu, w[p], n, lo) > k_at(a, w[p], n, lo));
+    workgroupBarrier();
+    if (p < params.pixels) {
+        let a = atomicLoad(&state[1]);
+        let lo = u32(atomicLoad(&state[3]));
+        let n = counts[p];
+        if (n > 0u && k_at(a + 1lu, w[p], n, lo) > k_at(a, w[p], n, lo)) {
+            atomicOr(&mark_bits[lid / MARK_BITS], 1u << (lid % MARK_BITS));
+        }
+    }
+    workgroupBarrier();
+    // The workgroup's words: their bits after the prefix sums, and each word's popcount where
+    // the scan (in place over the first mark_blocks words) makes its prefix.
+    let blocks = mark_blocks(params.pixels);
+    let word = (p - lid) / MARK_BITS + lid;
+    if (lid < words && word < blocks) {
+        let bits = atomicLoad(&mark_bits[lid]);
+        flags[blocks + 1u + word] = bits;
+        flags[word] = countOneBits(bits);
+    }
 }
 
 @compute @workgroup_size(ALLOC_GROUP)
@@ -343,8 +364,12 @@ fn apply(
     let left = atomicLoad(&state[0]) - atomicLoad(&state[4]);
     let base = k_at(a, w[p], n, lo);
     let rises = k_at(a + 1lu, w[p], n, lo) > base;
-    // `flags` holds the exclusive prefix of the marks: marked pixels before p. The weight read,
-    // k takes its place, or with the tails pooled its span (common.wgsl's span_of).
-    let k = base + select(0u, 1u, rises && u64(flags[p]) < left);
+    // `flags` holds the marks' bits after their words' exclusive prefix sums: the marked
+    // pixels before p are its word's prefix and its word's bits below its own. The weight
+    // read, k takes its place, or with the tails pooled its span (common.wgsl's span_of).
+    let word = p / MARK_BITS;
+    let below = flags[mark_blocks(params.pixels) + 1u + word] & ((1u << (p % MARK_BITS)) - 1u);
+    let rank = flags[word] + countOneBits(below);
+    let k = base + select(0u, 1u, rises && u64(rank) < left);
     w[p] = select(k, span_of(k, n), params.pooled_tail != 0u);
 }

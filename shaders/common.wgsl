@@ -99,6 +99,13 @@ fn grid_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32, size: u32) -> u32 {
     return (wid.y * nwg.x + wid.x) * size + lid;
 }
 
+// Words of the allocation's marks' bits (one bit a pixel, MARK_BITS a word) for `pixels`
+// pixels: the marks hold their popcounts' exclusive prefix sums (this many and the total), then
+// the bits (shared::marks_words).
+fn mark_blocks(pixels: u32) -> u32 {
+    return (pixels + MARK_BITS - 1u) / MARK_BITS;
+}
+
 fn pixel_index(frag_coord: vec4<f32>, width: u32) -> u32 {
     return u32(frag_coord.y) * width + u32(frag_coord.x);
 }

@@ -4,7 +4,8 @@
 //   scan_sums:   one workgroup scans the block totals in place, SCAN_BLOCK at a time;
 //   scan_add:    each value gets its block's offset; the last entry gets the total.
 // offsets[p] = sum of values[q] for q < p, offsets[pixels] = the total (where offsets holds
-// pixels + 1 entries: the allocation's marks, scanned in place, need no total).
+// pixels + 1 entries). Built with SCAN_OF_MARKS, it scans the allocation's marks' popcounts in
+// place instead: one a MARK_BITS pixels, and their total after them.
 //
 // scan_blocks_in_place reads the values from offsets itself, in place (a workgroup reads its
 // whole block before it writes any of it): the k-buffer's per-pixel word holds the importance,
@@ -25,6 +26,18 @@
 @group(0) @binding(3) var<storage, read_write> blocks: array<u32>;
 
 const SCAN_ITEMS: u32 = SCAN_BLOCK / SCAN_GROUP;
+
+// Whether this build scans the allocation's marks (the popcounts of their words, one a
+// MARK_BITS pixels: gpu::scan's Scan::Marks) rather than a value a pixel.
+const SCAN_OF_MARKS: bool = false;
+
+// The values scanned: one a pixel, or a word of marks' popcount every MARK_BITS pixels.
+fn scan_length() -> u32 {
+    if (SCAN_OF_MARKS) {
+        return mark_blocks(params.pixels);
+    }
+    return params.pixels;
+}
 
 var<workgroup> items: array<u32, SCAN_BLOCK + SCAN_BLOCK / 32u>;
 var<workgroup> sums: array<u32, SCAN_GROUP>;
@@ -72,11 +85,11 @@ fn store_block(b: u32, first: u32, lid: u32) {
     let total = scan_items(lid);
     for (var j = 0u; j < SCAN_ITEMS; j++) {
         let i = first + j * SCAN_GROUP + lid;
-        if (i < params.pixels) {
+        if (i < scan_length()) {
             offsets[i] = items[at(j * SCAN_GROUP + lid)];
         }
     }
-    if (lid == 0u && b < (params.pixels + SCAN_BLOCK - 1u) / SCAN_BLOCK) {
+    if (lid == 0u && b < (scan_length() + SCAN_BLOCK - 1u) / SCAN_BLOCK) {
         blocks[b] = total;
     }
 }
@@ -92,7 +105,7 @@ fn scan_blocks(
     for (var j = 0u; j < SCAN_ITEMS; j++) {
         let i = first + j * SCAN_GROUP + lid;
         var v = 0u;
-        if (i < params.pixels) {
+        if (i < scan_length()) {
             v = values[i];
         }
         items[at(j * SCAN_GROUP + lid)] = v;
@@ -111,7 +124,7 @@ fn scan_blocks_in_place(
     for (var j = 0u; j < SCAN_ITEMS; j++) {
         let i = first + j * SCAN_GROUP + lid;
         var v = 0u;
-        if (i < params.pixels) {
+        if (i < scan_length()) {
             v = offsets[i];
         }
         items[at(j * SCAN_GROUP + lid)] = v;
@@ -121,7 +134,7 @@ fn scan_blocks_in_place(
 
 @compute @workgroup_size(SCAN_GROUP)
 fn scan_sums(@builtin(local_invocation_index) lid: u32) {
-    let n = (params.pixels + SCAN_BLOCK - 1u) / SCAN_BLOCK;
+    let n = (scan_length() + SCAN_BLOCK - 1u) / SCAN_BLOCK;
     if (lid == 0u) {
         carry = 0u;
     }
@@ -150,8 +163,8 @@ fn scan_sums(@builtin(local_invocation_index) lid: u32) {
         }
         workgroupBarrier();
     }
-    if (lid == 0u && params.pixels < arrayLength(&offsets)) {
-        offsets[params.pixels] = carry;
+    if (lid == 0u && scan_length() < arrayLength(&offsets)) {
+        offsets[scan_length()] = carry;
     }
 }
 
@@ -166,7 +179,7 @@ fn scan_add(
     let add = blocks[min(b, arrayLength(&blocks) - 1u)];
     for (var j = 0u; j < SCAN_ITEMS; j++) {
         let i = first + j * SCAN_GROUP + lid;
-        if (i < params.pixels) {
+        if (i < scan_length()) {
             offsets[i] = offsets[i] + add;
         }
     }

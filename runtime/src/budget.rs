@@ -48,6 +48,9 @@ pub struct Layout {
     /// What the layout keeps in its slot pool before the slots (DKB), or None: the pool is
     /// the slots and tails alone, made for what the allocation hands out.
     pub pool_state: Option<PoolState>,
+    /// The allocation's marks in a buffer of their own, by its label (VKB's, [`marks_bytes`]
+    /// of them), or None: no allocation on the device, or its marks in the pool (DKB's).
+    pub marks: Option<&'static str>,
 }
 
 /// State a layout keeps in the slot pool before the capture fills it (DKB's): the pool is made
@@ -58,14 +61,18 @@ pub struct PoolState {
     /// Bytes of a deeper pixel's record (features.wgsl: one for each pixel of more than
     /// [`crate::shared::TAIL_WORDS`] fragments; in the pool until the importance is gathered).
     pub record_bytes: u64,
-    /// Bytes a pixel of the allocation's marks (in the pool until k is known).
-    pub marks_bytes: u64,
     /// Buffers of their own, bytes for each deeper pixel (each at least 16 bytes in all).
     pub per_deep: &'static [(&'static str, u64)],
 }
 
 /// Bytes of a tail in the slot pool: [`crate::shared::TAIL_WORDS`] words.
 pub const POOLED_TAIL: u64 = 8 * crate::shared::TAIL_WORDS as u64;
+
+/// Bytes of the allocation's marks for a frame of `pixels` pixels ([`crate::shared::marks_words`]:
+/// a bit a pixel and its word's prefix count, 0.25 bytes a pixel), at least 16 as every buffer.
+pub fn marks_bytes(pixels: u64) -> u64 {
+    (4 * crate::shared::marks_words(pixels)).max(16)
+}
 
 /// What a frame's count says about its pixels, which the pooled tails are bounded by: its
 /// fragments, the pixels holding one or more, two or more, and more than a tail's
@@ -156,8 +163,9 @@ const STATUS: (&str, u64) = ("status", 16);
 /// pool before the slots fill it ([`PoolState`]): a record of the network's statistics for each
 /// pixel of three fragments or more (32 bytes: the nearest key, the colour and opacity sums; a
 /// pixel of fewer keeps them all whatever its k, `shared::stored_k`, so its k is forced), then
-/// the allocation's marks (4 bytes a pixel), then the slots and the pooled tails (two words,
-/// where a pixel leaves out more than two fragments). The shared word (`oit.offsets`) holds a
+/// the allocation's marks ([`marks_bytes`]: a bit a pixel, 0.25 bytes with their prefix
+/// counts), then the slots and the pooled tails (two words, where a pixel leaves out more than
+/// two fragments). The shared word (`oit.offsets`) holds a
 /// pixel's record index, its importance, the allocation's weights, k and the slot bases in
 /// turn; the network's list of records takes 4 bytes a record.
 pub const DKB: Layout = Layout {
@@ -187,9 +195,9 @@ pub const DKB: Layout = Layout {
     tail_bytes: POOLED_TAIL,
     pool_state: Some(PoolState {
         record_bytes: 8 * crate::shared::RECORD_WORDS as u64,
-        marks_bytes: 4,
         per_deep: &[("importance.list", 4)],
     }),
+    marks: None,
 };
 
 /// Optimal allocation uploaded as k: the same capture and resolve as DKB, no network (and no
@@ -209,11 +217,13 @@ pub const OPT: Layout = Layout {
     weights: 0,
     tail_bytes: 0,
     pool_state: None,
+    marks: None,
 };
 
 /// Variable k-buffer with importance maps (paper 002). The nearest keys (8 bytes), read by the
-/// importance pass, and the allocation's marks (4); the importance, k and the slot bases share
-/// `oit.offsets` in turn; the tails in the slot pool ([`POOLED_TAIL`]).
+/// importance pass, and the allocation's marks ([`marks_bytes`], a buffer of their own); the
+/// importance, k and the slot bases share `oit.offsets` in turn; the tails in the slot pool
+/// ([`POOLED_TAIL`]).
 pub const VKB: Layout = Layout {
     method: "vkb",
     slot_bytes: SLOT_BYTES,
@@ -222,7 +232,6 @@ pub const VKB: Layout = Layout {
         ("vkb.count", 4),
         ("oit.offsets", 4),
         ("vkb.nearest", 8),
-        ("vkb.marks", 4),
     ],
     fixed: &[
         ("params", PARAMS_BYTES),
@@ -237,6 +246,7 @@ pub const VKB: Layout = Layout {
     weights: 0,
     tail_bytes: POOLED_TAIL,
     pool_state: None,
+    marks: Some("vkb.marks"),
 };
 
 /// Fixed k-buffer: k slots for every pixel, tail. (The output image is the application's
@@ -256,6 +266,7 @@ pub const FKB: Layout = Layout {
     weights: 0,
     tail_bytes: 0,
     pool_state: None,
+    marks: None,
 };
 
 /// MLAB: m rows of 8 bytes (RGB8 premultiplied, transmittance 8 bits, depth 32 bits).
@@ -268,6 +279,7 @@ pub const MLAB: Layout = Layout {
     weights: 0,
     tail_bytes: 0,
     pool_state: None,
+    marks: None,
 };
 
 /// Weighted blended OIT, as McGuire and Bavoil lay it out: an RGBA16F accumulation target and an
@@ -286,6 +298,7 @@ pub const WBOIT: Layout = Layout {
     weights: 0,
     tail_bytes: 0,
     pool_state: None,
+    marks: None,
 };
 
 /// Moment-based OIT, four power moments in 32 bits, as Munstermann et al. lay it out: an R32F
@@ -307,6 +320,7 @@ pub const MBOIT: Layout = Layout {
     weights: 0,
     tail_bytes: 0,
     pool_state: None,
+    marks: None,
 };
 
 /// MBOIT with six power moments: b_5 and b_6 in an RG32F target beside [`MBOIT`]'s.
@@ -355,6 +369,7 @@ pub const LINKED_LIST: Layout = Layout {
     weights: 0,
     tail_bytes: 0,
     pool_state: None,
+    marks: None,
 };
 
 /// A-buffer: counts (then the store's cursors), offsets, every fragment as the 8-byte capture
@@ -375,6 +390,7 @@ pub const ABUFFER: Layout = Layout {
     weights: 0,
     tail_bytes: 0,
     pool_state: None,
+    marks: None,
 };
 
 impl Layout {
@@ -407,6 +423,7 @@ impl Layout {
         pixels * self.per_pixel_bytes()
             + self.fixed.iter().map(|b| b.1).sum::<u64>()
             + scan
+            + self.marks.map_or(0, |_| marks_bytes(pixels))
             + self.weights
     }
     /// Bytes allocated with `slots` fragment slots (and no pooled tail: see
@@ -437,9 +454,7 @@ impl Layout {
     /// record (16 bytes at least, as every buffer).
     fn pool_least(&self, pixels: u64, records: u64) -> u64 {
         self.pool_state
-            .map_or(0, |ps| {
-                (ps.record_bytes * records).max(ps.marks_bytes * pixels)
-            })
+            .map_or(0, |ps| (ps.record_bytes * records).max(marks_bytes(pixels)))
             .max(16)
     }
     /// The most bytes a frame of occupancy `occ` can allocate at F = `f`: its fixed bytes,

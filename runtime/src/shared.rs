@@ -31,6 +31,23 @@ pub const DISPATCH_PER_PIXEL: u32 = 0;
 pub const DISPATCH_ROUNDS: u32 = 1;
 pub const DISPATCH_SCAN: u32 = 2;
 pub const ALLOC_DISPATCHES: u32 = 3;
+/// Pixels whose allocation marks one u32 holds: the allocation marks the pixels whose k rises
+/// at the next level one bit each, and ranks a marked pixel by the marks before it.
+pub const MARK_BITS: u64 = 32;
+/// Words of the allocation's marks for a frame of `pixels` pixels (allocate.wgsl's `mark` and
+/// `apply`): a word of bits for every [`MARK_BITS`] pixels, their popcounts' exclusive prefix
+/// sums before them (one word each and the total), so a pixel's rank among the marked ones is
+/// its word's prefix and the bits below its own: 1/8 byte a pixel and 4 bytes for every 32,
+/// where a word a pixel scanned held 4.
+pub const fn marks_words(pixels: u64) -> u64 {
+    2 * mark_blocks(pixels) + 1
+}
+
+/// Words of the marks' bits for `pixels` pixels (common.wgsl's `mark_blocks`): one every
+/// [`MARK_BITS`] pixels, each with its popcount's prefix sum.
+pub const fn mark_blocks(pixels: u64) -> u64 {
+    pixels.div_ceil(MARK_BITS)
+}
 /// Ambient share of the headlight shading.
 pub const AMBIENT: f32 = 0.3;
 /// Most fragments one pixel may hold: the tail's 32-bit integer sums add up to 255^2 per

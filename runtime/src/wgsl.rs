@@ -281,6 +281,7 @@ pub mod shaders {
             ("MBOIT_MIN_B0", F32(crate::composite::MBOIT_MIN_B0)),
             ("LIST_MAX_SORTED", U32(crate::composite::LIST_MAX_SORTED)),
             ("TAIL_WORDS", U32(crate::shared::TAIL_WORDS)),
+            ("MARK_BITS", U32(crate::shared::MARK_BITS as u32)),
             ("RECORD_WORDS", U32(crate::shared::RECORD_WORDS)),
             ("NO_RECORD", U32(crate::shared::NO_RECORD)),
             ("MAX_FRAGMENTS_PER_PIXEL", U32(MAX_FRAGMENTS_PER_PIXEL)),
@@ -321,6 +322,8 @@ pub mod shaders {
 pub const PIXEL_GROUP: u32 = 64;
 /// Invocations a workgroup of the allocation's per-pixel entry points.
 pub const ALLOC_GROUP: u32 = 256;
+// The allocation's mark pass writes its workgroup's marks as whole words of bits.
+const _: () = assert!((ALLOC_GROUP as u64).is_multiple_of(crate::shared::MARK_BITS));
 /// Pixels each invocation of the allocation's search sums before its workgroup's atomics: a
 /// quarter of the shared atomics, and a quarter of the workgroups.
 pub const SEARCH_PIXELS: u32 = 4;

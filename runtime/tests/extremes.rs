@@ -254,13 +254,14 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
     );
     // The least bytes that run: the fixed cost, the network's list (4 bytes a record) and a pool
     // of the most it holds: the records (32 bytes for each pixel of three fragments or more),
-    // the marks (4 a pixel), or one slot and, for each covered pixel (with fewer slots than
-    // those, any may have k = 0), the two words of a tail or of the two fragments it would hold,
-    // one word for a pixel of one. What the pool holds beyond them is slots: F by hand.
+    // the marks (a bit a pixel in words of 32, each word's prefix count, and their total), or
+    // one slot and, for each covered pixel (with fewer slots than those, any may have k = 0),
+    // the two words of a tail or of the two fragments it would hold, one word for a pixel of
+    // one. What the pool holds beyond them is slots: F by hand.
     let occ = budget::Occupancy::of(&fl.counts());
     let (deep, deeper) = (occ.deep, occ.deeper);
     let pool = (32 * deeper)
-        .max(4 * pixels)
+        .max(4 * (2 * pixels.div_ceil(32) + 1))
         .max(8 * (1 + covered + deep).min(total));
     let one = fixed + (4 * deeper).max(16) + pool;
     assert_eq!(one, budget::DKB.reserved_bytes(pixels, 1, &occ));

@@ -333,6 +333,12 @@ fn the_device_page_lists_the_buffers_the_layouts_count() {
             .per_pixel
             .iter()
             .map(|(label, b)| format!("`{label}` {b}"))
+            .chain(l.marks.map(|label| {
+                format!(
+                    "`{label}` 4 every {} pixels",
+                    dhoit_runtime::shared::MARK_BITS / 2
+                )
+            }))
             .collect();
         let fixed: u64 = l.fixed.iter().map(|b| b.1).sum();
         table += &format!(
@@ -343,9 +349,9 @@ fn the_device_page_lists_the_buffers_the_layouts_count() {
             l.tail_bytes,
             match l.pool_state {
                 Some(ps) => format!(
-                    "a record of {} B a pixel of 3 fragments or more, the marks {} B a pixel; {} a record",
+                    "a record of {} B a pixel of 3 fragments or more, the marks 4 B every {} pixels (a bit a pixel, a count every 32); {} a record",
                     ps.record_bytes,
-                    ps.marks_bytes,
+                    dhoit_runtime::shared::MARK_BITS / 2,
                     ps.per_deep
                         .iter()
                         .map(|(label, b)| format!("`{label}` {b}"))

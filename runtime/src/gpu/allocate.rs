@@ -32,7 +32,8 @@ pub(super) struct Importance {
     pub(super) computed: bool,
     /// The weight kind (`Alloc.kind`, [`weight_kind`]).
     pub(super) kind: u32,
-    /// A buffer of at least 4 bytes a pixel no longer needed, to hold the allocation's marks.
+    /// A buffer no longer needed of at least [`budget::marks_bytes`], to hold the allocation's
+    /// marks.
     pub(super) marks: Option<wgpu::Buffer>,
     /// Buffers no longer needed by the capture, for the tail and the image (DKB's features).
     pub(super) reuse: Option<Reuse>,
@@ -196,17 +197,19 @@ impl<'a> Passes<'a> {
         // Not cleared: setup writes every word the search reads but the last two, the answers
         // of the last frame (allocate.wgsl's bracket), which a new buffer holds as zeros.
         let state = fb.storage_kept("alloc.state", 8 * ALLOC_STATE_WORDS as u64, true)?;
-        // The marks need 4 bytes a pixel only during the allocation: a buffer the frame no longer
-        // needs by then holds them where there is one.
+        // The marks (a bit a pixel and a prefix count every MARK_BITS pixels) are needed only
+        // during the allocation: a buffer the frame no longer needs by then holds them where
+        // there is one.
         let flags = match b.flags {
             Some(f) => f.clone(),
-            None => fb.storage("alloc.flags", 4 * self.pixels as u64, true)?,
+            None => fb.storage("alloc.flags", budget::marks_bytes(self.pixels as u64), true)?,
         };
         // The grids of the per-pixel weights and marks, the search rounds and the marks'
         // prefix sum, which setup empties when every fragment fits.
         let (gx, gy) = grid(self.pixels, ALLOC_GROUP);
         let (sx, sy) = grid(self.pixels.div_ceil(SEARCH_PIXELS), ALLOC_GROUP);
-        let (cx, cy) = grid(self.pixels, budget::SCAN_BLOCK as u32);
+        let marks = crate::shared::mark_blocks(self.pixels as u64) as u32;
+        let (cx, cy) = grid(marks, budget::SCAN_BLOCK as u32);
         let dispatches = fb.init(
             "alloc.dispatches",
             bytemuck::cast_slice(&alloc_dispatches([(gx, gy), (sx, sy), (cx, cy)])),
@@ -278,7 +281,7 @@ impl<'a> Passes<'a> {
             pass.set_pipeline(&a.mark);
             pass.dispatch_workgroups_indirect(dispatches, per_pixel);
         });
-        self.prefix_sum_of(enc, fb, Scan::InPlace(&al.flags), Some((dispatches, scan)))?;
+        self.prefix_sum_of(enc, fb, Scan::Marks(&al.flags), Some((dispatches, scan)))?;
         let (gx, gy) = al.grid;
         self.compute(enc, "allocation apply", |pass| {
             pass.set_bind_group(0, &al.group, &[]);
@@ -309,9 +312,10 @@ impl Gpu {
     /// The allocation alone, on the GPU: the count pass, totals, the allocation of k from
     /// `importance` (one value a pixel, meaning what `target` says) at `budget`, and the
     /// prefix sums of k; no capture. The twin is `alloc::allocate` on the returned counts.
-    /// Three buffers of 4 bytes a pixel (the count, the marks, and one word for the importance,
-    /// the weights, k and the slot bases in turn), so a 7680x4320 frame fits a device whose
-    /// bindings hold 133 MB (lavapipe's 128 MiB do), where a whole k-buffer frame does not.
+    /// Two buffers of 4 bytes a pixel (the count, and one word for the importance, the weights,
+    /// k and the slot bases in turn) and the marks (a quarter byte a pixel), so a 7680x4320
+    /// frame fits a device whose bindings hold 133 MB (lavapipe's 128 MiB do), where a whole
+    /// k-buffer frame does not.
     pub fn allocate(
         &self,
         scene: &Scene,
@@ -392,7 +396,8 @@ pub(super) struct AllocBuffers<'a> {
     /// the scan then turns k into the slot bases in place).
     pub(super) weights: &'a wgpu::Buffer,
     pub(super) totals: &'a wgpu::Buffer,
-    /// A dead buffer of at least 4 bytes a pixel to hold the marks (else one is allocated).
+    /// A dead buffer of at least [`budget::marks_bytes`] to hold the marks (else one is
+    /// allocated).
     pub(super) flags: Option<&'a wgpu::Buffer>,
 }
 

@@ -21,6 +21,9 @@ pub(super) struct Pipelines {
     pub(super) scan_blocks_in_place: wgpu::ComputePipeline,
     pub(super) scan_sums: wgpu::ComputePipeline,
     pub(super) scan_add: wgpu::ComputePipeline,
+    /// scan.wgsl built for the allocation's marks (a popcount every MARK_BITS pixels): its
+    /// in-place block scan, block sums and add.
+    pub(super) scan_marks: [wgpu::ComputePipeline; 3],
     pub(super) abuffer_resolve: wgpu::ComputePipeline,
     pub(super) resolve: wgpu::ComputePipeline,
     /// resolve.wgsl built for frames whose budget holds every fragment (k = n).
@@ -536,6 +539,14 @@ impl Pipelines {
         };
         let compute_entry =
             |name: &str, entry: &str| compute_pipeline(device, name, &module(device, name), entry);
+        let marks = module_with(
+            "scan",
+            "scan (the allocation's marks)",
+            "const SCAN_OF_MARKS: bool = false;",
+            "const SCAN_OF_MARKS: bool = true;",
+        );
+        let scan_marks = ["scan_blocks_in_place", "scan_sums", "scan_add"]
+            .map(|entry| compute_pipeline(device, "scan (the allocation's marks)", &marks, entry));
         let compute = |name: &str| compute_entry(name, "main");
         let network_layout = NetworkLayout::new(device);
         let p = Pipelines {
@@ -548,6 +559,7 @@ impl Pipelines {
             scan_blocks_in_place: compute_entry("scan", "scan_blocks_in_place"),
             scan_sums: compute_entry("scan", "scan_sums"),
             scan_add: compute_entry("scan", "scan_add"),
+            scan_marks,
             abuffer_resolve: compute("abuffer_resolve"),
             resolve: compute("resolve"),
             resolve_fits: compute_pipeline(device, "resolve", &fits("resolve"), "main"),

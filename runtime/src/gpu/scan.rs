@@ -16,6 +16,9 @@ pub(super) enum Scan<'b> {
     /// The buffer's own values, in place (`scan_blocks_in_place`); its last entry gets the total
     /// where it holds `pixels + 1`.
     InPlace(&'b wgpu::Buffer),
+    /// The allocation's marks (`shared::marks_words`): the popcounts of their words, one every
+    /// `MARK_BITS` pixels, in place, and their total after them.
+    Marks(&'b wgpu::Buffer),
 }
 
 impl<'a> Passes<'a> {
@@ -49,9 +52,21 @@ impl<'a> Passes<'a> {
         }
         let blocks = fb.scan_blocks.clone().expect("created above");
         let params = self.params();
-        let (values, offsets, first) = match scan {
-            Scan::From(v, o) => (Some(v), o, &p.scan_blocks),
-            Scan::InPlace(o) => (None, o, &p.scan_blocks_in_place),
+        let [marks_first, marks_sums, marks_add] = &p.scan_marks;
+        let (values, offsets, [first, sums, add], len) = match scan {
+            Scan::From(v, o) => (Some(v), o, [&p.scan_blocks, &p.scan_sums, &p.scan_add], px),
+            Scan::InPlace(o) => (
+                None,
+                o,
+                [&p.scan_blocks_in_place, &p.scan_sums, &p.scan_add],
+                px,
+            ),
+            Scan::Marks(o) => (
+                None,
+                o,
+                [marks_first, marks_sums, marks_add],
+                crate::shared::mark_blocks(px as u64) as u32,
+            ),
         };
         // Auto layouts keep only the bindings an entry point uses: `values` only the first
         // entry's, where it reads another buffer.
@@ -62,13 +77,13 @@ impl<'a> Passes<'a> {
             }
             self.gpu.bind_at(&pl.get_bind_group_layout(0), &entries)
         };
-        let (gx, gy) = grid(px, budget::SCAN_BLOCK as u32);
+        let (gx, gy) = grid(len, budget::SCAN_BLOCK as u32);
         self.compute(enc, "prefix sum", |pass| {
             // (pipeline, over every block, the first)
             for (pl, per_block, is_first) in [
                 (first, true, true),
-                (&p.scan_sums, false, false),
-                (&p.scan_add, true, false),
+                (sums, false, false),
+                (add, true, false),
             ] {
                 let g = bind(pl, is_first);
                 pass.set_pipeline(pl);

@@ -9,7 +9,7 @@ use crate::error::Result;
 
 impl Recording<'_, '_> {
     /// VKB's count, then totals and importance (left pending where the frame is expected to fit).
-    /// Its nearest keys (8 bytes a pixel) and the allocation's marks (4) have buffers of their
+    /// Its nearest keys (8 bytes a pixel) and the allocation's marks (a quarter byte) have buffers of their
     /// own, both dead by the capture; the tails live in the slot pool (`Params::pooled_tail`),
     /// where the capture's layout binds these two in the per-pixel tail's place, unused.
     pub(super) fn vkb_importance(&mut self, expect_fit: bool) -> Result<Importance> {
@@ -27,7 +27,7 @@ impl Recording<'_, '_> {
             None => fb.storage("vkb.count", 4 * px, true)?,
         };
         let nearest = fb.storage("vkb.nearest", 8 * px, true)?;
-        let tail_count = fb.storage("vkb.marks", 4 * px, true)?;
+        let tail_count = fb.storage("vkb.marks", crate::budget::marks_bytes(px), true)?;
         // The application's target where it gives one: counted for no method.
         let image = fb.storage("application.image", 16 * px, false)?;
         let totals = fb.storage("vkb.totals", 16, true)?;
