@@ -39,6 +39,11 @@ struct Params {
     list_sorted: u32,
     // 1 when the k-buffer's tails live in its slot pool after each pixel's k slots (wgsl::Params).
     pooled_tail: u32,
+    // WBOIT's weight function (composite::WboitWeight::code: 0-2 eqs. 7-9 of the view-space
+    // distance, 3 eq. 10 of the window depth) and the camera's planes the first three read.
+    wboit_weight: u32,
+    wboit_near: f32,
+    wboit_far: f32,
 };
 
 // A material (wgsl::GpuMaterial; scene::material): base colour factor, its texture (where its

@@ -5,10 +5,39 @@
 // fragments, at the targets' precision (composite::wboit_sorted, summed front to back in f32,
 // is the twin within that rounding).
 
-// Their eq. 10: a max(10^-2, 3 10^3 (1 - z)^3), z the window depth (composite::wboit_weight).
-fn weight(z: f32, a: f32) -> f32 {
-    let d = 1.0 - z;
-    return a * max(3e3 * d * d * d, 1e-2);
+// The view-space distance of window depth d (composite::WboitParams::view_distance).
+fn view_distance(d: f32) -> f32 {
+    let n = params.wboit_near;
+    let f = params.wboit_far;
+    return n * f / (f - d * (f - n));
+}
+
+// Their eqs. 7-10 (composite::wboit_weight): a times a depth factor clamped to
+// [10^-2, 3 10^3], of the view-space distance (7-9) or the window depth d (10).
+fn weight(d: f32, a: f32) -> f32 {
+    switch params.wboit_weight {
+        case 0u: {
+            let u = view_distance(d) / 5.0;
+            let v = view_distance(d) / 200.0;
+            let v3 = v * v * v;
+            return a * clamp(10.0 / (1e-5 + u * u + v3 * v3), 1e-2, 3e3);
+        }
+        case 1u: {
+            let u = view_distance(d) / 10.0;
+            let v = view_distance(d) / 200.0;
+            let v3 = v * v * v;
+            return a * clamp(10.0 / (1e-5 + u * u * u + v3 * v3), 1e-2, 3e3);
+        }
+        case 2u: {
+            let v = view_distance(d) / 200.0;
+            let v2 = v * v;
+            return a * clamp(0.03 / (1e-5 + v2 * v2), 1e-2, 3e3);
+        }
+        default: {
+            let e = 1.0 - d;
+            return a * max(3e3 * e * e * e, 1e-2);
+        }
+    }
 }
 
 struct Targets {

@@ -71,6 +71,11 @@ pub(crate) struct MethodParams {
     /// a tail (Bevy's 8; 1 to 16).
     #[arg(long, default_value_t = dhoit_runtime::composite::LIST_SORTED, value_parser = parse_list_sorted)]
     pub(crate) list_sorted: u32,
+    /// WBOIT's weight function (McGuire and Bavoil 2013): eq7, eq8 or eq9 of the view-space
+    /// distance in the scene's units (the paper tunes them for 0.1 to 500; the camera's planes
+    /// give it from the depth), or eq10 of the window depth alone.
+    #[arg(long, default_value = "eq10", value_parser = parse_wboit_weight)]
+    pub(crate) wboit_weight: dhoit_runtime::composite::WboitWeight,
 }
 
 impl MethodParams {
@@ -86,14 +91,17 @@ impl MethodParams {
         }
     }
 
-    /// `o` with these parameters.
+    /// `o` with these parameters, for a frame seen by `cam` (WBOIT's weights of the view-space
+    /// distance read its planes).
     pub(crate) fn apply<'a>(
         &self,
         o: dhoit_runtime::frame::Options<'a>,
+        cam: &dhoit_runtime::scene::Camera,
     ) -> dhoit_runtime::frame::Options<'a> {
         dhoit_runtime::frame::Options {
             mboit: self.mboit(self.mboit_moments.unwrap_or(4)),
             list_sorted: self.list_sorted,
+            wboit: dhoit_runtime::composite::WboitParams::for_camera(self.wboit_weight, cam),
             ..o
         }
     }
@@ -133,6 +141,12 @@ fn parse_list_sorted(s: &str) -> std::result::Result<u32, String> {
     dhoit_runtime::composite::check_list_sorted(n)
         .map(|()| n)
         .map_err(|e| e.to_string())
+}
+
+fn parse_wboit_weight(
+    s: &str,
+) -> std::result::Result<dhoit_runtime::composite::WboitWeight, String> {
+    dhoit_runtime::composite::WboitWeight::parse(s).map_err(|e| e.to_string())
 }
 
 fn parse_rgb(s: &str) -> std::result::Result<[f32; 3], String> {
@@ -190,6 +204,12 @@ pub(crate) fn check_view(view: usize, views: usize) -> Result<()> {
     scene::check_view(view, views).map_err(anyhow::Error::msg)
 }
 
+/// The camera of `view` of the orbit at the resolution `a` gives (what [`rasterize_view`]
+/// rasterizes through).
+pub(crate) fn view_camera(scene: &Scene, view: usize, a: &ViewArgs) -> Camera {
+    Camera::orbit(scene, view, a.views, a.res.width, a.res.height)
+}
+
 pub(crate) fn rasterize_view(
     scene: &Scene,
     view: usize,
@@ -200,7 +220,7 @@ pub(crate) fn rasterize_view(
         height: h,
     } = a.res;
     check_view(view, a.views)?;
-    let cam = Camera::orbit(scene, view, a.views, w, h);
+    let cam = view_camera(scene, view, a);
     let t = Instant::now();
     let fl = raster::rasterize(scene, &cam, w, h)?;
     let ms = t.elapsed().as_secs_f64() * 1e3;

@@ -665,12 +665,15 @@ pub fn run(a: CompareArgs) -> Result<()> {
             let (fl, raster_ms) = rasterize_view(&scene, view, &a.common)?;
             dhoit_runtime::frame::check_memory(&methods, &fl)?;
             for budget in &budgets {
-                let options = a.params.apply(Options {
-                    weights: weights.as_ref(),
-                    equal: a.equal,
-                    exact_when_cheaper: !a.always_approximate,
-                    ..Options::new(*budget, a.common.background)
-                });
+                let options = a.params.apply(
+                    Options {
+                        weights: weights.as_ref(),
+                        equal: a.equal,
+                        exact_when_cheaper: !a.always_approximate,
+                        ..Options::new(*budget, a.common.background)
+                    },
+                    &crate::args::view_camera(&scene, view, &a.common),
+                );
                 let (frames, skipped) = render_methods(&Renderer::new(&fl, options), &methods)?;
                 let reference = frames[0].image.clone();
                 let reference8 = image_io::to_srgb8(&reference);

@@ -95,12 +95,15 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(dir) = &a.dump {
         tensors::create_folder(dir)?;
     }
-    let options = a.params.apply(Options {
-        weights: weights.as_ref(),
-        equal: a.equal,
-        exact_when_cheaper: !a.always_approximate,
-        ..Options::new(budget, a.common.background)
-    });
+    let options = a.params.apply(
+        Options {
+            weights: weights.as_ref(),
+            equal: a.equal,
+            exact_when_cheaper: !a.always_approximate,
+            ..Options::new(budget, a.common.background)
+        },
+        &crate::args::view_camera(&scene, a.view, &a.common),
+    );
     let renderer = Renderer::new(&fl, options);
     let mut gpu_fragments = None;
     let f = match a.device {

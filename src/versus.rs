@@ -200,10 +200,13 @@ fn measure(
                 .allocated_bytes(fl.pixel_count() as u64, fl.fragment_count() as u64);
             for (bi, &x) in a.memories.iter().enumerate() {
                 let m_bytes = (x * exact_bytes as f64).floor() as u64;
-                let opts = a.params.apply(Options {
-                    weights,
-                    ..Options::new(Budget::Bytes(m_bytes), a.common.background)
-                });
+                let opts = a.params.apply(
+                    Options {
+                        weights,
+                        ..Options::new(Budget::Bytes(m_bytes), a.common.background)
+                    },
+                    &cam,
+                );
                 let r = Renderer::new(&fl, opts);
                 let exact = r.render(Method::Abuffer)?;
                 let exact8 = image_io::to_srgb8(&exact.image);

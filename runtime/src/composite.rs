@@ -101,18 +101,138 @@ pub fn exact_pixel(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
     exact_sorted(&v, bg)
 }
 
-/// WBOIT's weight of a fragment at window depth `z` with opacity `a` (McGuire and Bavoil 2013,
-/// eq. 10; wboit_accumulate.wgsl's `weight`).
-pub fn wboit_weight(z: f32, a: f32) -> f32 {
-    let d = 1.0 - z;
-    a * (3e3 * d * d * d).max(1e-2)
+/// WBOIT's weight functions, as McGuire and Bavoil (2013) give them: eqs. 7-9 of the
+/// fragment's view-space distance |z| (in the scene's units, tuned by the paper for 0.1 to 500),
+/// eq. 10 of its window depth alone. Each multiplies the fragment's opacity by a depth factor
+/// clamped to [10^-2, 3 10^3].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum WboitWeight {
+    /// `10 / (10^-5 + (|z|/5)^2 + (|z|/200)^6)`: falls from near surfaces.
+    Eq7,
+    /// `10 / (10^-5 + (|z|/10)^3 + (|z|/200)^6)`.
+    Eq8,
+    /// `0.03 / (10^-5 + (|z|/200)^4)`: flat until far away.
+    Eq9,
+    /// `3 10^3 (1 - d)^3`, d the window depth: needs no depth range (the default).
+    #[default]
+    Eq10,
+}
+
+impl WboitWeight {
+    pub const ALL: [WboitWeight; 4] = [
+        WboitWeight::Eq7,
+        WboitWeight::Eq8,
+        WboitWeight::Eq9,
+        WboitWeight::Eq10,
+    ];
+
+    /// Its name on the command line (`eq7` .. `eq10`).
+    pub fn name(self) -> &'static str {
+        match self {
+            WboitWeight::Eq7 => "eq7",
+            WboitWeight::Eq8 => "eq8",
+            WboitWeight::Eq9 => "eq9",
+            WboitWeight::Eq10 => "eq10",
+        }
+    }
+
+    /// The weight function named `s`, or an error listing them.
+    pub fn parse(s: &str) -> crate::error::Result<WboitWeight> {
+        WboitWeight::ALL
+            .into_iter()
+            .find(|w| w.name() == s.trim().to_ascii_lowercase())
+            .ok_or_else(|| {
+                crate::error::Error::Invalid(format!(
+                    "'{s}' is not a WBOIT weight function: eq7, eq8, eq9 (of the view-space \
+                     distance) or eq10 (of the window depth; the default)"
+                ))
+            })
+    }
+
+    /// Its code in the frame's parameters (`Params::wboit_weight`, wboit_accumulate.wgsl).
+    pub fn code(self) -> u32 {
+        self as u32
+    }
+
+    /// Whether it reads the view-space distance (eqs. 7-9), which needs the camera's planes.
+    pub fn needs_depth_range(self) -> bool {
+        self != WboitWeight::Eq10
+    }
+}
+
+/// WBOIT's parameters: its weight function and, for eqs. 7-9, the camera's near and far planes,
+/// from which a fragment's window depth d gives its view-space distance
+/// `near far / (far - d (far - near))` (the inverse of `scene::perspective_rh`'s depth).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WboitParams {
+    pub weight: WboitWeight,
+    pub near: f32,
+    pub far: f32,
+}
+
+impl WboitParams {
+    /// `weight` with `cam`'s planes.
+    pub fn for_camera(weight: WboitWeight, cam: &crate::scene::Camera) -> WboitParams {
+        WboitParams {
+            weight,
+            near: cam.near,
+            far: cam.far,
+        }
+    }
+
+    /// Refuses a weight function of the view-space distance without a depth range
+    /// (`0 < near < far`, finite).
+    pub fn check(&self) -> crate::error::Result<()> {
+        let (n, f) = (self.near, self.far);
+        if self.weight.needs_depth_range() && !(n > 0.0 && n < f && f.is_finite()) {
+            return Err(crate::error::Error::Invalid(format!(
+                "WBOIT's weight {} reads the view-space distance: it needs the camera's near \
+                 and far planes, 0 < near < far (given {n} and {f})",
+                self.weight.name()
+            )));
+        }
+        Ok(())
+    }
+
+    /// The view-space distance of window depth `d` (wboit_accumulate.wgsl's `view_distance`).
+    pub fn view_distance(&self, d: f32) -> f32 {
+        self.near * self.far / (self.far - d * (self.far - self.near))
+    }
+}
+
+/// WBOIT's weight of a fragment at window depth `d` with opacity `a` (McGuire and Bavoil 2013,
+/// the function `p` names; wboit_accumulate.wgsl's `weight`).
+pub fn wboit_weight(p: &WboitParams, d: f32, a: f32) -> f32 {
+    let clamp = |w: f32| w.clamp(1e-2, 3e3);
+    let z = || p.view_distance(d);
+    match p.weight {
+        WboitWeight::Eq7 => {
+            let (u, v) = (z() / 5.0, z() / 200.0);
+            let v3 = v * v * v;
+            a * clamp(10.0 / (1e-5 + u * u + v3 * v3))
+        }
+        WboitWeight::Eq8 => {
+            let (u, v) = (z() / 10.0, z() / 200.0);
+            let v3 = v * v * v;
+            a * clamp(10.0 / (1e-5 + u * u * u + v3 * v3))
+        }
+        WboitWeight::Eq9 => {
+            let v = z() / 200.0;
+            let v2 = v * v;
+            a * clamp(0.03 / (1e-5 + v2 * v2))
+        }
+        WboitWeight::Eq10 => {
+            let e = 1.0 - d;
+            a * (3e3 * e * e * e).max(1e-2)
+        }
+    }
 }
 
 /// Weighted blended OIT of a pixel's fragments in exact targets, summed front to back in f32:
 /// the paper's formula, which [`wboit_blended`] computes at the precision of the targets
 /// engines give it.
-pub fn wboit_sorted(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
-    wboit_sums(frags, bg, Sums::Exact)
+pub fn wboit_sorted(frags: &[Fragment], bg: [f32; 3], p: &WboitParams) -> [f32; 3] {
+    wboit_sums(frags, bg, Sums::Exact, p)
 }
 
 /// How the blended methods' sums are held: exactly (f32), or as engines' targets hold them
@@ -133,13 +253,13 @@ impl Sums {
 }
 
 /// WBOIT over `frags` in their order, summed as `sums` says.
-fn wboit_sums(frags: &[Fragment], bg: [f32; 3], sums: Sums) -> [f32; 3] {
+fn wboit_sums(frags: &[Fragment], bg: [f32; 3], sums: Sums, p: &WboitParams) -> [f32; 3] {
     let mut acc = [0.0f32; 4];
     let mut reveal = 1.0f32;
     let mut reveal8 = 255u32;
     for f in frags {
         let a = f.rgba[3];
-        let w = wboit_weight(f.depth, a);
+        let w = wboit_weight(p, f.depth, a);
         let src = [
             f.rgba[0] * a * w,
             f.rgba[1] * a * w,
@@ -179,8 +299,8 @@ fn in_submission_order(frags: &[Fragment]) -> Vec<Fragment> {
 /// `1 - a` (rounded to the nearest 1/255). [`wboit_sorted`]'s formula at its targets'
 /// precision: the rounding depends on the submission order, by at most a few binary16 steps of
 /// the accumulation and a few 1/255 of the revealage.
-pub fn wboit_blended(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
-    wboit_sums(&in_submission_order(frags), bg, Sums::Targets)
+pub fn wboit_blended(frags: &[Fragment], bg: [f32; 3], p: &WboitParams) -> [f32; 3] {
+    wboit_sums(&in_submission_order(frags), bg, Sums::Targets, p)
 }
 
 /// MBOIT's parameters: the number of power moments (4, 6 or 8), the moment bias and the
@@ -804,8 +924,8 @@ pub enum Method<'a> {
     Hybrid(&'a [u32]),
     /// MLAB with m rows per pixel.
     Mlab(usize),
-    /// Weighted blended OIT.
-    Wboit,
+    /// Weighted blended OIT with these parameters.
+    Wboit(WboitParams),
     /// Moment-based OIT, four power moments.
     Mboit(MboitParams),
 }
@@ -838,10 +958,10 @@ pub fn composite(fl: &FragmentLists, method: Method, bg: [f32; 3]) -> Image {
                         mlab_pixel(scratch, m, bg)
                     }
                     // The blended methods at their targets' precision, in submission order.
-                    Method::Wboit => {
+                    Method::Wboit(params) => {
                         scratch.clear();
                         scratch.extend(fl.fragments(p));
-                        wboit_blended(scratch, bg)
+                        wboit_blended(scratch, bg, &params)
                     }
                     Method::Mboit(params) => {
                         scratch.clear();

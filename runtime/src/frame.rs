@@ -3,7 +3,7 @@
 
 use crate::alloc::{self, ErrorCurves, GreedyKey, OptimalReport};
 use crate::budget::{self, Budget, FragmentBudget, Layout, Occupancy};
-use crate::composite::{self, Image, MboitParams, Method as Composite};
+use crate::composite::{self, Image, MboitParams, Method as Composite, WboitParams};
 use crate::error::{Error, Result};
 use crate::fragment::FragmentLists;
 use crate::importance::{self, VkbParams};
@@ -278,6 +278,9 @@ pub struct Options<'a> {
     pub vkb: VkbParams,
     /// MBOIT's moment bias and overestimation (the paper's defaults).
     pub mboit: MboitParams,
+    /// WBOIT's weight function (eq. 10, of the window depth, by default) and, for those of the
+    /// view-space distance, the camera's planes ([`composite::WboitParams::for_camera`]).
+    pub wboit: WboitParams,
     /// The linked list's fragments a pixel sorted at resolve, 1 to
     /// [`composite::LIST_MAX_SORTED`] ([`composite::LIST_SORTED`], Bevy's 8, by default).
     pub list_sorted: u32,
@@ -297,6 +300,7 @@ impl Options<'_> {
             weights: None,
             vkb: VkbParams::default(),
             mboit: MboitParams::default(),
+            wboit: WboitParams::default(),
             list_sorted: composite::LIST_SORTED,
             exact_when_cheaper: true,
         }
@@ -413,6 +417,9 @@ impl<'a> Renderer<'a> {
         if method == Method::Mboit {
             composite::MboitParams::with_moments(opts.mboit.moments)?;
         }
+        if method == Method::Wboit {
+            opts.wboit.check()?;
+        }
         let budget = self.budget()?;
         // A k-buffer whose budget holds every fragment (F slots for them, or the bytes of the
         // exact A-buffer) renders the A-buffer: exact, and never more memory than it (a byte
@@ -501,7 +508,7 @@ impl<'a> Renderer<'a> {
             Method::Abuffer => composite::composite(fl, Composite::Exact, bg),
             _ if a.exact => composite::composite(fl, Composite::Exact, bg),
             Method::Mlab => composite::composite(fl, Composite::Mlab(k[0] as usize), bg),
-            Method::Wboit => composite::composite(fl, Composite::Wboit, bg),
+            Method::Wboit => composite::composite(fl, Composite::Wboit(self.options.wboit), bg),
             Method::Mboit => composite::composite(fl, Composite::Mboit(self.options.mboit), bg),
             Method::LinkedList => {
                 let kept = fl.retain(&composite::linked_list_kept(fl, a.budget_fragments));

@@ -390,7 +390,12 @@ pub(crate) struct Params {
     /// [`crate::shared::has_tail`] says (the allocated k-buffers, which know n(p)); 0: one
     /// tail a pixel in buffers of their own (FKB, an uploaded k).
     pub(crate) pooled_tail: u32,
-    pub(crate) _pad: [u32; 18],
+    /// WBOIT's weight function (`composite::WboitWeight::code`) and the depth range its
+    /// weights of the view-space distance read.
+    pub(crate) wboit_weight: u32,
+    pub(crate) wboit_near: f32,
+    pub(crate) wboit_far: f32,
+    pub(crate) _pad: [u32; 15],
 }
 
 /// `Material.texels` of a material without a texture.

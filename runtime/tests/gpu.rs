@@ -1918,7 +1918,14 @@ fn the_renderer_runs_on_the_applications_device() {
         .render(&s, &cam, 32, 24, [1.0; 3], Some(mboit))
         .unwrap_err();
     assert!(e.to_string().contains("FLOAT32_BLENDABLE"), "{e}");
-    let wboit = plain.render(&s, &cam, 32, 24, [1.0; 3], Some(Slots::Wboit));
+    let wboit = plain.render(
+        &s,
+        &cam,
+        32,
+        24,
+        [1.0; 3],
+        Some(Slots::Wboit(Default::default())),
+    );
     assert!(wboit.is_ok());
     let (d, q) = open(features | wgpu::Features::FLOAT32_BLENDABLE, limits);
     let app = dhoit_runtime::gpu::Gpu::on_device(d.clone(), q.clone(), &info).unwrap();

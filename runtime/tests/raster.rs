@@ -14,6 +14,8 @@ fn ndc_camera() -> Camera {
         view_proj: Mat4::IDENTITY,
         forward: Vec3::NEG_Z,
         eye: Vec3::ZERO,
+        near: 0.0,
+        far: 0.0,
     }
 }
 
@@ -148,6 +150,8 @@ fn depths_of_a_tilted_plane_match_the_projection() {
         view_proj: proj,
         forward: Vec3::NEG_Z,
         eye: Vec3::ZERO,
+        near,
+        far,
     };
     // The plane z = -4 - 0.5 x (view space), as a big quad.
     let plane = |x: f32, y: f32| Vec3::new(x, y, -4.0 - 0.5 * x);
@@ -220,6 +224,8 @@ fn geometry_behind_the_near_plane_is_clipped() {
         view_proj: proj,
         forward: Vec3::NEG_Z,
         eye: Vec3::ZERO,
+        near: 1.0,
+        far: 10.0,
     };
     let mut s = Scene::default();
     // Entirely behind the eye: nothing. Crossing the near plane: only the visible part, depths in [0, 1].

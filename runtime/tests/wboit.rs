@@ -7,7 +7,7 @@ mod common;
 
 use common::{gpu, identity, layer};
 use dhoit_runtime::budget::{self, Budget};
-use dhoit_runtime::composite::{self, Image};
+use dhoit_runtime::composite::{self, Image, WboitParams, WboitWeight};
 use dhoit_runtime::fragment::Fragment;
 use dhoit_runtime::frame::{self, Method, Options};
 use dhoit_runtime::gpu::Slots;
@@ -15,6 +15,12 @@ use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::Scene;
 
 const BG: [f32; 3] = [0.9, 0.85, 0.8];
+/// The default weight function, eq. 10 (of the window depth: no planes).
+const EQ10: WboitParams = WboitParams {
+    weight: WboitWeight::Eq10,
+    near: 0.0,
+    far: 0.0,
+};
 
 fn render(fl: &dhoit_runtime::fragment::FragmentLists, m: Method) -> Image {
     common::render_one_fpp(fl, m, BG)
@@ -50,7 +56,7 @@ fn wboit_is_the_papers_formula() {
         })
         .collect();
     for order in [[0, 1], [1, 0]] {
-        let got = composite::wboit_sorted(&order.map(|i| frags[i]), BG);
+        let got = composite::wboit_sorted(&order.map(|i| frags[i]), BG, &EQ10);
         for i in 0..3 {
             assert!(
                 (got[i] as f64 - want[i]).abs() < 1e-6,
@@ -59,10 +65,10 @@ fn wboit_is_the_papers_formula() {
         }
     }
     // The weight at the near and far planes.
-    assert!((composite::wboit_weight(0.0, 0.5) - 1500.0).abs() < 1e-3);
-    assert!((composite::wboit_weight(1.0, 0.5) - 0.005).abs() < 1e-9);
+    assert!((composite::wboit_weight(&EQ10, 0.0, 0.5) - 1500.0).abs() < 1e-3);
+    assert!((composite::wboit_weight(&EQ10, 1.0, 0.5) - 0.005).abs() < 1e-9);
     // Nothing: the background.
-    assert_eq!(composite::wboit_sorted(&[], BG), BG);
+    assert_eq!(composite::wboit_sorted(&[], BG, &EQ10), BG);
 }
 
 /// One fragment a pixel: WBOIT is exact (to its binary16 accumulation). Several: the GPU's image (an RGBA16F accumulation and
@@ -90,10 +96,13 @@ fn wboit_on_the_gpu_is_its_twin_in_every_order_and_wrong_where_opacity_is_high()
         layer(&mut s, 0.5, [1.0, 0.0, 0.0, near_alpha]);
         layer(&mut s, 0.52, [0.0, 0.3, 1.0, near_alpha]);
         layer(&mut s, 0.7, [0.1, 0.9, 0.2, 0.2]);
-        let gpu = |scene: &Scene| g.render(scene, &cam, w, h, BG, Some(Slots::Wboit)).unwrap();
+        let gpu = |scene: &Scene| {
+            g.render(scene, &cam, w, h, BG, Some(Slots::Wboit(EQ10)))
+                .unwrap()
+        };
         let twin = |scene: &Scene| {
             let own = common::own_fragments(g, scene, &cam, (w, h), BG);
-            composite::composite(&own, composite::Method::Wboit, BG)
+            composite::composite(&own, composite::Method::Wboit(EQ10), BG)
         };
         let fl = rasterize(&s, &cam, w, h).unwrap();
         let bound = common::BLENDED_BOUND;
@@ -151,8 +160,8 @@ fn wboit_blended_is_the_formula_at_its_targets_precision() {
         f(0.5, [0.0, 0.4, 1.0, 0.3], 0),
         f(0.9, [0.2, 0.9, 0.4, 0.5], 2),
     ];
-    let exact = composite::wboit_sorted(&frags, BG);
-    let blended = composite::wboit_blended(&frags, BG);
+    let exact = composite::wboit_sorted(&frags, BG, &EQ10);
+    let blended = composite::wboit_blended(&frags, BG, &EQ10);
     for i in 0..3 {
         assert!(
             (exact[i] - blended[i]).abs() < 1e-2,
@@ -162,10 +171,118 @@ fn wboit_blended_is_the_formula_at_its_targets_precision() {
     // Revealage by hand: 255 (1 - 191/255) = 64, 64 (1 - 191/255) = 16.06 -> 16.
     let a = 191.0 / 255.0;
     let two = [f(0.5, [1.0, 1.0, 1.0, a], 0), f(0.6, [1.0, 1.0, 1.0, a], 1)];
-    let got = composite::wboit_blended(&two, [0.0; 3]);
+    let got = composite::wboit_blended(&two, [0.0; 3], &EQ10);
     // White over black: C = (1 - R), R = 16/255.
     assert!((got[0] - (1.0 - 16.0 / 255.0)).abs() < 1e-6, "{got:?}");
-    let exact = composite::wboit_sorted(&two, [0.0; 3]);
+    let exact = composite::wboit_sorted(&two, [0.0; 3], &EQ10);
     assert!((exact[0] - (1.0 - (1.0 - a) * (1.0 - a))).abs() < 1e-6);
     assert!(got != exact);
+}
+
+/// The paper's four weight functions by hand (f64), at view-space distances the window depths
+/// of `scene::perspective_rh` give: the depth a projected point gets is turned back into its
+/// distance (held to the projection matrix, outside both twins), and each function's value
+/// there is the paper's formula, clamped to [10^-2, 3 10^3]. A function of the distance without
+/// the camera's planes is refused.
+#[test]
+fn wboit_weights_are_the_papers_equations_of_the_distance_or_the_depth() {
+    use dhoit_runtime::scene::perspective_rh;
+    let (near, far) = (0.5f32, 800.0f32);
+    let proj = perspective_rh(1.0, 1.5, near, far);
+    for t in [0.5f32, 1.0, 4.0, 12.0, 75.0, 250.0, 799.0] {
+        let clip = proj * glam::Vec4::new(0.3, -0.2, -t, 1.0);
+        let d = clip.z / clip.w;
+        let a = 0.4f64;
+        for weight in WboitWeight::ALL {
+            let p = WboitParams { weight, near, far };
+            let z = p.view_distance(d);
+            assert!((z - t).abs() <= 2e-3 * t, "distance {t}: {z} at depth {d}");
+            let z = t as f64;
+            let by_hand = a * match weight {
+                WboitWeight::Eq7 => 10.0 / (1e-5 + (z / 5.0).powi(2) + (z / 200.0).powi(6)),
+                WboitWeight::Eq8 => 10.0 / (1e-5 + (z / 10.0).powi(3) + (z / 200.0).powi(6)),
+                WboitWeight::Eq9 => 0.03 / (1e-5 + (z / 200.0).powi(4)),
+                WboitWeight::Eq10 => 3e3 * (1.0 - d as f64).powi(3),
+            }
+            .clamp(1e-2, 3e3);
+            let got = composite::wboit_weight(&p, d, a as f32) as f64;
+            assert!(
+                (got - by_hand).abs() <= 5e-3 * by_hand,
+                "{} at distance {t}: {got} against {by_hand}",
+                weight.name()
+            );
+        }
+    }
+    // Eq. 7 weighs a near surface 3000 times a far one here; eq. 10 by the window depth.
+    let p7 = WboitParams {
+        weight: WboitWeight::Eq7,
+        near,
+        far,
+    };
+    let w = |p: &WboitParams, d| composite::wboit_weight(p, d, 1.0);
+    assert!(w(&p7, 0.0) > 1e3 * w(&p7, 0.999));
+    for weight in [WboitWeight::Eq7, WboitWeight::Eq8, WboitWeight::Eq9] {
+        let e = WboitParams {
+            weight,
+            near: 0.0,
+            far: 0.0,
+        }
+        .check()
+        .unwrap_err();
+        assert!(e.to_string().contains("near"), "{e}");
+        assert_eq!(WboitWeight::parse(weight.name()).unwrap(), weight);
+    }
+    assert!(EQ10.check().is_ok());
+    assert!(WboitWeight::parse("eq11").is_err());
+}
+
+/// Each weight function on the GPU is its twin's (wboit_accumulate.wgsl's `weight` against
+/// `composite::wboit_weight`, on the GPU's own fragments), and they weigh differently: the
+/// images of eqs. 7 and 10 differ where surfaces overlap. (WBOIT divides by the sum of the
+/// weights, so a factor common to a pixel's weights never shows: the constants are held by the
+/// test by hand above, their shape here.) A weight of the distance without the camera's planes
+/// is refused on both.
+#[test]
+fn every_wboit_weight_function_renders_its_twin_on_the_gpu() {
+    let Some(g) = gpu() else { return };
+    let cam = identity();
+    let (w, h) = (32, 24);
+    let mut s = Scene::default();
+    layer(&mut s, 0.3, [1.0, 0.0, 0.0, 0.6]);
+    layer(&mut s, 0.5, [0.0, 0.3, 1.0, 0.6]);
+    layer(&mut s, 0.9, [0.1, 0.9, 0.2, 0.5]);
+    let own = common::own_fragments(g, &s, &cam, (w, h), BG);
+    let mut images = Vec::new();
+    for weight in WboitWeight::ALL {
+        // The identity camera has no planes: these stand for a camera's (window depths 0.3 to
+        // 0.9 at distances 1.4 to 9.9).
+        let p = WboitParams {
+            weight,
+            near: 1.0,
+            far: 1000.0,
+        };
+        let frame = g.render(&s, &cam, w, h, BG, Some(Slots::Wboit(p))).unwrap();
+        let twin = composite::composite(&own, composite::Method::Wboit(p), BG);
+        let diff = frame.image.max_abs_diff(&twin);
+        eprintln!("{}: GPU and twin differ by {diff:e}", weight.name());
+        assert!(diff <= common::BLENDED_BOUND, "{}: {diff}", weight.name());
+        images.push(frame.image);
+    }
+    let d = images[0].max_abs_diff(&images[3]);
+    assert!(d > 0.05, "eqs. 7 and 10 render alike: {d}");
+    let bad = WboitParams {
+        weight: WboitWeight::Eq7,
+        near: 0.0,
+        far: 0.0,
+    };
+    assert!(
+        g.render(&s, &cam, w, h, BG, Some(Slots::Wboit(bad)))
+            .is_err()
+    );
+    let fl = rasterize(&s, &cam, w, h).unwrap();
+    let opts = Options {
+        wboit: bad,
+        ..Options::new(Budget::SlotsPerPixel(1.0), BG)
+    };
+    assert!(frame::render(&fl, Method::Wboit, opts).is_err());
 }

@@ -368,6 +368,8 @@ impl AllocatedOit {
             view_proj: glam::Mat4::IDENTITY,
             forward: glam::Vec3::Z,
             eye: glam::Vec3::ZERO,
+            near: 0.0,
+            far: 0.0,
         };
         let slots = Some(match &self.method {
             AllocatedMethod::Dkb(weights) => Slots::Dkb(weights, self.budget),

@@ -79,7 +79,7 @@ impl Recording<'_, '_> {
                 let fits = i.fits;
                 self.allocated(i, budget, fits)
             }
-            Slots::Mlab(_) | Slots::Wboit | Slots::Mboit(_) | Slots::LinkedList { .. } => {
+            Slots::Mlab(_) | Slots::Wboit(_) | Slots::Mboit(_) | Slots::LinkedList { .. } => {
                 unreachable!("MLAB, WBOIT, MBOIT and the linked list have passes of their own")
             }
         }

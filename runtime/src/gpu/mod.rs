@@ -51,7 +51,7 @@ use timer::Timer;
 use crate::alloc::Target;
 use crate::budget;
 use crate::budget::FragmentBudget;
-use crate::composite::{Image, MboitParams};
+use crate::composite::{Image, MboitParams, WboitParams};
 use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
 use crate::frame::{Allocation, Method, Options, exact_is_no_dearer};
@@ -469,8 +469,9 @@ pub enum Slots<'a> {
     /// fragments taken in submission order.
     Mlab(u32),
     /// Weighted blended OIT, as engines ship it: one geometry pass into an RGBA16F accumulation
-    /// and an R8 revealage, then a composite (the twin: `composite::wboit_blended`).
-    Wboit,
+    /// and an R8 revealage, then a composite (the twin: `composite::wboit_blended`), with
+    /// these parameters (its weight function).
+    Wboit(WboitParams),
     /// Moment-based OIT with these parameters, as Munstermann et al. lay it out: a pass adding
     /// b_0 and four power moments into 32-bit float targets, a pass adding the
     /// transmittance-weighted colour into an RGBA16F one, a composite (the twin:
@@ -517,7 +518,7 @@ impl<'a> Slots<'a> {
             Method::Fkb => Some(Slots::Uniform(first())),
             // MLAB on the GPU blends from the A-buffer (exact memory, not the budget's rows).
             Method::Mlab => Some(Slots::Mlab(first())),
-            Method::Wboit => Some(Slots::Wboit),
+            Method::Wboit => Some(Slots::Wboit(options.wboit)),
             Method::Mboit => Some(Slots::Mboit(options.mboit)),
             Method::LinkedList => Some(Slots::LinkedList {
                 nodes: cpu.budget_fragments,
@@ -747,7 +748,7 @@ impl Gpu {
                 crate::composite::check_list_sorted(sorted)?;
                 (nodes.into(), VkbParams::default(), 0)
             }
-            Some(Slots::PerPixel(_) | Slots::Wboit | Slots::Mboit(_)) | None => {
+            Some(Slots::PerPixel(_) | Slots::Wboit(_) | Slots::Mboit(_)) | None => {
                 (0.into(), VkbParams::default(), 0)
             }
         };
@@ -773,6 +774,12 @@ impl Gpu {
         if let Some(Slots::Mboit(m)) = slots {
             params.mboit_bias = m.bias;
             params.mboit_overestimation = m.overestimation;
+        }
+        if let Some(Slots::Wboit(w)) = slots {
+            w.check()?;
+            params.wboit_weight = w.weight.code();
+            params.wboit_near = w.near;
+            params.wboit_far = w.far;
         }
         params.store_primitives =
             (matches!(slots, Some(Slots::Mlab(_))) || opts.diagnostics).into();
@@ -804,7 +811,7 @@ impl Gpu {
         let image = match slots {
             None => rec.abuffer(Blend::Exact, width, height)?,
             Some(Slots::Mlab(_)) => rec.abuffer(Blend::Mlab, width, height)?,
-            Some(Slots::Wboit) => rec.wboit((width, height))?,
+            Some(Slots::Wboit(_)) => rec.wboit((width, height))?,
             Some(Slots::Mboit(m)) => rec.mboit((width, height), m.moments)?,
             Some(Slots::LinkedList { nodes, .. }) => rec.linked_list(nodes, width, height)?,
             Some(s) => match rec.exact_when_cheaper(s, budget, (width, height))? {
@@ -966,7 +973,10 @@ fn frame_params(
         mboit_overestimation: 0.0,
         list_sorted: 0,
         pooled_tail: 0,
-        _pad: [0; 18],
+        wboit_weight: 0,
+        wboit_near: 0.0,
+        wboit_far: 0.0,
+        _pad: [0; 15],
     }
 }
 

@@ -380,6 +380,11 @@ pub struct Camera {
     /// Unit vector from the eye towards the scene centre (the headlight direction).
     pub forward: Vec3,
     pub eye: Vec3,
+    /// The projection's near and far planes (distances along the view direction; 0 where the
+    /// camera is no perspective one): what WBOIT's weights of the view-space distance read
+    /// (`composite::WboitParams::for_camera`).
+    pub near: f32,
+    pub far: f32,
 }
 
 /// Number of orbit views a scene is seen from by default.
@@ -448,6 +453,8 @@ impl Camera {
             view_proj: proj * view_m,
             forward: (centre - eye).normalize(),
             eye,
+            near,
+            far,
         }
     }
 }

@@ -165,7 +165,7 @@ pub fn cpu_and_gpu_frames(
         // reconstruction by up to 0.1 (the method's own sensitivity, in 32 bits) and WBOIT's
         // revealage by a rounding step.
         if let Some(blend) = match m {
-            Method::Wboit => Some(dhoit_runtime::composite::Method::Wboit),
+            Method::Wboit => Some(dhoit_runtime::composite::Method::Wboit(options.wboit)),
             Method::Mboit => Some(dhoit_runtime::composite::Method::Mboit(options.mboit)),
             _ => None,
         } {
@@ -275,6 +275,8 @@ pub fn identity() -> dhoit_runtime::scene::Camera {
         view_proj: glam::Mat4::IDENTITY,
         forward: glam::Vec3::NEG_Z,
         eye: glam::Vec3::ZERO,
+        near: 0.0,
+        far: 0.0,
     }
 }
 
