@@ -275,6 +275,7 @@ fn configure(label: &str) -> dhoit_runtime::gpu::FrameOptions {
         layer_major_fkb: label == "fkb_layer_major",
         // The methods themselves, at equal F (the runs are always approximate).
         exact_when_cheaper: false,
+        counted_bytes: None,
         diagnostics: false,
     }
 }

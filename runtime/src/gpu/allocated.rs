@@ -195,15 +195,19 @@ pub struct AllocatedOit {
     /// The frame dhoit records holds no geometry of its own.
     empty: Scene,
     exact_when_cheaper: bool,
+    /// DKB's byte budget, resolved against each frame's count ([`FrameOptions::counted_bytes`]).
+    counted_bytes: Option<u64>,
 }
 
 impl AllocatedOit {
     /// DKB for frames of `width` x `height` with the network `weights` (deployed at their
     /// precision), `budget` (bytes, slots a pixel or a share of each frame's fragments, as
-    /// [`Budget::parse`] reads them; bytes count DKB's layout for this network), resolving onto
-    /// targets of `format` (one of [`super::TARGET_FORMATS`]). Refuses a device that lacks what
-    /// the passes need (named), a precision it cannot compute, a frame size it cannot hold and
-    /// a byte budget below DKB's fixed cost, before anything is built.
+    /// [`Budget::parse`] reads them; bytes count DKB's layout for this network and are resolved
+    /// against each frame's own count, so a frame gets the slots its occupancy leaves within
+    /// them), resolving onto targets of `format` (one of [`super::TARGET_FORMATS`]). Refuses a
+    /// device that lacks what the passes need (named), a precision it cannot compute, a frame
+    /// size it cannot hold and a byte budget below DKB's fixed cost, before anything is built;
+    /// a frame whose occupancy leaves its bytes no slot is refused with what it needs.
     pub fn dkb(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -255,7 +259,16 @@ impl AllocatedOit {
             AllocatedMethod::Dkb(weights) => budget::DKB.for_network(weights),
             AllocatedMethod::Vkb(_) => budget::VKB,
         };
-        let budget = budget.fragment_budget(&layout, px)?;
+        // DKB reads its count back before it sizes anything: a byte budget is resolved against
+        // each frame's own occupancy (FrameOptions::counted_bytes), refused now only where no
+        // frame fits (its fixed bytes and the marks). VKB's is resolved for the worst frame.
+        let (budget, counted_bytes) = match (&method, budget) {
+            (AllocatedMethod::Dkb(_), Budget::Bytes(m)) => {
+                layout.fragment_budget_counted(m, px, &budget::Occupancy::default())?;
+                (FragmentBudget::Slots(0), Some(m))
+            }
+            (_, b) => (b.fragment_budget(&layout, px)?, None),
+        };
         let gpu = Gpu::on_device(device.clone(), queue.clone(), &device.adapter_info())?;
         if let AllocatedMethod::Dkb(weights) = &method {
             gpu.can_run(weights)?;
@@ -278,6 +291,7 @@ impl AllocatedOit {
             onto,
             empty: Scene::default(),
             exact_when_cheaper: true,
+            counted_bytes,
         })
     }
 
@@ -362,6 +376,7 @@ impl AllocatedOit {
         let opts = FrameOptions {
             diagnostics: false,
             exact_when_cheaper: self.exact_when_cheaper,
+            counted_bytes: self.counted_bytes,
             ..FrameOptions::default()
         };
         let cam = Camera {

@@ -75,7 +75,7 @@ impl Recording<'_, '_> {
             }
             Slots::Dkb(mlp, _) => {
                 // DKB reads its count back first (its pool is sized from it).
-                let i = self.dkb_importance(mlp, budget)?;
+                let (i, budget) = self.dkb_importance(mlp, budget)?;
                 let fits = i.fits;
                 self.allocated(i, budget, fits)
             }

@@ -47,11 +47,14 @@ struct DkbBuffers {
 impl Recording<'_, '_> {
     /// DKB's count and occupancy (read back: the pool's size follows from them), then, where
     /// the budget truncates, its records, features and importance.
+    ///
+    /// Returns the budget the frame runs at: `budget`, or F of
+    /// [`super::FrameOptions::counted_bytes`] for the counted occupancy.
     pub(super) fn dkb_importance(
         &mut self,
         mlp: &Mlp,
         budget: FragmentBudget,
-    ) -> Result<Importance> {
+    ) -> Result<(Importance, FragmentBudget)> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         gpu.can_run(mlp)?;
         let p = &gpu.pipelines;
@@ -88,6 +91,7 @@ impl Recording<'_, '_> {
                 (c, occ)
             }
         };
+        let budget = self.counted_budget(&layout, budget, &occ)?;
         let f = budget.of(occ.fragments);
         let fb = &mut self.fb;
         let pool = fb.storage("oit.slots", layout.pool_bytes(px, f, &occ), true)?;
@@ -147,7 +151,7 @@ impl Recording<'_, '_> {
         self.out.variants.push(variant);
         // The application's target where it gives one: counted for no method.
         let image = self.fb.storage("application.image", 16 * px, false)?;
-        Ok(Importance {
+        let importance = Importance {
             counts: b.counts,
             importance: b.importance,
             totals: b.totals,
@@ -165,7 +169,31 @@ impl Recording<'_, '_> {
             }),
             pending: None,
             fits: !truncates,
-        })
+        };
+        Ok((importance, budget))
+    }
+
+    /// `budget`, or with [`super::FrameOptions::counted_bytes`] the most slots those bytes hold
+    /// for a frame of occupancy `occ` in `layout` (an error where they hold none), written
+    /// into the frame's parameters (the importance reads F there; the passes before read none).
+    pub(super) fn counted_budget(
+        &self,
+        layout: &budget::Layout,
+        budget: FragmentBudget,
+        occ: &Occupancy,
+    ) -> Result<FragmentBudget> {
+        let Some(m) = self.passes.opts.counted_bytes else {
+            return Ok(budget);
+        };
+        let f = layout.fragment_budget_counted(m, self.px, occ)?;
+        // F in budget_fragments, no share in budget_ppm.
+        let words = [f.min(u32::MAX as u64) as u32, 0];
+        let at = std::mem::offset_of!(crate::wgsl::Params, budget_fragments) as u64;
+        let queue = &self.passes.gpu.queue;
+        queue.write_buffer(self.passes.params(), at, bytemuck::bytes_of(&words[0]));
+        let ppm = std::mem::offset_of!(crate::wgsl::Params, budget_ppm) as u64;
+        queue.write_buffer(self.passes.params(), ppm, bytemuck::bytes_of(&words[1]));
+        Ok(FragmentBudget::Slots(f))
     }
 
     /// The records (a pool index for each of the `records` pixels of more than TAIL_WORDS

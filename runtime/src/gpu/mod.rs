@@ -221,6 +221,14 @@ pub struct FrameOptions {
     /// runs at any budget (the bench's and the twins' comparisons). FKB's, uploaded k's and
     /// uploaded importance's frames render as asked either way.
     pub exact_when_cheaper: bool,
+    /// DKB only: the frame's budget in bytes, resolved once its count is read back against
+    /// the frame's own occupancy (`Layout::fragment_budget_counted`: the most slots whose
+    /// records, marks, slots and tails fit), in place of the slots' F. Before the count, a byte
+    /// budget can only leave room for a record and a tail for every pixel
+    /// (`Budget::fragment_budget`); counted, it leaves room for what this frame needs. The
+    /// A-buffer renders where these bytes hold it (with [`FrameOptions::exact_when_cheaper`]).
+    /// None by default: F as the slots give it.
+    pub counted_bytes: Option<u64>,
     /// Whether a frame reads back what the tests compare besides the image (the A-buffer's
     /// fragments, the k-buffer's slots and tails, importance and statistics): on by default;
     /// off, a frame reads back its image only (the bench's steady-state frames).
@@ -240,6 +248,7 @@ impl Default for FrameOptions {
             spread_search: false,
             layer_major_fkb: false,
             exact_when_cheaper: true,
+            counted_bytes: None,
             diagnostics: true,
         }
     }
@@ -922,8 +931,18 @@ impl Recording<'_, '_> {
             .as_ref()
             .expect("counted with its occupancy")
             .0;
-        let (f, n) = (budget.of(counted.total), counted.total);
-        if f >= n || exact_is_no_dearer(method, &layout, self.px, f, &occ) {
+        let n = counted.total;
+        // A byte budget resolved against this count (DKB): exact where it holds the A-buffer.
+        let holds_exact = match (method, self.passes.opts.counted_bytes) {
+            (Method::Dkb, Some(m)) => budget::ABUFFER.allocated_bytes(self.px, n) <= m,
+            _ => false,
+        };
+        let budget = match method {
+            Method::Dkb if !holds_exact => self.counted_budget(&layout, budget, &occ)?,
+            _ => budget,
+        };
+        let f = budget.of(n);
+        if holds_exact || f >= n || exact_is_no_dearer(method, &layout, self.px, f, &occ) {
             return Ok(Some(self.abuffer_counted(
                 counted,
                 Blend::Exact,
