@@ -632,7 +632,7 @@ mod tests {
         let rust = offsets!(Params; view_proj, forward, background, eye, width, height,
             k_uniform, pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed,
             budget_ppm, append, layer_major, uniform_alpha, store_primitives, mboit_bias,
-            mboit_overestimation, list_sorted, pooled_tail);
+            mboit_overestimation, list_sorted, pooled_tail, wboit_weight, wboit_near, wboit_far);
         assert_eq!(
             wgsl, rust,
             "Params: WGSL (left) and Rust (right) members and offsets"
