@@ -232,10 +232,7 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
     let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
     let (w, h) = (64, 48);
     let (s, cam) = frame("particles", 1, w, h);
-    let default = dhoit_runtime::mlp::Mlp::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
-    )
-    .unwrap();
+    let default = common::committed_weights();
     let nets = [
         ("default", default),
         ("20-12", dhoit_runtime::mlp::Mlp::random_sized(3, 20, 12)),
@@ -1327,10 +1324,7 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
     // A device of its own: which passes a frame records follows the device's last frame.
     let g = dhoit_runtime::gpu::Gpu::new().unwrap();
     let max = dhoit_runtime::raster::MAX_FRAGMENTS_PER_PIXEL as usize;
-    let mlp = dhoit_runtime::mlp::Mlp::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
-    )
-    .unwrap();
+    let mlp = common::committed_weights();
     let (w, h) = (2, 2);
     // At the limit both rasterizers take the frame and the tails' sums are exact.
     let (s, cam) = deep_pixels(max);
@@ -1587,10 +1581,7 @@ fn sparse_scene() -> Scene {
 fn frames_up_to_8k_render_and_allocate_like_their_twins() {
     let Some(g) = gpu() else { return };
     let s = sparse_scene();
-    let mlp = dhoit_runtime::mlp::Mlp::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
-    )
-    .unwrap();
+    let mlp = common::committed_weights();
     // 2400x2300 needs 86,250 workgroups of 64: a 2-D grid. No buffer takes more than 16 bytes
     // a pixel (the image, DKB's farthest keys and colour sums, the tail's sums), so 4K fits
     // lavapipe's 128 MiB bindings and renders here. 8K needs larger bindings than lavapipe

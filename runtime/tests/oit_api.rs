@@ -12,7 +12,6 @@ use dhoit_runtime::gpu::{
     self, AllocatedFrame, AllocatedOit, ApplicationOit, ExactOit, KBufferOit, ListOit, Phase, Slots,
 };
 use dhoit_runtime::gpu::{AllocatedMethod, FrameOptions};
-use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::scene::Camera;
 use dhoit_runtime::scene::Scene;
 
@@ -651,10 +650,7 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
     let (w, h) = (64, 48);
     let px = (w * h) as u64;
     let s = layered_scene();
-    let weights = Mlp::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
-    )
-    .unwrap();
+    let weights = common::committed_weights();
     let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
     let f32x4 = wgpu::TextureFormat::Rgba32Float;
     let vkb = dhoit_runtime::importance::VkbParams::default();
@@ -743,10 +739,7 @@ fn a_dkb_byte_budget_is_resolved_against_each_frames_own_count() {
     let (w, h) = (64, 48);
     let px = (w * h) as u64;
     let s = layered_scene();
-    let weights = Mlp::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
-    )
-    .unwrap();
+    let weights = common::committed_weights();
     let layout = budget::DKB.for_network(&weights);
     let fl = dhoit_runtime::raster::rasterize(&s, &identity(), w, h).unwrap();
     let occ = budget::Occupancy::of(&fl.counts());
@@ -849,10 +842,7 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
     let fragments = exact.fragments.as_ref().unwrap().fragment_count() as u64;
     assert!(fragments > px / 2, "{fragments} fragments");
     let f32x4 = wgpu::TextureFormat::Rgba32Float;
-    let weights = Mlp::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
-    )
-    .unwrap();
+    let weights = common::committed_weights();
     let b = Budget::parse("1fpp").unwrap();
     let opts = FrameOptions {
         ..FrameOptions::default().always_approximate()
@@ -902,10 +892,7 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
 #[test]
 fn the_allocated_k_buffers_refuse_what_they_cannot_do() {
     let (device, queue) = app_device();
-    let weights = Mlp::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
-    )
-    .unwrap();
+    let weights = common::committed_weights();
     let b = Budget::parse("25%").unwrap();
     let f32x4 = wgpu::TextureFormat::Rgba32Float;
     let error = |r: dhoit_runtime::Result<AllocatedOit>| r.err().expect("refused").to_string();

@@ -92,6 +92,9 @@ impl Recording<'_, '_> {
             }
         };
         let budget = self.counted_budget(&layout, budget, &occ)?;
+        if self.passes.opts.counted_bytes.is_some() {
+            self.write_budget(budget.of(occ.fragments));
+        }
         let f = budget.of(occ.fragments);
         let fb = &mut self.fb;
         let pool = fb.storage("oit.slots", layout.pool_bytes(px, f, &occ), true)?;
@@ -174,26 +177,31 @@ impl Recording<'_, '_> {
     }
 
     /// `budget`, or with [`super::FrameOptions::counted_bytes`] the most slots those bytes hold
-    /// for a frame of occupancy `occ` in `layout` (an error where they hold none), written
-    /// into the frame's parameters (the importance reads F there; the passes before read none).
+    /// for a frame of occupancy `occ` in `layout` (an error where they hold none).
     pub(super) fn counted_budget(
         &self,
         layout: &budget::Layout,
         budget: FragmentBudget,
         occ: &Occupancy,
     ) -> Result<FragmentBudget> {
-        let Some(m) = self.passes.opts.counted_bytes else {
-            return Ok(budget);
-        };
-        let f = layout.fragment_budget_counted(m, self.px, occ)?;
-        // F in budget_fragments, no share in budget_ppm.
-        let words = [f.min(u32::MAX as u64) as u32, 0];
-        let at = std::mem::offset_of!(crate::wgsl::Params, budget_fragments) as u64;
+        match self.passes.opts.counted_bytes {
+            Some(m) => Ok(FragmentBudget::Slots(
+                layout.fragment_budget_counted(m, self.px, occ)?,
+            )),
+            None => Ok(budget),
+        }
+    }
+
+    /// F written into the frame's parameters, as slots (no share): the importance reads F
+    /// there, the passes before it read none.
+    fn write_budget(&self, f: u64) {
         let queue = &self.passes.gpu.queue;
-        queue.write_buffer(self.passes.params(), at, bytemuck::bytes_of(&words[0]));
+        let params = self.passes.params();
+        let f = f.min(u32::MAX as u64) as u32;
+        let fragments = std::mem::offset_of!(crate::wgsl::Params, budget_fragments) as u64;
         let ppm = std::mem::offset_of!(crate::wgsl::Params, budget_ppm) as u64;
-        queue.write_buffer(self.passes.params(), ppm, bytemuck::bytes_of(&words[1]));
-        Ok(FragmentBudget::Slots(f))
+        queue.write_buffer(params, fragments, bytemuck::bytes_of(&f));
+        queue.write_buffer(params, ppm, bytemuck::bytes_of(&0u32));
     }
 
     /// The records (a pool index for each of the `records` pixels of more than TAIL_WORDS

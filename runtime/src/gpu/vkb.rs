@@ -9,9 +9,10 @@ use crate::error::Result;
 
 impl Recording<'_, '_> {
     /// VKB's count, then totals and importance (left pending where the frame is expected to fit).
-    /// Its nearest keys (8 bytes a pixel) and the allocation's marks (a quarter byte) have buffers of their
-    /// own, both dead by the capture; the tails live in the slot pool (`Params::pooled_tail`),
-    /// where the capture's layout binds these two in the per-pixel tail's place, unused.
+    /// Its nearest keys (8 bytes a pixel) and the allocation's marks (a quarter byte) have
+    /// buffers of their own, both dead by the capture; the tails live in the slot pool
+    /// (`Params::pooled_tail`), where the capture's layout binds these two in the per-pixel
+    /// tail's place, unused.
     pub(super) fn vkb_importance(&mut self, expect_fit: bool) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;

@@ -337,3 +337,11 @@ pub fn recorded_stats(
         })
         .collect()
 }
+
+/// The committed default network (data/weights.safetensors).
+pub fn committed_weights() -> dhoit_runtime::mlp::Mlp {
+    dhoit_runtime::mlp::Mlp::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/weights.safetensors"),
+    )
+    .unwrap()
+}
