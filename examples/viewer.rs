@@ -1,9 +1,12 @@
 //! An application's own wgpu renderer with dhoit for its transparency (the budgeted linked list,
 //! the fixed k-buffer with `--method fkb`, the exact A-buffer with `--method abuffer`, which
 //! draws the transparent geometry twice, or the deep k-buffer with `--method dkb --budget 25%`,
-//! whose frame calls the application back to draw into each of its geometry passes), headless: it loads a glTF file (or a built-in scene), draws its opaque and alpha-masked
-//! materials with a depth buffer, hands its transparent fragments to dhoit from its own WGSL
-//! (`oit_store`), resolves onto its own target over its opaque image, and writes one PNG per
+//! whose frame calls the application back to draw into each of its geometry passes, or the
+//! blended methods engines ship, `--method wboit` and `--method mboit`, whose passes write
+//! dhoit's targets through the application's pipelines), headless: it loads a glTF file (or a
+//! built-in scene), draws its opaque and alpha-masked materials with a depth buffer, hands its
+//! transparent fragments to dhoit from its own WGSL (`oit_store`, or for the blended methods
+//! `oit_targets`), resolves onto its own target over its opaque image, and writes one PNG per
 //! orbit view with each pass's GPU time.
 //!
 //! ```sh
@@ -14,15 +17,17 @@
 //! The twenty lines that matter are marked `dhoit:`. Colours are the vertices' times the
 //! materials' base colour times their base colour texture, sampled per fragment by the
 //! application's own sampler (sRGB decoded by the texture format). What it does not do yet:
-//! glass's view-dependent opacity (its face-on opacity instead), and VKB, whose passes are
-//! dhoit's own (`gpu::Gpu`).
+//! glass's view-dependent opacity (its face-on opacity instead), MLAB, and WBOIT's weights of
+//! the view-space distance (eqs. 7-9, which need the camera's planes: `BlendedOit::set_wboit`).
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
 use dhoit_runtime::budget::Budget;
 use dhoit_runtime::composite::Image;
+use dhoit_runtime::composite::{MboitParams, WboitParams};
 use dhoit_runtime::gpu::{
-    self, AllocatedFrame, AllocatedOit, ApplicationOit, ExactOit, KBufferOit, ListOit, Phase,
+    self, AllocatedFrame, AllocatedOit, ApplicationOit, BlendedOit, BlendedPhase, ExactOit,
+    KBufferOit, ListOit, Phase,
 };
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::scene::{self, Camera, Coverage, Opacity};
@@ -43,9 +48,14 @@ struct Args {
     /// order gives the same image) or `abuffer` (every fragment, exact memory: the transparent
     /// geometry drawn twice, to count and to store) or `dkb` (the network decides each pixel's
     /// slots within --budget; the exact A-buffer where that needs no more bytes) or `vkb` (paper
-    /// 002's importance maps decide them, as DKB).
-    #[arg(long, default_value = "linked-list", value_parser = ["linked-list", "fkb", "abuffer", "dkb", "vkb"])]
+    /// 002's importance maps decide them, as DKB) or `wboit` (weighted blended OIT, McGuire and
+    /// Bavoil's eq. 10: two targets, no sort) or `mboit` (--moments power moments: two passes,
+    /// needs a device that blends 32-bit floats).
+    #[arg(long, default_value = "linked-list", value_parser = ["linked-list", "fkb", "abuffer", "dkb", "vkb", "wboit", "mboit"])]
     method: String,
+    /// MBOIT's power moments: 4, 6 or 8.
+    #[arg(long, default_value_t = 4)]
+    moments: u32,
     /// DKB's and VKB's budget: bytes (`20MB`), slots a pixel (`2fpp`) or a share of the frame's
     /// fragments (`25%`).
     #[arg(long, default_value = "25%")]
@@ -70,8 +80,8 @@ struct Args {
     #[arg(long, default_value = "out/viewer")]
     out: PathBuf,
     /// Open an interactive window where a display exists, instead of writing PNG frames
-    /// (needs the viewer built with `--features window`): drag to orbit, 1-5 for the linked
-    /// list, FKB, the A-buffer, DKB and VKB, +/- for the budget, n for DKB's next network (those
+    /// (needs the viewer built with `--features window`): drag to orbit, 1-7 for the linked
+    /// list, FKB, the A-buffer, DKB, VKB, WBOIT and MBOIT, +/- for the budget, n for DKB's next network (those
     /// under data/nets), a to toggle --always-approximate, the GPU times in the title.
     #[arg(long)]
     window: bool,
@@ -119,10 +129,23 @@ fn fs_opaque(in: V) -> @location(0) vec4<f32> {
     return vec4<f32>(c.rgb, 1.0);
 }
 
+"#;
+
+/// The transparent fragment entry of the methods that store fragments.
+const STORE: &str = r#"
 @fragment
 fn fs_transparent(in: V) {
     // dhoit: the fragment goes to its method (the facing is VKB's; the others ignore it)
     oit_store_facing(in.position, shaded(in), in.facing);
+}
+"#;
+
+/// The blended methods': the fragment returns into dhoit's targets.
+const BLEND: &str = r#"
+@fragment
+fn fs_transparent(in: V) -> OitTargets {
+    // dhoit: what its pass writes into its targets (discarded where it discards)
+    return oit_targets(in.position, shaded(in));
 }
 "#;
 
@@ -163,9 +186,18 @@ fn main() -> Result<()> {
     let instance = wgpu::Instance::default();
     let adapter = pollster::block_on(instance.request_adapter(&Default::default()))
         .context("no GPU adapter")?;
+    // MBOIT adds into 32-bit float targets: blending them where the adapter can, and its
+    // colour attachments' bytes a sample (eight moments take 36).
+    let blending = adapter.features() & wgpu::Features::FLOAT32_BLENDABLE;
+    let limits = wgpu::Limits {
+        max_color_attachment_bytes_per_sample: adapter
+            .limits()
+            .max_color_attachment_bytes_per_sample,
+        ..gpu::required_limits() // dhoit: its limits
+    };
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-        required_features: gpu::required_features(), // dhoit: its features
-        required_limits: gpu::required_limits(),     // dhoit: and limits
+        required_features: gpu::required_features() | blending, // dhoit: its features
+        required_limits: limits,
         ..Default::default()
     }))?;
     println!("{} on {}", s.name, adapter.get_info().name);
@@ -266,6 +298,12 @@ enum Method {
         budget: Budget,
         always: bool,
     },
+    /// Weighted blended OIT (eq. 10).
+    Wboit,
+    /// Moment-based OIT with this many power moments.
+    Mboit {
+        moments: u32,
+    },
 }
 
 impl Method {
@@ -288,6 +326,11 @@ impl Method {
                 budget: a.budget,
                 always: a.always_approximate,
             },
+            "wboit" => Method::Wboit,
+            "mboit" => {
+                MboitParams::with_moments(a.moments)?;
+                Method::Mboit { moments: a.moments }
+            }
             _ => Method::List {
                 fpp: a.fpp,
                 sorted: a.sorted,
@@ -301,6 +344,8 @@ impl Method {
             Method::Dkb { budget, .. } => format!("DKB at {budget}"),
             Method::Vkb { budget, .. } => format!("VKB at {budget}"),
             Method::Fkb { k } => format!("FKB, {k} slots a pixel"),
+            Method::Wboit => "WBOIT (eq. 10)".into(),
+            Method::Mboit { moments } => format!("MBOIT, {moments} power moments"),
             Method::List { fpp, sorted } => {
                 format!("linked list, {fpp} fragments a pixel of pool, the nearest {sorted} sorted")
             }
@@ -334,6 +379,18 @@ impl Method {
                 Oit::Allocated(Box::new(vkb), Default::default())
             }
             Method::Exact => Oit::Exact(Box::new(ExactOit::new(device, queue, (w, h))?)),
+            Method::Wboit => Oit::Blended(Box::new(BlendedOit::wboit(
+                device,
+                queue,
+                (w, h),
+                WboitParams::default(),
+            )?)),
+            Method::Mboit { moments } => Oit::Blended(Box::new(BlendedOit::mboit(
+                device,
+                queue,
+                (w, h),
+                MboitParams::with_moments(moments)?,
+            )?)),
             Method::Fkb { k } => Oit::Once(Box::new(KBufferOit::new(device, queue, (w, h), k)?)),
             Method::List { fpp, sorted } => {
                 let nodes = (fpp * (w as f64 * h as f64)).ceil() as u64;
@@ -379,15 +436,16 @@ struct App {
 struct Frame {
     oit: Oit,
     opaque_pipeline: wgpu::RenderPipeline,
-    /// One transparent pipeline, or DKB's and VKB's one a phase.
-    transparent_pipelines: Vec<(Option<Phase>, wgpu::RenderPipeline)>,
+    /// One transparent pipeline, or DKB's, VKB's and MBOIT's one a phase.
+    transparent_pipelines: Vec<(Key, wgpu::RenderPipeline)>,
     image_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
     raster_view: wgpu::TextureView,
     target: wgpu::Texture,
     target_view: wgpu::TextureView,
-    /// The group for the (first) draw; DKB hands one out for each of its passes.
-    oit_group: Option<wgpu::BindGroup>,
+    /// The groups for the draws (the A-buffer's first; one a phase of the blended methods);
+    /// DKB hands one out for each of its passes.
+    oit_groups: Vec<(Key, wgpu::BindGroup)>,
     queries: wgpu::QuerySet,
     resolved: wgpu::Buffer,
     times: wgpu::Buffer,
@@ -607,7 +665,7 @@ impl App {
                 device.create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some("viewer"),
                     // dhoit: its bindings and oit_store, at group 2 (DKB: one module a pass).
-                    source: wgpu::ShaderSource::Wgsl((oit.store_module(2, phase) + SHADER).into()),
+                    source: wgpu::ShaderSource::Wgsl(oit.shader(2, phase).into()),
                 })
             })
             .collect();
@@ -647,10 +705,15 @@ impl App {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let depth_view = view(&depth);
         // dhoit: its group holds its buffers and this opaque depth, the occluder.
-        let oit_group = match &oit {
-            Oit::Once(o) => Some(o.bind_group(&depth_view)),
-            Oit::Exact(o) => Some(o.count_group(&depth_view)), // the A-buffer's first draw counts
-            Oit::Allocated(..) => None,                        // DKB's groups come with its passes
+        let oit_groups = match &oit {
+            Oit::Once(o) => vec![(Key::One, o.bind_group(&depth_view))],
+            Oit::Exact(o) => vec![(Key::One, o.count_group(&depth_view))], // its first draw counts
+            Oit::Allocated(..) => vec![], // DKB's groups come with its passes
+            Oit::Blended(o) => o
+                .phases()
+                .iter()
+                .map(|&p| (Key::Blend(p), o.bind_group(p, &depth_view)))
+                .collect(),
         };
         let layout = |groups: &[Option<&wgpu::BindGroupLayout>]| {
             device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -677,9 +740,8 @@ impl App {
         let pipeline = |module: &wgpu::ShaderModule,
                         layout: &wgpu::PipelineLayout,
                         entry: &str,
-                        format,
-                        depth: bool,
-                        writes| {
+                        targets: &[Option<wgpu::ColorTargetState>],
+                        depth: bool| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(entry),
                 layout: Some(layout),
@@ -702,23 +764,25 @@ impl App {
                     module,
                     entry_point: Some(entry),
                     compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format,
-                        blend: None,
-                        write_mask: writes,
-                    })],
+                    targets,
                 }),
                 multiview_mask: None,
                 cache: None,
             })
         };
+        let target_of = |format, write_mask| {
+            vec![Some(wgpu::ColorTargetState {
+                format,
+                blend: None,
+                write_mask,
+            })]
+        };
         let opaque_pipeline = pipeline(
             &modules[0],
             &opaque_layout,
             "fs_opaque",
-            RGBA,
+            &target_of(RGBA, wgpu::ColorWrites::ALL),
             true,
-            wgpu::ColorWrites::ALL,
         );
         let transparent_pipelines = oit
             .phases()
@@ -726,14 +790,12 @@ impl App {
             .zip(&modules)
             .map(|(phase, module)| {
                 let layout = transparent_layout(phase);
-                let p = pipeline(
-                    module,
-                    &layout,
-                    "fs_transparent",
-                    wgpu::TextureFormat::R8Unorm,
-                    false,
-                    wgpu::ColorWrites::empty(),
-                );
+                // dhoit: the blended methods' targets and blend states; the others write none.
+                let targets = match (&oit, phase) {
+                    (Oit::Blended(o), Key::Blend(p)) => o.color_targets(p),
+                    _ => target_of(wgpu::TextureFormat::R8Unorm, wgpu::ColorWrites::empty()),
+                };
+                let p = pipeline(module, &layout, "fs_transparent", &targets, false);
                 (phase, p)
             })
             .collect();
@@ -767,7 +829,7 @@ impl App {
             raster_view: view(&raster),
             target_view: view(&target),
             target,
-            oit_group,
+            oit_groups,
             queries,
             resolved,
             times,
@@ -832,13 +894,16 @@ impl App {
             queue.submit([enc.finish()]);
             let views = (&frame.depth_view, &frame.image_view, &frame.target_view);
             let done = dkb.render(views.0, views.1, views.2, &mut |enc, d| {
-                self.transparent(frame, enc, d.group, Some(d.phase), d.timestamps)
+                self.transparent(frame, enc, d.group, Key::Deep(d.phase), d.timestamps)
             })?;
             *last.lock().unwrap_or_else(|e| e.into_inner()) = Some(done);
             return Ok(device.create_command_encoder(&Default::default()));
         }
-        let group = frame.oit_group.as_ref().expect("a group for the draws");
-        transparent(&mut enc, group, None, pass_times(1));
+        // MBOIT: its moments (timed as the A-buffer's second draw), then its accumulation.
+        for (i, (key, group)) in frame.oit_groups.iter().enumerate() {
+            let last = i + 1 == frame.oit_groups.len();
+            transparent(&mut enc, group, *key, pass_times(if last { 1 } else { 3 }));
+        }
         if let Oit::Exact(exact) = &frame.oit {
             // dhoit: the counts summed and the pool sized (submitted and waited for), then the
             // same draws store the fragments.
@@ -847,7 +912,7 @@ impl App {
             transparent(
                 &mut enc,
                 &exact.store_group(&frame.depth_view),
-                None,
+                Key::One,
                 pass_times(3),
             );
         }
@@ -874,7 +939,7 @@ impl App {
         frame: &Frame,
         enc: &mut wgpu::CommandEncoder,
         group: &wgpu::BindGroup,
-        phase: Option<Phase>,
+        phase: Key,
         times: wgpu::RenderPassTimestampWrites<'_>,
     ) {
         let pipeline = &frame
@@ -883,9 +948,10 @@ impl App {
             .find(|(p, _)| *p == phase)
             .expect("a pipeline for each of dhoit's passes")
             .1;
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("transparent"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+        // dhoit: the blended methods' passes write its targets (which their attachments clear).
+        let attachments = match (&frame.oit, phase) {
+            (Oit::Blended(o), Key::Blend(p)) => o.color_attachments(p),
+            _ => vec![Some(wgpu::RenderPassColorAttachment {
                 view: &frame.raster_view,
                 depth_slice: None,
                 resolve_target: None,
@@ -894,6 +960,10 @@ impl App {
                     store: wgpu::StoreOp::Discard,
                 },
             })],
+        };
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("transparent"),
+            color_attachments: &attachments,
             timestamp_writes: Some(times),
             ..Default::default()
         });
@@ -922,6 +992,8 @@ impl App {
             let ms = |i: usize| stamps[2 * i + 1].saturating_sub(stamps[2 * i]) as f64 * period;
             match &frame.oit {
                 Oit::Exact(_) => [ms(0), ms(1) + ms(3), ms(2), 0.0],
+                Oit::Blended(o) if o.phases().len() == 2 => [ms(0), ms(1) + ms(3), ms(2), 0.0],
+                Oit::Blended(_) => [ms(0), ms(1), ms(2), 0.0],
                 Oit::Once(_) => [ms(0), ms(1), ms(2), 0.0],
                 Oit::Allocated(_, last) => {
                     let last = last.lock().unwrap_or_else(|e| e.into_inner());
@@ -947,43 +1019,61 @@ impl App {
     }
 }
 
-/// dhoit's method: one drawn once, the exact A-buffer, drawn twice, or DKB or VKB, drawn into
-/// each of its passes (with what its last frame did).
+/// dhoit's method: one drawn once, the exact A-buffer, drawn twice, DKB or VKB, drawn into
+/// each of its passes (with what its last frame did), or WBOIT or MBOIT, drawn into dhoit's
+/// targets.
 enum Oit {
     Once(Box<dyn ApplicationOit>),
     Exact(Box<ExactOit>),
     Allocated(Box<AllocatedOit>, std::sync::Mutex<Option<AllocatedFrame>>),
+    Blended(Box<BlendedOit>),
+}
+
+/// Which transparent pipeline: the one of a method drawn once or twice, one of DKB's or VKB's
+/// passes, or one of the blended methods'.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Key {
+    One,
+    Deep(Phase),
+    Blend(BlendedPhase),
 }
 
 impl Oit {
-    /// The passes the application builds a transparent pipeline for: one, or DKB's or VKB's.
-    fn phases(&self) -> Vec<Option<Phase>> {
+    /// The passes the application builds a transparent pipeline for: one, or DKB's, VKB's or
+    /// the blended methods'.
+    fn phases(&self) -> Vec<Key> {
         match self {
-            Oit::Allocated(o, _) => o.phases().iter().copied().map(Some).collect(),
-            _ => vec![None],
+            Oit::Allocated(o, _) => o.phases().iter().copied().map(Key::Deep).collect(),
+            Oit::Blended(o) => o.phases().iter().copied().map(Key::Blend).collect(),
+            _ => vec![Key::One],
         }
     }
-    fn store_module(&self, group: u32, phase: Option<Phase>) -> String {
-        match (self, phase) {
-            (Oit::Once(o), _) => o.store_module(group),
-            (Oit::Exact(_), _) => ExactOit::wgsl(group),
-            (Oit::Allocated(o, _), Some(phase)) => o.store_module(phase, group),
-            (Oit::Allocated(..), None) => unreachable!("DKB's modules are one a pass"),
-        }
+    /// dhoit's module, then the application's shaders and its transparent fragment entry.
+    fn shader(&self, group: u32, key: Key) -> String {
+        let (module, entry) = match (self, key) {
+            (Oit::Once(o), _) => (o.store_module(group), STORE),
+            (Oit::Exact(_), _) => (ExactOit::wgsl(group), STORE),
+            (Oit::Allocated(o, _), Key::Deep(phase)) => (o.store_module(phase, group), STORE),
+            (Oit::Blended(o), Key::Blend(phase)) => (o.store_module(phase, group), BLEND),
+            _ => unreachable!("{key:?} is not one of the method's passes"),
+        };
+        module + SHADER + entry
     }
-    fn bind_group_layout(&self, phase: Option<Phase>) -> &wgpu::BindGroupLayout {
-        match (self, phase) {
+    fn bind_group_layout(&self, key: Key) -> &wgpu::BindGroupLayout {
+        match (self, key) {
             (Oit::Once(o), _) => o.bind_group_layout(),
             (Oit::Exact(o), _) => o.bind_group_layout(),
-            (Oit::Allocated(o, _), Some(phase)) => o.bind_group_layout(phase),
-            (Oit::Allocated(..), None) => unreachable!("DKB's groups are one a pass"),
+            (Oit::Allocated(o, _), Key::Deep(phase)) => o.bind_group_layout(phase),
+            (Oit::Blended(o), Key::Blend(phase)) => o.bind_group_layout(phase),
+            _ => unreachable!("{key:?} is not one of the method's passes"),
         }
     }
     fn clear(&self, enc: &mut wgpu::CommandEncoder) {
         match self {
             Oit::Once(o) => o.clear(enc),
             Oit::Exact(o) => o.clear(enc),
-            Oit::Allocated(..) => {} // DKB's frame clears its own
+            // DKB's frame clears its own; the blended methods' attachments clear theirs.
+            Oit::Allocated(..) | Oit::Blended(_) => {}
         }
     }
     /// Whether DKB's last frame rendered the exact A-buffer instead, as a note.
@@ -1006,6 +1096,7 @@ impl Oit {
         match self {
             Oit::Once(o) => o.resolve(enc, views.0, views.1, format, timestamps),
             Oit::Exact(o) => o.resolve(enc, views.0, views.1, format, timestamps),
+            Oit::Blended(o) => o.resolve(enc, views.0, views.1, format, timestamps),
             Oit::Allocated(..) => Ok(()), // resolved by its frame
         }
     }
@@ -1014,6 +1105,7 @@ impl Oit {
         match self {
             Oit::Once(o) => o.allocated_bytes(),
             Oit::Exact(o) => o.allocated_bytes(),
+            Oit::Blended(o) => o.allocated_bytes(),
             Oit::Allocated(_, last) => last
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
@@ -1024,9 +1116,9 @@ impl Oit {
 }
 
 /// `--window`: the same frames in an interactive window (built with `--features window`).
-/// Drag with the left button to orbit; `1` to `5` switch to the linked list, FKB, the A-buffer,
-/// DKB and VKB; `+` and `-` double and halve the budget (the list's fragments a pixel,
-/// FKB's k, DKB's budget); `n` takes DKB's next network, `a` toggles --always-approximate;
+/// Drag with the left button to orbit; `1` to `7` switch to the linked list, FKB, the A-buffer,
+/// DKB, VKB, WBOIT and MBOIT; `+` and `-` double and halve the budget (the list's fragments a
+/// pixel, FKB's k, DKB's budget; MBOIT's moments 4, 6, 8); `n` takes DKB's next network, `a` toggles --always-approximate;
 /// `Esc` or `q` quits. The title shows the method, the GPU time of each pass and the frame
 /// time. The image is resolved as headless, then drawn onto the window's surface.
 #[cfg(feature = "window")]
@@ -1261,6 +1353,8 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                     budget: Budget::Share(250_000),
                     always: false,
                 },
+                Key::Character("6") => Method::Wboit,
+                Key::Character("7") => Method::Mboit { moments: 4 },
                 Key::Character("n") => match m {
                     Method::Dkb {
                         budget,
@@ -1326,7 +1420,14 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                 budget: scaled(budget, by),
                 always,
             },
-            Method::Exact => m,
+            Method::Exact | Method::Wboit => m,
+            Method::Mboit { moments } => Method::Mboit {
+                moments: if up {
+                    (moments + 2).min(8)
+                } else {
+                    moments.saturating_sub(2).max(4)
+                },
+            },
         }
     }
 

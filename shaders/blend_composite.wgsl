@@ -15,6 +15,26 @@ fn texel(t: texture_2d<f32>, p: u32) -> vec4<f32> {
     return textureLoad(t, vec2<u32>(p % params.width, p / params.width), 0);
 }
 
+// WBOIT's pixel p over `under`.
+fn wboit_pixel(p: u32, under: vec3<f32>) -> vec3<f32> {
+    let acc = texel(first_target, p);
+    let reveal = texel(second_target, p).r;
+    let inv = 1.0 / clamp(acc.a, 1e-4, 5e4);
+    return acc.rgb * inv * (1.0 - reveal) + reveal * under;
+}
+
+// MBOIT's pixel p over `under`.
+fn mboit_pixel(p: u32, under: vec3<f32>) -> vec3<f32> {
+    let b0 = texel(second_target, p).r;
+    if (b0 < MBOIT_MIN_B0) {
+        return under;
+    }
+    let acc = texel(first_target, p);
+    let total = exp(-b0);
+    let inv = select(0.0, 1.0 / acc.a, acc.a > 0.0);
+    return (1.0 - total) * acc.rgb * inv + total * under;
+}
+
 @compute @workgroup_size(PIXEL_GROUP)
 fn wboit(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -25,10 +45,7 @@ fn wboit(
     if (p >= params.pixels) {
         return;
     }
-    let acc = texel(first_target, p);
-    let reveal = texel(second_target, p).r;
-    let inv = 1.0 / clamp(acc.a, 1e-4, 5e4);
-    image[p] = vec4<f32>(acc.rgb * inv * (1.0 - reveal) + reveal * behind(p), 1.0);
+    image[p] = vec4<f32>(wboit_pixel(p, behind(p)), 1.0);
 }
 
 @compute @workgroup_size(PIXEL_GROUP)
@@ -41,13 +58,38 @@ fn mboit(
     if (p >= params.pixels) {
         return;
     }
-    let b0 = texel(second_target, p).r;
-    if (b0 < MBOIT_MIN_B0) {
-        image[p] = vec4<f32>(behind(p), 1.0);
+    image[p] = vec4<f32>(mboit_pixel(p, behind(p)), 1.0);
+}
+
+// An application's frame (gpu::BlendedOit::resolve): over its own image `under`, onto its
+// target. Its targets are cleared by its next frame's first pass (their load operation).
+@group(0) @binding(8) var under: texture_2d<f32>;
+@group(0) @binding(9) var onto_target: texture_storage_2d<rgba32float, write>;
+
+@compute @workgroup_size(PIXEL_GROUP)
+fn wboit_onto(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (p >= params.pixels) {
         return;
     }
-    let acc = texel(first_target, p);
-    let total = exp(-b0);
-    let inv = select(0.0, 1.0 / acc.a, acc.a > 0.0);
-    image[p] = vec4<f32>((1.0 - total) * acc.rgb * inv + total * behind(p), 1.0);
+    let xy = vec2<u32>(p % params.width, p / params.width);
+    textureStore(onto_target, xy, vec4<f32>(wboit_pixel(p, textureLoad(under, xy, 0).rgb), 1.0));
+}
+
+@compute @workgroup_size(PIXEL_GROUP)
+fn mboit_onto(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (p >= params.pixels) {
+        return;
+    }
+    let xy = vec2<u32>(p % params.width, p / params.width);
+    textureStore(onto_target, xy, vec4<f32>(mboit_pixel(p, textureLoad(under, xy, 0).rgb), 1.0));
 }

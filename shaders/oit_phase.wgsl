@@ -1,5 +1,6 @@
 // One of dhoit's own geometry passes, for an application's fragment shader
-// (gpu::DeepOit::store_module): wgsl.rs's application_pass prepends this to the pass's own
+// (gpu::AllocatedOit::store_module, gpu::BlendedOit::store_module): wgsl.rs's
+// application_pass and application_blend_pass prepend this to the pass's own
 // source, its group 1 moved to the group the application chose (OIT_GROUP) and its fragment
 // entry made the function `oit_phase`, so the application's fragment runs exactly the code
 // dhoit's own pass runs on its fragments. What geometry.wgsl gives dhoit's passes (the frame's
@@ -33,20 +34,4 @@ fn transparent_fragment(in: VertexOut, front: bool) -> Transparent {
     out.visible = (rgba8 >> 24u) != 0u;
     out.rgba8 = rgba8;
     return out;
-}
-
-// Hands the fragment at `frag_coord` (the fragment's @builtin(position)) with straight colour
-// `color` to the pass this module was built for, its triangle's facing `|n . v|` (n its
-// geometric normal, v the camera's forward direction) for VKB's importance.
-fn oit_store_facing(frag_coord: vec4<f32>, color: vec4<f32>, facing: f32) {
-    var v: VertexOut;
-    v.clip = frag_coord;
-    v.facing = facing;
-    oit_color = color;
-    _ = oit_phase(v, true);
-}
-
-// oit_store_facing, face-on (all a method but VKB reads).
-fn oit_store(frag_coord: vec4<f32>, color: vec4<f32>) {
-    oit_store_facing(frag_coord, color, 1.0);
 }

@@ -54,19 +54,32 @@ pub mod shaders {
     }
 
     /// What an application's fragment shader runs in place of dhoit's own geometry pass
-    /// (`gpu::AllocatedOit`). The pass's code, not a copy.
+    /// (`gpu::AllocatedOit`, `gpu::BlendedOit`): the parameters, the opaque depth and the
+    /// fragment's colour from the application. The pass's code, not a copy.
     pub const OIT_PHASE: &str = include_str!("../../shaders/oit_phase.wgsl");
+    /// `oit_store`, for a pass that stores its fragments (`gpu::AllocatedOit`).
+    pub const OIT_PHASE_STORE: &str = include_str!("../../shaders/oit_phase_store.wgsl");
+    /// `oit_targets`, for a pass that blends into targets (`gpu::BlendedOit`).
+    pub const OIT_PHASE_TARGETS: &str = include_str!("../../shaders/oit_phase_targets.wgsl");
 
-    /// Geometry pass `name`'s source, with each (from, to) of `redeclare` replaced (a variant of
-    /// the pass), as the module an application's transparent fragment shader starts with. Its
-    /// group 1 moves to `group`, the parameters and the opaque depth join it at bindings 14
-    /// and 15 (oit_phase.wgsl), and its fragment entry becomes the function that
-    /// `oit_store(frag_coord, color)` calls. None for a pass that is not a geometry pass, or
-    /// a declaration the pass lacks.
-    pub fn application_pass(name: &str, redeclare: &[(&str, &str)], group: u32) -> Option<String> {
-        const ENTRY: &str = "@fragment\nfn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {";
+    /// The header of geometry pass fragment entry `entry`, up to its return type.
+    fn entry_header(entry: &str) -> String {
+        format!("@fragment\nfn {entry}(in: VertexOut, @builtin(front_facing) front: bool) -> ")
+    }
+
+    /// Geometry pass `name` with each (from, to) of `redeclare` replaced and its fragment
+    /// entry `entry` (returning `ret`) made `fn oit_phase(in, front) -> ret`, its group 1 at
+    /// `OIT_GROUP`, and the includes it needs beside the vertex stage. None for a pass that is
+    /// not a geometry pass, an entry it lacks, or a declaration the pass lacks.
+    fn phase_of(
+        name: &str,
+        entry: &str,
+        ret: &str,
+        redeclare: &[(&str, &str)],
+    ) -> Option<(String, String)> {
         let p = PASSES.iter().find(|p| p.name == name)?;
-        if !p.includes.contains(&GEOMETRY) || !p.source.contains(ENTRY) {
+        let header = format!("{}{ret} {{", entry_header(entry));
+        if !p.includes.contains(&GEOMETRY) || !p.source.contains(&header) {
             return None;
         }
         let mut src = p.source.to_string();
@@ -76,10 +89,12 @@ pub mod shaders {
             }
             src = src.replace(from, to);
         }
+        let own = ret.strip_prefix("@location(0) ").unwrap_or(ret);
         let src = src
-            .replace(
-                ENTRY,
-                "fn oit_phase(in: VertexOut, front: bool) -> vec4<f32> {",
+            .replacen(
+                &header,
+                &format!("fn oit_phase(in: VertexOut, front: bool) -> {own} {{"),
+                1,
             )
             .replace("@group(1)", "@group(OIT_GROUP)");
         let includes: Vec<&str> = p
@@ -88,8 +103,55 @@ pub mod shaders {
             .copied()
             .filter(|i| *i != GEOMETRY)
             .collect();
+        Some((src, includes.join("\n")))
+    }
+
+    /// Geometry pass `name`'s source, with each (from, to) of `redeclare` replaced (a variant of
+    /// the pass), as the module an application's transparent fragment shader starts with. Its
+    /// group 1 moves to `group`, the parameters and the opaque depth join it at bindings 14
+    /// and 15 (oit_phase.wgsl), and its fragment entry becomes the function that
+    /// `oit_store(frag_coord, color)` calls. None for a pass that is not a geometry pass, or
+    /// a declaration the pass lacks.
+    pub fn application_pass(name: &str, redeclare: &[(&str, &str)], group: u32) -> Option<String> {
+        let (src, includes) = phase_of(name, "fs_main", "@location(0) vec4<f32>", redeclare)?;
         Some(application_module(
-            &[&prelude(), COMMON, OIT_PHASE, &includes.join("\n"), &src],
+            &[
+                &prelude(),
+                COMMON,
+                OIT_PHASE,
+                &includes,
+                &src,
+                OIT_PHASE_STORE,
+            ],
+            group,
+        ))
+    }
+
+    /// Blended geometry pass `name`'s fragment entry `entry` (it writes colour targets through
+    /// the device's blending: WBOIT's, MBOIT's), as the module an application's transparent
+    /// fragment shader starts with: as [`application_pass`], but the entry becomes the function
+    /// `oit_targets(frag_coord, color) -> OitTargets` calls, whose value the application's
+    /// fragment entry returns (`-> OitTargets`). None for a pass that is not a geometry pass
+    /// or an entry it lacks.
+    pub fn application_blend_pass(name: &str, entry: &str, group: u32) -> Option<String> {
+        let p = PASSES.iter().find(|p| p.name == name)?;
+        let header = entry_header(entry);
+        let at = p.source.find(&header)? + header.len();
+        let ret = &p.source[at..at + p.source[at..].find(" {\n")?];
+        let (src, includes) = phase_of(name, entry, ret, &[])?;
+        let targets = match ret.strip_prefix("@location(0) ") {
+            Some(one) => OIT_PHASE_TARGETS
+                .replace(
+                    "OIT_TARGETS_TYPE",
+                    &format!("struct OitTargets {{\n    @location(0) target0: {one},\n}};"),
+                )
+                .replace("OIT_TARGETS_OF(", "OitTargets("),
+            None => OIT_PHASE_TARGETS
+                .replace("OIT_TARGETS_TYPE", &format!("alias OitTargets = {ret};"))
+                .replace("OIT_TARGETS_OF(", "("),
+        };
+        Some(application_module(
+            &[&prelude(), COMMON, OIT_PHASE, &includes, &src, &targets],
             group,
         ))
     }

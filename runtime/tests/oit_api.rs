@@ -8,8 +8,10 @@ mod common;
 
 use common::{gpu, identity, quad};
 use dhoit_runtime::budget::{self, Budget};
+use dhoit_runtime::composite::{MboitParams, WboitParams, WboitWeight};
 use dhoit_runtime::gpu::{
-    self, AllocatedFrame, AllocatedOit, ApplicationOit, ExactOit, KBufferOit, ListOit, Phase, Slots,
+    self, AllocatedFrame, AllocatedOit, ApplicationOit, BlendedOit, BlendedPhase, ExactOit,
+    KBufferOit, ListOit, Phase, Slots,
 };
 use dhoit_runtime::gpu::{AllocatedMethod, FrameOptions};
 use dhoit_runtime::scene::Camera;
@@ -19,11 +21,24 @@ const BG: [f32; 3] = [0.9, 0.85, 0.8];
 
 /// The application's device, with dhoit's features and limits.
 fn app_device() -> (wgpu::Device, wgpu::Queue) {
+    app_device_blending(false)
+}
+
+/// [`app_device`], and where `blending` (MBOIT's), 32-bit float blending and the colour
+/// attachments' bytes a sample where the adapter has them.
+fn app_device_blending(blending: bool) -> (wgpu::Device, wgpu::Queue) {
     let instance = wgpu::Instance::default();
     let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+    let mut features = gpu::required_features();
+    let mut limits = gpu::required_limits();
+    if blending {
+        features |= adapter.features() & wgpu::Features::FLOAT32_BLENDABLE;
+        limits.max_color_attachment_bytes_per_sample =
+            adapter.limits().max_color_attachment_bytes_per_sample;
+    }
     pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-        required_features: gpu::required_features(),
-        required_limits: gpu::required_limits(),
+        required_features: features,
+        required_limits: limits,
         ..Default::default()
     }))
     .unwrap()
@@ -63,14 +78,25 @@ fn vs(
 }
 
 @fragment
+fn fs_opaque(in: V) -> @location(0) vec4<f32> {
+    return in.color;
+}
+"#;
+
+/// The application's transparent fragment entry for the methods that store fragments.
+const APP_STORE: &str = r#"
+@fragment
 fn fs(in: V) {
     // The facing is VKB's (its importance); the other methods' modules ignore it.
     oit_store_facing(in.position, in.color, in.facing);
 }
+"#;
 
+/// Its transparent fragment entry for the blended methods: it returns into dhoit's targets.
+const APP_BLEND: &str = r#"
 @fragment
-fn fs_opaque(in: V) -> @location(0) vec4<f32> {
-    return in.color;
+fn fs(in: V) -> OitTargets {
+    return oit_targets(in.position, in.color);
 }
 "#;
 
@@ -84,30 +110,46 @@ enum AppOit {
     Once(Box<dyn ApplicationOit>),
     Exact(Box<ExactOit>),
     Allocated(Box<AllocatedOit>),
+    Blended(Box<BlendedOit>),
+}
+
+/// Which of a method's transparent pipelines: the one of a method drawn once or twice, one of
+/// DKB's or VKB's phases, or one of the blended methods'.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Key {
+    One,
+    Deep(Phase),
+    Blend(BlendedPhase),
 }
 
 impl AppOit {
-    /// The phases the application builds a transparent pipeline for (DKB's; one for the rest).
-    fn phases(&self) -> Vec<Option<Phase>> {
+    /// The phases the application builds a transparent pipeline for (DKB's and the blended
+    /// methods'; one for the rest).
+    fn phases(&self) -> Vec<Key> {
         match self {
-            AppOit::Allocated(o) => o.phases().iter().copied().map(Some).collect(),
-            _ => vec![None],
+            AppOit::Allocated(o) => o.phases().iter().copied().map(Key::Deep).collect(),
+            AppOit::Blended(o) => o.phases().iter().copied().map(Key::Blend).collect(),
+            _ => vec![Key::One],
         }
     }
-    fn store_module(&self, group: u32, phase: Option<Phase>) -> String {
-        match (self, phase) {
-            (AppOit::Once(o), _) => o.store_module(group),
-            (AppOit::Exact(_), _) => ExactOit::wgsl(group),
-            (AppOit::Allocated(o), Some(phase)) => o.store_module(phase, group),
-            (AppOit::Allocated(_), None) => unreachable!("DKB's pipelines are one a phase"),
-        }
+    /// dhoit's module, the application's shaders and its transparent fragment entry.
+    fn shader(&self, group: u32, key: Key) -> String {
+        let (module, entry) = match (self, key) {
+            (AppOit::Once(o), _) => (o.store_module(group), APP_STORE),
+            (AppOit::Exact(_), _) => (ExactOit::wgsl(group), APP_STORE),
+            (AppOit::Allocated(o), Key::Deep(phase)) => (o.store_module(phase, group), APP_STORE),
+            (AppOit::Blended(o), Key::Blend(phase)) => (o.store_module(phase, group), APP_BLEND),
+            _ => unreachable!("{key:?} is not a phase of this method"),
+        };
+        module + APP_SHADER + entry
     }
-    fn bind_group_layout(&self, phase: Option<Phase>) -> &wgpu::BindGroupLayout {
-        match (self, phase) {
+    fn bind_group_layout(&self, key: Key) -> &wgpu::BindGroupLayout {
+        match (self, key) {
             (AppOit::Once(o), _) => o.bind_group_layout(),
             (AppOit::Exact(o), _) => o.bind_group_layout(),
-            (AppOit::Allocated(o), Some(phase)) => o.bind_group_layout(phase),
-            (AppOit::Allocated(_), None) => unreachable!("DKB's pipelines are one a phase"),
+            (AppOit::Allocated(o), Key::Deep(phase)) => o.bind_group_layout(phase),
+            (AppOit::Blended(o), Key::Blend(phase)) => o.bind_group_layout(phase),
+            _ => unreachable!("{key:?} is not a phase of this method"),
         }
     }
 }
@@ -133,7 +175,7 @@ fn app_frame_from(
     reversed: bool,
     make: impl FnOnce(&wgpu::Device, &wgpu::Queue) -> AppOit,
 ) -> (Vec<[f32; 3]>, Option<AllocatedFrame>) {
-    let (device, queue) = app_device();
+    let (device, queue) = app_device_blending(true);
     let oit = make(&device, &queue);
     // Interleaved position (3 floats), colour (4) and the triangle's three positions (9), its
     // own layout: the opaque triangles first, then the transparent ones.
@@ -171,7 +213,7 @@ fn app_frame_from(
         .phases()
         .into_iter()
         .map(|phase| {
-            let src = oit.store_module(1, phase) + APP_SHADER;
+            let src = oit.shader(1, phase);
             device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("app transparent"),
                 source: wgpu::ShaderSource::Wgsl(src.into()),
@@ -235,9 +277,8 @@ fn app_frame_from(
     let pipeline_for = |module: &wgpu::ShaderModule,
                         layout: &wgpu::PipelineLayout,
                         entry: &str,
-                        format,
-                        depth: bool,
-                        writes| {
+                        targets: &[Option<wgpu::ColorTargetState>],
+                        depth: bool| {
         device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some(entry),
             layout: Some(layout),
@@ -260,43 +301,42 @@ fn app_frame_from(
                 module,
                 entry_point: Some(entry),
                 compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format,
-                    blend: None,
-                    write_mask: writes,
-                })],
+                targets,
             }),
             multiview_mask: None,
             cache: None,
         })
     };
+    let target = |format, write_mask| {
+        [Some(wgpu::ColorTargetState {
+            format,
+            blend: None,
+            write_mask,
+        })]
+    };
     let opaque_pipeline = pipeline_for(
         &modules[0],
         &opaque_layout,
         "fs_opaque",
-        wgpu::TextureFormat::Rgba32Float,
+        &target(wgpu::TextureFormat::Rgba32Float, wgpu::ColorWrites::ALL),
         true,
-        wgpu::ColorWrites::ALL,
     );
-    // A target the transparent pass never writes: a render pass needs an attachment. One
-    // pipeline a phase of DKB's.
-    let pipelines: Vec<(Option<Phase>, wgpu::RenderPipeline)> = oit
+    // A target the transparent pass never writes (a render pass needs an attachment), or the
+    // blended methods' own. One pipeline a phase of DKB's and MBOIT's.
+    let pipelines: Vec<(Key, wgpu::RenderPipeline)> = oit
         .phases()
         .into_iter()
         .zip(&modules)
         .map(|(phase, module)| {
-            let p = pipeline_for(
-                module,
-                &layout_for(phase),
-                "fs",
-                wgpu::TextureFormat::R8Unorm,
-                false,
-                wgpu::ColorWrites::empty(),
-            );
+            let targets = match (&oit, phase) {
+                (AppOit::Blended(o), Key::Blend(phase)) => o.color_targets(phase),
+                _ => target(wgpu::TextureFormat::R8Unorm, wgpu::ColorWrites::empty()).to_vec(),
+            };
+            let p = pipeline_for(module, &layout_for(phase), "fs", &targets, false);
             (phase, p)
         })
         .collect();
-    let pipeline_of = |phase: Option<Phase>| {
+    let pipeline_of = |phase: Key| {
         &pipelines
             .iter()
             .find(|(p, _)| *p == phase)
@@ -384,11 +424,11 @@ fn app_frame_from(
     // Its transparent draws, with dhoit's group at 1.
     let draw = |enc: &mut wgpu::CommandEncoder,
                 group: &wgpu::BindGroup,
-                phase: Option<Phase>,
+                phase: Key,
                 timestamp_writes: Option<wgpu::RenderPassTimestampWrites>| {
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("app transparent"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+        let attachments = match (&oit, phase) {
+            (AppOit::Blended(o), Key::Blend(phase)) => o.color_attachments(phase),
+            _ => vec![Some(wgpu::RenderPassColorAttachment {
                 view: &raster_view,
                 depth_slice: None,
                 resolve_target: None,
@@ -397,6 +437,10 @@ fn app_frame_from(
                     store: wgpu::StoreOp::Discard,
                 },
             })],
+        };
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("app transparent"),
+            color_attachments: &attachments,
             timestamp_writes,
             ..Default::default()
         });
@@ -411,13 +455,13 @@ fn app_frame_from(
     match &oit {
         AppOit::Once(oit) => {
             oit.clear(&mut enc);
-            draw(&mut enc, &oit.bind_group(&depth_view), None, None);
+            draw(&mut enc, &oit.bind_group(&depth_view), Key::One, None);
             oit.resolve(&mut enc, &under_view, &target_view, f32x4, None)
                 .unwrap();
         }
         AppOit::Exact(oit) => {
             oit.clear(&mut enc);
-            draw(&mut enc, &oit.count_group(&depth_view), None, None);
+            draw(&mut enc, &oit.count_group(&depth_view), Key::One, None);
             let total = oit.count(enc, &queue).unwrap();
             assert_eq!(total, oit.fragments());
             // Exact memory: budget::ABUFFER's for the frame's fragments, less the raster
@@ -429,7 +473,7 @@ fn app_frame_from(
                 abuffer.allocated_bytes(px, total.max(2)) - px + 32
             );
             enc = device.create_command_encoder(&Default::default());
-            draw(&mut enc, &oit.store_group(&depth_view), None, None);
+            draw(&mut enc, &oit.store_group(&depth_view), Key::One, None);
             oit.resolve(&mut enc, &under_view, &target_view, f32x4, None)
                 .unwrap();
         }
@@ -438,11 +482,20 @@ fn app_frame_from(
             queue.submit([enc.finish()]);
             let frame = oit
                 .render(&depth_view, &under_view, &target_view, &mut |enc, d| {
-                    draw(enc, d.group, Some(d.phase), Some(d.timestamps))
+                    draw(enc, d.group, Key::Deep(d.phase), Some(d.timestamps))
                 })
                 .unwrap();
             deep = Some(frame);
             enc = device.create_command_encoder(&Default::default());
+        }
+        AppOit::Blended(oit) => {
+            // Its passes in order (MBOIT's accumulation reads the moments' targets).
+            for &phase in oit.phases() {
+                let group = oit.bind_group(phase, &depth_view);
+                draw(&mut enc, &group, Key::Blend(phase), None);
+            }
+            oit.resolve(&mut enc, &under_view, &target_view, f32x4, None)
+                .unwrap();
         }
     }
     let row = (16 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
@@ -884,6 +937,150 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
             );
         }
     }
+}
+
+/// WBOIT and MBOIT through the application's own pipelines: its fragment entry returns
+/// dhoit's `oit_targets`, its pipeline writes dhoit's targets with dhoit's blend states, its
+/// render passes open dhoit's attachments. The image is dhoit's own frame's for the same draws
+/// within 1e-5 over the application's opaque occluder, for eqs. 10 and 7 of WBOIT (7 with
+/// planes) and 4, 6 and 8 power moments where the device blends 32-bit floats; in the reversed
+/// order within the targets' rounding (the devices add in submission order); the bytes are the
+/// layout table's, less the raster target (the application's).
+#[test]
+fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
+    let Some(g) = gpu() else { return };
+    let (w, h) = (64, 48);
+    let px = (w * h) as u64;
+    let s = layered_scene();
+    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
+    let planes = |weight| WboitParams {
+        weight,
+        near: 0.5,
+        far: 4.0,
+    };
+    let mut cases: Vec<(String, Slots, budget::Layout)> = [WboitWeight::Eq10, WboitWeight::Eq7]
+        .into_iter()
+        .map(|weight| {
+            let p = planes(weight);
+            (format!("wboit {weight:?}"), Slots::Wboit(p), budget::WBOIT)
+        })
+        .collect();
+    let (device, _) = app_device_blending(true);
+    let blends = device
+        .features()
+        .contains(wgpu::Features::FLOAT32_BLENDABLE);
+    let room = device.limits().max_color_attachment_bytes_per_sample;
+    for moments in [4, 6, 8] {
+        // b_0, the four moments and the extra ones, bytes a sample.
+        let need = 4 + 16 + [0, 8, 16][(moments as usize - 4) / 2];
+        if blends && need <= room {
+            let p = MboitParams::with_moments(moments).unwrap();
+            let name = format!("mboit {moments}");
+            cases.push((name, Slots::Mboit(p), budget::mboit(moments)));
+        } else {
+            eprintln!("mboit {moments}: the device cannot blend them ({blends}, {room} bytes)");
+            assert!(moments > 4 || !blends, "lavapipe blends four moments");
+        }
+    }
+    assert!(cases.len() >= 3, "{} cases", cases.len());
+    for (name, slots, layout) in cases {
+        let harness = g.render(&s, &identity(), w, h, BG, Some(slots)).unwrap();
+        let off = worst_difference(&harness.image.data, &exact.image.data);
+        assert!(off > 1e-3, "{name} is the exact image ({off})");
+        let make = |d: &wgpu::Device, q: &wgpu::Queue| {
+            let oit = match slots {
+                Slots::Wboit(p) => BlendedOit::wboit(d, q, (w, h), p),
+                Slots::Mboit(p) => BlendedOit::mboit(d, q, (w, h), p),
+                _ => unreachable!(),
+            };
+            let oit = oit.unwrap();
+            assert_eq!(
+                oit.allocated_bytes(),
+                layout.allocated_bytes(px, 0) - px,
+                "{name}: the layout table's bytes"
+            );
+            AppOit::Blended(Box::new(oit))
+        };
+        let app = app_frame(&s, (w, h), false, make).0;
+        let worst = worst_difference(&app, &harness.image.data);
+        assert!(
+            worst <= 1e-5,
+            "{name}: the application's image differs from dhoit's by {worst}"
+        );
+        // Reversed: the same sums, added in another order at binary16 (WBOIT's 8-bit
+        // revealage is a product of the same factors): on lavapipe 6e-4 to 2.3e-3.
+        let reversed = app_frame(&s, (w, h), true, make).0;
+        let worst = worst_difference(&reversed, &harness.image.data);
+        assert!(
+            worst <= 5e-3,
+            "{name}, reversed: the application's image differs from dhoit's by {worst}"
+        );
+        let covered = app.iter().filter(|c| (c[0] - BG[0]).abs() > 1e-3).count();
+        assert!(
+            covered > (w * h / 2) as usize,
+            "{name}: {covered} pixels covered"
+        );
+    }
+}
+
+/// The blended methods refuse, before building anything, a weight of the view-space distance
+/// without planes, a count of moments MBOIT lacks, MBOIT on a device that cannot blend 32-bit
+/// floats, WBOIT's weight set on MBOIT, and a frame without pixels, each named.
+#[test]
+fn the_blended_methods_refuse_what_they_cannot_do() {
+    let (device, queue) = app_device();
+    let error = |r: dhoit_runtime::Result<BlendedOit>| r.err().expect("refused").to_string();
+    let no_planes = WboitParams {
+        weight: WboitWeight::Eq7,
+        near: 0.0,
+        far: 0.0,
+    };
+    let e = error(BlendedOit::wboit(&device, &queue, (8, 8), no_planes));
+    assert!(e.contains("near and far"), "{e}");
+    let e = error(BlendedOit::wboit(
+        &device,
+        &queue,
+        (0, 8),
+        WboitParams::default(),
+    ));
+    assert!(e.contains("no pixels"), "{e}");
+    let five = MboitParams {
+        moments: 5,
+        ..MboitParams::default()
+    };
+    let (blending, q) = app_device_blending(true);
+    let e = error(BlendedOit::mboit(&blending, &q, (8, 8), five));
+    assert!(e.contains("4, 6 or 8"), "{e}");
+    // The plain device never asked for 32-bit float blending.
+    assert!(
+        !device
+            .features()
+            .contains(wgpu::Features::FLOAT32_BLENDABLE)
+    );
+    let e = error(BlendedOit::mboit(
+        &device,
+        &queue,
+        (8, 8),
+        MboitParams::default(),
+    ));
+    assert!(e.contains("FLOAT32_BLENDABLE"), "{e}");
+    if blending
+        .features()
+        .contains(wgpu::Features::FLOAT32_BLENDABLE)
+    {
+        let mut oit = BlendedOit::mboit(&blending, &q, (8, 8), MboitParams::default()).unwrap();
+        let e = oit
+            .set_wboit(&q, WboitParams::default())
+            .expect_err("refused")
+            .to_string();
+        assert!(e.contains("MBOIT has no weight function"), "{e}");
+    }
+    let mut oit = BlendedOit::wboit(&device, &queue, (8, 8), WboitParams::default()).unwrap();
+    let e = oit
+        .set_wboit(&queue, no_planes)
+        .expect_err("refused")
+        .to_string();
+    assert!(e.contains("near and far"), "{e}");
 }
 
 /// DKB and VKB refuse, before building anything, a target format the resolve cannot write, a

@@ -278,9 +278,9 @@ impl AllocatedOit {
             .map(|&phase| phase_layout(device, phase))
             .collect();
         let onto = [
-            onto_pipeline(device, "resolve", format, false, what)?,
-            onto_pipeline(device, "resolve", format, true, what)?,
-            onto_pipeline(device, "abuffer_resolve", format, false, what)?,
+            onto_pipeline(device, ("resolve", "onto"), format, false, what)?,
+            onto_pipeline(device, ("resolve", "onto"), format, true, what)?,
+            onto_pipeline(device, ("abuffer_resolve", "onto"), format, false, what)?,
         ];
         Ok(AllocatedOit {
             gpu,

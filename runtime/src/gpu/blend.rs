@@ -13,7 +13,9 @@
 //! depends on the submission order by that rounding, as an engine's does.
 
 use super::Recording;
+use crate::composite::{MboitParams, WboitParams};
 use crate::error::{GpuError, Result};
+use crate::wgsl::Params;
 
 /// A blended method's render target: its label in the layout tables and its format (whose
 /// texel size is the bytes a pixel the table counts).
@@ -122,27 +124,145 @@ pub(super) const MULTIPLY_BY_ONE_MINUS: wgpu::BlendState = wgpu::BlendState {
 const ZERO: wgpu::Color = wgpu::Color::TRANSPARENT;
 const ONE: wgpu::Color = wgpu::Color::WHITE;
 
+/// One of a blended method's geometry passes: its WGSL pass and fragment entry, and the
+/// targets it writes in the order of its entry's locations, each with its blend and the value
+/// it is cleared to. dhoit's own frames and an application's ([`super::BlendedOit`]) draw
+/// through the same.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct BlendPass {
+    pub(super) pass: &'static str,
+    pub(super) entry: &'static str,
+    pub(super) targets: &'static [(Target, wgpu::BlendState, wgpu::Color)],
+}
+
+impl BlendPass {
+    /// WBOIT's one pass: the accumulation adds, the revealage multiplies by `1 - alpha`.
+    pub(super) const WBOIT: BlendPass = BlendPass {
+        pass: "wboit_accumulate",
+        entry: "fs_main",
+        targets: &[
+            (Target::WBOIT_ACCUMULATION, ADD, ZERO),
+            (Target::WBOIT_REVEALAGE, MULTIPLY_BY_ONE_MINUS, ONE),
+        ],
+    };
+
+    /// MBOIT's moments pass and its accumulation for `moments` power moments (4, 6 or 8; six
+    /// and eight add a third target of the moments pass). Another count is refused.
+    pub(super) fn mboit(moments: u32) -> Result<[BlendPass; 2]> {
+        const B0: (Target, wgpu::BlendState, wgpu::Color) = (Target::MBOIT_B0, ADD, ZERO);
+        const MOMENTS: (Target, wgpu::BlendState, wgpu::Color) = (Target::MBOIT_MOMENTS, ADD, ZERO);
+        let (targets, entry): (&'static [_], _) = match moments {
+            4 => (&[B0, MOMENTS], "fs_main"),
+            6 => (
+                &[B0, MOMENTS, (Target::MBOIT_EXTRA6, ADD, ZERO)],
+                "fs_main6",
+            ),
+            8 => (
+                &[B0, MOMENTS, (Target::MBOIT_EXTRA8, ADD, ZERO)],
+                "fs_main8",
+            ),
+            n => {
+                return Err(crate::error::Error::Invalid(format!(
+                    "MBOIT takes 4, 6 or 8 power moments, not {n}"
+                )));
+            }
+        };
+        Ok([
+            BlendPass {
+                pass: "mboit_moments",
+                entry: if moments == 4 { "fs_main" } else { "fs_extra" },
+                targets,
+            },
+            BlendPass {
+                pass: "mboit_accumulate",
+                entry,
+                targets: &[(Target::MBOIT_ACCUMULATION, ADD, ZERO)],
+            },
+        ])
+    }
+
+    /// The pipeline's colour targets.
+    pub(super) fn color_targets(&self) -> Vec<Option<wgpu::ColorTargetState>> {
+        self.targets
+            .iter()
+            .map(|&(t, blend, _)| {
+                Some(wgpu::ColorTargetState {
+                    format: t.format,
+                    blend: Some(blend),
+                    write_mask: wgpu::ColorWrites::ALL,
+                })
+            })
+            .collect()
+    }
+
+    /// Bytes a sample of its colour attachments (a device's
+    /// `max_color_attachment_bytes_per_sample` must hold them).
+    pub(super) fn bytes_per_sample(&self) -> u64 {
+        self.targets.iter().map(|t| t.0.texel_bytes()).sum()
+    }
+}
+
+/// What `device` lacks for MBOIT with `moments` power moments: blending into 32-bit floats,
+/// or colour attachments that hold the moments pass's bytes a sample.
+pub(super) fn mboit_lacks(device: &wgpu::Device, moments: u32, pass: &BlendPass) -> String {
+    if !device
+        .features()
+        .contains(wgpu::Features::FLOAT32_BLENDABLE)
+    {
+        "FLOAT32_BLENDABLE (MBOIT adds its moments into 32-bit float targets)".to_string()
+    } else {
+        format!(
+            "max_color_attachment_bytes_per_sample {} for {moments} power moments (it has \
+             {}; open the device with the adapter's limits)",
+            pass.bytes_per_sample(),
+            device.limits().max_color_attachment_bytes_per_sample
+        )
+    }
+}
+
+/// Whether `device` can draw MBOIT's moments pass `pass`.
+pub(super) fn mboit_fits(device: &wgpu::Device, pass: &BlendPass) -> bool {
+    device
+        .features()
+        .contains(wgpu::Features::FLOAT32_BLENDABLE)
+        && pass.bytes_per_sample() <= device.limits().max_color_attachment_bytes_per_sample as u64
+}
+
+/// WBOIT's weight function and planes in the frame's parameters, refused where the function
+/// reads a distance the planes cannot give (`WboitParams::check`).
+pub(super) fn set_wboit(params: &mut Params, w: &WboitParams) -> Result<()> {
+    w.check()?;
+    params.wboit_weight = w.weight.code();
+    params.wboit_near = w.near;
+    params.wboit_far = w.far;
+    Ok(())
+}
+
+/// MBOIT's bias and overestimation in the frame's parameters.
+pub(super) fn set_mboit(params: &mut Params, m: &MboitParams) {
+    params.mboit_bias = m.bias;
+    params.mboit_overestimation = m.overestimation;
+}
+
 impl Recording<'_, '_> {
     /// WBOIT's accumulation and composite; returns the image buffer.
     pub(super) fn wboit(&mut self, size: (u32, u32)) -> Result<wgpu::Buffer> {
         let (passes, px) = (self.passes, self.px);
         let p = &passes.gpu.pipelines;
-        let accumulation = self.fb.target(Target::WBOIT_ACCUMULATION, size);
-        let revealage = self.fb.target(Target::WBOIT_REVEALAGE, size);
+        let targets: Vec<_> = BlendPass::WBOIT
+            .targets
+            .iter()
+            .map(|&(t, _, clear)| (self.fb.target(t, size), clear))
+            .collect();
         let (fb, enc) = (&mut self.fb, &mut self.enc);
-        passes.blend(
-            enc,
-            &p.wboit_accumulate,
-            None,
-            &[(&accumulation, ZERO), (&revealage, ONE)],
-            "accumulate",
-        );
+        let attachments: Vec<_> = targets.iter().map(|(v, c)| (v, *c)).collect();
+        passes.blend(enc, &p.wboit_accumulate, None, &attachments, "accumulate");
         let image = fb.storage("application.image", 16 * px, false)?;
         passes.composite(
             enc,
             &p.wboit_composite,
             &image,
-            [&accumulation, &revealage],
+            [&targets[0].0, &targets[1].0],
             "wboit composite",
         );
         fb.submit(enc);
@@ -154,36 +274,16 @@ impl Recording<'_, '_> {
     pub(super) fn mboit(&mut self, size: (u32, u32), moments: u32) -> Result<wgpu::Buffer> {
         let (passes, px) = (self.passes, self.px);
         let gpu = passes.gpu;
-        let (at, extra) = match moments {
-            4 => (0, None),
-            6 => (1, Some(Target::MBOIT_EXTRA6)),
-            8 => (2, Some(Target::MBOIT_EXTRA8)),
-            n => {
-                return Err(crate::error::Error::Invalid(format!(
-                    "MBOIT takes 4, 6 or 8 power moments, not {n}"
-                )));
-            }
-        };
+        let [moments_blend, _] = BlendPass::mboit(moments)?;
+        let at = (moments as usize - 4) / 2;
         let Some((moments_pass, accumulate_pass)) = &gpu.pipelines.mboit[at] else {
-            let device = &gpu.device;
-            let missing = if !device
-                .features()
-                .contains(wgpu::Features::FLOAT32_BLENDABLE)
-            {
-                "FLOAT32_BLENDABLE (MBOIT adds its moments into 32-bit float targets)".to_string()
-            } else {
-                format!(
-                    "max_color_attachment_bytes_per_sample 36 for {moments} power moments (it \
-                     has {}; open the device with the adapter's limits)",
-                    device.limits().max_color_attachment_bytes_per_sample
-                )
-            };
             return Err(GpuError::DeviceLacks {
                 adapter: gpu.adapter().to_string(),
-                missing,
+                missing: mboit_lacks(&gpu.device, moments, &moments_blend),
             }
             .into());
         };
+        let extra = moments_blend.targets.get(2).map(|t| t.0);
         let b0 = self.fb.target(Target::MBOIT_B0, size);
         let moments = self.fb.target(Target::MBOIT_MOMENTS, size);
         let extra = extra.map(|t| self.fb.target(t, size));

@@ -27,6 +27,7 @@ mod abuffer;
 mod allocate;
 mod allocated;
 mod blend;
+mod blended_oit;
 mod buffers;
 mod capture;
 mod dkb;
@@ -42,6 +43,7 @@ mod vkb;
 use abuffer::Blend;
 pub use allocate::GpuAllocation;
 pub use allocated::{AllocatedFrame, AllocatedMethod, AllocatedOit, Phase, PhaseDraw};
+pub use blended_oit::{BlendedOit, BlendedPhase};
 use buffers::{FrameBuffers, Readback, Statistics, read_frame, read_texture};
 pub use oit::{ApplicationOit, ExactOit, KBufferOit, ListOit, TARGET_FORMATS};
 use passes::Passes;
@@ -781,14 +783,10 @@ impl Gpu {
             params.list_sorted = sorted;
         }
         if let Some(Slots::Mboit(m)) = slots {
-            params.mboit_bias = m.bias;
-            params.mboit_overestimation = m.overestimation;
+            blend::set_mboit(&mut params, &m);
         }
         if let Some(Slots::Wboit(w)) = slots {
-            w.check()?;
-            params.wboit_weight = w.weight.code();
-            params.wboit_near = w.near;
-            params.wboit_far = w.far;
+            blend::set_wboit(&mut params, &w)?;
         }
         params.store_primitives =
             (matches!(slots, Some(Slots::Mlab(_))) || opts.diagnostics).into();

@@ -60,18 +60,19 @@ pub const TARGET_FORMATS: [wgpu::TextureFormat; 3] = [
 /// What dhoit keeps on an application's device for one method: the buffers it creates (each
 /// counted), the group the application's transparent pipeline binds (its buffers, its
 /// uniform, the application's opaque depth), and the resolve onto each target format.
-struct AppSide {
-    device: wgpu::Device,
+pub(super) struct AppSide {
+    pub(super) device: wgpu::Device,
     width: u32,
     height: u32,
     /// The method, as labels and errors name it.
     name: &'static str,
-    /// The resolve's pass (`wgsl::shaders::PASSES`), whose entry `onto` reads the
-    /// application's image at `under_at` and writes its target at `under_at + 1`.
+    /// The resolve's pass (`wgsl::shaders::PASSES`), whose entry `entry` (`onto` unless set)
+    /// reads the application's image at `under_at` and writes its target at `under_at + 1`.
     pass: &'static str,
+    pub(super) entry: &'static str,
     under_at: u32,
     limit: u64,
-    allocated: u64,
+    pub(super) allocated: u64,
     layout: Option<wgpu::BindGroupLayout>,
     /// The application's group: storage buffers, then its uniform, then the depth texture.
     store: Vec<wgpu::Buffer>,
@@ -84,7 +85,7 @@ struct AppSide {
 
 impl AppSide {
     /// Refuses a device that lacks what the passes need (named) and a frame with no pixels.
-    fn new(
+    pub(super) fn new(
         device: &wgpu::Device,
         (width, height): (u32, u32),
         name: &'static str,
@@ -103,6 +104,7 @@ impl AppSide {
             height,
             name,
             pass,
+            entry: "onto",
             under_at,
             limit: have
                 .max_storage_buffer_binding_size
@@ -116,7 +118,15 @@ impl AppSide {
         })
     }
 
-    fn pixels(&self) -> u64 {
+    pub(super) fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    pub(super) fn name(&self) -> &'static str {
+        self.name
+    }
+
+    pub(super) fn pixels(&self) -> u64 {
         self.width as u64 * self.height as u64
     }
 
@@ -144,7 +154,12 @@ impl AppSide {
     }
 
     /// A uniform holding `bytes`.
-    fn uniform(&mut self, queue: &wgpu::Queue, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    pub(super) fn uniform(
+        &mut self,
+        queue: &wgpu::Queue,
+        label: &str,
+        bytes: &[u8],
+    ) -> wgpu::Buffer {
         let b = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: bytes.len() as u64,
@@ -157,7 +172,7 @@ impl AppSide {
     }
 
     /// dhoit's `Params` for the resolve, with the method's own fields set by `set`.
-    fn resolve_params(
+    pub(super) fn resolve_params(
         &mut self,
         queue: &wgpu::Queue,
         set: impl FnOnce(&mut Params),
@@ -225,14 +240,15 @@ impl AppSide {
     ) -> Result<()> {
         let buffers: Vec<(u32, &wgpu::Buffer)> =
             self.resolve.iter().map(|(i, b)| (*i, b)).collect();
-        self.resolve_with(enc, &buffers, (under, target, format), timestamps)
+        self.resolve_with(enc, &buffers, &[], (under, target, format), timestamps)
     }
 
-    /// The resolve with these buffers at these bindings.
-    fn resolve_with(
+    /// The resolve with these buffers and textures at these bindings.
+    pub(super) fn resolve_with(
         &self,
         enc: &mut wgpu::CommandEncoder,
         buffers: &[(u32, &wgpu::Buffer)],
+        textures: &[(u32, &wgpu::TextureView)],
         (under, target, format): (&wgpu::TextureView, &wgpu::TextureView, wgpu::TextureFormat),
         timestamps: Option<wgpu::ComputePassTimestampWrites>,
     ) -> Result<()> {
@@ -243,6 +259,10 @@ impl AppSide {
                 binding: *i,
                 resource: b.as_entire_binding(),
             })
+            .chain(textures.iter().map(|(i, v)| wgpu::BindGroupEntry {
+                binding: *i,
+                resource: wgpu::BindingResource::TextureView(v),
+            }))
             .collect();
         entries.push(wgpu::BindGroupEntry {
             binding: self.under_at,
@@ -274,7 +294,13 @@ impl AppSide {
         if let Some((_, p)) = built.iter().find(|(f, _)| *f == format) {
             return Ok(p.clone());
         }
-        let p = onto_pipeline(&self.device, self.pass, format, false, self.name)?;
+        let p = onto_pipeline(
+            &self.device,
+            (self.pass, self.entry),
+            format,
+            false,
+            self.name,
+        )?;
         built.push((format, p.clone()));
         Ok(p)
     }
@@ -330,12 +356,12 @@ pub(super) fn check_target_format(format: wgpu::TextureFormat, what: &str) -> Re
     }
 }
 
-/// Resolve pass `pass`'s `onto` entry writing a target of `format` (one of
+/// Resolve pass `pass`'s entry `entry` (its `onto`) writing a target of `format` (one of
 /// [`TARGET_FORMATS`]; another is refused, naming `what` resolves), built for frames whose
 /// budget holds every fragment where `fits`.
 pub(super) fn onto_pipeline(
     device: &wgpu::Device,
-    pass: &'static str,
+    (pass, entry): (&'static str, &'static str),
     format: wgpu::TextureFormat,
     fits: bool,
     what: &str,
@@ -357,11 +383,11 @@ pub(super) fn onto_pipeline(
         );
     }
     let label = format!(
-        "{pass} (onto{})",
+        "{pass} ({entry}{})",
         if fits { ", every fragment fits" } else { "" }
     );
     let m = module_from(device, &label, src);
-    Ok(compute_pipeline(device, &label, &m, "onto"))
+    Ok(compute_pipeline(device, &label, &m, entry))
 }
 
 /// The budgeted linked list's buffers and passes on an application's device.
@@ -802,7 +828,7 @@ impl ExactOit {
             (5, &self.unused_primitives),
         ];
         self.side
-            .resolve_with(enc, &buffers, (under, target, format), timestamps)
+            .resolve_with(enc, &buffers, &[], (under, target, format), timestamps)
     }
 }
 

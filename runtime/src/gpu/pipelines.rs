@@ -485,24 +485,11 @@ impl Pipelines {
             render(name, &m, None, &[Some(target)])
         };
         // The blended methods' passes: their targets written through `blend` (gpu::blend).
-        let blended_entry =
-            |name: &str, entry: &str, targets: &[(wgpu::TextureFormat, wgpu::BlendState)]| {
-                let targets: Vec<Option<wgpu::ColorTargetState>> = targets
-                    .iter()
-                    .map(|&(format, blend)| {
-                        Some(wgpu::ColorTargetState {
-                            format,
-                            blend: Some(blend),
-                            write_mask: wgpu::ColorWrites::ALL,
-                        })
-                    })
-                    .collect();
-                render_entry(name, entry, &module(device, name), None, &targets)
-            };
-        let blended = |name: &str, targets: &[(wgpu::TextureFormat, wgpu::BlendState)]| {
-            blended_entry(name, "fs_main", targets)
+        let blended = |b: &BlendPass| {
+            let targets = b.color_targets();
+            render_entry(b.pass, b.entry, &module(device, b.pass), None, &targets)
         };
-        use super::blend::{ADD, MULTIPLY_BY_ONE_MINUS, Target};
+        use super::blend::{BlendPass, mboit_fits};
         let geometry = |name: &str| geometry_from(name, module(device, name));
         let opaque = render(
             "opaque",
@@ -564,48 +551,15 @@ impl Pipelines {
             resolve: compute("resolve"),
             resolve_fits: compute_pipeline(device, "resolve", &fits("resolve"), "main"),
             mlab_resolve: compute("mlab_resolve"),
-            wboit_accumulate: blended(
-                "wboit_accumulate",
-                &[
-                    (Target::WBOIT_ACCUMULATION.format, ADD),
-                    (Target::WBOIT_REVEALAGE.format, MULTIPLY_BY_ONE_MINUS),
-                ],
-            ),
+            wboit_accumulate: blended(&BlendPass::WBOIT),
             wboit_composite: compute_entry("blend_composite", "wboit"),
             // 4, 6 and 8 power moments: 6 and 8 add a third target (RG32F, RGBA32F). Each
             // where the device blends 32-bit floats and its colour attachments hold the
             // moments' bytes a sample (eight take 36; wgpu's default limit is 32).
-            mboit: {
-                let blends = device
-                    .features()
-                    .contains(wgpu::Features::FLOAT32_BLENDABLE);
-                let room = device.limits().max_color_attachment_bytes_per_sample;
-                let extra = [None, Some(Target::MBOIT_EXTRA6), Some(Target::MBOIT_EXTRA8)];
-                // The moments pass of six and eight is one entry; the accumulation's two.
-                let moments_entry = ["fs_main", "fs_extra", "fs_extra"];
-                let entry = ["fs_main", "fs_main6", "fs_main8"];
-                std::array::from_fn(|i| {
-                    let mut targets = vec![
-                        (Target::MBOIT_B0.format, ADD),
-                        (Target::MBOIT_MOMENTS.format, ADD),
-                    ];
-                    targets.extend(extra[i].map(|t| (t.format, ADD)));
-                    let bytes: u64 = targets
-                        .iter()
-                        .map(|t| t.0.block_copy_size(None).unwrap_or(0) as u64)
-                        .sum();
-                    (blends && bytes <= room as u64).then(|| {
-                        (
-                            blended_entry("mboit_moments", moments_entry[i], &targets),
-                            blended_entry(
-                                "mboit_accumulate",
-                                entry[i],
-                                &[(Target::MBOIT_ACCUMULATION.format, ADD)],
-                            ),
-                        )
-                    })
-                })
-            },
+            mboit: [4, 6, 8].map(|moments| {
+                let [m, a] = BlendPass::mboit(moments).expect("4, 6 and 8 moments");
+                mboit_fits(device, &m).then(|| (blended(&m), blended(&a)))
+            }),
             mboit_composite: compute_entry("blend_composite", "mboit"),
             list_store: geometry("list_store"),
             list_resolve: compute("list_resolve"),
