@@ -779,94 +779,99 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
     }
 }
 
-/// A byte budget for DKB in an application is resolved against each frame's own count
-/// (`FrameOptions::counted_bytes`): before the count it could only leave room for a record and a
-/// tail for every pixel, far fewer slots than the frame needs, or none at all. With M what DKB
-/// reserves at a quarter of this frame's fragments (the CPU's accounting of the CPU's
-/// rasterization), the frame runs at F(M) for its occupancy, at least that quarter, allocates no
-/// more than M, and gives the image dhoit renders at that F; where M holds the A-buffer, the
-/// frame is the A-buffer's.
+/// A byte budget for DKB or VKB in an application is resolved against each frame's own count
+/// (`FrameOptions::counted_bytes`): before the count it could only leave room for a tail (DKB:
+/// and a record) for every pixel, far fewer slots than the frame needs, or none at all. With M
+/// what the method reserves at a quarter of this frame's fragments (the CPU's accounting of the
+/// CPU's rasterization), the frame runs at F(M) for its occupancy, at least that quarter,
+/// allocates no more than M, and gives the image dhoit renders at that F; where M holds the
+/// A-buffer, the frame is the A-buffer's.
 #[test]
-fn a_dkb_byte_budget_is_resolved_against_each_frames_own_count() {
+fn a_byte_budget_is_resolved_against_each_frames_own_count() {
     let Some(g) = gpu() else { return };
     let (w, h) = (64, 48);
     let px = (w * h) as u64;
     let s = layered_scene();
     let weights = common::committed_weights();
-    let layout = budget::DKB.for_network(&weights);
+    let vkb = dhoit_runtime::importance::VkbParams::default();
     let fl = dhoit_runtime::raster::rasterize(&s, &identity(), w, h).unwrap();
     let occ = budget::Occupancy::of(&fl.counts());
     let quarter = occ.fragments / 4;
-    let m = layout.reserved_bytes(px, quarter, &occ);
-    // Uncounted, M leaves fewer slots than a quarter (or none).
-    let before = Budget::Bytes(m).fragment_budget(&layout, px);
-    assert!(
-        before
-            .as_ref()
-            .map_or(true, |f| f.of(occ.fragments) < quarter),
-        "{before:?}"
-    );
-    let f = layout.fragment_budget_counted(m, px, &occ).unwrap();
-    assert!(
-        f >= quarter && f < occ.fragments,
-        "{f} of {}",
-        occ.fragments
-    );
-    let slots = Slots::Dkb(&weights, f.into());
-    let approximate = FrameOptions::default().always_approximate();
-    let harness = g
-        .render_with(&approximate, &s, &identity(), (w, h), BG, Some(slots))
-        .unwrap();
-    // The harness itself, given the bytes: the same frame.
-    let counted = FrameOptions {
-        counted_bytes: Some(m),
-        ..approximate
-    };
-    let given = g
-        .render_with(
-            &counted,
-            &s,
-            &identity(),
-            (w, h),
-            BG,
-            Some(Slots::Dkb(&weights, 0.into())),
-        )
-        .unwrap();
-    assert_eq!(given.image.data, harness.image.data);
-    assert_eq!(given.allocated_bytes, harness.allocated_bytes);
-    assert!(
-        harness.allocated_bytes <= m,
-        "{} > {m}",
-        harness.allocated_bytes
-    );
+    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
     let f32x4 = wgpu::TextureFormat::Rgba32Float;
-    let method = AllocatedMethod::Dkb(Box::new(weights.clone()));
-    for reversed in [false, true] {
-        let (app, frame) = app_frame(&s, (w, h), reversed, |d, q| {
-            let oit =
-                AllocatedOit::new(d, q, (w, h), method.clone(), Budget::Bytes(m), f32x4).unwrap();
-            AppOit::Allocated(Box::new(oit.exact_when_cheaper(false)))
+    for name in ["dkb", "vkb"] {
+        let (layout, method) = match name {
+            "dkb" => (
+                budget::DKB.for_network(&weights),
+                AllocatedMethod::Dkb(Box::new(weights.clone())),
+            ),
+            _ => (budget::VKB, AllocatedMethod::Vkb(vkb)),
+        };
+        let slots_at = |f: u64| match name {
+            "dkb" => Slots::Dkb(&weights, f.into()),
+            _ => Slots::Vkb(vkb, f.into()),
+        };
+        let m = layout.reserved_bytes(px, quarter, &occ);
+        // Uncounted, M leaves fewer slots than a quarter (or none).
+        let before = Budget::Bytes(m).fragment_budget(&layout, px);
+        assert!(
+            before
+                .as_ref()
+                .map_or(true, |f| f.of(occ.fragments) < quarter),
+            "{name}: {before:?}"
+        );
+        let f = layout.fragment_budget_counted(m, px, &occ).unwrap();
+        assert!(
+            f >= quarter && f < occ.fragments,
+            "{name}: {f} of {}",
+            occ.fragments
+        );
+        let approximate = FrameOptions::default().always_approximate();
+        let harness = g
+            .render_with(&approximate, &s, &identity(), (w, h), BG, Some(slots_at(f)))
+            .unwrap();
+        // The harness itself, given the bytes: the same frame.
+        let counted = FrameOptions {
+            counted_bytes: Some(m),
+            ..approximate
+        };
+        let given = g
+            .render_with(&counted, &s, &identity(), (w, h), BG, Some(slots_at(0)))
+            .unwrap();
+        assert_eq!(given.image.data, harness.image.data, "{name}");
+        assert!(
+            given.allocated_bytes <= m && harness.allocated_bytes <= m,
+            "{name}: {} and {} > {m}",
+            given.allocated_bytes,
+            harness.allocated_bytes
+        );
+        for reversed in [false, true] {
+            let (app, frame) = app_frame(&s, (w, h), reversed, |d, q| {
+                let b = Budget::Bytes(m);
+                let oit = AllocatedOit::new(d, q, (w, h), method.clone(), b, f32x4).unwrap();
+                AppOit::Allocated(Box::new(oit.exact_when_cheaper(false)))
+            });
+            let frame = frame.unwrap();
+            let worst = worst_difference(&app, &harness.image.data);
+            assert!(worst <= 1e-5, "{name}, reversed {reversed}: {worst}");
+            assert!(!frame.exact);
+            assert_eq!(frame.allocated_bytes, given.allocated_bytes - px, "{name}");
+        }
+        // Bytes that hold the A-buffer: its frame, exact.
+        let (app, frame) = app_frame(&s, (w, h), false, |d, q| {
+            let b = Budget::Bytes(exact.allocated_bytes);
+            let oit = AllocatedOit::new(d, q, (w, h), method.clone(), b, f32x4).unwrap();
+            AppOit::Allocated(Box::new(oit))
         });
         let frame = frame.unwrap();
-        let worst = worst_difference(&app, &harness.image.data);
-        assert!(worst <= 1e-5, "reversed {reversed}: {worst}");
-        assert!(!frame.exact);
-        assert_eq!(frame.allocated_bytes, harness.allocated_bytes - px);
+        assert!(frame.exact, "{name}");
+        assert!(worst_difference(&app, &exact.image.data) <= 1e-5);
+        // Bytes below what any frame needs (an empty one: the fixed bytes, DKB's marks) are
+        // refused when the k-buffer is made.
+        let (d, q) = app_device();
+        let tiny = Budget::Bytes(layout.fixed_bytes(px) - 1);
+        assert!(AllocatedOit::new(&d, &q, (w, h), method.clone(), tiny, f32x4).is_err());
     }
-    // Bytes that hold the A-buffer: its frame, exact.
-    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
-    let (app, frame) = app_frame(&s, (w, h), false, |d, q| {
-        let b = Budget::Bytes(exact.allocated_bytes);
-        let oit = AllocatedOit::new(d, q, (w, h), method.clone(), b, f32x4).unwrap();
-        AppOit::Allocated(Box::new(oit))
-    });
-    let frame = frame.unwrap();
-    assert!(frame.exact);
-    assert!(worst_difference(&app, &exact.image.data) <= 1e-5);
-    // Bytes below what any frame needs are refused when the k-buffer is made.
-    let (d, q) = app_device();
-    let tiny = Budget::Bytes(layout.fixed_bytes(px));
-    assert!(AllocatedOit::new(&d, &q, (w, h), method.clone(), tiny, f32x4).is_err());
 }
 
 /// A glTF file through the application: a built-in scene written as binary glTF and read

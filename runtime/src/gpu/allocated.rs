@@ -195,7 +195,7 @@ pub struct AllocatedOit {
     /// The frame dhoit records holds no geometry of its own.
     empty: Scene,
     exact_when_cheaper: bool,
-    /// DKB's byte budget, resolved against each frame's count ([`FrameOptions::counted_bytes`]).
+    /// A byte budget, resolved against each frame's count ([`FrameOptions::counted_bytes`]).
     counted_bytes: Option<u64>,
 }
 
@@ -259,15 +259,15 @@ impl AllocatedOit {
             AllocatedMethod::Dkb(weights) => budget::DKB.for_network(weights),
             AllocatedMethod::Vkb(_) => budget::VKB,
         };
-        // DKB reads its count back before it sizes anything: a byte budget is resolved against
-        // each frame's own occupancy (FrameOptions::counted_bytes), refused now only where no
-        // frame fits (its fixed bytes and the marks). VKB's is resolved for the worst frame.
-        let (budget, counted_bytes) = match (&method, budget) {
-            (AllocatedMethod::Dkb(_), Budget::Bytes(m)) => {
+        // A byte budget is resolved against each frame's own occupancy, read back before
+        // anything is sized (FrameOptions::counted_bytes: DKB counts first, VKB too), refused
+        // now only where no frame fits (the fixed bytes and the marks).
+        let (budget, counted_bytes) = match budget {
+            Budget::Bytes(m) => {
                 layout.fragment_budget_counted(m, px, &budget::Occupancy::default())?;
                 (FragmentBudget::Slots(0), Some(m))
             }
-            (_, b) => (b.fragment_budget(&layout, px)?, None),
+            b => (b.fragment_budget(&layout, px)?, None),
         };
         let gpu = Gpu::on_device(device.clone(), queue.clone(), &device.adapter_info())?;
         if let AllocatedMethod::Dkb(weights) = &method {

@@ -69,6 +69,7 @@ impl Recording<'_, '_> {
                 self.allocated(i, budget, expect_fit)
             }
             Slots::Vkb(..) => {
+                let budget = self.vkb_budget(budget)?;
                 let expect_fit = self.expect_fit();
                 let i = self.vkb_importance(expect_fit)?;
                 self.allocated(i, budget, expect_fit)

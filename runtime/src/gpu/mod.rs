@@ -223,10 +223,11 @@ pub struct FrameOptions {
     /// runs at any budget (the bench's and the twins' comparisons). FKB's, uploaded k's and
     /// uploaded importance's frames render as asked either way.
     pub exact_when_cheaper: bool,
-    /// DKB only: the frame's budget in bytes, resolved once its count is read back against
-    /// the frame's own occupancy (`Layout::fragment_budget_counted`: the most slots whose
-    /// records, marks, slots and tails fit), in place of the slots' F. Before the count, a byte
-    /// budget can only leave room for a record and a tail for every pixel
+    /// DKB and VKB only: the frame's budget in bytes, resolved once its count is read back
+    /// against the frame's own occupancy (`Layout::fragment_budget_counted`: the most slots
+    /// whose records, marks, slots and tails fit), in place of the slots' F (a VKB frame
+    /// counts first for it, where [`FrameOptions::exact_when_cheaper`] has not). Before the
+    /// count, a byte budget can only leave room for a tail (DKB: and a record) for every pixel
     /// (`Budget::fragment_budget`); counted, it leaves room for what this frame needs. The
     /// A-buffer renders where these bytes hold it (with [`FrameOptions::exact_when_cheaper`]).
     /// None by default: F as the slots give it.
@@ -930,14 +931,14 @@ impl Recording<'_, '_> {
             .expect("counted with its occupancy")
             .0;
         let n = counted.total;
-        // A byte budget resolved against this count (DKB): exact where it holds the A-buffer.
-        let holds_exact = match (method, self.passes.opts.counted_bytes) {
-            (Method::Dkb, Some(m)) => budget::ABUFFER.allocated_bytes(self.px, n) <= m,
-            _ => false,
+        // A byte budget resolved against this count: exact where it holds the A-buffer.
+        let holds_exact = match self.passes.opts.counted_bytes {
+            Some(m) => budget::ABUFFER.allocated_bytes(self.px, n) <= m,
+            None => false,
         };
-        let budget = match method {
-            Method::Dkb if !holds_exact => self.counted_budget(&layout, budget, &occ)?,
-            _ => budget,
+        let budget = match holds_exact {
+            false => self.counted_budget(&layout, budget, &occ)?,
+            true => budget,
         };
         let f = budget.of(n);
         if holds_exact || f >= n || exact_is_no_dearer(method, &layout, self.px, f, &occ) {

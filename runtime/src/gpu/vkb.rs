@@ -5,9 +5,29 @@
 use super::allocate::{Importance, Reuse, Word, pending, record_unless};
 use super::{Recording, weight_kind};
 use crate::alloc::Target;
+use crate::budget::FragmentBudget;
 use crate::error::Result;
 
 impl Recording<'_, '_> {
+    /// VKB's budget: `budget`, or with [`super::FrameOptions::counted_bytes`] the most slots
+    /// those bytes hold for the frame's own occupancy, which it counts first where it has not
+    /// (exact_when_cheaper counts first).
+    pub(super) fn vkb_budget(&mut self, budget: FragmentBudget) -> Result<FragmentBudget> {
+        if self.passes.opts.counted_bytes.is_none() {
+            return Ok(budget);
+        }
+        if self.counted.is_none() {
+            self.counted = Some(self.count(true)?);
+        }
+        let occ = self
+            .counted
+            .as_ref()
+            .and_then(|c| c.occupancy.as_ref())
+            .expect("counted with its occupancy")
+            .0;
+        self.counted_budget(&crate::budget::VKB, budget, &occ)
+    }
+
     /// VKB's count, then totals and importance (left pending where the frame is expected to fit).
     /// Its nearest keys (8 bytes a pixel) and the allocation's marks (a quarter byte) have
     /// buffers of their own, both dead by the capture; the tails live in the slot pool
