@@ -3,7 +3,8 @@
 //! draws the transparent geometry twice, or the deep k-buffer with `--method dkb --budget 25%`,
 //! whose frame calls the application back to draw into each of its geometry passes, or the
 //! blended methods engines ship, `--method wboit` and `--method mboit`, whose passes write
-//! dhoit's targets through the application's pipelines), headless: it loads a glTF file (or a
+//! dhoit's targets through the application's pipelines, or MLAB, `--method mlab --rows 4`, the
+//! A-buffer's two draws with each fragment's submission index), headless: it loads a glTF file (or a
 //! built-in scene), draws its opaque and alpha-masked materials with a depth buffer, hands its
 //! transparent fragments to dhoit from its own WGSL (`oit_store`, or for the blended methods
 //! `oit_targets`), resolves onto its own target over its opaque image, and writes one PNG per
@@ -17,7 +18,7 @@
 //! The twenty lines that matter are marked `dhoit:`. Colours are the vertices' times the
 //! materials' base colour times their base colour texture, sampled per fragment by the
 //! application's own sampler (sRGB decoded by the texture format). What it does not do yet:
-//! glass's view-dependent opacity (its face-on opacity instead), MLAB, and WBOIT's weights of
+//! glass's view-dependent opacity (its face-on opacity instead), and WBOIT's weights of
 //! the view-space distance (eqs. 7-9, which need the camera's planes: `BlendedOit::set_wboit`).
 
 use anyhow::{Context, Result, bail};
@@ -51,8 +52,13 @@ struct Args {
     /// 002's importance maps decide them, as DKB) or `wboit` (weighted blended OIT, McGuire and
     /// Bavoil's eq. 10: two targets, no sort) or `mboit` (--moments power moments: two passes,
     /// needs a device that blends 32-bit floats).
-    #[arg(long, default_value = "linked-list", value_parser = ["linked-list", "fkb", "abuffer", "dkb", "vkb", "wboit", "mboit"])]
+    /// Or `mlab` (--rows blending rows, each pixel's fragments merged in their submission order:
+    /// the A-buffer's two draws, each fragment with its triangle's index).
+    #[arg(long, default_value = "linked-list", value_parser = ["linked-list", "fkb", "abuffer", "dkb", "vkb", "wboit", "mboit", "mlab"])]
     method: String,
+    /// MLAB's blending rows: 1 to 8.
+    #[arg(long, default_value_t = 4)]
+    rows: u32,
     /// MBOIT's power moments: 4, 6 or 8.
     #[arg(long, default_value_t = 4)]
     moments: u32,
@@ -80,8 +86,8 @@ struct Args {
     #[arg(long, default_value = "out/viewer")]
     out: PathBuf,
     /// Open an interactive window where a display exists, instead of writing PNG frames
-    /// (needs the viewer built with `--features window`): drag to orbit, 1-7 for the linked
-    /// list, FKB, the A-buffer, DKB, VKB, WBOIT and MBOIT, +/- for the budget, n for DKB's next network (those
+    /// (needs the viewer built with `--features window`): drag to orbit, 1-8 for the linked
+    /// list, FKB, the A-buffer, DKB, VKB, WBOIT, MBOIT and MLAB, +/- for the budget, n for DKB's next network (those
     /// under data/nets), a to toggle --always-approximate, the GPU times in the title.
     #[arg(long)]
     window: bool,
@@ -102,6 +108,8 @@ struct V {
     @location(2) @interpolate(flat) cutoff: f32,
     // |n . v| of the triangle (its normal against the camera's forward direction).
     @location(3) @interpolate(flat) facing: f32,
+    // The triangle's index in the application's submission (MLAB's order).
+    @location(4) @interpolate(flat) order: u32,
 };
 
 @vertex
@@ -111,9 +119,10 @@ fn vs(
     @location(2) uv: vec2<f32>,
     @location(3) cutoff: f32,
     @location(4) normal: vec3<f32>,
+    @builtin(vertex_index) vertex: u32,
 ) -> V {
     let facing = abs(dot(normal, camera.forward.xyz));
-    return V(camera.view_proj * vec4<f32>(p, 1.0), c, uv, cutoff, facing);
+    return V(camera.view_proj * vec4<f32>(p, 1.0), c, uv, cutoff, facing, vertex / 3u);
 }
 
 fn shaded(in: V) -> vec4<f32> {
@@ -137,6 +146,15 @@ const STORE: &str = r#"
 fn fs_transparent(in: V) {
     // dhoit: the fragment goes to its method (the facing is VKB's; the others ignore it)
     oit_store_facing(in.position, shaded(in), in.facing);
+}
+"#;
+
+/// MLAB's: the fragment with its submission index (its triangle's, in the vertex buffer).
+const ORDERED: &str = r#"
+@fragment
+fn fs_transparent(in: V) {
+    // dhoit: MLAB merges a pixel's fragments in this order
+    oit_store_ordered(in.position, shaded(in), in.order);
 }
 "#;
 
@@ -304,6 +322,10 @@ enum Method {
     Mboit {
         moments: u32,
     },
+    /// MLAB with this many blending rows.
+    Mlab {
+        rows: u32,
+    },
 }
 
 impl Method {
@@ -327,6 +349,7 @@ impl Method {
                 always: a.always_approximate,
             },
             "wboit" => Method::Wboit,
+            "mlab" => Method::Mlab { rows: a.rows },
             "mboit" => {
                 MboitParams::with_moments(a.moments)?;
                 Method::Mboit { moments: a.moments }
@@ -346,6 +369,7 @@ impl Method {
             Method::Fkb { k } => format!("FKB, {k} slots a pixel"),
             Method::Wboit => "WBOIT (eq. 10)".into(),
             Method::Mboit { moments } => format!("MBOIT, {moments} power moments"),
+            Method::Mlab { rows } => format!("MLAB, {rows} rows"),
             Method::List { fpp, sorted } => {
                 format!("linked list, {fpp} fragments a pixel of pool, the nearest {sorted} sorted")
             }
@@ -379,6 +403,9 @@ impl Method {
                 Oit::Allocated(Box::new(vkb), Default::default())
             }
             Method::Exact => Oit::Exact(Box::new(ExactOit::new(device, queue, (w, h))?)),
+            Method::Mlab { rows } => {
+                Oit::Exact(Box::new(ExactOit::mlab(device, queue, (w, h), rows)?))
+            }
             Method::Wboit => Oit::Blended(Box::new(BlendedOit::wboit(
                 device,
                 queue,
@@ -1052,6 +1079,7 @@ impl Oit {
     fn shader(&self, group: u32, key: Key) -> String {
         let (module, entry) = match (self, key) {
             (Oit::Once(o), _) => (o.store_module(group), STORE),
+            (Oit::Exact(o), _) if o.mlab_rows().is_some() => (ExactOit::wgsl(group), ORDERED),
             (Oit::Exact(_), _) => (ExactOit::wgsl(group), STORE),
             (Oit::Allocated(o, _), Key::Deep(phase)) => (o.store_module(phase, group), STORE),
             (Oit::Blended(o), Key::Blend(phase)) => (o.store_module(phase, group), BLEND),
@@ -1116,9 +1144,9 @@ impl Oit {
 }
 
 /// `--window`: the same frames in an interactive window (built with `--features window`).
-/// Drag with the left button to orbit; `1` to `7` switch to the linked list, FKB, the A-buffer,
-/// DKB, VKB, WBOIT and MBOIT; `+` and `-` double and halve the budget (the list's fragments a
-/// pixel, FKB's k, DKB's budget; MBOIT's moments 4, 6, 8); `n` takes DKB's next network, `a` toggles --always-approximate;
+/// Drag with the left button to orbit; `1` to `8` switch to the linked list, FKB, the A-buffer,
+/// DKB, VKB, WBOIT, MBOIT and MLAB; `+` and `-` double and halve the budget (the list's
+/// fragments a pixel, FKB's k, DKB's budget, MLAB's rows; MBOIT's moments 4, 6, 8); `n` takes DKB's next network, `a` toggles --always-approximate;
 /// `Esc` or `q` quits. The title shows the method, the GPU time of each pass and the frame
 /// time. The image is resolved as headless, then drawn onto the window's surface.
 #[cfg(feature = "window")]
@@ -1355,6 +1383,7 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                 },
                 Key::Character("6") => Method::Wboit,
                 Key::Character("7") => Method::Mboit { moments: 4 },
+                Key::Character("8") => Method::Mlab { rows: 4 },
                 Key::Character("n") => match m {
                     Method::Dkb {
                         budget,
@@ -1421,6 +1450,13 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                 always,
             },
             Method::Exact | Method::Wboit => m,
+            Method::Mlab { rows } => Method::Mlab {
+                rows: if up {
+                    (rows * 2).min(8)
+                } else {
+                    (rows / 2).max(1)
+                },
+            },
             Method::Mboit { moments } => Method::Mboit {
                 moments: if up {
                     (moments + 2).min(8)

@@ -4,7 +4,8 @@
 // m + 1 rows, then the last two merged), and the rows blended over what is behind the pixel
 // (behind.wgsl), as composite::mlab_pixel.
 
-// Its bindings, the pixel's stored range and the image write are sort.wgsl's.
+// Its bindings, the pixel's stored range, the image write and its entries (`main`, and `onto`
+// for an application's frame) are sort.wgsl's.
 
 struct Row {
     a: vec3<f32>,
@@ -12,17 +13,8 @@ struct Row {
     z: u64,
 };
 
-@compute @workgroup_size(PIXEL_GROUP)
-fn main(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    let list = stored(wid, nwg, lid);
-    if (!list.ok) {
-        return;
-    }
-    let p = list.p;
+// The pixel's stored fragments, sorted into submission order, through m rows, over `bg`.
+fn list_color(list: Stored, bg: vec3<f32>) -> vec3<f32> {
     let start = list.start;
     let end = list.end;
     sort_by_submission(start, end);
@@ -58,5 +50,5 @@ fn main(
         c += t * rows[r].a;
         t *= rows[r].t;
     }
-    write_pixel(p, c + t * behind(p));
+    return c + t * bg;
 }

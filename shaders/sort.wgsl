@@ -44,12 +44,33 @@ fn stored(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> Stored {
     return Stored(p, start, end, true);
 }
 
-// The pixel's colour into the image, and whether its loops came close to the device's limit.
-fn write_pixel(p: u32, c: vec3<f32>) {
+// Whether the pixel's loops came close to the device's limit.
+fn report_loops() {
     if (ticks > LOOP_BUDGET) {
         atomicMax(&status[0], 1lu);
     }
+}
+
+// The pixel's colour into the image, and whether its loops came close to the device's limit.
+fn write_pixel(p: u32, c: vec3<f32>) {
+    report_loops();
     image[p] = vec4<f32>(c, 1.0);
+}
+
+// An application's frame (gpu::ExactOit::resolve, the `onto` entries): over its own image
+// `under`, onto its target.
+@group(0) @binding(8) var under: texture_2d<f32>;
+@group(0) @binding(9) var onto_target: texture_storage_2d<rgba32float, write>;
+
+// What the application's image holds at pixel p.
+fn under_pixel(p: u32) -> vec3<f32> {
+    return textureLoad(under, vec2<u32>(p % params.width, p / params.width), 0).rgb;
+}
+
+// The pixel's colour onto the application's target.
+fn write_onto(p: u32, c: vec3<f32>) {
+    report_loops();
+    textureStore(onto_target, vec2<u32>(p % params.width, p / params.width), vec4<f32>(c, 1.0));
 }
 
 // Front to back by key; with `with_primitives` the submission indices move alongside and break
@@ -103,5 +124,32 @@ fn sort_by_submission(start: u32, end: u32) {
         }
         keys[j] = k;
         primitives[j] = q;
+    }
+}
+
+// The resolve's two entries, over each pixel's stored fragments: dhoit's own frame (over what
+// is behind the pixel, into the image) and an application's (over its image `under`, onto its
+// target). `list_color(list, bg)`, the pixel's colour over bg, is the pass's own.
+@compute @workgroup_size(PIXEL_GROUP)
+fn main(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let list = stored(wid, nwg, lid);
+    if (list.ok) {
+        write_pixel(list.p, list_color(list, behind(list.p)));
+    }
+}
+
+@compute @workgroup_size(PIXEL_GROUP)
+fn onto(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let list = stored(wid, nwg, lid);
+    if (list.ok) {
+        write_onto(list.p, list_color(list, under_pixel(list.p)));
     }
 }

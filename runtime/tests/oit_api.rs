@@ -60,6 +60,8 @@ struct V {
     @builtin(position) position: vec4<f32>,
     @location(0) @interpolate(flat) color: vec4<f32>,
     @location(1) @interpolate(flat) facing: f32,
+    // The triangle's index in the scene: its submission index, for MLAB.
+    @location(2) @interpolate(flat) order: u32,
 };
 
 @vertex
@@ -69,12 +71,13 @@ fn vs(
     @location(2) p0: vec3<f32>,
     @location(3) p1: vec3<f32>,
     @location(4) p2: vec3<f32>,
+    @location(5) order: u32,
 ) -> V {
     let n = normalize(cross(p1 - p0, p2 - p0));
     let facing = abs(dot(n, app_camera.forward.xyz));
     let light = 0.3 + (1.0 - 0.3) * facing;
     let a = select(c.a, app_camera.forward.w, app_camera.forward.w >= 0.0);
-    return V(app_camera.view_proj * vec4<f32>(p, 1.0), vec4<f32>(c.rgb * light, a), facing);
+    return V(app_camera.view_proj * vec4<f32>(p, 1.0), vec4<f32>(c.rgb * light, a), facing, order);
 }
 
 @fragment
@@ -89,6 +92,15 @@ const APP_STORE: &str = r#"
 fn fs(in: V) {
     // The facing is VKB's (its importance); the other methods' modules ignore it.
     oit_store_facing(in.position, in.color, in.facing);
+}
+"#;
+
+/// Its transparent fragment entry for the A-buffer and MLAB: each fragment with its
+/// submission index (MLAB blends in that order; the exact blend needs none).
+const APP_ORDERED: &str = r#"
+@fragment
+fn fs(in: V) {
+    oit_store_ordered(in.position, in.color, in.order);
 }
 "#;
 
@@ -136,7 +148,7 @@ impl AppOit {
     fn shader(&self, group: u32, key: Key) -> String {
         let (module, entry) = match (self, key) {
             (AppOit::Once(o), _) => (o.store_module(group), APP_STORE),
-            (AppOit::Exact(_), _) => (ExactOit::wgsl(group), APP_STORE),
+            (AppOit::Exact(_), _) => (ExactOit::wgsl(group), APP_ORDERED),
             (AppOit::Allocated(o), Key::Deep(phase)) => (o.store_module(phase, group), APP_STORE),
             (AppOit::Blended(o), Key::Blend(phase)) => (o.store_module(phase, group), APP_BLEND),
             _ => unreachable!("{key:?} is not a phase of this method"),
@@ -177,8 +189,9 @@ fn app_frame_from(
 ) -> (Vec<[f32; 3]>, Option<AllocatedFrame>) {
     let (device, queue) = app_device_blending(true);
     let oit = make(&device, &queue);
-    // Interleaved position (3 floats), colour (4) and the triangle's three positions (9), its
-    // own layout: the opaque triangles first, then the transparent ones.
+    // Interleaved position (3 floats), colour (4), the triangle's three positions (9) and its
+    // index in the scene (a u32), its own layout: the opaque triangles first, then the
+    // transparent ones.
     let mut vertices: Vec<f32> = Vec::new();
     let opaque = |t: usize| !s.transparent(t);
     let triangles = s.positions.len() / 3;
@@ -200,6 +213,7 @@ fn app_frame_from(
             vertices.extend_from_slice(&[p.x, p.y, p.z]);
             vertices.extend_from_slice(&s.colors[3 * t]);
             vertices.extend_from_slice(&corners);
+            vertices.push(f32::from_bits(t as u32));
         }
     }
     let vbuf = device.create_buffer(&wgpu::BufferDescriptor {
@@ -260,10 +274,11 @@ fn app_frame_from(
         })
     };
     let vertex_layout = [Some(wgpu::VertexBufferLayout {
-        array_stride: 64,
+        array_stride: 68,
         step_mode: wgpu::VertexStepMode::Vertex,
         attributes: &wgpu::vertex_attr_array![
-            0 => Float32x3, 1 => Float32x4, 2 => Float32x3, 3 => Float32x3, 4 => Float32x3
+            0 => Float32x3, 1 => Float32x4, 2 => Float32x3, 3 => Float32x3, 4 => Float32x3,
+            5 => Uint32
         ],
     })];
     // Its opaque pass writes colour and depth; its transparent pass writes neither: the
@@ -465,12 +480,14 @@ fn app_frame_from(
             let total = oit.count(enc, &queue).unwrap();
             assert_eq!(total, oit.fragments());
             // Exact memory: budget::ABUFFER's for the frame's fragments, less the raster
-            // target (the application's), and the application's two uniforms.
+            // target (the application's), and the application's two uniforms; MLAB's
+            // submission indices, 4 bytes a fragment, beside them.
             let px = (w * h) as u64;
             let abuffer = dhoit_runtime::budget::ABUFFER;
+            let orders = oit.mlab_rows().map_or(0, |_| (4 * total).max(16));
             assert_eq!(
                 oit.allocated_bytes(),
-                abuffer.allocated_bytes(px, total.max(2)) - px + 32
+                abuffer.allocated_bytes(px, total.max(2)) - px + 32 + orders
             );
             enc = device.create_command_encoder(&Default::default());
             draw(&mut enc, &oit.store_group(&depth_view), Key::One, None);
@@ -688,6 +705,65 @@ fn an_application_draws_twice_through_dhoits_a_buffer_and_gets_the_exact_image_i
         oit.allocated_bytes(),
         abuffer.allocated_bytes(px, 2) - px + 32
     );
+    assert!(fragments > px / 2, "{fragments} fragments");
+}
+
+/// MLAB through the application's two draws (the A-buffer's), each fragment handed with its
+/// triangle's index as its submission index: the image is dhoit's own MLAB frame's within 1e-5
+/// at 1, 2 and 4 rows, in either draw order (MLAB blends in the order the indices give, not the
+/// arrival's), and at 1 and 2 rows not the exact image (the layers submitted out of depth
+/// order); its bytes are the A-buffer's and 4 a fragment.
+#[test]
+fn an_application_draws_through_dhoits_mlab_and_gets_its_image_in_any_order() {
+    let Some(g) = gpu() else { return };
+    let (w, h) = (64, 48);
+    let px = (w * h) as u64;
+    // The layers in a shuffled submission order: front to back (as layered_scene submits
+    // them) MLAB merges exactly.
+    let s = layered_scene().shuffled(7);
+    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
+    let fragments = exact.fragments.as_ref().unwrap().fragment_count() as u64;
+    for rows in [1, 2, 4] {
+        let harness = g
+            .render(&s, &identity(), w, h, BG, Some(Slots::Mlab(rows)))
+            .unwrap();
+        // Merged into one or two rows out of depth order, MLAB is not the exact image (at
+        // four rows, these up to seven layers lose nothing).
+        let off = worst_difference(&harness.image.data, &exact.image.data);
+        assert!(rows > 2 || off > 1e-3, "{rows} rows: MLAB is exact ({off})");
+        for reversed in [false, true] {
+            let app = app_frame(&s, (w, h), reversed, |d, q| {
+                let oit = ExactOit::mlab(d, q, (w, h), rows).unwrap();
+                assert_eq!(oit.mlab_rows(), Some(rows));
+                AppOit::Exact(Box::new(oit))
+            })
+            .0;
+            let worst = worst_difference(&app, &harness.image.data);
+            assert!(
+                worst <= 1e-5,
+                "{rows} rows, reversed {reversed}: the application's image differs from \
+                 dhoit's MLAB by {worst}"
+            );
+        }
+    }
+    // The A-buffer's bytes and 4 a fragment, once counted; rows outside 1..=8 refused.
+    let (device, queue) = app_device();
+    let oit = ExactOit::mlab(&device, &queue, (w, h), 4).unwrap();
+    let mut enc = device.create_command_encoder(&Default::default());
+    oit.clear(&mut enc);
+    assert_eq!(oit.count(enc, &queue).unwrap(), 0);
+    let abuffer = dhoit_runtime::budget::ABUFFER;
+    assert_eq!(
+        oit.allocated_bytes(),
+        abuffer.allocated_bytes(px, 2) - px + 32 + 16
+    );
+    for rows in [0, dhoit_runtime::wgsl::MLAB_MAX_ROWS + 1] {
+        let e = ExactOit::mlab(&device, &queue, (w, h), rows)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(e.contains("rows"), "{e}");
+    }
     assert!(fragments > px / 2, "{fragments} fragments");
 }
 

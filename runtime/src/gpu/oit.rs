@@ -1,6 +1,6 @@
 //! dhoit's methods in an application's own renderer: the budgeted linked list ([`ListOit`]) and
-//! the fixed k-buffer ([`KBufferOit`]), drawn once, and the exact A-buffer ([`ExactOit`]), drawn
-//! twice. The application owns the device, its
+//! the fixed k-buffer ([`KBufferOit`]), drawn once, and the exact A-buffer ([`ExactOit`], and
+//! MLAB from its fragments, [`ExactOit::mlab`]), drawn twice. The application owns the device, its
 //! vertex layouts, pipelines, opaque pass and target; dhoit owns the method's buffers, a WGSL
 //! function its fragment shader calls (`wgsl`: `oit_store`) through one bind group at the index
 //! the application chooses, and the resolve onto the application's image (`resolve`). The same
@@ -48,7 +48,7 @@
 use super::check_device;
 use super::pipelines::{compute_pipeline, module_from, redeclare};
 use crate::error::{Error, GpuError, Result};
-use crate::wgsl::{PIXEL_GROUP, Params, grid, shaders};
+use crate::wgsl::{MLAB_MAX_ROWS, PIXEL_GROUP, Params, grid, shaders};
 
 /// The formats the resolves write onto (storage textures every device supports).
 pub const TARGET_FORMATS: [wgpu::TextureFormat; 3] = [
@@ -595,42 +595,105 @@ pub struct ExactOit {
     blocks: wgpu::Buffer,
     params: wgpu::Buffer,
     status: wgpu::Buffer,
-    unused_primitives: wgpu::Buffer,
     /// The application's uniforms for the count and the store (their phase).
     phases: [wgpu::Buffer; 2],
-    /// The pool (8 bytes a fragment) and its capacity in fragments, grown as frames need.
-    pool: std::sync::Mutex<(wgpu::Buffer, u64)>,
+    /// The pool, grown as frames need.
+    pool: std::sync::Mutex<Pool>,
+    /// MLAB's rows, where the A-buffer blends as MLAB does (it keeps submission indices).
+    rows: Option<u32>,
     fragments: std::sync::atomic::AtomicU64,
     scan: [wgpu::ComputePipeline; 3],
+}
+
+/// The A-buffer's pool: each fragment's key (8 bytes) and, for MLAB, its submission index (4;
+/// an empty binding otherwise), with its capacity in fragments.
+struct Pool {
+    keys: wgpu::Buffer,
+    orders: wgpu::Buffer,
+    fragments: u64,
 }
 
 impl ExactOit {
     /// The A-buffer for frames of `width` x `height`. Refuses a device that lacks what the
     /// passes need (named), and sizes it cannot bind.
     pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, size: (u32, u32)) -> Result<ExactOit> {
-        let mut side = AppSide::new(device, size, "A-buffer", ("abuffer_resolve", 8))?;
+        Self::build(device, queue, size, None)
+    }
+
+    /// MLAB (Salvi and Vaidyanathan) with `rows` blending rows (1 to [`MLAB_MAX_ROWS`]), as
+    /// dhoit computes it: every fragment stored as the A-buffer stores it, with its
+    /// submission index (`oit_store_ordered`'s `order`), then each pixel's fragments merged
+    /// into the rows in that order (`mlab_resolve.wgsl`, as dhoit's own MLAB frames). Its memory
+    /// is the A-buffer's and 4 bytes a fragment, not the paper's rows: WebGPU has no fragment
+    /// shader interlock to merge in the fragment stage. The application draws twice, as for
+    /// the A-buffer.
+    pub fn mlab(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        size: (u32, u32),
+        rows: u32,
+    ) -> Result<ExactOit> {
+        if rows == 0 || rows > MLAB_MAX_ROWS {
+            return Err(Error::Invalid(format!(
+                "MLAB on the GPU takes 1 to {MLAB_MAX_ROWS} rows, not {rows}"
+            )));
+        }
+        Self::build(device, queue, size, Some(rows))
+    }
+
+    fn build(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        size: (u32, u32),
+        rows: Option<u32>,
+    ) -> Result<ExactOit> {
+        let (name, pass) = match rows {
+            Some(_) => ("MLAB", "mlab_resolve"),
+            None => ("A-buffer", "abuffer_resolve"),
+        };
+        let mut side = AppSide::new(device, size, name, (pass, 8))?;
         let px = side.pixels();
         let counts = side.storage("abuf.count", 4 * px)?;
         let offsets = side.storage("abuf.offsets", 4 * (px + 1))?;
         let blocks = side.storage("scan.blocks", 4 * px.div_ceil(crate::budget::SCAN_BLOCK))?;
         let status = side.storage("status", 16)?;
         let unused_primitives = side.storage("abuf.no_primitives", 16)?;
-        // The pool, sized by each count (8 bytes a fragment); empty until the first.
-        let pool = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("abuf.keys"),
-            size: 16,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
+        // The pool, sized by each count (8 bytes a fragment, MLAB 4 more); empty until the
+        // first.
+        let empty = |label| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 16,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        let pool = Pool {
+            keys: empty("abuf.keys"),
+            orders: match rows {
+                Some(_) => empty("abuf.primitives"),
+                None => unused_primitives.clone(),
+            },
+            fragments: 0,
+        };
+        let ordered = rows.is_some() as u32;
         let phases = [0u32, 1].map(|phase| {
             side.uniform(
                 queue,
                 "abuffer.store_params",
-                bytemuck::cast_slice(&[size.0, phase, 0, 0]),
+                bytemuck::cast_slice(&[size.0, phase, ordered, 0]),
             )
         });
-        let params = side.resolve_params(queue, |_| {});
-        side.store_group(&[&counts, &offsets, &pool], phases[0].clone());
+        let params = side.resolve_params(queue, |p| {
+            if let Some(m) = rows {
+                p.k_uniform = m;
+                p.store_primitives = 1;
+            }
+        });
+        side.store_group(
+            &[&counts, &offsets, &pool.keys, &pool.orders],
+            phases[0].clone(),
+        );
         side.cleared = vec![counts.clone()];
         let src = shaders::source("scan").expect("known pass");
         let m = module_from(device, "scan (application)", src);
@@ -643,9 +706,9 @@ impl ExactOit {
             blocks,
             params,
             status,
-            unused_primitives,
             phases,
-            pool: std::sync::Mutex::new((pool, 0)),
+            pool: std::sync::Mutex::new(pool),
+            rows,
             fragments: Default::default(),
             scan,
         })
@@ -653,7 +716,10 @@ impl ExactOit {
 
     /// The WGSL the application's transparent fragment shader starts with: the A-buffer's
     /// bindings at `group` and `fn oit_store(frag_coord: vec4<f32>, color: vec4<f32>)`, which
-    /// it calls with its fragment's `@builtin(position)` and straight colour, in both draws.
+    /// it calls with its fragment's `@builtin(position)` and straight colour, in both draws;
+    /// for MLAB ([`ExactOit::mlab`]) `fn oit_store_ordered(frag_coord, color, order: u32)`,
+    /// `order` the fragment's submission index (its triangle's index in the application's
+    /// submission, say), which MLAB merges a pixel's fragments in.
     pub fn wgsl(group: u32) -> String {
         shaders::application_module(&[shaders::OIT_FRAGMENT, shaders::OIT_ABUFFER_STORE], group)
     }
@@ -673,7 +739,8 @@ impl ExactOit {
         let entries = [
             self.counts.as_entire_binding(),
             self.offsets.as_entire_binding(),
-            pool.0.as_entire_binding(),
+            pool.keys.as_entire_binding(),
+            pool.orders.as_entire_binding(),
             self.phases[phase].as_entire_binding(),
             wgpu::BindingResource::TextureView(opaque_depth),
         ];
@@ -760,25 +827,29 @@ impl ExactOit {
             bytemuck::cast_slice::<u8, u32>(&data)[0] as u64
         };
         let mut pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
-        if total > pool.1 {
-            let size = (8 * total).max(16);
-            if size > self.side.limit {
-                return Err(GpuError::BufferTooLarge {
-                    label: "abuf.keys".to_string(),
-                    need: size,
-                    max: self.side.limit,
+        if total > pool.fragments {
+            let grown = |label: &str, bytes: u64| {
+                let size = (bytes * total).max(16);
+                if size > self.side.limit {
+                    return Err(GpuError::BufferTooLarge {
+                        label: label.to_string(),
+                        need: size,
+                        max: self.side.limit,
+                    });
                 }
-                .into());
-            }
-            *pool = (
-                device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("abuf.keys"),
+                Ok(device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
                     size,
                     usage: wgpu::BufferUsages::STORAGE,
                     mapped_at_creation: false,
-                }),
-                total,
-            );
+                }))
+            };
+            let keys = grown("abuf.keys", 8)?;
+            if self.rows.is_some() {
+                pool.orders = grown("abuf.primitives", 4)?;
+            }
+            pool.keys = keys;
+            pool.fragments = total;
         }
         self.fragments
             .store(total, std::sync::atomic::Ordering::Relaxed);
@@ -797,11 +868,20 @@ impl ExactOit {
     }
 
     /// Bytes of the buffers the A-buffer holds: `budget::ABUFFER`'s for the largest frame it
-    /// counted (its pool 8 bytes a fragment), less the raster target (the application's), and
-    /// the application's two 16-byte uniforms.
+    /// counted (its pool 8 bytes a fragment; MLAB's 4 more), less the raster target (the
+    /// application's), and the application's two 16-byte uniforms.
     pub fn allocated_bytes(&self) -> u64 {
         let pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
-        self.side.allocated + pool.0.size()
+        let orders = match self.rows {
+            Some(_) => pool.orders.size(),
+            None => 0,
+        };
+        self.side.allocated + pool.keys.size() + orders
+    }
+
+    /// MLAB's rows, where this A-buffer blends as MLAB does ([`ExactOit::mlab`]).
+    pub fn mlab_rows(&self) -> Option<u32> {
+        self.rows
     }
 
     /// Sorts each pixel's fragments and blends them over the application's image `under` onto
@@ -814,18 +894,16 @@ impl ExactOit {
         format: wgpu::TextureFormat,
         timestamps: Option<wgpu::ComputePassTimestampWrites>,
     ) -> Result<()> {
-        let pool = self
-            .pool
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .0
-            .clone();
+        let (keys, orders) = {
+            let pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
+            (pool.keys.clone(), pool.orders.clone())
+        };
         let buffers = [
             (0, &self.params),
             (1, &self.offsets),
-            (2, &pool),
+            (2, &keys),
             (4, &self.status),
-            (5, &self.unused_primitives),
+            (5, &orders),
         ];
         self.side
             .resolve_with(enc, &buffers, &[], (under, target, format), timestamps)
