@@ -143,8 +143,6 @@ pub fn tails_kept(k: &[u32], counts: &[u32]) -> u64 {
 /// The tail's integer sums: sum c8 a8 for r, g, b, sum a8 (four u32 a pixel), and its count.
 const HYBRID_TAIL: (&str, u64) = ("oit.tail", 16);
 const TAIL_COUNT: (&str, u64) = ("oit.tail_count", 4);
-/// The geometry passes' render target (R8, never written): rasterization needs one.
-const RASTER_TARGET: (&str, u64) = ("raster.target", 1);
 /// The allocation's parameters (F, share, weight kind) and its search state (25 u64: target,
 /// interval, sums of 16 candidates, rounds, the last answers).
 const ALLOC_PARAMS: (&str, u64) = ("alloc.params", 16);
@@ -159,7 +157,7 @@ const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 /// The resolve's status words: loops cut short, a pixel too deep (gpu's FrameStatus).
 const STATUS: (&str, u64) = ("status", 16);
 
-/// Deep k-buffer: the count, the shared word and the raster target a pixel; the rest in the slot
+/// Deep k-buffer: the count and the shared word a pixel; the rest in the slot
 /// pool before the slots fill it ([`PoolState`]): a record of the network's statistics for each
 /// pixel of three fragments or more (32 bytes: the nearest key, the colour and opacity sums; a
 /// pixel of fewer keeps them all whatever its k, `shared::stored_k`, so its k is forced), then
@@ -171,7 +169,7 @@ const STATUS: (&str, u64) = ("status", 16);
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[RASTER_TARGET, ("features.count", 4), ("oit.offsets", 4)],
+    per_pixel: &[("features.count", 4), ("oit.offsets", 4)],
     fixed: &[
         ("params", PARAMS_BYTES),
         ("features.totals", 24),
@@ -206,7 +204,7 @@ pub const DKB: Layout = Layout {
 pub const OPT: Layout = Layout {
     method: "optimal",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[RASTER_TARGET, ("oit.offsets", 4), HYBRID_TAIL, TAIL_COUNT],
+    per_pixel: &[("oit.offsets", 4), HYBRID_TAIL, TAIL_COUNT],
     fixed: &[
         ("params", PARAMS_BYTES),
         OFFSETS_END,
@@ -227,12 +225,7 @@ pub const OPT: Layout = Layout {
 pub const VKB: Layout = Layout {
     method: "vkb",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[
-        RASTER_TARGET,
-        ("vkb.count", 4),
-        ("oit.offsets", 4),
-        ("vkb.nearest", 8),
-    ],
+    per_pixel: &[("vkb.count", 4), ("oit.offsets", 4), ("vkb.nearest", 8)],
     fixed: &[
         ("params", PARAMS_BYTES),
         ("vkb.totals", 16),
@@ -254,7 +247,7 @@ pub const VKB: Layout = Layout {
 pub const FKB: Layout = Layout {
     method: "fkb",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[RASTER_TARGET, HYBRID_TAIL, TAIL_COUNT],
+    per_pixel: &[HYBRID_TAIL, TAIL_COUNT],
     // The capture and resolve passes bind per-pixel slot bases and counts that FKB never reads.
     fixed: &[
         ("params", PARAMS_BYTES),
@@ -273,7 +266,7 @@ pub const FKB: Layout = Layout {
 pub const MLAB: Layout = Layout {
     method: "mlab",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[RASTER_TARGET],
+    per_pixel: &[],
     fixed: &[("params", PARAMS_BYTES)],
     scan: false,
     weights: 0,
@@ -288,11 +281,7 @@ pub const MLAB: Layout = Layout {
 pub const WBOIT: Layout = Layout {
     method: "wboit",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[
-        RASTER_TARGET,
-        ("wboit.accumulation", 8),
-        ("wboit.revealage", 1),
-    ],
+    per_pixel: &[("wboit.accumulation", 8), ("wboit.revealage", 1)],
     fixed: &[("params", PARAMS_BYTES)],
     scan: false,
     weights: 0,
@@ -309,7 +298,6 @@ pub const MBOIT: Layout = Layout {
     method: "mboit",
     slot_bytes: SLOT_BYTES,
     per_pixel: &[
-        RASTER_TARGET,
         ("mboit.b0", 4),
         ("mboit.moments", 16),
         ("mboit.accumulation", 8),
@@ -326,7 +314,6 @@ pub const MBOIT: Layout = Layout {
 /// MBOIT with six power moments: b_5 and b_6 in an RG32F target beside [`MBOIT`]'s.
 pub const MBOIT6: Layout = Layout {
     per_pixel: &[
-        RASTER_TARGET,
         ("mboit.b0", 4),
         ("mboit.moments", 16),
         ("mboit.extra", 8),
@@ -338,7 +325,6 @@ pub const MBOIT6: Layout = Layout {
 /// MBOIT with eight power moments: b_5..b_8 in an RGBA32F target beside [`MBOIT`]'s.
 pub const MBOIT8: Layout = Layout {
     per_pixel: &[
-        RASTER_TARGET,
         ("mboit.b0", 4),
         ("mboit.moments", 16),
         ("mboit.extra", 16),
@@ -363,7 +349,7 @@ pub fn mboit(moments: u32) -> Layout {
 pub const LINKED_LIST: Layout = Layout {
     method: "linked-list",
     slot_bytes: 12,
-    per_pixel: &[RASTER_TARGET, ("list.heads", 4)],
+    per_pixel: &[("list.heads", 4)],
     fixed: &[("params", PARAMS_BYTES), ("list.counter", 16), STATUS],
     scan: false,
     weights: 0,
@@ -378,7 +364,7 @@ pub const LINKED_LIST: Layout = Layout {
 pub const ABUFFER: Layout = Layout {
     method: "abuffer",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[RASTER_TARGET, ("abuf.count", 4), ("abuf.offsets", 4)],
+    per_pixel: &[("abuf.count", 4), ("abuf.offsets", 4)],
     fixed: &[
         ("params", PARAMS_BYTES),
         OFFSETS_END,

@@ -65,7 +65,7 @@ fn the_list_keeps_the_first_f_fragments_and_drops_the_rest() {
     );
     assert_eq!(
         budget::LINKED_LIST.allocated_bytes(48, 120),
-        48 * 5 + 12 * 120 + 256 + 16 + 16
+        48 * 4 + 12 * 120 + 256 + 16 + 16
     );
     // Its image: the kept fragments, the nearest 8 in order and the rest as a tail.
     let sorted = vec![composite::LIST_SORTED; 48];

@@ -27,10 +27,10 @@ fn a_budget_that_holds_every_fragment_allocates_and_renders_the_abuffer() {
         let fl = rasterize(&s, &cam, w, h).unwrap();
         let (px, n) = (fl.pixel_count() as u64, fl.fragment_count() as u64);
         let exact = budget::ABUFFER.allocated_bytes(px, n);
-        // By hand: 9 bytes a pixel (count, offsets, raster target), 8 a fragment, the fixed
+        // By hand: 8 bytes a pixel (count, offsets), 8 a fragment, the fixed
         // buffers and the prefix sum's block totals.
         let blocks = (4 * px.div_ceil(budget::SCAN_BLOCK)).max(16);
-        assert_eq!(exact, 9 * px + 8 * n + 256 + 4 + 16 + 16 + blocks);
+        assert_eq!(exact, 8 * px + 8 * n + 256 + 4 + 16 + 16 + blocks);
         let reference = g.render(&s, &cam, w, h, BG, None).unwrap();
         assert_eq!(reference.allocated_bytes, exact, "{name}: the GPU A-buffer");
         let holding = [
@@ -344,7 +344,10 @@ fn the_device_page_lists_the_buffers_the_layouts_count() {
         table += &format!(
             "| {m} | {} | {} | {} | {} | {} | {fixed} | {} |\n",
             l.per_pixel_bytes(),
-            buffers.join(", "),
+            match buffers.is_empty() {
+                true => "-".to_string(),
+                false => buffers.join(", "),
+            },
             l.slot_bytes,
             l.tail_bytes,
             match l.pool_state {

@@ -479,15 +479,14 @@ fn app_frame_from(
             draw(&mut enc, &oit.count_group(&depth_view), Key::One, None);
             let total = oit.count(enc, &queue).unwrap();
             assert_eq!(total, oit.fragments());
-            // Exact memory: budget::ABUFFER's for the frame's fragments, less the raster
-            // target (the application's), and the application's two uniforms; MLAB's
-            // submission indices, 4 bytes a fragment, beside them.
+            // Exact memory: budget::ABUFFER's for the frame's fragments and the application's
+            // two uniforms; MLAB's submission indices, 4 bytes a fragment, beside them.
             let px = (w * h) as u64;
             let abuffer = dhoit_runtime::budget::ABUFFER;
             let orders = oit.mlab_rows().map_or(0, |_| (4 * total).max(16));
             assert_eq!(
                 oit.allocated_bytes(),
-                abuffer.allocated_bytes(px, total.max(2)) - px + 32 + orders
+                abuffer.allocated_bytes(px, total.max(2)) + 32 + orders
             );
             enc = device.create_command_encoder(&Default::default());
             draw(&mut enc, &oit.store_group(&depth_view), Key::One, None);
@@ -701,10 +700,7 @@ fn an_application_draws_twice_through_dhoits_a_buffer_and_gets_the_exact_image_i
     let oit = ExactOit::new(&device, &queue, (w, h)).unwrap();
     let px = (w * h) as u64;
     let abuffer = dhoit_runtime::budget::ABUFFER;
-    assert_eq!(
-        oit.allocated_bytes(),
-        abuffer.allocated_bytes(px, 2) - px + 32
-    );
+    assert_eq!(oit.allocated_bytes(), abuffer.allocated_bytes(px, 2) + 32);
     assert!(fragments > px / 2, "{fragments} fragments");
 }
 
@@ -755,7 +751,7 @@ fn an_application_draws_through_dhoits_mlab_and_gets_its_image_in_any_order() {
     let abuffer = dhoit_runtime::budget::ABUFFER;
     assert_eq!(
         oit.allocated_bytes(),
-        abuffer.allocated_bytes(px, 2) - px + 32 + 16
+        abuffer.allocated_bytes(px, 2) + 32 + 16
     );
     for rows in [0, dhoit_runtime::wgsl::MLAB_MAX_ROWS + 1] {
         let e = ExactOit::mlab(&device, &queue, (w, h), rows)
@@ -770,7 +766,7 @@ fn an_application_draws_through_dhoits_mlab_and_gets_its_image_in_any_order() {
 /// DKB and VKB through the application's draws: the count, the features (VKB's count with the
 /// nearest fragment) and the capture are its own pipelines (one a phase), every compute pass
 /// dhoit's; the image is dhoit's own frame's (one that truncates: not the exact image), in
-/// either draw order, with the same buffers but the raster target (the application's), and
+/// either draw order, with the same buffers as dhoit's own frame, and
 /// each of its passes timed by its timestamps. By default, where the A-buffer needs no more
 /// bytes (this small frame), the frame is exact.
 #[test]
@@ -828,7 +824,7 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
                      from dhoit's by {worst}"
                 );
                 assert!(!frame.exact);
-                assert_eq!(frame.allocated_bytes, harness.allocated_bytes - px);
+                assert_eq!(frame.allocated_bytes, harness.allocated_bytes);
                 for pass in ["count", statistics, "importance", "capture", "resolve"] {
                     let ms = frame.pass_ms.iter().find(|(p, _)| p == &pass);
                     assert!(
@@ -851,7 +847,7 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
             worst <= 1e-5,
             "{name}, exact where cheaper: {worst} from the A-buffer"
         );
-        assert_eq!(frame.allocated_bytes, exact.allocated_bytes - px);
+        assert_eq!(frame.allocated_bytes, exact.allocated_bytes);
     }
 }
 
@@ -931,7 +927,7 @@ fn a_byte_budget_is_resolved_against_each_frames_own_count() {
             let worst = worst_difference(&app, &harness.image.data);
             assert!(worst <= 1e-5, "{name}, reversed {reversed}: {worst}");
             assert!(!frame.exact);
-            assert_eq!(frame.allocated_bytes, given.allocated_bytes - px, "{name}");
+            assert_eq!(frame.allocated_bytes, given.allocated_bytes, "{name}");
         }
         // Bytes that hold the A-buffer: its frame, exact.
         let (app, frame) = app_frame(&s, (w, h), false, |d, q| {
@@ -1026,7 +1022,7 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
 /// within 1e-5 over the application's opaque occluder, for eqs. 10 and 7 of WBOIT (7 with
 /// planes) and 4, 6 and 8 power moments where the device blends 32-bit floats; in the reversed
 /// order within the targets' rounding (the devices add in submission order); the bytes are the
-/// layout table's, less the raster target (the application's).
+/// layout table's.
 #[test]
 fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
     let Some(g) = gpu() else { return };
@@ -1077,7 +1073,7 @@ fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
             let oit = oit.unwrap();
             assert_eq!(
                 oit.allocated_bytes(),
-                layout.allocated_bytes(px, 0) - px,
+                layout.allocated_bytes(px, 0),
                 "{name}: the layout table's bytes"
             );
             AppOit::Blended(Box::new(oit))
@@ -1230,12 +1226,11 @@ fn the_k_buffer_counts_its_buffers_and_refuses_what_it_cannot_hold() {
     for k in [1, 4] {
         let oit = KBufferOit::new(&device, &queue, (w, h), k).unwrap();
         assert_eq!(oit.k(), k);
-        // budget::FKB's buffers for k slots a pixel, less the raster target (the
-        // application's), and the application's 16-byte uniform.
+        // budget::FKB's buffers for k slots a pixel and the application's 16-byte uniform.
         let fkb = dhoit_runtime::budget::FKB;
         assert_eq!(
             oit.allocated_bytes(),
-            fkb.allocated_bytes(px, k as u64 * px) - px + 16
+            fkb.allocated_bytes(px, k as u64 * px) + 16
         );
         // A hand count: 8 bytes a slot, 16 + 4 a pixel for the tail, params, status, two
         // unused 16-byte bindings, the application's uniform.
@@ -1275,12 +1270,9 @@ fn the_list_refuses_what_it_cannot_hold_or_write() {
         .unwrap();
     assert!(e.to_string().contains("opened without"), "{e}");
     let oit = ListOit::new(&device, &queue, (4, 4), 16, 8).unwrap();
-    // budget::LINKED_LIST's buffers, less the raster target, and the application's uniform.
+    // budget::LINKED_LIST's buffers and the application's uniform.
     let list = dhoit_runtime::budget::LINKED_LIST;
-    assert_eq!(
-        oit.allocated_bytes(),
-        list.allocated_bytes(16, 16) - 16 + 16
-    );
+    assert_eq!(oit.allocated_bytes(), list.allocated_bytes(16, 16) + 16);
     assert_eq!(oit.allocated_bytes(), 4 * 16 + 12 * 16 + 256 + 16 + 16 + 16);
     assert_eq!(oit.nodes(), 16);
 }

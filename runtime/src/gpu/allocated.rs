@@ -127,8 +127,7 @@ pub struct PhaseDraw<'a> {
 #[derive(Clone, Debug)]
 pub struct AllocatedFrame {
     /// Bytes of the buffers the frame held: the method's layout's (`budget::DKB` for the
-    /// network, or `budget::VKB`, less the raster target, the application's), or the
-    /// A-buffer's where it rendered that.
+    /// network, or `budget::VKB`), or the A-buffer's where it rendered that.
     pub allocated_bytes: u64,
     /// Whether the frame rendered the exact A-buffer, which needed no more bytes than the
     /// method would at its budget (or the budget held every fragment).

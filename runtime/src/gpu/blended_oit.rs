@@ -72,8 +72,8 @@ struct PhasePass {
 }
 
 /// WBOIT or MBOIT on an application's device: its targets (each counted, the bytes of the
-/// method's layout table, `budget::WBOIT` or `budget::mboit(n)`, less the raster target, the
-/// application's), the frame's parameters, and the composite onto the application's target.
+/// method's layout table, `budget::WBOIT` or `budget::mboit(n)`), the frame's parameters, and
+/// the composite onto the application's target.
 /// No readback, no wait.
 pub struct BlendedOit {
     side: AppSide,
@@ -329,7 +329,7 @@ impl BlendedOit {
     }
 
     /// Bytes of what the method created: its layout table's (`budget::WBOIT`,
-    /// `budget::mboit(n)`), less the raster target (the application's).
+    /// `budget::mboit(n)`).
     pub fn allocated_bytes(&self) -> u64 {
         self.side.allocated
     }

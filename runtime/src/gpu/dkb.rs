@@ -9,8 +9,8 @@
 //! Where the budget holds every fragment none of those runs: k = n whatever the importance.
 //!
 //! DKB's per-pixel state is the count, the shared word (`oit.offsets`: a pixel's record index,
-//! its importance, the allocation's weights, k and the slot bases in turn) and the raster
-//! target; what only some pixels need lives in the slot pool before the slots do: the records
+//! its importance, the allocation's weights, k and the slot bases in turn); what only some
+//! pixels need lives in the slot pool before the slots do: the records
 //! until the importance is gathered, the allocation's marks until k is known, then the slots
 //! and the pooled tails. The pool is sized for the frame's budget and occupancy
 //! ([`crate::budget::Layout::pool_bytes`]) before the features pass.

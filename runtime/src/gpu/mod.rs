@@ -47,7 +47,7 @@ pub use blended_oit::{BlendedOit, BlendedPhase};
 use buffers::{FrameBuffers, Readback, Statistics, read_frame, read_texture};
 pub use oit::{ApplicationOit, ExactOit, KBufferOit, ListOit, TARGET_FORMATS};
 use passes::Passes;
-use pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT, Pipelines, TARGET_FORMAT};
+use pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT, Pipelines};
 use timer::Timer;
 
 use crate::alloc::Target;
@@ -1029,8 +1029,6 @@ struct FrameInputs {
     /// Indices of the transparent triangles, and of the opaque ones after them.
     transparent: u32,
     opaque: u32,
-    /// The R8 target rasterization needs (never written; counted in the frame's bytes).
-    target: wgpu::TextureView,
     /// The opaque pass's depth (the transparent passes' occluder) and colour (RGBA8 in an R32,
     /// A = 255 where covered): the application's, counted for no method.
     opaque_depth: wgpu::Texture,
@@ -1120,17 +1118,11 @@ impl Gpu {
         let size = if app {
             (1, 1)
         } else {
-            fb.allocated += params.width as u64 * params.height as u64;
             (params.width, params.height)
         };
         let texture = |label: &str, format, usage| {
             buffers::frame_texture(&self.device, label, size, format, usage)
         };
-        let target = texture(
-            "raster.target",
-            TARGET_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
-        );
         let sampled = wgpu::TextureUsages::RENDER_ATTACHMENT
             | wgpu::TextureUsages::TEXTURE_BINDING
             | wgpu::TextureUsages::COPY_SRC;
@@ -1140,7 +1132,6 @@ impl Gpu {
             index,
             transparent: 3 * transparent.len() as u32,
             opaque: 3 * opaque.len() as u32,
-            target: target.create_view(&Default::default()),
             opaque_depth: texture("application.opaque_depth", OPAQUE_DEPTH_FORMAT, sampled),
             opaque_color: texture("application.opaque_color", OPAQUE_COLOR_FORMAT, sampled),
             pixels: params.pixels,

@@ -868,8 +868,8 @@ impl ExactOit {
     }
 
     /// Bytes of the buffers the A-buffer holds: `budget::ABUFFER`'s for the largest frame it
-    /// counted (its pool 8 bytes a fragment; MLAB's 4 more), less the raster target (the
-    /// application's), and the application's two 16-byte uniforms.
+    /// counted (its pool 8 bytes a fragment; MLAB's 4 more) and the application's two
+    /// 16-byte uniforms.
     pub fn allocated_bytes(&self) -> u64 {
         let pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
         let orders = match self.rows {
@@ -928,8 +928,8 @@ pub trait ApplicationOit {
     /// the occluder. Made once and kept while the depth texture lives.
     fn bind_group(&self, opaque_depth: &wgpu::TextureView) -> wgpu::BindGroup;
 
-    /// Bytes of the buffers the method created: its `budget` layout's, less the raster target
-    /// (the application's), and the application's 16-byte uniform.
+    /// Bytes of the buffers the method created: its `budget` layout's and the application's
+    /// 16-byte uniform.
     fn allocated_bytes(&self) -> u64;
 
     /// Empties the method's buffers for a new frame: recorded before its transparent draws.

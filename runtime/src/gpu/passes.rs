@@ -158,12 +158,13 @@ impl<'a> Passes<'a> {
         }
         let g0 = self.geometry_group(&pipeline.get_bind_group_layout(0), true);
         let g1 = self.gpu.bind(&pipeline.get_bind_group_layout(1), buffers);
-        // The R8 target is never written (rasterization needs one).
-        let ops = wgpu::Operations {
-            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-            store: wgpu::StoreOp::Discard,
+        // The opaque depth, read-only, is the pass's one attachment (no colour is written).
+        let depth = wgpu::RenderPassDepthStencilAttachment {
+            view: &self.opaque_depth,
+            depth_ops: None,
+            stencil_ops: None,
         };
-        let mut pass = self.render_pass(enc, name, &[(&self.inputs.target, ops)], None);
+        let mut pass = self.render_pass(enc, name, &[], Some(depth));
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &g0, &[]);
         pass.set_bind_group(1, &g1, &[]);

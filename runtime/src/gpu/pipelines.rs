@@ -56,7 +56,6 @@ pub(super) struct Pipelines {
     pub(super) importance_vkb: wgpu::ComputePipeline,
 }
 
-pub(super) const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 /// The opaque pass's depth attachment, which the transparent passes read as their occluder.
 pub(super) const OPAQUE_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// The opaque pass's colour: RGBA8 in one 32-bit word, A = 255 where an opaque surface covers
@@ -474,15 +473,18 @@ impl Pipelines {
                       targets: &[Option<wgpu::ColorTargetState>]| {
             render_entry(name, "fs_main", m, depth, targets)
         };
-        // The transparent passes: no depth attachment (they test the opaque depth in the
-        // shader), an R8 target never written.
+        // The transparent passes: no colour target, the opaque depth their one attachment,
+        // read-only and never tested (they test it in the shader, where the test comes before
+        // their atomics on every device): what a renderer's transparent pass binds anyway.
         let geometry_from = |name: &str, m: wgpu::ShaderModule| {
-            let target = wgpu::ColorTargetState {
-                format: TARGET_FORMAT,
-                blend: None,
-                write_mask: wgpu::ColorWrites::empty(),
+            let depth = wgpu::DepthStencilState {
+                format: OPAQUE_DEPTH_FORMAT,
+                depth_write_enabled: Some(false),
+                depth_compare: Some(wgpu::CompareFunction::Always),
+                stencil: Default::default(),
+                bias: Default::default(),
             };
-            render(name, &m, None, &[Some(target)])
+            render(name, &m, Some(depth), &[])
         };
         // The blended methods' passes: their targets written through `blend` (gpu::blend).
         let blended = |b: &BlendPass| {
