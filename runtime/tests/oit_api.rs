@@ -950,7 +950,9 @@ fn a_byte_budget_is_resolved_against_each_frames_own_count() {
 /// back by dhoit's loader (a real glTF where ../shared/scenes has one is textured, which an
 /// application samples with its own sampler: not dhoit's texels), each triangle one colour,
 /// seen from an orbit camera at one uniform opacity. The application's image is dhoit's own,
-/// within 1e-5, for the A-buffer, FKB, DKB and VKB, in either draw order.
+/// within 1e-5, for every method: the A-buffer, FKB, DKB, VKB, MLAB and the list (a pool that
+/// holds every fragment) in either draw order, WBOIT and MBOIT in the scene's (reversed, within
+/// their targets' rounding).
 #[test]
 fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
     let Some(g) = gpu() else { return };
@@ -959,7 +961,11 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
     let built_in = dhoit_runtime::scene::load("shells", Default::default()).unwrap();
     dhoit_runtime::scene::gltf::export(&built_in, &path).unwrap();
     let opacity = dhoit_runtime::scene::Opacity::Uniform(0.4);
-    let mut s = dhoit_runtime::scene::load(path.to_str().unwrap(), opacity).unwrap();
+    // Its triangles in a shuffled order: the shells' own (one shell after another) is one
+    // that MLAB merges exactly.
+    let mut s = dhoit_runtime::scene::load(path.to_str().unwrap(), opacity)
+        .unwrap()
+        .shuffled(5);
     std::fs::remove_file(&path).unwrap();
     for t in 0..s.triangle_count() {
         let c = s.colors[3 * t];
@@ -982,21 +988,40 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
         .unwrap();
     let vkb = dhoit_runtime::importance::VkbParams::default();
     let vkb_f = b.fragment_budget(&budget::VKB, px).unwrap();
+    let nodes = fragments + 5;
+    let mboit = MboitParams::default();
     let cases: Vec<(&str, Option<Slots>)> = vec![
         ("abuffer", None),
         ("fkb", Some(Slots::Uniform(2))),
         ("dkb", Some(Slots::Dkb(&weights, dkb_f))),
         ("vkb", Some(Slots::Vkb(vkb, vkb_f))),
+        ("mlab", Some(Slots::Mlab(2))),
+        ("linked-list", Some(Slots::LinkedList { nodes, sorted: 8 })),
+        ("wboit", Some(Slots::Wboit(WboitParams::default()))),
+        ("mboit", Some(Slots::Mboit(mboit))),
     ];
     for (name, slots) in cases {
         let harness = g.render_with(&opts, &s, &cam, (w, h), BG, slots).unwrap();
-        if slots.is_some() {
+        // Every method but the list (whose pool holds every fragment) approximates here.
+        if slots.is_some() && name != "linked-list" {
             let off = worst_difference(&harness.image.data, &exact.image.data);
             assert!(off > 1e-3, "{name} is exact ({off}): nothing truncated");
         }
         for reversed in [false, true] {
             let (app, _) = app_frame_from(&s, &cam, (w, h), reversed, |d, q| match name {
                 "abuffer" => AppOit::Exact(Box::new(ExactOit::new(d, q, (w, h)).unwrap())),
+                "mlab" => AppOit::Exact(Box::new(ExactOit::mlab(d, q, (w, h), 2).unwrap())),
+                "linked-list" => {
+                    let list = ListOit::new(d, q, (w, h), nodes, 8).unwrap();
+                    AppOit::Once(Box::new(list))
+                }
+                "wboit" => {
+                    let oit = BlendedOit::wboit(d, q, (w, h), WboitParams::default()).unwrap();
+                    AppOit::Blended(Box::new(oit))
+                }
+                "mboit" => {
+                    AppOit::Blended(Box::new(BlendedOit::mboit(d, q, (w, h), mboit).unwrap()))
+                }
                 "fkb" => AppOit::Once(Box::new(KBufferOit::new(d, q, (w, h), 2).unwrap())),
                 _ => {
                     let method = match name {
@@ -1008,8 +1033,13 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
                 }
             });
             let worst = worst_difference(&app, &harness.image.data);
+            // The blended methods add in submission order at their targets' precision.
+            let bound = match (name, reversed) {
+                ("wboit" | "mboit", true) => 5e-3,
+                _ => 1e-5,
+            };
             assert!(
-                worst <= 1e-5,
+                worst <= bound,
                 "{name}, reversed {reversed}: the application's image differs from dhoit's by {worst}"
             );
         }
