@@ -134,7 +134,7 @@ impl Recording<'_, '_> {
             "store",
         );
         let (resolve, name) = match blend {
-            Blend::Mlab => (&p.mlab_resolve, "mlab blend"),
+            Blend::Mlab => (gpu.extras().mlab_resolve(), "mlab blend"),
             Blend::Exact => (&p.abuffer_resolve, "sort and blend"),
         };
         let bufs = [

@@ -248,7 +248,6 @@ impl Recording<'_, '_> {
     /// WBOIT's accumulation and composite; returns the image buffer.
     pub(super) fn wboit(&mut self, size: (u32, u32)) -> Result<wgpu::Buffer> {
         let (passes, px) = (self.passes, self.px);
-        let p = &passes.gpu.pipelines;
         let targets: Vec<_> = BlendPass::WBOIT
             .targets
             .iter()
@@ -256,11 +255,12 @@ impl Recording<'_, '_> {
             .collect();
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         let attachments: Vec<_> = targets.iter().map(|(v, c)| (v, *c)).collect();
-        passes.blend(enc, &p.wboit_accumulate, None, &attachments, "accumulate");
+        let (accumulate, composite) = passes.gpu.extras().wboit();
+        passes.blend(enc, accumulate, None, &attachments, "accumulate");
         let image = fb.storage("application.image", 16 * px, false)?;
         passes.composite(
             enc,
-            &p.wboit_composite,
+            composite,
             &image,
             [&targets[0].0, &targets[1].0],
             "wboit composite",
@@ -276,7 +276,8 @@ impl Recording<'_, '_> {
         let gpu = passes.gpu;
         let [moments_blend, _] = BlendPass::mboit(moments)?;
         let at = (moments as usize - 4) / 2;
-        let Some((moments_pass, accumulate_pass)) = &gpu.pipelines.mboit[at] else {
+        let (mboit, composite) = gpu.extras().mboit();
+        let Some((moments_pass, accumulate_pass)) = &mboit[at] else {
             return Err(GpuError::DeviceLacks {
                 adapter: gpu.adapter().to_string(),
                 missing: mboit_lacks(&gpu.device, moments, &moments_blend),
@@ -329,7 +330,7 @@ impl Recording<'_, '_> {
         let image = fb.storage("application.image", 16 * px, false)?;
         passes.composite(
             enc,
-            &gpu.pipelines.mboit_composite,
+            composite,
             &image,
             [&accumulation, &b0],
             "mboit composite",

@@ -229,7 +229,7 @@ impl Recording<'_, '_> {
         let features = if self.passes.opts.features_preload {
             &p.features
         } else {
-            &p.features_no_preload
+            gpu.extras().features_no_preload()
         };
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         let bufs = [&b.importance, &b.pool, &b.optical_depth];

@@ -19,7 +19,6 @@ impl Recording<'_, '_> {
         height: u32,
     ) -> Result<wgpu::Buffer> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
-        let p = &gpu.pipelines;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         let status = fb.storage("status", FrameStatus::BYTES, true)?;
         let image = fb.storage("application.image", 16 * px, false)?;
@@ -30,12 +29,12 @@ impl Recording<'_, '_> {
         let counter = fb.storage("list.counter", 16, true)?;
         passes.draw(
             enc,
-            &p.list_store,
+            &gpu.extras().list().0,
             &[&heads, &next, &keys, &counter],
             "store",
         );
         let bufs = [passes.params(), &heads, &next, &keys, &image, &status];
-        passes.resolve(enc, &p.list_resolve, &bufs, 4, "sort and blend");
+        passes.resolve(enc, &gpu.extras().list().1, &bufs, 4, "sort and blend");
         fb.submit(enc);
         if self.passes.opts.diagnostics {
             let arrived = read_words(gpu, &[(&counter, 0)])?[0] as u64;

@@ -1,12 +1,15 @@
 //! The compiled passes: built once per device ([`Pipelines::new`]), the network's passes per
-//! network shape, precision and SKIP_FORCED ([`Variant`], on first use).
+//! network shape, precision and SKIP_FORCED ([`Variant`], on first use), and the passes only
+//! some methods draw (MLAB, WBOIT, MBOIT, the list: [`Gpu::extras`], on first use).
 
 use super::Gpu;
 use super::allocate::Allocate;
+use super::blend::{BlendPass, mboit_fits};
 use crate::budget;
 use crate::error::{GpuError, Result};
 use crate::mlp::{Mlp, Precision};
 use crate::wgsl::shaders;
+use std::sync::OnceLock;
 
 pub(super) struct Pipelines {
     /// The application's opaque pass (opaque.wgsl), first in every frame.
@@ -28,21 +31,10 @@ pub(super) struct Pipelines {
     pub(super) resolve: wgpu::ComputePipeline,
     /// resolve.wgsl built for frames whose budget holds every fragment (k = n).
     pub(super) resolve_fits: wgpu::ComputePipeline,
-    pub(super) mlab_resolve: wgpu::ComputePipeline,
-    /// WBOIT's accumulation pass and composite (gpu::blend).
-    pub(super) wboit_accumulate: wgpu::RenderPipeline,
-    pub(super) wboit_composite: wgpu::ComputePipeline,
-    /// MBOIT's two passes, where the device blends 32-bit floats (`FLOAT32_BLENDABLE`), and its
-    /// composite.
-    /// For 4, 6 and 8 power moments, where the device can run them.
-    pub(super) mboit: [Option<(wgpu::RenderPipeline, wgpu::RenderPipeline)>; 3],
-    pub(super) mboit_composite: wgpu::ComputePipeline,
-    pub(super) list_store: wgpu::RenderPipeline,
-    pub(super) list_resolve: wgpu::ComputePipeline,
+    /// The passes only some methods draw, built on first use ([`Gpu::extras`]).
+    extras: Extras,
     pub(super) allocate: Allocate,
     pub(super) features: wgpu::RenderPipeline,
-    /// The features pass without the nearest key's load first (PRELOAD_NEAREST false).
-    pub(super) features_no_preload: wgpu::RenderPipeline,
     pub(super) totals: wgpu::ComputePipeline,
     /// DKB's records: an index for each pixel of two fragments or more (totals.wgsl).
     pub(super) assign_records: wgpu::ComputePipeline,
@@ -431,67 +423,184 @@ impl Gpu {
     }
 }
 
+/// A geometry pass's pipeline: the shared vertex stage (vs_main), both faces, `depth` and
+/// `targets`, fragment entry `entry`.
+fn render_pipeline(
+    device: &wgpu::Device,
+    (name, entry): (&str, &str),
+    m: &wgpu::ShaderModule,
+    depth: Option<wgpu::DepthStencilState>,
+    targets: &[Option<wgpu::ColorTargetState>],
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(name),
+        layout: None,
+        vertex: wgpu::VertexState {
+            module: m,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState {
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            cull_mode: None,
+            ..Default::default()
+        },
+        depth_stencil: depth,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: m,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// The transparent passes: no colour target, the opaque depth their one attachment, read-only
+/// and never tested (they test it in the shader, where the test comes before their atomics on
+/// every device): what a renderer's transparent pass binds anyway.
+fn transparent_pipeline(
+    device: &wgpu::Device,
+    name: &str,
+    m: &wgpu::ShaderModule,
+) -> wgpu::RenderPipeline {
+    let depth = wgpu::DepthStencilState {
+        format: OPAQUE_DEPTH_FORMAT,
+        depth_write_enabled: Some(false),
+        depth_compare: Some(wgpu::CompareFunction::Always),
+        stencil: Default::default(),
+        bias: Default::default(),
+    };
+    render_pipeline(device, (name, "fs_main"), m, Some(depth), &[])
+}
+
+/// A blended method's pass: its targets written through `blend` (gpu::blend).
+fn blend_pipeline(device: &wgpu::Device, b: &BlendPass) -> wgpu::RenderPipeline {
+    let targets = b.color_targets();
+    render_pipeline(
+        device,
+        (b.pass, b.entry),
+        &module(device, b.pass),
+        None,
+        &targets,
+    )
+}
+
+/// Pass `name`'s entry `entry`, compute.
+fn compute_of(device: &wgpu::Device, name: &str, entry: &str) -> wgpu::ComputePipeline {
+    compute_pipeline(device, name, &module(device, name), entry)
+}
+
+/// MBOIT's passes for 4, 6 and 8 power moments, each where the device can run them.
+type MboitPasses = [Option<(wgpu::RenderPipeline, wgpu::RenderPipeline)>; 3];
+
+/// The passes only some methods draw, each built the first time a frame asks for it, so a
+/// renderer that never draws them (an application's DKB or VKB) never compiles them: MLAB's
+/// resolve, WBOIT's and MBOIT's passes and composites, the list's, and the bench's features
+/// pass without its preload.
+#[derive(Default)]
+struct Extras {
+    mlab_resolve: OnceLock<wgpu::ComputePipeline>,
+    wboit: OnceLock<(wgpu::RenderPipeline, wgpu::ComputePipeline)>,
+    mboit: OnceLock<(MboitPasses, wgpu::ComputePipeline)>,
+    list: OnceLock<(wgpu::RenderPipeline, wgpu::ComputePipeline)>,
+    features_no_preload: OnceLock<wgpu::RenderPipeline>,
+}
+
+/// The extras' pipelines, as [`Gpu::extras`] hands them out.
+#[derive(Clone, Copy)]
+pub(super) struct ExtraPipelines<'a> {
+    gpu: &'a Gpu,
+}
+
+impl<'a> ExtraPipelines<'a> {
+    fn device(self) -> &'a wgpu::Device {
+        &self.gpu.device
+    }
+    fn extras(self) -> &'a Extras {
+        &self.gpu.pipelines.extras
+    }
+
+    /// MLAB's resolve (mlab_resolve.wgsl).
+    pub(super) fn mlab_resolve(self) -> &'a wgpu::ComputePipeline {
+        self.extras()
+            .mlab_resolve
+            .get_or_init(|| compute_of(self.device(), "mlab_resolve", "main"))
+    }
+
+    /// WBOIT's accumulation pass and composite.
+    pub(super) fn wboit(self) -> &'a (wgpu::RenderPipeline, wgpu::ComputePipeline) {
+        self.extras().wboit.get_or_init(|| {
+            (
+                blend_pipeline(self.device(), &BlendPass::WBOIT),
+                compute_of(self.device(), "blend_composite", "wboit"),
+            )
+        })
+    }
+
+    /// MBOIT's moments and accumulation passes for 4, 6 and 8 power moments (6 and 8 add a
+    /// third target, RG32F or RGBA32F), each where the device blends 32-bit floats and its
+    /// colour attachments hold the moments' bytes a sample (eight take 36; wgpu's default
+    /// limit is 32), and its composite.
+    pub(super) fn mboit(self) -> &'a (MboitPasses, wgpu::ComputePipeline) {
+        self.extras().mboit.get_or_init(|| {
+            let device = self.device();
+            let passes = [4, 6, 8].map(|moments| {
+                let [m, a] = BlendPass::mboit(moments).expect("4, 6 and 8 moments");
+                mboit_fits(device, &m)
+                    .then(|| (blend_pipeline(device, &m), blend_pipeline(device, &a)))
+            });
+            (passes, compute_of(device, "blend_composite", "mboit"))
+        })
+    }
+
+    /// The linked list's store and resolve.
+    pub(super) fn list(self) -> &'a (wgpu::RenderPipeline, wgpu::ComputePipeline) {
+        self.extras().list.get_or_init(|| {
+            let device = self.device();
+            let store = transparent_pipeline(device, "list_store", &module(device, "list_store"));
+            (store, compute_of(device, "list_resolve", "main"))
+        })
+    }
+
+    /// The features pass without the nearest key's load first (PRELOAD_NEAREST false).
+    pub(super) fn features_no_preload(self) -> &'a wgpu::RenderPipeline {
+        self.extras().features_no_preload.get_or_init(|| {
+            let device = self.device();
+            let mut src = shaders::source("features").expect("known pass");
+            redeclare(
+                &mut src,
+                "features",
+                "const PRELOAD_NEAREST: bool = true;",
+                "const PRELOAD_NEAREST: bool = false;",
+            );
+            let m = module_from(device, "features (no preload)", src);
+            transparent_pipeline(device, "features", &m)
+        })
+    }
+}
+
+impl Gpu {
+    /// The passes only some methods draw, built on first use.
+    pub(super) fn extras(&self) -> ExtraPipelines<'_> {
+        ExtraPipelines { gpu: self }
+    }
+}
+
 impl Pipelines {
     pub(super) fn new(device: &wgpu::Device) -> Result<Pipelines> {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        // A geometry pass's pipeline: the shared vertex stage, both faces, `depth` and one
-        // colour target.
-        let render_entry = |name: &str,
-                            entry: &str,
-                            m: &wgpu::ShaderModule,
-                            depth: Option<wgpu::DepthStencilState>,
-                            targets: &[Option<wgpu::ColorTargetState>]| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(name),
-                layout: None,
-                vertex: wgpu::VertexState {
-                    module: m,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    cull_mode: None,
-                    ..Default::default()
-                },
-                depth_stencil: depth,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: m,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
         let render = |name: &str,
                       m: &wgpu::ShaderModule,
                       depth: Option<wgpu::DepthStencilState>,
                       targets: &[Option<wgpu::ColorTargetState>]| {
-            render_entry(name, "fs_main", m, depth, targets)
+            render_pipeline(device, (name, "fs_main"), m, depth, targets)
         };
-        // The transparent passes: no colour target, the opaque depth their one attachment,
-        // read-only and never tested (they test it in the shader, where the test comes before
-        // their atomics on every device): what a renderer's transparent pass binds anyway.
-        let geometry_from = |name: &str, m: wgpu::ShaderModule| {
-            let depth = wgpu::DepthStencilState {
-                format: OPAQUE_DEPTH_FORMAT,
-                depth_write_enabled: Some(false),
-                depth_compare: Some(wgpu::CompareFunction::Always),
-                stencil: Default::default(),
-                bias: Default::default(),
-            };
-            render(name, &m, Some(depth), &[])
-        };
-        // The blended methods' passes: their targets written through `blend` (gpu::blend).
-        let blended = |b: &BlendPass| {
-            let targets = b.color_targets();
-            render_entry(b.pass, b.entry, &module(device, b.pass), None, &targets)
-        };
-        use super::blend::{BlendPass, mboit_fits};
+        let geometry_from =
+            |name: &str, m: wgpu::ShaderModule| transparent_pipeline(device, name, &m);
         let geometry = |name: &str| geometry_from(name, module(device, name));
         let opaque = render(
             "opaque",
@@ -514,9 +623,6 @@ impl Pipelines {
             redeclare(&mut src, pass, from, to);
             module_from(device, label, src)
         };
-        let features_with = |label: &str, from: &str, to: &str| {
-            geometry_from("features", module_with("features", label, from, to))
-        };
         // capture.wgsl and resolve.wgsl for frames whose budget holds every fragment.
         let fits = |pass: &str| {
             module_with(
@@ -526,8 +632,7 @@ impl Pipelines {
                 "const EVERY_FRAGMENT_FITS: bool = true;",
             )
         };
-        let compute_entry =
-            |name: &str, entry: &str| compute_pipeline(device, name, &module(device, name), entry);
+        let compute_entry = |name: &str, entry: &str| compute_of(device, name, entry);
         let marks = module_with(
             "scan",
             "scan (the allocation's marks)",
@@ -552,26 +657,9 @@ impl Pipelines {
             abuffer_resolve: compute("abuffer_resolve"),
             resolve: compute("resolve"),
             resolve_fits: compute_pipeline(device, "resolve", &fits("resolve"), "main"),
-            mlab_resolve: compute("mlab_resolve"),
-            wboit_accumulate: blended(&BlendPass::WBOIT),
-            wboit_composite: compute_entry("blend_composite", "wboit"),
-            // 4, 6 and 8 power moments: 6 and 8 add a third target (RG32F, RGBA32F). Each
-            // where the device blends 32-bit floats and its colour attachments hold the
-            // moments' bytes a sample (eight take 36; wgpu's default limit is 32).
-            mboit: [4, 6, 8].map(|moments| {
-                let [m, a] = BlendPass::mboit(moments).expect("4, 6 and 8 moments");
-                mboit_fits(device, &m).then(|| (blended(&m), blended(&a)))
-            }),
-            mboit_composite: compute_entry("blend_composite", "mboit"),
-            list_store: geometry("list_store"),
-            list_resolve: compute("list_resolve"),
+            extras: Extras::default(),
             allocate: Allocate::new(device),
             features: geometry("features"),
-            features_no_preload: features_with(
-                "features (no preload)",
-                "const PRELOAD_NEAREST: bool = true;",
-                "const PRELOAD_NEAREST: bool = false;",
-            ),
             totals: compute("totals"),
             assign_records: compute_entry("totals", "assign_records"),
             variants: std::sync::Mutex::new(
