@@ -10,39 +10,6 @@
 //! onto its target. So the image is the one dhoit renders for the same draws: the blending adds
 //! in the order the application submits its fragments, at the targets' precision (binary16
 //! colour sums, an 8-bit revealage), as an engine's does.
-//!
-//! ```
-//! use dhoit_runtime::composite::WboitParams;
-//! use dhoit_runtime::gpu::{self, BlendedOit, BlendedPhase};
-//!
-//! let instance = wgpu::Instance::default();
-//! let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
-//! let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-//!     required_features: gpu::required_features(),
-//!     required_limits: gpu::required_limits(),
-//!     ..Default::default()
-//! }))
-//! .unwrap();
-//! // McGuire and Bavoil's eq. 10 (of the window depth: no planes needed).
-//! let oit = BlendedOit::wboit(&device, &queue, (64, 48), WboitParams::default())?;
-//! assert_eq!(oit.phases(), &[BlendedPhase::Accumulate]);
-//! // Its transparent fragment shader: dhoit's module at group 1, then its own entry returning
-//! // what oit_targets gives.
-//! let src = oit.store_module(BlendedPhase::Accumulate, 1)
-//!     + "@fragment fn fs(@builtin(position) p: vec4<f32>) -> OitTargets {
-//!            return oit_targets(p, vec4<f32>(0.2, 0.4, 0.6, 0.5));
-//!        }";
-//! let _module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-//!     label: None,
-//!     source: wgpu::ShaderSource::Wgsl(src.into()),
-//! });
-//! // Its pipeline's fragment targets: oit.color_targets(phase); its layout [.., at 1
-//! // oit.bind_group_layout(phase)]. Per frame: its opaque pass; a render pass with
-//! // oit.color_attachments(phase) (they clear the targets), oit.bind_group(phase, &depth) at
-//! // 1, its transparent draws; oit.resolve(&mut encoder, &under, &target, format, None).
-//! assert_eq!(oit.color_targets(BlendedPhase::Accumulate).len(), 2);
-//! # Ok::<(), dhoit_runtime::Error>(())
-//! ```
 
 use super::blend::{BlendPass, Target, mboit_fits, mboit_lacks, set_mboit, set_wboit};
 use super::buffers::frame_texture;
@@ -75,6 +42,39 @@ struct PhasePass {
 /// method's layout table, `budget::WBOIT` or `budget::mboit(n)`), the frame's parameters, and
 /// the composite onto the application's target.
 /// No readback, no wait.
+///
+/// ```
+/// use dhoit_runtime::composite::WboitParams;
+/// use dhoit_runtime::gpu::{self, BlendedOit, BlendedPhase};
+///
+/// let instance = wgpu::Instance::default();
+/// let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+/// let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+///     required_features: gpu::required_features(),
+///     required_limits: gpu::required_limits(),
+///     ..Default::default()
+/// }))
+/// .unwrap();
+/// // McGuire and Bavoil's eq. 10 (of the window depth: no planes needed).
+/// let oit = BlendedOit::wboit(&device, &queue, (64, 48), WboitParams::default())?;
+/// assert_eq!(oit.phases(), &[BlendedPhase::Accumulate]);
+/// // Its transparent fragment shader: dhoit's module at group 1, then its own entry returning
+/// // what oit_targets gives.
+/// let src = oit.store_module(BlendedPhase::Accumulate, 1)
+///     + "@fragment fn fs(@builtin(position) p: vec4<f32>) -> OitTargets {
+///            return oit_targets(p, vec4<f32>(0.2, 0.4, 0.6, 0.5));
+///        }";
+/// let _module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+///     label: None,
+///     source: wgpu::ShaderSource::Wgsl(src.into()),
+/// });
+/// // Its pipeline's fragment targets: oit.color_targets(phase); its layout [.., at 1
+/// // oit.bind_group_layout(phase)]. Per frame: its opaque pass; a render pass with
+/// // oit.color_attachments(phase) (they clear the targets), oit.bind_group(phase, &depth) at
+/// // 1, its transparent draws; oit.resolve(&mut encoder, &under, &target, format, None).
+/// assert_eq!(oit.color_targets(BlendedPhase::Accumulate).len(), 2);
+/// # Ok::<(), dhoit_runtime::Error>(())
+/// ```
 pub struct BlendedOit {
     side: AppSide,
     phases: Vec<PhasePass>,

@@ -8,42 +8,6 @@
 //! `list_resolve.wgsl`; the k-buffer's `kbuffer_insert.wgsl`, which dhoit's capture runs, and
 //! `resolve.wgsl`; the A-buffer's `scan.wgsl` and `abuffer_resolve.wgsl`), so the image is the
 //! one dhoit renders for the same fragments.
-//!
-//! ```
-//! use dhoit_runtime::gpu::{self, ApplicationOit, ListOit};
-//!
-//! // The application's device: dhoit's features and limits on top of its own.
-//! let instance = wgpu::Instance::default();
-//! let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
-//! let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-//!     required_features: gpu::required_features(),
-//!     required_limits: gpu::required_limits(),
-//!     ..Default::default()
-//! }))
-//! .unwrap();
-//! let (w, h) = (64, 48);
-//! // A pool of 4 fragments a pixel (Bevy's default), the nearest 8 of a pixel sorted.
-//! let oit = ListOit::new(&device, &queue, (w, h), 4 * (w * h) as u64, 8)?;
-//! // The application's transparent fragment shader: dhoit's module at group 0, then its own
-//! // code ending in `oit_store(position, colour)`.
-//! let src = ListOit::wgsl(0)
-//!     + "@fragment fn fs(@builtin(position) p: vec4<f32>) { oit_store(p, vec4<f32>(1.0, 0.0, 0.0, 0.5)); }";
-//! let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-//!     label: None,
-//!     source: wgpu::ShaderSource::Wgsl(src.into()),
-//! });
-//! let _layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-//!     label: None,
-//!     bind_group_layouts: &[Some(oit.bind_group_layout())],
-//!     immediate_size: 0,
-//! });
-//! // Once: let group = oit.bind_group(&its_opaque_depth_view). Per frame: oit.clear(&mut
-//! // encoder); its opaque pass; its transparent draws with `group` at group 0 (no depth
-//! // attachment needed: oit_store tests the opaque depth); oit.resolve(&mut encoder,
-//! // &its_opaque_image, &its_target, format, None).
-//! # let _ = module;
-//! # Ok::<(), dhoit_runtime::Error>(())
-//! ```
 
 use super::check_device;
 use super::pipelines::{compute_pipeline, module_from, redeclare};
@@ -391,6 +355,42 @@ pub(super) fn onto_pipeline(
 }
 
 /// The budgeted linked list's buffers and passes on an application's device.
+///
+/// ```
+/// use dhoit_runtime::gpu::{self, ApplicationOit, ListOit};
+///
+/// // The application's device: dhoit's features and limits on top of its own.
+/// let instance = wgpu::Instance::default();
+/// let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+/// let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+///     required_features: gpu::required_features(),
+///     required_limits: gpu::required_limits(),
+///     ..Default::default()
+/// }))
+/// .unwrap();
+/// let (w, h) = (64, 48);
+/// // A pool of 4 fragments a pixel (Bevy's default), the nearest 8 of a pixel sorted.
+/// let oit = ListOit::new(&device, &queue, (w, h), 4 * (w * h) as u64, 8)?;
+/// // The application's transparent fragment shader: dhoit's module at group 0, then its own
+/// // code ending in `oit_store(position, colour)`.
+/// let src = ListOit::wgsl(0)
+///     + "@fragment fn fs(@builtin(position) p: vec4<f32>) { oit_store(p, vec4<f32>(1.0, 0.0, 0.0, 0.5)); }";
+/// let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+///     label: None,
+///     source: wgpu::ShaderSource::Wgsl(src.into()),
+/// });
+/// let _layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+///     label: None,
+///     bind_group_layouts: &[Some(oit.bind_group_layout())],
+///     immediate_size: 0,
+/// });
+/// // Once: let group = oit.bind_group(&its_opaque_depth_view). Per frame: oit.clear(&mut
+/// // encoder); its opaque pass; its transparent draws with `group` at group 0 (no depth
+/// // attachment needed: oit_store tests the opaque depth); oit.resolve(&mut encoder,
+/// // &its_opaque_image, &its_target, format, None).
+/// # let _ = module;
+/// # Ok::<(), dhoit_runtime::Error>(())
+/// ```
 pub struct ListOit {
     side: AppSide,
     nodes: u64,
