@@ -18,14 +18,13 @@
 //! The twenty lines that matter are marked `dhoit:`. Colours are the vertices' times the
 //! materials' base colour times their base colour texture, sampled per fragment by the
 //! application's own sampler (sRGB decoded by the texture format). What it does not do yet:
-//! glass's view-dependent opacity (its face-on opacity instead), and WBOIT's weights of
-//! the view-space distance (eqs. 7-9, which need the camera's planes: `BlendedOit::set_wboit`).
+//! glass's view-dependent opacity (its face-on opacity instead).
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
 use dhoit_runtime::budget::Budget;
 use dhoit_runtime::composite::Image;
-use dhoit_runtime::composite::{MboitParams, WboitParams};
+use dhoit_runtime::composite::{MboitParams, WboitParams, WboitWeight};
 use dhoit_runtime::gpu::{
     self, AllocatedFrame, AllocatedOit, ApplicationOit, BlendedOit, BlendedPhase, ExactOit,
     KBufferOit, ListOit, Phase,
@@ -59,6 +58,10 @@ struct Args {
     /// MLAB's blending rows: 1 to 8.
     #[arg(long, default_value_t = 4)]
     rows: u32,
+    /// WBOIT's weight function (McGuire and Bavoil): eq7, eq8 or eq9 of the view-space distance
+    /// (from each view's planes), or eq10 of the window depth.
+    #[arg(long, default_value = "eq10", value_parser = |s: &str| WboitWeight::parse(s).map_err(|e| e.to_string()))]
+    wboit_weight: WboitWeight,
     /// MBOIT's power moments: 4, 6 or 8.
     #[arg(long, default_value_t = 4)]
     moments: u32,
@@ -316,8 +319,10 @@ enum Method {
         budget: Budget,
         always: bool,
     },
-    /// Weighted blended OIT (eq. 10).
-    Wboit,
+    /// Weighted blended OIT with this weight function.
+    Wboit {
+        weight: WboitWeight,
+    },
     /// Moment-based OIT with this many power moments.
     Mboit {
         moments: u32,
@@ -348,7 +353,9 @@ impl Method {
                 budget: a.budget,
                 always: a.always_approximate,
             },
-            "wboit" => Method::Wboit,
+            "wboit" => Method::Wboit {
+                weight: a.wboit_weight,
+            },
             "mlab" => Method::Mlab { rows: a.rows },
             "mboit" => {
                 MboitParams::with_moments(a.moments)?;
@@ -367,7 +374,7 @@ impl Method {
             Method::Dkb { budget, .. } => format!("DKB at {budget}"),
             Method::Vkb { budget, .. } => format!("VKB at {budget}"),
             Method::Fkb { k } => format!("FKB, {k} slots a pixel"),
-            Method::Wboit => "WBOIT (eq. 10)".into(),
+            Method::Wboit { weight } => format!("WBOIT ({})", weight.name()),
             Method::Mboit { moments } => format!("MBOIT, {moments} power moments"),
             Method::Mlab { rows } => format!("MLAB, {rows} rows"),
             Method::List { fpp, sorted } => {
@@ -406,12 +413,15 @@ impl Method {
             Method::Mlab { rows } => {
                 Oit::Exact(Box::new(ExactOit::mlab(device, queue, (w, h), rows)?))
             }
-            Method::Wboit => Oit::Blended(Box::new(BlendedOit::wboit(
-                device,
-                queue,
-                (w, h),
-                WboitParams::default(),
-            )?)),
+            Method::Wboit { weight } => {
+                // dhoit: planes for now; each view sets its own (App::draw)
+                let params = WboitParams {
+                    weight,
+                    near: 1.0,
+                    far: 2.0,
+                };
+                Oit::Blended(Box::new(BlendedOit::wboit(device, queue, (w, h), params)?))
+            }
             Method::Mboit { moments } => Oit::Blended(Box::new(BlendedOit::mboit(
                 device,
                 queue,
@@ -462,6 +472,8 @@ struct App {
 /// module, the frame's textures and its timestamp queries.
 struct Frame {
     oit: Oit,
+    /// WBOIT's weight function, which each view sets with its planes.
+    wboit_weight: Option<WboitWeight>,
     opaque_pipeline: wgpu::RenderPipeline,
     /// One transparent pipeline, or DKB's, VKB's and MBOIT's one a phase.
     transparent_pipelines: Vec<(Key, wgpu::RenderPipeline)>,
@@ -847,8 +859,13 @@ impl App {
             "pass times readback",
             wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
         );
+        let wboit_weight = match method {
+            Method::Wboit { weight } => Some(weight),
+            _ => None,
+        };
         Ok(Frame {
             oit,
+            wboit_weight,
             opaque_pipeline,
             transparent_pipelines,
             image_view: view(&image),
@@ -871,6 +888,10 @@ impl App {
         let mut camera = cam.view_proj.to_cols_array().to_vec();
         camera.extend_from_slice(&cam.forward.extend(0.0).to_array());
         queue.write_buffer(&self.camera, 0, bytemuck::cast_slice(&camera));
+        if let (Oit::Blended(o), Some(weight)) = (&frame.oit, frame.wboit_weight) {
+            // dhoit: WBOIT's weight with this view's planes (eqs. 7-9 read the distance)
+            o.set_wboit(queue, WboitParams::for_camera(weight, cam))?;
+        }
         let pass_times = |i: u32| wgpu::RenderPassTimestampWrites {
             query_set: &frame.queries,
             beginning_of_pass_write_index: Some(2 * i),
@@ -1151,7 +1172,7 @@ impl Oit {
 /// time. The image is resolved as headless, then drawn onto the window's surface.
 #[cfg(feature = "window")]
 mod window {
-    use super::{App, Frame, Method, RGBA};
+    use super::{App, Frame, Method, RGBA, WboitWeight};
     use anyhow::{Context, Result, anyhow};
     use dhoit_runtime::budget::Budget;
     use dhoit_runtime::scene::Camera;
@@ -1381,7 +1402,9 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                     budget: Budget::Share(250_000),
                     always: false,
                 },
-                Key::Character("6") => Method::Wboit,
+                Key::Character("6") => Method::Wboit {
+                    weight: WboitWeight::Eq10,
+                },
                 Key::Character("7") => Method::Mboit { moments: 4 },
                 Key::Character("8") => Method::Mlab { rows: 4 },
                 Key::Character("n") => match m {
@@ -1449,7 +1472,7 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                 budget: scaled(budget, by),
                 always,
             },
-            Method::Exact | Method::Wboit => m,
+            Method::Exact | Method::Wboit { .. } => m,
             Method::Mlab { rows } => Method::Mlab {
                 rows: if up {
                     (rows * 2).min(8)

@@ -17,7 +17,7 @@ doc_status=${PIPESTATUS[0]}
 # The viewer example, headless, as a user runs it: an application's own renderer around the
 # linked list, the fixed k-buffer, the exact A-buffer, DKB (exact where that is cheaper, and
 # at its budget), VKB, WBOIT, MBOIT and MLAB, one PNG a view.
-for method in linked-list fkb abuffer dkb "dkb --always-approximate" vkb wboit mboit mlab; do
+for method in linked-list fkb abuffer dkb "dkb --always-approximate" vkb wboit "wboit --wboit-weight eq7" mboit mlab; do
   viewer_out=$(mktemp -d)
   # shellcheck disable=SC2086 # the method's words are its flags
   if cargo run --release --example viewer -- particles --res 160x120 --views 2 --method $method \

@@ -1175,14 +1175,14 @@ fn the_blended_methods_refuse_what_they_cannot_do() {
         .features()
         .contains(wgpu::Features::FLOAT32_BLENDABLE)
     {
-        let mut oit = BlendedOit::mboit(&blending, &q, (8, 8), MboitParams::default()).unwrap();
+        let oit = BlendedOit::mboit(&blending, &q, (8, 8), MboitParams::default()).unwrap();
         let e = oit
             .set_wboit(&q, WboitParams::default())
             .expect_err("refused")
             .to_string();
         assert!(e.contains("MBOIT has no weight function"), "{e}");
     }
-    let mut oit = BlendedOit::wboit(&device, &queue, (8, 8), WboitParams::default()).unwrap();
+    let oit = BlendedOit::wboit(&device, &queue, (8, 8), WboitParams::default()).unwrap();
     let e = oit
         .set_wboit(&queue, no_planes)
         .expect_err("refused")

@@ -80,7 +80,8 @@ pub struct BlendedOit {
     phases: Vec<PhasePass>,
     /// Every target and its view: the first pass's, then the second's.
     targets: Vec<(Target, wgpu::TextureView)>,
-    params: Params,
+    /// The frame's parameters, as last written (set_wboit rewrites them).
+    params: std::sync::Mutex<Params>,
     params_buffer: wgpu::Buffer,
     /// MBOIT's absorbance of each 8-bit opacity (composite::mboit_absorbance_table).
     table: Option<wgpu::Buffer>,
@@ -193,7 +194,7 @@ impl BlendedOit {
             side,
             phases,
             targets,
-            params,
+            params: std::sync::Mutex::new(params),
             params_buffer,
             table,
             composite,
@@ -315,16 +316,18 @@ impl BlendedOit {
             })
     }
 
-    /// WBOIT's weight function and planes for the frames to come (the application's camera
-    /// may move its planes), refused as [`BlendedOit::wboit`] refuses them, and by MBOIT.
-    pub fn set_wboit(&mut self, queue: &wgpu::Queue, params: WboitParams) -> Result<()> {
+    /// WBOIT's weight function and planes for the frames submitted after it (the
+    /// application's camera may move its planes: eqs. 7-9 read the view-space distance),
+    /// refused as [`BlendedOit::wboit`] refuses them, and by MBOIT.
+    pub fn set_wboit(&self, queue: &wgpu::Queue, params: WboitParams) -> Result<()> {
         if self.table.is_some() {
             return Err(Error::Invalid(
                 "MBOIT has no weight function: set_wboit is WBOIT's".to_string(),
             ));
         }
-        set_wboit(&mut self.params, &params)?;
-        queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&self.params));
+        let mut p = self.params.lock().unwrap_or_else(|e| e.into_inner());
+        set_wboit(&mut p, &params)?;
+        queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&*p));
         Ok(())
     }
 
