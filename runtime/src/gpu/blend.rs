@@ -64,27 +64,6 @@ impl Target {
         Target::MBOIT_MOMENTS,
         Target::MBOIT_ACCUMULATION,
     ];
-    /// The targets of 4, 6 and 8 power moments' frames (beside the accumulation).
-    #[cfg(test)]
-    pub(super) const MBOIT_BY_MOMENTS: [&'static [Target]; 3] = [
-        &[
-            Target::MBOIT_B0,
-            Target::MBOIT_MOMENTS,
-            Target::MBOIT_ACCUMULATION,
-        ],
-        &[
-            Target::MBOIT_B0,
-            Target::MBOIT_MOMENTS,
-            Target::MBOIT_EXTRA6,
-            Target::MBOIT_ACCUMULATION,
-        ],
-        &[
-            Target::MBOIT_B0,
-            Target::MBOIT_MOMENTS,
-            Target::MBOIT_EXTRA8,
-            Target::MBOIT_ACCUMULATION,
-        ],
-    ];
 
     /// Bytes of one texel.
     pub(super) fn texel_bytes(self) -> u64 {
@@ -274,7 +253,7 @@ impl Recording<'_, '_> {
     pub(super) fn mboit(&mut self, size: (u32, u32), moments: u32) -> Result<wgpu::Buffer> {
         let (passes, px) = (self.passes, self.px);
         let gpu = passes.gpu;
-        let [moments_blend, _] = BlendPass::mboit(moments)?;
+        let [moments_blend, accumulate_blend] = BlendPass::mboit(moments)?;
         let at = (moments as usize - 4) / 2;
         let (mboit, composite) = gpu.extras().mboit();
         let Some((moments_pass, accumulate_pass)) = &mboit[at] else {
@@ -284,11 +263,16 @@ impl Recording<'_, '_> {
             }
             .into());
         };
-        let extra = moments_blend.targets.get(2).map(|t| t.0);
-        let b0 = self.fb.target(Target::MBOIT_B0, size);
-        let moments = self.fb.target(Target::MBOIT_MOMENTS, size);
-        let extra = extra.map(|t| self.fb.target(t, size));
-        let accumulation = self.fb.target(Target::MBOIT_ACCUMULATION, size);
+        // b_0, the moments (and six or eight moments' third target), then the accumulation:
+        // the targets the passes describe.
+        let written: Vec<(wgpu::TextureView, wgpu::Color)> = moments_blend
+            .targets
+            .iter()
+            .chain(accumulate_blend.targets)
+            .map(|&(t, _, clear)| (self.fb.target(t, size), clear))
+            .collect();
+        let (read, accumulation) = written.split_at(moments_blend.targets.len());
+        let (b0, accumulation) = (&read[0].0, &accumulation[0]);
         let (fb, enc) = (&mut self.fb, &mut self.enc);
         // The absorbance of each 8-bit opacity (composite::mboit_absorbance_table).
         let table = fb.init(
@@ -298,33 +282,24 @@ impl Recording<'_, '_> {
             true,
         );
         let group = gpu.bind(&moments_pass.get_bind_group_layout(1), &[&table]);
-        passes.blend(
-            enc,
-            moments_pass,
-            Some(&group),
-            &[(&b0, ZERO), (&moments, ZERO)]
-                .into_iter()
-                .chain(extra.as_ref().map(|e| (e, ZERO)))
-                .collect::<Vec<_>>(),
-            "moments",
-        );
-        let view = |binding, view| wgpu::BindGroupEntry {
-            binding,
-            resource: wgpu::BindingResource::TextureView(view),
-        };
-        let group = gpu.bind_with(
-            &accumulate_pass.get_bind_group_layout(1),
-            &[],
-            [view(0, &b0), view(1, &moments)]
-                .into_iter()
-                .chain(extra.as_ref().map(|e| view(2, e)))
-                .collect(),
-        );
+        let attachments: Vec<_> = read.iter().map(|(v, c)| (v, *c)).collect();
+        passes.blend(enc, moments_pass, Some(&group), &attachments, "moments");
+        // The accumulation reads every target the moments pass wrote, at bindings 0...
+        let views = read
+            .iter()
+            .enumerate()
+            .map(|(binding, (view, _))| wgpu::BindGroupEntry {
+                binding: binding as u32,
+                resource: wgpu::BindingResource::TextureView(view),
+            })
+            .collect();
+        let group = gpu.bind_with(&accumulate_pass.get_bind_group_layout(1), &[], views);
+        let attachments = [(&accumulation.0, accumulation.1)];
         passes.blend(
             enc,
             accumulate_pass,
             Some(&group),
-            &[(&accumulation, ZERO)],
+            &attachments,
             "accumulate",
         );
         let image = fb.storage("application.image", 16 * px, false)?;
@@ -332,7 +307,7 @@ impl Recording<'_, '_> {
             enc,
             composite,
             &image,
-            [&accumulation, &b0],
+            [&accumulation.0, b0],
             "mboit composite",
         );
         fb.submit(enc);
@@ -342,7 +317,7 @@ impl Recording<'_, '_> {
 
 #[cfg(test)]
 mod tests {
-    use super::Target;
+    use super::{BlendPass, Target};
 
     /// Each target's texel is the bytes a pixel its method's layout table counts under its
     /// label, so the tables and the textures the frames create cannot drift apart.
@@ -354,14 +329,22 @@ mod tests {
             let counted = layout.per_pixel.iter().find(|(l, _)| *l == t.label);
             assert_eq!(counted, Some(&(t.label, t.texel_bytes())), "{}", t.label);
         }
-        // MBOIT's frames of 4, 6 and 8 moments create exactly their layouts' targets.
-        for (targets, moments) in Target::MBOIT_BY_MOMENTS.iter().zip([4, 6, 8]) {
-            let layout = crate::budget::mboit(moments);
+        // WBOIT's frames and MBOIT's of 4, 6 and 8 moments create exactly their layouts'
+        // targets: those their passes describe.
+        let mut frames = vec![(crate::budget::WBOIT, vec![BlendPass::WBOIT])];
+        for moments in [4, 6, 8] {
+            let passes = BlendPass::mboit(moments).unwrap().to_vec();
+            frames.push((crate::budget::mboit(moments), passes));
+        }
+        for (layout, passes) in frames {
             let mut counted: Vec<_> = layout.per_pixel.to_vec();
-            let mut made: Vec<_> = targets.iter().map(|t| (t.label, t.texel_bytes())).collect();
+            let mut made: Vec<_> = passes
+                .iter()
+                .flat_map(|p| p.targets.iter().map(|t| (t.0.label, t.0.texel_bytes())))
+                .collect();
             counted.sort();
             made.sort();
-            assert_eq!(counted, made, "{moments} moments");
+            assert_eq!(counted, made, "{}", layout.method);
         }
         // Every per-pixel entry of both tables is one of them.
         for method in ["wboit", "mboit"] {

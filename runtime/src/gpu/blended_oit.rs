@@ -100,12 +100,12 @@ impl BlendedOit {
         size: (u32, u32),
         params: WboitParams,
     ) -> Result<BlendedOit> {
-        let mut side = AppSide::new(device, size, "WBOIT", ("blend_composite", 8))?;
-        side.entry = "wboit_onto";
+        let side = AppSide::new(device, size, "WBOIT", ("blend_composite", "wboit_onto", 8))?;
         let mut p = frame_params(size);
         set_wboit(&mut p, &params)?;
         // The accumulation and the revealage.
-        Self::build(side, queue, p, vec![BlendPass::WBOIT], [0, 1])
+        let passes = vec![(BlendedPhase::Accumulate, BlendPass::WBOIT)];
+        Self::build(side, queue, p, passes, [0, 1])
     }
 
     /// MBOIT for frames of `width` x `height` with `params` (4, 6 or 8 power moments, the
@@ -119,8 +119,7 @@ impl BlendedOit {
         size: (u32, u32),
         params: MboitParams,
     ) -> Result<BlendedOit> {
-        let mut side = AppSide::new(device, size, "MBOIT", ("blend_composite", 8))?;
-        side.entry = "mboit_onto";
+        let side = AppSide::new(device, size, "MBOIT", ("blend_composite", "mboit_onto", 8))?;
         let [moments, accumulate] = BlendPass::mboit(params.moments)?;
         if !mboit_fits(device, &moments) {
             return Err(GpuError::DeviceLacks {
@@ -133,18 +132,22 @@ impl BlendedOit {
         set_mboit(&mut p, &params);
         // The accumulation (the second pass's one target) and b_0 (the first's first).
         let accumulation = moments.targets.len();
-        Self::build(side, queue, p, vec![moments, accumulate], [accumulation, 0])
+        let passes = vec![
+            (BlendedPhase::Moments, moments),
+            (BlendedPhase::Accumulate, accumulate),
+        ];
+        Self::build(side, queue, p, passes, [accumulation, 0])
     }
 
     fn build(
         mut side: AppSide,
         queue: &wgpu::Queue,
         params: Params,
-        passes: Vec<BlendPass>,
+        passes: Vec<(BlendedPhase, BlendPass)>,
         composite: [usize; 2],
     ) -> Result<BlendedOit> {
         let mut targets = Vec::new();
-        for pass in &passes {
+        for (_, pass) in &passes {
             for &(t, _, _) in pass.targets {
                 side.allocated += side.pixels() * t.texel_bytes();
                 let usage =
@@ -153,7 +156,7 @@ impl BlendedOit {
                 targets.push((t, texture.create_view(&Default::default())));
             }
         }
-        let mboit = passes.len() == 2;
+        let mboit = passes.iter().any(|(p, _)| *p == BlendedPhase::Moments);
         let table = mboit.then(|| {
             side.uniform(
                 queue,
@@ -165,23 +168,12 @@ impl BlendedOit {
         let mut first = 0;
         let phases = passes
             .into_iter()
-            .enumerate()
-            .map(|(i, pass)| {
-                let phase = if mboit && i == 0 {
-                    BlendedPhase::Moments
-                } else {
-                    BlendedPhase::Accumulate
-                };
+            .map(|(phase, pass)| {
+                // An accumulation reads every target the passes before it wrote (MBOIT's
+                // moments; WBOIT's has none before it).
+                let layout = phase_layout(&side.device, phase, first);
                 let writes: Vec<usize> = (first..first + pass.targets.len()).collect();
                 first += pass.targets.len();
-                // MBOIT's accumulation reads every target of the moments pass: those before
-                // its own.
-                let reads = if mboit && phase == BlendedPhase::Accumulate {
-                    writes[0]
-                } else {
-                    0
-                };
-                let layout = phase_layout(&side.device, phase, mboit, reads);
                 PhasePass {
                     phase,
                     pass,
@@ -369,15 +361,10 @@ fn frame_params((width, height): (u32, u32)) -> Params {
     p
 }
 
-/// A phase's group layout: the parameters (14) and the opaque depth (15); MBOIT's moments pass
-/// its absorbance table (0), its accumulation the moments pass's `reads` targets (0..), as
+/// A phase's group layout: the parameters (14) and the opaque depth (15); the moments pass its
+/// absorbance table (0), an accumulation the `reads` targets written before it (0..), as
 /// textures.
-fn phase_layout(
-    device: &wgpu::Device,
-    phase: BlendedPhase,
-    mboit: bool,
-    reads: usize,
-) -> wgpu::BindGroupLayout {
+fn phase_layout(device: &wgpu::Device, phase: BlendedPhase, reads: usize) -> wgpu::BindGroupLayout {
     let uniform = |binding| wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::FRAGMENT,
@@ -399,13 +386,12 @@ fn phase_layout(
         count: None,
     };
     let mut entries = vec![uniform(14), texture(15, wgpu::TextureSampleType::Depth)];
-    match (phase, mboit) {
-        (BlendedPhase::Moments, _) => entries.push(uniform(0)),
-        (BlendedPhase::Accumulate, true) => {
+    match phase {
+        BlendedPhase::Moments => entries.push(uniform(0)),
+        BlendedPhase::Accumulate => {
             let float = wgpu::TextureSampleType::Float { filterable: false };
             entries.extend((0..reads as u32).map(|b| texture(b, float)));
         }
-        (BlendedPhase::Accumulate, false) => {}
     }
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some(&format!("dhoit {phase:?}")),

@@ -30,10 +30,10 @@ pub(super) struct AppSide {
     height: u32,
     /// The method, as labels and errors name it.
     name: &'static str,
-    /// The resolve's pass (`wgsl::shaders::PASSES`), whose entry `entry` (`onto` unless set)
-    /// reads the application's image at `under_at` and writes its target at `under_at + 1`.
+    /// The resolve's pass (`wgsl::shaders::PASSES`), whose entry `entry` reads the
+    /// application's image at `under_at` and writes its target at `under_at + 1`.
     pass: &'static str,
-    pub(super) entry: &'static str,
+    entry: &'static str,
     under_at: u32,
     limit: u64,
     pub(super) allocated: u64,
@@ -53,7 +53,7 @@ impl AppSide {
         device: &wgpu::Device,
         (width, height): (u32, u32),
         name: &'static str,
-        (pass, under_at): (&'static str, u32),
+        (pass, entry, under_at): (&'static str, &'static str, u32),
     ) -> Result<AppSide> {
         check_device(device, "the application's device")?;
         if width == 0 || height == 0 {
@@ -68,7 +68,7 @@ impl AppSide {
             height,
             name,
             pass,
-            entry: "onto",
+            entry,
             under_at,
             limit: have
                 .max_storage_buffer_binding_size
@@ -408,7 +408,7 @@ impl ListOit {
         nodes: u64,
         sorted: u32,
     ) -> Result<ListOit> {
-        let mut side = AppSide::new(device, size, "linked list", ("list_resolve", 6))?;
+        let mut side = AppSide::new(device, size, "linked list", ("list_resolve", "onto", 6))?;
         crate::composite::check_list_sorted(sorted)?;
         if nodes == 0 || nodes > u32::MAX as u64 - 1 {
             return Err(Error::Invalid(format!(
@@ -502,7 +502,7 @@ impl KBufferOit {
         size: (u32, u32),
         k: u32,
     ) -> Result<KBufferOit> {
-        let mut side = AppSide::new(device, size, "k-buffer", ("resolve", 8))?;
+        let mut side = AppSide::new(device, size, "k-buffer", ("resolve", "onto", 8))?;
         let px = side.pixels();
         if k == 0 || k as u64 * px > u32::MAX as u64 {
             return Err(Error::Invalid(format!(
@@ -651,7 +651,7 @@ impl ExactOit {
             Some(_) => ("MLAB", "mlab_resolve"),
             None => ("A-buffer", "abuffer_resolve"),
         };
-        let mut side = AppSide::new(device, size, name, (pass, 8))?;
+        let mut side = AppSide::new(device, size, name, (pass, "onto", 8))?;
         let px = side.pixels();
         let counts = side.storage("abuf.count", 4 * px)?;
         let offsets = side.storage("abuf.offsets", 4 * (px + 1))?;

@@ -489,6 +489,19 @@ fn blend_pipeline(device: &wgpu::Device, b: &BlendPass) -> wgpu::RenderPipeline 
     )
 }
 
+/// Pass `pass`'s module with `from` redeclared as `to` (a variant of the pass), labelled
+/// `label`.
+fn module_redeclared(
+    device: &wgpu::Device,
+    pass: &str,
+    label: &str,
+    (from, to): (&str, &str),
+) -> wgpu::ShaderModule {
+    let mut src = shaders::source(pass).expect("known pass");
+    redeclare(&mut src, pass, from, to);
+    module_from(device, label, src)
+}
+
 /// Pass `name`'s entry `entry`, compute.
 fn compute_of(device: &wgpu::Device, name: &str, entry: &str) -> wgpu::ComputePipeline {
     compute_pipeline(device, name, &module(device, name), entry)
@@ -570,14 +583,15 @@ impl<'a> ExtraPipelines<'a> {
     pub(super) fn features_no_preload(self) -> &'a wgpu::RenderPipeline {
         self.extras().features_no_preload.get_or_init(|| {
             let device = self.device();
-            let mut src = shaders::source("features").expect("known pass");
-            redeclare(
-                &mut src,
+            let m = module_redeclared(
+                device,
                 "features",
-                "const PRELOAD_NEAREST: bool = true;",
-                "const PRELOAD_NEAREST: bool = false;",
+                "features (no preload)",
+                (
+                    "const PRELOAD_NEAREST: bool = true;",
+                    "const PRELOAD_NEAREST: bool = false;",
+                ),
             );
-            let m = module_from(device, "features (no preload)", src);
             transparent_pipeline(device, "features", &m)
         })
     }
@@ -619,9 +633,7 @@ impl Pipelines {
             })],
         );
         let module_with = |pass: &str, label: &str, from: &str, to: &str| {
-            let mut src = shaders::source(pass).expect("known pass");
-            redeclare(&mut src, pass, from, to);
-            module_from(device, label, src)
+            module_redeclared(device, pass, label, (from, to))
         };
         // capture.wgsl and resolve.wgsl for frames whose budget holds every fragment.
         let fits = |pass: &str| {
