@@ -93,8 +93,10 @@ fn network_inputs(r: u32) -> Net {
     let near = unpack_rgba8(near8).rgb;
     let sum = color_sums(at);
     let mean = vec3<f32>(f32(sum.r) / 255.0 / nf, f32(sum.g) / 255.0 / nf, f32(sum.b) / 255.0 / nf);
-    // n^2 var and n^2 dev in 8-bit units, exact integers.
-    var var_num = i64(c) * i64(u32(records[at + 2u] >> 32u));
+    // n^2 var and n^2 dev in 8-bit units, exact integers. The squares' sum is widened from its
+    // u64 word, not through a u32: on lavapipe i64(u32) of 2^31 or more came out negative
+    // (sign-extended), so past about 11,000 white fragments the variance read 0.
+    var var_num = i64(c) * i64(records[at + 2u] >> 32u);
     var dev_num = 0li;
     for (var ch = 0u; ch < 3u; ch++) {
         let s = i64(sum[ch]);
