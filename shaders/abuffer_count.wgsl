@@ -1,4 +1,5 @@
-// A-buffer pass 1 (geometry): count the visible transparent fragments of every pixel.
+// A-buffer pass 1 (geometry): count the visible transparent fragments of every pixel, two
+// counts to a word (counts.wgsl).
 
 @group(1) @binding(0) var<storage, read_write> counts: array<atomic<u32>>;
 
@@ -7,6 +8,10 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     if (!transparent_fragment(in, front).visible) {
         return vec4<f32>(0.0);
     }
-    atomicAdd(&counts[pixel_index(in.clip, params.width)], 1u);
+    let p = pixel_index(in.clip, params.width);
+    let w = count_word(p);
+    if (count_stopped(atomicAdd(&counts[w], count_unit(p)), p)) {
+        atomicSub(&counts[w], count_unit(p));
+    }
     return vec4<f32>(0.0);
 }

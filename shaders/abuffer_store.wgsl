@@ -4,7 +4,9 @@
 // and the tests' readback) its submission index beside it.
 
 @group(1) @binding(0) var<storage, read> offsets: array<u32>;
-// The count pass's buffer, cleared after the prefix sum read it: each pixel's next place.
+// The count pass's buffer, cleared after the prefix sum read it: each pixel's next place (two
+// to a word, as the counts: counts.wgsl). A cursor that stopped, in a pixel too deep for any
+// method (which the resolve refuses), stores nothing more.
 @group(1) @binding(1) var<storage, read_write> cursor: array<atomic<u32>>;
 @group(1) @binding(2) var<storage, read_write> keys: array<u64>;
 @group(1) @binding(3) var<storage, read_write> primitives: array<u32>;
@@ -16,7 +18,13 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         return vec4<f32>(0.0);
     }
     let p = pixel_index(in.clip, params.width);
-    let i = offsets[p] + atomicAdd(&cursor[p], 1u);
+    let w = count_word(p);
+    let old = atomicAdd(&cursor[w], count_unit(p));
+    if (count_stopped(old, p)) {
+        atomicSub(&cursor[w], count_unit(p));
+        return vec4<f32>(0.0);
+    }
+    let i = offsets[p] + count_in(old, p);
     keys[i] = fragment_key(in.clip.z, f.rgba8);
     if (params.store_primitives != 0u) {
         primitives[i] = in.primitive;

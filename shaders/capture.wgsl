@@ -24,14 +24,16 @@
 @group(1) @binding(1) var<storage, read_write> oit_slots: array<atomic<u64>>;
 // Per pixel: sum c8 a8 for r, g, b, sum a8 (four 32-bit words, as resolve.wgsl reads them),
 // added two to a 64-bit word: r and g, then b and a. No low half carries into its high half:
-// a sum of c8 a8 stays below 2^32 up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (65,535 x
+// a sum of c8 a8 stays below 2^32 up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (32,767 x
 // 255^2 < 2^32). And the tail's count. Both unused where the tails are pooled.
 @group(1) @binding(2) var<storage, read_write> oit_tail: array<atomic<u64>>;
 @group(1) @binding(3) var<storage, read_write> oit_tail_count: array<atomic<u32>>;
-// n(p), read where the tails are pooled (a pixel's span says whether it keeps a tail only
-// beside n; an unused buffer otherwise); a pixel that appends
+// n(p), two to a word (counts.wgsl), read where the tails are pooled (a pixel's span says
+// whether it keeps a tail only beside n; an unused buffer otherwise); a pixel that appends
 // takes its places from it, down to 0 (resolve.wgsl restores it). A pixel that appends never
-// has a tail and one with a tail never appends, so a load of it sees n wherever n decides.
+// has a tail and one with a tail never appends, so a load of it sees n wherever n decides. (A
+// pixel's count is taken down once for each of its n fragments, so it never borrows from the
+// word's other half: a pixel too deep for any method has a tail, so never appends.)
 @group(1) @binding(4) var<storage, read_write> count: array<atomic<u32>>;
 
 // Whether the frame's budget holds every fragment, so k(p) = n(p) for every pixel (a pipeline
@@ -60,7 +62,7 @@ fn pooled_to_tail(t: u32, out: u64) {
 // A pooled pixel of n = k fragments (no tail) that appends: the next of its k places, from its
 // count taken down (n - 1 first).
 fn pooled_append(p: u32, base: u32, k: u32, key: u64) {
-    let i = atomicSub(&count[p], 1u) - 1u;
+    let i = count_in(atomicSub(&count[count_word(p)], count_unit(p)), p) - 1u;
     if (i < k) {
         atomicStore(&oit_slots[base + i], key);
     }
@@ -94,7 +96,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         k = slot_base[p + 1u] - base;
         if (pooled) {
             let span = k;
-            let n = atomicLoad(&count[p]);
+            let n = count_in(atomicLoad(&count[count_word(p)]), p);
             k = k_of_span(span, n);
             if (span < n) {
                 tail = base + k;

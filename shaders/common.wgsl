@@ -169,8 +169,8 @@ fn tick() {
 
 // The resolves' status words (gpu::FrameStatus): word 0 is set to 1 where a pixel's loops came
 // close to the limit above; word 1 keeps, as (n << 32) | p, the deepest pixel over
-// raster::MAX_FRAGMENTS_PER_PIXEL fragments (the integer sums of a k-buffer's tail would carry
-// past it), so the host refuses such a frame as the CPU rasterizer does.
+// raster::MAX_FRAGMENTS_PER_PIXEL fragments (the per-pixel counts stop one past it,
+// counts.wgsl), so the host refuses such a frame as the CPU rasterizer does.
 fn deepest_word(n: u32, p: u32) -> u64 {
     return (u64(n) << 32u) | u64(p);
 }

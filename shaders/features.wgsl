@@ -16,7 +16,7 @@
 // and the opacity statistics go in three 64-bit adds, and the key only grows, so a key that the
 // stored one already beats is skipped after a plain atomic load, as Loop64's early test does.
 // The colour sums' first word holds sum r (bits 0-23), sum g (24-47) and n (48-63, written by
-// assign_records): exact up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (255 x 65,535 < 2^24),
+// assign_records): exact up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (255 x 32,767 < 2^24),
 // past which the resolve refuses the frame (resolve.wgsl's too_deep). The second holds sum b
 // (low half, at most 255 n) and sum (r^2 + g^2 + b^2) (high half, wrapping as a 32-bit sum
 // does). The last holds the opacity statistics: the sum of the fragments' optical depths from

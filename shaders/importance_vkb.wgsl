@@ -3,6 +3,7 @@
 // term of the nearest fragment and per-pixel hash noise.
 
 @group(0) @binding(0) var<uniform> params: Params;
+// Two counts to a word (counts.wgsl).
 @group(0) @binding(1) var<storage, read> count: array<u32>;
 @group(0) @binding(2) var<storage, read> nearest_inv: array<u64>;
 @group(0) @binding(3) var<storage, read> totals: array<u32>;
@@ -24,7 +25,7 @@ fn main(
     if (p >= params.pixels) {
         return;
     }
-    let c = count[p];
+    let c = count_in(count[count_word(p)], p);
     if (c == 0u) {
         importance[p] = 0.0;
         return;

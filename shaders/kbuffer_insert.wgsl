@@ -36,7 +36,7 @@ fn oit_insert(p: u32, base: u32, k: u32, key: u64) -> u64 {
 
 // The key `out` (complemented) pushed out of pixel p's slots, into its tail: sum c8 a8 for r,
 // g, b and sum a8, two to a 64-bit word (no low half carries into its high half up to
-// raster::MAX_FRAGMENTS_PER_PIXEL fragments: 65,535 x 255^2 < 2^32), and the tail's count.
+// raster::MAX_FRAGMENTS_PER_PIXEL fragments: 32,767 x 255^2 < 2^32), and the tail's count.
 // Three atomics a fragment pushed out, not five.
 fn oit_to_tail(p: u32, out: u64) {
     let w = oit_tail_words(out);

@@ -18,7 +18,8 @@ struct OitParams {
     _pad: u32,
 };
 
-// Per pixel: the count, then (cleared after the prefix sum read it) the store's cursor.
+// Per pixel: the count, then (cleared after the prefix sum read it) the store's cursor, two to a
+// word (counts.wgsl, which the module includes).
 @group(OIT_GROUP) @binding(0) var<storage, read_write> oit_counts: array<atomic<u32>>;
 // Per pixel (pixels + 1 entries): the exclusive prefix sums of the counts.
 @group(OIT_GROUP) @binding(1) var<storage, read_write> oit_offsets: array<u32>;
@@ -42,11 +43,17 @@ fn oit_store_ordered(frag_coord: vec4<f32>, color: vec4<f32>, order: u32) {
         return;
     }
     let p = oit_pixel(frag_coord, oit_params.width);
-    let i = atomicAdd(&oit_counts[p], 1u);
+    let w = count_word(p);
+    let old = atomicAdd(&oit_counts[w], count_unit(p));
+    if (count_stopped(old, p)) {
+        atomicSub(&oit_counts[w], count_unit(p));
+        return;
+    }
     if (oit_params.phase != 0u) {
-        oit_keys[oit_offsets[p] + i] = key;
+        let i = oit_offsets[p] + count_in(old, p);
+        oit_keys[i] = key;
         if (oit_params.ordered != 0u) {
-            oit_orders[oit_offsets[p] + i] = order;
+            oit_orders[i] = order;
         }
     }
 }

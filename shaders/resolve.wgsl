@@ -14,9 +14,23 @@
 @group(0) @binding(3) var<storage, read_write> tail: array<u32>;
 @group(0) @binding(4) var<storage, read_write> tail_count: array<u32>;
 @group(0) @binding(5) var<storage, read_write> image: array<vec4<f32>>;
-// n(p), read where the tails are pooled; a pixel that appended took its count down to 0 as its
-// cursor (capture.wgsl), and it is put back here.
-@group(0) @binding(6) var<storage, read_write> count: array<u32>;
+// n(p), two to a word (counts.wgsl), read where the tails are pooled; a pixel that appended took
+// its count down to 0 as its cursor (capture.wgsl), and it is put back here (count_put: the
+// word's other half is its neighbour's, put back by another invocation).
+@group(0) @binding(6) var<storage, read_write> count: array<atomic<u32>>;
+
+// Pixel p's count.
+fn count_of(p: u32) -> u32 {
+    return count_in(atomicLoad(&count[count_word(p)]), p);
+}
+
+// Pixel p's count made n (from c, what it holds now), its neighbour's half untouched: the
+// difference added in u32, which wraps to a subtraction where n < c and never crosses a half.
+fn count_put(p: u32, c: u32, n: u32) {
+    if (c != n) {
+        atomicAdd(&count[count_word(p)], (n - c) * count_unit(p));
+    }
+}
 // Word 1: the deepest pixel over MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word), from the
 // fragments the capture saw (its cursor, or the slots filled and the tail's count), so it holds
 // whatever n(p) the frame was given. Word 0 (loop limits) is not set here.
@@ -110,7 +124,7 @@ fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
         // cursor put back.
         let base = slot_base[p];
         let n = slot_base[p + 1u] - base;
-        count[p] = n;
+        count_put(p, count_of(p), n);
         if (too_deep(p, n)) {
             return Resolved(false, vec4<f32>(0.0));
         }
@@ -129,13 +143,13 @@ fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
             // fragments, and where it appended (k <= APPEND_MAX) the capture took its count
             // down to 0: put back, and its slots sorted.
             let span = k;
-            let c = count[p];
+            let c = count_of(p);
             if (span < c) {
                 k = k_of_span(span, c);
                 pooled_at = base + k;
                 pooled_count = c - k;
             } else {
-                count[p] = span;
+                count_put(p, c, span);
                 if (params.append != 0u && k <= APPEND_MAX) {
                     sort_slots(base, k);
                 }

@@ -1,6 +1,6 @@
 // Exclusive prefix sum over pixels, in three dispatches so no invocation loops long (Mesa's
 // lavapipe stops a shader's loops after 65,535 iterations, silently):
-//   scan_blocks: each workgroup scans its SCAN_BLOCK values into offsets and writes the block total;
+//   scan_blocks: each workgroup scans its SCAN_BLOCK counts into offsets and writes the block total;
 //   scan_sums:   one workgroup scans the block totals in place, SCAN_BLOCK at a time;
 //   scan_add:    each value gets its block's offset; the last entry gets the total.
 // offsets[p] = sum of values[q] for q < p, offsets[pixels] = the total (where offsets holds
@@ -21,6 +21,7 @@
 // SCAN_ITEMS does not fall in one memory bank with its neighbours'.
 
 @group(0) @binding(0) var<uniform> params: Params;
+// scan_blocks's values: the per-pixel counts, two to a word (counts.wgsl).
 @group(0) @binding(1) var<storage, read> values: array<u32>;
 @group(0) @binding(2) var<storage, read_write> offsets: array<u32>;
 @group(0) @binding(3) var<storage, read_write> blocks: array<u32>;
@@ -106,7 +107,7 @@ fn scan_blocks(
         let i = first + j * SCAN_GROUP + lid;
         var v = 0u;
         if (i < scan_length()) {
-            v = values[i];
+            v = count_in(values[count_word(i)], i);
         }
         items[at(j * SCAN_GROUP + lid)] = v;
     }

@@ -4,6 +4,7 @@
 // integer atomics (importance::totals).
 
 @group(0) @binding(0) var<uniform> params: Params;
+// Two counts to a word (counts.wgsl).
 @group(0) @binding(1) var<storage, read> count: array<u32>;
 // fragments, covered, max count, deep, the records handed out (assign_records), deeper
 @group(0) @binding(2) var<storage, read_write> totals: array<atomic<u32>>;
@@ -25,7 +26,7 @@ fn main(
 ) {
     let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (p < params.pixels) {
-        add_pixel(count[p]);
+        add_pixel(count_in(count[count_word(p)], p));
     }
     add_group(lid);
 }
@@ -82,7 +83,7 @@ fn assign_records(
     let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     var n = 0u;
     if (p < params.pixels) {
-        n = count[p];
+        n = count_in(count[count_word(p)], p);
     }
     var local = 0u;
     if (n > TAIL_WORDS) {

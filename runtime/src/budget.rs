@@ -152,6 +152,10 @@ const ALLOC_DISPATCHES: (&str, u64) = (
     "alloc.dispatches",
     (4 * crate::shared::ALLOC_DISPATCHES * crate::shared::DISPATCH_WORDS) as u64,
 );
+/// Bytes of a pixel's fragment count: 16 bits, two to a word (`shared::count_bytes`; a frame of
+/// an odd number of pixels rounds its buffer up to a whole word, as [`Layout::fixed_bytes`]
+/// counts it). No other per-pixel buffer takes 2 bytes.
+const COUNT_BYTES: u64 = 2;
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 /// The resolve's status words: loops cut short, a pixel too deep (gpu's FrameStatus).
@@ -169,7 +173,7 @@ const STATUS: (&str, u64) = ("status", 16);
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[("features.count", 4), ("oit.offsets", 4)],
+    per_pixel: &[("features.count", COUNT_BYTES), ("oit.offsets", 4)],
     fixed: &[
         ("params", PARAMS_BYTES),
         ("features.totals", 24),
@@ -225,7 +229,11 @@ pub const OPT: Layout = Layout {
 pub const VKB: Layout = Layout {
     method: "vkb",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[("vkb.count", 4), ("oit.offsets", 4), ("vkb.nearest", 8)],
+    per_pixel: &[
+        ("vkb.count", COUNT_BYTES),
+        ("oit.offsets", 4),
+        ("vkb.nearest", 8),
+    ],
     fixed: &[
         ("params", PARAMS_BYTES),
         ("vkb.totals", 16),
@@ -364,7 +372,7 @@ pub const LINKED_LIST: Layout = Layout {
 pub const ABUFFER: Layout = Layout {
     method: "abuffer",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[("abuf.count", 4), ("abuf.offsets", 4)],
+    per_pixel: &[("abuf.count", COUNT_BYTES), ("abuf.offsets", 4)],
     fixed: &[
         ("params", PARAMS_BYTES),
         OFFSETS_END,
@@ -398,7 +406,7 @@ impl Layout {
         }
     }
     /// Bytes that do not depend on the number of slots: `|P| S_p + S_i` (scan scratch and
-    /// weights included).
+    /// weights included; the counts in whole words: [`crate::shared::count_bytes`]).
     pub fn fixed_bytes(&self, pixels: u64) -> u64 {
         // The block totals; like every GPU buffer, at least 16 bytes.
         let scan = if self.scan {
@@ -406,7 +414,11 @@ impl Layout {
         } else {
             0
         };
-        pixels * self.per_pixel_bytes()
+        let per_pixel = |b: u64| match b {
+            COUNT_BYTES => crate::shared::count_bytes(pixels),
+            b => pixels * b,
+        };
+        self.per_pixel.iter().map(|b| per_pixel(b.1)).sum::<u64>()
             + self.fixed.iter().map(|b| b.1).sum::<u64>()
             + scan
             + self.marks.map_or(0, |_| marks_bytes(pixels))

@@ -50,9 +50,48 @@ pub const fn mark_blocks(pixels: u64) -> u64 {
 }
 /// Ambient share of the headlight shading.
 pub const AMBIENT: f32 = 0.3;
-/// Most fragments one pixel may hold: the tail's 32-bit integer sums add up to 255^2 per
-/// fragment.
-pub const MAX_FRAGMENTS_PER_PIXEL: u32 = 65_535;
+/// Most fragments one pixel may hold: a per-pixel count takes 16 bits (two to a word,
+/// [`count_word`]) and stops one past this ([`COUNT_SATURATED`]); the tail's 32-bit integer
+/// sums, which add up to 255^2 a fragment, hold twice as many.
+pub const MAX_FRAGMENTS_PER_PIXEL: u32 = 32_767;
+
+/// Where a per-pixel count stops (counts.wgsl): one past [`MAX_FRAGMENTS_PER_PIXEL`], the top
+/// bit of its 16, so an add that finds it there can take itself back before any half carries
+/// into its neighbour, whatever other adds are in flight.
+pub const COUNT_SATURATED: u32 = MAX_FRAGMENTS_PER_PIXEL + 1;
+const _: () = assert!(COUNT_SATURATED == 1 << 15);
+
+/// The 32-bit word pixel `p`'s count is in, and its shift there: two counts to a word, the
+/// even pixel's in the low half (counts.wgsl).
+pub const fn count_word(p: u64) -> (u64, u32) {
+    (p / 2, 16 * (p % 2) as u32)
+}
+
+/// Bytes of the counts of `pixels` pixels: two to a 32-bit word, 2 bytes a pixel (rounded to
+/// a whole word).
+pub const fn count_bytes(pixels: u64) -> u64 {
+    4 * pixels.div_ceil(2)
+}
+
+/// The counts of `pixels` pixels from their words as the GPU packs them ([`count_word`]).
+pub fn unpack_counts(words: &[u32], pixels: u64) -> Vec<u32> {
+    (0..pixels)
+        .map(|p| {
+            let (w, shift) = count_word(p);
+            (words[w as usize] >> shift) & 0xffff
+        })
+        .collect()
+}
+
+/// The words the GPU holds `counts` in ([`count_word`]; each below 2^16).
+pub fn pack_counts(counts: &[u32]) -> Vec<u32> {
+    let mut words = vec![0u32; counts.len().div_ceil(2)];
+    for (p, &n) in counts.iter().enumerate() {
+        let (w, shift) = count_word(p as u64);
+        words[w as usize] |= (n & 0xffff) << shift;
+    }
+    words
+}
 
 /// 64-bit words of a pooled tail (the allocated k-buffers, `Params::pooled_tail`): sum c8 a8
 /// for r and g, for b and sum a8 (two to a word, as the per-pixel tail). Its count is n - k
@@ -108,3 +147,22 @@ pub const RECORD_WORDS: u32 = 4;
 
 /// A pixel without a record (records.wgsl).
 pub const NO_RECORD: u32 = u32::MAX;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// By hand: the even pixel low, the odd one high, an odd frame's last word half empty; and
+    /// back, for every count a pixel may hold beside every other in one word.
+    #[test]
+    fn counts_pack_two_to_a_word_and_unpack_to_themselves() {
+        assert_eq!(pack_counts(&[1, 2, 3]), vec![0x0002_0001, 0x0000_0003]);
+        assert_eq!(count_bytes(3), 8);
+        assert_eq!(count_bytes(4), 8);
+        assert_eq!(unpack_counts(&[0x8000_7fff], 2), vec![32_767, 32_768]);
+        for n in (0..=COUNT_SATURATED).step_by(97).chain([COUNT_SATURATED]) {
+            let counts = [n, COUNT_SATURATED - n, 0, n];
+            assert_eq!(unpack_counts(&pack_counts(&counts), 4), counts);
+        }
+    }
+}

@@ -11,7 +11,16 @@ pub use crate::shared::{
 
 /// WGSL sources, embedded at build time.
 pub mod shaders {
-    pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+    /// Code every pass starts with (after the prelude), the per-pixel counts' packing
+    /// ([`COUNTS`]) with it.
+    pub const COMMON: &str = concat!(
+        include_str!("../../shaders/common.wgsl"),
+        "\n",
+        include_str!("../../shaders/counts.wgsl")
+    );
+    /// The per-pixel counts, two to a word (`shared::count_word`): in [`COMMON`], and in the
+    /// exact A-buffer's store module for an application (`gpu::ExactOit::wgsl`).
+    pub const COUNTS: &str = include_str!("../../shaders/counts.wgsl");
     pub const GEOMETRY: &str = include_str!("../../shaders/geometry.wgsl");
     /// The importance network, prepended to the passes that run it.
     pub const MLP: &str = include_str!("../../shaders/mlp.wgsl");
@@ -855,6 +864,11 @@ mod tests {
             }
         };
         assert_eq!(value("AMBIENT"), naga::Literal::F32(crate::raster::AMBIENT));
+        // counts.wgsl declares its own (an application's A-buffer module has no prelude).
+        assert_eq!(
+            value("COUNT_SATURATED"),
+            naga::Literal::U32(crate::shared::COUNT_SATURATED)
+        );
         assert_eq!(
             value("PAIR_BIT"),
             naga::Literal::U32(crate::alloc::PAIR_BIT)

@@ -1284,9 +1284,10 @@ fn a_pixel_too_deep_for_the_devices_loops_is_refused_not_wrong() {
 }
 
 /// `n` full-frame triangles, each covering every pixel of a small frame: two faint blue ones
-/// nearest, opaque yellow ones behind in shuffled depth order (their tail's sum of r a reaches
-/// 2^32 a little past raster::MAX_FRAGMENTS_PER_PIXEL, and their sums of r and g fill the
-/// features pass's 24-bit fields), and the identity camera.
+/// nearest, opaque yellow ones behind in shuffled depth order (at raster::MAX_FRAGMENTS_PER_PIXEL
+/// their tail's sum of r a reaches 2^31, half what its word holds, and their sums of r and g
+/// half the features pass's 24-bit fields; one more and each pixel's 16-bit count stops), and
+/// the identity camera.
 fn deep_pixels(n: usize) -> (Scene, Camera) {
     let mut s = Scene::default();
     for i in 0..n {
@@ -1393,9 +1394,63 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
         let e = e.to_string();
         assert!(
             e.contains(&format!(
-                "pixel (1, 1) has {} fragments; at most {max}",
-                max + 1
+                "pixel (1, 1) has more than {max} fragments; at most {max}"
             )),
+            "{name}: {e}"
+        );
+    }
+}
+
+/// Two counts share a 32-bit word (counts.wgsl): a pixel of 2^16 + 1 fragments beside a pixel of
+/// one, in one word. Its count stops one past raster::MAX_FRAGMENTS_PER_PIXEL, so it never
+/// wraps to 1 and carries into its neighbour's half (which would read 2 and leave the frame
+/// unrefused): every method that counts refuses the frame and names the deep pixel.
+#[test]
+fn a_pixel_of_two_to_the_sixteen_fragments_leaves_its_neighbours_count_alone() {
+    let o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
+    if gpu().is_none() {
+        return;
+    }
+    let g = dhoit_runtime::gpu::Gpu::new().unwrap();
+    let max = dhoit_runtime::raster::MAX_FRAGMENTS_PER_PIXEL as usize;
+    let mlp = common::committed_weights();
+    // A 2x1 frame: pixel 0 (centre x = -0.5) under every triangle but one, pixel 1 (x = 0.5)
+    // under that one only. Both are in count word 0.
+    let deep = (1usize << 16) + 1;
+    let mut s = Scene::default();
+    for i in 0..deep {
+        let z = 0.1 + 0.8 * i as f32 / deep as f32;
+        s.push_triangle(
+            [
+                glam::Vec3::new(-1.0, -1.0, z),
+                glam::Vec3::new(-0.1, -1.0, z),
+                glam::Vec3::new(-1.0, 3.0, z),
+            ],
+            [[1.0, 0.5, 0.0, 0.3]; 3],
+        );
+    }
+    s.push_triangle(
+        [
+            glam::Vec3::new(0.1, -1.0, 0.5),
+            glam::Vec3::new(1.0, -1.0, 0.5),
+            glam::Vec3::new(1.0, 3.0, 0.5),
+        ],
+        [[0.0, 0.5, 1.0, 0.3]; 3],
+    );
+    let cam = common::identity();
+    let f = 8u64;
+    let methods: [(&str, Option<Slots>); 3] = [
+        ("A-buffer", None),
+        ("VKB", Some(Slots::Vkb(Default::default(), f.into()))),
+        ("DKB", Some(Slots::Dkb(&mlp, f.into()))),
+    ];
+    for (name, slots) in methods {
+        let Err(e) = g.render_with(&o, &s, &cam, (2, 1), BG, slots) else {
+            panic!("{name}: a pixel of {deep} fragments gave a frame")
+        };
+        let e = e.to_string();
+        assert!(
+            e.contains(&format!("pixel (0, 0) has more than {max} fragments")),
             "{name}: {e}"
         );
     }

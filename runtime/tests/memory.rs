@@ -27,10 +27,11 @@ fn a_budget_that_holds_every_fragment_allocates_and_renders_the_abuffer() {
         let fl = rasterize(&s, &cam, w, h).unwrap();
         let (px, n) = (fl.pixel_count() as u64, fl.fragment_count() as u64);
         let exact = budget::ABUFFER.allocated_bytes(px, n);
-        // By hand: 8 bytes a pixel (count, offsets), 8 a fragment, the fixed
-        // buffers and the prefix sum's block totals.
+        // By hand: 6 bytes a pixel (a 16-bit count, two to a word; a 32-bit offset), 8 a
+        // fragment, the fixed buffers and the prefix sum's block totals.
         let blocks = (4 * px.div_ceil(budget::SCAN_BLOCK)).max(16);
-        assert_eq!(exact, 8 * px + 8 * n + 256 + 4 + 16 + 16 + blocks);
+        assert_eq!(px % 2, 0);
+        assert_eq!(exact, 6 * px + 8 * n + 256 + 4 + 16 + 16 + blocks);
         let reference = g.render(&s, &cam, w, h, BG, None).unwrap();
         assert_eq!(reference.allocated_bytes, exact, "{name}: the GPU A-buffer");
         let holding = [

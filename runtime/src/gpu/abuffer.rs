@@ -11,6 +11,7 @@ use super::buffers::{FrameStatus, read_back, read_u64s, read_words, u32s};
 use crate::budget::Occupancy;
 use crate::error::Result;
 use crate::fragment::FragmentLists;
+use crate::shared::count_bytes;
 
 /// How the A-buffer's lists are blended.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -47,7 +48,7 @@ impl Recording<'_, '_> {
     pub(super) fn count(&mut self, occupancy: bool) -> Result<Counted> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let (fb, enc) = (&mut self.fb, &mut self.enc);
-        let counts = fb.storage("abuf.count", 4 * px, true)?;
+        let counts = fb.storage("abuf.count", count_bytes(px), true)?;
         let offsets = fb.storage("abuf.offsets", 4 * (px + 1), true)?;
         passes.draw(enc, &gpu.pipelines.count, &[&counts], "count");
         passes.prefix_sum(enc, fb, &counts, &offsets)?;

@@ -4,7 +4,7 @@
 //! a frame computes (`dkb.rs`, `vkb.rs`) or is given (the count pass and `totals.wgsl` first).
 //! [`Gpu::allocate`] runs it alone.
 
-use super::buffers::{FrameBuffers, read_back, read_words, u32s};
+use super::buffers::{FrameBuffers, read_back, read_counts, read_words, u32s};
 use super::passes::Passes;
 use super::pipelines::{compute_buffer_entry, module, module_from, redeclare};
 use super::scan::Scan;
@@ -15,6 +15,7 @@ use crate::budget;
 use crate::budget::FragmentBudget;
 use crate::error::{Error, Result};
 use crate::scene::{Camera, Scene};
+use crate::shared::count_bytes;
 use crate::wgsl::{
     ALLOC_GROUP, ALLOC_ROUNDS_WORD, ALLOC_STATE_WORDS, AllocParams, DISPATCH_PER_PIXEL,
     DISPATCH_ROUNDS, DISPATCH_SCAN, SEARCH_PIXELS, SEARCH_ROUNDS, alloc_dispatches,
@@ -125,7 +126,7 @@ impl Recording<'_, '_> {
         }
         let importance = self.pixel_word(Word::Written)?;
         let (fb, enc) = (&mut self.fb, &mut self.enc);
-        let counts = fb.storage("count", 4 * px, true)?;
+        let counts = fb.storage("count", count_bytes(px), true)?;
         let totals = fb.storage("totals", 16, true)?;
         passes.draw(enc, &p.count, &[&counts], "count");
         let (c, t, word) = (counts.clone(), totals.clone(), importance.clone());
@@ -341,7 +342,7 @@ impl Gpu {
         let passes = Passes::new(self, &timer, &inputs, FrameOptions::default(), None);
         let p = &self.pipelines;
         let mut enc = self.device.create_command_encoder(&Default::default());
-        let counts = fb.storage("count", 4 * px, true)?;
+        let counts = fb.storage("count", count_bytes(px), true)?;
         let base = word_holding(&mut fb, bytemuck::cast_slice(importance));
         let totals = fb.storage("totals", 16, true)?;
         passes.opaque(&mut enc);
@@ -363,7 +364,7 @@ impl Gpu {
         fb.submit(&mut enc);
         let bases = u32s(&read_back(self, &base, 4 * (px + 1))?);
         let out = GpuAllocation {
-            counts: u32s(&read_back(self, &counts, 4 * px)?),
+            counts: read_counts(self, &counts, px)?,
             k: bases.windows(2).map(|b| b[1] - b[0]).collect(),
             bases,
             pass_ms: timer.read(self)?,

@@ -6,6 +6,7 @@ use super::Gpu;
 use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
 use crate::importance::PixelStats;
+use crate::shared::count_bytes;
 
 pub(super) struct FrameBuffers<'a> {
     pub(super) gpu: &'a Gpu,
@@ -232,6 +233,11 @@ impl FrameStatus {
         if let Some((n, p)) = self.too_deep {
             let (x, y) = (p % width, p / width);
             let max = crate::raster::MAX_FRAGMENTS_PER_PIXEL;
+            // A count that stopped (counts.wgsl) says only that the pixel had more.
+            let n = match n <= crate::shared::COUNT_SATURATED {
+                true => format!("more than {max}"),
+                false => n.to_string(),
+            };
             return Err(Error::Invalid(format!(
                 "pixel ({x}, {y}) has {n} fragments; at most {max} fit one pixel"
             )));
@@ -351,6 +357,13 @@ pub(super) fn read_texture(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Vec<u32
     })
 }
 
+/// The per-pixel counts of a frame of `px` pixels in `buffer`, two to a word as the GPU packs
+/// them (`shared::count_word`), one a pixel.
+pub(super) fn read_counts(gpu: &Gpu, buffer: &wgpu::Buffer, px: u64) -> Result<Vec<u32>> {
+    let words = u32s(&read_back(gpu, buffer, count_bytes(px))?);
+    Ok(crate::shared::unpack_counts(&words, px))
+}
+
 pub(super) fn u32s(bytes: &[u8]) -> Vec<u32> {
     bytes
         .chunks_exact(4)
@@ -428,7 +441,7 @@ impl Readback {
                 ..Default::default()
             });
         };
-        let counts = u32s(&read_back(gpu, counts, 4 * px)?);
+        let counts = read_counts(gpu, counts, px)?;
         let stats = match &self.stats_bufs {
             Some([record_of, records]) if features_drawn != Some(false) => {
                 let record_of = u32s(&read_back(gpu, record_of, 4 * px)?);

@@ -4,11 +4,14 @@
 //! slots front to back over the tail's approximation; twin `composite::hybrid_sorted`).
 
 use super::allocate::{AllocBuffers, Importance, Reuse, Word};
-use super::buffers::{FrameBuffers, FrameStatus, read_back, read_u64s, read_words, u32s};
+use super::buffers::{
+    FrameBuffers, FrameStatus, read_back, read_counts, read_u64s, read_words, u32s,
+};
 use super::scan::Scan;
 use super::{Recording, Slots};
 use crate::budget::FragmentBudget;
 use crate::error::{Error, Result};
+use crate::shared::count_bytes;
 
 /// A frame's k: per pixel, its slot bases (`pixels + 1` entries: k is their difference, not
 /// stored) and how many slots in all, and n(p) where the frame counted it (the two-mode capture
@@ -254,8 +257,8 @@ impl Recording<'_, '_> {
         let captured = match (self.passes.opts.diagnostics, kb.pooled) {
             (false, _) => None,
             (true, true) => {
-                let copy = fb.storage("oit.count.captured", 4 * px, false)?;
-                enc.copy_buffer_to_buffer(&kb.counts, 0, &copy, 0, 4 * px);
+                let copy = fb.storage("oit.count.captured", count_bytes(px), false)?;
+                enc.copy_buffer_to_buffer(&kb.counts, 0, &copy, 0, count_bytes(px));
                 Some(copy)
             }
             (true, false) => {
@@ -287,9 +290,9 @@ impl Recording<'_, '_> {
             let spans = u32s(&read_back(gpu, &kb.base, 4 * (px + 1))?);
             let pool = read_u64s(gpu, &slots, kb.slots, false)?;
             // n, as the resolve put it back.
-            let counts = u32s(&read_back(gpu, &kb.counts, 4 * px)?);
+            let counts = read_counts(gpu, &kb.counts, px)?;
             if let Some(c) = &captured {
-                self.out.capture_counts = Some(u32s(&read_back(gpu, c, 4 * px)?));
+                self.out.capture_counts = Some(read_counts(gpu, c, px)?);
             }
             self.out.slots = Some(unpool(&spans, &counts, &pool));
         } else if self.passes.opts.diagnostics {

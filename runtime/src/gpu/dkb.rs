@@ -23,6 +23,7 @@ use super::{Recording, weight_kind};
 use crate::budget::{self, FragmentBudget, Occupancy};
 use crate::error::{Error, Result};
 use crate::mlp::Mlp;
+use crate::shared::count_bytes;
 use crate::wgsl::{DISPATCH_WORDS, PIXEL_GROUP, grid, mlp_uniform};
 
 /// DKB's per-frame buffers.
@@ -74,7 +75,7 @@ impl Recording<'_, '_> {
                 (counts.clone(), *occ)
             }
             _ => {
-                let c = fb.storage("features.count", 4 * px, true)?;
+                let c = fb.storage("features.count", count_bytes(px), true)?;
                 passes.draw(&mut self.enc, &p.count, &[&c], "count");
                 passes.totals(&mut self.enc, &c, &totals);
                 fb.submit(&mut self.enc);

@@ -653,7 +653,7 @@ impl ExactOit {
         };
         let mut side = AppSide::new(device, size, name, (pass, "onto", 8))?;
         let px = side.pixels();
-        let counts = side.storage("abuf.count", 4 * px)?;
+        let counts = side.storage("abuf.count", crate::shared::count_bytes(px))?;
         let offsets = side.storage("abuf.offsets", 4 * (px + 1))?;
         let blocks = side.storage("scan.blocks", 4 * px.div_ceil(crate::budget::SCAN_BLOCK))?;
         let status = side.storage("status", 16)?;
@@ -721,7 +721,14 @@ impl ExactOit {
     /// `order` the fragment's submission index (its triangle's index in the application's
     /// submission, say), which MLAB merges a pixel's fragments in.
     pub fn wgsl(group: u32) -> String {
-        shaders::application_module(&[shaders::OIT_FRAGMENT, shaders::OIT_ABUFFER_STORE], group)
+        shaders::application_module(
+            &[
+                shaders::OIT_FRAGMENT,
+                shaders::COUNTS,
+                shaders::OIT_ABUFFER_STORE,
+            ],
+            group,
+        )
     }
 
     /// The layout of the A-buffer's bind groups, for the application's pipeline layout.

@@ -7,6 +7,7 @@ use super::{Recording, weight_kind};
 use crate::alloc::Target;
 use crate::budget::FragmentBudget;
 use crate::error::Result;
+use crate::shared::count_bytes;
 
 impl Recording<'_, '_> {
     /// VKB's budget: `budget`, or with [`super::FrameOptions::counted_bytes`] the most slots
@@ -45,7 +46,7 @@ impl Recording<'_, '_> {
                 enc.clear_buffer(&c.counts, 0, None);
                 c.counts.clone()
             }
-            None => fb.storage("vkb.count", 4 * px, true)?,
+            None => fb.storage("vkb.count", count_bytes(px), true)?,
         };
         let nearest = fb.storage("vkb.nearest", 8 * px, true)?;
         let tail_count = fb.storage("vkb.marks", crate::budget::marks_bytes(px), true)?;
