@@ -665,7 +665,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
             let (fl, raster_ms) = rasterize_view(&scene, view, &a.common)?;
             dhoit_runtime::frame::check_memory(&methods, &fl)?;
             for budget in &budgets {
-                let options = a.params.apply(
+                let mut options = a.params.apply(
                     Options {
                         weights: weights.as_ref(),
                         equal: a.equal,
@@ -674,6 +674,21 @@ pub fn run(a: CompareArgs) -> Result<()> {
                     },
                     &crate::args::view_camera(&scene, view, &a.common),
                 );
+                // In a memory M (equal bytes, or a budget in bytes) MBOIT takes the most power
+                // moments whose targets fit M, as `versus` gives it, unless they are given.
+                let mut moments_note = None;
+                if a.params.mboit_moments.is_none() && methods.contains(&Method::Mboit) {
+                    let px = fl.pixel_count() as u64;
+                    if let Ok(Budget::Bytes(m)) = Renderer::new(&fl, options).budget()
+                        && let Some(n) = dhoit_runtime::budget::mboit_moments_within(px, m)
+                    {
+                        options.mboit = a.params.mboit(n);
+                        moments_note = Some(format!(
+                            "mboit: {n} power moments, the most whose targets fit {}",
+                            format_bytes(m)
+                        ));
+                    }
+                }
                 let (frames, skipped) = render_methods(&Renderer::new(&fl, options), &methods)?;
                 let reference = frames[0].image.clone();
                 let reference8 = image_io::to_srgb8(&reference);
@@ -693,6 +708,12 @@ pub fn run(a: CompareArgs) -> Result<()> {
                 };
                 let frame_rows = rows_of(&frames, &flips, &fl, &reference, &at);
                 md += &print_frame(&fl, &at, &frame_rows, &frames, &skipped);
+                if let Some(note) =
+                    moments_note.filter(|_| frames.iter().any(|f| f.method == Method::Mboit))
+                {
+                    println!("{note}");
+                    md += &format!("\n{note}\n");
+                }
                 if !a.no_images {
                     let tag = format!("{label}_v{view}_{}", budget.to_string().replace(' ', ""));
                     let budget_label = format!("{budget} ({})", a.equal.name());

@@ -213,11 +213,7 @@ fn measure(
                 // MBOIT takes the most power moments whose targets fit M (unless given).
                 let mboit_opts = Options {
                     mboit: a.params.mboit(a.params.mboit_moments.unwrap_or_else(|| {
-                        let px = fl.pixel_count() as u64;
-                        [8, 6, 4]
-                            .into_iter()
-                            .find(|&n| budget::mboit(n).allocated_bytes(px, 0) <= m_bytes)
-                            .unwrap_or(4)
+                        budget::mboit_moments_within(fl.pixel_count() as u64, m_bytes).unwrap_or(4)
                     })),
                     ..opts
                 };

@@ -351,6 +351,14 @@ pub fn mboit(moments: u32) -> Layout {
     }
 }
 
+/// The most power moments (8, 6 or 4) whose MBOIT targets fit `bytes` for a frame of `pixels`
+/// pixels, or None where not even four do: what MBOIT takes at one memory for every method.
+pub fn mboit_moments_within(pixels: u64, bytes: u64) -> Option<u32> {
+    [8, 6, 4]
+        .into_iter()
+        .find(|&n| mboit(n).fixed_bytes(pixels) <= bytes)
+}
+
 /// The budgeted per-pixel linked list, as Bevy lays it out: a 4-byte head a pixel, 12 bytes a
 /// node (the 8-byte capture key and the next node's index), the pool of F nodes allocated whole,
 /// and the atomic counter that hands them out.

@@ -428,8 +428,36 @@ impl<'a> Renderer<'a> {
         let bytes_hold = matches!(budget, Budget::Bytes(m) if m >= exact_bytes);
         let (budget_bytes, f) = match (method, budget) {
             (Method::Abuffer, _) => (exact_bytes, total),
-            // Fixed memory whatever the budget: its accumulation targets, no slot.
-            (Method::Wboit | Method::Mboit, _) => (layout.fixed_bytes(pixels), 0),
+            // Fixed memory whatever the budget: its accumulation targets, no slot. A byte
+            // budget is a cap for them as for every method: targets above it do not run.
+            (Method::Wboit | Method::Mboit, b) => {
+                let need = layout.fixed_bytes(pixels);
+                match b {
+                    Budget::Bytes(m) if need > m => {
+                        return Err(Error::Budget(
+                            budget::format_bytes(m),
+                            format!(
+                                "{} needs {} for its targets on {} pixels ({} B a pixel{}), \
+                                 whatever the frame's fragments",
+                                method.name(),
+                                budget::format_bytes(need),
+                                pixels,
+                                layout.per_pixel_bytes(),
+                                match method {
+                                    Method::Mboit if opts.mboit.moments > 4 => format!(
+                                        " at {} power moments; 4 need {}",
+                                        opts.mboit.moments,
+                                        budget::format_bytes(budget::mboit(4).fixed_bytes(pixels))
+                                    ),
+                                    Method::Mboit => " at 4 power moments, the fewest".into(),
+                                    _ => String::new(),
+                                }
+                            ),
+                        ));
+                    }
+                    _ => (need, 0),
+                }
+            }
             (_, Budget::Bytes(m)) if bytes_hold && method.is_kbuffer() => (m, total),
             _ => budget.resolve_counted(&layout, pixels, &occ)?,
         };

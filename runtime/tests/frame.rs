@@ -182,6 +182,59 @@ fn equal_bytes_give_every_method_one_memory_budget() {
 /// Every feature against its definition, computed here in f64 from the fragment lists: on a
 /// scene of one opacity and on one whose opacities vary (strands fading to their tips, around
 /// an opaque head).
+/// WBOIT's and MBOIT's memory is their targets whatever the frame's fragments, so a byte budget
+/// (one memory for every method) holds them or they do not run: targets above it are refused,
+/// naming what they need, where they used to run at their own bytes beside methods held to M.
+/// By hand, for 80x60 pixels: WBOIT 9 B a pixel (RGBA16F + R8), MBOIT 28, 36, 44 at 4, 6, 8
+/// power moments, each with its parameters and MBOIT its 1 KiB absorbance table.
+#[test]
+fn a_byte_budget_below_the_blended_targets_is_refused() {
+    use dhoit_runtime::budget::{PARAMS_BYTES, mboit_moments_within};
+    let fl = frame("spheres", 80, 60);
+    let px = fl.pixel_count() as u64;
+    let wboit = 9 * px + PARAMS_BYTES;
+    let mboit = |per_pixel: u64| per_pixel * px + PARAMS_BYTES + 1024;
+    let at = |bytes: u64, moments: u32| {
+        let opts = Options::new(Budget::Bytes(bytes), [1.0; 3]);
+        let opts = Options {
+            mboit: dhoit_runtime::composite::MboitParams::with_moments(moments).unwrap(),
+            ..opts
+        };
+        let r = Renderer::new(&fl, opts);
+        (r.render(Method::Wboit), r.render(Method::Mboit))
+    };
+    let (w, _) = at(wboit - 1, 4);
+    let e = w
+        .expect_err("WBOIT one byte short of its targets ran")
+        .to_string();
+    assert!(
+        e.contains("wboit needs") && e.contains("9 B a pixel"),
+        "{e}"
+    );
+    let (w, m) = at(wboit, 4);
+    assert_eq!(w.unwrap().allocated_bytes, wboit);
+    assert!(m.is_err(), "MBOIT in WBOIT's bytes");
+    for (moments, per_pixel) in [(4, 28), (6, 36), (8, 44)] {
+        let (_, m) = at(mboit(per_pixel) - 1, moments);
+        let e = m.expect_err("MBOIT one byte short ran").to_string();
+        assert!(e.contains(&format!("{per_pixel} B a pixel")), "{e}");
+        let (_, m) = at(mboit(per_pixel), moments);
+        assert_eq!(
+            m.unwrap().allocated_bytes,
+            mboit(per_pixel),
+            "{moments} moments"
+        );
+    }
+    // At one memory MBOIT takes the most moments that fit it.
+    assert_eq!(mboit_moments_within(px, mboit(28) - 1), None);
+    assert_eq!(mboit_moments_within(px, mboit(28)), Some(4));
+    assert_eq!(mboit_moments_within(px, mboit(44) - 1), Some(6));
+    assert_eq!(mboit_moments_within(px, mboit(44)), Some(8));
+    // A budget in slots is not a memory: the targets run whatever it is.
+    let r = Renderer::new(&fl, Options::new(Budget::SlotsPerPixel(0.01), [1.0; 3]));
+    assert_eq!(r.render(Method::Wboit).unwrap().allocated_bytes, wboit);
+}
+
 #[test]
 fn features_match_their_definitions() {
     for (name, w, h) in [("shells", 40, 30), ("strands", 48, 36)] {
