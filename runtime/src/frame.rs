@@ -368,18 +368,26 @@ impl<'a> Renderer<'a> {
     }
 
     /// The budget every method of this frame gets, after [`Equal`]: at equal bytes, a budget in
-    /// slots or a share becomes the bytes DKB's layout needs for it.
+    /// slots or a share becomes the bytes DKB spends on it: what its layout reserves, or where
+    /// that is no less than the exact A-buffer's bytes and [`Options::exact_when_cheaper`]
+    /// renders the A-buffer instead, the A-buffer's (no method gets more memory than DKB
+    /// spends).
     pub fn budget(&self) -> Result<Budget> {
         let opts = &self.options;
         match (opts.equal, opts.budget) {
             (Equal::Bytes, b @ (Budget::SlotsPerPixel(_) | Budget::Share(_))) => {
                 let fl = self.fragments;
+                let pixels = fl.pixel_count() as u64;
                 let (bytes, _) = b.resolve_counted(
                     &opts.layout(Method::Dkb),
-                    fl.pixel_count() as u64,
+                    pixels,
                     &Occupancy::of(&fl.counts()),
                 )?;
-                Ok(Budget::Bytes(bytes))
+                let exact = budget::ABUFFER.allocated_bytes(pixels, fl.fragment_count() as u64);
+                Ok(Budget::Bytes(match opts.exact_when_cheaper {
+                    true => bytes.min(exact),
+                    false => bytes,
+                }))
             }
             (_, b) => Ok(b),
         }

@@ -182,6 +182,62 @@ fn equal_bytes_give_every_method_one_memory_budget() {
 /// Every feature against its definition, computed here in f64 from the fragment lists: on a
 /// scene of one opacity and on one whose opacities vary (strands fading to their tips, around
 /// an opaque head).
+/// At equal bytes M is what DKB spends: where its layout would reserve at least the exact
+/// A-buffer's bytes for the budget, DKB renders the A-buffer (by default), so M is the
+/// A-buffer's and no other method gets more memory than that (the list and MLAB were given
+/// DKB's larger reservation, up to 1.09x the A-buffer's bytes on the eval's frames). Always
+/// approximate, M stays the reservation.
+#[test]
+fn at_equal_bytes_no_method_gets_more_than_dkb_spends() {
+    let mlp = Mlp::random(4);
+    let fl = frame("cad", 80, 60);
+    let (px, total) = (fl.pixel_count() as u64, fl.fragment_count() as u64);
+    let exact = dhoit_runtime::budget::ABUFFER.allocated_bytes(px, total);
+    let mut above = 0;
+    for budget in ["10%", "50%", "90%", "0.5fpp", "1fpp"] {
+        let opts = Options {
+            weights: Some(&mlp),
+            equal: Equal::Bytes,
+            ..Options::new(Budget::parse(budget).unwrap(), [1.0; 3])
+        };
+        let Budget::Bytes(reserved) = Renderer::new(&fl, opts.always_approximate())
+            .budget()
+            .unwrap()
+        else {
+            panic!("{budget}: equal bytes gave no memory")
+        };
+        let r = Renderer::new(&fl, opts);
+        let Budget::Bytes(m) = r.budget().unwrap() else {
+            panic!("{budget}: equal bytes gave no memory")
+        };
+        assert_eq!(m, reserved.min(exact), "{budget}");
+        if reserved < exact {
+            continue;
+        }
+        above += 1;
+        let dkb = r.render(Method::Dkb).unwrap();
+        assert!(
+            dkb.exact,
+            "{budget}: DKB reserving more than the A-buffer renders it"
+        );
+        assert_eq!(dkb.allocated_bytes, exact, "{budget}");
+        for method in [Method::Mlab, Method::LinkedList, Method::Vkb, Method::Wboit] {
+            if let Ok(f) = r.render(method) {
+                assert!(
+                    f.allocated_bytes <= exact,
+                    "{budget} {}: {} bytes above the A-buffer's {exact}",
+                    method.name(),
+                    f.allocated_bytes
+                );
+            }
+        }
+    }
+    assert!(
+        above > 0,
+        "no budget where DKB would reserve the A-buffer's bytes or more"
+    );
+}
+
 /// WBOIT's and MBOIT's memory is their targets whatever the frame's fragments, so a byte budget
 /// (one memory for every method) holds them or they do not run: targets above it are refused,
 /// naming what they need, where they used to run at their own bytes beside methods held to M.
