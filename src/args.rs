@@ -55,7 +55,8 @@ pub(crate) struct ViewArgs {
 #[derive(Args, Clone)]
 pub(crate) struct MethodParams {
     /// MBOIT's power moments beside b_0: 4, 6 or 8 (32-bit float targets: 20, 28 or 36 bytes a
-    /// pixel, and 8 for the colour; default 4, and in `versus` the most that fit each memory).
+    /// pixel, and 8 for the colour; default 4; in `versus`, and at a memory M in `compare`, the
+    /// most that fit it).
     #[arg(long, value_parser = parse_mboit_moments)]
     pub(crate) mboit_moments: Option<u32>,
     /// MBOIT's moment bias: how far the normalized moments are pulled towards a symmetric

@@ -47,7 +47,10 @@ pub struct CompareArgs {
     #[arg(long, value_delimiter = ',')]
     methods: Vec<Method>,
     /// What a budget holds equal across methods: slots (the same F) or bytes (the same memory
-    /// M, each method's F from its own layout; the paper's protocol).
+    /// M, each method's F from its own layout; the paper's protocol). M is what DKB spends on
+    /// the budget (never more than the exact A-buffer's bytes, unless --always-approximate);
+    /// WBOIT and MBOIT run where their targets fit M, MBOIT with the most power moments that do
+    /// (unless --mboit-moments is given).
     #[arg(long, default_value = "slots")]
     equal: Equal,
     /// Render each k-buffer's approximation even where the exact A-buffer needs fewer bytes

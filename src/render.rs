@@ -46,8 +46,9 @@ pub struct RenderArgs {
     #[arg(long, default_value = "2fpp", allow_hyphen_values = true)]
     budget: Budget,
     /// What the budget fixes: slots (F; bytes follow from the method's layout) or bytes (the
-    /// memory M; F follows from the layout, a budget in slots or % sets M to what DKB's layout
-    /// needs for that F).
+    /// memory M; F follows from the layout, a budget in slots or % sets M to what DKB spends on
+    /// that F: its layout's bytes, or the exact A-buffer's where those are no more; WBOIT's and
+    /// MBOIT's targets must fit M).
     #[arg(long, default_value = "slots")]
     equal: Equal,
     /// Render the k-buffer's approximation even where the exact A-buffer needs fewer bytes than
