@@ -1312,20 +1312,33 @@ fn deep_pixels(n: usize) -> (Scene, Camera) {
     (s, cam)
 }
 
+/// What the deep-pixel tests share: always-approximate frames on a device of their own (which
+/// passes a frame records follows the device's last frame), the rasterizers' limit of fragments
+/// a pixel and the committed weights; None where the GPU tests are skipped explicitly.
+fn deep_pixel_setup() -> Option<(
+    dhoit_runtime::gpu::FrameOptions,
+    dhoit_runtime::gpu::Gpu,
+    usize,
+    dhoit_runtime::mlp::Mlp,
+)> {
+    gpu()?;
+    Some((
+        dhoit_runtime::gpu::FrameOptions::default().always_approximate(),
+        dhoit_runtime::gpu::Gpu::new().unwrap(),
+        dhoit_runtime::raster::MAX_FRAGMENTS_PER_PIXEL as usize,
+        common::committed_weights(),
+    ))
+}
+
 /// At raster::MAX_FRAGMENTS_PER_PIXEL fragments a pixel, the k-buffers' images are their twins'
 /// and DKB's features pass gathers the twin's counts and colour sums (for each pixel with a
 /// record: two fragments or more), its fields full, and the importance pass reads them as the
 /// twin does; one fragment more, every method refuses the frame as the CPU rasterizer does.
 #[test]
 fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
-    let o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
-    if gpu().is_none() {
+    let Some((o, g, max, mlp)) = deep_pixel_setup() else {
         return;
-    }
-    // A device of its own: which passes a frame records follows the device's last frame.
-    let g = dhoit_runtime::gpu::Gpu::new().unwrap();
-    let max = dhoit_runtime::raster::MAX_FRAGMENTS_PER_PIXEL as usize;
-    let mlp = common::committed_weights();
+    };
     let (w, h) = (2, 2);
     // At the limit both rasterizers take the frame and the tails' sums are exact.
     let (s, cam) = deep_pixels(max);
@@ -1407,13 +1420,9 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
 /// unrefused): every method that counts refuses the frame and names the deep pixel.
 #[test]
 fn a_pixel_of_two_to_the_sixteen_fragments_leaves_its_neighbours_count_alone() {
-    let o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
-    if gpu().is_none() {
+    let Some((o, g, max, mlp)) = deep_pixel_setup() else {
         return;
-    }
-    let g = dhoit_runtime::gpu::Gpu::new().unwrap();
-    let max = dhoit_runtime::raster::MAX_FRAGMENTS_PER_PIXEL as usize;
-    let mlp = common::committed_weights();
+    };
     // A 2x1 frame: pixel 0 (centre x = -0.5) under every triangle but one, pixel 1 (x = 0.5)
     // under that one only. Both are in count word 0.
     let deep = (1usize << 16) + 1;
