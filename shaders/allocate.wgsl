@@ -44,6 +44,11 @@ struct Alloc {
 @group(0) @binding(1) var<uniform> alloc: Alloc;
 // Two counts to a word (counts.wgsl).
 @group(0) @binding(2) var<storage, read> counts: array<u32>;
+
+// Pixel p's count.
+fn count_of(p: u32) -> u32 {
+    return count_in(counts[count_word(p)], p);
+}
 // Importance (f32) in, the weights (u32) in place, then k in place (apply), which the scan then
 // turns into the slot bases in place (scan.wgsl's scan_blocks_in_place): one word a pixel for
 // the three, each read by the time the next is written.
@@ -168,7 +173,7 @@ fn weights(
     if (p >= params.pixels) {
         return;
     }
-    let n = count_in(counts[count_word(p)], p);
+    let n = count_of(p);
     // The importance's sign bit is the pair flag (alloc::pixel_weight), which every pixel has
     // where the tails are pooled (alloc::allocate_pooled: a pixel left out by no more than a
     // tail's TAIL_WORDS fragments keeps them all, shared::stored_k).
@@ -232,10 +237,13 @@ fn search(
     var any = false;
     for (var i = 0u; i < visits; i++) {
         let p = first + i * ALLOC_GROUP;
-        if (p < params.pixels && count_in(counts[count_word(p)], p) > 0u) {
+        if (p >= params.pixels) {
+            continue;
+        }
+        let n = count_of(p);
+        if (n > 0u) {
             any = true;
             let wp = w[p];
-            let n = count_in(counts[count_word(p)], p);
             if (bracket) {
                 for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
                     sums[j] += k_at(bracket_at(j, centre), wp, n, lo);
@@ -328,7 +336,7 @@ fn mark(
     if (p < params.pixels) {
         let a = atomicLoad(&state[1]);
         let lo = u32(atomicLoad(&state[3]));
-        let n = count_in(counts[count_word(p)], p);
+        let n = count_of(p);
         if (n > 0u && k_at(a + 1lu, w[p], n, lo) > k_at(a, w[p], n, lo)) {
             atomicOr(&mark_bits[lid / MARK_BITS], 1u << (lid % MARK_BITS));
         }
@@ -355,7 +363,7 @@ fn apply(
     if (p >= params.pixels) {
         return;
     }
-    let n = count_in(counts[count_word(p)], p);
+    let n = count_of(p);
     if (n == 0u) {
         w[p] = 0u;
         return;

@@ -4,9 +4,10 @@
 // phase too: it runs dhoit's own count pass).
 //
 // A count stops at COUNT_SATURATED (shared::MAX_FRAGMENTS_PER_PIXEL + 1): an add that finds it
-// there takes itself back (count_add), so a half never carries into its neighbour however deep
-// a pixel is (only the adds in flight at once pass it, never by 2^15), and a pixel that reads
-// more than MAX_FRAGMENTS_PER_PIXEL refuses the frame (resolve.wgsl's too_deep).
+// there takes itself back (each count pass spells out the add, count_stopped and the take-back,
+// as WGSL passes no storage pointer to a function), so a half never carries into its neighbour
+// however deep a pixel is (only the adds in flight at once pass it, never by 2^15), and a pixel
+// that reads more than MAX_FRAGMENTS_PER_PIXEL refuses the frame (resolve.wgsl's too_deep).
 
 const COUNT_SATURATED: u32 = 32768u;
 
