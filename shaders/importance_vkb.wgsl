@@ -5,7 +5,7 @@
 @group(0) @binding(0) var<uniform> params: Params;
 // Two counts to a word (counts.wgsl).
 @group(0) @binding(1) var<storage, read> count: array<u32>;
-@group(0) @binding(2) var<storage, read> nearest_inv: array<u64>;
+@group(0) @binding(2) var<storage, read> nearest_inv: array<u32>;
 @group(0) @binding(3) var<storage, read> totals: array<u32>;
 @group(0) @binding(4) var<storage, read_write> importance: array<f32>;
 
@@ -40,7 +40,8 @@ fn main(
     let y = f32(p / params.width) + 0.5 - 0.5 * h;
     let r = min(sqrt(x * x + y * y) / half_diag, 1.0);
     let i_per = 1.0 - pow(r, params.vkb_exponent);
-    let facing = bitcast<f32>(u32((~nearest_inv[p]) & 0xfffffffflu));
+    // importance::vkb_key_facing.
+    let facing = f32((~nearest_inv[p]) & 0xffu) / 255.0;
     let g = 1.0 - facing;
     let i_f = 1.0 - g * g * g * g * g * 0.5;
     let xi = f32(pcg_hash(p ^ pcg_hash(params.vkb_seed)) >> 8u) / 16777216.0;

@@ -1,9 +1,9 @@
 // VKB count pass (geometry): per pixel the fragment count (two to a word, counts.wgsl) and the
-// nearest fragment, as (depth bits, |n . v| bits) kept complemented so a cleared buffer means
-// "none yet".
+// nearest fragment's 32-bit key (importance::vkb_nearest_key: the depth's bits above bit 6
+// high, |n . v| in 8 bits low), kept complemented so a cleared buffer means "none yet".
 
 @group(1) @binding(0) var<storage, read_write> count: array<atomic<u32>>;
-@group(1) @binding(1) var<storage, read_write> nearest_inv: array<atomic<u64>>;
+@group(1) @binding(1) var<storage, read_write> nearest_inv: array<atomic<u32>>;
 
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
@@ -11,11 +11,12 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         return vec4<f32>(0.0);
     }
     let p = pixel_index(in.clip, params.width);
-    let depth = select(0.0, in.clip.z, in.clip.z > 0.0);
+    let depth = select(0.0, min(in.clip.z, 1.0), in.clip.z > 0.0);
+    let facing = u32(round(clamp(in.facing, 0.0, 1.0) * 255.0));
     let w = count_word(p);
     if (count_stopped(atomicAdd(&count[w], count_unit(p)), p)) {
         atomicSub(&count[w], count_unit(p));
     }
-    atomicMax(&nearest_inv[p], ~((u64(bitcast<u32>(depth)) << 32u) | u64(bitcast<u32>(in.facing))));
+    atomicMax(&nearest_inv[p], ~(((bitcast<u32>(depth) >> 6u) << 8u) | facing));
     return vec4<f32>(0.0);
 }

@@ -222,7 +222,8 @@ pub const OPT: Layout = Layout {
     marks: None,
 };
 
-/// Variable k-buffer with importance maps (paper 002). The nearest keys (8 bytes), read by the
+/// Variable k-buffer with importance maps (paper 002). The nearest keys (4 bytes:
+/// `importance::vkb_nearest_key`), read by the
 /// importance pass, and the allocation's marks ([`marks_bytes`], a buffer of their own); the
 /// importance, k and the slot bases share `oit.offsets` in turn; the tails in the slot pool
 /// ([`POOLED_TAIL`]).
@@ -232,7 +233,7 @@ pub const VKB: Layout = Layout {
     per_pixel: &[
         ("vkb.count", COUNT_BYTES),
         ("oit.offsets", 4),
-        ("vkb.nearest", 8),
+        ("vkb.nearest", 4),
     ],
     fixed: &[
         ("params", PARAMS_BYTES),

@@ -315,16 +315,68 @@ pub fn vkb_importance_from(
         .collect()
 }
 
-/// `|n . e|` of a pixel's nearest fragment: the one with the smallest (depth bits, facing
-/// bits), as the GPU's 64-bit atomic keeps it (1 when the pixel has none or no facing).
+/// `|n . e|` of a pixel's nearest fragment, as VKB's count pass keeps it: the fragment of the
+/// smallest [`vkb_nearest_key`], its facing in 8 bits ([`vkb_key_facing`]; 1 when the pixel has
+/// none or no facing).
 pub fn nearest_facing(fl: &FragmentLists, p: usize) -> f32 {
     fl.range(p)
-        .filter_map(|i| {
-            let d = if fl.depth[i] > 0.0 { fl.depth[i] } else { 0.0 };
-            fl.facing
-                .get(i)
-                .map(|&f| ((d.to_bits() as u64) << 32 | f.to_bits() as u64, f))
-        })
-        .min_by_key(|x| x.0)
-        .map_or(1.0, |x| x.1)
+        .filter_map(|i| fl.facing.get(i).map(|&f| vkb_nearest_key(fl.depth[i], f)))
+        .min()
+        .map_or(1.0, vkb_key_facing)
+}
+
+/// VKB's 32-bit nearest key (vkb_count.wgsl keeps its complement with `atomicMax`): the window
+/// depth's bits, clamped to [0, 1], above bit 6 (17 of its 23 mantissa bits; depths 2^-17
+/// apart, relatively, tie) in the high 24 bits, and `|n . e|` rounded to 8 bits in the low 8,
+/// so a tie keeps the smaller facing. The importance reads only the facing, whose Fresnel term
+/// `1 - (1 - f)^5 / 2` moves by at most 0.005 for the rounding; 4 bytes a pixel, not 8.
+pub fn vkb_nearest_key(depth: f32, facing: f32) -> u32 {
+    // As the shader's select: a depth not above 0 (-0 and NaN too) is 0, so its bits stay
+    // below 2^30 and keep their order once shifted.
+    let d = if depth > 0.0 { depth.min(1.0) } else { 0.0 }.to_bits() >> 6;
+    let f = (facing.clamp(0.0, 1.0) * 255.0).round_ties_even() as u32;
+    (d << 8) | f
+}
+
+/// The facing a [`vkb_nearest_key`] holds.
+pub fn vkb_key_facing(key: u32) -> f32 {
+    (key & 0xff) as f32 / 255.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{vkb_key_facing, vkb_nearest_key};
+
+    #[test]
+    fn vkb_s_nearest_key_orders_by_depth_then_facing_by_hand() {
+        let key = vkb_nearest_key;
+        // Depth decides first, whatever the facing.
+        assert!(key(0.25, 1.0) < key(0.5, 0.0));
+        assert!(key(0.5, 1.0) < key(0.5 + 2f32.powi(-16), 0.0));
+        // 0.5 is 0x3f000000: the next float up (0x3f000001) and 63 more share its bits above
+        // bit 6, so they tie and the smaller facing is the nearer; the 64th above does not.
+        let up = |n: u32| f32::from_bits(0x3f00_0000 + n);
+        assert!(key(up(1), 0.2) < key(0.5, 0.3));
+        assert!(key(up(63), 0.2) < key(0.5, 0.3));
+        assert!(key(up(64), 0.2) > key(0.5, 0.3));
+        // Not above 0 (-0, negative, NaN) is 0; above 1 is 1.
+        for d in [-0.0, -1.0, f32::NAN] {
+            assert_eq!(key(d, 0.4), key(0.0, 0.4), "{d}");
+        }
+        assert_eq!(key(2.0, 0.4), key(1.0, 0.4));
+        assert_eq!(key(1.0, 0.0) >> 8, 0x3f80_0000 >> 6);
+        // The facing in 8 bits, rounded half to even: 0.5 x 255 = 127.5 -> 128, 0.25 x 255 =
+        // 63.75 -> 64, 0.002 x 255 = 0.51 -> 1; clamped to [0, 1].
+        for (f, q) in [
+            (0.5, 128),
+            (0.25, 64),
+            (0.002, 1),
+            (1.0, 255),
+            (1.5, 255),
+            (-0.2, 0),
+        ] {
+            assert_eq!(key(0.75, f) & 0xff, q, "{f}");
+            assert_eq!(vkb_key_facing(key(0.75, f)), q as f32 / 255.0, "{f}");
+        }
+    }
 }

@@ -841,6 +841,8 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
         let gfl = gpu_fragments(g, &s, &cam, w, h);
         let pixels = gfl.pixel_count();
         let total = gfl.fragment_count() as u64;
+        let cfl = rasterize(&s, &cam, w, h).unwrap();
+        let ccounts = cfl.counts();
         // 0.5, 1 and 2 fragments a pixel, one slot short of every fragment, and every one.
         let budgets = [0.5, 1.0, 2.0]
             .map(|fpp| (fpp * pixels as f64) as u64)
@@ -923,6 +925,21 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
                 .unwrap();
             let (vc, facing) = v.vkb_nearest.clone().unwrap();
             assert_eq!(vc, gfl.counts(), "{name} vkb counts");
+            // The count pass keeps the nearest fragment's 32-bit key: its facing, of the
+            // fragment the twin picks from the CPU rasterizer's fragments (the GPU's own carry
+            // no facing), on every pixel the two rasterizers cover alike.
+            let alike: Vec<usize> = (0..pixels)
+                .filter(|&p| vc[p] > 0 && vc[p] == ccounts[p])
+                .collect();
+            assert!(
+                alike.len() * 10 >= 9 * vc.iter().filter(|&&n| n > 0).count(),
+                "{name}: the rasterizers cover {} pixels alike",
+                alike.len()
+            );
+            for &p in &alike {
+                let twin = importance::nearest_facing(&cfl, p);
+                assert_eq!(facing[p], twin, "{name}: pixel {p}'s nearest facing");
+            }
             let mut imp_twin = importance::vkb_importance_from(&vc, &facing, w, h, &params);
             let imp = v.importance.clone().unwrap();
             // A frame expected to fit computes no importance (k = n needs none): only where the

@@ -486,10 +486,16 @@ impl Readback {
         };
         let vkb_nearest = match &self.vkb_nearest_buf {
             Some(b) => {
-                let facing = read_u64s(gpu, b, px, true)?
+                let facing = u32s(&read_back(gpu, b, 4 * px)?)
                     .iter()
                     .zip(&counts)
-                    .map(|(&v, &c)| if c > 0 { f32::from_bits(v as u32) } else { 1.0 })
+                    .map(|(&v, &c)| {
+                        if c > 0 {
+                            crate::importance::vkb_key_facing(!v)
+                        } else {
+                            1.0
+                        }
+                    })
                     .collect();
                 Some((counts.clone(), facing))
             }

@@ -1,5 +1,5 @@
 //! The variable k-buffer's importance (paper 002): `vkb_count.wgsl` (geometry: the count and
-//! the nearest fragment's depth and facing; twin `importance::nearest_facing`), `totals.wgsl`,
+//! the nearest fragment's 32-bit key of depth and facing; twin `importance::nearest_facing`), `totals.wgsl`,
 //! then `importance_vkb.wgsl` (twin `importance::vkb_importance_from`).
 
 use super::allocate::{Importance, Reuse, Word, pending, record_unless};
@@ -30,7 +30,7 @@ impl Recording<'_, '_> {
     }
 
     /// VKB's count, then totals and importance (left pending where the frame is expected to fit).
-    /// Its nearest keys (8 bytes a pixel) and the allocation's marks (a quarter byte) have
+    /// Its nearest keys (4 bytes a pixel, `importance::vkb_nearest_key`) and the allocation's marks (a quarter byte) have
     /// buffers of their own, both dead by the capture; the tails live in the slot pool
     /// (`Params::pooled_tail`), where the capture's layout binds these two in the per-pixel
     /// tail's place, unused.
@@ -48,7 +48,7 @@ impl Recording<'_, '_> {
             }
             None => fb.storage("vkb.count", count_bytes(px), true)?,
         };
-        let nearest = fb.storage("vkb.nearest", 8 * px, true)?;
+        let nearest = fb.storage("vkb.nearest", 4 * px, true)?;
         let tail_count = fb.storage("vkb.marks", crate::budget::marks_bytes(px), true)?;
         // The application's target where it gives one: counted for no method.
         let image = fb.storage("application.image", 16 * px, false)?;
@@ -64,8 +64,8 @@ impl Recording<'_, '_> {
         });
         // A copy of the nearest keys for the frame's statistics (not counted).
         if self.passes.opts.diagnostics {
-            let copy = fb.storage("vkb.nearest.readback", 8 * px, false)?;
-            enc.copy_buffer_to_buffer(&nearest, 0, &copy, 0, 8 * px);
+            let copy = fb.storage("vkb.nearest.readback", 4 * px, false)?;
+            enc.copy_buffer_to_buffer(&nearest, 0, &copy, 0, 4 * px);
             self.out.vkb_nearest_buf = Some(copy);
         }
         let pending = record_unless(self, rest, expect_fit)?;
