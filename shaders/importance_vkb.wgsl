@@ -5,9 +5,10 @@
 @group(0) @binding(0) var<uniform> params: Params;
 // Two counts to a word (counts.wgsl).
 @group(0) @binding(1) var<storage, read> count: array<u32>;
-@group(0) @binding(2) var<storage, read> nearest_inv: array<u32>;
+// The frame's shared word a pixel (oit.offsets): the count pass's nearest key (complemented,
+// vkb_count.wgsl), which each invocation reads and then overwrites with its pixel's importance.
+@group(0) @binding(2) var<storage, read_write> word: array<u32>;
 @group(0) @binding(3) var<storage, read> totals: array<u32>;
-@group(0) @binding(4) var<storage, read_write> importance: array<f32>;
 
 fn pcg_hash(v: u32) -> u32 {
     let state = v * 747796405u + 2891336453u;
@@ -27,7 +28,7 @@ fn main(
     }
     let c = count_in(count[count_word(p)], p);
     if (c == 0u) {
-        importance[p] = 0.0;
+        word[p] = bitcast<u32>(0.0);
         return;
     }
     let limit = f32(max(totals[2], 1u));
@@ -41,10 +42,10 @@ fn main(
     let r = min(sqrt(x * x + y * y) / half_diag, 1.0);
     let i_per = 1.0 - pow(r, params.vkb_exponent);
     // importance::vkb_key_facing.
-    let facing = f32((~nearest_inv[p]) & 0xffu) / 255.0;
+    let facing = f32((~word[p]) & 0xffu) / 255.0;
     let g = 1.0 - facing;
     let i_f = 1.0 - g * g * g * g * g * 0.5;
     let xi = f32(pcg_hash(p ^ pcg_hash(params.vkb_seed)) >> 8u) / 16777216.0;
     // abs: never the sign bit, which the allocation reads as the pair flag (VKB has none).
-    importance[p] = abs(max(i_per * i_f * i_d + params.vkb_noise * (xi - 0.5), 0.0));
+    word[p] = bitcast<u32>(abs(max(i_per * i_f * i_d + params.vkb_noise * (xi - 0.5), 0.0)));
 }

@@ -1,6 +1,8 @@
 // VKB count pass (geometry): per pixel the fragment count (two to a word, counts.wgsl) and the
 // nearest fragment's 32-bit key (importance::vkb_nearest_key: the depth's bits above bit 6
-// high, |n . v| in 8 bits low), kept complemented so a cleared buffer means "none yet".
+// high, |n . v| in 8 bits low), kept complemented so a cleared buffer means "none yet", in
+// the frame's shared word a pixel (oit.offsets, cleared before), where the importance pass
+// reads it and writes the pixel's importance in its place.
 
 @group(1) @binding(0) var<storage, read_write> count: array<atomic<u32>>;
 @group(1) @binding(1) var<storage, read_write> nearest_inv: array<atomic<u32>>;

@@ -222,22 +222,19 @@ pub const OPT: Layout = Layout {
     marks: None,
 };
 
-/// Variable k-buffer with importance maps (paper 002). The nearest keys (4 bytes:
-/// `importance::vkb_nearest_key`), read by the
-/// importance pass, and the allocation's marks ([`marks_bytes`], a buffer of their own); the
-/// importance, k and the slot bases share `oit.offsets` in turn; the tails in the slot pool
-/// ([`POOLED_TAIL`]).
+/// Variable k-buffer with importance maps (paper 002). Its count and the shared word a pixel
+/// (`oit.offsets`), which holds the count pass's nearest key (`importance::vkb_nearest_key`),
+/// the importance, k and the slot bases in turn; the allocation's marks ([`marks_bytes`], a
+/// buffer of their own); the tails in the slot pool ([`POOLED_TAIL`]).
 pub const VKB: Layout = Layout {
     method: "vkb",
     slot_bytes: SLOT_BYTES,
-    per_pixel: &[
-        ("vkb.count", COUNT_BYTES),
-        ("oit.offsets", 4),
-        ("vkb.nearest", 4),
-    ],
+    per_pixel: &[("vkb.count", COUNT_BYTES), ("oit.offsets", 4)],
     fixed: &[
         ("params", PARAMS_BYTES),
         ("vkb.totals", 16),
+        // Bound in the capture's per-pixel tail's place, unused (the tails are pooled).
+        ("vkb.unused_tail", 16),
         OFFSETS_END,
         ALLOC_PARAMS,
         ALLOC_STATE,

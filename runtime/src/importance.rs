@@ -325,11 +325,12 @@ pub fn nearest_facing(fl: &FragmentLists, p: usize) -> f32 {
         .map_or(1.0, vkb_key_facing)
 }
 
-/// VKB's 32-bit nearest key (vkb_count.wgsl keeps its complement with `atomicMax`): the window
+/// VKB's 32-bit nearest key (vkb_count.wgsl keeps its complement with `atomicMax`, in the
+/// frame's shared word a pixel until the importance takes its place): the window
 /// depth's bits, clamped to [0, 1], above bit 6 (17 of its 23 mantissa bits; depths 2^-17
 /// apart, relatively, tie) in the high 24 bits, and `|n . e|` rounded to 8 bits in the low 8,
 /// so a tie keeps the smaller facing. The importance reads only the facing, whose Fresnel term
-/// `1 - (1 - f)^5 / 2` moves by at most 0.005 for the rounding; 4 bytes a pixel, not 8.
+/// `1 - (1 - f)^5 / 2` moves by at most 0.005 for the rounding.
 pub fn vkb_nearest_key(depth: f32, facing: f32) -> u32 {
     // As the shader's select: a depth not above 0 (-0 and NaN too) is 0, so its bits stay
     // below 2^30 and keep their order once shifted.

@@ -173,7 +173,7 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
     let Some(g) = gpu() else { return };
     let mlp = Mlp::random(5);
     let (w, h) = (96, 72);
-    let budgets = ["10%", "25%", "50%", "1fpp", "2fpp", "200KB"];
+    let budgets = ["10%", "25%", "50%", "75%", "1fpp", "2fpp", "200KB"];
     let kbuffers = [Method::Fkb, Method::Vkb, Method::Dkb, Method::Optimal];
     let (mut capped, mut dearer_uncapped, mut cheaper) = (0, 0, 0);
     let (mut gpu_capped, mut gpu_dearer_uncapped, mut gpu_cheaper) = (0, 0, 0);

@@ -146,11 +146,23 @@ impl Recording<'_, '_> {
             // The count's prefix sum: where k = n everywhere, the slot bases (a pixel keeping
             // all its fragments has no tail: its span is n), ending in the pool's words, which
             // are the frame's fragments. A frame that knows it fits (DKB read its count back)
-            // needs no check; the others check that sum.
-            passes.prefix_sum(enc, fb, &i.counts, &base)?;
-            fb.submit(enc);
-            let words = read_words(gpu, &[(&base, 4 * px)])?[0] as u64;
+            // needs no check; the others first read their fragments back from the totals,
+            // since the word holds what the importance pass reads (VKB's nearest keys) until
+            // the frame is known to fit, and the sum would overwrite it.
+            let words = if i.fits {
+                passes.prefix_sum(enc, fb, &i.counts, &base)?;
+                fb.submit(enc);
+                read_words(gpu, &[(&base, 4 * px)])?[0] as u64
+            } else {
+                passes.totals(enc, &i.counts, &i.totals);
+                fb.submit(enc);
+                read_words(gpu, &[(&i.totals, 0)])?[0] as u64
+            };
+            let (fb, enc) = (&mut self.fb, &mut self.enc);
             if i.fits || budget.holds(words) {
+                if !i.fits {
+                    passes.prefix_sum(enc, fb, &i.counts, &base)?;
+                }
                 // No pass computed the importance (k = n): it reads back as zeros.
                 if self.passes.opts.diagnostics && i.computed {
                     self.out.importance_buf =
@@ -167,7 +179,8 @@ impl Recording<'_, '_> {
                     pooled: true,
                 });
             }
-            // Expected to fit, truncated: the rest after all.
+            // Expected to fit, truncated: the rest after all, whose totals start from zero.
+            enc.clear_buffer(&i.totals, 0, None);
         }
         if let Some(rest) = i.pending.take() {
             rest(self)?;

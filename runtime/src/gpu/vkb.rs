@@ -30,10 +30,12 @@ impl Recording<'_, '_> {
     }
 
     /// VKB's count, then totals and importance (left pending where the frame is expected to fit).
-    /// Its nearest keys (4 bytes a pixel, `importance::vkb_nearest_key`) and the allocation's marks (a quarter byte) have
-    /// buffers of their own, both dead by the capture; the tails live in the slot pool
-    /// (`Params::pooled_tail`), where the capture's layout binds these two in the per-pixel
-    /// tail's place, unused.
+    /// Its nearest keys (`importance::vkb_nearest_key`) live in the frame's shared word a
+    /// pixel, cleared before the count, until the importance pass reads each and writes the
+    /// pixel's importance in its place; the allocation's marks (a quarter byte a pixel) have a
+    /// buffer of their own, dead by the capture. The tails live in the slot pool
+    /// (`Params::pooled_tail`), where the capture's layout binds the marks and a 16-byte buffer
+    /// in the per-pixel tail's place, unused.
     pub(super) fn vkb_importance(&mut self, expect_fit: bool) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
@@ -48,24 +50,28 @@ impl Recording<'_, '_> {
             }
             None => fb.storage("vkb.count", count_bytes(px), true)?,
         };
-        let nearest = fb.storage("vkb.nearest", 4 * px, true)?;
+        // "None yet" in every pixel's word (the count's prefix sums where it counted first,
+        // read by now).
+        enc.clear_buffer(&importance, 0, None);
         let tail_count = fb.storage("vkb.marks", crate::budget::marks_bytes(px), true)?;
+        let unused_tail = fb.storage("vkb.unused_tail", 16, true)?;
         // The application's target where it gives one: counted for no method.
         let image = fb.storage("application.image", 16 * px, false)?;
         let totals = fb.storage("vkb.totals", 16, true)?;
-        passes.draw(enc, &p.vkb_count, &[&counts, &nearest], "count");
-        let [c, n, t, i] = [&counts, &nearest, &totals, &importance].map(|b| b.clone());
+        passes.draw(enc, &p.vkb_count, &[&counts, &importance], "count");
+        let [c, t, i] = [&counts, &totals, &importance].map(|b| b.clone());
         let rest = pending(move |rec| {
             let (passes, p, enc) = (rec.passes, &rec.passes.gpu.pipelines, &mut rec.enc);
             passes.totals(enc, &c, &t);
-            let bufs = [passes.params(), &c, &n, &t, &i];
+            let bufs = [passes.params(), &c, &i, &t];
             passes.dispatch(enc, &p.importance_vkb, &bufs, "importance");
             Ok(())
         });
-        // A copy of the nearest keys for the frame's statistics (not counted).
+        // A copy of the nearest keys for the frame's statistics (not counted), before the
+        // importance takes their place.
         if self.passes.opts.diagnostics {
             let copy = fb.storage("vkb.nearest.readback", 4 * px, false)?;
-            enc.copy_buffer_to_buffer(&nearest, 0, &copy, 0, 4 * px);
+            enc.copy_buffer_to_buffer(&importance, 0, &copy, 0, 4 * px);
             self.out.vkb_nearest_buf = Some(copy);
         }
         let pending = record_unless(self, rest, expect_fit)?;
@@ -77,7 +83,7 @@ impl Recording<'_, '_> {
             kind: weight_kind(Target::RelativeK),
             marks: Some(tail_count.clone()),
             reuse: Some(Reuse {
-                tail: nearest,
+                tail: unused_tail,
                 tail_count,
                 image,
                 pool: None,
