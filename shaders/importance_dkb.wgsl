@@ -20,7 +20,8 @@
 // (n in bits 48-63 of the first), the opacity sums. Read_write: once a
 // record's features are read, its importance takes its nearest key's place (set_importance).
 @group(0) @binding(3) var<storage, read_write> records: array<u64>;
-// The records the network decides, and how many (list_len[0]).
+// The records the network decides, and how many (list_len[0]): the slot pool again, read as
+// u32, its list after all the records (list_at; both bindings touch only their own words).
 @group(0) @binding(4) var<storage, read_write> list: array<u32>;
 // fragments, covered, max count, deep, the records handed out, deeper (the records: totals.wgsl).
 @group(0) @binding(6) var<storage, read> totals: array<u32>;
@@ -129,6 +130,12 @@ fn network_inputs(r: u32) -> Net {
     return net;
 }
 
+// Where the list's entry i lies in the pool: after the frame's records (totals[5], RECORD_WORDS
+// 64-bit words each; budget::PoolState::list_bytes).
+fn list_at(i: u32) -> u32 {
+    return 2u * RECORD_WORDS * totals[5] + i;
+}
+
 @compute @workgroup_size(PIXEL_GROUP)
 fn select_pixels(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -140,7 +147,7 @@ fn select_pixels(
         return;
     }
     if (network_inputs(r).runs) {
-        list[atomicAdd(&list_len[0], 1u)] = r;
+        list[list_at(atomicAdd(&list_len[0], 1u))] = r;
     }
 }
 
@@ -165,7 +172,7 @@ fn network(
     var r = 0u;
     var net: Net;
     if (listed) {
-        r = list[i];
+        r = list[list_at(i)];
         net = network_inputs(r);
     }
     if (SHARED_WEIGHTS) {

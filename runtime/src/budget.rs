@@ -61,8 +61,9 @@ pub struct PoolState {
     /// Bytes of a deeper pixel's record (features.wgsl: one for each pixel of more than
     /// [`crate::shared::TAIL_WORDS`] fragments; in the pool until the importance is gathered).
     pub record_bytes: u64,
-    /// Buffers of their own, bytes for each deeper pixel (each at least 16 bytes in all).
-    pub per_deep: &'static [(&'static str, u64)],
+    /// Bytes a record takes in the pool after all the records while the importance is computed
+    /// (importance_dkb.wgsl: the list of the records the network decides, an index each).
+    pub list_bytes: u64,
 }
 
 /// Bytes of a tail in the slot pool: [`crate::shared::TAIL_WORDS`] words.
@@ -164,12 +165,13 @@ const STATUS: (&str, u64) = ("status", 16);
 /// Deep k-buffer: the count and the shared word a pixel; the rest in the slot
 /// pool before the slots fill it ([`PoolState`]): a record of the network's statistics for each
 /// pixel of three fragments or more (32 bytes: the nearest key, the colour and opacity sums; a
-/// pixel of fewer keeps them all whatever its k, `shared::stored_k`, so its k is forced), then
+/// pixel of fewer keeps them all whatever its k, `shared::stored_k`, so its k is forced) and,
+/// after the records, the network's list of those it decides (4 bytes a record), then
 /// the allocation's marks ([`marks_bytes`]: a bit a pixel, 0.25 bytes with their prefix
 /// counts), then the slots and the pooled tails (two words, where a pixel leaves out more than
 /// two fragments). The shared word (`oit.offsets`) holds a
 /// pixel's record index, its importance, the allocation's weights, k and the slot bases in
-/// turn; the network's list of records takes 4 bytes a record.
+/// turn.
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
@@ -197,7 +199,7 @@ pub const DKB: Layout = Layout {
     tail_bytes: POOLED_TAIL,
     pool_state: Some(PoolState {
         record_bytes: 8 * crate::shared::RECORD_WORDS as u64,
-        per_deep: &[("importance.list", 4)],
+        list_bytes: 4,
     }),
     marks: None,
 };
@@ -440,13 +442,6 @@ impl Layout {
     pub fn allocated_with_tails(&self, pixels: u64, slots: u64, tails: u64) -> u64 {
         self.allocated_bytes(pixels, slots) + tails * self.tail_bytes
     }
-    /// Bytes of the buffers a deeper pixel (one with a record) has of its own
-    /// ([`PoolState::per_deep`]).
-    pub fn deep_bytes(&self, occ: &Occupancy) -> u64 {
-        self.pool_state.map_or(0, |ps| {
-            ps.per_deep.iter().map(|b| (b.1 * occ.deeper).max(16)).sum()
-        })
-    }
     /// The slot pool a frame of occupancy `occ` makes at F = `f` where the layout keeps state
     /// there ([`PoolState`]): the most it holds at once, the records, the marks, or the words
     /// its slots and tails may take ([`Occupancy::pool_words_at`]); at least 16 bytes.
@@ -455,10 +450,13 @@ impl Layout {
         slots.max(self.pool_least(pixels, occ.deeper))
     }
     /// The pool's least size whatever F: the state it holds first for `records` pixels with a
-    /// record (16 bytes at least, as every buffer).
+    /// record, the records and the network's list, then the marks (16 bytes at least, as
+    /// every buffer).
     fn pool_least(&self, pixels: u64, records: u64) -> u64 {
         self.pool_state
-            .map_or(0, |ps| (ps.record_bytes * records).max(marks_bytes(pixels)))
+            .map_or(0, |ps| {
+                ((ps.record_bytes + ps.list_bytes) * records).max(marks_bytes(pixels))
+            })
             .max(16)
     }
     /// The most bytes a frame of occupancy `occ` can allocate at F = `f`: its fixed bytes,
@@ -468,9 +466,7 @@ impl Layout {
     /// allocates whatever its k) and its buffers for deep pixels.
     pub fn reserved_bytes(&self, pixels: u64, f: u64, occ: &Occupancy) -> u64 {
         if self.pool_state.is_some() {
-            return self.fixed_bytes(pixels)
-                + self.deep_bytes(occ)
-                + self.pool_bytes(pixels, f, occ);
+            return self.fixed_bytes(pixels) + self.pool_bytes(pixels, f, occ);
         }
         if self.tail_bytes > 0 {
             return self.allocated_bytes(pixels, occ.pool_words_at(f));
@@ -485,7 +481,7 @@ impl Layout {
         if self.tail_bytes == 0 {
             return self.slots_after_fixed(bytes, pixels);
         }
-        let fixed = self.fixed_bytes(pixels) + self.deep_bytes(occ);
+        let fixed = self.fixed_bytes(pixels);
         // The pool's least size whatever F: the state it holds first.
         let least = if self.pool_state.is_some() {
             self.pool_least(pixels, occ.deeper)

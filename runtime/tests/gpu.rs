@@ -845,8 +845,9 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
         let total = gfl.fragment_count() as u64;
         let cfl = rasterize(&s, &cam, w, h).unwrap();
         let ccounts = cfl.counts();
+        // 0.05 (DKB's pool then the size of its records and the network's list after them),
         // 0.5, 1 and 2 fragments a pixel, one slot short of every fragment, and every one.
-        let budgets = [0.5, 1.0, 2.0]
+        let budgets = [0.05, 0.5, 1.0, 2.0]
             .map(|fpp| (fpp * pixels as f64) as u64)
             .into_iter()
             .chain([total - 1, total]);

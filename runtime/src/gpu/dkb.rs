@@ -10,7 +10,7 @@
 //!
 //! DKB's per-pixel state is the count, the shared word (`oit.offsets`: a pixel's record index,
 //! its importance, the allocation's weights, k and the slot bases in turn); what only some
-//! pixels need lives in the slot pool before the slots do: the records
+//! pixels need lives in the slot pool before the slots do: the records and the network's list
 //! until the importance is gathered, the allocation's marks until k is known, then the slots
 //! and the pooled tails. The pool is sized for the frame's budget and occupancy
 //! ([`crate::budget::Layout::pool_bytes`]) before the features pass.
@@ -39,8 +39,8 @@ struct DkbBuffers {
     totals: wgpu::Buffer,
     /// The shared word: record index, importance, weights, k, slot bases.
     importance: wgpu::Buffer,
-    /// The records the network decides (one word a record), its length and dispatch.
-    list: wgpu::Buffer,
+    /// The length of the list of the records the network decides (in the pool, after the
+    /// records: one word a record), and the network's dispatch.
     list_len: wgpu::Buffer,
     dispatch: wgpu::Buffer,
 }
@@ -126,7 +126,6 @@ impl Recording<'_, '_> {
             ),
             totals,
             importance,
-            list: fb.storage("importance.list", (4 * occ.deeper).max(16), true)?,
             list_len: fb.storage("importance.list_len", 16, true)?,
             dispatch,
         };
@@ -268,7 +267,8 @@ impl Recording<'_, '_> {
                     (0, passes.params()),
                     (1, &b.weights),
                     (3, &b.pool),
-                    (4, &b.list),
+                    // The list, in the pool after the records.
+                    (4, &b.pool),
                     (6, &b.totals),
                     (8, &b.importance),
                     (9, &b.list_len),

@@ -150,7 +150,8 @@ impl NetworkLayout {
                 // The records (in the slot pool), then each record's importance in its
                 // nearest key's place.
                 entry(3, rw),
-                // The list of records the network decides.
+                // The list of records the network decides: the slot pool again, after the
+                // records (read as u32).
                 entry(4, rw),
                 entry(6, read),
                 // The record indices, then the importance: the frame's shared word.
