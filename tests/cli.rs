@@ -464,7 +464,9 @@ fn render_takes_the_exact_abuffer_where_it_is_cheaper() {
     let dir = temp_dir("cli-cap");
     let run = |extra: &[&str], out: &Path| {
         let mut args = vec![
-            "render", "--scene", "cad", "--res", "64x48", "--method", "vkb", "--budget", "25%",
+            // VKB at 60% needs 42.33 KiB on this frame, the A-buffer 42.30 (at 55%, VKB 41.1;
+            // from 65% on it keeps every fragment).
+            "render", "--scene", "cad", "--res", "64x48", "--method", "vkb", "--budget", "60%",
             "--out",
         ];
         args.push(out.to_str().unwrap());
