@@ -274,10 +274,16 @@ fn the_f16_network_is_one_function_within_its_bound_of_f32() {
     for (name, m) in &nets {
         let h = m.at_precision(Precision::F16).unwrap();
         assert_eq!(h.precision, Precision::F16);
-        assert!(
-            h.w2.iter().zip(&m.w2).any(|(a, b)| a != b),
-            "{name}: nothing rounded"
-        );
+        if m.precision == Precision::F16 {
+            // The default weights deploy at f16 and are stored rounded: rounding again is the
+            // identity (the random 128-64 network holds rounding's effect at their size).
+            assert!(h.w2 == m.w2 && h.w1 == m.w1, "{name}: stored unrounded");
+        } else {
+            assert!(
+                h.w2.iter().zip(&m.w2).any(|(a, b)| a != b),
+                "{name}: nothing rounded"
+            );
+        }
         let mut worst = 0.0f32;
         for (what, rows) in &batches {
             worst_devices = worst_devices.max(spread(&h, rows, &format!("{name} f16, {what}")));

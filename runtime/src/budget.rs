@@ -621,12 +621,13 @@ impl Budget {
     /// assert_eq!(Budget::parse("25%")?, Budget::Share(250_000));
     /// assert!(Budget::parse("25 apples").is_err());
     /// // Bytes fix F through the method's layout: what is left after its fixed buffers, in slots.
-    /// // Before a frame is counted, DKB leaves room for what every pixel could need: a list
-    /// // entry (4 bytes) and a pooled tail (two words, 16 bytes) each.
+    /// // Before a frame is counted, DKB leaves room for what every pixel could need beside its
+    /// // slots: a pooled tail (two words, 16 bytes) each (its records and the network's list,
+    /// // 36 bytes a pixel at most, come and go in the same pool before the slots).
     /// let pixels = 640 * 480;
     /// let (m, f) = Budget::parse("40MiB")?.resolve(&DKB, pixels, 0)?;
     /// assert_eq!(m, 40 << 20);
-    /// assert_eq!(f, (m - DKB.fixed_bytes(pixels) - 4 * pixels - 16 * pixels) / 8);
+    /// assert_eq!(f, (m - DKB.fixed_bytes(pixels) - 16 * pixels) / 8);
     /// # Ok::<(), dhoit_runtime::Error>(())
     /// ```
     pub fn parse(s: &str) -> Result<Budget> {
