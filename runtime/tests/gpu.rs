@@ -919,7 +919,8 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
                 let bases = &f.slots.as_ref().unwrap().1;
                 bases.windows(2).map(|b| b[1] - b[0]).collect()
             };
-            let expect = common::kbuffer_bytes(&budget::DKB, &k_of(&d), &gfl.counts(), f);
+            let expect =
+                common::kbuffer_bytes(&budget::DKB.for_network(&mlp), &k_of(&d), &gfl.counts(), f);
             assert_eq!(d.allocated_bytes, expect, "{name} dkb bytes");
             // VKB.
             let params = VkbParams::default();
