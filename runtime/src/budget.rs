@@ -463,7 +463,7 @@ impl Layout {
     /// `min(F, n)` slots (the most an allocation hands out) and, pooled, the words its pixels'
     /// tails and whole pixels may take beyond them ([`Occupancy::pool_words_at`]); where the
     /// pool holds state first, the pool it makes ([`Layout::pool_bytes`]: what such a frame
-    /// allocates whatever its k) and its buffers for deep pixels.
+    /// allocates whatever its k).
     pub fn reserved_bytes(&self, pixels: u64, f: u64, occ: &Occupancy) -> u64 {
         if self.pool_state.is_some() {
             return self.fixed_bytes(pixels) + self.pool_bytes(pixels, f, occ);

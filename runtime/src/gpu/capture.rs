@@ -143,26 +143,19 @@ impl Recording<'_, '_> {
         self.out.counts_buf = Some(i.counts.clone());
         if expect_fit {
             let (fb, enc) = (&mut self.fb, &mut self.enc);
-            // The count's prefix sum: where k = n everywhere, the slot bases (a pixel keeping
-            // all its fragments has no tail: its span is n), ending in the pool's words, which
-            // are the frame's fragments. A frame that knows it fits (DKB read its count back)
-            // needs no check; the others first read their fragments back from the totals,
-            // since the word holds what the importance pass reads (VKB's nearest keys) until
-            // the frame is known to fit, and the sum would overwrite it.
-            let words = if i.fits {
-                passes.prefix_sum(enc, fb, &i.counts, &base)?;
-                fb.submit(enc);
-                read_words(gpu, &[(&base, 4 * px)])?[0] as u64
-            } else {
+            // The frame's fragments, read back from its totals (a frame that knows it fits, DKB
+            // having read its count back, holds them there already; the others total their
+            // count now). Where the budget holds them, the count's prefix sum is the slot bases
+            // (k = n everywhere: a pixel keeping all its fragments has no tail, its span is n),
+            // ending in the pool's words, the frame's fragments. The sum waits for that check:
+            // it takes the word that holds what the importance pass reads (VKB's nearest keys).
+            if !i.fits {
                 passes.totals(enc, &i.counts, &i.totals);
-                fb.submit(enc);
-                read_words(gpu, &[(&i.totals, 0)])?[0] as u64
-            };
-            let (fb, enc) = (&mut self.fb, &mut self.enc);
+            }
+            fb.submit(enc);
+            let words = read_words(gpu, &[(&i.totals, 0)])?[0] as u64;
             if i.fits || budget.holds(words) {
-                if !i.fits {
-                    passes.prefix_sum(enc, fb, &i.counts, &base)?;
-                }
+                passes.prefix_sum(enc, fb, &i.counts, &base)?;
                 // No pass computed the importance (k = n): it reads back as zeros.
                 if self.passes.opts.diagnostics && i.computed {
                     self.out.importance_buf =
