@@ -23,7 +23,8 @@
 // importance::optical_depth_table (low half) and of their 8-bit opacities (high).
 
 // Per pixel: its record's index, or NO_RECORD (assign_records: a record for each pixel of more
-// than TAIL_WORDS fragments), in the frame's shared word until the importance pass.
+// than TAIL_WORDS fragments), in the frame's shared word until its batch's importance is
+// gathered.
 @group(1) @binding(0) var<storage, read> record_of: array<u32>;
 // RECORD_WORDS words a record (importance::pixel_stats of its pixel), in the slot pool until the
 // capture: the nearest key (complemented), the colour sums (sum r, sum g and n, which
@@ -32,6 +33,10 @@
 // A fragment's optical depth by its 8-bit opacity (importance::optical_depth_table), four to a
 // vec4.
 @group(1) @binding(2) var<uniform> optical_depth: array<vec4<u32>, 64>;
+// The batch of records this draw gathers (totals.wgsl): [1] its first record lo, [2] how many
+// a batch holds; its records lie from the pool's start. A pixel outside it (an earlier batch's,
+// its importance gathered; a later one's; none) is skipped.
+@group(1) @binding(3) var<storage, read> batch: array<u32>;
 
 // Whether the nearest key is loaded first, and atomicMax issued only where it can change it
 // (gpu::Gpu::features_preload): fewer atomics, but the load waits for its value, where a GPU
@@ -45,9 +50,10 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         return vec4<f32>(0.0);
     }
     let p = pixel_index(in.clip, params.width);
-    let r = record_of[p];
-    // A pixel of at most TAIL_WORDS fragments: forced, whatever its statistics (mlp::forced).
-    if (r == NO_RECORD) {
+    // A pixel of at most TAIL_WORDS fragments (NO_RECORD): forced, whatever its statistics
+    // (mlp::forced); or one of another batch.
+    let r = record_of[p] - batch[1];
+    if (record_of[p] < batch[1] || r >= batch[2]) {
         return vec4<f32>(0.0);
     }
     let at = RECORD_WORDS * r;

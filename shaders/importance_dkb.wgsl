@@ -11,6 +11,8 @@
 //   gather:  one invocation a pixel: its record's importance (0 for a pixel without one: at
 //            most TAIL_WORDS fragments, forced) into the shared word, in its record index's
 //            place.
+// Once for each batch of records (totals.wgsl), which are a batch's own indices here (`r`): the
+// batch's first record is at the pool's start.
 // A record's importance waits in its nearest key's place (read by then).
 // So the network's invocations all run it (no forced record idles a SIMD lane), and a frame whose
 // pixels are all forced never enters the network's code.
@@ -28,6 +30,8 @@
 // Per pixel: its record's index (NO_RECORD for none), then, after `gather`, its importance:
 // the frame's shared word.
 @group(0) @binding(8) var<storage, read_write> shared_word: array<u32>;
+// The list's length, then the batch (totals.wgsl): its first record lo, the records a batch
+// holds (its records from the pool's start, `r` below a batch's own index), the rows before.
 @group(0) @binding(9) var<storage, read_write> list_len: array<atomic<u32>, 4>;
 // The network entry's indirect dispatch: workgroups x, y, z.
 @group(0) @binding(10) var<storage, read_write> dispatch: array<u32, DISPATCH_WORDS>;
@@ -130,10 +134,10 @@ fn network_inputs(r: u32) -> Net {
     return net;
 }
 
-// Where the list's entry i lies in the pool: after the frame's records (totals[5], RECORD_WORDS
-// 64-bit words each; budget::PoolState::list_bytes).
+// Where the list's entry i lies in the pool: after a batch's records (RECORD_WORDS 64-bit words
+// each; budget::PoolState::list_bytes).
 fn list_at(i: u32) -> u32 {
-    return 2u * RECORD_WORDS * totals[5] + i;
+    return 2u * RECORD_WORDS * atomicLoad(&list_len[2]) + i;
 }
 
 @compute @workgroup_size(PIXEL_GROUP)
@@ -142,8 +146,9 @@ fn select_pixels(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
+    // The batch's records: a batch's worth, or what is left of the frame's (totals[5]).
     let r = grid_index(wid, nwg, lid, PIXEL_GROUP);
-    if (r >= totals[5]) {
+    if (r >= min(atomicLoad(&list_len[2]), totals[5] - atomicLoad(&list_len[1]))) {
         return;
     }
     if (network_inputs(r).runs) {
@@ -187,7 +192,9 @@ fn network(
 }
 
 // Every pixel's importance from its record's nearest key's place into the shared word, where
-// the allocation reads it, in place of its record's index (0 for a pixel without a record).
+// the allocation reads it, in place of its record's index (0 for a pixel without a record):
+// the batch's pixels (the others keep theirs: an earlier batch's importance, a later one's
+// index).
 @compute @workgroup_size(PIXEL_GROUP)
 fn gather(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -196,11 +203,12 @@ fn gather(
 ) {
     let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (p < params.pixels) {
-        let r = shared_word[p];
-        var importance = 0u;
-        if (r != NO_RECORD) {
-            importance = u32(records[RECORD_WORDS * r] & 0xfffffffflu);
+        let lo = atomicLoad(&list_len[1]);
+        let r = shared_word[p] - lo;
+        if (shared_word[p] == NO_RECORD) {
+            shared_word[p] = 0u;
+        } else if (shared_word[p] >= lo && r < atomicLoad(&list_len[2])) {
+            shared_word[p] = u32(records[RECORD_WORDS * r] & 0xfffffffflu);
         }
-        shared_word[p] = importance;
     }
 }

@@ -68,8 +68,17 @@ fn add_group(lid: u32) {
 // index in the frame's shared word (NO_RECORD for the others), n in its colour sums' first
 // word (bits 48-63). Indices from one atomic a workgroup, in any
 // order: a record is its pixel's alone, so the order changes no result.
+//
+// The records are gathered in batches where the pool holds fewer than all of them
+// (budget::PoolState::batch): a batch is the records [lo, lo + per_batch), at the pool's start
+// while the features pass fills them and the network reads them; its importance is gathered
+// into the shared word before the next batch takes the pool (init_records, next_batch). One
+// batch is the whole frame's records.
 @group(0) @binding(6) var<storage, read_write> record_of: array<u32>;
 @group(0) @binding(7) var<storage, read_write> records: array<u64>;
+// The network's list length, the batch's first record lo, the records a batch holds, and the
+// rows the network ran on in the batches before (importance_dkb.wgsl's list_len).
+@group(0) @binding(8) var<storage, read_write> batch: array<u32>;
 
 var<workgroup> group_records: atomic<u32>;
 var<workgroup> group_first: u32;
@@ -98,9 +107,48 @@ fn assign_records(
         if (n > TAIL_WORDS) {
             let r = group_first + local;
             record_of[p] = r;
-            records[RECORD_WORDS * r + 1u] = u64(n) << 48u;
+            // The first batch's records (the pool is zero until then).
+            if (r < batch[2]) {
+                records[RECORD_WORDS * r + 1u] = u64(n) << 48u;
+            }
         } else {
             record_of[p] = NO_RECORD;
         }
     }
+}
+
+// A batch after the first: its records emptied (the batch before them left its statistics and
+// importance there), n written. The batch starts where the one before ends (next_batch moves
+// lo there after this). A pixel of an earlier batch holds its importance by now, 0 or with the
+// pair mark (at or above 2^31, past any record index), and one without a record 0 (the first
+// batch's gather wrote it), so neither falls in the batch.
+@compute @workgroup_size(PIXEL_GROUP)
+fn init_records(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (p >= params.pixels) {
+        return;
+    }
+    let lo = batch[1] + batch[2];
+    let r = record_of[p];
+    if (r >= lo && r - lo < batch[2]) {
+        let at = RECORD_WORDS * (r - lo);
+        records[at] = 0lu;
+        records[at + 1u] = u64(count_in(count[count_word(p)], p)) << 48u;
+        for (var w = 2u; w < RECORD_WORDS; w++) {
+            records[at + w] = 0lu;
+        }
+    }
+}
+
+// The next batch: lo moves past the batch before, whose list's length is added to the rows run
+// and emptied (one invocation, after init_records).
+@compute @workgroup_size(1)
+fn next_batch() {
+    batch[3] += batch[0];
+    batch[0] = 0u;
+    batch[1] += batch[2];
 }

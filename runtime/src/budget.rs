@@ -64,7 +64,27 @@ pub struct PoolState {
     /// Bytes a record takes in the pool after all the records while the importance is computed
     /// (importance_dkb.wgsl: the list of the records the network decides, an index each).
     pub list_bytes: u64,
+    /// The most batches the records are gathered in ([`PoolState::batch`]): where they would
+    /// take more of the pool than the slots and tails do, the features pass draws once for each
+    /// batch of records, each batch's importance gathered into the shared word before the next
+    /// batch reuses the pool. 3 is enough that the records take no more of a truncated frame's
+    /// pool than its tails may: every pixel with a record may keep a tail of two words (16
+    /// bytes) there, and a third of 36 is 12.
+    pub batches: u64,
 }
+
+impl PoolState {
+    /// Records a batch holds in a pool of `pool` bytes and the batches `records` take: one
+    /// batch where the pool holds them all (as large as it is made: [`Layout::pool_bytes`], so
+    /// never more than [`PoolState::batches`]).
+    pub fn batch(&self, pool: u64, records: u64) -> (u64, u64) {
+        let per_batch = (pool / (self.record_bytes + self.list_bytes)).clamp(1, records.max(1));
+        (per_batch, records.div_ceil(per_batch))
+    }
+}
+
+/// The most batches DKB gathers its records in ([`PoolState::batches`]).
+pub const RECORD_BATCHES: u64 = 3;
 
 /// Bytes of a tail in the slot pool: [`crate::shared::TAIL_WORDS`] words.
 pub const POOLED_TAIL: u64 = 8 * crate::shared::TAIL_WORDS as u64;
@@ -200,6 +220,7 @@ pub const DKB: Layout = Layout {
     pool_state: Some(PoolState {
         record_bytes: 8 * crate::shared::RECORD_WORDS as u64,
         list_bytes: 4,
+        batches: RECORD_BATCHES,
     }),
     marks: None,
 };
@@ -450,12 +471,13 @@ impl Layout {
         slots.max(self.pool_least(pixels, occ.deeper))
     }
     /// The pool's least size whatever F: the state it holds first for `records` pixels with a
-    /// record, the records and the network's list, then the marks (16 bytes at least, as
-    /// every buffer).
+    /// record, a batch of the records and the network's list ([`PoolState::batches`] of them
+    /// at most), then the marks (16 bytes at least, as every buffer).
     fn pool_least(&self, pixels: u64, records: u64) -> u64 {
         self.pool_state
             .map_or(0, |ps| {
-                ((ps.record_bytes + ps.list_bytes) * records).max(marks_bytes(pixels))
+                ((ps.record_bytes + ps.list_bytes) * records.div_ceil(ps.batches))
+                    .max(marks_bytes(pixels))
             })
             .max(16)
     }
@@ -516,10 +538,12 @@ impl Layout {
                     self.per_pixel_bytes(),
                     format_bytes(fixed - pixels * self.per_pixel_bytes()),
                     match self.pool_state {
-                        Some(_) => format!(
-                            ", a pool of {} for the {} pixels of three fragments or more",
+                        Some(ps) => format!(
+                            ", a pool of {} for the {} pixels of three fragments or more \
+                             in {} batches",
                             format_bytes(least),
-                            occ.deeper
+                            occ.deeper,
+                            ps.batches
                         ),
                         None => String::new(),
                     },
@@ -623,7 +647,8 @@ impl Budget {
     /// // Bytes fix F through the method's layout: what is left after its fixed buffers, in slots.
     /// // Before a frame is counted, DKB leaves room for what every pixel could need beside its
     /// // slots: a pooled tail (two words, 16 bytes) each (its records and the network's list,
-    /// // 36 bytes a pixel at most, come and go in the same pool before the slots).
+    /// // 36 bytes a pixel at most, come and go in the same pool before the slots, in up to
+    /// // three batches where the pool holds fewer).
     /// let pixels = 640 * 480;
     /// let (m, f) = Budget::parse("40MiB")?.resolve(&DKB, pixels, 0)?;
     /// assert_eq!(m, 40 << 20);

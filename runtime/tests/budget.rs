@@ -69,16 +69,22 @@ fn fragment_budget_follows_the_layout_and_never_overspends() {
         .unwrap();
     assert_eq!(f, 200);
     // Before a frame is counted: every pixel deeper, with a record (32 bytes) and a list entry
-    // (4), in a pool of the records (3,200 bytes), which hold 200 slots (the most words the
-    // frame's 200 fragments take).
+    // (4), 3,600 bytes, gathered in batches of what a pool of the slots and the tails every
+    // pixel may keep holds (200 slots and two words a pixel: 3,200 bytes, 88 records a batch).
     let most = budget::Occupancy {
-        fragments: 200,
+        fragments: u64::MAX,
         covered: 100,
         deep: 100,
         deeper: 100,
     };
     assert_eq!(m, budget::DKB.reserved_bytes(100, 200, &most));
-    assert_eq!(m, budget::DKB.fixed_bytes(100) + 4 * 100 + 32 * 100);
+    assert_eq!(m, budget::DKB.fixed_bytes(100) + 8 * (200 + 2 * 100));
+    let ps = budget::DKB.pool_state.unwrap();
+    assert_eq!(ps.batch(m - budget::DKB.fixed_bytes(100), 100), (88, 2));
+    // A pool that holds every record gathers them in one batch; the least pool, a third of
+    // them a batch (34 records, 1,224 bytes), in three.
+    assert_eq!(ps.batch(3_600, 100), (100, 1));
+    assert_eq!(ps.batch(1_224, 100), (34, 3));
 }
 
 /// A counted frame's F(M) with pooled tails is the largest F whose fixed bytes, slots and the

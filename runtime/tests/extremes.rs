@@ -252,15 +252,15 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
         err.to_string().contains("before any fragment slot"),
         "{err}"
     );
-    // The least bytes that run: the fixed cost and a pool of the most it holds: the records
-    // (32 bytes for each pixel of three fragments or more) and the network's list after them
-    // (4 bytes a record), the marks (a bit a pixel in words of 32, each word's prefix count, and their total), or
+    // The least bytes that run: the fixed cost and a pool of the most it holds: a batch of the
+    // records (32 bytes for each pixel of three fragments or more, in up to three batches) and
+    // the network's list after them (4 bytes a record), the marks (a bit a pixel in words of 32, each word's prefix count, and their total), or
     // one slot and, for each covered pixel (with fewer slots than those, any may have k = 0),
     // the two words of a tail or of the two fragments it would hold, one word for a pixel of
     // one. What the pool holds beyond them is slots: F by hand.
     let occ = budget::Occupancy::of(&fl.counts());
     let (deep, deeper) = (occ.deep, occ.deeper);
-    let pool = (36 * deeper)
+    let pool = (36 * deeper.div_ceil(3))
         .max(4 * (2 * pixels.div_ceil(32) + 1))
         .max(8 * (1 + covered + deep).min(total));
     let one = fixed + pool;

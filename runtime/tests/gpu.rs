@@ -845,8 +845,11 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
         let total = gfl.fragment_count() as u64;
         let cfl = rasterize(&s, &cam, w, h).unwrap();
         let ccounts = cfl.counts();
-        // 0.05 (DKB's pool then the size of its records and the network's list after them),
-        // 0.5, 1 and 2 fragments a pixel, one slot short of every fragment, and every one.
+        // 0.05 (DKB's pool then the size of a batch of its records and the network's list
+        // after them: smaller than the records, so they are gathered in batches), 0.5, 1 and 2
+        // fragments a pixel, one slot short of every fragment, and every one.
+        let occ = budget::Occupancy::of(&gfl.counts());
+        let layout = budget::DKB.for_network(&mlp);
         let budgets = [0.05, 0.5, 1.0, 2.0]
             .map(|fpp| (fpp * pixels as f64) as u64)
             .into_iter()
@@ -867,6 +870,22 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             );
             let drawn = !holds;
             assert_eq!(d.features_drawn, Some(drawn), "{name} F {f} of {total}");
+            // The batches its pool holds the records in: several at 0.05, where 36 bytes a
+            // record are more than the pool of its slots and tails.
+            let pool = layout.pool_bytes(pixels as u64, f, &occ);
+            let (per_batch, batches) = layout.pool_state.unwrap().batch(pool, occ.deeper);
+            assert_eq!(
+                d.record_batches,
+                drawn.then_some(batches),
+                "{name} {fpp}fpp"
+            );
+            if fpp == "0.05" {
+                assert!(
+                    batches > 1 && 36 * occ.deeper > pool && 36 * per_batch <= pool,
+                    "{name}: {batches} batches of {per_batch} of {} records in {pool} bytes",
+                    occ.deeper
+                );
+            }
             let stats = if !drawn {
                 assert!(d.stats.is_none(), "{name}: statistics of an undrawn pass");
                 twin

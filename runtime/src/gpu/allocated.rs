@@ -82,7 +82,7 @@ impl Phase {
         match self {
             Phase::Count => &[ReadWrite],
             Phase::Store => &[Read, ReadWrite, ReadWrite, ReadWrite],
-            Phase::Features => &[Read, ReadWrite, Uniform],
+            Phase::Features => &[Read, ReadWrite, Uniform, Read],
             Phase::VkbCount => &[ReadWrite, ReadWrite],
             Phase::Capture | Phase::CaptureFits => {
                 &[Read, ReadWrite, ReadWrite, ReadWrite, ReadWrite]

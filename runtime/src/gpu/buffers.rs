@@ -402,6 +402,8 @@ pub(super) struct Readback {
     pub(super) capture_counts: Option<Vec<u32>>,
     /// The linked list: the fragments that arrived at its store, kept or dropped.
     pub(super) list_arrived: Option<u64>,
+    /// DKB: the batches its records were gathered in, where its features pass drew.
+    pub(super) record_batches: Option<u64>,
 }
 
 /// What [`GpuFrame`] reports besides the image: importance, DKB's statistics and whether its
@@ -430,7 +432,8 @@ impl Readback {
         };
         let features_drawn = self.features_drawn;
         let network_rows = match &self.network_rows_buf {
-            Some(b) => Some(u32s(&read_back(gpu, b, 16)?)[0]),
+            // This batch's list and the batches' before it (totals.wgsl's next_batch).
+            Some(b) => Some(u32s(&read_back(gpu, b, 16)?)).map(|w| w[0] + w[3]),
             None => None,
         };
         let Some(counts) = &self.counts_buf else {

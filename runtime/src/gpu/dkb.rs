@@ -21,7 +21,7 @@ use super::buffers::{FrameBuffers, read_words};
 use super::pipelines::Variant;
 use super::{Recording, weight_kind};
 use crate::budget::{self, FragmentBudget, Occupancy};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::mlp::Mlp;
 use crate::shared::count_bytes;
 use crate::wgsl::{DISPATCH_WORDS, PIXEL_GROUP, grid, mlp_uniform};
@@ -98,7 +98,13 @@ impl Recording<'_, '_> {
         }
         let f = budget.of(occ.fragments);
         let fb = &mut self.fb;
-        let pool = fb.storage("oit.slots", layout.pool_bytes(px, f, &occ), true)?;
+        let pool_bytes = layout.pool_bytes(px, f, &occ);
+        let pool = fb.storage("oit.slots", pool_bytes, true)?;
+        // The records in as few batches as the pool holds (one where it holds them all).
+        let (per_batch, batches) = layout
+            .pool_state
+            .expect("DKB keeps its records in its pool")
+            .batch(pool_bytes, occ.deeper);
         let args = 4 * DISPATCH_WORDS as u64;
         let dispatch = fb.take(
             "importance.dispatch",
@@ -126,7 +132,12 @@ impl Recording<'_, '_> {
             ),
             totals,
             importance,
-            list_len: fb.storage("importance.list_len", 16, true)?,
+            list_len: fb.init(
+                "importance.list_len",
+                bytemuck::cast_slice(&[0u32, 0, per_batch as u32, 0]),
+                wgpu::BufferUsages::STORAGE,
+                true,
+            ),
             dispatch,
         };
         let truncates = f < occ.fragments;
@@ -143,8 +154,11 @@ impl Recording<'_, '_> {
             self.out.variants.push(variant("network").form());
             let network = ["select_pixels", "args", "network", "gather"]
                 .map(|e| gpu.network_pass(variant(e)));
-            self.dkb_records_and_features(&b, occ.deeper)?;
-            self.dkb_network(&b, occ.deeper, &network)?;
+            for batch in 0..batches {
+                self.dkb_records_and_features(&b, occ.deeper, (batch, per_batch))?;
+                self.dkb_network(&b, per_batch, &network)?;
+            }
+            self.out.record_batches = Some(batches);
         }
         let variant = if self.passes.opts.features_preload {
             "features: preload"
@@ -205,51 +219,95 @@ impl Recording<'_, '_> {
     }
 
     /// The records (a pool index for each of the `records` pixels of more than TAIL_WORDS
-    /// fragments) and the features pass, and with diagnostics the copies of its statistics
-    /// (not counted).
-    fn dkb_records_and_features(&mut self, b: &DkbBuffers, records: u64) -> Result<()> {
+    /// fragments) of batch `batch` (`per_batch` records each: [`budget::PoolState::batch`];
+    /// the first assigns them all, the others empty theirs) and the features pass, and with
+    /// diagnostics the copies of its statistics (not counted).
+    fn dkb_records_and_features(
+        &mut self,
+        b: &DkbBuffers,
+        records: u64,
+        (batch, per_batch): (u64, u64),
+    ) -> Result<()> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
         let (gx, gy) = grid(px as u32, PIXEL_GROUP);
-        let group = gpu.bind_at(
-            &p.assign_records.get_bind_group_layout(0),
-            &[
-                (0, passes.params()),
-                (1, &b.counts),
-                (2, &b.totals),
-                (6, &b.importance),
-                (7, &b.pool),
-            ],
-        );
-        passes.compute(&mut self.enc, "records", |pass| {
-            pass.set_pipeline(&p.assign_records);
-            pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
-        });
+        match batch {
+            0 => {
+                let group = gpu.bind_at(
+                    &p.assign_records.get_bind_group_layout(0),
+                    &[
+                        (0, passes.params()),
+                        (1, &b.counts),
+                        (2, &b.totals),
+                        (6, &b.importance),
+                        (7, &b.pool),
+                        (8, &b.list_len),
+                    ],
+                );
+                passes.compute(&mut self.enc, "records", |pass| {
+                    pass.set_pipeline(&p.assign_records);
+                    pass.set_bind_group(0, &group, &[]);
+                    pass.dispatch_workgroups(gx, gy, 1);
+                });
+            }
+            _ => {
+                let group = gpu.bind_at(
+                    &p.init_records.get_bind_group_layout(0),
+                    &[
+                        (0, passes.params()),
+                        (1, &b.counts),
+                        (6, &b.importance),
+                        (7, &b.pool),
+                        (8, &b.list_len),
+                    ],
+                );
+                let next = gpu.bind_at(&p.next_batch.get_bind_group_layout(0), &[(8, &b.list_len)]);
+                passes.compute(&mut self.enc, "records", |pass| {
+                    pass.set_pipeline(&p.init_records);
+                    pass.set_bind_group(0, &group, &[]);
+                    pass.dispatch_workgroups(gx, gy, 1);
+                    pass.set_pipeline(&p.next_batch);
+                    pass.set_bind_group(0, &next, &[]);
+                    pass.dispatch_workgroups(1, 1, 1);
+                });
+            }
+        }
         let features = if self.passes.opts.features_preload {
             &p.features
         } else {
             gpu.extras().features_no_preload()
         };
         let (fb, enc) = (&mut self.fb, &mut self.enc);
-        let bufs = [&b.importance, &b.pool, &b.optical_depth];
+        let bufs = [&b.importance, &b.pool, &b.optical_depth, &b.list_len];
         passes.draw(enc, features, &bufs, "features");
         if self.passes.opts.diagnostics {
-            let record_bytes = 8 * crate::shared::RECORD_WORDS as u64 * records;
-            let mut copy = |b: &wgpu::Buffer, label: &str, bytes: u64| {
-                let c = fb.storage(label, bytes.max(16), false)?;
-                enc.copy_buffer_to_buffer(b, 0, &c, 0, bytes);
-                Ok::<_, Error>(c)
-            };
-            self.out.stats_bufs = Some([
-                copy(&b.importance, "features.record_of.readback", 4 * px)?,
-                copy(&b.pool, "features.records.readback", record_bytes)?,
-            ]);
+            // Every batch's records into one copy, where they would lie unbatched; the record
+            // indices before the first batch's gather.
+            let record_bytes = 8 * crate::shared::RECORD_WORDS as u64;
+            let first = batch * per_batch;
+            let these = per_batch.min(records - first);
+            if batch == 0 {
+                let record_of = fb.storage("features.record_of.readback", 4 * px, false)?;
+                enc.copy_buffer_to_buffer(&b.importance, 0, &record_of, 0, 4 * px);
+                let bytes = (record_bytes * records).max(16);
+                let all = fb.storage("features.records.readback", bytes, false)?;
+                self.out.stats_bufs = Some([record_of, all]);
+            }
+            if let Some([_, all]) = &self.out.stats_bufs {
+                enc.copy_buffer_to_buffer(
+                    &b.pool,
+                    0,
+                    all,
+                    record_bytes * first,
+                    record_bytes * these,
+                );
+            }
         }
         Ok(())
     }
 
-    /// The network's pass over the records, its importance gathered into the shared word.
+    /// The network's pass over a batch of `records` records, its importance gathered into the
+    /// shared word.
     fn dkb_network(
         &mut self,
         b: &DkbBuffers,

@@ -271,7 +271,7 @@ impl FrameOptions {
 /// Most buffers the pool keeps (beyond, a returned buffer is dropped).
 const POOL_MAX: usize = 64;
 /// Timestamped passes a frame has room for.
-const TIMED_PASSES: u32 = 24;
+const TIMED_PASSES: u32 = 32;
 
 impl Gpu {
     /// A buffer for a frame: the pooled one under `key` when its size and usage match (cleared
@@ -632,6 +632,10 @@ pub struct GpuFrame {
     /// The linked list, with diagnostics: the fragments that arrived at its store, kept or
     /// dropped (its `fragments` are those it kept).
     pub list_arrived: Option<u64>,
+    /// DKB, where its features pass drew: the batches it gathered its records in
+    /// ([`crate::budget::PoolState::batch`]: more than one where the pool is smaller than
+    /// the records, each batch drawing the features pass once).
+    pub record_batches: Option<u64>,
 }
 
 impl Gpu {
@@ -904,6 +908,7 @@ impl Gpu {
             network_rows,
             capture_counts: rec.out.capture_counts,
             list_arrived: rec.out.list_arrived,
+            record_batches: rec.out.record_batches,
         })
     }
 }

@@ -38,6 +38,9 @@ pub(super) struct Pipelines {
     pub(super) totals: wgpu::ComputePipeline,
     /// DKB's records: an index for each pixel of two fragments or more (totals.wgsl).
     pub(super) assign_records: wgpu::ComputePipeline,
+    /// A batch of DKB's records after the first emptied, and the batch moved on (totals.wgsl).
+    pub(super) init_records: wgpu::ComputePipeline,
+    pub(super) next_batch: wgpu::ComputePipeline,
     /// The network's passes (DKB importance, predict), built for one network shape, precision
     /// and SKIP_FORCED each ([`Variant`]): the default network's at f32 at start-up, the others
     /// when first asked for ([`Gpu::network_pass`]).
@@ -675,6 +678,8 @@ impl Pipelines {
             features: geometry("features"),
             totals: compute("totals"),
             assign_records: compute_entry("totals", "assign_records"),
+            init_records: compute_entry("totals", "init_records"),
+            next_batch: compute_entry("totals", "next_batch"),
             variants: std::sync::Mutex::new(
                 [
                     ("importance_dkb", "select_pixels"),
