@@ -792,7 +792,9 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
             AllocatedMethod::Dkb(m) => budget::DKB.for_network(m),
             AllocatedMethod::Vkb(_) => budget::VKB,
         };
-        for text in ["1fpp", "25%"] {
+        // At 0.1 fpp DKB's pool holds a third of its records at a time: the application
+        // draws its features phase once for each batch.
+        for text in ["1fpp", "25%", "0.1fpp"] {
             let b = Budget::parse(text).unwrap();
             let f = b.fragment_budget(&layout, px).unwrap();
             let opts = FrameOptions {
@@ -806,6 +808,12 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
                 .render_with(&opts, &s, &identity(), (w, h), BG, Some(slots))
                 .unwrap();
             assert!(!harness.exact);
+            let batches = harness.record_batches.unwrap_or(1);
+            assert_eq!(harness.record_batches.is_some(), *name == "dkb");
+            assert!(
+                batches > 1 || text != "0.1fpp" || *name != "dkb",
+                "{name} at {text}: {batches} batches"
+            );
             let off = worst_difference(&harness.image.data, &exact.image.data);
             assert!(
                 off > 1e-3,
@@ -825,6 +833,17 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
                 );
                 assert!(!frame.exact);
                 assert_eq!(frame.allocated_bytes, harness.allocated_bytes);
+                let drawn = frame
+                    .pass_ms
+                    .iter()
+                    .filter(|(p, _)| p == statistics)
+                    .count();
+                assert_eq!(
+                    drawn as u64,
+                    if *name == "dkb" { batches } else { 1 },
+                    "{name} at {text}: {:?}",
+                    frame.pass_ms
+                );
                 for pass in ["count", statistics, "importance", "capture", "resolve"] {
                     let ms = frame.pass_ms.iter().find(|(p, _)| p == &pass);
                     assert!(
