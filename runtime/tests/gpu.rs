@@ -1953,6 +1953,19 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
             );
         }
         o.skip_forced = true;
+        // Below a slot a covered pixel (lo = 0) no pixel with a record is forced, and the pool
+        // holds a batch of the records at a time: the rows of every batch add up.
+        let few = (covered as u64 / 8).max(1);
+        assert_eq!(alloc::min_k(&counts, few), 0);
+        let frame = g
+            .render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Dkb(&mlp, few.into())))
+            .unwrap();
+        assert!(
+            frame.record_batches.is_some_and(|b| b > 1),
+            "{name}: {:?} batches",
+            frame.record_batches
+        );
+        assert_eq!(frame.network_rows, Some(recorded), "{name}, F {few}");
     }
 }
 
