@@ -77,6 +77,12 @@ pub(crate) struct MethodParams {
     /// give it from the depth), or eq10 of the window depth alone.
     #[arg(long, default_value = "eq10", value_parser = parse_wboit_weight)]
     pub(crate) wboit_weight: dhoit_runtime::composite::WboitWeight,
+    /// The most batches DKB gathers its network's records in (1 to 3): where its slot pool
+    /// holds fewer than every record (a small budget on a deep frame), each batch draws the
+    /// features pass once more, so more batches take less memory and more time; 1 holds them
+    /// all at once. The image is the same.
+    #[arg(long, default_value_t = dhoit_runtime::budget::RECORD_BATCHES, value_parser = parse_record_batches)]
+    pub(crate) record_batches: u64,
 }
 
 impl MethodParams {
@@ -103,6 +109,7 @@ impl MethodParams {
             mboit: self.mboit(self.mboit_moments.unwrap_or(4)),
             list_sorted: self.list_sorted,
             wboit: dhoit_runtime::composite::WboitParams::for_camera(self.wboit_weight, cam),
+            record_batches: self.record_batches,
             ..o
         }
     }
@@ -133,6 +140,17 @@ fn parse_mboit_moments(s: &str) -> std::result::Result<u32, String> {
     dhoit_runtime::composite::MboitParams::with_moments(n)
         .map(|_| n)
         .map_err(|e| e.to_string())
+}
+
+fn parse_record_batches(s: &str) -> std::result::Result<u64, String> {
+    let most = dhoit_runtime::budget::RECORD_BATCHES;
+    match s.parse::<u64>() {
+        Ok(n) if (1..=most).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "DKB gathers its records in 1 to {most} batches, not '{s}' (past {most} the tails \
+             already take more of the pool than a batch of records)"
+        )),
+    }
 }
 
 fn parse_list_sorted(s: &str) -> std::result::Result<u32, String> {

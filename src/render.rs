@@ -126,6 +126,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             // the CPU did (the two counts can differ by an edge's fragment).
             let mut opts = FrameOptions {
                 exact_when_cheaper: options.exact_when_cheaper,
+                record_batches: options.record_batches,
                 ..FrameOptions::default()
             };
             if let Some(Slots::Dkb(_, f) | Slots::Vkb(_, f) | Slots::Importance(_, _, f)) = slots {

@@ -188,6 +188,8 @@ fn measure(
     let mut measures = vec![vec![Vec::new(); methods.len()]; a.memories.len()];
     let frame_opts = FrameOptions {
         diagnostics: false,
+        // The GPU's frames are timed with the records' batches the CPU counts bytes for.
+        record_batches: a.params.record_batches,
         ..FrameOptions::default()
     };
     for s in loaded {

@@ -626,6 +626,102 @@ fn the_gpu_renders_from_the_command_line() {
     }
 }
 
+/// `--record-batches` trades DKB's memory for geometry passes: on shells at 10% (64x48, on the
+/// GPU) its records are more than its slots and tails need, so with at most one batch the frame
+/// allocates more than with the default three and draws its features pass once, with three
+/// more than once; the images are the same bytes. A count outside 1 to 3 is refused, naming the
+/// range. `bench` at that relative budget measures every method but FKB, which it cannot run
+/// (its error is its row), DKB with its records whole in more bytes than batched.
+#[test]
+fn record_batches_trade_dkb_s_memory_for_passes_from_the_command_line() {
+    if skip_gpu("GPU record-batches test") {
+        return;
+    }
+    let dir = temp_dir("cli-batches");
+    let render = |batches: &str| {
+        let out = dir.join(format!("b{batches}.png"));
+        let o = dhoit(&[
+            "render",
+            "--scene",
+            "shells",
+            "--res",
+            "64x48",
+            "--budget",
+            "10%",
+            "--opacity",
+            "0.33",
+            "--method",
+            "dkb",
+            "--device",
+            "gpu",
+            "--always-approximate",
+            "--record-batches",
+            batches,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let text = String::from_utf8_lossy(&o.stdout).to_string();
+        assert!(
+            o.status.success(),
+            "{batches}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let passes = text
+            .lines()
+            .find(|l| l.starts_with("GPU passes:"))
+            .unwrap()
+            .to_string();
+        let features = passes.matches("features ").count();
+        let allocated: f64 = text
+            .split("allocated ")
+            .nth(1)
+            .and_then(|r| r.split_whitespace().next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("{text}"));
+        (features, allocated, std::fs::read(out).unwrap())
+    };
+    let (one, three) = (render("1"), render("3"));
+    assert_eq!(one.0, 1, "one batch: one features pass");
+    assert!(three.0 > 1, "three at most: {} features passes", three.0);
+    assert!(
+        three.1 < one.1,
+        "batched {} against whole {}",
+        three.1,
+        one.1
+    );
+    assert!(one.2 == three.2, "the images differ");
+    for bad in ["0", "4", "two"] {
+        let o = dhoit(&["render", "--scene", "shells", "--record-batches", bad]);
+        assert!(!o.status.success());
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains("1 to 3 batches"), "{bad}: {e}");
+    }
+    let out = dir.join("bench.json");
+    let o = dhoit(&[
+        "bench",
+        "--gpu-only",
+        "--scenes",
+        "shells",
+        "--res",
+        "64x48",
+        "--budget",
+        "10%",
+        "--repeat",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let m = &report["gpu"]["scenes"][0]["methods"];
+    let e = m["fkb"]["error"].as_str().unwrap_or_default();
+    assert!(e.contains("one slot for every pixel"), "{m}");
+    let bytes = |k: &str| m[k]["allocated_bytes"].as_u64().unwrap();
+    assert!(bytes("dkb") < bytes("dkb_records_whole"), "{m}");
+    assert!(m["vkb"]["frame_gpu_ms"].as_f64().is_some_and(|t| t > 0.0));
+}
+
 /// `bench --network-only` reports the training steps (the fused step and burn's autodiff at
 /// batch 512, the regret-loss step) and inference as samples a second, and nothing else.
 #[test]
@@ -713,6 +809,7 @@ fn the_gpu_bench_reports_every_method_and_option() {
         "dkb_shared_weights",
         "dkb_array_network",
         "dkb_features_no_preload",
+        "dkb_records_whole",
         "fkb_layer_major",
         "dkb_16-8",
         // lavapipe computes in binary16 (SHADER_F16); a device without it has no such run.

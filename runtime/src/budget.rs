@@ -434,6 +434,18 @@ impl Layout {
             ..self
         }
     }
+    /// The layout with its records gathered in at most `batches` batches
+    /// ([`PoolState::batches`]; 1: the pool holds them all at once, one features pass); a
+    /// layout that pools no records is returned as it is.
+    pub fn with_record_batches(self, batches: u64) -> Layout {
+        Layout {
+            pool_state: self.pool_state.map(|ps| PoolState {
+                batches: batches.max(1),
+                ..ps
+            }),
+            ..self
+        }
+    }
     /// Bytes that do not depend on the number of slots: `|P| S_p + S_i` (scan scratch and
     /// weights included; the counts in whole words: [`crate::shared::count_bytes`]).
     pub fn fixed_bytes(&self, pixels: u64) -> u64 {

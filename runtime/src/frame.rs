@@ -289,6 +289,11 @@ pub struct Options<'a> {
     /// on by default. Off, the method renders its approximation whatever it costs (the
     /// papers' equal-F protocol, what measures the approximation itself).
     pub exact_when_cheaper: bool,
+    /// The most batches DKB gathers its network's records in ([`budget::PoolState::batches`],
+    /// [`budget::RECORD_BATCHES`] by default; 1: all at once, one features pass, more memory
+    /// where the records outweigh the slots). The GPU frame's `FrameOptions::record_batches`
+    /// must say the same for its buffers to be the ones counted here.
+    pub record_batches: u64,
 }
 
 impl Options<'_> {
@@ -303,6 +308,7 @@ impl Options<'_> {
             wboit: WboitParams::default(),
             list_sorted: composite::LIST_SORTED,
             exact_when_cheaper: true,
+            record_batches: budget::RECORD_BATCHES,
         }
     }
 
@@ -320,7 +326,10 @@ impl Options<'_> {
     /// [`Method::layout`].
     pub fn layout(&self, method: Method) -> Layout {
         match (method, self.weights) {
-            (Method::Dkb, Some(m)) => method.layout().for_network(m),
+            (Method::Dkb, Some(m)) => method
+                .layout()
+                .for_network(m)
+                .with_record_batches(self.record_batches),
             (Method::Mboit, _) => budget::mboit(self.mboit.moments),
             _ => method.layout(),
         }

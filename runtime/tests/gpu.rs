@@ -217,6 +217,68 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
     }
 }
 
+/// DKB's records gathered in batches (`FrameOptions::record_batches`, three at most by
+/// default) or all at once (1) give the same importance and image, bit for bit, and each frame
+/// allocates its layout's bytes for the batches it took: fewer, the more batches, where the
+/// records outweigh the slots and tails (particles at 0.05 fpp).
+#[test]
+fn dkb_s_records_in_batches_or_at_once_give_the_same_frame_in_fewer_bytes() {
+    let Some(g) = gpu() else { return };
+    let mlp = common::committed_weights();
+    let (w, h) = (64, 48);
+    let (s, cam) = frame("particles", 1, w, h);
+    let gfl = gpu_fragments(g, &s, &cam, w, h);
+    let counts = gfl.counts();
+    let occ = budget::Occupancy::of(&counts);
+    let f = (w * h / 20) as u64;
+    let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
+    let frames = [1, 2, 3].map(|b| {
+        o.record_batches = b;
+        let fr = g
+            .render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Dkb(&mlp, f.into())))
+            .unwrap();
+        let layout = budget::DKB.for_network(&mlp).with_record_batches(b);
+        let pool = layout.pool_bytes(gfl.pixel_count() as u64, f, &occ);
+        let (_, batches) = layout.pool_state.unwrap().batch(pool, occ.deeper);
+        assert_eq!(fr.record_batches, Some(batches), "at most {b}");
+        assert_eq!(
+            fr.allocated_bytes,
+            layout.reserved_bytes(gfl.pixel_count() as u64, f, &occ),
+            "at most {b}"
+        );
+        fr
+    });
+    let (one, most) = (&frames[0], &frames[2]);
+    assert_eq!(one.record_batches, Some(1));
+    assert!(
+        most.record_batches.is_some_and(|b| b > 1) && most.allocated_bytes < one.allocated_bytes,
+        "{:?} batches in {} bytes, one in {}",
+        most.record_batches,
+        most.allocated_bytes,
+        one.allocated_bytes
+    );
+    let bits = |f: &dhoit_runtime::gpu::GpuFrame| -> Vec<u32> {
+        f.importance
+            .as_ref()
+            .unwrap()
+            .iter()
+            .map(|i| i.to_bits())
+            .collect()
+    };
+    for (b, fr) in frames.iter().enumerate().skip(1) {
+        assert!(
+            bits(fr) == bits(&frames[0]),
+            "{} batches: importance",
+            b + 1
+        );
+        assert!(
+            fr.image.data == frames[0].image.data,
+            "{} batches: image",
+            b + 1
+        );
+    }
+}
+
 /// DKB's importance pass with the network's weights staged in workgroup memory
 /// (`FrameOptions::shared_weights`) gives the importance and image of the pass that reads them from the
 /// uniform (held to the CPU twin by the other tests): the default network, one whose first

@@ -59,7 +59,9 @@ impl Recording<'_, '_> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         gpu.can_run(mlp)?;
         let p = &gpu.pipelines;
-        let layout = budget::DKB.for_network(mlp);
+        let layout = budget::DKB
+            .for_network(mlp)
+            .with_record_batches(passes.opts.record_batches);
         let importance = self.pixel_word(Word::Written)?;
         let fb = &mut self.fb;
         let totals = fb.storage("features.totals", 24, true)?;

@@ -236,6 +236,13 @@ pub struct FrameOptions {
     /// fragments, the k-buffer's slots and tails, importance and statistics): on by default;
     /// off, a frame reads back its image only (the bench's steady-state frames).
     pub diagnostics: bool,
+    /// The most batches a DKB frame gathers its network's records in
+    /// ([`crate::budget::PoolState::batches`]; [`crate::budget::RECORD_BATCHES`] by default):
+    /// where its pool holds fewer records than the frame has, each batch draws the features
+    /// pass once more. 1 makes the pool hold every record at once: one features pass, more
+    /// memory where the records outweigh the slots (the bench measures both; the CPU's
+    /// accounting, `frame::Options`, counts the default). The images are the same.
+    pub record_batches: u64,
 }
 
 impl Default for FrameOptions {
@@ -253,6 +260,7 @@ impl Default for FrameOptions {
             exact_when_cheaper: true,
             counted_bytes: None,
             diagnostics: true,
+            record_batches: crate::budget::RECORD_BATCHES,
         }
     }
 }
@@ -925,7 +933,12 @@ impl Recording<'_, '_> {
     ) -> Result<Option<wgpu::Buffer>> {
         let (method, layout) = match s {
             _ if !self.passes.opts.exact_when_cheaper => return Ok(None),
-            Slots::Dkb(mlp, _) => (Method::Dkb, budget::DKB.for_network(mlp)),
+            Slots::Dkb(mlp, _) => (
+                Method::Dkb,
+                budget::DKB
+                    .for_network(mlp)
+                    .with_record_batches(self.passes.opts.record_batches),
+            ),
             Slots::Vkb(..) => (Method::Vkb, budget::VKB),
             _ => return Ok(None),
         };
