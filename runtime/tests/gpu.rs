@@ -1714,8 +1714,10 @@ fn gpu_faults_are_typed_errors_not_hangs_or_wrong_images() {
 }
 
 /// A sparse scene for large frames: eight overlapping triangles in a small cluster (a few
-/// thousand pixels at 8K) and two specks far away that widen the camera's framing.
-fn sparse_scene() -> Scene {
+/// thousand pixels at 8K) and two specks far away that widen the camera's framing; each
+/// triangle `shift` further off the one before, `scale` times the size (shift 0: eight stacked
+/// alike, every covered pixel of the cluster eight fragments deep).
+fn sparse_scene_shifted(shift: f32, scale: f32) -> Scene {
     let mut s = Scene {
         name: "sparse".into(),
         ..Default::default()
@@ -1724,12 +1726,12 @@ fn sparse_scene() -> Scene {
     for i in 0..8 {
         let z = i as f32 * 0.01;
         let c = [0.1 + 0.1 * i as f32, 0.9 - 0.1 * i as f32, 0.5, 0.33];
-        let d = 0.02 * i as f32;
+        let d = shift * i as f32;
         s.push_triangle(
             [
-                v(-0.2 + d, -0.2, z),
-                v(0.2, -0.15 + d, z),
-                v(0.0, 0.25 - d, z),
+                v(-0.2 + d, -0.2, z) * scale,
+                v(0.2, -0.15 + d, z) * scale,
+                v(0.0, 0.25 - d, z) * scale,
             ],
             [c; 3],
         );
@@ -1741,6 +1743,10 @@ fn sparse_scene() -> Scene {
         );
     }
     s
+}
+
+fn sparse_scene() -> Scene {
+    sparse_scene_shifted(0.02, 1.0)
 }
 
 #[test]
@@ -1786,6 +1792,30 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         check_allocation_and_capture(&gfl, &d, &imp, f, mlp.target, &format!("dkb {w}x{h}"));
         let sum: f64 = imp.iter().map(|&i| i.abs() as f64).sum();
         assert!(sum > 0.0, "{w}x{h}: importance sum");
+        // The cluster stacked eight deep and eight times the size (about 5% of the frame), at
+        // a budget whose pool holds a batch of its records at a time (they outweigh the
+        // allocation's marks, a bit every frame pixel, and the slots and tails): every batch's
+        // statistics and the allocation as the twin's, on hundreds of thousands of records.
+        let stacked = sparse_scene_shifted(0.0, 8.0);
+        let sfl = gpu_fragments(g, &stacked, &cam, w, h);
+        let few = sfl.fragment_count() as u64 / 40;
+        let d = g
+            .render_method(&stacked, &cam, w, h, BG, Some(Slots::Dkb(&mlp, few.into())))
+            .unwrap();
+        assert!(
+            d.record_batches.is_some_and(|b| b > 1),
+            "{w}x{h}: {:?} batches",
+            d.record_batches
+        );
+        let batched = common::recorded_stats(&sfl);
+        assert_eq!(
+            d.stats.clone().unwrap(),
+            batched,
+            "{w}x{h}: batched statistics"
+        );
+        let imp = d.importance.clone().unwrap();
+        let label = format!("dkb {w}x{h} batched");
+        check_allocation_and_capture(&sfl, &d, &imp, few, mlp.target, &label);
         // VKB and FKB too.
         let v = g
             .render_method(
