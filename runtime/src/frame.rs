@@ -336,6 +336,19 @@ impl Options<'_> {
     }
 }
 
+/// What a blended method's refused byte budget adds to its message: MBOIT's power moments,
+/// and what the fewest would need where more were asked for (nothing for WBOIT).
+fn moments_note(method: Method, moments: u32, pixels: u64) -> String {
+    match method {
+        Method::Mboit if moments > 4 => format!(
+            " at {moments} power moments; 4 need {}",
+            budget::format_bytes(budget::mboit(4).fixed_bytes(pixels))
+        ),
+        Method::Mboit => " at 4 power moments, the fewest".into(),
+        _ => String::new(),
+    }
+}
+
 /// Renders one frame's fragment lists with any method, computing the error curves once.
 ///
 /// ```
@@ -460,15 +473,7 @@ impl<'a> Renderer<'a> {
                                 budget::format_bytes(need),
                                 pixels,
                                 layout.per_pixel_bytes(),
-                                match method {
-                                    Method::Mboit if opts.mboit.moments > 4 => format!(
-                                        " at {} power moments; 4 need {}",
-                                        opts.mboit.moments,
-                                        budget::format_bytes(budget::mboit(4).fixed_bytes(pixels))
-                                    ),
-                                    Method::Mboit => " at 4 power moments, the fewest".into(),
-                                    _ => String::new(),
-                                }
+                                moments_note(method, opts.mboit.moments, pixels)
                             ),
                         ));
                     }

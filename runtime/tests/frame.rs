@@ -281,7 +281,7 @@ fn a_byte_budget_below_the_blended_targets_is_refused() {
         .expect_err("WBOIT one byte short of its targets ran")
         .to_string();
     assert!(
-        e.contains("wboit needs") && e.contains("9 B a pixel"),
+        e.contains("wboit needs") && e.contains("9 B a pixel)") && !e.contains("moments"),
         "{e}"
     );
     let (w, m) = at(wboit, 4);
@@ -291,6 +291,15 @@ fn a_byte_budget_below_the_blended_targets_is_refused() {
         let (_, m) = at(mboit(per_pixel) - 1, moments);
         let e = m.expect_err("MBOIT one byte short ran").to_string();
         assert!(e.contains(&format!("{per_pixel} B a pixel")), "{e}");
+        // The moments asked for, and what the fewest would need where they are more.
+        let note = match moments {
+            4 => " at 4 power moments, the fewest)".to_string(),
+            _ => format!(
+                " at {moments} power moments; 4 need {})",
+                dhoit_runtime::budget::format_bytes(mboit(28))
+            ),
+        };
+        assert!(e.contains(&note), "{e}");
         let (_, m) = at(mboit(per_pixel), moments);
         assert_eq!(
             m.unwrap().allocated_bytes,
