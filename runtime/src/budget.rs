@@ -76,10 +76,11 @@ pub struct PoolState {
 impl PoolState {
     /// Records a batch holds in a pool of `pool` bytes and the batches `records` take: one
     /// batch where the pool holds them all (as large as it is made: [`Layout::pool_bytes`], so
-    /// never more than [`PoolState::batches`]).
+    /// never more than [`PoolState::batches`]), and one where there is none (its pass writes
+    /// every pixel's shared word: the importance of a pixel without a record).
     pub fn batch(&self, pool: u64, records: u64) -> (u64, u64) {
         let per_batch = (pool / (self.record_bytes + self.list_bytes)).clamp(1, records.max(1));
-        (per_batch, records.div_ceil(per_batch))
+        (per_batch, records.div_ceil(per_batch).max(1))
     }
 }
 

@@ -85,6 +85,8 @@ fn fragment_budget_follows_the_layout_and_never_overspends() {
     // them a batch (34 records, 1,224 bytes), in three.
     assert_eq!(ps.batch(3_600, 100), (100, 1));
     assert_eq!(ps.batch(1_224, 100), (34, 3));
+    // No record: one batch all the same, whose gather writes every pixel's importance.
+    assert_eq!(ps.batch(1_224, 0), (1, 1));
 }
 
 /// A counted frame's F(M) with pooled tails is the largest F whose fixed bytes, slots and the

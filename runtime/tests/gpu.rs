@@ -279,6 +279,47 @@ fn dkb_s_records_in_batches_or_at_once_give_the_same_frame_in_fewer_bytes() {
     }
 }
 
+/// A frame the budget truncates with no pixel of three fragments or more (two layers at 25%)
+/// has no record to gather, in one batch all the same: every pixel's importance 0 with its
+/// pair mark set nowhere (not what a deep frame before it left in the buffers it reuses), the
+/// allocation and image the twins'.
+#[test]
+fn a_truncated_frame_without_records_gathers_one_empty_batch() {
+    let Some(g) = gpu() else { return };
+    let mlp = common::committed_weights();
+    let (w, h) = (48, 36);
+    let s = common::layers(2);
+    let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
+    let gfl = gpu_fragments(g, &s, &cam, w, h);
+    let counts = gfl.counts();
+    assert!(counts.iter().all(|&n| n <= 2) && counts.iter().any(|&n| n == 2));
+    let f = gfl.fragment_count() as u64 / 4;
+    // A deep frame of the same size first, so the buffers this frame takes from the device's
+    // pool hold its importance: nothing may be left of it.
+    let (deep, deep_cam) = frame("particles", 1, w, h);
+    let before = g
+        .render_method(
+            &deep,
+            &deep_cam,
+            w,
+            h,
+            BG,
+            Some(Slots::Dkb(&mlp, 200.into())),
+        )
+        .unwrap();
+    assert!(before.importance.unwrap().iter().any(|i| i.to_bits() != 0));
+    let d = g
+        .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
+        .unwrap();
+    assert_eq!(d.record_batches, Some(1));
+    let imp = d.importance.clone().unwrap();
+    assert!(
+        imp.iter().all(|i| i.to_bits() == 0),
+        "importance without records"
+    );
+    check_allocation_and_capture(&gfl, &d, &imp, f, mlp.target, "two layers at 25%");
+}
+
 /// DKB's importance pass with the network's weights staged in workgroup memory
 /// (`FrameOptions::shared_weights`) gives the importance and image of the pass that reads them from the
 /// uniform (held to the CPU twin by the other tests): the default network, one whose first
