@@ -104,6 +104,17 @@ fn grid_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32, size: u32) -> u32 {
     return (wid.y * nwg.x + wid.x) * size + lid;
 }
 
+// A pixel's word as a record of the batch [lo, lo + size) of DKB's records (totals.wgsl's
+// assign_records, init_records): its place in the batch, or NO_RECORD where the word names no
+// record of it (NO_RECORD itself; an earlier batch's importance, 0 or with the pair mark at or
+// above 2^31, past any index; another batch's index).
+fn batch_record(word: u32, lo: u32, size: u32) -> u32 {
+    if (word >= lo && word - lo < size) {
+        return word - lo;
+    }
+    return NO_RECORD;
+}
+
 // Words of the allocation's marks' bits (one bit a pixel, MARK_BITS a word) for `pixels`
 // pixels: the marks hold their popcounts' exclusive prefix sums (this many and the total), then
 // the bits (shared::marks_words).

@@ -52,8 +52,8 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     let p = pixel_index(in.clip, params.width);
     // A pixel of at most TAIL_WORDS fragments (NO_RECORD): forced, whatever its statistics
     // (mlp::forced); or one of another batch.
-    let r = record_of[p] - batch[1];
-    if (record_of[p] < batch[1] || r >= batch[2]) {
+    let r = batch_record(record_of[p], batch[1], batch[2]);
+    if (r == NO_RECORD) {
         return vec4<f32>(0.0);
     }
     let at = RECORD_WORDS * r;

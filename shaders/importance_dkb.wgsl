@@ -203,11 +203,10 @@ fn gather(
 ) {
     let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (p < params.pixels) {
-        let lo = atomicLoad(&list_len[1]);
-        let r = shared_word[p] - lo;
+        let r = batch_record(shared_word[p], atomicLoad(&list_len[1]), atomicLoad(&list_len[2]));
         if (shared_word[p] == NO_RECORD) {
             shared_word[p] = 0u;
-        } else if (shared_word[p] >= lo && r < atomicLoad(&list_len[2])) {
+        } else if (r != NO_RECORD) {
             shared_word[p] = u32(records[RECORD_WORDS * r] & 0xfffffffflu);
         }
     }

@@ -119,9 +119,9 @@ fn assign_records(
 
 // A batch after the first: its records emptied (the batch before them left its statistics and
 // importance there), n written. The batch starts where the one before ends (next_batch moves
-// lo there after this). A pixel of an earlier batch holds its importance by now, 0 or with the
-// pair mark (at or above 2^31, past any record index), and one without a record 0 (the first
-// batch's gather wrote it), so neither falls in the batch.
+// lo there after this). A pixel of an earlier batch holds its importance by now, and one
+// without a record 0 (the first batch's gather wrote it): neither is a record of the batch
+// (common.wgsl's batch_record).
 @compute @workgroup_size(PIXEL_GROUP)
 fn init_records(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -132,10 +132,9 @@ fn init_records(
     if (p >= params.pixels) {
         return;
     }
-    let lo = batch[1] + batch[2];
-    let r = record_of[p];
-    if (r >= lo && r - lo < batch[2]) {
-        let at = RECORD_WORDS * (r - lo);
+    let r = batch_record(record_of[p], batch[1] + batch[2], batch[2]);
+    if (r != NO_RECORD) {
+        let at = RECORD_WORDS * r;
         records[at] = 0lu;
         records[at + 1u] = u64(count_in(count[count_word(p)], p)) << 48u;
         for (var w = 2u; w < RECORD_WORDS; w++) {

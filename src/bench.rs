@@ -555,13 +555,13 @@ fn scene_figures(
         "GPU {name}: DKB importance {skip:.2} ms reading the weights from the uniform, {staged:.2} ms staging them in workgroup memory, {looped:.2} ms with mlp.wgsl's loops over an array"
     );
     eprintln!("GPU {name}: DKB/VKB frame time with the 16-8 network {small_ratio:.2}");
-    let run = |m: &str, key: &str| of(m)[key].as_f64().unwrap_or(f64::NAN);
+    let bytes = |m: &str| of(m)["allocated_bytes"].as_f64().unwrap_or(f64::NAN);
     eprintln!(
         "GPU {name}: DKB frame {:.2} ms in {:.0} bytes with its records in batches (features {features:.2} ms), {:.2} ms in {:.0} bytes with all of them in the pool at once (features {:.2} ms)",
-        run("dkb", "frame_gpu_ms"),
-        run("dkb", "allocated_bytes"),
-        run("dkb_records_whole", "frame_gpu_ms"),
-        run("dkb_records_whole", "allocated_bytes"),
+        ms("dkb"),
+        bytes("dkb"),
+        ms("dkb_records_whole"),
+        bytes("dkb_records_whole"),
         pass("dkb_records_whole", "features"),
     );
     eprintln!(

@@ -255,7 +255,9 @@ impl AllocatedOit {
         check_target_format(format, what)?;
         let px = width as u64 * height as u64;
         let layout = match &method {
-            AllocatedMethod::Dkb(weights) => budget::DKB.for_network(weights),
+            // The layout its frames create (their options are the defaults but for those set
+            // in `frame`).
+            AllocatedMethod::Dkb(weights) => FrameOptions::default().dkb_layout(weights),
             AllocatedMethod::Vkb(_) => budget::VKB,
         };
         // A byte budget is resolved against each frame's own occupancy, read back before

@@ -433,7 +433,10 @@ impl Readback {
         let features_drawn = self.features_drawn;
         let network_rows = match &self.network_rows_buf {
             // This batch's list and the batches' before it (totals.wgsl's next_batch).
-            Some(b) => Some(u32s(&read_back(gpu, b, 16)?)).map(|w| w[0] + w[3]),
+            Some(b) => {
+                let w = u32s(&read_back(gpu, b, 16)?);
+                Some(w[0] + w[3])
+            }
             None => None,
         };
         let Some(counts) = &self.counts_buf else {

@@ -40,8 +40,10 @@ struct DkbBuffers {
     /// The shared word: record index, importance, weights, k, slot bases.
     importance: wgpu::Buffer,
     /// The length of the list of the records the network decides (in the pool, after the
-    /// records: one word a record), and the network's dispatch.
+    /// records: one word a record), the batch's first record, the records a batch holds and the
+    /// rows the batches before ran (totals.wgsl's `batch`).
     list_len: wgpu::Buffer,
+    /// The network's dispatch.
     dispatch: wgpu::Buffer,
 }
 
@@ -59,9 +61,7 @@ impl Recording<'_, '_> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         gpu.can_run(mlp)?;
         let p = &gpu.pipelines;
-        let layout = budget::DKB
-            .for_network(mlp)
-            .with_record_batches(passes.opts.record_batches);
+        let layout = passes.opts.dkb_layout(mlp);
         let importance = self.pixel_word(Word::Written)?;
         let fb = &mut self.fb;
         let totals = fb.storage("features.totals", 24, true)?;
@@ -233,47 +233,39 @@ impl Recording<'_, '_> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
         let (gx, gy) = grid(px as u32, PIXEL_GROUP);
-        match batch {
+        // The first batch assigns every record; each after it empties its own and moves the
+        // batch on (totals.wgsl).
+        let mut bound = vec![
+            (0, passes.params()),
+            (1, &b.counts),
+            (6, &b.importance),
+            (7, &b.pool),
+            (8, &b.list_len),
+        ];
+        let steps = match batch {
             0 => {
-                let group = gpu.bind_at(
-                    &p.assign_records.get_bind_group_layout(0),
-                    &[
-                        (0, passes.params()),
-                        (1, &b.counts),
-                        (2, &b.totals),
-                        (6, &b.importance),
-                        (7, &b.pool),
-                        (8, &b.list_len),
-                    ],
-                );
-                passes.compute(&mut self.enc, "records", |pass| {
-                    pass.set_pipeline(&p.assign_records);
-                    pass.set_bind_group(0, &group, &[]);
-                    pass.dispatch_workgroups(gx, gy, 1);
-                });
+                bound.push((2, &b.totals));
+                vec![(&p.assign_records, bound, (gx, gy))]
             }
-            _ => {
-                let group = gpu.bind_at(
-                    &p.init_records.get_bind_group_layout(0),
-                    &[
-                        (0, passes.params()),
-                        (1, &b.counts),
-                        (6, &b.importance),
-                        (7, &b.pool),
-                        (8, &b.list_len),
-                    ],
-                );
-                let next = gpu.bind_at(&p.next_batch.get_bind_group_layout(0), &[(8, &b.list_len)]);
-                passes.compute(&mut self.enc, "records", |pass| {
-                    pass.set_pipeline(&p.init_records);
-                    pass.set_bind_group(0, &group, &[]);
-                    pass.dispatch_workgroups(gx, gy, 1);
-                    pass.set_pipeline(&p.next_batch);
-                    pass.set_bind_group(0, &next, &[]);
-                    pass.dispatch_workgroups(1, 1, 1);
-                });
+            _ => vec![
+                (&p.init_records, bound, (gx, gy)),
+                (&p.next_batch, vec![(8, &b.list_len)], (1, 1)),
+            ],
+        };
+        let steps: Vec<_> = steps
+            .into_iter()
+            .map(|(pipeline, bound, grid)| {
+                let group = gpu.bind_at(&pipeline.get_bind_group_layout(0), &bound);
+                (pipeline, group, grid)
+            })
+            .collect();
+        passes.compute(&mut self.enc, "records", |pass| {
+            for (pipeline, group, (x, y)) in &steps {
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(*x, *y, 1);
             }
-        }
+        });
         let features = if self.passes.opts.features_preload {
             &p.features
         } else {

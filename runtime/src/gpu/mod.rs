@@ -266,6 +266,15 @@ impl Default for FrameOptions {
 }
 
 impl FrameOptions {
+    /// DKB's buffers for `mlp` as these options' frames create them: the network's own bytes
+    /// ([`budget::Layout::for_network`]) and its records in at most
+    /// [`FrameOptions::record_batches`] batches.
+    pub fn dkb_layout(&self, mlp: &crate::mlp::Mlp) -> budget::Layout {
+        budget::DKB
+            .for_network(mlp)
+            .with_record_batches(self.record_batches)
+    }
+
     /// These options with [`FrameOptions::exact_when_cheaper`] off: a DKB or VKB frame runs its
     /// method at any budget (as [`crate::frame::Options::always_approximate`] on the CPU).
     pub fn always_approximate(self) -> FrameOptions {
@@ -933,12 +942,7 @@ impl Recording<'_, '_> {
     ) -> Result<Option<wgpu::Buffer>> {
         let (method, layout) = match s {
             _ if !self.passes.opts.exact_when_cheaper => return Ok(None),
-            Slots::Dkb(mlp, _) => (
-                Method::Dkb,
-                budget::DKB
-                    .for_network(mlp)
-                    .with_record_batches(self.passes.opts.record_batches),
-            ),
+            Slots::Dkb(mlp, _) => (Method::Dkb, self.passes.opts.dkb_layout(mlp)),
             Slots::Vkb(..) => (Method::Vkb, budget::VKB),
             _ => return Ok(None),
         };
