@@ -73,7 +73,8 @@ enum Command {
     Bench(bench::BenchArgs),
     /// The speed-accuracy trade: networks of several sizes (the default and those shipped in
     /// data/nets/) on scenes, importance-pass time and weights' bytes against MSE and FLIP,
-    /// the Pareto front marked; trade.json, trade.md and plots.
+    /// the Pareto front marked, and each network against VKB at equal bytes (its weights
+    /// counted in the memory both get); trade.json, trade.md and plots.
     Trade(trade::TradeArgs),
     /// Every OIT method at equal bytes (the A-buffer, FKB, VKB, DKB, WBOIT, MBOIT, the budgeted
     /// linked list): GPU frame time against MSE and FLIP, one chart a budget, the Pareto front

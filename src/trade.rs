@@ -6,7 +6,7 @@ use crate::args::{ViewArgs, check_view, default_weights, load_scene, load_scenes
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use dhoit_runtime::budget::Budget;
-use dhoit_runtime::frame::{Method, Options, Renderer};
+use dhoit_runtime::frame::{Equal, Method, Options, Renderer};
 use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::{self, Mlp, Precision};
 use dhoit_runtime::raster::Resolution;
@@ -195,13 +195,28 @@ pub struct Measure {
     pub flip: f64,
     pub optimal_mse: f64,
     pub vkb_mse: f64,
+    /// At equal bytes (`trade` only): M, what DKB with this network spends on the frame at the
+    /// budget (its weights counted; the exact A-buffer's bytes where those are no more,
+    /// [`Renderer::budget`]), the one memory both methods get.
+    pub bytes: Option<u64>,
+    /// The exact A-buffer's bytes for the frame (M never exceeds them).
+    pub abuffer_bytes: u64,
+    /// DKB's MSE at M (exact where M holds every fragment).
+    pub bytes_mse: Option<f64>,
+    /// VKB's MSE at the same M: its F is what M leaves it once its own layout is paid, so a
+    /// network's weights are slots VKB gets and DKB does not. None where VKB's layout does not
+    /// fit in M.
+    pub bytes_vkb_mse: Option<f64>,
 }
 
-/// Every network's images on every view and budget of one scene.
+/// Every network's images on every view and budget of one scene: at equal F (every network's
+/// slots those of the budget) and, with `equal_bytes`, at equal bytes as well (DKB and VKB in
+/// the memory DKB spends with that network: [`at_equal_bytes`]).
 fn quality(
     s: &scene::Scene,
     q: &QualityArgs,
     nets: &[Net],
+    equal_bytes: bool,
     pb: &ProgressBar,
 ) -> Result<Vec<Vec<Measure>>> {
     let budgets = &q.budgets;
@@ -226,6 +241,10 @@ fn quality(
                 let f = Renderer::new(&fl, opts).render(Method::Dkb)?;
                 let (flip, _) =
                     image_io::flip(&exact8, &image_io::to_srgb8(&f.image), fl.width, fl.height);
+                let (bytes, bytes_mse, bytes_vkb_mse) = match equal_bytes {
+                    true => at_equal_bytes(&fl, *b, q.common.background, &n.mlp, &exact.image)?,
+                    false => (None, None, None),
+                };
                 out[i].push(Measure {
                     view,
                     budget: b.to_string(),
@@ -235,12 +254,42 @@ fn quality(
                     flip,
                     optimal_mse: optimal.image.mse(&exact.image),
                     vkb_mse: vkb.image.mse(&exact.image),
+                    bytes,
+                    abuffer_bytes: exact.allocated_bytes,
+                    bytes_mse,
+                    bytes_vkb_mse,
                 });
             }
             pb.inc(1);
         }
     }
     Ok(out)
+}
+
+/// DKB with `mlp` and VKB at equal bytes on one frame, as `compare --equal bytes` renders
+/// them: M (what DKB spends at `budget` with this network's weights, or the exact A-buffer's
+/// bytes where those are no more), DKB's MSE at M and VKB's (None where its layout does not
+/// fit M: a refusal, not an error).
+fn at_equal_bytes(
+    fl: &dhoit_runtime::fragment::FragmentLists,
+    budget: Budget,
+    background: [f32; 3],
+    mlp: &Mlp,
+    exact: &dhoit_runtime::composite::Image,
+) -> Result<(Option<u64>, Option<f64>, Option<f64>)> {
+    let opts = Options {
+        weights: Some(mlp),
+        equal: Equal::Bytes,
+        ..Options::new(budget, background)
+    };
+    let r = Renderer::new(fl, opts);
+    let dkb = r.render(Method::Dkb)?;
+    let vkb = match r.render(Method::Vkb) {
+        Ok(v) => Some(v.image.mse(exact)),
+        Err(dhoit_runtime::Error::Budget(..)) => None,
+        Err(e) => return Err(e.into()),
+    };
+    Ok((Some(dkb.budget_bytes), Some(dkb.image.mse(exact)), vkb))
 }
 
 const FLOOR: f64 = crate::compare::MSE_FLOOR;
@@ -258,6 +307,18 @@ fn over_optimal(m: &[Measure]) -> f64 {
 /// Geometric mean of MSE / VKB's over the frames that count.
 fn over_vkb(m: &[Measure]) -> f64 {
     geomean(counted(m).map(|x| x.mse.max(FLOOR) / x.vkb_mse.max(FLOOR)))
+}
+
+/// Geometric mean of DKB's MSE / VKB's at equal bytes over the frames that count and VKB
+/// runs in (1 where there are none).
+fn over_vkb_at_equal_bytes(m: &[Measure]) -> f64 {
+    let ratios: Vec<f64> = counted(m)
+        .filter_map(|x| Some(x.bytes_mse?.max(FLOOR) / x.bytes_vkb_mse?.max(FLOOR)))
+        .collect();
+    match ratios.is_empty() {
+        true => 1.0,
+        false => geomean(ratios),
+    }
 }
 
 /// The frames that tell allocations apart (budget below the frame's fragments).
@@ -284,6 +345,11 @@ pub struct Point {
     /// below their fragments.
     pub mse_over_optimal: f64,
     pub mse_over_vkb: f64,
+    /// Geometric mean of DKB's MSE / VKB's at equal bytes (M what DKB spends with this network,
+    /// its weights counted: [`Measure::bytes`]), over the frames that count and VKB fits.
+    pub mse_over_vkb_equal_bytes: f64,
+    /// Mean of M over the exact A-buffer's bytes, over every frame.
+    pub bytes_over_abuffer: f64,
     pub front: bool,
     pub frames: Vec<Measure>,
 }
@@ -300,9 +366,20 @@ fn point(n: &Net, time_ms: f64, m: Vec<Measure>) -> Point {
         flip: m.iter().map(|x| x.flip).sum::<f64>() / m.len().max(1) as f64,
         mse_over_optimal: over_optimal(&m),
         mse_over_vkb: over_vkb(&m),
+        mse_over_vkb_equal_bytes: over_vkb_at_equal_bytes(&m),
+        bytes_over_abuffer: bytes_over_abuffer(&m),
         front: false,
         frames: m,
     }
+}
+
+/// Mean of M over the exact A-buffer's bytes (0 where no frame was measured at equal bytes).
+fn bytes_over_abuffer(m: &[Measure]) -> f64 {
+    let r: Vec<f64> = m
+        .iter()
+        .filter_map(|x| Some(x.bytes? as f64 / x.abuffer_bytes.max(1) as f64))
+        .collect();
+    r.iter().sum::<f64>() / r.len().max(1) as f64
 }
 
 /// Marks the points no other point dominates (as fast or faster, weights as small or smaller,
@@ -467,7 +544,7 @@ pub fn trade(a: TradeArgs) -> Result<()> {
     let pb = bar(steps as u64, "frames");
     let mut scenes = Vec::new();
     for (name, s) in a.scenes.iter().zip(loaded) {
-        let measures = quality(&s, &a.quality, &nets, &pb)?;
+        let measures = quality(&s, &a.quality, &nets, true, &pb)?;
         let frame = timer.frame(&s, time_res, first_budget)?;
         let mut points = Vec::new();
         for (n, m) in nets.iter().zip(measures) {
@@ -498,6 +575,8 @@ pub fn trade(a: TradeArgs) -> Result<()> {
                 p.flip = all.iter().map(|p| p.flip).sum::<f64>() / all.len() as f64;
                 p.mse_over_optimal = over_optimal(&frames);
                 p.mse_over_vkb = over_vkb(&frames);
+                p.mse_over_vkb_equal_bytes = over_vkb_at_equal_bytes(&frames);
+                p.bytes_over_abuffer = bytes_over_abuffer(&frames);
                 p.frames = Vec::new();
                 p
             })
@@ -602,14 +681,14 @@ pub fn trade(a: TradeArgs) -> Result<()> {
 fn tables(r: &Report) -> (String, String) {
     let mut text = String::new();
     let mut md = format!(
-        "# dhoit: the speed-accuracy trade\n\nImportance pass timed by {} at {}; quality at {} on views {:?}, budgets {} (MSE: geometric mean; FLIP: mean; ratios over the frames whose budget is below their fragments). Weights: the network's bytes on the GPU at that precision, counted in DKB's memory. `*`: on the Pareto front (time, weights, MSE, FLIP). Generated by `dhoit trade` (`make trade`).\n",
+        "# dhoit: the speed-accuracy trade\n\nImportance pass timed by {} at {}; quality at {} on views {:?}, budgets {} (MSE: geometric mean; FLIP: mean; ratios over the frames whose budget is below their fragments). Weights: the network's bytes on the GPU at that precision, counted in DKB's memory. MSE, FLIP and the first two ratios at equal F (every network the budget's slots); `MSE / VKB, equal bytes`: DKB with that network and VKB in one memory M, what DKB spends with those weights (the exact A-buffer's bytes where those are no more), so the weights' bytes are slots VKB gets and DKB does not (frames whose budget is below their fragments and VKB fits M); `M / A-buffer`: M over the exact A-buffer's bytes, mean over frames. `*`: on the Pareto front (time, weights, MSE, FLIP). Generated by `dhoit trade` (`make trade`).\n",
         r.timing,
         r.time_resolution,
         r.resolution,
         r.views,
         r.budgets.join(", ")
     );
-    const HEAD: [&str; 10] = [
+    const HEAD: [&str; 12] = [
         "network",
         "precision",
         "parameters",
@@ -619,6 +698,8 @@ fn tables(r: &Report) -> (String, String) {
         "FLIP",
         "MSE / optimal",
         "MSE / VKB",
+        "MSE / VKB, equal bytes",
+        "M / A-buffer",
         "front",
     ];
     for s in &r.scenes {
@@ -636,6 +717,8 @@ fn tables(r: &Report) -> (String, String) {
                     format!("{:.4}", p.flip),
                     format!("{:.3}", p.mse_over_optimal),
                     format!("{:.3}", p.mse_over_vkb),
+                    format!("{:.3}", p.mse_over_vkb_equal_bytes),
+                    format!("{:.3}", p.bytes_over_abuffer),
                     if p.front { "*" } else { "" }.to_string(),
                 ]
             })
@@ -669,7 +752,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
     let pb = bar(steps as u64, "frames");
     let s = load_scene(&a.scene, &a.quality.common)?;
     dhoit_runtime::tensors::create_parent(&a.out)?;
-    let measures = quality(&s, &a.quality, &nets, &pb)?;
+    let measures = quality(&s, &a.quality, &nets, false, &pb)?;
     pb.finish_and_clear();
     let mut chosen = None;
     for (n, m) in nets.iter().zip(&measures) {

@@ -1122,6 +1122,121 @@ fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_fewes
     assert!(!never.exists());
 }
 
+/// `dhoit trade` measures each network against VKB at equal bytes with its own weights in the
+/// memory: on a frame whose M is below the exact A-buffer's bytes, two networks' M differ by
+/// exactly their weights' bytes (by hand: the same F, the same pool, only the uniform differs),
+/// M never exceeds the A-buffer's bytes, and DKB's and VKB's MSE at M are what `compare --equal
+/// bytes` renders with that network.
+#[test]
+fn trade_at_equal_bytes_counts_each_network_s_weights_in_the_memory_both_methods_get() {
+    let dir = temp_dir("cli-trade-bytes");
+    let small = dir.join("small.safetensors");
+    let large = dir.join("large.safetensors");
+    Mlp::random_sized(3, 16, 8)
+        .save(&small, &Default::default())
+        .unwrap();
+    Mlp::random_sized(4, 32, 16)
+        .save(&large, &Default::default())
+        .unwrap();
+    let out = dir.join("out");
+    let args = ["--scene", "spheres", "--res", "64x48", "--view", "1"];
+    let o = dhoit(
+        &[
+            &["trade"][..],
+            &args,
+            &[
+                "--budget",
+                "10%,25%,50%",
+                "--networks",
+                &format!("{},{}", large.display(), small.display()),
+                "--timing",
+                "cpu",
+                "--repeat",
+                "1",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("trade.json")).unwrap()).unwrap();
+    let points = r["scenes"][0]["points"].as_array().unwrap();
+    let by_net = |net: &str| {
+        points
+            .iter()
+            .find(|p| p["network"] == net)
+            .unwrap_or_else(|| panic!("no {net} in {points:?}"))
+    };
+    let (p16, p32) = (by_net("16-8"), by_net("32-16"));
+    let weights = |p: &serde_json::Value| p["weight_bytes"].as_u64().unwrap();
+    assert_eq!((weights(p16), weights(p32)), (1_536, 3_968));
+    let frames = |p: &serde_json::Value| p["frames"].as_array().unwrap().clone();
+    let mut below = 0;
+    for (f16, f32) in frames(p16).iter().zip(&frames(p32)) {
+        assert_eq!(f16["budget"], f32["budget"]);
+        let a = f16["abuffer_bytes"].as_u64().unwrap();
+        let (m16, m32) = (
+            f16["bytes"].as_u64().unwrap(),
+            f32["bytes"].as_u64().unwrap(),
+        );
+        assert!(
+            m16 <= a && m32 <= a,
+            "M above the A-buffer's {a}: {m16}, {m32}"
+        );
+        if m32 < a {
+            below += 1;
+            assert_eq!(m32 - m16, 3_968 - 1_536, "{}", f16["budget"]);
+        }
+        for f in [f16, f32] {
+            let mse = f["bytes_mse"].as_f64().unwrap();
+            assert!(mse.is_finite() && mse >= 0.0);
+        }
+    }
+    assert!(
+        below > 0,
+        "no frame below the A-buffer's bytes: nothing held"
+    );
+    let ratio = p32["mse_over_vkb_equal_bytes"].as_f64().unwrap();
+    assert!(ratio.is_finite() && ratio > 0.0);
+    // The same frames through compare, with the large network.
+    let cmp = dir.join("cmp");
+    let o = dhoit(
+        &[
+            &["compare"][..],
+            &args,
+            &[
+                "--budget",
+                "10%,25%,50%",
+                "--equal",
+                "bytes",
+                "--methods",
+                "vkb,dkb",
+                "--weights",
+                large.to_str().unwrap(),
+                "--no-images",
+                "--out",
+                cmp.to_str().unwrap(),
+            ],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows: Vec<serde_json::Value> =
+        serde_json::from_slice(&std::fs::read(cmp.join("report.json")).unwrap()).unwrap();
+    for f in frames(p32) {
+        let row = |m: &str| {
+            rows.iter()
+                .find(|r| r["method"] == m && r["budget"] == f["budget"])
+                .unwrap_or_else(|| panic!("compare has no {m} at {}", f["budget"]))
+        };
+        assert_eq!(row("dkb")["budget_bytes"], f["bytes"], "{}", f["budget"]);
+        assert_eq!(row("dkb")["mse"], f["bytes_mse"], "{}", f["budget"]);
+        assert_eq!(row("vkb")["mse"], f["bytes_vkb_mse"], "{}", f["budget"]);
+    }
+}
+
 /// `dhoit versus` measures every method at one memory: a method whose memory does not fit in M
 /// does not run there, a k-buffer at the A-buffer's own bytes renders it exactly, every method
 /// that ran every frame and is not on the front is dominated by one that is, and each memory
