@@ -92,15 +92,18 @@ trade: build
 
 ## Every OIT method at equal bytes (the A-buffer, FKB, VKB, DKB, WBOIT, MBOIT, the budgeted
 ## linked list) on the evaluation scenes at one opacity, one memory M for all (0.25 to 1 times
-## each frame's exact A-buffer bytes): GPU frame time (timestamps on the adapter at hand)
-## against MSE and FLIP, one chart a memory, the Pareto front marked ->
+## each frame's exact A-buffer bytes), DKB with the default network and with each shipped in
+## data/nets/ (all at f16, each network's weights in its memory): GPU frame time (timestamps
+## on the adapter at hand) against MSE and FLIP, one chart a memory, the Pareto front marked ->
 ## docs/versus.md, docs/versus.json, docs/versus_*.svg/png.
 versus: build
 	@scenes="$(EVAL_BUILTIN)"; \
 	if [ -d "$(DHOIT_SCENES)" ]; then \
 	  for f in $(EVAL_REAL); do scenes="$$scenes,$(DHOIT_SCENES)/$$f"; done; \
 	else echo "versus: no real scenes at $(DHOIT_SCENES): the built-in scenes only" >&2; fi; \
-	$(RUN) versus --scene "$$scenes" --view 1 --res 320x240 --memory 0.25,0.5,0.75,1 --opacity 0.33 --out out/versus --summary docs
+	$(RUN) versus --scene "$$scenes" --view 1 --res 320x240 --memory 0.25,0.5,0.75,1 --opacity 0.33 \
+	  --networks $$(echo $(NETS) | tr ' ,' '\n-' | sed 's|.*|data/nets/&/weights.safetensors|' | paste -sd,) --precision f16 \
+	  --out out/versus --summary docs
 
 ## Long structured fuzzing of every file parser (glTF/GLB, weights, features, dumps): the
 ## property tests of tests/fuzz.rs with FUZZ_CASES mutated inputs each (CI runs 128). Keep

@@ -10,6 +10,7 @@ use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::frame::{Method, Options, Renderer};
 use dhoit_runtime::gpu::{FrameOptions, Gpu, Slots};
 use dhoit_runtime::image_io;
+use dhoit_runtime::mlp::Mlp;
 use dhoit_train::cli::bar;
 use dhoit_train::plot::{self, TradePoint};
 use serde::Serialize;
@@ -44,6 +45,17 @@ pub struct VersusArgs {
         default_value = "abuffer,fkb,vkb,dkb,wboit,mboit,linked-list"
     )]
     methods: Vec<String>,
+    /// More networks for DKB beside its weights (--weights, or the default ones), comma
+    /// separated weights files: each runs as its own entry, `dkb H1-H2` (the shipped ones are
+    /// data/nets/*/weights.safetensors), in the same M, its weights counted in its memory, so
+    /// the chart shows what a network's size costs in time, bytes and error beside the other
+    /// methods.
+    #[arg(long, value_delimiter = ',')]
+    networks: Vec<PathBuf>,
+    /// The precision every network DKB runs is deployed at (f32, f16, f16-math); by default
+    /// each file's own (the default weights say f16).
+    #[arg(long)]
+    precision: Option<dhoit_runtime::mlp::Precision>,
     /// Timed repetitions of each GPU frame; the fastest is kept.
     #[arg(long, default_value_t = 3, value_parser = parse_repeat)]
     repeat: usize,
@@ -128,14 +140,63 @@ pub fn front(keys: &[[f64; 3]]) -> Vec<bool> {
         .collect()
 }
 
+/// One entry of the chart: a method, and for DKB the network it runs (`dkb` with its weights,
+/// `dkb H1-H2` with each of --networks).
+struct Entry {
+    method: Method,
+    label: String,
+    weights: Option<Mlp>,
+}
+
+/// The methods asked for, in order, DKB once for its weights and once for each of --networks
+/// (right after it, or alone where --networks is given without dkb among the methods).
+fn entries(a: &VersusArgs, methods: &[Method]) -> Result<Vec<Entry>> {
+    let dkb = methods.contains(&Method::Dkb) || !a.networks.is_empty();
+    let weights = load_weights(&a.common, a.precision, dkb)?;
+    let mut extra = Vec::new();
+    for p in &a.networks {
+        let m = Mlp::load(p)?;
+        let m = match a.precision {
+            Some(pr) => m.at_precision(pr)?,
+            None => m,
+        };
+        let label = format!("dkb {}-{}", m.h1, m.h2);
+        if extra.iter().any(|e: &Entry| e.label == label) {
+            bail!(
+                "--networks: two networks of {}-{}: versus labels DKB's networks by their sizes",
+                m.h1,
+                m.h2
+            );
+        }
+        extra.push(Entry {
+            method: Method::Dkb,
+            label,
+            weights: Some(m),
+        });
+    }
+    let mut out = Vec::new();
+    for &m in methods {
+        out.push(Entry {
+            method: m,
+            label: m.name().to_string(),
+            weights: weights.clone(),
+        });
+        if m == Method::Dkb {
+            out.append(&mut extra);
+        }
+    }
+    out.append(&mut extra);
+    Ok(out)
+}
+
 pub fn run(a: VersusArgs) -> Result<()> {
     let methods = checked_methods(&a)?;
-    let weights = load_weights(&a.common, None, methods.contains(&Method::Dkb))?;
+    let entries = entries(&a, &methods)?;
     let loaded = load_scenes(&a.scenes, &a.common)?;
     let gpu = Gpu::new().context("versus times every method's GPU frame")?;
     eprintln!("versus: GPU frames timed on {}", gpu.adapter());
     dhoit_runtime::tensors::create_folder(&a.out)?;
-    let measures = measure(&a, &methods, &loaded, weights.as_ref(), &gpu)?;
+    let measures = measure(&a, &entries, &loaded, &gpu)?;
     let frames = a.scenes.len() * a.view_list.len();
     let report = Report {
         adapter: gpu.adapter().to_string(),
@@ -146,7 +207,7 @@ pub fn run(a: VersusArgs) -> Result<()> {
             .memories
             .iter()
             .zip(&measures)
-            .map(|(&x, at_x)| trade_at(x, &methods, at_x, frames))
+            .map(|(&x, at_x)| trade_at(x, &entries, at_x, frames))
             .collect(),
     };
     write_outputs(&a, &report)
@@ -176,16 +237,15 @@ fn checked_methods(a: &VersusArgs) -> Result<Vec<Method>> {
 /// follow the budget, exceeds M does not run there).
 fn measure(
     a: &VersusArgs,
-    methods: &[Method],
+    entries: &[Entry],
     loaded: &[dhoit_runtime::scene::Scene],
-    weights: Option<&dhoit_runtime::mlp::Mlp>,
     gpu: &Gpu,
 ) -> Result<Vec<Vec<Vec<Measure>>>> {
     let pb = bar(
         (loaded.len() * a.view_list.len() * a.memories.len()) as u64,
         "frames",
     );
-    let mut measures = vec![vec![Vec::new(); methods.len()]; a.memories.len()];
+    let mut measures = vec![vec![Vec::new(); entries.len()]; a.memories.len()];
     let frame_opts = FrameOptions {
         diagnostics: false,
         // The GPU's frames are timed with the records' batches the CPU counts bytes for.
@@ -203,10 +263,7 @@ fn measure(
             for (bi, &x) in a.memories.iter().enumerate() {
                 let m_bytes = (x * exact_bytes as f64).floor() as u64;
                 let opts = a.params.apply(
-                    Options {
-                        weights,
-                        ..Options::new(Budget::Bytes(m_bytes), a.common.background)
-                    },
+                    Options::new(Budget::Bytes(m_bytes), a.common.background),
                     &cam,
                 );
                 let r = Renderer::new(&fl, opts);
@@ -220,9 +277,17 @@ fn measure(
                     ..opts
                 };
                 let r_mboit = Renderer::new(&fl, mboit_opts);
-                for (mi, &m) in methods.iter().enumerate() {
+                for (mi, e) in entries.iter().enumerate() {
+                    let m = e.method;
+                    // DKB with the entry's network: its own weights in its layout.
+                    let dkb_opts = Options {
+                        weights: e.weights.as_ref(),
+                        ..opts
+                    };
+                    let r_dkb = Renderer::new(&fl, dkb_opts);
                     let (r, opts) = match m {
                         Method::Mboit => (&r_mboit, mboit_opts),
+                        Method::Dkb => (&r_dkb, dkb_opts),
                         _ => (&r, opts),
                     };
                     let cpu = match r.allocate(m) {
@@ -278,15 +343,15 @@ fn means(frames: &[Measure]) -> [f64; 3] {
     ]
 }
 
-fn trade_at(x: f64, methods: &[Method], at_x: &[Vec<Measure>], frames: usize) -> BudgetTrade {
-    let mut points: Vec<Point> = methods
+fn trade_at(x: f64, entries: &[Entry], at_x: &[Vec<Measure>], frames: usize) -> BudgetTrade {
+    let mut points: Vec<Point> = entries
         .iter()
         .zip(at_x)
         .filter(|(_, fr)| !fr.is_empty())
-        .map(|(m, fr)| {
+        .map(|(e, fr)| {
             let [gpu_ms, mse, flip] = means(fr);
             Point {
-                method: m.name().to_string(),
+                method: e.label.clone(),
                 gpu_ms,
                 mse,
                 flip,
@@ -479,7 +544,9 @@ fn table(r: &Report) -> String {
          timed on {}: one memory M for every method, a multiple of each frame's exact A-buffer \
          bytes (each method's own F, moments or targets from its own layout; a method whose \
          memory does not fit in M does not run there: *frames* counts where it did), a \
-         k-buffer rendering the exact A-buffer where that is no dearer. Geometric means over \
+         k-buffer rendering the exact A-buffer where that is no dearer; `dkb` runs its default \
+         network, `dkb H1-H2` each other network given (`--networks`), each network's weights \
+         in its memory. Geometric means over \
          the frames a method ran (MSE against the exact A-buffer, floored at {:e}; FLIP its \
          mean); *front*: no other method that ran every frame is as fast and as accurate in \
          MSE and FLIP over the means (n/a: it ran fewer); *front frames*: the frames on which \

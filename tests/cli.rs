@@ -1237,6 +1237,91 @@ fn trade_at_equal_bytes_counts_each_network_s_weights_in_the_memory_both_methods
     }
 }
 
+/// `dhoit versus --networks` runs DKB once for each network, each with its own weights in the
+/// same M: labelled by its sizes after DKB's own, exact where M holds the A-buffer, and (two
+/// random networks, two allocations) not the same image below it; two networks of one size,
+/// or a missing file, are refused with what is wrong.
+#[test]
+fn versus_runs_dkb_once_for_each_network_with_its_own_weights_in_the_memory() {
+    if skip_gpu("versus times GPU frames") {
+        return;
+    }
+    let dir = temp_dir("cli-versus-nets");
+    let small = dir.join("small.safetensors");
+    let large = dir.join("large.safetensors");
+    Mlp::random_sized(3, 16, 8)
+        .save(&small, &Default::default())
+        .unwrap();
+    Mlp::random_sized(4, 32, 16)
+        .save(&large, &Default::default())
+        .unwrap();
+    let out = dir.join("out");
+    let run = |networks: &str| {
+        dhoit(&[
+            "versus",
+            "--scene",
+            "particles",
+            "--res",
+            "64x48",
+            "--opacity",
+            "0.33",
+            "--memory",
+            "0.5,1",
+            "--methods",
+            "vkb,dkb",
+            "--repeat",
+            "1",
+            "--weights",
+            large.to_str().unwrap(),
+            "--networks",
+            networks,
+            "--precision",
+            "f16",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    let o = run(small.to_str().unwrap());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("versus.json")).unwrap()).unwrap();
+    for b in r["budgets"].as_array().unwrap() {
+        let points = b["points"].as_array().unwrap();
+        let labels: Vec<&str> = points
+            .iter()
+            .map(|p| p["method"].as_str().unwrap())
+            .collect();
+        assert_eq!(labels, ["vkb", "dkb", "dkb 16-8"], "{}", b["budget"]);
+        let mse = |i: usize| points[i]["frames"][0]["mse"].as_f64().unwrap();
+        if b["memory"].as_f64() == Some(1.0) {
+            for p in &points[1..] {
+                assert_eq!(p["frames"][0]["exact"], true, "{}", p["method"]);
+            }
+            assert_eq!((mse(1), mse(2)), (0.0, 0.0));
+        } else {
+            assert_eq!(points[1]["frames"][0]["exact"], false);
+            assert_ne!(
+                mse(1),
+                mse(2),
+                "two networks, one image: one network ran twice"
+            );
+        }
+    }
+    assert!(
+        std::fs::read_to_string(out.join("versus.md"))
+            .unwrap()
+            .contains("| dkb 16-8 |")
+    );
+    let twice = format!("{},{}", small.display(), small.display());
+    let o = run(&twice);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("two networks of 16-8"));
+    let missing = dir.join("missing.safetensors");
+    let o = run(missing.to_str().unwrap());
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("missing.safetensors"));
+}
+
 /// `dhoit versus` measures every method at one memory: a method whose memory does not fit in M
 /// does not run there, a k-buffer at the A-buffer's own bytes renders it exactly, every method
 /// that ran every frame and is not on the front is dominated by one that is, and each memory
