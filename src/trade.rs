@@ -310,14 +310,24 @@ fn over_vkb(m: &[Measure]) -> f64 {
 }
 
 /// Geometric mean of DKB's MSE / VKB's at equal bytes over the frames that count and VKB
-/// runs in (1 where there are none).
+/// runs in (NaN where there are none, as for the other ratios: `-` in the tables, null in
+/// the JSON).
 fn over_vkb_at_equal_bytes(m: &[Measure]) -> f64 {
     let ratios: Vec<f64> = counted(m)
         .filter_map(|x| Some(x.bytes_mse?.max(FLOOR) / x.bytes_vkb_mse?.max(FLOOR)))
         .collect();
     match ratios.is_empty() {
-        true => 1.0,
+        true => f64::NAN,
         false => geomean(ratios),
+    }
+}
+
+/// A ratio for the tables: `-` where no frame counted (every budget held the scene's
+/// fragments, so no allocation is told apart).
+fn ratio_cell(x: f64) -> String {
+    match x.is_finite() {
+        true => format!("{x:.3}"),
+        false => "-".into(),
     }
 }
 
@@ -715,9 +725,9 @@ fn tables(r: &Report) -> (String, String) {
                     format!("{:.3}", p.time_ms),
                     format!("{:.3e}", p.mse),
                     format!("{:.4}", p.flip),
-                    format!("{:.3}", p.mse_over_optimal),
-                    format!("{:.3}", p.mse_over_vkb),
-                    format!("{:.3}", p.mse_over_vkb_equal_bytes),
+                    ratio_cell(p.mse_over_optimal),
+                    ratio_cell(p.mse_over_vkb),
+                    ratio_cell(p.mse_over_vkb_equal_bytes),
                     format!("{:.3}", p.bytes_over_abuffer),
                     if p.front { "*" } else { "" }.to_string(),
                 ]

@@ -1235,6 +1235,41 @@ fn trade_at_equal_bytes_counts_each_network_s_weights_in_the_memory_both_methods
         assert_eq!(row("dkb")["mse"], f["bytes_mse"], "{}", f["budget"]);
         assert_eq!(row("vkb")["mse"], f["bytes_vkb_mse"], "{}", f["budget"]);
     }
+    // A budget that holds every fragment tells no allocation apart: no ratio (null, `-`).
+    let all = dir.join("all");
+    let o = dhoit(
+        &[
+            &["trade"][..],
+            &args,
+            &[
+                "--budget",
+                "100%",
+                "--networks",
+                small.to_str().unwrap(),
+                "--timing",
+                "cpu",
+                "--repeat",
+                "1",
+                "--out",
+                all.to_str().unwrap(),
+            ],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(all.join("trade.json")).unwrap()).unwrap();
+    let p = &r["scenes"][0]["points"][0];
+    for k in [
+        "mse_over_optimal",
+        "mse_over_vkb",
+        "mse_over_vkb_equal_bytes",
+    ] {
+        assert!(p[k].is_null(), "{k}: {}", p[k]);
+    }
+    assert_eq!(p["bytes_over_abuffer"], 1.0);
+    let md = std::fs::read_to_string(all.join("trade.md")).unwrap();
+    assert!(md.contains("| - | - | - | 1.000 |"), "{md}");
 }
 
 /// `dhoit versus --networks` runs DKB once for each network, each with its own weights in the
