@@ -7,7 +7,7 @@ use dhoit_runtime::frame::{self, Method, Options};
 use dhoit_runtime::mlp::{Mlp, Precision};
 use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::{self, Camera, Opacity};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 #[test]
 fn the_dump_round_trips() {
@@ -952,13 +952,8 @@ fn fine_tuning_on_a_scene_beats_the_default_on_its_held_out_views() {
     }
 }
 
-/// `dhoit trade` reports every network, precision and budget asked for, each with its weights'
-/// bytes, with a front that no point dominates in time, bytes, MSE and FLIP; `dhoit fit` picks
-/// the network and precision with the fewest bytes that meets the target, records the
-/// precision in the file it writes, and writes nothing when none does.
-#[test]
-fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_fewest_bytes() {
-    let dir = temp_dir("cli-trade");
+/// Two random networks of other sizes in `dir`, a 16-8 and a 32-16: (small, large).
+fn two_networks(dir: &Path) -> (PathBuf, PathBuf) {
     let small = dir.join("small.safetensors");
     let large = dir.join("large.safetensors");
     Mlp::random_sized(3, 16, 8)
@@ -967,6 +962,17 @@ fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_fewes
     Mlp::random_sized(4, 32, 16)
         .save(&large, &Default::default())
         .unwrap();
+    (small, large)
+}
+
+/// `dhoit trade` reports every network, precision and budget asked for, each with its weights'
+/// bytes, with a front that no point dominates in time, bytes, MSE and FLIP; `dhoit fit` picks
+/// the network and precision with the fewest bytes that meets the target, records the
+/// precision in the file it writes, and writes nothing when none does.
+#[test]
+fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_fewest_bytes() {
+    let dir = temp_dir("cli-trade");
+    let (small, large) = two_networks(&dir);
     let nets = format!("{},{}", large.display(), small.display());
     let timing = if skip_gpu("trade timed on the GPU (timed on the CPU instead)") {
         "cpu"
@@ -1130,38 +1136,37 @@ fn trade_reports_every_network_and_a_non_dominated_front_and_fit_picks_the_fewes
 #[test]
 fn trade_at_equal_bytes_counts_each_network_s_weights_in_the_memory_both_methods_get() {
     let dir = temp_dir("cli-trade-bytes");
-    let small = dir.join("small.safetensors");
-    let large = dir.join("large.safetensors");
-    Mlp::random_sized(3, 16, 8)
-        .save(&small, &Default::default())
-        .unwrap();
-    Mlp::random_sized(4, 32, 16)
-        .save(&large, &Default::default())
-        .unwrap();
-    let out = dir.join("out");
+    let (small, large) = two_networks(&dir);
     let args = ["--scene", "spheres", "--res", "64x48", "--view", "1"];
-    let o = dhoit(
-        &[
-            &["trade"][..],
-            &args,
+    // trade on spheres at these budgets with these networks: its trade.json.
+    let trade = |budgets: &str, networks: &str, out: &Path| -> serde_json::Value {
+        let o = dhoit(
             &[
-                "--budget",
-                "10%,25%,50%",
-                "--networks",
-                &format!("{},{}", large.display(), small.display()),
-                "--timing",
-                "cpu",
-                "--repeat",
-                "1",
-                "--out",
-                out.to_str().unwrap(),
-            ],
-        ]
-        .concat(),
+                &["trade"][..],
+                &args,
+                &[
+                    "--budget",
+                    budgets,
+                    "--networks",
+                    networks,
+                    "--timing",
+                    "cpu",
+                    "--repeat",
+                    "1",
+                    "--out",
+                    out.to_str().unwrap(),
+                ],
+            ]
+            .concat(),
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice(&std::fs::read(out.join("trade.json")).unwrap()).unwrap()
+    };
+    let r = trade(
+        "10%,25%,50%",
+        &format!("{},{}", large.display(), small.display()),
+        &dir.join("out"),
     );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let r: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("trade.json")).unwrap()).unwrap();
     let points = r["scenes"][0]["points"].as_array().unwrap();
     let by_net = |net: &str| {
         points
@@ -1237,28 +1242,7 @@ fn trade_at_equal_bytes_counts_each_network_s_weights_in_the_memory_both_methods
     }
     // A budget that holds every fragment tells no allocation apart: no ratio (null, `-`).
     let all = dir.join("all");
-    let o = dhoit(
-        &[
-            &["trade"][..],
-            &args,
-            &[
-                "--budget",
-                "100%",
-                "--networks",
-                small.to_str().unwrap(),
-                "--timing",
-                "cpu",
-                "--repeat",
-                "1",
-                "--out",
-                all.to_str().unwrap(),
-            ],
-        ]
-        .concat(),
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let r: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(all.join("trade.json")).unwrap()).unwrap();
+    let r = trade("100%", small.to_str().unwrap(), &all);
     let p = &r["scenes"][0]["points"][0];
     for k in [
         "mse_over_optimal",
@@ -1282,14 +1266,7 @@ fn versus_runs_dkb_once_for_each_network_with_its_own_weights_in_the_memory() {
         return;
     }
     let dir = temp_dir("cli-versus-nets");
-    let small = dir.join("small.safetensors");
-    let large = dir.join("large.safetensors");
-    Mlp::random_sized(3, 16, 8)
-        .save(&small, &Default::default())
-        .unwrap();
-    Mlp::random_sized(4, 32, 16)
-        .save(&large, &Default::default())
-        .unwrap();
+    let (small, large) = two_networks(&dir);
     let out = dir.join("out");
     let run = |networks: &str| {
         dhoit(&[
