@@ -102,7 +102,7 @@ versus: build
 	  for f in $(EVAL_REAL); do scenes="$$scenes,$(DHOIT_SCENES)/$$f"; done; \
 	else echo "versus: no real scenes at $(DHOIT_SCENES): the built-in scenes only" >&2; fi; \
 	$(RUN) versus --scene "$$scenes" --view 1 --res 320x240 --memory 0.25,0.5,0.75,1 --opacity 0.33 \
-	  --networks $$(echo $(NETS) | tr ' ,' '\n-' | sed 's|.*|data/nets/&/weights.safetensors|' | paste -sd,) --precision f16 \
+	  --networks $$(ls data/nets/*/weights.safetensors | paste -sd,) --precision f16 \
 	  --out out/versus --summary docs
 
 ## Long structured fuzzing of every file parser (glTF/GLB, weights, features, dumps): the

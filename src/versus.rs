@@ -141,7 +141,7 @@ pub fn front(keys: &[[f64; 3]]) -> Vec<bool> {
 }
 
 /// One entry of the chart: a method, and for DKB the network it runs (`dkb` with its weights,
-/// `dkb H1-H2` with each of --networks).
+/// `dkb H1-H2` with each of --networks; None for every other method).
 struct Entry {
     method: Method,
     label: String,
@@ -179,7 +179,7 @@ fn entries(a: &VersusArgs, methods: &[Method]) -> Result<Vec<Entry>> {
         out.push(Entry {
             method: m,
             label: m.name().to_string(),
-            weights: weights.clone(),
+            weights: (m == Method::Dkb).then(|| weights.clone()).flatten(),
         });
         if m == Method::Dkb {
             out.append(&mut extra);
@@ -280,14 +280,17 @@ fn measure(
                 for (mi, e) in entries.iter().enumerate() {
                     let m = e.method;
                     // DKB with the entry's network: its own weights in its layout.
-                    let dkb_opts = Options {
-                        weights: e.weights.as_ref(),
-                        ..opts
-                    };
-                    let r_dkb = Renderer::new(&fl, dkb_opts);
+                    let r_dkb;
                     let (r, opts) = match m {
                         Method::Mboit => (&r_mboit, mboit_opts),
-                        Method::Dkb => (&r_dkb, dkb_opts),
+                        Method::Dkb => {
+                            let dkb_opts = Options {
+                                weights: e.weights.as_ref(),
+                                ..opts
+                            };
+                            r_dkb = Renderer::new(&fl, dkb_opts);
+                            (&r_dkb, dkb_opts)
+                        }
                         _ => (&r, opts),
                     };
                     let cpu = match r.allocate(m) {
