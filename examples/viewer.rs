@@ -26,8 +26,8 @@ use dhoit_runtime::budget::Budget;
 use dhoit_runtime::composite::Image;
 use dhoit_runtime::composite::{MboitParams, WboitParams, WboitWeight};
 use dhoit_runtime::gpu::{
-    self, AllocatedFrame, AllocatedOit, ApplicationOit, BlendedOit, BlendedPhase, ExactOit,
-    KBufferOit, ListOit, Phase,
+    self, AllocatedOit, BlendedOit, ExactOit, FrameReport, FrameTargets, Gpu, KBufferOit, ListOit,
+    Oit, Phase,
 };
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::scene::{self, Camera, Coverage, Opacity};
@@ -209,7 +209,8 @@ fn main() -> Result<()> {
         .context("no GPU adapter")?;
     // MBOIT adds into 32-bit float targets: blending them where the adapter can, and its
     // colour attachments' bytes a sample (eight moments take 36).
-    let blending = adapter.features() & wgpu::Features::FLOAT32_BLENDABLE;
+    // dhoit's optional features where the adapter has them (pass times; MBOIT's blending).
+    let optional = adapter.features() & gpu::optional_features();
     let limits = wgpu::Limits {
         max_color_attachment_bytes_per_sample: adapter
             .limits()
@@ -217,12 +218,14 @@ fn main() -> Result<()> {
         ..gpu::required_limits() // dhoit: its limits
     };
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-        required_features: gpu::required_features() | blending, // dhoit: its features
+        required_features: gpu::required_features() | optional, // dhoit: its features
         required_limits: limits,
         ..Default::default()
     }))?;
     println!("{} on {}", s.name, adapter.get_info().name);
-    let app = App::new(device, queue, s, networks);
+    // dhoit: its passes on the application's device, built once.
+    let dhoit = Gpu::on_device(device.clone(), queue.clone(), &adapter.get_info())?;
+    let app = App::new(device, queue, dhoit, s, networks);
     #[cfg(feature = "window")]
     if let Some(event_loop) = event_loop {
         return window::run(event_loop, &instance, &adapter, app, method, (w, h));
@@ -254,7 +257,7 @@ fn main() -> Result<()> {
         staging.slice(..).map_async(wgpu::MapMode::Read, |r| {
             r.expect("the readback maps");
         });
-        let ms = app.pass_ms(&frame)?;
+        let ms = app.pass_ms(&frame, true)?;
         let img = {
             let data = staging.slice(..).get_mapped_range()?;
             let floats: &[f32] = bytemuck::cast_slice(&data);
@@ -285,13 +288,13 @@ fn main() -> Result<()> {
             ms[1],
             ms[2],
             path.display(),
-            frame.oit.exact_note()
+            app.exact_note(&frame)
         );
     }
     println!(
         "{}: {} bytes on the device",
         app.describe(method),
-        frame.oit.allocated_bytes()
+        frame.oit.borrow().allocated_bytes()
     );
     Ok(())
 }
@@ -383,15 +386,16 @@ impl Method {
         }
     }
 
-    /// dhoit: the list, its pool a budget of fragments a frame pixel, or the k-buffer, or the
-    /// A-buffer, or DKB with one of `networks`, for a frame of `(w, h)`.
+    /// dhoit: the method on the application's device (`gpu`: dhoit's passes, built once), for a
+    /// frame of `(w, h)` seen by `cam` (WBOIT's planes: an orbit keeps its distance), DKB with
+    /// one of `networks`. One protocol whatever the method: [`Oit`].
     fn build(
         &self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
+        gpu: &Gpu,
         (w, h): (u32, u32),
+        cam: &Camera,
         networks: &[(String, Mlp)],
-    ) -> Result<Oit> {
+    ) -> Result<Box<dyn Oit>> {
         Ok(match *self {
             Method::Dkb {
                 budget,
@@ -399,45 +403,28 @@ impl Method {
                 always,
             } => {
                 let (_, weights) = networks.get(net).context("no network for DKB")?;
-                let dkb = AllocatedOit::dkb(device, queue, (w, h), weights, budget, RGBA)?
-                    .exact_when_cheaper(!always);
-                Oit::Allocated(Box::new(dkb), Default::default())
+                let dkb = AllocatedOit::dkb(gpu, (w, h), weights, budget, RGBA)?;
+                Box::new(dkb.exact_when_cheaper(!always))
             }
             Method::Vkb { budget, always } => {
                 let params = dhoit_runtime::importance::VkbParams::default();
-                let vkb = AllocatedOit::vkb(device, queue, (w, h), params, budget, RGBA)?
-                    .exact_when_cheaper(!always);
-                Oit::Allocated(Box::new(vkb), Default::default())
+                let vkb = AllocatedOit::vkb(gpu, (w, h), params, budget, RGBA)?;
+                Box::new(vkb.exact_when_cheaper(!always))
             }
-            Method::Exact => Oit::Exact(Box::new(ExactOit::new(device, queue, (w, h))?)),
-            Method::Mlab { rows } => {
-                Oit::Exact(Box::new(ExactOit::mlab(device, queue, (w, h), rows)?))
-            }
+            Method::Exact => Box::new(ExactOit::new(gpu, (w, h), RGBA)?),
+            Method::Mlab { rows } => Box::new(ExactOit::mlab(gpu, (w, h), rows, RGBA)?),
             Method::Wboit { weight } => {
-                // dhoit: planes for now; each view sets its own (App::draw)
-                let params = WboitParams {
-                    weight,
-                    near: 1.0,
-                    far: 2.0,
-                };
-                Oit::Blended(Box::new(BlendedOit::wboit(device, queue, (w, h), params)?))
+                let params = WboitParams::for_camera(weight, cam);
+                Box::new(BlendedOit::wboit(gpu, (w, h), params, RGBA)?)
             }
-            Method::Mboit { moments } => Oit::Blended(Box::new(BlendedOit::mboit(
-                device,
-                queue,
-                (w, h),
-                MboitParams::with_moments(moments)?,
-            )?)),
-            Method::Fkb { k } => Oit::Once(Box::new(KBufferOit::new(device, queue, (w, h), k)?)),
+            Method::Mboit { moments } => {
+                let params = MboitParams::with_moments(moments)?;
+                Box::new(BlendedOit::mboit(gpu, (w, h), params, RGBA)?)
+            }
+            Method::Fkb { k } => Box::new(KBufferOit::new(gpu, (w, h), k, RGBA)?),
             Method::List { fpp, sorted } => {
                 let nodes = (fpp * (w as f64 * h as f64)).ceil() as u64;
-                Oit::Once(Box::new(ListOit::new(
-                    device,
-                    queue,
-                    (w, h),
-                    nodes,
-                    sorted,
-                )?))
+                Box::new(ListOit::new(gpu, (w, h), nodes, sorted, RGBA)?)
             }
         })
     }
@@ -456,6 +443,8 @@ struct Draw {
 struct App {
     device: wgpu::Device,
     queue: wgpu::Queue,
+    /// dhoit: its passes on this device, built once and shared by every method made from it.
+    gpu: Gpu,
     scene: scene::Scene,
     vertices: wgpu::Buffer,
     camera: wgpu::Buffer,
@@ -468,35 +457,35 @@ struct App {
     networks: Vec<(String, Mlp)>,
 }
 
-/// What depends on the method and the size: dhoit's object, the pipelines built with its
-/// module, the frame's textures and its timestamp queries.
+/// What depends on the method and the size: dhoit's method, the pipelines built with its
+/// modules (one a phase), the frame's textures and the opaque pass's timestamps.
 struct Frame {
-    oit: Oit,
-    /// WBOIT's weight function, which each view sets with its planes.
-    wboit_weight: Option<WboitWeight>,
+    oit: std::cell::RefCell<Box<dyn Oit>>,
     opaque_pipeline: wgpu::RenderPipeline,
-    /// One transparent pipeline, or DKB's, VKB's and MBOIT's one a phase.
-    transparent_pipelines: Vec<(Key, wgpu::RenderPipeline)>,
+    /// One transparent pipeline a phase of the method.
+    transparent_pipelines: Vec<(Phase, wgpu::RenderPipeline)>,
     image_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
-    raster_view: wgpu::TextureView,
     target: wgpu::Texture,
     target_view: wgpu::TextureView,
-    /// The groups for the draws (the A-buffer's first; one a phase of the blended methods);
-    /// DKB hands one out for each of its passes.
-    oit_groups: Vec<(Key, wgpu::BindGroup)>,
-    queries: wgpu::QuerySet,
+    /// The opaque pass's timestamps, where the device has them.
+    queries: Option<wgpu::QuerySet>,
     resolved: wgpu::Buffer,
     times: wgpu::Buffer,
+    /// dhoit's last report of a frame that has run.
+    last: std::cell::RefCell<Option<FrameReport>>,
 }
 
 /// The format of the application's images (opaque and resolved).
 const RGBA: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+/// The format of its opaque depth.
+const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 impl App {
     fn new(
         device: wgpu::Device,
         queue: wgpu::Queue,
+        gpu: Gpu,
         s: scene::Scene,
         networks: Vec<(String, Mlp)>,
     ) -> App {
@@ -669,6 +658,7 @@ impl App {
         App {
             device,
             queue,
+            gpu,
             scene: s,
             vertices,
             camera,
@@ -692,22 +682,34 @@ impl App {
         }
     }
 
-    /// dhoit's object for `method` at `(w, h)`, the pipelines with its module and the frame's
-    /// textures.
+    /// dhoit's method at `(w, h)`, the pipelines with its modules and the frame's textures.
     fn frame(&self, method: Method, (w, h): (u32, u32)) -> Result<Frame> {
         let device = &self.device;
-        let oit = method.build(device, &self.queue, (w, h), &self.networks)?;
+        let cam = Camera::orbit(&self.scene, 0, 4, w, h);
+        let oit = method.build(&self.gpu, (w, h), &cam, &self.networks)?;
+        // dhoit: the module a phase gives (its bindings at group 2, its store function), then
+        // the application's shaders and its transparent entry.
+        let entry = match oit.method() {
+            "wboit" | "mboit" => BLEND,
+            "mlab" => ORDERED,
+            _ => STORE,
+        };
         let modules: Vec<wgpu::ShaderModule> = oit
             .phases()
-            .into_iter()
-            .map(|phase| {
+            .iter()
+            .map(|&phase| {
                 device.create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some("viewer"),
-                    // dhoit: its bindings and oit_store, at group 2 (DKB: one module a pass).
-                    source: wgpu::ShaderSource::Wgsl(oit.shader(2, phase).into()),
+                    source: wgpu::ShaderSource::Wgsl(
+                        (oit.store_module(phase, 2) + SHADER + entry).into(),
+                    ),
                 })
             })
             .collect();
+        let opaque_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("viewer opaque"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
         let texture = |label, format, usage| {
             device.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
@@ -727,12 +729,7 @@ impl App {
         let use_both =
             wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
         let image = texture("opaque image", RGBA, use_both);
-        let depth = texture("opaque depth", wgpu::TextureFormat::Depth32Float, use_both);
-        let raster = texture(
-            "raster",
-            wgpu::TextureFormat::R8Unorm,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
-        );
+        let depth = texture("opaque depth", DEPTH, use_both);
         // Copied out (headless) or drawn onto the window's surface.
         let target = texture(
             "target",
@@ -742,18 +739,6 @@ impl App {
                 | wgpu::TextureUsages::TEXTURE_BINDING,
         );
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let depth_view = view(&depth);
-        // dhoit: its group holds its buffers and this opaque depth, the occluder.
-        let oit_groups = match &oit {
-            Oit::Once(o) => vec![(Key::One, o.bind_group(&depth_view))],
-            Oit::Exact(o) => vec![(Key::One, o.count_group(&depth_view))], // its first draw counts
-            Oit::Allocated(..) => vec![], // DKB's groups come with its passes
-            Oit::Blended(o) => o
-                .phases()
-                .iter()
-                .map(|&p| (Key::Blend(p), o.bind_group(p, &depth_view)))
-                .collect(),
-        };
         let layout = |groups: &[Option<&wgpu::BindGroupLayout>]| {
             device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: None,
@@ -762,14 +747,6 @@ impl App {
             })
         };
         let opaque_layout = layout(&[Some(&self.own_layout), Some(&self.material_layout)]);
-        // dhoit: the transparent pipeline's layout has its group beside the application's.
-        let transparent_layout = |phase| {
-            layout(&[
-                Some(&self.own_layout),
-                Some(&self.material_layout),
-                Some(oit.bind_group_layout(phase)),
-            ])
-        };
         let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4, 2 => Float32x2, 3 => Float32, 4 => Float32x3];
         let buffers = [Some(wgpu::VertexBufferLayout {
             array_stride: 52,
@@ -780,7 +757,7 @@ impl App {
                         layout: &wgpu::PipelineLayout,
                         entry: &str,
                         targets: &[Option<wgpu::ColorTargetState>],
-                        depth: bool| {
+                        depth_stencil: wgpu::DepthStencilState| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(entry),
                 layout: Some(layout),
@@ -791,13 +768,7 @@ impl App {
                     buffers: &buffers,
                 },
                 primitive: wgpu::PrimitiveState::default(),
-                depth_stencil: depth.then(|| wgpu::DepthStencilState {
-                    format: wgpu::TextureFormat::Depth32Float,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
+                depth_stencil: Some(depth_stencil),
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
                     module,
@@ -809,96 +780,93 @@ impl App {
                 cache: None,
             })
         };
-        let target_of = |format, write_mask| {
-            vec![Some(wgpu::ColorTargetState {
-                format,
-                blend: None,
-                write_mask,
-            })]
-        };
         let opaque_pipeline = pipeline(
-            &modules[0],
+            &opaque_module,
             &opaque_layout,
             "fs_opaque",
-            &target_of(RGBA, wgpu::ColorWrites::ALL),
-            true,
+            &[Some(wgpu::ColorTargetState {
+                format: RGBA,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+            wgpu::DepthStencilState {
+                format: DEPTH,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            },
         );
+        // dhoit: each phase's pipeline has dhoit's group beside the application's, dhoit's
+        // colour targets (the blended methods'; none for the others) and its depth state
+        // (the opaque depth attached read-only).
         let transparent_pipelines = oit
             .phases()
-            .into_iter()
+            .iter()
             .zip(&modules)
-            .map(|(phase, module)| {
-                let layout = transparent_layout(phase);
-                // dhoit: the blended methods' targets and blend states; the others write none.
-                let targets = match (&oit, phase) {
-                    (Oit::Blended(o), Key::Blend(p)) => o.color_targets(p),
-                    _ => target_of(wgpu::TextureFormat::R8Unorm, wgpu::ColorWrites::empty()),
-                };
-                let p = pipeline(module, &layout, "fs_transparent", &targets, false);
-                (phase, p)
+            .map(|(&phase, module)| {
+                let layout = layout(&[
+                    Some(&self.own_layout),
+                    Some(&self.material_layout),
+                    Some(oit.bind_group_layout(phase)),
+                ]);
+                let targets = oit.color_targets(phase);
+                let depth = oit.depth_stencil(DEPTH);
+                (
+                    phase,
+                    pipeline(module, &layout, "fs_transparent", &targets, depth),
+                )
             })
             .collect();
-        let queries = device.create_query_set(&wgpu::QuerySetDescriptor {
-            label: Some("pass times"),
-            ty: wgpu::QueryType::Timestamp,
-            count: 8,
+        let timed = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let queries = timed.then(|| {
+            device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("opaque pass time"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            })
         });
         let buffer = |label, usage| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
-                size: 64,
+                size: 16,
                 usage,
                 mapped_at_creation: false,
             })
         };
         let resolved = buffer(
-            "pass times",
+            "opaque pass time",
             wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
         );
         let times = buffer(
-            "pass times readback",
+            "opaque pass time readback",
             wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
         );
-        let wboit_weight = match method {
-            Method::Wboit { weight } => Some(weight),
-            _ => None,
-        };
         Ok(Frame {
-            oit,
-            wboit_weight,
+            oit: std::cell::RefCell::new(oit),
             opaque_pipeline,
             transparent_pipelines,
             image_view: view(&image),
-            depth_view,
-            raster_view: view(&raster),
+            depth_view: view(&depth),
             target_view: view(&target),
             target,
-            oit_groups,
             queries,
             resolved,
             times,
+            last: Default::default(),
         })
     }
 
-    /// One frame from `cam`: the opaque pass, the transparent draws through dhoit, its resolve
-    /// onto `frame.target`; the encoder is left open for the caller's copy or presentation.
-    /// The A-buffer's count is submitted (and waited for) on the way.
+    /// One frame from `cam` recorded into a new encoder: the opaque pass, then dhoit's frame,
+    /// which calls the transparent draws back for each of its geometry passes and resolves
+    /// onto `frame.target`. Nothing is submitted or waited for: the caller submits (after its
+    /// copy or presentation).
     fn draw(&self, frame: &Frame, cam: &Camera) -> Result<wgpu::CommandEncoder> {
-        let (device, queue) = (&self.device, &self.queue);
         let mut camera = cam.view_proj.to_cols_array().to_vec();
         camera.extend_from_slice(&cam.forward.extend(0.0).to_array());
-        queue.write_buffer(&self.camera, 0, bytemuck::cast_slice(&camera));
-        if let (Oit::Blended(o), Some(weight)) = (&frame.oit, frame.wboit_weight) {
-            // dhoit: WBOIT's weight with this view's planes (eqs. 7-9 read the distance)
-            o.set_wboit(queue, WboitParams::for_camera(weight, cam))?;
-        }
-        let pass_times = |i: u32| wgpu::RenderPassTimestampWrites {
-            query_set: &frame.queries,
-            beginning_of_pass_write_index: Some(2 * i),
-            end_of_pass_write_index: Some(2 * i + 1),
-        };
-        let mut enc = device.create_command_encoder(&Default::default());
-        frame.oit.clear(&mut enc); // dhoit: empty for the frame
+        self.queue
+            .write_buffer(&self.camera, 0, bytemuck::cast_slice(&camera));
+        let mut enc = self.device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("opaque"),
@@ -919,7 +887,14 @@ impl App {
                     }),
                     stencil_ops: None,
                 }),
-                timestamp_writes: Some(pass_times(0)),
+                timestamp_writes: frame
+                    .queries
+                    .as_ref()
+                    .map(|q| wgpu::RenderPassTimestampWrites {
+                        query_set: q,
+                        beginning_of_pass_write_index: Some(0),
+                        end_of_pass_write_index: Some(1),
+                    }),
                 ..Default::default()
             });
             pass.set_pipeline(&frame.opaque_pipeline);
@@ -930,236 +905,103 @@ impl App {
                 pass.draw(d.first..d.first + d.vertices, 0..1);
             }
         }
-        let transparent = |enc: &mut wgpu::CommandEncoder, group, phase, times| {
-            self.transparent(frame, enc, group, phase, times)
-        };
-        if let Oit::Allocated(dkb, last) = &frame.oit {
-            // dhoit: the opaque pass submitted, DKB's frame calls the draws back for each of its
-            // geometry passes (count, features, capture; or the A-buffer's store), resolves
-            // onto the target and says what it did.
-            enc.resolve_query_set(&frame.queries, 0..2, &frame.resolved, 0);
+        if let Some(q) = &frame.queries {
+            enc.resolve_query_set(q, 0..2, &frame.resolved, 0);
             enc.copy_buffer_to_buffer(&frame.resolved, 0, &frame.times, 0, 16);
-            queue.submit([enc.finish()]);
-            let views = (&frame.depth_view, &frame.image_view, &frame.target_view);
-            let done = dkb.render(views.0, views.1, views.2, &mut |enc, d| {
-                self.transparent(frame, enc, d.group, Key::Deep(d.phase), d.timestamps)
-            })?;
-            *last.lock().unwrap_or_else(|e| e.into_inner()) = Some(done);
-            return Ok(device.create_command_encoder(&Default::default()));
         }
-        // MBOIT: its moments (timed as the A-buffer's second draw), then its accumulation.
-        for (i, (key, group)) in frame.oit_groups.iter().enumerate() {
-            let last = i + 1 == frame.oit_groups.len();
-            transparent(&mut enc, group, *key, pass_times(if last { 1 } else { 3 }));
-        }
-        if let Oit::Exact(exact) = &frame.oit {
-            // dhoit: the counts summed and the pool sized (submitted and waited for), then the
-            // same draws store the fragments.
-            exact.count(enc, queue)?;
-            enc = device.create_command_encoder(&Default::default());
-            transparent(
-                &mut enc,
-                &exact.store_group(&frame.depth_view),
-                Key::One,
-                pass_times(3),
-            );
-        }
-        // dhoit: its fragments over the opaque image, onto the target.
-        let resolve_times = wgpu::ComputePassTimestampWrites {
-            query_set: &frame.queries,
-            beginning_of_pass_write_index: Some(4),
-            end_of_pass_write_index: Some(5),
+        // dhoit: the frame's textures: the opaque depth (the occluder), the opaque image
+        // (what the transparency composites over), the target.
+        let targets = FrameTargets {
+            depth: &frame.depth_view,
+            under: &frame.image_view,
+            target: &frame.target_view,
         };
-        frame.oit.resolve(
-            &mut enc,
-            (&frame.image_view, &frame.target_view),
-            RGBA,
-            Some(resolve_times),
-        )?;
-        enc.resolve_query_set(&frame.queries, 0..8, &frame.resolved, 0);
-        enc.copy_buffer_to_buffer(&frame.resolved, 0, &frame.times, 0, 64);
+        // dhoit: its passes into this encoder; for each geometry pass it opens, the
+        // application's transparent draws with dhoit's group at 2.
+        frame
+            .oit
+            .borrow_mut()
+            .record(&mut enc, &targets, &mut |pass, draw| {
+                let pipeline = &frame
+                    .transparent_pipelines
+                    .iter()
+                    .find(|(p, _)| *p == draw.phase)
+                    .expect("a pipeline for each of dhoit's phases")
+                    .1;
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &self.own_group, &[]);
+                pass.set_bind_group(2, draw.group, &[]); // dhoit: its group for the draws
+                pass.set_vertex_buffer(0, self.vertices.slice(..));
+                for d in self.draws.iter().filter(|d| d.transparent) {
+                    pass.set_bind_group(1, &self.material_groups[d.material], &[]);
+                    pass.draw(d.first..d.first + d.vertices, 0..1);
+                }
+            })?;
         Ok(enc)
     }
 
-    /// The transparent draws, with dhoit's group for them (and DKB's pass).
-    fn transparent(
-        &self,
-        frame: &Frame,
-        enc: &mut wgpu::CommandEncoder,
-        group: &wgpu::BindGroup,
-        phase: Key,
-        times: wgpu::RenderPassTimestampWrites<'_>,
-    ) {
-        let pipeline = &frame
-            .transparent_pipelines
-            .iter()
-            .find(|(p, _)| *p == phase)
-            .expect("a pipeline for each of dhoit's passes")
-            .1;
-        // dhoit: the blended methods' passes write its targets (which their attachments clear).
-        let attachments = match (&frame.oit, phase) {
-            (Oit::Blended(o), Key::Blend(p)) => o.color_attachments(p),
-            _ => vec![Some(wgpu::RenderPassColorAttachment {
-                view: &frame.raster_view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                    store: wgpu::StoreOp::Discard,
-                },
-            })],
-        };
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("transparent"),
-            color_attachments: &attachments,
-            timestamp_writes: Some(times),
-            ..Default::default()
-        });
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &self.own_group, &[]);
-        pass.set_bind_group(2, group, &[]); // dhoit: its group for the draws
-        pass.set_vertex_buffer(0, self.vertices.slice(..));
-        for d in self.draws.iter().filter(|d| d.transparent) {
-            pass.set_bind_group(1, &self.material_groups[d.material], &[]);
-            pass.draw(d.first..d.first + d.vertices, 0..1);
-        }
-    }
-
-    /// Waits for the frame submitted last and reads its GPU times: opaque, transparent (both
-    /// draws of the A-buffer, DKB's three), resolve and DKB's compute passes, in milliseconds.
-    fn pass_ms(&self, frame: &Frame) -> Result<[f64; 4]> {
-        frame
-            .times
-            .slice(..)
-            .map_async(wgpu::MapMode::Read, |r| r.expect("the times map"));
-        self.device.poll(wgpu::PollType::wait_indefinitely())?;
-        let ms = {
-            let data = frame.times.slice(..).get_mapped_range()?;
-            let stamps: &[u64] = bytemuck::cast_slice(&data);
-            let period = self.queue.get_timestamp_period() as f64 * 1e-6;
-            let ms = |i: usize| stamps[2 * i + 1].saturating_sub(stamps[2 * i]) as f64 * period;
-            match &frame.oit {
-                Oit::Exact(_) => [ms(0), ms(1) + ms(3), ms(2), 0.0],
-                Oit::Blended(o) if o.phases().len() == 2 => [ms(0), ms(1) + ms(3), ms(2), 0.0],
-                Oit::Blended(_) => [ms(0), ms(1), ms(2), 0.0],
-                Oit::Once(_) => [ms(0), ms(1), ms(2), 0.0],
-                Oit::Allocated(_, last) => {
-                    let last = last.lock().unwrap_or_else(|e| e.into_inner());
-                    let passes = last.as_ref().map_or(&[][..], |f| &f.pass_ms[..]);
-                    let sum = |names: &[&str], of: bool| {
-                        let p = passes.iter().filter(|(n, _)| names.contains(n) == of);
-                        p.map(|(_, t)| t).sum::<f64>()
-                    };
-                    let geometry = ["count", "store", "features", "capture"];
-                    let resolve = ["resolve", "sort and blend"];
-                    let (g, r) = (sum(&geometry, true), sum(&resolve, true));
-                    [
-                        ms(0),
-                        g,
-                        r,
-                        sum(&[&geometry[..], &resolve[..]].concat(), false),
-                    ]
-                }
+    /// The GPU times of the last frame that has run (waiting for it with `wait`): opaque,
+    /// transparent (the application's draws in dhoit's geometry passes), resolve and dhoit's
+    /// compute passes, in milliseconds.
+    fn pass_ms(&self, frame: &Frame, wait: bool) -> Result<[f64; 4]> {
+        // dhoit: reports of the frames that have run (read without waiting unless asked).
+        let reports = frame.oit.borrow_mut().finished(wait)?;
+        if let Some(r) = reports.into_iter().last() {
+            if let Some(e) = r.error {
+                return Err(e.into());
             }
+            *frame.last.borrow_mut() = Some(FrameReport { error: None, ..r });
+        }
+        let mut opaque = 0.0;
+        if wait && frame.queries.is_some() {
+            frame
+                .times
+                .slice(..)
+                .map_async(wgpu::MapMode::Read, |r| r.expect("the times map"));
+            self.device.poll(wgpu::PollType::wait_indefinitely())?;
+            {
+                let data = frame.times.slice(..).get_mapped_range()?;
+                let stamps: &[u64] = bytemuck::cast_slice(&data);
+                let period = self.queue.get_timestamp_period() as f64 * 1e-6;
+                opaque = stamps[1].saturating_sub(stamps[0]) as f64 * period;
+            }
+            frame.times.unmap();
+        }
+        let last = frame.last.borrow();
+        let passes = last.as_ref().map_or(&[][..], |r| &r.pass_ms[..]);
+        let sum = |names: &[&str], of: bool| {
+            let p = passes.iter().filter(|(n, _)| names.contains(n) == of);
+            p.map(|(_, t)| t).sum::<f64>()
         };
-        frame.times.unmap();
-        Ok(ms)
+        let geometry = [
+            "count",
+            "store",
+            "features",
+            "capture",
+            "accumulate",
+            "moments",
+        ];
+        let resolve = [
+            "resolve",
+            "sort and blend",
+            "mlab blend",
+            "wboit composite",
+            "mboit composite",
+        ];
+        Ok([
+            opaque,
+            sum(&geometry, true),
+            sum(&resolve, true),
+            sum(&[&geometry[..], &resolve[..]].concat(), false),
+        ])
     }
-}
 
-/// dhoit's method: one drawn once, the exact A-buffer, drawn twice, DKB or VKB, drawn into
-/// each of its passes (with what its last frame did), or WBOIT or MBOIT, drawn into dhoit's
-/// targets.
-enum Oit {
-    Once(Box<dyn ApplicationOit>),
-    Exact(Box<ExactOit>),
-    Allocated(Box<AllocatedOit>, std::sync::Mutex<Option<AllocatedFrame>>),
-    Blended(Box<BlendedOit>),
-}
-
-/// Which transparent pipeline: the one of a method drawn once or twice, one of DKB's or VKB's
-/// passes, or one of the blended methods'.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Key {
-    One,
-    Deep(Phase),
-    Blend(BlendedPhase),
-}
-
-impl Oit {
-    /// The passes the application builds a transparent pipeline for: one, or DKB's, VKB's or
-    /// the blended methods'.
-    fn phases(&self) -> Vec<Key> {
-        match self {
-            Oit::Allocated(o, _) => o.phases().iter().copied().map(Key::Deep).collect(),
-            Oit::Blended(o) => o.phases().iter().copied().map(Key::Blend).collect(),
-            _ => vec![Key::One],
-        }
-    }
-    /// dhoit's module, then the application's shaders and its transparent fragment entry.
-    fn shader(&self, group: u32, key: Key) -> String {
-        let (module, entry) = match (self, key) {
-            (Oit::Once(o), _) => (o.store_module(group), STORE),
-            (Oit::Exact(o), _) if o.mlab_rows().is_some() => (ExactOit::wgsl(group), ORDERED),
-            (Oit::Exact(_), _) => (ExactOit::wgsl(group), STORE),
-            (Oit::Allocated(o, _), Key::Deep(phase)) => (o.store_module(phase, group), STORE),
-            (Oit::Blended(o), Key::Blend(phase)) => (o.store_module(phase, group), BLEND),
-            _ => unreachable!("{key:?} is not one of the method's passes"),
-        };
-        module + SHADER + entry
-    }
-    fn bind_group_layout(&self, key: Key) -> &wgpu::BindGroupLayout {
-        match (self, key) {
-            (Oit::Once(o), _) => o.bind_group_layout(),
-            (Oit::Exact(o), _) => o.bind_group_layout(),
-            (Oit::Allocated(o, _), Key::Deep(phase)) => o.bind_group_layout(phase),
-            (Oit::Blended(o), Key::Blend(phase)) => o.bind_group_layout(phase),
-            _ => unreachable!("{key:?} is not one of the method's passes"),
-        }
-    }
-    fn clear(&self, enc: &mut wgpu::CommandEncoder) {
-        match self {
-            Oit::Once(o) => o.clear(enc),
-            Oit::Exact(o) => o.clear(enc),
-            // DKB's frame clears its own; the blended methods' attachments clear theirs.
-            Oit::Allocated(..) | Oit::Blended(_) => {}
-        }
-    }
-    /// Whether DKB's last frame rendered the exact A-buffer instead, as a note.
-    fn exact_note(&self) -> &'static str {
-        match self {
-            Oit::Allocated(_, last) => match &*last.lock().unwrap_or_else(|e| e.into_inner()) {
-                Some(f) if f.exact => " (exact: the A-buffer needed no more bytes)",
-                _ => "",
-            },
+    /// Whether the last frame read back was exact (DKB, VKB: their pool held every fragment).
+    fn exact_note(&self, frame: &Frame) -> &'static str {
+        let last = frame.last.borrow();
+        match (frame.oit.borrow().method(), last.as_ref()) {
+            ("dkb" | "vkb", Some(r)) if r.exact => " (exact: its pool held every fragment)",
             _ => "",
-        }
-    }
-    fn resolve(
-        &self,
-        enc: &mut wgpu::CommandEncoder,
-        views: (&wgpu::TextureView, &wgpu::TextureView),
-        format: wgpu::TextureFormat,
-        timestamps: Option<wgpu::ComputePassTimestampWrites>,
-    ) -> dhoit_runtime::Result<()> {
-        match self {
-            Oit::Once(o) => o.resolve(enc, views.0, views.1, format, timestamps),
-            Oit::Exact(o) => o.resolve(enc, views.0, views.1, format, timestamps),
-            Oit::Blended(o) => o.resolve(enc, views.0, views.1, format, timestamps),
-            Oit::Allocated(..) => Ok(()), // resolved by its frame
-        }
-    }
-    /// Bytes the method holds (DKB: its last frame's).
-    fn allocated_bytes(&self) -> u64 {
-        match self {
-            Oit::Once(o) => o.allocated_bytes(),
-            Oit::Exact(o) => o.allocated_bytes(),
-            Oit::Blended(o) => o.allocated_bytes(),
-            Oit::Allocated(_, last) => last
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .as_ref()
-                .map_or(0, |f| f.allocated_bytes),
         }
     }
 }
@@ -1361,7 +1203,8 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
             self.app.queue.submit([enc.finish()]);
             shown.window.pre_present_notify();
             self.app.queue.present(texture);
-            let ms = self.app.pass_ms(&shown.frame)?;
+            // dhoit: the times of the last frame that has run, read without waiting.
+            let ms = self.app.pass_ms(&shown.frame, false)?;
             let now = std::time::Instant::now();
             let frame_ms = now.duration_since(self.last).as_secs_f64() * 1e3;
             self.last = now;
@@ -1373,7 +1216,7 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                 ms[1],
                 ms[3],
                 ms[2],
-                shown.frame.oit.exact_note()
+                self.app.exact_note(&shown.frame)
             ));
             shown.window.request_redraw();
             Ok(())

@@ -24,6 +24,11 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         atomicSub(&cursor[w], count_unit(p));
         return vec4<f32>(0.0);
     }
+    // A pixel whose fragments the pool does not hold whole (sized before the count, from an
+    // earlier frame's) stores none: sort.wgsl's `stored` reports it.
+    if (offsets[p + 1u] > arrayLength(&keys)) {
+        return vec4<f32>(0.0);
+    }
     let i = offsets[p] + count_in(old, p);
     keys[i] = fragment_key(in.clip.z, f.rgba8);
     if (params.store_primitives != 0u) {

@@ -8,10 +8,11 @@
 // t = 2^26), cap the pixel's useful cap (all but its farthest fragment, or two for a pair);
 // then every pixel at its cap, at all but its farthest fragment, at n, in three more tiers. The allocation is the largest t whose total fits min(F, sum n), plus one slot each
 // for the first pixels (by index) whose k rises at t + 1, as many as are still missing.
-//   setup:   F (fixed, or floor(total ppm / 10^6) from the totals pass), target, lo, the search
-//            interval [a, a + 2^44); when every fragment fits, the state the rounds would end
-//            in, and no workgroup for the weights, the rounds, the marks and their prefix sum
-//            (indirect dispatches it empties): apply alone gives k = n
+//   setup:   F (the frame's plan's, plan.wgsl, in the totals), target, lo, the search
+//            interval [a, a + 2^44), the three indirect dispatches' grids; when every fragment
+//            fits, the state the rounds would end in, and no workgroup for the weights, the
+//            rounds, the marks and their prefix sum (dispatches it empties): apply alone gives
+//            k = n
 //   weights: importance -> fixed-point weight in place (the kind of alloc::Target)
 //   search:  the totals at 16 candidates (SEARCH_PIXELS pixels an invocation, then workgroup
 //            sums, then one 64-bit atomic per candidate and workgroup): in the first round a
@@ -30,14 +31,12 @@
 //            (its span, k and its tail's words, where the tails are pooled: params.pooled_tail)
 
 struct Alloc {
-    // F, when ppm is 0.
-    f_lo: u32,
-    f_hi: u32,
-    // A share of the frame's fragments in parts per million, or 0.
-    ppm: u32,
     // Weights: 0 proportional importance, 1 share of the pixel's fragments (r n), 2 slot
     // request (an additive level fits them; the others a scale).
     kind: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 };
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -59,14 +58,15 @@ fn count_of(p: u32) -> u32 {
 // The marks (shared::marks_words): the popcounts of their words (mark), then those counts'
 // exclusive prefix sums and their total (apply), and the words of bits after them.
 @group(0) @binding(6) var<storage, read_write> flags: array<u32>;
-// fragments, covered, max count (totals.wgsl).
+// fragments, covered, max count (totals.wgsl), and the plan's F (plan.wgsl: PLAN_F_WORD).
 @group(0) @binding(7) var<storage, read> totals: array<u32>;
-// Three indirect dispatches (workgroups x, y, z, unused; the host writes the frame's grids):
-// the per-pixel weights and marks, the search rounds, and the marks' prefix sum over its
-// blocks. When every fragment fits, k = n whatever the weights and marks (apply places no
-// slot past k(a)), so setup zeroes the three x and none of them runs a workgroup. Bound to
-// the state in every dispatch but setup's and choose's (a buffer read as a dispatch's arguments
-// is not bound writable in that dispatch).
+// Three indirect dispatches (workgroups x, y, z, unused; setup writes the frame's grids, so a
+// frame never reads what the one before left, however many share a submission): the per-pixel
+// weights and marks, the search rounds, and the marks' prefix sum over its blocks. When every
+// fragment fits, k = n whatever the weights and marks (apply places no slot past k(a)), so
+// setup zeroes the three x and none of them runs a workgroup. Bound to the state in every
+// dispatch but setup's and choose's (a buffer read as a dispatch's arguments is not bound
+// writable in that dispatch).
 @group(0) @binding(8) var<storage, read_write> dispatches: array<u32, ALLOC_DISPATCHES * DISPATCH_WORDS>;
 
 
@@ -185,21 +185,30 @@ fn weights(
 
 @compute @workgroup_size(1)
 fn setup() {
-    var f = (u64(alloc.f_hi) << 32u) | u64(alloc.f_lo);
-    if (alloc.ppm > 0u) {
-        f = (u64(totals[0]) * u64(alloc.ppm)) / u64(PPM);
-    }
+    let f = u64(totals[PLAN_F_WORD]);
     let all = u64(totals[0]);
     atomicStore(&state[0], min(f, all));
     atomicStore(&state[3], select(0lu, 1lu, f >= u64(totals[1])));
+    // The grids (wgsl::grid, as the host computes them): the per-pixel entry points, the
+    // search's invocations of SEARCH_PIXELS pixels, the marks' blocks.
+    let pixels = params.pixels;
+    let grids = array<vec2<u32>, ALLOC_DISPATCHES>(
+        grid_of(pixels, ALLOC_GROUP),
+        grid_of((pixels + SEARCH_PIXELS - 1u) / SEARCH_PIXELS, ALLOC_GROUP),
+        grid_of(mark_blocks(pixels), SCAN_BLOCK),
+    );
+    for (var d = 0u; d < ALLOC_DISPATCHES; d++) {
+        let at = d * DISPATCH_WORDS;
+        dispatches[at] = select(grids[d].x, 0u, f >= all);
+        dispatches[at + 1u] = grids[d].y;
+        dispatches[at + 2u] = 1u;
+    }
     if (f >= all) {
         // Every fragment fits: k = n everywhere, the top tier. The search would pick its last
         // candidate in every round (every total fits) and end at a = 2^44 - 1 with span 1 and
         // the total there sum n; that state is set here, the weights, the rounds' search, the
-        // marks and their prefix sum dispatch no workgroup, and the choice returns at once.
-        dispatches[DISPATCH_PER_PIXEL * DISPATCH_WORDS] = 0u;
-        dispatches[DISPATCH_ROUNDS * DISPATCH_WORDS] = 0u;
-        dispatches[DISPATCH_SCAN * DISPATCH_WORDS] = 0u;
+        // marks and their prefix sum dispatch no workgroup (their x is zero), and the choice
+        // returns at once.
         atomicStore(&state[1], (1lu << (4u * SEARCH_SPAN_DIGITS)) - 1lu);
         atomicStore(&state[2], 1lu);
         atomicStore(&state[4], all);

@@ -104,6 +104,14 @@ fn grid_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32, size: u32) -> u32 {
     return (wid.y * nwg.x + wid.x) * size + lid;
 }
 
+// Workgroups of `size` invocations covering `n`, as a 2-D grid of rows of at most 65,535
+// (wgsl::grid, which the host computes the same way).
+fn grid_of(n: u32, size: u32) -> vec2<u32> {
+    let groups = max((n + size - 1u) / size, 1u);
+    let x = min(groups, 65535u);
+    return vec2<u32>(x, (groups + x - 1u) / x);
+}
+
 // A pixel's word as a record of the batch [lo, lo + size) of DKB's records (totals.wgsl's
 // assign_records, init_records): its place in the batch, or NO_RECORD where the word names no
 // record of it (NO_RECORD itself; an earlier batch's importance, 0 or with the pair mark at or
@@ -124,20 +132,6 @@ fn mark_blocks(pixels: u32) -> u32 {
 
 fn pixel_index(frag_coord: vec4<f32>, width: u32) -> u32 {
     return u32(frag_coord.y) * width + u32(frag_coord.x);
-}
-
-// F for a frame of `total` fragments (budget::FragmentBudget::of).
-fn budget_of(total: u32) -> u64 {
-    if (params.budget_ppm > 0u) {
-        return (u64(total) * u64(params.budget_ppm)) / u64(PPM);
-    }
-    return u64(params.budget_fragments);
-}
-
-// Whether the budget holds every one of a frame's `total` fragments (k = n then, whatever the
-// importance; budget::FragmentBudget::holds).
-fn holds_every_fragment(total: u32) -> bool {
-    return budget_of(total) >= u64(total);
 }
 
 // Where slot i of pixel p lies, its slots starting at `base`: pixel-major (a pixel's slots

@@ -25,8 +25,14 @@
 // The records the network decides, and how many (list_len[0]): the slot pool again, read as
 // u32, its list after all the records (list_at; both bindings touch only their own words).
 @group(0) @binding(4) var<storage, read_write> list: array<u32>;
-// fragments, covered, max count, deep, the records handed out, deeper (the records: totals.wgsl).
+// fragments, covered, max count, deep, the records handed out, deeper (the records: totals.wgsl),
+// then the frame's plan (plan.wgsl): its F.
 @group(0) @binding(6) var<storage, read> totals: array<u32>;
+
+// F as the frame's plan found it (the budget's, within what its pool holds; at most n).
+fn planned_f() -> u64 {
+    return u64(totals[PLAN_F_WORD]);
+}
 // Per pixel: its record's index (NO_RECORD for none), then, after `gather`, its importance:
 // the frame's shared word.
 @group(0) @binding(8) var<storage, read_write> shared_word: array<u32>;
@@ -73,7 +79,7 @@ fn network_inputs(r: u32) -> Net {
     var net: Net;
     let at = RECORD_WORDS * r;
     let c = u32(records[at + 1u] >> 48u);
-    if (holds_every_fragment(totals[0])) {
+    if (planned_f() >= u64(totals[0])) {
         set_importance(r, 0.0);
         return net;
     }
@@ -84,7 +90,7 @@ fn network_inputs(r: u32) -> Net {
     let pair = true;
     let mark = select(0u, PAIR_BIT, pair);
     // alloc::min_k, as the allocation's setup finds it.
-    let lo = select(0u, 1u, budget_of(totals[0]) >= u64(totals[1]));
+    let lo = select(0u, 1u, planned_f() >= u64(totals[1]));
     if (SKIP_FORCED && c <= lo + 1u + select(0u, 1u, pair)) {
         set_importance(r, bitcast<f32>(mark));
         return net;
@@ -118,8 +124,8 @@ fn network_inputs(r: u32) -> Net {
     net.x = array<f32, FEATURES>(
         log2(nf),
         nf / (total / covered),
-        f32(budget_of(totals[0])) / total,
-        log2(f32(max(budget_of(totals[0]), 1lu)) / covered),
+        f32(planned_f()) / total,
+        log2(f32(max(planned_f(), 1lu)) / covered),
         bitcast<f32>(u32(key >> 32u)),
         f32(near8 >> 24u) / 255.0,
         log2(variance + LOG_FLOOR),
@@ -146,9 +152,12 @@ fn select_pixels(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    // The batch's records: a batch's worth, or what is left of the frame's (totals[5]).
+    // The batch's records: a batch's worth, or what is left of the frame's (totals[5]; none
+    // in a batch past them, which a frame sized ahead of its count may record).
     let r = grid_index(wid, nwg, lid, PIXEL_GROUP);
-    if (r >= min(atomicLoad(&list_len[2]), totals[5] - atomicLoad(&list_len[1]))) {
+    let lo = atomicLoad(&list_len[1]);
+    let left = select(0u, totals[5] - lo, totals[5] > lo);
+    if (r >= min(atomicLoad(&list_len[2]), left)) {
         return;
     }
     if (network_inputs(r).runs) {

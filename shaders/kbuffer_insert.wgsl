@@ -1,6 +1,5 @@
-// The k-buffer's insertion, shared by dhoit's capture (capture.wgsl) and an application's
-// fragment shader (oit_kbuffer_store.wgsl, gpu::KBufferOit::wgsl), so both keep the same
-// slots and tail: NVIDIA's lock-free Loop64 into the pixel's k slots, and the key it pushes
+// The k-buffer's insertion, which dhoit's capture runs (capture.wgsl; an application's
+// fragment shader runs the capture's own code, gpu::Oit::store_module): NVIDIA's lock-free Loop64 into the pixel's k slots, and the key it pushes
 // out added to the tail's integer sums. The pass that includes it declares `oit_slots` (atomic
 // u64, complemented keys: a cleared, zero slot is empty), `oit_tail` (atomic u64, two a pixel),
 // `oit_tail_count` (atomic u32, one a pixel) and `oit_slot_at(base, i, p)`, where slot i of

@@ -86,7 +86,7 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
         t *= 1.0 - rgba.a;
     }
     if (ticks > LOOP_BUDGET) {
-        atomicMax(&status[0], 1lu);
+        atomicOr(&status[0], STATUS_NEAR_LOOP);
     }
     return Resolved(true, c + t * over);
 }

@@ -16,3 +16,15 @@ fn oit_store_facing(frag_coord: vec4<f32>, color: vec4<f32>, facing: f32) {
 fn oit_store(frag_coord: vec4<f32>, color: vec4<f32>) {
     oit_store_facing(frag_coord, color, 1.0);
 }
+
+// oit_store with the fragment's submission index `order` (the index of its triangle in the
+// application's submission, say), which MLAB merges a pixel's fragments in, whatever order
+// they arrive in; the other methods ignore it.
+fn oit_store_ordered(frag_coord: vec4<f32>, color: vec4<f32>, order: u32) {
+    var v: VertexOut;
+    v.clip = frag_coord;
+    v.facing = 1.0;
+    v.primitive = order;
+    oit_color = color;
+    _ = oit_phase(v, true);
+}

@@ -13,7 +13,8 @@
 // Submission indices, where the store kept them (params.store_primitives): sorted alongside.
 @group(0) @binding(5) var<storage, read_write> primitives: array<u32>;
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
-// Set to 1 when a pixel's sort came close to lavapipe's loop limit; the deepest pixel over
+// STATUS_NEAR_LOOP where a pixel's sort came close to lavapipe's loop limit, STATUS_POOL_SHORT
+// where the pool held fewer fragments than the frame; the deepest pixel over
 // MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word).
 @group(0) @binding(4) var<storage, read_write> status: array<atomic<u64>, 2>;
 
@@ -37,6 +38,13 @@ fn stored(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> Stored {
     }
     let start = offsets[p];
     let end = offsets[p + 1u];
+    // A pool sized before the count (an application's frame, from an earlier frame's) that
+    // holds fewer fragments than the frame has: the pixels past its end stored none
+    // (abuffer_store.wgsl), so they hold none here, and the frame says so.
+    if (end > arrayLength(&keys)) {
+        atomicOr(&status[0], STATUS_POOL_SHORT);
+        return Stored(p, start, start, true);
+    }
     if (end - start > MAX_FRAGMENTS_PER_PIXEL) {
         atomicMax(&status[1], deepest_word(end - start, p));
         return Stored(p, start, end, false);
@@ -47,7 +55,7 @@ fn stored(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> Stored {
 // Whether the pixel's loops came close to the device's limit.
 fn report_loops() {
     if (ticks > LOOP_BUDGET) {
-        atomicMax(&status[0], 1lu);
+        atomicOr(&status[0], STATUS_NEAR_LOOP);
     }
 }
 

@@ -38,6 +38,14 @@ pub struct BenchArgs {
     /// autodiff graph, and the regret-loss step) and inference; no renderer, no scene.
     #[arg(long)]
     network_only: bool,
+    /// Also render an orbit of this many frames of each scene with every method a renderer
+    /// streams, as a real-time renderer draws them (recorded into an encoder with no wait):
+    /// frames a second with two frames in flight and one at a time, dhoit's submissions and
+    /// waits a frame (none), the frames that held more than their own A-buffer's bytes, and
+    /// temporal stability (the mean change of the error image between consecutive frames).
+    /// 0: none.
+    #[arg(long, default_value_t = 0)]
+    sequence: usize,
 }
 
 /// The methods the GPU bench measures, in its order (its variants are of FKB and DKB).
@@ -126,7 +134,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 }
             }
         };
-        let gpu = gpu_bench(&scenes, w, h, budget, a.repeat, &mut partial);
+        let gpu = gpu_bench(
+            &scenes,
+            (w, h),
+            budget,
+            (a.repeat, a.sequence),
+            &mut partial,
+        );
         return write_report(report(gpu), a.out.as_deref());
     }
     let mut results = Vec::new();
@@ -208,7 +222,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         }));
     }
     let network = network_bench(a.repeat)?;
-    let gpu = gpu_bench(&scenes, w, h, budget, a.repeat, &mut |_| {});
+    let gpu = gpu_bench(&scenes, (w, h), budget, (a.repeat, a.sequence), &mut |_| {});
     let report = serde_json::json!({
         "threads": rayon::current_num_threads(),
         "gpu": gpu,
@@ -267,7 +281,6 @@ fn configure(label: &str) -> dhoit_runtime::gpu::FrameOptions {
         skip_forced: label != "dkb_no_skip",
         two_mode_capture: label != "dkb_insertion_only",
         fits_pipelines: label != "dkb_two_mode_where_all_fit",
-        predict_fit: label != "vkb_every_pass",
         spread_search: label == "dkb_spread_search",
         shared_weights: label == "dkb_shared_weights",
         unrolled_network: label != "dkb_array_network",
@@ -340,9 +353,8 @@ fn bench_nets(gpu: &dhoit_runtime::gpu::Gpu) -> BenchNets {
 /// The runs of one scene: every method as `render --device gpu` runs it, then each one option
 /// away from the default. DKB once more with the network run on every covered pixel, even where
 /// k is forced, once with every fragment inserted (no append mode in the capture), once with the
-/// two-mode capture pipeline where the budget holds every fragment, VKB once recording every
-/// pass whatever the last frame (the device empties what it does not need:
-/// FrameOptions::predict_fit off; DKB reads its count back and knows), once with the search's totals spread over 32 copies, and
+/// two-mode capture pipeline where the budget holds every fragment, once with the search's
+/// totals spread over 32 copies, and
 /// once with the network's weights staged in workgroup memory; FKB once more with its slots
 /// laid out layer-major; DKB with its records in one batch (the pool sized for all of them);
 /// and DKB with the 16-8 network, and with the default one at f16-math
@@ -359,7 +371,6 @@ fn bench_runs(
             ("dkb_no_skip", Method::Dkb, &cpu[4]),
             ("dkb_insertion_only", Method::Dkb, &cpu[4]),
             ("dkb_two_mode_where_all_fit", Method::Dkb, &cpu[4]),
-            ("vkb_every_pass", Method::Vkb, &cpu[3]),
             ("dkb_spread_search", Method::Dkb, &cpu[4]),
             ("dkb_shared_weights", Method::Dkb, &cpu[4]),
             ("dkb_array_network", Method::Dkb, &cpu[4]),
@@ -579,26 +590,10 @@ fn scene_figures(
             "the budget truncates: features drawn"
         },
     );
-    // The importance and allocation passes as recorded for a frame expected to fit (no
-    // importance, setup and apply alone), and as when every pass is recorded.
-    let small = |m: &str| {
-        ["importance", "allocation", "allocation apply"]
-            .iter()
-            .map(|p| pass(m, p))
-            .filter(|ms| !ms.is_nan())
-            .fold(0.0, |a, b| a + b)
-    };
     if holds_all {
         eprintln!(
             "GPU {name}: DKB capture {two_mode:.2} ms with the pipeline built for frames whose fragments all fit, {two_mode_where_all_fit:.2} ms with the two-mode one (A-buffer store {:.2} ms)",
             pass("abuffer", "store"),
-        );
-        eprintln!(
-            "GPU {name}: VKB importance and allocation {:.2} ms expecting the fit, {:.2} ms recording every pass; frame {:.2} / {:.2} ms",
-            small("vkb"),
-            small("vkb_every_pass"),
-            ms("vkb"),
-            ms("vkb_every_pass"),
         );
     }
     eprintln!(
@@ -640,11 +635,6 @@ fn scene_figures(
             "allocation_ms": pass("dkb", "allocation"),
             "allocation_ms_spread": pass("dkb_spread_search", "allocation"),
         },
-        "predict_fit": {
-            "importance_and_allocation_ms": small("vkb"),
-            "importance_and_allocation_ms_every_pass": small("vkb_every_pass"),
-            "frame_gpu_ms": ms("vkb"), "frame_gpu_ms_every_pass": ms("vkb_every_pass"),
-        },
     }))
 }
 
@@ -654,10 +644,9 @@ fn scene_figures(
 /// `partial` sees the report so far after each scene.
 fn gpu_bench(
     loaded: &[(String, scene::Scene)],
-    w: u32,
-    h: u32,
+    (w, h): (u32, u32),
     budget: Budget,
-    repeat: usize,
+    (repeat, sequence): (usize, usize),
     partial: &mut dyn FnMut(&serde_json::Value),
 ) -> serde_json::Value {
     use dhoit_runtime::gpu::{Gpu, Slots};
@@ -722,7 +711,18 @@ fn gpu_bench(
                 let run = time_run(&gpu, &configure(label), (s, &cam), (w, h), slots, repeat)?;
                 methods.insert(label.into(), run);
             }
-            scene_figures(name, &fl, &renderer, &cpu, methods)
+            let mut figures = scene_figures(name, &fl, &renderer, &cpu, methods)?;
+            if sequence > 0 {
+                figures["sequence"] = crate::sequence::sequence_bench(
+                    &gpu,
+                    (name, s),
+                    (w, h),
+                    sequence,
+                    budget,
+                    &nets.mlp,
+                )?;
+            }
+            Ok(figures)
         };
         match run() {
             Ok(v) => scenes.push(v),

@@ -11,6 +11,7 @@ mod features;
 mod predict;
 mod render;
 mod scenes;
+mod sequence;
 mod trade;
 mod versus;
 

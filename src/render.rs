@@ -118,21 +118,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
             let (w, h) = (fl.width, fl.height);
             let cam = Camera::orbit(&scene, a.view, a.common.views, w, h);
             let slots = Slots::for_method(method, &cpu, &options)?;
-            // One frame on a new renderer, with no last frame to follow: DKB counts first, and
-            // an allocated frame skips its importance and search, only where the budget holds
-            // every fragment the CPU counted in this frame (no second submission where it
-            // truncates; the images are the same either way, only the passes differ).
-            // The GPU decides on its own count whether the exact A-buffer is no dearer, as
-            // the CPU did (the two counts can differ by an edge's fragment).
-            let mut opts = FrameOptions {
+            // The GPU counts first and decides on its own count whether the exact A-buffer is
+            // no dearer, as the CPU did (the two counts can differ by an edge's fragment).
+            let opts = FrameOptions {
                 exact_when_cheaper: options.exact_when_cheaper,
                 record_batches: options.record_batches,
                 ..FrameOptions::default()
             };
-            if let Some(Slots::Dkb(_, f) | Slots::Vkb(_, f) | Slots::Importance(_, _, f)) = slots {
-                let holds = f.holds(fl.fragment_count() as u64);
-                opts.predict_fit = holds;
-            }
             let g = gpu.render_with(&opts, &scene, &cam, (w, h), a.common.background, slots)?;
             let passes: Vec<String> = g
                 .pass_ms

@@ -178,6 +178,10 @@ const ALLOC_DISPATCHES: (&str, u64) = (
 /// an odd number of pixels rounds its buffer up to a whole word, as [`Layout::fixed_bytes`]
 /// counts it). No other per-pixel buffer takes 2 bytes.
 const COUNT_BYTES: u64 = 2;
+/// A frame's totals and its plan's F and flags (totals.wgsl, plan.wgsl).
+const TOTALS: u64 = 4 * crate::shared::TOTALS_WORDS as u64;
+/// The frame's plan's parameters (plan.wgsl's uniform).
+const PLAN_PARAMS: (&str, u64) = ("plan.params", crate::shared::PLAN_PARAMS_BYTES);
 /// The prefix sums' final entry (offsets hold pixels + 1 values).
 const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 /// The resolve's status words: loops cut short, a pixel too deep (gpu's FrameStatus).
@@ -199,7 +203,8 @@ pub const DKB: Layout = Layout {
     per_pixel: &[("features.count", COUNT_BYTES), ("oit.offsets", 4)],
     fixed: &[
         ("params", PARAMS_BYTES),
-        ("features.totals", 24),
+        ("features.totals", TOTALS),
+        PLAN_PARAMS,
         // importance::optical_depth_table, a uniform.
         ("features.optical_depth", 1024),
         // The network's list's length and indirect dispatch (then the capture's unused
@@ -256,7 +261,8 @@ pub const VKB: Layout = Layout {
     per_pixel: &[("vkb.count", COUNT_BYTES), ("oit.offsets", 4)],
     fixed: &[
         ("params", PARAMS_BYTES),
-        ("vkb.totals", 16),
+        ("vkb.totals", TOTALS),
+        PLAN_PARAMS,
         // Bound in the capture's per-pixel tail's place, unused (the tails are pooled).
         ("vkb.unused_tail", 16),
         OFFSETS_END,
@@ -504,7 +510,9 @@ impl Layout {
             return self.fixed_bytes(pixels) + self.pool_bytes(pixels, f, occ);
         }
         if self.tail_bytes > 0 {
-            return self.allocated_bytes(pixels, occ.pool_words_at(f));
+            // The pool the frame makes for them (16 bytes at least, as every buffer).
+            let pool = (self.slot_bytes * occ.pool_words_at(f)).max(16);
+            return self.fixed_bytes(pixels) + pool;
         }
         self.allocated_bytes(pixels, f.min(occ.fragments))
     }
@@ -517,11 +525,12 @@ impl Layout {
             return self.slots_after_fixed(bytes, pixels);
         }
         let fixed = self.fixed_bytes(pixels);
-        // The pool's least size whatever F: the state it holds first.
+        // The pool's least size whatever F: the state it holds first, and 16 bytes at least
+        // (as every buffer).
         let least = if self.pool_state.is_some() {
             self.pool_least(pixels, occ.deeper)
         } else {
-            0
+            16
         };
         let pool = bytes.checked_sub(fixed).filter(|&p| p >= least);
         // The slots left beside the words the pixels may take past them where k is at least

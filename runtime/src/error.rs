@@ -60,17 +60,26 @@ pub enum GpuError {
     /// Every adapter lacks something the passes need; `lacking` says what, per adapter.
     #[error(
         "no adapter has what dhoit's passes need (64-bit integers and 64-bit atomic min/max \
-         for the capture keys, timestamp queries: Vulkan with shaderInt64 and \
-         VK_KHR_shader_atomic_int64, DX12 with shader model 6.6, Metal 2.4 on Apple7+): {lacking}"
+         for the capture keys: Vulkan with shaderInt64 and VK_KHR_shader_atomic_int64, DX12 \
+         with shader model 6.6; wgpu's Metal backend has no 64-bit atomics that return the old \
+         value): {lacking}"
     )]
     MissingFeatures { lacking: String },
     /// The application's device was opened without a feature or a limit the passes need.
     #[error(
         "the device on {adapter} was opened without what dhoit's passes need: {missing} \
          (request gpu::required_features(), 64-bit integers and 64-bit atomic min/max for the \
-         capture keys and timestamp queries, and gpu::required_limits() when opening it)"
+         capture keys, and gpu::required_limits() when opening it)"
     )]
     DeviceLacks { adapter: String, missing: String },
+    /// A texture an application hands a frame is not the one the method was made for.
+    #[error("the frame's {texture} is {got}; this {method} renders {expected}")]
+    FrameTexture {
+        method: &'static str,
+        texture: &'static str,
+        expected: String,
+        got: String,
+    },
     /// The network was deployed at f16-math on a device without half-precision shaders.
     #[error(
         "{adapter} lacks SHADER_F16 (half-precision arithmetic in shaders), which the \

@@ -51,6 +51,7 @@ pub mod gpu;
 pub mod image_io;
 pub mod importance;
 pub mod mlp;
+pub mod plan;
 pub mod raster;
 pub mod rng;
 pub mod scene;

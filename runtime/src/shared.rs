@@ -31,6 +31,24 @@ pub const DISPATCH_PER_PIXEL: u32 = 0;
 pub const DISPATCH_ROUNDS: u32 = 1;
 pub const DISPATCH_SCAN: u32 = 2;
 pub const ALLOC_DISPATCHES: u32 = 3;
+/// Words of a frame's totals (totals.wgsl): its fragments, covered pixels, largest count, deep
+/// pixels (two fragments or more), DKB's records handed out, deeper pixels (more than
+/// [`TAIL_WORDS`]), then the frame's plan (plan.wgsl): F as the allocation reads it, and its
+/// flags.
+pub const TOTALS_WORDS: u32 = 8;
+/// Bytes of the frame's plan's parameters (`wgsl::PlanParams`, whose size a test holds to it).
+pub const PLAN_PARAMS_BYTES: u64 = 64;
+/// The totals' word holding the plan's F ([`crate::plan::Plan::words`]).
+pub const PLAN_F_WORD: u32 = 6;
+/// The totals' word holding the plan's flags: bit 0 exact, then [`crate::plan::SHORT_SLOTS`]
+/// and the other short bits shifted up by one.
+pub const PLAN_FLAGS_WORD: u32 = 7;
+/// The resolves' status word 0 (gpu's `FrameStatus`): a pixel's loops came close to the
+/// device's limit.
+pub const STATUS_NEAR_LOOP: u64 = 1;
+/// ... a pool sized before the frame's count held fewer of its fragments than it has (the
+/// A-buffer's: the pixels past its end hold none).
+pub const STATUS_POOL_SHORT: u64 = 2;
 /// Pixels whose allocation marks one u32 holds: the allocation marks the pixels whose k rises
 /// at the next level one bit each, and ranks a marked pixel by the marks before it.
 pub const MARK_BITS: u64 = 32;

@@ -12,15 +12,12 @@ pub use crate::shared::{
 /// WGSL sources, embedded at build time.
 pub mod shaders {
     /// Code every pass starts with (after the prelude), the per-pixel counts' packing
-    /// ([`COUNTS`]) with it.
+    /// (counts.wgsl) with it.
     pub const COMMON: &str = concat!(
         include_str!("../../shaders/common.wgsl"),
         "\n",
         include_str!("../../shaders/counts.wgsl")
     );
-    /// The per-pixel counts, two to a word (`shared::count_word`): in [`COMMON`], and in the
-    /// exact A-buffer's store module for an application (`gpu::ExactOit::wgsl`).
-    pub const COUNTS: &str = include_str!("../../shaders/counts.wgsl");
     pub const GEOMETRY: &str = include_str!("../../shaders/geometry.wgsl");
     /// The importance network, prepended to the passes that run it.
     pub const MLP: &str = include_str!("../../shaders/mlp.wgsl");
@@ -41,20 +38,8 @@ pub mod shaders {
         pub includes: &'static [&'static str],
     }
 
-    /// The k-buffer's Loop64 insertion and tail, shared by the capture and an application's
-    /// fragment shader (`gpu::KBufferOit::wgsl`).
+    /// The k-buffer's Loop64 insertion and tail, which the capture runs (capture.wgsl).
     pub const KBUFFER_INSERT: &str = include_str!("../../shaders/kbuffer_insert.wgsl");
-    /// The key an application's fragment hands dhoit, prepended to its store modules.
-    pub const OIT_FRAGMENT: &str = include_str!("../../shaders/oit_fragment.wgsl");
-    /// The linked list's bindings and `oit_store` for an application's fragment shader
-    /// (`gpu::ListOit::wgsl`), its group index `OIT_GROUP` to be replaced.
-    pub const OIT_LIST_STORE: &str = include_str!("../../shaders/oit_list_store.wgsl");
-    /// The fixed k-buffer's bindings and `oit_store` for an application's fragment shader
-    /// (`gpu::KBufferOit::wgsl`), its group index `OIT_GROUP` to be replaced.
-    pub const OIT_KBUFFER_STORE: &str = include_str!("../../shaders/oit_kbuffer_store.wgsl");
-    /// The exact A-buffer's bindings and `oit_store` for an application's fragment shader
-    /// (`gpu::ExactOit::wgsl`), its group index `OIT_GROUP` to be replaced.
-    pub const OIT_ABUFFER_STORE: &str = include_str!("../../shaders/oit_abuffer_store.wgsl");
 
     /// The module an application's transparent fragment shader starts with: `parts` (what
     /// the store module includes, then the module) joined, their bindings at `group`.
@@ -165,7 +150,7 @@ pub mod shaders {
         ))
     }
 
-    pub const PASSES: [Pass; 21] = [
+    pub const PASSES: [Pass; 22] = [
         Pass {
             name: "opaque",
             source: include_str!("../../shaders/opaque.wgsl"),
@@ -249,6 +234,11 @@ pub mod shaders {
         Pass {
             name: "totals",
             source: include_str!("../../shaders/totals.wgsl"),
+            includes: &[],
+        },
+        Pass {
+            name: "plan",
+            source: include_str!("../../shaders/plan.wgsl"),
             includes: &[],
         },
         Pass {
@@ -355,6 +345,14 @@ pub mod shaders {
             ("MARK_BITS", U32(crate::shared::MARK_BITS as u32)),
             ("RECORD_WORDS", U32(crate::shared::RECORD_WORDS)),
             ("NO_RECORD", U32(crate::shared::NO_RECORD)),
+            ("TOTALS_WORDS", U32(crate::shared::TOTALS_WORDS)),
+            ("STATUS_NEAR_LOOP", U64(crate::shared::STATUS_NEAR_LOOP)),
+            ("STATUS_POOL_SHORT", U64(crate::shared::STATUS_POOL_SHORT)),
+            ("PLAN_F_WORD", U32(crate::shared::PLAN_F_WORD)),
+            ("PLAN_FLAGS_WORD", U32(crate::shared::PLAN_FLAGS_WORD)),
+            ("PLAN_SHORT_SLOTS", U32(crate::plan::SHORT_SLOTS)),
+            ("PLAN_SHORT_RECORDS", U32(crate::plan::SHORT_RECORDS)),
+            ("PLAN_NO_SLOT", U32(crate::plan::NO_SLOT)),
             ("MAX_FRAGMENTS_PER_PIXEL", U32(MAX_FRAGMENTS_PER_PIXEL)),
             ("TEXEL_LIMIT", F32(crate::scene::material::TEXEL_LIMIT)),
             ("ALPHA_SCALE", F32(crate::scene::material::ALPHA_SCALE)),
@@ -615,10 +613,74 @@ pub const MLAB_MAX_ROWS: u32 = 16;
 #[repr(C)]
 #[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct AllocParams {
-    pub(crate) f_lo: u32,
-    pub(crate) f_hi: u32,
-    pub(crate) ppm: u32,
+    /// The weights' kind ([`crate::alloc::Target`]); F is the frame's plan's
+    /// ([`crate::plan`], in its totals).
     pub(crate) kind: u32,
+    pub(crate) _pad: [u32; 3],
+}
+
+/// The frame's plan's parameters (matches `PlanParams` in plan.wgsl; [`crate::plan::PlanInput`]
+/// as the pass reads it).
+#[repr(C)]
+#[derive(Clone, Copy, Default, Debug, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct PlanParams {
+    pub(crate) kind: u32,
+    pub(crate) budget: u32,
+    pub(crate) exact_when_cheaper: u32,
+    pub(crate) batches: u32,
+    pub(crate) bytes_lo: u32,
+    pub(crate) bytes_hi: u32,
+    pub(crate) pool_lo: u32,
+    pub(crate) pool_hi: u32,
+    pub(crate) record_bytes: u32,
+    pub(crate) layout_batches: u32,
+    pub(crate) marks_lo: u32,
+    pub(crate) marks_hi: u32,
+    pub(crate) _pad: [u32; 4],
+}
+
+impl PlanParams {
+    /// What plan.wgsl reads of `input`.
+    pub(crate) fn of(input: &crate::plan::PlanInput) -> PlanParams {
+        use crate::budget::FragmentBudget;
+        use crate::plan::PlanBudget;
+        let split = |v: u64| (v as u32, (v >> 32) as u32);
+        let (kind, budget, bytes) = match input.budget {
+            PlanBudget::Fragments(FragmentBudget::Slots(f)) => {
+                (0, f.min(u32::MAX as u64) as u32, 0)
+            }
+            PlanBudget::Fragments(FragmentBudget::Share(ppm)) => (1, ppm, 0),
+            // The bytes beside the layout's fixed ones; all ones where there are none.
+            PlanBudget::Bytes(m) => (
+                2,
+                0,
+                m.checked_sub(input.layout.fixed_bytes(input.pixels))
+                    .unwrap_or(u64::MAX),
+            ),
+        };
+        let (bytes_lo, bytes_hi) = split(bytes);
+        let (pool_lo, pool_hi) = split(input.pool_bytes);
+        let (marks_lo, marks_hi) = split(crate::budget::marks_bytes(input.pixels));
+        let (record_bytes, layout_batches) = match input.layout.pool_state {
+            Some(ps) => ((ps.record_bytes + ps.list_bytes) as u32, ps.batches as u32),
+            None => (0, 1),
+        };
+        PlanParams {
+            kind,
+            budget,
+            exact_when_cheaper: input.exact_when_cheaper as u32,
+            batches: input.batches.min(u32::MAX as u64) as u32,
+            bytes_lo,
+            bytes_hi,
+            pool_lo,
+            pool_hi,
+            record_bytes,
+            layout_batches,
+            marks_lo,
+            marks_hi,
+            _pad: [0; 4],
+        }
+    }
 }
 
 /// Hexadecimal digits of the allocation's search interval: t lies in [0, 2^44) (16^11).
@@ -721,9 +783,27 @@ mod tests {
         assert_eq!(span as usize, size_of::<GpuMaterial>());
 
         let (span, wgsl) = wgsl_struct(&module, "Alloc");
-        let rust = offsets!(AllocParams; f_lo, f_hi, ppm, kind);
-        assert_eq!(wgsl, rust, "Alloc: WGSL (left) and Rust (right)");
+        let rust = offsets!(AllocParams; kind, _pad);
+        assert_eq!(
+            &wgsl[..1],
+            &rust[..1],
+            "Alloc: WGSL (left) and Rust (right)"
+        );
         assert_eq!(span as usize, size_of::<AllocParams>());
+
+        let (span, wgsl) = wgsl_struct(&parse("plan"), "PlanParams");
+        let rust = offsets!(PlanParams; kind, budget, exact_when_cheaper, batches, bytes_lo,
+            bytes_hi, pool_lo, pool_hi, record_bytes, layout_batches, marks_lo, marks_hi);
+        assert_eq!(
+            &wgsl[..rust.len()],
+            &rust[..],
+            "PlanParams: WGSL (left) and Rust (right)"
+        );
+        assert_eq!(span as usize, size_of::<PlanParams>());
+        assert_eq!(
+            size_of::<PlanParams>() as u64,
+            crate::shared::PLAN_PARAMS_BYTES
+        );
 
         // The search state holds what the host allocates for it.
         assert_eq!(global_size(&module, "state"), 8 * ALLOC_STATE_WORDS as u64);

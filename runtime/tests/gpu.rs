@@ -6,7 +6,7 @@ mod common;
 use common::{RenderMethod, gpu, max_abs_diff};
 
 use dhoit_runtime::alloc;
-use dhoit_runtime::budget::{self, Budget};
+use dhoit_runtime::budget::{self, Budget, FragmentBudget};
 use dhoit_runtime::composite;
 use dhoit_runtime::fragment::FragmentLists;
 use dhoit_runtime::gpu::Slots;
@@ -382,14 +382,12 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
 /// (`FrameOptions::unrolled_network`) gives the importance of mlp.wgsl's loops: one frame per
 /// setting, at a budget that truncates and at one that holds every fragment, the same
 /// statistics as the CPU twin's for every pixel of two fragments or more (the pixels with a
-/// record) where the features pass drew (only where the budget truncates: DKB counts first and
-/// reads its count back), the same importance and image bits. Then a stream of frames following
-/// the last (`FrameOptions::predict_fit`, the default), DKB's, VKB's and uploaded importance's:
-/// DKB records its features, importance and allocation exactly where its count says the budget
-/// truncates; the others count first and record nothing else before the capture after a frame
-/// the budget held, record every pass after one it truncated, or in a second submission where
-/// an expected fit truncates; all with the slots, importance and image bits of frames that
-/// record every pass; and so does the allocation's spread search.
+/// record) where the features pass drew (only where the budget truncates: `Gpu::render` counts
+/// first and knows), the same importance and image bits. Then frames of DKB, VKB and uploaded
+/// importance, each the same whatever came before it: the count, its totals and plan and the
+/// allocation recorded once, the features and importance only where the budget truncates, the
+/// plan exact where it holds every fragment; and the allocation's spread search gives the same
+/// slots and images.
 fn features_and_network_layouts_give_the_same_frame(
     g: &mut dhoit_runtime::gpu::Gpu,
     (s, cam): (&Scene, &Camera),
@@ -463,8 +461,7 @@ fn features_and_network_layouts_give_the_same_frame(
     }
     o.features_preload = true;
     o.unrolled_network = true;
-    // Every pass recorded whatever the last frame (`FrameOptions::predict_fit` off): the references of
-    // the stream below, DKB's, VKB's and uploaded importance's.
+    // DKB's, VKB's and uploaded importance's frames: the references of the frames below.
     let vkb = |f: u64| Slots::Vkb(Default::default(), f.into());
     let dkb = |f: u64| Slots::Dkb(mlp, f.into());
     let mut rng = dhoit_runtime::rng::Rng::new(11);
@@ -476,7 +473,6 @@ fn features_and_network_layouts_give_the_same_frame(
         _ => upload(f),
     };
     let methods = ["dkb", "vkb", "uploaded"];
-    o.predict_fit = false;
     let mut reference = std::collections::HashMap::new();
     for f in [truncates, holds_all] {
         for (method, slots) in methods.map(|m| (m, slots(m, f))) {
@@ -486,55 +482,39 @@ fn features_and_network_layouts_give_the_same_frame(
             reference.insert((method, f), (image_bits(&frame.image), frame.slots, bits));
         }
     }
-    o.predict_fit = true;
-    // The last frame above was held by its budget: the stream starts counting first and
-    // expects to fit. A frame expected to fit records its count and its totals alone (it
-    // reads its fragments back from them before the count's prefix sum, k = n, takes the
-    // word VKB's nearest keys are in) and, where the budget holds every fragment, neither
-    // features, importance nor allocation; where it truncates (frame 1), it records them, the
-    // totals again, in a second submission.
+    // Frames counted first record the passes they run, whatever the frame before: the count,
+    // its totals and plan, and the allocation (which gives k = n where every fragment fits);
+    // the features and the importance only where the budget truncates. Each frame is its
+    // reference, whatever came before it.
     for method in methods {
-        for (i, (f, expect_fit)) in [
-            (holds_all, true),
-            (truncates, true),
-            (truncates, false),
-            (holds_all, false),
-            (holds_all, true),
-        ]
-        .into_iter()
-        .enumerate()
+        for (i, f) in [holds_all, truncates, truncates, holds_all, holds_all]
+            .into_iter()
+            .enumerate()
         {
             let frame = g
                 .render_with(&o, s, cam, (w, h), BG, Some(slots(method, f)))
                 .unwrap();
-            let label = format!("{method}: following frame {i}, F {f} of {total}");
+            let label = format!("{method}: frame {i}, F {f} of {total}");
             let passes = |name: &str| frame.pass_ms.iter().filter(|p| p.0 == name).count();
             let holds = f >= total;
-            // DKB knows from its count whether the budget truncates, whatever the last frame.
-            let dkb = method == "dkb";
-            if dkb {
-                assert!(counted_first(&frame), "{label}: count pass");
+            assert!(counted_first(&frame), "{label}: count pass");
+            if method == "dkb" {
                 assert_eq!(frame.features_drawn, Some(!holds), "{label}");
             }
-            let recorded = !(holds && (expect_fit || dkb));
             // Uploaded importance has no importance pass.
-            let computed = (method != "uploaded") as usize;
+            let computed = (method != "uploaded" && !holds) as usize;
             for (name, times) in [("totals", 1), ("importance", computed), ("allocation", 1)] {
-                let want = match (dkb, name) {
-                    (true, "totals") => 1,
-                    (false, "totals") => expect_fit as usize + recorded as usize,
-                    _ => times * recorded as usize,
-                };
-                assert_eq!(passes(name), want, "{label}: {name}");
+                assert_eq!(passes(name), times, "{label}: {name}");
             }
+            let plan = frame.plan.expect("an allocated frame's plan");
+            assert_eq!(plan.exact, holds, "{label}: plan");
             let (image, keys, importance) = &reference[&(method, f)];
             let bits = frame.importance.as_deref().map(float_bits);
             assert!(image_bits(&frame.image) == *image, "{label}: image differs");
             assert!(frame.slots == *keys, "{label}: slots differ");
-            if recorded || method != "vkb" {
-                assert!(bits == *importance, "{label}: importance differs");
-            } else {
-                // VKB's importance where it was not computed: none (k = n needs none).
+            assert!(bits == *importance, "{label}: importance differs");
+            if holds && method != "uploaded" {
+                // Where it was not computed: zeros (k = n needs none).
                 assert!(bits.unwrap().iter().all(|&b| b == 0), "{label}: importance");
             }
         }
@@ -2219,4 +2199,90 @@ fn the_renderer_runs_on_the_applications_device() {
         assert_eq!(theirs.image, ours.image, "{m}");
         assert_eq!(theirs.allocated_bytes, ours.allocated_bytes, "{m}");
     }
+}
+
+/// The frame's plan on the device (plan.wgsl) is its twin's (`plan::plan`, itself held to an
+/// exhaustive search over F and to hand computations in its unit tests) for every case of a
+/// grid: DKB's and VKB's layouts, budgets of slots, shares and bytes, pools from none to more
+/// than every fragment, one to three features passes recorded, exact where cheaper or not, and
+/// frames from empty to every pixel three deep.
+#[test]
+fn the_plan_pass_matches_its_cpu_twin() {
+    use dhoit_runtime::budget::Occupancy;
+    use dhoit_runtime::plan::{PlanBudget, PlanInput, plan};
+    let Some(g) = gpu() else { return };
+    let px = 4096u64;
+    let dkb = dhoit_runtime::gpu::FrameOptions::default().dkb_layout(&common::committed_weights());
+    let mut cases = Vec::new();
+    for layout in [dkb, budget::VKB] {
+        let fixed = layout.fixed_bytes(px);
+        let budgets = [
+            PlanBudget::Fragments(FragmentBudget::Slots(0)),
+            PlanBudget::Fragments(FragmentBudget::Slots(700)),
+            PlanBudget::Fragments(FragmentBudget::Slots(5_000)),
+            PlanBudget::Fragments(FragmentBudget::Share(250_000)),
+            PlanBudget::Fragments(FragmentBudget::Share(1_000_000)),
+            PlanBudget::Bytes(fixed / 2),
+            PlanBudget::Bytes(fixed + 30_000),
+            PlanBudget::Bytes(fixed + 200_000),
+        ];
+        for (covered, deep, deeper, extra) in [
+            (0u64, 0u64, 0u64, 0u64),
+            (1, 0, 0, 0),
+            (900, 300, 120, 400),
+            (4096, 4096, 4096, 9_000),
+            (2000, 1999, 3, 17),
+        ] {
+            let occ = Occupancy {
+                fragments: covered + deep + deeper + extra,
+                covered,
+                deep,
+                deeper,
+            };
+            // Pools and byte budgets around where the fitting F changes branch: at f1 = the
+            // covered pixels, at f0 = 0, at every fragment, a word either side.
+            let edges: Vec<u64> = [covered + deep + deeper, covered + deep, occ.fragments]
+                .iter()
+                .flat_map(|&w| [w.saturating_sub(1), w, w + 1])
+                .map(|w| 8 * w)
+                .collect();
+            let byte_edges = edges.iter().map(|&b| PlanBudget::Bytes(fixed + b));
+            for budget in budgets.into_iter().chain(byte_edges) {
+                let pools = [16, 1_000, 9_000, 40_000, 300_000];
+                for pool_bytes in pools.into_iter().chain(edges.iter().copied()) {
+                    for batches in [1, 3] {
+                        for exact_when_cheaper in [false, true] {
+                            let input = PlanInput {
+                                layout,
+                                pixels: px,
+                                budget,
+                                pool_bytes,
+                                batches,
+                                exact_when_cheaper,
+                            };
+                            cases.push((input, occ));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let gpu_plans = g.plan(&cases).unwrap();
+    let (mut exact, mut short, mut truncated) = (0, 0, 0);
+    for ((input, occ), on_gpu) in cases.iter().zip(gpu_plans) {
+        let twin = plan(input, occ);
+        assert_eq!(
+            on_gpu,
+            dhoit_runtime::plan::Plan { batches: 0, ..twin },
+            "{input:?} {occ:?}"
+        );
+        exact += twin.exact as u32;
+        short += (twin.short != 0) as u32;
+        truncated += (!twin.exact && twin.f > 0) as u32;
+    }
+    // The grid reaches every outcome.
+    assert!(
+        exact > 0 && short > 0 && truncated > 0,
+        "{exact} {short} {truncated}"
+    );
 }

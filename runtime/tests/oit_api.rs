@@ -1,47 +1,46 @@
-//! dhoit's linked list in an application's own renderer, written as an outside user would: its
+//! dhoit's methods in an application's own renderer, written as an outside user would: its
 //! own device, vertex buffer and layout, WGSL vertex and fragment shaders (the fragment shader
-//! ending in dhoit's `oit_store`), its own image under the transparency and its own target.
-//! The image must be the one dhoit's own renderer gives for the same frame. Needs a GPU adapter
-//! (lavapipe in CI); DHOIT_SKIP_GPU=1 skips explicitly.
+//! ending in dhoit's `oit_store` or `oit_targets`), its own opaque pass and image under the
+//! transparency, its own target, and one protocol for every method (`gpu::Oit`). The image
+//! must be the one dhoit's own renderer gives for the same frame. Needs a GPU adapter (lavapipe
+//! in CI); DHOIT_SKIP_GPU=1 skips explicitly.
 
 mod common;
 
 use common::{gpu, identity, quad};
-use dhoit_runtime::budget::{self, Budget};
+use dhoit_runtime::budget::{self, Budget, Occupancy};
 use dhoit_runtime::composite::{MboitParams, WboitParams, WboitWeight};
 use dhoit_runtime::gpu::{
-    self, AllocatedFrame, AllocatedOit, ApplicationOit, BlendedOit, BlendedPhase, ExactOit,
-    KBufferOit, ListOit, Phase, Slots,
+    self, AllocatedOit, BlendedOit, ExactOit, FrameOptions, FrameReport, FrameTargets, Gpu,
+    KBufferOit, ListOit, Oit, Phase, Slots,
 };
-use dhoit_runtime::gpu::{AllocatedMethod, FrameOptions};
-use dhoit_runtime::scene::Camera;
-use dhoit_runtime::scene::Scene;
+use dhoit_runtime::scene::{Camera, Scene};
 
 const BG: [f32; 3] = [0.9, 0.85, 0.8];
+const F32X4: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 
-/// The application's device, with dhoit's features and limits.
-fn app_device() -> (wgpu::Device, wgpu::Queue) {
-    app_device_blending(false)
-}
-
-/// [`app_device`], and where `blending` (MBOIT's), 32-bit float blending and the colour
-/// attachments' bytes a sample where the adapter has them.
-fn app_device_blending(blending: bool) -> (wgpu::Device, wgpu::Queue) {
+/// The application's device, with dhoit's features and limits, and where the adapter has
+/// them the optional ones: timestamps (`timestamps`), 32-bit float blending and the colour
+/// attachments' bytes a sample (MBOIT's); and dhoit's passes on it.
+fn app_device(timestamps: bool) -> (wgpu::Device, wgpu::Queue, Gpu) {
     let instance = wgpu::Instance::default();
     let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
     let mut features = gpu::required_features();
-    let mut limits = gpu::required_limits();
-    if blending {
-        features |= adapter.features() & wgpu::Features::FLOAT32_BLENDABLE;
-        limits.max_color_attachment_bytes_per_sample =
-            adapter.limits().max_color_attachment_bytes_per_sample;
+    features |= adapter.features() & wgpu::Features::FLOAT32_BLENDABLE;
+    if timestamps {
+        features |= adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
     }
-    pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+    let mut limits = gpu::required_limits();
+    limits.max_color_attachment_bytes_per_sample =
+        adapter.limits().max_color_attachment_bytes_per_sample;
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         required_features: features,
         required_limits: limits,
         ..Default::default()
     }))
-    .unwrap()
+    .unwrap();
+    let g = Gpu::on_device(device.clone(), queue.clone(), &adapter.get_info()).unwrap();
+    (device, queue, g)
 }
 
 /// The application's shaders: its camera, one flat colour a triangle lit by a headlight as
@@ -86,21 +85,22 @@ fn fs_opaque(in: V) -> @location(0) vec4<f32> {
 }
 "#;
 
-/// The application's transparent fragment entry for the methods that store fragments.
+/// The application's transparent fragment entry for the methods that store fragments: each
+/// fragment with its facing (VKB's importance) and its triangle's index (MLAB's order); the
+/// other methods' modules ignore them.
 const APP_STORE: &str = r#"
 @fragment
 fn fs(in: V) {
-    // The facing is VKB's (its importance); the other methods' modules ignore it.
-    oit_store_facing(in.position, in.color, in.facing);
+    oit_store_ordered(in.position, in.color, in.order);
+    _ = in.facing;
 }
 "#;
 
-/// Its transparent fragment entry for the A-buffer and MLAB: each fragment with its
-/// submission index (MLAB blends in that order; the exact blend needs none).
-const APP_ORDERED: &str = r#"
+/// VKB's: its facing.
+const APP_FACING: &str = r#"
 @fragment
 fn fs(in: V) {
-    oit_store_ordered(in.position, in.color, in.order);
+    oit_store_facing(in.position, in.color, in.facing);
 }
 "#;
 
@@ -112,199 +112,111 @@ fn fs(in: V) -> OitTargets {
 }
 "#;
 
-/// Renders `s` (seen through the identity camera) with the application's pipeline and one of
-/// dhoit's methods, made on the application's device by `make`; returns the target's RGB,
-/// row-major.
-/// One of dhoit's methods on the application's device: one drawn once, the exact A-buffer,
-/// drawn twice (count, then store), or DKB or VKB, drawn into each geometry pass it records (one
-/// pipeline a phase).
-enum AppOit {
-    Once(Box<dyn ApplicationOit>),
-    Exact(Box<ExactOit>),
-    Allocated(Box<AllocatedOit>),
-    Blended(Box<BlendedOit>),
-}
-
-/// Which of a method's transparent pipelines: the one of a method drawn once or twice, one of
-/// DKB's or VKB's phases, or one of the blended methods'.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Key {
-    One,
-    Deep(Phase),
-    Blend(BlendedPhase),
-}
-
-impl AppOit {
-    /// The phases the application builds a transparent pipeline for (DKB's and the blended
-    /// methods'; one for the rest).
-    fn phases(&self) -> Vec<Key> {
-        match self {
-            AppOit::Allocated(o) => o.phases().iter().copied().map(Key::Deep).collect(),
-            AppOit::Blended(o) => o.phases().iter().copied().map(Key::Blend).collect(),
-            _ => vec![Key::One],
-        }
-    }
-    /// dhoit's module, the application's shaders and its transparent fragment entry.
-    fn shader(&self, group: u32, key: Key) -> String {
-        let (module, entry) = match (self, key) {
-            (AppOit::Once(o), _) => (o.store_module(group), APP_STORE),
-            (AppOit::Exact(_), _) => (ExactOit::wgsl(group), APP_ORDERED),
-            (AppOit::Allocated(o), Key::Deep(phase)) => (o.store_module(phase, group), APP_STORE),
-            (AppOit::Blended(o), Key::Blend(phase)) => (o.store_module(phase, group), APP_BLEND),
-            _ => unreachable!("{key:?} is not a phase of this method"),
-        };
-        module + APP_SHADER + entry
-    }
-    fn bind_group_layout(&self, key: Key) -> &wgpu::BindGroupLayout {
-        match (self, key) {
-            (AppOit::Once(o), _) => o.bind_group_layout(),
-            (AppOit::Exact(o), _) => o.bind_group_layout(),
-            (AppOit::Allocated(o), Key::Deep(phase)) => o.bind_group_layout(phase),
-            (AppOit::Blended(o), Key::Blend(phase)) => o.bind_group_layout(phase),
-            _ => unreachable!("{key:?} is not a phase of this method"),
-        }
-    }
-}
-
-/// The application draws its transparent triangles in the scene's order, or reversed, seen
-/// through the identity camera. Returns its target's colours, and what DKB's frame says of
-/// itself.
-fn app_frame(
-    s: &Scene,
+/// An application around a scene: its device and dhoit's passes on it, its vertices (the
+/// opaque triangles first, then the transparent ones, in the scene's order or reversed), its
+/// opaque pipeline, depth and opaque image.
+struct App {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    gpu: Gpu,
     size: (u32, u32),
-    reversed: bool,
-    make: impl FnOnce(&wgpu::Device, &wgpu::Queue) -> AppOit,
-) -> (Vec<[f32; 3]>, Option<AllocatedFrame>) {
-    app_frame_from(s, &identity(), size, reversed, make)
+    vertices: wgpu::Buffer,
+    opaque_vertices: u32,
+    all_vertices: u32,
+    own: wgpu::BindGroupLayout,
+    opaque_pipeline: wgpu::RenderPipeline,
+    depth: wgpu::Texture,
+    under: wgpu::Texture,
 }
 
-/// [`app_frame`] through `cam`. Each triangle's colour is its first vertex's (the scene's own
-/// where its three share one, as dhoit takes it then).
-fn app_frame_from(
-    s: &Scene,
-    cam: &Camera,
-    (w, h): (u32, u32),
-    reversed: bool,
-    make: impl FnOnce(&wgpu::Device, &wgpu::Queue) -> AppOit,
-) -> (Vec<[f32; 3]>, Option<AllocatedFrame>) {
-    let (device, queue) = app_device_blending(true);
-    let oit = make(&device, &queue);
-    // Interleaved position (3 floats), colour (4), the triangle's three positions (9) and its
-    // index in the scene (a u32), its own layout: the opaque triangles first, then the
-    // transparent ones.
-    let mut vertices: Vec<f32> = Vec::new();
-    let opaque = |t: usize| !s.transparent(t);
-    let triangles = s.positions.len() / 3;
-    let mut transparent: Vec<usize> = (0..triangles).filter(|&t| !opaque(t)).collect();
-    if reversed {
-        transparent.reverse();
+/// One transparent pipeline a phase of the method.
+type Pipelines = Vec<(Phase, wgpu::RenderPipeline)>;
+
+const VERTEX_LAYOUT: [Option<wgpu::VertexBufferLayout>; 1] = [Some(wgpu::VertexBufferLayout {
+    array_stride: 68,
+    step_mode: wgpu::VertexStepMode::Vertex,
+    attributes: &wgpu::vertex_attr_array![
+        0 => Float32x3, 1 => Float32x4, 2 => Float32x3, 3 => Float32x3, 4 => Float32x3,
+        5 => Uint32
+    ],
+})];
+
+impl App {
+    fn new(s: &Scene, size: (u32, u32), reversed: bool) -> App {
+        Self::on(app_device(true), s, size, reversed)
     }
-    let order: Vec<usize> = (0..triangles)
-        .filter(|&t| opaque(t))
-        .chain(transparent)
-        .collect();
-    let opaque_vertices = 3 * (0..triangles).filter(|&t| opaque(t)).count() as u32;
-    for &t in &order {
-        let corners: Vec<f32> = (3 * t..3 * t + 3)
-            .flat_map(|v| s.positions[v].to_array())
-            .collect();
-        for v in 3 * t..3 * t + 3 {
-            let p = s.positions[v];
-            vertices.extend_from_slice(&[p.x, p.y, p.z]);
-            vertices.extend_from_slice(&s.colors[3 * t]);
-            vertices.extend_from_slice(&corners);
-            vertices.push(f32::from_bits(t as u32));
+
+    fn on(
+        (device, queue, gpu): (wgpu::Device, wgpu::Queue, Gpu),
+        s: &Scene,
+        (w, h): (u32, u32),
+        reversed: bool,
+    ) -> App {
+        // Interleaved position (3 floats), colour (4), the triangle's three positions (9) and
+        // its index in the scene (a u32). Each triangle's colour is its first vertex's.
+        let opaque = |t: usize| !s.transparent(t);
+        let triangles = s.positions.len() / 3;
+        let mut transparent: Vec<usize> = (0..triangles).filter(|&t| !opaque(t)).collect();
+        if reversed {
+            transparent.reverse();
         }
-    }
-    let vbuf = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("app vertices"),
-        size: (4 * vertices.len()) as u64,
-        usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    queue.write_buffer(&vbuf, 0, bytemuck::cast_slice(&vertices));
-    let modules: Vec<wgpu::ShaderModule> = oit
-        .phases()
-        .into_iter()
-        .map(|phase| {
-            let src = oit.shader(1, phase);
-            device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("app transparent"),
-                source: wgpu::ShaderSource::Wgsl(src.into()),
-            })
-        })
-        .collect();
-    // Group 0 is the application's (its camera); dhoit's at 1, as it chose.
-    let camera = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("app camera"),
-        size: 80,
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut camera_words = cam.view_proj.to_cols_array().to_vec();
-    camera_words.extend_from_slice(&cam.forward.to_array());
-    camera_words.push(s.uniform_opacity.unwrap_or(-1.0));
-    queue.write_buffer(&camera, 0, bytemuck::cast_slice(&camera_words));
-    let own = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("app"),
-        entries: &[wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::VERTEX,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        }],
-    });
-    let own_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("app"),
-        layout: &own,
-        entries: &[wgpu::BindGroupEntry {
-            binding: 0,
-            resource: camera.as_entire_binding(),
-        }],
-    });
-    let layout_for = |phase| {
-        device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("app transparent"),
-            bind_group_layouts: &[Some(&own), Some(oit.bind_group_layout(phase))],
+        let order: Vec<usize> = (0..triangles)
+            .filter(|&t| opaque(t))
+            .chain(transparent)
+            .collect();
+        let mut data: Vec<f32> = Vec::new();
+        for &t in &order {
+            let corners: Vec<f32> = (3 * t..3 * t + 3)
+                .flat_map(|v| s.positions[v].to_array())
+                .collect();
+            for v in 3 * t..3 * t + 3 {
+                data.extend_from_slice(&s.positions[v].to_array());
+                data.extend_from_slice(&s.colors[3 * t]);
+                data.extend_from_slice(&corners);
+                data.push(f32::from_bits(t as u32));
+            }
+        }
+        let vertices = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("app vertices"),
+            size: (4 * data.len()).max(16) as u64,
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        queue.write_buffer(&vertices, 0, bytemuck::cast_slice(&data));
+        let own = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("app"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("app opaque"),
+            source: wgpu::ShaderSource::Wgsl(APP_SHADER.into()),
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("app opaque"),
+            bind_group_layouts: &[Some(&own)],
             immediate_size: 0,
-        })
-    };
-    let vertex_layout = [Some(wgpu::VertexBufferLayout {
-        array_stride: 68,
-        step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &wgpu::vertex_attr_array![
-            0 => Float32x3, 1 => Float32x4, 2 => Float32x3, 3 => Float32x3, 4 => Float32x3,
-            5 => Uint32
-        ],
-    })];
-    // Its opaque pass writes colour and depth; its transparent pass writes neither: the
-    // fragments go to dhoit's list, which tests them against that depth (the occluder).
-    // The opaque pass has its own layout, without dhoit's group (whose depth texture it writes).
-    let opaque_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("app opaque"),
-        bind_group_layouts: &[Some(&own)],
-        immediate_size: 0,
-    });
-    let pipeline_for = |module: &wgpu::ShaderModule,
-                        layout: &wgpu::PipelineLayout,
-                        entry: &str,
-                        targets: &[Option<wgpu::ColorTargetState>],
-                        depth: bool| {
-        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some(entry),
-            layout: Some(layout),
+        });
+        // Its opaque pass writes colour and depth; its transparent passes write neither.
+        let opaque_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("app opaque"),
+            layout: Some(&layout),
             vertex: wgpu::VertexState {
-                module,
+                module: &module,
                 entry_point: Some("vs"),
                 compilation_options: Default::default(),
-                buffers: &vertex_layout,
+                buffers: &VERTEX_LAYOUT,
             },
             primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: depth.then(|| wgpu::DepthStencilState {
+            depth_stencil: Some(wgpu::DepthStencilState {
                 format: wgpu::TextureFormat::Depth32Float,
                 depth_write_enabled: Some(true),
                 depth_compare: Some(wgpu::CompareFunction::Less),
@@ -313,247 +225,302 @@ fn app_frame_from(
             }),
             multisample: Default::default(),
             fragment: Some(wgpu::FragmentState {
-                module,
-                entry_point: Some(entry),
+                module: &module,
+                entry_point: Some("fs_opaque"),
                 compilation_options: Default::default(),
-                targets,
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: F32X4,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
             }),
             multiview_mask: None,
             cache: None,
+        });
+        let texture = |label, format, usage| texture(&device, (w, h), label, format, usage);
+        let under = texture(
+            "app image",
+            F32X4,
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        // Its opaque depth, dhoit's occluder.
+        let depth = texture(
+            "app depth",
+            wgpu::TextureFormat::Depth32Float,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let opaque_vertices = 3 * (0..triangles).filter(|&t| opaque(t)).count() as u32;
+        App {
+            device,
+            queue,
+            gpu,
+            size: (w, h),
+            vertices,
+            opaque_vertices,
+            all_vertices: 3 * order.len() as u32,
+            own,
+            opaque_pipeline,
+            depth,
+            under,
+        }
+    }
+
+    /// The application's camera uniform and group for one frame.
+    fn camera(&self, s: &Scene, cam: &Camera) -> wgpu::BindGroup {
+        let camera = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("app camera"),
+            size: 80,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut words = cam.view_proj.to_cols_array().to_vec();
+        words.extend_from_slice(&cam.forward.to_array());
+        words.push(s.uniform_opacity.unwrap_or(-1.0));
+        self.queue
+            .write_buffer(&camera, 0, bytemuck::cast_slice(&words));
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("app camera"),
+            layout: &self.own,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: camera.as_entire_binding(),
+            }],
         })
-    };
-    let target = |format, write_mask| {
-        [Some(wgpu::ColorTargetState {
+    }
+
+    /// A target for the method's resolve.
+    fn target(&self, format: wgpu::TextureFormat) -> wgpu::Texture {
+        texture(
+            &self.device,
+            self.size,
+            "app target",
             format,
-            blend: None,
-            write_mask,
-        })]
-    };
-    let opaque_pipeline = pipeline_for(
-        &modules[0],
-        &opaque_layout,
-        "fs_opaque",
-        &target(wgpu::TextureFormat::Rgba32Float, wgpu::ColorWrites::ALL),
-        true,
-    );
-    // A target the transparent pass never writes (a render pass needs an attachment), or the
-    // blended methods' own. One pipeline a phase of DKB's and MBOIT's.
-    let pipelines: Vec<(Key, wgpu::RenderPipeline)> = oit
-        .phases()
-        .into_iter()
-        .zip(&modules)
-        .map(|(phase, module)| {
-            let targets = match (&oit, phase) {
-                (AppOit::Blended(o), Key::Blend(phase)) => o.color_targets(phase),
-                _ => target(wgpu::TextureFormat::R8Unorm, wgpu::ColorWrites::empty()).to_vec(),
-            };
-            let p = pipeline_for(module, &layout_for(phase), "fs", &targets, false);
-            (phase, p)
-        })
-        .collect();
-    let pipeline_of = |phase: Key| {
-        &pipelines
+            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        )
+    }
+
+    /// One transparent pipeline a phase of `oit`: dhoit's module at group 1, then its own code,
+    /// dhoit's colour targets and depth state.
+    fn pipelines(&self, oit: &dyn Oit) -> Pipelines {
+        oit.phases()
             .iter()
-            .find(|(p, _)| *p == phase)
-            .expect("a pipeline for each phase")
-            .1
-    };
-    let texture = |label, format, usage| {
-        device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage,
-            view_formats: &[],
-        })
-    };
-    // Its opaque image (here the background alone), its target, and a render target for the
-    // transparent pass, which writes no colour.
-    let f32x4 = wgpu::TextureFormat::Rgba32Float;
-    let under = texture(
-        "app image",
-        f32x4,
-        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT,
-    );
-    let target = texture(
-        "app target",
-        f32x4,
-        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-    );
-    let raster = texture(
-        "app raster",
-        wgpu::TextureFormat::R8Unorm,
-        wgpu::TextureUsages::RENDER_ATTACHMENT,
-    );
-    // Its opaque depth, dhoit's occluder.
-    let depth = texture(
-        "app depth",
-        wgpu::TextureFormat::Depth32Float,
-        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-    );
-    let depth_view = depth.create_view(&Default::default());
-    let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-    let mut enc = device.create_command_encoder(&Default::default());
-    {
-        let clear = wgpu::Color {
-            r: BG[0] as f64,
-            g: BG[1] as f64,
-            b: BG[2] as f64,
-            a: 1.0,
-        };
-        let under_view = view(&under);
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("app opaque"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &under_view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(clear),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &depth_view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Store,
-                }),
-                stencil_ops: None,
-            }),
-            ..Default::default()
-        });
-        pass.set_pipeline(&opaque_pipeline);
-        pass.set_bind_group(0, &own_group, &[]);
-        pass.set_vertex_buffer(0, vbuf.slice(..));
-        pass.draw(0..opaque_vertices, 0..1);
-    }
-    let raster_view = view(&raster);
-    // Its transparent draws, with dhoit's group at 1.
-    let draw = |enc: &mut wgpu::CommandEncoder,
-                group: &wgpu::BindGroup,
-                phase: Key,
-                timestamp_writes: Option<wgpu::RenderPassTimestampWrites>| {
-        let attachments = match (&oit, phase) {
-            (AppOit::Blended(o), Key::Blend(phase)) => o.color_attachments(phase),
-            _ => vec![Some(wgpu::RenderPassColorAttachment {
-                view: &raster_view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                    store: wgpu::StoreOp::Discard,
-                },
-            })],
-        };
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("app transparent"),
-            color_attachments: &attachments,
-            timestamp_writes,
-            ..Default::default()
-        });
-        pass.set_pipeline(pipeline_of(phase));
-        pass.set_bind_group(0, &own_group, &[]);
-        pass.set_bind_group(1, group, &[]);
-        pass.set_vertex_buffer(0, vbuf.slice(..));
-        pass.draw(opaque_vertices..order.len() as u32 * 3, 0..1);
-    };
-    let (under_view, target_view) = (view(&under), view(&target));
-    let mut deep = None;
-    match &oit {
-        AppOit::Once(oit) => {
-            oit.clear(&mut enc);
-            draw(&mut enc, &oit.bind_group(&depth_view), Key::One, None);
-            oit.resolve(&mut enc, &under_view, &target_view, f32x4, None)
-                .unwrap();
-        }
-        AppOit::Exact(oit) => {
-            oit.clear(&mut enc);
-            draw(&mut enc, &oit.count_group(&depth_view), Key::One, None);
-            let total = oit.count(enc, &queue).unwrap();
-            assert_eq!(total, oit.fragments());
-            // Exact memory: budget::ABUFFER's for the frame's fragments and the application's
-            // two uniforms; MLAB's submission indices, 4 bytes a fragment, beside them.
-            let px = (w * h) as u64;
-            let abuffer = dhoit_runtime::budget::ABUFFER;
-            let orders = oit.mlab_rows().map_or(0, |_| (4 * total).max(16));
-            assert_eq!(
-                oit.allocated_bytes(),
-                abuffer.allocated_bytes(px, total.max(2)) + 32 + orders
-            );
-            enc = device.create_command_encoder(&Default::default());
-            draw(&mut enc, &oit.store_group(&depth_view), Key::One, None);
-            oit.resolve(&mut enc, &under_view, &target_view, f32x4, None)
-                .unwrap();
-        }
-        AppOit::Allocated(oit) => {
-            // Its opaque pass first, then DKB's frame, which calls it back for each pass.
-            queue.submit([enc.finish()]);
-            let frame = oit
-                .render(&depth_view, &under_view, &target_view, &mut |enc, d| {
-                    draw(enc, d.group, Key::Deep(d.phase), Some(d.timestamps))
-                })
-                .unwrap();
-            deep = Some(frame);
-            enc = device.create_command_encoder(&Default::default());
-        }
-        AppOit::Blended(oit) => {
-            // Its passes in order (MBOIT's accumulation reads the moments' targets).
-            for &phase in oit.phases() {
-                let group = oit.bind_group(phase, &depth_view);
-                draw(&mut enc, &group, Key::Blend(phase), None);
-            }
-            oit.resolve(&mut enc, &under_view, &target_view, f32x4, None)
-                .unwrap();
-        }
-    }
-    let row = (16 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-    let staging = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("app readback"),
-        size: (row * h) as u64,
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-        mapped_at_creation: false,
-    });
-    enc.copy_texture_to_buffer(
-        wgpu::TexelCopyTextureInfo {
-            texture: &target,
-            mip_level: 0,
-            origin: wgpu::Origin3d::ZERO,
-            aspect: wgpu::TextureAspect::All,
-        },
-        wgpu::TexelCopyBufferInfo {
-            buffer: &staging,
-            layout: wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(row),
-                rows_per_image: Some(h),
-            },
-        },
-        target.size(),
-    );
-    queue.submit([enc.finish()]);
-    staging
-        .slice(..)
-        .map_async(wgpu::MapMode::Read, |r| r.unwrap());
-    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
-    let data = staging.slice(..).get_mapped_range().unwrap();
-    let floats: &[f32] = bytemuck::cast_slice(&data);
-    let image = (0..h as usize)
-        .flat_map(|y| {
-            (0..w as usize).map(move |x| {
-                let i = y * row as usize / 4 + 4 * x;
-                [floats[i], floats[i + 1], floats[i + 2]]
+            .map(|&phase| {
+                let entry = match (oit.method(), phase) {
+                    ("wboit" | "mboit", _) => APP_BLEND,
+                    ("vkb", _) => APP_FACING,
+                    _ => APP_STORE,
+                };
+                let src = oit.store_module(phase, 1) + APP_SHADER + entry;
+                let module = self
+                    .device
+                    .create_shader_module(wgpu::ShaderModuleDescriptor {
+                        label: Some("app transparent"),
+                        source: wgpu::ShaderSource::Wgsl(src.into()),
+                    });
+                let layout = self
+                    .device
+                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("app transparent"),
+                        bind_group_layouts: &[Some(&self.own), Some(oit.bind_group_layout(phase))],
+                        immediate_size: 0,
+                    });
+                let targets = oit.color_targets(phase);
+                let p = self
+                    .device
+                    .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                        label: Some("app transparent"),
+                        layout: Some(&layout),
+                        vertex: wgpu::VertexState {
+                            module: &module,
+                            entry_point: Some("vs"),
+                            compilation_options: Default::default(),
+                            buffers: &VERTEX_LAYOUT,
+                        },
+                        primitive: wgpu::PrimitiveState::default(),
+                        depth_stencil: Some(oit.depth_stencil(wgpu::TextureFormat::Depth32Float)),
+                        multisample: Default::default(),
+                        fragment: Some(wgpu::FragmentState {
+                            module: &module,
+                            entry_point: Some("fs"),
+                            compilation_options: Default::default(),
+                            targets: &targets,
+                        }),
+                        multiview_mask: None,
+                        cache: None,
+                    });
+                (phase, p)
             })
+            .collect()
+    }
+
+    /// One frame recorded into `enc`: the application's opaque pass, then dhoit's frame, which
+    /// calls it back for each geometry pass.
+    fn record(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        oit: &mut dyn Oit,
+        pipelines: &Pipelines,
+        camera: &wgpu::BindGroup,
+        target: &wgpu::Texture,
+    ) -> dhoit_runtime::Result<()> {
+        let depth = self.depth.create_view(&Default::default());
+        let under = self.under.create_view(&Default::default());
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("app opaque"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &under,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: BG[0] as f64,
+                            g: BG[1] as f64,
+                            b: BG[2] as f64,
+                            a: 1.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                ..Default::default()
+            });
+            pass.set_pipeline(&self.opaque_pipeline);
+            pass.set_bind_group(0, camera, &[]);
+            pass.set_vertex_buffer(0, self.vertices.slice(..));
+            pass.draw(0..self.opaque_vertices, 0..1);
+        }
+        let target = target.create_view(&Default::default());
+        let frame = FrameTargets {
+            depth: &depth,
+            under: &under,
+            target: &target,
+        };
+        // Its transparent draws, with dhoit's group at 1, in the pass dhoit opened.
+        oit.record(enc, &frame, &mut |pass, draw| {
+            let pipeline = &pipelines
+                .iter()
+                .find(|(p, _)| *p == draw.phase)
+                .expect("a pipeline a phase")
+                .1;
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, camera, &[]);
+            pass.set_bind_group(1, draw.group, &[]);
+            pass.set_vertex_buffer(0, self.vertices.slice(..));
+            pass.draw(self.opaque_vertices..self.all_vertices, 0..1);
         })
-        .collect();
-    (image, deep)
+    }
+
+    /// A target's colours, row-major.
+    fn read(&self, target: &wgpu::Texture) -> Vec<[f32; 3]> {
+        let (w, h) = self.size;
+        let texel = target.format().block_copy_size(None).unwrap();
+        let row = (texel * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("app readback"),
+            size: (row * h) as u64,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(
+            target.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &staging,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row),
+                    rows_per_image: Some(h),
+                },
+            },
+            target.size(),
+        );
+        self.queue.submit([enc.finish()]);
+        staging
+            .slice(..)
+            .map_async(wgpu::MapMode::Read, |r| r.unwrap());
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .unwrap();
+        let data = staging.slice(..).get_mapped_range().unwrap();
+        let channel = |at: usize| match target.format() {
+            wgpu::TextureFormat::Rgba32Float => {
+                f32::from_le_bytes(data[at..at + 4].try_into().unwrap())
+            }
+            wgpu::TextureFormat::Rgba8Unorm => data[at] as f32 / 255.0,
+            f => panic!("{f:?}"),
+        };
+        let size = texel as usize / 4;
+        (0..h as usize)
+            .flat_map(|y| {
+                (0..w as usize).map(move |x| {
+                    let at = y * row as usize + texel as usize * x;
+                    [channel(at), channel(at + size), channel(at + 2 * size)]
+                })
+            })
+            .collect()
+    }
+
+    /// One frame of `oit` through `cam`, submitted on its own: the target's colours and the
+    /// frame's report.
+    fn frame(&self, oit: &mut dyn Oit, s: &Scene, cam: &Camera) -> (Vec<[f32; 3]>, FrameReport) {
+        let pipelines = self.pipelines(oit);
+        let camera = self.camera(s, cam);
+        let target = self.target(oit.target_format());
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        self.record(&mut enc, oit, &pipelines, &camera, &target)
+            .unwrap();
+        self.queue.submit([enc.finish()]);
+        let image = self.read(&target);
+        let mut reports = oit.finished(true).unwrap();
+        assert_eq!(reports.len(), 1, "one frame, one report");
+        let report = reports.pop().unwrap();
+        assert!(report.error.is_none(), "{:?}", report.error);
+        (image, report)
+    }
+}
+
+fn texture(
+    device: &wgpu::Device,
+    (w, h): (u32, u32),
+    label: &str,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
+
+/// The application's image of one frame of `s` through the identity camera, the method made
+/// on its device by `make`, in the scene's order or reversed; and the frame's report.
+fn app_frame(
+    s: &Scene,
+    size: (u32, u32),
+    reversed: bool,
+    make: impl FnOnce(&Gpu) -> Box<dyn Oit>,
+) -> (Vec<[f32; 3]>, FrameReport) {
+    let app = App::new(s, size, reversed);
+    let mut oit = make(&app.gpu);
+    app.frame(oit.as_mut(), s, &identity())
 }
 
 /// Overlapping quads of several colours, opacities and depths, facing the camera (dhoit's
@@ -593,6 +560,20 @@ fn layered_scene() -> Scene {
     s
 }
 
+/// The largest difference of one channel between two images.
+fn worst_difference(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
+    a.iter()
+        .zip(b)
+        .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0f32, f32::max))
+        .fold(0.0f32, f32::max)
+}
+
+/// The frame's occupancy as dhoit's own A-buffer counted it: what an application that knows
+/// its scene tells its method to expect.
+fn occupancy_of(exact: &dhoit_runtime::gpu::GpuFrame) -> Occupancy {
+    Occupancy::of(&exact.fragments.as_ref().unwrap().counts())
+}
+
 #[test]
 fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
     let Some(g) = gpu() else { return };
@@ -608,43 +589,28 @@ fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
     for sorted in [8, 2] {
         // A pool that holds every fragment: which arrive first does not matter.
         let nodes = total + 5;
-        let harness = g
-            .render(
-                &s,
-                &identity(),
-                w,
-                h,
-                BG,
-                Some(Slots::LinkedList { nodes, sorted }),
-            )
-            .unwrap();
-        let app = app_frame(&s, (w, h), false, |d, q| {
-            AppOit::Once(Box::new(ListOit::new(d, q, (w, h), nodes, sorted).unwrap()))
-        })
-        .0;
+        let slots = Slots::LinkedList { nodes, sorted };
+        let harness = g.render(&s, &identity(), w, h, BG, Some(slots)).unwrap();
+        let (app, report) = app_frame(&s, (w, h), false, |g| {
+            Box::new(ListOit::new(g, (w, h), nodes, sorted, F32X4).unwrap())
+        });
         let worst = worst_difference(&app, &harness.image.data);
         assert!(
             worst <= 1e-5,
             "sorted {sorted}: the application's image differs by {worst}"
         );
+        assert_eq!(report.allocated_bytes, harness.allocated_bytes);
         // Not the background: the application's fragments reached the list.
         let covered = app.iter().filter(|c| (c[0] - BG[0]).abs() > 1e-3).count();
         assert!(covered > (w * h / 2) as usize, "{covered} pixels covered");
     }
 }
 
-/// The largest difference of one channel between two images.
-fn worst_difference(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
-    a.iter()
-        .zip(b)
-        .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0f32, f32::max))
-        .fold(0.0f32, f32::max)
-}
-
 #[test]
 fn an_application_draws_through_dhoits_k_buffer_and_gets_dhoits_fkb_image_in_any_order() {
     let Some(g) = gpu() else { return };
     let (w, h) = (64, 48);
+    let px = (w * h) as u64;
     let s = layered_scene();
     let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
     for k in [1, 3, 8] {
@@ -652,15 +618,24 @@ fn an_application_draws_through_dhoits_k_buffer_and_gets_dhoits_fkb_image_in_any
             .render(&s, &identity(), w, h, BG, Some(Slots::Uniform(k)))
             .unwrap();
         for reversed in [false, true] {
-            let app = app_frame(&s, (w, h), reversed, |d, q| {
-                AppOit::Once(Box::new(KBufferOit::new(d, q, (w, h), k).unwrap()))
-            })
-            .0;
+            let (app, report) = app_frame(&s, (w, h), reversed, |g| {
+                Box::new(KBufferOit::new(g, (w, h), k, F32X4).unwrap())
+            });
             let worst = worst_difference(&app, &harness.image.data);
             assert!(
                 worst <= 1e-5,
                 "k = {k}, reversed {reversed}: the application's image differs from dhoit's \
                  FKB by {worst}"
+            );
+            // budget::FKB's buffers for k slots a pixel; a hand count: 8 bytes a slot, 16 + 4
+            // a pixel for the tail, params, status, two unused 16-byte bindings.
+            assert_eq!(
+                report.allocated_bytes,
+                budget::FKB.allocated_bytes(px, k as u64 * px)
+            );
+            assert_eq!(
+                report.allocated_bytes,
+                8 * k as u64 * px + 20 * px + 256 + 16 + 32
             );
         }
         // Below the scene's depth the slots truncate: the image is not the exact one (so the
@@ -677,31 +652,55 @@ fn an_application_draws_through_dhoits_k_buffer_and_gets_dhoits_fkb_image_in_any
     }
 }
 
+/// The A-buffer through the application's two draws: the exact image in either order, with
+/// exact memory where its pool was sized for the frame (`Oit::expect`); sized for two
+/// fragments a pixel before any count, a pool this frame outgrows keeps the pixels whose
+/// fragments it holds whole, says so, and the frames after it hold them all.
 #[test]
 fn an_application_draws_twice_through_dhoits_a_buffer_and_gets_the_exact_image_in_any_order() {
     let Some(g) = gpu() else { return };
     let (w, h) = (64, 48);
+    let px = (w * h) as u64;
     let s = layered_scene();
     let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
-    let fragments = exact.fragments.as_ref().unwrap().fragment_count() as u64;
+    let occ = occupancy_of(&exact);
+    assert!(occ.fragments > px, "{} fragments", occ.fragments);
     for reversed in [false, true] {
-        let app = app_frame(&s, (w, h), reversed, |d, q| {
-            AppOit::Exact(Box::new(ExactOit::new(d, q, (w, h)).unwrap()))
-        })
-        .0;
+        let (app, report) = app_frame(&s, (w, h), reversed, |g| {
+            let mut oit = ExactOit::new(g, (w, h), F32X4).unwrap();
+            oit.expect(occ);
+            Box::new(oit)
+        });
         let worst = worst_difference(&app, &exact.image.data);
         assert!(
             worst <= 1e-5,
             "reversed {reversed}: the application's image differs from dhoit's A-buffer by {worst}"
         );
+        assert!(report.exact && !report.pool_short);
+        assert_eq!(report.fragments, Some(occ.fragments));
+        assert_eq!(report.allocated_bytes, exact.allocated_bytes);
     }
-    // Before any count, the pool is empty (a 16-byte binding).
-    let (device, queue) = app_device();
-    let oit = ExactOit::new(&device, &queue, (w, h)).unwrap();
-    let px = (w * h) as u64;
-    let abuffer = dhoit_runtime::budget::ABUFFER;
-    assert_eq!(oit.allocated_bytes(), abuffer.allocated_bytes(px, 2) + 32);
-    assert!(fragments > px / 2, "{fragments} fragments");
+    // A pool sized for half this frame's fragments: the pixels past its end lose theirs,
+    // and the frame says so.
+    let app = App::new(&s, (w, h), false);
+    let mut oit = ExactOit::new(&app.gpu, (w, h), F32X4).unwrap();
+    oit.expect(Occupancy {
+        fragments: occ.fragments / 2,
+        ..occ
+    });
+    let (first, report) = app.frame(&mut oit, &s, &identity());
+    assert!(report.pool_short && !report.exact, "{report:?}");
+    assert_eq!(report.fragments, Some(occ.fragments));
+    let off = worst_difference(&first, &exact.image.data);
+    assert!(off > 1e-3, "a short pool dropped nothing ({off})");
+    // The next frame's pool follows the count the first read back.
+    let (next, report) = app.frame(&mut oit, &s, &identity());
+    assert!(report.exact && !report.pool_short, "{report:?}");
+    assert!(worst_difference(&next, &exact.image.data) <= 1e-5);
+    assert!(
+        report.allocated_bytes > exact.allocated_bytes,
+        "the pool's headroom"
+    );
 }
 
 /// MLAB through the application's two draws (the A-buffer's), each fragment handed with its
@@ -713,12 +712,11 @@ fn an_application_draws_twice_through_dhoits_a_buffer_and_gets_the_exact_image_i
 fn an_application_draws_through_dhoits_mlab_and_gets_its_image_in_any_order() {
     let Some(g) = gpu() else { return };
     let (w, h) = (64, 48);
-    let px = (w * h) as u64;
     // The layers in a shuffled submission order: front to back (as layered_scene submits
     // them) MLAB merges exactly.
     let s = layered_scene().shuffled(7);
     let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
-    let fragments = exact.fragments.as_ref().unwrap().fragment_count() as u64;
+    let occ = occupancy_of(&exact);
     for rows in [1, 2, 4] {
         let harness = g
             .render(&s, &identity(), w, h, BG, Some(Slots::Mlab(rows)))
@@ -728,47 +726,38 @@ fn an_application_draws_through_dhoits_mlab_and_gets_its_image_in_any_order() {
         let off = worst_difference(&harness.image.data, &exact.image.data);
         assert!(rows > 2 || off > 1e-3, "{rows} rows: MLAB is exact ({off})");
         for reversed in [false, true] {
-            let app = app_frame(&s, (w, h), reversed, |d, q| {
-                let oit = ExactOit::mlab(d, q, (w, h), rows).unwrap();
+            let (app, report) = app_frame(&s, (w, h), reversed, |g| {
+                let mut oit = ExactOit::mlab(g, (w, h), rows, F32X4).unwrap();
                 assert_eq!(oit.mlab_rows(), Some(rows));
-                AppOit::Exact(Box::new(oit))
-            })
-            .0;
+                oit.expect(occ);
+                Box::new(oit)
+            });
             let worst = worst_difference(&app, &harness.image.data);
             assert!(
                 worst <= 1e-5,
                 "{rows} rows, reversed {reversed}: the application's image differs from \
                  dhoit's MLAB by {worst}"
             );
+            assert_eq!(report.allocated_bytes, harness.allocated_bytes);
         }
     }
-    // The A-buffer's bytes and 4 a fragment, once counted; rows outside 1..=8 refused.
-    let (device, queue) = app_device();
-    let oit = ExactOit::mlab(&device, &queue, (w, h), 4).unwrap();
-    let mut enc = device.create_command_encoder(&Default::default());
-    oit.clear(&mut enc);
-    assert_eq!(oit.count(enc, &queue).unwrap(), 0);
-    let abuffer = dhoit_runtime::budget::ABUFFER;
-    assert_eq!(
-        oit.allocated_bytes(),
-        abuffer.allocated_bytes(px, 2) + 32 + 16
-    );
+    // Rows outside 1..=8 refused.
+    let (_, _, g) = app_device(false);
     for rows in [0, dhoit_runtime::wgsl::MLAB_MAX_ROWS + 1] {
-        let e = ExactOit::mlab(&device, &queue, (w, h), rows)
+        let e = ExactOit::mlab(&g, (w, h), rows, F32X4)
             .err()
             .expect("refused")
             .to_string();
         assert!(e.contains("rows"), "{e}");
     }
-    assert!(fragments > px / 2, "{fragments} fragments");
 }
 
 /// DKB and VKB through the application's draws: the count, the features (VKB's count with the
 /// nearest fragment) and the capture are its own pipelines (one a phase), every compute pass
-/// dhoit's; the image is dhoit's own frame's (one that truncates: not the exact image), in
-/// either draw order, with the same buffers as dhoit's own frame, and
-/// each of its passes timed by its timestamps. By default, where the A-buffer needs no more
-/// bytes (this small frame), the frame is exact.
+/// dhoit's; sized for the frame's occupancy, the image is dhoit's own frame's (one that
+/// truncates: not the exact image), in either draw order, with the same buffers as dhoit's own
+/// frame, each of its passes timed. By default, where the pool sized for the frame holds every
+/// fragment, the frame is exact.
 #[test]
 fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_order() {
     let Some(g) = gpu() else { return };
@@ -777,41 +766,35 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
     let s = layered_scene();
     let weights = common::committed_weights();
     let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
-    let f32x4 = wgpu::TextureFormat::Rgba32Float;
+    let occ = occupancy_of(&exact);
     let vkb = dhoit_runtime::importance::VkbParams::default();
-    let methods = [
-        (
-            "dkb",
-            AllocatedMethod::Dkb(Box::new(weights.clone())),
-            "features",
-        ),
-        ("vkb", AllocatedMethod::Vkb(vkb), "count"),
-    ];
-    for (name, method, statistics) in &methods {
-        let layout = match method {
-            AllocatedMethod::Dkb(m) => budget::DKB.for_network(m),
-            AllocatedMethod::Vkb(_) => budget::VKB,
+    for name in ["dkb", "vkb"] {
+        let layout = match name {
+            "dkb" => budget::DKB.for_network(&weights),
+            _ => budget::VKB,
+        };
+        let statistics = if name == "dkb" { "features" } else { "count" };
+        let make = |g: &Gpu, b: Budget| match name {
+            "dkb" => AllocatedOit::dkb(g, (w, h), &weights, b, F32X4).unwrap(),
+            _ => AllocatedOit::vkb(g, (w, h), vkb, b, F32X4).unwrap(),
         };
         // At 0.1 fpp DKB's pool holds a third of its records at a time: the application
         // draws its features phase once for each batch.
         for text in ["1fpp", "25%", "0.1fpp"] {
             let b = Budget::parse(text).unwrap();
             let f = b.fragment_budget(&layout, px).unwrap();
-            let opts = FrameOptions {
-                ..FrameOptions::default().always_approximate()
-            };
-            let slots = match method {
-                AllocatedMethod::Dkb(m) => Slots::Dkb(m, f),
-                AllocatedMethod::Vkb(v) => Slots::Vkb(*v, f),
+            let opts = FrameOptions::default().always_approximate();
+            let slots = match name {
+                "dkb" => Slots::Dkb(&weights, f),
+                _ => Slots::Vkb(vkb, f),
             };
             let harness = g
                 .render_with(&opts, &s, &identity(), (w, h), BG, Some(slots))
                 .unwrap();
             assert!(!harness.exact);
             let batches = harness.record_batches.unwrap_or(1);
-            assert_eq!(harness.record_batches.is_some(), *name == "dkb");
             assert!(
-                batches > 1 || text != "0.1fpp" || *name != "dkb",
+                batches > 1 || text != "0.1fpp" || name != "dkb",
                 "{name} at {text}: {batches} batches"
             );
             let off = worst_difference(&harness.image.data, &exact.image.data);
@@ -820,66 +803,83 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
                 "{name} at {text} is exact ({off}): nothing truncated"
             );
             for reversed in [false, true] {
-                let (app, frame) = app_frame(&s, (w, h), reversed, |d, q| {
-                    let oit = AllocatedOit::new(d, q, (w, h), method.clone(), b, f32x4).unwrap();
-                    AppOit::Allocated(Box::new(oit.exact_when_cheaper(false)))
+                let (app, report) = app_frame(&s, (w, h), reversed, |g| {
+                    let mut oit = make(g, b).exact_when_cheaper(false);
+                    oit.expect(occ);
+                    Box::new(oit)
                 });
-                let frame = frame.unwrap();
                 let worst = worst_difference(&app, &harness.image.data);
                 assert!(
                     worst <= 1e-5,
                     "{name} at {text}, reversed {reversed}: the application's image differs \
                      from dhoit's by {worst}"
                 );
-                assert!(!frame.exact);
-                assert_eq!(frame.allocated_bytes, harness.allocated_bytes);
-                let drawn = frame
+                assert!(!report.exact && !report.pool_short, "{report:?}");
+                assert_eq!(
+                    report.plan,
+                    harness.plan.map(|p| dhoit_runtime::plan::Plan {
+                        per_batch: 0,
+                        batches: 0,
+                        ..p
+                    })
+                );
+                assert_eq!(report.allocated_bytes, harness.allocated_bytes);
+                let drawn = report
                     .pass_ms
                     .iter()
-                    .filter(|(p, _)| p == statistics)
+                    .filter(|(p, _)| p == &statistics)
                     .count();
                 assert_eq!(
                     drawn as u64,
-                    if *name == "dkb" { batches } else { 1 },
+                    if name == "dkb" { batches } else { 1 },
                     "{name} at {text}: {:?}",
-                    frame.pass_ms
+                    report.pass_ms
                 );
                 for pass in ["count", statistics, "importance", "capture", "resolve"] {
-                    let ms = frame.pass_ms.iter().find(|(p, _)| p == &pass);
+                    let ms = report.pass_ms.iter().find(|(p, _)| p == &pass);
                     assert!(
                         ms.is_some_and(|(_, ms)| *ms > 0.0),
                         "{name}, {pass}: {:?}",
-                        frame.pass_ms
+                        report.pass_ms
                     );
                 }
             }
         }
-        // DKB at 25% needs more than the A-buffer here (its weights); VKB, 6 bytes a pixel and
-        // no weights, needs more at 90% (its tails), less at 25%.
-        let dearer = if *name == "dkb" { "25%" } else { "90%" };
-        let (app, frame) = app_frame(&s, (w, h), false, |d, q| {
-            let b = Budget::parse(dearer).unwrap();
-            let oit = AllocatedOit::new(d, q, (w, h), method.clone(), b, f32x4).unwrap();
-            AppOit::Allocated(Box::new(oit))
+        // By default the pool is no larger than the exact A-buffer of the occupancy it was
+        // sized for: where the budget reserves that much (90% of this frame, with its tails),
+        // the frame's fragments fit it and the frame keeps them all.
+        let b = Budget::parse("90%").unwrap();
+        let (app, report) = app_frame(&s, (w, h), false, |g| {
+            let mut oit = make(g, b);
+            oit.expect(occ);
+            Box::new(oit)
         });
-        let frame = frame.unwrap();
-        assert!(frame.exact, "{name}: the A-buffer is cheaper here");
+        assert!(report.exact, "{name}: {report:?}");
         let worst = worst_difference(&app, &exact.image.data);
         assert!(
             worst <= 1e-5,
             "{name}, exact where cheaper: {worst} from the A-buffer"
         );
-        assert_eq!(frame.allocated_bytes, exact.allocated_bytes);
+        let reserved = dhoit_runtime::frame::reserved_bytes(
+            if name == "dkb" {
+                dhoit_runtime::frame::Method::Dkb
+            } else {
+                dhoit_runtime::frame::Method::Vkb
+            },
+            &layout,
+            px,
+            b.fragment_budget(&layout, px).unwrap().of(occ.fragments),
+            &occ,
+        );
+        assert!(report.allocated_bytes <= reserved, "{name}: {report:?}");
     }
 }
 
-/// A byte budget for DKB or VKB in an application is resolved against each frame's own count
-/// (`FrameOptions::counted_bytes`): before the count it could only leave room for a tail (DKB:
-/// and a record) for every pixel, far fewer slots than the frame needs, or none at all. With M
-/// what the method reserves at a quarter of this frame's fragments (the CPU's accounting of the
-/// CPU's rasterization), the frame runs at F(M) for its occupancy, at least that quarter,
-/// allocates no more than M, and gives the image dhoit renders at that F; where M holds the
-/// A-buffer, the frame is the A-buffer's.
+/// A byte budget for DKB or VKB in an application is a fixed pool: the bytes beside the
+/// method's fixed ones. A frame there runs at the most slots those bytes hold for its own
+/// occupancy (what `Gpu::render`, counting first, gives it: `FrameOptions::counted_bytes`),
+/// allocates exactly M, and gives dhoit's image; where M holds the A-buffer, the frame is
+/// exact. Bytes below what any frame needs are refused when the method is made.
 #[test]
 fn a_byte_budget_is_resolved_against_each_frames_own_count() {
     let Some(g) = gpu() else { return };
@@ -888,93 +888,64 @@ fn a_byte_budget_is_resolved_against_each_frames_own_count() {
     let s = layered_scene();
     let weights = common::committed_weights();
     let vkb = dhoit_runtime::importance::VkbParams::default();
-    let fl = dhoit_runtime::raster::rasterize(&s, &identity(), w, h).unwrap();
-    let occ = budget::Occupancy::of(&fl.counts());
-    let quarter = occ.fragments / 4;
     let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
-    let f32x4 = wgpu::TextureFormat::Rgba32Float;
+    let occ = occupancy_of(&exact);
+    let quarter = occ.fragments / 4;
     for name in ["dkb", "vkb"] {
-        let (layout, method) = match name {
-            "dkb" => (
-                budget::DKB.for_network(&weights),
-                AllocatedMethod::Dkb(Box::new(weights.clone())),
-            ),
-            _ => (budget::VKB, AllocatedMethod::Vkb(vkb)),
+        let layout = match name {
+            "dkb" => budget::DKB.for_network(&weights),
+            _ => budget::VKB,
+        };
+        let make = |g: &Gpu, b: Budget| match name {
+            "dkb" => AllocatedOit::dkb(g, (w, h), &weights, b, F32X4),
+            _ => AllocatedOit::vkb(g, (w, h), vkb, b, F32X4),
         };
         let slots_at = |f: u64| match name {
             "dkb" => Slots::Dkb(&weights, f.into()),
             _ => Slots::Vkb(vkb, f.into()),
         };
         let m = layout.reserved_bytes(px, quarter, &occ);
-        // Uncounted, M leaves fewer slots than a quarter (or none).
-        let before = Budget::Bytes(m).fragment_budget(&layout, px);
-        assert!(
-            before
-                .as_ref()
-                .map_or(true, |f| f.of(occ.fragments) < quarter),
-            "{name}: {before:?}"
-        );
         let f = layout.fragment_budget_counted(m, px, &occ).unwrap();
-        assert!(
-            f >= quarter && f < occ.fragments,
-            "{name}: {f} of {}",
-            occ.fragments
-        );
-        let approximate = FrameOptions::default().always_approximate();
-        let harness = g
-            .render_with(&approximate, &s, &identity(), (w, h), BG, Some(slots_at(f)))
-            .unwrap();
-        // The harness itself, given the bytes: the same frame.
+        assert!(f >= quarter && f < occ.fragments, "{name}: {f}");
         let counted = FrameOptions {
             counted_bytes: Some(m),
-            ..approximate
+            ..FrameOptions::default().always_approximate()
         };
         let given = g
             .render_with(&counted, &s, &identity(), (w, h), BG, Some(slots_at(0)))
             .unwrap();
-        assert_eq!(given.image.data, harness.image.data, "{name}");
-        assert!(
-            given.allocated_bytes <= m && harness.allocated_bytes <= m,
-            "{name}: {} and {} > {m}",
-            given.allocated_bytes,
-            harness.allocated_bytes
-        );
         for reversed in [false, true] {
-            let (app, frame) = app_frame(&s, (w, h), reversed, |d, q| {
-                let b = Budget::Bytes(m);
-                let oit = AllocatedOit::new(d, q, (w, h), method.clone(), b, f32x4).unwrap();
-                AppOit::Allocated(Box::new(oit.exact_when_cheaper(false)))
+            let (app, report) = app_frame(&s, (w, h), reversed, |g| {
+                let oit = make(g, Budget::Bytes(m)).unwrap();
+                Box::new(oit.exact_when_cheaper(false))
             });
-            let frame = frame.unwrap();
-            let worst = worst_difference(&app, &harness.image.data);
+            let worst = worst_difference(&app, &given.image.data);
             assert!(worst <= 1e-5, "{name}, reversed {reversed}: {worst}");
-            assert!(!frame.exact);
-            assert_eq!(frame.allocated_bytes, given.allocated_bytes, "{name}");
+            assert!(!report.exact, "{name}");
+            assert_eq!(report.plan.map(|p| p.f), Some(f), "{name}");
+            assert_eq!(report.allocated_bytes, m, "{name}: the fixed pool");
         }
-        // Bytes that hold the A-buffer: its frame, exact.
-        let (app, frame) = app_frame(&s, (w, h), false, |d, q| {
-            let b = Budget::Bytes(exact.allocated_bytes);
-            let oit = AllocatedOit::new(d, q, (w, h), method.clone(), b, f32x4).unwrap();
-            AppOit::Allocated(Box::new(oit))
+        // Bytes that hold the A-buffer beside the method's fixed ones: its image, exact.
+        let holds = layout.fixed_bytes(px) + budget::SLOT_BYTES * occ.fragments;
+        let (app, report) = app_frame(&s, (w, h), false, |g| {
+            let mut oit = make(g, Budget::Bytes(holds)).unwrap();
+            oit.expect(occ);
+            Box::new(oit)
         });
-        let frame = frame.unwrap();
-        assert!(frame.exact, "{name}");
+        assert!(report.exact, "{name}");
         assert!(worst_difference(&app, &exact.image.data) <= 1e-5);
-        // Bytes below what any frame needs (an empty one: the fixed bytes, DKB's marks) are
-        // refused when the k-buffer is made.
-        let (d, q) = app_device();
+        // Bytes below what any frame needs (an empty one: the fixed bytes, DKB's marks).
+        let (_, _, g) = app_device(false);
         let tiny = Budget::Bytes(layout.fixed_bytes(px) - 1);
-        assert!(AllocatedOit::new(&d, &q, (w, h), method.clone(), tiny, f32x4).is_err());
+        assert!(make(&g, tiny).is_err());
     }
 }
 
 /// A glTF file through the application: a built-in scene written as binary glTF and read
-/// back by dhoit's loader (a real glTF where ../shared/scenes has one is textured, which an
-/// application samples with its own sampler: not dhoit's texels), each triangle one colour,
-/// seen from an orbit camera at one uniform opacity. The application's image is dhoit's own,
-/// within 1e-5, for every method: the A-buffer, FKB, DKB, VKB, MLAB and the list (a pool that
-/// holds every fragment) in either draw order, WBOIT and MBOIT in the scene's (reversed, within
-/// their targets' rounding).
+/// back by dhoit's loader, each triangle one colour, seen from an orbit camera at one uniform
+/// opacity. The application's image is dhoit's own, within 1e-5, for every method: the
+/// A-buffer, FKB, DKB, VKB, MLAB and the list (a pool that holds every fragment) in either
+/// draw order, WBOIT and MBOIT in the scene's (reversed, within their targets' rounding).
 #[test]
 fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
     let Some(g) = gpu() else { return };
@@ -997,20 +968,17 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
     let cam = Camera::orbit(&s, 1, dhoit_runtime::scene::DEFAULT_VIEWS, w, h);
     let px = (w * h) as u64;
     let exact = g.render(&s, &cam, w, h, BG, None).unwrap();
-    let fragments = exact.fragments.as_ref().unwrap().fragment_count() as u64;
-    assert!(fragments > px / 2, "{fragments} fragments");
-    let f32x4 = wgpu::TextureFormat::Rgba32Float;
+    let occ = occupancy_of(&exact);
+    assert!(occ.fragments > px / 2, "{} fragments", occ.fragments);
     let weights = common::committed_weights();
     let b = Budget::parse("1fpp").unwrap();
-    let opts = FrameOptions {
-        ..FrameOptions::default().always_approximate()
-    };
+    let opts = FrameOptions::default().always_approximate();
     let dkb_f = b
         .fragment_budget(&budget::DKB.for_network(&weights), px)
         .unwrap();
     let vkb = dhoit_runtime::importance::VkbParams::default();
     let vkb_f = b.fragment_budget(&budget::VKB, px).unwrap();
-    let nodes = fragments + 5;
+    let nodes = occ.fragments + 5;
     let mboit = MboitParams::default();
     let cases: Vec<(&str, Option<Slots>)> = vec![
         ("abuffer", None),
@@ -1030,31 +998,30 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
             assert!(off > 1e-3, "{name} is exact ({off}): nothing truncated");
         }
         for reversed in [false, true] {
-            let (app, _) = app_frame_from(&s, &cam, (w, h), reversed, |d, q| match name {
-                "abuffer" => AppOit::Exact(Box::new(ExactOit::new(d, q, (w, h)).unwrap())),
-                "mlab" => AppOit::Exact(Box::new(ExactOit::mlab(d, q, (w, h), 2).unwrap())),
-                "linked-list" => {
-                    let list = ListOit::new(d, q, (w, h), nodes, 8).unwrap();
-                    AppOit::Once(Box::new(list))
-                }
-                "wboit" => {
-                    let oit = BlendedOit::wboit(d, q, (w, h), WboitParams::default()).unwrap();
-                    AppOit::Blended(Box::new(oit))
-                }
-                "mboit" => {
-                    AppOit::Blended(Box::new(BlendedOit::mboit(d, q, (w, h), mboit).unwrap()))
-                }
-                "fkb" => AppOit::Once(Box::new(KBufferOit::new(d, q, (w, h), 2).unwrap())),
-                _ => {
-                    let method = match name {
-                        "dkb" => AllocatedMethod::Dkb(Box::new(weights.clone())),
-                        _ => AllocatedMethod::Vkb(vkb),
-                    };
-                    let oit = AllocatedOit::new(d, q, (w, h), method, b, f32x4).unwrap();
-                    AppOit::Allocated(Box::new(oit.exact_when_cheaper(false)))
-                }
-            });
-            let worst = worst_difference(&app, &harness.image.data);
+            let app = App::new(&s, (w, h), reversed);
+            let mut oit: Box<dyn Oit> = match name {
+                "abuffer" => Box::new(ExactOit::new(&app.gpu, (w, h), F32X4).unwrap()),
+                "mlab" => Box::new(ExactOit::mlab(&app.gpu, (w, h), 2, F32X4).unwrap()),
+                "linked-list" => Box::new(ListOit::new(&app.gpu, (w, h), nodes, 8, F32X4).unwrap()),
+                "wboit" => Box::new(
+                    BlendedOit::wboit(&app.gpu, (w, h), WboitParams::default(), F32X4).unwrap(),
+                ),
+                "mboit" => Box::new(BlendedOit::mboit(&app.gpu, (w, h), mboit, F32X4).unwrap()),
+                "fkb" => Box::new(KBufferOit::new(&app.gpu, (w, h), 2, F32X4).unwrap()),
+                "dkb" => Box::new(
+                    AllocatedOit::dkb(&app.gpu, (w, h), &weights, b, F32X4)
+                        .unwrap()
+                        .exact_when_cheaper(false),
+                ),
+                _ => Box::new(
+                    AllocatedOit::vkb(&app.gpu, (w, h), vkb, b, F32X4)
+                        .unwrap()
+                        .exact_when_cheaper(false),
+                ),
+            };
+            oit.expect(occ);
+            let (image, _) = app.frame(oit.as_mut(), &s, &cam);
+            let worst = worst_difference(&image, &harness.image.data);
             // The blended methods add in submission order at their targets' precision.
             let bound = match (name, reversed) {
                 ("wboit" | "mboit", true) => 5e-3,
@@ -1069,12 +1036,12 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
 }
 
 /// WBOIT and MBOIT through the application's own pipelines: its fragment entry returns
-/// dhoit's `oit_targets`, its pipeline writes dhoit's targets with dhoit's blend states, its
-/// render passes open dhoit's attachments. The image is dhoit's own frame's for the same draws
-/// within 1e-5 over the application's opaque occluder, for eqs. 10 and 7 of WBOIT (7 with
-/// planes) and 4, 6 and 8 power moments where the device blends 32-bit floats; in the reversed
-/// order within the targets' rounding (the devices add in submission order); the bytes are the
-/// layout table's.
+/// dhoit's `oit_targets`, its pipeline writes dhoit's targets with dhoit's blend states, in the
+/// render passes dhoit opens. The image is dhoit's own frame's for the same draws within 1e-5
+/// over the application's opaque occluder, for eqs. 10 and 7 of WBOIT (7 with planes) and 4,
+/// 6 and 8 power moments where the device blends 32-bit floats; in the reversed order within
+/// the targets' rounding (the devices add in submission order); the bytes are the layout
+/// table's.
 #[test]
 fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
     let Some(g) = gpu() else { return };
@@ -1094,7 +1061,7 @@ fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
             (format!("wboit {weight:?}"), Slots::Wboit(p), budget::WBOIT)
         })
         .collect();
-    let (device, _) = app_device_blending(true);
+    let (device, _, _) = app_device(false);
     let blends = device
         .features()
         .contains(wgpu::Features::FLOAT32_BLENDABLE);
@@ -1116,29 +1083,27 @@ fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
         let harness = g.render(&s, &identity(), w, h, BG, Some(slots)).unwrap();
         let off = worst_difference(&harness.image.data, &exact.image.data);
         assert!(off > 1e-3, "{name} is the exact image ({off})");
-        let make = |d: &wgpu::Device, q: &wgpu::Queue| {
-            let oit = match slots {
-                Slots::Wboit(p) => BlendedOit::wboit(d, q, (w, h), p),
-                Slots::Mboit(p) => BlendedOit::mboit(d, q, (w, h), p),
+        let make = |g: &Gpu| -> Box<dyn Oit> {
+            Box::new(match slots {
+                Slots::Wboit(p) => BlendedOit::wboit(g, (w, h), p, F32X4).unwrap(),
+                Slots::Mboit(p) => BlendedOit::mboit(g, (w, h), p, F32X4).unwrap(),
                 _ => unreachable!(),
-            };
-            let oit = oit.unwrap();
-            assert_eq!(
-                oit.allocated_bytes(),
-                layout.allocated_bytes(px, 0),
-                "{name}: the layout table's bytes"
-            );
-            AppOit::Blended(Box::new(oit))
+            })
         };
-        let app = app_frame(&s, (w, h), false, make).0;
+        let (app, report) = app_frame(&s, (w, h), false, make);
         let worst = worst_difference(&app, &harness.image.data);
         assert!(
             worst <= 1e-5,
             "{name}: the application's image differs from dhoit's by {worst}"
         );
+        assert_eq!(
+            report.allocated_bytes,
+            layout.allocated_bytes(px, 0),
+            "{name}: the layout table's bytes"
+        );
         // Reversed: the same sums, added in another order at binary16 (WBOIT's 8-bit
         // revealage is a product of the same factors): on lavapipe 6e-4 to 2.3e-3.
-        let reversed = app_frame(&s, (w, h), true, make).0;
+        let (reversed, _) = app_frame(&s, (w, h), true, make);
         let worst = worst_difference(&reversed, &harness.image.data);
         assert!(
             worst <= 5e-3,
@@ -1154,177 +1119,347 @@ fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
 
 /// The blended methods refuse, before building anything, a weight of the view-space distance
 /// without planes, a count of moments MBOIT lacks, MBOIT on a device that cannot blend 32-bit
-/// floats, WBOIT's weight set on MBOIT, and a frame without pixels, each named.
+/// floats, WBOIT's weight set on MBOIT, a budget, and a frame without pixels, each named.
 #[test]
 fn the_blended_methods_refuse_what_they_cannot_do() {
-    let (device, queue) = app_device();
+    let (_, _, g) = app_device(false);
     let error = |r: dhoit_runtime::Result<BlendedOit>| r.err().expect("refused").to_string();
     let no_planes = WboitParams {
         weight: WboitWeight::Eq7,
         near: 0.0,
         far: 0.0,
     };
-    let e = error(BlendedOit::wboit(&device, &queue, (8, 8), no_planes));
+    let e = error(BlendedOit::wboit(&g, (8, 8), no_planes, F32X4));
     assert!(e.contains("near and far"), "{e}");
-    let e = error(BlendedOit::wboit(
-        &device,
-        &queue,
-        (0, 8),
-        WboitParams::default(),
-    ));
-    assert!(e.contains("no pixels"), "{e}");
+    let e = error(BlendedOit::wboit(&g, (0, 8), WboitParams::default(), F32X4));
+    assert!(e.contains("0x8"), "{e}");
     let five = MboitParams {
         moments: 5,
         ..MboitParams::default()
     };
-    let (blending, q) = app_device_blending(true);
-    let e = error(BlendedOit::mboit(&blending, &q, (8, 8), five));
+    let e = error(BlendedOit::mboit(&g, (8, 8), five, F32X4));
     assert!(e.contains("4, 6 or 8"), "{e}");
-    // The plain device never asked for 32-bit float blending.
-    assert!(
-        !device
-            .features()
-            .contains(wgpu::Features::FLOAT32_BLENDABLE)
-    );
+    // A device never asked for 32-bit float blending.
+    let instance = wgpu::Instance::default();
+    let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+    let (plain, plain_queue) =
+        pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            required_features: gpu::required_features(),
+            required_limits: gpu::required_limits(),
+            ..Default::default()
+        }))
+        .unwrap();
+    let plain = Gpu::on_device(plain, plain_queue, &adapter.get_info()).unwrap();
     let e = error(BlendedOit::mboit(
-        &device,
-        &queue,
+        &plain,
         (8, 8),
         MboitParams::default(),
+        F32X4,
     ));
     assert!(e.contains("FLOAT32_BLENDABLE"), "{e}");
-    if blending
+    if g.device()
         .features()
         .contains(wgpu::Features::FLOAT32_BLENDABLE)
     {
-        let oit = BlendedOit::mboit(&blending, &q, (8, 8), MboitParams::default()).unwrap();
+        let mut oit = BlendedOit::mboit(&g, (8, 8), MboitParams::default(), F32X4).unwrap();
         let e = oit
-            .set_wboit(&q, WboitParams::default())
+            .set_wboit(WboitParams::default())
             .expect_err("refused")
             .to_string();
-        assert!(e.contains("MBOIT has no weight function"), "{e}");
+        assert!(e.contains("MBOIT"), "{e}");
     }
-    let oit = BlendedOit::wboit(&device, &queue, (8, 8), WboitParams::default()).unwrap();
+    let mut oit = BlendedOit::wboit(&g, (8, 8), WboitParams::default(), F32X4).unwrap();
+    let e = oit.set_wboit(no_planes).expect_err("refused").to_string();
+    assert!(e.contains("near and far"), "{e}");
     let e = oit
-        .set_wboit(&queue, no_planes)
+        .set_budget(Budget::parse("25%").unwrap())
         .expect_err("refused")
         .to_string();
-    assert!(e.contains("near and far"), "{e}");
+    assert!(e.contains("wboit takes no budget"), "{e}");
 }
 
 /// DKB and VKB refuse, before building anything, a target format the resolve cannot write, a
-/// budget below the method's fixed cost, a frame without pixels and a device without dhoit's
-/// features, each named.
+/// budget below the method's fixed cost and a frame without pixels; dhoit's passes refuse a
+/// device without its features; each named.
 #[test]
 fn the_allocated_k_buffers_refuse_what_they_cannot_do() {
-    let (device, queue) = app_device();
+    let (_, _, g) = app_device(false);
     let weights = common::committed_weights();
     let b = Budget::parse("25%").unwrap();
-    let f32x4 = wgpu::TextureFormat::Rgba32Float;
     let error = |r: dhoit_runtime::Result<AllocatedOit>| r.err().expect("refused").to_string();
-    let e = error(AllocatedOit::dkb(
-        &device,
-        &queue,
-        (64, 48),
-        &weights,
-        b,
-        wgpu::TextureFormat::Bgra8Unorm,
-    ));
+    let bgra = wgpu::TextureFormat::Bgra8Unorm;
+    let e = error(AllocatedOit::dkb(&g, (64, 48), &weights, b, bgra));
     assert!(
         e.contains("resolves onto") && e.contains("Bgra8Unorm"),
         "{e}"
     );
     let tiny = Budget::parse("1KB").unwrap();
-    let e = error(AllocatedOit::dkb(
-        &device,
-        &queue,
-        (64, 48),
-        &weights,
-        tiny,
-        f32x4,
-    ));
+    let e = error(AllocatedOit::dkb(&g, (64, 48), &weights, tiny, F32X4));
     assert!(e.contains("dkb needs"), "{e}");
     let vkb = dhoit_runtime::importance::VkbParams::default();
-    let e = error(AllocatedOit::vkb(
-        &device,
-        &queue,
-        (64, 48),
-        vkb,
-        tiny,
-        f32x4,
-    ));
+    let e = error(AllocatedOit::vkb(&g, (64, 48), vkb, tiny, F32X4));
     assert!(e.contains("vkb needs"), "{e}");
-    assert!(AllocatedOit::vkb(&device, &queue, (0, 48), vkb, b, f32x4).is_err());
+    assert!(AllocatedOit::vkb(&g, (0, 48), vkb, b, F32X4).is_err());
     let instance = wgpu::Instance::default();
     let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
     let (plain, plain_queue) =
         pollster::block_on(adapter.request_device(&Default::default())).unwrap();
-    let e = error(AllocatedOit::vkb(
-        &plain,
-        &plain_queue,
-        (64, 48),
-        vkb,
-        b,
-        f32x4,
-    ));
+    let e = Gpu::on_device(plain, plain_queue, &adapter.get_info())
+        .err()
+        .expect("refused")
+        .to_string();
     assert!(e.contains("opened without"), "{e}");
 }
 
+/// FKB's and the list's fixed buffers are checked against the device's bindings and 32-bit
+/// indices when they are made and when their budget changes.
 #[test]
-fn the_k_buffer_counts_its_buffers_and_refuses_what_it_cannot_hold() {
-    let (device, queue) = app_device();
+fn the_k_buffer_and_the_list_refuse_what_they_cannot_hold() {
+    let (_, _, g) = app_device(false);
     let (w, h) = (64u32, 48u32);
-    let px = (w * h) as u64;
-    for k in [1, 4] {
-        let oit = KBufferOit::new(&device, &queue, (w, h), k).unwrap();
-        assert_eq!(oit.k(), k);
-        // budget::FKB's buffers for k slots a pixel and the application's 16-byte uniform.
-        let fkb = dhoit_runtime::budget::FKB;
-        assert_eq!(
-            oit.allocated_bytes(),
-            fkb.allocated_bytes(px, k as u64 * px) + 16
-        );
-        // A hand count: 8 bytes a slot, 16 + 4 a pixel for the tail, params, status, two
-        // unused 16-byte bindings, the application's uniform.
-        assert_eq!(
-            oit.allocated_bytes(),
-            8 * k as u64 * px + 20 * px + 256 + 16 + 32 + 16
-        );
-    }
-    assert!(KBufferOit::new(&device, &queue, (w, h), 0).is_err());
-    assert!(KBufferOit::new(&device, &queue, (0, h), 2).is_err());
-    let e = KBufferOit::new(&device, &queue, (8192, 8192), 1 << 10)
+    assert!(KBufferOit::new(&g, (w, h), 0, F32X4).is_err());
+    assert!(KBufferOit::new(&g, (0, h), 2, F32X4).is_err());
+    let e = KBufferOit::new(&g, (8192, 8192), 1 << 10, F32X4)
         .err()
         .unwrap();
     assert!(e.to_string().contains("32-bit"), "{e}");
-    let e = KBufferOit::new(&device, &queue, (4096, 4096), 64)
-        .err()
-        .unwrap();
+    let e = KBufferOit::new(&g, (4096, 4096), 64, F32X4).err().unwrap();
     assert!(e.to_string().contains("oit.slots"), "{e}");
+    let mut fkb = KBufferOit::new(&g, (w, h), 2, F32X4).unwrap();
+    fkb.set_budget(Budget::parse("4fpp").unwrap()).unwrap();
+    assert_eq!(fkb.k(), 4);
+    let e = fkb.set_budget(Budget::parse("25%").unwrap()).unwrap_err();
+    assert!(e.to_string().contains("before any count"), "{e}");
+    assert!(ListOit::new(&g, (0, 48), 16, 8, F32X4).is_err());
+    assert!(ListOit::new(&g, (64, 48), 0, 8, F32X4).is_err());
+    assert!(ListOit::new(&g, (64, 48), 16, 0, F32X4).is_err());
+    assert!(ListOit::new(&g, (64, 48), 16, 17, F32X4).is_err());
+    let big = ListOit::new(&g, (64, 48), 1 << 40, 8, F32X4);
+    assert!(big.is_err(), "a pool over 32-bit node indices");
+    let mut list = ListOit::new(&g, (w, h), 16, 8, F32X4).unwrap();
+    list.set_budget(Budget::parse("2fpp").unwrap()).unwrap();
+    assert_eq!(list.nodes(), 2 * (w * h) as u64);
 }
 
+/// One of each method on `g` for frames of `size` resolving onto `format`: the list (a pool of
+/// four fragments a pixel), FKB (2 slots), the A-buffer, MLAB (2 rows), DKB and VKB at 25%,
+/// WBOIT and MBOIT.
+fn every_method(g: &Gpu, size: (u32, u32), format: wgpu::TextureFormat) -> Vec<Box<dyn Oit>> {
+    let weights = common::committed_weights();
+    let vkb = dhoit_runtime::importance::VkbParams::default();
+    let b = Budget::parse("25%").unwrap();
+    let nodes = 4 * (size.0 * size.1) as u64;
+    vec![
+        Box::new(ListOit::new(g, size, nodes, 8, format).unwrap()),
+        Box::new(KBufferOit::new(g, size, 2, format).unwrap()),
+        Box::new(ExactOit::new(g, size, format).unwrap()),
+        Box::new(ExactOit::mlab(g, size, 2, format).unwrap()),
+        Box::new(AllocatedOit::dkb(g, size, &weights, b, format).unwrap()),
+        Box::new(AllocatedOit::vkb(g, size, vkb, b, format).unwrap()),
+        Box::new(BlendedOit::wboit(g, size, WboitParams::default(), format).unwrap()),
+        Box::new(BlendedOit::mboit(g, size, MboitParams::default(), format).unwrap()),
+    ]
+}
+
+/// Several frames of a moving camera recorded into one encoder and submitted once give the
+/// images the same method gives them one frame at a time, each submitted and read on its own,
+/// for every method: no frame waits within a submission, and none reads what the next one
+/// writes. Each frame's report comes back once, in order.
 #[test]
-fn the_list_refuses_what_it_cannot_hold_or_write() {
-    let (device, queue) = app_device();
-    assert!(ListOit::new(&device, &queue, (0, 48), 16, 8).is_err());
-    assert!(ListOit::new(&device, &queue, (64, 48), 0, 8).is_err());
-    assert!(ListOit::new(&device, &queue, (64, 48), 16, 0).is_err());
-    assert!(ListOit::new(&device, &queue, (64, 48), 16, 17).is_err());
-    let big = ListOit::new(&device, &queue, (64, 48), 1 << 40, 8);
-    assert!(big.is_err(), "a pool over 32-bit node indices");
-    // A device without dhoit's features is named as lacking them.
-    let instance = wgpu::Instance::default();
-    let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
-    let (plain, plain_queue) =
-        pollster::block_on(adapter.request_device(&Default::default())).unwrap();
-    let e = ListOit::new(&plain, &plain_queue, (64, 48), 16, 8)
-        .err()
-        .unwrap();
-    assert!(e.to_string().contains("opened without"), "{e}");
-    let oit = ListOit::new(&device, &queue, (4, 4), 16, 8).unwrap();
-    // budget::LINKED_LIST's buffers and the application's uniform.
-    let list = dhoit_runtime::budget::LINKED_LIST;
-    assert_eq!(oit.allocated_bytes(), list.allocated_bytes(16, 16) + 16);
-    assert_eq!(oit.allocated_bytes(), 4 * 16 + 12 * 16 + 256 + 16 + 16 + 16);
-    assert_eq!(oit.nodes(), 16);
+fn frames_recorded_into_one_submission_are_the_frames_rendered_one_at_a_time() {
+    let Some(g) = gpu() else { return };
+    let (w, h) = (48, 36);
+    let s =
+        dhoit_runtime::scene::load("shells", dhoit_runtime::scene::Opacity::Uniform(0.4)).unwrap();
+    let cams: Vec<Camera> = (0..4).map(|v| Camera::orbit(&s, v, 24, w, h)).collect();
+    for m in 0..every_method(g, (w, h), F32X4).len() {
+        let app = App::new(&s, (w, h), false);
+        // One frame at a time, a new method each (sized as the first frame of a stream is).
+        let alone: Vec<Vec<[f32; 3]>> = cams
+            .iter()
+            .map(|cam| {
+                let mut oit = every_method(&app.gpu, (w, h), F32X4).swap_remove(m);
+                app.frame(oit.as_mut(), &s, cam).0
+            })
+            .collect();
+        // Every frame into one encoder, one submission.
+        let mut oit = every_method(&app.gpu, (w, h), F32X4).swap_remove(m);
+        let name = oit.method();
+        let pipelines = app.pipelines(oit.as_ref());
+        let targets: Vec<wgpu::Texture> = cams.iter().map(|_| app.target(F32X4)).collect();
+        let cameras: Vec<wgpu::BindGroup> = cams.iter().map(|c| app.camera(&s, c)).collect();
+        let mut enc = app.device.create_command_encoder(&Default::default());
+        let syncs = gpu::host_syncs();
+        for (camera, target) in cameras.iter().zip(&targets) {
+            app.record(&mut enc, oit.as_mut(), &pipelines, camera, target)
+                .unwrap();
+        }
+        // Recording made no submission and no wait of its own.
+        assert_eq!(gpu::host_syncs(), syncs, "{name}: recording waited");
+        // Recorded, not submitted: no report yet.
+        assert!(oit.finished(false).unwrap().is_empty(), "{name}");
+        app.queue.submit([enc.finish()]);
+        let reports = oit.finished(true).unwrap();
+        let frames: Vec<u64> = reports.iter().map(|r| r.frame).collect();
+        assert_eq!(
+            frames,
+            vec![0, 1, 2, 3],
+            "{name}: every frame's report, in order"
+        );
+        let mut moved = 0.0f32;
+        for (i, (target, one)) in targets.iter().zip(&alone).enumerate() {
+            let together = app.read(target);
+            let worst = worst_difference(&together, one);
+            assert!(
+                worst <= 1e-6,
+                "{name}, frame {i}: {worst} from the frame rendered alone"
+            );
+            moved = moved.max(worst_difference(&together, &alone[0]));
+        }
+        // The camera moved: the frames differ from one another.
+        assert!(moved > 1e-3, "{name}: the frames are all alike ({moved})");
+    }
+}
+
+/// Dhoit's passes are built once a device: a second method of a kind made from the same `Gpu`
+/// builds no shader or pipeline, nor do its frames; a method resized or given another budget
+/// renders what a method made at that size or budget renders.
+#[test]
+fn a_second_method_builds_nothing_and_resized_ones_render_as_fresh_ones() {
+    if gpu().is_none() {
+        return;
+    }
+    let (w, h) = (48, 36);
+    let s = layered_scene();
+    let weights = common::committed_weights();
+    let app = App::new(&s, (w, h), false);
+    let b = Budget::parse("25%").unwrap();
+    // The first DKB on the device, and a frame of it: its network's passes and the resolve
+    // onto this target format are built on first use.
+    let mut first = AllocatedOit::dkb(&app.gpu, (w, h), &weights, b, F32X4).unwrap();
+    app.frame(&mut first, &s, &identity());
+    let before = gpu::pipelines_built();
+    let mut second = AllocatedOit::dkb(&app.gpu, (w, h), &weights, b, F32X4).unwrap();
+    let (image, _) = app.frame(&mut second, &s, &identity());
+    assert_eq!(
+        gpu::pipelines_built(),
+        before,
+        "the second DKB built passes"
+    );
+    assert!(!image.is_empty());
+    // dhoit's passes on another device are built anew: what the count counts.
+    let _other = app_device(false);
+    assert!(
+        gpu::pipelines_built() > before,
+        "a new device's passes are counted"
+    );
+    // Resized and given another budget: as fresh methods.
+    let (w2, h2) = (64, 48);
+    let app2 = App::new(&s, (w2, h2), false);
+    for budget in ["25%", "1fpp"] {
+        let b2 = Budget::parse(budget).unwrap();
+        let mut moved = AllocatedOit::dkb(&app2.gpu, (w, h), &weights, b, F32X4).unwrap();
+        moved.resize((w2, h2)).unwrap();
+        moved.set_budget(b2).unwrap();
+        let mut fresh = AllocatedOit::dkb(&app2.gpu, (w2, h2), &weights, b2, F32X4).unwrap();
+        let (a, _) = app2.frame(&mut moved, &s, &identity());
+        let (f, _) = app2.frame(&mut fresh, &s, &identity());
+        assert_eq!(a, f, "{budget}: resized and rebudgeted");
+        let mut fkb = KBufferOit::new(&app2.gpu, (w, h), 1, F32X4).unwrap();
+        fkb.resize((w2, h2)).unwrap();
+        fkb.set_budget(Budget::parse("3fpp").unwrap()).unwrap();
+        let mut fresh = KBufferOit::new(&app2.gpu, (w2, h2), 3, F32X4).unwrap();
+        assert_eq!(
+            app2.frame(&mut fkb, &s, &identity()).0,
+            app2.frame(&mut fresh, &s, &identity()).0
+        );
+    }
+}
+
+/// Every method renders on a device opened without timestamps (`TIMESTAMP_QUERY` is
+/// optional): the same image, no pass times.
+#[test]
+fn every_method_renders_without_timestamps() {
+    if gpu().is_none() {
+        return;
+    }
+    let (w, h) = (48, 36);
+    let s = layered_scene();
+    let timed = App::new(&s, (w, h), false);
+    let untimed = App::on(app_device(false), &s, (w, h), false);
+    assert!(
+        !untimed
+            .device
+            .features()
+            .contains(wgpu::Features::TIMESTAMP_QUERY)
+    );
+    let pairs = every_method(&timed.gpu, (w, h), F32X4)
+        .into_iter()
+        .zip(every_method(&untimed.gpu, (w, h), F32X4));
+    for (mut a, mut b) in pairs {
+        let (ia, ra) = timed.frame(a.as_mut(), &s, &identity());
+        let (ib, rb) = untimed.frame(b.as_mut(), &s, &identity());
+        let name = a.method();
+        assert!(worst_difference(&ia, &ib) <= 1e-6, "{name}");
+        assert!(!ra.pass_ms.is_empty(), "{name}: timed");
+        assert!(rb.pass_ms.is_empty(), "{name}: untimed");
+    }
+}
+
+/// A frame given textures of another size or format than the method's is refused before
+/// anything is recorded, with a typed error naming the texture and both sizes, by every
+/// method; a texture of the right size records.
+#[test]
+fn every_method_refuses_textures_of_another_size_or_format() {
+    if gpu().is_none() {
+        return;
+    }
+    let s = layered_scene();
+    let (small, big) = ((32, 24), (64, 48));
+    // The application renders at 64x48; each method was made for 32x24, or for 64x48 onto
+    // 8-bit targets.
+    let app = App::new(&s, big, false);
+    let camera = app.camera(&s, &identity());
+    let made = every_method(&app.gpu, small, F32X4)
+        .into_iter()
+        .zip(every_method(&app.gpu, big, wgpu::TextureFormat::Rgba8Unorm));
+    for (mut oit, mut other) in made {
+        let name = oit.method();
+        let pipelines = app.pipelines(oit.as_ref());
+        let target = app.target(F32X4);
+        let mut enc = app.device.create_command_encoder(&Default::default());
+        let e = app
+            .record(&mut enc, oit.as_mut(), &pipelines, &camera, &target)
+            .expect_err("refused");
+        assert!(
+            matches!(
+                e,
+                dhoit_runtime::Error::Gpu(dhoit_runtime::error::GpuError::FrameTexture { .. })
+            ),
+            "{name}: {e}"
+        );
+        let text = e.to_string();
+        assert!(
+            text.contains("64x48") && text.contains("32x24"),
+            "{name}: {text}"
+        );
+        drop(enc);
+        // The right size, another target format.
+        let pipelines = app.pipelines(other.as_ref());
+        let mut enc = app.device.create_command_encoder(&Default::default());
+        let e = app
+            .record(&mut enc, other.as_mut(), &pipelines, &camera, &target)
+            .expect_err("refused")
+            .to_string();
+        assert!(
+            e.contains("target") && e.contains("Rgba8Unorm"),
+            "{name}: {e}"
+        );
+        // And the right one records, its image dhoit's resolve onto 8 bits.
+        let target8 = app.target(wgpu::TextureFormat::Rgba8Unorm);
+        app.record(&mut enc, other.as_mut(), &pipelines, &camera, &target8)
+            .unwrap();
+        app.queue.submit([enc.finish()]);
+        assert!(other.finished(true).unwrap()[0].error.is_none(), "{name}");
+    }
 }

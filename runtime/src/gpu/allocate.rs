@@ -5,21 +5,23 @@
 //! [`Gpu::allocate`] runs it alone.
 
 use super::buffers::{FrameBuffers, read_back, read_counts, read_words, u32s};
-use super::passes::Passes;
+use super::passes::{Passes, Phase};
 use super::pipelines::{compute_buffer_entry, module, module_from, redeclare};
 use super::scan::Scan;
+use super::scene::SceneDraws;
 use super::timer::Timer;
-use super::{FrameOptions, Gpu, Recording, frame_params, weight_kind};
+use super::{FrameOptions, Gpu, Planned, Recording, frame_params, weight_kind};
 use crate::alloc::Target;
 use crate::budget;
 use crate::budget::FragmentBudget;
 use crate::error::{Error, Result};
+use crate::plan::{PlanBudget, PlanInput};
 use crate::scene::{Camera, Scene};
-use crate::shared::count_bytes;
+use crate::shared::{TOTALS_WORDS, count_bytes};
 use crate::wgsl::{
     ALLOC_GROUP, ALLOC_ROUNDS_WORD, ALLOC_STATE_WORDS, AllocParams, DISPATCH_PER_PIXEL,
-    DISPATCH_ROUNDS, DISPATCH_SCAN, SEARCH_PIXELS, SEARCH_ROUNDS, alloc_dispatches,
-    dispatch_offset, grid, shaders,
+    DISPATCH_ROUNDS, DISPATCH_SCAN, Params, PlanParams, SEARCH_PIXELS, SEARCH_ROUNDS,
+    alloc_dispatches, dispatch_offset, grid, shaders,
 };
 
 /// Per-pixel importance on the device and what the allocation needs beside it.
@@ -28,46 +30,18 @@ pub(super) struct Importance {
     /// Importance in, the allocation's fixed-point weights and k in place, then the slot bases
     /// ([`Recording::pixel_word`]).
     pub(super) importance: wgpu::Buffer,
+    /// The frame's totals and its plan (plan.wgsl), which the allocation reads F from.
     pub(super) totals: wgpu::Buffer,
-    /// Whether the frame computed the importance (read back with diagnostics).
+    /// Whether a pass computed the importance (read back with diagnostics; zeros where the
+    /// frame keeps every fragment and its client knew it).
     pub(super) computed: bool,
     /// The weight kind (`Alloc.kind`, [`weight_kind`]).
     pub(super) kind: u32,
     /// A buffer no longer needed of at least [`budget::marks_bytes`], to hold the allocation's
     /// marks.
     pub(super) marks: Option<wgpu::Buffer>,
-    /// Buffers no longer needed by the capture, for the tail and the image (DKB's features).
+    /// Buffers no longer needed by the capture, for the per-pixel tail it binds unused.
     pub(super) reuse: Option<Reuse>,
-    /// The passes after the count, where the frame expected to fit and did not record them.
-    pub(super) pending: Option<Pending>,
-    /// Whether the frame knows already that its budget holds every fragment (DKB reads its
-    /// count back first): then it records no allocation, as a frame expected to fit.
-    pub(super) fits: bool,
-}
-
-/// The passes after the count that a frame expected to fit leaves unrecorded (totals,
-/// features, importance: where the budget holds every fragment, k = n needs none of them);
-/// [`Recording::allocated`] records them where the budget turns out to truncate.
-pub(super) type Pending = Box<dyn for<'r, 'f, 'a> FnOnce(&'r mut Recording<'f, 'a>) -> Result<()>>;
-
-/// `f` as [`Pending`] (a closure handed here is inferred for every recording).
-pub(super) fn pending(
-    f: impl for<'r, 'f, 'a> FnOnce(&'r mut Recording<'f, 'a>) -> Result<()> + 'static,
-) -> Pending {
-    Box::new(f)
-}
-
-/// `rest` recorded now unless the frame expects to fit, else kept.
-pub(super) fn record_unless(
-    rec: &mut Recording,
-    rest: Pending,
-    expect_fit: bool,
-) -> Result<Option<Pending>> {
-    if expect_fit {
-        return Ok(Some(rest));
-    }
-    rest(rec)?;
-    Ok(None)
 }
 
 /// What [`Recording::pixel_word`] holds when it is taken.
@@ -75,46 +49,40 @@ pub(super) enum Word<'v> {
     /// These values (uploaded k).
     Holding(&'v [u32]),
     /// Whatever it held: every pixel's word is written before any pass reads it (by the
-    /// importance pass, or the uploaded importance with the passes after the count), and the
-    /// last entry by the prefix sum.
+    /// importance pass, or the uploaded importance), and the last entry by the prefix sum.
     Written,
 }
 
 /// Per-pixel buffers whose contents are read by the time of the capture.
 pub(super) struct Reuse {
-    /// 16 bytes a pixel.
+    /// 16 bytes at least.
     pub(super) tail: wgpu::Buffer,
-    /// 4 bytes a pixel.
+    /// 16 bytes at least.
     pub(super) tail_count: wgpu::Buffer,
-    /// 16 bytes a pixel.
-    pub(super) image: wgpu::Buffer,
     /// The slot pool, made before the capture (DKB's: it holds the records and the marks
-    /// first), cleared there; else the capture makes it for the slots the allocation hands out.
+    /// first), cleared there; else the allocation makes it at the frame's pool bytes.
     pub(super) pool: Option<wgpu::Buffer>,
 }
 
-impl Recording<'_, '_> {
+impl Recording<'_, '_, '_> {
     /// The frame's one word a pixel for the importance, the allocation's weights and k in turn,
-    /// then the slot bases (`pixels + 1` entries, `oit.offsets`; k is their difference): the
-    /// count's prefix sums' buffer where the frame counted first (read by then), else a new one;
+    /// then the slot bases (`pixels + 1` entries, `oit.offsets`; k is their difference),
     /// holding what `word` says.
     pub(super) fn pixel_word(&mut self, word: Word) -> Result<wgpu::Buffer> {
         let px = self.px;
-        match (word, &self.counted) {
-            (Word::Holding(v), _) => Ok(word_holding(&mut self.fb, v)),
-            // Only DKB and VKB frames count first (FrameOptions::exact_when_cheaper).
-            (Word::Written, Some(c)) => Ok(c.offsets.clone()),
-            (Word::Written, None) => self.fb.storage_kept("oit.offsets", 4 * (px + 1), true),
+        match word {
+            Word::Holding(v) => Ok(word_holding(&mut self.fb, v)),
+            Word::Written => self.fb.storage_kept("oit.offsets", 4 * (px + 1), true),
         }
     }
 
-    /// The count and totals (left pending where the frame is expected to fit) for importance
-    /// computed elsewhere, uploaded.
+    /// The count, totals and plan for importance computed elsewhere, uploaded into the
+    /// frame's word (by the queue, before the frame's first command: `Gpu::render` alone).
     pub(super) fn uploaded_importance(
         &mut self,
         imp: &[f32],
         target: Target,
-        expect_fit: bool,
+        planned: &Planned,
     ) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
@@ -125,21 +93,20 @@ impl Recording<'_, '_> {
             )));
         }
         let importance = self.pixel_word(Word::Written)?;
-        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        gpu.queue
+            .write_buffer(&importance, 0, bytemuck::cast_slice(imp));
+        let fb = &mut self.fb;
         let counts = fb.storage("count", count_bytes(px), true)?;
-        let totals = fb.storage("totals", 16, true)?;
-        passes.draw(enc, &p.count, &[&counts], "count");
-        let (c, t, word) = (counts.clone(), totals.clone(), importance.clone());
-        // The importance goes into its word with the rest: a frame expected to fit writes the
-        // count's prefix sums there first. (The word is not cleared: a clear would run after
-        // the write, at the frame's first submission.)
-        let values: Vec<u8> = bytemuck::cast_slice(imp).to_vec();
-        let rest = pending(move |rec| {
-            rec.passes.gpu.queue.write_buffer(&word, 0, &values);
-            rec.passes.totals(&mut rec.enc, &c, &t);
-            Ok(())
-        });
-        let pending = record_unless(self, rest, expect_fit)?;
+        let totals = fb.storage("totals", 4 * TOTALS_WORDS as u64, true)?;
+        let unused = fb.storage("oit.unused_tail", 16, true)?;
+        let plan = fb.init(
+            "plan.params",
+            bytemuck::bytes_of(&PlanParams::of(&planned.input)),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        );
+        passes.draw(fb.enc, Phase::Count, &p.count, &[&counts], "count");
+        passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &unused)));
         Ok(Importance {
             counts,
             importance,
@@ -147,9 +114,11 @@ impl Recording<'_, '_> {
             computed: false,
             kind: weight_kind(target),
             marks: None,
-            reuse: None,
-            pending,
-            fits: false,
+            reuse: Some(Reuse {
+                tail: unused.clone(),
+                tail_count: unused,
+                pool: None,
+            }),
         })
     }
 }
@@ -172,23 +141,13 @@ impl<'a> Passes<'a> {
     /// [`Passes::allocate`] to record.
     pub(super) fn allocation(
         &self,
-        fb: &mut FrameBuffers,
+        fb: &mut FrameBuffers<'_, '_>,
         b: AllocBuffers,
-        budget: FragmentBudget,
         kind: u32,
     ) -> Result<Allocation> {
         let gpu = self.gpu;
         let a = &gpu.pipelines.allocate;
-        let (f, ppm) = match budget {
-            FragmentBudget::Slots(f) => (f, 0),
-            FragmentBudget::Share(ppm) => (0, ppm),
-        };
-        let ap = AllocParams {
-            f_lo: f as u32,
-            f_hi: (f >> 32) as u32,
-            ppm,
-            kind,
-        };
+        let ap = AllocParams { kind, _pad: [0; 3] };
         let params = fb.init(
             "alloc.params",
             bytemuck::bytes_of(&ap),
@@ -211,6 +170,7 @@ impl<'a> Passes<'a> {
         let (sx, sy) = grid(self.pixels.div_ceil(SEARCH_PIXELS), ALLOC_GROUP);
         let marks = crate::shared::mark_blocks(self.pixels as u64) as u32;
         let (cx, cy) = grid(marks, budget::SCAN_BLOCK as u32);
+        // Setup writes every frame's grids (the host's, the same each frame, are its first).
         let dispatches = fb.init(
             "alloc.dispatches",
             bytemuck::cast_slice(&alloc_dispatches([(gx, gy), (sx, sy), (cx, cy)])),
@@ -249,8 +209,7 @@ impl<'a> Passes<'a> {
     /// ([`GpuFrame::variants`]).
     pub(super) fn allocate(
         &self,
-        enc: &mut wgpu::CommandEncoder,
-        fb: &mut FrameBuffers,
+        fb: &mut FrameBuffers<'_, '_>,
         al: &Allocation,
     ) -> Result<&'static str> {
         let a = &self.gpu.pipelines.allocate;
@@ -261,7 +220,7 @@ impl<'a> Passes<'a> {
             dispatch_offset(DISPATCH_SCAN),
         );
         let dispatches = &al.dispatches;
-        self.compute(enc, "allocation", |pass| {
+        self.compute(fb.enc, "allocation", |pass| {
             pass.set_bind_group(0, &al.setup_group, &[]);
             pass.set_pipeline(&a.setup);
             pass.dispatch_workgroups(1, 1, 1);
@@ -282,9 +241,9 @@ impl<'a> Passes<'a> {
             pass.set_pipeline(&a.mark);
             pass.dispatch_workgroups_indirect(dispatches, per_pixel);
         });
-        self.prefix_sum_of(enc, fb, Scan::Marks(&al.flags), Some((dispatches, scan)))?;
+        self.prefix_sum_of(fb, Scan::Marks(&al.flags), Some((dispatches, scan)))?;
         let (gx, gy) = al.grid;
-        self.compute(enc, "allocation apply", |pass| {
+        self.compute(fb.enc, "allocation apply", |pass| {
             pass.set_bind_group(0, &al.group, &[]);
             pass.set_pipeline(&a.apply);
             pass.dispatch_workgroups(gx, gy, 1);
@@ -335,19 +294,46 @@ impl Gpu {
                 importance.len()
             )));
         }
-        let mut fb = FrameBuffers::new(self);
-        let params = frame_params(cam, width, height, [1.0; 3], 0, budget, Default::default());
-        let inputs = self.frame_inputs(&mut fb, scene, &params, false);
+        let params = Params {
+            uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
+            ..frame_params(Some(cam), width, height, [1.0; 3])
+        };
+        let (inputs, scene_buffers) = self.frame_inputs(scene, &params, false)?;
+        let draws = SceneDraws::new(&inputs);
         let timer = Timer::new(self);
-        let passes = Passes::new(self, &timer, &inputs, FrameOptions::default(), None);
-        let p = &self.pipelines;
         let mut enc = self.device.create_command_encoder(&Default::default());
+        draws.opaque(self, &mut enc, Some(&timer));
+        let mut fb = FrameBuffers::new(self, &mut enc);
+        let uniform = fb.init(
+            "params",
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        );
+        let opts = FrameOptions::default();
+        let passes = Passes::new(self, &timer, uniform, pixels, opts, &draws);
+        let p = &self.pipelines;
         let counts = fb.storage("count", count_bytes(px), true)?;
         let base = word_holding(&mut fb, bytemuck::cast_slice(importance));
-        let totals = fb.storage("totals", 16, true)?;
-        passes.opaque(&mut enc);
-        passes.draw(&mut enc, &p.count, &[&counts], "count");
-        passes.totals(&mut enc, &counts, &totals);
+        let totals = fb.storage("totals", 4 * TOTALS_WORDS as u64, true)?;
+        let unused = fb.storage("oit.unused_tail", 16, true)?;
+        // The plan with a pool that holds every fragment: F is the budget's.
+        let input = PlanInput {
+            layout: budget::VKB,
+            pixels: px,
+            budget: PlanBudget::Fragments(budget),
+            pool_bytes: u64::MAX,
+            batches: 1,
+            exact_when_cheaper: false,
+        };
+        let plan = fb.init(
+            "plan.params",
+            bytemuck::bytes_of(&PlanParams::of(&input)),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        );
+        passes.draw(fb.enc, Phase::Count, &p.count, &[&counts], "count");
+        passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &unused)));
         let al = passes.allocation(
             &mut fb,
             AllocBuffers {
@@ -356,20 +342,22 @@ impl Gpu {
                 totals: &totals,
                 flags: None,
             },
-            budget,
             weight_kind(target),
         )?;
-        passes.allocate(&mut enc, &mut fb, &al)?;
-        passes.prefix_sum_of(&mut enc, &mut fb, Scan::InPlace(&base), None)?;
-        fb.submit(&mut enc);
+        passes.allocate(&mut fb, &al)?;
+        passes.prefix_sum_of(&mut fb, Scan::InPlace(&base), None)?;
+        timer.resolve(fb.enc);
+        let taken = fb.into_taken();
+        self.submit(enc.finish());
         let bases = u32s(&read_back(self, &base, 4 * (px + 1))?);
         let out = GpuAllocation {
             counts: read_counts(self, &counts, px)?,
             k: bases.windows(2).map(|b| b[1] - b[0]).collect(),
             bases,
-            pass_ms: timer.read(self)?,
+            pass_ms: timer.read()?,
             search_rounds: read_words(self, &[(&al.state, 8 * ALLOC_ROUNDS_WORD as u64)])?[0],
         };
+        drop((taken, scene_buffers));
         scopes.end()?;
         Ok(out)
     }
@@ -470,6 +458,7 @@ fn pipeline(
     m: &wgpu::ShaderModule,
     entry: &str,
 ) -> wgpu::ComputePipeline {
+    super::pipelines::note_built();
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(entry),
         layout: Some(layout),
@@ -482,7 +471,7 @@ fn pipeline(
 
 /// The per-pixel word (`oit.offsets`) holding `values` and one word more (zero), so it can
 /// hold the slot bases' `pixels + 1` entries in place.
-fn word_holding(fb: &mut FrameBuffers, values: &[u32]) -> wgpu::Buffer {
+fn word_holding(fb: &mut FrameBuffers<'_, '_>, values: &[u32]) -> wgpu::Buffer {
     let words: Vec<u32> = values.iter().copied().chain([0]).collect();
     fb.init(
         "oit.offsets",
@@ -490,4 +479,77 @@ fn word_holding(fb: &mut FrameBuffers, values: &[u32]) -> wgpu::Buffer {
         wgpu::BufferUsages::STORAGE,
         true,
     )
+}
+
+impl Gpu {
+    /// The frame's plan (plan.wgsl) for each of `cases`, an input and a frame's occupancy,
+    /// run on the device alone: what the tests hold to its twin, [`crate::plan::plan`]. Each
+    /// plan as the pass writes it ([`crate::plan::Plan::from_words`]: its `batches` 0, the
+    /// host's to know).
+    pub fn plan(
+        &self,
+        cases: &[(PlanInput, crate::budget::Occupancy)],
+    ) -> Result<Vec<crate::plan::Plan>> {
+        let scopes = self.begin_frame(1, 1)?;
+        let storage = |label: &str, words: &[u32]| {
+            let b = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 4 * words.len() as u64,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            self.queue.write_buffer(&b, 0, bytemuck::cast_slice(words));
+            b
+        };
+        let p = &self.pipelines.plan;
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        let mut outputs = Vec::new();
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(p);
+            for (input, occ) in cases {
+                let w = |v: u64| v.min(u32::MAX as u64) as u32;
+                let totals = storage(
+                    "plan.totals",
+                    &[
+                        w(occ.fragments),
+                        w(occ.covered),
+                        0,
+                        w(occ.deep),
+                        0,
+                        w(occ.deeper),
+                        0,
+                        0,
+                    ],
+                );
+                let batch = storage("plan.batch", &[0; 4]);
+                let params = self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("plan.params"),
+                    size: std::mem::size_of::<PlanParams>() as u64,
+                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                self.queue
+                    .write_buffer(&params, 0, bytemuck::bytes_of(&PlanParams::of(input)));
+                let g = self.bind_at(
+                    &p.get_bind_group_layout(0),
+                    &[(2, &totals), (8, &batch), (9, &params)],
+                );
+                pass.set_bind_group(0, &g, &[]);
+                pass.dispatch_workgroups(1, 1, 1);
+                outputs.push((totals, batch));
+            }
+        }
+        self.submit(enc.finish());
+        let f = crate::shared::PLAN_F_WORD as u64;
+        let mut plans = Vec::with_capacity(cases.len());
+        for (totals, batch) in &outputs {
+            let w = read_words(self, &[(totals, 4 * f), (totals, 4 * f + 4), (batch, 8)])?;
+            plans.push(crate::plan::Plan::from_words([w[0], w[1], w[2]], 0));
+        }
+        scopes.end()?;
+        Ok(plans)
+    }
 }

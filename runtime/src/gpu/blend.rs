@@ -13,6 +13,7 @@
 //! depends on the submission order by that rounding, as an engine's does.
 
 use super::Recording;
+use super::passes::{Phase, Resolve};
 use crate::composite::{MboitParams, WboitParams};
 use crate::error::{GpuError, Result};
 use crate::wgsl::Params;
@@ -223,35 +224,42 @@ pub(super) fn set_mboit(params: &mut Params, m: &MboitParams) {
     params.mboit_overestimation = m.overestimation;
 }
 
-impl Recording<'_, '_> {
-    /// WBOIT's accumulation and composite; returns the image buffer.
-    pub(super) fn wboit(&mut self, size: (u32, u32)) -> Result<wgpu::Buffer> {
-        let (passes, px) = (self.passes, self.px);
+impl Recording<'_, '_, '_> {
+    /// WBOIT's accumulation and composite.
+    pub(super) fn wboit(&mut self, size: (u32, u32)) -> Result<()> {
+        let passes = self.passes;
         let targets: Vec<_> = BlendPass::WBOIT
             .targets
             .iter()
             .map(|&(t, _, clear)| (self.fb.target(t, size), clear))
             .collect();
-        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        let fb = &mut self.fb;
         let attachments: Vec<_> = targets.iter().map(|(v, c)| (v, *c)).collect();
         let (accumulate, composite) = passes.gpu.extras().wboit();
-        passes.blend(enc, accumulate, None, &attachments, "accumulate");
-        let image = fb.storage("application.image", 16 * px, false)?;
-        passes.composite(
-            enc,
+        passes.blend(
+            fb.enc,
+            Phase::WboitAccumulate,
+            accumulate,
+            Vec::new(),
+            &attachments,
+            "accumulate",
+        );
+        let group = composite_group(passes.params(), [&targets[0].0, &targets[1].0]);
+        passes.resolve(
+            fb.enc,
+            Resolve::Wboit,
             composite,
-            &image,
-            [&targets[0].0, &targets[1].0],
+            group,
+            1,
             "wboit composite",
         );
-        fb.submit(enc);
-        Ok(image)
+        Ok(())
     }
 
-    /// MBOIT's two passes and composite with `moments` power moments (4, 6 or 8); returns the
-    /// image buffer. A device that cannot blend 32-bit floats is refused.
-    pub(super) fn mboit(&mut self, size: (u32, u32), moments: u32) -> Result<wgpu::Buffer> {
-        let (passes, px) = (self.passes, self.px);
+    /// MBOIT's two passes and composite with `moments` power moments (4, 6 or 8). A device
+    /// that cannot blend 32-bit floats is refused.
+    pub(super) fn mboit(&mut self, size: (u32, u32), moments: u32) -> Result<()> {
+        let passes = self.passes;
         let gpu = passes.gpu;
         let [moments_blend, accumulate_blend] = BlendPass::mboit(moments)?;
         let at = (moments as usize - 4) / 2;
@@ -273,7 +281,7 @@ impl Recording<'_, '_> {
             .collect();
         let (read, accumulation) = written.split_at(moments_blend.targets.len());
         let (b0, accumulation) = (&read[0].0, &accumulation[0]);
-        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        let fb = &mut self.fb;
         // The absorbance of each 8-bit opacity (composite::mboit_absorbance_table).
         let table = fb.init(
             "mboit.absorbance",
@@ -281,9 +289,15 @@ impl Recording<'_, '_> {
             wgpu::BufferUsages::UNIFORM,
             true,
         );
-        let group = gpu.bind(&moments_pass.get_bind_group_layout(1), &[&table]);
         let attachments: Vec<_> = read.iter().map(|(v, c)| (v, *c)).collect();
-        passes.blend(enc, moments_pass, Some(&group), &attachments, "moments");
+        passes.blend(
+            fb.enc,
+            Phase::MboitMoments,
+            moments_pass,
+            super::passes::entries(&[&table]),
+            &attachments,
+            "moments",
+        );
         // The accumulation reads every target the moments pass wrote, at bindings 0...
         let views = read
             .iter()
@@ -293,26 +307,46 @@ impl Recording<'_, '_> {
                 resource: wgpu::BindingResource::TextureView(view),
             })
             .collect();
-        let group = gpu.bind_with(&accumulate_pass.get_bind_group_layout(1), &[], views);
         let attachments = [(&accumulation.0, accumulation.1)];
         passes.blend(
-            enc,
+            fb.enc,
+            Phase::MboitAccumulate,
             accumulate_pass,
-            Some(&group),
+            views,
             &attachments,
             "accumulate",
         );
-        let image = fb.storage("application.image", 16 * px, false)?;
-        passes.composite(
-            enc,
+        let group = composite_group(passes.params(), [&accumulation.0, b0]);
+        passes.resolve(
+            fb.enc,
+            Resolve::Mboit,
             composite,
-            &image,
-            [&accumulation.0, b0],
+            group,
+            1,
             "mboit composite",
         );
-        fb.submit(enc);
-        Ok(image)
+        Ok(())
     }
+}
+
+/// A blended method's composite's group (blend_composite.wgsl) without its image: the
+/// parameters, `targets` at bindings 2 and 3.
+fn composite_group<'b>(
+    params: &'b wgpu::Buffer,
+    targets: [&'b wgpu::TextureView; 2],
+) -> Vec<wgpu::BindGroupEntry<'b>> {
+    let view = |binding, view| wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::TextureView(view),
+    };
+    vec![
+        wgpu::BindGroupEntry {
+            binding: 0,
+            resource: params.as_entire_binding(),
+        },
+        view(2, targets[0]),
+        view(3, targets[1]),
+    ]
 }
 
 #[cfg(test)]

@@ -8,26 +8,58 @@ use crate::fragment::FragmentLists;
 use crate::importance::PixelStats;
 use crate::shared::count_bytes;
 
-pub(super) struct FrameBuffers<'a> {
+pub(super) struct FrameBuffers<'a, 'e> {
     pub(super) gpu: &'a Gpu,
+    /// The encoder the frame records into (its client's): a reused buffer is cleared there,
+    /// in order, before the pass that takes it.
+    pub(super) enc: &'e mut wgpu::CommandEncoder,
     pub(super) allocated: u64,
     /// The prefix sum's block totals, created on first use and shared by every scan.
     pub(super) scan_blocks: Option<wgpu::Buffer>,
     /// The buffers this frame took (pool key, buffer), put back when it ends.
-    pub(super) taken: Vec<(String, wgpu::Buffer)>,
-    /// Clears of reused buffers, submitted before the frame's next commands.
-    pub(super) clears: Option<wgpu::CommandEncoder>,
+    pub(super) taken: Taken<'a>,
 }
 
-impl<'a> FrameBuffers<'a> {
-    pub(super) fn new(gpu: &'a Gpu) -> Self {
+/// A frame's buffers, given back to the renderer's pool when dropped: after the client has
+/// read what it reads of them (a later frame on the same device takes them again).
+pub(super) struct Taken<'a> {
+    gpu: &'a Gpu,
+    buffers: Vec<(String, wgpu::Buffer)>,
+}
+
+impl Taken<'_> {
+    /// The buffers stay their holder's, never given back to the pool (a scene streamed frame
+    /// after frame keeps its uploaded buffers).
+    pub(super) fn keep(mut self) {
+        self.buffers.clear();
+    }
+}
+
+impl Drop for Taken<'_> {
+    fn drop(&mut self) {
+        for (key, b) in self.buffers.drain(..) {
+            self.gpu.release(key, b);
+        }
+    }
+}
+
+impl<'a, 'e> FrameBuffers<'a, 'e> {
+    pub(super) fn new(gpu: &'a Gpu, enc: &'e mut wgpu::CommandEncoder) -> Self {
         FrameBuffers {
             gpu,
+            enc,
             allocated: 0,
             scan_blocks: None,
-            taken: Vec::new(),
-            clears: None,
+            taken: Taken {
+                gpu,
+                buffers: Vec::new(),
+            },
         }
+    }
+
+    /// The buffers taken, held until dropped; the encoder is the client's again.
+    pub(super) fn into_taken(self) -> Taken<'a> {
+        self.taken
     }
 
     /// A pooled buffer; a label asked for twice in one frame gets two buffers.
@@ -40,13 +72,16 @@ impl<'a> FrameBuffers<'a> {
     ) -> wgpu::Buffer {
         let nth = self
             .taken
+            .buffers
             .iter()
             .filter(|(k, _)| k.rsplit_once('#').map(|(l, _)| l) == Some(label))
             .count();
         let key = format!("{label}#{nth}");
-        let clears = if zero { Some(&mut self.clears) } else { None };
-        let b = self.gpu.acquire(&key, size, usage, clears);
-        self.taken.push((key, b.clone()));
+        let (b, reused) = self.gpu.acquire(&key, size, usage);
+        if zero && reused {
+            self.enc.clear_buffer(&b, 0, None);
+        }
+        self.taken.buffers.push((key, b.clone()));
         b
     }
 
@@ -137,27 +172,6 @@ impl<'a> FrameBuffers<'a> {
         let texture = frame_texture(&self.gpu.device, t.label, (width, height), t.format, usage);
         texture.create_view(&Default::default())
     }
-
-    /// Submits `enc` (after the clears of the buffers taken since the last submission) and
-    /// starts a new encoder in its place.
-    pub(super) fn submit(&mut self, enc: &mut wgpu::CommandEncoder) {
-        let done = std::mem::replace(
-            enc,
-            self.gpu.device.create_command_encoder(&Default::default()),
-        );
-        let clears = self.clears.take().map(|c| c.finish());
-        self.gpu
-            .queue
-            .submit(clears.into_iter().chain([done.finish()]));
-    }
-}
-
-impl Drop for FrameBuffers<'_> {
-    fn drop(&mut self) {
-        for (key, b) in self.taken.drain(..) {
-            self.gpu.release(key, b);
-        }
-    }
 }
 
 /// A 2-D texture of the frame's size, one level, one sample.
@@ -182,6 +196,38 @@ pub(super) fn frame_texture(
         usage,
         view_formats: &[],
     })
+}
+
+thread_local! {
+    /// Submissions and waits dhoit made on this thread ([`host_syncs`]).
+    static HOST_SYNCS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// Submissions of its own and waits on the device dhoit has made on this thread so far: a
+/// frame recorded into its client's encoder makes none (`Oit::record`, `SceneStream::record`);
+/// `Gpu::render` submits its frame and waits for it, and counts first.
+pub fn host_syncs() -> u64 {
+    HOST_SYNCS.with(|c| c.get())
+}
+
+impl Gpu {
+    /// Submits `commands` on the queue (counted: [`host_syncs`]).
+    pub(super) fn submit(&self, commands: wgpu::CommandBuffer) -> wgpu::SubmissionIndex {
+        HOST_SYNCS.with(|c| c.set(c.get() + 1));
+        self.queue.submit([commands])
+    }
+
+    /// Waits for every submission so far (counted: [`host_syncs`]).
+    pub(super) fn wait(&self, doing: &'static str) -> Result<()> {
+        HOST_SYNCS.with(|c| c.set(c.get() + 1));
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Lost {
+                doing,
+                message: e.to_string(),
+            })?;
+        Ok(())
+    }
 }
 
 pub(super) fn read_back(gpu: &Gpu, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>> {
@@ -211,6 +257,9 @@ pub(super) fn read_back_with<T>(
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(super) struct FrameStatus {
     pub(super) near_loop_limit: bool,
+    /// Whether the frame's pool, sized before its count, held fewer of its fragments than it
+    /// has (the A-buffer's: the pixels past its end hold none).
+    pub(super) pool_short: bool,
     /// (n, pixel index) of the deepest such pixel (the largest index among equals).
     pub(super) too_deep: Option<(u32, u32)>,
 }
@@ -218,11 +267,12 @@ pub(super) struct FrameStatus {
 impl FrameStatus {
     pub(super) const BYTES: u64 = 16;
 
-    fn parse(bytes: &[u8]) -> FrameStatus {
+    pub(super) fn parse(bytes: &[u8]) -> FrameStatus {
         let word = |i: usize| u64::from_le_bytes(bytes[8 * i..8 * i + 8].try_into().expect("8"));
         let deepest = word(1);
         FrameStatus {
-            near_loop_limit: word(0) != 0,
+            near_loop_limit: word(0) & crate::shared::STATUS_NEAR_LOOP != 0,
+            pool_short: word(0) & crate::shared::STATUS_POOL_SHORT != 0,
             too_deep: (deepest != 0).then_some(((deepest >> 32) as u32, deepest as u32)),
         }
     }
@@ -302,18 +352,13 @@ fn staged<T>(
     // Staging buffers are pooled by size (the image's is the same every frame).
     let key = format!("readback {size}");
     let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
-    let staging = gpu.acquire(&key, size, usage, None);
+    let (staging, _) = gpu.acquire(&key, size, usage);
     let mut enc = gpu.device.create_command_encoder(&Default::default());
     copy(&mut enc, &staging);
-    gpu.queue.submit([enc.finish()]);
+    gpu.submit(enc.finish());
     let slice = staging.slice(..);
     slice.map_async(wgpu::MapMode::Read, |_| {});
-    gpu.device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Lost {
-            doing: "waiting for a submission",
-            message: e.to_string(),
-        })?;
+    gpu.wait("waiting for a submission")?;
     let data = {
         let mapped = slice.get_mapped_range().map_err(|e| GpuError::Lost {
             doing: "reading back",
@@ -381,8 +426,19 @@ pub(super) fn read_u64s(gpu: &Gpu, b: &wgpu::Buffer, n: u64, invert: bool) -> Re
         .collect())
 }
 
+/// A read a frame's pass leaves for after the frame has run, into the frame's readback.
+pub(super) type Deferred = Box<dyn FnOnce(&Gpu, &mut Readback) -> Result<()>>;
+
 #[derive(Default)]
 pub(super) struct Readback {
+    /// Reads left for after the frame has run (the A-buffer's fragments, the slots and tails,
+    /// the list's), in order.
+    pub(super) deferred: Vec<Deferred>,
+    /// The A-buffer's offsets and where in them its fragment total is (the last entry).
+    pub(super) counted: Option<(wgpu::Buffer, u64)>,
+    /// An allocated k-buffer's totals (its plan's F and flags, plan.wgsl) and its batch words
+    /// (the records a batch, DKB's).
+    pub(super) plan_buf: Option<(wgpu::Buffer, wgpu::Buffer)>,
     pub(super) fragments: Option<FragmentLists>,
     /// The resolve's status words ([`FrameStatus`]).
     pub(super) status: Option<wgpu::Buffer>,
@@ -415,6 +471,7 @@ pub(super) struct Statistics {
     pub(super) features_drawn: Option<bool>,
     pub(super) vkb_nearest: Option<(Vec<u32>, Vec<f32>)>,
     pub(super) network_rows: Option<u32>,
+    pub(super) plan: Option<crate::plan::Plan>,
 }
 
 impl Readback {
@@ -431,6 +488,15 @@ impl Readback {
             None => None,
         };
         let features_drawn = self.features_drawn;
+        let plan = match &self.plan_buf {
+            Some((totals, batch)) => {
+                let f = crate::shared::PLAN_F_WORD as u64;
+                let w = read_words(gpu, &[(totals, 4 * f), (totals, 4 * f + 4), (batch, 8)])?;
+                let batches = self.record_batches.unwrap_or(1);
+                Some(crate::plan::Plan::from_words([w[0], w[1], w[2]], batches))
+            }
+            None => None,
+        };
         let network_rows = match &self.network_rows_buf {
             // This batch's list and the batches' before it (totals.wgsl's next_batch).
             Some(b) => {
@@ -444,6 +510,7 @@ impl Readback {
                 importance,
                 features_drawn,
                 network_rows,
+                plan,
                 ..Default::default()
             });
         };
@@ -513,6 +580,7 @@ impl Readback {
             features_drawn,
             vkb_nearest,
             network_rows,
+            plan,
         })
     }
 }

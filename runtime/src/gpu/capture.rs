@@ -3,35 +3,43 @@
 //! capture, append or Loop64 insertion; twin `composite::capture`) and `resolve.wgsl` (the
 //! slots front to back over the tail's approximation; twin `composite::hybrid_sorted`).
 
-use super::allocate::{AllocBuffers, Importance, Reuse, Word};
-use super::buffers::{
-    FrameBuffers, FrameStatus, read_back, read_counts, read_u64s, read_words, u32s,
-};
+use super::allocate::{AllocBuffers, Importance, Word};
+use super::buffers::{FrameStatus, read_back, read_counts, read_u64s, u32s};
+use super::passes::{Phase, Resolve, entries};
 use super::scan::Scan;
-use super::{Recording, Slots};
-use crate::budget::FragmentBudget;
+use super::{Planned, Recording, Slots};
 use crate::error::{Error, Result};
 use crate::shared::count_bytes;
 
 /// A frame's k: per pixel, its slot bases (`pixels + 1` entries: k is their difference, not
-/// stored) and how many slots in all, and n(p) where the frame counted it (the two-mode capture
-/// reads it; else an unused buffer).
+/// stored), the slots (or, pooled, the pool they and the tails share), and n(p) where the frame
+/// counted it (the two-mode capture reads it; else an unused buffer).
 pub(super) struct KBuffer {
     pub(super) base: wgpu::Buffer,
-    pub(super) slots: u64,
+    /// The slots: FKB's and an uploaded k's (their number is the host's), or the pooled ones
+    /// with their tails.
+    pub(super) slots: SlotsAt,
     pub(super) counts: wgpu::Buffer,
-    pub(super) reuse: Option<Reuse>,
-    /// Whether the budget holds every fragment the frame counted (then k = n everywhere).
+    /// The per-pixel tail's buffers the capture's layout binds unused where the tails are
+    /// pooled.
+    pub(super) unused: Option<(wgpu::Buffer, wgpu::Buffer)>,
+    /// Whether the host knows the frame keeps every fragment (k = n everywhere).
     pub(super) all_fit: bool,
-    /// Whether the tails live in the slot pool (`Params::pooled_tail`: the bases are the
-    /// prefix sums of each pixel's span, `shared::span`, and `slots` counts the tails' words).
-    pub(super) pooled: bool,
 }
 
-impl Recording<'_, '_> {
+/// Where a k-buffer's slots are.
+pub(super) enum SlotsAt {
+    /// `n` slots, the tails per pixel in buffers of their own.
+    PerPixel(u64),
+    /// A pool of the slots and the tails (`Params::pooled_tail`: the bases are the prefix sums
+    /// of each pixel's span, `shared::span`), sized before the count.
+    Pooled(wgpu::Buffer),
+}
+
+impl Recording<'_, '_, '_> {
     /// k as `s` gives it: FKB's uniform k, an uploaded k, or the allocation of the importance
-    /// the frame computes (DKB, VKB) or is given.
-    pub(super) fn k_for(&mut self, s: Slots, budget: FragmentBudget) -> Result<KBuffer> {
+    /// the frame computes (DKB, VKB) or is given, as its plan has it.
+    pub(super) fn k_for(&mut self, s: Slots, planned: Planned) -> Result<KBuffer> {
         let (passes, px) = (self.passes, self.px);
         match s {
             Slots::Uniform(k) => {
@@ -39,11 +47,10 @@ impl Recording<'_, '_> {
                 let fb = &mut self.fb;
                 Ok(KBuffer {
                     base: fb.storage("fkb.unused_offsets", 16, true)?,
-                    slots: k.max(1) as u64 * px,
+                    slots: SlotsAt::PerPixel(k.max(1) as u64 * px),
                     counts: fb.storage("fkb.unused_counts", 16, true)?,
-                    reuse: None,
+                    unused: None,
                     all_fit: false,
-                    pooled: false,
                 })
             }
             Slots::PerPixel(k) => {
@@ -56,32 +63,26 @@ impl Recording<'_, '_> {
                 // k uploaded into the bases' buffer, then their prefix sums in place.
                 let base = self.pixel_word(Word::Holding(k))?;
                 let fb = &mut self.fb;
-                passes.prefix_sum_of(&mut self.enc, fb, Scan::InPlace(&base), None)?;
+                passes.prefix_sum_of(fb, Scan::InPlace(&base), None)?;
                 Ok(KBuffer {
                     base,
-                    slots: k.iter().map(|&x| x as u64).sum(),
+                    slots: SlotsAt::PerPixel(k.iter().map(|&x| x as u64).sum()),
                     counts: fb.storage("oit.unused_counts", 16, true)?,
-                    reuse: None,
+                    unused: None,
                     all_fit: false,
-                    pooled: false,
                 })
             }
             Slots::Importance(imp, target, _) => {
-                let expect_fit = self.expect_fit();
-                let i = self.uploaded_importance(imp, target, expect_fit)?;
-                self.allocated(i, budget, expect_fit)
+                let i = self.uploaded_importance(imp, target, &planned)?;
+                self.allocated(i, &planned)
             }
             Slots::Vkb(..) => {
-                let budget = self.vkb_budget(budget)?;
-                let expect_fit = self.expect_fit();
-                let i = self.vkb_importance(expect_fit)?;
-                self.allocated(i, budget, expect_fit)
+                let i = self.vkb_importance(&planned)?;
+                self.allocated(i, &planned)
             }
             Slots::Dkb(mlp, _) => {
-                // DKB reads its count back first (its pool is sized from it).
-                let (i, budget) = self.dkb_importance(mlp, budget)?;
-                let fits = i.fits;
-                self.allocated(i, budget, fits)
+                let i = self.dkb_importance(mlp, &planned)?;
+                self.allocated(i, &planned)
             }
             Slots::Mlab(_) | Slots::Wboit(_) | Slots::Mboit(_) | Slots::LinkedList { .. } => {
                 unreachable!("MLAB, WBOIT, MBOIT and the linked list have passes of their own")
@@ -89,242 +90,197 @@ impl Recording<'_, '_> {
         }
     }
 
-    /// Whether this frame is recorded as one whose budget holds every fragment
-    /// ([`FrameOptions::predict_fit`]: as the renderer's last allocated frame's did).
-    fn expect_fit(&self) -> bool {
-        let gpu = self.passes.gpu;
-        // A frame that counted first knows it truncates (else it rendered the A-buffer).
-        self.counted.is_none()
-            && self.passes.opts.predict_fit
-            && !gpu
-                .last_truncated
-                .load(std::sync::atomic::Ordering::Relaxed)
-    }
-
-    /// The allocation of `i` at `budget`, its slot bases, and the slot count read back (the
-    /// slots buffer is sized from it). A frame expected to fit has recorded its count alone:
-    /// k = n, so the bases are the count's prefix sum and its last entry says whether the
-    /// budget holds every fragment. Where it does not (and in every other frame), the passes
-    /// left pending, the allocation (the device empties its search where every fragment fits)
-    /// and the prefix sum of k, in another submission.
-    pub(super) fn allocated(
-        &mut self,
-        mut i: Importance,
-        budget: FragmentBudget,
-        expect_fit: bool,
-    ) -> Result<KBuffer> {
-        let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
-        // The importance's word becomes k, then the slot bases (the count's prefix sums'
-        // buffer where the frame counted first: Recording::pixel_word).
-        self.counted = None;
+    /// The allocation of `i` at its plan's F (allocate.wgsl reads it in the totals; where the
+    /// frame keeps every fragment, apply alone gives k = n) and its slot bases, in the pool the
+    /// frame was sized for.
+    pub(super) fn allocated(&mut self, i: Importance, planned: &Planned) -> Result<KBuffer> {
+        let (passes, px) = (self.passes, self.px);
+        // The importance's word becomes k, then the slot bases.
         let base = i.importance.clone();
+        let fb = &mut self.fb;
         let al = passes.allocation(
-            &mut self.fb,
+            fb,
             AllocBuffers {
                 counts: &i.counts,
                 weights: &base,
                 totals: &i.totals,
                 flags: i.marks.as_ref(),
             },
-            budget,
             i.kind,
         )?;
         // A readback copy of the importance (not counted, like the staging buffers), taken
         // before the allocation overwrites it with its fixed point; where no pass computed it
-        // (k = n), it stays zero.
-        let copy_importance = |fb: &mut FrameBuffers, enc: &mut wgpu::CommandEncoder| {
-            if !(self.passes.opts.diagnostics && i.computed) {
-                return Ok::<_, Error>(None);
-            }
+        // (k = n), zeros.
+        if passes.opts.diagnostics && (i.computed || planned.host.is_some()) {
             let copy = fb.storage("importance.readback", 4 * px, false)?;
-            enc.copy_buffer_to_buffer(&i.importance, 0, &copy, 0, 4 * px);
-            Ok(Some(copy))
-        };
+            if i.computed {
+                fb.enc
+                    .copy_buffer_to_buffer(&i.importance, 0, &copy, 0, 4 * px);
+            } else {
+                fb.enc.clear_buffer(&copy, 0, None);
+            }
+            self.out.importance_buf = Some(copy);
+        }
         self.out.counts_buf = Some(i.counts.clone());
-        if expect_fit {
-            let (fb, enc) = (&mut self.fb, &mut self.enc);
-            // The frame's fragments, read back from its totals (a frame that knows it fits, DKB
-            // having read its count back, holds them there already; the others total their
-            // count now). Where the budget holds them, the count's prefix sum is the slot bases
-            // (k = n everywhere: a pixel keeping all its fragments has no tail, its span is n),
-            // ending in the pool's words, the frame's fragments. The sum waits for that check:
-            // it takes the word that holds what the importance pass reads (VKB's nearest keys).
-            if !i.fits {
-                passes.totals(enc, &i.counts, &i.totals);
-            }
-            fb.submit(enc);
-            let words = read_words(gpu, &[(&i.totals, 0)])?[0] as u64;
-            if i.fits || budget.holds(words) {
-                passes.prefix_sum(enc, fb, &i.counts, &base)?;
-                // No pass computed the importance (k = n): it reads back as zeros.
-                if self.passes.opts.diagnostics && i.computed {
-                    self.out.importance_buf =
-                        Some(fb.storage("importance.readback", 4 * px, false)?);
-                }
-                gpu.last_truncated
-                    .store(false, std::sync::atomic::Ordering::Relaxed);
-                return Ok(KBuffer {
-                    base,
-                    slots: words,
-                    counts: i.counts,
-                    reuse: i.reuse,
-                    all_fit: true,
-                    pooled: true,
-                });
-            }
-            // Expected to fit, truncated: the rest after all, whose totals start from zero.
-            enc.clear_buffer(&i.totals, 0, None);
-        }
-        if let Some(rest) = i.pending.take() {
-            rest(self)?;
-        }
-        let (fb, enc) = (&mut self.fb, &mut self.enc);
-        self.out.importance_buf = copy_importance(fb, enc)?;
-        let search = passes.allocate(enc, fb, &al)?;
+        let search = passes.allocate(fb, &al)?;
         self.out.variants.push(search);
-        passes.prefix_sum_of(enc, fb, Scan::InPlace(&base), None)?;
-        fb.submit(enc);
-        // The pool's words (the bases' last entry: slots and tails) and the frame's fragments,
-        // without reading back the bases.
-        let words = read_words(gpu, &[(&base, 4 * px), (&i.totals, 0)])?;
-        let (slots, fragments) = (words[0] as u64, words[1] as u64);
-        let all_fit = budget.holds(fragments);
-        gpu.last_truncated
-            .store(!all_fit, std::sync::atomic::Ordering::Relaxed);
+        passes.prefix_sum_of(fb, Scan::InPlace(&base), None)?;
+        let pool = match i.reuse.as_ref().and_then(|r| r.pool.clone()) {
+            Some(pool) => pool,
+            None => fb.storage("oit.slots", planned.input.pool_bytes, true)?,
+        };
+        // The plan's F and flags in the totals, its records a batch in the batch words (DKB's;
+        // the others' plan writes 0 into the unused buffer it binds in their place).
+        let batch = i.reuse.as_ref().map(|r| r.tail.clone());
+        self.out.plan_buf = batch.map(|b| (i.totals.clone(), b));
         Ok(KBuffer {
             base,
-            slots,
+            slots: SlotsAt::Pooled(pool),
             counts: i.counts,
-            reuse: i.reuse,
-            all_fit,
-            pooled: true,
+            unused: i.reuse.map(|r| (r.tail, r.tail_count)),
+            all_fit: planned.known_exact(),
         })
     }
 
-    /// The capture and resolve into `k`'s slots; returns the image buffer. With diagnostics,
-    /// the slots, their bases and the tails are read back (five words a pixel, as
-    /// `composite::capture` gives them).
-    pub(super) fn capture_and_resolve(&mut self, s: Slots, kb: KBuffer) -> Result<wgpu::Buffer> {
+    /// The capture and resolve into `kb`'s slots. With diagnostics, the slots, their bases and
+    /// the tails are read back after the frame (five words a pixel, as `composite::capture`
+    /// gives them).
+    pub(super) fn capture_and_resolve(&mut self, s: Slots, kb: KBuffer) -> Result<()> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
-        let (fb, enc) = (&mut self.fb, &mut self.enc);
-        // The pool made before (and used for other state until now), cleared, or made here.
-        let slots = match kb.reuse.as_ref().and_then(|r| r.pool.clone()) {
-            Some(pool) => {
-                enc.clear_buffer(&pool, 0, None);
-                pool
-            }
-            None => fb.storage("oit.slots", 8 * kb.slots, true)?,
-        };
+        let fb = &mut self.fb;
         let status = fb.storage("status", FrameStatus::BYTES, true)?;
-        // The tail: sum c8 a8 for r, g, b and sum a8 (16 bytes a pixel), and its count; and the
-        // image: their own buffers, or DKB's features once read.
-        // Pooled, the tails are in the slots (cleared with them), and the tail buffers the
-        // shared layout binds are unused.
-        let (tail, tail_count, image) = match (kb.reuse, kb.pooled) {
-            (Some(r), true) => (r.tail, r.tail_count, r.image),
-            (Some(r), false) => {
-                // The tail starts from zero.
-                enc.clear_buffer(&r.tail, 0, None);
-                enc.clear_buffer(&r.tail_count, 0, None);
-                (r.tail, r.tail_count, r.image)
+        // The tail: sum c8 a8 for r, g, b and sum a8 (16 bytes a pixel), and its count, in
+        // buffers of their own; or, pooled, in the slots (cleared with them), and the tail
+        // buffers the shared layout binds are unused.
+        let (slots, tail, tail_count) = match (&kb.slots, kb.unused) {
+            (SlotsAt::Pooled(pool), Some((tail, tail_count))) => {
+                // The pool made before (and used for other state until now), cleared.
+                fb.enc.clear_buffer(pool, 0, None);
+                (pool.clone(), tail, tail_count)
             }
-            (None, true) => (
-                fb.storage("oit.unused_tail", 16, true)?,
-                fb.storage("oit.unused_tail_count", 16, true)?,
-                fb.storage("application.image", 16 * px, false)?,
-            ),
-            (None, false) => (
+            (SlotsAt::Pooled(pool), None) => {
+                fb.enc.clear_buffer(pool, 0, None);
+                (
+                    pool.clone(),
+                    fb.storage("oit.unused_tail", 16, true)?,
+                    fb.storage("oit.unused_tail_count", 16, true)?,
+                )
+            }
+            (SlotsAt::PerPixel(n), _) => (
+                fb.storage("oit.slots", 8 * n, true)?,
                 fb.storage("oit.tail", 16 * px, true)?,
                 fb.storage("oit.tail_count", 4 * px, true)?,
-                fb.storage("application.image", 16 * px, false)?,
             ),
         };
-        // Where k = n everywhere, the pipelines built for it (the same slots, tail and image).
-        let (capture, resolve) =
-            if self.passes.opts.two_mode_capture && self.passes.opts.fits_pipelines && kb.all_fit {
-                self.out.variants.push("capture: built for frames that fit");
-                (&p.capture_fits, &p.resolve_fits)
-            } else {
-                self.out.variants.push("capture: general");
-                (&p.capture, &p.resolve)
-            };
+        let pooled = matches!(kb.slots, SlotsAt::Pooled(_));
+        // Where the host knows k = n everywhere, the pipelines built for it (the same slots,
+        // tail and image).
+        let fits = passes.opts.two_mode_capture && passes.opts.fits_pipelines && kb.all_fit;
+        let (phase, capture, resolve, own) = if fits {
+            self.out.variants.push("capture: built for frames that fit");
+            (
+                Phase::CaptureFits,
+                &p.capture_fits,
+                Resolve::KBuffer { fits: true },
+                &p.resolve_fits,
+            )
+        } else {
+            self.out.variants.push("capture: general");
+            (
+                Phase::Capture,
+                &p.capture,
+                Resolve::KBuffer { fits: false },
+                &p.resolve,
+            )
+        };
         passes.draw(
-            enc,
+            fb.enc,
+            phase,
             capture,
             &[&kb.base, &slots, &tail, &tail_count, &kb.counts],
             "capture",
         );
         // With diagnostics, the cursors as the capture left them, before the resolve sorts
-        // what the append mode spilled ([`GpuFrame::capture_counts`]): per pixel, the tail
-        // counts (n where a pixel appended, what insertion pushed out where it inserted), or
-        // with the tails pooled the counts (0 where a pixel appended, its cursor having taken
-        // them down; n where it inserted).
-        let captured = match (self.passes.opts.diagnostics, kb.pooled) {
+        // what the append mode spilled ([`super::GpuFrame::capture_counts`]): per pixel, the
+        // tail counts (n where a pixel appended, what insertion pushed out where it inserted),
+        // or with the tails pooled the counts (0 where a pixel appended, its cursor having
+        // taken them down; n where it inserted).
+        let captured = match (passes.opts.diagnostics, pooled) {
             (false, _) => None,
             (true, true) => {
                 let copy = fb.storage("oit.count.captured", count_bytes(px), false)?;
-                enc.copy_buffer_to_buffer(&kb.counts, 0, &copy, 0, count_bytes(px));
+                fb.enc
+                    .copy_buffer_to_buffer(&kb.counts, 0, &copy, 0, count_bytes(px));
                 Some(copy)
             }
             (true, false) => {
                 let copy = fb.storage("oit.tail_count.captured", 4 * px, false)?;
-                enc.copy_buffer_to_buffer(&tail_count, 0, &copy, 0, 4 * px);
+                fb.enc
+                    .copy_buffer_to_buffer(&tail_count, 0, &copy, 0, 4 * px);
                 Some(copy)
             }
         };
-        passes.resolve(
-            enc,
-            resolve,
-            &[
-                passes.params(),
-                &kb.base,
-                &slots,
-                &tail,
-                &tail_count,
-                &image,
-                &kb.counts,
-                &status,
-            ],
-            5,
-            "resolve",
-        );
-        fb.submit(enc);
+        let mut group = entries(&[passes.params(), &kb.base, &slots, &tail, &tail_count]);
+        group.extend(entries(&[&kb.counts, &status]).into_iter().map(|mut e| {
+            e.binding += 6;
+            e
+        }));
+        passes.resolve(fb.enc, resolve, own, group, 5, "resolve");
         self.out.status = Some(status);
-        if self.passes.opts.diagnostics && kb.pooled {
-            // Each pixel's k slots and its tail out of the pool, as composite::capture gives them.
-            let spans = u32s(&read_back(gpu, &kb.base, 4 * (px + 1))?);
-            let pool = read_u64s(gpu, &slots, kb.slots, false)?;
-            // n, as the resolve put it back.
-            let counts = read_counts(gpu, &kb.counts, px)?;
-            if let Some(c) = &captured {
-                self.out.capture_counts = Some(read_counts(gpu, c, px)?);
-            }
-            self.out.slots = Some(unpool(&spans, &counts, &pool));
-        } else if self.passes.opts.diagnostics {
-            let bases = match s {
-                Slots::Uniform(k) => (0..=px as u32).map(|q| q * k.max(1)).collect(),
-                _ => u32s(&read_back(gpu, &kb.base, 4 * (px + 1))?),
+        if !passes.opts.diagnostics {
+            return Ok(());
+        }
+        let base = kb.base.clone();
+        let counts = kb.counts.clone();
+        let layer_major = passes.opts.layer_major_fkb;
+        let uniform = match s {
+            Slots::Uniform(k) => Some(k.max(1)),
+            _ => None,
+        };
+        let per_pixel = match kb.slots {
+            SlotsAt::PerPixel(n) => Some(n),
+            SlotsAt::Pooled(_) => None,
+        };
+        self.out.deferred.push(Box::new(move |gpu, out| {
+            let Some(n) = per_pixel else {
+                // Each pixel's k slots and its tail out of the pool, as composite::capture
+                // gives them.
+                let spans = u32s(&read_back(gpu, &base, 4 * (px + 1))?);
+                let words = spans.last().map_or(0, |&w| w as u64);
+                let pool = read_u64s(gpu, &slots, words, false)?;
+                // n, as the resolve put it back.
+                let counts = read_counts(gpu, &counts, px)?;
+                if let Some(c) = &captured {
+                    out.capture_counts = Some(read_counts(gpu, c, px)?);
+                }
+                out.slots = Some(unpool(&spans, &counts, &pool));
+                return Ok(());
+            };
+            let bases = match uniform {
+                Some(k) => (0..=px as u32).map(|q| q * k).collect(),
+                None => u32s(&read_back(gpu, &base, 4 * (px + 1))?),
             };
             let sums = u32s(&read_back(gpu, &tail, 16 * px)?);
-            let counts = u32s(&read_back(gpu, &tail_count, 4 * px)?);
+            let tail_counts = u32s(&read_back(gpu, &tail_count, 4 * px)?);
             let tails = sums
                 .chunks_exact(4)
-                .zip(counts)
+                .zip(tail_counts)
                 .flat_map(|(s, c)| [s[0], s[1], s[2], s[3], c])
                 .collect();
-            let mut keys = read_u64s(gpu, &slots, kb.slots, true)?;
-            if let (Slots::Uniform(k), true) = (s, self.passes.opts.layer_major_fkb) {
+            let mut keys = read_u64s(gpu, &slots, n, true)?;
+            if let (Some(k), true) = (uniform, layer_major) {
                 // Pixel-major, as composite::capture gives them.
-                let (k, n) = (k.max(1) as usize, px as usize);
+                let (k, n) = (k as usize, px as usize);
                 keys = (0..n * k).map(|q| keys[(q % k) * n + q / k]).collect();
             }
-            self.out.slots = Some((keys, bases, tails));
+            out.slots = Some((keys, bases, tails));
             if let Some(c) = &captured {
-                self.out.capture_counts = Some(u32s(&read_back(gpu, c, 4 * px)?));
+                out.capture_counts = Some(u32s(&read_back(gpu, c, 4 * px)?));
             }
-        }
-        Ok(image)
+            Ok(())
+        }));
+        Ok(())
     }
 }
 

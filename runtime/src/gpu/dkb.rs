@@ -1,30 +1,30 @@
-//! The deep k-buffer's importance: the count (`abuffer_count.wgsl`) and `totals.wgsl`, read
-//! back (the frame's occupancy, [`Occupancy`]: its fragments, covered, deep and deeper
-//! pixels), then where the budget truncates `totals.wgsl`'s `assign_records` (a record for each
-//! pixel of more than `shared::TAIL_WORDS` fragments, in the slot pool: a pixel of fewer keeps
-//! them all whatever its k), `features.wgsl` (geometry: each record's nearest key, colour and
-//! opacity sums; twin `importance::pixel_stats`), then
-//! `importance_dkb.wgsl` (the 12 features, never stored, through the network of `mlp.wgsl`,
-//! built for the network's shape and precision by [`Variant`]; twin `Mlp::dkb_importance`).
-//! Where the budget holds every fragment none of those runs: k = n whatever the importance.
+//! The deep k-buffer's importance: the count (`abuffer_count.wgsl`), `totals.wgsl` and the
+//! frame's plan (`plan.wgsl`: F within its pool, whether it keeps every fragment, the records a
+//! batch), then `totals.wgsl`'s `assign_records` (a record for each pixel of more than
+//! `shared::TAIL_WORDS` fragments, in the slot pool: a pixel of fewer keeps them all whatever
+//! its k), `features.wgsl` (geometry: each record's nearest key, colour and opacity sums; twin
+//! `importance::pixel_stats`), then `importance_dkb.wgsl` (the 12 features, never stored,
+//! through the network of `mlp.wgsl`, built for the network's shape and precision by
+//! [`Variant`]; twin `Mlp::dkb_importance`). Where the frame keeps every fragment none of the
+//! records, features or network does anything (k = n whatever the importance); where its
+//! client counted first and knows it, none of them is recorded.
 //!
 //! DKB's per-pixel state is the count, the shared word (`oit.offsets`: a pixel's record index,
 //! its importance, the allocation's weights, k and the slot bases in turn); what only some
 //! pixels need lives in the slot pool before the slots do: the records and the network's list
 //! until the importance is gathered, the allocation's marks until k is known, then the slots
-//! and the pooled tails. The pool is sized for the frame's budget and occupancy
-//! ([`crate::budget::Layout::pool_bytes`]) before the features pass.
+//! and the pooled tails. The pool is sized before the frame's count
+//! ([`crate::budget::Layout::pool_bytes`] for the occupancy its client expects), and the plan
+//! fits the frame into it.
 
-use super::abuffer::Counted;
 use super::allocate::{Importance, Reuse, Word};
-use super::buffers::{FrameBuffers, read_words};
+use super::passes::Phase;
 use super::pipelines::Variant;
-use super::{Recording, weight_kind};
-use crate::budget::{self, FragmentBudget, Occupancy};
+use super::{Planned, Recording, weight_kind};
 use crate::error::Result;
 use crate::mlp::Mlp;
-use crate::shared::count_bytes;
-use crate::wgsl::{DISPATCH_WORDS, PIXEL_GROUP, grid, mlp_uniform};
+use crate::shared::{TOTALS_WORDS, count_bytes};
+use crate::wgsl::{DISPATCH_WORDS, PIXEL_GROUP, PlanParams, grid, mlp_uniform};
 
 /// DKB's per-frame buffers.
 #[derive(Clone)]
@@ -35,78 +35,41 @@ struct DkbBuffers {
     pool: wgpu::Buffer,
     /// The optical depth of each 8-bit opacity (importance::optical_depth_table).
     optical_depth: wgpu::Buffer,
-    /// fragments, covered, max count, deep, records handed out, deeper (totals.wgsl).
+    /// fragments, covered, max count, deep, records handed out, deeper, the plan's F and
+    /// flags (totals.wgsl, plan.wgsl).
     totals: wgpu::Buffer,
     /// The shared word: record index, importance, weights, k, slot bases.
     importance: wgpu::Buffer,
     /// The length of the list of the records the network decides (in the pool, after the
-    /// records: one word a record), the batch's first record, the records a batch holds and the
-    /// rows the batches before ran (totals.wgsl's `batch`).
+    /// records: one word a record), the batch's first record, the records a batch holds (the
+    /// plan's) and the rows the batches before ran (totals.wgsl's `batch`).
     list_len: wgpu::Buffer,
     /// The network's dispatch.
     dispatch: wgpu::Buffer,
 }
 
-impl Recording<'_, '_> {
-    /// DKB's count and occupancy (read back: the pool's size follows from them), then, where
-    /// the budget truncates, its records, features and importance.
-    ///
-    /// Returns the budget the frame runs at: `budget`, or F of
-    /// [`super::FrameOptions::counted_bytes`] for the counted occupancy.
-    pub(super) fn dkb_importance(
-        &mut self,
-        mlp: &Mlp,
-        budget: FragmentBudget,
-    ) -> Result<(Importance, FragmentBudget)> {
+impl Recording<'_, '_, '_> {
+    /// DKB's count, totals and plan, then its records, features and importance in the batches
+    /// the frame's client sized its pool for (none where it knows the frame keeps every
+    /// fragment).
+    pub(super) fn dkb_importance(&mut self, mlp: &Mlp, planned: &Planned) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         gpu.can_run(mlp)?;
         let p = &gpu.pipelines;
-        let layout = passes.opts.dkb_layout(mlp);
         let importance = self.pixel_word(Word::Written)?;
         let fb = &mut self.fb;
-        let totals = fb.storage("features.totals", 24, true)?;
-        // The frame's count and occupancy where it counted first to decide
-        // (FrameOptions::exact_when_cheaper): its totals copied, no second readback.
-        let (counts, occ) = match &self.counted {
-            Some(Counted {
-                counts,
-                occupancy: Some((occ, words)),
-                ..
-            }) => {
-                self.enc.copy_buffer_to_buffer(words, 0, &totals, 0, 24);
-                (counts.clone(), *occ)
-            }
-            _ => {
-                let c = fb.storage("features.count", count_bytes(px), true)?;
-                passes.draw(&mut self.enc, &p.count, &[&c], "count");
-                passes.totals(&mut self.enc, &c, &totals);
-                fb.submit(&mut self.enc);
-                let w = read_words(
-                    gpu,
-                    &[(&totals, 0), (&totals, 4), (&totals, 12), (&totals, 20)],
-                )?;
-                let occ = Occupancy {
-                    fragments: w[0] as u64,
-                    covered: w[1] as u64,
-                    deep: w[2] as u64,
-                    deeper: w[3] as u64,
-                };
-                (c, occ)
-            }
-        };
-        let budget = self.counted_budget(&layout, budget, &occ)?;
-        if self.passes.opts.counted_bytes.is_some() {
-            self.write_budget(budget.of(occ.fragments));
-        }
-        let f = budget.of(occ.fragments);
-        let fb = &mut self.fb;
-        let pool_bytes = layout.pool_bytes(px, f, &occ);
-        let pool = fb.storage("oit.slots", pool_bytes, true)?;
-        // The records in as few batches as the pool holds (one where it holds them all).
-        let (per_batch, batches) = layout
-            .pool_state
-            .expect("DKB keeps its records in its pool")
-            .batch(pool_bytes, occ.deeper);
+        let totals = fb.storage("features.totals", 4 * TOTALS_WORDS as u64, true)?;
+        let counts = fb.storage("features.count", count_bytes(px), true)?;
+        let list_len = fb.storage("importance.list_len", 16, true)?;
+        let plan = fb.init(
+            "plan.params",
+            bytemuck::bytes_of(&PlanParams::of(&planned.input)),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        );
+        passes.draw(fb.enc, Phase::Count, &p.count, &[&counts], "count");
+        passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &list_len)));
+        let pool = fb.storage("oit.slots", planned.input.pool_bytes, true)?;
         let args = 4 * DISPATCH_WORDS as u64;
         let dispatch = fb.take(
             "importance.dispatch",
@@ -134,19 +97,14 @@ impl Recording<'_, '_> {
             ),
             totals,
             importance,
-            list_len: fb.init(
-                "importance.list_len",
-                bytemuck::cast_slice(&[0u32, 0, per_batch as u32, 0]),
-                wgpu::BufferUsages::STORAGE,
-                true,
-            ),
+            list_len,
             dispatch,
         };
-        let truncates = f < occ.fragments;
-        // Where every fragment fits, k = n: no record, feature or importance (the shared word
-        // the allocation reads as weights is ignored then).
-        self.out.features_drawn = Some(truncates);
-        if truncates {
+        // Where the client knows the frame keeps every fragment, k = n: no record, feature or
+        // importance (the shared word the allocation reads as weights is ignored then).
+        let drawn = !planned.known_exact();
+        self.out.features_drawn = planned.host.map(|_| drawn);
+        if drawn {
             let variant = |entry| Variant {
                 shared_weights: self.passes.opts.shared_weights,
                 unrolled: self.passes.opts.unrolled_network,
@@ -156,8 +114,22 @@ impl Recording<'_, '_> {
             self.out.variants.push(variant("network").form());
             let network = ["select_pixels", "args", "network", "gather"]
                 .map(|e| gpu.network_pass(variant(e)));
+            let batches = planned.input.batches.max(1);
+            // The records a batch holds: the plan's, where the host knows it; else the most the
+            // pool can hold (the network's selection is dispatched over that many).
+            let ps = planned
+                .input
+                .layout
+                .pool_state
+                .expect("DKB keeps its records in its pool");
+            let most = (planned.input.pool_bytes / (ps.record_bytes + ps.list_bytes)).clamp(1, px);
+            let per_batch = planned.host.map_or(most, |h| h.per_batch);
+            let records = match self.sizing {
+                super::Sizing::Own(occ) => occ.deeper,
+                super::Sizing::Ahead { .. } => 0,
+            };
             for batch in 0..batches {
-                self.dkb_records_and_features(&b, occ.deeper, (batch, per_batch))?;
+                self.dkb_records_and_features(&b, records, (batch, per_batch))?;
                 self.dkb_network(&b, per_batch, &network)?;
             }
             self.out.record_batches = Some(batches);
@@ -168,13 +140,11 @@ impl Recording<'_, '_> {
             "features: no preload"
         };
         self.out.variants.push(variant);
-        // The application's target where it gives one: counted for no method.
-        let image = self.fb.storage("application.image", 16 * px, false)?;
-        let importance = Importance {
+        Ok(Importance {
             counts: b.counts,
             importance: b.importance,
             totals: b.totals,
-            computed: true,
+            computed: drawn,
             kind: weight_kind(mlp.target),
             // The allocation's marks in the pool, the records gathered by then.
             marks: Some(b.pool.clone()),
@@ -183,41 +153,9 @@ impl Recording<'_, '_> {
             reuse: Some(Reuse {
                 tail: b.list_len,
                 tail_count: b.dispatch,
-                image,
                 pool: Some(b.pool),
             }),
-            pending: None,
-            fits: !truncates,
-        };
-        Ok((importance, budget))
-    }
-
-    /// `budget`, or with [`super::FrameOptions::counted_bytes`] the most slots those bytes hold
-    /// for a frame of occupancy `occ` in `layout` (an error where they hold none).
-    pub(super) fn counted_budget(
-        &self,
-        layout: &budget::Layout,
-        budget: FragmentBudget,
-        occ: &Occupancy,
-    ) -> Result<FragmentBudget> {
-        match self.passes.opts.counted_bytes {
-            Some(m) => Ok(FragmentBudget::Slots(
-                layout.fragment_budget_counted(m, self.px, occ)?,
-            )),
-            None => Ok(budget),
-        }
-    }
-
-    /// F written into the frame's parameters, as slots (no share): the importance reads F
-    /// there, the passes before it read none.
-    fn write_budget(&self, f: u64) {
-        let queue = &self.passes.gpu.queue;
-        let params = self.passes.params();
-        let f = f.min(u32::MAX as u64) as u32;
-        let fragments = std::mem::offset_of!(crate::wgsl::Params, budget_fragments) as u64;
-        let ppm = std::mem::offset_of!(crate::wgsl::Params, budget_ppm) as u64;
-        queue.write_buffer(params, fragments, bytemuck::bytes_of(&f));
-        queue.write_buffer(params, ppm, bytemuck::bytes_of(&0u32));
+        })
     }
 
     /// The records (a pool index for each of the `records` pixels of more than TAIL_WORDS
@@ -259,7 +197,7 @@ impl Recording<'_, '_> {
                 (pipeline, group, grid)
             })
             .collect();
-        passes.compute(&mut self.enc, "records", |pass| {
+        passes.compute(self.fb.enc, "records", |pass| {
             for (pipeline, group, (x, y)) in &steps {
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, group, &[]);
@@ -271,9 +209,9 @@ impl Recording<'_, '_> {
         } else {
             gpu.extras().features_no_preload()
         };
-        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        let fb = &mut self.fb;
         let bufs = [&b.importance, &b.pool, &b.optical_depth, &b.list_len];
-        passes.draw(enc, features, &bufs, "features");
+        passes.draw(fb.enc, Phase::Features, features, &bufs, "features");
         if self.passes.opts.diagnostics {
             // Every batch's records into one copy, where they would lie unbatched; the record
             // indices before the first batch's gather.
@@ -282,13 +220,14 @@ impl Recording<'_, '_> {
             let these = per_batch.min(records - first);
             if batch == 0 {
                 let record_of = fb.storage("features.record_of.readback", 4 * px, false)?;
-                enc.copy_buffer_to_buffer(&b.importance, 0, &record_of, 0, 4 * px);
+                fb.enc
+                    .copy_buffer_to_buffer(&b.importance, 0, &record_of, 0, 4 * px);
                 let bytes = (record_bytes * records).max(16);
                 let all = fb.storage("features.records.readback", bytes, false)?;
                 self.out.stats_bufs = Some([record_of, all]);
             }
             if let Some([_, all]) = &self.out.stats_bufs {
-                enc.copy_buffer_to_buffer(
+                fb.enc.copy_buffer_to_buffer(
                     &b.pool,
                     0,
                     all,
@@ -332,7 +271,7 @@ impl Recording<'_, '_> {
         // The network's dispatch reads `dispatch` as its arguments, so its group binds the
         // list's length (which that entry does not touch there) in its place.
         let (group, network_group) = (bind(&b.dispatch), bind(&b.list_len));
-        passes.compute(&mut self.enc, "importance", |pass| {
+        passes.compute(self.fb.enc, "importance", |pass| {
             pass.set_bind_group(0, &group, &[]);
             pass.set_pipeline(select);
             pass.dispatch_workgroups(rx, ry, 1);
@@ -345,9 +284,9 @@ impl Recording<'_, '_> {
             pass.dispatch_workgroups(gx, gy, 1);
         });
         if self.passes.opts.diagnostics {
-            let fb: &mut FrameBuffers = &mut self.fb;
+            let fb = &mut self.fb;
             let copy = fb.storage("importance.list_len.readback", 16, false)?;
-            self.enc.copy_buffer_to_buffer(&b.list_len, 0, &copy, 0, 16);
+            fb.enc.copy_buffer_to_buffer(&b.list_len, 0, &copy, 0, 16);
             self.out.network_rows_buf = Some(copy);
         }
         Ok(())

@@ -7,36 +7,40 @@
 
 use super::Recording;
 use super::buffers::{FrameStatus, read_back, read_u64s, read_words, u32s};
+use super::passes::{Phase, Resolve, entries};
 use crate::error::Result;
 use crate::fragment::FragmentLists;
 
-impl Recording<'_, '_> {
-    /// The list's store of at most `nodes` fragments and its resolve; returns the image buffer.
-    pub(super) fn linked_list(
-        &mut self,
-        nodes: u64,
-        width: u32,
-        height: u32,
-    ) -> Result<wgpu::Buffer> {
+impl Recording<'_, '_, '_> {
+    /// The list's store of at most `nodes` fragments and its resolve.
+    pub(super) fn linked_list(&mut self, nodes: u64, width: u32, height: u32) -> Result<()> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
-        let (fb, enc) = (&mut self.fb, &mut self.enc);
+        let fb = &mut self.fb;
         let status = fb.storage("status", FrameStatus::BYTES, true)?;
-        let image = fb.storage("application.image", 16 * px, false)?;
         let heads = fb.storage("list.heads", 4 * px, true)?;
         // The pool, allocated whole: 12 bytes a node.
         let next = fb.storage("list.next", 4 * nodes, true)?;
         let keys = fb.storage("list.keys", 8 * nodes, true)?;
         let counter = fb.storage("list.counter", 16, true)?;
+        let (store, resolve) = gpu.extras().list();
         passes.draw(
-            enc,
-            &gpu.extras().list().0,
+            fb.enc,
+            Phase::ListStore,
+            store,
             &[&heads, &next, &keys, &counter],
             "store",
         );
-        let bufs = [passes.params(), &heads, &next, &keys, &image, &status];
-        passes.resolve(enc, &gpu.extras().list().1, &bufs, 4, "sort and blend");
-        fb.submit(enc);
-        if self.passes.opts.diagnostics {
+        let mut group = entries(&[passes.params(), &heads, &next, &keys]);
+        group.push(wgpu::BindGroupEntry {
+            binding: 5,
+            resource: status.as_entire_binding(),
+        });
+        passes.resolve(fb.enc, Resolve::List, resolve, group, 4, "sort and blend");
+        self.out.status = Some(status);
+        if !passes.opts.diagnostics {
+            return Ok(());
+        }
+        self.out.deferred.push(Box::new(move |gpu, out| {
             let arrived = read_words(gpu, &[(&counter, 0)])?[0] as u64;
             let heads = u32s(&read_back(gpu, &heads, 4 * px)?);
             let stored = arrived.min(nodes);
@@ -62,10 +66,10 @@ impl Recording<'_, '_> {
                 }
                 fl.offsets.push(fl.depth.len() as u32);
             }
-            self.out.fragments = Some(fl);
-            self.out.list_arrived = Some(arrived);
-        }
-        self.out.status = Some(status);
-        Ok(image)
+            out.fragments = Some(fl);
+            out.list_arrived = Some(arrived);
+            Ok(())
+        }));
+        Ok(())
     }
 }

@@ -1,65 +1,85 @@
-//! The wgpu renderer: the A-buffer, MLAB and the k-buffers' passes on any Vulkan, Metal or DX12
-//! device (here Mesa's lavapipe), each pass the twin of a CPU function that the tests hold it
-//! to. One file a pass, beside its shaders (in `shaders/`, one file a pass, with the generated
+//! The wgpu renderer: the A-buffer, MLAB, the k-buffers, the list and the blended methods on
+//! a Vulkan or DX12 device (here Mesa's lavapipe), each pass the twin of a CPU function that
+//! the tests hold it to.
+//!
+//! One frame engine records every method's frame into its client's command encoder, with no
+//! submission and no wait: what it decides from the frame's own count it decides on the device
+//! (`plan.wgsl`, twin [`crate::plan`]). It draws geometry only through its client
+//! (`passes::Geometry`): `Gpu::render` (`scene.rs`, dhoit's own frames: it uploads a scene,
+//! counts first to size every buffer for the frame's own occupancy, submits and reads back) and
+//! an application's renderer (`app.rs`: the [`Oit`](crate::gpu::Oit) protocol, one for every method). The engine
+//! imports neither.
+//!
+//! One file a pass, beside its shaders (in `shaders/`, one file a pass, with the generated
 //! prelude, `common.wgsl` and their includes prepended: `geometry.wgsl`, `mlp.wgsl`,
 //! `sort.wgsl`; see [`crate::wgsl::shaders`]) and naming its twin:
 //! - `abuffer.rs`: the A-buffer (`abuffer_count` -> `scan` -> `abuffer_store` ->
 //!   `abuffer_resolve`) and MLAB (`mlab_resolve` on the A-buffer's fragments).
 //! - `dkb.rs`: DKB's `features` and `importance_dkb` (the network of `mlp.wgsl`);
-//!   `vkb.rs`: VKB's `vkb_count` and `importance_vkb`; both with `totals`.
-//! - `allocate.rs`: the allocation of k from importance (`allocate.wgsl`), in one submission.
+//!   `vkb.rs`: VKB's `vkb_count` and `importance_vkb`; both with `totals` and `plan`.
+//! - `allocate.rs`: the allocation of k from importance (`allocate.wgsl`).
 //! - `scan.rs`: the prefix sums (`scan.wgsl`).
 //! - `capture.rs`: k, the two-mode `capture` (append or Loop64 insertion) and `resolve`, and
 //!   both built for frames whose budget holds every fragment (`EVERY_FRAGMENT_FITS`).
+//! - `list.rs`, `blend.rs`: the linked list; WBOIT and MBOIT.
 //! - `predict.rs`: the network on rows of features (`predict.wgsl`).
 //!
-//! And the frame's machinery: `pipelines.rs` (built once; the network's per shape),
-//! `passes.rs` (recording a pass), `buffers.rs` (pooled buffers, readback), `timer.rs`.
+//! And the frame's machinery: `pipelines.rs` (built once a device and shared by every method
+//! forked from it: [`Gpu::fork`](crate::gpu::Gpu::fork); the network's per shape), `passes.rs` (recording a pass),
+//! `buffers.rs` (pooled buffers, readback), `timer.rs`.
 //!
 //! Every buffer a method's frame allocates is labelled after the [`crate::budget::Layout`] entry
 //! it realises and counted, so [`GpuFrame::allocated_bytes`](crate::gpu::GpuFrame::allocated_bytes) is what the device really holds.
 //!
-//! The renderer persists across frames: pipelines are built once ([`Gpu::new`](crate::gpu::Gpu::new); variants of the
-//! network's passes on first use), and a frame takes its buffers from those earlier frames left
-//! (cleared where reused), so a stream of like frames creates none.
+//! The renderer persists across frames: a frame takes its buffers from those earlier frames
+//! left (cleared in its own encoder where reused), so a stream of like frames creates none.
 
 mod abuffer;
 mod allocate;
-mod allocated;
+mod app;
 mod blend;
-mod blended_oit;
 mod buffers;
 mod capture;
 mod dkb;
 mod list;
-mod oit;
 mod passes;
 mod pipelines;
 mod predict;
 mod scan;
+mod scene;
+mod stream;
 mod timer;
 mod vkb;
 
 use abuffer::Blend;
 pub use allocate::GpuAllocation;
-pub use allocated::{AllocatedFrame, AllocatedMethod, AllocatedOit, Phase, PhaseDraw};
-pub use blended_oit::{BlendedOit, BlendedPhase};
-use buffers::{FrameBuffers, Readback, Statistics, read_frame, read_texture};
-pub use oit::{ApplicationOit, ExactOit, KBufferOit, ListOit, TARGET_FORMATS};
+pub use app::{
+    AllocatedOit, BlendedOit, DrawFn, ExactOit, FrameTargets, KBufferOit, ListOit, Oit, PhaseDraw,
+    TARGET_FORMATS,
+};
+pub use buffers::host_syncs;
+use buffers::{FrameBuffers, Readback};
 use passes::Passes;
-use pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT, Pipelines};
+pub use passes::Phase;
+use pipelines::Pipelines;
+pub use pipelines::pipelines_built;
+pub use scene::SceneStream;
+pub use stream::FrameReport;
 use timer::Timer;
+/// The wgpu the renderer is built on (an application's device and encoder are its types).
+pub use wgpu;
 
 use crate::alloc::Target;
 use crate::budget;
-use crate::budget::FragmentBudget;
+use crate::budget::{FragmentBudget, Occupancy};
 use crate::composite::{Image, MboitParams, WboitParams};
 use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
 use crate::frame::{Allocation, Method, Options, exact_is_no_dearer};
 use crate::importance::{PixelStats, VkbParams};
 use crate::mlp::{Mlp, Precision};
-use crate::scene::{Camera, Scene};
+use crate::plan::{Plan, PlanBudget, PlanInput};
+use crate::scene::Camera;
 use crate::wgsl::{MLAB_MAX_ROWS, Params};
 
 /// The WGSL of network pass `pass` ("predict", "importance_dkb") as built for `m`: for the
@@ -69,11 +89,17 @@ pub(crate) fn network_pass_source(pass: &'static str, m: &Mlp) -> String {
     pipelines::Variant::for_network(pass, m, true).source()
 }
 
-/// Features the pipeline cannot run without.
+/// Features the pipeline cannot run without: 64-bit integers and their atomics (the capture
+/// keys). Timestamps (`TIMESTAMP_QUERY`) are optional: with them a frame reports each pass's
+/// GPU time, without them none.
 pub fn required_features() -> wgpu::Features {
-    wgpu::Features::SHADER_INT64
-        | wgpu::Features::SHADER_INT64_ATOMIC_ALL_OPS
-        | wgpu::Features::TIMESTAMP_QUERY
+    wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_ALL_OPS
+}
+
+/// Features dhoit uses where the device has them: timestamps (each pass's time), binary16
+/// arithmetic (networks deployed at f16-math) and 32-bit float blending (MBOIT).
+pub fn optional_features() -> wgpu::Features {
+    wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SHADER_F16 | wgpu::Features::FLOAT32_BLENDABLE
 }
 
 /// The limits the passes need of a device beyond wgpu's defaults ([`wgpu::Limits::default`]):
@@ -131,13 +157,15 @@ pub struct Gpu {
     /// "name (backend, device type, driver)".
     adapter: String,
     timestamp_period: f32,
-    pipelines: Pipelines,
+    /// Whether the device has timestamps (`TIMESTAMP_QUERY`, optional): without them every
+    /// pass runs untimed.
+    timestamps: bool,
+    /// The device's compiled passes, shared by the renderers forked from this one
+    /// ([`Gpu::fork`]).
+    pipelines: std::sync::Arc<Pipelines>,
     /// Whether the device computes in binary16 (`SHADER_F16`): the importance pass runs a
     /// network deployed at [`Precision::F16Math`] only where it does.
     half_math: bool,
-    /// Whether the budget truncated the last frame this renderer allocated k for (DKB, VKB,
-    /// uploaded importance): what [`FrameOptions::predict_fit`] goes by.
-    last_truncated: std::sync::atomic::AtomicBool,
     /// Whether the device ends a shader invocation's loops early, silently (Mesa's lavapipe,
     /// after 65,535 iterations): then a frame whose passes came close to that (common.wgsl's
     /// LOOP_BUDGET) is refused. Other devices run loops to their end, and deep pixels render.
@@ -192,16 +220,6 @@ pub struct FrameOptions {
     /// 8.6 / 3.2 without: particles, plates, shells, foliage, glass). The bench measures both;
     /// the features are the same.
     pub features_preload: bool,
-    /// Whether an allocated frame (VKB, uploaded importance; DKB reads its count back first,
-    /// whatever this says, to size its slot pool) is recorded as one whose
-    /// budget holds every fragment where the renderer's last allocated frame's did: then k = n
-    /// whatever the importance, so the frame records its count, the count's prefix sum (the
-    /// slot bases), the capture and the resolve, as the A-buffer does; no totals, features,
-    /// importance or allocation. Where the budget turns out to truncate (the bases' last entry,
-    /// read back to size the slots, is the frame's fragment count), the frame records those
-    /// in a second submission. On by default; off, every frame records every pass and the
-    /// device empties what it does not need (the bench's comparison). The images are the same.
-    pub predict_fit: bool,
     /// Whether the allocation's search adds each invocation's 16 candidate totals into one of
     /// 32 copies in workgroup memory (by invocation index) rather than into one, so that
     /// neighbouring invocations' atomics do not wait on the same address. Off by default: on
@@ -254,7 +272,6 @@ impl Default for FrameOptions {
             shared_weights: false,
             unrolled_network: true,
             features_preload: true,
-            predict_fit: true,
             spread_search: false,
             layer_major_fkb: false,
             exact_when_cheaper: true,
@@ -291,41 +308,47 @@ const POOL_MAX: usize = 64;
 const TIMED_PASSES: u32 = 32;
 
 impl Gpu {
-    /// A buffer for a frame: the pooled one under `key` when its size and usage match (cleared
-    /// through `clear` when given, since a reused buffer holds the last frame's data), else a
-    /// new one (zeroed by wgpu).
-    fn acquire(
-        &self,
-        key: &str,
-        size: u64,
-        usage: wgpu::BufferUsages,
-        clear: Option<&mut Option<wgpu::CommandEncoder>>,
-    ) -> wgpu::Buffer {
+    /// A buffer for a frame: the pooled one under `key` when its size and usage match (then
+    /// `true`: it holds the last frame's data, which the frame clears where it needs zeros),
+    /// else a new one (zeroed by wgpu).
+    fn acquire(&self, key: &str, size: u64, usage: wgpu::BufferUsages) -> (wgpu::Buffer, bool) {
         let pooled = self
             .pool
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .remove(key);
         match pooled {
-            Some(b) if b.size() == size && b.usage() == usage => {
-                if let Some(enc) = clear {
-                    enc.get_or_insert_with(|| {
-                        self.device.create_command_encoder(&Default::default())
-                    })
-                    .clear_buffer(&b, 0, None);
-                }
-                b
-            }
+            Some(b) if b.size() == size && b.usage() == usage => (b, true),
             _ => {
                 self.created
                     .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                self.device.create_buffer(&wgpu::BufferDescriptor {
+                let b = self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some(key),
                     size,
                     usage,
                     mapped_at_creation: false,
-                })
+                });
+                (b, false)
             }
+        }
+    }
+
+    /// A renderer on the same device sharing this one's compiled passes (built once a device:
+    /// the fork builds none) but none of its buffers: what each method an application makes
+    /// holds ([`crate::gpu::pipelines_built`] counts what is built).
+    pub fn fork(&self) -> Gpu {
+        Gpu {
+            device: self.device.clone(),
+            queue: self.queue.clone(),
+            adapter: self.adapter.clone(),
+            timestamp_period: self.timestamp_period,
+            timestamps: self.timestamps,
+            pipelines: self.pipelines.clone(),
+            half_math: self.half_math,
+            bounded_loops: self.bounded_loops,
+            pool: Default::default(),
+            query_sets: Default::default(),
+            created: Default::default(),
         }
     }
 
@@ -399,9 +422,9 @@ impl Gpu {
             return Err(GpuError::NoAdapter.into());
         }
         let need = required_features() | extra;
-        // Requested where offered: the importance pass's f16-math variant needs the first,
-        // MBOIT's moments the second.
-        let optional = wgpu::Features::SHADER_F16 | wgpu::Features::FLOAT32_BLENDABLE;
+        // Requested where offered: the pass times, the importance pass's f16-math variant,
+        // MBOIT's moments.
+        let optional = optional_features();
         let mut lacking = Vec::new();
         let adapter = adapters.into_iter().find(|a| {
             let missing = need - a.features();
@@ -470,14 +493,14 @@ impl Gpu {
             "{} ({:?}, {:?}, {} {})",
             info.name, info.backend, info.device_type, info.driver, info.driver_info
         );
-        let pipelines = Pipelines::new(&device)?;
+        let pipelines = std::sync::Arc::new(Pipelines::new(&device)?);
         Ok(Gpu {
             timestamp_period: queue.get_timestamp_period(),
+            timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
             device,
             queue,
             adapter: adapter_name,
             pipelines,
-            last_truncated: false.into(),
             half_math: features.contains(wgpu::Features::SHADER_F16),
             bounded_loops: info.name.contains("llvmpipe") || info.driver.contains("llvmpipe"),
             pool: Default::default(),
@@ -649,6 +672,10 @@ pub struct GpuFrame {
     /// The linked list, with diagnostics: the fragments that arrived at its store, kept or
     /// dropped (its `fragments` are those it kept).
     pub list_arrived: Option<u64>,
+    /// DKB, VKB and an uploaded importance, with diagnostics: the plan the frame made on the
+    /// device from its own count ([`crate::plan`]; its `batches` are the features passes
+    /// recorded).
+    pub plan: Option<Plan>,
     /// DKB, where its features pass drew: the batches it gathered its records in
     /// ([`crate::budget::PoolState::batch`]: more than one where the pool is smaller than
     /// the records, each batch drawing the features pass once).
@@ -704,67 +731,76 @@ impl Gpu {
     }
 }
 
-/// One frame being recorded: its passes, its command encoder, the buffers it took and what it
-/// will read back. Each pass file adds its part of the frame as a method.
-struct Recording<'f, 'a> {
-    passes: &'f Passes<'a>,
-    enc: wgpu::CommandEncoder,
-    fb: FrameBuffers<'a>,
+/// What a frame's buffers are sized for before the frame is counted on the device.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Sizing {
+    /// The frame's own occupancy: its client counted first (`Gpu::render`, whose memory is the
+    /// frame's own to the byte). The host then knows every decision of the frame's plan
+    /// ([`crate::plan`]): where it keeps every fragment a DKB or VKB frame is the A-buffer's,
+    /// and a frame records only the passes it runs.
+    Own(Occupancy),
+    /// Buffers made before the count, from what the client expects (an application's frame:
+    /// an earlier frame's count, read back without waiting): the A-buffer's and MLAB's pool
+    /// holds `fragments`, an allocated k-buffer's slot pool is `pool_bytes`, and DKB records
+    /// `batches` features passes. The frame's plan fits what it has into them on the device.
+    Ahead {
+        fragments: u64,
+        pool_bytes: u64,
+        batches: u64,
+    },
+}
+
+/// A frame for the engine to record: how, at what size, its parameters (the client's camera,
+/// background and opacity), which method ([`Slots`]; the A-buffer where None) and what its
+/// buffers are sized for.
+struct FrameSpec<'s> {
+    opts: FrameOptions,
+    size: (u32, u32),
+    params: Params,
+    slots: Option<Slots<'s>>,
+    sizing: Sizing,
+}
+
+/// A frame recorded into its client's encoder, not yet run: what the client reads back once
+/// its submission has run, and the buffers it holds until then.
+struct Recorded<'a> {
+    out: Readback,
+    taken: buffers::Taken<'a>,
+    /// Bytes of every buffer the method allocated for the frame.
+    allocated: u64,
+    /// Whether a DKB or VKB frame rendered the exact A-buffer in its place (its client counted
+    /// first, and the A-buffer was no dearer).
+    exact: bool,
+}
+
+/// One frame being recorded: its passes, the buffers it takes (and the encoder it records
+/// into) and what it will read back. Each pass file adds its part of the frame as a method.
+struct Recording<'f, 'a, 'e> {
+    passes: &'f Passes<'e>,
+    fb: FrameBuffers<'a, 'e>,
     out: Readback,
     /// Pixels.
     px: u64,
-    /// The frame's count, where it counted before deciding how to render
-    /// ([`FrameOptions::exact_when_cheaper`]): the method's count and slot bases.
-    counted: Option<abuffer::Counted>,
+    sizing: Sizing,
 }
 
 impl Gpu {
-    /// Renders one frame: the A-buffer when `slots` is None, else as `slots` says.
-    pub fn render(
-        &self,
-        scene: &Scene,
-        cam: &Camera,
-        width: u32,
-        height: u32,
-        background: [f32; 3],
-        slots: Option<Slots>,
-    ) -> Result<GpuFrame> {
-        let opts = FrameOptions::default();
-        self.render_with(&opts, scene, cam, (width, height), background, slots)
-    }
-
-    /// [`Gpu::render`] with the passes laid out and read back as `opts` says.
-    pub fn render_with(
-        &self,
-        opts: &FrameOptions,
-        scene: &Scene,
-        cam: &Camera,
-        (width, height): (u32, u32),
-        background: [f32; 3],
-        slots: Option<Slots>,
-    ) -> Result<GpuFrame> {
-        let size = (width, height);
-        self.render_frame(opts, scene, cam, size, background, slots, None)
-    }
-
-    /// [`Gpu::render_with`], or with `app` an application's frame: its draws in place of the
-    /// geometry passes (scene empty), its target in place of the image (not read back: the
-    /// frame's image is empty).
-    #[allow(clippy::too_many_arguments)]
-    fn render_frame(
-        &self,
-        opts: &FrameOptions,
-        scene: &Scene,
-        cam: &Camera,
-        (width, height): (u32, u32),
-        background: [f32; 3],
-        slots: Option<Slots>,
-        app: Option<&dyn allocated::AppGeometry>,
-    ) -> Result<GpuFrame> {
-        let opts = *opts;
-        let scopes = self.begin_frame(width, height)?;
+    /// Records one frame into `enc`, every pass of it, its geometry drawn by `geometry` (the
+    /// frame's client), timed by `timer` where the device has timestamps: no submission, no
+    /// wait. What depends on the frame's count is decided on the device ([`crate::plan`]).
+    fn record_frame<'a, 'e>(
+        &'a self,
+        enc: &'e mut wgpu::CommandEncoder,
+        timer: &'e Timer<'a>,
+        geometry: &'e dyn passes::Geometry,
+        spec: &FrameSpec,
+    ) -> Result<Recorded<'a>> {
+        let opts = spec.opts;
+        let (width, height) = spec.size;
         let px = width as u64 * height as u64;
-        let mut fb = FrameBuffers::new(self);
+        let slots = spec.slots;
+        let mut params = spec.params;
+        let mut fb = FrameBuffers::new(self, enc);
         let (budget, vkb, k_uniform) = match slots {
             Some(Slots::Importance(_, _, f) | Slots::Dkb(_, f)) => (f, VkbParams::default(), 0),
             Some(Slots::Vkb(v, f)) => (f, v, 0),
@@ -785,20 +821,15 @@ impl Gpu {
                 (0.into(), VkbParams::default(), 0)
             }
         };
-        let mut params = frame_params(cam, width, height, background, k_uniform, budget, vkb);
-        // The allocated k-buffers know n(p) by the capture: two-mode capture (capture.wgsl).
-        params.append = (opts.two_mode_capture
-            && matches!(
-                slots,
-                Some(Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
-            ))
-        .into();
-        // The allocated k-buffers know n(p) when they allocate: tails in the slot pool.
-        params.pooled_tail = matches!(
+        set_method_params(&mut params, k_uniform, budget, vkb);
+        let allocated = matches!(
             slots,
             Some(Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
-        )
-        .into();
+        );
+        // The allocated k-buffers know n(p) by the capture: two-mode capture (capture.wgsl),
+        // and their tails in the slot pool.
+        params.append = (opts.two_mode_capture && allocated).into();
+        params.pooled_tail = allocated.into();
         params.layer_major =
             (opts.layer_major_fkb && matches!(slots, Some(Slots::Uniform(_)))).into();
         if let Some(Slots::LinkedList { sorted, .. }) = slots {
@@ -812,18 +843,19 @@ impl Gpu {
         }
         params.store_primitives =
             (matches!(slots, Some(Slots::Mlab(_))) || opts.diagnostics).into();
-        let upload = std::time::Instant::now();
-        let inputs = self.frame_inputs(&mut fb, scene, &params, app.is_some());
-        let upload_ms = upload.elapsed().as_secs_f64() * 1e3;
-        let timer = Timer::new(self);
-        let passes = Passes::new(self, &timer, &inputs, opts, app);
+        let params_buf = fb.init(
+            "params",
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        );
+        let passes = Passes::new(self, timer, params_buf, params.pixels, opts, geometry);
         let mut rec = Recording {
             passes: &passes,
-            enc: self.device.create_command_encoder(&Default::default()),
             fb,
             out: Readback::default(),
             px,
-            counted: None,
+            sizing: spec.sizing,
         };
         if matches!(slots, Some(Slots::Uniform(_))) {
             rec.out.variants.push(if opts.layer_major_fkb {
@@ -832,179 +864,149 @@ impl Gpu {
                 "fkb slots: pixel-major"
             });
         }
-        // The application's opaque pass, before any method's (an application draws its own).
-        if app.is_none() {
-            passes.opaque(&mut rec.enc);
-        }
         let mut exact = false;
-        let image = match slots {
+        match slots {
             None => rec.abuffer(Blend::Exact, width, height)?,
             Some(Slots::Mlab(_)) => rec.abuffer(Blend::Mlab, width, height)?,
             Some(Slots::Wboit(_)) => rec.wboit((width, height))?,
             Some(Slots::Mboit(m)) => rec.mboit((width, height), m.moments)?,
             Some(Slots::LinkedList { nodes, .. }) => rec.linked_list(nodes, width, height)?,
-            Some(s) => match rec.exact_when_cheaper(s, budget, (width, height))? {
-                Some(abuffer) => {
-                    exact = true;
-                    abuffer
-                }
+            Some(s) => match rec.planned(s, budget)? {
                 None => {
-                    let k = rec.k_for(s, budget)?;
+                    exact = true;
+                    rec.abuffer(Blend::Exact, width, height)?
+                }
+                Some(planned) => {
+                    let k = rec.k_for(s, planned)?;
                     rec.capture_and_resolve(s, k)?
                 }
             },
-        };
-        let out = &rec.out;
-        // The frame's passes finish first, so the readback's time is its own.
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Lost {
-                doing: "waiting for a submission",
-                message: e.to_string(),
-            })?;
-        let readback = std::time::Instant::now();
-        // RGBA f32 a pixel, straight from the mapped buffer into the image, unless the
-        // resolve's status refuses the frame.
-        let status = out.status.as_ref();
-        // An application's frame is in its target: its status alone.
-        let image_bytes = if app.is_some() { 0 } else { 16 * px };
-        let data = read_frame(self, &image, image_bytes, status, width, |bytes| {
-            let f = |c: &[u8]| f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
-            bytes
-                .chunks_exact(16)
-                .map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12])])
-                .collect()
-        })?;
-        let readback_ms = readback.elapsed().as_secs_f64() * 1e3;
-        let pass_ms = timer.read(self)?;
-        let opaque = if opts.diagnostics && inputs.opaque > 0 {
-            let color = read_texture(self, &inputs.opaque_color)?;
-            let depth = read_texture(self, &inputs.opaque_depth)?;
-            Some((
-                color,
-                depth.into_iter().map(f32::from_bits).collect::<Vec<f32>>(),
-            ))
-        } else {
-            None
-        };
-        let Statistics {
-            importance,
-            stats,
-            features_drawn,
-            vkb_nearest,
-            network_rows,
-        } = if opts.diagnostics {
-            out.statistics(self, px)?
-        } else {
-            Statistics::default()
-        };
-        scopes.end()?;
-        let mut fragments = rec.out.fragments;
-        if let (Some(fl), Some((color, depth))) = (&mut fragments, &opaque) {
-            fl.opaque = color.clone();
-            fl.opaque_depth = depth.clone();
         }
-        Ok(GpuFrame {
-            image: Image {
-                width,
-                height,
-                data,
-            },
-            pass_ms,
-            host_ms: vec![("scene upload", upload_ms), ("image readback", readback_ms)],
-            allocated_bytes: rec.fb.allocated,
+        timer.resolve(rec.fb.enc);
+        let allocated = rec.fb.allocated;
+        Ok(Recorded {
+            out: rec.out,
+            taken: rec.fb.into_taken(),
+            allocated,
             exact,
-            fragments,
-            slots: rec.out.slots,
-            importance,
-            stats,
-            features_drawn,
-            vkb_nearest,
-            opaque,
-            variants: rec.out.variants,
-            network_rows,
-            capture_counts: rec.out.capture_counts,
-            list_arrived: rec.out.list_arrived,
-            record_batches: rec.out.record_batches,
         })
     }
 }
 
-impl Recording<'_, '_> {
-    /// [`FrameOptions::exact_when_cheaper`] for a DKB or VKB frame: counts first and renders
-    /// the A-buffer where that is no dearer (its image), else keeps the count for the method
-    /// (None). Other slots, or the option off: None, nothing recorded.
-    fn exact_when_cheaper(
-        &mut self,
-        s: Slots,
-        budget: FragmentBudget,
-        (width, height): (u32, u32),
-    ) -> Result<Option<wgpu::Buffer>> {
-        let (method, layout) = match s {
-            _ if !self.passes.opts.exact_when_cheaper => return Ok(None),
-            Slots::Dkb(mlp, _) => (Method::Dkb, self.passes.opts.dkb_layout(mlp)),
-            Slots::Vkb(..) => (Method::Vkb, budget::VKB),
-            _ => return Ok(None),
-        };
-        let counted = self.count(true)?;
-        let occ = counted
-            .occupancy
-            .as_ref()
-            .expect("counted with its occupancy")
-            .0;
-        let n = counted.total;
-        // A byte budget resolved against this count: exact where it holds the A-buffer.
-        let holds_exact = match self.passes.opts.counted_bytes {
-            Some(m) => budget::ABUFFER.allocated_bytes(self.px, n) <= m,
-            None => false,
-        };
-        let budget = match holds_exact {
-            false => self.counted_budget(&layout, budget, &occ)?,
-            true => budget,
-        };
-        let f = budget.of(n);
-        if holds_exact || f >= n || exact_is_no_dearer(method, &layout, self.px, f, &occ) {
-            return Ok(Some(self.abuffer_counted(
-                counted,
-                Blend::Exact,
-                width,
-                height,
-            )?));
-        }
-        self.counted = Some(counted);
-        Ok(None)
+/// An allocated k-buffer's frame as its client sized it: its plan's input, the plan itself
+/// where the host knows it ([`Sizing::Own`]), and the features passes DKB records.
+#[derive(Clone, Copy, Debug)]
+struct Planned {
+    input: PlanInput,
+    host: Option<Plan>,
+}
+
+impl Planned {
+    /// Whether the host knows that the frame keeps every fragment (k = n): then it records no
+    /// statistics, importance or features pass.
+    fn known_exact(&self) -> bool {
+        self.host.is_some_and(|p| p.exact)
     }
 }
 
-/// The per-frame uniform.
-fn frame_params(
-    cam: &Camera,
-    width: u32,
-    height: u32,
-    background: [f32; 3],
-    k_uniform: u32,
-    budget: FragmentBudget,
-    vkb: VkbParams,
-) -> Params {
-    let (budget_fragments, budget_ppm) = match budget {
-        FragmentBudget::Slots(f) => (f, 0),
-        FragmentBudget::Share(ppm) => (0, ppm),
+impl Recording<'_, '_, '_> {
+    /// How a DKB, VKB or uploaded importance frame runs: None where its client counted first
+    /// and the exact A-buffer is no dearer than the method at its budget
+    /// ([`FrameOptions::exact_when_cheaper`]; then the frame is the A-buffer's), else its
+    /// plan's input (the pool sized for the occupancy its client expects) and, counted first,
+    /// the plan the device will make.
+    fn planned(&mut self, s: Slots, budget: FragmentBudget) -> Result<Option<Planned>> {
+        let px = self.px;
+        let opts = self.passes.opts;
+        let (method, layout) = match s {
+            Slots::Dkb(mlp, _) => (Method::Dkb, opts.dkb_layout(mlp)),
+            Slots::Vkb(..) => (Method::Vkb, budget::VKB),
+            _ => (Method::Vkb, budget::VKB),
+        };
+        let plan_budget = match opts.counted_bytes {
+            Some(m) => PlanBudget::Bytes(m),
+            None => PlanBudget::Fragments(budget),
+        };
+        let exact_when_cheaper =
+            opts.exact_when_cheaper && matches!(s, Slots::Dkb(..) | Slots::Vkb(..));
+        let (pool_bytes, batches, host) = match self.sizing {
+            Sizing::Own(occ) => {
+                let n = occ.fragments;
+                // A byte budget resolved against this count: exact where it holds the A-buffer.
+                let holds_exact = opts
+                    .counted_bytes
+                    .is_some_and(|m| budget::ABUFFER.allocated_bytes(px, n) <= m);
+                if exact_when_cheaper && holds_exact {
+                    return Ok(None);
+                }
+                let f = match opts.counted_bytes {
+                    Some(m) => layout.fragment_budget_counted(m, px, &occ)?,
+                    None => budget.of(n),
+                };
+                if exact_when_cheaper
+                    && (f >= n || exact_is_no_dearer(method, &layout, px, f, &occ))
+                {
+                    return Ok(None);
+                }
+                let pool_bytes = match layout.pool_state {
+                    Some(_) => layout.pool_bytes(px, f, &occ),
+                    None => (budget::SLOT_BYTES * occ.pool_words_at(f)).max(16),
+                };
+                let batches = layout
+                    .pool_state
+                    .map_or(1, |ps| ps.batch(pool_bytes, occ.deeper).1);
+                (pool_bytes, batches, Some(occ))
+            }
+            Sizing::Ahead {
+                pool_bytes,
+                batches,
+                ..
+            } => (pool_bytes, batches, None),
+        };
+        let input = PlanInput {
+            layout,
+            pixels: px,
+            budget: plan_budget,
+            pool_bytes,
+            batches,
+            exact_when_cheaper,
+        };
+        let host = host.map(|occ| crate::plan::plan(&input, &occ));
+        Ok(Some(Planned { input, host }))
+    }
+}
+
+/// The per-frame uniform, as a client gives it: the camera (`cam`, None for an application's
+/// frame: its own vertex stage projects), the frame's size and the background; the method's
+/// fields are the engine's ([`Gpu::record_frame`]).
+fn frame_params(cam: Option<&Camera>, width: u32, height: u32, background: [f32; 3]) -> Params {
+    let (view_proj, forward, eye) = match cam {
+        Some(c) => (
+            c.view_proj.to_cols_array_2d(),
+            c.forward.extend(0.0).to_array(),
+            c.eye.extend(1.0).to_array(),
+        ),
+        None => (
+            glam::Mat4::IDENTITY.to_cols_array_2d(),
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0; 4],
+        ),
     };
     Params {
-        view_proj: cam.view_proj.to_cols_array_2d(),
-        forward: cam.forward.extend(0.0).to_array(),
+        view_proj,
+        forward,
         background: [background[0], background[1], background[2], 1.0],
-        eye: cam.eye.extend(1.0).to_array(),
+        eye,
         width,
         height,
-        k_uniform,
+        k_uniform: 0,
         pixels: width * height,
-        budget_fragments: budget_fragments.min(u32::MAX as u64) as u32,
-        vkb_alpha: vkb.alpha,
-        vkb_exponent: vkb.periphery_exponent,
-        vkb_noise: vkb.noise,
-        vkb_seed: vkb.seed,
-        budget_ppm,
+        budget_fragments: 0,
+        vkb_alpha: 0.0,
+        vkb_exponent: 0.0,
+        vkb_noise: 0.0,
+        vkb_seed: 0,
+        budget_ppm: 0,
         append: 0,
         layer_major: 0,
         uniform_alpha: -1.0,
@@ -1018,6 +1020,22 @@ fn frame_params(
         wboit_far: 0.0,
         _pad: [0; 15],
     }
+}
+
+/// The method's fields of the frame's uniform: FKB's or MLAB's k, F (slots or a share: the
+/// list reads its nodes there), VKB's parameters.
+fn set_method_params(params: &mut Params, k_uniform: u32, budget: FragmentBudget, vkb: VkbParams) {
+    let (budget_fragments, budget_ppm) = match budget {
+        FragmentBudget::Slots(f) => (f, 0),
+        FragmentBudget::Share(ppm) => (0, ppm),
+    };
+    params.k_uniform = k_uniform;
+    params.budget_fragments = budget_fragments.min(u32::MAX as u64) as u32;
+    params.budget_ppm = budget_ppm;
+    params.vkb_alpha = vkb.alpha;
+    params.vkb_exponent = vkb.periphery_exponent;
+    params.vkb_noise = vkb.noise;
+    params.vkb_seed = vkb.seed;
 }
 
 /// The error scopes a frame records under ([`Gpu::begin_frame`]).
@@ -1040,24 +1058,6 @@ impl Scopes {
     }
 }
 
-/// A frame's shared bindings and render targets ([`Gpu::frame_inputs`]).
-struct FrameInputs {
-    params: wgpu::Buffer,
-    /// Group 0 of every geometry pass after params: positions, colours, texture coordinates,
-    /// triangle materials, materials, texels (geometry.wgsl), then the sRGB table.
-    scene: [wgpu::Buffer; 7],
-    /// The transparent triangles' vertex indices, then the opaque ones'.
-    index: wgpu::Buffer,
-    /// Indices of the transparent triangles, and of the opaque ones after them.
-    transparent: u32,
-    opaque: u32,
-    /// The opaque pass's depth (the transparent passes' occluder) and colour (RGBA8 in an R32,
-    /// A = 255 where covered): the application's, counted for no method.
-    opaque_depth: wgpu::Texture,
-    opaque_color: wgpu::Texture,
-    pixels: u32,
-}
-
 impl Gpu {
     /// Checks the frame's size before anything is allocated (an error with the numbers), and
     /// starts catching the validation and out-of-memory errors its commands raise.
@@ -1070,93 +1070,5 @@ impl Gpu {
         let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         Ok(Scopes { oom, validation })
-    }
-
-    /// What every geometry pass binds (group 0: params and the scene: positions, colours,
-    /// texture coordinates, materials, texels, the sRGB table), the index buffer, the R8 target
-    /// rasterization needs (never written; counted in the frame's bytes) and the opaque pass's
-    /// depth and colour targets.
-    /// For an application's frame (`app`), the R8 target and the opaque targets are a texel each
-    /// (its draws have their own attachments, its opaque pass its own targets), counted for no
-    /// method.
-    fn frame_inputs(
-        &self,
-        fb: &mut FrameBuffers,
-        scene: &Scene,
-        params: &Params,
-        app: bool,
-    ) -> FrameInputs {
-        let params = &Params {
-            uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
-            ..*params
-        };
-        let params_buf = fb.init(
-            "params",
-            bytemuck::bytes_of(params),
-            wgpu::BufferUsages::UNIFORM,
-            true,
-        );
-        let pos: Vec<[f32; 4]> = scene
-            .positions
-            .iter()
-            .map(|p| p.extend(1.0).to_array())
-            .collect();
-        let (materials, texels) = crate::wgsl::gpu_materials(scene);
-        let storage = wgpu::BufferUsages::STORAGE;
-        let mut upload = |label: &str, bytes: &[u8]| fb.init(label, bytes, storage, false);
-        let positions = upload("scene.positions", bytemuck::cast_slice(&pos));
-        let colors = upload("scene.colors", bytemuck::cast_slice(&scene.colors));
-        let uvs = upload("scene.uvs", bytemuck::cast_slice(&scene.uvs));
-        let tri_material = upload(
-            "scene.triangle_material",
-            bytemuck::cast_slice(&scene.triangle_material),
-        );
-        let mats = upload("scene.materials", bytemuck::cast_slice(&materials));
-        let texels = upload("scene.texels", bytemuck::cast_slice(&texels));
-        let srgb = fb.init(
-            "scene.srgb",
-            bytemuck::cast_slice(&crate::scene::material::srgb_table()),
-            wgpu::BufferUsages::UNIFORM,
-            false,
-        );
-        // The transparent triangles' vertices first, then the opaque ones', each in
-        // submission order (the vertex stage pulls vertex `index`, so a fragment keeps its
-        // triangle's submission index).
-        let tris = scene.triangle_count() as u32;
-        let (transparent, opaque): (Vec<u32>, Vec<u32>) =
-            (0..tris).partition(|&t| scene.transparent(t as usize));
-        let indices: Vec<u32> = transparent
-            .iter()
-            .chain(&opaque)
-            .flat_map(|&t| [3 * t, 3 * t + 1, 3 * t + 2])
-            .collect();
-        let index = fb.init(
-            "scene.indices",
-            bytemuck::cast_slice(&indices),
-            wgpu::BufferUsages::INDEX,
-            false,
-        );
-        // An application's frame binds its own targets: these are a texel each, unused.
-        let size = if app {
-            (1, 1)
-        } else {
-            (params.width, params.height)
-        };
-        let texture = |label: &str, format, usage| {
-            buffers::frame_texture(&self.device, label, size, format, usage)
-        };
-        let sampled = wgpu::TextureUsages::RENDER_ATTACHMENT
-            | wgpu::TextureUsages::TEXTURE_BINDING
-            | wgpu::TextureUsages::COPY_SRC;
-        FrameInputs {
-            params: params_buf,
-            scene: [positions, colors, uvs, tri_material, mats, texels, srgb],
-            index,
-            transparent: 3 * transparent.len() as u32,
-            opaque: 3 * opaque.len() as u32,
-            opaque_depth: texture("application.opaque_depth", OPAQUE_DEPTH_FORMAT, sampled),
-            opaque_color: texture("application.opaque_color", OPAQUE_COLOR_FORMAT, sampled),
-            pixels: params.pixels,
-        }
     }
 }

@@ -33,9 +33,19 @@ pub(super) struct Pipelines {
     pub(super) resolve_fits: wgpu::ComputePipeline,
     /// The passes only some methods draw, built on first use ([`Gpu::extras`]).
     extras: Extras,
+    /// The resolves' `onto` entries an application's frames write its target with, built
+    /// once a resolve and target format (app.rs).
+    pub(super) onto: std::sync::Mutex<
+        std::collections::HashMap<
+            (super::passes::Resolve, wgpu::TextureFormat),
+            wgpu::ComputePipeline,
+        >,
+    >,
     pub(super) allocate: Allocate,
     pub(super) features: wgpu::RenderPipeline,
     pub(super) totals: wgpu::ComputePipeline,
+    /// The frame's plan (plan.wgsl), after the totals.
+    pub(super) plan: wgpu::ComputePipeline,
     /// DKB's records: an index for each pixel of two fragments or more (totals.wgsl).
     pub(super) assign_records: wgpu::ComputePipeline,
     /// A batch of DKB's records after the first emptied, and the batch moved on (totals.wgsl).
@@ -61,7 +71,25 @@ pub(super) fn module(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
     module_from(device, name, shaders::source(name).expect("known pass"))
 }
 
+thread_local! {
+    /// Shader modules and pipelines built on this thread ([`pipelines_built`]).
+    static BUILT: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// Counts one shader module or pipeline built.
+pub(super) fn note_built() {
+    BUILT.with(|b| b.set(b.get() + 1));
+}
+
+/// Shader modules and pipelines dhoit has built on this thread so far, on any device: a
+/// renderer made from a [`super::Gpu`] shares its passes ([`super::Gpu::fork`]), so making a
+/// second renderer of a method on it builds none.
+pub fn pipelines_built() -> u64 {
+    BUILT.with(|b| b.get())
+}
+
 pub(super) fn module_from(device: &wgpu::Device, label: &str, src: String) -> wgpu::ShaderModule {
+    note_built();
     device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(src.into()),
@@ -81,6 +109,7 @@ pub(super) fn compute_pipeline(
     m: &wgpu::ShaderModule,
     entry: &str,
 ) -> wgpu::ComputePipeline {
+    note_built();
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(label),
         layout: None,
@@ -194,6 +223,7 @@ impl Variant {
         if self.pass != "importance_dkb" {
             return compute_pipeline(device, &label, &m, self.entry);
         }
+        note_built();
         device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(&label),
             layout: Some(&layout.pipeline),
@@ -436,6 +466,7 @@ fn render_pipeline(
     depth: Option<wgpu::DepthStencilState>,
     targets: &[Option<wgpu::ColorTargetState>],
 ) -> wgpu::RenderPipeline {
+    note_built();
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(name),
         layout: None,
@@ -674,9 +705,11 @@ impl Pipelines {
             resolve: compute("resolve"),
             resolve_fits: compute_pipeline(device, "resolve", &fits("resolve"), "main"),
             extras: Extras::default(),
+            onto: Default::default(),
             allocate: Allocate::new(device),
             features: geometry("features"),
             totals: compute("totals"),
+            plan: compute("plan"),
             assign_records: compute_entry("totals", "assign_records"),
             init_records: compute_entry("totals", "init_records"),
             next_batch: compute_entry("totals", "next_batch"),

@@ -72,7 +72,7 @@ impl Gpu {
                 let (gx, gy) = grid(n, PIXEL_GROUP);
                 pass.dispatch_workgroups(gx, gy, 1);
             }
-            self.queue.submit([enc.finish()]);
+            self.submit(enc.finish());
             out.extend(
                 u32s(&read_back(self, &output, 4 * n as u64)?)
                     .into_iter()

@@ -26,12 +26,11 @@ impl<'a> Passes<'a> {
     /// with a block-total buffer of one u32 per [`budget::SCAN_BLOCK`] pixels.
     pub(super) fn prefix_sum(
         &self,
-        enc: &mut wgpu::CommandEncoder,
-        fb: &mut FrameBuffers,
+        fb: &mut FrameBuffers<'_, '_>,
         values: &wgpu::Buffer,
         offsets: &wgpu::Buffer,
     ) -> Result<()> {
-        self.prefix_sum_of(enc, fb, Scan::From(values, offsets), None)
+        self.prefix_sum_of(fb, Scan::From(values, offsets), None)
     }
 
     /// The prefix sum `scan` says, with its per-block dispatches' grid read from `args` at an
@@ -39,8 +38,7 @@ impl<'a> Passes<'a> {
     /// stale totals, and the offsets are left undefined).
     pub(super) fn prefix_sum_of(
         &self,
-        enc: &mut wgpu::CommandEncoder,
-        fb: &mut FrameBuffers,
+        fb: &mut FrameBuffers<'_, '_>,
         scan: Scan,
         args: Option<(&wgpu::Buffer, u64)>,
     ) -> Result<()> {
@@ -78,7 +76,7 @@ impl<'a> Passes<'a> {
             self.gpu.bind_at(&pl.get_bind_group_layout(0), &entries)
         };
         let (gx, gy) = grid(len, budget::SCAN_BLOCK as u32);
-        self.compute(enc, "prefix sum", |pass| {
+        self.compute(fb.enc, "prefix sum", |pass| {
             // (pipeline, over every block, the first)
             for (pl, per_block, is_first) in [
                 (first, true, true),

@@ -1,4 +1,6 @@
-//! GPU timestamps around each pass.
+//! GPU timestamps around each pass, where the device has them (`TIMESTAMP_QUERY`, optional:
+//! without it every pass runs untimed). A frame resolves its queries into a buffer in its own
+//! encoder ([`Timer::resolve`]), so the times are read once its client's submission has run.
 
 use super::buffers::read_back;
 use super::{Gpu, TIMED_PASSES};
@@ -8,8 +10,11 @@ use crate::error::Result;
 /// next frame).
 pub(super) struct Timer<'a> {
     pub(super) gpu: &'a Gpu,
-    pub(super) set: Option<wgpu::QuerySet>,
-    pub(super) names: std::cell::RefCell<Vec<&'static str>>,
+    /// None where the device has no timestamps.
+    set: Option<wgpu::QuerySet>,
+    names: std::cell::RefCell<Vec<&'static str>>,
+    /// The buffer the frame's queries were resolved into ([`Timer::resolve`]).
+    resolved: std::cell::RefCell<Option<(String, wgpu::Buffer)>>,
 }
 
 impl Drop for Timer<'_> {
@@ -22,60 +27,119 @@ impl Drop for Timer<'_> {
                 .unwrap_or_else(|e| e.into_inner());
             sets.push(set);
         }
+        if let Some((key, b)) = self.resolved.borrow_mut().take() {
+            self.gpu.release(key, b);
+        }
     }
 }
 
 impl<'a> Timer<'a> {
     pub(super) fn new(gpu: &'a Gpu) -> Timer<'a> {
-        let pooled = gpu
-            .query_sets
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .pop();
-        let set = pooled.unwrap_or_else(|| {
-            gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("timestamps"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 2 * TIMED_PASSES,
+        let set = gpu.timestamps.then(|| {
+            let pooled = gpu
+                .query_sets
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .pop();
+            pooled.unwrap_or_else(|| {
+                gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("timestamps"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: 2 * TIMED_PASSES,
+                })
             })
         });
         Timer {
             gpu,
-            set: Some(set),
+            set,
             names: Default::default(),
+            resolved: Default::default(),
         }
     }
-    pub(super) fn set(&self) -> &wgpu::QuerySet {
-        self.set.as_ref().expect("held until the timer is dropped")
-    }
-    pub(super) fn next(&self, name: &'static str) -> (u32, u32) {
+
+    /// The next pass's pair of queries, where the device has timestamps and the set has room.
+    fn next(&self, name: &'static str) -> Option<(&wgpu::QuerySet, u32, u32)> {
+        let set = self.set.as_ref()?;
         let mut names = self.names.borrow_mut();
+        if names.len() as u32 >= TIMED_PASSES {
+            return None;
+        }
         names.push(name);
         let i = 2 * (names.len() as u32 - 1);
-        (i, i + 1)
+        Some((set, i, i + 1))
     }
-    pub(super) fn read(&self, gpu: &Gpu) -> Result<Vec<(&'static str, f64)>> {
-        let names = self.names.borrow();
-        let n = 2 * names.len() as u64;
+
+    /// The timestamps a render pass named `name` writes.
+    pub(super) fn render(&self, name: &'static str) -> Option<wgpu::RenderPassTimestampWrites<'_>> {
+        self.next(name)
+            .map(|(query_set, b, e)| wgpu::RenderPassTimestampWrites {
+                query_set,
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: Some(e),
+            })
+    }
+
+    /// The timestamps a compute pass named `name` writes.
+    pub(super) fn compute(
+        &self,
+        name: &'static str,
+    ) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+        self.next(name)
+            .map(|(query_set, b, e)| wgpu::ComputePassTimestampWrites {
+                query_set,
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: Some(e),
+            })
+    }
+
+    /// The frame's queries resolved into a buffer, recorded in `enc` after its last pass.
+    pub(super) fn resolve(&self, enc: &mut wgpu::CommandEncoder) {
+        let (Some(set), n) = (self.set.as_ref(), 2 * self.names.borrow().len() as u32) else {
+            return;
+        };
+        if n == 0 {
+            return;
+        }
         let key = format!("timestamps.resolve {n}");
         let usage = wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC;
-        let buf = gpu.acquire(&key, 8 * n, usage, None);
-        let mut enc = gpu.device.create_command_encoder(&Default::default());
-        enc.resolve_query_set(self.set(), 0..n as u32, &buf, 0);
-        gpu.queue.submit([enc.finish()]);
-        let raw = read_back(gpu, &buf, 8 * n);
-        gpu.release(key, buf);
-        let raw = raw?;
+        let (buf, _) = self.gpu.acquire(&key, 8 * n as u64, usage);
+        enc.resolve_query_set(set, 0..n, &buf, 0);
+        if let Some((key, b)) = self.resolved.replace(Some((key, buf))) {
+            self.gpu.release(key, b);
+        }
+    }
+
+    /// The passes timed, in the order recorded.
+    pub(super) fn names(&self) -> Vec<&'static str> {
+        self.names.borrow().clone()
+    }
+
+    /// The buffer the frame's queries were resolved into ([`Timer::resolve`]): two ticks a
+    /// pass, in the order of [`Timer::names`].
+    pub(super) fn resolved(&self) -> Option<wgpu::Buffer> {
+        self.resolved.borrow().as_ref().map(|(_, b)| b.clone())
+    }
+
+    /// Each pass's milliseconds, in the order recorded, once the frame has run (none where the
+    /// device has no timestamps).
+    pub(super) fn read(&self) -> Result<Vec<(&'static str, f64)>> {
+        let names = self.names.borrow();
+        let resolved = self.resolved.borrow();
+        let Some((_, buf)) = resolved.as_ref() else {
+            return Ok(Vec::new());
+        };
+        let raw = read_back(self.gpu, buf, 16 * names.len() as u64)?;
         let ticks: Vec<u64> = raw
             .chunks_exact(8)
             .map(|c| u64::from_le_bytes(c.try_into().expect("8")))
             .collect();
+        let period = self.gpu.timestamp_period as f64;
         Ok(names
             .iter()
             .enumerate()
             .map(|(i, &name)| {
                 let dt = ticks[2 * i + 1].saturating_sub(ticks[2 * i]);
-                (name, dt as f64 * gpu.timestamp_period as f64 / 1e6)
+                (name, dt as f64 * period / 1e6)
             })
             .collect())
     }

@@ -296,9 +296,9 @@ pub fn quad(
 }
 
 /// The bytes a k-buffer frame of `layout` allocates for the allocation `k` of pixels holding
-/// `counts` fragments at F = `f`, by the layout tables: its slots and the pooled tails its k
-/// keeps (`shared::has_tail`), or, where the pool holds state before the slots (DKB), the pool
-/// it makes for the frame's budget and occupancy.
+/// `counts` fragments at F = `f`, by the layout tables: its slots (FKB, an uploaded k), or,
+/// where the tails are pooled (DKB, VKB), the pool it makes for the frame's budget and
+/// occupancy before its allocation.
 #[allow(dead_code)]
 pub fn kbuffer_bytes(
     layout: &dhoit_runtime::budget::Layout,
@@ -308,7 +308,9 @@ pub fn kbuffer_bytes(
 ) -> u64 {
     use dhoit_runtime::budget;
     let px = k.len() as u64;
-    if layout.pool_state.is_some() {
+    // The allocated k-buffers' pools are sized before their allocation, for what the budget
+    // reserves at the frame's occupancy.
+    if layout.tail_bytes > 0 {
         return layout.reserved_bytes(px, f, &budget::Occupancy::of(counts));
     }
     let slots = k.iter().map(|&k| k as u64).sum();

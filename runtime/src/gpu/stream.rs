@@ -1,0 +1,596 @@
+//! A method's frames one after another, as a renderer draws them: each recorded into its
+//! client's encoder with no wait, its buffers sized before its count from the counts of the
+//! frames before (their reports, read back without waiting), its report mapped when its
+//! submission has run. What an application's methods (`app.rs`) and dhoit's own streamed
+//! scenes ([`SceneStream`](super::SceneStream)) share.
+
+use super::buffers::FrameStatus;
+use super::passes::{Geometry, Phase};
+use super::timer::Timer;
+use super::{FrameOptions, FrameSpec, Gpu, Sizing, Slots};
+use crate::budget::{self, Budget, FragmentBudget, Layout, Occupancy};
+use crate::composite::{MboitParams, WboitParams};
+use crate::error::{Error, GpuError, Result};
+use crate::importance::VkbParams;
+use crate::mlp::Mlp;
+use crate::plan::Plan;
+use crate::wgsl::{MLAB_MAX_ROWS, Params};
+
+/// What a frame did, read back once it has run (`Oit::finished`,
+/// [`SceneStream::finished`](super::SceneStream::finished)).
+#[derive(Debug)]
+pub struct FrameReport {
+    /// The frame's number: 0 for the first the renderer recorded.
+    pub frame: u64,
+    /// GPU time of each pass, in ms, in the order recorded (none where the device has no
+    /// timestamps).
+    pub pass_ms: Vec<(&'static str, f64)>,
+    /// The frame's fragments, where it counted them (the A-buffer, MLAB, DKB, VKB).
+    pub fragments: Option<u64>,
+    /// DKB and VKB: the frame's occupancy and the plan it made from it on the device.
+    pub occupancy: Option<Occupancy>,
+    pub plan: Option<Plan>,
+    /// Whether the frame kept every fragment (the exact image): the A-buffer and MLAB where
+    /// their pool held them, DKB and VKB where their plan said so.
+    pub exact: bool,
+    /// Bytes of the buffers the frame held.
+    pub allocated_bytes: u64,
+    /// Whether a pool sized before the frame's count held fewer of its fragments than it
+    /// needed: the A-buffer's and MLAB's drop the pixels past its end, DKB's and VKB's keep
+    /// fewer fragments in slots and more in the tails ([`crate::plan::Plan::short`]).
+    pub pool_short: bool,
+    /// What made the frame wrong, where something did: a pixel too deep for any method, or a
+    /// device that cut a pass's loops short.
+    pub error: Option<Error>,
+}
+
+/// The method a [`Stream`] runs, with what it needs.
+#[derive(Clone, Debug)]
+pub(super) enum AppMethod {
+    List { nodes: u64, sorted: u32 },
+    Fkb { k: u32 },
+    Abuffer,
+    Mlab { rows: u32 },
+    Dkb(Box<Mlp>),
+    Vkb(VkbParams),
+    Wboit(WboitParams),
+    Mboit(MboitParams),
+}
+
+impl AppMethod {
+    pub(super) fn name(&self) -> &'static str {
+        match self {
+            AppMethod::List { .. } => "linked-list",
+            AppMethod::Fkb { .. } => "fkb",
+            AppMethod::Abuffer => "abuffer",
+            AppMethod::Mlab { .. } => "mlab",
+            AppMethod::Dkb(_) => "dkb",
+            AppMethod::Vkb(_) => "vkb",
+            AppMethod::Wboit(_) => "wboit",
+            AppMethod::Mboit(_) => "mboit",
+        }
+    }
+
+    pub(super) fn phases(&self) -> &'static [Phase] {
+        match self {
+            AppMethod::List { .. } => &[Phase::ListStore],
+            AppMethod::Fkb { .. } => &[Phase::Capture],
+            AppMethod::Abuffer | AppMethod::Mlab { .. } => &[Phase::Count, Phase::Store],
+            AppMethod::Dkb(_) => &[Phase::Count, Phase::Features, Phase::Capture],
+            AppMethod::Vkb(_) => &[Phase::VkbCount, Phase::Capture],
+            AppMethod::Wboit(_) => &[Phase::WboitAccumulate],
+            AppMethod::Mboit(_) => &[Phase::MboitMoments, Phase::MboitAccumulate],
+        }
+    }
+
+    /// The layout its memory follows ([`budget::Layout`]).
+    pub(super) fn layout(&self) -> Layout {
+        match self {
+            AppMethod::List { .. } => budget::LINKED_LIST,
+            AppMethod::Fkb { .. } => budget::FKB,
+            AppMethod::Abuffer | AppMethod::Mlab { .. } => budget::ABUFFER,
+            AppMethod::Dkb(m) => FrameOptions::default().dkb_layout(m),
+            AppMethod::Vkb(_) => budget::VKB,
+            AppMethod::Wboit(_) => budget::WBOIT,
+            AppMethod::Mboit(m) => budget::mboit(m.moments),
+        }
+    }
+}
+
+/// What an application's frame for the method runs on, in dhoit's own terms.
+fn slots_of(method: &AppMethod, budget: FragmentBudget) -> Option<Slots<'_>> {
+    Some(match method {
+        AppMethod::List { nodes, sorted } => Slots::LinkedList {
+            nodes: *nodes,
+            sorted: *sorted,
+        },
+        AppMethod::Fkb { k } => Slots::Uniform(*k),
+        AppMethod::Abuffer => return None,
+        AppMethod::Mlab { rows } => Slots::Mlab(*rows),
+        AppMethod::Dkb(m) => Slots::Dkb(m, budget),
+        AppMethod::Vkb(v) => Slots::Vkb(*v, budget),
+        AppMethod::Wboit(w) => Slots::Wboit(*w),
+        AppMethod::Mboit(m) => Slots::Mboit(*m),
+    })
+}
+
+/// The growth a pool sized from earlier frames' counts keeps over them.
+const HEADROOM: f64 = 1.25;
+/// The fragments a pixel an application's first frames are sized for, before any count.
+const FIRST_FRAGMENTS_PER_PIXEL: u64 = 2;
+/// Frames whose reports a renderer keeps waiting to be read at once (past them a new frame's
+/// report takes the oldest's place).
+const REPORTS_IN_FLIGHT: usize = 16;
+/// Bytes of a report's words before its timestamps: the status (16), the totals and plan
+/// (32), the A-buffer's fragments (4), padding.
+const REPORT_WORDS: u64 = 56;
+
+/// A frame's report, recorded and not yet read.
+struct PendingReport {
+    frame: u64,
+    staging: wgpu::Buffer,
+    passes: Vec<&'static str>,
+    allocated: u64,
+    /// Whether it holds totals (an allocated k-buffer's), an A-buffer's fragments.
+    totals: bool,
+    counted: bool,
+    /// True once mapped (after the submission that ran the frame).
+    mapped: std::sync::Arc<std::sync::atomic::AtomicBool>,
+}
+
+/// A method's frames: its frame engine (a fork of its client's [`Gpu`]: the same passes,
+/// buffers of its own), what it runs, and what sizes the buffers a frame makes before its count.
+pub(super) struct Stream {
+    pub(super) gpu: Gpu,
+    pub(super) size: (u32, u32),
+    pub(super) method: AppMethod,
+    /// DKB's and VKB's budget (the others' is in their method).
+    pub(super) budget: Option<Budget>,
+    pub(super) exact_when_cheaper: bool,
+    /// The occupancy the buffers made before a frame's count hold: the largest of the last
+    /// frames', with [`HEADROOM`] (before any, [`FIRST_FRAGMENTS_PER_PIXEL`] a pixel).
+    pub(super) expected: Occupancy,
+    frames: u64,
+    pub(super) last_bytes: u64,
+    pending: Vec<PendingReport>,
+    /// Staging buffers of reports read, for the next.
+    spare: Vec<wgpu::Buffer>,
+}
+
+impl Stream {
+    pub(super) fn new(
+        gpu: &Gpu,
+        size: (u32, u32),
+        method: AppMethod,
+        budget: Option<Budget>,
+    ) -> Result<Stream> {
+        check_size(gpu, size)?;
+        if let AppMethod::Dkb(m) = &method {
+            gpu.can_run(m)?;
+        }
+        check_fixed_buffers(gpu, size, &method)?;
+        let mut f = Stream {
+            gpu: gpu.fork(),
+            size,
+            method,
+            budget: None,
+            exact_when_cheaper: true,
+            expected: first_occupancy(size),
+            frames: 0,
+            last_bytes: 0,
+            pending: Vec::new(),
+            spare: Vec::new(),
+        };
+        if let Some(b) = budget {
+            f.set_budget(b)?;
+        }
+        Ok(f)
+    }
+
+    pub(super) fn pixels(&self) -> u64 {
+        self.size.0 as u64 * self.size.1 as u64
+    }
+
+    /// What the buffers a frame makes before its count are sized for.
+    fn sizing(&self) -> Result<Sizing> {
+        let px = self.pixels();
+        let occ = self.expected;
+        let layout = self.method.layout();
+        let (pool_bytes, batches) = match (&self.method, self.budget) {
+            (AppMethod::Dkb(_) | AppMethod::Vkb(_), Some(budget)) => {
+                let pool = match budget {
+                    // A byte budget is a fixed pool: what its bytes leave beside the fixed ones.
+                    Budget::Bytes(m) => m.saturating_sub(layout.fixed_bytes(px)),
+                    b => {
+                        let f = b.fragment_budget(&layout, px)?.of(occ.fragments);
+                        match layout.pool_state {
+                            Some(_) => layout.pool_bytes(px, f, &occ),
+                            None => budget::SLOT_BYTES * occ.pool_words_at(f),
+                        }
+                    }
+                };
+                // Never more than the exact A-buffer of the frames it was sized for would
+                // take (with exact_when_cheaper): a frame that fits it keeps every fragment.
+                let least = layout.pool_state.map_or(16, |_| {
+                    layout.pool_bytes(
+                        px,
+                        0,
+                        &Occupancy {
+                            fragments: 0,
+                            ..occ
+                        },
+                    )
+                });
+                let pool = match self.exact_when_cheaper {
+                    true => pool.min((budget::SLOT_BYTES * occ.fragments).max(least)),
+                    false => pool,
+                };
+                let pool = pool.max(16);
+                let batches = layout
+                    .pool_state
+                    .map_or(1, |ps| ps.batch(pool, occ.deeper).1.min(ps.batches));
+                (pool, batches)
+            }
+            _ => (0, 1),
+        };
+        Ok(Sizing::Ahead {
+            fragments: occ.fragments,
+            pool_bytes,
+            batches,
+        })
+    }
+
+    fn budget_slots(&self) -> FragmentBudget {
+        match self.budget {
+            Some(Budget::Share(ppm)) => FragmentBudget::Share(ppm),
+            Some(Budget::SlotsPerPixel(f)) => {
+                FragmentBudget::Slots((f * self.pixels() as f64).floor() as u64)
+            }
+            _ => FragmentBudget::Slots(0),
+        }
+    }
+
+    pub(super) fn finished(&mut self, wait: bool) -> Result<Vec<FrameReport>> {
+        match wait && !self.pending.is_empty() {
+            true => self.gpu.wait("reading a frame's report")?,
+            false => {
+                self.gpu
+                    .device
+                    .poll(wgpu::PollType::Poll)
+                    .map_err(|e| GpuError::Lost {
+                        doing: "reading a frame's report",
+                        message: e.to_string(),
+                    })?;
+            }
+        }
+        let mut reports = Vec::new();
+        while let Some(p) = self.pending.first() {
+            if !p.mapped.load(std::sync::atomic::Ordering::Acquire) {
+                break;
+            }
+            let p = self.pending.remove(0);
+            let report = self.read_report(&p)?;
+            p.staging.unmap();
+            self.spare.push(p.staging);
+            self.learn(&report);
+            reports.push(report);
+        }
+        Ok(reports)
+    }
+
+    fn read_report(&self, p: &PendingReport) -> Result<FrameReport> {
+        let data = p
+            .staging
+            .slice(..)
+            .get_mapped_range()
+            .map_err(|e| GpuError::Lost {
+                doing: "reading a frame's report",
+                message: e.to_string(),
+            })?;
+        let word = |at: usize| u32::from_le_bytes(data[at..at + 4].try_into().expect("4"));
+        let status = FrameStatus::parse(&data[..16]);
+        let totals: Vec<u32> = (0..8).map(|i| word(16 + 4 * i)).collect();
+        let occupancy = p.totals.then(|| Occupancy {
+            fragments: totals[0] as u64,
+            covered: totals[1] as u64,
+            deep: totals[3] as u64,
+            deeper: totals[5] as u64,
+        });
+        let plan = p.totals.then(|| {
+            let f = crate::shared::PLAN_F_WORD as usize;
+            Plan::from_words([totals[f], totals[f + 1], 0], 0)
+        });
+        let fragments = match (p.counted, occupancy) {
+            (true, _) => Some(word(48) as u64),
+            (_, Some(o)) => Some(o.fragments),
+            _ => None,
+        };
+        let period = self.gpu.timestamp_period as f64;
+        let pass_ms = match self.gpu.timestamps {
+            true => p
+                .passes
+                .iter()
+                .enumerate()
+                .map(|(i, &name)| {
+                    let at = REPORT_WORDS as usize + 16 * i;
+                    let tick = |k: usize| {
+                        u64::from_le_bytes(data[at + 8 * k..at + 8 * k + 8].try_into().expect("8"))
+                    };
+                    (name, tick(1).saturating_sub(tick(0)) as f64 * period / 1e6)
+                })
+                .collect(),
+            false => Vec::new(),
+        };
+        let plan_short = plan.is_some_and(|p| p.short != 0);
+        let exact = match (&self.method, plan) {
+            (_, Some(plan)) => plan.exact,
+            (AppMethod::Abuffer | AppMethod::Mlab { .. }, None) => !status.pool_short,
+            _ => false,
+        };
+        Ok(FrameReport {
+            frame: p.frame,
+            pass_ms,
+            fragments,
+            occupancy,
+            plan,
+            exact,
+            allocated_bytes: p.allocated,
+            pool_short: status.pool_short || plan_short,
+            error: status.check(&self.gpu, self.size.0).err(),
+        })
+    }
+
+    /// A frame's count, for the frames to come: the pool follows the largest recent count with
+    /// some headroom, made again where a frame needed more, or less than half.
+    fn learn(&mut self, r: &FrameReport) {
+        let px = self.pixels();
+        let seen = match (r.occupancy, r.fragments) {
+            (Some(o), _) => o,
+            (None, Some(n)) => Occupancy {
+                fragments: n,
+                ..self.expected
+            },
+            _ => return,
+        };
+        let grow = |v: u64| ((v as f64 * HEADROOM).ceil() as u64).min(u64::MAX / 2);
+        let next = Occupancy {
+            fragments: grow(seen.fragments),
+            covered: grow(seen.covered).min(px),
+            deep: grow(seen.deep).min(px),
+            deeper: grow(seen.deeper).min(px),
+        };
+        let e = self.expected;
+        let needs_more = seen.fragments > e.fragments
+            || seen.covered > e.covered
+            || seen.deep > e.deep
+            || seen.deeper > e.deeper;
+        let far_less = 2 * next.fragments < e.fragments;
+        if needs_more || far_less {
+            self.expected = next;
+        }
+    }
+
+    pub(super) fn set_budget(&mut self, budget: Budget) -> Result<()> {
+        let px = self.pixels();
+        let name = self.method.name();
+        let refuse = |why: &str| Err(Error::Budget(budget.to_string(), format!("{name} {why}")));
+        match &mut self.method {
+            AppMethod::Dkb(_) | AppMethod::Vkb(_) => {
+                let layout = self.method.layout();
+                // Refused now where no frame can hold a slot: the fixed bytes and the marks.
+                if let Budget::Bytes(m) = budget {
+                    layout.fragment_budget_counted(m, px, &Occupancy::default())?;
+                }
+                budget
+                    .fragment_budget(&layout, px)
+                    .or_else(|e| match budget {
+                        Budget::Bytes(_) => Ok(FragmentBudget::Slots(0)),
+                        _ => Err(e),
+                    })?;
+                self.budget = Some(budget);
+            }
+            AppMethod::Fkb { k } => {
+                let f = match budget {
+                    Budget::Share(_) => {
+                        return refuse(
+                            "allocates its k slots a pixel before any count: give slots a pixel or bytes",
+                        );
+                    }
+                    b => b.resolve(&budget::FKB, px, 0)?.1,
+                };
+                *k = (f / px.max(1)).clamp(1, u32::MAX as u64) as u32;
+            }
+            AppMethod::List { nodes, .. } => {
+                *nodes = match budget {
+                    Budget::Share(_) => {
+                        return refuse(
+                            "allocates its pool before any count: give fragments a pixel or bytes",
+                        );
+                    }
+                    b => b.resolve(&budget::LINKED_LIST, px, 0)?.1,
+                };
+            }
+            AppMethod::Mlab { rows } => match budget {
+                Budget::SlotsPerPixel(f) if f >= 1.0 && f <= MLAB_MAX_ROWS as f64 => {
+                    *rows = f.floor() as u32;
+                }
+                _ => {
+                    return refuse(&format!(
+                        "takes its rows as slots a pixel, 1 to {MLAB_MAX_ROWS}"
+                    ));
+                }
+            },
+            AppMethod::Abuffer | AppMethod::Wboit(_) | AppMethod::Mboit(_) => {
+                return refuse("takes no budget");
+            }
+        }
+        check_fixed_buffers(&self.gpu, self.size, &self.method)
+    }
+
+    pub(super) fn resize(&mut self, size: (u32, u32)) -> Result<()> {
+        check_size(&self.gpu, size)?;
+        let old = self.pixels();
+        self.size = size;
+        // The counts so far, for a frame as many times larger.
+        let px = self.pixels();
+        let scale = |v: u64| (v as f64 * px as f64 / old.max(1) as f64).ceil() as u64;
+        self.expected = Occupancy {
+            fragments: scale(self.expected.fragments),
+            covered: scale(self.expected.covered).min(px),
+            deep: scale(self.expected.deep).min(px),
+            deeper: scale(self.expected.deeper).min(px),
+        };
+        // A budget in slots or bytes may not fit the new size.
+        if let Some(b) = self.budget {
+            self.set_budget(b)?;
+        }
+        Ok(())
+    }
+
+    /// One frame of the method recorded into `enc`, its geometry drawn by `geometry`, with the
+    /// frame's parameters `params` (the client's camera where it has one), and its report
+    /// copied where [`Stream::finished`] reads it once the encoder's submission has run.
+    pub(super) fn record(
+        &mut self,
+        enc: &mut wgpu::CommandEncoder,
+        geometry: &dyn Geometry,
+        params: Params,
+    ) -> Result<()> {
+        if matches!(self.method, AppMethod::Dkb(_) | AppMethod::Vkb(_)) && self.budget.is_none() {
+            return Err(Error::Invalid(format!(
+                "{} needs a budget (set_budget)",
+                self.method.name()
+            )));
+        }
+        let opts = FrameOptions {
+            diagnostics: false,
+            exact_when_cheaper: self.exact_when_cheaper,
+            counted_bytes: match self.budget {
+                Some(Budget::Bytes(m)) => Some(m),
+                _ => None,
+            },
+            ..FrameOptions::default()
+        };
+        let spec = FrameSpec {
+            opts,
+            size: self.size,
+            params,
+            slots: slots_of(&self.method, self.budget_slots()),
+            sizing: self.sizing()?,
+        };
+        let timer = Timer::new(&self.gpu);
+        let recorded = self.gpu.record_frame(enc, &timer, geometry, &spec)?;
+        // The frame's report, copied where a later call reads it without waiting.
+        let passes = timer.names();
+        let timed = timer.resolved();
+        let bytes = REPORT_WORDS + 16 * passes.len() as u64;
+        {
+            // Reports never read (an application that never asks) make room for new ones.
+            if self.pending.len() >= REPORTS_IN_FLIGHT {
+                self.pending.remove(0);
+            }
+            let staging = match self.spare.iter().position(|b| b.size() >= bytes) {
+                Some(i) => self.spare.swap_remove(i),
+                None => self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("dhoit frame report"),
+                    size: (REPORT_WORDS + 16 * super::TIMED_PASSES as u64).max(bytes),
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }),
+            };
+            enc.clear_buffer(&staging, 0, Some(REPORT_WORDS));
+            let out = &recorded.out;
+            if let Some(status) = &out.status {
+                enc.copy_buffer_to_buffer(status, 0, &staging, 0, FrameStatus::BYTES);
+            }
+            if let Some((totals, _)) = &out.plan_buf {
+                enc.copy_buffer_to_buffer(totals, 0, &staging, 16, 32);
+            }
+            if let Some((offsets, at)) = &out.counted {
+                enc.copy_buffer_to_buffer(offsets, *at, &staging, 48, 4);
+            }
+            if let Some(resolved) = &timed {
+                enc.copy_buffer_to_buffer(
+                    resolved,
+                    0,
+                    &staging,
+                    REPORT_WORDS,
+                    16 * passes.len() as u64,
+                );
+            }
+            // Mapped once the application's submission of this encoder has run: never before
+            // it is submitted, so reading reports cannot hold up or break a submission.
+            let mapped = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+            let flag = mapped.clone();
+            enc.map_buffer_on_submit(&staging, wgpu::MapMode::Read, .., move |r| {
+                flag.store(r.is_ok(), std::sync::atomic::Ordering::Release)
+            });
+            self.pending.push(PendingReport {
+                frame: self.frames,
+                staging,
+                passes,
+                allocated: recorded.allocated,
+                totals: out.plan_buf.is_some(),
+                counted: out.counted.is_some(),
+                mapped,
+            });
+        }
+        self.frames += 1;
+        self.last_bytes = recorded.allocated;
+        Ok(())
+    }
+}
+
+/// Refuses, before anything is made, FKB's slots and the list's nodes past the device's
+/// bindings or 32-bit indices: the buffers their budget fixes.
+fn check_fixed_buffers(gpu: &Gpu, (w, h): (u32, u32), method: &AppMethod) -> Result<()> {
+    let px = w as u64 * h as u64;
+    let limits = gpu.device.limits();
+    let max = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
+    let (label, slots, bytes) = match method {
+        AppMethod::Fkb { k } => ("oit.slots", *k as u64 * px, budget::SLOT_BYTES),
+        AppMethod::List { nodes, .. } => ("list.keys", *nodes, 8),
+        _ => return Ok(()),
+    };
+    if slots >= u32::MAX as u64 {
+        return Err(Error::Invalid(format!(
+            "{} takes {slots} slots, past its 32-bit indices",
+            method.name()
+        )));
+    }
+    if slots * bytes > max {
+        return Err(GpuError::BufferTooLarge {
+            label: label.to_string(),
+            need: slots * bytes,
+            max,
+        }
+        .into());
+    }
+    Ok(())
+}
+
+/// The frame's first occupancy before any count: every pixel covered and deep, with
+/// [`FIRST_FRAGMENTS_PER_PIXEL`] fragments a pixel.
+fn first_occupancy((w, h): (u32, u32)) -> Occupancy {
+    let px = w as u64 * h as u64;
+    Occupancy {
+        fragments: FIRST_FRAGMENTS_PER_PIXEL * px,
+        ..Occupancy::most(px)
+    }
+}
+
+pub(super) fn check_size(gpu: &Gpu, (w, h): (u32, u32)) -> Result<()> {
+    crate::raster::check_resolution(w, h)?;
+    let max = gpu.device.limits().max_texture_dimension_2d;
+    if w > max || h > max {
+        return Err(GpuError::FrameTooLarge {
+            width: w,
+            height: h,
+            max,
+        }
+        .into());
+    }
+    Ok(())
+}

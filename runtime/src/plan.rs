@@ -1,0 +1,315 @@
+//! The frame's plan: what an allocated k-buffer's frame (DKB, VKB, an uploaded importance)
+//! decides from its own count, on the device, so that no frame waits for it. The twin of
+//! `plan.wgsl` (one invocation, after the count's totals), written step for step like it.
+//!
+//! Every buffer of a frame is sized before the frame is counted, for an occupancy the frame's
+//! client expects ([`Occupancy`]: this frame's own where it counted first, as `Gpu::render`
+//! does for the memory tables; an earlier frame's, read back without waiting, in an
+//! application's renderer). The slot pool is one such buffer: `pool_bytes`. From the frame's
+//! own count the plan then takes:
+//!
+//! - F: the budget's (`FragmentBudget::of` its count, or the most slots a byte budget holds
+//!   for its occupancy, [`Layout::fragment_budget_counted`]), lowered to the most the pool holds
+//!   where the pool is smaller than that: [`largest_fitting`]. A frame that needs more than the
+//!   pool therefore keeps fewer fragments in slots and more in the tails, never more than the
+//!   pool holds (the plan says so: [`Plan::short`]).
+//! - Whether the frame keeps every fragment (k = n, the exact image): where F holds them all,
+//!   or, with `exact_when_cheaper`, where the pool holds them all (then the exact answer costs
+//!   no memory the frame does not hold already).
+//! - DKB's records: how many a batch holds in the pool ([`crate::budget::PoolState::batch`])
+//!   and how many batches the frame's records need; the client records `batches` features
+//!   passes, and records past them get no importance of their own (the allocation's least
+//!   weight), which [`Plan::short`] reports.
+
+use crate::budget::{FragmentBudget, Layout, Occupancy, SLOT_BYTES};
+
+/// How a frame's F follows from its count.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlanBudget {
+    /// F slots, or a share of the frame's fragments.
+    Fragments(FragmentBudget),
+    /// The most slots these bytes hold for the frame's own occupancy in the method's layout
+    /// ([`Layout::fragment_budget_counted`]).
+    Bytes(u64),
+}
+
+/// What a frame's plan is given before the frame is counted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlanInput {
+    /// The method's layout (with pooled tails: DKB's, VKB's).
+    pub layout: Layout,
+    pub pixels: u64,
+    pub budget: PlanBudget,
+    /// Bytes of the frame's slot pool: its records and marks first (DKB), then its slots and
+    /// pooled tails.
+    pub pool_bytes: u64,
+    /// DKB's features passes the frame records (one a batch of records; 1 for the others).
+    pub batches: u64,
+    /// Whether the frame keeps every fragment where its pool holds them all.
+    pub exact_when_cheaper: bool,
+}
+
+/// What the plan found short: the pool held fewer slots than the budget's F.
+pub const SHORT_SLOTS: u32 = 1;
+/// The pool held fewer of DKB's records than the frame has, in the batches recorded.
+pub const SHORT_RECORDS: u32 = 2;
+/// A byte budget leaves this frame's occupancy no slot.
+pub const NO_SLOT: u32 = 4;
+
+/// A frame's plan.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Plan {
+    /// F as the allocation takes it: at most the frame's fragments n; n where the frame keeps
+    /// every fragment.
+    pub f: u64,
+    /// Whether the frame keeps every fragment (k = n everywhere).
+    pub exact: bool,
+    /// DKB's records a batch holds (0 where the frame gathers none: it keeps every fragment),
+    /// and the batches its records need.
+    pub per_batch: u64,
+    pub batches: u64,
+    /// [`SHORT_SLOTS`], [`SHORT_RECORDS`], [`NO_SLOT`].
+    pub short: u32,
+}
+
+impl Plan {
+    /// The plan as `plan.wgsl` writes it: F, then the flags (bit 0 exact, the short bits above
+    /// it), then the records a batch holds.
+    pub fn words(&self) -> [u32; 3] {
+        let f = self.f.min(u32::MAX as u64) as u32;
+        [
+            f,
+            self.exact as u32 | self.short << 1,
+            self.per_batch.min(u32::MAX as u64) as u32,
+        ]
+    }
+
+    /// The plan `plan.wgsl` wrote ([`Plan::words`]); `batches` are the host's to know.
+    pub fn from_words([f, flags, per_batch]: [u32; 3], batches: u64) -> Plan {
+        Plan {
+            f: f as u64,
+            exact: flags & 1 != 0,
+            per_batch: per_batch as u64,
+            batches,
+            short: flags >> 1,
+        }
+    }
+}
+
+/// The largest F at most `cap` whose slots and tails take at most `words` pool words for a
+/// frame of occupancy `occ` ([`Occupancy::pool_words_at`]), or None where even F = 0 takes
+/// more. The words F takes are not monotone in F: below the covered pixels every covered pixel
+/// may keep a tail (`covered + deep` words beside F), from there only the deep ones
+/// (`deep + deeper`), so the fitting F lie in [0, f0] and [covered, f1].
+pub fn largest_fitting(words: u64, occ: &Occupancy, cap: u64) -> Option<u64> {
+    if words >= occ.fragments {
+        // A pixel takes at most its n words: every F fits.
+        return Some(cap);
+    }
+    if cap >= occ.covered
+        && let Some(f1) = words.checked_sub(occ.deep + occ.deeper)
+        && f1 >= occ.covered
+    {
+        return Some(cap.min(f1));
+    }
+    words
+        .checked_sub(occ.covered + occ.deep)
+        .map(|f0| cap.min(f0))
+}
+
+/// The frame's plan for its occupancy `occ` (plan.wgsl's `main`, step for step).
+pub fn plan(input: &PlanInput, occ: &Occupancy) -> Plan {
+    let n = occ.fragments;
+    let mut short = 0;
+    // The budget's F.
+    let budget_f = match input.budget {
+        PlanBudget::Fragments(b) => b.of(n),
+        PlanBudget::Bytes(m) => match input.layout.fragment_budget_counted(m, input.pixels, occ) {
+            Ok(f) => f,
+            Err(_) => {
+                short |= NO_SLOT;
+                0
+            }
+        },
+    };
+    // Within what the pool holds.
+    let words = input.pool_bytes / SLOT_BYTES;
+    let f = match largest_fitting(words, occ, budget_f) {
+        Some(f) => f,
+        None => {
+            short |= SHORT_SLOTS;
+            0
+        }
+    };
+    if f < budget_f {
+        short |= SHORT_SLOTS;
+    }
+    let exact = f >= n || (input.exact_when_cheaper && words >= n);
+    // DKB's records, in batches of what the pool holds (none where every fragment is kept).
+    let (per_batch, batches) = match input.layout.pool_state {
+        Some(ps) if !exact => ps.batch(input.pool_bytes, occ.deeper),
+        _ => (0, 0),
+    };
+    if batches > input.batches.max(1) {
+        short |= SHORT_RECORDS;
+    }
+    Plan {
+        f: if exact { n } else { f.min(n) },
+        exact,
+        per_batch,
+        batches,
+        short,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::budget::{DKB, VKB};
+
+    fn occ(fragments: u64, covered: u64, deep: u64, deeper: u64) -> Occupancy {
+        Occupancy {
+            fragments,
+            covered,
+            deep,
+            deeper,
+        }
+    }
+
+    /// Every F from 0 to n, its words counted by `pool_words_at`: the largest that fits is
+    /// what the closed form gives, for every pool from empty to the frame's fragments.
+    #[test]
+    fn the_largest_fitting_f_is_the_exhaustive_searchs() {
+        for o in [
+            occ(40, 10, 6, 4),
+            occ(12, 12, 0, 0),
+            occ(30, 5, 5, 5),
+            occ(0, 0, 0, 0),
+            occ(9, 3, 2, 1),
+        ] {
+            for words in 0..=o.fragments + 3 {
+                for cap in 0..=o.fragments + 2 {
+                    let search = (0..=cap).rev().find(|&f| o.pool_words_at(f) <= words);
+                    assert_eq!(
+                        largest_fitting(words, &o, cap),
+                        search,
+                        "{o:?}, {words} words, cap {cap}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// A frame counted first is sized for its own occupancy: its pool holds the budget's F,
+    /// the plan is exactly the budget's, and where the exact A-buffer is no dearer than that
+    /// reservation the pool holds every fragment only if the plan says exact.
+    #[test]
+    fn a_pool_sized_for_the_frame_holds_the_budgets_f() {
+        let px = 400;
+        for o in [
+            occ(900, 300, 200, 120),
+            occ(2000, 400, 400, 380),
+            occ(350, 300, 40, 10),
+        ] {
+            for layout in [DKB, VKB] {
+                for ppm in [50_000, 250_000, 500_000, 900_000, 1_000_000] {
+                    let budget = FragmentBudget::Share(ppm);
+                    let f = budget.of(o.fragments);
+                    let pool_bytes = match layout.pool_state {
+                        Some(_) => layout.pool_bytes(px, f, &o),
+                        None => SLOT_BYTES * o.pool_words_at(f),
+                    };
+                    let batches = layout
+                        .pool_state
+                        .map_or(1, |ps| ps.batch(pool_bytes, o.deeper).1);
+                    let input = PlanInput {
+                        layout,
+                        pixels: px,
+                        budget: PlanBudget::Fragments(budget),
+                        pool_bytes,
+                        batches,
+                        exact_when_cheaper: false,
+                    };
+                    let p = plan(&input, &o);
+                    assert_eq!(p.short, 0, "{o:?} {ppm}");
+                    assert_eq!(p.f, f.min(o.fragments), "{o:?} {ppm}");
+                    assert_eq!(p.exact, f >= o.fragments);
+                    if !p.exact && layout.pool_state.is_some() {
+                        assert_eq!(p.batches, batches);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Worked by hand: DKB at 25% of 900 fragments (F = 225) in a pool of 1,000 bytes (125
+    /// words): every covered pixel (300) is more than F, so F may take 125 - 300 - 200 < 0
+    /// words: none fits; a pool of 6,000 bytes (750 words) holds F = 225 with 500 words of
+    /// tails; one of 4,000 bytes (500 words) holds at most 500 - 500 = 0 below the covered
+    /// pixels, and 500 - 320 = 180 < 300 above: F = 0.
+    #[test]
+    fn a_small_pool_lowers_f_to_what_it_holds() {
+        let o = occ(900, 300, 200, 120);
+        let input = |pool_bytes| PlanInput {
+            layout: VKB,
+            pixels: 400,
+            budget: PlanBudget::Fragments(FragmentBudget::Share(250_000)),
+            pool_bytes,
+            batches: 1,
+            exact_when_cheaper: true,
+        };
+        let p = plan(&input(6_000), &o);
+        assert_eq!((p.f, p.exact, p.short), (225, false, 0));
+        let p = plan(&input(4_000), &o);
+        assert_eq!((p.f, p.exact, p.short), (0, false, SHORT_SLOTS));
+        let p = plan(&input(1_000), &o);
+        assert_eq!((p.f, p.short), (0, SHORT_SLOTS));
+        // 7,200 bytes are 900 words: the pool holds every fragment, exact where cheaper.
+        let p = plan(&input(7_200), &o);
+        assert_eq!((p.f, p.exact, p.short), (900, true, 0));
+        let p = plan(
+            &PlanInput {
+                exact_when_cheaper: false,
+                ..input(7_200)
+            },
+            &o,
+        );
+        assert_eq!((p.f, p.exact), (225, false));
+    }
+
+    /// DKB's records in the batches recorded: 120 records of 36 bytes in a pool of 2,000
+    /// bytes are 55 a batch, three batches; one recorded is short of records.
+    #[test]
+    fn records_past_the_recorded_batches_are_reported() {
+        let o = occ(900, 300, 200, 120);
+        let input = PlanInput {
+            layout: DKB,
+            pixels: 400,
+            budget: PlanBudget::Fragments(FragmentBudget::Slots(100)),
+            pool_bytes: 2_000,
+            batches: 3,
+            exact_when_cheaper: false,
+        };
+        let p = plan(&input, &o);
+        assert_eq!((p.per_batch, p.batches), (55, 3));
+        assert_eq!(p.short & SHORT_RECORDS, 0);
+        let p = plan(
+            &PlanInput {
+                batches: 1,
+                ..input
+            },
+            &o,
+        );
+        assert_eq!(p.short & SHORT_RECORDS, SHORT_RECORDS);
+        // A byte budget below this frame's fixed bytes leaves it no slot.
+        let p = plan(
+            &PlanInput {
+                budget: PlanBudget::Bytes(1_000),
+                ..input
+            },
+            &o,
+        );
+        assert_eq!(p.short & NO_SLOT, NO_SLOT);
+        assert_eq!(Plan::from_words(p.words(), p.batches), p);
+    }
+}
