@@ -405,6 +405,31 @@ impl Gpu {
     }
 }
 
+/// The instances [`Gpu::new`] looks for adapters in (the `WGPU_*` environment variables
+/// apply). wgpu checks every indirect dispatch's arguments by default, with a dispatch and two
+/// barriers of its own before each (12 ms each on lavapipe, where DKB's frame records 17:
+/// the allocation's weights, search rounds and marks, their prefix sum, the network's rows).
+/// dhoit's shaders write those arguments themselves, every dimension at most 65,535 (`grid_of`
+/// in common.wgsl, `args` in importance_dkb.wgsl), so it opens Vulkan, Metal and GL without
+/// the check (`WGPU_VALIDATION_INDIRECT_CALL=1` turns it back on). D3D12 keeps it: there wgpu
+/// supplies `num_workgroups`, which the passes read, through that check.
+fn instances() -> [wgpu::Instance; 2] {
+    instance_descriptors().map(wgpu::Instance::new)
+}
+
+/// [`instances`]' descriptors: every backend but D3D12 without the indirect check, D3D12 with.
+fn instance_descriptors() -> [wgpu::InstanceDescriptor; 2] {
+    let mut direct = wgpu::InstanceDescriptor::new_without_display_handle();
+    direct
+        .flags
+        .remove(wgpu::InstanceFlags::VALIDATION_INDIRECT_CALL);
+    let mut direct = direct.with_env();
+    direct.backends.remove(wgpu::Backends::DX12);
+    let mut dx12 = wgpu::InstanceDescriptor::new_without_display_handle().with_env();
+    dx12.backends &= wgpu::Backends::DX12;
+    [direct, dx12]
+}
+
 impl Gpu {
     /// Opens the first adapter that has every required feature; the error names what the
     /// adapters lack.
@@ -415,9 +440,12 @@ impl Gpu {
     /// [`Gpu::new`], with `extra` features required on top of the pipeline's (tests use it to
     /// see what happens on an adapter that lacks one).
     pub fn requiring(extra: wgpu::Features) -> Result<Gpu> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        let mut adapters = Vec::new();
+        for instance in instances() {
+            adapters.extend(pollster::block_on(
+                instance.enumerate_adapters(wgpu::Backends::all()),
+            ));
+        }
         if adapters.is_empty() {
             return Err(GpuError::NoAdapter.into());
         }
@@ -1070,5 +1098,34 @@ impl Gpu {
         let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         Ok(Scopes { oom, validation })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::instance_descriptors;
+    use wgpu::{Backends, InstanceFlags};
+
+    /// dhoit's own device skips wgpu's check of indirect dispatches (its shaders bound their
+    /// arguments) everywhere but D3D12, which needs it for `num_workgroups`, and the two
+    /// instances share no backend (an adapter is offered once).
+    #[test]
+    fn indirect_dispatches_are_unchecked_except_on_d3d12() {
+        let env = |v: &str| std::env::var(v).is_ok();
+        if env("WGPU_VALIDATION_INDIRECT_CALL") || env("WGPU_BACKEND") {
+            eprintln!("SKIPPED: WGPU_VALIDATION_INDIRECT_CALL or WGPU_BACKEND is set");
+            return;
+        }
+        let [direct, dx12] = instance_descriptors();
+        assert!(
+            !direct
+                .flags
+                .contains(InstanceFlags::VALIDATION_INDIRECT_CALL)
+        );
+        assert!(dx12.flags.contains(InstanceFlags::VALIDATION_INDIRECT_CALL));
+        assert!(!direct.backends.contains(Backends::DX12));
+        assert!(direct.backends.contains(Backends::VULKAN | Backends::METAL));
+        assert_eq!(dx12.backends, Backends::DX12);
+        assert!((direct.backends & dx12.backends).is_empty());
     }
 }
