@@ -730,5 +730,117 @@ fn gpu_bench(
         }
         partial(&summary(&scenes));
     }
+    eprint!("{}", frame_tables(&scenes));
     summary(&scenes)
+}
+
+/// The GPU bench's scenes as Markdown tables: each method's frame (GPU ms, median of the steady
+/// frames) and DKB's against the A-buffer's and VKB's; where the scenes ran `--sequence`, each
+/// method's orbit too.
+fn frame_tables(scenes: &[serde_json::Value]) -> String {
+    use std::fmt::Write;
+    let ms = |v: &serde_json::Value, m: &str| v["methods"][m]["frame_gpu_ms"].as_f64();
+    let cell = |x: Option<f64>, digits: usize| x.map_or("-".into(), |x| format!("{x:.digits$}"));
+    let mut t = String::from(
+        "| scene | A-buffer | VKB | DKB | DKB 16-8 | WBOIT | DKB/A-buffer | DKB/VKB |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for v in scenes {
+        let Some(name) = v["scene"].as_str() else {
+            continue;
+        };
+        if let Some(err) = v["error"].as_str() {
+            let _ = writeln!(t, "| {name} | {err} | | | | | | |");
+            continue;
+        }
+        let (a, k, d) = (ms(v, "abuffer"), ms(v, "vkb"), ms(v, "dkb"));
+        let ratio = |x: Option<f64>| d.zip(x).map(|(d, x)| d / x);
+        let _ = writeln!(
+            t,
+            "| {name} | {} | {} | {} | {} | {} | {} | {} |",
+            cell(a, 0),
+            cell(k, 0),
+            cell(d, 0),
+            cell(ms(v, "dkb_16-8"), 0),
+            cell(ms(v, "wboit"), 0),
+            cell(ratio(a), 2),
+            cell(ratio(k), 2),
+        );
+    }
+    let orbits: Vec<_> = scenes
+        .iter()
+        .filter(|v| v["sequence"].is_object())
+        .collect();
+    if !orbits.is_empty() {
+        t.push_str(
+            "\n| scene | method | fps, 2 in flight | fps, 1 at a time | GPU ms | waits/frame | error | temporal change | over own A-buffer | exact |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        );
+        for v in orbits {
+            let name = v["scene"].as_str().unwrap_or("?");
+            let Some(methods) = v["sequence"]["methods"].as_object() else {
+                continue;
+            };
+            for (m, e) in methods {
+                if let Some(err) = e["error"].as_str() {
+                    let _ = writeln!(t, "| {name} | {m} | {err} | | | | | | | |");
+                    continue;
+                }
+                let f = |k: &str| e[k].as_f64();
+                let n = |k: &str| e[k].as_u64().unwrap_or(0);
+                let _ = writeln!(
+                    t,
+                    "| {name} | {m} | {} | {} | {} | {} | {} | {} | {}/{} | {}/{} |",
+                    cell(f("fps_two_in_flight"), 2),
+                    cell(f("fps_one_at_a_time"), 2),
+                    cell(f("frame_gpu_ms"), 1),
+                    cell(f("sync_waits_per_frame"), 0),
+                    f("mean_abs_error").map_or("-".into(), |x| format!("{x:.2e}")),
+                    f("temporal_change").map_or("-".into(), |x| format!("{x:.2e}")),
+                    n("frames_over_own_abuffer_bytes"),
+                    n("frames_counted"),
+                    n("frames_exact"),
+                    2 * n("frames"),
+                );
+            }
+        }
+    }
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::frame_tables;
+
+    /// The tables carry each scene's frame times and DKB's ratios as the JSON gives them, a
+    /// dash where a method has no time, and a row per method of an orbit.
+    #[test]
+    fn frame_tables_hold_the_ratios_and_the_orbit() {
+        let scenes = [
+            serde_json::json!({"scene": "shells", "methods": {
+                "abuffer": {"frame_gpu_ms": 200.0}, "vkb": {"frame_gpu_ms": 250.0},
+                "dkb": {"frame_gpu_ms": 300.0}, "wboit": {"frame_gpu_ms": 50.0}},
+                "sequence": {"methods": {"dkb": {"fps_two_in_flight": 3.5,
+                    "fps_one_at_a_time": 3.25, "frame_gpu_ms": 280.0,
+                    "sync_waits_per_frame": 0.0, "mean_abs_error": 0.001,
+                    "temporal_change": 0.0002, "frames_over_own_abuffer_bytes": 3,
+                    "frames_counted": 240, "frames_exact": 0, "frames": 120},
+                    "mboit": {"error": "no FLOAT32_BLENDABLE"}}}}),
+            serde_json::json!({"scene": "hair", "error": "refused"}),
+        ];
+        let t = frame_tables(&scenes);
+        assert!(
+            t.contains("| shells | 200 | 250 | 300 | - | 50 | 1.50 | 1.20 |"),
+            "{t}"
+        );
+        assert!(t.contains("| hair | refused |"), "{t}");
+        assert!(
+            t.contains(
+                "| shells | dkb | 3.50 | 3.25 | 280.0 | 0 | 1.00e-3 | 2.00e-4 | 3/240 | 0/240 |"
+            ),
+            "{t}"
+        );
+        assert!(
+            t.contains("| shells | mboit | no FLOAT32_BLENDABLE |"),
+            "{t}"
+        );
+    }
 }

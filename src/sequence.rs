@@ -74,6 +74,10 @@ fn lap(
             }
             reports.extend(stream.finished(false)?);
             clock = Instant::now();
+        } else {
+            // What the frames before have finished, without waiting, as a renderer reads its
+            // reports (and the stream learns its sizes from them).
+            reports.extend(stream.finished(false)?);
         }
     }
     device.poll(wgpu::PollType::wait_indefinitely())?;
