@@ -6,7 +6,7 @@ RUN := $(CARGO) run --release --quiet --
 # Real glTF scenes for tests and evaluation, read in place (never copied into the repository).
 export DHOIT_SCENES ?= $(abspath ../shared/scenes)
 
-.PHONY: all setup demo test fmt lint check bench devbin build train nets golden eval trade versus fuzz pictures
+.PHONY: all setup demo test fmt lint check bench frame devbin build train nets golden eval trade versus fuzz pictures
 
 all: demo
 
@@ -129,6 +129,20 @@ test: setup fmt lint
 ## Throughput of every pass, as JSON (also written to out/bench.json).
 bench: setup
 	$(RUN) bench --out out/bench.json
+
+## The frame a real-time renderer records: every method's GPU frame on the deep built-in scenes
+## at 640x480, at 25% and at 1 fpp (DKB against the exact A-buffer and VKB), then an orbit of
+## 120 frames at 320x240 at 1 fpp, a budget every method takes (frames a second one at a time
+## and two in flight, dhoit's waits, temporal change, bytes against each frame's own A-buffer).
+## Markdown tables on stderr, JSON in out/frame/. About 30 minutes on lavapipe;
+## FRAME_RES=1920x1080 for the large frames.
+FRAME_SCENES ?= particles,shells,hair,foliage
+FRAME_RES ?= 640x480
+frame: setup
+	mkdir -p out/frame
+	$(RUN) bench --gpu-only --res $(FRAME_RES) --budget 25% --scenes $(FRAME_SCENES) --out out/frame/$(FRAME_RES)-25.json
+	$(RUN) bench --gpu-only --res $(FRAME_RES) --budget 1fpp --scenes $(FRAME_SCENES) --out out/frame/$(FRAME_RES)-1fpp.json
+	$(RUN) bench --gpu-only --res 320x240 --budget 1fpp --scenes $(FRAME_SCENES) --sequence 120 --out out/frame/orbit-320x240-1fpp.json
 
 ## For a machine lent with a real GPU: the release binary and the GPU test binaries (stripped)
 ## into .devbin/ and the Vulkan loader package into .gl/ (both ignored by git), which
