@@ -121,6 +121,18 @@ impl Occupancy {
         })
     }
 
+    /// Each count times `by`, rounded up, the pixel counts at most `pixels` (an occupancy
+    /// expected of a frame of `pixels` pixels).
+    pub fn scaled(&self, by: f64, pixels: u64) -> Occupancy {
+        let up = |v: u64| ((v as f64 * by).ceil() as u64).min(u64::MAX / 2);
+        Occupancy {
+            fragments: up(self.fragments),
+            covered: up(self.covered).min(pixels),
+            deep: up(self.deep).min(pixels),
+            deeper: up(self.deeper).min(pixels),
+        }
+    }
+
     /// The most a frame of `pixels` pixels can hold as the tails see it: every pixel deep.
     pub fn most(pixels: u64) -> Occupancy {
         Occupancy {

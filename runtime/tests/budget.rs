@@ -1,6 +1,6 @@
 //! Budget parsing and the F(M) accounting.
 
-use dhoit_runtime::budget::{self, Budget};
+use dhoit_runtime::budget::{self, Budget, Occupancy};
 
 #[test]
 fn budgets_parse_with_units() {
@@ -137,4 +137,28 @@ fn pooled_tails_leave_the_largest_budget_that_fits() {
     }
     // Budgets below a slot for every covered pixel and above it.
     assert_eq!(both, [true, true]);
+}
+
+/// An expected occupancy scaled up rounds every count up and never names more pixels than
+/// the frame has (the stream's headroom and its resize both go through it).
+#[test]
+fn a_scaled_occupancy_rounds_up_within_the_frame() {
+    let o = Occupancy {
+        fragments: 1001,
+        covered: 90,
+        deep: 41,
+        deeper: 3,
+    };
+    // 1001 x 1.25 = 1251.25, 90 x 1.25 = 112.5 (capped at 100), 41 x 1.25 = 51.25, 3.75.
+    assert_eq!(
+        o.scaled(1.25, 100),
+        Occupancy {
+            fragments: 1252,
+            covered: 100,
+            deep: 52,
+            deeper: 4,
+        }
+    );
+    assert_eq!(o.scaled(1.0, 1000), o);
+    assert_eq!(Occupancy::most(7).scaled(2.0, 7).covered, 7);
 }

@@ -12,7 +12,7 @@
 //! (`STATUS_POOL_SHORT`).
 
 use super::buffers::{FrameStatus, read_back, read_u64s, u32s};
-use super::passes::{Phase, Resolve, entries};
+use super::passes::{Phase, Resolve, entries, entries_from};
 use super::{Recording, Sizing};
 use crate::error::Result;
 use crate::fragment::FragmentLists;
@@ -75,10 +75,7 @@ impl Recording<'_, '_, '_> {
             Blend::Exact => (Resolve::Abuffer, &p.abuffer_resolve, "sort and blend"),
         };
         let mut group = entries(&[passes.params(), &offsets, &keys]);
-        group.extend(entries(&[&status, &primitives]).into_iter().map(|mut e| {
-            e.binding += 4;
-            e
-        }));
+        group.extend(entries_from(4, &[&status, &primitives]));
         passes.resolve(fb.enc, resolve, own, group, 3, name);
         self.out.counted = Some((offsets.clone(), 4 * px));
         if passes.opts.diagnostics {

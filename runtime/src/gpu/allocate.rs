@@ -99,12 +99,7 @@ impl Recording<'_, '_, '_> {
         let counts = fb.storage("count", count_bytes(px), true)?;
         let totals = fb.storage("totals", 4 * TOTALS_WORDS as u64, true)?;
         let unused = fb.storage("oit.unused_tail", 16, true)?;
-        let plan = fb.init(
-            "plan.params",
-            bytemuck::bytes_of(&PlanParams::of(&planned.input)),
-            wgpu::BufferUsages::UNIFORM,
-            true,
-        );
+        let plan = fb.plan_params(&planned.input);
         passes.draw(fb.enc, Phase::Count, &p.count, &[&counts], "count");
         passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &unused)));
         Ok(Importance {
@@ -326,12 +321,7 @@ impl Gpu {
             batches: 1,
             exact_when_cheaper: false,
         };
-        let plan = fb.init(
-            "plan.params",
-            bytemuck::bytes_of(&PlanParams::of(&input)),
-            wgpu::BufferUsages::UNIFORM,
-            true,
-        );
+        let plan = fb.plan_params(&input);
         passes.draw(fb.enc, Phase::Count, &p.count, &[&counts], "count");
         passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &unused)));
         let al = passes.allocation(

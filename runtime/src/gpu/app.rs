@@ -527,6 +527,7 @@ impl Geometry for AppDraws<'_, '_> {
                 )
             })
             .1;
+        let colors = pass.color_attachments();
         let entries: Vec<wgpu::BindGroupEntry> = pass
             .group
             .into_iter()
@@ -546,21 +547,6 @@ impl Geometry for AppDraws<'_, '_> {
             layout,
             entries: &entries,
         });
-        let colors: Vec<Option<wgpu::RenderPassColorAttachment>> = pass
-            .targets
-            .iter()
-            .map(|&(view, clear)| {
-                Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(clear),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })
-            })
-            .collect();
         let mut rp = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some(pass.name),
             color_attachments: &colors,

@@ -137,6 +137,16 @@ impl<'a, 'e> FrameBuffers<'a, 'e> {
     }
 
     /// A buffer holding `bytes` (zero-padded to at least 16 bytes, a multiple of 4).
+    /// The uniform of a frame's plan pass (plan.wgsl) for `input`, counted.
+    pub(super) fn plan_params(&mut self, input: &crate::plan::PlanInput) -> wgpu::Buffer {
+        self.init(
+            "plan.params",
+            bytemuck::bytes_of(&crate::wgsl::PlanParams::of(input)),
+            wgpu::BufferUsages::UNIFORM,
+            true,
+        )
+    }
+
     pub(super) fn init(
         &mut self,
         label: &str,

@@ -5,7 +5,7 @@
 
 use super::allocate::{AllocBuffers, Importance, Word};
 use super::buffers::{FrameStatus, read_back, read_counts, read_u64s, u32s};
-use super::passes::{Phase, Resolve, entries};
+use super::passes::{Phase, Resolve, entries, entries_from};
 use super::scan::Scan;
 use super::{Planned, Recording, Slots};
 use crate::error::{Error, Result};
@@ -222,10 +222,7 @@ impl Recording<'_, '_, '_> {
             }
         };
         let mut group = entries(&[passes.params(), &kb.base, &slots, &tail, &tail_count]);
-        group.extend(entries(&[&kb.counts, &status]).into_iter().map(|mut e| {
-            e.binding += 6;
-            e
-        }));
+        group.extend(entries_from(6, &[&kb.counts, &status]));
         passes.resolve(fb.enc, resolve, own, group, 5, "resolve");
         self.out.status = Some(status);
         if !passes.opts.diagnostics {

@@ -24,7 +24,7 @@ use super::{Planned, Recording, weight_kind};
 use crate::error::Result;
 use crate::mlp::Mlp;
 use crate::shared::{TOTALS_WORDS, count_bytes};
-use crate::wgsl::{DISPATCH_WORDS, PIXEL_GROUP, PlanParams, grid, mlp_uniform};
+use crate::wgsl::{DISPATCH_WORDS, PIXEL_GROUP, grid, mlp_uniform};
 
 /// DKB's per-frame buffers.
 #[derive(Clone)]
@@ -61,12 +61,7 @@ impl Recording<'_, '_, '_> {
         let totals = fb.storage("features.totals", 4 * TOTALS_WORDS as u64, true)?;
         let counts = fb.storage("features.count", count_bytes(px), true)?;
         let list_len = fb.storage("importance.list_len", 16, true)?;
-        let plan = fb.init(
-            "plan.params",
-            bytemuck::bytes_of(&PlanParams::of(&planned.input)),
-            wgpu::BufferUsages::UNIFORM,
-            true,
-        );
+        let plan = fb.plan_params(&planned.input);
         passes.draw(fb.enc, Phase::Count, &p.count, &[&counts], "count");
         passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &list_len)));
         let pool = fb.storage("oit.slots", planned.input.pool_bytes, true)?;

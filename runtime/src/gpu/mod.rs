@@ -722,15 +722,8 @@ impl Gpu {
         buffers: &[&'b wgpu::Buffer],
         extra: Vec<wgpu::BindGroupEntry<'b>>,
     ) -> wgpu::BindGroup {
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .chain(extra)
-            .collect();
+        let mut entries = passes::entries(buffers);
+        entries.extend(extra);
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: None,
             layout,

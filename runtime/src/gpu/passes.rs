@@ -86,6 +86,26 @@ pub(super) struct GeometryPass<'p> {
     pub(super) name: &'static str,
 }
 
+impl<'p> GeometryPass<'p> {
+    /// The pass's colour attachments: its targets, cleared first (none for a storing pass).
+    pub(super) fn color_attachments(&self) -> Vec<Option<wgpu::RenderPassColorAttachment<'p>>> {
+        self.targets
+            .iter()
+            .map(|&(view, clear)| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(clear),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })
+            })
+            .collect()
+    }
+}
+
 /// A frame's client, as the engine sees it: it draws the frame's transparent geometry into
 /// each geometry pass and binds what the resolve composites over and into.
 pub(super) trait Geometry {
@@ -127,11 +147,19 @@ pub(super) struct Passes<'a> {
 
 /// `buffers` at bindings 0, 1, ...
 pub(super) fn entries<'b>(buffers: &[&'b wgpu::Buffer]) -> Vec<wgpu::BindGroupEntry<'b>> {
+    entries_from(0, buffers)
+}
+
+/// `buffers` at bindings `first`, `first + 1`, ...
+pub(super) fn entries_from<'b>(
+    first: u32,
+    buffers: &[&'b wgpu::Buffer],
+) -> Vec<wgpu::BindGroupEntry<'b>> {
     buffers
         .iter()
-        .enumerate()
-        .map(|(i, b)| wgpu::BindGroupEntry {
-            binding: i as u32,
+        .zip(first..)
+        .map(|(b, binding)| wgpu::BindGroupEntry {
+            binding,
             resource: b.as_entire_binding(),
         })
         .collect()

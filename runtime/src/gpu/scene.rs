@@ -18,6 +18,7 @@ use crate::budget::Occupancy;
 use crate::composite::Image;
 use crate::error::{Error, Result};
 use crate::scene::{Camera, Scene};
+use crate::shared::TOTALS_WORDS;
 use crate::shared::count_bytes;
 use crate::wgsl::{PIXEL_GROUP, Params, grid};
 
@@ -131,21 +132,7 @@ impl Geometry for SceneDraws<'_> {
                 entries: &pass.group,
             })
         });
-        let colors: Vec<Option<wgpu::RenderPassColorAttachment>> = pass
-            .targets
-            .iter()
-            .map(|&(view, clear)| {
-                Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(clear),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })
-            })
-            .collect();
+        let colors = pass.color_attachments();
         // A storing pass writes no colour: the opaque depth, read-only, is its one attachment.
         let depth = colors
             .is_empty()
@@ -364,7 +351,7 @@ impl Gpu {
             false,
         );
         let counts = fb.storage("count first.count", count_bytes(px), false)?;
-        let totals = fb.storage("count first.totals", 32, false)?;
+        let totals = fb.storage("count first.totals", 4 * TOTALS_WORDS as u64, false)?;
         let taken = fb.into_taken();
         draws.opaque(self, &mut enc, None);
         let p = &self.pipelines;

@@ -352,13 +352,7 @@ impl Stream {
             },
             _ => return,
         };
-        let grow = |v: u64| ((v as f64 * HEADROOM).ceil() as u64).min(u64::MAX / 2);
-        let next = Occupancy {
-            fragments: grow(seen.fragments),
-            covered: grow(seen.covered).min(px),
-            deep: grow(seen.deep).min(px),
-            deeper: grow(seen.deeper).min(px),
-        };
+        let next = seen.scaled(HEADROOM, px);
         let e = self.expected;
         let needs_more = seen.fragments > e.fragments
             || seen.covered > e.covered
@@ -433,13 +427,7 @@ impl Stream {
         self.size = size;
         // The counts so far, for a frame as many times larger.
         let px = self.pixels();
-        let scale = |v: u64| (v as f64 * px as f64 / old.max(1) as f64).ceil() as u64;
-        self.expected = Occupancy {
-            fragments: scale(self.expected.fragments),
-            covered: scale(self.expected.covered).min(px),
-            deep: scale(self.expected.deep).min(px),
-            deeper: scale(self.expected.deeper).min(px),
-        };
+        self.expected = self.expected.scaled(px as f64 / old.max(1) as f64, px);
         // A budget in slots or bytes may not fit the new size.
         if let Some(b) = self.budget {
             self.set_budget(b)?;

@@ -9,7 +9,6 @@ use super::{Planned, Recording, weight_kind};
 use crate::alloc::Target;
 use crate::error::Result;
 use crate::shared::{TOTALS_WORDS, count_bytes};
-use crate::wgsl::PlanParams;
 
 impl Recording<'_, '_, '_> {
     /// VKB's count, totals, plan and importance (no importance where its client knows the
@@ -31,12 +30,7 @@ impl Recording<'_, '_, '_> {
         let marks = fb.storage("vkb.marks", crate::budget::marks_bytes(px), true)?;
         let unused_tail = fb.storage("vkb.unused_tail", 16, true)?;
         let totals = fb.storage("vkb.totals", 4 * TOTALS_WORDS as u64, true)?;
-        let plan = fb.init(
-            "plan.params",
-            bytemuck::bytes_of(&PlanParams::of(&planned.input)),
-            wgpu::BufferUsages::UNIFORM,
-            true,
-        );
+        let plan = fb.plan_params(&planned.input);
         passes.draw(
             fb.enc,
             Phase::VkbCount,
