@@ -12,7 +12,7 @@ fn list_color(list: Stored, bg: vec3<f32>) -> vec3<f32> {
     var t = 1.0;
     for (var i = list.start; i < list.end; i++) {
         tick();
-        let rgba = unpack_rgba8(u32(keys[i] & 0xfffffffflu));
+        let rgba = unpack_rgba8(keys[i].x);
         c += t * rgba.a * rgba.rgb;
         t *= 1.0 - rgba.a;
     }

@@ -8,7 +8,7 @@
 // to a word, as the counts: counts.wgsl). A cursor that stopped, in a pixel too deep for any
 // method (which the resolve refuses), stores nothing more.
 @group(1) @binding(1) var<storage, read_write> cursor: array<atomic<u32>>;
-@group(1) @binding(2) var<storage, read_write> keys: array<u64>;
+@group(1) @binding(2) var<storage, read_write> keys: array<vec2<u32>>;
 @group(1) @binding(3) var<storage, read_write> primitives: array<u32>;
 
 @fragment
@@ -30,7 +30,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         return vec4<f32>(0.0);
     }
     let i = offsets[p] + count_in(old, p);
-    keys[i] = fragment_key(in.clip.z, f.rgba8);
+    keys[i] = key_of(in.clip.z, f.rgba8);
     if (params.store_primitives != 0u) {
         primitives[i] = in.primitive;
     }

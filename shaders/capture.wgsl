@@ -8,10 +8,15 @@
 //   its count taken down to 0 (the resolve sorts the slots and puts n back).
 // - insertion (every other pixel, and every pixel of FKB or an uploaded k): NVIDIA's lock-free
 //   Loop64 (kbuffer_insert.wgsl, which an application's shader runs too). Slots hold the
-//   bitwise complement of the capture key (so a cleared, zero slot is empty and atomicMax keeps
-//   the nearest): for each slot, old = atomicMax(slot, cur); an empty old ends the insertion,
-//   otherwise the farther of the two is carried on. A key still carried after the last slot is
-//   the one this insertion pushed out; it goes to the tail's integer sums.
+//   bitwise complement of the slot key (common.wgsl's slot_depth_word and slot_colour_word: a
+//   cleared, zero slot is empty and atomicMax keeps the nearest): for each slot, old =
+//   atomicMax(slot, cur); an empty old ends the insertion, otherwise the farther of the two is
+//   carried on. A key still carried after the last slot is the one this insertion pushed out;
+//   it goes to the tail's integer sums.
+//
+// The pass is built with one of two insertions: kbuffer_insert.wgsl's 64-bit atomics (one
+// pass), or kbuffer_portable.wgsl's 32-bit ones (the portable capture: a depth pass, then a
+// colour pass over the same fragments, CAPTURE_COLOURS), which leave the same slots and tails.
 //
 // Built a second time with EVERY_FRAGMENT_FITS for the frames whose budget holds every fragment
 // (the pixels' modes then follow from the slot bases alone; see below).
@@ -21,12 +26,11 @@
 // (params.pooled_tail), of its span: k slots, then TAIL_WORDS words of its tail where it keeps
 // one (common.wgsl's has_tail), the per-pixel tail buffers then unused.
 @group(1) @binding(0) var<storage, read> slot_base: array<u32>;
-@group(1) @binding(1) var<storage, read_write> oit_slots: array<atomic<u64>>;
-// Per pixel: sum c8 a8 for r, g, b, sum a8 (four 32-bit words, as resolve.wgsl reads them),
-// added two to a 64-bit word: r and g, then b and a. No low half carries into its high half:
-// a sum of c8 a8 stays below 2^32 up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (32,767 x
-// 255^2 < 2^32). And the tail's count. Both unused where the tails are pooled.
-@group(1) @binding(2) var<storage, read_write> oit_tail: array<atomic<u64>>;
+@group(1) @binding(1) var<storage, read_write> oit_slots: array<SlotWord>;
+// Per pixel: sum c8 a8 for r, g, b, sum a8 (four 32-bit words, as resolve.wgsl reads them;
+// the wide capture adds them two to a 64-bit word), and the tail's count. Both unused where the
+// tails are pooled.
+@group(1) @binding(2) var<storage, read_write> oit_tail: array<SlotWord>;
 @group(1) @binding(3) var<storage, read_write> oit_tail_count: array<atomic<u32>>;
 // n(p), two to a word (counts.wgsl), read where the tails are pooled (a pixel's span says
 // whether it keeps a tail only beside n; an unused buffer otherwise); a pixel that appends
@@ -51,20 +55,16 @@ fn oit_slot_at(base: u32, i: u32, p: u32) -> u32 {
 // No pooled tail (a pixel that holds all its n fragments: common.wgsl's has_tail).
 const NO_TAIL: u32 = 0xffffffffu;
 
-// The key `out` pushed out of a pixel's slots into its pooled tail at pool word t: its two sum
-// words (its count is n - k).
-fn pooled_to_tail(t: u32, out: u64) {
-    let w = oit_tail_words(out);
-    atomicAdd(&oit_slots[t], w.x);
-    atomicAdd(&oit_slots[t + 1u], w.y);
-}
-
 // A pooled pixel of n = k fragments (no tail) that appends: the next of its k places, from its
-// count taken down (n - 1 first).
-fn pooled_append(p: u32, base: u32, k: u32, key: u64) {
+// count taken down (n - 1 first). The portable capture's colour pass leaves it alone (its depth
+// pass appended whole keys).
+fn pooled_append(p: u32, base: u32, k: u32, depth_word: u32, colour_word: u32) {
+    if (!OIT_APPENDS) {
+        return;
+    }
     let i = count_in(atomicSub(&count[count_word(p)], count_unit(p)), p) - 1u;
     if (i < k) {
-        atomicStore(&oit_slots[base + i], key);
+        oit_store_slot(base + i, depth_word, colour_word);
     }
 }
 
@@ -75,15 +75,16 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         return vec4<f32>(0.0);
     }
     let p = pixel_index(in.clip, params.width);
-    let key = ~fragment_key(in.clip.z, f.rgba8);
+    let depth_word = slot_depth_word(in.clip.z);
+    let colour_word = slot_colour_word(f.rgba8);
     if (EVERY_FRAGMENT_FITS) {
         // The bases hold spans of k = n: no tail.
         let base = slot_base[p];
         let n = slot_base[p + 1u] - base;
         if (n > APPEND_MAX) {
-            oit_insert(p, base, n, key);
+            oit_insert(p, base, n, depth_word, colour_word);
         } else {
-            pooled_append(p, base, n, key);
+            pooled_append(p, base, n, depth_word, colour_word);
         }
         return vec4<f32>(0.0);
     }
@@ -101,15 +102,15 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
             if (span < n) {
                 tail = base + k;
             } else if (params.append != 0u && k <= APPEND_MAX) {
-                pooled_append(p, base, k, key);
+                pooled_append(p, base, k, depth_word, colour_word);
                 return vec4<f32>(0.0);
             }
         }
     }
     // Where a pixel keeps no pooled tail, its k = n slots hold all it has: nothing is pushed
     // out.
-    let out = oit_insert(p, base, k, key);
-    if (out == 0lu) {
+    let out = oit_insert(p, base, k, depth_word, colour_word);
+    if (out == 0u) {
         return vec4<f32>(0.0);
     }
     if (!pooled) {

@@ -91,11 +91,48 @@ fn unpack_rgba8(v: u32) -> vec4<f32> {
     ) / 255.0;
 }
 
-// The 64-bit capture key: window depth bits high (non-negative floats order like their bits),
-// RGBA8 low, as fragment::fragment_key.
-fn fragment_key(depth: f32, rgba8: u32) -> u64 {
+
+// A fragment's 64-bit capture key (fragment::fragment_key) as two 32-bit words, as a u64's
+// bytes lie: the low word (x) its RGBA8, the high (y) its window depth's bits (non-negative
+// floats order like their bits). Keys order by depth, then colour (key_less).
+fn key_of(depth: f32, rgba8: u32) -> vec2<u32> {
     let d = select(0.0, depth, depth > 0.0);
-    return (u64(bitcast<u32>(d)) << 32u) | u64(rgba8);
+    return vec2<u32>(rgba8, bitcast<u32>(d));
+}
+
+// Whether key a orders before key b (as u64s would).
+fn key_less(a: vec2<u32>, b: vec2<u32>) -> bool {
+    return a.y < b.y || (a.y == b.y && a.x < b.x);
+}
+
+// A k-buffer slot's key as two 32-bit words, each complemented so a cleared, zero slot is empty
+// and atomicMax keeps the nearest: the depth word (keys64.wgsl's fragment_key's high word) and the colour
+// word, the fragment's RGBA8 less 2^24 (alpha is at least 1 in every fragment captured, so
+// the colour word is never 0, even for opaque white, and it orders colours as RGBA8 does). A
+// 64-bit slot holds the depth word high and the colour word low; the portable capture writes
+// the same two words with 32-bit atomics (kbuffer_portable.wgsl), so both leave the same bytes.
+// What the colour word takes off RGBA8: alpha 1, 2^24.
+const SLOT_COLOUR_BIAS: u32 = 1u << 24u;
+
+fn slot_depth_word(depth: f32) -> u32 {
+    let d = select(0.0, depth, depth > 0.0);
+    return ~bitcast<u32>(d);
+}
+
+fn slot_colour_word(rgba8: u32) -> u32 {
+    return ~(rgba8 - SLOT_COLOUR_BIAS);
+}
+
+// The RGBA8 colour of a slot's colour word.
+fn slot_rgba8(colour_word: u32) -> u32 {
+    return (~colour_word) + SLOT_COLOUR_BIAS;
+}
+
+// What a slot's colour word adds to its pixel's tail: c8 a8 for r, g and b, and a8.
+fn tail_sums(colour_word: u32) -> vec4<u32> {
+    let rgba = slot_rgba8(colour_word);
+    let a = rgba >> 24u;
+    return vec4<u32>((rgba & 0xffu) * a, ((rgba >> 8u) & 0xffu) * a, ((rgba >> 16u) & 0xffu) * a, a);
 }
 
 // The index of an invocation of a pass dispatched as a 2-D grid of workgroups of `size`
@@ -172,10 +209,11 @@ fn tick() {
     ticks += 1u;
 }
 
-// The resolves' status words (gpu::FrameStatus): word 0 is set to 1 where a pixel's loops came
-// close to the limit above; word 1 keeps, as (n << 32) | p, the deepest pixel over
-// raster::MAX_FRAGMENTS_PER_PIXEL fragments (the per-pixel counts stop one past it,
-// counts.wgsl), so the host refuses such a frame as the CPU rasterizer does.
-fn deepest_word(n: u32, p: u32) -> u64 {
-    return (u64(n) << 32u) | u64(p);
-}
+// The resolves' status words (gpu::FrameStatus), 32-bit: word 0 the flags (STATUS_NEAR_LOOP
+// where a pixel's loops came close to LOOP_BUDGET, STATUS_POOL_SHORT), word 1 unused; of the
+// pixels over raster::MAX_FRAGMENTS_PER_PIXEL fragments (the per-pixel counts stop one past
+// it, counts.wgsl), the largest index and the largest count, so the host refuses such a frame
+// as the CPU rasterizer does. (Read as two 64-bit words, the second is (count << 32) | index.)
+const STATUS_WORDS: u32 = 4u;
+const STATUS_DEEPEST_PIXEL: u32 = 2u;
+const STATUS_DEEPEST_COUNT: u32 = 3u;

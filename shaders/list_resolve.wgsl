@@ -8,11 +8,11 @@
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> heads: array<u32>;
 @group(0) @binding(2) var<storage, read> next: array<u32>;
-@group(0) @binding(3) var<storage, read> keys: array<u64>;
+@group(0) @binding(3) var<storage, read> keys: array<vec2<u32>>;
 @group(0) @binding(4) var<storage, read_write> image: array<vec4<f32>>;
-// Set to 1 when a pixel's walk came close to lavapipe's loop limit; the deepest pixel over
-// MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word).
-@group(0) @binding(5) var<storage, read_write> status: array<atomic<u64>, 2>;
+// Set to 1 when a pixel's walk came close to lavapipe's loop limit; the pixels over
+// MAX_FRAGMENTS_PER_PIXEL (common.wgsl's STATUS_WORDS).
+@group(0) @binding(5) var<storage, read_write> status: array<atomic<u32>, STATUS_WORDS>;
 
 // A pixel's colour over `bg`, or ok false where its list is deeper than any method takes (the
 // frame is refused: status[1]).
@@ -23,7 +23,7 @@ struct Resolved {
 
 fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
     let s = params.list_sorted;
-    var near: array<u64, LIST_MAX_SORTED>;
+    var near: array<vec2<u32>, LIST_MAX_SORTED>;
     var held = 0u;
     // Sum c8 a8 for r, g, b; sum a8; the count.
     var sums = vec4<u32>(0u);
@@ -37,7 +37,8 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
         tick();
         n++;
         if (n > MAX_FRAGMENTS_PER_PIXEL) {
-            atomicMax(&status[1], deepest_word(n, p));
+            atomicMax(&status[STATUS_DEEPEST_PIXEL], p);
+            atomicMax(&status[STATUS_DEEPEST_COUNT], n);
             return Resolved(false, bg);
         }
         var carry = keys[node - 1u];
@@ -45,7 +46,7 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
         // Insertion into the sorted places: a key nearer than the last moves it on.
         if (held < s) {
             var j = held;
-            while (j > 0u && carry < near[j - 1u]) {
+            while (j > 0u && key_less(carry, near[j - 1u])) {
                 tick();
                 near[j] = near[j - 1u];
                 j--;
@@ -54,10 +55,10 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
             held++;
             continue;
         }
-        if (carry < near[s - 1u]) {
+        if (key_less(carry, near[s - 1u])) {
             let out = near[s - 1u];
             var j = s - 1u;
-            while (j > 0u && carry < near[j - 1u]) {
+            while (j > 0u && key_less(carry, near[j - 1u])) {
                 tick();
                 near[j] = near[j - 1u];
                 j--;
@@ -65,7 +66,7 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
             near[j] = carry;
             carry = out;
         }
-        let c = u32(carry & 0xfffffffflu);
+        let c = carry.x;
         let a = c >> 24u;
         sums += vec4<u32>((c & 0xffu) * a, ((c >> 8u) & 0xffu) * a, ((c >> 16u) & 0xffu) * a, a);
         tail_n++;
@@ -81,7 +82,7 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
     var c = vec3<f32>(0.0);
     var t = 1.0;
     for (var i = 0u; i < held; i++) {
-        let rgba = unpack_rgba8(u32(near[i] & 0xfffffffflu));
+        let rgba = unpack_rgba8(near[i].x);
         c += t * rgba.a * rgba.rgb;
         t *= 1.0 - rgba.a;
     }

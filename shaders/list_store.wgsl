@@ -10,7 +10,7 @@
 @group(1) @binding(0) var<storage, read_write> heads: array<atomic<u32>>;
 // Per node: the next node's index + 1 (0: the list's end).
 @group(1) @binding(1) var<storage, read_write> next: array<u32>;
-@group(1) @binding(2) var<storage, read_write> keys: array<u64>;
+@group(1) @binding(2) var<storage, read_write> keys: array<vec2<u32>>;
 // Word 0: the fragments that arrived, kept or dropped.
 @group(1) @binding(3) var<storage, read_write> counter: array<atomic<u32>, 4>;
 
@@ -25,7 +25,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         return vec4<f32>(0.0);
     }
     let p = pixel_index(in.clip, params.width);
-    keys[node] = fragment_key(in.clip.z, f.rgba8);
+    keys[node] = key_of(in.clip.z, f.rgba8);
     next[node] = atomicExchange(&heads[p], node + 1u);
     return vec4<f32>(0.0);
 }

@@ -10,7 +10,7 @@
 struct Row {
     a: vec3<f32>,
     t: f32,
-    z: u64,
+    z: vec2<u32>,
 };
 
 // The pixel's stored fragments, sorted into submission order, through m rows, over `bg`.
@@ -22,16 +22,16 @@ fn list_color(list: Stored, bg: vec3<f32>) -> vec3<f32> {
     var rows: array<Row, MLAB_MAX_ROWS + 1u>;
     for (var r = 0u; r <= m; r++) {
         tick();
-        rows[r] = Row(vec3<f32>(0.0), 1.0, 0xfffffffffffffffflu);
+        rows[r] = Row(vec3<f32>(0.0), 1.0, vec2<u32>(0xffffffffu));
     }
     for (var i = start; i < end; i++) {
         tick();
         let key = keys[i];
-        let rgba = unpack_rgba8(u32(key & 0xfffffffflu));
+        let rgba = unpack_rgba8(key.x);
         var cur = Row(rgba.rgb * rgba.a, 1.0 - rgba.a, key);
         for (var r = 0u; r < m; r++) {
             tick();
-            if (cur.z <= rows[r].z) {
+            if (!key_less(rows[r].z, cur.z)) {
                 let tmp = rows[r];
                 rows[r] = cur;
                 cur = tmp;
@@ -41,7 +41,7 @@ fn list_color(list: Stored, bg: vec3<f32>) -> vec3<f32> {
         let front = rows[m - 1u];
         let back = rows[m];
         rows[m - 1u] = Row(front.a + back.a * front.t, front.t * back.t, front.z);
-        rows[m] = Row(vec3<f32>(0.0), 1.0, 0xfffffffffffffffflu);
+        rows[m] = Row(vec3<f32>(0.0), 1.0, vec2<u32>(0xffffffffu));
     }
     var c = vec3<f32>(0.0);
     var t = 1.0;

@@ -8,7 +8,8 @@
 @group(0) @binding(0) var<uniform> params: Params;
 // The slot bases (pixels + 1 entries; k is their difference, capture.wgsl).
 @group(0) @binding(1) var<storage, read> slot_base: array<u32>;
-@group(0) @binding(2) var<storage, read_write> slots: array<u64>;
+// Each slot two words, colour low (x) and depth high (y), as capture.wgsl leaves them.
+@group(0) @binding(2) var<storage, read_write> slots: array<vec2<u32>>;
 // Per pixel: sum c8 a8 for r, g, b, sum a8; and the tail's count (unused where the tails are
 // pooled: then TAIL_WORDS words after a pixel's k slots, its count n - k, read_tail).
 @group(0) @binding(3) var<storage, read_write> tail: array<u32>;
@@ -31,10 +32,10 @@ fn count_put(p: u32, c: u32, n: u32) {
         atomicAdd(&count[count_word(p)], (n - c) * count_unit(p));
     }
 }
-// Word 1: the deepest pixel over MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word), from the
-// fragments the capture saw (its cursor, or the slots filled and the tail's count), so it holds
-// whatever n(p) the frame was given. Word 0 (loop limits) is not set here.
-@group(0) @binding(7) var<storage, read_write> status: array<atomic<u64>, 2>;
+// The pixels over MAX_FRAGMENTS_PER_PIXEL (common.wgsl's STATUS_WORDS), from the fragments the
+// capture saw (its cursor, or the slots filled and the tail's count), so it holds whatever n(p)
+// the frame was given. The flags (loop limits) are not set here.
+@group(0) @binding(7) var<storage, read_write> status: array<atomic<u32>, STATUS_WORDS>;
 
 // The slots blend_slots found filled.
 var<private> filled: u32 = 0u;
@@ -62,13 +63,14 @@ fn read_tail(p: u32) -> Tail {
     }
     let rg = slots[t];
     let ba = slots[t + 1u];
-    return Tail(vec4<u32>(u32(rg & 0xfffffffflu), u32(rg >> 32u), u32(ba & 0xfffffffflu), u32(ba >> 32u)), pooled_count);
+    return Tail(vec4<u32>(rg.x, rg.y, ba.x, ba.y), pooled_count);
 }
 
 // Whether a pixel that saw `n` fragments is over MAX_FRAGMENTS_PER_PIXEL (then recorded).
 fn too_deep(p: u32, n: u32) -> bool {
     if (n > MAX_FRAGMENTS_PER_PIXEL) {
-        atomicMax(&status[1], deepest_word(n, p));
+        atomicMax(&status[STATUS_DEEPEST_PIXEL], p);
+        atomicMax(&status[STATUS_DEEPEST_COUNT], n);
         return true;
     }
     return false;
@@ -86,7 +88,7 @@ fn sort_slots(base: u32, n: u32) {
     for (var i = 1u; i < n; i++) {
         let key = slots[base + i];
         var j = i;
-        while (j > 0u && slots[base + j - 1u] < key) {
+        while (j > 0u && key_less(slots[base + j - 1u], key)) {
             slots[base + j] = slots[base + j - 1u];
             j--;
         }
@@ -100,11 +102,11 @@ fn blend_slots(p: u32, base: u32, k: u32, under: vec3<f32>) -> vec4<f32> {
     var t = 1.0;
     for (var i = 0u; i < k; i++) {
         let s = slots[slot_at(base, i, p)];
-        if (s == 0lu) {
+        if (all(s == vec2<u32>(0u))) {
             break;
         }
         filled += 1u;
-        let rgba = unpack_rgba8(u32((~s) & 0xfffffffflu));
+        let rgba = unpack_rgba8(slot_rgba8(s.x));
         c += t * rgba.a * rgba.rgb;
         t *= 1.0 - rgba.a;
     }

@@ -9,14 +9,14 @@
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> offsets: array<u32>;
-@group(0) @binding(2) var<storage, read_write> keys: array<u64>;
+@group(0) @binding(2) var<storage, read_write> keys: array<vec2<u32>>;
 // Submission indices, where the store kept them (params.store_primitives): sorted alongside.
 @group(0) @binding(5) var<storage, read_write> primitives: array<u32>;
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
 // STATUS_NEAR_LOOP where a pixel's sort came close to lavapipe's loop limit, STATUS_POOL_SHORT
-// where the pool held fewer fragments than the frame; the deepest pixel over
-// MAX_FRAGMENTS_PER_PIXEL (common.wgsl's deepest_word).
-@group(0) @binding(4) var<storage, read_write> status: array<atomic<u64>, 2>;
+// where the pool held fewer fragments than the frame; the pixels over MAX_FRAGMENTS_PER_PIXEL
+// (common.wgsl's STATUS_WORDS).
+@group(0) @binding(4) var<storage, read_write> status: array<atomic<u32>, STATUS_WORDS>;
 
 // Pixel p's stored fragments, keys[start..end).
 struct Stored {
@@ -46,7 +46,8 @@ fn stored(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> Stored {
         return Stored(p, start, start, true);
     }
     if (end - start > MAX_FRAGMENTS_PER_PIXEL) {
-        atomicMax(&status[1], deepest_word(end - start, p));
+        atomicMax(&status[STATUS_DEEPEST_PIXEL], p);
+        atomicMax(&status[STATUS_DEEPEST_COUNT], end - start);
         return Stored(p, start, end, false);
     }
     return Stored(p, start, end, true);
@@ -97,9 +98,9 @@ fn sort_keys(start: u32, end: u32, with_primitives: bool) {
                 break;
             }
             let before = keys[j - 1u];
-            var after = k < before;
+            var after = key_less(k, before);
             if (with_primitives) {
-                after = after || (k == before && q < primitives[j - 1u]);
+                after = after || (all(k == before) && q < primitives[j - 1u]);
             }
             if (!after) {
                 break;

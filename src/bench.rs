@@ -296,6 +296,11 @@ fn configure(label: &str) -> dhoit_runtime::gpu::FrameOptions {
             "dkb_records_whole" => 1,
             _ => dhoit_runtime::budget::RECORD_BATCHES,
         },
+        // FKB, VKB and DKB once more with the capture of 32-bit atomics.
+        capture: match label.ends_with("_portable") {
+            true => dhoit_runtime::gpu::Capture::Portable,
+            false => dhoit_runtime::gpu::Capture::Wide,
+        },
     }
 }
 
@@ -358,7 +363,8 @@ fn bench_nets(gpu: &dhoit_runtime::gpu::Gpu) -> BenchNets {
 /// once with the network's weights staged in workgroup memory; FKB once more with its slots
 /// laid out layer-major; DKB with its records in one batch (the pool sized for all of them);
 /// and DKB with the 16-8 network, and with the default one at f16-math
-/// (binary16 hidden layers) where the device has them. `cpu` is in [`GPU_METHODS`]' order.
+/// (binary16 hidden layers) where the device has them; FKB, VKB and DKB with the portable
+/// capture (32-bit atomics, two passes). `cpu` is in [`GPU_METHODS`]' order.
 /// A method whose allocation the budget refuses (`None`: FKB below a slot a pixel) has no runs.
 fn bench_runs(
     cpu: &[Option<dhoit_runtime::frame::Allocation>],
@@ -379,6 +385,9 @@ fn bench_runs(
             ("fkb_layer_major", Method::Fkb, &cpu[1]),
             ("dkb_16-8", Method::Dkb, &cpu[4]),
             ("dkb_f16_math", Method::Dkb, &cpu[4]),
+            ("fkb_portable", Method::Fkb, &cpu[1]),
+            ("vkb_portable", Method::Vkb, &cpu[3]),
+            ("dkb_portable", Method::Dkb, &cpu[4]),
         ])
         .filter_map(|(label, m, f)| f.as_ref().map(|f| (label, m, f)))
         .collect()
@@ -635,7 +644,32 @@ fn scene_figures(
             "allocation_ms": pass("dkb", "allocation"),
             "allocation_ms_spread": pass("dkb_spread_search", "allocation"),
         },
+        "portable_capture": portable_capture(&ms, &pass),
     }))
+}
+
+/// The k-buffers' frames and captures with 64-bit atomics (one pass) and with 32-bit ones (two
+/// passes, the portable capture), from one scene's runs: `ms` a run's frame, `pass` one of its
+/// passes (NaN where it has none).
+fn portable_capture(
+    ms: &dyn Fn(&str) -> f64,
+    pass: &dyn Fn(&str, &str) -> f64,
+) -> serde_json::Value {
+    let mut out = serde_json::Map::new();
+    for m in ["fkb", "vkb", "dkb"] {
+        let portable = format!("{m}_portable");
+        let two = pass(&portable, "capture depths") + pass(&portable, "capture colours");
+        out.insert(
+            m.into(),
+            serde_json::json!({
+                "frame_gpu_ms_wide": ms(m), "frame_gpu_ms_portable": ms(&portable),
+                "frame_portable_over_wide": ms(&portable) / ms(m),
+                "capture_ms_wide": pass(m, "capture"),
+                "capture_ms_portable": two,
+            }),
+        );
+    }
+    serde_json::Value::Object(out)
 }
 
 /// Per-pass GPU times (timestamp queries) and whole-frame times per method: one cold frame,
@@ -766,6 +800,31 @@ fn frame_tables(scenes: &[serde_json::Value]) -> String {
             cell(ratio(k), 2),
         );
     }
+    let portable: Vec<_> = scenes
+        .iter()
+        .filter(|v| v["portable_capture"].is_object())
+        .collect();
+    if !portable.is_empty() {
+        t.push_str(
+            "\n| scene | method | frame ms, 64-bit atomics | frame ms, portable | portable/64-bit | capture ms, 64-bit | capture ms, portable (2 passes) |\n|---|---|---:|---:|---:|---:|---:|\n",
+        );
+        for v in portable {
+            let name = v["scene"].as_str().unwrap_or("?");
+            for m in ["fkb", "vkb", "dkb"] {
+                let e = &v["portable_capture"][m];
+                let f = |k: &str| e[k].as_f64();
+                let _ = writeln!(
+                    t,
+                    "| {name} | {m} | {} | {} | {} | {} | {} |",
+                    cell(f("frame_gpu_ms_wide"), 0),
+                    cell(f("frame_gpu_ms_portable"), 0),
+                    cell(f("frame_portable_over_wide"), 2),
+                    cell(f("capture_ms_wide"), 1),
+                    cell(f("capture_ms_portable"), 1),
+                );
+            }
+        }
+    }
     let orbits: Vec<_> = scenes
         .iter()
         .filter(|v| v["sequence"].is_object())
@@ -818,6 +877,9 @@ mod tests {
             serde_json::json!({"scene": "shells", "methods": {
                 "abuffer": {"frame_gpu_ms": 200.0}, "vkb": {"frame_gpu_ms": 250.0},
                 "dkb": {"frame_gpu_ms": 300.0}, "wboit": {"frame_gpu_ms": 50.0}},
+                "portable_capture": {"fkb": {"frame_gpu_ms_wide": 100.0,
+                    "frame_gpu_ms_portable": 130.0, "frame_portable_over_wide": 1.3,
+                    "capture_ms_wide": 40.0, "capture_ms_portable": 70.0}},
                 "sequence": {"methods": {"dkb": {"fps_two_in_flight": 3.5,
                     "fps_one_at_a_time": 3.25, "frame_gpu_ms": 280.0,
                     "sync_waits_per_frame": 0.0, "mean_abs_error": 0.001,
@@ -832,6 +894,11 @@ mod tests {
             "{t}"
         );
         assert!(t.contains("| hair | refused |"), "{t}");
+        assert!(
+            t.contains("| shells | fkb | 100 | 130 | 1.30 | 40.0 | 70.0 |")
+                && t.contains("| shells | dkb | - | - | - | - | - |"),
+            "{t}"
+        );
         assert!(
             t.contains(
                 "| shells | dkb | 3.50 | 3.25 | 280.0 | 0 | 1.00e-3 | 2.00e-4 | 3/240 | 0/240 |"

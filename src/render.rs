@@ -6,7 +6,7 @@ use clap::{Args, ValueEnum};
 use dhoit_runtime::budget::{Budget, format_bytes};
 use dhoit_runtime::dump;
 use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
-use dhoit_runtime::gpu::{FrameOptions, Gpu, Slots};
+use dhoit_runtime::gpu::{Capture, FrameOptions, Gpu, Slots};
 use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::Precision;
 use dhoit_runtime::scene::Camera;
@@ -63,6 +63,11 @@ pub struct RenderArgs {
     /// else f32.
     #[arg(long)]
     precision: Option<Precision>,
+    /// How the k-buffers (fkb, vkb, dkb, optimal, greedy) capture on the GPU: wide (64-bit
+    /// atomics, one geometry pass) or portable (32-bit atomics alone, two passes: the capture
+    /// a device without 64-bit atomics runs). The images are the same.
+    #[arg(long, default_value = "wide", value_parser = parse_capture)]
+    capture: Capture,
     /// Output image, sRGB: .png, or .jpg (lossy, for sharing).
     #[arg(long)]
     out: PathBuf,
@@ -72,6 +77,10 @@ pub struct RenderArgs {
     /// Also write a heat map of the per-pixel k actually used (min(k, n)): .png or .jpg.
     #[arg(long)]
     kmap: Option<PathBuf>,
+}
+
+fn parse_capture(name: &str) -> std::result::Result<Capture, String> {
+    Capture::parse(name).map_err(|e| e.to_string())
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
@@ -123,6 +132,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             let opts = FrameOptions {
                 exact_when_cheaper: options.exact_when_cheaper,
                 record_batches: options.record_batches,
+                capture: a.capture,
                 ..FrameOptions::default()
             };
             let g = gpu.render_with(&opts, &scene, &cam, (w, h), a.common.background, slots)?;

@@ -581,6 +581,36 @@ fn the_gpu_renders_from_the_command_line() {
                 .map(|p| p.rsplitn(3, ' ').nth(2).unwrap_or("").to_string())
                 .collect::<Vec<_>>()
         };
+        if method == "fkb" || method == "dkb" {
+            // The portable capture: its two passes, the same picture.
+            let portable = dir.join(format!("{method}-portable.png"));
+            let p = render(
+                method,
+                &["--capture", "portable", "--out", portable.to_str().unwrap()],
+            );
+            assert!(p.status.success(), "{}", String::from_utf8_lossy(&p.stderr));
+            let n = names(&p);
+            assert!(
+                n.iter().any(|x| x == "capture depths")
+                    && n.iter().any(|x| x == "capture colours")
+                    && !n.iter().any(|x| x == "capture"),
+                "{method} --capture portable: {n:?}"
+            );
+            assert!(
+                std::fs::read(&portable).unwrap() == std::fs::read(&out).unwrap(),
+                "{method}: the portable capture's picture differs"
+            );
+            let bad = render(
+                method,
+                &["--capture", "narrow", "--out", portable.to_str().unwrap()],
+            );
+            assert!(
+                !bad.status.success()
+                    && String::from_utf8_lossy(&bad.stderr).contains("no capture 'narrow'"),
+                "{}",
+                String::from_utf8_lossy(&bad.stderr)
+            );
+        }
         if method == "vkb" || method == "dkb" {
             // One allocation (no second submission) and the importance pass where the budget
             // truncates: the CPU counted the frame's fragments.

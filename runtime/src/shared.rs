@@ -45,10 +45,10 @@ pub const PLAN_F_WORD: u32 = 6;
 pub const PLAN_FLAGS_WORD: u32 = 7;
 /// The resolves' status word 0 (gpu's `FrameStatus`): a pixel's loops came close to the
 /// device's limit.
-pub const STATUS_NEAR_LOOP: u64 = 1;
+pub const STATUS_NEAR_LOOP: u32 = 1;
 /// ... a pool sized before the frame's count held fewer of its fragments than it has (the
 /// A-buffer's: the pixels past its end hold none).
-pub const STATUS_POOL_SHORT: u64 = 2;
+pub const STATUS_POOL_SHORT: u32 = 2;
 /// Pixels whose allocation marks one u32 holds: the allocation marks the pixels whose k rises
 /// at the next level one bit each, and ranks a marked pixel by the marks before it.
 pub const MARK_BITS: u64 = 32;

@@ -38,8 +38,13 @@ pub mod shaders {
         pub includes: &'static [&'static str],
     }
 
+    /// The 64-bit key and status word the passes that use 64-bit integers share.
+    pub const KEYS64: &str = include_str!("../../shaders/keys64.wgsl");
+
     /// The k-buffer's Loop64 insertion and tail, which the capture runs (capture.wgsl).
     pub const KBUFFER_INSERT: &str = include_str!("../../shaders/kbuffer_insert.wgsl");
+    /// The same with 32-bit atomics alone, in two passes (the portable capture).
+    pub const KBUFFER_PORTABLE: &str = include_str!("../../shaders/kbuffer_portable.wgsl");
 
     /// The module an application's transparent fragment shader starts with: `parts` (what
     /// the store module includes, then the module) joined, their bindings at `group`.
@@ -150,7 +155,30 @@ pub mod shaders {
         ))
     }
 
-    pub const PASSES: [Pass; 22] = [
+    /// The passes that use no 64-bit integer (no `SHADER_INT64`, no 64-bit atomics): what a
+    /// device without them (WebGPU, most of Metal) can build. The others need both features.
+    pub const PORTABLE: &[&str] = &[
+        "opaque",
+        "abuffer_count",
+        "scan",
+        "capture_depths",
+        "capture_colours",
+        "wboit_accumulate",
+        "mboit_moments",
+        "mboit_accumulate",
+        "blend_composite",
+        "vkb_count",
+        "importance_vkb",
+        "predict",
+        "abuffer_store",
+        "abuffer_resolve",
+        "resolve",
+        "mlab_resolve",
+        "list_store",
+        "list_resolve",
+    ];
+
+    pub const PASSES: [Pass; 24] = [
         Pass {
             name: "opaque",
             source: include_str!("../../shaders/opaque.wgsl"),
@@ -180,6 +208,24 @@ pub mod shaders {
             name: "capture",
             source: include_str!("../../shaders/capture.wgsl"),
             includes: &[GEOMETRY, KBUFFER_INSERT],
+        },
+        Pass {
+            name: "capture_depths",
+            source: include_str!("../../shaders/capture.wgsl"),
+            includes: &[
+                GEOMETRY,
+                KBUFFER_PORTABLE,
+                "const CAPTURE_COLOURS: bool = false;",
+            ],
+        },
+        Pass {
+            name: "capture_colours",
+            source: include_str!("../../shaders/capture.wgsl"),
+            includes: &[
+                GEOMETRY,
+                KBUFFER_PORTABLE,
+                "const CAPTURE_COLOURS: bool = true;",
+            ],
         },
         Pass {
             name: "resolve",
@@ -229,7 +275,7 @@ pub mod shaders {
         Pass {
             name: "features",
             source: include_str!("../../shaders/features.wgsl"),
-            includes: &[GEOMETRY],
+            includes: &[GEOMETRY, KEYS64],
         },
         Pass {
             name: "totals",
@@ -278,7 +324,6 @@ pub mod shaders {
     #[derive(Clone, Copy, Debug, PartialEq)]
     pub enum Value {
         U32(u32),
-        U64(u64),
         F32(f32),
     }
 
@@ -291,7 +336,7 @@ pub mod shaders {
         };
         use crate::shared::{AMBIENT, MAX_FRAGMENTS_PER_PIXEL, PPM, SCAN_BLOCK, SCAN_GROUP};
         use crate::{alloc, importance, mlp};
-        use Value::{F32, U32, U64};
+        use Value::{F32, U32};
         vec![
             ("AMBIENT", F32(AMBIENT)),
             ("PIXEL_GROUP", U32(PIXEL_GROUP)),
@@ -319,7 +364,6 @@ pub mod shaders {
             ("PAIR_BIT", U32(alloc::PAIR_BIT)),
             ("IMPORTANCE_SCALE", F32(alloc::IMPORTANCE_SCALE)),
             ("MAX_IMPORTANCE", F32(alloc::MAX_IMPORTANCE)),
-            ("OCCUPIED", U64(importance::OCCUPIED)),
             ("LOG_FLOOR", F32(importance::LOG_FLOOR)),
             ("OPTICAL_DEPTH_UNIT", F32(importance::OPTICAL_DEPTH_UNIT)),
             ("MAX_STANDARDISED", F32(mlp::MAX_STANDARDISED)),
@@ -346,8 +390,8 @@ pub mod shaders {
             ("RECORD_WORDS", U32(crate::shared::RECORD_WORDS)),
             ("NO_RECORD", U32(crate::shared::NO_RECORD)),
             ("TOTALS_WORDS", U32(crate::shared::TOTALS_WORDS)),
-            ("STATUS_NEAR_LOOP", U64(crate::shared::STATUS_NEAR_LOOP)),
-            ("STATUS_POOL_SHORT", U64(crate::shared::STATUS_POOL_SHORT)),
+            ("STATUS_NEAR_LOOP", U32(crate::shared::STATUS_NEAR_LOOP)),
+            ("STATUS_POOL_SHORT", U32(crate::shared::STATUS_POOL_SHORT)),
             ("PLAN_F_WORD", U32(crate::shared::PLAN_F_WORD)),
             ("PLAN_FLAGS_WORD", U32(crate::shared::PLAN_FLAGS_WORD)),
             ("PLAN_SHORT_SLOTS", U32(crate::plan::SHORT_SLOTS)),
@@ -379,7 +423,6 @@ pub mod shaders {
                 // Debug prints the shortest decimal that reads back as the same f32.
                 Value::F32(x) => ("f32", format!("{x:?}")),
                 Value::U32(x) => ("u32", format!("{x}u")),
-                Value::U64(x) => ("u64", format!("{x}lu")),
             };
             s.push_str(&format!("const {name}: {ty} = {value};\n"));
         }
@@ -952,10 +995,6 @@ mod tests {
         assert_eq!(
             value("PAIR_BIT"),
             naga::Literal::U32(crate::alloc::PAIR_BIT)
-        );
-        assert_eq!(
-            value("OCCUPIED"),
-            naga::Literal::U64(crate::importance::OCCUPIED)
         );
         assert_eq!(value("MAX_F32"), naga::Literal::F32(f32::MAX));
     }

@@ -28,6 +28,18 @@ fn every_shader_validates_and_translates_without_a_gpu() {
         let caps = Capabilities::SHADER_INT64
             | Capabilities::SHADER_INT64_ATOMIC_ALL_OPS
             | Capabilities::SHADER_FLOAT16_IN_FLOAT32;
+        // The portable passes without 64-bit integers, as a WebGPU or Metal device without
+        // them validates them; every other pass needs them.
+        let narrow = caps - Capabilities::SHADER_INT64 - Capabilities::SHADER_INT64_ATOMIC_ALL_OPS;
+        let without = Validator::new(ValidationFlags::all(), narrow).validate(&module);
+        let portable = shaders::PORTABLE.contains(&name);
+        assert_eq!(
+            without.is_ok(),
+            portable,
+            "{name}: validates without 64-bit integers: {}, listed portable: {portable}",
+            without.is_ok()
+        );
+        let caps = if portable { narrow } else { caps };
         let info = Validator::new(ValidationFlags::all(), caps)
             .validate(&module)
             .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
@@ -40,9 +52,10 @@ fn every_shader_validates_and_translates_without_a_gpu() {
                 entry_point: Some((ep.stage, ep.name.clone())),
                 ..Default::default()
             };
-            // MSL 2.4: fragment stages that write storage (1.2) and 64-bit atomics (2.4).
+            // MSL 2.4: fragment stages that write storage (1.2) and 64-bit atomics (2.4); the
+            // portable passes in MSL 2.1 (every Mac and iPhone wgpu supports).
             let msl_options = naga::back::msl::Options {
-                lang_version: (2, 4),
+                lang_version: if portable { (2, 1) } else { (2, 4) },
                 ..Default::default()
             };
             naga::back::msl::write_string(&module, &info, &msl_options, &msl)
@@ -57,7 +70,10 @@ fn every_shader_validates_and_translates_without_a_gpu() {
         }
         accepted.push(name.to_string());
     }
-    eprintln!("SPIR-V, MSL and HLSL accept every entry point of {accepted:?}");
+    eprintln!(
+        "SPIR-V, MSL and HLSL accept every entry point of {accepted:?}; {:?} without 64-bit integers",
+        shaders::PORTABLE
+    );
 }
 
 /// One real scene among the GPU tests: the flight helmet from ../shared/scenes (or
@@ -2285,4 +2301,122 @@ fn the_plan_pass_matches_its_cpu_twin() {
         exact > 0 && short > 0 && truncated > 0,
         "{exact} {short} {truncated}"
     );
+}
+
+/// A frame of `layers` coplanar-in-groups quads: over the left half `layers` quads in groups
+/// of three at one depth (equal depths, other colours), over the right half a few at distinct
+/// depths, one pixel-row strip of a single quad: ties, truncated and whole pixels.
+fn tied_layers(layers: usize) -> Scene {
+    let mut s = Scene::default();
+    let v = glam::Vec3::new;
+    for i in 0..layers + 4 {
+        // Three quads a depth on the left; distinct depths on the right.
+        let z = if i < layers {
+            0.1 + 0.8 * (i / 3) as f32 / (layers / 3 + 1) as f32
+        } else {
+            0.15 + 0.2 * (i - layers) as f32
+        };
+        let (x0, x1) = if i < layers { (-1.0, 0.0) } else { (0.0, 1.0) };
+        let y1 = if i == layers + 3 { -0.6 } else { 1.0 };
+        let c = [
+            ((i * 7) % 5) as f32 / 4.0,
+            (i % 3) as f32 / 2.0,
+            ((i * 5) % 7) as f32 / 6.0,
+            0.2 + (i % 4) as f32 * 0.2,
+        ];
+        s.push_triangle([v(x0, -1.0, z), v(x1, -1.0, z), v(x0, y1, z)], [c; 3]);
+        s.push_triangle([v(x1, -1.0, z), v(x1, y1, z), v(x0, y1, z)], [c; 3]);
+    }
+    s
+}
+
+/// The portable capture (32-bit atomics, two passes) leaves the wide capture's slots, tails and
+/// image, bit for bit, for every k-buffer (FKB, uploaded k, DKB and VKB at budgets that
+/// truncate, append and hold every fragment), on fragments of equal depths too; both are their
+/// twin's (composite::capture orders equal depths by colour), and in every submission order
+/// each gives the same image.
+#[test]
+fn the_portable_capture_leaves_the_wide_captures_slots_and_image() {
+    use dhoit_runtime::gpu::Capture;
+    let Some(g) = gpu() else { return };
+    let s = tied_layers(composite::APPEND_MAX as usize + 9);
+    let cam = common::identity();
+    let (w, h) = (24, 16);
+    let gfl = gpu_fragments(g, &s, &cam, w, h);
+    // Ties: pixels whose fragments share a depth.
+    let ties = (0..gfl.pixel_count())
+        .filter(|&p| {
+            let mut d: Vec<u32> = gfl.fragments(p).map(|f| f.depth.to_bits()).collect();
+            let n = d.len();
+            d.sort_unstable();
+            d.dedup();
+            d.len() < n
+        })
+        .count();
+    assert!(ties > 0, "the scene has no equal depths");
+    let total = gfl.fragment_count() as u64;
+    let mlp = dhoit_runtime::mlp::Mlp::random(6);
+    let k: Vec<u32> = (0..gfl.pixel_count()).map(|p| (p % 5) as u32).collect();
+    let mut runs: Vec<(String, Slots)> = vec![
+        ("fkb k = 1".into(), Slots::Uniform(1)),
+        ("fkb k = 4".into(), Slots::Uniform(4)),
+        ("uploaded k".into(), Slots::PerPixel(&k)),
+    ];
+    for f in [total / 4, total / 2, total] {
+        runs.push((format!("dkb F = {f}"), Slots::Dkb(&mlp, f.into())));
+        runs.push((
+            format!("vkb F = {f}"),
+            Slots::Vkb(Default::default(), f.into()),
+        ));
+    }
+    let wide = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
+    let portable = dhoit_runtime::gpu::FrameOptions {
+        capture: Capture::Portable,
+        ..wide
+    };
+    for (label, slots) in runs {
+        let a = g
+            .render_with(&wide, &s, &cam, (w, h), BG, Some(slots))
+            .unwrap();
+        let b = g
+            .render_with(&portable, &s, &cam, (w, h), BG, Some(slots))
+            .unwrap();
+        assert!(
+            b.variants.contains(&"capture: portable") && !a.variants.contains(&"capture: portable"),
+            "{label}: ran {:?} / {:?}",
+            a.variants,
+            b.variants
+        );
+        let (keys, bases, tails) = b.slots.clone().unwrap();
+        assert!(a.slots == b.slots, "{label}: the slots or tails differ");
+        assert!(
+            image_bits(&a.image) == image_bits(&b.image),
+            "{label}: the images differ"
+        );
+        // Both are the twin's capture of the same k.
+        let kk: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
+        let (twin_keys, twin_tails) = twin_capture(&gfl, &kk);
+        assert!(
+            keys == twin_keys && tails == twin_tails,
+            "{label}: the capture is not its twin's"
+        );
+        let truncated = kk
+            .iter()
+            .zip(gfl.counts())
+            .filter(|&(&k, n)| (k as usize) < n as usize)
+            .count();
+        eprintln!("{label}: {truncated} pixels truncated, slots and image equal");
+        for seed in 0..2 {
+            let shuffled = s.shuffled(seed);
+            for (opts, name) in [(&wide, "wide"), (&portable, "portable")] {
+                let f = g
+                    .render_with(opts, &shuffled, &cam, (w, h), BG, Some(slots))
+                    .unwrap();
+                assert!(
+                    image_bits(&f.image) == image_bits(&a.image),
+                    "{label}: {name}, shuffle {seed}: another image"
+                );
+            }
+        }
+    }
 }

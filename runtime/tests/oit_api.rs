@@ -11,8 +11,8 @@ use common::{gpu, identity, quad};
 use dhoit_runtime::budget::{self, Budget, Occupancy};
 use dhoit_runtime::composite::{MboitParams, WboitParams, WboitWeight};
 use dhoit_runtime::gpu::{
-    self, AllocatedOit, BlendedOit, ExactOit, FrameOptions, FrameReport, FrameTargets, Gpu,
-    KBufferOit, ListOit, Oit, Phase, Slots,
+    self, AllocatedOit, BlendedOit, Capture, ExactOit, FrameOptions, FrameReport, FrameTargets,
+    Gpu, KBufferOit, ListOit, Oit, Phase, Slots,
 };
 use dhoit_runtime::scene::{Camera, Scene};
 
@@ -617,15 +617,30 @@ fn an_application_draws_through_dhoits_k_buffer_and_gets_dhoits_fkb_image_in_any
         let harness = g
             .render(&s, &identity(), w, h, BG, Some(Slots::Uniform(k)))
             .unwrap();
-        for reversed in [false, true] {
+        // Either capture: the portable one draws two passes with 32-bit atomics alone, into the
+        // same bytes.
+        for (reversed, capture) in [
+            (false, Capture::Wide),
+            (true, Capture::Wide),
+            (false, Capture::Portable),
+            (true, Capture::Portable),
+        ] {
             let (app, report) = app_frame(&s, (w, h), reversed, |g| {
-                Box::new(KBufferOit::new(g, (w, h), k, F32X4).unwrap())
+                let oit = KBufferOit::new(g, (w, h), k, F32X4)
+                    .unwrap()
+                    .with_capture(capture);
+                let phases = match capture {
+                    Capture::Wide => vec![Phase::Capture],
+                    Capture::Portable => vec![Phase::CaptureDepths, Phase::CaptureColours],
+                };
+                assert_eq!(oit.phases(), phases.as_slice());
+                Box::new(oit)
             });
             let worst = worst_difference(&app, &harness.image.data);
             assert!(
                 worst <= 1e-5,
-                "k = {k}, reversed {reversed}: the application's image differs from dhoit's \
-                 FKB by {worst}"
+                "k = {k}, reversed {reversed}, {capture:?}: the application's image differs \
+                 from dhoit's FKB by {worst}"
             );
             // budget::FKB's buffers for k slots a pixel; a hand count: 8 bytes a slot, 16 + 4
             // a pixel for the tail, params, status, two unused 16-byte bindings.
@@ -802,17 +817,22 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
                 off > 1e-3,
                 "{name} at {text} is exact ({off}): nothing truncated"
             );
-            for reversed in [false, true] {
+            // Reversed, once with the portable capture (two passes, 32-bit atomics alone).
+            for (reversed, capture) in [
+                (false, Capture::Wide),
+                (true, Capture::Wide),
+                (true, Capture::Portable),
+            ] {
                 let (app, report) = app_frame(&s, (w, h), reversed, |g| {
-                    let mut oit = make(g, b).exact_when_cheaper(false);
+                    let mut oit = make(g, b).exact_when_cheaper(false).with_capture(capture);
                     oit.expect(occ);
                     Box::new(oit)
                 });
                 let worst = worst_difference(&app, &harness.image.data);
                 assert!(
                     worst <= 1e-5,
-                    "{name} at {text}, reversed {reversed}: the application's image differs \
-                     from dhoit's by {worst}"
+                    "{name} at {text}, reversed {reversed}, {capture:?}: the application's \
+                     image differs from dhoit's by {worst}"
                 );
                 assert!(!report.exact && !report.pool_short, "{report:?}");
                 assert_eq!(
@@ -835,8 +855,15 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
                     "{name} at {text}: {:?}",
                     report.pass_ms
                 );
-                for pass in ["count", statistics, "importance", "capture", "resolve"] {
-                    let ms = report.pass_ms.iter().find(|(p, _)| p == &pass);
+                let captures: &[&str] = match capture {
+                    Capture::Wide => &["capture"],
+                    Capture::Portable => &["capture depths", "capture colours"],
+                };
+                for pass in ["count", statistics, "importance", "resolve"]
+                    .iter()
+                    .chain(captures)
+                {
+                    let ms = report.pass_ms.iter().find(|(p, _)| p == pass);
                     assert!(
                         ms.is_some_and(|(_, ms)| *ms > 0.0),
                         "{name}, {pass}: {:?}",

@@ -19,7 +19,7 @@ use std::cell::RefCell;
 use super::passes::{Geometry, GeometryPass, Phase, Resolve};
 use super::pipelines::{compute_pipeline, module_from, redeclare};
 use super::stream::{AppMethod, FrameReport, Stream};
-use super::{Gpu, frame_params};
+use super::{Capture, Gpu, frame_params};
 use crate::budget::{Budget, Occupancy};
 use crate::composite::{MboitParams, WboitParams};
 use crate::error::{Error, GpuError, Result};
@@ -205,9 +205,13 @@ impl AppFrame {
     ) -> Result<AppFrame> {
         check_target_format(format, method.name())?;
         let stream = Stream::new(gpu, size, method, budget)?;
-        let layouts = stream
-            .method
-            .phases()
+        // Every phase's layout, with either capture.
+        let mut phases = stream.method.phases(Capture::Wide).to_vec();
+        phases.extend(stream.method.phases(Capture::Portable));
+        phases.dedup();
+        phases.sort_by_key(|p| *p as u8);
+        phases.dedup();
+        let layouts = phases
             .iter()
             .map(|&phase| {
                 (
@@ -319,10 +323,10 @@ impl AppFrame {
 
     fn check_phase(&self, phase: Phase) {
         assert!(
-            self.stream.method.phases().contains(&phase),
+            self.stream.phases().contains(&phase),
             "{phase:?} is not a pass of {} (its phases: {:?})",
             self.stream.method.name(),
-            self.stream.method.phases()
+            self.stream.phases()
         );
     }
 
@@ -357,6 +361,8 @@ fn storing_pass(phase: Phase) -> (&'static str, &'static [(&'static str, &'stati
                 "const EVERY_FRAGMENT_FITS: bool = true;",
             )],
         ),
+        Phase::CaptureDepths => ("capture_depths", &[]),
+        Phase::CaptureColours => ("capture_colours", &[]),
         Phase::ListStore => ("list_store", &[]),
         Phase::WboitAccumulate | Phase::MboitMoments | Phase::MboitAccumulate => {
             unreachable!("{phase:?} blends into targets")
@@ -398,7 +404,7 @@ fn bindings_of(method: &AppMethod, phase: Phase) -> Vec<Binding> {
         Phase::Store => vec![Read, ReadWrite, ReadWrite, ReadWrite],
         Phase::Features => vec![Read, ReadWrite, Uniform, Read],
         Phase::VkbCount => vec![ReadWrite, ReadWrite],
-        Phase::Capture | Phase::CaptureFits => {
+        Phase::Capture | Phase::CaptureFits | Phase::CaptureDepths | Phase::CaptureColours => {
             vec![Read, ReadWrite, ReadWrite, ReadWrite, ReadWrite]
         }
         Phase::ListStore => vec![ReadWrite; 4],
@@ -620,7 +626,7 @@ macro_rules! oit_of_app_frame {
                 self.0.format
             }
             fn phases(&self) -> &[Phase] {
-                self.0.stream.method.phases()
+                self.0.stream.phases()
             }
             fn store_module(&self, phase: Phase, group: u32) -> String {
                 self.0.store_module(phase, group)
@@ -715,6 +721,15 @@ impl KBufferOit {
             None,
             format,
         )?))
+    }
+
+    /// With `capture`, the frames to come insert their fragments as it says
+    /// ([`Capture::Portable`]: two passes with 32-bit atomics, [`Oit::phases`] then draws
+    /// [`Phase::CaptureDepths`] and [`Phase::CaptureColours`] in place of [`Phase::Capture`]).
+    /// The images are the same.
+    pub fn with_capture(mut self, capture: Capture) -> KBufferOit {
+        self.0.stream.capture = capture;
+        self
     }
 
     /// The slots a pixel.
@@ -826,6 +841,13 @@ impl AllocatedOit {
     /// answer, and where the memory it holds has room for it, the frame is exact).
     pub fn exact_when_cheaper(mut self, exact: bool) -> AllocatedOit {
         self.0.stream.exact_when_cheaper = exact;
+        self
+    }
+
+    /// With `capture`, the frames to come insert their fragments as it says (as
+    /// [`KBufferOit::with_capture`]).
+    pub fn with_capture(mut self, capture: Capture) -> AllocatedOit {
+        self.0.stream.capture = capture;
         self
     }
 }

@@ -261,16 +261,17 @@ pub(super) fn read_back_with<T>(
     )
 }
 
-/// What a frame's resolve reports in its status buffer (two 64-bit words, common.wgsl's
-/// `deepest_word`): whether a pixel's loops came close to the device's limit, and the deepest
-/// pixel over [`crate::raster::MAX_FRAGMENTS_PER_PIXEL`] fragments, if any.
+/// What a frame's resolve reports in its status buffer (four 32-bit words, common.wgsl's
+/// `STATUS_WORDS`): whether a pixel's loops came close to the device's limit, and the pixels
+/// over [`crate::raster::MAX_FRAGMENTS_PER_PIXEL`] fragments, if any.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(super) struct FrameStatus {
     pub(super) near_loop_limit: bool,
     /// Whether the frame's pool, sized before its count, held fewer of its fragments than it
     /// has (the A-buffer's: the pixels past its end hold none).
     pub(super) pool_short: bool,
-    /// (n, pixel index) of the deepest such pixel (the largest index among equals).
+    /// (n, pixel index): the largest count of such a pixel, and the largest index of one
+    /// (with 32-bit atomics, not always the same pixel's).
     pub(super) too_deep: Option<(u32, u32)>,
 }
 
@@ -281,8 +282,8 @@ impl FrameStatus {
         let word = |i: usize| u64::from_le_bytes(bytes[8 * i..8 * i + 8].try_into().expect("8"));
         let deepest = word(1);
         FrameStatus {
-            near_loop_limit: word(0) & crate::shared::STATUS_NEAR_LOOP != 0,
-            pool_short: word(0) & crate::shared::STATUS_POOL_SHORT != 0,
+            near_loop_limit: word(0) & crate::shared::STATUS_NEAR_LOOP as u64 != 0,
+            pool_short: word(0) & crate::shared::STATUS_POOL_SHORT as u64 != 0,
             too_deep: (deepest != 0).then_some(((deepest >> 32) as u32, deepest as u32)),
         }
     }
@@ -293,13 +294,14 @@ impl FrameStatus {
         if let Some((n, p)) = self.too_deep {
             let (x, y) = (p % width, p / width);
             let max = crate::raster::MAX_FRAGMENTS_PER_PIXEL;
-            // A count that stopped (counts.wgsl) says only that the pixel had more.
-            let n = match n <= crate::shared::COUNT_SATURATED {
-                true => format!("more than {max}"),
-                false => n.to_string(),
+            // A count that stopped (counts.wgsl) says only that a pixel had more; a larger one
+            // may be another pixel's.
+            let deepest = match n <= crate::shared::COUNT_SATURATED {
+                true => String::new(),
+                false => format!(" (the deepest {n})"),
             };
             return Err(Error::Invalid(format!(
-                "pixel ({x}, {y}) has {n} fragments; at most {max} fit one pixel"
+                "pixel ({x}, {y}) has more than {max} fragments{deepest}; at most {max} fit one pixel"
             )));
         }
         if self.near_loop_limit && gpu.bounded_loops {

@@ -7,7 +7,7 @@ use super::allocate::{AllocBuffers, Importance, Word};
 use super::buffers::{FrameStatus, read_back, read_counts, read_u64s, u32s};
 use super::passes::{Phase, Resolve, entries, entries_from};
 use super::scan::Scan;
-use super::{Planned, Recording, Slots};
+use super::{Capture, Planned, Recording, Slots};
 use crate::error::{Error, Result};
 use crate::shared::count_bytes;
 
@@ -176,7 +176,9 @@ impl Recording<'_, '_, '_> {
         let pooled = matches!(kb.slots, SlotsAt::Pooled(_));
         // Where the host knows k = n everywhere, the pipelines built for it (the same slots,
         // tail and image).
-        let fits = passes.opts.two_mode_capture && passes.opts.fits_pipelines && kb.all_fit;
+        let portable = passes.opts.capture == Capture::Portable;
+        let fits =
+            passes.opts.two_mode_capture && passes.opts.fits_pipelines && kb.all_fit && !portable;
         let (phase, capture, resolve, own) = if fits {
             self.out.variants.push("capture: built for frames that fit");
             (
@@ -194,13 +196,28 @@ impl Recording<'_, '_, '_> {
                 &p.resolve,
             )
         };
-        passes.draw(
-            fb.enc,
-            phase,
-            capture,
-            &[&kb.base, &slots, &tail, &tail_count, &kb.counts],
-            "capture",
-        );
+        let group = [&kb.base, &slots, &tail, &tail_count, &kb.counts];
+        if portable {
+            // The same slots and tails, in two passes with 32-bit atomics.
+            self.out.variants.push("capture: portable");
+            let [depths, colours] = gpu.extras().portable_capture();
+            passes.draw(
+                fb.enc,
+                Phase::CaptureDepths,
+                depths,
+                &group,
+                "capture depths",
+            );
+            passes.draw(
+                fb.enc,
+                Phase::CaptureColours,
+                colours,
+                &group,
+                "capture colours",
+            );
+        } else {
+            passes.draw(fb.enc, phase, capture, &group, "capture");
+        }
         // With diagnostics, the cursors as the capture left them, before the resolve sorts
         // what the append mode spilled ([`super::GpuFrame::capture_counts`]): per pixel, the
         // tail counts (n where a pixel appended, what insertion pushed out where it inserted),
@@ -265,7 +282,10 @@ impl Recording<'_, '_, '_> {
                 .zip(tail_counts)
                 .flat_map(|(s, c)| [s[0], s[1], s[2], s[3], c])
                 .collect();
-            let mut keys = read_u64s(gpu, &slots, n, true)?;
+            let mut keys: Vec<u64> = read_u64s(gpu, &slots, n, false)?
+                .into_iter()
+                .map(slot_key)
+                .collect();
             if let (Some(k), true) = (uniform, layer_major) {
                 // Pixel-major, as composite::capture gives them.
                 let (k, n) = (k as usize, px as usize);
@@ -278,6 +298,17 @@ impl Recording<'_, '_, '_> {
             Ok(())
         }));
         Ok(())
+    }
+}
+
+/// A slot's key as [`crate::fragment::fragment_key`] gives it, from the slot as stored: the
+/// complement of its depth word high and its colour word low, the fragment's RGBA8 less 2^24
+/// (common.wgsl's slot_colour_word); an empty (zero) slot reads `u64::MAX`.
+pub(super) fn slot_key(stored: u64) -> u64 {
+    if stored == 0 {
+        u64::MAX
+    } else {
+        (!stored) + (1 << 24)
     }
 }
 
@@ -296,8 +327,7 @@ fn unpool(spans: &[u32], counts: &[u32], pool: &[u64]) -> (Vec<u64>, Vec<u32>, V
     for (w, &n) in spans.windows(2).zip(counts) {
         let (at, span) = (w[0] as usize, w[1] - w[0]);
         let k = crate::shared::k_of_span(span, n) as usize;
-        // Slots hold complemented keys.
-        keys.extend(pool[at..at + k].iter().map(|&v| !v));
+        keys.extend(pool[at..at + k].iter().map(|&v| slot_key(v)));
         bases.push(bases.last().copied().unwrap_or(0) + k as u32);
         let t = if span < n {
             let t = &pool[at + k..at + k + crate::shared::TAIL_WORDS as usize];

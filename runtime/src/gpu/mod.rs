@@ -261,6 +261,47 @@ pub struct FrameOptions {
     /// memory where the records outweigh the slots (the bench measures both; the CPU's
     /// accounting, `frame::Options`, counts the default). The images are the same.
     pub record_batches: u64,
+    /// How the k-buffers (FKB, DKB, VKB, uploaded k or importance) insert fragments into their
+    /// slots: with 64-bit atomics in one geometry pass, or with 32-bit atomics alone in two
+    /// ([`Capture`]). The slots, tails and images are the same, bit for bit.
+    pub capture: Capture,
+}
+
+/// How a k-buffer's capture inserts a fragment's 64-bit key (its depth, then its colour) into
+/// a pixel's slots.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Capture {
+    /// One geometry pass, NVIDIA's Loop64: a 64-bit `atomicMax` a slot (`SHADER_INT64_ATOMIC_ALL_OPS`).
+    #[default]
+    Wide,
+    /// Two geometry passes with 32-bit atomics alone, for devices without 64-bit ones (WebGPU,
+    /// Metal, most phones): the first inserts each fragment's depth into the slots' depth
+    /// words, the second its colour into the colour words of the slots holding its depth, the
+    /// colours of equal depths in the order of their RGBA8 words (as the 64-bit key orders
+    /// them); a fragment left out of the slots goes to the tail. The same bytes a slot and a
+    /// pixel as [`Capture::Wide`], one more geometry pass.
+    Portable,
+}
+
+impl Capture {
+    /// The capture's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Capture::Wide => "wide",
+            Capture::Portable => "portable",
+        }
+    }
+
+    /// The capture named `name` (`wide` or `portable`).
+    pub fn parse(name: &str) -> Result<Capture> {
+        match name {
+            "wide" => Ok(Capture::Wide),
+            "portable" => Ok(Capture::Portable),
+            other => Err(Error::Invalid(format!(
+                "no capture '{other}': wide (64-bit atomics) or portable (32-bit atomics)"
+            ))),
+        }
+    }
 }
 
 impl Default for FrameOptions {
@@ -278,6 +319,7 @@ impl Default for FrameOptions {
             counted_bytes: None,
             diagnostics: true,
             record_batches: crate::budget::RECORD_BATCHES,
+            capture: Capture::Wide,
         }
     }
 }

@@ -24,6 +24,12 @@ pub enum Phase {
     Capture,
     /// The capture built for frames whose budget holds every fragment (k = n).
     CaptureFits,
+    /// The portable capture's first pass: each fragment's depth into the slots
+    /// ([`super::Capture::Portable`]; capture.wgsl with kbuffer_portable.wgsl).
+    CaptureDepths,
+    /// The portable capture's second pass, over the same fragments: each one's colour into the
+    /// slots holding its depth, or into the tail.
+    CaptureColours,
     /// The budgeted linked list's store (list_store.wgsl).
     ListStore,
     /// WBOIT's accumulation into its two targets (wboit_accumulate.wgsl).

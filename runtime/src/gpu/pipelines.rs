@@ -547,8 +547,8 @@ type MboitPasses = [Option<(wgpu::RenderPipeline, wgpu::RenderPipeline)>; 3];
 
 /// The passes only some methods draw, each built the first time a frame asks for it, so a
 /// renderer that never draws them (an application's DKB or VKB) never compiles them: MLAB's
-/// resolve, WBOIT's and MBOIT's passes and composites, the list's, and the bench's features
-/// pass without its preload.
+/// resolve, WBOIT's and MBOIT's passes and composites, the list's, the portable capture, and
+/// the bench's features pass without its preload.
 #[derive(Default)]
 struct Extras {
     mlab_resolve: OnceLock<wgpu::ComputePipeline>,
@@ -556,6 +556,7 @@ struct Extras {
     mboit: OnceLock<(MboitPasses, wgpu::ComputePipeline)>,
     list: OnceLock<(wgpu::RenderPipeline, wgpu::ComputePipeline)>,
     features_no_preload: OnceLock<wgpu::RenderPipeline>,
+    portable_capture: OnceLock<[wgpu::RenderPipeline; 2]>,
 }
 
 /// The extras' pipelines, as [`Gpu::extras`] hands them out.
@@ -611,6 +612,15 @@ impl<'a> ExtraPipelines<'a> {
             let device = self.device();
             let store = transparent_pipeline(device, "list_store", &module(device, "list_store"));
             (store, compute_of(device, "list_resolve", "main"))
+        })
+    }
+
+    /// The portable capture's depth and colour passes (32-bit atomics alone).
+    pub(super) fn portable_capture(self) -> &'a [wgpu::RenderPipeline; 2] {
+        self.extras().portable_capture.get_or_init(|| {
+            let device = self.device();
+            ["capture_depths", "capture_colours"]
+                .map(|name| transparent_pipeline(device, name, &module(device, name)))
         })
     }
 

@@ -7,7 +7,7 @@
 use super::buffers::FrameStatus;
 use super::passes::{Geometry, Phase};
 use super::timer::Timer;
-use super::{FrameOptions, FrameSpec, Gpu, Sizing, Slots};
+use super::{Capture, FrameOptions, FrameSpec, Gpu, Sizing, Slots};
 use crate::budget::{self, Budget, FragmentBudget, Layout, Occupancy};
 use crate::composite::{MboitParams, WboitParams};
 use crate::error::{Error, GpuError, Result};
@@ -71,12 +71,25 @@ impl AppMethod {
         }
     }
 
-    pub(super) fn phases(&self) -> &'static [Phase] {
+    /// The geometry passes a frame draws, in order, with the k-buffers' capture `capture`.
+    pub(super) fn phases(&self, capture: Capture) -> &'static [Phase] {
+        const PORTABLE: [Phase; 2] = [Phase::CaptureDepths, Phase::CaptureColours];
+        let portable = capture == Capture::Portable;
         match self {
             AppMethod::List { .. } => &[Phase::ListStore],
+            AppMethod::Fkb { .. } if portable => &PORTABLE,
             AppMethod::Fkb { .. } => &[Phase::Capture],
             AppMethod::Abuffer | AppMethod::Mlab { .. } => &[Phase::Count, Phase::Store],
+            AppMethod::Dkb(_) if portable => &[
+                Phase::Count,
+                Phase::Features,
+                Phase::CaptureDepths,
+                Phase::CaptureColours,
+            ],
             AppMethod::Dkb(_) => &[Phase::Count, Phase::Features, Phase::Capture],
+            AppMethod::Vkb(_) if portable => {
+                &[Phase::VkbCount, Phase::CaptureDepths, Phase::CaptureColours]
+            }
             AppMethod::Vkb(_) => &[Phase::VkbCount, Phase::Capture],
             AppMethod::Wboit(_) => &[Phase::WboitAccumulate],
             AppMethod::Mboit(_) => &[Phase::MboitMoments, Phase::MboitAccumulate],
@@ -147,6 +160,8 @@ pub(super) struct Stream {
     /// DKB's and VKB's budget (the others' is in their method).
     pub(super) budget: Option<Budget>,
     pub(super) exact_when_cheaper: bool,
+    /// How the k-buffers insert their fragments ([`FrameOptions::capture`]).
+    pub(super) capture: Capture,
     /// The occupancy the buffers made before a frame's count hold: the largest of the last
     /// frames', with [`HEADROOM`] (before any, [`FIRST_FRAGMENTS_PER_PIXEL`] a pixel).
     pub(super) expected: Occupancy,
@@ -175,6 +190,7 @@ impl Stream {
             method,
             budget: None,
             exact_when_cheaper: true,
+            capture: Capture::Wide,
             expected: first_occupancy(size),
             frames: 0,
             last_bytes: 0,
@@ -185,6 +201,11 @@ impl Stream {
             f.set_budget(b)?;
         }
         Ok(f)
+    }
+
+    /// The geometry passes a frame of the method draws, in order.
+    pub(super) fn phases(&self) -> &'static [Phase] {
+        self.method.phases(self.capture)
     }
 
     pub(super) fn pixels(&self) -> u64 {
@@ -453,6 +474,7 @@ impl Stream {
         let opts = FrameOptions {
             diagnostics: false,
             exact_when_cheaper: self.exact_when_cheaper,
+            capture: self.capture,
             counted_bytes: match self.budget {
                 Some(Budget::Bytes(m)) => Some(m),
                 _ => None,
