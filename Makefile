@@ -6,7 +6,7 @@ RUN := $(CARGO) run --release --quiet --
 # Real glTF scenes for tests and evaluation, read in place (never copied into the repository).
 export DHOIT_SCENES ?= $(abspath ../shared/scenes)
 
-.PHONY: all setup demo test fmt lint check bench frame devbin build train nets golden eval trade versus fuzz pictures
+.PHONY: all setup demo test fmt lint check bench frame devbin build train nets golden eval trade versus fuzz pictures webgpu
 
 all: demo
 
@@ -143,6 +143,12 @@ frame: setup
 	$(RUN) bench --gpu-only --res $(FRAME_RES) --budget 25% --scenes $(FRAME_SCENES) --out out/frame/$(FRAME_RES)-25.json
 	$(RUN) bench --gpu-only --res $(FRAME_RES) --budget 1fpp --scenes $(FRAME_SCENES) --out out/frame/$(FRAME_RES)-1fpp.json
 	$(RUN) bench --gpu-only --res 320x240 --budget 1fpp --scenes $(FRAME_SCENES) --sequence 120 --out out/frame/orbit-320x240-1fpp.json
+
+## WebGPU: dhoit-runtime built for wasm32 with wgpu's WebGPU backend, then every pipeline of the
+## methods WebGPU runs (all but DKB and VKB) created on Dawn, Chrome's WebGPU, over a private Mesa
+## 25 lavapipe (scripts/dawn.sh), with a device as a page gets one. `make test` runs it too.
+webgpu: setup
+	./scripts/webgpu.sh
 
 ## For a machine lent with a real GPU: the release binary and the GPU test binaries (stripped)
 ## into .devbin/ and the Vulkan loader package into .gl/ (both ignored by git), which

@@ -47,6 +47,13 @@ else
   echo "viewer example (--features window): FAILED to build" >&2
   [ "$status" -eq 0 ] && status=1
 fi
+# WebGPU: the wasm32 build, and every pipeline of the methods WebGPU runs created on Dawn.
+if ./scripts/webgpu.sh; then
+  echo "webgpu: the wasm32 build and Dawn's pipelines: passed"
+else
+  echo "webgpu: FAILED" >&2
+  [ "$status" -eq 0 ] && status=1
+fi
 read -r passed failed < <(awk '/^test result:/ { for (i = 1; i < NF; i++) { if ($(i+1) ~ /^passed/) p += $i; if ($(i+1) ~ /^failed/) f += $i } } END { print p + 0, f + 0 }' "$log")
 rm -f "$log"
 scenes_dir=${DHOIT_SCENES:-$(cd "$(dirname "$0")/.." && pwd)/../shared/scenes}

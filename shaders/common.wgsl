@@ -74,6 +74,14 @@ struct VertexOut {
     // The triangle's geometric normal and material.
     @location(5) @interpolate(flat) normal: vec3<f32>,
     @location(6) @interpolate(flat) material: u32,
+    // The triangle's vertices' world positions and colours, read by the vertex stage (so the
+    // fragment stage binds three storage buffers, and a pass's own five fit WebGPU's eight).
+    @location(7) @interpolate(flat) w0: vec3<f32>,
+    @location(8) @interpolate(flat) w1: vec3<f32>,
+    @location(9) @interpolate(flat) w2: vec3<f32>,
+    @location(10) @interpolate(flat) c0: vec4<f32>,
+    @location(11) @interpolate(flat) c1: vec4<f32>,
+    @location(12) @interpolate(flat) c2: vec4<f32>,
 };
 
 // 8-bit unorm with rounding half up, as fragment::to_unorm8.

@@ -42,6 +42,12 @@ fn vs_main(@builtin(vertex_index) vid: u32) -> VertexOut {
     out.facing = facing;
     out.normal = n;
     out.material = triangle_material[tri];
+    out.w0 = p0;
+    out.w1 = p1;
+    out.w2 = p2;
+    out.c0 = colors[3u * tri];
+    out.c1 = colors[3u * tri + 1u];
+    out.c2 = colors[3u * tri + 2u];
     return out;
 }
 
@@ -71,9 +77,9 @@ fn attributes(in: VertexOut) -> Attributes {
     let t = 3u * in.primitive;
     let shade = AMBIENT + (1.0 - AMBIENT) * in.facing;
     var out: Attributes;
-    let c0 = colors[t];
-    let c1 = colors[t + 1u];
-    let c2 = colors[t + 2u];
+    let c0 = in.c0;
+    let c1 = in.c1;
+    let c2 = in.c2;
     let s0 = vec4<f32>(c0.rgb * shade, c0.a);
     let s1 = vec4<f32>(c1.rgb * shade, c1.a);
     let s2 = vec4<f32>(c2.rgb * shade, c2.a);
@@ -82,7 +88,7 @@ fn attributes(in: VertexOut) -> Attributes {
     let same = (s0 == s1) & (s1 == s2);
     out.color = select((s0 * l.x + s1 * l.y) + s2 * l.z, s0, same);
     out.uv = (uvs[t] * l.x + uvs[t + 1u] * l.y) + uvs[t + 2u] * l.z;
-    out.world = (positions[t].xyz * l.x + positions[t + 1u].xyz * l.y) + positions[t + 2u].xyz * l.z;
+    out.world = (in.w0 * l.x + in.w1 * l.y) + in.w2 * l.z;
     return out;
 }
 

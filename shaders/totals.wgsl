@@ -75,7 +75,8 @@ fn add_group(lid: u32) {
 // into the shared word before the next batch takes the pool (init_records, next_batch). One
 // batch is the whole frame's records.
 @group(0) @binding(6) var<storage, read_write> record_of: array<u32>;
-@group(0) @binding(7) var<storage, read_write> records: array<u64>;
+// Each record word a 64-bit word's two halves (low x, high y), as features.wgsl adds to them.
+@group(0) @binding(7) var<storage, read_write> records: array<vec2<u32>>;
 // The network's list length, the batch's first record lo, the records a batch holds, and the
 // rows the network ran on in the batches before (importance_dkb.wgsl's list_len).
 @group(0) @binding(8) var<storage, read_write> batch: array<u32>;
@@ -109,7 +110,7 @@ fn assign_records(
             record_of[p] = r;
             // The first batch's records (the pool is zero until then).
             if (r < batch[2]) {
-                records[RECORD_WORDS * r + 1u] = u64(n) << 48u;
+                records[RECORD_WORDS * r + 1u] = vec2<u32>(0u, n << 16u);
             }
         } else {
             record_of[p] = NO_RECORD;
@@ -135,10 +136,10 @@ fn init_records(
     let r = batch_record(record_of[p], batch[1] + batch[2], batch[2]);
     if (r != NO_RECORD) {
         let at = RECORD_WORDS * r;
-        records[at] = 0lu;
-        records[at + 1u] = u64(count_in(count[count_word(p)], p)) << 48u;
+        records[at] = vec2<u32>(0u);
+        records[at + 1u] = vec2<u32>(0u, count_in(count[count_word(p)], p) << 16u);
         for (var w = 2u; w < RECORD_WORDS; w++) {
-            records[at + w] = 0lu;
+            records[at + w] = vec2<u32>(0u);
         }
     }
 }

@@ -59,17 +59,17 @@ pub enum GpuError {
     NoAdapter,
     /// Every adapter lacks something the passes need; `lacking` says what, per adapter.
     #[error(
-        "no adapter has what dhoit's passes need (64-bit integers and 64-bit atomic min/max \
-         for the capture keys: Vulkan with shaderInt64 and VK_KHR_shader_atomic_int64, DX12 \
-         with shader model 6.6; wgpu's Metal backend has no 64-bit atomics that return the old \
-         value): {lacking}"
+        "no adapter has the features asked for (for DKB and VKB, 64-bit integers and 64-bit \
+         atomics: Vulkan with shaderInt64 and VK_KHR_shader_atomic_int64, DX12 with shader \
+         model 6.6; wgpu's Metal backend and WebGPU have none, and run every other method): \
+         {lacking}"
     )]
     MissingFeatures { lacking: String },
     /// The application's device was opened without a feature or a limit the passes need.
     #[error(
-        "the device on {adapter} was opened without what dhoit's passes need: {missing} \
-         (request gpu::required_features(), 64-bit integers and 64-bit atomic min/max for the \
-         capture keys, and gpu::required_limits() when opening it)"
+        "the device on {adapter} was opened without what this needs: {missing} (request \
+         gpu::required_features(), 64-bit integers and their atomics, and \
+         gpu::required_limits() when opening it)"
     )]
     DeviceLacks { adapter: String, missing: String },
     /// A texture an application hands a frame is not the one the method was made for.

@@ -119,6 +119,7 @@ pub fn heat_rgb8(values: &[f32], covered: &[bool], max: f32) -> Vec<u8> {
 /// FLIP (NVIDIA's perceptual image difference, LDR, through `nv-flip`) between two sRGB8
 /// images of `width * height` pixels viewed at FLIP's default 67 pixels per degree: the mean
 /// error in [0, 1] (0: indistinguishable) and the per-pixel error map.
+#[cfg(feature = "flip")]
 pub fn flip(reference: &[u8], test: &[u8], width: u32, height: u32) -> (f64, Vec<f32>) {
     let n = (width * height * 3) as usize;
     assert!(
@@ -133,12 +134,14 @@ pub fn flip(reference: &[u8], test: &[u8], width: u32, height: u32) -> (f64, Vec
 }
 
 /// A FLIP error map as RGB8 with FLIP's own magma colour scale (black 0 to pale yellow 1).
+#[cfg(feature = "flip")]
 pub fn flip_rgb8(map: &[f32], width: u32, height: u32) -> Vec<u8> {
     let m = nv_flip::FlipImageFloat::with_data(width, height, map);
     m.apply_color_lut(&nv_flip::magma_lut()).to_vec()
 }
 
 /// The magma colour of a FLIP value in [0, 1] (for colour-scale legends).
+#[cfg(feature = "flip")]
 pub fn magma(t: f32) -> [u8; 3] {
     let lut = nv_flip::magma_lut().to_vec();
     let i = ((t.clamp(0.0, 1.0) * 255.0).round() as usize).min(lut.len() / 3 - 1);

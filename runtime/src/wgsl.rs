@@ -176,6 +176,7 @@ pub mod shaders {
         "mlab_resolve",
         "list_store",
         "list_resolve",
+        "totals",
     ];
 
     pub const PASSES: [Pass; 24] = [
@@ -412,6 +413,23 @@ pub mod shaders {
         ]
     }
 
+    /// A WGSL literal of `x`: the shortest decimal that reads back as the same f32 where that
+    /// decimal is the f32's value exactly or rounds to it within the f32 range; else (f32::MAX,
+    /// whose shortest decimal lies beyond it, which Tint refuses) its exact hexadecimal form.
+    pub fn f32_literal(x: f32) -> String {
+        let decimal = format!("{x:?}");
+        let within = decimal
+            .parse::<f64>()
+            .is_ok_and(|d| d.abs() <= f32::MAX as f64);
+        if within || !x.is_finite() {
+            return decimal;
+        }
+        let bits = x.to_bits();
+        let sign = if bits >> 31 == 1 { "-" } else { "" };
+        let exp = ((bits >> 23) & 0xff) as i32 - 127;
+        format!("{sign}0x1.{:06x}p{exp}f", (bits & 0x7f_ffff) << 1)
+    }
+
     /// The WGSL declarations of [`shared_constants`], prepended to every pass.
     pub fn prelude() -> String {
         let mut s = String::from(
@@ -420,8 +438,7 @@ pub mod shaders {
         );
         for (name, v) in shared_constants() {
             let (ty, value) = match v {
-                // Debug prints the shortest decimal that reads back as the same f32.
-                Value::F32(x) => ("f32", format!("{x:?}")),
+                Value::F32(x) => ("f32", f32_literal(x)),
                 Value::U32(x) => ("u32", format!("{x}u")),
             };
             s.push_str(&format!("const {name}: {ty} = {value};\n"));
@@ -778,6 +795,25 @@ mod tests {
     /// on the Rust side would leave stale: the feature count (12), the relative budget's parts
     /// per million, MLAB's rows and the indirect dispatches' argument layout. Checked on every pass's source after the prelude, and held
     /// to the values: the generated network (`unrolled_forward`) and the passes still build.
+    /// f32::MAX's shortest decimal (3.4028235e38) lies beyond f32's range, which Tint refuses:
+    /// it is written in hexadecimal, which naga reads back as the same f32; other values as
+    /// the shortest decimal.
+    #[test]
+    fn f32_literals_are_within_range_and_read_back_exactly() {
+        assert_eq!(shaders::f32_literal(f32::MAX), "0x1.fffffep127f");
+        assert_eq!(shaders::f32_literal(-f32::MAX), "-0x1.fffffep127f");
+        assert_eq!(shaders::f32_literal(0.25), "0.25");
+        for x in [f32::MAX, -f32::MAX, 0.25, 1e-3, 3.0e38] {
+            let src = format!("const X: f32 = {};", shaders::f32_literal(x));
+            let m = naga::front::wgsl::parse_str(&src).unwrap();
+            let (_, c) = m.constants.iter().next().unwrap();
+            match m.global_expressions[c.init] {
+                naga::Expression::Literal(naga::Literal::F32(v)) => assert_eq!(v, x, "{src}"),
+                ref e => panic!("{src}: {e:?}"),
+            }
+        }
+    }
+
     #[test]
     fn the_passes_spell_the_shared_sizes_by_name() {
         assert_eq!(crate::importance::FEATURES, 12);

@@ -101,7 +101,7 @@ impl Recording<'_, '_, '_> {
         let unused = fb.storage("oit.unused_tail", 16, true)?;
         let plan = fb.plan_params(&planned.input);
         passes.draw(fb.enc, Phase::Count, &p.count, &[&counts], "count");
-        passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &unused)));
+        passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &unused)))?;
         Ok(Importance {
             counts,
             importance,
@@ -141,7 +141,7 @@ impl<'a> Passes<'a> {
         kind: u32,
     ) -> Result<Allocation> {
         let gpu = self.gpu;
-        let a = &gpu.pipelines.allocate;
+        let a = &gpu.wide()?.allocate;
         let ap = AllocParams { kind, _pad: [0; 3] };
         let params = fb.init(
             "alloc.params",
@@ -207,7 +207,7 @@ impl<'a> Passes<'a> {
         fb: &mut FrameBuffers<'_, '_>,
         al: &Allocation,
     ) -> Result<&'static str> {
-        let a = &self.gpu.pipelines.allocate;
+        let a = &self.gpu.wide()?.allocate;
         let (search, variant) = a.search_for(&self.gpu.device, self.opts.spread_search);
         let (per_pixel, rounds, scan) = (
             dispatch_offset(DISPATCH_PER_PIXEL),
@@ -323,7 +323,7 @@ impl Gpu {
         };
         let plan = fb.plan_params(&input);
         passes.draw(fb.enc, Phase::Count, &p.count, &[&counts], "count");
-        passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &unused)));
+        passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &unused)))?;
         let al = passes.allocation(
             &mut fb,
             AllocBuffers {
@@ -493,7 +493,7 @@ impl Gpu {
             self.queue.write_buffer(&b, 0, bytemuck::cast_slice(words));
             b
         };
-        let p = &self.pipelines.plan;
+        let p = &self.wide()?.plan;
         let mut enc = self.device.create_command_encoder(&Default::default());
         let mut outputs = Vec::new();
         {

@@ -726,9 +726,10 @@ impl KBufferOit {
     /// With `capture`, the frames to come insert their fragments as it says
     /// ([`Capture::Portable`]: two passes with 32-bit atomics, [`Oit::phases`] then draws
     /// [`Phase::CaptureDepths`] and [`Phase::CaptureColours`] in place of [`Phase::Capture`]).
-    /// The images are the same.
+    /// The images are the same. A device without 64-bit atomics captures in the portable
+    /// passes whatever `capture` says.
     pub fn with_capture(mut self, capture: Capture) -> KBufferOit {
-        self.0.stream.capture = capture;
+        self.0.stream.set_capture(capture);
         self
     }
 
@@ -847,7 +848,7 @@ impl AllocatedOit {
     /// With `capture`, the frames to come insert their fragments as it says (as
     /// [`KBufferOit::with_capture`]).
     pub fn with_capture(mut self, capture: Capture) -> AllocatedOit {
-        self.0.stream.capture = capture;
+        self.0.stream.set_capture(capture);
         self
     }
 }

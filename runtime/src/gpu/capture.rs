@@ -176,25 +176,31 @@ impl Recording<'_, '_, '_> {
         let pooled = matches!(kb.slots, SlotsAt::Pooled(_));
         // Where the host knows k = n everywhere, the pipelines built for it (the same slots,
         // tail and image).
-        let portable = passes.opts.capture == Capture::Portable;
+        // A device without 64-bit atomics captures in the portable passes.
+        let portable = passes.opts.capture == Capture::Portable || p.wide.is_none();
         let fits =
             passes.opts.two_mode_capture && passes.opts.fits_pipelines && kb.all_fit && !portable;
-        let (phase, capture, resolve, own) = if fits {
-            self.out.variants.push("capture: built for frames that fit");
-            (
-                Phase::CaptureFits,
-                &p.capture_fits,
-                Resolve::KBuffer { fits: true },
-                &p.resolve_fits,
-            )
-        } else {
-            self.out.variants.push("capture: general");
-            (
-                Phase::Capture,
-                &p.capture,
-                Resolve::KBuffer { fits: false },
-                &p.resolve,
-            )
+        let (phase, capture, resolve, own) = match (fits, &p.wide) {
+            (true, Some(w)) => {
+                self.out.variants.push("capture: built for frames that fit");
+                (
+                    Phase::CaptureFits,
+                    Some(&w.capture_fits),
+                    Resolve::KBuffer { fits: true },
+                    &p.resolve_fits,
+                )
+            }
+            (_, w) => {
+                if !portable {
+                    self.out.variants.push("capture: general");
+                }
+                (
+                    Phase::Capture,
+                    w.as_ref().map(|w| &w.capture),
+                    Resolve::KBuffer { fits: false },
+                    &p.resolve,
+                )
+            }
         };
         let group = [&kb.base, &slots, &tail, &tail_count, &kb.counts];
         if portable {
@@ -216,6 +222,7 @@ impl Recording<'_, '_, '_> {
                 "capture colours",
             );
         } else {
+            let capture = capture.expect("a device with 64-bit atomics");
             passes.draw(fb.enc, phase, capture, &group, "capture");
         }
         // With diagnostics, the cursors as the capture left them, before the resolve sorts

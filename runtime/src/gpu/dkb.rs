@@ -63,7 +63,7 @@ impl Recording<'_, '_, '_> {
         let list_len = fb.storage("importance.list_len", 16, true)?;
         let plan = fb.plan_params(&planned.input);
         passes.draw(fb.enc, Phase::Count, &p.count, &[&counts], "count");
-        passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &list_len)));
+        passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &list_len)))?;
         let pool = fb.storage("oit.slots", planned.input.pool_bytes, true)?;
         let args = 4 * DISPATCH_WORDS as u64;
         let dispatch = fb.take(
@@ -200,7 +200,7 @@ impl Recording<'_, '_, '_> {
             }
         });
         let features = if self.passes.opts.features_preload {
-            &p.features
+            &gpu.wide()?.features
         } else {
             gpu.extras().features_no_preload()
         };

@@ -62,7 +62,7 @@ use buffers::{FrameBuffers, Readback};
 use passes::Passes;
 pub use passes::Phase;
 use pipelines::Pipelines;
-pub use pipelines::pipelines_built;
+pub use pipelines::{pipelines_built, record_pipelines};
 pub use scene::SceneStream;
 pub use stream::FrameReport;
 use timer::Timer;
@@ -89,10 +89,19 @@ pub(crate) fn network_pass_source(pass: &'static str, m: &Mlp) -> String {
     pipelines::Variant::for_network(pass, m, true).source()
 }
 
-/// Features the pipeline cannot run without: 64-bit integers and their atomics (the capture
-/// keys). Timestamps (`TIMESTAMP_QUERY`) are optional: with them a frame reports each pass's
-/// GPU time, without them none.
+/// Features every method runs with: 64-bit integers and their atomics. DKB's and VKB's
+/// statistics, plan and allocation need them, and the k-buffers capture in one pass with them
+/// ([`Capture::Wide`]). A device without them (WebGPU, Metal, many phones) runs every other
+/// method, its k-buffers with the portable capture ([`Capture::Portable`]), and refuses DKB and
+/// VKB by name. Timestamps (`TIMESTAMP_QUERY`) are optional: with them a frame reports each
+/// pass's GPU time, without them none.
 pub fn required_features() -> wgpu::Features {
+    wide_features()
+}
+
+/// The 64-bit integer features ([`required_features`]: `SHADER_INT64` and
+/// `SHADER_INT64_ATOMIC_ALL_OPS`).
+pub fn wide_features() -> wgpu::Features {
     wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_ALL_OPS
 }
 
@@ -111,6 +120,14 @@ pub fn required_limits() -> wgpu::Limits {
         max_storage_buffers_per_shader_stage: 11,
         ..wgpu::Limits::default()
     }
+}
+
+/// Whether a device with `features` and `limits` builds the passes that use 64-bit integers
+/// ([`required_features`] and [`required_limits`]); without, it runs the portable ones alone.
+fn is_wide(features: wgpu::Features, limits: &wgpu::Limits) -> bool {
+    features.contains(wide_features())
+        && limits.max_storage_buffers_per_shader_stage
+            >= required_limits().max_storage_buffers_per_shader_stage
 }
 
 /// A device and queue with the pipeline's features, and the compiled passes.
@@ -271,7 +288,8 @@ pub struct FrameOptions {
 /// a pixel's slots.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Capture {
-    /// One geometry pass, NVIDIA's Loop64: a 64-bit `atomicMax` a slot (`SHADER_INT64_ATOMIC_ALL_OPS`).
+    /// One geometry pass, NVIDIA's Loop64: a 64-bit `atomicMax` a slot
+    /// (`SHADER_INT64_ATOMIC_ALL_OPS`; a device without it runs [`Capture::Portable`]).
     #[default]
     Wide,
     /// Two geometry passes with 32-bit atomics alone, for devices without 64-bit ones (WebGPU,
@@ -473,10 +491,72 @@ fn instance_descriptors() -> [wgpu::InstanceDescriptor; 2] {
 }
 
 impl Gpu {
-    /// Opens the first adapter that has every required feature; the error names what the
-    /// adapters lack.
+    /// Opens the first adapter that has every required feature ([`required_features`]), else
+    /// the first adapter, without them: every method but DKB and VKB then runs, with the
+    /// portable capture ([`Gpu::wide`] says which).
     pub fn new() -> Result<Gpu> {
-        Self::requiring(wgpu::Features::empty())
+        match Self::requiring(wgpu::Features::empty()) {
+            Err(Error::Gpu(GpuError::MissingFeatures { .. })) => Self::portable(),
+            other => other,
+        }
+    }
+
+    /// The first adapter opened as WebGPU's core device: no feature (not even the optional
+    /// ones) and wgpu's default limits ([`wgpu::Limits::default`], 8 storage buffers a stage).
+    /// Every method but DKB and VKB runs, with the portable capture; what runs here runs in a
+    /// browser.
+    pub fn portable() -> Result<Gpu> {
+        let adapter = instances()
+            .into_iter()
+            .find_map(|i| {
+                pollster::block_on(i.enumerate_adapters(wgpu::Backends::all()))
+                    .into_iter()
+                    .next()
+            })
+            .ok_or(GpuError::NoAdapter)?;
+        let info = adapter.get_info();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("dhoit (WebGPU core)"),
+            required_features: wgpu::Features::empty(),
+            required_limits: wgpu::Limits::default(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::Open {
+            adapter: info.name.clone(),
+            message: e.to_string(),
+        })?;
+        Self::build(device, queue, &info)
+    }
+
+    /// Whether the device builds the passes that use 64-bit integers (DKB, VKB, the one-pass
+    /// capture): it has [`required_features`] and [`required_limits`].
+    pub fn is_wide(&self) -> bool {
+        self.pipelines.wide.is_some()
+    }
+
+    /// The passes that use 64-bit integers, or the error that names what the device lacks.
+    fn wide(&self) -> Result<&pipelines::Wide> {
+        self.pipelines.wide.as_ref().ok_or_else(|| {
+            let mut missing = Vec::new();
+            let features = wide_features() - self.device.features();
+            if !features.is_empty() {
+                missing.push(format!("{features:?}"));
+            }
+            required_limits().check_limits_with_fail_fn(
+                &self.device.limits(),
+                false,
+                |name, need, has| missing.push(format!("{name} {has} (needs {need})")),
+            );
+            GpuError::DeviceLacks {
+                adapter: self.adapter.clone(),
+                missing: format!(
+                    "{} (DKB and VKB count, plan and allocate with 64-bit integers; every other \
+                     method runs without them)",
+                    missing.join(", ")
+                ),
+            }
+            .into()
+        })
     }
 
     /// [`Gpu::new`], with `extra` features required on top of the pipeline's (tests use it to
@@ -526,9 +606,9 @@ impl Gpu {
 
     /// dhoit on the application's own device and queue (clones of its handles: wgpu's are
     /// shared), with `info` its adapter's ([`wgpu::Adapter::get_info`]). A device opened without
-    /// a feature the passes need ([`required_features`]: 64-bit integers and their atomics,
-    /// timestamps) or below a limit they need ([`required_limits`]) is refused with what it
-    /// lacks named, before any pipeline is built; with
+    /// [`required_features`] (64-bit integers and their atomics) or [`required_limits`] runs
+    /// every method but DKB and VKB, which are refused with what it lacks named (its k-buffers
+    /// capture in the portable passes); one below wgpu's default limits is refused; with
     /// `SHADER_F16` the importance pass also runs networks at f16-math, and with
     /// `FLOAT32_BLENDABLE` MBOIT runs (its frames are refused, the feature named, without it). Frames allocate from
     /// the device's own limits.
@@ -563,7 +643,8 @@ impl Gpu {
             "{} ({:?}, {:?}, {} {})",
             info.name, info.backend, info.device_type, info.driver, info.driver_info
         );
-        let pipelines = std::sync::Arc::new(Pipelines::new(&device)?);
+        let wide = is_wide(features, &device.limits());
+        let pipelines = std::sync::Arc::new(Pipelines::new(&device, wide)?);
         Ok(Gpu {
             timestamp_period: queue.get_timestamp_period(),
             timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
@@ -660,17 +741,16 @@ impl<'a> Slots<'a> {
     }
 }
 
-/// Refuses a device without [`required_features`] or [`required_limits`], naming what it lacks
-/// (`adapter` names the device in the error).
+/// Refuses a device below wgpu's default limits ([`wgpu::Limits::default`], what the portable
+/// passes need), naming what it lacks (`adapter` names the device in the error). One without
+/// [`required_features`] or [`required_limits`] runs the portable passes alone.
 pub(super) fn check_device(device: &wgpu::Device, adapter: &str) -> Result<()> {
-    let features = required_features() - device.features();
     let mut missing = Vec::new();
-    if !features.is_empty() {
-        missing.push(format!("{features:?}"));
-    }
-    required_limits().check_limits_with_fail_fn(&device.limits(), false, |name, need, has| {
-        missing.push(format!("{name} {has} (needs {need})"))
-    });
+    wgpu::Limits::default().check_limits_with_fail_fn(
+        &device.limits(),
+        false,
+        |name, need, has| missing.push(format!("{name} {has} (needs {need})")),
+    );
     if !missing.is_empty() {
         return Err(GpuError::DeviceLacks {
             adapter: adapter.to_string(),
@@ -862,6 +942,14 @@ impl Gpu {
         let (width, height) = spec.size;
         let px = width as u64 * height as u64;
         let slots = spec.slots;
+        // DKB and VKB need the passes with 64-bit integers, the one-pass capture too: refused
+        // before anything is recorded.
+        if matches!(
+            slots,
+            Some(Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
+        ) {
+            self.wide()?;
+        }
         let mut params = spec.params;
         let mut fb = FrameBuffers::new(self, enc);
         let (budget, vkb, k_uniform) = match slots {

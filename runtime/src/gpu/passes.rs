@@ -298,15 +298,21 @@ impl<'a> Passes<'a> {
         counts: &wgpu::Buffer,
         totals: &wgpu::Buffer,
         plan: Option<(&wgpu::Buffer, &wgpu::Buffer)>,
-    ) {
+    ) -> crate::error::Result<()> {
         let p = &self.gpu.pipelines;
+        let plan_pipeline = match plan {
+            Some(_) => Some(&self.gpu.wide()?.plan),
+            None => None,
+        };
         let g = self.gpu.bind(
             &p.totals.get_bind_group_layout(0),
             &[&self.params, counts, totals],
         );
         let planned = plan.map(|(uniform, batch)| {
             self.gpu.bind_at(
-                &p.plan.get_bind_group_layout(0),
+                &plan_pipeline
+                    .expect("with the plan")
+                    .get_bind_group_layout(0),
                 &[(2, totals), (8, batch), (9, uniform)],
             )
         });
@@ -315,11 +321,12 @@ impl<'a> Passes<'a> {
             pass.set_pipeline(&p.totals);
             pass.set_bind_group(0, &g, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
-            if let Some(g) = &planned {
-                pass.set_pipeline(&p.plan);
+            if let (Some(g), Some(plan)) = (&planned, plan_pipeline) {
+                pass.set_pipeline(plan);
                 pass.set_bind_group(0, g, &[]);
                 pass.dispatch_workgroups(1, 1, 1);
             }
         });
+        Ok(())
     }
 }

@@ -16,9 +16,9 @@ pub(super) struct Pipelines {
     pub(super) opaque: wgpu::RenderPipeline,
     pub(super) count: wgpu::RenderPipeline,
     pub(super) store: wgpu::RenderPipeline,
-    pub(super) capture: wgpu::RenderPipeline,
-    /// capture.wgsl built for frames whose budget holds every fragment (k = n).
-    pub(super) capture_fits: wgpu::RenderPipeline,
+    /// The passes that use 64-bit integers, built where the device has them
+    /// ([`super::wide_features`]).
+    pub(super) wide: Option<Wide>,
     pub(super) scan_blocks: wgpu::ComputePipeline,
     /// scan.wgsl's per-block scan of a buffer's own values, in place.
     pub(super) scan_blocks_in_place: wgpu::ComputePipeline,
@@ -41,11 +41,7 @@ pub(super) struct Pipelines {
             wgpu::ComputePipeline,
         >,
     >,
-    pub(super) allocate: Allocate,
-    pub(super) features: wgpu::RenderPipeline,
     pub(super) totals: wgpu::ComputePipeline,
-    /// The frame's plan (plan.wgsl), after the totals.
-    pub(super) plan: wgpu::ComputePipeline,
     /// DKB's records: an index for each pixel of two fragments or more (totals.wgsl).
     pub(super) assign_records: wgpu::ComputePipeline,
     /// A batch of DKB's records after the first emptied, and the batch moved on (totals.wgsl).
@@ -59,6 +55,18 @@ pub(super) struct Pipelines {
     pub(super) network_layout: NetworkLayout,
     pub(super) vkb_count: wgpu::RenderPipeline,
     pub(super) importance_vkb: wgpu::ComputePipeline,
+}
+
+/// The passes that use 64-bit integers and atomics: the one-pass capture, and DKB's and VKB's
+/// statistics, plan and allocation.
+pub(super) struct Wide {
+    pub(super) capture: wgpu::RenderPipeline,
+    /// capture.wgsl built for frames whose budget holds every fragment (k = n).
+    pub(super) capture_fits: wgpu::RenderPipeline,
+    pub(super) allocate: Allocate,
+    pub(super) features: wgpu::RenderPipeline,
+    /// The frame's plan (plan.wgsl), after the totals.
+    pub(super) plan: wgpu::ComputePipeline,
 }
 
 /// The opaque pass's depth attachment, which the transparent passes read as their occluder.
@@ -90,9 +98,87 @@ pub fn pipelines_built() -> u64 {
 
 pub(super) fn module_from(device: &wgpu::Device, label: &str, src: String) -> wgpu::ShaderModule {
     note_built();
-    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+    let recorded = RECORDING
+        .with(|r| r.borrow().is_some())
+        .then(|| src.clone());
+    let m = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(src.into()),
+    });
+    if let Some(src) = recorded {
+        RECORDING.with(|r| {
+            if let Some(r) = r.borrow_mut().as_mut() {
+                r.modules.push((m.clone(), src));
+            }
+        });
+    }
+    m
+}
+
+thread_local! {
+    /// What [`record_pipelines`] collects while it runs.
+    static RECORDING: std::cell::RefCell<Option<Recording>> = const { std::cell::RefCell::new(None) };
+}
+
+#[derive(Default)]
+struct Recording {
+    modules: Vec<(wgpu::ShaderModule, String)>,
+    pipelines: Vec<serde_json::Value>,
+}
+
+/// Runs `f` and returns, beside its value, every pipeline dhoit built on this thread meanwhile,
+/// as WebGPU's `createComputePipeline` and `createRenderPipeline` take them (JSON: its label,
+/// its WGSL, its entry points, depth state and colour targets in WebGPU's names, layout `auto`):
+/// what a WebGPU implementation must accept to run what `f` ran (`make webgpu` hands them to
+/// Dawn).
+pub fn record_pipelines<T>(f: impl FnOnce() -> T) -> (T, Vec<serde_json::Value>) {
+    RECORDING.with(|r| *r.borrow_mut() = Some(Recording::default()));
+    let out = f();
+    let recorded = RECORDING
+        .with(|r| r.borrow_mut().take())
+        .unwrap_or_default();
+    (out, recorded.pipelines)
+}
+
+/// Notes a pipeline built from module `m` where [`record_pipelines`] runs: `stages` its entry
+/// points and fixed-function state (WebGPU's descriptor less the module and layout).
+fn record_pipeline(label: &str, m: &wgpu::ShaderModule, stages: serde_json::Value) {
+    RECORDING.with(|r| {
+        let mut r = r.borrow_mut();
+        let Some(r) = r.as_mut() else { return };
+        let code = r
+            .modules
+            .iter()
+            .find(|(x, _)| x == m)
+            .map(|(_, s)| s.clone());
+        r.pipelines
+            .push(serde_json::json!({ "label": label, "code": code, "stages": stages }));
+    });
+}
+
+/// A wgpu enum's WebGPU name: its variant in kebab case (`OneMinusSrcAlpha`:
+/// `one-minus-src-alpha`), or for a texture format in lower case (`Rgba16Float`:
+/// `rgba16float`).
+fn webgpu_name(debug: String, format: bool) -> String {
+    if format {
+        return debug.to_lowercase();
+    }
+    let mut out = String::new();
+    for (i, c) in debug.chars().enumerate() {
+        if c.is_uppercase() && i > 0 {
+            out.push('-');
+        }
+        out.push(c.to_ascii_lowercase());
+    }
+    out
+}
+
+fn blend_json(b: &wgpu::BlendComponent) -> serde_json::Value {
+    let n = |d: String| webgpu_name(d, false);
+    serde_json::json!({
+        "srcFactor": n(format!("{:?}", b.src_factor)),
+        "dstFactor": n(format!("{:?}", b.dst_factor)),
+        "operation": n(format!("{:?}", b.operation)),
     })
 }
 
@@ -110,6 +196,7 @@ pub(super) fn compute_pipeline(
     entry: &str,
 ) -> wgpu::ComputePipeline {
     note_built();
+    record_pipeline(label, m, serde_json::json!({ "compute": entry }));
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(label),
         layout: None,
@@ -224,6 +311,7 @@ impl Variant {
             return compute_pipeline(device, &label, &m, self.entry);
         }
         note_built();
+        record_pipeline(&label, &m, serde_json::json!({ "compute": self.entry }));
         device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(&label),
             layout: Some(&layout.pipeline),
@@ -467,6 +555,37 @@ fn render_pipeline(
     targets: &[Option<wgpu::ColorTargetState>],
 ) -> wgpu::RenderPipeline {
     note_built();
+    let depth_json = depth.as_ref().map(|d| {
+        serde_json::json!({
+            "format": webgpu_name(format!("{:?}", d.format), true),
+            "depthWriteEnabled": d.depth_write_enabled.unwrap_or(false),
+            "depthCompare": webgpu_name(format!("{:?}", d.depth_compare.unwrap_or(wgpu::CompareFunction::Always)), false),
+        })
+    });
+    let targets_json: Vec<_> = targets
+        .iter()
+        .map(|t| {
+            t.as_ref().map(|t| {
+                serde_json::json!({
+                    "format": webgpu_name(format!("{:?}", t.format), true),
+                    "blend": t.blend.map(|b| serde_json::json!({
+                        "color": blend_json(&b.color),
+                        "alpha": blend_json(&b.alpha),
+                    })),
+                })
+            })
+        })
+        .collect();
+    record_pipeline(
+        name,
+        m,
+        serde_json::json!({
+            "vertex": "vs_main",
+            "fragment": entry,
+            "depthStencil": depth_json,
+            "targets": targets_json,
+        }),
+    );
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(name),
         layout: None,
@@ -650,7 +769,8 @@ impl Gpu {
 }
 
 impl Pipelines {
-    pub(super) fn new(device: &wgpu::Device) -> Result<Pipelines> {
+    /// Every pass; with `wide`, also those that use 64-bit integers ([`Wide`]).
+    pub(super) fn new(device: &wgpu::Device, wide: bool) -> Result<Pipelines> {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let render = |name: &str,
                       m: &wgpu::ShaderModule,
@@ -704,8 +824,13 @@ impl Pipelines {
             opaque,
             count: geometry("abuffer_count"),
             store: geometry("abuffer_store"),
-            capture: geometry("capture"),
-            capture_fits: geometry_from("capture", fits("capture")),
+            wide: wide.then(|| Wide {
+                capture: geometry("capture"),
+                capture_fits: geometry_from("capture", fits("capture")),
+                allocate: Allocate::new(device),
+                features: geometry("features"),
+                plan: compute("plan"),
+            }),
             scan_blocks: compute_entry("scan", "scan_blocks"),
             scan_blocks_in_place: compute_entry("scan", "scan_blocks_in_place"),
             scan_sums: compute_entry("scan", "scan_sums"),
@@ -716,10 +841,7 @@ impl Pipelines {
             resolve_fits: compute_pipeline(device, "resolve", &fits("resolve"), "main"),
             extras: Extras::default(),
             onto: Default::default(),
-            allocate: Allocate::new(device),
-            features: geometry("features"),
             totals: compute("totals"),
-            plan: compute("plan"),
             assign_records: compute_entry("totals", "assign_records"),
             init_records: compute_entry("totals", "init_records"),
             next_batch: compute_entry("totals", "next_batch"),
@@ -731,6 +853,9 @@ impl Pipelines {
                     ("importance_dkb", "gather"),
                     ("predict", "main"),
                 ]
+                .into_iter()
+                // DKB's importance where the device has 64-bit integers.
+                .filter(|(pass, _)| wide || *pass == "predict")
                 .map(|(pass, entry)| {
                     let p = crate::mlp::padded_units;
                     let v = Variant {
@@ -745,7 +870,6 @@ impl Pipelines {
                     };
                     (v, v.pipeline(device, &network_layout))
                 })
-                .into_iter()
                 .collect(),
             ),
             network_layout,

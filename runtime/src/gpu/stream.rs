@@ -183,6 +183,10 @@ impl Stream {
         if let AppMethod::Dkb(m) = &method {
             gpu.can_run(m)?;
         }
+        // DKB and VKB count, plan and allocate with 64-bit integers.
+        if matches!(method, AppMethod::Dkb(_) | AppMethod::Vkb(_)) {
+            gpu.wide()?;
+        }
         check_fixed_buffers(gpu, size, &method)?;
         let mut f = Stream {
             gpu: gpu.fork(),
@@ -190,7 +194,11 @@ impl Stream {
             method,
             budget: None,
             exact_when_cheaper: true,
-            capture: Capture::Wide,
+            // A device without 64-bit atomics captures in the portable passes.
+            capture: match gpu.is_wide() {
+                true => Capture::Wide,
+                false => Capture::Portable,
+            },
             expected: first_occupancy(size),
             frames: 0,
             last_bytes: 0,
@@ -201,6 +209,15 @@ impl Stream {
             f.set_budget(b)?;
         }
         Ok(f)
+    }
+
+    /// The k-buffers' capture from the next frame: `capture`, or the portable one on a device
+    /// without 64-bit atomics.
+    pub(super) fn set_capture(&mut self, capture: Capture) {
+        self.capture = match self.gpu.is_wide() {
+            true => capture,
+            false => Capture::Portable,
+        };
     }
 
     /// The geometry passes a frame of the method draws, in order.

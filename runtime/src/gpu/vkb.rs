@@ -46,7 +46,7 @@ impl Recording<'_, '_, '_> {
                 .copy_buffer_to_buffer(&importance, 0, &copy, 0, 4 * px);
             self.out.vkb_nearest_buf = Some(copy);
         }
-        passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &unused_tail)));
+        passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &unused_tail)))?;
         let computed = !planned.known_exact();
         if computed {
             let bufs = [passes.params(), &counts, &importance, &totals];

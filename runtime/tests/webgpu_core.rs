@@ -1,0 +1,175 @@
+//! Every method that needs no 64-bit integer on WebGPU's core device: a device opened with no
+//! feature and wgpu's default limits (`Gpu::portable`, 8 storage buffers a stage), as a browser
+//! gives it. Its frames are the 64-bit device's, bit for bit, and their twins'; equal depths
+//! give one image in every submission order; DKB and VKB are refused by name.
+
+mod common;
+
+use common::{RenderMethod, gpu, identity};
+use dhoit_runtime::composite;
+use dhoit_runtime::gpu::{Capture, FrameOptions, Gpu, Slots};
+use dhoit_runtime::scene::{Camera, Scene};
+
+const BG: [f32; 3] = [0.9, 0.8, 1.0];
+
+/// The core device, shared by the tests of this binary.
+fn core() -> Option<&'static Gpu> {
+    gpu()?;
+    static CORE: std::sync::OnceLock<Gpu> = std::sync::OnceLock::new();
+    Some(CORE.get_or_init(|| {
+        let g = Gpu::portable().expect("WebGPU's core device on the test adapter");
+        eprintln!("WebGPU core device on {}", g.adapter());
+        g
+    }))
+}
+
+fn bits(img: &composite::Image) -> Vec<u32> {
+    img.data.iter().flatten().map(|x| x.to_bits()).collect()
+}
+
+/// Quads in groups of three at one depth (equal depths, other colours) over the left half, a
+/// few at distinct depths over the right: ties, truncated and whole pixels.
+fn tied_layers(layers: usize) -> Scene {
+    let mut s = Scene::default();
+    let v = glam::Vec3::new;
+    for i in 0..layers + 4 {
+        let z = if i < layers {
+            0.1 + 0.8 * (i / 3) as f32 / (layers / 3 + 1) as f32
+        } else {
+            0.15 + 0.2 * (i - layers) as f32
+        };
+        let (x0, x1) = if i < layers { (-1.0, 0.0) } else { (0.0, 1.0) };
+        let c = [
+            ((i * 7) % 5) as f32 / 4.0,
+            (i % 3) as f32 / 2.0,
+            ((i * 5) % 7) as f32 / 6.0,
+            0.2 + (i % 4) as f32 * 0.2,
+        ];
+        s.push_triangle([v(x0, -1.0, z), v(x1, -1.0, z), v(x0, 1.0, z)], [c; 3]);
+        s.push_triangle([v(x1, -1.0, z), v(x1, 1.0, z), v(x0, 1.0, z)], [c; 3]);
+    }
+    s
+}
+
+/// The core device has no feature and wgpu's default limits, and builds no pass that uses
+/// 64-bit integers; the 64-bit device builds them.
+#[test]
+fn the_core_device_is_webgpus_and_runs_without_64_bit_integers() {
+    let Some(c) = core() else { return };
+    let d = c.device();
+    assert_eq!(d.features(), wgpu::Features::empty());
+    assert_eq!(d.limits().max_storage_buffers_per_shader_stage, 8);
+    assert!(!c.is_wide() && gpu().unwrap().is_wide());
+}
+
+/// A-buffer, MLAB, FKB, uploaded k, the linked list and WBOIT on the core device: the 64-bit
+/// device's image bit for bit (the k-buffers' slots and tails too), and FKB's and the
+/// A-buffer's their twins'. MBOIT needs FLOAT32_BLENDABLE, which the core device lacks: refused
+/// by name. DKB and VKB are refused with the features named, before anything is recorded.
+#[test]
+fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
+    let Some(c) = core() else { return };
+    let g = gpu().unwrap();
+    let (w, h) = (48, 32);
+    let s = tied_layers(24);
+    let cam = identity();
+    let exact = c.render_method(&s, &cam, w, h, BG, None).unwrap();
+    let fl = exact.fragments.clone().unwrap();
+    let twin = composite::composite(&fl, composite::Method::Exact, BG);
+    assert!(exact.image.max_abs_diff(&twin) <= 1e-5, "the A-buffer");
+    let px = (w * h) as usize;
+    let k: Vec<u32> = (0..px).map(|p| (p % 6) as u32).collect();
+    let runs: [(&str, Option<Slots>); 7] = [
+        ("abuffer", None),
+        ("mlab", Some(Slots::Mlab(3))),
+        ("fkb k = 1", Some(Slots::Uniform(1))),
+        ("fkb k = 5", Some(Slots::Uniform(5))),
+        ("uploaded k", Some(Slots::PerPixel(&k))),
+        (
+            "linked list",
+            Some(Slots::LinkedList {
+                nodes: fl.fragment_count() as u64,
+                sorted: 4,
+            }),
+        ),
+        ("wboit", Some(Slots::Wboit(Default::default()))),
+    ];
+    for (label, slots) in runs {
+        let a = g.render_method(&s, &cam, w, h, BG, slots).unwrap();
+        let b = c.render_method(&s, &cam, w, h, BG, slots).unwrap();
+        assert!(
+            bits(&a.image) == bits(&b.image),
+            "{label}: the images differ"
+        );
+        assert!(a.slots == b.slots, "{label}: the slots differ");
+        if a.slots.is_some() {
+            assert!(
+                b.variants.contains(&"capture: portable")
+                    && !a.variants.contains(&"capture: portable"),
+                "{label}: {:?} / {:?}",
+                a.variants,
+                b.variants
+            );
+        }
+        if let Some(Slots::Uniform(k)) = slots {
+            let kk = vec![k; px];
+            let t = composite::composite(&fl, composite::Method::Hybrid(&kk), BG);
+            assert!(b.image.max_abs_diff(&t) <= 1e-5, "{label}: from its twin");
+        }
+        eprintln!("{label}: the core device's image is the wide device's");
+    }
+    let e = c
+        .render_method(&s, &cam, w, h, BG, Some(Slots::Mboit(Default::default())))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("FLOAT32_BLENDABLE"), "{e}");
+    let mlp = dhoit_runtime::mlp::Mlp::random(2);
+    for slots in [
+        Slots::Dkb(&mlp, 500u64.into()),
+        Slots::Vkb(Default::default(), 500u64.into()),
+    ] {
+        let e = c
+            .render_method(&s, &cam, w, h, BG, Some(slots))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("SHADER_INT64") && e.contains("every other method runs without them"),
+            "{e}"
+        );
+    }
+}
+
+/// Fragments of equal depth give the same image in every submission order, on both devices and
+/// with both captures: the slots keep equal depths in the order of their colours.
+#[test]
+fn equal_depths_give_one_image_in_every_submission_order() {
+    let Some(c) = core() else { return };
+    let g = gpu().unwrap();
+    let (w, h) = (24, 16);
+    let s = tied_layers(30);
+    let cam: Camera = identity();
+    let wide = FrameOptions::default().always_approximate();
+    let portable = FrameOptions {
+        capture: Capture::Portable,
+        ..wide
+    };
+    for slots in [None, Some(Slots::Uniform(2)), Some(Slots::Uniform(7))] {
+        let first = g.render_method(&s, &cam, w, h, BG, slots).unwrap();
+        for seed in 0..4 {
+            let shuffled = s.shuffled(seed);
+            for (name, dev, opts) in [
+                ("wide device, wide capture", g, &wide),
+                ("wide device, portable capture", g, &portable),
+                ("core device", c, &wide),
+            ] {
+                let f = dev
+                    .render_with(opts, &shuffled, &cam, (w, h), BG, slots)
+                    .unwrap();
+                assert!(
+                    bits(&f.image) == bits(&first.image),
+                    "{slots:?}, {name}, shuffle {seed}: another image"
+                );
+            }
+        }
+    }
+}
