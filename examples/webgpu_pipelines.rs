@@ -18,7 +18,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (w, h) = (64, 48);
     let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
     let k: Vec<u32> = (0..w * h).map(|p| p % 4).collect();
-    let methods: [(&str, Option<Slots>); 7] = [
+    let methods: [(&str, Option<Slots>); 8] = [
+        ("vkb", Some(Slots::Vkb(Default::default(), 2000u64.into()))),
         ("abuffer", None),
         ("mlab", Some(Slots::Mlab(4))),
         ("fkb", Some(Slots::Uniform(2))),

@@ -15,7 +15,8 @@
 //            k = n
 //   weights: importance -> fixed-point weight in place (the kind of alloc::Target)
 //   search:  the totals at 16 candidates (SEARCH_PIXELS pixels an invocation, then workgroup
-//            sums, then one 64-bit atomic per candidate and workgroup): in the first round a
+//            sums, then one 64-bit add per candidate and workgroup, two 32-bit atomics where
+//            the low word carries): in the first round a
 //            bracket (bracket_at), then a + j span/16
 //   choose:  the largest candidate whose total fits becomes a; after the bracket, span is the
 //            smallest power of 16 that reaches the next candidate, then span /= 16 each round
@@ -53,8 +54,29 @@ fn count_of(p: u32) -> u32 {
 // the three, each read by the time the next is written.
 @group(0) @binding(3) var<storage, read_write> w: array<u32>;
 // 0 target, 1 a, 2 span, 3 lo, 4 total at a, 5 F, 6..21 the candidates' totals, 22 the rounds
-// the search took, 23 and 24 the last answers of a level and of a scale (last_answer_word).
-@group(0) @binding(5) var<storage, read_write> state: array<atomic<u64>, ALLOC_STATE_WORDS>;
+// the search took, 23 and 24 the last answers of a level and of a scale (last_answer_word):
+// 64-bit words, each two 32-bit ones (low, high: u64.wgsl's W), so no 64-bit integer is
+// needed (st, st_set, st_add).
+@group(0) @binding(5) var<storage, read_write> state: array<atomic<u32>, 2u * ALLOC_STATE_WORDS>;
+
+// State word i.
+fn st(i: u32) -> W {
+    return W(atomicLoad(&state[2u * i]), atomicLoad(&state[2u * i + 1u]));
+}
+
+fn st_set(i: u32, v: W) {
+    atomicStore(&state[2u * i], v.x);
+    atomicStore(&state[2u * i + 1u], v.y);
+}
+
+// State word i plus v: the high word takes the low word's carry (exact once every add of the
+// dispatch has run, in any order).
+fn st_add(i: u32, v: u32) {
+    let old = atomicAdd(&state[2u * i], v);
+    if (old + v < old) {
+        atomicAdd(&state[2u * i + 1u], 1u);
+    }
+}
 // The marks (shared::marks_words): the popcounts of their words (mark), then those counts'
 // exclusive prefix sums and their total (apply), and the words of bits after them.
 @group(0) @binding(6) var<storage, read_write> flags: array<u32>;
@@ -78,7 +100,7 @@ var<workgroup> partial: array<atomic<u32>, ALLOC_CANDIDATES * SEARCH_COPIES>;
 
 // The span setup leaves for the first round: the bracket's candidates (bracket_at) instead of
 // a + j span/16.
-const BRACKET: u64 = 0x8000000000000000lu;
+const BRACKET: W = W(0u, 0x80000000u);
 
 // The state word holding the last answer of this frame's kind (a level, or a scale), 0 for none.
 fn last_answer_word() -> u32 {
@@ -89,22 +111,22 @@ fn last_answer_word() -> u32 {
 // always fits), last 2^44 (past the last tier: it never fits, unless every fragment does, which
 // setup settles); between them, without a centre, 2^(3j) up to 2^42, and around one, c minus
 // 2^21, 2^18, ..., 2^3, c, then c plus 2^3, ..., 2^18 (kept within [0, 2^44]). Non-decreasing.
-fn bracket_at(j: u32, c: u64) -> u64 {
-    let top = 1lu << (4u * SEARCH_SPAN_DIGITS);
+fn bracket_at(j: u32, c: W) -> W {
+    let top = w_pow2(4u * SEARCH_SPAN_DIGITS);
     if (j == 0u) {
-        return 0lu;
+        return W(0u, 0u);
     }
     if (j == ALLOC_CANDIDATES - 1u) {
         return top;
     }
-    if (c == 0lu) {
-        return 1lu << (3u * j);
+    if (w_is_zero(c)) {
+        return w_pow2(3u * j);
     }
     if (j < 8u) {
-        let d = 1lu << (3u * (8u - j));
-        return select(0lu, c - d, c > d);
+        let d = w_pow2(3u * (8u - j));
+        return select(W(0u, 0u), w_sub(c, d), w_lt(d, c));
     }
-    return min(c + select(0lu, 1lu << (3u * (j - 8u)), j > 8u), top);
+    return w_min(w_add(c, select(W(0u, 0u), w_pow2(3u * (j - 8u)), j > 8u)), top);
 }
 
 fn pixel(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
@@ -140,9 +162,9 @@ fn useful_cap(n: u32, lo: u32, pair: bool) -> u32 {
 // k of a covered pixel at t (alloc::water_level_k, alloc::level_k), wp a weight with the pair
 // flag in bit 31: the fill up to the pixel's useful cap, then in tiers of 2^40 (scale) or
 // 2^26 (level) of t: every pixel at its cap, at all but its farthest fragment, at n.
-fn k_at(t: u64, wp: u32, n: u32, lo: u32) -> u32 {
+fn k_at(t: W, wp: u32, n: u32, lo: u32) -> u32 {
     let bits = select(LAMBDA_BITS, LEVEL_BITS + 2u, alloc.kind == 2u);
-    let tier = min(u32(t >> bits), 3u);
+    let tier = min(w_u32_sat(w_shr(t, bits)), 3u);
     let pair = (wp & PAIR_BIT) != 0u;
     let cap = useful_cap(n, lo, pair);
     if (tier == 1u) {
@@ -156,11 +178,13 @@ fn k_at(t: u64, wp: u32, n: u32, lo: u32) -> u32 {
     }
     let v = wp & WEIGHT_MAX;
     if (alloc.kind == 2u) {
-        let k = i64(v) - (1li << LEVEL_BITS) + i64(t);
-        return u32(clamp(k >> REQUEST_BITS, i64(lo), i64(cap)));
+        // Tier 0: t < 2^(LEVEL_BITS + 2), so k lies in 32 bits, signed.
+        let k = i32(v) - (1i << LEVEL_BITS) + i32(t.x);
+        return u32(clamp(k >> REQUEST_BITS, i32(lo), i32(cap)));
     }
-    let k = (t * u64(v)) >> WEIGHT_BITS;
-    return u32(clamp(k, u64(lo), u64(cap)));
+    // Tier 0: t < 2^LAMBDA_BITS and v < 2^WEIGHT_BITS, so t v fits 64 bits.
+    let k = w_shr(w_mul_u32(t, v), WEIGHT_BITS);
+    return clamp(w_u32_sat(k), lo, cap);
 }
 
 @compute @workgroup_size(ALLOC_GROUP)
@@ -185,10 +209,10 @@ fn weights(
 
 @compute @workgroup_size(1)
 fn setup() {
-    let f = u64(totals[PLAN_F_WORD]);
-    let all = u64(totals[0]);
-    atomicStore(&state[0], min(f, all));
-    atomicStore(&state[3], select(0lu, 1lu, f >= u64(totals[1])));
+    let f = totals[PLAN_F_WORD];
+    let all = totals[0];
+    st_set(0u, w_of(min(f, all)));
+    st_set(3u, w_of(select(0u, 1u, f >= totals[1])));
     // The grids (wgsl::grid, as the host computes them): the per-pixel entry points, the
     // search's invocations of SEARCH_PIXELS pixels, the marks' blocks.
     let pixels = params.pixels;
@@ -209,18 +233,18 @@ fn setup() {
         // the total there sum n; that state is set here, the weights, the rounds' search, the
         // marks and their prefix sum dispatch no workgroup (their x is zero), and the choice
         // returns at once.
-        atomicStore(&state[1], (1lu << (4u * SEARCH_SPAN_DIGITS)) - 1lu);
-        atomicStore(&state[2], 1lu);
-        atomicStore(&state[4], all);
+        st_set(1u, w_sub(w_pow2(4u * SEARCH_SPAN_DIGITS), w_of(1u)));
+        st_set(2u, w_of(1u));
+        st_set(4u, w_of(all));
     } else {
-        atomicStore(&state[1], 0lu);
-        atomicStore(&state[2], BRACKET);
-        atomicStore(&state[4], 0lu);
+        st_set(1u, W(0u, 0u));
+        st_set(2u, BRACKET);
+        st_set(4u, W(0u, 0u));
     }
-    atomicStore(&state[5], f);
-    atomicStore(&state[ALLOC_ROUNDS_WORD], 0lu);
+    st_set(5u, w_of(f));
+    st_set(ALLOC_ROUNDS_WORD, W(0u, 0u));
     for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
-        atomicStore(&state[6u + j], 0lu);
+        st_set(6u + j, W(0u, 0u));
     }
 }
 
@@ -232,16 +256,16 @@ fn search(
 ) {
     // SEARCH_PIXELS pixels an invocation, ALLOC_GROUP apart (neighbouring invocations read
     // neighbouring pixels), summed privately before the workgroup's atomics.
-    let span = atomicLoad(&state[2]);
-    let bracket = span == BRACKET;
-    let step = span >> 4u;
+    let span = st(2u);
+    let bracket = all(span == BRACKET);
+    let step = w_shr(span, 4u);
     // No pixel to visit once the search is over (setup found that every fragment fits, or the
     // rounds so far found the answer); the invocation still meets the barrier below.
-    let visits = select(0u, SEARCH_PIXELS, step != 0lu);
+    let visits = select(0u, SEARCH_PIXELS, !w_is_zero(step));
     let first = (wid.y * nwg.x + wid.x) * ALLOC_GROUP * SEARCH_PIXELS + lid;
-    let a = atomicLoad(&state[1]);
-    let lo = u32(atomicLoad(&state[3]));
-    let centre = atomicLoad(&state[last_answer_word()]);
+    let a = st(1u);
+    let lo = st(3u).x;
+    let centre = st(last_answer_word());
     var sums: array<u32, ALLOC_CANDIDATES>;
     var any = false;
     for (var i = 0u; i < visits; i++) {
@@ -259,7 +283,7 @@ fn search(
                 }
             } else {
                 for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
-                    sums[j] += k_at(a + u64(j) * step, wp, n, lo);
+                    sums[j] += k_at(w_add(a, w_mul_u32(step, j)), wp, n, lo);
                 }
             }
         }
@@ -277,53 +301,53 @@ fn search(
             v += atomicLoad(&partial[c * ALLOC_CANDIDATES + lid]);
         }
         if (v > 0u) {
-            atomicAdd(&state[6u + lid], u64(v));
+            st_add(6u + lid, v);
         }
     }
 }
 
 @compute @workgroup_size(1)
 fn choose() {
-    let goal = atomicLoad(&state[0]);
-    let span = atomicLoad(&state[2]);
-    let step = span >> 4u;
-    if (step == 0lu) {
+    let goal = st(0u);
+    let span = st(2u);
+    let step = w_shr(span, 4u);
+    if (w_is_zero(step)) {
         return;
     }
     // Candidate 0 (the current a) always fits; the totals grow with j.
     var best = 0u;
     for (var j = 1u; j < ALLOC_CANDIDATES; j++) {
-        if (atomicLoad(&state[6u + j]) <= goal) {
+        if (w_le(st(6u + j), goal)) {
             best = j;
         }
     }
-    atomicStore(&state[4], atomicLoad(&state[6u + best]));
-    atomicAdd(&state[ALLOC_ROUNDS_WORD], 1lu);
+    st_set(4u, st(6u + best));
+    st_add(ALLOC_ROUNDS_WORD, 1u);
     var next_span = step;
-    if (span == BRACKET) {
+    if (all(span == BRACKET)) {
         // The answer lies in [bracket_at(best), bracket_at(best + 1)) (the last candidate's
         // total never fits here): search the smallest power of 16 that covers it (candidates
         // past its end do not fit either). At most 2^44, so at most 11 rounds more.
-        let centre = atomicLoad(&state[last_answer_word()]);
+        let centre = st(last_answer_word());
         let a = bracket_at(best, centre);
-        let gap = bracket_at(min(best + 1u, ALLOC_CANDIDATES - 1u), centre) - a;
-        next_span = 1lu;
-        for (var d = 0u; d < SEARCH_SPAN_DIGITS && next_span < gap; d++) {
-            next_span = next_span << 4u;
+        let gap = w_sub(bracket_at(min(best + 1u, ALLOC_CANDIDATES - 1u), centre), a);
+        next_span = w_of(1u);
+        for (var d = 0u; d < SEARCH_SPAN_DIGITS && w_lt(next_span, gap); d++) {
+            next_span = w_shl(next_span, 4u);
         }
-        atomicStore(&state[1], a);
+        st_set(1u, a);
     } else {
-        atomicStore(&state[1], atomicLoad(&state[1]) + u64(best) * step);
+        st_set(1u, w_add(st(1u), w_mul_u32(step, best)));
     }
-    atomicStore(&state[2], next_span);
-    if (next_span == 1lu) {
+    st_set(2u, next_span);
+    if (all(next_span == w_of(1u))) {
         // Found: the remaining rounds' search dispatches no workgroup, and the next frame's
         // bracket centres on the answer.
         dispatches[DISPATCH_ROUNDS * DISPATCH_WORDS] = 0u;
-        atomicStore(&state[last_answer_word()], atomicLoad(&state[1]));
+        st_set(last_answer_word(), st(1u));
     }
     for (var j = 0u; j < ALLOC_CANDIDATES; j++) {
-        atomicStore(&state[6u + j], 0lu);
+        st_set(6u + j, W(0u, 0u));
     }
 }
 
@@ -343,10 +367,10 @@ fn mark(
     }
     workgroupBarrier();
     if (p < params.pixels) {
-        let a = atomicLoad(&state[1]);
-        let lo = u32(atomicLoad(&state[3]));
+        let a = st(1u);
+        let lo = st(3u).x;
         let n = count_of(p);
-        if (n > 0u && k_at(a + 1lu, w[p], n, lo) > k_at(a, w[p], n, lo)) {
+        if (n > 0u && k_at(w_add(a, w_of(1u)), w[p], n, lo) > k_at(a, w[p], n, lo)) {
             atomicOr(&mark_bits[lid / MARK_BITS], 1u << (lid % MARK_BITS));
         }
     }
@@ -377,17 +401,17 @@ fn apply(
         w[p] = 0u;
         return;
     }
-    let a = atomicLoad(&state[1]);
-    let lo = u32(atomicLoad(&state[3]));
-    let left = atomicLoad(&state[0]) - atomicLoad(&state[4]);
+    let a = st(1u);
+    let lo = st(3u).x;
+    let left = w_sub(st(0u), st(4u));
     let base = k_at(a, w[p], n, lo);
-    let rises = k_at(a + 1lu, w[p], n, lo) > base;
+    let rises = k_at(w_add(a, w_of(1u)), w[p], n, lo) > base;
     // `flags` holds the marks' bits after their words' exclusive prefix sums: the marked
     // pixels before p are its word's prefix and its word's bits below its own. The weight
     // read, k takes its place, or with the tails pooled its span (common.wgsl's span_of).
     let word = p / MARK_BITS;
     let below = flags[mark_blocks(params.pixels) + 1u + word] & ((1u << (p % MARK_BITS)) - 1u);
     let rank = flags[word] + countOneBits(below);
-    let k = base + select(0u, 1u, rises && u64(rank) < left);
+    let k = base + select(0u, 1u, rises && w_lt(w_of(rank), left));
     w[p] = select(k, span_of(k, n), params.pooled_tail != 0u);
 }

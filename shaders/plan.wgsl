@@ -44,74 +44,71 @@ struct PlanParams {
 // holds, the rows run (totals.wgsl's `batch`); an unused buffer of four words for the others.
 @group(0) @binding(8) var<storage, read_write> batch: array<u32>;
 
-fn wide(lo: u32, hi: u32) -> u64 {
-    return (u64(hi) << 32u) | u64(lo);
-}
-
-// A value and whether there is one.
+// A value and whether there is one (u64.wgsl's W: 64 bits in two 32-bit words).
 struct Maybe {
-    value: u64,
+    value: W,
     some: bool,
 };
 
-fn some(v: u64) -> Maybe {
+fn some(v: W) -> Maybe {
     return Maybe(v, true);
 }
 
 fn none() -> Maybe {
-    return Maybe(0lu, false);
+    return Maybe(W(0u, 0u), false);
 }
 
-fn checked_sub(a: u64, b: u64) -> Maybe {
-    if (a < b) {
+fn checked_sub(a: W, b: W) -> Maybe {
+    if (w_lt(a, b)) {
         return none();
     }
-    return some(a - b);
+    return some(w_sub(a, b));
 }
 
-fn ceil_div(a: u64, b: u64) -> u64 {
-    return (a + b - 1lu) / b;
+fn ceil_div(a: W, b: u32) -> W {
+    return w_div_u32(w_add(a, w_of(b - 1u)), b);
 }
 
 // plan::largest_fitting: the largest F at most `cap` whose slots and tails take at most
 // `words` pool words.
-fn largest_fitting(words: u64, n: u64, covered: u64, deep: u64, deeper: u64, cap: u64) -> Maybe {
-    if (words >= n) {
+fn largest_fitting(words: W, n: W, covered: W, deep: W, deeper: W, cap: W) -> Maybe {
+    if (w_le(n, words)) {
         return some(cap);
     }
-    if (cap >= covered) {
-        let f1 = checked_sub(words, deep + deeper);
-        if (f1.some && f1.value >= covered) {
-            return some(min(cap, f1.value));
+    if (w_le(covered, cap)) {
+        let f1 = checked_sub(words, w_add(deep, deeper));
+        if (f1.some && w_le(covered, f1.value)) {
+            return some(w_min(cap, f1.value));
         }
     }
-    let f0 = checked_sub(words, covered + deep);
+    let f0 = checked_sub(words, w_add(covered, deep));
     if (f0.some) {
-        return some(min(cap, f0.value));
+        return some(w_min(cap, f0.value));
     }
     return none();
 }
 
 // budget::Layout::fragment_budget_counted for a layout with pooled tails, the fixed bytes
 // already taken off (`pool`).
-fn budget_counted(pool: Maybe, covered: u64, deep: u64, deeper: u64) -> Maybe {
+fn budget_counted(pool: Maybe, covered: W, deep: W, deeper: W) -> Maybe {
     // What the pool holds first whatever F (DKB's records and marks), and 16 bytes at least,
     // as every buffer.
-    var least = 16lu;
+    var least = w_of(16u);
     if (plan.record_bytes > 0u) {
-        let records = ceil_div(deeper, u64(plan.layout_batches));
-        least = max(max(u64(plan.record_bytes) * records, wide(plan.marks_lo, plan.marks_hi)), 16lu);
+        let records = ceil_div(deeper, plan.layout_batches);
+        let marks = W(plan.marks_lo, plan.marks_hi);
+        least = w_max(w_max(w_mul_u32(records, plan.record_bytes), marks), w_of(16u));
     }
-    if (!pool.some || pool.value < least) {
+    if (!pool.some || w_lt(pool.value, least)) {
         return none();
     }
-    let words = pool.value / 8lu;
-    let f1 = checked_sub(words, deep + deeper);
-    if (f1.some && f1.value >= covered) {
+    let words = w_div_u32(pool.value, 8u);
+    let f1 = checked_sub(words, w_add(deep, deeper));
+    if (f1.some && w_le(covered, f1.value)) {
         return f1;
     }
-    let f0 = checked_sub(words, covered + deep);
-    if (f0.some && f0.value > 0lu) {
+    let f0 = checked_sub(words, w_add(covered, deep));
+    if (f0.some && (f0.value.x != 0u || f0.value.y != 0u)) {
         return f0;
     }
     return none();
@@ -119,19 +116,19 @@ fn budget_counted(pool: Maybe, covered: u64, deep: u64, deeper: u64) -> Maybe {
 
 @compute @workgroup_size(1)
 fn main() {
-    let n = u64(totals[0]);
-    let covered = u64(totals[1]);
-    let deep = u64(totals[3]);
-    let deeper = u64(totals[5]);
+    let n = w_of(totals[0]);
+    let covered = w_of(totals[1]);
+    let deep = w_of(totals[3]);
+    let deeper = w_of(totals[5]);
     var short = 0u;
     // The budget's F.
-    var budget_f = u64(plan.budget);
+    var budget_f = w_of(plan.budget);
     if (plan.kind == 1u) {
-        budget_f = (n * u64(plan.budget)) / u64(PPM);
+        budget_f = w_div_u32(w_mul(totals[0], plan.budget), PPM);
     } else if (plan.kind == 2u) {
         var bytes = none();
         if (plan.bytes_lo != 0xffffffffu || plan.bytes_hi != 0xffffffffu) {
-            bytes = some(wide(plan.bytes_lo, plan.bytes_hi));
+            bytes = some(W(plan.bytes_lo, plan.bytes_hi));
         }
         let counted = budget_counted(bytes, covered, deep, deeper);
         budget_f = counted.value;
@@ -140,31 +137,32 @@ fn main() {
         }
     }
     // Within what the pool holds.
-    let pool = wide(plan.pool_lo, plan.pool_hi);
-    let words = pool / 8lu;
+    let pool = W(plan.pool_lo, plan.pool_hi);
+    let words = w_div_u32(pool, 8u);
     let fitting = largest_fitting(words, n, covered, deep, deeper, budget_f);
     var f = fitting.value;
     if (!fitting.some) {
         short |= PLAN_SHORT_SLOTS;
     }
-    if (f < budget_f) {
+    if (w_lt(f, budget_f)) {
         short |= PLAN_SHORT_SLOTS;
     }
-    let exact = f >= n || (plan.exact_when_cheaper != 0u && words >= n);
+    let exact = w_le(n, f) || (plan.exact_when_cheaper != 0u && w_le(n, words));
     // DKB's records, in batches of what the pool holds (budget::PoolState::batch).
-    var per_batch = 0lu;
+    var per_batch = 0u;
     if (plan.record_bytes > 0u && !exact) {
-        let records = max(deeper, 1lu);
-        per_batch = clamp(pool / u64(plan.record_bytes), 1lu, records);
-        let batches = max(ceil_div(deeper, per_batch), 1lu);
-        if (batches > u64(max(plan.batches, 1u))) {
+        let records = w_max(deeper, w_of(1u));
+        // At most the records (a u32 count).
+        per_batch = w_min(w_max(w_div_u32(pool, plan.record_bytes), w_of(1u)), records).x;
+        let batches = w_max(ceil_div(deeper, per_batch), w_of(1u));
+        if (w_lt(w_of(max(plan.batches, 1u)), batches)) {
             short |= PLAN_SHORT_RECORDS;
         }
     }
     if (exact) {
         f = n;
     }
-    totals[PLAN_F_WORD] = u32(min(f, n));
+    totals[PLAN_F_WORD] = w_min(f, n).x;
     totals[PLAN_FLAGS_WORD] = select(0u, 1u, exact) | (short << 1u);
-    batch[2] = u32(per_batch);
+    batch[2] = per_batch;
 }

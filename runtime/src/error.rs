@@ -59,10 +59,9 @@ pub enum GpuError {
     NoAdapter,
     /// Every adapter lacks something the passes need; `lacking` says what, per adapter.
     #[error(
-        "no adapter has the features asked for (for DKB and VKB, 64-bit integers and 64-bit \
-         atomics: Vulkan with shaderInt64 and VK_KHR_shader_atomic_int64, DX12 with shader \
-         model 6.6; wgpu's Metal backend and WebGPU have none, and run every other method): \
-         {lacking}"
+        "no adapter has the features asked for (for DKB, 64-bit integers and 64-bit atomics: \
+         Vulkan with shaderInt64 and VK_KHR_shader_atomic_int64, DX12 with shader model 6.6; \
+         wgpu's Metal backend and WebGPU have none, and run every other method): {lacking}"
     )]
     MissingFeatures { lacking: String },
     /// The application's device was opened without a feature or a limit the passes need.

@@ -41,6 +41,9 @@ pub mod shaders {
     /// The 64-bit key and status word the passes that use 64-bit integers share.
     pub const KEYS64: &str = include_str!("../../shaders/keys64.wgsl");
 
+    /// Unsigned 64-bit arithmetic in two 32-bit words, for the passes that run without u64.
+    pub const U64: &str = include_str!("../../shaders/u64.wgsl");
+
     /// The k-buffer's Loop64 insertion and tail, which the capture runs (capture.wgsl).
     pub const KBUFFER_INSERT: &str = include_str!("../../shaders/kbuffer_insert.wgsl");
     /// The same with 32-bit atomics alone, in two passes (the portable capture).
@@ -177,6 +180,8 @@ pub mod shaders {
         "list_store",
         "list_resolve",
         "totals",
+        "plan",
+        "allocate",
     ];
 
     pub const PASSES: [Pass; 24] = [
@@ -271,7 +276,7 @@ pub mod shaders {
         Pass {
             name: "allocate",
             source: include_str!("../../shaders/allocate.wgsl"),
-            includes: &[],
+            includes: &[U64],
         },
         Pass {
             name: "features",
@@ -286,7 +291,7 @@ pub mod shaders {
         Pass {
             name: "plan",
             source: include_str!("../../shaders/plan.wgsl"),
-            includes: &[],
+            includes: &[U64],
         },
         Pass {
             name: "importance_dkb",

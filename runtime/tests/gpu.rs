@@ -2127,7 +2127,7 @@ fn the_renderer_runs_on_the_applications_device() {
         dhoit_runtime::gpu::required_limits(),
     );
     // Without 64-bit atomics, or with wgpu's default 8 storage buffers a stage (DKB's
-    // importance pass binds 10), the device runs every method but DKB and VKB, FKB with the
+    // importance pass binds 10), the device runs every method but DKB, FKB with the
     // portable capture; DKB is refused with what the device lacks named.
     let (s, cam) = frame("hair", 1, 32, 24);
     let mlp = dhoit_runtime::mlp::Mlp::random(4);
@@ -2265,6 +2265,9 @@ fn the_plan_pass_matches_its_cpu_twin() {
             (900, 300, 120, 400),
             (4096, 4096, 4096, 9_000),
             (2000, 1999, 3, 17),
+            // 40 million fragments: a share of them in parts per million and the pools past
+            // 2^32 bytes below take more than 32 bits (the pass's u64.wgsl words).
+            (4096, 4000, 3900, 40_000_000),
         ] {
             let occ = Occupancy {
                 fragments: covered + deep + deeper + extra,
@@ -2281,7 +2284,7 @@ fn the_plan_pass_matches_its_cpu_twin() {
                 .collect();
             let byte_edges = edges.iter().map(|&b| PlanBudget::Bytes(fixed + b));
             for budget in budgets.into_iter().chain(byte_edges) {
-                let pools = [16, 1_000, 9_000, 40_000, 300_000];
+                let pools = [16, 1_000, 9_000, 40_000, 300_000, 6_000_000_000, 1 << 41];
                 for pool_bytes in pools.into_iter().chain(edges.iter().copied()) {
                     for batches in [1, 3] {
                         for exact_when_cheaper in [false, true] {
@@ -2318,6 +2321,61 @@ fn the_plan_pass_matches_its_cpu_twin() {
         exact > 0 && short > 0 && truncated > 0,
         "{exact} {short} {truncated}"
     );
+}
+
+/// u64.wgsl's 64-bit words (two u32s, for the passes that run without u64) compute what Rust's
+/// u64 does: sums, differences, products, quotients and comparisons of values across the
+/// 32-bit boundary and at the ends of the range, on the device.
+#[test]
+fn sixty_four_bit_words_compute_what_u64s_do() {
+    let Some(g) = gpu() else { return };
+    let mut rng = dhoit_runtime::rng::Rng::new(7);
+    let edges = [
+        0u64,
+        1,
+        0xffff_ffff,
+        1 << 32,
+        (1 << 32) + 1,
+        0x8000_0000_0000_0000,
+        u64::MAX - 1,
+        u64::MAX,
+    ];
+    let mut cases: Vec<(u64, u64, u32)> = Vec::new();
+    for &a in &edges {
+        for &b in &edges {
+            cases.push((a, b, (b as u32).max(1)));
+        }
+    }
+    for _ in 0..2000 {
+        let wide = |r: &mut dhoit_runtime::rng::Rng| {
+            let bits = r.below(65) as u32;
+            if bits == 0 {
+                0
+            } else {
+                r.next_u64() >> (64 - bits)
+            }
+        };
+        let (a, b) = (wide(&mut rng), wide(&mut rng));
+        let d = (rng.next_u64() >> rng.below(32)) as u32;
+        cases.push((a, b, d.max(1)));
+    }
+    let got = g.u64_words(&cases).unwrap();
+    for (&(a, b, d), w) in cases.iter().zip(got) {
+        let want = [
+            a.wrapping_add(b),
+            a.wrapping_sub(b),
+            (a as u32 as u64) * (b as u32 as u64),
+            a.wrapping_mul(d as u64),
+            a / d as u64,
+            (a < b) as u64,
+            a.min(b),
+            a.max(b),
+        ];
+        assert_eq!(
+            w, want,
+            "a {a:#x} b {b:#x} d {d:#x}: add sub mul mul_u32 div lt min max"
+        );
+    }
 }
 
 /// A frame of `layers` coplanar-in-groups quads: over the left half `layers` quads in groups

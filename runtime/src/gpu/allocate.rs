@@ -4,7 +4,7 @@
 //! a frame computes (`dkb.rs`, `vkb.rs`) or is given (the count pass and `totals.wgsl` first).
 //! [`Gpu::allocate`] runs it alone.
 
-use super::buffers::{FrameBuffers, read_back, read_counts, read_words, u32s};
+use super::buffers::{FrameBuffers, read_back, read_counts, read_u64s, read_words, u32s};
 use super::passes::{Passes, Phase};
 use super::pipelines::{compute_buffer_entry, module, module_from, redeclare};
 use super::scan::Scan;
@@ -141,7 +141,7 @@ impl<'a> Passes<'a> {
         kind: u32,
     ) -> Result<Allocation> {
         let gpu = self.gpu;
-        let a = &gpu.wide()?.allocate;
+        let a = &gpu.pipelines.allocate;
         let ap = AllocParams { kind, _pad: [0; 3] };
         let params = fb.init(
             "alloc.params",
@@ -207,7 +207,7 @@ impl<'a> Passes<'a> {
         fb: &mut FrameBuffers<'_, '_>,
         al: &Allocation,
     ) -> Result<&'static str> {
-        let a = &self.gpu.wide()?.allocate;
+        let a = &self.gpu.pipelines.allocate;
         let (search, variant) = a.search_for(&self.gpu.device, self.opts.spread_search);
         let (per_pixel, rounds, scan) = (
             dispatch_offset(DISPATCH_PER_PIXEL),
@@ -449,6 +449,7 @@ fn pipeline(
     entry: &str,
 ) -> wgpu::ComputePipeline {
     super::pipelines::note_built();
+    super::pipelines::record_pipeline(entry, m, serde_json::json!({ "compute": entry }));
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(entry),
         layout: Some(layout),
@@ -493,7 +494,7 @@ impl Gpu {
             self.queue.write_buffer(&b, 0, bytemuck::cast_slice(words));
             b
         };
-        let p = &self.wide()?.plan;
+        let p = &self.pipelines.plan;
         let mut enc = self.device.create_command_encoder(&Default::default());
         let mut outputs = Vec::new();
         {
@@ -541,5 +542,84 @@ impl Gpu {
         }
         scopes.end()?;
         Ok(plans)
+    }
+
+    /// u64.wgsl's 64-bit words on the device, for each (a, b, d) of `cases` (d > 0): a + b,
+    /// a - b (wrapping), the whole product of their low words, a * d (wrapping), a / d,
+    /// a < b (1 or 0), min and max: what the tests hold to Rust's u64.
+    pub fn u64_words(&self, cases: &[(u64, u64, u32)]) -> Result<Vec<[u64; 8]>> {
+        const ENTRY: &str = "
+@group(0) @binding(0) var<storage, read> ab: array<vec4<u32>>;
+@group(0) @binding(1) var<storage, read> divisor: array<u32>;
+@group(0) @binding(2) var<storage, read_write> out: array<W>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if (i >= arrayLength(&divisor)) {
+        return;
+    }
+    let a = ab[i].xy;
+    let b = ab[i].zw;
+    let d = divisor[i];
+    out[8u * i] = w_add(a, b);
+    out[8u * i + 1u] = w_sub(a, b);
+    out[8u * i + 2u] = w_mul(a.x, b.x);
+    out[8u * i + 3u] = w_mul_u32(a, d);
+    out[8u * i + 4u] = w_div_u32(a, d);
+    out[8u * i + 5u] = w_of(select(0u, 1u, w_lt(a, b)));
+    out[8u * i + 6u] = w_min(a, b);
+    out[8u * i + 7u] = w_max(a, b);
+}
+";
+        if cases.is_empty() || cases.iter().any(|c| c.2 == 0) {
+            return Err(Error::Invalid(
+                "u64_words takes cases with divisors above 0".into(),
+            ));
+        }
+        let scopes = self.begin_frame(1, 1)?;
+        let src = format!("{}\n{ENTRY}", crate::wgsl::shaders::U64);
+        let m = module_from(&self.device, "u64 words", src);
+        let p = super::pipelines::compute_pipeline(&self.device, "u64 words", &m, "main");
+        let init = |label: &str, words: &[u32], usage: wgpu::BufferUsages| {
+            let b = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 4 * words.len() as u64,
+                usage: usage | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            self.queue.write_buffer(&b, 0, bytemuck::cast_slice(words));
+            b
+        };
+        let split = |v: u64| [v as u32, (v >> 32) as u32];
+        let ab: Vec<u32> = cases
+            .iter()
+            .flat_map(|&(a, b, _)| [split(a), split(b)].concat())
+            .collect();
+        let d: Vec<u32> = cases.iter().map(|c| c.2).collect();
+        let storage = wgpu::BufferUsages::STORAGE;
+        let ab = init("u64.ab", &ab, storage);
+        let d = init("u64.divisor", &d, storage);
+        let n = cases.len() as u64;
+        let out = init(
+            "u64.out",
+            &vec![0u32; 16 * n as usize],
+            storage | wgpu::BufferUsages::COPY_SRC,
+        );
+        let g = self.bind(&p.get_bind_group_layout(0), &[&ab, &d, &out]);
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&p);
+            pass.set_bind_group(0, &g, &[]);
+            pass.dispatch_workgroups(n.div_ceil(64) as u32, 1, 1);
+        }
+        self.submit(enc.finish());
+        let words = read_u64s(self, &out, 8 * n, false)?;
+        scopes.end()?;
+        Ok(words
+            .chunks_exact(8)
+            .map(|c| c.try_into().expect("8"))
+            .collect())
     }
 }

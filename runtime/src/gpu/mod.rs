@@ -89,11 +89,10 @@ pub(crate) fn network_pass_source(pass: &'static str, m: &Mlp) -> String {
     pipelines::Variant::for_network(pass, m, true).source()
 }
 
-/// Features every method runs with: 64-bit integers and their atomics. DKB's and VKB's
-/// statistics, plan and allocation need them, and the k-buffers capture in one pass with them
-/// ([`Capture::Wide`]). A device without them (WebGPU, Metal, many phones) runs every other
-/// method, its k-buffers with the portable capture ([`Capture::Portable`]), and refuses DKB and
-/// VKB by name. Timestamps (`TIMESTAMP_QUERY`) are optional: with them a frame reports each
+/// Features every method runs with: 64-bit integers and their atomics. DKB's statistics and
+/// importance need them, and the k-buffers capture in one pass with them ([`Capture::Wide`]).
+/// A device without them (WebGPU, Metal, many phones) runs every other method, its k-buffers
+/// with the portable capture ([`Capture::Portable`]), and refuses DKB by name. Timestamps (`TIMESTAMP_QUERY`) are optional: with them a frame reports each
 /// pass's GPU time, without them none.
 pub fn required_features() -> wgpu::Features {
     wide_features()
@@ -492,8 +491,8 @@ fn instance_descriptors() -> [wgpu::InstanceDescriptor; 2] {
 
 impl Gpu {
     /// Opens the first adapter that has every required feature ([`required_features`]), else
-    /// the first adapter, without them: every method but DKB and VKB then runs, with the
-    /// portable capture ([`Gpu::wide`] says which).
+    /// the first adapter, without them: every method but DKB then runs, the k-buffers with the
+    /// portable capture ([`Gpu::is_wide`] says which).
     pub fn new() -> Result<Gpu> {
         match Self::requiring(wgpu::Features::empty()) {
             Err(Error::Gpu(GpuError::MissingFeatures { .. })) => Self::portable(),
@@ -503,8 +502,8 @@ impl Gpu {
 
     /// The first adapter opened as WebGPU's core device: no feature (not even the optional
     /// ones) and wgpu's default limits ([`wgpu::Limits::default`], 8 storage buffers a stage).
-    /// Every method but DKB and VKB runs, with the portable capture; what runs here runs in a
-    /// browser.
+    /// Every method but DKB runs, the k-buffers with the portable capture; what runs here runs
+    /// in a browser.
     pub fn portable() -> Result<Gpu> {
         let adapter = instances()
             .into_iter()
@@ -528,8 +527,8 @@ impl Gpu {
         Self::build(device, queue, &info)
     }
 
-    /// Whether the device builds the passes that use 64-bit integers (DKB, VKB, the one-pass
-    /// capture): it has [`required_features`] and [`required_limits`].
+    /// Whether the device builds the passes that use 64-bit integers (DKB's statistics and
+    /// importance, the one-pass capture): it has [`required_features`] and [`required_limits`].
     pub fn is_wide(&self) -> bool {
         self.pipelines.wide.is_some()
     }
@@ -550,7 +549,7 @@ impl Gpu {
             GpuError::DeviceLacks {
                 adapter: self.adapter.clone(),
                 missing: format!(
-                    "{} (DKB and VKB count, plan and allocate with 64-bit integers; every other \
+                    "{} (DKB's statistics and importance use 64-bit integers; every other \
                      method runs without them)",
                     missing.join(", ")
                 ),
@@ -607,8 +606,8 @@ impl Gpu {
     /// dhoit on the application's own device and queue (clones of its handles: wgpu's are
     /// shared), with `info` its adapter's ([`wgpu::Adapter::get_info`]). A device opened without
     /// [`required_features`] (64-bit integers and their atomics) or [`required_limits`] runs
-    /// every method but DKB and VKB, which are refused with what it lacks named (its k-buffers
-    /// capture in the portable passes); one below wgpu's default limits is refused; with
+    /// every method but DKB, which is refused with what it lacks named (its k-buffers capture in
+    /// the portable passes); one below wgpu's default limits is refused; with
     /// `SHADER_F16` the importance pass also runs networks at f16-math, and with
     /// `FLOAT32_BLENDABLE` MBOIT runs (its frames are refused, the feature named, without it). Frames allocate from
     /// the device's own limits.
@@ -942,12 +941,8 @@ impl Gpu {
         let (width, height) = spec.size;
         let px = width as u64 * height as u64;
         let slots = spec.slots;
-        // DKB and VKB need the passes with 64-bit integers, the one-pass capture too: refused
-        // before anything is recorded.
-        if matches!(
-            slots,
-            Some(Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
-        ) {
+        // DKB needs the passes with 64-bit integers: refused before anything is recorded.
+        if matches!(slots, Some(Slots::Dkb(..))) {
             self.wide()?;
         }
         let mut params = spec.params;

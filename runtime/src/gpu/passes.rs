@@ -300,10 +300,7 @@ impl<'a> Passes<'a> {
         plan: Option<(&wgpu::Buffer, &wgpu::Buffer)>,
     ) -> crate::error::Result<()> {
         let p = &self.gpu.pipelines;
-        let plan_pipeline = match plan {
-            Some(_) => Some(&self.gpu.wide()?.plan),
-            None => None,
-        };
+        let plan_pipeline = plan.map(|_| &p.plan);
         let g = self.gpu.bind(
             &p.totals.get_bind_group_layout(0),
             &[&self.params, counts, totals],

@@ -42,6 +42,9 @@ pub(super) struct Pipelines {
         >,
     >,
     pub(super) totals: wgpu::ComputePipeline,
+    pub(super) allocate: Allocate,
+    /// The frame's plan (plan.wgsl), after the totals.
+    pub(super) plan: wgpu::ComputePipeline,
     /// DKB's records: an index for each pixel of two fragments or more (totals.wgsl).
     pub(super) assign_records: wgpu::ComputePipeline,
     /// A batch of DKB's records after the first emptied, and the batch moved on (totals.wgsl).
@@ -58,15 +61,12 @@ pub(super) struct Pipelines {
 }
 
 /// The passes that use 64-bit integers and atomics: the one-pass capture, and DKB's and VKB's
-/// statistics, plan and allocation.
+/// statistics and importance.
 pub(super) struct Wide {
     pub(super) capture: wgpu::RenderPipeline,
     /// capture.wgsl built for frames whose budget holds every fragment (k = n).
     pub(super) capture_fits: wgpu::RenderPipeline,
-    pub(super) allocate: Allocate,
     pub(super) features: wgpu::RenderPipeline,
-    /// The frame's plan (plan.wgsl), after the totals.
-    pub(super) plan: wgpu::ComputePipeline,
 }
 
 /// The opaque pass's depth attachment, which the transparent passes read as their occluder.
@@ -142,7 +142,7 @@ pub fn record_pipelines<T>(f: impl FnOnce() -> T) -> (T, Vec<serde_json::Value>)
 
 /// Notes a pipeline built from module `m` where [`record_pipelines`] runs: `stages` its entry
 /// points and fixed-function state (WebGPU's descriptor less the module and layout).
-fn record_pipeline(label: &str, m: &wgpu::ShaderModule, stages: serde_json::Value) {
+pub(super) fn record_pipeline(label: &str, m: &wgpu::ShaderModule, stages: serde_json::Value) {
     RECORDING.with(|r| {
         let mut r = r.borrow_mut();
         let Some(r) = r.as_mut() else { return };
@@ -827,9 +827,7 @@ impl Pipelines {
             wide: wide.then(|| Wide {
                 capture: geometry("capture"),
                 capture_fits: geometry_from("capture", fits("capture")),
-                allocate: Allocate::new(device),
                 features: geometry("features"),
-                plan: compute("plan"),
             }),
             scan_blocks: compute_entry("scan", "scan_blocks"),
             scan_blocks_in_place: compute_entry("scan", "scan_blocks_in_place"),
@@ -842,6 +840,8 @@ impl Pipelines {
             extras: Extras::default(),
             onto: Default::default(),
             totals: compute("totals"),
+            allocate: Allocate::new(device),
+            plan: compute("plan"),
             assign_records: compute_entry("totals", "assign_records"),
             init_records: compute_entry("totals", "init_records"),
             next_batch: compute_entry("totals", "next_batch"),

@@ -183,8 +183,8 @@ impl Stream {
         if let AppMethod::Dkb(m) = &method {
             gpu.can_run(m)?;
         }
-        // DKB and VKB count, plan and allocate with 64-bit integers.
-        if matches!(method, AppMethod::Dkb(_) | AppMethod::Vkb(_)) {
+        // DKB's statistics and importance use 64-bit integers.
+        if matches!(method, AppMethod::Dkb(_)) {
             gpu.wide()?;
         }
         check_fixed_buffers(gpu, size, &method)?;
