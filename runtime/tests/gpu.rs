@@ -2099,12 +2099,11 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
 }
 
 /// dhoit on the application's own device (`Gpu::on_device`): a device opened without 64-bit
-/// atomics, or with wgpu's default limits, runs FKB with the portable capture and refuses DKB
-/// with what it lacks named; one opened with
-/// `required_features()` and `required_limits()` (wgpu's defaults but for the storage buffers a
-/// stage binds) builds every pass and renders every method as dhoit's own device does, bit for
-/// bit, with the same bytes (MBOIT where the application also asks for `FLOAT32_BLENDABLE`;
-/// without it, MBOIT's frames are refused with the feature named).
+/// atomics runs FKB with the portable capture and refuses DKB with what it lacks named; one
+/// opened with `required_features()` and `required_limits()` (wgpu's defaults, 8 storage
+/// buffers a stage) builds every pass and renders every method as dhoit's own device does, bit
+/// for bit, with the same bytes (MBOIT where the application also asks for
+/// `FLOAT32_BLENDABLE`; without it, MBOIT's frames are refused with the feature named).
 #[test]
 fn the_renderer_runs_on_the_applications_device() {
     let Some(g) = gpu() else { return };
@@ -2126,43 +2125,51 @@ fn the_renderer_runs_on_the_applications_device() {
         dhoit_runtime::gpu::required_features(),
         dhoit_runtime::gpu::required_limits(),
     );
-    // Without 64-bit atomics, or with wgpu's default 8 storage buffers a stage (DKB's
-    // importance pass binds 10), the device runs every method but DKB, FKB with the
-    // portable capture; DKB is refused with what the device lacks named.
+    // Without 64-bit atomics the device runs every method but DKB, FKB with the portable
+    // capture; DKB is refused with what the device lacks named. With them, at wgpu's default
+    // limits (8 storage buffers a stage, what `required_limits` asks), DKB runs as on dhoit's
+    // own device.
     let (s, cam) = frame("hair", 1, 32, 24);
     let mlp = dhoit_runtime::mlp::Mlp::random(4);
     let dkb = Slots::Dkb(&mlp, 300u64.into());
-    for ((d, q), lacks) in [
-        (
-            open(
-                wgpu::Features::SHADER_INT64 | wgpu::Features::TIMESTAMP_QUERY,
-                limits.clone(),
-            ),
-            "SHADER_INT64_ATOMIC_ALL_OPS",
-        ),
-        (
-            open(features, wgpu::Limits::default()),
-            "max_storage_buffers_per_shader_stage 8 (needs 11)",
-        ),
-    ] {
-        let narrow = dhoit_runtime::gpu::Gpu::on_device(d, q, &info).unwrap();
-        assert!(!narrow.is_wide(), "{lacks}");
-        let e = narrow
+    let (d, q) = open(
+        wgpu::Features::SHADER_INT64 | wgpu::Features::TIMESTAMP_QUERY,
+        limits.clone(),
+    );
+    let narrow = dhoit_runtime::gpu::Gpu::on_device(d, q, &info).unwrap();
+    assert!(!narrow.is_wide());
+    let e = narrow
+        .render(&s, &cam, 32, 24, [1.0; 3], Some(dkb))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("SHADER_INT64_ATOMIC_ALL_OPS") && e.contains(&info.name),
+        "{e}"
+    );
+    let fkb = narrow
+        .render(&s, &cam, 32, 24, [1.0; 3], Some(Slots::Uniform(2)))
+        .unwrap();
+    let wide = g
+        .render(&s, &cam, 32, 24, [1.0; 3], Some(Slots::Uniform(2)))
+        .unwrap();
+    assert!(fkb.variants.contains(&"capture: portable"));
+    assert_eq!(fkb.image, wide.image);
+    let (d, q) = open(features, wgpu::Limits::default());
+    let eight = dhoit_runtime::gpu::Gpu::on_device(d, q, &info).unwrap();
+    assert!(eight.is_wide());
+    assert_eq!(
+        eight.device().limits().max_storage_buffers_per_shader_stage,
+        8
+    );
+    assert_eq!(
+        eight
             .render(&s, &cam, 32, 24, [1.0; 3], Some(dkb))
-            .unwrap_err();
-        assert!(
-            e.to_string().contains(lacks) && e.to_string().contains(&info.name),
-            "{e}"
-        );
-        let fkb = narrow
-            .render(&s, &cam, 32, 24, [1.0; 3], Some(Slots::Uniform(2)))
-            .unwrap();
-        let wide = g
-            .render(&s, &cam, 32, 24, [1.0; 3], Some(Slots::Uniform(2)))
-            .unwrap();
-        assert!(fkb.variants.contains(&"capture: portable"), "{lacks}");
-        assert_eq!(fkb.image, wide.image, "{lacks}");
-    }
+            .unwrap()
+            .image,
+        g.render(&s, &cam, 32, 24, [1.0; 3], Some(dkb))
+            .unwrap()
+            .image
+    );
     // Without FLOAT32_BLENDABLE every pass builds but MBOIT's, whose frames are refused with
     // the feature named.
     let (d, q) = open(features, limits.clone());

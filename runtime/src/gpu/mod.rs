@@ -110,23 +110,18 @@ pub fn optional_features() -> wgpu::Features {
     wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SHADER_F16 | wgpu::Features::FLOAT32_BLENDABLE
 }
 
-/// The limits the passes need of a device beyond wgpu's defaults ([`wgpu::Limits::default`]):
-/// 11 storage buffers a shader stage (the capture's fragment stage binds 11, DKB's importance
-/// pass 10; the default is 8). A frame's buffers are checked against the device's own binding
-/// size when they are made.
+/// The limits the passes need of a device: wgpu's defaults ([`wgpu::Limits::default`],
+/// WebGPU's), 8 storage buffers a shader stage among them (a geometry pass's fragment stage
+/// binds at most 8: three of the scene's and the capture's five). A frame's buffers are checked
+/// against the device's own binding size when they are made.
 pub fn required_limits() -> wgpu::Limits {
-    wgpu::Limits {
-        max_storage_buffers_per_shader_stage: 11,
-        ..wgpu::Limits::default()
-    }
+    wgpu::Limits::default()
 }
 
-/// Whether a device with `features` and `limits` builds the passes that use 64-bit integers
-/// ([`required_features`] and [`required_limits`]); without, it runs the portable ones alone.
-fn is_wide(features: wgpu::Features, limits: &wgpu::Limits) -> bool {
+/// Whether a device with `features` builds the passes that use 64-bit integers
+/// ([`required_features`]); without, it runs the portable ones alone.
+fn is_wide(features: wgpu::Features) -> bool {
     features.contains(wide_features())
-        && limits.max_storage_buffers_per_shader_stage
-            >= required_limits().max_storage_buffers_per_shader_stage
 }
 
 /// A device and queue with the pipeline's features, and the compiled passes.
@@ -528,7 +523,7 @@ impl Gpu {
     }
 
     /// Whether the device builds the passes that use 64-bit integers (DKB's statistics and
-    /// importance, the one-pass capture): it has [`required_features`] and [`required_limits`].
+    /// importance, the one-pass capture): it has [`required_features`].
     pub fn is_wide(&self) -> bool {
         self.pipelines.wide.is_some()
     }
@@ -536,22 +531,12 @@ impl Gpu {
     /// The passes that use 64-bit integers, or the error that names what the device lacks.
     fn wide(&self) -> Result<&pipelines::Wide> {
         self.pipelines.wide.as_ref().ok_or_else(|| {
-            let mut missing = Vec::new();
-            let features = wide_features() - self.device.features();
-            if !features.is_empty() {
-                missing.push(format!("{features:?}"));
-            }
-            required_limits().check_limits_with_fail_fn(
-                &self.device.limits(),
-                false,
-                |name, need, has| missing.push(format!("{name} {has} (needs {need})")),
-            );
             GpuError::DeviceLacks {
                 adapter: self.adapter.clone(),
                 missing: format!(
-                    "{} (DKB's statistics and importance use 64-bit integers; every other \
+                    "{:?} (DKB's statistics and importance use 64-bit integers; every other \
                      method runs without them)",
-                    missing.join(", ")
+                    wide_features() - self.device.features()
                 ),
             }
             .into()
@@ -605,9 +590,9 @@ impl Gpu {
 
     /// dhoit on the application's own device and queue (clones of its handles: wgpu's are
     /// shared), with `info` its adapter's ([`wgpu::Adapter::get_info`]). A device opened without
-    /// [`required_features`] (64-bit integers and their atomics) or [`required_limits`] runs
-    /// every method but DKB, which is refused with what it lacks named (its k-buffers capture in
-    /// the portable passes); one below wgpu's default limits is refused; with
+    /// [`required_features`] (64-bit integers and their atomics) runs every method but DKB, which is refused with what it lacks named (its k-buffers capture in
+    /// the portable passes); one below wgpu's default limits ([`required_limits`]) is refused;
+    /// with
     /// `SHADER_F16` the importance pass also runs networks at f16-math, and with
     /// `FLOAT32_BLENDABLE` MBOIT runs (its frames are refused, the feature named, without it). Frames allocate from
     /// the device's own limits.
@@ -642,7 +627,7 @@ impl Gpu {
             "{} ({:?}, {:?}, {} {})",
             info.name, info.backend, info.device_type, info.driver, info.driver_info
         );
-        let wide = is_wide(features, &device.limits());
+        let wide = is_wide(features);
         let pipelines = std::sync::Arc::new(Pipelines::new(&device, wide)?);
         Ok(Gpu {
             timestamp_period: queue.get_timestamp_period(),
@@ -742,14 +727,12 @@ impl<'a> Slots<'a> {
 
 /// Refuses a device below wgpu's default limits ([`wgpu::Limits::default`], what the portable
 /// passes need), naming what it lacks (`adapter` names the device in the error). One without
-/// [`required_features`] or [`required_limits`] runs the portable passes alone.
+/// [`required_features`] runs the portable passes alone.
 pub(super) fn check_device(device: &wgpu::Device, adapter: &str) -> Result<()> {
     let mut missing = Vec::new();
-    wgpu::Limits::default().check_limits_with_fail_fn(
-        &device.limits(),
-        false,
-        |name, need, has| missing.push(format!("{name} {has} (needs {need})")),
-    );
+    required_limits().check_limits_with_fail_fn(&device.limits(), false, |name, need, has| {
+        missing.push(format!("{name} {has} (needs {need})"))
+    });
     if !missing.is_empty() {
         return Err(GpuError::DeviceLacks {
             adapter: adapter.to_string(),
