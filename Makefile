@@ -145,8 +145,9 @@ frame: setup
 	$(RUN) bench --gpu-only --res 320x240 --budget 1fpp --scenes $(FRAME_SCENES) --sequence 120 --out out/frame/orbit-320x240-1fpp.json
 
 ## WebGPU: dhoit-runtime built for wasm32 with wgpu's WebGPU backend, then every pipeline of the
-## methods WebGPU runs (all but DKB and VKB) created on Dawn, Chrome's WebGPU, over a private Mesa
-## 25 lavapipe (scripts/dawn.sh), with a device as a page gets one. `make test` runs it too.
+## methods WebGPU runs (all but MBOIT, which needs float32-blendable) created on Dawn, Chrome's
+## WebGPU, over a private Mesa 25 lavapipe (scripts/dawn.sh), with a device as a page gets one.
+## `make test` runs it too.
 webgpu: setup
 	./scripts/webgpu.sh
 

@@ -1,11 +1,11 @@
-//! Every pipeline dhoit's renderer builds for the methods WebGPU can run, written as JSON for a
-//! WebGPU implementation to create (`make webgpu` hands them to Dawn, Chrome's WebGPU:
-//! scripts/webgpu_pipelines.mjs). It renders each such method once on WebGPU's core device
+//! Every pipeline dhoit's renderer builds for the methods WebGPU runs (all but MBOIT, which
+//! needs float32-blendable), written as JSON for a WebGPU implementation to create (`make
+//! webgpu` hands them to Dawn, Chrome's WebGPU: scripts/webgpu_pipelines.mjs). It renders each such method once on WebGPU's core device
 //! (`Gpu::portable`: no feature, wgpu's default limits) and records what it built.
 //!
 //!     cargo run --release --example webgpu_pipelines -- OUT.json
 
-use dhoit_runtime::gpu::{Gpu, Slots, record_pipelines};
+use dhoit_runtime::gpu::{FrameOptions, Gpu, Slots, record_pipelines};
 use dhoit_runtime::scene::{self, Camera, Opacity};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -18,7 +18,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (w, h) = (64, 48);
     let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
     let k: Vec<u32> = (0..w * h).map(|p| p % 4).collect();
-    let methods: [(&str, Option<Slots>); 8] = [
+    let mlp = dhoit_runtime::mlp::Mlp::random(1);
+    let methods: [(&str, Option<Slots>); 9] = [
+        ("dkb", Some(Slots::Dkb(&mlp, 2000u64.into()))),
         ("vkb", Some(Slots::Vkb(Default::default(), 2000u64.into()))),
         ("abuffer", None),
         ("mlab", Some(Slots::Mlab(4))),
@@ -41,10 +43,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for (name, slots) in methods {
             if name == "predict" {
                 // The network's inference pass (dhoit predict on the GPU).
-                let mlp = dhoit_runtime::mlp::Mlp::random(1);
                 g.predict(&mlp, &[[0.5; 12]; 4])?;
             } else {
-                g.render(&s, &cam, w, h, [1.0; 3], slots)?;
+                // Each method's own passes, even where the exact A-buffer would be no dearer.
+                let opts = FrameOptions::default().always_approximate();
+                g.render_with(&opts, &s, &cam, (w, h), [1.0; 3], slots)?;
             }
             ran.push(name.to_string());
         }

@@ -114,7 +114,7 @@ fn key_less(a: vec2<u32>, b: vec2<u32>) -> bool {
 }
 
 // A k-buffer slot's key as two 32-bit words, each complemented so a cleared, zero slot is empty
-// and atomicMax keeps the nearest: the depth word (keys64.wgsl's fragment_key's high word) and the colour
+// and atomicMax keeps the nearest: the depth word (fragment_key's high word) and the colour
 // word, the fragment's RGBA8 less 2^24 (alpha is at least 1 in every fragment captured, so
 // the colour word is never 0, even for opaque white, and it orders colours as RGBA8 does). A
 // 64-bit slot holds the depth word high and the colour word low; the portable capture writes

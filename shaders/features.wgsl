@@ -29,7 +29,10 @@
 // RECORD_WORDS words a record (importance::pixel_stats of its pixel), in the slot pool until the
 // capture: the nearest key (complemented), the colour sums (sum r, sum g and n, which
 // assign_records wrote; sum b and sum (r^2 + g^2 + b^2)) and the opacity sums.
-@group(1) @binding(1) var<storage, read_write> records: array<atomic<u64>>;
+// Built with one of two ways of adding to them: features_wide.wgsl's 64-bit atomics (one pass),
+// or features_portable.wgsl's 32-bit ones (two passes, FEATURES_COLOURS), which leave the same
+// bytes.
+@group(1) @binding(1) var<storage, read_write> records: array<RecordWord>;
 // A fragment's optical depth by its 8-bit opacity (importance::optical_depth_table), four to a
 // vec4.
 @group(1) @binding(2) var<uniform> optical_depth: array<vec4<u32>, 64>;
@@ -56,19 +59,22 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     if (r == NO_RECORD) {
         return vec4<f32>(0.0);
     }
-    let at = RECORD_WORDS * r;
-    let rgba8 = f.rgba8;
     let depth = select(0.0, in.clip.z, in.clip.z > 0.0);
-    let key = fragment_key(depth, rgba8);
-    if (!PRELOAD_NEAREST || atomicLoad(&records[at]) < ~key) {
-        atomicMax(&records[at], ~key);
-    }
+    record_fragment(RECORD_WORDS * r, bitcast<u32>(depth), f.rgba8);
+    return vec4<f32>(0.0);
+}
+
+// What a fragment of colour `rgba8` adds to its record's three sum words, each as two 32-bit
+// halves (low, high): sum r (bits 0-23) and g (24-47), n above them untouched; sum b and
+// r^2 + g^2 + b^2; its optical depth and 8-bit opacity.
+fn fragment_sums(rgba8: u32) -> array<vec2<u32>, 3> {
     let cr = rgba8 & 0xffu;
     let cg = (rgba8 >> 8u) & 0xffu;
     let cb = (rgba8 >> 16u) & 0xffu;
     let a = rgba8 >> 24u;
-    atomicAdd(&records[at + 1u], u64(cr) | (u64(cg) << 24u));
-    atomicAdd(&records[at + 2u], u64(cb) | (u64(cr * cr + cg * cg + cb * cb) << 32u));
-    atomicAdd(&records[at + 3u], u64(optical_depth[a >> 2u][a & 3u]) | (u64(a) << 32u));
-    return vec4<f32>(0.0);
+    return array<vec2<u32>, 3>(
+        vec2<u32>(cr | (cg << 24u), 0u),
+        vec2<u32>(cb, cr * cr + cg * cg + cb * cb),
+        vec2<u32>(optical_depth[a >> 2u][a & 3u], a),
+    );
 }

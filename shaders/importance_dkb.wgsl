@@ -21,7 +21,8 @@
 // RECORD_WORDS words a record (features.wgsl): the nearest key (complemented), the colour sums
 // (n in bits 48-63 of the first), the opacity sums. Read_write: once a
 // record's features are read, its importance takes its nearest key's place (set_importance).
-@group(0) @binding(3) var<storage, read_write> records: array<u64>;
+// Each record word a 64-bit word's two halves (low x, high y: u64.wgsl's W).
+@group(0) @binding(3) var<storage, read_write> records: array<W>;
 // The records the network decides, and how many (list_len[0]): the slot pool again, read as
 // u32, its list after all the records (list_at; both bindings touch only their own words).
 @group(0) @binding(4) var<storage, read_write> list: array<u32>;
@@ -30,8 +31,8 @@
 @group(0) @binding(6) var<storage, read> totals: array<u32>;
 
 // F as the frame's plan found it (the budget's, within what its pool holds; at most n).
-fn planned_f() -> u64 {
-    return u64(totals[PLAN_F_WORD]);
+fn planned_f() -> u32 {
+    return totals[PLAN_F_WORD];
 }
 // Per pixel: its record's index (NO_RECORD for none), then, after `gather`, its importance:
 // the frame's shared word.
@@ -54,7 +55,7 @@ const SKIP_FORCED: bool = true;
 // first colour-sum word, then n; b in the second's low half).
 fn color_sums(at: u32) -> vec3<u32> {
     let w = records[at + 1u];
-    return vec3<u32>(u32(w & 0xfffffflu), u32((w >> 24u) & 0xfffffflu), u32(records[at + 2u] & 0xfffffffflu));
+    return vec3<u32>(w.x & 0xffffffu, ((w.x >> 24u) | (w.y << 8u)) & 0xffffffu, records[at + 2u].x);
 }
 
 fn luma(c: vec3<f32>) -> f32 {
@@ -72,14 +73,14 @@ struct Net {
 // Record r's importance, in its nearest key's place: only r's own invocation reads that key,
 // and it has read it by now.
 fn set_importance(r: u32, v: f32) {
-    records[RECORD_WORDS * r] = u64(bitcast<u32>(v));
+    records[RECORD_WORDS * r] = W(bitcast<u32>(v), 0u);
 }
 
 fn network_inputs(r: u32) -> Net {
     var net: Net;
     let at = RECORD_WORDS * r;
-    let c = u32(records[at + 1u] >> 48u);
-    if (planned_f() >= u64(totals[0])) {
+    let c = records[at + 1u].y >> 16u;
+    if (planned_f() >= totals[0]) {
         set_importance(r, 0.0);
         return net;
     }
@@ -90,7 +91,7 @@ fn network_inputs(r: u32) -> Net {
     let pair = true;
     let mark = select(0u, PAIR_BIT, pair);
     // alloc::min_k, as the allocation's setup finds it.
-    let lo = select(0u, 1u, planned_f() >= u64(totals[1]));
+    let lo = select(0u, 1u, planned_f() >= totals[1]);
     if (SKIP_FORCED && c <= lo + 1u + select(0u, 1u, pair)) {
         set_importance(r, bitcast<f32>(mark));
         return net;
@@ -100,37 +101,40 @@ fn network_inputs(r: u32) -> Net {
     let covered = f32(max(totals[1], 1u));
     let nf = f32(c);
     let key = ~records[at];
-    let near8 = u32(key & 0xfffffffflu);
+    let near8 = key.x;
     let near = unpack_rgba8(near8).rgb;
     let sum = color_sums(at);
     let mean = vec3<f32>(f32(sum.r) / 255.0 / nf, f32(sum.g) / 255.0 / nf, f32(sum.b) / 255.0 / nf);
-    // n^2 var and n^2 dev in 8-bit units, exact integers. The squares' sum is widened from its
-    // u64 word, not through a u32: on lavapipe i64(u32) of 2^31 or more came out negative
-    // (sign-extended), so past about 11,000 white fragments the variance read 0.
-    var var_num = i64(c) * i64(records[at + 2u] >> 32u);
-    var dev_num = 0li;
+    // n^2 var and n^2 dev in 8-bit units, exact integers (below 2^49) in 64-bit words: n times
+    // the squares' sum less the sums' squares (0 where that is negative), and the sum of the
+    // squared differences of n times the nearest colour and the sums.
+    var sq = W(0u, 0u);
+    var dev_num = W(0u, 0u);
     for (var ch = 0u; ch < 3u; ch++) {
-        let s = i64(sum[ch]);
-        var_num -= s * s;
-        let d = i64(c) * i64((near8 >> (8u * ch)) & 0xffu) - s;
-        dev_num += d * d;
+        let s = sum[ch];
+        sq = w_add(sq, w_mul(s, s));
+        let cn = c * ((near8 >> (8u * ch)) & 0xffu);
+        let d = select(s - cn, cn - s, cn >= s);
+        dev_num = w_add(dev_num, w_mul(d, d));
     }
+    let all_sq = w_mul(c, records[at + 2u].y);
+    let var_num = select(W(0u, 0u), w_sub(all_sq, sq), w_le(sq, all_sq));
     let scale = nf * nf * 65025.0;
-    let variance = f32(max(var_num, 0li)) / scale;
-    let dev = f32(dev_num) / scale;
+    let variance = w_to_f32(var_num) / scale;
+    let dev = w_to_f32(dev_num) / scale;
     let mean_luma = luma(mean);
     let near_luma = luma(near);
-    let tau = f32(u32(records[at + 3u] & 0xfffffffflu)) * OPTICAL_DEPTH_UNIT;
+    let tau = f32(records[at + 3u].x) * OPTICAL_DEPTH_UNIT;
     net.x = array<f32, FEATURES>(
         log2(nf),
         nf / (total / covered),
         f32(planned_f()) / total,
-        log2(f32(max(planned_f(), 1lu)) / covered),
-        bitcast<f32>(u32(key >> 32u)),
+        log2(f32(max(planned_f(), 1u)) / covered),
+        bitcast<f32>(key.y),
         f32(near8 >> 24u) / 255.0,
         log2(variance + LOG_FLOOR),
         log2(dev + LOG_FLOOR),
-        f32(u32(records[at + 3u] >> 32u)) / 255.0 / nf,
+        f32(records[at + 3u].y) / 255.0 / nf,
         mean_luma,
         near_luma,
         log2(tau + OPTICAL_DEPTH_UNIT),
@@ -216,7 +220,7 @@ fn gather(
         if (shared_word[p] == NO_RECORD) {
             shared_word[p] = 0u;
         } else if (r != NO_RECORD) {
-            shared_word[p] = u32(records[RECORD_WORDS * r] & 0xfffffffflu);
+            shared_word[p] = records[RECORD_WORDS * r].x;
         }
     }
 }

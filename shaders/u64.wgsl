@@ -113,3 +113,19 @@ fn w_shl(a: W, s: u32) -> W {
     }
     return W(a.x << s, (a.y << s) | (a.x >> (32u - s)));
 }
+
+// a as the nearest f32 (ties to even), as Rust's `as f32` and a u64's conversion round.
+fn w_to_f32(a: W) -> f32 {
+    if (a.y == 0u) {
+        return f32(a.x);
+    }
+    // 33 to 64 significant bits: keep the top 24, round on the `drop` below them.
+    let drop = 40u - countLeadingZeros(a.y);
+    var m = w_shr(a, drop).x;
+    let rem = w_sub(a, w_shl(w_of(m), drop));
+    let half = w_pow2(drop - 1u);
+    if (w_lt(half, rem) || (all(rem == half) && (m & 1u) == 1u)) {
+        m += 1u;
+    }
+    return f32(m) * exp2(f32(drop));
+}

@@ -38,11 +38,13 @@ pub mod shaders {
         pub includes: &'static [&'static str],
     }
 
-    /// The 64-bit key and status word the passes that use 64-bit integers share.
-    pub const KEYS64: &str = include_str!("../../shaders/keys64.wgsl");
-
     /// Unsigned 64-bit arithmetic in two 32-bit words, for the passes that run without u64.
     pub const U64: &str = include_str!("../../shaders/u64.wgsl");
+
+    /// DKB's features pass's additions with 64-bit atomics (features.wgsl).
+    pub const FEATURES_WIDE: &str = include_str!("../../shaders/features_wide.wgsl");
+    /// The same with 32-bit atomics alone, in two passes.
+    pub const FEATURES_PORTABLE: &str = include_str!("../../shaders/features_portable.wgsl");
 
     /// The k-buffer's Loop64 insertion and tail, which the capture runs (capture.wgsl).
     pub const KBUFFER_INSERT: &str = include_str!("../../shaders/kbuffer_insert.wgsl");
@@ -182,9 +184,12 @@ pub mod shaders {
         "totals",
         "plan",
         "allocate",
+        "importance_dkb",
+        "features_depths",
+        "features_colours",
     ];
 
-    pub const PASSES: [Pass; 24] = [
+    pub const PASSES: [Pass; 26] = [
         Pass {
             name: "opaque",
             source: include_str!("../../shaders/opaque.wgsl"),
@@ -281,7 +286,25 @@ pub mod shaders {
         Pass {
             name: "features",
             source: include_str!("../../shaders/features.wgsl"),
-            includes: &[GEOMETRY, KEYS64],
+            includes: &[GEOMETRY, FEATURES_WIDE],
+        },
+        Pass {
+            name: "features_depths",
+            source: include_str!("../../shaders/features.wgsl"),
+            includes: &[
+                GEOMETRY,
+                FEATURES_PORTABLE,
+                "const FEATURES_COLOURS: bool = false;",
+            ],
+        },
+        Pass {
+            name: "features_colours",
+            source: include_str!("../../shaders/features.wgsl"),
+            includes: &[
+                GEOMETRY,
+                FEATURES_PORTABLE,
+                "const FEATURES_COLOURS: bool = true;",
+            ],
         },
         Pass {
             name: "totals",
@@ -296,7 +319,7 @@ pub mod shaders {
         Pass {
             name: "importance_dkb",
             source: include_str!("../../shaders/importance_dkb.wgsl"),
-            includes: &[MLP],
+            includes: &[U64, MLP],
         },
         Pass {
             name: "vkb_count",

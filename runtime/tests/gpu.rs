@@ -2099,8 +2099,7 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
 }
 
 /// dhoit on the application's own device (`Gpu::on_device`): a device opened without 64-bit
-/// atomics runs FKB with the portable capture and refuses DKB with what it lacks named; one
-/// opened with `required_features()` and `required_limits()` (wgpu's defaults, 8 storage
+/// atomics runs FKB and DKB in the portable passes, to the same images; one opened with `required_features()` and `required_limits()` (wgpu's defaults, 8 storage
 /// buffers a stage) builds every pass and renders every method as dhoit's own device does, bit
 /// for bit, with the same bytes (MBOIT where the application also asks for
 /// `FLOAT32_BLENDABLE`; without it, MBOIT's frames are refused with the feature named).
@@ -2125,10 +2124,9 @@ fn the_renderer_runs_on_the_applications_device() {
         dhoit_runtime::gpu::required_features(),
         dhoit_runtime::gpu::required_limits(),
     );
-    // Without 64-bit atomics the device runs every method but DKB, FKB with the portable
-    // capture; DKB is refused with what the device lacks named. With them, at wgpu's default
-    // limits (8 storage buffers a stage, what `required_limits` asks), DKB runs as on dhoit's
-    // own device.
+    // Without 64-bit atomics the device runs every method, FKB and DKB with the portable
+    // passes, to the images of dhoit's own device; with them, at wgpu's default limits (8
+    // storage buffers a stage, what `required_limits` asks), DKB runs as on dhoit's own device.
     let (s, cam) = frame("hair", 1, 32, 24);
     let mlp = dhoit_runtime::mlp::Mlp::random(4);
     let dkb = Slots::Dkb(&mlp, 300u64.into());
@@ -2138,14 +2136,15 @@ fn the_renderer_runs_on_the_applications_device() {
     );
     let narrow = dhoit_runtime::gpu::Gpu::on_device(d, q, &info).unwrap();
     assert!(!narrow.is_wide());
-    let e = narrow
-        .render(&s, &cam, 32, 24, [1.0; 3], Some(dkb))
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("SHADER_INT64_ATOMIC_ALL_OPS") && e.contains(&info.name),
-        "{e}"
-    );
+    let on_narrow = narrow
+        .render_method(&s, &cam, 32, 24, [1.0; 3], Some(dkb))
+        .unwrap();
+    assert!(on_narrow.variants.contains(&"capture: portable"));
+    let on_wide = g
+        .render_method(&s, &cam, 32, 24, [1.0; 3], Some(dkb))
+        .unwrap();
+    assert_eq!(on_narrow.image, on_wide.image);
+    assert_eq!(on_narrow.importance, on_wide.importance);
     let fkb = narrow
         .render(&s, &cam, 32, 24, [1.0; 3], Some(Slots::Uniform(2)))
         .unwrap();
@@ -2331,8 +2330,8 @@ fn the_plan_pass_matches_its_cpu_twin() {
 }
 
 /// u64.wgsl's 64-bit words (two u32s, for the passes that run without u64) compute what Rust's
-/// u64 does: sums, differences, products, quotients and comparisons of values across the
-/// 32-bit boundary and at the ends of the range, on the device.
+/// u64 does: sums, differences, products, quotients, comparisons and the nearest f32 (ties to
+/// even) of values across the 32-bit boundary and at the ends of the range, on the device.
 #[test]
 fn sixty_four_bit_words_compute_what_u64s_do() {
     let Some(g) = gpu() else { return };
@@ -2353,6 +2352,16 @@ fn sixty_four_bit_words_compute_what_u64s_do() {
             cases.push((a, b, (b as u32).max(1)));
         }
     }
+    // Halfway cases of the f32 rounding, both parities, and one past.
+    for base in [
+        (1u64 << 40) + (1 << 16),
+        (1 << 40) + (3 << 16),
+        0xff_ffff << 30,
+    ] {
+        for off in [0u64, 1 << 15, (1 << 15) + 1, 1 << 6] {
+            cases.push((base + off, 1, 1));
+        }
+    }
     for _ in 0..2000 {
         let wide = |r: &mut dhoit_runtime::rng::Rng| {
             let bits = r.below(65) as u32;
@@ -2367,7 +2376,8 @@ fn sixty_four_bit_words_compute_what_u64s_do() {
         cases.push((a, b, d.max(1)));
     }
     let got = g.u64_words(&cases).unwrap();
-    for (&(a, b, d), w) in cases.iter().zip(got) {
+    for (&(a, b, d), (w, f)) in cases.iter().zip(got) {
+        assert_eq!(f.to_bits(), (a as f32).to_bits(), "a {a:#x}: to f32");
         let want = [
             a.wrapping_add(b),
             a.wrapping_sub(b),
@@ -2471,6 +2481,10 @@ fn the_portable_capture_leaves_the_wide_captures_slots_and_image() {
         );
         let (keys, bases, tails) = b.slots.clone().unwrap();
         assert!(a.slots == b.slots, "{label}: the slots or tails differ");
+        assert!(
+            a.importance == b.importance && a.stats == b.stats,
+            "{label}: the statistics or importance differ"
+        );
         assert!(
             image_bits(&a.image) == image_bits(&b.image),
             "{label}: the images differ"

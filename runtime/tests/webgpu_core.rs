@@ -1,7 +1,7 @@
 //! Every method that needs no 64-bit integer on WebGPU's core device: a device opened with no
 //! feature and wgpu's default limits (`Gpu::portable`, 8 storage buffers a stage), as a browser
 //! gives it. Its frames are the 64-bit device's, bit for bit, and their twins'; equal depths
-//! give one image in every submission order; DKB is refused by name.
+//! give one image in every submission order.
 
 mod common;
 
@@ -62,11 +62,11 @@ fn the_core_device_is_webgpus_and_runs_without_64_bit_integers() {
     assert!(!c.is_wide() && gpu().unwrap().is_wide());
 }
 
-/// A-buffer, MLAB, FKB, uploaded k, VKB (its count, importance, plan and allocation on the
-/// device), the linked list and WBOIT on the core device: the 64-bit device's image bit for bit
-/// (the k-buffers' slots and tails, VKB's importance too), and FKB's and the A-buffer's their
-/// twins'. MBOIT needs FLOAT32_BLENDABLE, which the core device lacks: refused by name. DKB is
-/// refused with the features named, before anything is recorded.
+/// A-buffer, MLAB, FKB, uploaded k, VKB and DKB (their statistics, network, plan and
+/// allocation on the device), the linked list and WBOIT on the core device: the 64-bit
+/// device's image bit for bit (the k-buffers' slots and tails, VKB's and DKB's importance and
+/// DKB's statistics too), and FKB's and the A-buffer's their twins'. MBOIT needs
+/// FLOAT32_BLENDABLE, which the core device lacks: refused by name.
 #[test]
 fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
     let Some(c) = core() else { return };
@@ -81,7 +81,17 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
     let px = (w * h) as usize;
     let k: Vec<u32> = (0..px).map(|p| (p % 6) as u32).collect();
     let total = fl.fragment_count() as u64;
-    let runs: [(&str, Option<Slots>); 10] = [
+    let weights = common::committed_weights();
+    let runs: [(&str, Option<Slots>); 13] = [
+        (
+            "dkb F = 1/4",
+            Some(Slots::Dkb(&weights, (total / 4).into())),
+        ),
+        (
+            "dkb F = 1/2",
+            Some(Slots::Dkb(&weights, (total / 2).into())),
+        ),
+        ("dkb 1 fpp", Some(Slots::Dkb(&weights, (px as u64).into()))),
         (
             "vkb F = 1/4",
             Some(Slots::Vkb(Default::default(), (total / 4).into())),
@@ -120,6 +130,7 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
             a.importance == b.importance,
             "{label}: the importance differs"
         );
+        assert!(a.stats == b.stats, "{label}: the statistics differ");
         if a.slots.is_some() {
             assert!(
                 b.variants.contains(&"capture: portable")
@@ -141,16 +152,6 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("FLOAT32_BLENDABLE"), "{e}");
-    let mlp = dhoit_runtime::mlp::Mlp::random(2);
-    let dkb = Slots::Dkb(&mlp, 500u64.into());
-    let e = c
-        .render_method(&s, &cam, w, h, BG, Some(dkb))
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("SHADER_INT64") && e.contains("every other method runs without them"),
-        "{e}"
-    );
 }
 
 /// Fragments of equal depth give the same image in every submission order, on both devices and

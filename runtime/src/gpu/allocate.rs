@@ -546,12 +546,13 @@ impl Gpu {
 
     /// u64.wgsl's 64-bit words on the device, for each (a, b, d) of `cases` (d > 0): a + b,
     /// a - b (wrapping), the whole product of their low words, a * d (wrapping), a / d,
-    /// a < b (1 or 0), min and max: what the tests hold to Rust's u64.
-    pub fn u64_words(&self, cases: &[(u64, u64, u32)]) -> Result<Vec<[u64; 8]>> {
+    /// a < b (1 or 0), min and max; and a as the nearest f32: what the tests hold to Rust's u64.
+    pub fn u64_words(&self, cases: &[(u64, u64, u32)]) -> Result<Vec<([u64; 8], f32)>> {
         const ENTRY: &str = "
 @group(0) @binding(0) var<storage, read> ab: array<vec4<u32>>;
 @group(0) @binding(1) var<storage, read> divisor: array<u32>;
 @group(0) @binding(2) var<storage, read_write> out: array<W>;
+@group(0) @binding(3) var<storage, read_write> floats: array<f32>;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -570,6 +571,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     out[8u * i + 5u] = w_of(select(0u, 1u, w_lt(a, b)));
     out[8u * i + 6u] = w_min(a, b);
     out[8u * i + 7u] = w_max(a, b);
+    floats[i] = w_to_f32(a);
 }
 ";
         if cases.is_empty() || cases.iter().any(|c| c.2 == 0) {
@@ -606,7 +608,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             &vec![0u32; 16 * n as usize],
             storage | wgpu::BufferUsages::COPY_SRC,
         );
-        let g = self.bind(&p.get_bind_group_layout(0), &[&ab, &d, &out]);
+        let floats = init(
+            "u64.floats",
+            &vec![0u32; n as usize],
+            storage | wgpu::BufferUsages::COPY_SRC,
+        );
+        let g = self.bind(&p.get_bind_group_layout(0), &[&ab, &d, &out, &floats]);
         let mut enc = self.device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
@@ -616,10 +623,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         self.submit(enc.finish());
         let words = read_u64s(self, &out, 8 * n, false)?;
+        let floats = u32s(&read_back(self, &floats, 4 * n)?);
         scopes.end()?;
         Ok(words
             .chunks_exact(8)
-            .map(|c| c.try_into().expect("8"))
+            .zip(floats)
+            .map(|(c, f)| (c.try_into().expect("8"), f32::from_bits(f)))
             .collect())
     }
 }

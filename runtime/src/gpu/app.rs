@@ -361,6 +361,8 @@ fn storing_pass(phase: Phase) -> (&'static str, &'static [(&'static str, &'stati
                 "const EVERY_FRAGMENT_FITS: bool = true;",
             )],
         ),
+        Phase::FeaturesDepths => ("features_depths", &[]),
+        Phase::FeaturesColours => ("features_colours", &[]),
         Phase::CaptureDepths => ("capture_depths", &[]),
         Phase::CaptureColours => ("capture_colours", &[]),
         Phase::ListStore => ("list_store", &[]),
@@ -402,7 +404,9 @@ fn bindings_of(method: &AppMethod, phase: Phase) -> Vec<Binding> {
     match phase {
         Phase::Count => vec![ReadWrite],
         Phase::Store => vec![Read, ReadWrite, ReadWrite, ReadWrite],
-        Phase::Features => vec![Read, ReadWrite, Uniform, Read],
+        Phase::Features | Phase::FeaturesDepths | Phase::FeaturesColours => {
+            vec![Read, ReadWrite, Uniform, Read]
+        }
         Phase::VkbCount => vec![ReadWrite, ReadWrite],
         Phase::Capture | Phase::CaptureFits | Phase::CaptureDepths | Phase::CaptureColours => {
             vec![Read, ReadWrite, ReadWrite, ReadWrite, ReadWrite]

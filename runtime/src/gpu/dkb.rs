@@ -199,14 +199,25 @@ impl Recording<'_, '_, '_> {
                 pass.dispatch_workgroups(*x, *y, 1);
             }
         });
-        let features = if self.passes.opts.features_preload {
-            &gpu.wide()?.features
-        } else {
-            gpu.extras().features_no_preload()
-        };
         let fb = &mut self.fb;
         let bufs = [&b.importance, &b.pool, &b.optical_depth, &b.list_len];
-        passes.draw(fb.enc, Phase::Features, features, &bufs, "features");
+        // With the portable capture, or on a device without 64-bit atomics, in two passes with
+        // 32-bit atomics alone (the same records).
+        match (&gpu.pipelines.wide, self.passes.opts.capture) {
+            (Some(w), super::Capture::Wide) => {
+                let features = match self.passes.opts.features_preload {
+                    true => &w.features,
+                    false => gpu.extras().features_no_preload(),
+                };
+                passes.draw(fb.enc, Phase::Features, features, &bufs, "features");
+            }
+            _ => {
+                let [depths, colours] = gpu.extras().portable_features();
+                let (d, c) = (Phase::FeaturesDepths, Phase::FeaturesColours);
+                passes.draw(fb.enc, d, depths, &bufs, "features depths");
+                passes.draw(fb.enc, c, colours, &bufs, "features colours");
+            }
+        }
         if self.passes.opts.diagnostics {
             // Every batch's records into one copy, where they would lie unbatched; the record
             // indices before the first batch's gather.

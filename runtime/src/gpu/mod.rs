@@ -89,11 +89,12 @@ pub(crate) fn network_pass_source(pass: &'static str, m: &Mlp) -> String {
     pipelines::Variant::for_network(pass, m, true).source()
 }
 
-/// Features every method runs with: 64-bit integers and their atomics. DKB's statistics and
-/// importance need them, and the k-buffers capture in one pass with them ([`Capture::Wide`]).
-/// A device without them (WebGPU, Metal, many phones) runs every other method, its k-buffers
-/// with the portable capture ([`Capture::Portable`]), and refuses DKB by name. Timestamps (`TIMESTAMP_QUERY`) are optional: with them a frame reports each
-/// pass's GPU time, without them none.
+/// Features that let the k-buffers capture in one geometry pass (and DKB gather its statistics
+/// in one): 64-bit integers and their atomics ([`Capture::Wide`]). A device without them
+/// (WebGPU, Metal, many phones) runs every method all the same, the k-buffers and DKB's
+/// statistics in two passes with 32-bit atomics ([`Capture::Portable`]). Timestamps
+/// (`TIMESTAMP_QUERY`) are optional: with them a frame reports each pass's GPU time, without
+/// them none.
 pub fn required_features() -> wgpu::Features {
     wide_features()
 }
@@ -291,7 +292,9 @@ pub enum Capture {
     /// words, the second its colour into the colour words of the slots holding its depth, the
     /// colours of equal depths in the order of their RGBA8 words (as the 64-bit key orders
     /// them); a fragment left out of the slots goes to the tail. The same bytes a slot and a
-    /// pixel as [`Capture::Wide`], one more geometry pass.
+    /// pixel as [`Capture::Wide`], one more geometry pass. DKB's features pass is drawn twice
+    /// too (the nearest depth, then the nearest key's colour and the sums), into the same
+    /// records.
     Portable,
 }
 
@@ -486,8 +489,8 @@ fn instance_descriptors() -> [wgpu::InstanceDescriptor; 2] {
 
 impl Gpu {
     /// Opens the first adapter that has every required feature ([`required_features`]), else
-    /// the first adapter, without them: every method but DKB then runs, the k-buffers with the
-    /// portable capture ([`Gpu::is_wide`] says which).
+    /// the first adapter, without them: every method runs, the k-buffers with the portable
+    /// capture ([`Gpu::is_wide`] says which).
     pub fn new() -> Result<Gpu> {
         match Self::requiring(wgpu::Features::empty()) {
             Err(Error::Gpu(GpuError::MissingFeatures { .. })) => Self::portable(),
@@ -497,7 +500,8 @@ impl Gpu {
 
     /// The first adapter opened as WebGPU's core device: no feature (not even the optional
     /// ones) and wgpu's default limits ([`wgpu::Limits::default`], 8 storage buffers a stage).
-    /// Every method but DKB runs, the k-buffers with the portable capture; what runs here runs
+    /// Every method runs, the k-buffers with the portable capture (MBOIT where the adapter
+    /// blends 32-bit floats: not here, where nothing optional is asked for); what runs here runs
     /// in a browser.
     pub fn portable() -> Result<Gpu> {
         let adapter = instances()
@@ -522,25 +526,10 @@ impl Gpu {
         Self::build(device, queue, &info)
     }
 
-    /// Whether the device builds the passes that use 64-bit integers (DKB's statistics and
-    /// importance, the one-pass capture): it has [`required_features`].
+    /// Whether the device builds the passes that use 64-bit integers (the one-pass capture and
+    /// features pass): it has [`required_features`].
     pub fn is_wide(&self) -> bool {
         self.pipelines.wide.is_some()
-    }
-
-    /// The passes that use 64-bit integers, or the error that names what the device lacks.
-    fn wide(&self) -> Result<&pipelines::Wide> {
-        self.pipelines.wide.as_ref().ok_or_else(|| {
-            GpuError::DeviceLacks {
-                adapter: self.adapter.clone(),
-                missing: format!(
-                    "{:?} (DKB's statistics and importance use 64-bit integers; every other \
-                     method runs without them)",
-                    wide_features() - self.device.features()
-                ),
-            }
-            .into()
-        })
     }
 
     /// [`Gpu::new`], with `extra` features required on top of the pipeline's (tests use it to
@@ -590,10 +579,9 @@ impl Gpu {
 
     /// dhoit on the application's own device and queue (clones of its handles: wgpu's are
     /// shared), with `info` its adapter's ([`wgpu::Adapter::get_info`]). A device opened without
-    /// [`required_features`] (64-bit integers and their atomics) runs every method but DKB, which is refused with what it lacks named (its k-buffers capture in
-    /// the portable passes); one below wgpu's default limits ([`required_limits`]) is refused;
-    /// with
-    /// `SHADER_F16` the importance pass also runs networks at f16-math, and with
+    /// [`required_features`] (64-bit integers and their atomics) runs every method, its
+    /// k-buffers with the portable capture; one below wgpu's default limits
+    /// ([`required_limits`]) is refused; with `SHADER_F16` the importance pass also runs networks at f16-math, and with
     /// `FLOAT32_BLENDABLE` MBOIT runs (its frames are refused, the feature named, without it). Frames allocate from
     /// the device's own limits.
     ///
@@ -924,10 +912,6 @@ impl Gpu {
         let (width, height) = spec.size;
         let px = width as u64 * height as u64;
         let slots = spec.slots;
-        // DKB needs the passes with 64-bit integers: refused before anything is recorded.
-        if matches!(slots, Some(Slots::Dkb(..))) {
-            self.wide()?;
-        }
         let mut params = spec.params;
         let mut fb = FrameBuffers::new(self, enc);
         let (budget, vkb, k_uniform) = match slots {

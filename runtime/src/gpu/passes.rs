@@ -24,6 +24,11 @@ pub enum Phase {
     Capture,
     /// The capture built for frames whose budget holds every fragment (k = n).
     CaptureFits,
+    /// DKB's features pass with 32-bit atomics alone, first: each record's nearest depth
+    /// (features.wgsl with features_portable.wgsl; [`super::Capture::Portable`]).
+    FeaturesDepths,
+    /// ... then the nearest key's colour and the sums, over the same fragments.
+    FeaturesColours,
     /// The portable capture's first pass: each fragment's depth into the slots
     /// ([`super::Capture::Portable`]; capture.wgsl with kbuffer_portable.wgsl).
     CaptureDepths,

@@ -60,8 +60,8 @@ pub(super) struct Pipelines {
     pub(super) importance_vkb: wgpu::ComputePipeline,
 }
 
-/// The passes that use 64-bit integers and atomics: the one-pass capture, and DKB's and VKB's
-/// statistics and importance.
+/// The passes that use 64-bit integers and atomics: the one-pass capture and DKB's one-pass
+/// features.
 pub(super) struct Wide {
     pub(super) capture: wgpu::RenderPipeline,
     /// capture.wgsl built for frames whose budget holds every fragment (k = n).
@@ -676,6 +676,7 @@ struct Extras {
     list: OnceLock<(wgpu::RenderPipeline, wgpu::ComputePipeline)>,
     features_no_preload: OnceLock<wgpu::RenderPipeline>,
     portable_capture: OnceLock<[wgpu::RenderPipeline; 2]>,
+    portable_features: OnceLock<[wgpu::RenderPipeline; 2]>,
 }
 
 /// The extras' pipelines, as [`Gpu::extras`] hands them out.
@@ -739,6 +740,15 @@ impl<'a> ExtraPipelines<'a> {
         self.extras().portable_capture.get_or_init(|| {
             let device = self.device();
             ["capture_depths", "capture_colours"]
+                .map(|name| transparent_pipeline(device, name, &module(device, name)))
+        })
+    }
+
+    /// DKB's features pass in two passes with 32-bit atomics (depths, colours).
+    pub(super) fn portable_features(self) -> &'a [wgpu::RenderPipeline; 2] {
+        self.extras().portable_features.get_or_init(|| {
+            let device = self.device();
+            ["features_depths", "features_colours"]
                 .map(|name| transparent_pipeline(device, name, &module(device, name)))
         })
     }
@@ -853,9 +863,6 @@ impl Pipelines {
                     ("importance_dkb", "gather"),
                     ("predict", "main"),
                 ]
-                .into_iter()
-                // DKB's importance where the device has 64-bit integers.
-                .filter(|(pass, _)| wide || *pass == "predict")
                 .map(|(pass, entry)| {
                     let p = crate::mlp::padded_units;
                     let v = Variant {
@@ -870,6 +877,7 @@ impl Pipelines {
                     };
                     (v, v.pipeline(device, &network_layout))
                 })
+                .into_iter()
                 .collect(),
             ),
             network_layout,

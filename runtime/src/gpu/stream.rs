@@ -82,7 +82,8 @@ impl AppMethod {
             AppMethod::Abuffer | AppMethod::Mlab { .. } => &[Phase::Count, Phase::Store],
             AppMethod::Dkb(_) if portable => &[
                 Phase::Count,
-                Phase::Features,
+                Phase::FeaturesDepths,
+                Phase::FeaturesColours,
                 Phase::CaptureDepths,
                 Phase::CaptureColours,
             ],
@@ -182,10 +183,6 @@ impl Stream {
         check_size(gpu, size)?;
         if let AppMethod::Dkb(m) = &method {
             gpu.can_run(m)?;
-        }
-        // DKB's statistics and importance use 64-bit integers.
-        if matches!(method, AppMethod::Dkb(_)) {
-            gpu.wide()?;
         }
         check_fixed_buffers(gpu, size, &method)?;
         let mut f = Stream {
