@@ -19,8 +19,9 @@ use glam::Vec3;
 const BG: [f32; 3] = [0.9, 0.85, 0.8];
 const TOLERANCE: f32 = 1e-5;
 
-/// Every method that runs on both sides, CPU frame against GPU frame, on one scene and budget:
-/// the largest difference over every pixel of every method.
+/// Every method that runs on both sides, CPU frame against GPU frame, on one scene and budget,
+/// on `g` and on WebGPU's core device (the portable passes; every method but MBOIT, which needs
+/// FLOAT32_BLENDABLE): the largest difference over every pixel of every method.
 fn cpu_and_gpu_agree(g: &Gpu, s: &Scene, (w, h): (u32, u32), budget: Budget, what: &str) -> f32 {
     let cam = identity();
     let fl = rasterize(s, &cam, w, h).unwrap();
@@ -30,17 +31,28 @@ fn cpu_and_gpu_agree(g: &Gpu, s: &Scene, (w, h): (u32, u32), budget: Budget, wha
         ..Options::new(budget, BG)
     };
     let mut worst = 0.0f32;
-    for (m, cpu, gpu) in common::cpu_and_gpu_frames(g, s, &cam, &fl, opts, &common::CPU_AND_GPU) {
-        let d = gpu.max_abs_diff(&cpu.image);
-        assert!(
-            d <= common::twin_bound(m, TOLERANCE),
-            "{what}, {}: CPU and GPU images differ by {d} (F = {})",
-            m.name(),
-            cpu.budget_fragments
-        );
-        worst = worst.max(d);
+    let core = common::core().expect("the core device beside the GPU");
+    let portable: Vec<Method> = common::CPU_AND_GPU
+        .into_iter()
+        .filter(|&m| m != Method::Mboit)
+        .collect();
+    for (device, methods) in [
+        ("", &common::CPU_AND_GPU[..]),
+        (" (core device)", &portable[..]),
+    ] {
+        let dev = if device.is_empty() { g } else { core };
+        for (m, cpu, gpu) in common::cpu_and_gpu_frames(dev, s, &cam, &fl, opts, methods) {
+            let d = gpu.max_abs_diff(&cpu.image);
+            assert!(
+                d <= common::twin_bound(m, TOLERANCE),
+                "{what}{device}, {}: CPU and GPU images differ by {d} (F = {})",
+                m.name(),
+                cpu.budget_fragments
+            );
+            worst = worst.max(d);
+        }
     }
-    eprintln!("{what}: CPU and GPU agree within {worst:e}");
+    eprintln!("{what}: CPU and GPU agree within {worst:e}, on both devices");
     worst
 }
 

@@ -5,23 +5,12 @@
 
 mod common;
 
-use common::{RenderMethod, gpu, identity};
+use common::{RenderMethod, core, gpu, identity};
 use dhoit_runtime::composite;
-use dhoit_runtime::gpu::{Capture, FrameOptions, Gpu, Slots};
+use dhoit_runtime::gpu::{Capture, FrameOptions, Slots};
 use dhoit_runtime::scene::{Camera, Scene};
 
 const BG: [f32; 3] = [0.9, 0.8, 1.0];
-
-/// The core device, shared by the tests of this binary.
-fn core() -> Option<&'static Gpu> {
-    gpu()?;
-    static CORE: std::sync::OnceLock<Gpu> = std::sync::OnceLock::new();
-    Some(CORE.get_or_init(|| {
-        let g = Gpu::portable().expect("WebGPU's core device on the test adapter");
-        eprintln!("WebGPU core device on {}", g.adapter());
-        g
-    }))
-}
 
 fn bits(img: &composite::Image) -> Vec<u32> {
     img.data.iter().flatten().map(|x| x.to_bits()).collect()

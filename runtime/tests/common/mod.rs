@@ -68,6 +68,20 @@ pub fn gpu() -> Option<&'static Gpu> {
 }
 
 /// Largest absolute difference of two equally long slices.
+#[cfg(feature = "gpu")]
+/// WebGPU's core device on the same adapter as [`gpu`] (`Gpu::portable`: no feature, wgpu's
+/// default limits), shared by a test binary's tests: what a browser runs. None where [`gpu`]
+/// skips.
+pub fn core() -> Option<&'static Gpu> {
+    gpu()?;
+    static CORE: std::sync::OnceLock<Gpu> = std::sync::OnceLock::new();
+    Some(CORE.get_or_init(|| {
+        let g = Gpu::portable().expect("WebGPU's core device on the test adapter");
+        eprintln!("WebGPU core device on {}", g.adapter());
+        g
+    }))
+}
+
 pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
     assert_eq!(a.len(), b.len());
     a.iter()
