@@ -123,8 +123,7 @@ fn key_less(a: vec2<u32>, b: vec2<u32>) -> bool {
 const SLOT_COLOUR_BIAS: u32 = 1u << 24u;
 
 fn slot_depth_word(depth: f32) -> u32 {
-    let d = select(0.0, depth, depth > 0.0);
-    return ~bitcast<u32>(d);
+    return ~key_of(depth, 0u).y;
 }
 
 fn slot_colour_word(rgba8: u32) -> u32 {
@@ -136,11 +135,16 @@ fn slot_rgba8(colour_word: u32) -> u32 {
     return (~colour_word) + SLOT_COLOUR_BIAS;
 }
 
-// What a slot's colour word adds to its pixel's tail: c8 a8 for r, g and b, and a8.
+// What a fragment of colour `rgba8` adds to a tail's integer sums (composite::Tail): c8 a8 for
+// r, g and b, and a8.
+fn tail_sums_of(rgba8: u32) -> vec4<u32> {
+    let a = rgba8 >> 24u;
+    return vec4<u32>((rgba8 & 0xffu) * a, ((rgba8 >> 8u) & 0xffu) * a, ((rgba8 >> 16u) & 0xffu) * a, a);
+}
+
+// What a slot's colour word adds to its pixel's tail.
 fn tail_sums(colour_word: u32) -> vec4<u32> {
-    let rgba = slot_rgba8(colour_word);
-    let a = rgba >> 24u;
-    return vec4<u32>((rgba & 0xffu) * a, ((rgba >> 8u) & 0xffu) * a, ((rgba >> 16u) & 0xffu) * a, a);
+    return tail_sums_of(slot_rgba8(colour_word));
 }
 
 // The index of an invocation of a pass dispatched as a 2-D grid of workgroups of `size`

@@ -66,9 +66,7 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
             near[j] = carry;
             carry = out;
         }
-        let c = carry.x;
-        let a = c >> 24u;
-        sums += vec4<u32>((c & 0xffu) * a, ((c >> 8u) & 0xffu) * a, ((c >> 16u) & 0xffu) * a, a);
+        sums += tail_sums_of(carry.x);
         tail_n++;
     }
     // composite::Tail::over, then the sorted places front to back.

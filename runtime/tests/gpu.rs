@@ -2395,33 +2395,6 @@ fn sixty_four_bit_words_compute_what_u64s_do() {
     }
 }
 
-/// A frame of `layers` coplanar-in-groups quads: over the left half `layers` quads in groups
-/// of three at one depth (equal depths, other colours), over the right half a few at distinct
-/// depths, one pixel-row strip of a single quad: ties, truncated and whole pixels.
-fn tied_layers(layers: usize) -> Scene {
-    let mut s = Scene::default();
-    let v = glam::Vec3::new;
-    for i in 0..layers + 4 {
-        // Three quads a depth on the left; distinct depths on the right.
-        let z = if i < layers {
-            0.1 + 0.8 * (i / 3) as f32 / (layers / 3 + 1) as f32
-        } else {
-            0.15 + 0.2 * (i - layers) as f32
-        };
-        let (x0, x1) = if i < layers { (-1.0, 0.0) } else { (0.0, 1.0) };
-        let y1 = if i == layers + 3 { -0.6 } else { 1.0 };
-        let c = [
-            ((i * 7) % 5) as f32 / 4.0,
-            (i % 3) as f32 / 2.0,
-            ((i * 5) % 7) as f32 / 6.0,
-            0.2 + (i % 4) as f32 * 0.2,
-        ];
-        s.push_triangle([v(x0, -1.0, z), v(x1, -1.0, z), v(x0, y1, z)], [c; 3]);
-        s.push_triangle([v(x1, -1.0, z), v(x1, y1, z), v(x0, y1, z)], [c; 3]);
-    }
-    s
-}
-
 /// The portable capture (32-bit atomics, two passes) leaves the wide capture's slots, tails and
 /// image, bit for bit, for every k-buffer (FKB, uploaded k, DKB and VKB at budgets that
 /// truncate, append and hold every fragment), on fragments of equal depths too; both are their
@@ -2431,7 +2404,7 @@ fn tied_layers(layers: usize) -> Scene {
 fn the_portable_capture_leaves_the_wide_captures_slots_and_image() {
     use dhoit_runtime::gpu::Capture;
     let Some(g) = gpu() else { return };
-    let s = tied_layers(composite::APPEND_MAX as usize + 9);
+    let s = common::tied_layers(composite::APPEND_MAX as usize + 9);
     let cam = common::identity();
     let (w, h) = (24, 16);
     let gfl = gpu_fragments(g, &s, &cam, w, h);

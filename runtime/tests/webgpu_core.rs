@@ -8,36 +8,12 @@ mod common;
 use common::{RenderMethod, core, gpu, identity};
 use dhoit_runtime::composite;
 use dhoit_runtime::gpu::{Capture, FrameOptions, Slots};
-use dhoit_runtime::scene::{Camera, Scene};
+use dhoit_runtime::scene::Camera;
 
 const BG: [f32; 3] = [0.9, 0.8, 1.0];
 
 fn bits(img: &composite::Image) -> Vec<u32> {
     img.data.iter().flatten().map(|x| x.to_bits()).collect()
-}
-
-/// Quads in groups of three at one depth (equal depths, other colours) over the left half, a
-/// few at distinct depths over the right: ties, truncated and whole pixels.
-fn tied_layers(layers: usize) -> Scene {
-    let mut s = Scene::default();
-    let v = glam::Vec3::new;
-    for i in 0..layers + 4 {
-        let z = if i < layers {
-            0.1 + 0.8 * (i / 3) as f32 / (layers / 3 + 1) as f32
-        } else {
-            0.15 + 0.2 * (i - layers) as f32
-        };
-        let (x0, x1) = if i < layers { (-1.0, 0.0) } else { (0.0, 1.0) };
-        let c = [
-            ((i * 7) % 5) as f32 / 4.0,
-            (i % 3) as f32 / 2.0,
-            ((i * 5) % 7) as f32 / 6.0,
-            0.2 + (i % 4) as f32 * 0.2,
-        ];
-        s.push_triangle([v(x0, -1.0, z), v(x1, -1.0, z), v(x0, 1.0, z)], [c; 3]);
-        s.push_triangle([v(x1, -1.0, z), v(x1, 1.0, z), v(x0, 1.0, z)], [c; 3]);
-    }
-    s
 }
 
 /// The core device has no feature and wgpu's default limits, and builds no pass that uses
@@ -61,7 +37,7 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
     let Some(c) = core() else { return };
     let g = gpu().unwrap();
     let (w, h) = (48, 32);
-    let s = tied_layers(24);
+    let s = common::tied_layers(24);
     let cam = identity();
     let exact = c.render_method(&s, &cam, w, h, BG, None).unwrap();
     let fl = exact.fragments.clone().unwrap();
@@ -150,7 +126,7 @@ fn equal_depths_give_one_image_in_every_submission_order() {
     let Some(c) = core() else { return };
     let g = gpu().unwrap();
     let (w, h) = (24, 16);
-    let s = tied_layers(30);
+    let s = common::tied_layers(30);
     let cam: Camera = identity();
     let wide = FrameOptions::default().always_approximate();
     let portable = FrameOptions {

@@ -88,7 +88,7 @@ impl Recording<'_, '_, '_> {
                     offsets,
                     ..Default::default()
                 };
-                for key in read_u64s(gpu, &keys, stored, false)? {
+                for key in read_u64s(gpu, &keys, stored)? {
                     fl.depth.push(f32::from_bits((key >> 32) as u32));
                     fl.rgba.push(crate::fragment::unpack_rgba8(key as u32));
                 }

@@ -622,7 +622,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             pass.dispatch_workgroups(n.div_ceil(64) as u32, 1, 1);
         }
         self.submit(enc.finish());
-        let words = read_u64s(self, &out, 8 * n, false)?;
+        let words = read_u64s(self, &out, 8 * n)?;
         let floats = u32s(&read_back(self, &floats, 4 * n)?);
         scopes.end()?;
         Ok(words

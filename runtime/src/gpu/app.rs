@@ -208,7 +208,6 @@ impl AppFrame {
         // Every phase's layout, with either capture.
         let mut phases = stream.method.phases(Capture::Wide).to_vec();
         phases.extend(stream.method.phases(Capture::Portable));
-        phases.dedup();
         phases.sort_by_key(|p| *p as u8);
         phases.dedup();
         let layouts = phases

@@ -428,13 +428,11 @@ pub(super) fn u32s(bytes: &[u8]) -> Vec<u32> {
         .collect()
 }
 
-pub(super) fn read_u64s(gpu: &Gpu, b: &wgpu::Buffer, n: u64, invert: bool) -> Result<Vec<u64>> {
+/// The first `n` 64-bit words of `b`, read back.
+pub(super) fn read_u64s(gpu: &Gpu, b: &wgpu::Buffer, n: u64) -> Result<Vec<u64>> {
     Ok(read_back(gpu, b, 8 * n)?
         .chunks_exact(8)
-        .map(|c| {
-            let v = u64::from_le_bytes(c.try_into().expect("8"));
-            if invert { !v } else { v }
-        })
+        .map(|c| u64::from_le_bytes(c.try_into().expect("8")))
         .collect())
 }
 
@@ -533,7 +531,7 @@ impl Readback {
                 let tail = crate::shared::TAIL_WORDS;
                 let deeper = counts.iter().filter(|&&n| n > tail).count() as u64;
                 let words = crate::shared::RECORD_WORDS as usize;
-                let records = read_u64s(gpu, records, words as u64 * deeper, false)?;
+                let records = read_u64s(gpu, records, words as u64 * deeper)?;
                 Some(
                     (0..px as usize)
                         .map(|q| {

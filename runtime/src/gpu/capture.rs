@@ -174,57 +174,43 @@ impl Recording<'_, '_, '_> {
             ),
         };
         let pooled = matches!(kb.slots, SlotsAt::Pooled(_));
+        // One pass with 64-bit atomics, or on a device without them (or asked for it) the
+        // portable capture's two with 32-bit ones: the same slots and tails.
+        let wide = (gpu.capture_for(passes.opts.capture) == Capture::Wide)
+            .then_some(p.wide.as_ref())
+            .flatten();
         // Where the host knows k = n everywhere, the pipelines built for it (the same slots,
         // tail and image).
-        // A device without 64-bit atomics captures in the portable passes.
-        let portable = passes.opts.capture == Capture::Portable || p.wide.is_none();
-        let fits =
-            passes.opts.two_mode_capture && passes.opts.fits_pipelines && kb.all_fit && !portable;
-        let (phase, capture, resolve, own) = match (fits, &p.wide) {
-            (true, Some(w)) => {
-                self.out.variants.push("capture: built for frames that fit");
-                (
-                    Phase::CaptureFits,
-                    Some(&w.capture_fits),
-                    Resolve::KBuffer { fits: true },
-                    &p.resolve_fits,
-                )
-            }
-            (_, w) => {
-                if !portable {
-                    self.out.variants.push("capture: general");
-                }
-                (
-                    Phase::Capture,
-                    w.as_ref().map(|w| &w.capture),
-                    Resolve::KBuffer { fits: false },
-                    &p.resolve,
-                )
-            }
-        };
+        let fits = passes.opts.two_mode_capture
+            && passes.opts.fits_pipelines
+            && kb.all_fit
+            && wide.is_some();
         let group = [&kb.base, &slots, &tail, &tail_count, &kb.counts];
-        if portable {
-            // The same slots and tails, in two passes with 32-bit atomics.
-            self.out.variants.push("capture: portable");
-            let [depths, colours] = gpu.extras().portable_capture();
-            passes.draw(
-                fb.enc,
-                Phase::CaptureDepths,
-                depths,
-                &group,
-                "capture depths",
-            );
-            passes.draw(
-                fb.enc,
-                Phase::CaptureColours,
-                colours,
-                &group,
-                "capture colours",
-            );
-        } else {
-            let capture = capture.expect("a device with 64-bit atomics");
-            passes.draw(fb.enc, phase, capture, &group, "capture");
+        match wide {
+            Some(w) => {
+                let (phase, capture, variant) = match fits {
+                    true => (
+                        Phase::CaptureFits,
+                        &w.capture_fits,
+                        "capture: built for frames that fit",
+                    ),
+                    false => (Phase::Capture, &w.capture, "capture: general"),
+                };
+                self.out.variants.push(variant);
+                passes.draw(fb.enc, phase, capture, &group, "capture");
+            }
+            None => {
+                self.out.variants.push("capture: portable");
+                let [depths, colours] = gpu.extras().portable_capture();
+                let (d, c) = (Phase::CaptureDepths, Phase::CaptureColours);
+                passes.draw(fb.enc, d, depths, &group, "capture depths");
+                passes.draw(fb.enc, c, colours, &group, "capture colours");
+            }
         }
+        let (resolve, own) = (
+            Resolve::KBuffer { fits },
+            if fits { &p.resolve_fits } else { &p.resolve },
+        );
         // With diagnostics, the cursors as the capture left them, before the resolve sorts
         // what the append mode spilled ([`super::GpuFrame::capture_counts`]): per pixel, the
         // tail counts (n where a pixel appended, what insertion pushed out where it inserted),
@@ -269,7 +255,7 @@ impl Recording<'_, '_, '_> {
                 // gives them.
                 let spans = u32s(&read_back(gpu, &base, 4 * (px + 1))?);
                 let words = spans.last().map_or(0, |&w| w as u64);
-                let pool = read_u64s(gpu, &slots, words, false)?;
+                let pool = read_u64s(gpu, &slots, words)?;
                 // n, as the resolve put it back.
                 let counts = read_counts(gpu, &counts, px)?;
                 if let Some(c) = &captured {
@@ -289,7 +275,7 @@ impl Recording<'_, '_, '_> {
                 .zip(tail_counts)
                 .flat_map(|(s, c)| [s[0], s[1], s[2], s[3], c])
                 .collect();
-            let mut keys: Vec<u64> = read_u64s(gpu, &slots, n, false)?
+            let mut keys: Vec<u64> = read_u64s(gpu, &slots, n)?
                 .into_iter()
                 .map(slot_key)
                 .collect();

@@ -203,7 +203,10 @@ impl Recording<'_, '_, '_> {
         let bufs = [&b.importance, &b.pool, &b.optical_depth, &b.list_len];
         // With the portable capture, or on a device without 64-bit atomics, in two passes with
         // 32-bit atomics alone (the same records).
-        match (&gpu.pipelines.wide, self.passes.opts.capture) {
+        match (
+            &gpu.pipelines.wide,
+            gpu.capture_for(self.passes.opts.capture),
+        ) {
             (Some(w), super::Capture::Wide) => {
                 let features = match self.passes.opts.features_preload {
                     true => &w.features,

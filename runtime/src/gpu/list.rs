@@ -45,7 +45,7 @@ impl Recording<'_, '_, '_> {
             let heads = u32s(&read_back(gpu, &heads, 4 * px)?);
             let stored = arrived.min(nodes);
             let next = u32s(&read_back(gpu, &next, 4 * stored)?);
-            let keys = read_u64s(gpu, &keys, stored, false)?;
+            let keys = read_u64s(gpu, &keys, stored)?;
             let mut fl = FragmentLists {
                 width,
                 height,

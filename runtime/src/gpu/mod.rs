@@ -474,6 +474,20 @@ fn instances() -> [wgpu::Instance; 2] {
     instance_descriptors().map(wgpu::Instance::new)
 }
 
+/// Every adapter of [`instances`], in their order; an error where there is none.
+fn adapters() -> Result<Vec<wgpu::Adapter>> {
+    let mut adapters = Vec::new();
+    for instance in instances() {
+        adapters.extend(pollster::block_on(
+            instance.enumerate_adapters(wgpu::Backends::all()),
+        ));
+    }
+    if adapters.is_empty() {
+        return Err(GpuError::NoAdapter.into());
+    }
+    Ok(adapters)
+}
+
 /// [`instances`]' descriptors: every backend but D3D12 without the indirect check, D3D12 with.
 fn instance_descriptors() -> [wgpu::InstanceDescriptor; 2] {
     let mut direct = wgpu::InstanceDescriptor::new_without_display_handle();
@@ -490,10 +504,16 @@ fn instance_descriptors() -> [wgpu::InstanceDescriptor; 2] {
 impl Gpu {
     /// Opens the first adapter that has every required feature ([`required_features`]), else
     /// the first adapter, without them: every method runs, the k-buffers with the portable
-    /// capture ([`Gpu::is_wide`] says which).
+    /// capture ([`Gpu::is_wide`] says which). Either way with the optional features the
+    /// adapter has and its own limits.
     pub fn new() -> Result<Gpu> {
         match Self::requiring(wgpu::Features::empty()) {
-            Err(Error::Gpu(GpuError::MissingFeatures { .. })) => Self::portable(),
+            Err(Error::Gpu(GpuError::MissingFeatures { .. })) => {
+                let a = adapters()?.swap_remove(0);
+                let optional = a.features() & optional_features();
+                let limits = a.limits();
+                Self::open(&a, optional, limits, "dhoit")
+            }
             other => other,
         }
     }
@@ -504,19 +524,23 @@ impl Gpu {
     /// blends 32-bit floats: not here, where nothing optional is asked for); what runs here runs
     /// in a browser.
     pub fn portable() -> Result<Gpu> {
-        let adapter = instances()
-            .into_iter()
-            .find_map(|i| {
-                pollster::block_on(i.enumerate_adapters(wgpu::Backends::all()))
-                    .into_iter()
-                    .next()
-            })
-            .ok_or(GpuError::NoAdapter)?;
+        let a = adapters()?.swap_remove(0);
+        let (features, limits) = (wgpu::Features::empty(), wgpu::Limits::default());
+        Self::open(&a, features, limits, "dhoit (WebGPU core)")
+    }
+
+    /// `adapter` opened with `features` and `limits`, and the passes built on it.
+    fn open(
+        adapter: &wgpu::Adapter,
+        features: wgpu::Features,
+        limits: wgpu::Limits,
+        label: &str,
+    ) -> Result<Gpu> {
         let info = adapter.get_info();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("dhoit (WebGPU core)"),
-            required_features: wgpu::Features::empty(),
-            required_limits: wgpu::Limits::default(),
+            label: Some(label),
+            required_features: features,
+            required_limits: limits,
             ..Default::default()
         }))
         .map_err(|e| GpuError::Open {
@@ -532,24 +556,24 @@ impl Gpu {
         self.pipelines.wide.is_some()
     }
 
+    /// The capture a frame asking for `asked` runs: `asked`, or the portable one on a device
+    /// without 64-bit atomics.
+    pub(super) fn capture_for(&self, asked: Capture) -> Capture {
+        match self.is_wide() {
+            true => asked,
+            false => Capture::Portable,
+        }
+    }
+
     /// [`Gpu::new`], with `extra` features required on top of the pipeline's (tests use it to
     /// see what happens on an adapter that lacks one).
     pub fn requiring(extra: wgpu::Features) -> Result<Gpu> {
-        let mut adapters = Vec::new();
-        for instance in instances() {
-            adapters.extend(pollster::block_on(
-                instance.enumerate_adapters(wgpu::Backends::all()),
-            ));
-        }
-        if adapters.is_empty() {
-            return Err(GpuError::NoAdapter.into());
-        }
         let need = required_features() | extra;
         // Requested where offered: the pass times, the importance pass's f16-math variant,
         // MBOIT's moments.
         let optional = optional_features();
         let mut lacking = Vec::new();
-        let adapter = adapters.into_iter().find(|a| {
+        let adapter = adapters()?.into_iter().find(|a| {
             let missing = need - a.features();
             if !missing.is_empty() {
                 lacking.push(format!("{} lacks {missing:?}", a.get_info().name));
@@ -562,19 +586,8 @@ impl Gpu {
             }
             .into());
         };
-        let info = adapter.get_info();
         let features = need | (adapter.features() & optional);
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("dhoit"),
-            required_features: features,
-            required_limits: adapter.limits(),
-            ..Default::default()
-        }))
-        .map_err(|e| GpuError::Open {
-            adapter: info.name.clone(),
-            message: e.to_string(),
-        })?;
-        Self::build(device, queue, &info)
+        Self::open(&adapter, features, adapter.limits(), "dhoit")
     }
 
     /// dhoit on the application's own device and queue (clones of its handles: wgpu's are

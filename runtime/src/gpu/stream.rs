@@ -191,11 +191,7 @@ impl Stream {
             method,
             budget: None,
             exact_when_cheaper: true,
-            // A device without 64-bit atomics captures in the portable passes.
-            capture: match gpu.is_wide() {
-                true => Capture::Wide,
-                false => Capture::Portable,
-            },
+            capture: gpu.capture_for(Capture::Wide),
             expected: first_occupancy(size),
             frames: 0,
             last_bytes: 0,
@@ -209,12 +205,9 @@ impl Stream {
     }
 
     /// The k-buffers' capture from the next frame: `capture`, or the portable one on a device
-    /// without 64-bit atomics.
+    /// without 64-bit atomics ([`Gpu::capture_for`]).
     pub(super) fn set_capture(&mut self, capture: Capture) {
-        self.capture = match self.gpu.is_wide() {
-            true => capture,
-            false => Capture::Portable,
-        };
+        self.capture = self.gpu.capture_for(capture);
     }
 
     /// The geometry passes a frame of the method draws, in order.
