@@ -23,9 +23,9 @@
 // record's features are read, its importance takes its nearest key's place (set_importance).
 // Each record word a 64-bit word's two halves (low x, high y: u64.wgsl's W).
 @group(0) @binding(3) var<storage, read_write> records: array<W>;
-// The records the network decides, and how many (list_len[0]): the slot pool again, read as
-// u32, its list after all the records (list_at; both bindings touch only their own words).
-@group(0) @binding(4) var<storage, read_write> list: array<u32>;
+// The records the network decides, and how many (list_len[0]), lie in the same pool after a
+// batch's records, a 32-bit word each (list_get, list_set): WebGPU binds a buffer writable once
+// in a dispatch.
 // fragments, covered, max count, deep, the records handed out, deeper (the records: totals.wgsl),
 // then the frame's plan (plan.wgsl): its F.
 @group(0) @binding(6) var<storage, read> totals: array<u32>;
@@ -144,10 +144,21 @@ fn network_inputs(r: u32) -> Net {
     return net;
 }
 
-// Where the list's entry i lies in the pool: after a batch's records (RECORD_WORDS 64-bit words
-// each; budget::PoolState::list_bytes).
-fn list_at(i: u32) -> u32 {
-    return 2u * RECORD_WORDS * atomicLoad(&list_len[2]) + i;
+// The list's entry i: the pool's 32-bit word i after a batch's records (RECORD_WORDS 64-bit
+// words each; budget::PoolState::list_bytes), the low or high half of a W.
+fn list_word(i: u32) -> u32 {
+    return RECORD_WORDS * atomicLoad(&list_len[2]) + i / 2u;
+}
+fn list_get(i: u32) -> u32 {
+    let w = records[list_word(i)];
+    return select(w.x, w.y, (i & 1u) == 1u);
+}
+fn list_set(i: u32, r: u32) {
+    if ((i & 1u) == 0u) {
+        records[list_word(i)].x = r;
+    } else {
+        records[list_word(i)].y = r;
+    }
 }
 
 @compute @workgroup_size(PIXEL_GROUP)
@@ -165,7 +176,7 @@ fn select_pixels(
         return;
     }
     if (network_inputs(r).runs) {
-        list[list_at(atomicAdd(&list_len[0], 1u))] = r;
+        list_set(atomicAdd(&list_len[0], 1u), r);
     }
 }
 
@@ -190,7 +201,7 @@ fn network(
     var r = 0u;
     var net: Net;
     if (listed) {
-        r = list[list_at(i)];
+        r = list_get(i);
         net = network_inputs(r);
     }
     if (SHARED_WEIGHTS) {

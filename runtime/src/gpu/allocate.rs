@@ -188,10 +188,10 @@ impl<'a> Passes<'a> {
             )
         };
         // Setup and choose write the dispatches' arguments; the dispatches that read them bind
-        // the state in their place.
+        // the device's placeholder in their place.
         Ok(Allocation {
             setup_group: bind(&dispatches),
-            group: bind(&state),
+            group: bind(&gpu.pipelines.placeholder),
             flags,
             dispatches,
             state,

@@ -342,6 +342,20 @@ pub(super) fn read_frame<T>(
     })?
 }
 
+/// [`read_frame`] of a frame without a status, without blocking ([`staged_async`]).
+pub(super) async fn read_frame_async<T>(
+    gpu: &Gpu,
+    image: &wgpu::Buffer,
+    bytes: u64,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T> {
+    let size = bytes.max(4).next_multiple_of(4);
+    let copy = |enc: &mut wgpu::CommandEncoder, staging: &wgpu::Buffer| {
+        enc.copy_buffer_to_buffer(image, 0, staging, 0, size)
+    };
+    staged_async(gpu, size, copy, |mapped| read(&mapped[..bytes as usize])).await
+}
+
 /// Single words of device buffers (each a buffer and a byte offset, a multiple of 4), read in
 /// one copy and one map: a frame's sizes without reading back the buffers they end.
 pub(super) fn read_words(gpu: &Gpu, words: &[(&wgpu::Buffer, u64)]) -> Result<Vec<u32>> {
@@ -361,6 +375,43 @@ fn staged<T>(
     copy: impl FnOnce(&mut wgpu::CommandEncoder, &wgpu::Buffer),
     read: impl FnOnce(&[u8]) -> T,
 ) -> Result<T> {
+    let (key, staging) = stage(gpu, size, copy);
+    staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+    gpu.wait("waiting for a submission")?;
+    unstage(gpu, key, staging, read)
+}
+
+/// [`staged`] without blocking: the future resolves when the staging buffer is mapped (on a
+/// page's WebGPU, by the browser's event loop; natively it waits for the submission).
+async fn staged_async<T>(
+    gpu: &Gpu,
+    size: u64,
+    copy: impl FnOnce(&mut wgpu::CommandEncoder, &wgpu::Buffer),
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T> {
+    let (key, staging) = stage(gpu, size, copy);
+    let (tx, rx) = futures_channel::oneshot::channel();
+    staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    #[cfg(not(target_arch = "wasm32"))]
+    gpu.wait("waiting for a submission")?;
+    let lost = |message: String| GpuError::Lost {
+        doing: "reading back",
+        message,
+    };
+    rx.await
+        .map_err(|e| lost(e.to_string()))?
+        .map_err(|e| lost(e.to_string()))?;
+    unstage(gpu, key, staging, read)
+}
+
+/// A pooled staging buffer of `size` bytes, `copy` recorded into it and submitted.
+fn stage(
+    gpu: &Gpu,
+    size: u64,
+    copy: impl FnOnce(&mut wgpu::CommandEncoder, &wgpu::Buffer),
+) -> (String, wgpu::Buffer) {
     // Staging buffers are pooled by size (the image's is the same every frame).
     let key = format!("readback {size}");
     let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
@@ -368,14 +419,24 @@ fn staged<T>(
     let mut enc = gpu.device.create_command_encoder(&Default::default());
     copy(&mut enc, &staging);
     gpu.submit(enc.finish());
-    let slice = staging.slice(..);
-    slice.map_async(wgpu::MapMode::Read, |_| {});
-    gpu.wait("waiting for a submission")?;
+    (key, staging)
+}
+
+/// The mapped staging buffer given to `read`, then unmapped and pooled.
+fn unstage<T>(
+    gpu: &Gpu,
+    key: String,
+    staging: wgpu::Buffer,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T> {
     let data = {
-        let mapped = slice.get_mapped_range().map_err(|e| GpuError::Lost {
-            doing: "reading back",
-            message: e.to_string(),
-        })?;
+        let mapped = staging
+            .slice(..)
+            .get_mapped_range()
+            .map_err(|e| GpuError::Lost {
+                doing: "reading back",
+                message: e.to_string(),
+            })?;
         read(&mapped)
     };
     staging.unmap();

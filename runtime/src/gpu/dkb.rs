@@ -266,9 +266,8 @@ impl Recording<'_, '_, '_> {
                 &[
                     (0, passes.params()),
                     (1, &b.weights),
+                    // The records, and the list after them.
                     (3, &b.pool),
-                    // The list, in the pool after the records.
-                    (4, &b.pool),
                     (6, &b.totals),
                     (8, &b.importance),
                     (9, &b.list_len),
@@ -278,8 +277,8 @@ impl Recording<'_, '_, '_> {
             )
         };
         // The network's dispatch reads `dispatch` as its arguments, so its group binds the
-        // list's length (which that entry does not touch there) in its place.
-        let (group, network_group) = (bind(&b.dispatch), bind(&b.list_len));
+        // device's placeholder (which that entry does not touch) in its place.
+        let (group, network_group) = (bind(&b.dispatch), bind(&p.placeholder));
         passes.compute(self.fb.enc, "importance", |pass| {
             pass.set_bind_group(0, &group, &[]);
             pass.set_pipeline(select);

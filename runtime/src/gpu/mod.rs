@@ -617,19 +617,39 @@ impl Gpu {
         queue: wgpu::Queue,
         info: &wgpu::AdapterInfo,
     ) -> Result<Gpu> {
+        pollster::block_on(Self::on_device_async(device, queue, info))
+    }
+
+    /// [`Gpu::on_device`] without blocking, for a page's WebGPU device (wasm32), where nothing
+    /// may wait: the future resolves once the device has validated dhoit's passes.
+    pub async fn on_device_async(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        info: &wgpu::AdapterInfo,
+    ) -> Result<Gpu> {
         check_device(&device, &info.name)?;
-        Self::build(device, queue, info)
+        Self::build_async(device, queue, info).await
     }
 
     /// The passes' pipelines on an open device.
     fn build(device: wgpu::Device, queue: wgpu::Queue, info: &wgpu::AdapterInfo) -> Result<Gpu> {
+        pollster::block_on(Self::build_async(device, queue, info))
+    }
+
+    async fn build_async(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        info: &wgpu::AdapterInfo,
+    ) -> Result<Gpu> {
         let features = device.features();
         let adapter_name = format!(
             "{} ({:?}, {:?}, {} {})",
             info.name, info.backend, info.device_type, info.driver, info.driver_info
         );
         let wide = is_wide(features);
-        let pipelines = std::sync::Arc::new(Pipelines::new(&device, wide)?);
+        // wgpu's handles are Send and Sync, but on wasm32 (one thread) they are neither.
+        #[cfg_attr(target_arch = "wasm32", allow(clippy::arc_with_non_send_sync))]
+        let pipelines = std::sync::Arc::new(Pipelines::new(&device, wide).await?);
         Ok(Gpu {
             timestamp_period: queue.get_timestamp_period(),
             timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),

@@ -58,7 +58,20 @@ pub(super) struct Pipelines {
     pub(super) network_layout: NetworkLayout,
     pub(super) vkb_count: wgpu::RenderPipeline,
     pub(super) importance_vkb: wgpu::ComputePipeline,
+    /// A storage buffer bound in a pass's group where one of its entries binds the buffer it
+    /// reads its indirect arguments from, writable in the others (the allocation's dispatches,
+    /// the network's): never written there, and no other buffer of the group, since WebGPU
+    /// binds a buffer writable once in a dispatch.
+    pub(super) placeholder: wgpu::Buffer,
 }
+
+/// Bytes of [`Pipelines::placeholder`]: the largest binding it stands for (the allocation's
+/// dispatches' arguments).
+pub(super) const PLACEHOLDER_BYTES: u64 = 256;
+const _: () = assert!(
+    4 * (crate::shared::ALLOC_DISPATCHES * crate::shared::DISPATCH_WORDS) as u64
+        <= PLACEHOLDER_BYTES
+);
 
 /// The passes that use 64-bit integers and atomics: the one-pass capture and DKB's one-pass
 /// features.
@@ -267,11 +280,8 @@ impl NetworkLayout {
                 entry(0, uniform),
                 entry(1, uniform),
                 // The records (in the slot pool), then each record's importance in its
-                // nearest key's place.
+                // nearest key's place; after them the list of records the network decides.
                 entry(3, rw),
-                // The list of records the network decides: the slot pool again, after the
-                // records (read as u32).
-                entry(4, rw),
                 entry(6, read),
                 // The record indices, then the importance: the frame's shared word.
                 entry(8, rw),
@@ -779,8 +789,9 @@ impl Gpu {
 }
 
 impl Pipelines {
-    /// Every pass; with `wide`, also those that use 64-bit integers ([`Wide`]).
-    pub(super) fn new(device: &wgpu::Device, wide: bool) -> Result<Pipelines> {
+    /// Every pass; with `wide`, also those that use 64-bit integers ([`Wide`]). Built at once;
+    /// the future waits only for the device's verdict on them (its validation errors).
+    pub(super) async fn new(device: &wgpu::Device, wide: bool) -> Result<Pipelines> {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let render = |name: &str,
                       m: &wgpu::ShaderModule,
@@ -883,8 +894,14 @@ impl Pipelines {
             network_layout,
             vkb_count: geometry("vkb_count"),
             importance_vkb: compute("importance_vkb"),
+            placeholder: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("placeholder"),
+                size: PLACEHOLDER_BYTES,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            }),
         };
-        if let Some(e) = pollster::block_on(scope.pop()) {
+        if let Some(e) = scope.pop().await {
             return Err(GpuError::Pipeline(e.to_string()).into());
         }
         Ok(p)

@@ -8,13 +8,15 @@
 //! read back, so every buffer of the frame is sized for its own occupancy (`Sizing::Own`, the
 //! memory the tables count). An application's frame never waits (`app.rs`).
 
-use super::buffers::{FrameBuffers, Readback, Statistics, read_frame, read_texture, read_words};
+use super::buffers::{
+    FrameBuffers, Readback, Statistics, read_frame, read_frame_async, read_texture, read_words,
+};
 use super::passes::{Geometry, GeometryPass, Resolve};
 use super::pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT};
 use super::stream::{AppMethod, FrameReport, Stream};
 use super::timer::Timer;
 use super::{FrameOptions, FrameSpec, Gpu, GpuFrame, Sizing, Slots, buffers, frame_params};
-use crate::budget::Occupancy;
+use crate::budget::{Budget, Occupancy};
 use crate::composite::Image;
 use crate::error::{Error, Result};
 use crate::scene::{Camera, Scene};
@@ -585,14 +587,15 @@ impl SceneStream {
     /// The last frame's image, once its submission has run (this waits for it).
     pub fn image(&self) -> Result<Image> {
         let (w, h) = self.stream.size;
-        let px = w as u64 * h as u64;
-        let gpu = &self.stream.gpu;
-        let data = read_frame(gpu, &self.inputs.image, 16 * px, None, w, |b| {
-            let f = |c: &[u8]| f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
-            b.chunks_exact(16)
-                .map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12])])
-                .collect()
-        })?;
+        let bytes = 16 * w as u64 * h as u64;
+        let data = read_frame(
+            &self.stream.gpu,
+            &self.inputs.image,
+            bytes,
+            None,
+            w,
+            rgb_f32,
+        )?;
         Ok(Image {
             width: w,
             height: h,
@@ -600,8 +603,35 @@ impl SceneStream {
         })
     }
 
+    /// [`SceneStream::image`] without blocking: what a page (wasm32) awaits, where nothing may
+    /// wait for the GPU.
+    pub async fn image_async(&self) -> Result<Image> {
+        let (w, h) = self.stream.size;
+        let bytes = 16 * w as u64 * h as u64;
+        let data = read_frame_async(&self.stream.gpu, &self.inputs.image, bytes, rgb_f32).await?;
+        Ok(Image {
+            width: w,
+            height: h,
+            data,
+        })
+    }
+
+    /// The budget of the frames to come (as `Oit::set_budget`): refused, the method named,
+    /// where the method cannot take it.
+    pub fn set_budget(&mut self, budget: Budget) -> Result<()> {
+        self.stream.set_budget(budget)
+    }
+
     /// The device the stream records for (the application submits on its queue).
     pub fn gpu(&self) -> &Gpu {
         &self.stream.gpu
     }
+}
+
+/// A frame's image buffer (RGBA f32 a pixel) as RGB.
+fn rgb_f32(b: &[u8]) -> Vec<[f32; 3]> {
+    let f = |c: &[u8]| f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+    b.chunks_exact(16)
+        .map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12])])
+        .collect()
 }
