@@ -6,7 +6,7 @@ RUN := $(CARGO) run --release --quiet --
 # Real glTF scenes for tests and evaluation, read in place (never copied into the repository).
 export DHOIT_SCENES ?= $(abspath ../shared/scenes)
 
-.PHONY: all setup demo test fmt lint check bench frame devbin build train nets golden eval trade versus fuzz pictures webgpu
+.PHONY: all setup demo test fmt lint check bench frame devbin build train nets golden eval trade versus fuzz pictures webgpu web web-picture
 
 all: demo
 
@@ -146,10 +146,20 @@ frame: setup
 
 ## WebGPU: dhoit-runtime built for wasm32 with wgpu's WebGPU backend, then every pipeline of the
 ## methods WebGPU runs (all but MBOIT, which needs float32-blendable) created on Dawn, Chrome's
-## WebGPU, over a private Mesa 25 lavapipe (scripts/dawn.sh), with a device as a page gets one.
-## `make test` runs it too.
+## WebGPU, over a private Mesa 25 lavapipe (scripts/dawn.sh), with a device as a page gets one;
+## then the web page's frames there against the native ones, and the page in a headless
+## Chromium (scripts/web.sh test). `make test` runs it too.
 webgpu: setup
 	./scripts/webgpu.sh
+
+## The web page (examples/web): DKB, VKB and the A-buffer side by side in a browser, the budget a
+## slider. Builds its wasm and serves it on http://localhost:8000.
+web:
+	./scripts/web.sh serve
+
+## The page's picture, docs/web.png: a screenshot of it in a headless Chromium.
+web-picture:
+	./scripts/web.sh picture
 
 ## For a machine lent with a real GPU: the release binary and the GPU test binaries (stripped)
 ## into .devbin/ and the Vulkan loader package into .gl/ (both ignored by git), which

@@ -17,7 +17,7 @@ const browser = await puppeteer.launch({
   headless: 'shell',
   // WebGPU is behind a flag on Linux; no sandbox where the tests run as root.
   args: ['--no-sandbox', '--enable-unsafe-webgpu', '--enable-features=Vulkan', '--ignore-gpu-blocklist'],
-  defaultViewport: { width: 1100, height: 470 },
+  defaultViewport: { width: 1140, height: 520 },
 });
 const page = await browser.newPage();
 const problems = [];

@@ -136,12 +136,20 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 ..FrameOptions::default()
             };
             let g = gpu.render_with(&opts, &scene, &cam, (w, h), a.common.background, slots)?;
-            let passes: Vec<String> = g
-                .pass_ms
-                .iter()
-                .map(|(n, ms)| format!("{n} {ms:.2} ms"))
-                .collect();
-            println!("GPU passes: {}", passes.join(", "));
+            match g.pass_ms.is_empty() {
+                true => println!(
+                    "GPU passes: {} (untimed: the device has no timestamps)",
+                    g.passes.join(", ")
+                ),
+                false => {
+                    let passes: Vec<String> = g
+                        .pass_ms
+                        .iter()
+                        .map(|(n, ms)| format!("{n} {ms:.2} ms"))
+                        .collect();
+                    println!("GPU passes: {}", passes.join(", "));
+                }
+            }
             // The GPU's own k (VKB and DKB allocate on the device); what it captures follows.
             let k: Vec<u32> = match &g.slots {
                 Some((_, bases, _)) => bases.windows(2).map(|b| b[1] - b[0]).collect(),

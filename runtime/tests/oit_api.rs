@@ -1023,6 +1023,15 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
         ("mboit", Some(Slots::Mboit(mboit))),
     ];
     for (name, slots) in cases {
+        if name == "mboit"
+            && !common::has(
+                g,
+                wgpu::Features::FLOAT32_BLENDABLE,
+                "MBOIT from a glTF file",
+            )
+        {
+            continue;
+        }
         let harness = g.render_with(&opts, &s, &cam, (w, h), BG, slots).unwrap();
         // Every method but the list (whose pool holds every fragment) approximates here.
         if slots.is_some() && name != "linked-list" {
@@ -1096,7 +1105,12 @@ fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
     let (device, _, _) = app_device(false);
     let blends = device
         .features()
-        .contains(wgpu::Features::FLOAT32_BLENDABLE);
+        .contains(wgpu::Features::FLOAT32_BLENDABLE)
+        && common::has(
+            g,
+            wgpu::Features::FLOAT32_BLENDABLE,
+            "MBOIT in dhoit's harness",
+        );
     let room = device.limits().max_color_attachment_bytes_per_sample;
     for moments in [4, 6, 8] {
         // b_0, the four moments and the extra ones, bytes a sample.
@@ -1110,7 +1124,7 @@ fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
             assert!(moments > 4 || !blends, "lavapipe blends four moments");
         }
     }
-    assert!(cases.len() >= 3, "{} cases", cases.len());
+    assert!(cases.len() >= 3 || !blends, "{} cases", cases.len());
     for (name, slots, layout) in cases {
         let harness = g.render(&s, &identity(), w, h, BG, Some(slots)).unwrap();
         let off = worst_difference(&harness.image.data, &exact.image.data);
@@ -1298,7 +1312,7 @@ fn every_method(g: &Gpu, size: (u32, u32), format: wgpu::TextureFormat) -> Vec<B
     let vkb = dhoit_runtime::importance::VkbParams::default();
     let b = Budget::parse("25%").unwrap();
     let nodes = 4 * (size.0 * size.1) as u64;
-    vec![
+    let mut methods: Vec<Box<dyn Oit>> = vec![
         Box::new(ListOit::new(g, size, nodes, 8, format).unwrap()),
         Box::new(KBufferOit::new(g, size, 2, format).unwrap()),
         Box::new(ExactOit::new(g, size, format).unwrap()),
@@ -1306,8 +1320,17 @@ fn every_method(g: &Gpu, size: (u32, u32), format: wgpu::TextureFormat) -> Vec<B
         Box::new(AllocatedOit::dkb(g, size, &weights, b, format).unwrap()),
         Box::new(AllocatedOit::vkb(g, size, vkb, b, format).unwrap()),
         Box::new(BlendedOit::wboit(g, size, WboitParams::default(), format).unwrap()),
-        Box::new(BlendedOit::mboit(g, size, MboitParams::default(), format).unwrap()),
-    ]
+    ];
+    if common::has(
+        g,
+        wgpu::Features::FLOAT32_BLENDABLE,
+        "MBOIT among every method",
+    ) {
+        methods.push(Box::new(
+            BlendedOit::mboit(g, size, MboitParams::default(), format).unwrap(),
+        ));
+    }
+    methods
 }
 
 /// Several frames of a moving camera recorded into one encoder and submitted once give the

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{RenderMethod, core, gpu, identity};
+use common::{RenderMethod, core, identity, wide};
 use dhoit_runtime::composite;
 use dhoit_runtime::gpu::{Capture, FrameOptions, Slots};
 use dhoit_runtime::scene::Camera;
@@ -24,7 +24,7 @@ fn the_core_device_is_webgpus_and_runs_without_64_bit_integers() {
     let d = c.device();
     assert_eq!(d.features(), wgpu::Features::empty());
     assert_eq!(d.limits().max_storage_buffers_per_shader_stage, 8);
-    assert!(!c.is_wide() && gpu().unwrap().is_wide());
+    assert!(!c.is_wide() && wide().unwrap().is_wide());
 }
 
 /// A-buffer, MLAB, FKB, uploaded k, VKB and DKB (their statistics, network, plan and
@@ -35,7 +35,7 @@ fn the_core_device_is_webgpus_and_runs_without_64_bit_integers() {
 #[test]
 fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
     let Some(c) = core() else { return };
-    let g = gpu().unwrap();
+    let g = wide().unwrap();
     let (w, h) = (48, 32);
     let s = common::tied_layers(24);
     let cam = identity();
@@ -124,7 +124,7 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
 #[test]
 fn equal_depths_give_one_image_in_every_submission_order() {
     let Some(c) = core() else { return };
-    let g = gpu().unwrap();
+    let g = wide().unwrap();
     let (w, h) = (24, 16);
     let s = common::tied_layers(30);
     let cam: Camera = identity();

@@ -160,7 +160,7 @@ fn is_wide(features: wgpu::Features) -> bool {
 /// // edge passes through a pixel centre (here one pixel moves by 9.4e-4; the tests hold each
 /// // pass to its twin on the GPU's own fragments, within 1e-5).
 /// assert!(frame.image.mse(&twin.image) < 1e-9);
-/// assert!(frame.pass_ms.iter().any(|(pass, _)| *pass == "importance"));
+/// assert!(frame.passes.contains(&"importance"));
 /// # Ok::<(), dhoit_runtime::Error>(())
 /// ```
 pub struct Gpu {
@@ -505,8 +505,19 @@ impl Gpu {
     /// Opens the first adapter that has every required feature ([`required_features`]), else
     /// the first adapter, without them: every method runs, the k-buffers with the portable
     /// capture ([`Gpu::is_wide`] says which). Either way with the optional features the
-    /// adapter has and its own limits.
+    /// adapter has and its own limits. With `DHOIT_DEVICE=webgpu-core` in the environment, the
+    /// first adapter as WebGPU's core device instead ([`Gpu::portable`]): what a page gets,
+    /// for any command or test to run on.
     pub fn new() -> Result<Gpu> {
+        match std::env::var("DHOIT_DEVICE").as_deref() {
+            Ok("webgpu-core") => return Self::portable(),
+            Ok("") | Err(_) => {}
+            Ok(other) => {
+                return Err(Error::Invalid(format!(
+                    "DHOIT_DEVICE={other}: the one device it names is webgpu-core"
+                )));
+            }
+        }
         match Self::requiring(wgpu::Features::empty()) {
             Err(Error::Gpu(GpuError::MissingFeatures { .. })) => {
                 let a = adapters()?.swap_remove(0);
@@ -777,8 +788,11 @@ fn weight_kind(t: Target) -> u32 {
 #[derive(Clone, Debug)]
 pub struct GpuFrame {
     pub image: Image,
-    /// Milliseconds of each pass, from timestamp queries, in order.
+    /// Milliseconds of each pass, from timestamp queries, in order (none where the device has
+    /// no timestamps).
     pub pass_ms: Vec<(&'static str, f64)>,
+    /// Every pass the frame recorded, in order, on any device.
+    pub passes: Vec<&'static str>,
     /// Host milliseconds outside the passes: "scene upload" (positions widened to vec4 and
     /// written with the colours), "image readback" (copy, map and convert the image).
     pub host_ms: Vec<(&'static str, f64)>,

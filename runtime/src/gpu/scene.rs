@@ -321,6 +321,7 @@ impl Gpu {
                 data,
             },
             pass_ms,
+            passes: timer.ran(),
             host_ms: vec![("scene upload", upload_ms), ("image readback", readback_ms)],
             allocated_bytes: recorded.allocated,
             exact: recorded.exact,

@@ -13,6 +13,8 @@ pub(super) struct Timer<'a> {
     /// None where the device has no timestamps.
     set: Option<wgpu::QuerySet>,
     names: std::cell::RefCell<Vec<&'static str>>,
+    /// Every pass recorded, timed or not, in order.
+    ran: std::cell::RefCell<Vec<&'static str>>,
     /// The buffer the frame's queries were resolved into ([`Timer::resolve`]).
     resolved: std::cell::RefCell<Option<(String, wgpu::Buffer)>>,
 }
@@ -53,12 +55,14 @@ impl<'a> Timer<'a> {
             gpu,
             set,
             names: Default::default(),
+            ran: Default::default(),
             resolved: Default::default(),
         }
     }
 
     /// The next pass's pair of queries, where the device has timestamps and the set has room.
     fn next(&self, name: &'static str) -> Option<(&wgpu::QuerySet, u32, u32)> {
+        self.ran.borrow_mut().push(name);
         let set = self.set.as_ref()?;
         let mut names = self.names.borrow_mut();
         if names.len() as u32 >= TIMED_PASSES {
@@ -107,6 +111,11 @@ impl<'a> Timer<'a> {
         if let Some((key, b)) = self.resolved.replace(Some((key, buf))) {
             self.gpu.release(key, b);
         }
+    }
+
+    /// Every pass recorded, timed or not (a device without timestamps times none), in order.
+    pub(super) fn ran(&self) -> Vec<&'static str> {
+        self.ran.borrow().clone()
     }
 
     /// The passes timed, in the order recorded.

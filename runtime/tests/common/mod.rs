@@ -67,7 +67,50 @@ pub fn gpu() -> Option<&'static Gpu> {
     .as_ref()
 }
 
-/// Largest absolute difference of two equally long slices.
+/// The 64-bit device on the test adapter ([`gpu`] is it unless `DHOIT_DEVICE=webgpu-core` makes
+/// every GPU test run on WebGPU's core device): for the tests that hold the core device to it.
+#[cfg(feature = "gpu")]
+pub fn wide() -> Option<&'static Gpu> {
+    gpu()?;
+    static WIDE: std::sync::OnceLock<Gpu> = std::sync::OnceLock::new();
+    Some(WIDE.get_or_init(|| {
+        Gpu::requiring(dhoit_runtime::gpu::wgpu::Features::empty())
+            .expect("the test adapter with 64-bit atomics")
+    }))
+}
+
+/// Whether the test device has `feature`. Where it lacks it (as WebGPU's core device does, on
+/// which `make test` runs the GPU tests a second time: `DHOIT_DEVICE=webgpu-core`), says which
+/// check is left out and why, so that nothing is skipped silently.
+#[cfg(feature = "gpu")]
+pub fn has(g: &Gpu, feature: dhoit_runtime::gpu::wgpu::Features, unchecked: &str) -> bool {
+    let has = g.device().features().contains(feature);
+    if !has {
+        let names: Vec<&str> = (feature.features_wgpu.iter_names().map(|(n, _)| n))
+            .chain(feature.features_webgpu.iter_names().map(|(n, _)| n))
+            .collect();
+        eprintln!(
+            "NOT CHECKED on {} (it lacks {}): {unchecked}",
+            g.adapter(),
+            names.join(", ")
+        );
+    }
+    has
+}
+
+/// Whether the test device runs the one-pass capture (64-bit atomics); where not, says which
+/// check is left out ([`has`]).
+#[cfg(feature = "gpu")]
+pub fn is_wide(g: &Gpu, unchecked: &str) -> bool {
+    if !g.is_wide() {
+        eprintln!(
+            "NOT CHECKED on {} (no 64-bit atomics: every capture is the portable one): {unchecked}",
+            g.adapter()
+        );
+    }
+    g.is_wide()
+}
+
 #[cfg(feature = "gpu")]
 /// WebGPU's core device on the same adapter as [`gpu`] (`Gpu::portable`: no feature, wgpu's
 /// default limits), shared by a test binary's tests: what a browser runs. None where [`gpu`]
@@ -82,6 +125,7 @@ pub fn core() -> Option<&'static Gpu> {
     }))
 }
 
+/// Largest absolute difference of two equally long slices.
 pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
     assert_eq!(a.len(), b.len());
     a.iter()
@@ -162,6 +206,16 @@ pub fn cpu_and_gpu_frames(
     let options = options.always_approximate();
     let mut out = Vec::new();
     for &m in methods {
+        let blends = || {
+            has(
+                g,
+                dhoit_runtime::gpu::wgpu::Features::FLOAT32_BLENDABLE,
+                "MBOIT on the GPU against its twin",
+            )
+        };
+        if m == Method::Mboit && !blends() {
+            continue;
+        }
         let renderer = Renderer::new(fl, options);
         let allocation = match renderer.allocate(m) {
             Ok(a) => a,
