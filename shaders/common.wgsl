@@ -46,15 +46,25 @@ struct Params {
     wboit_far: f32,
 };
 
-// A material (wgsl::GpuMaterial; scene::material): base colour factor, its texture (where its
-// texels start in the texel buffer, or NO_TEXTURE; size), flags (bits 0-1 and 2-3 the wrap
-// modes along U and V, 4-5 the coverage COVERAGE_*, MATERIAL_NEAREST, MATERIAL_DOUBLE_SIDED),
-// MASK's cutoff, glass's transmission and F0.
-struct Material {
-    factor: vec4<f32>,
+// One of a material's textures (wgsl::GpuTexture): where its texels start in the texel buffer
+// (NO_TEXTURE: none), its size, its sampler (bits 0-1 and 2-3 the wrap modes along U and V,
+// TEXTURE_NEAREST).
+struct TextureRef {
     texels: u32,
     width: u32,
     height: u32,
+    sampler: u32,
+};
+
+// A material (wgsl::GpuMaterial; scene::material): base colour factor, its textures (base
+// colour, transmission, emissive), the emissive colour, flags (bits 4-5 the coverage
+// COVERAGE_*, MATERIAL_DOUBLE_SIDED), MASK's cutoff, glass's transmission and F0.
+struct Material {
+    factor: vec4<f32>,
+    base: TextureRef,
+    transmission_texture: TextureRef,
+    emissive_texture: TextureRef,
+    emissive: vec3<f32>,
     flags: u32,
     cutoff: f32,
     transmission: f32,

@@ -92,14 +92,19 @@ fn attributes(in: VertexOut) -> Attributes {
     return out;
 }
 
-// Texel (x, y) of the texture at `m`, decoded: colour through the sRGB table, alpha times
-// ALPHA_SCALE (material::Texture::texel).
-fn texel(m: Material, x: i32, y: i32) -> vec4<f32> {
-    let v = texels[m.texels + u32(y) * m.width + u32(x)];
+// Texel (x, y) of texture `t`, decoded: colour through the sRGB table, alpha times
+// ALPHA_SCALE (material::Texture::texel); a data texture's (`srgb` false) every channel times
+// ALPHA_SCALE (material::data_table).
+fn texel(t: TextureRef, x: i32, y: i32, srgb_colour: bool) -> vec4<f32> {
+    let v = texels[t.texels + u32(y) * t.width + u32(x)];
     let r = v & 0xffu;
     let g = (v >> 8u) & 0xffu;
     let b = (v >> 16u) & 0xffu;
-    return vec4<f32>(srgb[r >> 2u][r & 3u], srgb[g >> 2u][g & 3u], srgb[b >> 2u][b & 3u], f32(v >> 24u) * ALPHA_SCALE);
+    let a = f32(v >> 24u) * ALPHA_SCALE;
+    if (!srgb_colour) {
+        return vec4<f32>(f32(r) * ALPHA_SCALE, f32(g) * ALPHA_SCALE, f32(b) * ALPHA_SCALE, a);
+    }
+    return vec4<f32>(srgb[r >> 2u][r & 3u], srgb[g >> 2u][g & 3u], srgb[b >> 2u][b & 3u], a);
 }
 
 // Texel i of an axis of n as the wrap mode places it (material::wrap): 0 repeat, 1 mirrored
@@ -115,18 +120,18 @@ fn wrap(i: i32, n: i32, mode: u32) -> i32 {
     return clamp(i, 0, n - 1);
 }
 
-// The texture at `uv` (material::Texture::sample): nearest, or bilinear between the four
-// texels around uv * size - 0.5, each axis wrapped by its mode; arithmetic written out, not the
-// hardware filter, so the CPU computes the same.
-fn sample_texture(m: Material, uv: vec2<f32>) -> vec4<f32> {
-    let w = i32(m.width);
-    let h = i32(m.height);
-    let wrap_s = m.flags & 3u;
-    let wrap_t = (m.flags >> 2u) & 3u;
-    if ((m.flags & MATERIAL_NEAREST) != 0u) {
+// Texture `t` at `uv` (material::Texture::sample): nearest, or bilinear between the four texels
+// around uv * size - 0.5, each axis wrapped by its mode; arithmetic written out, not the
+// hardware filter, so the CPU computes the same. `srgb_colour` false for a data texture.
+fn sample_texture(t: TextureRef, uv: vec2<f32>, srgb_colour: bool) -> vec4<f32> {
+    let w = i32(t.width);
+    let h = i32(t.height);
+    let wrap_s = t.sampler & 3u;
+    let wrap_t = (t.sampler >> 2u) & 3u;
+    if ((t.sampler & TEXTURE_NEAREST) != 0u) {
         let x = i32(floor(clamp(uv.x * f32(w), -TEXEL_LIMIT, TEXEL_LIMIT)));
         let y = i32(floor(clamp(uv.y * f32(h), -TEXEL_LIMIT, TEXEL_LIMIT)));
-        return texel(m, wrap(x, w, wrap_s), wrap(y, h, wrap_t));
+        return texel(t, wrap(x, w, wrap_s), wrap(y, h, wrap_t), srgb_colour);
     }
     let x = clamp(uv.x * f32(w) - 0.5, -TEXEL_LIMIT, TEXEL_LIMIT);
     let y = clamp(uv.y * f32(h) - 0.5, -TEXEL_LIMIT, TEXEL_LIMIT);
@@ -140,8 +145,8 @@ fn sample_texture(m: Material, uv: vec2<f32>) -> vec4<f32> {
     let xb = wrap(x0 + 1, w, wrap_s);
     let ya = wrap(y0, h, wrap_t);
     let yb = wrap(y0 + 1, h, wrap_t);
-    let top = texel(m, xa, ya) * (1.0 - fx) + texel(m, xb, ya) * fx;
-    let bottom = texel(m, xa, yb) * (1.0 - fx) + texel(m, xb, yb) * fx;
+    let top = texel(t, xa, ya, srgb_colour) * (1.0 - fx) + texel(t, xb, ya, srgb_colour) * fx;
+    let bottom = texel(t, xa, yb, srgb_colour) * (1.0 - fx) + texel(t, xb, yb, srgb_colour) * fx;
     return top * (1.0 - fy) + bottom * fy;
 }
 
@@ -172,8 +177,16 @@ fn shade(in: VertexOut, front: bool) -> Shaded {
     }
     let at = attributes(in);
     var c = at.color * m.factor;
-    if (m.texels != NO_TEXTURE) {
-        c = c * sample_texture(m, at.uv);
+    if (m.base.texels != NO_TEXTURE) {
+        c = c * sample_texture(m.base, at.uv, true);
+    }
+    // Emission, after the headlight's shade (in at.color), which does not dim it.
+    if (any(m.emissive != vec3<f32>(0.0))) {
+        var e = m.emissive;
+        if (m.emissive_texture.texels != NO_TEXTURE) {
+            e = e * sample_texture(m.emissive_texture, at.uv, true).rgb;
+        }
+        c = vec4<f32>(c.rgb + e, c.a);
     }
     out.color = c;
     if (uniform) {
@@ -194,7 +207,11 @@ fn shade(in: VertexOut, front: bool) -> Shaded {
     if (glass) {
         let v = at.world - params.eye.xyz;
         let cosine = abs(dot(in.normal, v)) / length(v);
-        out.color.a = a * glass_opacity(m.transmission, m.f0, cosine);
+        var t = m.transmission;
+        if (m.transmission_texture.texels != NO_TEXTURE) {
+            t = t * sample_texture(m.transmission_texture, at.uv, false).r;
+        }
+        out.color.a = a * glass_opacity(t, m.f0, cosine);
     } else {
         out.color.a = a;
     }

@@ -430,7 +430,7 @@ pub mod shaders {
             ("TEXEL_LIMIT", F32(crate::scene::material::TEXEL_LIMIT)),
             ("ALPHA_SCALE", F32(crate::scene::material::ALPHA_SCALE)),
             ("NO_TEXTURE", U32(super::NO_TEXTURE)),
-            ("MATERIAL_NEAREST", U32(super::MATERIAL_NEAREST)),
+            ("TEXTURE_NEAREST", U32(super::TEXTURE_NEAREST)),
             ("MATERIAL_DOUBLE_SIDED", U32(super::MATERIAL_DOUBLE_SIDED)),
             ("COVERAGE_OPAQUE", U32(super::COVERAGE_OPAQUE)),
             ("COVERAGE_MASK", U32(super::COVERAGE_MASK)),
@@ -555,11 +555,12 @@ pub(crate) struct Params {
     pub(crate) _pad: [u32; 15],
 }
 
-/// `Material.texels` of a material without a texture.
+/// `TextureRef.texels` where a material has no such texture.
 pub const NO_TEXTURE: u32 = u32::MAX;
-/// `Material.flags`: bits 0-1 the wrap mode along U ([`crate::scene::Wrap::code`]), 2-3 along
-/// V, 4-5 the coverage (`COVERAGE_*`), then these.
-pub const MATERIAL_NEAREST: u32 = 1 << 6;
+/// `TextureRef.sampler`: bits 0-1 the wrap mode along U ([`crate::scene::Wrap::code`]), 2-3
+/// along V, then this (magnification NEAREST, else bilinear).
+pub const TEXTURE_NEAREST: u32 = 1 << 4;
+/// `Material.flags`: bits 4-5 the coverage (`COVERAGE_*`), then this.
 pub const MATERIAL_DOUBLE_SIDED: u32 = 1 << 7;
 pub const COVERAGE_OPAQUE: u32 = 0;
 pub const COVERAGE_MASK: u32 = 1;
@@ -569,15 +570,29 @@ pub const SHADED_NONE: u32 = 0;
 pub const SHADED_OPAQUE: u32 = 1;
 pub const SHADED_TRANSPARENT: u32 = 2;
 
-/// A material as the geometry passes read it (matches `Material` in common.wgsl).
+/// One of a material's textures as the geometry passes read it (matches `TextureRef` in
+/// common.wgsl): where its texels start in the texel buffer (or [`NO_TEXTURE`]), its size, its
+/// sampler (wrap modes, [`TEXTURE_NEAREST`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct GpuTexture {
+    pub(crate) texels: u32,
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    pub(crate) sampler: u32,
+}
+
+/// A material as the geometry passes read it (matches `Material` in common.wgsl): 96 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct GpuMaterial {
     pub(crate) factor: [f32; 4],
-    /// Where its texture's texels start in the texel buffer, or [`NO_TEXTURE`].
-    pub(crate) texels: u32,
-    pub(crate) width: u32,
-    pub(crate) height: u32,
+    pub(crate) base: GpuTexture,
+    pub(crate) transmission_texture: GpuTexture,
+    pub(crate) emissive_texture: GpuTexture,
+    /// `emissiveFactor` times its strength.
+    pub(crate) emissive: [f32; 3],
+    /// The coverage and [`MATERIAL_DOUBLE_SIDED`].
     pub(crate) flags: u32,
     pub(crate) cutoff: f32,
     pub(crate) transmission: f32,
@@ -596,6 +611,25 @@ pub(crate) fn gpu_materials(scene: &crate::scene::Scene) -> (Vec<GpuMaterial>, V
         starts.push(texels.len() as u32);
         texels.extend_from_slice(&t.texels);
     }
+    let texture = |t: Option<u32>| match t {
+        Some(t) => {
+            let tex = &scene.textures[t as usize];
+            let mut sampler = tex.wrap[0].code() | tex.wrap[1].code() << 2;
+            if tex.nearest {
+                sampler |= TEXTURE_NEAREST;
+            }
+            GpuTexture {
+                texels: starts[t as usize],
+                width: tex.width,
+                height: tex.height,
+                sampler,
+            }
+        }
+        None => GpuTexture {
+            texels: NO_TEXTURE,
+            ..Default::default()
+        },
+    };
     let materials = scene
         .materials
         .iter()
@@ -609,22 +643,12 @@ pub(crate) fn gpu_materials(scene: &crate::scene::Scene) -> (Vec<GpuMaterial>, V
             if m.double_sided {
                 flags |= MATERIAL_DOUBLE_SIDED;
             }
-            let (texels, width, height) = match m.texture {
-                Some(t) => {
-                    let tex = &scene.textures[t as usize];
-                    flags |= tex.wrap[0].code() | tex.wrap[1].code() << 2;
-                    if tex.nearest {
-                        flags |= MATERIAL_NEAREST;
-                    }
-                    (starts[t as usize], tex.width, tex.height)
-                }
-                None => (NO_TEXTURE, 0, 0),
-            };
             GpuMaterial {
                 factor: m.base_color,
-                texels,
-                width,
-                height,
+                base: texture(m.texture),
+                transmission_texture: texture(m.transmission_texture),
+                emissive_texture: texture(m.emissive_texture),
+                emissive: m.emissive,
                 flags,
                 cutoff,
                 transmission: m.transmission,
@@ -884,10 +908,14 @@ mod tests {
         assert_eq!(size_of::<Params>() as u64, crate::shared::PARAMS_BYTES);
 
         let (span, wgsl) = wgsl_struct(&parse("capture"), "Material");
-        let rust = offsets!(GpuMaterial; factor, texels, width, height, flags, cutoff,
-            transmission, f0);
+        let rust = offsets!(GpuMaterial; factor, base, transmission_texture, emissive_texture,
+            emissive, flags, cutoff, transmission, f0);
         assert_eq!(wgsl, rust, "Material: WGSL (left) and Rust (right)");
         assert_eq!(span as usize, size_of::<GpuMaterial>());
+        let (span, wgsl) = wgsl_struct(&parse("capture"), "TextureRef");
+        let rust = offsets!(GpuTexture; texels, width, height, sampler);
+        assert_eq!(wgsl, rust, "TextureRef: WGSL (left) and Rust (right)");
+        assert_eq!(span as usize, size_of::<GpuTexture>());
 
         let (span, wgsl) = wgsl_struct(&module, "Alloc");
         let rust = offsets!(AllocParams; kind, _pad);

@@ -435,3 +435,95 @@ fn textures_wrap_as_their_samplers_say() {
         }
     }
 }
+
+/// A transmission texture, an emissive colour brighter than white (its strength) and an
+/// emissive texture survive the exporter and the loader: the material read back is the one
+/// written (the emission within float rounding of its factor times strength).
+#[test]
+fn transmission_textures_and_emission_round_trip() {
+    use scene::{Coverage, Material, Texture, Wrap};
+    let dir = temp_dir("emissive");
+    let mut s = scene::Scene {
+        name: "glass-and-light".into(),
+        materials: Vec::new(),
+        ..scene::Scene::default()
+    };
+    let tex = |r: u32| Texture {
+        width: 2,
+        height: 2,
+        texels: vec![0xff00_0000 | r; 4],
+        wrap: [Wrap::Repeat, Wrap::ClampToEdge],
+        nearest: true,
+    };
+    let leads = s.add_texture(tex(0));
+    let light = s.add_texture(tex(200));
+    let glass = s.add_material(Material {
+        base_color: [0.9, 0.2, 0.1, 1.0],
+        coverage: Coverage::Opaque,
+        transmission: 0.75,
+        transmission_texture: Some(leads),
+        ..Material::default()
+    });
+    let lamp = s.add_material(Material {
+        emissive: [4.0, 2.0, 0.5],
+        emissive_texture: Some(light),
+        coverage: Coverage::Opaque,
+        ..Material::default()
+    });
+    let dim = s.add_material(Material {
+        emissive: [0.5, 0.25, 0.0],
+        ..Material::default()
+    });
+    for (i, m) in [glass, lamp, dim].into_iter().enumerate() {
+        let x = i as f32;
+        let p = [
+            glam::Vec3::new(x, 0.0, 0.0),
+            glam::Vec3::new(x + 0.5, 0.0, 0.0),
+            glam::Vec3::new(x, 0.5, 0.0),
+        ];
+        s.push_textured(p, [[1.0; 4]; 3], [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], m);
+    }
+    let path = dir.join("glass-and-light.glb");
+    scene::gltf::export(&s, &path).unwrap();
+    let back = load(&path).unwrap();
+    let m = |t: usize| *back.material_of(t);
+    assert_eq!(m(0).transmission, 0.75);
+    let t = m(0).transmission_texture.expect("the transmission texture");
+    assert_eq!(
+        back.textures[t as usize].texels,
+        s.textures[leads as usize].texels
+    );
+    let e = m(1).emissive;
+    assert!(
+        e.iter()
+            .zip([4.0, 2.0, 0.5])
+            .all(|(a, b)| (a - b).abs() < 1e-5),
+        "emission {e:?}: the factor times its strength"
+    );
+    let t = m(1).emissive_texture.expect("the emissive texture");
+    assert_eq!(
+        back.textures[t as usize].texels,
+        s.textures[light as usize].texels
+    );
+    assert_eq!(m(2).emissive, [0.5, 0.25, 0.0], "no strength below white");
+    assert_eq!(m(2).emissive_texture, None);
+    // The real asset, where present: its labels glow with their texture, its striped spheres
+    // read their transmission texture.
+    if let Some(dir) = scenes_dir() {
+        let t = load(&dir.join("TransmissionTest/TransmissionTest.glb")).unwrap();
+        assert!(
+            t.materials
+                .iter()
+                .any(|m| m.emissive == [1.0; 3] && m.emissive_texture.is_some())
+        );
+        let striped = t
+            .materials
+            .iter()
+            .filter(|m| m.transmission_texture.is_some())
+            .count();
+        assert_eq!(
+            striped, 6,
+            "TransmissionTest's materials with a transmission texture"
+        );
+    }
+}

@@ -1,7 +1,7 @@
 //! Materials per fragment, on the CPU reference and the GPU alike: textured BLEND surfaces with
 //! UVs far outside [0, 1] under every wrap mode and both filters, MASK cutoffs, glass whose
-//! opacity follows the view angle, and opaque occluders in front of, between and behind
-//! transparent layers. Needs a GPU adapter (lavapipe in CI); DHOIT_SKIP_GPU=1 skips explicitly.
+//! opacity follows the view angle and its transmission texture, emissive surfaces, and opaque
+//! occluders in front of, between and behind transparent layers. Needs a GPU adapter (lavapipe in CI); DHOIT_SKIP_GPU=1 skips explicitly.
 
 mod common;
 
@@ -226,12 +226,184 @@ fn occluded() -> Scene {
     s
 }
 
-fn scenes() -> [(&'static str, Scene); 3] {
+/// A data texture of `n` x `n` texels whose R byte is `r(x, y)` (no sRGB encoding: what a
+/// transmission texture holds).
+fn data_texture(n: u32, r: impl Fn(u32, u32) -> u32) -> Texture {
+    Texture {
+        width: n,
+        height: n,
+        texels: (0..n * n).map(|i| r(i % n, i / n) | 0xff00_0000).collect(),
+        wrap: [Wrap::Repeat; 2],
+        nearest: false,
+    }
+}
+
+/// Stained glass and emission: tinted glass panes whose transmission texture has opaque
+/// leads (R 0), clear glass (255) and half-transmitting paint (128), bilinear and repeated, in
+/// front of an opaque black label lit only by its emissive texture, and a BLEND pane that glows
+/// past white (stored clamped).
+fn stained_glass_and_emission() -> Scene {
+    let mut s = empty();
+    let leads = s.add_texture(data_texture(8, |x, y| match (x % 4, y % 4) {
+        (0, _) | (_, 0) => 0,
+        (1, 1) => 128,
+        _ => 255,
+    }));
+    let letters = s.add_texture(texture(16, [Wrap::ClampToEdge; 2], true, |u, v| {
+        let on = ((u * 8.0) as i32 + (v * 4.0) as i32) % 3 == 0;
+        if on {
+            [1.0, 0.9, 0.2, 1.0]
+        } else {
+            [0.05, 0.05, 0.1, 1.0]
+        }
+    }));
+    let label = s.add_material(Material {
+        base_color: [0.0, 0.0, 0.0, 1.0],
+        coverage: Coverage::Opaque,
+        emissive: [1.0, 1.0, 1.0],
+        emissive_texture: Some(letters),
+        ..Material::default()
+    });
+    let red = s.add_material(Material {
+        base_color: [0.9, 0.15, 0.1, 1.0],
+        coverage: Coverage::Opaque,
+        transmission: 1.0,
+        transmission_texture: Some(leads),
+        ..Material::default()
+    });
+    let blue = s.add_material(Material {
+        base_color: [0.1, 0.4, 0.9, 1.0],
+        coverage: Coverage::Opaque,
+        transmission: 0.8,
+        transmission_texture: Some(leads),
+        ior: 1.4,
+        ..Material::default()
+    });
+    let glow = s.add_material(Material {
+        base_color: [0.5, 0.3, 0.1, 0.4],
+        emissive: [2.0, 1.5, 0.2],
+        ..Material::default()
+    });
+    let white = [[1.0; 4]; 4];
+    let uv = [[-0.5, 1.7], [1.6, 1.7], [1.6, -0.4], [-0.5, -0.4]];
+    quad(
+        &mut s,
+        layer(0.8, 0.9, 0.0),
+        [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]],
+        white,
+        label,
+    );
+    quad(&mut s, layer(0.3, 0.8, 0.2), uv, white, red);
+    quad(&mut s, layer(-0.1, 0.6, -0.25), uv, white, blue);
+    quad(&mut s, layer(-0.4, 0.4, 0.1), uv, white, glow);
+    s
+}
+
+fn scenes() -> [(&'static str, Scene); 4] {
     [
         ("textured BLEND", textured_blend()),
         ("MASK", masked()),
         ("occluders and glass", occluded()),
+        ("stained glass and emission", stained_glass_and_emission()),
     ]
+}
+
+/// A transmission texture's R channel, read as data, scales the glass's transmission: where it
+/// is 0 the glass is opaque with its base colour, where 255 it is clear glass (opacity its
+/// Fresnel reflectance, F0 face-on), where 128 between; an emissive texture adds its light
+/// after the headlight's shade, undimmed. Held to hand computations.
+#[test]
+fn transmission_textures_and_emission_shade_as_computed_by_hand() {
+    use dhoit_runtime::scene::material::{Shaded, shade, srgb_table};
+    let table = srgb_table();
+    // One texel a column: R 0, 128, 255; nearest, so each column's value is its own.
+    let data = Texture {
+        width: 3,
+        height: 1,
+        texels: vec![0xff00_0000, 0xff00_0080, 0xff00_00ff],
+        wrap: [Wrap::ClampToEdge; 2],
+        nearest: true,
+    };
+    let glass = Material {
+        base_color: [0.9, 0.1, 0.1, 1.0],
+        coverage: Coverage::Opaque,
+        transmission: 1.0,
+        transmission_texture: Some(0),
+        ..Material::default()
+    };
+    let textures = [data];
+    let at = |u: f32| shade(&glass, &textures, &table, [1.0; 4], [u, 0.5], 1.0, None);
+    // F0 of IOR 1.5: ((1.5 - 1) / (1.5 + 1))^2 = 0.04; face-on (cos 1) F = F0.
+    let f0 = 0.04f32;
+    let expect = [1.0, 1.0 - (128.0 / 255.0) * (1.0 - f0), f0];
+    for (i, want) in expect.into_iter().enumerate() {
+        let Shaded::Transparent(c) = at((i as f32 + 0.5) / 3.0) else {
+            panic!("column {i}: glass is a transparent fragment");
+        };
+        assert!(
+            (c[3] - want).abs() < 1e-6,
+            "column {i}: opacity {} for {want}",
+            c[3]
+        );
+        assert_eq!(&c[..3], &[0.9, 0.1, 0.1], "column {i}: the base colour");
+    }
+    // Without the texture, the factor alone: clear glass everywhere.
+    let clear = Material {
+        transmission_texture: None,
+        ..glass
+    };
+    let Shaded::Transparent(c) = shade(&clear, &textures, &table, [1.0; 4], [0.1, 0.5], 1.0, None)
+    else {
+        panic!("clear glass is transparent");
+    };
+    assert!((c[3] - f0).abs() < 1e-6, "clear glass: {}", c[3]);
+
+    // A black label lit by its emissive texture: sRGB 255 and 0 texels, the headlight at half.
+    let letters = Texture {
+        width: 2,
+        height: 1,
+        texels: vec![0xffff_ffff, 0xff00_0000],
+        wrap: [Wrap::ClampToEdge; 2],
+        nearest: true,
+    };
+    let label = Material {
+        base_color: [0.0, 0.0, 0.0, 1.0],
+        coverage: Coverage::Opaque,
+        emissive: [0.5, 1.0, 2.0],
+        emissive_texture: Some(0),
+        ..Material::default()
+    };
+    let shaded = [0.5, 0.5, 0.5, 1.0];
+    let lit = shade(
+        &label,
+        std::slice::from_ref(&letters),
+        &table,
+        shaded,
+        [0.25, 0.5],
+        1.0,
+        None,
+    );
+    assert_eq!(
+        lit,
+        Shaded::Opaque([0.5, 1.0, 2.0, 1.0]),
+        "a lit texel: its emission, undimmed"
+    );
+    let dark = shade(&label, &[letters], &table, shaded, [0.75, 0.5], 1.0, None);
+    assert_eq!(
+        dark,
+        Shaded::Opaque([0.0, 0.0, 0.0, 1.0]),
+        "a dark texel: black"
+    );
+    // Emission adds to a lit base colour and to a transparent one's straight colour.
+    let glow = Material {
+        base_color: [0.5, 0.5, 0.5, 0.25],
+        emissive: [0.25, 0.0, 1.0],
+        ..Material::default()
+    };
+    assert_eq!(
+        shade(&glow, &[], &table, shaded, [0.0; 2], 1.0, None),
+        Shaded::Transparent([0.5, 0.25, 1.25, 0.25])
+    );
 }
 
 /// The camera of view `view` of an orbit around `s`.

@@ -1,13 +1,14 @@
 //! glTF 2.0 loading (`.gltf` + `.bin` + images, and `.glb`) into a triangle soup.
 //!
 //! Every mesh primitive of the default scene (or of the first scene) is instanced through its
-//! node's world transform. Each vertex keeps its `COLOR_0` and the texture coordinates of its
-//! material's base colour texture (`KHR_texture_transform` applied, an affine map, so it commutes
-//! with perspective-correct interpolation); each triangle its material: base colour factor and
+//! node's world transform. Each vertex keeps its `COLOR_0` and the texture coordinates its
+//! material's textures read (`KHR_texture_transform` applied, an affine map, so it commutes with
+//! perspective-correct interpolation); each triangle its material: base colour factor and
 //! texture with its sampler's wrap modes and magnification filter, `alphaMode` and
-//! `alphaCutoff`, `doubleSided`, `KHR_materials_transmission`'s factor and `KHR_materials_ior`
-//! (see [`super::material`] for what a fragment of each is). Images are decoded to RGBA8 and
-//! box-filtered down to [`MAX_TEXTURE_SIDE`] a side. A primitive without a material takes glTF's
+//! `alphaCutoff`, `doubleSided`, `KHR_materials_transmission`'s factor and texture,
+//! `emissiveFactor`, `emissiveTexture` and `KHR_materials_emissive_strength`, and
+//! `KHR_materials_ior` (see [`super::material`] for what a fragment of each is). Images are
+//! decoded to RGBA8 and box-filtered down to [`MAX_TEXTURE_SIDE`] a side. A primitive without a material takes glTF's
 //! default material (white, OPAQUE, single-sided).
 //!
 //! Every accessor is bounds-checked before it is read, so a truncated or inconsistent file is an
@@ -257,7 +258,16 @@ impl Loader<'_> {
     fn material(&mut self, m: &gltf::Material) -> Result<(u32, UvSet)> {
         let pbr = m.pbr_metallic_roughness();
         let info = pbr.base_color_texture();
-        let uv = match &info {
+        let transmission = m.transmission();
+        let transmission_info = transmission.as_ref().and_then(|t| t.transmission_texture());
+        let emissive_info = m.emissive_texture();
+        // The vertices' one set: the base colour texture's, else the transmission texture's,
+        // else the emissive texture's (material.rs).
+        let uv = match info
+            .as_ref()
+            .or(transmission_info.as_ref())
+            .or(emissive_info.as_ref())
+        {
             Some(i) => {
                 let t = i.texture_transform();
                 UvSet {
@@ -277,6 +287,16 @@ impl Loader<'_> {
             Some(i) => Some(self.texture(&i.texture())?),
             None => None,
         };
+        let transmission_texture = match &transmission_info {
+            Some(i) => Some(self.texture(&i.texture())?),
+            None => None,
+        };
+        let emissive_texture = match &emissive_info {
+            Some(i) => Some(self.texture(&i.texture())?),
+            None => None,
+        };
+        let strength = m.emissive_strength().unwrap_or(1.0);
+        let emissive = m.emissive_factor().map(|e| e * strength);
         let coverage = match m.alpha_mode() {
             gltf::material::AlphaMode::Opaque => Coverage::Opaque,
             gltf::material::AlphaMode::Mask => Coverage::Mask(m.alpha_cutoff().unwrap_or(0.5)),
@@ -286,7 +306,10 @@ impl Loader<'_> {
             base_color: pbr.base_color_factor(),
             texture,
             coverage,
-            transmission: m.transmission().map_or(0.0, |t| t.transmission_factor()),
+            transmission: transmission.map_or(0.0, |t| t.transmission_factor()),
+            transmission_texture,
+            emissive,
+            emissive_texture,
             ior: m.ior().unwrap_or(material::DEFAULT_IOR),
             double_sided: m.double_sided(),
         };
@@ -580,10 +603,25 @@ pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, SceneFault> {
             }
             let mut ext = serde_json::Map::new();
             if m.transmission > 0.0 {
-                ext.insert(
-                    "KHR_materials_transmission".into(),
-                    json!({"transmissionFactor": m.transmission}),
-                );
+                let mut t = json!({"transmissionFactor": m.transmission});
+                if let Some(i) = m.transmission_texture {
+                    t["transmissionTexture"] = json!({"index": i});
+                }
+                ext.insert("KHR_materials_transmission".into(), t);
+            }
+            if m.emissive != [0.0; 3] {
+                // emissiveFactor is at most 1: what is brighter is its strength.
+                let strength = m.emissive.into_iter().fold(1.0f32, f32::max);
+                mat["emissiveFactor"] = json!(m.emissive.map(|e| e / strength));
+                if strength > 1.0 {
+                    ext.insert(
+                        "KHR_materials_emissive_strength".into(),
+                        json!({"emissiveStrength": strength}),
+                    );
+                }
+                if let Some(i) = m.emissive_texture {
+                    mat["emissiveTexture"] = json!({"index": i});
+                }
             }
             if m.ior != material::DEFAULT_IOR {
                 ext.insert("KHR_materials_ior".into(), json!({"ior": m.ior}));

@@ -15,7 +15,18 @@
 //!   default 1.5: 0.04 face-on, 1 at grazing angles), `cos` the angle between the triangle's
 //!   geometric normal and the direction from the eye to the fragment; times the base alpha
 //!   where the mode is BLEND, after the cutoff test where it is MASK. Its colour is the base
-//!   colour (a tint). Transmission and IOR textures are not read (their factors are).
+//!   colour (a tint). `T` is the transmission factor times its texture's R channel, read as
+//!   data (8-bit value / 255, no sRGB decode) where the material has one, so the parts a
+//!   stained-glass texture marks as not transmitting (lead, paint) are opaque with their base
+//!   colour. The IOR texture is not read (its factor is).
+//! - Emission: `emissiveFactor x emissiveTexture(uv) x KHR_materials_emissive_strength` (the
+//!   texture sRGB-decoded as base colour is) adds to the fragment's RGB after the headlight's
+//!   shade, which does not dim it: an emissive label on a black base shows its texture. It adds
+//!   to the straight colour, so a transparent fragment of opacity `a` contributes `a` times it;
+//!   stored as RGBA8, it clamps at white.
+//! - A material's textures are read at the vertices' one set of texture coordinates: its base
+//!   colour texture's (with its transform), else its transmission texture's, else its
+//!   emissive texture's. A second texture reading another set or transform is read at those.
 //! - Double-sidedness: a single-sided surface shows only its front face (counter-clockwise in
 //!   clip space, as glTF says), except under one uniform opacity (the papers' protocol draws
 //!   both faces).
@@ -118,6 +129,12 @@ pub fn srgb_table() -> [f32; 256] {
 /// alike, where a quotient may be computed through an approximate reciprocal).
 pub const ALPHA_SCALE: f32 = 1.0 / 255.0;
 
+/// The decode table of a data texture (a transmission texture: no sRGB): entry i is
+/// `i x ALPHA_SCALE`, as geometry.wgsl decodes one.
+pub fn data_table() -> [f32; 256] {
+    std::array::from_fn(|i| i as f32 * ALPHA_SCALE)
+}
+
 impl Texture {
     /// A texel decoded: colour through the sRGB table, alpha times [`ALPHA_SCALE`].
     fn texel(&self, table: &[f32; 256], x: i32, y: i32) -> [f32; 4] {
@@ -208,6 +225,12 @@ pub struct Material {
     pub coverage: Coverage,
     /// `KHR_materials_transmission`'s factor (0: none).
     pub transmission: f32,
+    /// Index of its transmission texture in the scene's textures (R times the factor).
+    pub transmission_texture: Option<u32>,
+    /// `emissiveFactor` times `KHR_materials_emissive_strength`, linear (0: none).
+    pub emissive: [f32; 3],
+    /// Index of its emissive texture in the scene's textures (sRGB, times `emissive`).
+    pub emissive_texture: Option<u32>,
     pub ior: f32,
     pub double_sided: bool,
 }
@@ -220,6 +243,9 @@ impl Default for Material {
             texture: None,
             coverage: Coverage::Blend,
             transmission: 0.0,
+            transmission_texture: None,
+            emissive: [0.0; 3],
+            emissive_texture: None,
             ior: DEFAULT_IOR,
             double_sided: true,
         }
@@ -284,6 +310,19 @@ pub fn shade(
         let s = textures[t as usize].sample(table, uv);
         c = std::array::from_fn(|i| c[i] * s[i]);
     }
+    // Emission, after the headlight's shade (in `vertex`), which does not dim it.
+    if m.emissive != [0.0; 3] {
+        let e = match m.emissive_texture {
+            Some(t) => {
+                let s = textures[t as usize].sample(table, uv);
+                std::array::from_fn(|i| m.emissive[i] * s[i])
+            }
+            None => m.emissive,
+        };
+        for (c, e) in c.iter_mut().zip(e) {
+            *c += e;
+        }
+    }
     if let Some(a) = uniform {
         c[3] = a;
         return Shaded::Transparent(c);
@@ -302,7 +341,11 @@ pub fn shade(
         1.0
     };
     c[3] = if m.transmission > 0.0 {
-        coverage * glass_opacity(m.transmission, m.f0(), cos)
+        let t = match m.transmission_texture {
+            Some(t) => m.transmission * textures[t as usize].sample(&data_table(), uv)[0],
+            None => m.transmission,
+        };
+        coverage * glass_opacity(t, m.f0(), cos)
     } else {
         coverage
     };

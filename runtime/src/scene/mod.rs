@@ -219,14 +219,20 @@ impl Scene {
             {
                 return Err(bad(&format!("alpha cutoff {c}")));
             }
-            if let Some(t) = m.texture
-                && t as usize >= self.textures.len()
+            if !m.emissive.iter().all(|c| c.is_finite() && *c >= 0.0) {
+                return Err(bad(&format!("emissive colour {:?}", m.emissive)));
+            }
+            for t in [m.texture, m.transmission_texture, m.emissive_texture]
+                .into_iter()
+                .flatten()
             {
-                return Err(SceneFault::NoSuchTexture {
-                    material: i,
-                    texture: t,
-                    textures: self.textures.len(),
-                });
+                if t as usize >= self.textures.len() {
+                    return Err(SceneFault::NoSuchTexture {
+                        material: i,
+                        texture: t,
+                        textures: self.textures.len(),
+                    });
+                }
             }
         }
         for (i, t) in self.textures.iter().enumerate() {
