@@ -31,6 +31,11 @@ pub(crate) struct ViewArgs {
     /// Number of orbit views around the scene (view I is at angle I/N of a turn).
     #[arg(long, default_value_t = scene::DEFAULT_VIEWS, value_parser = parse_views)]
     pub(crate) views: usize,
+    /// Where the camera stands: `orbit` (the orbit's views, `--view`), or `asset`: the
+    /// camera the glTF file gives (its first), else its front (looking along -Z, level, where
+    /// glTF viewers start): the viewpoint of the screenshots the sample assets ship.
+    #[arg(long, default_value = "orbit", value_parser = ["orbit", "asset"])]
+    pub(crate) camera: String,
     /// One uniform opacity for every surface, as the papers' protocol has it (the reference
     /// uses 0.33): no opaque surfaces, alpha modes and glass ignored, both faces drawn. Without
     /// it, each scene's own: glTF files and the built-in material families (`dhoit scenes`)
@@ -226,7 +231,10 @@ pub(crate) fn check_view(view: usize, views: usize) -> Result<()> {
 /// The camera of `view` of the orbit at the resolution `a` gives (what [`rasterize_view`]
 /// rasterizes through).
 pub(crate) fn view_camera(scene: &Scene, view: usize, a: &ViewArgs) -> Camera {
-    Camera::orbit(scene, view, a.views, a.res.width, a.res.height)
+    match a.camera.as_str() {
+        "asset" => Camera::asset(scene, a.res.width, a.res.height),
+        _ => Camera::orbit(scene, view, a.views, a.res.width, a.res.height),
+    }
 }
 
 pub(crate) fn rasterize_view(

@@ -78,6 +78,10 @@ pub struct CompareArgs {
     /// Also write the summary tables (Markdown, no images) to this file.
     #[arg(long)]
     summary: Option<PathBuf>,
+    /// A picture to show in each montage's first column, beside the methods (a sample asset's
+    /// screenshot, with `--camera asset`): PNG or JPEG, scaled to fit the frame on white.
+    #[arg(long)]
+    beside: Option<PathBuf>,
 }
 
 /// One method on one frame.
@@ -631,6 +635,17 @@ fn matrices(r: &[Ratio], axes: &Axes, out: &mut Summary) {
 
 pub fn run(a: CompareArgs) -> Result<()> {
     let budgets = a.budgets.clone();
+    // The picture beside the methods, read before anything renders.
+    let beside = match &a.beside {
+        Some(path) => Some((
+            path.file_name()
+                .map_or("reference".into(), |n| n.to_string_lossy().into_owned()),
+            image::open(path)
+                .map_err(|e| anyhow::anyhow!("cannot read --beside {}: {e}", path.display()))?
+                .to_rgb8(),
+        )),
+        None => None,
+    };
     let mut methods: Vec<Method> = if a.methods.is_empty() {
         Method::ALL.to_vec()
     } else {
@@ -724,10 +739,9 @@ pub fn run(a: CompareArgs) -> Result<()> {
                         &a.out.join(&tag),
                         &budget_label,
                         &fl,
-                        &frames,
-                        &frame_rows,
-                        &flips,
+                        (&frames, &frame_rows, &flips),
                         &reference,
+                        beside.as_ref(),
                     )?;
                     let order: Vec<&str> = frames.iter().map(|f| f.method.name()).collect();
                     md += &format!(
@@ -900,15 +914,18 @@ fn write_reports(a: &CompareArgs, rows: &[Row], mut md: String) -> Result<()> {
     Ok(())
 }
 
-/// The frame's images and montage, `STEM_METHOD.png` and `STEM_montage.png`.
+/// A frame's FLIP score and error map.
+type Flip = (f64, Vec<f32>);
+
+/// The frame's images and montage, `STEM_METHOD.png` and `STEM_montage.png`: each method's
+/// frame, report row and FLIP map, with `beside` (a name and a picture) in the first column.
 fn write_images(
     stem: &std::path::Path,
     budget: &str,
     fl: &dhoit_runtime::fragment::FragmentLists,
-    frames: &[Frame],
-    rows: &[Row],
-    flips: &[(f64, Vec<f32>)],
+    (frames, rows, flips): (&[Frame], &[Row], &[Flip]),
     reference: &dhoit_runtime::composite::Image,
+    beside: Option<&(String, image::RgbImage)>,
 ) -> Result<()> {
     let counts = fl.counts();
     let covered: Vec<bool> = counts.iter().map(|&n| n > 0).collect();
@@ -953,6 +970,17 @@ fn write_images(
     for c in columns.iter_mut().skip(1) {
         c.insert(0, String::new());
     }
+    if let Some((name, picture)) = beside {
+        let (w, h) = (fl.width, fl.height);
+        tiles[0].insert(0, fitted(picture, w, h));
+        for row in tiles.iter_mut().skip(1) {
+            row.insert(0, vec![255; (3 * w * h) as usize]);
+        }
+        columns.insert(
+            0,
+            vec![String::new(), name.clone(), "(the asset's own)".into()],
+        );
+    }
     let montage = Montage {
         tile_w: fl.width,
         tile_h: fl.height,
@@ -985,4 +1013,22 @@ fn write_images(
     };
     montage.write(&PathBuf::from(format!("{}_montage.png", stem.display())))?;
     Ok(())
+}
+
+/// `picture` scaled to fit `w` x `h` (its aspect kept), centred on white: RGB8, a montage tile.
+fn fitted(picture: &image::RgbImage, w: u32, h: u32) -> Vec<u8> {
+    let scale = (w as f32 / picture.width() as f32).min(h as f32 / picture.height() as f32);
+    let (pw, ph) = (
+        ((picture.width() as f32 * scale).round() as u32).clamp(1, w),
+        ((picture.height() as f32 * scale).round() as u32).clamp(1, h),
+    );
+    let small = image::imageops::resize(picture, pw, ph, image::imageops::FilterType::Triangle);
+    let mut tile = image::RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255]));
+    image::imageops::overlay(
+        &mut tile,
+        &small,
+        ((w - pw) / 2) as i64,
+        ((h - ph) / 2) as i64,
+    );
+    tile.into_raw()
 }

@@ -9,7 +9,6 @@ use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
 use dhoit_runtime::gpu::{Capture, FrameOptions, Gpu, Slots};
 use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::Precision;
-use dhoit_runtime::scene::Camera;
 use dhoit_runtime::tensors;
 use std::path::PathBuf;
 
@@ -125,7 +124,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             let gpu = Gpu::new()?;
             eprintln!("GPU: {}", gpu.adapter());
             let (w, h) = (fl.width, fl.height);
-            let cam = Camera::orbit(&scene, a.view, a.common.views, w, h);
+            let cam = crate::args::view_camera(&scene, a.view, &a.common);
             let slots = Slots::for_method(method, &cpu, &options)?;
             // The GPU counts first and decides on its own count whether the exact A-buffer is
             // no dearer, as the CPU did (the two counts can differ by an edge's fragment).

@@ -1471,3 +1471,87 @@ fn versus_puts_every_method_at_one_memory_and_marks_the_front() {
             .contains("| linked-list |")
     );
 }
+
+/// `compare --camera asset --beside PICTURE`: the scene from its own viewpoint (a built-in has
+/// none: its front), the picture in the montage's first column (the montage one tile wider than
+/// without it); a picture that is not there is refused before anything renders, named.
+#[test]
+fn compare_puts_a_picture_beside_the_methods_from_the_assets_viewpoint() {
+    let dir = temp_dir("cli-beside");
+    // A 40x20 picture, red: what the first tile shows, scaled to fit 64x48.
+    let picture = dir.join("shot.png");
+    let red = image::RgbImage::from_pixel(40, 20, image::Rgb([255, 0, 0]));
+    red.save(&picture).unwrap();
+    let run = |beside: Option<&Path>, out: &str| {
+        let out = dir.join(out);
+        let mut args = vec![
+            "compare", "--scene", "plates", "--res", "64x48", "--camera", "asset",
+        ];
+        args.extend([
+            "--methods",
+            "vkb",
+            "--budget",
+            "50%",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        if let Some(b) = beside {
+            args.extend(["--beside", b.to_str().unwrap()]);
+        }
+        let o = dhoit(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        image::open(out.join("plates_v0_50%_montage.png"))
+            .unwrap()
+            .to_rgb8()
+    };
+    let with = run(Some(&picture), "with");
+    let without = run(None, "without");
+    assert_eq!(with.height(), without.height());
+    assert!(
+        with.width() > without.width() + 60,
+        "{} against {}",
+        with.width(),
+        without.width()
+    );
+    let reds = with.pixels().filter(|p| p.0 == [255, 0, 0]).count();
+    // Scaled to 64x32 (its aspect), less the edges the filter blends with the white.
+    assert!(reds >= 62 * 30, "{reds} red pixels");
+    assert!(without.pixels().all(|p| p.0 != [255, 0, 0]));
+    // The front view is not orbit view 0.
+    let orbit = dir.join("orbit");
+    let o = dhoit(&[
+        "compare",
+        "--scene",
+        "plates",
+        "--res",
+        "64x48",
+        "--methods",
+        "vkb",
+        "--budget",
+        "50%",
+        "--out",
+        orbit.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let a = std::fs::read(dir.join("without/plates_v0_50%_abuffer.png")).unwrap();
+    let b = std::fs::read(orbit.join("plates_v0_50%_abuffer.png")).unwrap();
+    assert!(a != b, "--camera asset rendered orbit view 0");
+    // A missing picture: refused before rendering, named.
+    let missing = dir.join("nowhere.png");
+    let o = dhoit(&[
+        "compare",
+        "--scene",
+        "plates",
+        "--res",
+        "64x48",
+        "--beside",
+        missing.to_str().unwrap(),
+        "--out",
+        dir.join("x").to_str().unwrap(),
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("nowhere.png"), "{e}");
+    assert!(!dir.join("x").exists(), "nothing written");
+    let o = dhoit(&["render", "--scene", "plates", "--camera", "above"]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("above"));
+}

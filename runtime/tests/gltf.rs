@@ -527,3 +527,88 @@ fn transmission_textures_and_emission_round_trip() {
         );
     }
 }
+
+/// A glTF file's camera is the scene's viewpoint, and `Camera::asset` sees through it: a point
+/// straight ahead of the eye lands in the frame's centre, one up the camera's up above it.
+/// Without a camera, the front view frames the bounding box: every vertex in the frame, its
+/// centre in the middle. A camera that cannot see is refused by name.
+#[test]
+fn a_gltf_camera_is_the_asset_viewpoint_and_the_front_view_frames_the_rest() {
+    use glam::{Quat, Vec3, Vec4};
+    let dir = temp_dir("camera");
+    let path = write_tiny(&dir, [0, 1, 2], None, "tiny.bin");
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    // Turned 30 degrees about Y, standing at (1, 2, 5).
+    let q = Quat::from_rotation_y(30f32.to_radians());
+    json["cameras"] = serde_json::json!([{"type": "perspective",
+        "perspective": {"yfov": 0.7, "znear": 0.01, "zfar": 100.0}}]);
+    json["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({
+        "camera": 0, "translation": [1.0, 2.0, 5.0], "rotation": q.to_array()}));
+    json["scenes"][0]["nodes"] = serde_json::json!([0, 1]);
+    std::fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    let s = load(&path).unwrap();
+    let v = s.viewpoint.expect("the file's camera");
+    assert_eq!(v.eye, Vec3::new(1.0, 2.0, 5.0));
+    assert!(
+        (v.forward - q * Vec3::NEG_Z).length() < 1e-6,
+        "{:?}",
+        v.forward
+    );
+    assert!((v.yfov - 0.7).abs() < 1e-7);
+    let cam = scene::Camera::asset(&s, 200, 100);
+    let ndc = |p: Vec3| {
+        let c = cam.view_proj * Vec4::new(p.x, p.y, p.z, 1.0);
+        (c.x / c.w, c.y / c.w)
+    };
+    let (x, y) = ndc(v.eye + 3.0 * v.forward);
+    assert!(
+        x.abs() < 1e-5 && y.abs() < 1e-5,
+        "straight ahead: ({x}, {y})"
+    );
+    // One unit up at distance 3 is tan^-1(1/3) above the axis: NDC y = (1/3) / tan(yfov/2).
+    let (x, y) = ndc(v.eye + 3.0 * v.forward + q * Vec3::Y);
+    let want = (1.0 / 3.0) / (0.35f32).tan();
+    assert!(
+        x.abs() < 1e-5 && (y - want).abs() < 1e-4,
+        "up: ({x}, {y}) for (0, {want})"
+    );
+
+    // Without one: the front view.
+    let mut front = s.clone();
+    front.viewpoint = None;
+    let cam = scene::Camera::asset(&front, 200, 100);
+    assert_eq!(cam.forward, Vec3::NEG_Z);
+    let ndc = |p: Vec3| {
+        let c = cam.view_proj * Vec4::new(p.x, p.y, p.z, 1.0);
+        (c.x / c.w, c.y / c.w, c.z / c.w)
+    };
+    for p in &front.positions {
+        let (x, y, z) = ndc(*p);
+        assert!(
+            x.abs() <= 1.0 && y.abs() <= 1.0 && (0.0..=1.0).contains(&z),
+            "{p} at ({x}, {y}, {z})"
+        );
+    }
+    // The triangle (10, 0)-(11, 0)-(10, 1): its box's centre (10.5, 0.5) in the middle, its
+    // height the tallest side of the frame's (100 of 200: the vertical fits), 1/1.05 of it.
+    let (x, y, _) = ndc(Vec3::new(10.5, 0.5, 0.0));
+    assert!(
+        x.abs() < 1e-5 && y.abs() < 1e-5,
+        "the box's centre: ({x}, {y})"
+    );
+    let (_, top, _) = ndc(Vec3::new(10.5, 1.0, 0.0));
+    assert!((top - 1.0 / 1.05).abs() < 1e-4, "the box's top at {top}");
+
+    // A camera that cannot see: refused, named.
+    let mut blind = s.clone();
+    blind.viewpoint = Some(scene::Viewpoint { yfov: 0.0, ..v });
+    let e = blind.check().unwrap_err().to_string();
+    assert!(e.contains("camera cannot see"), "{e}");
+    let mut blind = s;
+    blind.viewpoint = Some(scene::Viewpoint { up: v.forward, ..v });
+    assert!(blind.check().is_err());
+}

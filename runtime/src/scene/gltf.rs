@@ -1,7 +1,7 @@
 //! glTF 2.0 loading (`.gltf` + `.bin` + images, and `.glb`) into a triangle soup.
 //!
 //! Every mesh primitive of the default scene (or of the first scene) is instanced through its
-//! node's world transform. Each vertex keeps its `COLOR_0` and the texture coordinates its
+//! node's world transform; the scene's first perspective camera is its viewpoint. Each vertex keeps its `COLOR_0` and the texture coordinates its
 //! material's textures read (`KHR_texture_transform` applied, an affine map, so it commutes with
 //! perspective-correct interpolation); each triangle its material: base colour factor and
 //! texture with its sampler's wrap modes and magnification filter, `alphaMode` and
@@ -78,6 +78,17 @@ pub fn from_slice(bytes: &[u8], path: &Path) -> Result<Scene> {
             return Err(err("node hierarchy deeper than 64 (a cycle?)".into()));
         }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        if let Some(camera) = node.camera()
+            && let gltf::camera::Projection::Perspective(p) = camera.projection()
+            && loader.scene.viewpoint.is_none()
+        {
+            loader.scene.viewpoint = Some(super::Viewpoint {
+                eye: world.transform_point3(Vec3::ZERO),
+                forward: world.transform_vector3(Vec3::NEG_Z).normalize(),
+                up: world.transform_vector3(Vec3::Y).normalize(),
+                yfov: p.yfov(),
+            });
+        }
         if let Some(mesh) = node.mesh() {
             for prim in mesh.primitives() {
                 loader.primitive(&prim, world)?;

@@ -25,6 +25,15 @@ pub const MAX_RADIUS: f32 = 1e18;
 pub enum SceneFault {
     #[error("the scene has no triangles")]
     NoTriangles,
+    #[error(
+        "its camera cannot see: eye {eye:?}, forward {forward:?}, up {up:?}, vertical field of view {yfov} rad (finite, a direction and an up apart, the field of view in (0, pi))"
+    )]
+    BadViewpoint {
+        eye: Vec3,
+        forward: Vec3,
+        up: Vec3,
+        yfov: f32,
+    },
     #[error("vertex {vertex} (triangle {}) has a position that is not finite: {position:?}", vertex / 3)]
     NonFinite { vertex: usize, position: Vec3 },
     #[error(
@@ -104,6 +113,18 @@ pub struct Scene {
     pub textures: Vec<Texture>,
     /// One opacity for every surface (the papers' protocol), or `None`: the materials decide.
     pub uniform_opacity: Option<f32>,
+    /// The viewpoint the file gives (a glTF's first camera in its scene), where it gives one.
+    pub viewpoint: Option<Viewpoint>,
+}
+
+/// A camera a scene file gives: where it stands, where it looks, its up, its vertical field of
+/// view (radians). [`Camera::asset`] sees through it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Viewpoint {
+    pub eye: Vec3,
+    pub forward: Vec3,
+    pub up: Vec3,
+    pub yfov: f32,
 }
 
 impl Default for Scene {
@@ -118,6 +139,7 @@ impl Default for Scene {
             materials: vec![Material::default()],
             textures: Vec::new(),
             uniform_opacity: None,
+            viewpoint: None,
         }
     }
 }
@@ -255,6 +277,23 @@ impl Scene {
         if self.triangle_count() == 0 {
             return Err(SceneFault::NoTriangles);
         }
+        if let Some(v) = self.viewpoint {
+            let seeing = v.eye.is_finite()
+                && v.forward.is_finite()
+                && v.up.is_finite()
+                && v.forward.length() > 0.5
+                && v.forward.cross(v.up).length() > 1e-3
+                && v.yfov > 0.0
+                && v.yfov < std::f32::consts::PI;
+            if !seeing {
+                return Err(SceneFault::BadViewpoint {
+                    eye: v.eye,
+                    forward: v.forward,
+                    up: v.up,
+                    yfov: v.yfov,
+                });
+            }
+        }
         if let Some(vertex) = self.positions.iter().position(|p| !p.is_finite()) {
             return Err(SceneFault::NonFinite {
                 vertex,
@@ -306,6 +345,7 @@ impl Scene {
             materials: self.materials.clone(),
             textures: self.textures.clone(),
             uniform_opacity: self.uniform_opacity,
+            viewpoint: self.viewpoint,
         };
         for t in perm {
             out.positions
@@ -424,6 +464,50 @@ impl Camera {
         }
         .to_radians();
         Camera::orbit_at(scene, azimuth, elevation, width, height)
+    }
+
+    /// The camera a scene's file gives ([`Scene::viewpoint`], its aspect the frame's), else
+    /// the front view: looking along -Z, level, from where the bounding box's front face just
+    /// fills a 45 degree vertical field of view (where glTF viewers start). Near and far hug
+    /// the bounding sphere, or the box.
+    pub fn asset(scene: &Scene, width: u32, height: u32) -> Camera {
+        let aspect = width as f32 / height as f32;
+        let Some(v) = scene.viewpoint else {
+            let (lo, hi) = scene.positions.iter().fold(
+                (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+                |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+            );
+            let (centre, half) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
+            let fovy = 45f32.to_radians();
+            let tan_v = (fovy * 0.5).tan();
+            let d = (half.x / (aspect * tan_v)).max(half.y / tan_v).max(1e-6) * 1.05;
+            let eye = Vec3::new(centre.x, centre.y, hi.z + d);
+            let far = d + 2.0 * half.z * 1.01 + d * 1e-3;
+            let near = (d * 0.98).max(far * 1e-5);
+            let view_m = look_at_rh(eye, Vec3::new(centre.x, centre.y, lo.z), Vec3::Y);
+            return Camera {
+                view_proj: perspective_rh(fovy, aspect, near, far) * view_m,
+                forward: Vec3::NEG_Z,
+                eye,
+                near,
+                far,
+            };
+        };
+        let (centre, radius) = scene.bounding_sphere();
+        let forward = v.forward.normalize();
+        // The sphere's extent along the view, from the eye.
+        let along = (centre - v.eye).dot(forward);
+        let far = (along + radius * 1.01).max(1e-3);
+        let near = (along - radius * 1.01).max(far * 1e-4);
+        let view_m = look_at_rh(v.eye, v.eye + forward, v.up);
+        let proj = perspective_rh(v.yfov, aspect, near, far);
+        Camera {
+            view_proj: proj * view_m,
+            forward,
+            eye: v.eye,
+            near,
+            far,
+        }
     }
 
     /// The camera on the bounding sphere's orbit at `azimuth` and `elevation` (radians), framed
