@@ -240,42 +240,54 @@ fn main() -> Result<()> {
     });
     for v in 0..a.views {
         let cam = Camera::orbit(&app.scene, v, a.views, w, h);
-        let mut enc = app.draw(&frame, &cam)?;
-        enc.copy_texture_to_buffer(
-            frame.target.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &staging,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(row),
-                    rows_per_image: Some(h),
+        // A frame's buffers are sized from the counts of the frames before (dhoit reads them
+        // back without waiting): the first, or one after a view of fewer fragments, may be short
+        // of its pool. Its report says so; it is drawn again, sized from its own count.
+        let mut again = 0;
+        let (img, ms) = loop {
+            let mut enc = app.draw(&frame, &cam)?;
+            enc.copy_texture_to_buffer(
+                frame.target.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &staging,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(row),
+                        rows_per_image: Some(h),
+                    },
                 },
-            },
-            frame.target.size(),
-        );
-        app.queue.submit([enc.finish()]);
-        staging.slice(..).map_async(wgpu::MapMode::Read, |r| {
-            r.expect("the readback maps");
-        });
-        let ms = app.pass_ms(&frame, true)?;
-        let img = {
-            let data = staging.slice(..).get_mapped_range()?;
-            let floats: &[f32] = bytemuck::cast_slice(&data);
-            let pixels = (0..h as usize)
-                .flat_map(|y| {
-                    (0..w as usize).map(move |x| {
-                        let i = y * row as usize / 4 + 4 * x;
-                        [floats[i], floats[i + 1], floats[i + 2]]
+                frame.target.size(),
+            );
+            app.queue.submit([enc.finish()]);
+            staging.slice(..).map_async(wgpu::MapMode::Read, |r| {
+                r.expect("the readback maps");
+            });
+            let ms = app.pass_ms(&frame, true)?;
+            let img = {
+                let data = staging.slice(..).get_mapped_range()?;
+                let floats: &[f32] = bytemuck::cast_slice(&data);
+                let pixels = (0..h as usize)
+                    .flat_map(|y| {
+                        (0..w as usize).map(move |x| {
+                            let i = y * row as usize / 4 + 4 * x;
+                            [floats[i], floats[i + 1], floats[i + 2]]
+                        })
                     })
-                })
-                .collect();
-            Image {
-                width: w,
-                height: h,
-                data: pixels,
+                    .collect();
+                Image {
+                    width: w,
+                    height: h,
+                    data: pixels,
+                }
+            };
+            staging.unmap();
+            let short = frame.last.borrow().as_ref().is_some_and(|r| r.pool_short);
+            if !short || again == 1 {
+                break (img, ms);
             }
+            again += 1;
+            println!("view {v}: short of its pool (sized before its count): drawn again");
         };
-        staging.unmap();
         let path = a.out.join(format!("view{v}.png"));
         dhoit_runtime::image_io::write_png(&path, &img)?;
         let dkb = match ms[3] {

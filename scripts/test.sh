@@ -40,18 +40,55 @@ DHOIT_DEVICE=webgpu-core cargo test --release -p dhoit --test cli --test equival
 # The viewer example, headless, as a user runs it: an application's own renderer around the
 # linked list, the fixed k-buffer, the exact A-buffer, DKB (exact where that is cheaper, and
 # at its budget), VKB, WBOIT, MBOIT and MLAB, one PNG a view.
+viewer_dir=$(mktemp -d)
+viewer() { # NAME ARGS...: the viewer's frames of particles into $viewer_dir/NAME
+  local name=$1
+  shift
+  cargo run --release --quiet --example viewer -- particles --res 160x120 --views 2 "$@" \
+    --out "$viewer_dir/$name" >/dev/null && [ -s "$viewer_dir/$name/view0.png" ] &&
+    [ -s "$viewer_dir/$name/view1.png" ]
+}
 for method in linked-list fkb abuffer dkb "dkb --always-approximate" vkb wboit "wboit --wboit-weight eq7" mboit mlab; do
-  viewer_out=$(mktemp -d)
   # shellcheck disable=SC2086 # the method's words are its flags
-  if cargo run --release --example viewer -- particles --res 160x120 --views 2 --method $method \
-    --out "$viewer_out" && [ -s "$viewer_out/view0.png" ] && [ -s "$viewer_out/view1.png" ]; then
+  if viewer "$(echo "$method" | tr -c 'a-z0-9\n' _)" --method $method; then
     echo "viewer example ($method): wrote its frames"
   else
     echo "viewer example ($method): FAILED" >&2
     [ "$status" -eq 0 ] && status=1
   fi
-  rm -rf "$viewer_out"
 done
+# Its frames against its own exact frame (the A-buffer's, both views): DKB and VKB with a
+# budget that holds every fragment, and FKB with more slots than any pixel has fragments, are
+# it byte for byte; at 25% of the fragments DKB is within 3 steps of it, and nearer than VKB,
+# which is nearer than FKB at 2 slots (the quality order the methods' tests hold).
+cargo build --release --quiet --example image_diff
+diff_sum() { ./target/release/examples/image_diff "$@" --max 255 --pixels 1 | sed -n 's/.*sum \([0-9]*\)$/\1/p'; }
+viewer exact-dkb --method dkb --budget 100% && viewer exact-vkb --method vkb --budget 100% &&
+  viewer exact-fkb --method fkb --k 256 && viewer dkb25 --method dkb --budget 25% --always-approximate &&
+  viewer vkb25 --method vkb --budget 25% --always-approximate && viewer fkb2 --method fkb --k 2 ||
+  { echo "viewer example: FAILED to render the frames it is held to" >&2; status=1; }
+held=0
+for v in 0 1; do
+  ref=$viewer_dir/abuffer/view$v.png
+  for exact in exact-dkb exact-vkb exact-fkb; do
+    ./target/release/examples/image_diff "$ref" "$viewer_dir/$exact/view$v.png" --max 0 >/dev/null &&
+      held=$((held + 1))
+  done
+  ./target/release/examples/image_diff "$ref" "$viewer_dir/dkb25/view$v.png" --max 3 --pixels 0.001 >/dev/null &&
+    held=$((held + 1))
+  d=$(diff_sum "$ref" "$viewer_dir/dkb25/view$v.png")
+  k=$(diff_sum "$ref" "$viewer_dir/vkb25/view$v.png")
+  f=$(diff_sum "$ref" "$viewer_dir/fkb2/view$v.png")
+  [ -n "$d" ] && [ -n "$k" ] && [ -n "$f" ] && [ "$d" -lt "$k" ] && [ "$k" -lt "$f" ] && held=$((held + 1))
+  echo "viewer view $v: summed differences from its A-buffer frame: DKB 25% $d, VKB 25% $k, FKB k=2 $f"
+done
+if [ "$held" -eq 10 ]; then
+  echo "viewer example: its exact frames are its A-buffer's, its approximations in the methods' order"
+else
+  echo "viewer example: FAILED against its A-buffer frame ($held of 10 checks held)" >&2
+  [ "$status" -eq 0 ] && status=1
+fi
+rm -rf "$viewer_dir"
 # The viewer's interactive window (winit) builds; with no display it says so and exits non-zero.
 if cargo build --release --example viewer --features window; then
   echo "viewer example (--features window): builds"

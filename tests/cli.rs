@@ -1429,14 +1429,34 @@ fn versus_puts_every_method_at_one_memory_and_marks_the_front() {
         serde_json::from_slice(&std::fs::read(out.join("versus.json")).unwrap()).unwrap();
     let budgets = r["budgets"].as_array().unwrap();
     assert_eq!(budgets.len(), 2);
+    // M of each frame: x times the A-buffer's bytes of that frame (it runs at 1x).
+    let frame_key = |f: &serde_json::Value| format!("{} {}", f["scene"], f["view"]);
+    let abuffer: std::collections::HashMap<String, f64> = budgets
+        .iter()
+        .filter(|b| b["memory"].as_f64() == Some(1.0))
+        .flat_map(|b| b["points"].as_array().unwrap())
+        .filter(|p| p["method"] == "abuffer")
+        .flat_map(|p| p["frames"].as_array().unwrap())
+        .map(|f| (frame_key(f), f["bytes_per_pixel"].as_f64().unwrap()))
+        .collect();
+    assert_eq!(abuffer.len(), 2, "the A-buffer's frames at 1x: {abuffer:?}");
+    let mut held = 0;
     for b in budgets {
         let points = b["points"].as_array().unwrap();
         let x = b["memory"].as_f64().unwrap();
         for p in points {
             let frames = p["frames"].as_array().unwrap();
             for f in frames {
-                // What ran fits in M (the A-buffer's bytes are 9 + 8 n a pixel, at least 9).
-                assert!(f["bytes_per_pixel"].as_f64().unwrap() > 0.0);
+                // What ran fits in M.
+                let m = x * abuffer[&frame_key(f)];
+                let bpp = f["bytes_per_pixel"].as_f64().unwrap();
+                assert!(
+                    bpp > 0.0 && bpp <= m * (1.0 + 1e-9),
+                    "{} {}: {bpp} bytes a pixel in M = {m}",
+                    p["method"],
+                    frame_key(f)
+                );
+                held += 1;
             }
             let method = p["method"].as_str().unwrap();
             if x == 1.0 && ["fkb", "vkb", "dkb"].contains(&method) {
@@ -1464,6 +1484,7 @@ fn versus_puts_every_method_at_one_memory_and_marks_the_front() {
         }
         assert!(full.iter().any(|p| p["front"] == true));
     }
+    assert!(held >= 20, "{held} frames held to M");
     assert!(out.join("versus_0p5x.svg").is_file() && out.join("versus_1x.png").is_file());
     assert!(
         std::fs::read_to_string(out.join("versus.md"))

@@ -612,3 +612,72 @@ fn a_gltf_camera_is_the_asset_viewpoint_and_the_front_view_frames_the_rest() {
     blind.viewpoint = Some(scene::Viewpoint { up: v.forward, ..v });
     assert!(blind.check().is_err());
 }
+
+/// `KHR_texture_transform`'s example from its specification, by hand: offset (0, 1), rotation
+/// 90 degrees, scale 0.5 maps the quad's UV corners onto the texture's lower left quadrant,
+/// turned: (0, 0) -> (0, 1), (1, 0) -> (0, 0.5), (1, 1) -> (0.5, 0.5), (0, 1) -> (0.5, 1).
+#[test]
+fn texture_transforms_map_uvs_as_the_specification_example_says() {
+    use scene::{Material, Texture, Wrap};
+    let dir = temp_dir("transform");
+    let mut s = scene::Scene {
+        name: "transform".into(),
+        materials: Vec::new(),
+        ..scene::Scene::default()
+    };
+    let t = s.add_texture(Texture {
+        width: 2,
+        height: 2,
+        texels: vec![0xffff_ffff; 4],
+        wrap: [Wrap::Repeat; 2],
+        nearest: false,
+    });
+    let m = s.add_material(Material {
+        texture: Some(t),
+        ..Material::default()
+    });
+    let p = |x: f32, y: f32| glam::Vec3::new(x, y, 0.0);
+    let corners = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    s.push_textured(
+        [p(0.0, 1.0), p(1.0, 1.0), p(1.0, 0.0)],
+        [[1.0; 4]; 3],
+        [corners[0], corners[1], corners[2]],
+        m,
+    );
+    s.push_textured(
+        [p(0.0, 1.0), p(1.0, 0.0), p(0.0, 0.0)],
+        [[1.0; 4]; 3],
+        [corners[0], corners[2], corners[3]],
+        m,
+    );
+    let plain = dir.join("plain.glb");
+    scene::gltf::export(&s, &plain).unwrap();
+    // The file again, its base colour texture transformed.
+    let glb = std::fs::read(&plain).unwrap();
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let mut json: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let bin = &glb[20 + json_len + 8..];
+    json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["extensions"] = serde_json::json!({
+        "KHR_texture_transform": {"offset": [0.0, 1.0], "rotation": std::f64::consts::FRAC_PI_2, "scale": [0.5, 0.5]}
+    });
+    json["extensionsUsed"] = serde_json::json!(["KHR_texture_transform"]);
+    let turned = dir.join("turned.glb");
+    std::fs::write(&turned, make_glb(&serde_json::to_vec(&json).unwrap(), bin)).unwrap();
+    let a = load(&plain).unwrap();
+    let b = load(&turned).unwrap();
+    let by_hand = |uv: [f32; 2]| match uv {
+        [0.0, 0.0] => [0.0, 1.0],
+        [1.0, 0.0] => [0.0, 0.5],
+        [1.0, 1.0] => [0.5, 0.5],
+        [0.0, 1.0] => [0.5, 1.0],
+        other => panic!("a corner {other:?}"),
+    };
+    assert_eq!(a.uvs.len(), 6);
+    for (plain, turned) in a.uvs.iter().zip(&b.uvs) {
+        let want = by_hand(*plain);
+        assert!(
+            (turned[0] - want[0]).abs() < 1e-6 && (turned[1] - want[1]).abs() < 1e-6,
+            "{plain:?} -> {turned:?}, by hand {want:?}"
+        );
+    }
+}

@@ -931,11 +931,8 @@ fn the_allocation_pass_matches_its_cpu_twin() {
 fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
     use dhoit_runtime::importance::VkbParams;
     let Some(g) = gpu() else { return };
-    let mlp = dhoit_runtime::mlp::Mlp::load(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../data/weights.safetensors"
-    )))
-    .unwrap_or_else(|_| dhoit_runtime::mlp::Mlp::random(11));
+    // The committed network, which the test is about: a file that does not load fails it.
+    let mlp = common::committed_weights();
     for (name, view) in [("particles", 0), ("plates", 3)] {
         let (w, h) = (72, 54);
         let (s, cam) = frame(name, view, w, h);

@@ -166,9 +166,20 @@ fn the_gpu_list_keeps_what_its_pool_holds_and_is_its_twin() {
                 nodes.min(total),
                 "{name} {nodes}"
             );
-            // Each pixel kept some of its own fragments, no other.
+            // Each pixel kept some of its own fragments, no other: every kept fragment (depth,
+            // colour) is one of the pixel's in the A-buffer, each at most as often.
+            let key = |f: dhoit_runtime::fragment::Fragment| {
+                dhoit_runtime::fragment::fragment_key(f.depth, f.rgba)
+            };
             for p in 0..all.pixel_count() {
-                assert!(kept.count(p) <= all.count(p), "{name} {nodes}: pixel {p}");
+                let mut own: Vec<u64> = all.fragments(p).map(key).collect();
+                for f in kept.fragments(p) {
+                    let at = own.iter().position(|&k| k == key(f));
+                    let at = at.unwrap_or_else(|| {
+                        panic!("{name} {nodes}: pixel {p} kept a fragment not its own: {f:?}")
+                    });
+                    own.swap_remove(at);
+                }
             }
             let k = vec![sorted; all.pixel_count()];
             let twin: Image = composite::composite(kept, composite::Method::Hybrid(&k), BG);

@@ -683,3 +683,51 @@ fn real_scenes_with_their_materials_render_alike_on_cpu_and_gpu() {
     eprintln!("{off} of {channels} channels one 8-bit step apart");
     assert!((off as f64) <= CHANNELS_OFF_BY_ONE * channels as f64);
 }
+
+/// The sRGB decode, bilinear filtering and Schlick's Fresnel, held to numbers computed by hand
+/// (the twins share these functions, so the GPU agreeing with the CPU says nothing of them).
+#[test]
+fn srgb_bilinear_and_fresnel_are_the_formulas_by_hand() {
+    use dhoit_runtime::scene::material::{glass_opacity, srgb_table, srgb_to_linear};
+    // sRGB: 0.5 -> ((0.5 + 0.055) / 1.055)^2.4 = 0.214041; the linear segment below 0.04045;
+    // 1 -> 1, 0 -> 0; 8-bit 128 -> 0.215861.
+    assert!((srgb_to_linear(0.5) - 0.214_041).abs() < 1e-6);
+    assert!((srgb_to_linear(0.04) - 0.04 / 12.92).abs() < 1e-9);
+    let table = srgb_table();
+    assert_eq!((table[0], table[255]), (0.0, 1.0));
+    assert!((table[128] - 0.215_861).abs() < 1e-6, "{}", table[128]);
+    // Bilinear: a 2x2 texture of linear alphas 0, 1/5, 2/5, 3/5 (alpha is not sRGB); at the
+    // centre every texel weighs 1/4: 0.3; a quarter of the way from the first texel's centre
+    // to the second's along u: 3/4 x 0 + 1/4 x 0.2 = 0.05.
+    let t = Texture {
+        width: 2,
+        height: 2,
+        texels: [0u32, 51, 102, 153].map(|a| 0x00ff_ffff | a << 24).to_vec(),
+        wrap: [Wrap::ClampToEdge; 2],
+        nearest: false,
+    };
+    let at = |u: f32, v: f32| t.sample(&table, [u, v])[3];
+    assert!((at(0.5, 0.5) - 0.3).abs() < 1e-6, "{}", at(0.5, 0.5));
+    assert!((at(0.375, 0.25) - 0.05).abs() < 1e-6, "{}", at(0.375, 0.25));
+    // Nearest: the texel the point falls in.
+    let n = Texture {
+        nearest: true,
+        ..t.clone()
+    };
+    assert!((n.sample(&table, [0.9, 0.9])[3] - 0.6).abs() < 1e-6);
+    // Fresnel (Schlick, F0 0.04): face-on F = F0; at cos 1/2, F = 0.04 + 0.96 / 32 = 0.07; at
+    // grazing F = 1. Clear glass (T = 1) is as opaque as F; T = 0.5 at face-on: 1 - 0.5 x 0.96.
+    assert!((glass_opacity(1.0, 0.04, 1.0) - 0.04).abs() < 1e-7);
+    assert!((glass_opacity(1.0, 0.04, 0.5) - 0.07).abs() < 1e-7);
+    assert!((glass_opacity(1.0, 0.04, 0.0) - 1.0).abs() < 1e-7);
+    assert!((glass_opacity(0.5, 0.04, 1.0) - 0.52).abs() < 1e-7);
+    // F0 of IOR 1.5 and 1.0.
+    let m = |ior| {
+        Material {
+            ior,
+            ..Material::default()
+        }
+        .f0()
+    };
+    assert!((m(1.5) - 0.04).abs() < 1e-7 && m(1.0) == 0.0);
+}
