@@ -52,7 +52,8 @@ golden: build
 ## even where the exact A-buffer would need fewer bytes: what measures the methods; the bytes
 ## columns say what each would allocate. Small summaries -> docs/eval-slots.md, docs/eval-bytes.md,
 ## docs/eval-materials-slots.md and docs/eval-materials-bytes.md (committed), every frame,
-## image and montage -> out/eval/.
+## image and montage -> out/eval/; then the README's results table and docs/results.md's tables
+## from them (scripts/results_table.py, which `make test` checks).
 EVAL_BUILTIN := shells,spheres,foliage,plates,hair,particles,cad,glass,statue,shrub
 EVAL_REAL := StanfordBunny/StanfordBunny.glb GlassVaseFlowers/GlassVaseFlowers.glb FlightHelmet/glTF/FlightHelmet.gltf ToyCar/glTF/ToyCar.gltf TransmissionTest/TransmissionTest.glb
 EVAL_MATERIAL_BUILTIN := windows,covers,cards,smoke,strands
@@ -68,7 +69,8 @@ eval: build
 	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --opacity 0.33 --equal slots --always-approximate --out out/eval/slots --summary docs/eval-slots.md && \
 	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --opacity 0.33 --equal bytes --out out/eval/bytes --summary docs/eval-bytes.md && \
 	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --equal slots --always-approximate --out out/eval/materials-slots --summary docs/eval-materials-slots.md && \
-	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --equal bytes --out out/eval/materials-bytes --summary docs/eval-materials-bytes.md
+	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --equal bytes --out out/eval/materials-bytes --summary docs/eval-materials-bytes.md && \
+	python3 scripts/results_table.py --write
 
 ## The README's pictures of per-fragment materials: alpha-textured leaf cards and a
 ## stained-glass pane, the A-buffer, VKB and DKB side by side at 10% of the fragments

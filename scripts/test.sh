@@ -107,6 +107,14 @@ else
   echo "viewer example (--features window): FAILED to build" >&2
   [ "$status" -eq 0 ] && status=1
 fi
+# The documents' tables that `make eval` produces are the eval tables' (the README's results,
+# docs/results.md's MSE and accuracy targets).
+if python3 scripts/results_table.py --check; then
+  echo "documents: the tables make eval produces are its tables"
+else
+  echo "documents: FAILED: a table differs from make eval's (make eval writes them)" >&2
+  [ "$status" -eq 0 ] && status=1
+fi
 # WebGPU: the wasm32 build, every pipeline of the methods WebGPU runs created on Dawn, the web
 # page's frames on Dawn held to the native ones, and the page in a headless Chromium.
 if ./scripts/webgpu.sh; then
