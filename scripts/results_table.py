@@ -3,7 +3,8 @@
 (docs/eval-slots.md and docs/eval-materials-slots.md): the README's results table (mean MSE
 against the A-buffer at equal F) and docs/results.md's accuracy targets, each between its
 file's markers. `make eval` writes them (--write); `make test` checks them (--check: exit 1,
-naming the first line that differs, where a document's table is not what the eval tables give)."""
+naming the first line that differs, where a document's table is not what the eval tables give;
+and where the README is over 120 lines or has a paragraph over 8)."""
 import re
 import sys
 from pathlib import Path
@@ -100,9 +101,32 @@ BLOCKS = [
 ]
 
 
+def readme_shape():
+    """The README reads in five minutes: at most 120 lines, no paragraph over 8 (code blocks and
+    tables aside). An error message, or None."""
+    lines = (ROOT / "README.md").read_text().splitlines()
+    if len(lines) > 120:
+        return f"README.md is {len(lines)} lines (at most 120)"
+    run, fenced = 0, False
+    for n, l in enumerate(lines, 1):
+        if l.startswith("```"):
+            fenced = not fenced
+            run = 0
+            continue
+        prose = not fenced and l.strip() and not l.startswith(("|", "<!--", "!["))
+        # A list item starts a paragraph of its own.
+        run = (1 if l.startswith("- ") else run + 1) if prose else 0
+        if run > 8:
+            return f"README.md line {n}: a paragraph over 8 lines"
+    return None
+
+
 def main():
     mode = sys.argv[1] if len(sys.argv) > 1 else "--check"
     failed = 0
+    if mode == "--check" and (why := readme_shape()):
+        print(f"results_table: {why}", file=sys.stderr)
+        failed = 1
     for name, begin, make in BLOCKS:
         path = ROOT / name
         text = path.read_text()
