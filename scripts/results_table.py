@@ -19,20 +19,11 @@ END = "<!-- /results -->"
 
 def mse_table(path):
     """{budget: {method: text}} from the file's first table (mean MSE)."""
-    lines = path.read_text().splitlines()
-    start = next(i for i, l in enumerate(lines) if l.startswith("## Mean MSE"))
-    first = next(i for i in range(start, len(lines)) if lines[i].startswith("|"))
-    rows = []
-    for l in lines[first:]:
-        if not l.startswith("|"):
-            break
-        rows.append(l)
+    rows = section(path, next(l[3:] for l in path.read_text().splitlines() if l.startswith("## Mean MSE")))
     header = [c.strip() for c in rows[0].strip("|").split("|")]
     table = {}
     for row in rows[2:]:
         cells = [c.strip() for c in row.strip("|").split("|")]
-        if len(cells) != len(header):
-            break
         table[cells[0]] = dict(zip(header, cells))
     return table
 
