@@ -62,7 +62,8 @@ done
 # it byte for byte; at 25% of the fragments DKB is within 3 steps of it, and nearer than VKB,
 # which is nearer than FKB at 2 slots (the quality order the methods' tests hold).
 cargo build --release --quiet --example image_diff
-diff_sum() { ./target/release/examples/image_diff "$@" --max 255 --pixels 1 | sed -n 's/.*sum \([0-9]*\)$/\1/p'; }
+image_diff="${CARGO_TARGET_DIR:-target}/release/examples/image_diff"
+diff_sum() { "$image_diff" "$@" --max 255 --pixels 1 | sed -n 's/.*sum \([0-9]*\)$/\1/p'; }
 viewer exact-dkb --method dkb --budget 100% && viewer exact-vkb --method vkb --budget 100% &&
   viewer exact-fkb --method fkb --k 256 && viewer dkb25 --method dkb --budget 25% --always-approximate &&
   viewer vkb25 --method vkb --budget 25% --always-approximate && viewer fkb2 --method fkb --k 2 ||
@@ -71,10 +72,10 @@ held=0
 for v in 0 1; do
   ref=$viewer_dir/abuffer/view$v.png
   for exact in exact-dkb exact-vkb exact-fkb; do
-    ./target/release/examples/image_diff "$ref" "$viewer_dir/$exact/view$v.png" --max 0 >/dev/null &&
+    "$image_diff" "$ref" "$viewer_dir/$exact/view$v.png" --max 0 >/dev/null &&
       held=$((held + 1))
   done
-  ./target/release/examples/image_diff "$ref" "$viewer_dir/dkb25/view$v.png" --max 3 --pixels 0.001 >/dev/null &&
+  "$image_diff" "$ref" "$viewer_dir/dkb25/view$v.png" --max 3 --pixels 0.001 >/dev/null &&
     held=$((held + 1))
   d=$(diff_sum "$ref" "$viewer_dir/dkb25/view$v.png")
   k=$(diff_sum "$ref" "$viewer_dir/vkb25/view$v.png")
