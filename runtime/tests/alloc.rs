@@ -497,3 +497,80 @@ fn a_farthest_pair_of_one_colour_is_an_exact_tail() {
         assert_eq!(st.farthest, [keys[n - 1] | occ, keys[n - 2] | occ]);
     }
 }
+
+/// The optimum of DKB's and VKB's layout (`ErrorCurves::pooled`: a pixel short by two
+/// fragments or fewer keeps them whole, as their tails share the slots' pool) is the least
+/// total error over every allocation of the frame's slots, found by enumerating them all on
+/// small frames; and it is never above the per-pixel-tail optimum, whose allocations it can
+/// take too.
+#[test]
+fn the_pooled_optimum_is_the_exhaustive_optimum_of_its_layout() {
+    let mut rng = Rng::new(17);
+    let mut strictly_better = 0;
+    for trial in 0..150 {
+        let pixels = 1 + rng.below(4);
+        let lists: Vec<Vec<Fragment>> = (0..pixels)
+            .map(|_| {
+                let n = rng.below(6);
+                random_fragments(&mut rng, n)
+            })
+            .collect();
+        let fl = frame_of(&lists);
+        let curves = alloc::error_curves(&fl, BG);
+        let pooled = curves.pooled();
+        let counts = curves.counts();
+        // Each pooled curve by hand: e at k is the per-pixel curve at the fragments kept.
+        for (p, &n) in counts.iter().enumerate() {
+            for k in 0..=n {
+                let kept = if k + dhoit_runtime::shared::TAIL_WORDS >= n {
+                    n
+                } else {
+                    k
+                };
+                assert_eq!(pooled.curve(p)[k as usize], curves.curve(p)[kept as usize]);
+            }
+        }
+        let total_n: u64 = counts.iter().map(|&n| n as u64).sum();
+        for f in 1..=total_n + 1 {
+            let (k, rep) = alloc::optimal(&pooled, f);
+            check_bounds(&k, &counts, f);
+            // Every allocation of the slots the budget gives, each pixel within its bounds.
+            let lo = alloc::min_k(&counts, f);
+            let target = alloc::slots_to_allocate(&counts, f);
+            let ranges: Vec<Vec<u32>> = counts
+                .iter()
+                .map(|&n| if n == 0 { vec![0] } else { (lo..=n).collect() })
+                .collect();
+            let mut best = f64::INFINITY;
+            let mut pick = vec![0usize; pixels];
+            'all: loop {
+                let ks: Vec<u32> = pick.iter().zip(&ranges).map(|(&i, r)| r[i]).collect();
+                if ks.iter().map(|&x| x as u64).sum::<u64>() == target {
+                    best = best.min(pooled.total(&ks));
+                }
+                for (i, r) in pick.iter_mut().zip(&ranges) {
+                    *i += 1;
+                    if *i < r.len() {
+                        continue 'all;
+                    }
+                    *i = 0;
+                }
+                break;
+            }
+            let eps = 1e-12 + 1e-9 * best;
+            assert!(
+                (rep.total - best).abs() <= eps && (pooled.total(&k) - best).abs() <= eps,
+                "trial {trial}, F {f}: pooled optimum {} against every allocation's least {best}",
+                rep.total
+            );
+            let (_, per_pixel) = alloc::optimal(&curves, f);
+            assert!(rep.total <= per_pixel.total + eps, "trial {trial}, F {f}");
+            strictly_better += (rep.total < per_pixel.total - eps) as usize;
+        }
+    }
+    // Keeping a short pixel whole is often better than its tail: the layouts differ.
+    assert!(
+        strictly_better > 10,
+        "{strictly_better} budgets where the pooled layout is better"
+    );
+}

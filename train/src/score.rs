@@ -34,10 +34,17 @@ pub struct FrameScore {
     pub pixels: u64,
     pub fragments: u64,
     pub budget_fragments: u64,
-    /// Total error of the optimal allocation, VKB, and each network in order.
+    /// Total error of the optimal allocation, VKB, and each network in order, with a tail of
+    /// its own for every pixel that truncates (the optimal allocation's layout).
     pub optimal: f64,
     pub vkb: f64,
     pub dkb: Vec<f64>,
+    /// The same in DKB's and VKB's own layout, whose tails share the slots' pool (a pixel
+    /// short by two fragments or fewer keeps them whole: `ErrorCurves::pooled`): the optimum
+    /// of that layout and what VKB and each network reach in it.
+    pub optimal_pooled: f64,
+    pub vkb_pooled: f64,
+    pub dkb_pooled: Vec<f64>,
 }
 
 impl FrameScore {
@@ -57,6 +64,13 @@ impl FrameScore {
     }
     pub fn vkb_over_optimal(&self) -> f64 {
         self.floored(self.vkb) / self.floored(self.optimal)
+    }
+    /// DKB against the optimum of its own layout (pooled tails), both in that layout.
+    pub fn dkb_over_pooled_optimal(&self, i: usize) -> f64 {
+        self.floored(self.dkb_pooled[i]) / self.floored(self.optimal_pooled)
+    }
+    pub fn vkb_over_pooled_optimal(&self) -> f64 {
+        self.floored(self.vkb_pooled) / self.floored(self.optimal_pooled)
     }
 }
 
@@ -79,6 +93,8 @@ struct PreparedLevel {
     f: u64,
     optimal: f64,
     vkb: f64,
+    optimal_pooled: f64,
+    vkb_pooled: f64,
     feats: Vec<[f32; importance::FEATURES]>,
     pairs: Vec<bool>,
 }
@@ -92,6 +108,8 @@ struct PreparedFrame {
     fragments: u64,
     counts: Vec<u32>,
     curves: alloc::ErrorCurves,
+    /// The curves in DKB's and VKB's layout (pooled tails).
+    pooled: alloc::ErrorCurves,
     levels: Vec<PreparedLevel>,
 }
 
@@ -121,6 +139,7 @@ impl Prepared {
                     let cam = Camera::orbit(&sc, view, spec.orbit_views, spec.width, spec.height);
                     let fl = raster::rasterize(&sc, &cam, spec.width, spec.height)?;
                     let curves = alloc::error_curves(&fl, [1.0; 3]);
+                    let pooled = curves.pooled();
                     let counts = fl.counts();
                     let pixels = fl.pixel_count() as u64;
                     let total = fl.fragment_count() as u64;
@@ -141,13 +160,16 @@ impl Prepared {
                         .map(|level| {
                             let f = level.fragments(pixels, total).max(1);
                             let (_, rep) = alloc::optimal(&curves, f);
-                            let vkb = curves.total(&alloc::water_fill(&vkb_w, &counts, f));
+                            let (_, rep_pooled) = alloc::optimal(&pooled, f);
+                            let vkb_k = alloc::water_fill(&vkb_w, &counts, f);
                             let (feats, pairs) = importance::features_and_pairs(&fl, f);
                             PreparedLevel {
                                 budget: level.label(),
                                 f,
                                 optimal: rep.total,
-                                vkb,
+                                vkb: curves.total(&vkb_k),
+                                optimal_pooled: rep_pooled.total,
+                                vkb_pooled: pooled.total(&vkb_k),
                                 feats,
                                 pairs,
                             }
@@ -161,6 +183,7 @@ impl Prepared {
                         fragments: total,
                         counts,
                         curves,
+                        pooled,
                         levels,
                     })
                 })
@@ -175,22 +198,25 @@ impl Prepared {
         self.0
             .par_iter()
             .flat_map_iter(|fr| {
-                fr.levels.iter().map(move |l| FrameScore {
-                    scene: fr.scene.clone(),
-                    view: fr.view,
-                    budget: l.budget.clone(),
-                    pixels: fr.pixels,
-                    fragments: fr.fragments,
-                    budget_fragments: l.f,
-                    optimal: l.optimal,
-                    vkb: l.vkb,
-                    dkb: networks
+                fr.levels.iter().map(move |l| {
+                    let ks: Vec<Vec<u32>> = networks
                         .iter()
-                        .map(|m| {
-                            fr.curves
-                                .total(&m.allocate(&l.feats, &fr.counts, &l.pairs, l.f))
-                        })
-                        .collect(),
+                        .map(|m| m.allocate(&l.feats, &fr.counts, &l.pairs, l.f))
+                        .collect();
+                    FrameScore {
+                        scene: fr.scene.clone(),
+                        view: fr.view,
+                        budget: l.budget.clone(),
+                        pixels: fr.pixels,
+                        fragments: fr.fragments,
+                        budget_fragments: l.f,
+                        optimal: l.optimal,
+                        vkb: l.vkb,
+                        optimal_pooled: l.optimal_pooled,
+                        vkb_pooled: l.vkb_pooled,
+                        dkb: ks.iter().map(|k| fr.curves.total(k)).collect(),
+                        dkb_pooled: ks.iter().map(|k| fr.pooled.total(k)).collect(),
+                    }
                 })
             })
             .collect()
@@ -261,7 +287,8 @@ pub fn summary(scores: &[FrameScore], names: &[String]) -> String {
     groups.push(Group::All);
     for (i, name) in names.iter().enumerate() {
         out += &format!(
-            "\n{name}: geometric means over frames (frames, DKB/VKB, DKB/optimal, VKB/optimal, worst DKB/VKB)\n"
+            "\n{name}: geometric means over frames (frames, DKB/VKB, DKB/optimal, VKB/optimal, worst DKB/VKB; \
+             then DKB/optimal and VKB/optimal in DKB's and VKB's own layout, pooled tails)\n"
         );
         for g in &groups {
             let label = g.label();
@@ -271,12 +298,14 @@ pub fn summary(scores: &[FrameScore], names: &[String]) -> String {
             }
             let worst = f.iter().map(|s| s.dkb_over_vkb(i)).fold(0.0f64, f64::max);
             out += &format!(
-                "  {label:<28} {:>4}  {:>8.3}  {:>8.3}  {:>8.3}  {:>8.3}\n",
+                "  {label:<28} {:>4}  {:>8.3}  {:>8.3}  {:>8.3}  {:>8.3}  |  {:>8.3}  {:>8.3}\n",
                 f.len(),
                 geomean(f.iter().map(|s| s.dkb_over_vkb(i))),
                 geomean(f.iter().map(|s| s.dkb_over_optimal(i))),
                 geomean(f.iter().map(|s| s.vkb_over_optimal())),
-                worst
+                worst,
+                geomean(f.iter().map(|s| s.dkb_over_pooled_optimal(i))),
+                geomean(f.iter().map(|s| s.vkb_over_pooled_optimal())),
             );
         }
     }
