@@ -70,7 +70,6 @@ pub struct View {
 pub struct Demo {
     gpu: Gpu,
     weights: Mlp,
-    scene_name: String,
     size: (u32, u32),
     budget: Budget,
     cam: Camera,
@@ -101,7 +100,6 @@ impl Demo {
         let mut demo = Demo {
             gpu,
             weights,
-            scene_name: String::new(),
             size,
             budget: Budget::parse(budget)?,
             cam: Camera::orbit(&Scene::default(), 0, 1, 1, 1),
@@ -124,7 +122,6 @@ impl Demo {
         let s = scene::load(name, Opacity::default())?;
         let (w, h) = self.size;
         self.cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
-        self.scene_name = name.to_string();
         self.show(s)
     }
 
@@ -210,7 +207,7 @@ impl Demo {
 
     /// The scene shown.
     pub fn scene(&self) -> &str {
-        &self.scene_name
+        &self.scene.name
     }
 
     /// The budget of every method that has one from the next frame (`"25%"`, `"1fpp"`,
@@ -276,19 +273,6 @@ pub fn to_rgba8(img: &Image) -> Vec<u8> {
         .chunks_exact(3)
         .flat_map(|c| [c[0], c[1], c[2], 255])
         .collect()
-}
-
-/// Root-mean-square difference of two images, linear RGB.
-pub fn rmse(a: &Image, b: &Image) -> f64 {
-    let n = (a.data.len() * 3).max(1) as f64;
-    let sum: f64 = a
-        .data
-        .iter()
-        .zip(&b.data)
-        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]) as f64))
-        .map(|d| d * d)
-        .sum();
-    (sum / n).sqrt()
 }
 
 /// `words` as f32s, where there are `n` of them and each is finite.

@@ -20,7 +20,7 @@ fn main() {}
 #[cfg(not(target_arch = "wasm32"))]
 mod native {
     use dhoit_runtime::frame::Method;
-    use dhoit_web::{DEFAULT_BUDGET, Demo, METHODS, PAGE_METHODS, SCENES, rmse};
+    use dhoit_web::{DEFAULT_BUDGET, Demo, METHODS, PAGE_METHODS, SCENES};
     use std::path::PathBuf;
 
     pub fn run() -> Result<(), Box<dyn std::error::Error>> {
@@ -105,7 +105,7 @@ mod native {
                 .collect();
             std::fs::write(dir.join(format!("{name}.f32")), linear)?;
             dhoit_runtime::image_io::write_png(&dir.join(format!("{name}.png")), &v.image)?;
-            let error = rmse(&v.image, reference);
+            let error = v.image.mse(reference).sqrt();
             println!(
                 "{name:>8}: {} B, exact {}, {} frame(s), RMSE vs the A-buffer {error:.5}",
                 v.bytes, v.exact, v.frames

@@ -9,7 +9,7 @@ use wasm_bindgen::prelude::*;
 
 use dhoit_runtime::frame::Method;
 
-use crate::{Demo, METHODS, PAGE_METHODS, SCENES, rmse};
+use crate::{Demo, METHODS, PAGE_METHODS, SCENES};
 
 /// The demo as the page holds it. Calls that render return promises; one call at a time (the
 /// page awaits each).
@@ -177,7 +177,7 @@ impl WebDemo {
                 set("bytes", (v.bytes as f64).into())?;
                 set("exact", v.exact.into())?;
                 set("frames", (v.frames as u32).into())?;
-                let error = reference.as_ref().map_or(0.0, |r| rmse(&v.image, r));
+                let error = reference.as_ref().map_or(0.0, |r| v.image.mse(r).sqrt());
                 set("rmse", error.into())?;
                 out.push(&o);
             }

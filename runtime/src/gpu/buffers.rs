@@ -252,13 +252,34 @@ pub(super) fn read_back_with<T>(
     bytes: u64,
     read: impl FnOnce(&[u8]) -> T,
 ) -> Result<T> {
+    let (size, copy) = first_bytes(buffer, bytes);
+    staged(gpu, size, copy, |mapped| read(&mapped[..bytes as usize]))
+}
+
+/// [`read_back_with`] without blocking ([`staged_async`]).
+pub(super) async fn read_back_with_async<T>(
+    gpu: &Gpu,
+    buffer: &wgpu::Buffer,
+    bytes: u64,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T> {
+    let (size, copy) = first_bytes(buffer, bytes);
+    staged_async(gpu, size, copy, |mapped| read(&mapped[..bytes as usize])).await
+}
+
+/// The staging size (whole words) and the copy that read `buffer`'s first `bytes`.
+fn first_bytes(
+    buffer: &wgpu::Buffer,
+    bytes: u64,
+) -> (
+    u64,
+    impl FnOnce(&mut wgpu::CommandEncoder, &wgpu::Buffer) + '_,
+) {
     let size = bytes.max(4).next_multiple_of(4);
-    staged(
-        gpu,
-        size,
-        |enc, staging| enc.copy_buffer_to_buffer(buffer, 0, staging, 0, size),
-        |mapped| read(&mapped[..bytes as usize]),
-    )
+    let copy = move |enc: &mut wgpu::CommandEncoder, staging: &wgpu::Buffer| {
+        enc.copy_buffer_to_buffer(buffer, 0, staging, 0, size)
+    };
+    (size, copy)
 }
 
 /// What a frame's resolve reports in its status buffer (four 32-bit words, common.wgsl's
@@ -340,20 +361,6 @@ pub(super) fn read_frame<T>(
             .check(gpu, width)
             .map(|()| read(&mapped[..bytes as usize]))
     })?
-}
-
-/// [`read_frame`] of a frame without a status, without blocking ([`staged_async`]).
-pub(super) async fn read_frame_async<T>(
-    gpu: &Gpu,
-    image: &wgpu::Buffer,
-    bytes: u64,
-    read: impl FnOnce(&[u8]) -> T,
-) -> Result<T> {
-    let size = bytes.max(4).next_multiple_of(4);
-    let copy = |enc: &mut wgpu::CommandEncoder, staging: &wgpu::Buffer| {
-        enc.copy_buffer_to_buffer(image, 0, staging, 0, size)
-    };
-    staged_async(gpu, size, copy, |mapped| read(&mapped[..bytes as usize])).await
 }
 
 /// Single words of device buffers (each a buffer and a byte offset, a multiple of 4), read in

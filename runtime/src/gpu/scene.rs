@@ -9,7 +9,7 @@
 //! memory the tables count). An application's frame never waits (`app.rs`).
 
 use super::buffers::{
-    FrameBuffers, Readback, Statistics, read_frame, read_frame_async, read_texture, read_words,
+    FrameBuffers, Readback, Statistics, read_back_with_async, read_frame, read_texture, read_words,
 };
 use super::passes::{Geometry, GeometryPass, Resolve};
 use super::pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT};
@@ -274,12 +274,7 @@ impl Gpu {
             16 * px,
             out.status.as_ref(),
             width,
-            |b| {
-                let f = |c: &[u8]| f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
-                b.chunks_exact(16)
-                    .map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12])])
-                    .collect()
-            },
+            rgb_f32,
         )?;
         let readback_ms = readback.elapsed().as_secs_f64() * 1e3;
         let pass_ms = timer.read()?;
@@ -587,21 +582,7 @@ impl SceneStream {
 
     /// The last frame's image, once its submission has run (this waits for it).
     pub fn image(&self) -> Result<Image> {
-        let (w, h) = self.stream.size;
-        let bytes = 16 * w as u64 * h as u64;
-        let data = read_frame(
-            &self.stream.gpu,
-            &self.inputs.image,
-            bytes,
-            None,
-            w,
-            rgb_f32,
-        )?;
-        Ok(Image {
-            width: w,
-            height: h,
-            data,
-        })
+        pollster::block_on(self.image_async())
     }
 
     /// [`SceneStream::image`] without blocking: what a page (wasm32) awaits, where nothing may
@@ -609,7 +590,8 @@ impl SceneStream {
     pub async fn image_async(&self) -> Result<Image> {
         let (w, h) = self.stream.size;
         let bytes = 16 * w as u64 * h as u64;
-        let data = read_frame_async(&self.stream.gpu, &self.inputs.image, bytes, rgb_f32).await?;
+        let data =
+            read_back_with_async(&self.stream.gpu, &self.inputs.image, bytes, rgb_f32).await?;
         Ok(Image {
             width: w,
             height: h,
