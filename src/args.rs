@@ -45,6 +45,13 @@ pub(crate) struct ViewArgs {
     /// Let the materials decide even for the papers' built-in families (their vertex alpha).
     #[arg(long)]
     pub(crate) material_alpha: bool,
+    /// How glass (KHR_materials_transmission) lets through what is behind it: `grey`, one
+    /// opacity, so clear glass of any colour passes every colour; or `tinted`, per channel,
+    /// its base colour filtering the light (a red pane passes red), its colour the Fresnel
+    /// reflection. Every method composites tinted glass on the CPU; on the GPU the A-buffer
+    /// does, and the other methods refuse it.
+    #[arg(long, default_value = "grey", value_parser = ["grey", "tinted"])]
+    pub(crate) glass: String,
     /// Permute the triangle submission order with this seed.
     #[arg(long)]
     pub(crate) shuffle: Option<u64>,
@@ -211,6 +218,9 @@ pub(crate) fn load_scene(name: &str, a: &ViewArgs) -> Result<Scene> {
         (false, None) => Opacity::Native,
     };
     let mut scene = scene::load(name, opacity)?;
+    if a.glass == "tinted" {
+        scene.glass = scene::Glass::Tinted;
+    }
     if let Some(seed) = a.shuffle {
         scene = scene.shuffled(seed);
     }

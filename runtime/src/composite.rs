@@ -77,21 +77,28 @@ impl Image {
     }
 }
 
-/// Exact compositing of fragments already sorted front to back.
+/// Exact compositing of fragments already sorted front to back: each adds its premultiplied
+/// colour through what the ones in front let through, and lets through its transmittance
+/// `(1 - a) g` per channel ([`Fragment::transmittance`]).
 pub fn exact_sorted(frags: &[Fragment], bg: [f32; 3]) -> [f32; 3] {
+    let (c, t) = over_sorted(frags);
+    std::array::from_fn(|i| c[i] + t[i] * bg[i])
+}
+
+/// Fragments sorted front to back blended into a premultiplied colour and what they let
+/// through of what is behind them, per channel.
+fn over_sorted(frags: &[Fragment]) -> ([f32; 3], [f32; 3]) {
     let mut c = [0.0f32; 3];
-    let mut t = 1.0f32;
+    let mut t = [1.0f32; 3];
     for f in frags {
         let a = f.rgba[3];
-        for (ci, fi) in c.iter_mut().zip(f.rgba) {
-            *ci += t * a * fi;
+        let through = f.transmittance();
+        for i in 0..3 {
+            c[i] += t[i] * a * f.rgba[i];
+            t[i] *= through[i];
         }
-        t *= 1.0 - a;
     }
-    for i in 0..3 {
-        c[i] += t * bg[i];
-    }
-    c
+    (c, t)
 }
 
 /// Exact compositing of fragments in any order.
@@ -257,6 +264,11 @@ fn wboit_sums(frags: &[Fragment], bg: [f32; 3], sums: Sums, p: &WboitParams) -> 
     let mut acc = [0.0f32; 4];
     let mut reveal = 1.0f32;
     let mut reveal8 = 255u32;
+    // Per channel, what the fragments let through (McGuire and Bavoil's coloured transmission):
+    // only where one is tinted, else the revealage.
+    let tinted = frags.iter().any(|f| f.tint != crate::fragment::CLEAR);
+    let mut through = [1.0f32; 3];
+    let mut through8 = [255u32; 3];
     for f in frags {
         let a = f.rgba[3];
         let w = wboit_weight(p, f.depth, a);
@@ -271,12 +283,24 @@ fn wboit_sums(frags: &[Fragment], bg: [f32; 3], sums: Sums, p: &WboitParams) -> 
         }
         reveal *= 1.0 - a;
         reveal8 = (reveal8 * (255 - to_unorm8(a)) + 127) / 255;
+        if tinted {
+            let t = f.transmittance();
+            for i in 0..3 {
+                through[i] *= t[i];
+                let t8 = ((255 - to_unorm8(a)) * ((f.tint >> (8 * i)) & 0xff) + 127) / 255;
+                through8[i] = (through8[i] * t8 + 127) / 255;
+            }
+        }
     }
     if sums == Sums::Targets {
         reveal = reveal8 as f32 / 255.0;
+        through = through8.map(|t| t as f32 / 255.0);
+    }
+    if !tinted {
+        through = [reveal; 3];
     }
     let inv = 1.0 / acc[3].clamp(1e-4, 5e4);
-    std::array::from_fn(|i| acc[i] * inv * (1.0 - reveal) + reveal * bg[i])
+    std::array::from_fn(|i| acc[i] * inv * (1.0 - reveal) + through[i] * bg[i])
 }
 
 /// A value as a binary16 target stores it (round to nearest even): what a device's blend
@@ -729,6 +753,21 @@ pub fn mboit_blended(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 
     mboit_passes(&in_submission_order(frags), bg, p, Sums::Targets)
 }
 
+/// Where a fragment is tinted, what the background is seen through per channel: the product
+/// of the fragments' transmittances (exact in any order). MBOIT's colours keep the moments'
+/// grey share; only the background is filtered per channel.
+fn tinted_through(frags: &[Fragment]) -> Option<[f32; 3]> {
+    frags
+        .iter()
+        .any(|f| f.tint != crate::fragment::CLEAR)
+        .then(|| {
+            frags.iter().fold([1.0; 3], |t, f| {
+                let ft = f.transmittance();
+                std::array::from_fn(|i| t[i] * ft[i])
+            })
+        })
+}
+
 /// MBOIT's two passes over `frags` in their order, the colour summed as `sums` says.
 fn mboit_passes(frags: &[Fragment], bg: [f32; 3], p: MboitParams, sums: Sums) -> [f32; 3] {
     let mut b0 = 0.0f32;
@@ -741,7 +780,8 @@ fn mboit_passes(frags: &[Fragment], bg: [f32; 3], p: MboitParams, sums: Sums) ->
         }
     }
     if b0 < MBOIT_MIN_B0 {
-        return bg;
+        let t = tinted_through(frags).unwrap_or([1.0; 3]);
+        return std::array::from_fn(|i| t[i] * bg[i]);
     }
     let m = b.map(|x| x / b0);
     let mut acc = [0.0f32; 4];
@@ -754,8 +794,9 @@ fn mboit_passes(frags: &[Fragment], bg: [f32; 3], p: MboitParams, sums: Sums) ->
         }
     }
     let total = (-b0).exp();
+    let through = tinted_through(frags).unwrap_or([total; 3]);
     let inv = if acc[3] > 0.0 { 1.0 / acc[3] } else { 0.0 };
-    std::array::from_fn(|i| (1.0 - total) * acc[i] * inv + total * bg[i])
+    std::array::from_fn(|i| (1.0 - total) * acc[i] * inv + through[i] * bg[i])
 }
 
 /// The budgeted per-pixel linked list (as Bevy ships it) keeps fragments first come, first
@@ -803,36 +844,57 @@ pub fn check_list_sorted(sorted: u32) -> crate::error::Result<()> {
 }
 
 /// Running sums of a hybrid tail in integers, exactly as the GPU's atomics add them: with
-/// 8-bit colour `c8` and alpha `a8`, `sum c8 a8` (units of 1/255^2), `sum a8` (units of 1/255)
-/// and the fragment count. Integer sums are exact and the same in every order; they hold up to
-/// [`crate::raster::MAX_FRAGMENTS_PER_PIXEL`] fragments.
+/// 8-bit colour `c8`, alpha `a8` and tint `g8`, `sum c8 a8` (units of 1/255^2), `sum a8`
+/// (units of 1/255), the fragment count, and where a tinted fragment joined, `sum (255 - a8)
+/// g8` per channel (units of 1/255^2). Integer sums are exact and the same in every order; they
+/// hold up to [`crate::raster::MAX_FRAGMENTS_PER_PIXEL`] fragments.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Tail {
     pub sum_ca: [u32; 3],
     pub sum_a: u32,
     pub count: u32,
+    /// `sum (255 - a8) g8` per channel: what the tail's fragments let through, summed.
+    pub sum_t: [u32; 3],
+    /// Whether a fragment of a tint other than [`crate::fragment::CLEAR`] joined.
+    pub tinted: bool,
 }
 
 impl Tail {
-    pub fn add(&mut self, rgba: [f32; 4]) {
+    pub fn add(&mut self, rgba: [f32; 4], tint: u32) {
         let a = to_unorm8(rgba[3]);
         for (s, ch) in self.sum_ca.iter_mut().zip(rgba) {
             *s = s.wrapping_add(to_unorm8(ch) * a);
         }
+        for (i, s) in self.sum_t.iter_mut().enumerate() {
+            *s = s.wrapping_add((255 - a) * ((tint >> (8 * i)) & 0xff));
+        }
+        self.tinted |= tint != crate::fragment::CLEAR;
         self.sum_a = self.sum_a.wrapping_add(a);
         self.count += 1;
     }
 
-    /// The tail seen over the background: `a_tail C_tail + (1 - a_tail) C_bg` with
-    /// `C_tail = sum C a / sum a`, `a_avg = sum a / t`, `a_tail = 1 - (1 - a_avg)^t`.
+    /// The tail seen over the background: `a_tail C_tail + t_tail C_bg` with
+    /// `C_tail = sum C a / sum a`, `a_avg = sum a / n`, `a_tail = 1 - (1 - a_avg)^n` and, per
+    /// channel, `t_tail = 1 - a_tail` where no fragment is tinted, else `t_avg^n`, `t_avg` the
+    /// mean transmittance `sum (1 - a) g / n` (the same value where every tint is clear).
     pub fn over(&self, bg: [f32; 3]) -> [f32; 3] {
-        if self.count == 0 || self.sum_a == 0 {
+        if self.count == 0 || (self.sum_a == 0 && !self.tinted) {
             return bg;
         }
-        let a_avg = (self.sum_a as f32 / (255.0 * self.count as f32)).min(1.0);
-        let a_tail = 1.0 - (1.0 - a_avg).powf(self.count as f32);
-        let inv = 1.0 / (255.0 * self.sum_a as f32);
-        std::array::from_fn(|i| a_tail * (self.sum_ca[i] as f32 * inv) + (1.0 - a_tail) * bg[i])
+        let n = self.count as f32;
+        let a_avg = (self.sum_a as f32 / (255.0 * n)).min(1.0);
+        let a_tail = 1.0 - (1.0 - a_avg).powf(n);
+        let inv = match self.sum_a {
+            0 => 0.0,
+            s => 1.0 / (255.0 * s as f32),
+        };
+        let through: [f32; 3] = match self.tinted {
+            false => [1.0 - a_tail; 3],
+            true => self
+                .sum_t
+                .map(|s| (s as f32 / (255.0 * 255.0 * n)).min(1.0).powf(n)),
+        };
+        std::array::from_fn(|i| a_tail * (self.sum_ca[i] as f32 * inv) + through[i] * bg[i])
     }
 }
 
@@ -842,19 +904,11 @@ pub fn hybrid_sorted(frags: &[Fragment], k: usize, bg: [f32; 3]) -> [f32; 3] {
     let k = k.min(frags.len());
     let mut tail = Tail::default();
     for f in &frags[k..] {
-        tail.add(f.rgba);
+        tail.add(f.rgba, f.tint);
     }
     let behind = tail.over(bg);
-    let mut c = [0.0f32; 3];
-    let mut t = 1.0f32;
-    for f in &frags[..k] {
-        let a = f.rgba[3];
-        for (ci, fi) in c.iter_mut().zip(f.rgba) {
-            *ci += t * a * fi;
-        }
-        t *= 1.0 - a;
-    }
-    std::array::from_fn(|i| c[i] + t * behind[i])
+    let (c, t) = over_sorted(&frags[..k]);
+    std::array::from_fn(|i| c[i] + t[i] * behind[i])
 }
 
 pub fn hybrid_pixel(frags: &[Fragment], k: usize, bg: [f32; 3]) -> [f32; 3] {
@@ -867,13 +921,14 @@ pub fn hybrid_pixel(frags: &[Fragment], k: usize, bg: [f32; 3]) -> [f32; 3] {
 struct MlabRow {
     /// Premultiplied colour.
     a: [f32; 3],
-    t: f32,
+    /// Transmittance, per channel.
+    t: [f32; 3],
     z: u64,
 }
 
 const MLAB_EMPTY: MlabRow = MlabRow {
     a: [0.0; 3],
-    t: 1.0,
+    t: [1.0; 3],
     z: u64::MAX,
 };
 
@@ -888,7 +943,7 @@ pub fn mlab_pixel(frags: &[Fragment], m: usize, bg: [f32; 3]) -> [f32; 3] {
         let al = f.rgba[3];
         let mut cur = MlabRow {
             a: [f.rgba[0] * al, f.rgba[1] * al, f.rgba[2] * al],
-            t: 1.0 - al,
+            t: f.transmittance(),
             z: fragment_key(f.depth, f.rgba),
         };
         for row in rows.iter_mut().take(m) {
@@ -899,21 +954,21 @@ pub fn mlab_pixel(frags: &[Fragment], m: usize, bg: [f32; 3]) -> [f32; 3] {
         rows[m] = cur;
         let (front, back) = (rows[m - 1], rows[m]);
         rows[m - 1] = MlabRow {
-            a: std::array::from_fn(|i| front.a[i] + back.a[i] * front.t),
-            t: front.t * back.t,
+            a: std::array::from_fn(|i| front.a[i] + back.a[i] * front.t[i]),
+            t: std::array::from_fn(|i| front.t[i] * back.t[i]),
             z: front.z,
         };
         rows[m] = MLAB_EMPTY;
     }
     let mut c = [0.0f32; 3];
-    let mut t = 1.0f32;
+    let mut t = [1.0f32; 3];
     for r in &rows[..m] {
-        for (ci, ri) in c.iter_mut().zip(r.a) {
-            *ci += t * ri;
+        for i in 0..3 {
+            c[i] += t[i] * r.a[i];
+            t[i] *= r.t[i];
         }
-        t *= r.t;
     }
-    std::array::from_fn(|i| c[i] + t * bg[i])
+    std::array::from_fn(|i| c[i] + t[i] * bg[i])
 }
 
 /// How a whole frame is composited.
@@ -1005,7 +1060,7 @@ pub fn capture(fl: &FragmentLists, k: &[u32]) -> (Vec<u64>, Vec<u32>) {
         }));
         let mut t = Tail::default();
         for f in frags.iter().skip(kp) {
-            t.add(f.rgba);
+            t.add(f.rgba, f.tint);
         }
         tails.extend([t.sum_ca[0], t.sum_ca[1], t.sum_ca[2], t.sum_a, t.count]);
     }

@@ -5,7 +5,8 @@
 //! from the top-left pixel), `depth` f32 `[F]`, `rgba` f32 `[F,4]` (non-premultiplied), `primitive`
 //! u32 `[F]` (submission index), `k` u32 `[W*H]`, `image` f32 `[H,W,3]` (linear); where the frame has
 //! opaque surfaces, `opaque` u32 `[W*H]` (each pixel's nearest opaque colour as RGBA8, A = 255;
-//! 0 where none) and `opaque_depth` f32 `[W*H]` (its depth; 1 where none). Metadata: `width`,
+//! 0 where none) and `opaque_depth` f32 `[W*H]` (its depth; 1 where none); where a fragment is
+//! tinted, `tint` u32 `[F]` (each fragment's RGB8 tint, `fragment::CLEAR` untinted). Metadata: `width`,
 //! `height`, `method`, `budget_bytes`, `budget_fragments` (F(M)), `background` ("r,g,b"),
 //! `format` ("dhoit-dump-1").
 
@@ -49,6 +50,9 @@ pub fn write(dir: &Path, d: &Dump) -> Result<PathBuf> {
     if !fl.opaque.is_empty() {
         entries.push(Entry::u32("opaque", vec![w * h], &fl.opaque));
         entries.push(Entry::f32("opaque_depth", vec![w * h], &fl.opaque_depth));
+    }
+    if !fl.tint.is_empty() {
+        entries.push(Entry::u32("tint", vec![f], &fl.tint));
     }
     let bg = d.background;
     let meta: HashMap<String, String> = [
@@ -121,6 +125,10 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dump> {
         ),
         Err(_) => (Vec::new(), Vec::new()),
     };
+    let tint = match file.tensor("tint") {
+        Ok(_) => file.u32("tint", Some(&[f])).map_err(err)?.1,
+        Err(_) => Vec::new(),
+    };
     let (_, image) = file
         .f32("image", Some(&[height as usize, width as usize, 3]))
         .map_err(err)?;
@@ -148,6 +156,7 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dump> {
                 .chunks_exact(4)
                 .map(|c| [c[0], c[1], c[2], c[3]])
                 .collect(),
+            tint,
             primitive,
             facing: Vec::new(),
             opaque,

@@ -1,10 +1,13 @@
 //! Fragments and per-pixel fragment lists: what the rasterizers produce and every pass reads.
 //!
 //! A fragment is a window depth in [0, 1], a non-premultiplied RGBA colour stored at 8 bits a
-//! channel (the precision of the GPU capture key), and its triangle's submission index.
+//! channel (the precision of the GPU capture key), a tint and its triangle's submission index.
+//! What it lets through of what lies behind it is its transmittance `(1 - a) g`, per channel
+//! (`g` the tint, RGB8): white for every fragment but tinted glass
+//! ([`crate::scene::Glass::Tinted`]), whose tint is its base colour, so a red pane passes red.
 //! "Front to back" is the order of [`fragment_key`]: depth bits high, packed RGBA8 low, the key
-//! the GPU capture sorts by, with the submission index breaking exact ties. It is a total order,
-//! so every result is independent of the order fragments arrive in.
+//! the GPU capture sorts by, with the tint, then the submission index breaking exact ties. It
+//! is a total order, so every result is independent of the order fragments arrive in.
 
 /// A channel in [0, 1] as an 8-bit unorm, rounding half up (`floor(v 255 + 0.5)`, which WGSL
 /// computes identically; Rust's `round` and WGSL's `round` disagree on halves).
@@ -34,18 +37,57 @@ pub fn fragment_key(depth: f32, rgba: [f32; 4]) -> u64 {
     ((d.to_bits() as u64) << 32) | pack_rgba8(rgba) as u64
 }
 
+/// The tint of a fragment that lets through every colour alike (RGB8, R in the low byte): its
+/// transmittance is `1 - a` in each channel.
+pub const CLEAR: u32 = 0x00ff_ffff;
+
+/// Packs a tint in [0, 1] into RGB8 (R in the low byte), as [`pack_rgba8`] its RGB.
+pub fn pack_tint(g: [f32; 3]) -> u32 {
+    pack_rgba8([g[0], g[1], g[2], 0.0])
+}
+
+pub fn unpack_tint(v: u32) -> [f32; 3] {
+    let c = unpack_rgba8(v);
+    [c[0], c[1], c[2]]
+}
+
+/// What a fragment of straight colour `rgba` and tint `tint` lets through, per channel:
+/// `(1 - a) g`. For [`CLEAR`] it is `1 - a` in each channel, bit for bit.
+pub fn transmittance(rgba: [f32; 4], tint: u32) -> [f32; 3] {
+    let g = unpack_tint(tint);
+    std::array::from_fn(|i| (1.0 - rgba[3]) * g[i])
+}
+
 /// One fragment as compositing sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Fragment {
     pub depth: f32,
     pub rgba: [f32; 4],
+    /// Its tint, RGB8 ([`CLEAR`] but for tinted glass): it passes `(1 - a) g` of what is behind.
+    pub tint: u32,
     /// Submission index: breaks ties between equal keys.
     pub primitive: u32,
 }
 
-/// Sorts fragments front to back (by key, then submission index).
+impl Fragment {
+    /// A fragment of no tint ([`CLEAR`]).
+    pub fn new(depth: f32, rgba: [f32; 4], primitive: u32) -> Fragment {
+        Fragment {
+            depth,
+            rgba,
+            tint: CLEAR,
+            primitive,
+        }
+    }
+    /// What it lets through of what is behind it, per channel ([`transmittance`]).
+    pub fn transmittance(&self) -> [f32; 3] {
+        transmittance(self.rgba, self.tint)
+    }
+}
+
+/// Sorts fragments front to back (by key, then tint, then submission index).
 pub fn sort_front_to_back(frags: &mut [Fragment]) {
-    frags.sort_unstable_by_key(|f| (fragment_key(f.depth, f.rgba), f.primitive));
+    frags.sort_unstable_by_key(|f| (fragment_key(f.depth, f.rgba), f.tint, f.primitive));
 }
 
 /// Per-pixel fragment lists: pixel `p = y * width + x` owns `offsets[p]..offsets[p + 1]`.
@@ -58,6 +100,9 @@ pub struct FragmentLists {
     pub depth: Vec<f32>,
     /// Non-premultiplied linear RGBA.
     pub rgba: Vec<[f32; 4]>,
+    /// Each fragment's tint (RGB8), or empty where every fragment is [`CLEAR`]: the frames of
+    /// scenes with no tinted glass carry none.
+    pub tint: Vec<u32>,
     /// Submission index of the fragment's triangle.
     pub primitive: Vec<u32>,
     /// `|n . v|` of the fragment's triangle.
@@ -95,6 +140,15 @@ impl FragmentLists {
             .max()
             .unwrap_or(0)
     }
+    /// Fragment i's tint ([`CLEAR`] where the lists carry none).
+    #[inline]
+    pub fn tint(&self, i: usize) -> u32 {
+        self.tint.get(i).copied().unwrap_or(CLEAR)
+    }
+    /// Whether any fragment is tinted.
+    pub fn tinted(&self) -> bool {
+        self.tint.iter().any(|&g| g != CLEAR)
+    }
     pub fn covered_pixels(&self) -> usize {
         self.offsets.windows(2).filter(|w| w[1] > w[0]).count()
     }
@@ -127,6 +181,9 @@ impl FragmentLists {
             for i in self.range(p).filter(|&i| keep[i]) {
                 out.depth.push(self.depth[i]);
                 out.rgba.push(self.rgba[i]);
+                if let Some(&g) = self.tint.get(i) {
+                    out.tint.push(g);
+                }
                 out.primitive.push(self.primitive[i]);
                 if let Some(&f) = self.facing.get(i) {
                     out.facing.push(f);
@@ -142,6 +199,7 @@ impl FragmentLists {
         self.range(p).map(|i| Fragment {
             depth: self.depth[i],
             rgba: self.rgba[i],
+            tint: self.tint(i),
             primitive: self.primitive[i],
         })
     }

@@ -42,7 +42,7 @@
 //! processed in parallel; the result does not depend on the number of threads.
 
 use crate::error::{Error, Result};
-use crate::fragment::{FragmentLists, pack_rgba8, quantize};
+use crate::fragment::{CLEAR, FragmentLists, pack_rgba8, quantize};
 use crate::scene::material::{self, Shaded};
 use crate::scene::{Camera, Scene};
 use glam::{Vec3, Vec4};
@@ -298,6 +298,7 @@ struct BandOut {
     counts: Vec<u32>,
     depth: Vec<f32>,
     rgba: Vec<[f32; 4]>,
+    tint: Vec<u32>,
     primitive: Vec<u32>,
     facing: Vec<f32>,
     /// The nearest opaque fragment's RGBA8 (A = 255) and depth, per pixel of the band.
@@ -309,6 +310,7 @@ struct Frag {
     pixel: u32,
     depth: f32,
     rgba: [f32; 4],
+    tint: u32,
     prim: u32,
     facing: f32,
 }
@@ -352,7 +354,10 @@ impl Shading<'_> {
             vertex.to_array(),
             uv,
             cos,
-            self.scene.uniform_opacity,
+            material::ShadeMode {
+                uniform: self.scene.uniform_opacity,
+                glass: self.scene.glass,
+            },
         )
     }
 }
@@ -410,7 +415,7 @@ fn raster_band(
                             opaque_depth[pixel] = depth;
                             opaque[pixel] = pack_rgba8([c.x, c.y, c.z, 1.0]);
                         }
-                        Shaded::Transparent(c) => {
+                        Shaded::Transparent(c, tint) => {
                             let rgba = Vec4::from(c)
                                 .clamp(Vec4::ZERO, Vec4::ONE)
                                 .to_array()
@@ -423,6 +428,7 @@ fn raster_band(
                                 pixel: pixel as u32,
                                 depth,
                                 rgba,
+                                tint: crate::fragment::pack_tint(tint),
                                 prim: t.prim,
                                 facing: t.facing,
                             });
@@ -449,6 +455,7 @@ fn raster_band(
         counts,
         depth: vec![0.0; n],
         rgba: vec![[0.0; 4]; n],
+        tint: vec![0; n],
         primitive: vec![0; n],
         facing: vec![0.0; n],
         opaque,
@@ -459,6 +466,7 @@ fn raster_band(
         start[f.pixel as usize] += 1;
         out.depth[i] = f.depth;
         out.rgba[i] = f.rgba;
+        out.tint[i] = f.tint;
         out.primitive[i] = f.prim;
         out.facing[i] = f.facing;
     }
@@ -672,6 +680,11 @@ pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result
         ..Default::default()
     };
     let has_opaque = scene.has_opaque();
+    // Tints only where a fragment has one (none untinted: FragmentLists::tint).
+    let tinted = outs.iter().any(|o| o.tint.iter().any(|&g| g != CLEAR));
+    if tinted {
+        fl.tint.reserve(total);
+    }
     let mut acc = 0u32;
     fl.offsets.push(0);
     for o in outs {
@@ -681,6 +694,9 @@ pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result
         }
         fl.depth.extend(o.depth);
         fl.rgba.extend(o.rgba);
+        if tinted {
+            fl.tint.extend(o.tint);
+        }
         fl.primitive.extend(o.primitive);
         fl.facing.extend(o.facing);
         if has_opaque {

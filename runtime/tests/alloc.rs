@@ -41,6 +41,7 @@ fn direct_hybrid(f: &[Fragment], k: usize) -> [f64; 3] {
 fn random_fragments(rng: &mut Rng, n: usize) -> Vec<Fragment> {
     (0..n)
         .map(|i| Fragment {
+            tint: dhoit_runtime::fragment::CLEAR,
             depth: rng.f32(),
             // Colours as the pipeline stores them: 8 bits a channel.
             rgba: [

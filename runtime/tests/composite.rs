@@ -12,6 +12,7 @@ fn unorm8() -> impl Strategy<Value = f32> {
 fn fragment() -> impl Strategy<Value = Fragment> {
     (0.0f32..=1.0, prop::array::uniform4(unorm8()), any::<u32>()).prop_map(
         |(depth, rgba, primitive)| Fragment {
+            tint: dhoit_runtime::fragment::CLEAR,
             depth,
             rgba,
             primitive,
@@ -51,7 +52,7 @@ proptest! {
         depths in prop::collection::vec(0.0f32..=1.0, 300),
     ) {
         let f: Vec<Fragment> = (0..n)
-            .map(|i| Fragment { depth: depths[i], rgba: [rgb[0], rgb[1], rgb[2], a], primitive: i as u32 })
+            .map(|i| Fragment { tint: dhoit_runtime::fragment::CLEAR, depth: depths[i], rgba: [rgb[0], rgb[1], rgb[2], a], primitive: i as u32 })
             .collect();
         let exact = exact_pixel(&f, BG);
         for k in 0..=n {
@@ -80,7 +81,7 @@ proptest! {
                 prop::sample::select(vec![[1.0f32, 0.0, 0.0, 0.5], [0.0, 1.0, 0.0, 0.5], [0.2, 0.2, 0.2, 1.0]]),
                 0u32..3,
             )
-                .prop_map(|(depth, rgba, primitive)| Fragment { depth, rgba, primitive }),
+                .prop_map(|(depth, rgba, primitive)| Fragment { tint: dhoit_runtime::fragment::CLEAR, depth, rgba, primitive }),
             0..24,
         ),
         seed in any::<u64>(),
@@ -126,7 +127,7 @@ proptest! {
         equal_depths in any::<bool>(), k in 0usize..3000, m in 1usize..8,
     ) {
         let f: Vec<Fragment> = (0..n)
-            .map(|i| Fragment {
+            .map(|i| Fragment { tint: dhoit_runtime::fragment::CLEAR,
                 depth: if equal_depths { 0.5 } else { (i % 97) as f32 / 97.0 },
                 rgba: [(i % 3) as f32 / 2.0, 0.3, 1.0, alphas[i]],
                 primitive: i as u32,
@@ -142,6 +143,7 @@ proptest! {
 fn empty_and_zero_opacity_tails_show_the_background() {
     assert_eq!(hybrid_pixel(&[], 0, BG), BG);
     let clear = Fragment {
+        tint: dhoit_runtime::fragment::CLEAR,
         depth: 0.3,
         rgba: [1.0, 0.0, 0.0, 0.0],
         primitive: 0,
@@ -155,16 +157,19 @@ fn empty_and_zero_opacity_tails_show_the_background() {
 fn an_opaque_front_fragment_hides_everything_behind() {
     let f = [
         Fragment {
+            tint: dhoit_runtime::fragment::CLEAR,
             depth: 0.9,
             rgba: [0.0, 1.0, 0.0, 0.5],
             primitive: 0,
         },
         Fragment {
+            tint: dhoit_runtime::fragment::CLEAR,
             depth: 0.1,
             rgba: [1.0, 0.0, 0.0, 1.0],
             primitive: 1,
         },
         Fragment {
+            tint: dhoit_runtime::fragment::CLEAR,
             depth: 0.5,
             rgba: [0.0, 0.0, 1.0, 0.7],
             primitive: 2,
@@ -183,11 +188,13 @@ fn two_layer_exact_value_by_hand() {
     // 0.4 red + 0.6 x 0.4 = 0.24 blue.
     let f = [
         Fragment {
+            tint: dhoit_runtime::fragment::CLEAR,
             depth: 0.8,
             rgba: [0.0, 0.0, 1.0, 0.4],
             primitive: 0,
         },
         Fragment {
+            tint: dhoit_runtime::fragment::CLEAR,
             depth: 0.2,
             rgba: [1.0, 0.0, 0.0, 0.4],
             primitive: 1,

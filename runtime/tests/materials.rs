@@ -337,7 +337,7 @@ fn transmission_textures_and_emission_shade_as_computed_by_hand() {
     let f0 = 0.04f32;
     let expect = [1.0, 1.0 - (128.0 / 255.0) * (1.0 - f0), f0];
     for (i, want) in expect.into_iter().enumerate() {
-        let Shaded::Transparent(c) = at((i as f32 + 0.5) / 3.0) else {
+        let Shaded::Transparent(c, _) = at((i as f32 + 0.5) / 3.0) else {
             panic!("column {i}: glass is a transparent fragment");
         };
         assert!(
@@ -352,7 +352,8 @@ fn transmission_textures_and_emission_shade_as_computed_by_hand() {
         transmission_texture: None,
         ..glass
     };
-    let Shaded::Transparent(c) = shade(&clear, &textures, &table, [1.0; 4], [0.1, 0.5], 1.0, None)
+    let Shaded::Transparent(c, _) =
+        shade(&clear, &textures, &table, [1.0; 4], [0.1, 0.5], 1.0, None)
     else {
         panic!("clear glass is transparent");
     };
@@ -402,7 +403,7 @@ fn transmission_textures_and_emission_shade_as_computed_by_hand() {
     };
     assert_eq!(
         shade(&glow, &[], &table, shaded, [0.0; 2], 1.0, None),
-        Shaded::Transparent([0.5, 0.25, 1.25, 0.25])
+        Shaded::Transparent([0.5, 0.25, 1.25, 0.25], [1.0; 3])
     );
 }
 

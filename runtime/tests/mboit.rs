@@ -58,11 +58,13 @@ fn mboit_reconstructs_two_surfaces_transmittance_as_the_paper_says() {
     // The whole pixel by hand (f64) from those transmittances.
     let frags = [
         Fragment {
+            tint: dhoit_runtime::fragment::CLEAR,
             depth: near.0,
             rgba: [1.0, 0.2, 0.0, near.1],
             primitive: 0,
         },
         Fragment {
+            tint: dhoit_runtime::fragment::CLEAR,
             depth: far.0,
             rgba: [0.0, 0.4, 1.0, far.1],
             primitive: 1,
@@ -89,6 +91,7 @@ fn mboit_reconstructs_two_surfaces_transmittance_as_the_paper_says() {
     }
     assert_eq!(composite::mboit_sorted(&[], BG, p), BG);
     let faint = [Fragment {
+        tint: dhoit_runtime::fragment::CLEAR,
         rgba: [1.0, 0.0, 0.0, 0.0005],
         ..frags[0]
     }];

@@ -32,11 +32,13 @@ fn wboit_is_the_papers_formula() {
     // C = sum(C a w) / sum(a w) (1 - R) + R C_bg, R = prod(1 - a).
     let frags = [
         Fragment {
+            tint: dhoit_runtime::fragment::CLEAR,
             depth: 0.25,
             rgba: [1.0, 0.2, 0.0, 0.6],
             primitive: 0,
         },
         Fragment {
+            tint: dhoit_runtime::fragment::CLEAR,
             depth: 0.5,
             rgba: [0.0, 0.4, 1.0, 0.3],
             primitive: 1,
@@ -151,6 +153,7 @@ const ORDER_BOUND: f32 = 1e-2;
 #[test]
 fn wboit_blended_is_the_formula_at_its_targets_precision() {
     let f = |depth: f32, rgba: [f32; 4], primitive| Fragment {
+        tint: dhoit_runtime::fragment::CLEAR,
         depth,
         rgba,
         primitive,

@@ -394,6 +394,13 @@ impl Gpu {
         params: &Params,
         image: bool,
     ) -> Result<(FrameInputs, buffers::Taken<'_>)> {
+        if scene.tints() {
+            return Err(Error::Invalid(format!(
+                "{}: tinted glass (per-channel transmittance) is composited on the CPU only: \
+                 render it with --device cpu, or its glass grey (--glass grey)",
+                scene.name
+            )));
+        }
         // The scene's buffers are written by the queue, before any command: no encoder of
         // theirs records a clear.
         let mut none = self.device.create_command_encoder(&Default::default());

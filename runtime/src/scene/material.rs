@@ -276,10 +276,48 @@ impl Material {
 /// The opacity of glass at view cosine `cos` (geometry.wgsl's `glass_opacity`): what it does
 /// not transmit, `1 - T (1 - F)` with Schlick's `F = F0 + (1 - F0)(1 - cos)^5`.
 pub fn glass_opacity(transmission: f32, f0: f32, cos: f32) -> f32 {
-    let m = 1.0 - cos.clamp(0.0, 1.0);
-    let m2 = m * m;
-    let f = f0 + (1.0 - f0) * (m2 * m2 * m);
-    1.0 - transmission * (1.0 - f)
+    1.0 - transmission * (1.0 - fresnel(f0, cos))
+}
+
+/// How glass lets through what lies behind it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Glass {
+    /// A grey opacity `1 - T (1 - F)`, the base colour its colour: clear glass of any colour
+    /// passes every colour alike.
+    #[default]
+    Grey,
+    /// Filtering per channel (McGuire and Mara 2017's coloured transmission): the same opacity,
+    /// but a transmittance of `T (1 - F)` times the base colour (the material's factor and
+    /// texture; vertex colours carry the headlight's shade and tint nothing), so a red pane
+    /// passes red; its colour the Fresnel reflection of the light (`F` of the lit vertex colour,
+    /// untinted) and, where `T < 1`, the diffuse base colour of what it does not transmit.
+    Tinted,
+}
+
+impl Glass {
+    pub fn name(self) -> &'static str {
+        match self {
+            Glass::Grey => "grey",
+            Glass::Tinted => "tinted",
+        }
+    }
+}
+
+/// The scene-wide switches a fragment's shade reads: its one opacity where it has one
+/// ([`super::Scene::uniform_opacity`]) and how its glass transmits ([`super::Scene::glass`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ShadeMode {
+    pub uniform: Option<f32>,
+    pub glass: Glass,
+}
+
+impl From<Option<f32>> for ShadeMode {
+    fn from(uniform: Option<f32>) -> ShadeMode {
+        ShadeMode {
+            uniform,
+            glass: Glass::Grey,
+        }
+    }
 }
 
 /// What a fragment of a material is, once shaded.
@@ -287,15 +325,16 @@ pub fn glass_opacity(transmission: f32, f0: f32, cos: f32) -> f32 {
 pub enum Shaded {
     /// Drawn in the opaque pass with this colour (alpha unused).
     Opaque([f32; 4]),
-    /// A transparent fragment of this non-premultiplied colour and opacity (not yet clamped).
-    Transparent([f32; 4]),
+    /// A transparent fragment of this non-premultiplied colour and opacity (not yet clamped),
+    /// and its tint (`[1; 3]` but for tinted glass: [`Glass::Tinted`]).
+    Transparent([f32; 4], [f32; 3]),
     /// No fragment: a MASK test failed.
     None,
 }
 
 /// A fragment of `m` (geometry.wgsl's `shade`): `vertex` the interpolated vertex colour with
 /// the headlight's shade on its RGB, `uv` its texture coordinates, `cos` the view cosine
-/// (glass), `uniform` the scene's one opacity where it has one.
+/// (glass), `mode` the scene's one opacity where it has one and how its glass transmits.
 pub fn shade(
     m: &Material,
     textures: &[Texture],
@@ -303,13 +342,18 @@ pub fn shade(
     vertex: [f32; 4],
     uv: [f32; 2],
     cos: f32,
-    uniform: Option<f32>,
+    mode: impl Into<ShadeMode>,
 ) -> Shaded {
+    let mode = mode.into();
     let mut c: [f32; 4] = std::array::from_fn(|i| vertex[i] * m.base_color[i]);
+    // The base colour without the vertex's (the tint of tinted glass).
+    let mut base = [m.base_color[0], m.base_color[1], m.base_color[2]];
     if let Some(t) = m.texture {
         let s = textures[t as usize].sample(table, uv);
         c = std::array::from_fn(|i| c[i] * s[i]);
+        base = std::array::from_fn(|i| base[i] * s[i]);
     }
+    let mut emitted = [0.0; 3];
     // Emission, after the headlight's shade (in `vertex`), which does not dim it.
     if m.emissive != [0.0; 3] {
         let e = match m.emissive_texture {
@@ -319,13 +363,15 @@ pub fn shade(
             }
             None => m.emissive,
         };
-        for (c, e) in c.iter_mut().zip(e) {
-            *c += e;
-        }
+        emitted = e;
     }
-    if let Some(a) = uniform {
+    let lit = c;
+    for (c, e) in c.iter_mut().zip(emitted) {
+        *c += e;
+    }
+    if let Some(a) = mode.uniform {
         c[3] = a;
-        return Shaded::Transparent(c);
+        return Shaded::Transparent(c, [1.0; 3]);
     }
     if let Coverage::Mask(cut) = m.coverage
         && c[3] < cut
@@ -340,14 +386,52 @@ pub fn shade(
     } else {
         1.0
     };
-    c[3] = if m.transmission > 0.0 {
-        let t = match m.transmission_texture {
-            Some(t) => m.transmission * textures[t as usize].sample(&data_table(), uv)[0],
-            None => m.transmission,
-        };
-        coverage * glass_opacity(t, m.f0(), cos)
-    } else {
-        coverage
+    if m.transmission == 0.0 {
+        c[3] = coverage;
+        return Shaded::Transparent(c, [1.0; 3]);
+    }
+    let t = match m.transmission_texture {
+        Some(t) => m.transmission * textures[t as usize].sample(&data_table(), uv)[0],
+        None => m.transmission,
     };
-    Shaded::Transparent(c)
+    let opacity = glass_opacity(t, m.f0(), cos);
+    c[3] = coverage * opacity;
+    if mode.glass == Glass::Grey || opacity <= 0.0 {
+        return Shaded::Transparent(c, [1.0; 3]);
+    }
+    let (colour, tint) = tinted_glass(t, fresnel(m.f0(), cos), coverage, vertex, lit, base);
+    let colour: [f32; 3] = std::array::from_fn(|i| colour[i] + emitted[i]);
+    Shaded::Transparent([colour[0], colour[1], colour[2], c[3]], tint)
+}
+
+/// Schlick's reflectance at view cosine `cos`, `F0 + (1 - F0)(1 - cos)^5`.
+pub fn fresnel(f0: f32, cos: f32) -> f32 {
+    let m = 1.0 - cos.clamp(0.0, 1.0);
+    let m2 = m * m;
+    f0 + (1.0 - f0) * (m2 * m2 * m)
+}
+
+/// Tinted glass of transmission `t`, reflectance `f` and coverage `cov` (the base alpha where
+/// BLEND, else 1) over what it covers: its straight colour (the Fresnel reflection of the lit
+/// vertex colour `vertex`, and the diffuse colour `lit` of what it neither reflects nor
+/// transmits, over its opacity `1 - t (1 - f)`) and its tint `g`, so that `(1 - a) g` is the
+/// transmittance `(1 - cov) + cov t (1 - f) base` per channel.
+pub fn tinted_glass(
+    t: f32,
+    f: f32,
+    cov: f32,
+    vertex: [f32; 4],
+    lit: [f32; 4],
+    base: [f32; 3],
+) -> ([f32; 3], [f32; 3]) {
+    let opacity = 1.0 - t * (1.0 - f);
+    let diffuse = (1.0 - t) * (1.0 - f);
+    let colour = std::array::from_fn(|i| (f * vertex[i] + diffuse * lit[i]) / opacity);
+    let through = t * (1.0 - f);
+    let grey = (1.0 - cov) + cov * through;
+    let tint = std::array::from_fn(|i| match grey > 0.0 {
+        true => ((1.0 - cov) + cov * through * base[i].clamp(0.0, 1.0)) / grey,
+        false => 1.0,
+    });
+    (colour, tint)
 }

@@ -10,7 +10,7 @@ pub mod gltf;
 pub mod material;
 pub mod procedural;
 
-pub use material::{Coverage, Material, Texture, Wrap};
+pub use material::{Coverage, Glass, Material, Texture, Wrap};
 
 use crate::error::{Error, Result};
 use crate::rng::Rng;
@@ -113,6 +113,8 @@ pub struct Scene {
     pub textures: Vec<Texture>,
     /// One opacity for every surface (the papers' protocol), or `None`: the materials decide.
     pub uniform_opacity: Option<f32>,
+    /// How its glass transmits: one grey opacity, or filtering per channel.
+    pub glass: Glass,
     /// The viewpoint the file gives (a glTF's first camera in its scene), where it gives one.
     pub viewpoint: Option<Viewpoint>,
 }
@@ -139,12 +141,21 @@ impl Default for Scene {
             materials: vec![Material::default()],
             textures: Vec::new(),
             uniform_opacity: None,
+            glass: Glass::Grey,
             viewpoint: None,
         }
     }
 }
 
 impl Scene {
+    /// Whether any of its fragments can be tinted: glass that filters per channel
+    /// ([`Glass::Tinted`]) in a scene whose materials decide opacity.
+    pub fn tints(&self) -> bool {
+        self.glass == Glass::Tinted
+            && self.uniform_opacity.is_none()
+            && self.materials.iter().any(|m| m.transmission > 0.0)
+    }
+
     pub fn triangle_count(&self) -> usize {
         self.positions.len() / 3
     }
@@ -345,6 +356,7 @@ impl Scene {
             materials: self.materials.clone(),
             textures: self.textures.clone(),
             uniform_opacity: self.uniform_opacity,
+            glass: self.glass,
             viewpoint: self.viewpoint,
         };
         for t in perm {
