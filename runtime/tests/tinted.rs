@@ -169,7 +169,7 @@ fn tinted_glass_shades_as_computed_by_hand() {
     // (1 - T)(1 - F) red) / 0.52 = (1, 0.04 / 0.52, 0.04 / 0.52), tint red.
     let half = Material {
         transmission: 0.5,
-        ..red.clone()
+        ..red
     };
     let (c, g) = at(&half, 1.0, tinted);
     let k = 0.04 / 0.52;
