@@ -1576,3 +1576,63 @@ fn compare_puts_a_picture_beside_the_methods_from_the_assets_viewpoint() {
     let o = dhoit(&["render", "--scene", "plates", "--camera", "above"]);
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("above"));
 }
+
+/// `--glass tinted` renders the windows family's glass filtering per channel on the CPU: an
+/// image other than the grey glass's, which is the default's, byte for byte. The GPU refuses a
+/// tinted scene by name and writes nothing.
+#[test]
+fn tinted_glass_renders_on_the_cpu_and_the_gpu_refuses_it() {
+    let dir = temp_dir("cli-tinted");
+    let render = |glass: Option<&str>, device: &str, out: &Path| {
+        let mut args = vec![
+            "render",
+            "--scene",
+            "windows",
+            "--res",
+            "64x48",
+            "--method",
+            "abuffer",
+            "--device",
+            device,
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        if let Some(g) = glass {
+            args.extend(["--glass", g]);
+        }
+        dhoit(&args)
+    };
+    let png = |name: &str| dir.join(name);
+    for (glass, name) in [
+        (None, "default.png"),
+        (Some("grey"), "grey.png"),
+        (Some("tinted"), "tinted.png"),
+    ] {
+        let o = render(glass, "cpu", &png(name));
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let read = |name: &str| std::fs::read(png(name)).unwrap();
+    assert_eq!(read("default.png"), read("grey.png"));
+    assert_ne!(read("grey.png"), read("tinted.png"));
+    if skip_gpu("tinted glass refused on the GPU") {
+        return;
+    }
+    let args = [
+        "render",
+        "--scene",
+        "windows",
+        "--res",
+        "64x48",
+        "--method",
+        "abuffer",
+        "--device",
+        "gpu",
+        "--glass",
+        "tinted",
+        "--out",
+    ];
+    let out = png("gpu.png");
+    let mut args = args.to_vec();
+    args.push(out.to_str().unwrap());
+    expect_failure(&args, "tinted glass", &out);
+}
