@@ -1618,18 +1618,8 @@ fn tinted_glass_renders_on_the_cpu_and_the_gpu_refuses_it() {
         return;
     }
     let args = [
-        "render",
-        "--scene",
-        "windows",
-        "--res",
-        "64x48",
-        "--method",
-        "abuffer",
-        "--device",
-        "gpu",
-        "--glass",
-        "tinted",
-        "--out",
+        "render", "--scene", "windows", "--res", "64x48", "--method", "abuffer", "--device", "gpu",
+        "--glass", "tinted", "--out",
     ];
     let out = png("gpu.png");
     let mut args = args.to_vec();

@@ -462,6 +462,7 @@ fn transmission_textures_and_emission_round_trip() {
         coverage: Coverage::Opaque,
         transmission: 0.75,
         transmission_texture: Some(leads),
+        attenuation: [0.5, 0.8, 1.0],
         ..Material::default()
     });
     let lamp = s.add_material(Material {
@@ -506,6 +507,31 @@ fn transmission_textures_and_emission_round_trip() {
         s.textures[light as usize].texels
     );
     assert_eq!(m(2).emissive, [0.5, 0.25, 0.0], "no strength below white");
+    let att = m(0).attenuation;
+    assert!(
+        att.iter()
+            .zip([0.5, 0.8, 1.0])
+            .all(|(a, b)| (a - b).abs() < 1e-6),
+        "volume attenuation {att:?}"
+    );
+    // The same file with an attenuation distance of 2 (the exporter writes thickness 1 and
+    // distance 0.5): one crossing passes color^(1 / (2 x 2)), 0.5^0.25 = 0.8409 in red.
+    let bytes = std::fs::read(&path).unwrap();
+    let key = b"\"attenuationDistance\":0.5";
+    let at = (bytes.windows(key.len()))
+        .position(|w| w == key)
+        .expect("the volume is written");
+    let mut farther = bytes.clone();
+    let digits = at + key.len() - 3;
+    farther[digits..digits + 3].copy_from_slice(b"2.0");
+    let far = dir.join("farther.glb");
+    std::fs::write(&far, farther).unwrap();
+    let att = load(&far).unwrap().material_of(0).attenuation;
+    let want = [0.5f32.powf(0.25), 0.8f32.powf(0.25), 1.0];
+    assert!(
+        att.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-6),
+        "{att:?}, by hand {want:?}"
+    );
     assert_eq!(m(2).emissive_texture, None);
     // The real asset, where present: its labels glow with their texture, its striped spheres
     // read their transmission texture.

@@ -175,6 +175,18 @@ fn tinted_glass_shades_as_computed_by_hand() {
     let k = 0.04 / 0.52;
     assert!(close([c[0], c[1], c[2]], [1.0, k, k], 1e-6), "{c:?}");
     assert!((c[3] - 0.52).abs() < 1e-6 && g == [1.0, 0.0, 0.0]);
+    // A volume's attenuation multiplies the tint: white glass of attenuation (1, 0.5, 0.25).
+    let attenuated = Material {
+        base_color: [1.0; 4],
+        attenuation: [1.0, 0.5, 0.25],
+        ..red
+    };
+    assert_eq!(at(&attenuated, 1.0, tinted).1, [1.0, 0.5, 0.25]);
+    assert_eq!(
+        at(&attenuated, 1.0, None.into()).1,
+        [1.0; 3],
+        "grey glass reads no volume"
+    );
     // BLEND coverage 0.5 of it: the uncovered half passes white, so the tint is
     // (0.5 + 0.5 x 0.48 x base) / (0.5 + 0.5 x 0.48): R 1, G = B = 0.5 / 0.74.
     let (_, g) = tinted_glass(

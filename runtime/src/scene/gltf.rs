@@ -6,7 +6,8 @@
 //! perspective-correct interpolation); each triangle its material: base colour factor and
 //! texture with its sampler's wrap modes and magnification filter, `alphaMode` and
 //! `alphaCutoff`, `doubleSided`, `KHR_materials_transmission`'s factor and texture,
-//! `emissiveFactor`, `emissiveTexture` and `KHR_materials_emissive_strength`, and
+//! `emissiveFactor`, `emissiveTexture` and `KHR_materials_emissive_strength`,
+//! `KHR_materials_volume`'s attenuation colour, distance and thickness factor, and
 //! `KHR_materials_ior` (see [`super::material`] for what a fragment of each is). Images are
 //! decoded to RGBA8 and box-filtered down to [`MAX_TEXTURE_SIDE`] a side. A primitive without a material takes glTF's
 //! default material (white, OPAQUE, single-sided).
@@ -321,6 +322,7 @@ impl Loader<'_> {
             transmission_texture,
             emissive,
             emissive_texture,
+            attenuation: attenuation(m.volume()),
             ior: m.ior().unwrap_or(material::DEFAULT_IOR),
             double_sided: m.double_sided(),
         };
@@ -634,6 +636,15 @@ pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, SceneFault> {
                     mat["emissiveTexture"] = json!({"index": i});
                 }
             }
+            if m.attenuation != [1.0; 3] {
+                // One crossing's attenuation is the colour at a thickness of twice the
+                // distance: attenuationColor^(thickness / (2 distance)) with 1 / (2 x 0.5).
+                ext.insert(
+                    "KHR_materials_volume".into(),
+                    json!({"thicknessFactor": 1.0, "attenuationDistance": 0.5,
+                           "attenuationColor": m.attenuation}),
+                );
+            }
             if m.ior != material::DEFAULT_IOR {
                 ext.insert("KHR_materials_ior".into(), json!({"ior": m.ior}));
             }
@@ -694,4 +705,19 @@ fn png_bytes(t: &Texture) -> Vec<u8> {
         .write_image(&raw, t.width, t.height, image::ExtendedColorType::Rgba8)
         .expect("an RGBA8 image of its own size encodes to memory");
     out
+}
+
+/// What `KHR_materials_volume` lets through one crossing of a surface
+/// ([`Material::attenuation`]): `attenuationColor^(thicknessFactor / (2 attenuationDistance))`,
+/// white where there is no volume, no thickness or an infinite distance (its default).
+fn attenuation(volume: Option<gltf::material::Volume>) -> [f32; 3] {
+    let Some(v) = volume else {
+        return [1.0; 3];
+    };
+    let (d, t) = (v.attenuation_distance(), v.thickness_factor());
+    if !(d.is_finite() && d > 0.0 && t > 0.0) {
+        return [1.0; 3];
+    }
+    v.attenuation_color()
+        .map(|c| c.clamp(0.0, 1.0).powf(t / (2.0 * d)))
 }

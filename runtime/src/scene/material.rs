@@ -231,6 +231,12 @@ pub struct Material {
     pub emissive: [f32; 3],
     /// Index of its emissive texture in the scene's textures (sRGB, times `emissive`).
     pub emissive_texture: Option<u32>,
+    /// What `KHR_materials_volume` lets through one crossing of a surface, per channel:
+    /// `attenuationColor^(thicknessFactor / (2 attenuationDistance))`, half the thickness at
+    /// each of a closed volume's two surfaces a ray crosses (the thickness texture is not read).
+    /// White where the material has no volume; tinted glass ([`Glass::Tinted`]) multiplies its
+    /// tint by it.
+    pub attenuation: [f32; 3],
     pub ior: f32,
     pub double_sided: bool,
 }
@@ -246,6 +252,7 @@ impl Default for Material {
             transmission_texture: None,
             emissive: [0.0; 3],
             emissive_texture: None,
+            attenuation: [1.0; 3],
             ior: DEFAULT_IOR,
             double_sided: true,
         }
@@ -346,8 +353,9 @@ pub fn shade(
 ) -> Shaded {
     let mode = mode.into();
     let mut c: [f32; 4] = std::array::from_fn(|i| vertex[i] * m.base_color[i]);
-    // The base colour without the vertex's (the tint of tinted glass).
-    let mut base = [m.base_color[0], m.base_color[1], m.base_color[2]];
+    // The base colour without the vertex's, and the volume's attenuation (the tint of tinted
+    // glass).
+    let mut base: [f32; 3] = std::array::from_fn(|i| m.base_color[i] * m.attenuation[i]);
     if let Some(t) = m.texture {
         let s = textures[t as usize].sample(table, uv);
         c = std::array::from_fn(|i| c[i] * s[i]);

@@ -255,6 +255,9 @@ impl Scene {
             if !m.emissive.iter().all(|c| c.is_finite() && *c >= 0.0) {
                 return Err(bad(&format!("emissive colour {:?}", m.emissive)));
             }
+            if !m.attenuation.iter().all(|c| (0.0..=1.0).contains(c)) {
+                return Err(bad(&format!("volume attenuation {:?}", m.attenuation)));
+            }
             for t in [m.texture, m.transmission_texture, m.emissive_texture]
                 .into_iter()
                 .flatten()
