@@ -9,12 +9,12 @@
 fn list_color(list: Stored, bg: vec3<f32>) -> vec3<f32> {
     sort_keys(list.start, list.end, params.store_primitives != 0u);
     var c = vec3<f32>(0.0);
-    var t = 1.0;
+    var t = vec3<f32>(1.0);
     for (var i = list.start; i < list.end; i++) {
         tick();
         let rgba = unpack_rgba8(keys[i].x);
         c += t * rgba.a * rgba.rgb;
-        t *= 1.0 - rgba.a;
+        t *= transmittance(rgba, tint_at(i));
     }
     return c + t * bg;
 }

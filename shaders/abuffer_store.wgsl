@@ -1,7 +1,8 @@
 // A-buffer pass 2 (geometry): store every fragment in its pixel's slice of the fragment pool as
 // its 64-bit capture key (window depth bits high, RGBA8 low: the k-buffer's slot, 8 bytes a
-// fragment), and where params.store_primitives is 1 (MLAB, which blends in submission order,
-// and the tests' readback) its submission index beside it.
+// fragment), where params.store_primitives is 1 (MLAB, which blends in submission order, and
+// the tests' readback) its submission index beside it, and where params.tinted is 1 (tinted
+// glass) its tint (RGB8).
 
 @group(1) @binding(0) var<storage, read> offsets: array<u32>;
 // The count pass's buffer, cleared after the prefix sum read it: each pixel's next place (two
@@ -10,6 +11,7 @@
 @group(1) @binding(1) var<storage, read_write> cursor: array<atomic<u32>>;
 @group(1) @binding(2) var<storage, read_write> keys: array<vec2<u32>>;
 @group(1) @binding(3) var<storage, read_write> primitives: array<u32>;
+@group(1) @binding(4) var<storage, read_write> tints: array<u32>;
 
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
@@ -33,6 +35,9 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     keys[i] = key_of(in.clip.z, f.rgba8);
     if (params.store_primitives != 0u) {
         primitives[i] = in.primitive;
+    }
+    if (params.tinted != 0u) {
+        tints[i] = f.tint;
     }
     return vec4<f32>(0.0);
 }

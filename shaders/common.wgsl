@@ -44,6 +44,9 @@ struct Params {
     wboit_weight: u32,
     wboit_near: f32,
     wboit_far: f32,
+    // 1 when glass filters per channel (scene::Glass::Tinted): each fragment's tint is stored
+    // beside its key (the A-buffer's `tints`).
+    tinted: u32,
 };
 
 // One of a material's textures (wgsl::GpuTexture): where its texels start in the texel buffer
@@ -58,7 +61,8 @@ struct TextureRef {
 
 // A material (wgsl::GpuMaterial; scene::material): base colour factor, its textures (base
 // colour, transmission, emissive), the emissive colour, flags (bits 4-5 the coverage
-// COVERAGE_*, MATERIAL_DOUBLE_SIDED), MASK's cutoff, glass's transmission and F0.
+// COVERAGE_*, MATERIAL_DOUBLE_SIDED), MASK's cutoff, glass's transmission and F0, and what its
+// volume lets through a crossing (tinted glass multiplies its tint by it).
 struct Material {
     factor: vec4<f32>,
     base: TextureRef,
@@ -69,6 +73,7 @@ struct Material {
     cutoff: f32,
     transmission: f32,
     f0: f32,
+    attenuation: vec3<f32>,
 };
 
 struct VertexOut {
@@ -102,6 +107,9 @@ fn to_unorm8(v: f32) -> u32 {
 fn pack_rgba8(c: vec4<f32>) -> u32 {
     return to_unorm8(c.r) | (to_unorm8(c.g) << 8u) | (to_unorm8(c.b) << 16u) | (to_unorm8(c.a) << 24u);
 }
+
+// The tint of a fragment that passes every colour alike (fragment::CLEAR): RGB8, R low.
+const CLEAR: u32 = 0x00ffffffu;
 
 fn unpack_rgba8(v: u32) -> vec4<f32> {
     return vec4<f32>(

@@ -150,12 +150,16 @@ fn sample_texture(t: TextureRef, uv: vec2<f32>, srgb_colour: bool) -> vec4<f32> 
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// The opacity of glass at view cosine `c` (material::glass_opacity).
-fn glass_opacity(transmission: f32, f0: f32, c: f32) -> f32 {
+// Schlick's reflectance at view cosine `c` (material::fresnel).
+fn fresnel(f0: f32, c: f32) -> f32 {
     let m = 1.0 - clamp(c, 0.0, 1.0);
     let m2 = m * m;
-    let f = f0 + (1.0 - f0) * (m2 * m2 * m);
-    return 1.0 - transmission * (1.0 - f);
+    return f0 + (1.0 - f0) * (m2 * m2 * m);
+}
+
+// The opacity of glass at view cosine `c` (material::glass_opacity).
+fn glass_opacity(transmission: f32, f0: f32, c: f32) -> f32 {
+    return 1.0 - transmission * (1.0 - fresnel(f0, c));
 }
 
 // What a fragment is once shaded (material::Shaded): kind SHADED_OPAQUE, SHADED_TRANSPARENT or
@@ -164,6 +168,8 @@ fn glass_opacity(transmission: f32, f0: f32, c: f32) -> f32 {
 struct Shaded {
     kind: u32,
     color: vec4<f32>,
+    // (1, 1, 1) but for tinted glass (material::tinted_glass).
+    tint: vec3<f32>,
 };
 
 // The fragment's material (material::shade).
@@ -171,18 +177,25 @@ fn shade(in: VertexOut, front: bool) -> Shaded {
     let m = materials[in.material];
     var out: Shaded;
     out.kind = SHADED_NONE;
+    out.tint = vec3<f32>(1.0);
     let uniform = params.uniform_alpha >= 0.0;
     if (!uniform && (m.flags & MATERIAL_DOUBLE_SIDED) == 0u && !front) {
         return out;
     }
     let at = attributes(in);
     var c = at.color * m.factor;
+    // The base colour without the vertex's, and the volume's attenuation (tinted glass's tint).
+    var base = m.factor.rgb * m.attenuation;
     if (m.base.texels != NO_TEXTURE) {
-        c = c * sample_texture(m.base, at.uv, true);
+        let s = sample_texture(m.base, at.uv, true);
+        c = c * s;
+        base = base * s.rgb;
     }
+    let lit = c.rgb;
     // Emission, after the headlight's shade (in at.color), which does not dim it.
+    var e = vec3<f32>(0.0);
     if (any(m.emissive != vec3<f32>(0.0))) {
-        var e = m.emissive;
+        e = m.emissive;
         if (m.emissive_texture.texels != NO_TEXTURE) {
             e = e * sample_texture(m.emissive_texture, at.uv, true).rgb;
         }
@@ -211,7 +224,25 @@ fn shade(in: VertexOut, front: bool) -> Shaded {
         if (m.transmission_texture.texels != NO_TEXTURE) {
             t = t * sample_texture(m.transmission_texture, at.uv, false).r;
         }
-        out.color.a = a * glass_opacity(t, m.f0, cosine);
+        let opacity = glass_opacity(t, m.f0, cosine);
+        out.color.a = a * opacity;
+        if (params.tinted != 0u && opacity > 0.0) {
+            // material::tinted_glass: the Fresnel reflection of the lit vertex colour and the
+            // diffuse colour of what is neither reflected nor transmitted, over the opacity;
+            // the tint such that (1 - a) g is (1 - cov) + cov t (1 - f) base.
+            let f = fresnel(m.f0, cosine);
+            let diffuse = (1.0 - t) * (1.0 - f);
+            let colour = (f * at.color.rgb + diffuse * lit) / (1.0 - t * (1.0 - f));
+            out.color = vec4<f32>(colour + e, out.color.a);
+            let through = t * (1.0 - f);
+            let grey = (1.0 - a) + a * through;
+            let b = clamp(base, vec3<f32>(0.0), vec3<f32>(1.0));
+            if (a >= 1.0) {
+                out.tint = b;
+            } else if (grey > 0.0) {
+                out.tint = ((1.0 - a) + a * through * b) / grey;
+            }
+        }
     } else {
         out.color.a = a;
     }
@@ -226,6 +257,8 @@ fn shade(in: VertexOut, front: bool) -> Shaded {
 struct Transparent {
     visible: bool,
     rgba8: u32,
+    // Its tint, RGB8 (CLEAR but for tinted glass).
+    tint: u32,
 };
 
 // The fragment as a transparent pass stores it: in front of the opaque depth, transparent,
@@ -235,6 +268,7 @@ fn transparent_fragment(in: VertexOut, front: bool) -> Transparent {
     var out: Transparent;
     out.visible = false;
     out.rgba8 = 0u;
+    out.tint = CLEAR;
     let d = textureLoad(opaque_depth, vec2<u32>(u32(in.clip.x), u32(in.clip.y)), 0);
     if (in.clip.z >= d) {
         return out;
@@ -246,5 +280,6 @@ fn transparent_fragment(in: VertexOut, front: bool) -> Transparent {
     let rgba8 = pack_rgba8(clamp(s.color, vec4<f32>(0.0), vec4<f32>(1.0)));
     out.visible = (rgba8 >> 24u) != 0u;
     out.rgba8 = rgba8;
+    out.tint = pack_rgba8(vec4<f32>(clamp(s.tint, vec3<f32>(0.0), vec3<f32>(1.0)), 0.0));
     return out;
 }

@@ -9,7 +9,8 @@
 
 struct Row {
     a: vec3<f32>,
-    t: f32,
+    // Transmittance, per channel.
+    t: vec3<f32>,
     z: vec2<u32>,
 };
 
@@ -22,13 +23,13 @@ fn list_color(list: Stored, bg: vec3<f32>) -> vec3<f32> {
     var rows: array<Row, MLAB_MAX_ROWS + 1u>;
     for (var r = 0u; r <= m; r++) {
         tick();
-        rows[r] = Row(vec3<f32>(0.0), 1.0, vec2<u32>(0xffffffffu));
+        rows[r] = Row(vec3<f32>(0.0), vec3<f32>(1.0), vec2<u32>(0xffffffffu));
     }
     for (var i = start; i < end; i++) {
         tick();
         let key = keys[i];
         let rgba = unpack_rgba8(key.x);
-        var cur = Row(rgba.rgb * rgba.a, 1.0 - rgba.a, key);
+        var cur = Row(rgba.rgb * rgba.a, transmittance(rgba, tint_at(i)), key);
         for (var r = 0u; r < m; r++) {
             tick();
             if (!key_less(rows[r].z, cur.z)) {
@@ -41,10 +42,10 @@ fn list_color(list: Stored, bg: vec3<f32>) -> vec3<f32> {
         let front = rows[m - 1u];
         let back = rows[m];
         rows[m - 1u] = Row(front.a + back.a * front.t, front.t * back.t, front.z);
-        rows[m] = Row(vec3<f32>(0.0), 1.0, vec2<u32>(0xffffffffu));
+        rows[m] = Row(vec3<f32>(0.0), vec3<f32>(1.0), vec2<u32>(0xffffffffu));
     }
     var c = vec3<f32>(0.0);
-    var t = 1.0;
+    var t = vec3<f32>(1.0);
     for (var r = 0u; r < m; r++) {
         tick();
         c += t * rows[r].a;

@@ -18,6 +18,8 @@ var<private> oit_color: vec4<f32>;
 struct Transparent {
     visible: bool,
     rgba8: u32,
+    // An application's fragments are untinted.
+    tint: u32,
 };
 
 // As geometry.wgsl's: in front of the opaque depth (LESS), its colour clamped to 8 bits a
@@ -26,6 +28,7 @@ fn transparent_fragment(in: VertexOut, front: bool) -> Transparent {
     var out: Transparent;
     out.visible = false;
     out.rgba8 = 0u;
+    out.tint = CLEAR;
     let d = textureLoad(oit_opaque_depth, vec2<u32>(u32(in.clip.x), u32(in.clip.y)), 0);
     if (in.clip.z >= d) {
         return out;

@@ -12,6 +12,23 @@
 @group(0) @binding(2) var<storage, read_write> keys: array<vec2<u32>>;
 // Submission indices, where the store kept them (params.store_primitives): sorted alongside.
 @group(0) @binding(5) var<storage, read_write> primitives: array<u32>;
+// Tints (RGB8), where the store kept them (params.tinted): sorted alongside, breaking ties
+// between equal keys before the submission index.
+@group(0) @binding(6) var<storage, read_write> tints: array<u32>;
+
+// Fragment i's tint (CLEAR where the frame stores none).
+fn tint_at(i: u32) -> u32 {
+    if (params.tinted != 0u) {
+        return tints[i];
+    }
+    return CLEAR;
+}
+
+// What a fragment of straight colour `rgba` and tint `tint` lets through (fragment::
+// transmittance): (1 - a) g per channel.
+fn transmittance(rgba: vec4<f32>, tint: u32) -> vec3<f32> {
+    return (1.0 - rgba.a) * unpack_rgba8(tint).rgb;
+}
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
 // STATUS_NEAR_LOOP where a pixel's sort came close to lavapipe's loop limit, STATUS_POOL_SHORT
 // where the pool held fewer fragments than the frame; the pixels over MAX_FRAGMENTS_PER_PIXEL
@@ -82,12 +99,15 @@ fn write_onto(p: u32, c: vec3<f32>) {
     textureStore(onto_target, vec2<u32>(p % params.width, p / params.width), vec4<f32>(c, 1.0));
 }
 
-// Front to back by key; with `with_primitives` the submission indices move alongside and break
-// ties, as fragment::sort_front_to_back (the tests read them back).
+// Front to back by key, then tint; with `with_primitives` the submission indices move
+// alongside and break the remaining ties, as fragment::sort_front_to_back (the tests read them
+// back). The tints move alongside where the frame stores them.
 fn sort_keys(start: u32, end: u32, with_primitives: bool) {
+    let with_tints = params.tinted != 0u;
     for (var i = start + 1u; i < end; i++) {
         tick();
         let k = keys[i];
+        let g = tint_at(i);
         var q = 0u;
         if (with_primitives) {
             q = primitives[i];
@@ -99,8 +119,9 @@ fn sort_keys(start: u32, end: u32, with_primitives: bool) {
             }
             let before = keys[j - 1u];
             var after = key_less(k, before);
-            if (with_primitives) {
-                after = after || (all(k == before) && q < primitives[j - 1u]);
+            if (all(k == before)) {
+                let gb = tint_at(j - 1u);
+                after = g < gb || (g == gb && with_primitives && q < primitives[j - 1u]);
             }
             if (!after) {
                 break;
@@ -110,11 +131,17 @@ fn sort_keys(start: u32, end: u32, with_primitives: bool) {
             if (with_primitives) {
                 primitives[j] = primitives[j - 1u];
             }
+            if (with_tints) {
+                tints[j] = tints[j - 1u];
+            }
             j--;
         }
         keys[j] = k;
         if (with_primitives) {
             primitives[j] = q;
+        }
+        if (with_tints) {
+            tints[j] = g;
         }
     }
 }
@@ -124,15 +151,22 @@ fn sort_by_submission(start: u32, end: u32) {
         tick();
         let k = keys[i];
         let q = primitives[i];
+        let g = tint_at(i);
         var j = i;
         while (j > start && q < primitives[j - 1u]) {
             tick();
             keys[j] = keys[j - 1u];
             primitives[j] = primitives[j - 1u];
+            if (params.tinted != 0u) {
+                tints[j] = tints[j - 1u];
+            }
             j--;
         }
         keys[j] = k;
         primitives[j] = q;
+        if (params.tinted != 0u) {
+            tints[j] = g;
+        }
     }
 }
 

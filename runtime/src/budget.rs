@@ -17,6 +17,15 @@ use crate::error::{Error, Result};
 
 /// Bytes of one fragment slot: a 64-bit key, window depth bits high and RGBA8 low.
 pub const SLOT_BYTES: u64 = 8;
+
+/// Bytes the A-buffer stores beside each fragment's key where the frame's glass is tinted
+/// (`abuf.tints`: its RGB8 tint, `fragment::FragmentLists::tint`).
+pub const TINT_BYTES: u64 = 4;
+
+/// The exact A-buffer's bytes for `fragments` on `pixels`, with their tints where `tinted`.
+pub fn abuffer_bytes(pixels: u64, fragments: u64, tinted: bool) -> u64 {
+    ABUFFER.allocated_bytes(pixels, fragments) + tinted as u64 * TINT_BYTES * fragments
+}
 /// Bytes of the largest network's weights uniform (the default 12-128-64 network at f32,
 /// `mlp::uniform_bytes`): what [`DKB`] counts; a network's own layout counts its own
 /// ([`Layout::for_network`]).

@@ -100,8 +100,9 @@ pub struct FragmentLists {
     pub depth: Vec<f32>,
     /// Non-premultiplied linear RGBA.
     pub rgba: Vec<[f32; 4]>,
-    /// Each fragment's tint (RGB8), or empty where every fragment is [`CLEAR`]: the frames of
-    /// scenes with no tinted glass carry none.
+    /// Each fragment's tint (RGB8), or empty: every fragment is [`CLEAR`]. The frames of scenes
+    /// whose glass is tinted ([`crate::scene::Scene::tints`]) carry them, as the A-buffer stores
+    /// them.
     pub tint: Vec<u32>,
     /// Submission index of the fragment's triangle.
     pub primitive: Vec<u32>,
@@ -145,9 +146,9 @@ impl FragmentLists {
     pub fn tint(&self, i: usize) -> u32 {
         self.tint.get(i).copied().unwrap_or(CLEAR)
     }
-    /// Whether any fragment is tinted.
+    /// Whether the lists carry tints (their scene's glass is tinted).
     pub fn tinted(&self) -> bool {
-        self.tint.iter().any(|&g| g != CLEAR)
+        !self.tint.is_empty()
     }
     pub fn covered_pixels(&self) -> usize {
         self.offsets.windows(2).filter(|w| w[1] > w[0]).count()

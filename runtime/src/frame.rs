@@ -405,7 +405,7 @@ impl<'a> Renderer<'a> {
                     pixels,
                     &Occupancy::of(&fl.counts()),
                 )?;
-                let exact = budget::ABUFFER.allocated_bytes(pixels, fl.fragment_count() as u64);
+                let exact = budget::abuffer_bytes(pixels, fl.fragment_count() as u64, fl.tinted());
                 Ok(Budget::Bytes(match opts.exact_when_cheaper {
                     true => bytes.min(exact),
                     false => bytes,
@@ -454,7 +454,7 @@ impl<'a> Renderer<'a> {
         // A k-buffer whose budget holds every fragment (F slots for them, or the bytes of the
         // exact A-buffer) renders the A-buffer: exact, and never more memory than it (a byte
         // budget that holds the A-buffer may be below the method's own fixed cost).
-        let exact_bytes = budget::ABUFFER.allocated_bytes(pixels, total);
+        let exact_bytes = budget::abuffer_bytes(pixels, total, fl.tinted());
         let bytes_hold = matches!(budget, Budget::Bytes(m) if m >= exact_bytes);
         let (budget_bytes, f) = match (method, budget) {
             (Method::Abuffer, _) => (exact_bytes, total),
@@ -570,8 +570,11 @@ impl<'a> Renderer<'a> {
         let composite_ms = t1.elapsed().as_secs_f64() * 1e3;
         // FKB and MLAB allocate their k for every pixel; the others exactly sum k; a frame
         // whose budget holds every fragment, what the A-buffer does.
+        // The exact A-buffer stores each fragment's tint where the frame's glass is tinted.
+        let tints = fl.tinted() as u64 * budget::TINT_BYTES * slots;
         let allocated_bytes = match method {
-            _ if a.exact => budget::ABUFFER.allocated_bytes(pixels, slots),
+            _ if a.exact => budget::ABUFFER.allocated_bytes(pixels, slots) + tints,
+            Method::Abuffer => method.layout().allocated_bytes(pixels, slots) + tints,
             // Its whole pool of F nodes, however many arrived.
             Method::LinkedList => method.layout().allocated_bytes(pixels, a.budget_fragments),
             Method::Fkb | Method::Mlab => method

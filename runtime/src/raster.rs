@@ -42,7 +42,7 @@
 //! processed in parallel; the result does not depend on the number of threads.
 
 use crate::error::{Error, Result};
-use crate::fragment::{CLEAR, FragmentLists, pack_rgba8, quantize};
+use crate::fragment::{FragmentLists, pack_rgba8, quantize};
 use crate::scene::material::{self, Shaded};
 use crate::scene::{Camera, Scene};
 use glam::{Vec3, Vec4};
@@ -680,8 +680,8 @@ pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result
         ..Default::default()
     };
     let has_opaque = scene.has_opaque();
-    // Tints only where a fragment has one (none untinted: FragmentLists::tint).
-    let tinted = outs.iter().any(|o| o.tint.iter().any(|&g| g != CLEAR));
+    // Tints where the scene's glass is tinted (FragmentLists::tint), as the GPU stores them.
+    let tinted = scene.tints();
     if tinted {
         fl.tint.reserve(total);
     }

@@ -552,7 +552,10 @@ pub(crate) struct Params {
     pub(crate) wboit_weight: u32,
     pub(crate) wboit_near: f32,
     pub(crate) wboit_far: f32,
-    pub(crate) _pad: [u32; 15],
+    /// 1 when glass filters per channel ([`crate::scene::Scene::tints`]): the A-buffer stores
+    /// each fragment's tint beside its key and its resolves filter per channel.
+    pub(crate) tinted: u32,
+    pub(crate) _pad: [u32; 14],
 }
 
 /// `TextureRef.texels` where a material has no such texture.
@@ -582,7 +585,7 @@ pub(crate) struct GpuTexture {
     pub(crate) sampler: u32,
 }
 
-/// A material as the geometry passes read it (matches `Material` in common.wgsl): 96 bytes.
+/// A material as the geometry passes read it (matches `Material` in common.wgsl): 112 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct GpuMaterial {
@@ -599,6 +602,9 @@ pub(crate) struct GpuMaterial {
     /// Schlick's reflectance at normal incidence ([`crate::scene::Material::f0`]).
     pub(crate) f0: f32,
     pub(crate) _pad: u32,
+    /// What its volume lets through a crossing ([`crate::scene::Material::attenuation`]).
+    pub(crate) attenuation: [f32; 3],
+    pub(crate) _pad2: u32,
 }
 
 /// A scene's materials as the GPU reads them, and every texture's texels one after another.
@@ -654,6 +660,8 @@ pub(crate) fn gpu_materials(scene: &crate::scene::Scene) -> (Vec<GpuMaterial>, V
                 transmission: m.transmission,
                 f0: m.f0(),
                 _pad: 0,
+                attenuation: m.attenuation,
+                _pad2: 0,
             }
         })
         .collect();
@@ -896,7 +904,8 @@ mod tests {
         let rust = offsets!(Params; view_proj, forward, background, eye, width, height,
             k_uniform, pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed,
             budget_ppm, append, layer_major, uniform_alpha, store_primitives, mboit_bias,
-            mboit_overestimation, list_sorted, pooled_tail, wboit_weight, wboit_near, wboit_far);
+            mboit_overestimation, list_sorted, pooled_tail, wboit_weight, wboit_near, wboit_far,
+            tinted);
         assert_eq!(
             wgsl, rust,
             "Params: WGSL (left) and Rust (right) members and offsets"
@@ -909,7 +918,7 @@ mod tests {
 
         let (span, wgsl) = wgsl_struct(&parse("capture"), "Material");
         let rust = offsets!(GpuMaterial; factor, base, transmission_texture, emissive_texture,
-            emissive, flags, cutoff, transmission, f0);
+            emissive, flags, cutoff, transmission, f0, attenuation);
         assert_eq!(wgsl, rust, "Material: WGSL (left) and Rust (right)");
         assert_eq!(span as usize, size_of::<GpuMaterial>());
         let (span, wgsl) = wgsl_struct(&parse("capture"), "TextureRef");

@@ -63,11 +63,18 @@ impl Recording<'_, '_, '_> {
         } else {
             none
         };
+        // Tints (RGB8) where the frame's glass is tinted (counted: the frame needs them);
+        // else an empty binding.
+        let tinted = self.tinted;
+        let tints = match tinted && total > 0 {
+            true => fb.storage("abuf.tints", 4 * total, true)?,
+            false => fb.storage("abuf.no_tints", 16, false)?,
+        };
         passes.draw(
             fb.enc,
             Phase::Store,
             &p.store,
-            &[&offsets, &counts, &keys, &primitives],
+            &[&offsets, &counts, &keys, &primitives, &tints],
             "store",
         );
         let (resolve, own, name) = match blend {
@@ -75,7 +82,7 @@ impl Recording<'_, '_, '_> {
             Blend::Exact => (Resolve::Abuffer, &p.abuffer_resolve, "sort and blend"),
         };
         let mut group = entries(&[passes.params(), &offsets, &keys]);
-        group.extend(entries_from(4, &[&status, &primitives]));
+        group.extend(entries_from(4, &[&status, &primitives, &tints]));
         passes.resolve(fb.enc, resolve, own, group, 3, name);
         self.out.counted = Some((offsets.clone(), 4 * px));
         if passes.opts.diagnostics {
@@ -93,6 +100,9 @@ impl Recording<'_, '_, '_> {
                     fl.rgba.push(crate::fragment::unpack_rgba8(key as u32));
                 }
                 fl.primitive = u32s(&read_back(gpu, &primitives, 4 * stored)?);
+                if tinted {
+                    fl.tint = u32s(&read_back(gpu, &tints, 4 * stored)?);
+                }
                 out.fragments = Some(fl);
                 Ok(())
             }));

@@ -402,7 +402,7 @@ fn bindings_of(method: &AppMethod, phase: Phase) -> Vec<Binding> {
     use Binding::*;
     match phase {
         Phase::Count => vec![ReadWrite],
-        Phase::Store => vec![Read, ReadWrite, ReadWrite, ReadWrite],
+        Phase::Store => vec![Read, ReadWrite, ReadWrite, ReadWrite, ReadWrite],
         Phase::Features | Phase::FeaturesDepths | Phase::FeaturesColours => {
             vec![Read, ReadWrite, Uniform, Read]
         }

@@ -942,6 +942,8 @@ struct Recording<'f, 'a, 'e> {
     /// Pixels.
     px: u64,
     sizing: Sizing,
+    /// Whether the frame's glass is tinted (`Params::tinted`): the A-buffer stores tints.
+    tinted: bool,
 }
 
 impl Gpu {
@@ -1016,6 +1018,7 @@ impl Gpu {
             out: Readback::default(),
             px,
             sizing: spec.sizing,
+            tinted: params.tinted != 0,
         };
         if matches!(slots, Some(Slots::Uniform(_))) {
             rec.out.variants.push(if opts.layer_major_fkb {
@@ -1178,7 +1181,8 @@ fn frame_params(cam: Option<&Camera>, width: u32, height: u32, background: [f32;
         wboit_weight: 0,
         wboit_near: 0.0,
         wboit_far: 0.0,
-        _pad: [0; 15],
+        tinted: 0,
+        _pad: [0; 14],
     }
 }
 

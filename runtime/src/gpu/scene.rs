@@ -229,8 +229,11 @@ impl Gpu {
     ) -> Result<GpuFrame> {
         let scopes = self.begin_frame(width, height)?;
         let px = width as u64 * height as u64;
+        // Tinted glass where the method stores its tints: the A-buffer's, MLAB's lists.
+        let tints = scene.tints() && matches!(slots, None | Some(Slots::Mlab(_)));
         let params = Params {
             uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
+            tinted: tints as u32,
             ..frame_params(Some(cam), width, height, background)
         };
         let upload = std::time::Instant::now();
@@ -394,10 +397,11 @@ impl Gpu {
         params: &Params,
         image: bool,
     ) -> Result<(FrameInputs, buffers::Taken<'_>)> {
-        if scene.tints() {
+        if scene.tints() && params.tinted == 0 {
             return Err(Error::Invalid(format!(
-                "{}: tinted glass (per-channel transmittance) is composited on the CPU only: \
-                 render it with --device cpu, or its glass grey (--glass grey)",
+                "{}: tinted glass (per-channel transmittance) is composited on the GPU by the \
+                 A-buffer and MLAB only: render this method with --device cpu, or the glass \
+                 grey (--glass grey)",
                 scene.name
             )));
         }
@@ -500,6 +504,8 @@ pub struct SceneStream {
     inputs: FrameInputs,
     background: [f32; 3],
     uniform_alpha: f32,
+    /// `Params::tinted`: 1 where the scene's glass is tinted and the method stores tints.
+    tinted: u32,
 }
 
 impl SceneStream {
@@ -546,7 +552,12 @@ impl SceneStream {
         };
         let mut stream = Stream::new(gpu, (w, h), app, budget)?;
         stream.exact_when_cheaper = options.exact_when_cheaper;
-        let params = frame_params(None, w, h, options.background);
+        // Tinted glass where the method stores its tints: the A-buffer's, MLAB's lists.
+        let tinted = (scene.tints() && matches!(method, M::Abuffer | M::Mlab)) as u32;
+        let params = Params {
+            tinted,
+            ..frame_params(None, w, h, options.background)
+        };
         let (inputs, taken) = stream.gpu.frame_inputs(scene, &params, true)?;
         // The scene's buffers are the stream's for its life, never the pool's.
         taken.keep();
@@ -555,6 +566,7 @@ impl SceneStream {
             inputs,
             background: options.background,
             uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
+            tinted,
         })
     }
 
@@ -565,6 +577,7 @@ impl SceneStream {
         let (w, h) = self.stream.size;
         let params = Params {
             uniform_alpha: self.uniform_alpha,
+            tinted: self.tinted,
             ..frame_params(Some(cam), w, h, self.background)
         };
         // The opaque pass's camera, by the queue: a submission's frames share the last one

@@ -437,9 +437,11 @@ pub fn tinted_glass(
     let colour = std::array::from_fn(|i| (f * vertex[i] + diffuse * lit[i]) / opacity);
     let through = t * (1.0 - f);
     let grey = (1.0 - cov) + cov * through;
-    let tint = std::array::from_fn(|i| match grey > 0.0 {
-        true => ((1.0 - cov) + cov * through * base[i].clamp(0.0, 1.0)) / grey,
-        false => 1.0,
+    // Wholly covered, the base colour itself (no division to round: the GPU's is the same).
+    let tint = std::array::from_fn(|i| match (cov >= 1.0, grey > 0.0) {
+        (true, _) => base[i].clamp(0.0, 1.0),
+        (false, true) => ((1.0 - cov) + cov * through * base[i].clamp(0.0, 1.0)) / grey,
+        (false, false) => 1.0,
     });
     (colour, tint)
 }
