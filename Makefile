@@ -59,7 +59,7 @@ EVAL_REAL := StanfordBunny/StanfordBunny.glb GlassVaseFlowers/GlassVaseFlowers.g
 EVAL_MATERIAL_BUILTIN := windows,covers,cards,smoke,strands
 EVAL_MATERIAL_REAL := $(EVAL_REAL) AlphaBlendModeTest/AlphaBlendModeTest.glb TextureSettingsTest/TextureSettingsTest.glb GlassBrokenWindow/GlassBrokenWindow.glb
 EVAL_BUDGETS := 10%,25%,50%,75%,90%,0.25fpp,0.5fpp,1fpp,2fpp,4fpp
-EVAL_ARGS := --view 1,3 --res 320x240 --budget $(EVAL_BUDGETS) --methods fkb,vkb,dkb,optimal,mlab,wboit,mboit,linked-list
+EVAL_ARGS := --view 1,3 --res 320x240 --budget $(EVAL_BUDGETS) --methods fkb,vkb,dkb,optimal,optimal-pooled,mlab,wboit,mboit,linked-list
 eval: build
 	@scenes="$(EVAL_BUILTIN)"; materials="$(EVAL_MATERIAL_BUILTIN)"; \
 	if [ -d "$(DHOIT_SCENES)" ]; then \

@@ -25,7 +25,8 @@ mod versus;
         decided within a fixed memory budget, beside the exact A-buffer and the baselines.\n\n\
         Methods: abuffer (exact reference), fkb (fixed k-buffer), vkb (importance-map variable \
         k-buffer), dkb (deep k-buffer: the network's importance), optimal (the optimal \
-        allocation), greedy-paper and greedy-increase (the paper's backward greedy, two heap \
+        allocation), optimal-pooled (the optimal allocation in VKB's and DKB's layout, their \
+        tails pooled; CPU only), greedy-paper and greedy-increase (the paper's backward greedy, two heap \
         keys), mlab (multi-layer alpha blending), wboit (weighted blended OIT, McGuire and \
         Bavoil 2013: one pass into an RGBA16F and an R8 target, no sorting), mboit (moment-based \
         OIT, Munstermann et al. 2018: 4, 6 or 8 power moments in 32-bit targets, two passes), \

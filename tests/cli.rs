@@ -413,6 +413,7 @@ fn compare_prints_a_table_and_writes_a_report() {
         "fkb",
         "vkb",
         "optimal",
+        "optimal-pooled",
         "greedy-paper",
         "greedy-increase",
         "mlab",
@@ -429,7 +430,7 @@ fn compare_prints_a_table_and_writes_a_report() {
     let records = report.as_array().unwrap();
     assert_eq!(
         records.len(),
-        11,
+        12,
         "every method, dkb with the committed default weights"
     );
     assert!(dir.join("report.md").is_file());

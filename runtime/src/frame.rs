@@ -22,8 +22,12 @@ pub enum Method {
     Vkb,
     /// Deep k-buffer: k from the network's importance.
     Dkb,
-    /// The optimal allocation (quality ceiling of any k-buffer allocation).
+    /// The optimal allocation (quality ceiling of any k-buffer allocation with a tail a pixel).
     Optimal,
+    /// The optimal allocation of a k-buffer whose tails share its slots' pool, VKB's and DKB's
+    /// layout ([`crate::alloc::ErrorCurves::pooled`]): the least error they can reach with F
+    /// slots. Computed on the CPU only (the GPU's uploaded k keeps a tail a pixel).
+    OptimalPooled,
     /// The paper's backward greedy as printed (heap keyed by the new error).
     GreedyPaper,
     /// The backward greedy keyed by the error increase.
@@ -43,12 +47,13 @@ pub enum Method {
 }
 
 impl Method {
-    pub const ALL: [Method; 11] = [
+    pub const ALL: [Method; 12] = [
         Method::Abuffer,
         Method::Fkb,
         Method::Vkb,
         Method::Dkb,
         Method::Optimal,
+        Method::OptimalPooled,
         Method::GreedyPaper,
         Method::GreedyIncrease,
         Method::Mlab,
@@ -64,6 +69,7 @@ impl Method {
             Method::Vkb => "vkb",
             Method::Dkb => "dkb",
             Method::Optimal => "optimal",
+            Method::OptimalPooled => "optimal-pooled",
             Method::GreedyPaper => "greedy-paper",
             Method::GreedyIncrease => "greedy-increase",
             Method::Mlab => "mlab",
@@ -104,7 +110,10 @@ impl Method {
             | Method::Mboit
             | Method::LinkedList => (28, 40),
             Method::Dkb => (24, 120),
-            Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => (70, 40),
+            Method::Optimal
+            | Method::OptimalPooled
+            | Method::GreedyPaper
+            | Method::GreedyIncrease => (70, 40),
         }
     }
 
@@ -126,6 +135,7 @@ impl Method {
             Method::Vkb => budget::VKB,
             Method::Dkb => budget::DKB,
             Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => budget::OPT,
+            Method::OptimalPooled => budget::OPT_POOLED,
             Method::Mlab => budget::MLAB,
             Method::Wboit => budget::WBOIT,
             Method::Mboit => budget::MBOIT,
@@ -514,6 +524,11 @@ impl<'a> Renderer<'a> {
             }
             Method::Optimal => {
                 let (k, rep) = alloc::optimal(self.curves(), f);
+                optimal = Some(rep);
+                k
+            }
+            Method::OptimalPooled => {
+                let (k, rep) = alloc::optimal(&self.curves().pooled(), f);
                 optimal = Some(rep);
                 k
             }

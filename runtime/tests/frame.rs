@@ -580,6 +580,14 @@ fn on_held_out_frames_the_allocations_keep_their_quality_order() {
             [0.2, 0.3, 0.4],
         )
         .mse(&exact);
+        // The method that renders it (what compare and make eval score against) is this.
+        let method = r.render(Method::OptimalPooled).unwrap();
+        assert_eq!(method.k, stored, "{name} {budget}: optimal-pooled's k");
+        assert_eq!(
+            method.image.mse(&exact),
+            opt,
+            "{name} {budget}: optimal-pooled's image"
+        );
         eprintln!(
             "{name} {budget}: optimal {plain:.3e}, pooled {opt:.3e}; dkb {dkb:.3e} vkb {vkb:.3e} \
              fkb {fkb:.3e}"

@@ -753,6 +753,13 @@ impl<'a> Slots<'a> {
             Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => {
                 Some(Slots::PerPixel(&cpu.k))
             }
+            Method::OptimalPooled => {
+                return Err(Error::Invalid(
+                    "optimal-pooled is computed on the CPU only (--device cpu, compare, score): \
+                     the GPU's uploaded k keeps a tail a pixel"
+                        .into(),
+                ));
+            }
         })
     }
 }
