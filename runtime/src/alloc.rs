@@ -25,7 +25,7 @@
 //! returned, so the result is never worse than either greedy; all totals and the certified gap
 //! (total minus lower bound) are reported.
 
-use crate::fragment::{Fragment, FragmentLists};
+use crate::fragment::{CLEAR, Fragment, FragmentLists, unpack_tint};
 use rayon::prelude::*;
 use std::cmp::{Ordering, Reverse};
 use std::collections::BinaryHeap;
@@ -82,8 +82,12 @@ pub fn error_curve_sorted(frags: &[Fragment], bg: [f32; 3], out: &mut [f64]) {
     debug_assert_eq!(out.len(), n + 1);
     let bg = bg.map(f64::from);
     // Suffix sums of the tail: for k, fragments k..n (0-based) form the tail.
+    // Tinted fragments (composite::Tail) filter per channel: the tail by its mean
+    // transmittance to the power of its count where one of them is tinted.
     let mut sca = [0.0f64; 3];
     let mut sa = 0.0f64;
+    let mut st = [0.0f64; 3];
+    let mut tinted = false;
     let mut behind = vec![[0.0f64; 3]; n + 1];
     behind[n] = bg;
     for k in (0..n).rev() {
@@ -92,28 +96,38 @@ pub fn error_curve_sorted(frags: &[Fragment], bg: [f32; 3], out: &mut [f64]) {
         for (s, ch) in sca.iter_mut().zip(f.rgba) {
             *s += ch as f64 * a;
         }
+        for (s, g) in st.iter_mut().zip(unpack_tint(f.tint)) {
+            *s += (1.0 - a) * g as f64;
+        }
+        tinted |= f.tint != CLEAR;
         sa += a;
         let t = (n - k) as i32;
-        behind[k] = if sa <= 0.0 {
+        behind[k] = if sa <= 0.0 && !tinted {
             bg
         } else {
             let a_tail = 1.0 - (1.0 - (sa / t as f64).min(1.0)).powi(t);
-            std::array::from_fn(|i| a_tail * sca[i] / sa + (1.0 - a_tail) * bg[i])
+            let colour = |i: usize| if sa > 0.0 { sca[i] / sa } else { 0.0 };
+            let through = |i: usize| match tinted {
+                false => 1.0 - a_tail,
+                true => (st[i] / t as f64).min(1.0).powi(t),
+            };
+            std::array::from_fn(|i| a_tail * colour(i) + through(i) * bg[i])
         };
     }
-    // Prefix: core colour and transmittance after k fragments.
+    // Prefix: core colour and transmittance after k fragments, per channel.
     let mut core = [0.0f64; 3];
-    let mut tr = 1.0f64;
+    let mut tr = [1.0f64; 3];
     let mut hybrid = vec![[0.0f64; 3]; n + 1];
     for k in 0..=n {
-        hybrid[k] = std::array::from_fn(|i| core[i] + tr * behind[k][i]);
+        hybrid[k] = std::array::from_fn(|i| core[i] + tr[i] * behind[k][i]);
         if k < n {
             let f = &frags[k];
             let a = f.rgba[3] as f64;
-            for (ci, ch) in core.iter_mut().zip(f.rgba) {
-                *ci += tr * a * ch as f64;
+            let g = unpack_tint(f.tint);
+            for i in 0..3 {
+                core[i] += tr[i] * a * f.rgba[i] as f64;
+                tr[i] *= (1.0 - a) * g[i] as f64;
             }
-            tr *= 1.0 - a;
         }
     }
     let exact = hybrid[n];

@@ -96,6 +96,63 @@ fn error_curves_match_direct_computation() {
     }
 }
 
+/// With tinted fragments (per-channel transmittance), the curves are the f32 compositor's:
+/// e(k) is the squared distance between `hybrid_sorted` at k and at n (its tail filtering by
+/// the mean transmittance per channel), and a tail of one fragment is still exact. A curve of
+/// the grey model gives other values (checked, so the test fails where tints are ignored).
+#[test]
+fn tinted_error_curves_are_the_compositors() {
+    let mut rng = Rng::new(12);
+    let mut differs_from_grey = 0;
+    for _ in 0..200 {
+        let n = rng.below(14);
+        let mut f = random_fragments(&mut rng, n);
+        for x in f.iter_mut() {
+            if rng.below(2) == 0 {
+                x.tint = dhoit_runtime::fragment::pack_tint([rng.f32(), rng.f32(), rng.f32()]);
+            }
+        }
+        sort_front_to_back(&mut f);
+        let mut curve = vec![0.0; n + 1];
+        alloc::error_curve_sorted(&f, BG, &mut curve);
+        if n >= 1 {
+            assert!(curve[n - 1] <= 1e-24, "n {n}: e(n - 1) = {}", curve[n - 1]);
+        }
+        let x32 = hybrid_sorted(&f, n, BG);
+        for (k, &ck) in curve.iter().enumerate() {
+            let h32 = hybrid_sorted(&f, k, BG);
+            let d32: f64 = (0..3)
+                .map(|i| ((x32[i] - h32[i]) as f64).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(
+                (d32 - ck.sqrt()).abs() < 2e-5,
+                "n {n} k {k}: f32 {d32} f64 {}",
+                ck.sqrt()
+            );
+        }
+        let grey: Vec<Fragment> = f
+            .iter()
+            .map(|x| Fragment {
+                tint: dhoit_runtime::fragment::CLEAR,
+                ..*x
+            })
+            .collect();
+        let mut grey_curve = vec![0.0; n + 1];
+        alloc::error_curve_sorted(&grey, BG, &mut grey_curve);
+        differs_from_grey += usize::from(
+            curve
+                .iter()
+                .zip(&grey_curve)
+                .any(|(a, b)| (a.sqrt() - b.sqrt()).abs() > 1e-3),
+        );
+    }
+    assert!(
+        differs_from_grey > 50,
+        "{differs_from_grey} curves differ from grey ones"
+    );
+}
+
 /// A frame of `pixels` pixels (one row) with the given fragment lists.
 fn frame_of(lists: &[Vec<Fragment>]) -> FragmentLists {
     let mut fl = FragmentLists {
