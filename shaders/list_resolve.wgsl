@@ -3,7 +3,10 @@
 // arriving key inserted, the one it pushes past the last place, or itself, added to the tail's
 // integer sums, as composite::Tail adds), then blended front to back over the tail's
 // approximation over what is behind the pixel (behind.wgsl; an application's own image in
-// `onto`): composite::hybrid_sorted of the kept fragments with k = list_sorted.
+// `onto`): composite::hybrid_sorted of the kept fragments with k = list_sorted. Where the
+// frame's glass is tinted (params.tinted), each node's tint moves with its key, breaks ties
+// between equal keys (fragment::sort_front_to_back) and filters per channel, the tail by its
+// integer sums of (255 - a8) g8 as composite::Tail adds them.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> heads: array<u32>;
@@ -13,6 +16,19 @@
 // Set to 1 when a pixel's walk came close to lavapipe's loop limit; the pixels over
 // MAX_FRAGMENTS_PER_PIXEL (common.wgsl's STATUS_WORDS).
 @group(0) @binding(5) var<storage, read_write> status: array<atomic<u32>, STATUS_WORDS>;
+// Per node, its tint (RGB8) where params.tinted.
+@group(0) @binding(8) var<storage, read> tints: array<u32>;
+
+// A node's key and tint.
+struct Near {
+    key: vec2<u32>,
+    tint: u32,
+};
+
+// Whether a orders before b: by key, then tint.
+fn near_less(a: Near, b: Near) -> bool {
+    return key_less(a.key, b.key) || (all(a.key == b.key) && a.tint < b.tint);
+}
 
 // A pixel's colour over `bg`, or ok false where its list is deeper than any method takes (the
 // frame is refused: status[1]).
@@ -23,10 +39,13 @@ struct Resolved {
 
 fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
     let s = params.list_sorted;
-    var near: array<vec2<u32>, LIST_MAX_SORTED>;
+    var near: array<Near, LIST_MAX_SORTED>;
     var held = 0u;
     // Sum c8 a8 for r, g, b; sum a8; the count.
     var sums = vec4<u32>(0u);
+    // Sum (255 - a8) g8 per channel, and whether a tinted fragment joined.
+    var through = vec3<u32>(0u);
+    var tinted = false;
     var tail_n = 0u;
     var node = heads[p];
     var n = 0u;
@@ -41,12 +60,15 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
             atomicMax(&status[STATUS_DEEPEST_COUNT], n);
             return Resolved(false, bg);
         }
-        var carry = keys[node - 1u];
+        var carry = Near(keys[node - 1u], CLEAR);
+        if (params.tinted != 0u) {
+            carry.tint = tints[node - 1u];
+        }
         node = next[node - 1u];
         // Insertion into the sorted places: a key nearer than the last moves it on.
         if (held < s) {
             var j = held;
-            while (j > 0u && key_less(carry, near[j - 1u])) {
+            while (j > 0u && near_less(carry, near[j - 1u])) {
                 tick();
                 near[j] = near[j - 1u];
                 j--;
@@ -55,10 +77,10 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
             held++;
             continue;
         }
-        if (key_less(carry, near[s - 1u])) {
+        if (near_less(carry, near[s - 1u])) {
             let out = near[s - 1u];
             var j = s - 1u;
-            while (j > 0u && key_less(carry, near[j - 1u])) {
+            while (j > 0u && near_less(carry, near[j - 1u])) {
                 tick();
                 near[j] = near[j - 1u];
                 j--;
@@ -66,23 +88,34 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
             near[j] = carry;
             carry = out;
         }
-        sums += tail_sums_of(carry.x);
+        sums += tail_sums_of(carry.key.x);
+        let g = vec3<u32>(carry.tint & 0xffu, (carry.tint >> 8u) & 0xffu, (carry.tint >> 16u) & 0xffu);
+        through += (255u - (carry.key.x >> 24u)) * g;
+        tinted = tinted || carry.tint != CLEAR;
         tail_n++;
     }
     // composite::Tail::over, then the sorted places front to back.
     var over = bg;
-    if (tail_n > 0u && sums.w > 0u) {
-        let a_avg = min(f32(sums.w) / (255.0 * f32(tail_n)), 1.0);
-        let a_tail = 1.0 - pow(1.0 - a_avg, f32(tail_n));
-        let inv = 1.0 / (255.0 * f32(sums.w));
-        over = a_tail * (vec3<f32>(sums.xyz) * inv) + (1.0 - a_tail) * bg;
+    if (tail_n > 0u && (sums.w > 0u || tinted)) {
+        let n = f32(tail_n);
+        let a_avg = min(f32(sums.w) / (255.0 * n), 1.0);
+        let a_tail = 1.0 - pow(1.0 - a_avg, n);
+        var inv = 0.0;
+        if (sums.w > 0u) {
+            inv = 1.0 / (255.0 * f32(sums.w));
+        }
+        var seen = vec3<f32>(1.0 - a_tail);
+        if (tinted) {
+            seen = pow(min(vec3<f32>(through) / (255.0 * 255.0 * n), vec3<f32>(1.0)), vec3<f32>(n));
+        }
+        over = a_tail * (vec3<f32>(sums.xyz) * inv) + seen * bg;
     }
     var c = vec3<f32>(0.0);
-    var t = 1.0;
+    var t = vec3<f32>(1.0);
     for (var i = 0u; i < held; i++) {
-        let rgba = unpack_rgba8(near[i].x);
+        let rgba = unpack_rgba8(near[i].key.x);
         c += t * rgba.a * rgba.rgb;
-        t *= 1.0 - rgba.a;
+        t *= (1.0 - rgba.a) * unpack_rgba8(near[i].tint).rgb;
     }
     if (ticks > LOOP_BUDGET) {
         atomicOr(&status[0], STATUS_NEAR_LOOP);

@@ -13,6 +13,8 @@
 @group(1) @binding(2) var<storage, read_write> keys: array<vec2<u32>>;
 // Word 0: the fragments that arrived, kept or dropped.
 @group(1) @binding(3) var<storage, read_write> counter: array<atomic<u32>, 4>;
+// Per node, where the frame's glass is tinted (params.tinted): its fragment's tint (RGB8).
+@group(1) @binding(4) var<storage, read_write> tints: array<u32>;
 
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
@@ -26,6 +28,9 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     }
     let p = pixel_index(in.clip, params.width);
     keys[node] = key_of(in.clip.z, f.rgba8);
+    if (params.tinted != 0u) {
+        tints[node] = f.tint;
+    }
     next[node] = atomicExchange(&heads[p], node + 1u);
     return vec4<f32>(0.0);
 }

@@ -590,8 +590,12 @@ impl<'a> Renderer<'a> {
         let allocated_bytes = match method {
             _ if a.exact => budget::ABUFFER.allocated_bytes(pixels, slots) + tints,
             Method::Abuffer => method.layout().allocated_bytes(pixels, slots) + tints,
-            // Its whole pool of F nodes, however many arrived.
-            Method::LinkedList => method.layout().allocated_bytes(pixels, a.budget_fragments),
+            // Its whole pool of F nodes, however many arrived, with a tint a node where the
+            // frame's glass is tinted.
+            Method::LinkedList => {
+                method.layout().allocated_bytes(pixels, a.budget_fragments)
+                    + fl.tinted() as u64 * budget::TINT_BYTES * a.budget_fragments
+            }
             Method::Fkb | Method::Mlab => method
                 .layout()
                 .allocated_bytes(pixels, k[0] as u64 * pixels),

@@ -410,7 +410,7 @@ fn bindings_of(method: &AppMethod, phase: Phase) -> Vec<Binding> {
         Phase::Capture | Phase::CaptureFits | Phase::CaptureDepths | Phase::CaptureColours => {
             vec![Read, ReadWrite, ReadWrite, ReadWrite, ReadWrite]
         }
-        Phase::ListStore => vec![ReadWrite; 4],
+        Phase::ListStore => vec![ReadWrite; 5],
         Phase::WboitAccumulate => vec![],
         Phase::MboitMoments => vec![Uniform],
         Phase::MboitAccumulate => {

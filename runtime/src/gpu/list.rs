@@ -22,19 +22,28 @@ impl Recording<'_, '_, '_> {
         let next = fb.storage("list.next", 4 * nodes, true)?;
         let keys = fb.storage("list.keys", 8 * nodes, true)?;
         let counter = fb.storage("list.counter", 16, true)?;
+        // Where the frame's glass is tinted, a tint a node (4 bytes more); else an empty
+        // binding.
+        let tinted = self.tinted && nodes > 0;
+        let tints = match tinted {
+            true => fb.storage("list.tints", 4 * nodes, true)?,
+            false => fb.storage("list.no_tints", 16, false)?,
+        };
         let (store, resolve) = gpu.extras().list();
         passes.draw(
             fb.enc,
             Phase::ListStore,
             store,
-            &[&heads, &next, &keys, &counter],
+            &[&heads, &next, &keys, &counter, &tints],
             "store",
         );
         let mut group = entries(&[passes.params(), &heads, &next, &keys]);
-        group.push(wgpu::BindGroupEntry {
-            binding: 5,
-            resource: status.as_entire_binding(),
-        });
+        for (binding, buffer) in [(5, &status), (8, &tints)] {
+            group.push(wgpu::BindGroupEntry {
+                binding,
+                resource: buffer.as_entire_binding(),
+            });
+        }
         passes.resolve(fb.enc, Resolve::List, resolve, group, 4, "sort and blend");
         self.out.status = Some(status);
         if !passes.opts.diagnostics {
@@ -46,6 +55,10 @@ impl Recording<'_, '_, '_> {
             let stored = arrived.min(nodes);
             let next = u32s(&read_back(gpu, &next, 4 * stored)?);
             let keys = read_u64s(gpu, &keys, stored)?;
+            let tints = match tinted {
+                true => u32s(&read_back(gpu, &tints, 4 * stored)?),
+                false => Vec::new(),
+            };
             let mut fl = FragmentLists {
                 width,
                 height,
@@ -60,6 +73,9 @@ impl Recording<'_, '_, '_> {
                     let key = keys[node as usize - 1];
                     fl.depth.push(f32::from_bits((key >> 32) as u32));
                     fl.rgba.push(crate::fragment::unpack_rgba8(key as u32));
+                    if tinted {
+                        fl.tint.push(tints[node as usize - 1]);
+                    }
                     fl.primitive.push(0);
                     node = next[node as usize - 1];
                     left -= 1;

@@ -230,7 +230,11 @@ impl Gpu {
         let scopes = self.begin_frame(width, height)?;
         let px = width as u64 * height as u64;
         // Tinted glass where the method stores its tints: the A-buffer's, MLAB's lists.
-        let tints = scene.tints() && matches!(slots, None | Some(Slots::Mlab(_)));
+        let tints = scene.tints()
+            && matches!(
+                slots,
+                None | Some(Slots::Mlab(_) | Slots::LinkedList { .. })
+            );
         let params = Params {
             uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
             tinted: tints as u32,
@@ -400,8 +404,8 @@ impl Gpu {
         if scene.tints() && params.tinted == 0 {
             return Err(Error::Invalid(format!(
                 "{}: tinted glass (per-channel transmittance) is composited on the GPU by the \
-                 A-buffer and MLAB only: render this method with --device cpu, or the glass \
-                 grey (--glass grey)",
+                 A-buffer, MLAB and the linked list only: render this method with --device \
+                 cpu, or the glass grey (--glass grey)",
                 scene.name
             )));
         }
@@ -553,7 +557,8 @@ impl SceneStream {
         let mut stream = Stream::new(gpu, (w, h), app, budget)?;
         stream.exact_when_cheaper = options.exact_when_cheaper;
         // Tinted glass where the method stores its tints: the A-buffer's, MLAB's lists.
-        let tinted = (scene.tints() && matches!(method, M::Abuffer | M::Mlab)) as u32;
+        let tinted =
+            (scene.tints() && matches!(method, M::Abuffer | M::Mlab | M::LinkedList)) as u32;
         let params = Params {
             tinted,
             ..frame_params(None, w, h, options.background)
