@@ -18,9 +18,16 @@ fn texel(t: texture_2d<f32>, p: u32) -> vec4<f32> {
 // WBOIT's pixel p over `under`.
 fn wboit_pixel(p: u32, under: vec3<f32>) -> vec3<f32> {
     let acc = texel(first_target, p);
-    let reveal = texel(second_target, p).r;
+    let second = texel(second_target, p);
+    var reveal = second.r;
+    var through = vec3<f32>(reveal);
+    // Tinted glass: the revealage in A, what the fragments let through per channel in RGB.
+    if (params.tinted != 0u) {
+        reveal = second.a;
+        through = second.rgb;
+    }
     let inv = 1.0 / clamp(acc.a, 1e-4, 5e4);
-    return acc.rgb * inv * (1.0 - reveal) + reveal * under;
+    return acc.rgb * inv * (1.0 - reveal) + through * under;
 }
 
 // MBOIT's pixel p over `under`.

@@ -45,8 +45,7 @@ struct Targets {
     @location(1) revealage: vec4<f32>,
 };
 
-@fragment
-fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> Targets {
+fn accumulate(in: VertexOut, front: bool, tinted: bool) -> Targets {
     let f = transparent_fragment(in, front);
     if (!f.visible) {
         discard;
@@ -57,5 +56,21 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> Targets {
     var out: Targets;
     out.accumulation = vec4<f32>(rgba.rgb * rgba.a * w, rgba.a * w);
     out.revealage = vec4<f32>(rgba.a);
+    if (tinted) {
+        // RGB multiplies by the transmittance (1 - a) g, A by 1 - a (the revealage).
+        out.revealage = vec4<f32>(1.0 - (1.0 - rgba.a) * unpack_rgba8(f.tint).rgb, rgba.a);
+    }
     return out;
+}
+
+@fragment
+fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> Targets {
+    return accumulate(in, front, false);
+}
+
+// Where the frame's glass is tinted: the revealage target is RGBA8, its RGB the product of the
+// transmittances per channel (McGuire and Bavoil's coloured transmission).
+@fragment
+fn fs_tinted(in: VertexOut, @builtin(front_facing) front: bool) -> Targets {
+    return accumulate(in, front, true);
 }

@@ -22,6 +22,10 @@ pub const SLOT_BYTES: u64 = 8;
 /// (`abuf.tints`: its RGB8 tint, `fragment::FragmentLists::tint`).
 pub const TINT_BYTES: u64 = 4;
 
+/// Bytes a pixel WBOIT adds where the frame's glass is tinted: an RGBA8 transmittance target in
+/// its R8 revealage's place (`wboit.transmittance`).
+pub const WBOIT_TINT_BYTES: u64 = 3;
+
 /// The exact A-buffer's bytes for `fragments` on `pixels`, with their tints where `tinted`.
 pub fn abuffer_bytes(pixels: u64, fragments: u64, tinted: bool) -> u64 {
     ABUFFER.allocated_bytes(pixels, fragments) + tinted as u64 * TINT_BYTES * fragments

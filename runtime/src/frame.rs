@@ -471,7 +471,10 @@ impl<'a> Renderer<'a> {
             // Fixed memory whatever the budget: its accumulation targets, no slot. A byte
             // budget is a cap for them as for every method: targets above it do not run.
             (Method::Wboit | Method::Mboit, b) => {
-                let need = layout.fixed_bytes(pixels);
+                // WBOIT's transmittance target is RGBA8 where the frame's glass is tinted.
+                let tinted = fl.tinted() && method == Method::Wboit;
+                let need =
+                    layout.fixed_bytes(pixels) + tinted as u64 * budget::WBOIT_TINT_BYTES * pixels;
                 match b {
                     Budget::Bytes(m) if need > m => {
                         return Err(Error::Budget(
@@ -590,6 +593,10 @@ impl<'a> Renderer<'a> {
         let allocated_bytes = match method {
             _ if a.exact => budget::ABUFFER.allocated_bytes(pixels, slots) + tints,
             Method::Abuffer => method.layout().allocated_bytes(pixels, slots) + tints,
+            Method::Wboit => {
+                method.layout().allocated_bytes(pixels, 0)
+                    + fl.tinted() as u64 * budget::WBOIT_TINT_BYTES * pixels
+            }
             // Its whole pool of F nodes, however many arrived, with a tint a node where the
             // frame's glass is tinted.
             Method::LinkedList => {

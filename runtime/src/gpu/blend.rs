@@ -35,6 +35,12 @@ impl Target {
         label: "wboit.revealage",
         format: wgpu::TextureFormat::R8Unorm,
     };
+    /// Where the frame's glass is tinted, WBOIT's revealage in A beside the product of the
+    /// transmittances per channel in RGB (McGuire and Bavoil's coloured transmission).
+    pub(super) const WBOIT_TRANSMITTANCE: Target = Target {
+        label: "wboit.transmittance",
+        format: wgpu::TextureFormat::Rgba8Unorm,
+    };
     pub(super) const MBOIT_B0: Target = Target {
         label: "mboit.b0",
         format: wgpu::TextureFormat::R32Float,
@@ -123,6 +129,17 @@ impl BlendPass {
         targets: &[
             (Target::WBOIT_ACCUMULATION, ADD, ZERO),
             (Target::WBOIT_REVEALAGE, MULTIPLY_BY_ONE_MINUS, ONE),
+        ],
+    };
+
+    /// WBOIT's pass where the frame's glass is tinted: the revealage (A) and the product of the
+    /// transmittances (RGB) multiply in one RGBA8 target ([`Target::WBOIT_TRANSMITTANCE`]).
+    pub(super) const WBOIT_TINTED: BlendPass = BlendPass {
+        pass: "wboit_accumulate",
+        entry: "fs_tinted",
+        targets: &[
+            (Target::WBOIT_ACCUMULATION, ADD, ZERO),
+            (Target::WBOIT_TRANSMITTANCE, MULTIPLY_BY_ONE_MINUS, ONE),
         ],
     };
 
@@ -228,7 +245,11 @@ impl Recording<'_, '_, '_> {
     /// WBOIT's accumulation and composite.
     pub(super) fn wboit(&mut self, size: (u32, u32)) -> Result<()> {
         let passes = self.passes;
-        let targets: Vec<_> = BlendPass::WBOIT
+        let pass = match self.tinted {
+            true => BlendPass::WBOIT_TINTED,
+            false => BlendPass::WBOIT,
+        };
+        let targets: Vec<_> = pass
             .targets
             .iter()
             .map(|&(t, _, clear)| (self.fb.target(t, size), clear))
@@ -236,6 +257,10 @@ impl Recording<'_, '_, '_> {
         let fb = &mut self.fb;
         let attachments: Vec<_> = targets.iter().map(|(v, c)| (v, *c)).collect();
         let (accumulate, composite) = passes.gpu.extras().wboit();
+        let accumulate = match self.tinted {
+            true => passes.gpu.extras().wboit_tinted(),
+            false => accumulate,
+        };
         passes.blend(
             fb.enc,
             Phase::WboitAccumulate,

@@ -682,6 +682,7 @@ type MboitPasses = [Option<(wgpu::RenderPipeline, wgpu::RenderPipeline)>; 3];
 struct Extras {
     mlab_resolve: OnceLock<wgpu::ComputePipeline>,
     wboit: OnceLock<(wgpu::RenderPipeline, wgpu::ComputePipeline)>,
+    wboit_tinted: OnceLock<wgpu::RenderPipeline>,
     mboit: OnceLock<(MboitPasses, wgpu::ComputePipeline)>,
     list: OnceLock<(wgpu::RenderPipeline, wgpu::ComputePipeline)>,
     features_no_preload: OnceLock<wgpu::RenderPipeline>,
@@ -718,6 +719,14 @@ impl<'a> ExtraPipelines<'a> {
                 compute_of(self.device(), "blend_composite", "wboit"),
             )
         })
+    }
+
+    /// WBOIT's accumulation pass where the frame's glass is tinted (its composite is
+    /// [`ExtraPipelines::wboit`]'s).
+    pub(super) fn wboit_tinted(self) -> &'a wgpu::RenderPipeline {
+        self.extras()
+            .wboit_tinted
+            .get_or_init(|| blend_pipeline(self.device(), &BlendPass::WBOIT_TINTED))
     }
 
     /// MBOIT's moments and accumulation passes for 4, 6 and 8 power moments (6 and 8 add a

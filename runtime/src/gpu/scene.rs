@@ -233,7 +233,7 @@ impl Gpu {
         let tints = scene.tints()
             && matches!(
                 slots,
-                None | Some(Slots::Mlab(_) | Slots::LinkedList { .. })
+                None | Some(Slots::Mlab(_) | Slots::LinkedList { .. } | Slots::Wboit(_))
             );
         let params = Params {
             uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
@@ -404,8 +404,8 @@ impl Gpu {
         if scene.tints() && params.tinted == 0 {
             return Err(Error::Invalid(format!(
                 "{}: tinted glass (per-channel transmittance) is composited on the GPU by the \
-                 A-buffer, MLAB and the linked list only: render this method with --device \
-                 cpu, or the glass grey (--glass grey)",
+                 A-buffer, MLAB, the linked list and WBOIT only: render this method with \
+                 --device cpu, or the glass grey (--glass grey)",
                 scene.name
             )));
         }
@@ -557,8 +557,9 @@ impl SceneStream {
         let mut stream = Stream::new(gpu, (w, h), app, budget)?;
         stream.exact_when_cheaper = options.exact_when_cheaper;
         // Tinted glass where the method stores its tints: the A-buffer's, MLAB's lists.
-        let tinted =
-            (scene.tints() && matches!(method, M::Abuffer | M::Mlab | M::LinkedList)) as u32;
+        let tinted = (scene.tints()
+            && matches!(method, M::Abuffer | M::Mlab | M::LinkedList | M::Wboit))
+            as u32;
         let params = Params {
             tinted,
             ..frame_params(None, w, h, options.background)
