@@ -11,6 +11,10 @@
 @group(0) @binding(2) var first_target: texture_2d<f32>;
 @group(0) @binding(3) var second_target: texture_2d<f32>;
 
+// MBOIT where the frame's glass is tinted: the product of the transmittances per channel
+// (RGBA8), what the background is seen through.
+@group(0) @binding(4) var third_target: texture_2d<f32>;
+
 fn texel(t: texture_2d<f32>, p: u32) -> vec4<f32> {
     return textureLoad(t, vec2<u32>(p % params.width, p / params.width), 0);
 }
@@ -33,13 +37,24 @@ fn wboit_pixel(p: u32, under: vec3<f32>) -> vec3<f32> {
 // MBOIT's pixel p over `under`.
 fn mboit_pixel(p: u32, under: vec3<f32>) -> vec3<f32> {
     let b0 = texel(second_target, p).r;
+    // A pixel of a tinted fragment (its A 0): the product per channel.
+    var tinted = false;
+    var through = vec3<f32>(1.0);
+    if (params.tinted != 0u) {
+        let t = texel(third_target, p);
+        tinted = t.a == 0.0;
+        through = select(vec3<f32>(1.0), t.rgb, tinted);
+    }
     if (b0 < MBOIT_MIN_B0) {
-        return under;
+        return through * under;
     }
     let acc = texel(first_target, p);
     let total = exp(-b0);
+    if (!tinted) {
+        through = vec3<f32>(total);
+    }
     let inv = select(0.0, 1.0 / acc.a, acc.a > 0.0);
-    return (1.0 - total) * acc.rgb * inv + total * under;
+    return (1.0 - total) * acc.rgb * inv + through * under;
 }
 
 @compute @workgroup_size(PIXEL_GROUP)

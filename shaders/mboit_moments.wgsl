@@ -15,6 +15,10 @@ struct Targets {
 
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> Targets {
+    return moments4(in, front);
+}
+
+fn moments4(in: VertexOut, front: bool) -> Targets {
     let f = transparent_fragment(in, front);
     if (!f.visible) {
         discard;
@@ -29,6 +33,28 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> Targets {
     return out;
 }
 
+// Where the frame's glass is tinted: the product of the transmittances (1 - a) g per channel
+// multiplies into an RGBA8 target, last (blend zero, one minus source: RGB's source 1 - (1 - a)
+// g), and its A, cleared to 1, becomes 0 where a tinted fragment is drawn (source 1): the
+// pixels the composite filters per channel (composite::mboit_blended's).
+fn through(f: Transparent) -> vec4<f32> {
+    let a = unpack_rgba8(f.rgba8).a;
+    let tinted = select(0.0, 1.0, f.tint != CLEAR);
+    return vec4<f32>(1.0 - (1.0 - a) * unpack_rgba8(f.tint).rgb, tinted);
+}
+
+struct TintedTargets {
+    @location(0) b0: vec4<f32>,
+    @location(1) moments: vec4<f32>,
+    @location(2) through: vec4<f32>,
+};
+
+@fragment
+fn fs_tinted(in: VertexOut, @builtin(front_facing) front: bool) -> TintedTargets {
+    let m = moments4(in, front);
+    return TintedTargets(m.b0, m.moments, through(transparent_fragment(in, front)));
+}
+
 // Six and eight power moments: b_1..b_4 in the RGBA32F target, b_5, b_6 (and b_7, b_8) in a
 // third, RG32F (RGBA32F) one, the terms as composite::mboit_terms computes them.
 struct Targets8 {
@@ -41,6 +67,10 @@ struct Targets8 {
 // it holds.
 @fragment
 fn fs_extra(in: VertexOut, @builtin(front_facing) front: bool) -> Targets8 {
+    return moments_extra(in, front);
+}
+
+fn moments_extra(in: VertexOut, front: bool) -> Targets8 {
     var out: Targets8;
     let f = transparent_fragment(in, front);
     if (!f.visible) {
@@ -56,4 +86,17 @@ fn fs_extra(in: VertexOut, @builtin(front_facing) front: bool) -> Targets8 {
     out.moments = vec4<f32>(a * z, a * z2, a * z2 * z, a * z2 * z2);
     out.extra = vec4<f32>(a * z4 * z, a * z4 * z2, a * z6 * z, a * z4 * z4);
     return out;
+}
+
+struct TintedTargets8 {
+    @location(0) b0: vec4<f32>,
+    @location(1) moments: vec4<f32>,
+    @location(2) extra: vec4<f32>,
+    @location(3) through: vec4<f32>,
+};
+
+@fragment
+fn fs_extra_tinted(in: VertexOut, @builtin(front_facing) front: bool) -> TintedTargets8 {
+    let m = moments_extra(in, front);
+    return TintedTargets8(m.b0, m.moments, m.extra, through(transparent_fragment(in, front)));
 }

@@ -49,8 +49,9 @@ pub(crate) struct ViewArgs {
     /// opacity, so clear glass of any colour passes every colour; or `tinted`, per channel,
     /// its base colour filtering the light (a red pane passes red), its colour the Fresnel
     /// reflection. Every method composites tinted glass on the CPU; on the GPU the A-buffer,
-    /// MLAB and the linked list do (4 bytes more a fragment or node: its tint), and WBOIT (3
-    /// bytes more a pixel: an RGBA8 transmittance), and the other methods refuse it.
+    /// MLAB and the linked list do (4 bytes more a fragment or node: its tint), and WBOIT and
+    /// MBOIT (3 and 4 bytes more a pixel: an RGBA8 transmittance); the GPU's k-buffers (FKB,
+    /// VKB, DKB) refuse it.
     #[arg(long, default_value = "grey", value_parser = ["grey", "tinted"])]
     pub(crate) glass: String,
     /// Permute the triangle submission order with this seed.

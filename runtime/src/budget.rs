@@ -25,6 +25,9 @@ pub const TINT_BYTES: u64 = 4;
 /// Bytes a pixel WBOIT adds where the frame's glass is tinted: an RGBA8 transmittance target in
 /// its R8 revealage's place (`wboit.transmittance`).
 pub const WBOIT_TINT_BYTES: u64 = 3;
+/// Bytes a pixel MBOIT adds where the frame's glass is tinted: an RGBA8 target of the
+/// transmittances' product (`mboit.transmittance`).
+pub const MBOIT_TINT_BYTES: u64 = 4;
 
 /// The exact A-buffer's bytes for `fragments` on `pixels`, with their tints where `tinted`.
 pub fn abuffer_bytes(pixels: u64, fragments: u64, tinted: bool) -> u64 {

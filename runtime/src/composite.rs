@@ -287,9 +287,8 @@ fn wboit_sums(frags: &[Fragment], bg: [f32; 3], sums: Sums, p: &WboitParams) -> 
             let t = f.transmittance();
             for i in 0..3 {
                 through[i] *= t[i];
-                let t8 = ((255 - to_unorm8(a)) * ((f.tint >> (8 * i)) & 0xff) + 127) / 255;
-                through8[i] = (through8[i] * t8 + 127) / 255;
             }
+            through8 = multiply8(through8, f);
         }
     }
     if sums == Sums::Targets {
@@ -301,6 +300,17 @@ fn wboit_sums(frags: &[Fragment], bg: [f32; 3], sums: Sums, p: &WboitParams) -> 
     }
     let inv = 1.0 / acc[3].clamp(1e-4, 5e4);
     std::array::from_fn(|i| acc[i] * inv * (1.0 - reveal) + through[i] * bg[i])
+}
+
+/// An RGBA8 target's RGB, cleared to 1, multiplied by fragment `f`'s transmittance `(1 - a) g`
+/// as a device's blending does (`dst (1 - src)`, src `1 - (1 - a) g`): each channel times the
+/// transmittance in 8 bits, rounded to the nearest 1/255 (the revealage's rounding).
+fn multiply8(t8: [u32; 3], f: &Fragment) -> [u32; 3] {
+    let a8 = to_unorm8(f.rgba[3]);
+    std::array::from_fn(|i| {
+        let g8 = (f.tint >> (8 * i)) & 0xff;
+        (t8[i] * (((255 - a8) * g8 + 127) / 255) + 127) / 255
+    })
 }
 
 /// A value as a binary16 target stores it (round to nearest even): what a device's blend
@@ -754,18 +764,23 @@ pub fn mboit_blended(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 
 }
 
 /// Where a fragment is tinted, what the background is seen through per channel: the product
-/// of the fragments' transmittances (exact in any order). MBOIT's colours keep the moments'
-/// grey share; only the background is filtered per channel.
-fn tinted_through(frags: &[Fragment]) -> Option<[f32; 3]> {
-    frags
-        .iter()
-        .any(|f| f.tint != crate::fragment::CLEAR)
-        .then(|| {
-            frags.iter().fold([1.0; 3], |t, f| {
-                let ft = f.transmittance();
-                std::array::from_fn(|i| t[i] * ft[i])
-            })
-        })
+/// of the fragments' transmittances, in f32 (`Sums::Exact`), or in an RGBA8 target as the GPU
+/// multiplies it (`Sums::Targets`, [`multiply8`]). MBOIT's colours keep the moments' grey
+/// share; only the background is filtered per channel.
+fn tinted_through(frags: &[Fragment], sums: Sums) -> Option<[f32; 3]> {
+    if !frags.iter().any(|f| f.tint != crate::fragment::CLEAR) {
+        return None;
+    }
+    Some(match sums {
+        Sums::Exact => frags.iter().fold([1.0; 3], |t, f| {
+            let ft = f.transmittance();
+            std::array::from_fn(|i| t[i] * ft[i])
+        }),
+        Sums::Targets => frags
+            .iter()
+            .fold([255; 3], multiply8)
+            .map(|t| t as f32 / 255.0),
+    })
 }
 
 /// MBOIT's two passes over `frags` in their order, the colour summed as `sums` says.
@@ -780,7 +795,7 @@ fn mboit_passes(frags: &[Fragment], bg: [f32; 3], p: MboitParams, sums: Sums) ->
         }
     }
     if b0 < MBOIT_MIN_B0 {
-        let t = tinted_through(frags).unwrap_or([1.0; 3]);
+        let t = tinted_through(frags, sums).unwrap_or([1.0; 3]);
         return std::array::from_fn(|i| t[i] * bg[i]);
     }
     let m = b.map(|x| x / b0);
@@ -794,7 +809,7 @@ fn mboit_passes(frags: &[Fragment], bg: [f32; 3], p: MboitParams, sums: Sums) ->
         }
     }
     let total = (-b0).exp();
-    let through = tinted_through(frags).unwrap_or([total; 3]);
+    let through = tinted_through(frags, sums).unwrap_or([total; 3]);
     let inv = if acc[3] > 0.0 { 1.0 / acc[3] } else { 0.0 };
     std::array::from_fn(|i| (1.0 - total) * acc[i] * inv + through[i] * bg[i])
 }

@@ -471,10 +471,8 @@ impl<'a> Renderer<'a> {
             // Fixed memory whatever the budget: its accumulation targets, no slot. A byte
             // budget is a cap for them as for every method: targets above it do not run.
             (Method::Wboit | Method::Mboit, b) => {
-                // WBOIT's transmittance target is RGBA8 where the frame's glass is tinted.
-                let tinted = fl.tinted() && method == Method::Wboit;
-                let need =
-                    layout.fixed_bytes(pixels) + tinted as u64 * budget::WBOIT_TINT_BYTES * pixels;
+                // Their transmittance targets where the frame's glass is tinted.
+                let need = layout.fixed_bytes(pixels) + tint_target_bytes(method, fl, pixels);
                 match b {
                     Budget::Bytes(m) if need > m => {
                         return Err(Error::Budget(
@@ -593,9 +591,9 @@ impl<'a> Renderer<'a> {
         let allocated_bytes = match method {
             _ if a.exact => budget::ABUFFER.allocated_bytes(pixels, slots) + tints,
             Method::Abuffer => method.layout().allocated_bytes(pixels, slots) + tints,
-            Method::Wboit => {
-                method.layout().allocated_bytes(pixels, 0)
-                    + fl.tinted() as u64 * budget::WBOIT_TINT_BYTES * pixels
+            Method::Wboit | Method::Mboit => {
+                self.options.layout(method).allocated_bytes(pixels, 0)
+                    + tint_target_bytes(method, fl, pixels)
             }
             // Its whole pool of F nodes, however many arrived, with a tint a node where the
             // frame's glass is tinted.
@@ -638,6 +636,17 @@ impl<'a> Renderer<'a> {
     pub fn render(&self, method: Method) -> Result<Frame> {
         Ok(self.composite(self.allocate(method)?))
     }
+}
+
+/// The bytes WBOIT's or MBOIT's transmittance target adds where the frame's glass is tinted
+/// ([`budget::WBOIT_TINT_BYTES`], [`budget::MBOIT_TINT_BYTES`]; 0 for any other frame).
+fn tint_target_bytes(method: Method, fl: &FragmentLists, pixels: u64) -> u64 {
+    let bytes = match method {
+        Method::Wboit => budget::WBOIT_TINT_BYTES,
+        Method::Mboit => budget::MBOIT_TINT_BYTES,
+        _ => 0,
+    };
+    fl.tinted() as u64 * bytes * pixels
 }
 
 /// The most bytes a k-buffer method's frame of occupancy `occ` can allocate at F: its fixed

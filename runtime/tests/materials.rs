@@ -498,8 +498,8 @@ fn materials_render_alike_on_cpu_and_gpu() {
 }
 
 /// Tinted glass on the GPU: the A-buffer and the linked list store each fragment's tint beside
-/// its key, and the A-buffer, MLAB and the list (its tail too) filter per channel, and WBOIT
-/// multiplies what it lets through per channel (an RGBA8 target), as their CPU twins: the same fragments, colours and
+/// its key, and the A-buffer, MLAB and the list (its tail too) filter per channel, and WBOIT and
+/// MBOIT multiply what they let through per channel (an RGBA8 target), as their CPU twins: the same fragments, colours and
 /// tints (within one 8-bit step, as above), the GPU's image its own fragments' twin, and within
 /// [`STEP`] of the CPU's (a tinted colour is its reflection over its opacity, a division that
 /// lands some channels within float rounding of a half step; at most one in a thousand). The tints show (the grey image differs), and a method that
@@ -561,6 +561,7 @@ fn tinted_glass_renders_alike_on_cpu_and_gpu() {
                 Method::Mlab,
                 Method::LinkedList,
                 Method::Wboit,
+                Method::Mboit,
             ];
             for (m, cpu, gpu) in common::cpu_and_gpu_frames(g, &s, &cam, &fl, opts, &methods) {
                 let (n, worst) = differing(&cpu.image, &gpu, common::twin_bound(m, STEP));

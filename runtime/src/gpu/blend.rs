@@ -59,6 +59,12 @@ impl Target {
         label: "mboit.extra",
         format: wgpu::TextureFormat::Rgba32Float,
     };
+    /// Where the frame's glass is tinted, the product of the fragments' transmittances per
+    /// channel (RGB), which MBOIT sees the background through.
+    pub(super) const MBOIT_TRANSMITTANCE: Target = Target {
+        label: "mboit.transmittance",
+        format: wgpu::TextureFormat::Rgba8Unorm,
+    };
     pub(super) const MBOIT_ACCUMULATION: Target = Target {
         label: "mboit.accumulation",
         format: wgpu::TextureFormat::Rgba16Float,
@@ -146,28 +152,42 @@ impl BlendPass {
     /// MBOIT's moments pass and its accumulation for `moments` power moments (4, 6 or 8; six
     /// and eight add a third target of the moments pass). Another count is refused.
     pub(super) fn mboit(moments: u32) -> Result<[BlendPass; 2]> {
-        const B0: (Target, wgpu::BlendState, wgpu::Color) = (Target::MBOIT_B0, ADD, ZERO);
-        const MOMENTS: (Target, wgpu::BlendState, wgpu::Color) = (Target::MBOIT_MOMENTS, ADD, ZERO);
-        let (targets, entry): (&'static [_], _) = match moments {
-            4 => (&[B0, MOMENTS], "fs_main"),
-            6 => (
-                &[B0, MOMENTS, (Target::MBOIT_EXTRA6, ADD, ZERO)],
-                "fs_main6",
-            ),
-            8 => (
-                &[B0, MOMENTS, (Target::MBOIT_EXTRA8, ADD, ZERO)],
-                "fs_main8",
-            ),
-            n => {
+        Self::mboit_for(moments, false)
+    }
+
+    /// [`BlendPass::mboit`], and where `tinted` (the frame's glass tinted) the moments pass
+    /// multiplying the product of the transmittances into one more target, RGBA8, last
+    /// ([`Target::MBOIT_TRANSMITTANCE`]).
+    pub(super) fn mboit_for(moments: u32, tinted: bool) -> Result<[BlendPass; 2]> {
+        type Out = (Target, wgpu::BlendState, wgpu::Color);
+        const B0: Out = (Target::MBOIT_B0, ADD, ZERO);
+        const MOMENTS: Out = (Target::MBOIT_MOMENTS, ADD, ZERO);
+        const E6: Out = (Target::MBOIT_EXTRA6, ADD, ZERO);
+        const E8: Out = (Target::MBOIT_EXTRA8, ADD, ZERO);
+        const T: Out = (Target::MBOIT_TRANSMITTANCE, MULTIPLY_BY_ONE_MINUS, ONE);
+        let (targets, entry): (&'static [_], _) = match (moments, tinted) {
+            (4, false) => (&[B0, MOMENTS], "fs_main"),
+            (6, false) => (&[B0, MOMENTS, E6], "fs_main6"),
+            (8, false) => (&[B0, MOMENTS, E8], "fs_main8"),
+            (4, true) => (&[B0, MOMENTS, T], "fs_main"),
+            (6, true) => (&[B0, MOMENTS, E6, T], "fs_main6"),
+            (8, true) => (&[B0, MOMENTS, E8, T], "fs_main8"),
+            (n, _) => {
                 return Err(crate::error::Error::Invalid(format!(
                     "MBOIT takes 4, 6 or 8 power moments, not {n}"
                 )));
             }
         };
+        let moments_entry = match (moments == 4, tinted) {
+            (true, false) => "fs_main",
+            (false, false) => "fs_extra",
+            (true, true) => "fs_tinted",
+            (false, true) => "fs_extra_tinted",
+        };
         Ok([
             BlendPass {
                 pass: "mboit_moments",
-                entry: if moments == 4 { "fs_main" } else { "fs_extra" },
+                entry: moments_entry,
                 targets,
             },
             BlendPass {
@@ -286,9 +306,14 @@ impl Recording<'_, '_, '_> {
     pub(super) fn mboit(&mut self, size: (u32, u32), moments: u32) -> Result<()> {
         let passes = self.passes;
         let gpu = passes.gpu;
-        let [moments_blend, accumulate_blend] = BlendPass::mboit(moments)?;
+        let tinted = self.tinted;
+        let [moments_blend, accumulate_blend] = BlendPass::mboit_for(moments, tinted)?;
         let at = (moments as usize - 4) / 2;
         let (mboit, composite) = gpu.extras().mboit();
+        let mboit = match tinted {
+            true => gpu.extras().mboit_tinted(),
+            false => mboit,
+        };
         let Some((moments_pass, accumulate_pass)) = &mboit[at] else {
             return Err(GpuError::DeviceLacks {
                 adapter: gpu.adapter().to_string(),
@@ -306,6 +331,11 @@ impl Recording<'_, '_, '_> {
             .collect();
         let (read, accumulation) = written.split_at(moments_blend.targets.len());
         let (b0, accumulation) = (&read[0].0, &accumulation[0]);
+        // The transmittance, last where tinted, is the composite's alone.
+        let (moments_read, through) = match tinted {
+            true => (&read[..read.len() - 1], &read[read.len() - 1].0),
+            false => (read, b0),
+        };
         let fb = &mut self.fb;
         // The absorbance of each 8-bit opacity (composite::mboit_absorbance_table).
         let table = fb.init(
@@ -324,7 +354,7 @@ impl Recording<'_, '_, '_> {
             "moments",
         );
         // The accumulation reads every target the moments pass wrote, at bindings 0...
-        let views = read
+        let views = moments_read
             .iter()
             .enumerate()
             .map(|(binding, (view, _))| wgpu::BindGroupEntry {
@@ -341,7 +371,13 @@ impl Recording<'_, '_, '_> {
             &attachments,
             "accumulate",
         );
-        let group = composite_group(passes.params(), [&accumulation.0, b0]);
+        let mut group = composite_group(passes.params(), [&accumulation.0, b0]);
+        // What the background is seen through per channel where tinted (else b_0 again,
+        // unread).
+        group.push(wgpu::BindGroupEntry {
+            binding: 4,
+            resource: wgpu::BindingResource::TextureView(through),
+        });
         passes.resolve(
             fb.enc,
             Resolve::Mboit,

@@ -684,6 +684,7 @@ struct Extras {
     wboit: OnceLock<(wgpu::RenderPipeline, wgpu::ComputePipeline)>,
     wboit_tinted: OnceLock<wgpu::RenderPipeline>,
     mboit: OnceLock<(MboitPasses, wgpu::ComputePipeline)>,
+    mboit_tinted: OnceLock<MboitPasses>,
     list: OnceLock<(wgpu::RenderPipeline, wgpu::ComputePipeline)>,
     features_no_preload: OnceLock<wgpu::RenderPipeline>,
     portable_capture: OnceLock<[wgpu::RenderPipeline; 2]>,
@@ -742,6 +743,19 @@ impl<'a> ExtraPipelines<'a> {
                     .then(|| (blend_pipeline(device, &m), blend_pipeline(device, &a)))
             });
             (passes, compute_of(device, "blend_composite", "mboit"))
+        })
+    }
+
+    /// MBOIT's passes where the frame's glass is tinted: the moments pass multiplies the
+    /// transmittances into one more target (its composite is [`ExtraPipelines::mboit`]'s).
+    pub(super) fn mboit_tinted(self) -> &'a MboitPasses {
+        self.extras().mboit_tinted.get_or_init(|| {
+            let device = self.device();
+            [4, 6, 8].map(|moments| {
+                let [m, a] = BlendPass::mboit_for(moments, true).expect("4, 6 and 8 moments");
+                mboit_fits(device, &m)
+                    .then(|| (blend_pipeline(device, &m), blend_pipeline(device, &a)))
+            })
         })
     }
 

@@ -233,7 +233,9 @@ impl Gpu {
         let tints = scene.tints()
             && matches!(
                 slots,
-                None | Some(Slots::Mlab(_) | Slots::LinkedList { .. } | Slots::Wboit(_))
+                None | Some(
+                    Slots::Mlab(_) | Slots::LinkedList { .. } | Slots::Wboit(_) | Slots::Mboit(_)
+                )
             );
         let params = Params {
             uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
@@ -403,9 +405,9 @@ impl Gpu {
     ) -> Result<(FrameInputs, buffers::Taken<'_>)> {
         if scene.tints() && params.tinted == 0 {
             return Err(Error::Invalid(format!(
-                "{}: tinted glass (per-channel transmittance) is composited on the GPU by the \
-                 A-buffer, MLAB, the linked list and WBOIT only: render this method with \
-                 --device cpu, or the glass grey (--glass grey)",
+                "{}: tinted glass (per-channel transmittance) is not composited by the GPU's \
+                 k-buffers (FKB, VKB, DKB, an uploaded k): render this method with --device \
+                 cpu, or the glass grey (--glass grey)",
                 scene.name
             )));
         }
@@ -557,9 +559,7 @@ impl SceneStream {
         let mut stream = Stream::new(gpu, (w, h), app, budget)?;
         stream.exact_when_cheaper = options.exact_when_cheaper;
         // Tinted glass where the method stores its tints: the A-buffer's, MLAB's lists.
-        let tinted = (scene.tints()
-            && matches!(method, M::Abuffer | M::Mlab | M::LinkedList | M::Wboit))
-            as u32;
+        let tinted = (scene.tints() && !matches!(method, M::Fkb | M::Vkb | M::Dkb)) as u32;
         let params = Params {
             tinted,
             ..frame_params(None, w, h, options.background)
