@@ -612,25 +612,18 @@ fn colours_agree(cpu: &FragmentLists, gpu: &FragmentLists, what: &str) -> (usize
     for p in 0..cpu.pixel_count() {
         for (a, b) in by_triangle(cpu, p).iter().zip(&by_triangle(gpu, p)) {
             assert_eq!(a.primitive, b.primitive, "{what}: pixel {p}'s fragments");
+            // Colour and opacity, then the tint's three channels.
             let (ga, gb) = (unpack_rgba8(a.tint), unpack_rgba8(b.tint));
-            for i in 0..3 {
-                let d = (ga[i] - gb[i]).abs() * 255.0;
+            let pairs = (0..4).map(|i| (a.rgba[i], b.rgba[i]));
+            for (x, y) in pairs.chain((0..3).map(|i| (ga[i], gb[i]))) {
+                let d = (x - y).abs() * 255.0;
                 assert!(
                     d < 1.5,
-                    "{what}: pixel {p}: tint {:#x} against {:#x}",
-                    a.tint,
-                    b.tint
-                );
-                channels += 1;
-                off += (d > 0.5) as usize;
-            }
-            for i in 0..4 {
-                let d = (a.rgba[i] - b.rgba[i]).abs() * 255.0;
-                assert!(
-                    d < 1.5,
-                    "{what}: pixel {p}: {:?} against {:?}",
+                    "{what}: pixel {p}: {:?} tint {:#x} against {:?} tint {:#x}",
                     a.rgba,
-                    b.rgba
+                    a.tint,
+                    b.rgba,
+                    b.tint
                 );
                 channels += 1;
                 off += (d > 0.5) as usize;
