@@ -106,12 +106,14 @@ pub fn error_curve_sorted(frags: &[Fragment], bg: [f32; 3], out: &mut [f64]) {
             bg
         } else {
             let a_tail = 1.0 - (1.0 - (sa / t as f64).min(1.0)).powi(t);
-            let colour = |i: usize| if sa > 0.0 { sca[i] / sa } else { 0.0 };
+            // a_tail sum(C a) / sum(a), in that order (the curves of untinted frames, which the
+            // training's targets come from, are bit for bit what they were).
+            let colour = |i: usize| if sa > 0.0 { a_tail * sca[i] / sa } else { 0.0 };
             let through = |i: usize| match tinted {
                 false => 1.0 - a_tail,
                 true => (st[i] / t as f64).min(1.0).powi(t),
             };
-            std::array::from_fn(|i| a_tail * colour(i) + through(i) * bg[i])
+            std::array::from_fn(|i| colour(i) + through(i) * bg[i])
         };
     }
     // Prefix: core colour and transmittance after k fragments, per channel.
