@@ -193,16 +193,10 @@ pub const OWN_LR: f64 = 3e-4;
 /// Epochs with `train --scene`.
 pub const OWN_EPOCHS: usize = 20;
 
-/// `dhoit train`.
-pub fn train(a: TrainArgs) -> Result<()> {
-    let [h1, h2] = a.hidden[..] else {
-        return Err(Error::Config(format!(
-            "--hidden takes two sizes, such as 128,64 (got {:?})",
-            a.hidden
-        )));
-    };
-    let own = !a.scenes.is_empty();
-    let out = match &a.out {
+/// Where `train` writes its weights: --out, else with --scene out/finetune/SCENES/, else the
+/// default weights.
+fn out_path(a: &TrainArgs, own: bool) -> PathBuf {
+    match &a.out {
         Some(p) => p.clone(),
         None if own => Path::new("out/finetune")
             .join(
@@ -214,11 +208,18 @@ pub fn train(a: TrainArgs) -> Result<()> {
             )
             .join("weights.safetensors"),
         None => PathBuf::from(DEFAULT_WEIGHTS),
-    };
+    }
+}
+
+/// The network to start from: --init, or with --scene (`own`) the default weights when they
+/// have the sizes asked for; none: random weights.
+fn initial_network(
+    a: &TrainArgs,
+    own: bool,
+    [h1, h2]: [usize; 2],
+) -> Result<Option<(PathBuf, Mlp)>> {
     let default_weights = Path::new(DEFAULT_WEIGHTS);
-    // The network to start from: --init, or with --scene the default weights when they have
-    // the sizes asked for.
-    let init = match &a.init {
+    Ok(match &a.init {
         Some(p) => Some((p.clone(), Mlp::load(p)?)),
         None if own && !a.scratch && default_weights.is_file() => {
             let m = Mlp::load(default_weights)?;
@@ -233,7 +234,112 @@ pub fn train(a: TrainArgs) -> Result<()> {
             }
         }
         None => None,
+    })
+}
+
+/// The dataset `train` reads: --data; with --scene one generated from the scenes into `dir`;
+/// else the default one, generated where it is missing or stale.
+fn data_dir(a: &TrainArgs, own: Option<&DatasetConfig>, dir: &Path) -> Result<PathBuf> {
+    Ok(match (&a.data, own) {
+        (Some(d), _) => d.clone(),
+        (None, Some(c)) => {
+            let d = dir.join("dataset");
+            generate(c, &d)?;
+            d
+        }
+        (None, None) => {
+            let d = PathBuf::from(DEFAULT_DATA);
+            let default = DatasetConfig::default();
+            let fresh = dataset::load(&d)
+                .map(|(m, _)| m.config == default && m.generator == dataset::GENERATOR)
+                .unwrap_or(false);
+            if !fresh {
+                generate(&default, &d)?;
+            }
+            d
+        }
+    })
+}
+
+/// The trained network as it deploys (at `precision`) saved to `out`, beside it config.json
+/// (the training's configuration, its dataset, history and float fingerprint) and the loss
+/// curve; says where. Returns the network saved.
+fn write_trained(
+    config: &TrainConfig,
+    (data_dir, manifest): (&Path, &dataset::Manifest),
+    trained: &trainer::Trained,
+    precision: Precision,
+    out: &Path,
+) -> Result<Mlp> {
+    let dir = out
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let best = &trained.history[trained.best_epoch];
+    let summary = serde_json::json!({
+        "train": config,
+        "dataset": {"dir": data_dir, "config": manifest.config, "samples": manifest.samples},
+        "best_epoch": trained.best_epoch,
+        "best": best,
+        "history": trained.history,
+        "train_samples": trained.train_samples,
+        "validation_samples": trained.validation_samples,
+        "seconds": trained.seconds,
+        "samples_per_second": trained.samples_per_second,
+        "float_fingerprint": crate::trainer::float_fingerprint(),
+    });
+    let meta: HashMap<String, String> = [
+        (
+            "train_config".to_string(),
+            serde_json::to_string(&config).expect("config"),
+        ),
+        ("best_epoch".to_string(), trained.best_epoch.to_string()),
+        (
+            "validation_loss".to_string(),
+            best.validation_loss.to_string(),
+        ),
+    ]
+    .into_iter()
+    .collect();
+    // The network as it deploys (its weights rounded where the precision says so).
+    let mlp = trained.mlp.at_precision(precision)?;
+    mlp.save(out, &meta)?;
+    tensors::write_atomic(
+        &dir.join("config.json"),
+        serde_json::to_string_pretty(&summary)
+            .expect("json")
+            .as_bytes(),
+    )?;
+    let plots = plot::loss_curve(&dir.join("loss"), &trained.history, trained.best_epoch);
+    eprintln!(
+        "train: best epoch {} (validation loss {:.4e}, train loss {:.4e}); {:.1} s, {:.0} samples/s -> {} (+ config.json{})",
+        trained.best_epoch,
+        best.validation_loss,
+        best.train_loss,
+        trained.seconds,
+        trained.samples_per_second,
+        out.display(),
+        plots
+            .iter()
+            .filter_map(|p| p.file_name())
+            .map(|n| format!(", {}", n.to_string_lossy()))
+            .collect::<String>()
+    );
+    Ok(mlp)
+}
+
+/// `dhoit train`.
+pub fn train(a: TrainArgs) -> Result<()> {
+    let [h1, h2] = a.hidden[..] else {
+        return Err(Error::Config(format!(
+            "--hidden takes two sizes, such as 128,64 (got {:?})",
+            a.hidden
+        )));
     };
+    let own = !a.scenes.is_empty();
+    let out = out_path(&a, own);
+    let default_weights = Path::new(DEFAULT_WEIGHTS);
+    let init = initial_network(&a, own, [h1, h2])?;
     let config = TrainConfig {
         loss: a.loss,
         clip: a.clip,
@@ -286,25 +392,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
     } else {
         None
     };
-    let data_dir = match (&a.data, &own_config) {
-        (Some(d), _) => d.clone(),
-        (None, Some(c)) => {
-            let d = dir.join("dataset");
-            generate(c, &d)?;
-            d
-        }
-        (None, None) => {
-            let d = PathBuf::from(DEFAULT_DATA);
-            let default = DatasetConfig::default();
-            let fresh = dataset::load(&d)
-                .map(|(m, _)| m.config == default && m.generator == dataset::GENERATOR)
-                .unwrap_or(false);
-            if !fresh {
-                generate(&default, &d)?;
-            }
-            d
-        }
-    };
+    let data_dir = data_dir(&a, own_config.as_ref(), &dir)?;
     let (manifest, samples) = dataset::load(&data_dir)?;
     eprintln!(
         "train: {} samples from {} ({} scenes)",
@@ -369,57 +457,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         },
     )?;
     pb.finish_and_clear();
-    let best = &trained.history[trained.best_epoch];
-    let summary = serde_json::json!({
-        "train": config,
-        "dataset": {"dir": data_dir, "config": manifest.config, "samples": manifest.samples},
-        "best_epoch": trained.best_epoch,
-        "best": best,
-        "history": trained.history,
-        "train_samples": trained.train_samples,
-        "validation_samples": trained.validation_samples,
-        "seconds": trained.seconds,
-        "samples_per_second": trained.samples_per_second,
-        "float_fingerprint": crate::trainer::float_fingerprint(),
-    });
-    let meta: HashMap<String, String> = [
-        (
-            "train_config".to_string(),
-            serde_json::to_string(&config).expect("config"),
-        ),
-        ("best_epoch".to_string(), trained.best_epoch.to_string()),
-        (
-            "validation_loss".to_string(),
-            best.validation_loss.to_string(),
-        ),
-    ]
-    .into_iter()
-    .collect();
-    // The network as it deploys (its weights rounded where the precision says so), saved and,
-    // with --scene, scored.
-    let mlp = trained.mlp.at_precision(a.precision)?;
-    mlp.save(&out, &meta)?;
-    tensors::write_atomic(
-        &dir.join("config.json"),
-        serde_json::to_string_pretty(&summary)
-            .expect("json")
-            .as_bytes(),
-    )?;
-    let plots = plot::loss_curve(&dir.join("loss"), &trained.history, trained.best_epoch);
-    eprintln!(
-        "train: best epoch {} (validation loss {:.4e}, train loss {:.4e}); {:.1} s, {:.0} samples/s -> {} (+ config.json{})",
-        trained.best_epoch,
-        best.validation_loss,
-        best.train_loss,
-        trained.seconds,
-        trained.samples_per_second,
-        out.display(),
-        plots
-            .iter()
-            .filter_map(|p| p.file_name())
-            .map(|n| format!(", {}", n.to_string_lossy()))
-            .collect::<String>()
-    );
+    let mlp = write_trained(&config, (&data_dir, &manifest), &trained, a.precision, &out)?;
     if let Some(c) = &own_config {
         let start = match &init {
             Some((p, m)) => Some((p.clone(), m.clone())),
