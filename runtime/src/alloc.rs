@@ -106,8 +106,8 @@ pub fn error_curve_sorted(frags: &[Fragment], bg: [f32; 3], out: &mut [f64]) {
             bg
         } else {
             let a_tail = 1.0 - (1.0 - (sa / t as f64).min(1.0)).powi(t);
-            // a_tail sum(C a) / sum(a), in that order (the curves of untinted frames, which the
-            // training's targets come from, are bit for bit what they were).
+            // a_tail sum(C a), then over sum(a): the rounding the committed weights' training
+            // targets were computed with (`make train` reproduces them bit for bit).
             let colour = |i: usize| if sa > 0.0 { a_tail * sca[i] / sa } else { 0.0 };
             let through = |i: usize| match tinted {
                 false => 1.0 - a_tail,

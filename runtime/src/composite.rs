@@ -950,7 +950,7 @@ const MLAB_EMPTY: MlabRow = MlabRow {
 /// MLAB with `m >= 1` rows, fragments taken in the order given (submission order). Rows past
 /// the pixel's fragment count are never merged into and blend as nothing, so `m` is taken as
 /// at most that count: the same result bit for bit, and a budget of gigabytes (36 million
-/// rows a pixel) no longer loops over rows it cannot fill.
+/// rows a pixel) loops over no row it cannot fill.
 pub fn mlab_pixel(frags: &[Fragment], m: usize, bg: [f32; 3]) -> [f32; 3] {
     let m = m.clamp(1, frags.len().max(1));
     let mut rows = vec![MLAB_EMPTY; m + 1];
