@@ -600,60 +600,7 @@ pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, SceneFault> {
     let materials: Vec<Value> = scene
         .materials
         .iter()
-        .map(|m| {
-            let mut pbr = json!({"baseColorFactor": m.base_color});
-            if let Some(t) = m.texture {
-                pbr["baseColorTexture"] = json!({"index": t});
-            }
-            let mut mat = json!({"pbrMetallicRoughness": pbr, "doubleSided": m.double_sided});
-            match m.coverage {
-                Coverage::Opaque => mat["alphaMode"] = json!("OPAQUE"),
-                Coverage::Mask(c) => {
-                    mat["alphaMode"] = json!("MASK");
-                    mat["alphaCutoff"] = json!(c);
-                }
-                Coverage::Blend => mat["alphaMode"] = json!("BLEND"),
-            }
-            let mut ext = serde_json::Map::new();
-            if m.transmission > 0.0 {
-                let mut t = json!({"transmissionFactor": m.transmission});
-                if let Some(i) = m.transmission_texture {
-                    t["transmissionTexture"] = json!({"index": i});
-                }
-                ext.insert("KHR_materials_transmission".into(), t);
-            }
-            if m.emissive != [0.0; 3] {
-                // emissiveFactor is at most 1: what is brighter is its strength.
-                let strength = m.emissive.into_iter().fold(1.0f32, f32::max);
-                mat["emissiveFactor"] = json!(m.emissive.map(|e| e / strength));
-                if strength > 1.0 {
-                    ext.insert(
-                        "KHR_materials_emissive_strength".into(),
-                        json!({"emissiveStrength": strength}),
-                    );
-                }
-                if let Some(i) = m.emissive_texture {
-                    mat["emissiveTexture"] = json!({"index": i});
-                }
-            }
-            if m.attenuation != [1.0; 3] {
-                // One crossing's attenuation is the colour at a thickness of twice the
-                // distance: attenuationColor^(thickness / (2 distance)) with 1 / (2 x 0.5).
-                ext.insert(
-                    "KHR_materials_volume".into(),
-                    json!({"thicknessFactor": 1.0, "attenuationDistance": 0.5,
-                           "attenuationColor": m.attenuation}),
-                );
-            }
-            if m.ior != material::DEFAULT_IOR {
-                ext.insert("KHR_materials_ior".into(), json!({"ior": m.ior}));
-            }
-            used.extend(ext.keys().cloned());
-            if !ext.is_empty() {
-                mat["extensions"] = Value::Object(ext);
-            }
-            mat
-        })
+        .map(|m| material_json(m, &mut used))
         .collect();
     while !bin.len().is_multiple_of(4) {
         bin.push(0);
@@ -694,6 +641,66 @@ pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, SceneFault> {
     out.extend(b"BIN\0");
     out.extend(bin);
     Ok(out)
+}
+
+/// A material as glTF writes it, and the extensions it uses into `used`: base colour factor and
+/// texture, alpha mode and cutoff, double-sidedness, transmission (factor and texture),
+/// emission (its factor at most 1, what is brighter its strength, and its texture), volume
+/// attenuation and IOR.
+fn material_json(m: &Material, used: &mut std::collections::BTreeSet<String>) -> serde_json::Value {
+    use serde_json::{Value, json};
+    let mut pbr = json!({"baseColorFactor": m.base_color});
+    if let Some(t) = m.texture {
+        pbr["baseColorTexture"] = json!({"index": t});
+    }
+    let mut mat = json!({"pbrMetallicRoughness": pbr, "doubleSided": m.double_sided});
+    match m.coverage {
+        Coverage::Opaque => mat["alphaMode"] = json!("OPAQUE"),
+        Coverage::Mask(c) => {
+            mat["alphaMode"] = json!("MASK");
+            mat["alphaCutoff"] = json!(c);
+        }
+        Coverage::Blend => mat["alphaMode"] = json!("BLEND"),
+    }
+    let mut ext = serde_json::Map::new();
+    if m.transmission > 0.0 {
+        let mut t = json!({"transmissionFactor": m.transmission});
+        if let Some(i) = m.transmission_texture {
+            t["transmissionTexture"] = json!({"index": i});
+        }
+        ext.insert("KHR_materials_transmission".into(), t);
+    }
+    if m.emissive != [0.0; 3] {
+        // emissiveFactor is at most 1: what is brighter is its strength.
+        let strength = m.emissive.into_iter().fold(1.0f32, f32::max);
+        mat["emissiveFactor"] = json!(m.emissive.map(|e| e / strength));
+        if strength > 1.0 {
+            ext.insert(
+                "KHR_materials_emissive_strength".into(),
+                json!({"emissiveStrength": strength}),
+            );
+        }
+        if let Some(i) = m.emissive_texture {
+            mat["emissiveTexture"] = json!({"index": i});
+        }
+    }
+    if m.attenuation != [1.0; 3] {
+        // One crossing's attenuation is the colour at a thickness of twice the
+        // distance: attenuationColor^(thickness / (2 distance)) with 1 / (2 x 0.5).
+        ext.insert(
+            "KHR_materials_volume".into(),
+            json!({"thicknessFactor": 1.0, "attenuationDistance": 0.5,
+                   "attenuationColor": m.attenuation}),
+        );
+    }
+    if m.ior != material::DEFAULT_IOR {
+        ext.insert("KHR_materials_ior".into(), json!({"ior": m.ior}));
+    }
+    used.extend(ext.keys().cloned());
+    if !ext.is_empty() {
+        mat["extensions"] = Value::Object(ext);
+    }
+    mat
 }
 
 /// A texture's texels as PNG bytes (RGBA8, as stored).
