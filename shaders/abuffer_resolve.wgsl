@@ -14,7 +14,7 @@ fn list_color(list: Stored, bg: vec3<f32>) -> vec3<f32> {
         tick();
         let rgba = unpack_rgba8(keys[i].x);
         c += t * rgba.a * rgba.rgb;
-        t *= transmittance(rgba, tint_at(i));
+        t *= tint_transmittance(rgba, tint_at(i));
     }
     return c + t * bg;
 }

@@ -111,6 +111,12 @@ fn pack_rgba8(c: vec4<f32>) -> u32 {
 // The tint of a fragment that passes every colour alike (fragment::CLEAR): RGB8, R low.
 const CLEAR: u32 = 0x00ffffffu;
 
+// What a fragment of straight colour `rgba` and tint `tint` lets through, per channel
+// (fragment::transmittance): (1 - a) g.
+fn tint_transmittance(rgba: vec4<f32>, tint: u32) -> vec3<f32> {
+    return (1.0 - rgba.a) * unpack_rgba8(tint).rgb;
+}
+
 fn unpack_rgba8(v: u32) -> vec4<f32> {
     return vec4<f32>(
         f32(v & 0xffu), f32((v >> 8u) & 0xffu), f32((v >> 16u) & 0xffu), f32(v >> 24u)

@@ -232,7 +232,7 @@ fn shade(in: VertexOut, front: bool) -> Shaded {
             // the tint such that (1 - a) g is (1 - cov) + cov t (1 - f) base.
             let f = fresnel(m.f0, cosine);
             let diffuse = (1.0 - t) * (1.0 - f);
-            let colour = (f * at.color.rgb + diffuse * lit) / (1.0 - t * (1.0 - f));
+            let colour = (f * at.color.rgb + diffuse * lit) / opacity;
             out.color = vec4<f32>(colour + e, out.color.a);
             let through = t * (1.0 - f);
             let grey = (1.0 - a) + a * through;

@@ -115,7 +115,7 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
     for (var i = 0u; i < held; i++) {
         let rgba = unpack_rgba8(near[i].key.x);
         c += t * rgba.a * rgba.rgb;
-        t *= (1.0 - rgba.a) * unpack_rgba8(near[i].tint).rgb;
+        t *= tint_transmittance(rgba, near[i].tint);
     }
     if (ticks > LOOP_BUDGET) {
         atomicOr(&status[0], STATUS_NEAR_LOOP);

@@ -13,16 +13,21 @@ struct Targets {
     @location(1) moments: vec4<f32>,
 };
 
-@fragment
-fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> Targets {
-    return moments4(in, front);
-}
-
-fn moments4(in: VertexOut, front: bool) -> Targets {
+// The fragment, shaded once for all the pass's targets; discarded where it is not visible.
+fn visible_fragment(in: VertexOut, front: bool) -> Transparent {
     let f = transparent_fragment(in, front);
     if (!f.visible) {
         discard;
     }
+    return f;
+}
+
+@fragment
+fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> Targets {
+    return moments4(in, visible_fragment(in, front));
+}
+
+fn moments4(in: VertexOut, f: Transparent) -> Targets {
     let alpha8 = f.rgba8 >> 24u;
     let a = absorbance_table[alpha8 >> 2u][alpha8 & 3u];
     let z = mboit_depth(in.clip.z);
@@ -38,9 +43,8 @@ fn moments4(in: VertexOut, front: bool) -> Targets {
 // g), and its A, cleared to 1, becomes 0 where a tinted fragment is drawn (source 1): the
 // pixels the composite filters per channel (composite::mboit_blended's).
 fn through(f: Transparent) -> vec4<f32> {
-    let a = unpack_rgba8(f.rgba8).a;
     let tinted = select(0.0, 1.0, f.tint != CLEAR);
-    return vec4<f32>(1.0 - (1.0 - a) * unpack_rgba8(f.tint).rgb, tinted);
+    return vec4<f32>(1.0 - tint_transmittance(unpack_rgba8(f.rgba8), f.tint), tinted);
 }
 
 struct TintedTargets {
@@ -51,8 +55,9 @@ struct TintedTargets {
 
 @fragment
 fn fs_tinted(in: VertexOut, @builtin(front_facing) front: bool) -> TintedTargets {
-    let m = moments4(in, front);
-    return TintedTargets(m.b0, m.moments, through(transparent_fragment(in, front)));
+    let f = visible_fragment(in, front);
+    let m = moments4(in, f);
+    return TintedTargets(m.b0, m.moments, through(f));
 }
 
 // Six and eight power moments: b_1..b_4 in the RGBA32F target, b_5, b_6 (and b_7, b_8) in a
@@ -67,15 +72,11 @@ struct Targets8 {
 // it holds.
 @fragment
 fn fs_extra(in: VertexOut, @builtin(front_facing) front: bool) -> Targets8 {
-    return moments_extra(in, front);
+    return moments_extra(in, visible_fragment(in, front));
 }
 
-fn moments_extra(in: VertexOut, front: bool) -> Targets8 {
+fn moments_extra(in: VertexOut, f: Transparent) -> Targets8 {
     var out: Targets8;
-    let f = transparent_fragment(in, front);
-    if (!f.visible) {
-        discard;
-    }
     let alpha8 = f.rgba8 >> 24u;
     let a = absorbance_table[alpha8 >> 2u][alpha8 & 3u];
     let z = mboit_depth(in.clip.z);
@@ -97,6 +98,7 @@ struct TintedTargets8 {
 
 @fragment
 fn fs_extra_tinted(in: VertexOut, @builtin(front_facing) front: bool) -> TintedTargets8 {
-    let m = moments_extra(in, front);
-    return TintedTargets8(m.b0, m.moments, m.extra, through(transparent_fragment(in, front)));
+    let f = visible_fragment(in, front);
+    let m = moments_extra(in, f);
+    return TintedTargets8(m.b0, m.moments, m.extra, through(f));
 }

@@ -29,7 +29,7 @@ fn list_color(list: Stored, bg: vec3<f32>) -> vec3<f32> {
         tick();
         let key = keys[i];
         let rgba = unpack_rgba8(key.x);
-        var cur = Row(rgba.rgb * rgba.a, transmittance(rgba, tint_at(i)), key);
+        var cur = Row(rgba.rgb * rgba.a, tint_transmittance(rgba, tint_at(i)), key);
         for (var r = 0u; r < m; r++) {
             tick();
             if (!key_less(rows[r].z, cur.z)) {

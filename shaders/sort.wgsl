@@ -24,11 +24,6 @@ fn tint_at(i: u32) -> u32 {
     return CLEAR;
 }
 
-// What a fragment of straight colour `rgba` and tint `tint` lets through (fragment::
-// transmittance): (1 - a) g per channel.
-fn transmittance(rgba: vec4<f32>, tint: u32) -> vec3<f32> {
-    return (1.0 - rgba.a) * unpack_rgba8(tint).rgb;
-}
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
 // STATUS_NEAR_LOOP where a pixel's sort came close to lavapipe's loop limit, STATUS_POOL_SHORT
 // where the pool held fewer fragments than the frame; the pixels over MAX_FRAGMENTS_PER_PIXEL

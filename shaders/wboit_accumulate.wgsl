@@ -58,7 +58,7 @@ fn accumulate(in: VertexOut, front: bool, tinted: bool) -> Targets {
     out.revealage = vec4<f32>(rgba.a);
     if (tinted) {
         // RGB multiplies by the transmittance (1 - a) g, A by 1 - a (the revealage).
-        out.revealage = vec4<f32>(1.0 - (1.0 - rgba.a) * unpack_rgba8(f.tint).rgb, rgba.a);
+        out.revealage = vec4<f32>(1.0 - tint_transmittance(rgba, f.tint), rgba.a);
     }
     return out;
 }

@@ -63,13 +63,8 @@ impl Recording<'_, '_, '_> {
         } else {
             none
         };
-        // Tints (RGB8) where the frame's glass is tinted (counted: the frame needs them);
-        // else an empty binding.
-        let tinted = self.tinted;
-        let tints = match tinted && total > 0 {
-            true => fb.storage("abuf.tints", 4 * total, true)?,
-            false => fb.storage("abuf.no_tints", 16, false)?,
-        };
+        // Each fragment's tint where the frame's glass is tinted.
+        let (tints, tinted) = fb.tints("abuf", total, self.tinted)?;
         passes.draw(
             fb.enc,
             Phase::Store,

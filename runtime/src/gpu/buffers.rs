@@ -96,6 +96,28 @@ impl<'a, 'e> FrameBuffers<'a, 'e> {
         self.storage_with(label, size, counted, true)
     }
 
+    /// Where the frame's glass is `tinted`, a tint (RGB8) for each of `count` fragments,
+    /// counted (`{owner}.tints`); else an empty binding, uncounted. Returns it and whether it
+    /// holds tints.
+    pub(super) fn tints(
+        &mut self,
+        owner: &str,
+        count: u64,
+        tinted: bool,
+    ) -> Result<(wgpu::Buffer, bool)> {
+        let holds = tinted && count > 0;
+        Ok(match holds {
+            true => (
+                self.storage(&format!("{owner}.tints"), 4 * count, true)?,
+                true,
+            ),
+            false => (
+                self.storage(&format!("{owner}.no_tints"), 16, false)?,
+                false,
+            ),
+        })
+    }
+
     /// [`FrameBuffers::storage`], not cleared: it holds what the last frame left in it (zeros
     /// when new), for state a pass carries from frame to frame.
     pub(super) fn storage_kept(

@@ -22,13 +22,8 @@ impl Recording<'_, '_, '_> {
         let next = fb.storage("list.next", 4 * nodes, true)?;
         let keys = fb.storage("list.keys", 8 * nodes, true)?;
         let counter = fb.storage("list.counter", 16, true)?;
-        // Where the frame's glass is tinted, a tint a node (4 bytes more); else an empty
-        // binding.
-        let tinted = self.tinted && nodes > 0;
-        let tints = match tinted {
-            true => fb.storage("list.tints", 4 * nodes, true)?,
-            false => fb.storage("list.no_tints", 16, false)?,
-        };
+        // A tint a node where the frame's glass is tinted (4 bytes more).
+        let (tints, tinted) = fb.tints("list", nodes, self.tinted)?;
         let (store, resolve) = gpu.extras().list();
         passes.draw(
             fb.enc,
