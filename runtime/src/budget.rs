@@ -33,6 +33,7 @@ pub const MBOIT_TINT_BYTES: u64 = 4;
 pub fn abuffer_bytes(pixels: u64, fragments: u64, tinted: bool) -> u64 {
     ABUFFER.allocated_bytes(pixels, fragments) + tinted as u64 * TINT_BYTES * fragments
 }
+
 /// Bytes of the largest network's weights uniform (the default 12-128-64 network at f32,
 /// `mlp::uniform_bytes`): what [`DKB`] counts; a network's own layout counts its own
 /// ([`Layout::for_network`]).

@@ -264,11 +264,6 @@ fn wboit_sums(frags: &[Fragment], bg: [f32; 3], sums: Sums, p: &WboitParams) -> 
     let mut acc = [0.0f32; 4];
     let mut reveal = 1.0f32;
     let mut reveal8 = 255u32;
-    // Per channel, what the fragments let through (McGuire and Bavoil's coloured transmission):
-    // only where one is tinted, else the revealage.
-    let tinted = frags.iter().any(|f| f.tint != crate::fragment::CLEAR);
-    let mut through = [1.0f32; 3];
-    let mut through8 = [255u32; 3];
     for f in frags {
         let a = f.rgba[3];
         let w = wboit_weight(p, f.depth, a);
@@ -283,21 +278,13 @@ fn wboit_sums(frags: &[Fragment], bg: [f32; 3], sums: Sums, p: &WboitParams) -> 
         }
         reveal *= 1.0 - a;
         reveal8 = (reveal8 * (255 - to_unorm8(a)) + 127) / 255;
-        if tinted {
-            let t = f.transmittance();
-            for i in 0..3 {
-                through[i] *= t[i];
-            }
-            through8 = multiply8(through8, f);
-        }
     }
     if sums == Sums::Targets {
         reveal = reveal8 as f32 / 255.0;
-        through = through8.map(|t| t as f32 / 255.0);
     }
-    if !tinted {
-        through = [reveal; 3];
-    }
+    // Per channel, what the fragments let through (McGuire and Bavoil's coloured transmission)
+    // where one is tinted, else the revealage.
+    let through = tinted_through(frags, sums).unwrap_or([reveal; 3]);
     let inv = 1.0 / acc[3].clamp(1e-4, 5e4);
     std::array::from_fn(|i| acc[i] * inv * (1.0 - reveal) + through[i] * bg[i])
 }
@@ -765,7 +752,7 @@ pub fn mboit_blended(frags: &[Fragment], bg: [f32; 3], p: MboitParams) -> [f32; 
 
 /// Where a fragment is tinted, what the background is seen through per channel: the product
 /// of the fragments' transmittances, in f32 (`Sums::Exact`), or in an RGBA8 target as the GPU
-/// multiplies it (`Sums::Targets`, [`multiply8`]). MBOIT's colours keep the moments' grey
+/// multiplies it (`Sums::Targets`, [`multiply8`]). WBOIT's and MBOIT's colours keep their grey
 /// share; only the background is filtered per channel.
 fn tinted_through(frags: &[Fragment], sums: Sums) -> Option<[f32; 3]> {
     if !frags.iter().any(|f| f.tint != crate::fragment::CLEAR) {

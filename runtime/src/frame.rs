@@ -585,12 +585,12 @@ impl<'a> Renderer<'a> {
         };
         let composite_ms = t1.elapsed().as_secs_f64() * 1e3;
         // FKB and MLAB allocate their k for every pixel; the others exactly sum k; a frame
-        // whose budget holds every fragment, what the A-buffer does.
-        // The exact A-buffer stores each fragment's tint where the frame's glass is tinted.
-        let tints = fl.tinted() as u64 * budget::TINT_BYTES * slots;
+        // whose budget holds every fragment, what the A-buffer does (with each fragment's tint
+        // where the frame's glass is tinted).
         let allocated_bytes = match method {
-            _ if a.exact => budget::ABUFFER.allocated_bytes(pixels, slots) + tints,
-            Method::Abuffer => method.layout().allocated_bytes(pixels, slots) + tints,
+            _ if a.exact || method == Method::Abuffer => {
+                budget::abuffer_bytes(pixels, slots, fl.tinted())
+            }
             Method::Wboit | Method::Mboit => {
                 self.options.layout(method).allocated_bytes(pixels, 0)
                     + tint_target_bytes(method, fl, pixels)

@@ -56,6 +56,15 @@ fn random_fragments(rng: &mut Rng, n: usize) -> Vec<Fragment> {
         .collect()
 }
 
+/// The f32 compositor's distance between `f` (sorted) blended with `k` slots and with all.
+fn f32_distance(f: &[Fragment], k: usize) -> f64 {
+    let (h, x) = (hybrid_sorted(f, k, BG), hybrid_sorted(f, f.len(), BG));
+    (0..3)
+        .map(|i| ((x[i] - h[i]) as f64).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
 #[test]
 fn error_curves_match_direct_computation() {
     let mut rng = Rng::new(11);
@@ -81,12 +90,7 @@ fn error_curves_match_direct_computation() {
                 "n {n} k {k}: {ck} vs {e}"
             );
             // And the f32 compositor agrees on the colour difference.
-            let h32 = hybrid_sorted(&f, k, BG);
-            let x32 = hybrid_sorted(&f, n, BG);
-            let d32: f64 = (0..3)
-                .map(|i| ((x32[i] - h32[i]) as f64).powi(2))
-                .sum::<f64>()
-                .sqrt();
+            let d32 = f32_distance(&f, k);
             assert!(
                 (d32 - e.sqrt()).abs() < 2e-5,
                 "n {n} k {k}: f32 {d32} f64 {}",
@@ -118,13 +122,8 @@ fn tinted_error_curves_are_the_compositors() {
         if n >= 1 {
             assert!(curve[n - 1] <= 1e-24, "n {n}: e(n - 1) = {}", curve[n - 1]);
         }
-        let x32 = hybrid_sorted(&f, n, BG);
         for (k, &ck) in curve.iter().enumerate() {
-            let h32 = hybrid_sorted(&f, k, BG);
-            let d32: f64 = (0..3)
-                .map(|i| ((x32[i] - h32[i]) as f64).powi(2))
-                .sum::<f64>()
-                .sqrt();
+            let d32 = f32_distance(&f, k);
             assert!(
                 (d32 - ck.sqrt()).abs() < 2e-5,
                 "n {n} k {k}: f32 {d32} f64 {}",

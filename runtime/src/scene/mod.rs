@@ -372,16 +372,21 @@ impl Scene {
         out
     }
 
+    /// The least and greatest corners of the box enclosing every vertex (infinite, inside out,
+    /// where there is none).
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.positions.iter().fold(
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        )
+    }
+
     /// Centre and radius of a sphere enclosing every vertex (the bounding box's centre).
     pub fn bounding_sphere(&self) -> (Vec3, f32) {
         if self.positions.is_empty() {
             return (Vec3::ZERO, 1.0);
         }
-        let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
-        for p in &self.positions {
-            lo = lo.min(*p);
-            hi = hi.max(*p);
-        }
+        let (lo, hi) = self.bounds();
         let c = 0.5 * (lo + hi);
         let r = self
             .positions
@@ -488,10 +493,7 @@ impl Camera {
     pub fn asset(scene: &Scene, width: u32, height: u32) -> Camera {
         let aspect = width as f32 / height as f32;
         let Some(v) = scene.viewpoint else {
-            let (lo, hi) = scene.positions.iter().fold(
-                (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-                |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-            );
+            let (lo, hi) = scene.bounds();
             let (centre, half) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
             let fovy = 45f32.to_radians();
             let tan_v = (fovy * 0.5).tan();
