@@ -280,21 +280,6 @@ pub const OPT: Layout = Layout {
     marks: None,
 };
 
-/// The optimal allocation of a pooled-tail k-buffer (`frame::Method::OptimalPooled`), on the
-/// CPU only: VKB's and DKB's slots and pooled tails ([`POOLED_TAIL`]) and their slot bases,
-/// none of their allocation's or network's buffers.
-pub const OPT_POOLED: Layout = Layout {
-    method: "optimal-pooled",
-    slot_bytes: SLOT_BYTES,
-    per_pixel: &[("oit.offsets", 4)],
-    fixed: &[("params", PARAMS_BYTES), OFFSETS_END, STATUS],
-    scan: true,
-    weights: 0,
-    tail_bytes: POOLED_TAIL,
-    pool_state: None,
-    marks: None,
-};
-
 /// Variable k-buffer with importance maps (paper 002). Its count and the shared word a pixel
 /// (`oit.offsets`), which holds the count pass's nearest key (`importance::vkb_nearest_key`),
 /// the importance, k and the slot bases in turn; the allocation's marks ([`marks_bytes`], a

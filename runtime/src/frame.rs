@@ -26,7 +26,8 @@ pub enum Method {
     Optimal,
     /// The optimal allocation of a k-buffer whose tails share its slots' pool, VKB's and DKB's
     /// layout ([`crate::alloc::ErrorCurves::pooled`]): the least error they can reach with F
-    /// slots. Computed on the CPU only (the GPU's uploaded k keeps a tail a pixel).
+    /// slots. Its memory is DKB's, so at equal bytes it gets DKB's F. Computed on the CPU only
+    /// (the GPU's uploaded k keeps a tail a pixel).
     OptimalPooled,
     /// The paper's backward greedy as printed (heap keyed by the new error).
     GreedyPaper,
@@ -135,7 +136,8 @@ impl Method {
             Method::Vkb => budget::VKB,
             Method::Dkb => budget::DKB,
             Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => budget::OPT,
-            Method::OptimalPooled => budget::OPT_POOLED,
+            // DKB's own layout: at equal bytes the optimum gets DKB's F.
+            Method::OptimalPooled => budget::DKB,
             Method::Mlab => budget::MLAB,
             Method::Wboit => budget::WBOIT,
             Method::Mboit => budget::MBOIT,
@@ -336,7 +338,7 @@ impl Options<'_> {
     /// [`Method::layout`].
     pub fn layout(&self, method: Method) -> Layout {
         match (method, self.weights) {
-            (Method::Dkb, Some(m)) => method
+            (Method::Dkb | Method::OptimalPooled, Some(m)) => method
                 .layout()
                 .for_network(m)
                 .with_record_batches(self.record_batches),
