@@ -17,6 +17,8 @@
 // The pass is built with one of two insertions: kbuffer_insert.wgsl's 64-bit atomics (one
 // pass), or kbuffer_portable.wgsl's 32-bit ones (the portable capture: a depth pass, then a
 // colour pass over the same fragments, CAPTURE_COLOURS), which leave the same slots and tails.
+// Where the frame's glass is tinted, a third build runs after either, kbuffer_tint.wgsl's tint
+// pass: each fragment's tint beside its key, the pushed-out tints into the tail.
 //
 // Built a second time with EVERY_FRAGMENT_FITS for the frames whose budget holds every fragment
 // (the pixels' modes then follow from the slot bases alone; see below).
@@ -55,11 +57,15 @@ fn oit_slot_at(base: u32, i: u32, p: u32) -> u32 {
 // No pooled tail (a pixel that holds all its n fragments: common.wgsl's has_tail).
 const NO_TAIL: u32 = 0xffffffffu;
 
+// The fragment's tint (RGB8), for the tint pass (kbuffer_tint.wgsl).
+var<private> oit_tint: u32 = CLEAR;
+
 // A pooled pixel of n = k fragments (no tail) that appends: the next of its k places, from its
-// count taken down (n - 1 first). The portable capture's colour pass leaves it alone (its depth
-// pass appended whole keys).
+// count taken down (n - 1 first). The passes after the one that appended whole keys (the
+// portable capture's colour pass, the tint pass) hand it to their oit_appended.
 fn pooled_append(p: u32, base: u32, k: u32, depth_word: u32, colour_word: u32) {
     if (!OIT_APPENDS) {
+        oit_appended(p, base, k, depth_word, colour_word);
         return;
     }
     let i = count_in(atomicSub(&count[count_word(p)], count_unit(p)), p) - 1u;
@@ -77,6 +83,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     let p = pixel_index(in.clip, params.width);
     let depth_word = slot_depth_word(in.clip.z);
     let colour_word = slot_colour_word(f.rgba8);
+    oit_tint = f.tint;
     if (EVERY_FRAGMENT_FITS) {
         // The bases hold spans of k = n: no tail.
         let base = slot_base[p];

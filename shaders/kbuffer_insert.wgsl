@@ -44,6 +44,10 @@ fn oit_insert(p: u32, base: u32, k: u32, depth_word: u32, colour_word: u32) -> u
     return u32(cur & 0xfffffffflu);
 }
 
+// Never called: this capture appends (OIT_APPENDS).
+fn oit_appended(p: u32, base: u32, k: u32, depth_word: u32, colour_word: u32) {
+}
+
 // Slot `at` set to the fragment's key (the append mode: nobody else writes it).
 fn oit_store_slot(at: u32, depth_word: u32, colour_word: u32) {
     atomicStore(&oit_slots[at], oit_key(depth_word, colour_word));

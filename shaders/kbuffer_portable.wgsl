@@ -88,6 +88,10 @@ fn oit_insert(p: u32, base: u32, k: u32, depth_word: u32, colour_word: u32) -> u
     return 0u;
 }
 
+// The colour pass leaves an appended pixel alone: its depth pass appended whole keys.
+fn oit_appended(p: u32, base: u32, k: u32, depth_word: u32, colour_word: u32) {
+}
+
 // Slot `at` set to the fragment's key (the append mode, in the depth pass).
 fn oit_store_slot(at: u32, depth_word: u32, colour_word: u32) {
     atomicStore(&oit_slots[2u * at], colour_word);

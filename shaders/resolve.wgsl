@@ -37,6 +37,19 @@ fn count_put(p: u32, c: u32, n: u32) {
 // the frame was given. The flags (loop limits) are not set here.
 @group(0) @binding(7) var<storage, read_write> status: array<atomic<u32>, STATUS_WORDS>;
 
+// Where the frame's glass is tinted (params.tinted), the tint pass's words (kbuffer_tint.wgsl):
+// per pixel three sums of what its tail's tints take away, then each slot's complemented tint
+// at 3 pixels + its index; else an unused buffer.
+@group(0) @binding(10) var<storage, read_write> tints: array<u32>;
+
+// Slot s's tint (RGB8; CLEAR where the glass is grey).
+fn tint_of(s: u32) -> u32 {
+    if (params.tinted == 0u) {
+        return CLEAR;
+    }
+    return ~tints[3u * params.pixels + s];
+}
+
 // The slots blend_slots found filled.
 var<private> filled: u32 = 0u;
 
@@ -83,32 +96,51 @@ fn too_deep(p: u32, n: u32) -> bool {
 const EVERY_FRAGMENT_FITS: bool = false;
 
 // The keys of slots [base, base + n) in decreasing order (nearest first), by insertion (at most
-// APPEND_MAX (APPEND_MAX - 1) / 2 steps).
+// APPEND_MAX (APPEND_MAX - 1) / 2 steps); where tinted, their tints moved with them. The sort
+// is stable, and the tint pass left the tints of equal keys in their slots' order, smallest
+// first (kbuffer_tint.wgsl's oit_appended): they stay in order.
 fn sort_slots(base: u32, n: u32) {
+    let tinted = params.tinted != 0u;
+    let at = 3u * params.pixels + base;
     for (var i = 1u; i < n; i++) {
         let key = slots[base + i];
+        var g = 0u;
+        if (tinted) {
+            g = tints[at + i];
+        }
         var j = i;
         while (j > 0u && key_less(slots[base + j - 1u], key)) {
             slots[base + j] = slots[base + j - 1u];
+            if (tinted) {
+                tints[at + j] = tints[at + j - 1u];
+            }
             j--;
         }
         slots[base + j] = key;
+        if (tinted) {
+            tints[at + j] = g;
+        }
     }
 }
 
 // The slots [base, base + k) front to back (up to the first empty one) over `under`.
 fn blend_slots(p: u32, base: u32, k: u32, under: vec3<f32>) -> vec4<f32> {
     var c = vec3<f32>(0.0);
-    var t = 1.0;
+    var t = vec3<f32>(1.0);
     for (var i = 0u; i < k; i++) {
-        let s = slots[slot_at(base, i, p)];
+        let at = slot_at(base, i, p);
+        let s = slots[at];
         if (all(s == vec2<u32>(0u))) {
             break;
         }
         filled += 1u;
         let rgba = unpack_rgba8(slot_rgba8(s.x));
         c += t * rgba.a * rgba.rgb;
-        t *= 1.0 - rgba.a;
+        if (params.tinted != 0u) {
+            t *= tint_transmittance(rgba, tint_of(at));
+        } else {
+            t *= 1.0 - rgba.a;
+        }
     }
     return vec4<f32>(c + t * under, 1.0);
 }
@@ -166,12 +198,29 @@ fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
     let tl = read_tail(p);
     let tail_n = tl.count;
     let sum_a = tl.sums.w;
-    if (tail_n > 0u && sum_a > 0u) {
-        let a_avg = min(f32(sum_a) / (255.0 * f32(tail_n)), 1.0);
-        let a_tail = 1.0 - pow(1.0 - a_avg, f32(tail_n));
-        let inv = 1.0 / (255.0 * f32(sum_a));
+    // What its tints take away per channel (composite::Tail::absorbed), where tinted.
+    var absorbed = vec3<u32>(0u);
+    if (params.tinted != 0u) {
+        absorbed = vec3<u32>(tints[3u * p], tints[3u * p + 1u], tints[3u * p + 2u]);
+    }
+    let tinted_tail = any(absorbed != vec3<u32>(0u));
+    if (tail_n > 0u && (sum_a > 0u || tinted_tail)) {
+        let n = f32(tail_n);
+        let a_avg = min(f32(sum_a) / (255.0 * n), 1.0);
+        let a_tail = 1.0 - pow(1.0 - a_avg, n);
+        var inv = 0.0;
+        if (sum_a > 0u) {
+            inv = 1.0 / (255.0 * f32(sum_a));
+        }
         let c_tail = vec3<f32>(f32(tl.sums.x), f32(tl.sums.y), f32(tl.sums.z)) * inv;
-        over = a_tail * c_tail + (1.0 - a_tail) * bg;
+        // Per channel t_avg^n, t_avg the mean of (1 - a) g: the clear tints' sum
+        // 255 (255 n - sum a8) less what the tints take away.
+        var through = vec3<f32>(1.0 - a_tail);
+        if (tinted_tail) {
+            let sum_t = vec3<u32>(255u * (255u * tail_n - sum_a)) - absorbed;
+            through = pow(min(vec3<f32>(sum_t) / (255.0 * 255.0 * n), vec3<f32>(1.0)), vec3<f32>(n));
+        }
+        over = a_tail * c_tail + through * bg;
     }
     let color = blend_slots(p, base, k, over);
     // Where the capture inserted: every fragment is in a slot or in the tail.

@@ -22,6 +22,14 @@ pub const SLOT_BYTES: u64 = 8;
 /// (`abuf.tints`: its RGB8 tint, `fragment::FragmentLists::tint`).
 pub const TINT_BYTES: u64 = 4;
 
+/// Words the k-buffers' tint pass keeps where the frame's glass is tinted (kbuffer_tint.wgsl):
+/// three a pixel (what its tail's tints take away per channel), then a tint for each of the
+/// `slot_words` words of its slots (or of the pool its slots and tails share). Each is
+/// [`TINT_BYTES`].
+pub fn kbuffer_tint_words(pixels: u64, slot_words: u64) -> u64 {
+    3 * pixels + slot_words
+}
+
 /// Bytes a pixel WBOIT adds where the frame's glass is tinted: an RGBA8 transmittance target in
 /// its R8 revealage's place (`wboit.transmittance`).
 pub const WBOIT_TINT_BYTES: u64 = 3;

@@ -857,8 +857,6 @@ pub struct Tail {
     pub count: u32,
     /// `sum (255 - a8) g8` per channel: what the tail's fragments let through, summed.
     pub sum_t: [u32; 3],
-    /// Whether a fragment of a tint other than [`crate::fragment::CLEAR`] joined.
-    pub tinted: bool,
 }
 
 impl Tail {
@@ -870,17 +868,31 @@ impl Tail {
         for (i, s) in self.sum_t.iter_mut().enumerate() {
             *s = s.wrapping_add((255 - a) * ((tint >> (8 * i)) & 0xff));
         }
-        self.tinted |= tint != crate::fragment::CLEAR;
         self.sum_a = self.sum_a.wrapping_add(a);
         self.count += 1;
     }
 
+    /// What the tail's tints take away per channel: `sum (255 - a8) (255 - g8)`, the sums of
+    /// clear tints less [`Tail::sum_t`] (0 where every tint is clear, or every tinted fragment
+    /// is opaque). The GPU's k-buffers add these (resolve.wgsl), only for tinted fragments.
+    pub fn absorbed(&self) -> [u32; 3] {
+        let clear = 255 * (255 * self.count).wrapping_sub(self.sum_a);
+        self.sum_t.map(|s| clear.wrapping_sub(s))
+    }
+
+    /// Whether its tints filter any channel ([`Tail::absorbed`] not all 0).
+    pub fn tinted(&self) -> bool {
+        self.absorbed() != [0; 3]
+    }
+
     /// The tail seen over the background: `a_tail C_tail + t_tail C_bg` with
     /// `C_tail = sum C a / sum a`, `a_avg = sum a / n`, `a_tail = 1 - (1 - a_avg)^n` and, per
-    /// channel, `t_tail = 1 - a_tail` where no fragment is tinted, else `t_avg^n`, `t_avg` the
-    /// mean transmittance `sum (1 - a) g / n` (the same value where every tint is clear).
+    /// channel, `t_tail = 1 - a_tail` where the tints filter nothing ([`Tail::tinted`]), else
+    /// `t_avg^n`, `t_avg` the mean transmittance `sum (1 - a) g / n` (the same value where
+    /// they filter nothing).
     pub fn over(&self, bg: [f32; 3]) -> [f32; 3] {
-        if self.count == 0 || (self.sum_a == 0 && !self.tinted) {
+        let tinted = self.tinted();
+        if self.count == 0 || (self.sum_a == 0 && !tinted) {
             return bg;
         }
         let n = self.count as f32;
@@ -890,7 +902,7 @@ impl Tail {
             0 => 0.0,
             s => 1.0 / (255.0 * s as f32),
         };
-        let through: [f32; 3] = match self.tinted {
+        let through: [f32; 3] = match tinted {
             false => [1.0 - a_tail; 3],
             true => self
                 .sum_t

@@ -589,6 +589,15 @@ impl<'a> Renderer<'a> {
         // FKB and MLAB allocate their k for every pixel; the others exactly sum k; a frame
         // whose budget holds every fragment, what the A-buffer does (with each fragment's tint
         // where the frame's glass is tinted).
+        // A k-buffer's `bytes` with, where the frame's glass is tinted, its tint pass's words:
+        // three a pixel and one for each word of its slots or pool.
+        let kbuffer_tinted = |layout: &budget::Layout, bytes: u64| match fl.tinted() {
+            true => {
+                let words = (bytes - layout.fixed_bytes(pixels)) / layout.slot_bytes;
+                bytes + budget::TINT_BYTES * budget::kbuffer_tint_words(pixels, words)
+            }
+            false => bytes,
+        };
         let allocated_bytes = match method {
             _ if a.exact || method == Method::Abuffer => {
                 budget::abuffer_bytes(pixels, slots, fl.tinted())
@@ -603,20 +612,28 @@ impl<'a> Renderer<'a> {
                 method.layout().allocated_bytes(pixels, a.budget_fragments)
                     + fl.tinted() as u64 * budget::TINT_BYTES * a.budget_fragments
             }
-            Method::Fkb | Method::Mlab => method
+            Method::Mlab => method
                 .layout()
                 .allocated_bytes(pixels, k[0] as u64 * pixels),
+            Method::Fkb => {
+                let layout = method.layout();
+                kbuffer_tinted(
+                    &layout,
+                    layout.allocated_bytes(pixels, k[0] as u64 * pixels),
+                )
+            }
             // Its slots, and the tails it keeps in their pool (none where they are per pixel);
             // a pool made before the allocation for state it holds first (DKB), the size it
             // is made at for the frame's budget and occupancy.
             _ => {
                 let layout = self.options.layout(method);
-                if layout.pool_state.is_some() {
+                let bytes = if layout.pool_state.is_some() {
                     let occ = Occupancy::of(&counts);
                     layout.reserved_bytes(pixels, a.budget_fragments, &occ)
                 } else {
                     layout.allocated_with_tails(pixels, slots, budget::tails_kept(&k, &counts))
-                }
+                };
+                kbuffer_tinted(&layout, bytes)
             }
         };
         Frame {

@@ -50,6 +50,8 @@ pub mod shaders {
     pub const KBUFFER_INSERT: &str = include_str!("../../shaders/kbuffer_insert.wgsl");
     /// The same with 32-bit atomics alone, in two passes (the portable capture).
     pub const KBUFFER_PORTABLE: &str = include_str!("../../shaders/kbuffer_portable.wgsl");
+    /// The tint pass after either, where the frame's glass is tinted (kbuffer_tint.wgsl).
+    pub const KBUFFER_TINT: &str = include_str!("../../shaders/kbuffer_tint.wgsl");
 
     /// The module an application's transparent fragment shader starts with: `parts` (what
     /// the store module includes, then the module) joined, their bindings at `group`.
@@ -168,6 +170,7 @@ pub mod shaders {
         "scan",
         "capture_depths",
         "capture_colours",
+        "capture_tints",
         "wboit_accumulate",
         "mboit_moments",
         "mboit_accumulate",
@@ -189,7 +192,7 @@ pub mod shaders {
         "features_colours",
     ];
 
-    pub const PASSES: [Pass; 26] = [
+    pub const PASSES: [Pass; 27] = [
         Pass {
             name: "opaque",
             source: include_str!("../../shaders/opaque.wgsl"),
@@ -237,6 +240,11 @@ pub mod shaders {
                 KBUFFER_PORTABLE,
                 "const CAPTURE_COLOURS: bool = true;",
             ],
+        },
+        Pass {
+            name: "capture_tints",
+            source: include_str!("../../shaders/capture.wgsl"),
+            includes: &[GEOMETRY, KBUFFER_TINT],
         },
         Pass {
             name: "resolve",

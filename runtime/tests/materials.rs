@@ -502,8 +502,8 @@ fn materials_render_alike_on_cpu_and_gpu() {
 /// MBOIT multiply what they let through per channel (an RGBA8 target), as their CPU twins: the same fragments, colours and
 /// tints (within one 8-bit step, as above), the GPU's image its own fragments' twin, and within
 /// [`STEP`] of the CPU's (a tinted colour is its reflection over its opacity, a division that
-/// lands some channels within float rounding of a half step; at most one in a thousand). The tints show (the grey image differs), and a method that
-/// stores no tints refuses the scene by name.
+/// lands some channels within float rounding of a half step; at most one in a thousand). The
+/// tints show (the grey image differs). The k-buffers: `tinted_glass_in_the_gpu_k_buffers_...`.
 #[test]
 fn tinted_glass_renders_alike_on_cpu_and_gpu() {
     let Some(g) = gpu() else { return };
@@ -583,18 +583,6 @@ fn tinted_glass_renders_alike_on_cpu_and_gpu() {
         }
         assert!(tinted_views > 0, "{name}: no view shows a tinted fragment");
         assert!(grey_differ > 0, "{name}: tinted glass renders as grey");
-        let cam = camera(&s, 0);
-        let slots = Some(dhoit_runtime::gpu::Slots::Uniform(2));
-        let refused = g
-            .render(&s, &cam, w, h, BG, slots)
-            .err()
-            .map(|e| e.to_string());
-        assert!(
-            refused
-                .as_deref()
-                .is_some_and(|e| e.contains("tinted glass")),
-            "{name}: FKB on tinted glass: {refused:?}"
-        );
     }
 }
 
@@ -789,6 +777,184 @@ fn real_scenes_with_their_materials_render_alike_on_cpu_and_gpu() {
     }
     eprintln!("{off} of {channels} channels one 8-bit step apart");
     assert!((off as f64) <= CHANNELS_OFF_BY_ONE * channels as f64);
+}
+
+/// Three panes of red, green and blue glass at each of three depths, each three coplanar: at
+/// each depth the three fragments have one key (one depth, the same reflected white) and
+/// three tints, so which tint a slot keeps, and which goes to the tail, is the tie-break of
+/// (key, tint) alone.
+fn coplanar_tints() -> Scene {
+    let mut s = empty();
+    let glass: Vec<u32> = [[0.9, 0.1, 0.1], [0.1, 0.9, 0.2], [0.1, 0.3, 0.9]]
+        .map(|c| {
+            s.add_material(Material {
+                base_color: [c[0], c[1], c[2], 1.0],
+                coverage: Coverage::Opaque,
+                transmission: 1.0,
+                ..Material::default()
+            })
+        })
+        .to_vec();
+    let white = [[1.0; 4]; 4];
+    let uv = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
+    for (i, z) in [0.3, 0.0, -0.3].into_iter().enumerate() {
+        for j in 0..3 {
+            // Submitted in a different order at each depth.
+            let m = glass[(i + j) % 3];
+            quad(&mut s, layer(z, 0.7 - 0.1 * i as f32, 0.1), uv, white, m);
+        }
+    }
+    Scene {
+        glass: Glass::Tinted,
+        ..s
+    }
+}
+
+/// A GPU k-buffer's frame: its label, its k, and the CPU frame whose bytes it allocates (its
+/// method and budget).
+type KBufferRun<'a> = (
+    String,
+    dhoit_runtime::gpu::Slots<'a>,
+    Option<(Method, Budget)>,
+);
+
+/// Tinted glass in the GPU's k-buffers (FKB, an uploaded k, VKB and DKB, each truncating and
+/// keeping every fragment; the one-pass capture and the portable one): each slot keeps its
+/// fragment's tint (the tint pass), the tail its tints' absorption per channel, and the image
+/// is the CPU's hybrid twin (composite::hybrid_sorted) of the GPU's own fragments at the k the
+/// frame stored, within float rounding. The portable capture leaves the same slots and image
+/// as the one-pass one; the grey frames differ; and the tints are counted: 4 bytes a slot and
+/// 12 a pixel more than the grey frame's.
+#[test]
+fn tinted_glass_in_the_gpu_k_buffers_is_their_twins() {
+    use dhoit_runtime::gpu::{Capture, FrameOptions, Slots};
+    let Some(g) = gpu() else { return };
+    let wide_ok = common::is_wide(g, "the one-pass capture of tinted glass");
+    let (w, h) = SIZE;
+    let px = (w * h) as u64;
+    let mlp = Mlp::random(6);
+    let grey_of = |s: &Scene| Scene {
+        glass: Glass::Grey,
+        ..s.clone()
+    };
+    let (mut truncated, mut grey_differ, mut ties, mut bytes_held) = (0, 0, 0, 0);
+    for (name, s) in [
+        ("coplanar tints", coplanar_tints()),
+        (
+            "stained glass",
+            Scene {
+                glass: Glass::Tinted,
+                ..stained_glass_and_emission()
+            },
+        ),
+    ] {
+        for view in [0, 3] {
+            let cam = camera(&s, view);
+            let ab = g.render(&s, &cam, w, h, BG, None).unwrap();
+            let gfl = ab.fragments.clone().unwrap();
+            let total = gfl.fragment_count() as u64;
+            // Pixels where fragments of one key carry different tints.
+            ties += (0..gfl.pixel_count())
+                .filter(|&p| {
+                    let r = gfl.range(p);
+                    r.clone().any(|i| {
+                        r.clone().any(|j| {
+                            gfl.depth[i] == gfl.depth[j]
+                                && gfl.rgba[i] == gfl.rgba[j]
+                                && gfl.tint(i) != gfl.tint(j)
+                        })
+                    })
+                })
+                .count();
+            let k: Vec<u32> = (0..px as u32).map(|p| p % 5).collect();
+            let mut runs: Vec<KBufferRun> = vec![
+                (
+                    "fkb k = 1".into(),
+                    Slots::Uniform(1),
+                    Some((Method::Fkb, Budget::SlotsPerPixel(1.0))),
+                ),
+                (
+                    "fkb k = 4".into(),
+                    Slots::Uniform(4),
+                    Some((Method::Fkb, Budget::SlotsPerPixel(4.0))),
+                ),
+                ("uploaded k".into(), Slots::PerPixel(&k), None),
+            ];
+            for ppm in [250_000, 500_000, 1_000_000] {
+                let f = total * ppm / 1_000_000;
+                let cpu = |m| Some((m, Budget::Share(ppm as u32)));
+                runs.push((
+                    format!("dkb F = {f}"),
+                    Slots::Dkb(&mlp, f.into()),
+                    cpu(Method::Dkb),
+                ));
+                runs.push((
+                    format!("vkb F = {f}"),
+                    Slots::Vkb(Default::default(), f.into()),
+                    cpu(Method::Vkb),
+                ));
+            }
+            let portable = FrameOptions {
+                capture: Capture::Portable,
+                ..FrameOptions::default().always_approximate()
+            };
+            let wide = FrameOptions::default().always_approximate();
+            for (label, slots, cpu) in runs {
+                let what = format!("{name} view {view} {label}");
+                let frame = |opts: &FrameOptions, s: &Scene| {
+                    g.render_with(opts, s, &cam, (w, h), BG, Some(slots))
+                        .unwrap_or_else(|e| panic!("{what}: {e}"))
+                };
+                let b = frame(&portable, &s);
+                let (_, bases, tails) = b.slots.clone().unwrap();
+                let stored: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
+                truncated += tails.chunks_exact(5).filter(|t| t[4] > 0).count();
+                let twin = composite::composite(&gfl, composite::Method::Hybrid(&stored), BG);
+                let (n, worst) = differing(&twin, &b.image, IMAGE_BOUND);
+                assert_eq!(n, 0, "{what}: {n} pixels off the twin (worst {worst})");
+                let grey = frame(&portable, &grey_of(&s));
+                grey_differ += differing(&grey.image, &b.image, STEP).0;
+                // The tints' words: 3 a pixel, 1 a slot (the pool's words where pooled).
+                let extra = b.allocated_bytes - grey.allocated_bytes;
+                assert!(
+                    extra >= 4 * (3 * px + stored.iter().map(|&k| k as u64).sum::<u64>()),
+                    "{what}: the tints take {extra} bytes"
+                );
+                // The CPU's count of the same frame's bytes.
+                if let Some((m, budget)) = cpu {
+                    let opts = Options {
+                        weights: Some(&mlp),
+                        ..Options::new(budget, BG).always_approximate()
+                    };
+                    let f = frame::render(&gfl, m, opts).unwrap();
+                    // (Where F holds every fragment the CPU's frame is the exact one.)
+                    if !f.exact {
+                        assert_eq!(f.allocated_bytes, b.allocated_bytes, "{what}: CPU's bytes");
+                        bytes_held += 1;
+                    }
+                }
+                if matches!(slots, Slots::Uniform(_) | Slots::PerPixel(_)) {
+                    let slots: u64 = match slots {
+                        Slots::Uniform(k) => k as u64 * px,
+                        _ => k.iter().map(|&k| k as u64).sum(),
+                    };
+                    assert_eq!(extra, 4 * (3 * px + slots), "{what}: the tints' bytes");
+                }
+                if wide_ok {
+                    let a = frame(&wide, &s);
+                    assert!(a.slots == b.slots, "{what}: the captures' slots differ");
+                    assert_eq!(differing(&a.image, &b.image, 0.0).0, 0, "{what}: wide");
+                }
+            }
+        }
+    }
+    assert!(ties > 0, "no pixel holds one key with two tints");
+    assert!(truncated > 0, "no pixel kept a tail");
+    assert!(
+        bytes_held >= 8,
+        "{bytes_held} frames' bytes held to the CPU's"
+    );
+    assert!(grey_differ > 0, "tinted glass renders as grey");
 }
 
 /// The sRGB decode, bilinear filtering and Schlick's Fresnel, held to numbers computed by hand

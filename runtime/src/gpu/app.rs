@@ -365,6 +365,7 @@ fn storing_pass(phase: Phase) -> (&'static str, &'static [(&'static str, &'stati
         Phase::CaptureDepths => ("capture_depths", &[]),
         Phase::CaptureColours => ("capture_colours", &[]),
         Phase::ListStore => ("list_store", &[]),
+        Phase::CaptureTints => unreachable!("{phase:?} is dhoit's own frames' alone"),
         Phase::WboitAccumulate | Phase::MboitMoments | Phase::MboitAccumulate => {
             unreachable!("{phase:?} blends into targets")
         }
@@ -411,6 +412,7 @@ fn bindings_of(method: &AppMethod, phase: Phase) -> Vec<Binding> {
             vec![Read, ReadWrite, ReadWrite, ReadWrite, ReadWrite]
         }
         Phase::ListStore => vec![ReadWrite; 5],
+        Phase::CaptureTints => unreachable!("{phase:?} is dhoit's own frames' alone"),
         Phase::WboitAccumulate => vec![],
         Phase::MboitMoments => vec![Uniform],
         Phase::MboitAccumulate => {

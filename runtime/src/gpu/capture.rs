@@ -174,6 +174,17 @@ impl Recording<'_, '_, '_> {
             ),
         };
         let pooled = matches!(kb.slots, SlotsAt::Pooled(_));
+        // Where the frame's glass is tinted, the tint pass's words (kbuffer_tint.wgsl): three
+        // of its tail's absorption a pixel, then a tint a slot of the pool or the slots.
+        let slot_words = match &kb.slots {
+            SlotsAt::Pooled(pool) => pool.size() / crate::budget::SLOT_BYTES,
+            SlotsAt::PerPixel(n) => *n,
+        };
+        let (tints, tinted) = fb.tints(
+            "oit",
+            crate::budget::kbuffer_tint_words(px, slot_words),
+            self.tinted,
+        )?;
         // One pass with 64-bit atomics, or on a device without them (or asked for it) the
         // portable capture's two with 32-bit ones: the same slots and tails.
         let wide = (gpu.capture_for(passes.opts.capture) == Capture::Wide)
@@ -207,6 +218,14 @@ impl Recording<'_, '_, '_> {
                 passes.draw(fb.enc, c, colours, &group, "capture colours");
             }
         }
+        if tinted {
+            // Its group: the bases, the slots, the counts and the tints (the tails' buffers
+            // are the capture's alone).
+            let mut group = entries(&[&kb.base, &slots]);
+            group.extend(entries_from(4, &[&kb.counts, &tints]));
+            let tint = gpu.extras().capture_tints(fits);
+            passes.draw_group(fb.enc, Phase::CaptureTints, tint, group, "capture tints");
+        }
         let (resolve, own) = (
             Resolve::KBuffer { fits },
             if fits { &p.resolve_fits } else { &p.resolve },
@@ -233,6 +252,7 @@ impl Recording<'_, '_, '_> {
         };
         let mut group = entries(&[passes.params(), &kb.base, &slots, &tail, &tail_count]);
         group.extend(entries_from(6, &[&kb.counts, &status]));
+        group.extend(entries_from(10, &[&tints]));
         passes.resolve(fb.enc, resolve, own, group, 5, "resolve");
         self.out.status = Some(status);
         if !passes.opts.diagnostics {

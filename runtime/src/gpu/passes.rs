@@ -35,6 +35,10 @@ pub enum Phase {
     /// The portable capture's second pass, over the same fragments: each one's colour into the
     /// slots holding its depth, or into the tail.
     CaptureColours,
+    /// Where the frame's glass is tinted, after either capture: each fragment's tint beside
+    /// its key (capture.wgsl with kbuffer_tint.wgsl). dhoit's own frames alone: an
+    /// application's fragments are untinted.
+    CaptureTints,
     /// The budgeted linked list's store (list_store.wgsl).
     ListStore,
     /// WBOIT's accumulation into its two targets (wboit_accumulate.wgsl).
@@ -210,10 +214,22 @@ impl<'a> Passes<'a> {
         buffers: &[&wgpu::Buffer],
         name: &'static str,
     ) {
+        self.draw_group(enc, phase, pipeline, entries(buffers), name);
+    }
+
+    /// [`Passes::draw`] with the group's entries at the bindings they name.
+    pub(super) fn draw_group(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        phase: Phase,
+        pipeline: &wgpu::RenderPipeline,
+        group: Vec<wgpu::BindGroupEntry<'_>>,
+        name: &'static str,
+    ) {
         let pass = GeometryPass {
             phase,
             pipeline,
-            group: entries(buffers),
+            group,
             targets: &[],
             name,
         };

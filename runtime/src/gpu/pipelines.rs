@@ -676,8 +676,8 @@ type MboitPasses = [Option<(wgpu::RenderPipeline, wgpu::RenderPipeline)>; 3];
 
 /// The passes only some methods draw, each built the first time a frame asks for it, so a
 /// renderer that never draws them (an application's DKB or VKB) never compiles them: MLAB's
-/// resolve, WBOIT's and MBOIT's passes and composites, the list's, the portable capture, and
-/// the bench's features pass without its preload.
+/// resolve, WBOIT's and MBOIT's passes and composites, the list's, the portable capture, the
+/// k-buffers' tint pass, and the bench's features pass without its preload.
 #[derive(Default)]
 struct Extras {
     mlab_resolve: OnceLock<wgpu::ComputePipeline>,
@@ -688,6 +688,7 @@ struct Extras {
     list: OnceLock<(wgpu::RenderPipeline, wgpu::ComputePipeline)>,
     features_no_preload: OnceLock<wgpu::RenderPipeline>,
     portable_capture: OnceLock<[wgpu::RenderPipeline; 2]>,
+    capture_tints: OnceLock<[wgpu::RenderPipeline; 2]>,
     portable_features: OnceLock<[wgpu::RenderPipeline; 2]>,
 }
 
@@ -775,6 +776,29 @@ impl<'a> ExtraPipelines<'a> {
             ["capture_depths", "capture_colours"]
                 .map(|name| transparent_pipeline(device, name, &module(device, name)))
         })
+    }
+
+    /// The k-buffers' tint pass where the frame's glass is tinted (capture.wgsl with
+    /// kbuffer_tint.wgsl, 32-bit atomics alone, after either capture): in general, and built
+    /// for frames whose budget holds every fragment (as the capture is).
+    pub(super) fn capture_tints(self, fits: bool) -> &'a wgpu::RenderPipeline {
+        let [general, all_fit] = self.extras().capture_tints.get_or_init(|| {
+            let device = self.device();
+            let fits = module_redeclared(
+                device,
+                "capture_tints",
+                "capture_tints (every fragment fits)",
+                (
+                    "const EVERY_FRAGMENT_FITS: bool = false;",
+                    "const EVERY_FRAGMENT_FITS: bool = true;",
+                ),
+            );
+            [
+                transparent_pipeline(device, "capture_tints", &module(device, "capture_tints")),
+                transparent_pipeline(device, "capture_tints", &fits),
+            ]
+        });
+        if fits { all_fit } else { general }
     }
 
     /// DKB's features pass in two passes with 32-bit atomics (depths, colours).

@@ -229,17 +229,10 @@ impl Gpu {
     ) -> Result<GpuFrame> {
         let scopes = self.begin_frame(width, height)?;
         let px = width as u64 * height as u64;
-        // Tinted glass where the method stores its tints: the A-buffer's, MLAB's lists.
-        let tints = scene.tints()
-            && matches!(
-                slots,
-                None | Some(
-                    Slots::Mlab(_) | Slots::LinkedList { .. } | Slots::Wboit(_) | Slots::Mboit(_)
-                )
-            );
+        // Tinted glass: every method keeps each fragment's tint or the product of them.
         let params = Params {
             uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
-            tinted: tints as u32,
+            tinted: scene.tints() as u32,
             ..frame_params(Some(cam), width, height, background)
         };
         let upload = std::time::Instant::now();
@@ -403,14 +396,6 @@ impl Gpu {
         params: &Params,
         image: bool,
     ) -> Result<(FrameInputs, buffers::Taken<'_>)> {
-        if scene.tints() && params.tinted == 0 {
-            return Err(Error::Invalid(format!(
-                "{}: tinted glass (per-channel transmittance) is not composited by the GPU's \
-                 k-buffers (FKB, VKB, DKB, an uploaded k): render this method with --device \
-                 cpu, or the glass grey (--glass grey)",
-                scene.name
-            )));
-        }
         // The scene's buffers are written by the queue, before any command: no encoder of
         // theirs records a clear.
         let mut none = self.device.create_command_encoder(&Default::default());
@@ -510,7 +495,7 @@ pub struct SceneStream {
     inputs: FrameInputs,
     background: [f32; 3],
     uniform_alpha: f32,
-    /// `Params::tinted`: 1 where the scene's glass is tinted and the method stores tints.
+    /// `Params::tinted`: 1 where the scene's glass is tinted.
     tinted: u32,
 }
 
@@ -558,8 +543,7 @@ impl SceneStream {
         };
         let mut stream = Stream::new(gpu, (w, h), app, budget)?;
         stream.exact_when_cheaper = options.exact_when_cheaper;
-        // Tinted glass where the method stores its tints: the A-buffer's, MLAB's lists.
-        let tinted = (scene.tints() && !matches!(method, M::Fkb | M::Vkb | M::Dkb)) as u32;
+        let tinted = scene.tints() as u32;
         let params = Params {
             tinted,
             ..frame_params(None, w, h, options.background)
