@@ -51,8 +51,8 @@ golden: build
 ## at equal bytes. At equal F each k-buffer renders its own approximation (--always-approximate)
 ## even where the exact A-buffer would need fewer bytes: what measures the methods; the bytes
 ## columns say what each would allocate. Small summaries -> docs/eval-slots.md, docs/eval-bytes.md,
-## docs/eval-materials-slots.md, docs/eval-materials-bytes.md and, the glass tinted (--glass tinted),
-## docs/eval-materials-tinted.md (committed), every frame,
+## docs/eval-materials-slots.md, docs/eval-materials-bytes.md (the glass tinted, the default) and,
+## the glass grey (--glass grey), docs/eval-materials-grey.md (committed), every frame,
 ## image and montage -> out/eval/; then the README's results table and docs/results.md's tables
 ## from them (scripts/results_table.py, which `make test` checks).
 EVAL_BUILTIN := shells,spheres,foliage,plates,hair,particles,cad,glass,statue,shrub
@@ -71,7 +71,7 @@ eval: build
 	$(RUN) compare --scene "$$scenes" $(EVAL_ARGS) --opacity 0.33 --equal bytes --out out/eval/bytes --summary docs/eval-bytes.md && \
 	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --equal slots --always-approximate --out out/eval/materials-slots --summary docs/eval-materials-slots.md && \
 	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --equal bytes --out out/eval/materials-bytes --summary docs/eval-materials-bytes.md && \
-	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --glass tinted --equal slots --always-approximate --out out/eval/materials-tinted --summary docs/eval-materials-tinted.md && \
+	$(RUN) compare --scene "$$materials" $(EVAL_ARGS) --glass grey --equal slots --always-approximate --out out/eval/materials-grey --summary docs/eval-materials-grey.md && \
 	python3 scripts/results_table.py --write
 
 ## The README's pictures of per-fragment materials: alpha-textured leaf cards and a

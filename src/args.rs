@@ -45,14 +45,14 @@ pub(crate) struct ViewArgs {
     /// Let the materials decide even for the papers' built-in families (their vertex alpha).
     #[arg(long)]
     pub(crate) material_alpha: bool,
-    /// How glass (KHR_materials_transmission) lets through what is behind it: `grey`, one
-    /// opacity, so clear glass of any colour passes every colour; or `tinted`, per channel,
-    /// its base colour filtering the light (a red pane passes red), its colour the Fresnel
-    /// reflection. Every method composites tinted glass on the CPU; on the GPU the A-buffer,
-    /// MLAB and the linked list do (4 bytes more a fragment or node: its tint), and WBOIT and
-    /// MBOIT (3 and 4 bytes more a pixel: an RGBA8 transmittance); the GPU's k-buffers (FKB,
-    /// VKB, DKB) refuse it.
-    #[arg(long, default_value = "grey", value_parser = ["grey", "tinted"])]
+    /// How glass (KHR_materials_transmission) lets through what is behind it: `tinted`, per
+    /// channel, its base colour filtering the light (a red pane passes red), its colour the
+    /// Fresnel reflection; or `grey`, one opacity, so clear glass of any colour passes every
+    /// colour (what the network was trained on, and the library's default). Every method composites tinted glass, on the CPU and the GPU: the A-buffer,
+    /// MLAB and the linked list store a tint a fragment or node (4 bytes more), the k-buffers
+    /// a tint a slot and their tails' per-channel sums (4 bytes a slot and 12 a pixel more),
+    /// WBOIT and MBOIT an RGBA8 transmittance (3 and 4 bytes more a pixel).
+    #[arg(long, default_value = "tinted", value_parser = ["grey", "tinted"])]
     pub(crate) glass: String,
     /// Permute the triangle submission order with this seed.
     #[arg(long)]
