@@ -235,6 +235,24 @@ fn k_of_span(span: u32, n: u32) -> u32 {
     return select(span, span - TAIL_WORDS, span < n);
 }
 
+// Where the frame's glass is tinted, the k-buffers' tints (kbuffer_tint.wgsl): the word of
+// slot s's tint, and the first of the three sums of pixel p's tail (per-pixel tails: three
+// sums a pixel, then a word a slot) or of the tail at word t of the pool (pooled: two words a
+// pool word).
+fn tint_word(s: u32) -> u32 {
+    if (params.pooled_tail != 0u) {
+        return 2u * s;
+    }
+    return 3u * params.pixels + s;
+}
+
+fn tail_tint_word(p: u32, t: u32) -> u32 {
+    if (params.pooled_tail != 0u) {
+        return 2u * t;
+    }
+    return 3u * p;
+}
+
 // Mesa's lavapipe ends a shader invocation's loops after 65,535 iterations in all, silently.
 // Passes with long loops count theirs with tick() and report through a status word when they
 // came close, so the host can refuse the frame instead of returning a wrong one.

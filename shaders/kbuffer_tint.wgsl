@@ -13,11 +13,18 @@
 //   pooled_append), every slot of the fragment's key takes part in that carry, and the resolve
 //   sorts the tints with the keys. Nothing is pushed out of such a pixel.
 //
-// The tints buffer holds per pixel three sums of what its tail's tints take away,
-// `sum (255 - a8) (255 - g8)` for r, g, b (composite::Tail::absorbed: only tinted fragments
-// add), then one word a slot: the complement of its tint (RGB8), at 3 pixels + the slot's
-// index (0: not yet written). The slots' words are read as the portable capture's 32-bit pairs
-// (colour low, depth high), which is how a 64-bit slot's bytes lie too.
+// A slot's tint is stored complemented (0: not yet written). A tail holds three sums of what
+// its tints take away, `sum (255 - a8) (255 - g8)` for r, g, b (composite::Tail::absorbed: only
+// tinted fragments add). The tints buffer (common.wgsl's tint_word, tail_tint_word):
+//
+// - where the tails are per pixel (FKB, an uploaded k), those three sums a pixel, then a word
+//   for each slot;
+// - where they are pooled (VKB, DKB), two words for each word of the pool, so that a tail's
+//   two pool words have four: slot s's tint at 2 s, the sums of the tail at pool word t at
+//   2 t, 2 t + 1, 2 t + 2. No pixel pays for a tail it does not keep.
+//
+// The slots' words are read as the portable capture's 32-bit pairs (colour low, depth high),
+// which is how a 64-bit slot's bytes lie too.
 
 alias SlotWord = atomic<u32>;
 
@@ -26,8 +33,7 @@ const OIT_APPENDS: bool = false;
 
 @group(1) @binding(5) var<storage, read_write> oit_tints: array<atomic<u32>>;
 
-// The pixel and alpha of the fragment oit_insert placed, for its tail.
-var<private> tint_pixel: u32 = 0u;
+// The alpha of the fragment oit_insert placed, for its tail.
 var<private> tint_alpha: u32 = 0u;
 
 // Slot s's key as two words (colour, depth), as common.wgsl's key_of lays them out.
@@ -35,10 +41,6 @@ fn oit_slot_key(s: u32) -> vec2<u32> {
     return vec2<u32>(atomicLoad(&oit_slots[2u * s]), atomicLoad(&oit_slots[2u * s + 1u]));
 }
 
-// Where slot s's tint is.
-fn oit_tint_at(s: u32) -> u32 {
-    return 3u * params.pixels + s;
-}
 
 // The complemented tint `cur` into the tint words of the slots [first, k) that hold `key`,
 // carried as the insertion carries keys; returns the tint carried past them, or 0 where it
@@ -54,7 +56,7 @@ fn oit_carry_tint(p: u32, base: u32, first: u32, k: u32, key: vec2<u32>, run: bo
             }
             continue;
         }
-        let old = atomicMax(&oit_tints[oit_tint_at(s)], cur);
+        let old = atomicMax(&oit_tints[tint_word(s)], cur);
         if (old == 0u) {
             return 0u;
         }
@@ -66,7 +68,6 @@ fn oit_carry_tint(p: u32, base: u32, first: u32, k: u32, key: vec2<u32>, run: bo
 // The fragment's tint into the run of its key in pixel p's sorted slots: the complemented tint
 // pushed out (never 0: a complemented RGB8's high byte is 0xff), or 0.
 fn oit_insert(p: u32, base: u32, k: u32, depth_word: u32, colour_word: u32) -> u32 {
-    tint_pixel = p;
     tint_alpha = slot_rgba8(colour_word) >> 24u;
     let key = vec2<u32>(colour_word, depth_word);
     // The first slot whose key is at most the fragment's (the keys decrease).
@@ -91,8 +92,9 @@ fn oit_appended(p: u32, base: u32, k: u32, depth_word: u32, colour_word: u32) {
 fn oit_store_slot(at: u32, depth_word: u32, colour_word: u32) {
 }
 
-// A pushed-out tint's absorption into its pixel's tail (a clear one takes nothing away).
-fn oit_tint_to_tail(out: u32) {
+// A pushed-out tint's absorption into the tail whose first sum is at `at` (a clear one takes
+// nothing away).
+fn oit_tint_to_tail(at: u32, out: u32) {
     let tint = ~out;
     if (tint == CLEAR) {
         return;
@@ -101,15 +103,15 @@ fn oit_tint_to_tail(out: u32) {
     for (var c = 0u; c < 3u; c++) {
         let taken = through * (255u - ((tint >> (8u * c)) & 0xffu));
         if (taken != 0u) {
-            atomicAdd(&oit_tints[3u * tint_pixel + c], taken);
+            atomicAdd(&oit_tints[at + c], taken);
         }
     }
 }
 
 fn oit_to_tail(p: u32, out: u32) {
-    oit_tint_to_tail(out);
+    oit_tint_to_tail(tail_tint_word(p, NO_TAIL), out);
 }
 
 fn pooled_to_tail(t: u32, out: u32) {
-    oit_tint_to_tail(out);
+    oit_tint_to_tail(tail_tint_word(0u, t), out);
 }

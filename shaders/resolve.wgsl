@@ -37,9 +37,9 @@ fn count_put(p: u32, c: u32, n: u32) {
 // the frame was given. The flags (loop limits) are not set here.
 @group(0) @binding(7) var<storage, read_write> status: array<atomic<u32>, STATUS_WORDS>;
 
-// Where the frame's glass is tinted (params.tinted), the tint pass's words (kbuffer_tint.wgsl):
-// per pixel three sums of what its tail's tints take away, then each slot's complemented tint
-// at 3 pixels + its index; else an unused buffer.
+// Where the frame's glass is tinted (params.tinted), the tint pass's words (kbuffer_tint.wgsl:
+// each slot's complemented tint, and three sums a tail of what its tints take away, common.wgsl's
+// tint_word and tail_tint_word); else an unused buffer.
 @group(0) @binding(10) var<storage, read_write> tints: array<u32>;
 
 // Slot s's tint (RGB8; CLEAR where the glass is grey).
@@ -47,7 +47,7 @@ fn tint_of(s: u32) -> u32 {
     if (params.tinted == 0u) {
         return CLEAR;
     }
-    return ~tints[3u * params.pixels + s];
+    return ~tints[tint_word(s)];
 }
 
 // The slots blend_slots found filled.
@@ -101,24 +101,23 @@ const EVERY_FRAGMENT_FITS: bool = false;
 // first (kbuffer_tint.wgsl's oit_appended): they stay in order.
 fn sort_slots(base: u32, n: u32) {
     let tinted = params.tinted != 0u;
-    let at = 3u * params.pixels + base;
     for (var i = 1u; i < n; i++) {
         let key = slots[base + i];
         var g = 0u;
         if (tinted) {
-            g = tints[at + i];
+            g = tints[tint_word(base + i)];
         }
         var j = i;
         while (j > 0u && key_less(slots[base + j - 1u], key)) {
             slots[base + j] = slots[base + j - 1u];
             if (tinted) {
-                tints[at + j] = tints[at + j - 1u];
+                tints[tint_word(base + j)] = tints[tint_word(base + j - 1u)];
             }
             j--;
         }
         slots[base + j] = key;
         if (tinted) {
-            tints[at + j] = g;
+            tints[tint_word(base + j)] = g;
         }
     }
 }
@@ -200,8 +199,9 @@ fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
     let sum_a = tl.sums.w;
     // What its tints take away per channel (composite::Tail::absorbed), where tinted.
     var absorbed = vec3<u32>(0u);
-    if (params.tinted != 0u) {
-        absorbed = vec3<u32>(tints[3u * p], tints[3u * p + 1u], tints[3u * p + 2u]);
+    if (params.tinted != 0u && tail_n > 0u) {
+        let at = tail_tint_word(p, pooled_at);
+        absorbed = vec3<u32>(tints[at], tints[at + 1u], tints[at + 2u]);
     }
     let tinted_tail = any(absorbed != vec3<u32>(0u));
     if (tail_n > 0u && (sum_a > 0u || tinted_tail)) {

@@ -50,8 +50,9 @@ pub(crate) struct ViewArgs {
     /// Fresnel reflection; or `grey`, one opacity, so clear glass of any colour passes every
     /// colour (what the network was trained on, and the library's default). Every method composites tinted glass, on the CPU and the GPU: the A-buffer,
     /// MLAB and the linked list store a tint a fragment or node (4 bytes more), the k-buffers
-    /// a tint a slot and their tails' per-channel sums (4 bytes a slot and 12 a pixel more),
-    /// WBOIT and MBOIT an RGBA8 transmittance (3 and 4 bytes more a pixel).
+    /// a tint a slot and their tails' per-channel sums (FKB 4 bytes a slot and 12 a pixel
+    /// more, VKB and DKB 8 a word of their pool), WBOIT and MBOIT an RGBA8 transmittance (3
+    /// and 4 bytes more a pixel). A byte budget holds the tints.
     #[arg(long, default_value = "tinted", value_parser = ["grey", "tinted"])]
     pub(crate) glass: String,
     /// Permute the triangle submission order with this seed.

@@ -22,12 +22,15 @@ pub const SLOT_BYTES: u64 = 8;
 /// (`abuf.tints`: its RGB8 tint, `fragment::FragmentLists::tint`).
 pub const TINT_BYTES: u64 = 4;
 
-/// Words the k-buffers' tint pass keeps where the frame's glass is tinted (kbuffer_tint.wgsl):
-/// three a pixel (what its tail's tints take away per channel), then a tint for each of the
-/// `slot_words` words of its slots (or of the pool its slots and tails share). Each is
-/// [`TINT_BYTES`].
-pub fn kbuffer_tint_words(pixels: u64, slot_words: u64) -> u64 {
-    3 * pixels + slot_words
+/// Words the k-buffers' tint pass keeps where the frame's glass is tinted (kbuffer_tint.wgsl),
+/// for `slot_words` words of slots, each [`TINT_BYTES`]: where the tails are `pooled`, two for
+/// each word of the pool (a slot's tint; a tail's three sums of what its tints take away, in
+/// its two words' four), else three a pixel (its tail's sums) and one a slot.
+pub fn kbuffer_tint_words(pixels: u64, slot_words: u64, pooled: bool) -> u64 {
+    match pooled {
+        true => 2 * slot_words,
+        false => 3 * pixels + slot_words,
+    }
 }
 
 /// Bytes a pixel WBOIT adds where the frame's glass is tinted: an RGBA8 transmittance target in
@@ -611,6 +614,42 @@ impl Layout {
                 ),
             )),
         }
+    }
+    /// Where a k-buffer's frame is tinted, the budget its slots and tails are resolved against
+    /// so that they and the tint pass's words ([`kbuffer_tint_words`]) stay within `bytes`:
+    /// pooled, half of what the fixed bytes leave (two tint words a pool word, [`TINT_BYTES`]
+    /// each, beside its own [`SLOT_BYTES`]); else what is left beside three tint words a pixel,
+    /// shared by a slot and its tint.
+    pub fn tinted_budget(&self, bytes: u64, pixels: u64) -> u64 {
+        let fixed = self.fixed_bytes(pixels);
+        let Some(rest) = bytes.checked_sub(fixed) else {
+            return bytes;
+        };
+        match self.tail_bytes > 0 {
+            true => fixed + rest / 2,
+            false => {
+                let slots =
+                    rest.saturating_sub(3 * TINT_BYTES * pixels) / (self.slot_bytes + TINT_BYTES);
+                fixed + self.slot_bytes * slots
+            }
+        }
+    }
+    /// F(M) for a tinted frame of occupancy `occ`: [`Layout::fragment_budget_counted`] at
+    /// [`Layout::tinted_budget`], its error naming `bytes` and what the tints take.
+    pub fn tinted_fragment_budget(&self, bytes: u64, pixels: u64, occ: &Occupancy) -> Result<u64> {
+        let slots = self.tinted_budget(bytes, pixels);
+        self.fragment_budget_counted(slots, pixels, occ)
+            .map_err(|e| match e {
+                Error::Budget(_, why) if slots < bytes => Error::Budget(
+                    format_bytes(bytes),
+                    format!(
+                        "its glass tinted, the tints' words take {} of it, leaving {}: {why}",
+                        format_bytes(bytes - slots),
+                        format_bytes(slots)
+                    ),
+                ),
+                e => e,
+            })
     }
     /// F(M): the fragment slots a budget of `bytes` leaves, or an error saying what is needed.
     /// Before a frame is counted, a layout with pooled tails leaves room for one a pixel (the

@@ -494,6 +494,10 @@ impl<'a> Renderer<'a> {
                 }
             }
             (_, Budget::Bytes(m)) if bytes_hold && method.is_kbuffer() => (m, total),
+            // A tinted k-buffer's slots and tails take what its tints leave of M.
+            (_, Budget::Bytes(m)) if fl.tinted() && method.is_kbuffer() => {
+                (m, layout.tinted_fragment_budget(m, pixels, &occ)?)
+            }
             _ => budget.resolve_counted(&layout, pixels, &occ)?,
         };
         // Exact where the budget holds every fragment, and (unless told otherwise) where the
@@ -589,12 +593,12 @@ impl<'a> Renderer<'a> {
         // FKB and MLAB allocate their k for every pixel; the others exactly sum k; a frame
         // whose budget holds every fragment, what the A-buffer does (with each fragment's tint
         // where the frame's glass is tinted).
-        // A k-buffer's `bytes` with, where the frame's glass is tinted, its tint pass's words:
-        // three a pixel and one for each word of its slots or pool.
+        // A k-buffer's `bytes` with, where the frame's glass is tinted, its tint pass's words.
         let kbuffer_tinted = |layout: &budget::Layout, bytes: u64| match fl.tinted() {
             true => {
                 let words = (bytes - layout.fixed_bytes(pixels)) / layout.slot_bytes;
-                bytes + budget::TINT_BYTES * budget::kbuffer_tint_words(pixels, words)
+                let pooled = layout.tail_bytes > 0;
+                bytes + budget::TINT_BYTES * budget::kbuffer_tint_words(pixels, words, pooled)
             }
             false => bytes,
         };

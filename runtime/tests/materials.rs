@@ -823,8 +823,8 @@ type KBufferRun<'a> = (
 /// fragment's tint (the tint pass), the tail its tints' absorption per channel, and the image
 /// is the CPU's hybrid twin (composite::hybrid_sorted) of the GPU's own fragments at the k the
 /// frame stored, within float rounding. The portable capture leaves the same slots and image
-/// as the one-pass one; the grey frames differ; and the tints are counted: 4 bytes a slot and
-/// 12 a pixel more than the grey frame's.
+/// as the one-pass one; the grey frames differ; and the tints are counted
+/// (`budget::kbuffer_tint_words`), on the GPU as on the CPU.
 #[test]
 fn tinted_glass_in_the_gpu_k_buffers_is_their_twins() {
     use dhoit_runtime::gpu::{Capture, FrameOptions, Slots};
@@ -914,10 +914,11 @@ fn tinted_glass_in_the_gpu_k_buffers_is_their_twins() {
                 assert_eq!(n, 0, "{what}: {n} pixels off the twin (worst {worst})");
                 let grey = frame(&portable, &grey_of(&s));
                 grey_differ += differing(&grey.image, &b.image, STEP).0;
-                // The tints' words: 3 a pixel, 1 a slot (the pool's words where pooled).
+                // The tints' words: 3 a pixel and 1 a slot, or pooled 2 a pool word, which
+                // holds at least the stored slots.
                 let extra = b.allocated_bytes - grey.allocated_bytes;
                 assert!(
-                    extra >= 4 * (3 * px + stored.iter().map(|&k| k as u64).sum::<u64>()),
+                    extra >= 4 * stored.iter().map(|&k| k as u64).sum::<u64>(),
                     "{what}: the tints take {extra} bytes"
                 );
                 // The CPU's count of the same frame's bytes.
@@ -955,6 +956,72 @@ fn tinted_glass_in_the_gpu_k_buffers_is_their_twins() {
         "{bytes_held} frames' bytes held to the CPU's"
     );
     assert!(grey_differ > 0, "tinted glass renders as grey");
+}
+
+/// A byte budget holds a tinted k-buffer's tints too (`Layout::tinted_fragment_budget`): at
+/// budgets up to the tinted A-buffer's bytes, FKB's, VKB's, DKB's and the
+/// optimal allocation's tinted frames allocate no more than M, on fewer slots than the grey
+/// frame's where they truncate, and one too small for the tints is refused naming them.
+#[test]
+fn tinted_k_buffers_stay_within_a_byte_budget() {
+    let s = coplanar_tints();
+    let grey = Scene {
+        glass: Glass::Grey,
+        ..s.clone()
+    };
+    let mlp = Mlp::random(6);
+    let (mut held, mut fewer, mut refused) = (0, 0, 0);
+    for view in [0, 2] {
+        let cam = camera(&s, view);
+        let (tinted_fl, grey_fl) = (
+            rasterize(&s, &cam, SIZE.0, SIZE.1).unwrap(),
+            rasterize(&grey, &cam, SIZE.0, SIZE.1).unwrap(),
+        );
+        assert!(tinted_fl.tinted() && !grey_fl.tinted());
+        for m in [Method::Fkb, Method::Vkb, Method::Dkb, Method::Optimal] {
+            // From a fortieth of the tinted A-buffer's bytes to all of them.
+            let most = frame::render(
+                &tinted_fl,
+                Method::Abuffer,
+                Options::new(Budget::Share(1_000_000), BG),
+            )
+            .unwrap()
+            .allocated_bytes;
+            for step in 1..=40 {
+                let bytes = most * step / 40;
+                let kib = bytes as f64 / 1024.0;
+                let opts = Options {
+                    weights: Some(&mlp),
+                    ..Options::new(Budget::Bytes(bytes), BG).always_approximate()
+                };
+                let (t, g) = (
+                    frame::render(&tinted_fl, m, opts),
+                    frame::render(&grey_fl, m, opts),
+                );
+                match (t, g) {
+                    (Ok(t), Ok(g)) if !t.exact => {
+                        assert!(
+                            t.allocated_bytes <= bytes,
+                            "{m} {kib} KiB: {}",
+                            t.allocated_bytes
+                        );
+                        assert!(t.budget_fragments <= g.budget_fragments, "{m} {kib} KiB");
+                        held += 1;
+                        fewer += (t.budget_fragments < g.budget_fragments) as usize;
+                    }
+                    // The grey frame truncates where the tinted one does not fit.
+                    (Err(e), Ok(g)) if !g.exact => {
+                        let e = e.to_string();
+                        assert!(e.contains("the tints' words take"), "{m} {kib} KiB: {e}");
+                        refused += 1;
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    eprintln!("{held} truncated frames, {fewer} on fewer slots, {refused} refused for the tints");
+    assert!(held >= 10 && fewer >= 5 && refused > 0);
 }
 
 /// The sRGB decode, bilinear filtering and Schlick's Fresnel, held to numbers computed by hand

@@ -174,15 +174,14 @@ impl Recording<'_, '_, '_> {
             ),
         };
         let pooled = matches!(kb.slots, SlotsAt::Pooled(_));
-        // Where the frame's glass is tinted, the tint pass's words (kbuffer_tint.wgsl): three
-        // of its tail's absorption a pixel, then a tint a slot of the pool or the slots.
+        // Where the frame's glass is tinted, the tint pass's words (kbuffer_tint.wgsl).
         let slot_words = match &kb.slots {
             SlotsAt::Pooled(pool) => pool.size() / crate::budget::SLOT_BYTES,
             SlotsAt::PerPixel(n) => *n,
         };
         let (tints, tinted) = fb.tints(
             "oit",
-            crate::budget::kbuffer_tint_words(px, slot_words),
+            crate::budget::kbuffer_tint_words(px, slot_words, pooled),
             self.tinted,
         )?;
         // One pass with 64-bit atomics, or on a device without them (or asked for it) the

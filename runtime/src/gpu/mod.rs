@@ -1093,7 +1093,13 @@ impl Recording<'_, '_, '_> {
             Slots::Vkb(..) => (Method::Vkb, budget::VKB),
             _ => (Method::Vkb, budget::VKB),
         };
-        let plan_budget = match opts.counted_bytes {
+        // Where the frame is tinted, its slots and tails take what the tints leave of M
+        // (Layout::tinted_fragment_budget).
+        let counted_bytes = opts.counted_bytes.map(|m| match self.tinted {
+            true => layout.tinted_budget(m, px),
+            false => m,
+        });
+        let plan_budget = match counted_bytes {
             Some(m) => PlanBudget::Bytes(m),
             None => PlanBudget::Fragments(budget),
         };
@@ -1105,11 +1111,12 @@ impl Recording<'_, '_, '_> {
                 // A byte budget resolved against this count: exact where it holds the A-buffer.
                 let holds_exact = opts
                     .counted_bytes
-                    .is_some_and(|m| budget::ABUFFER.allocated_bytes(px, n) <= m);
+                    .is_some_and(|m| budget::abuffer_bytes(px, n, self.tinted) <= m);
                 if exact_when_cheaper && holds_exact {
                     return Ok(None);
                 }
                 let f = match opts.counted_bytes {
+                    Some(m) if self.tinted => layout.tinted_fragment_budget(m, px, &occ)?,
                     Some(m) => layout.fragment_budget_counted(m, px, &occ)?,
                     None => budget.of(n),
                 };
