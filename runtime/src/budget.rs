@@ -615,26 +615,33 @@ impl Layout {
             )),
         }
     }
-    /// Where a k-buffer's frame is tinted, the budget its slots and tails are resolved against
-    /// so that they and the tint pass's words ([`kbuffer_tint_words`]) stay within `bytes`:
-    /// pooled, half of what the fixed bytes leave (two tint words a pool word, [`TINT_BYTES`]
-    /// each, beside its own [`SLOT_BYTES`]); else what is left beside three tint words a pixel,
-    /// shared by a slot and its tint.
+    /// Where a frame is tinted, the budget its slots (and tails) are resolved against so that
+    /// they and their tints stay within `bytes`: the linked list's nodes share it with a tint a
+    /// node ([`TINT_BYTES`]); a k-buffer's tint pass ([`kbuffer_tint_words`]) takes half of
+    /// what the fixed bytes leave where its tails are pooled (two tint words a pool word beside
+    /// its [`SLOT_BYTES`]), else three tint words a pixel and one a slot.
     pub fn tinted_budget(&self, bytes: u64, pixels: u64) -> u64 {
         let fixed = self.fixed_bytes(pixels);
         let Some(rest) = bytes.checked_sub(fixed) else {
             return bytes;
         };
-        match self.tail_bytes > 0 {
-            true => fixed + rest / 2,
-            false => {
-                let slots =
-                    rest.saturating_sub(3 * TINT_BYTES * pixels) / (self.slot_bytes + TINT_BYTES);
-                fixed + self.slot_bytes * slots
-            }
-        }
+        let per_pixel = match self.method {
+            "linked-list" => 0,
+            // Half, in whole slots: the pool, and as many bytes of tints.
+            _ if self.tail_bytes > 0 => return fixed + rest / (2 * SLOT_BYTES) * SLOT_BYTES,
+            _ => 3 * TINT_BYTES * pixels,
+        };
+        let slots = rest.saturating_sub(per_pixel) / (self.slot_bytes + TINT_BYTES);
+        fixed + self.slot_bytes * slots
     }
-    /// F(M) for a tinted frame of occupancy `occ`: [`Layout::fragment_budget_counted`] at
+    /// A k-buffer's `bytes` (its fixed bytes, slots and tails) with its tint pass's words
+    /// ([`kbuffer_tint_words`]), where its frame is tinted.
+    pub fn with_tints(&self, bytes: u64, pixels: u64) -> u64 {
+        let words = bytes.saturating_sub(self.fixed_bytes(pixels)) / self.slot_bytes;
+        bytes + TINT_BYTES * kbuffer_tint_words(pixels, words, self.tail_bytes > 0)
+    }
+    /// F(M) for a tinted frame of occupancy `occ` (a k-buffer's or the linked list's):
+    /// [`Layout::fragment_budget_counted`] at
     /// [`Layout::tinted_budget`], its error naming `bytes` and what the tints take.
     pub fn tinted_fragment_budget(&self, bytes: u64, pixels: u64, occ: &Occupancy) -> Result<u64> {
         let slots = self.tinted_budget(bytes, pixels);

@@ -402,21 +402,22 @@ impl<'a> Renderer<'a> {
     }
 
     /// The budget every method of this frame gets, after [`Equal`]: at equal bytes, a budget in
-    /// slots or a share becomes the bytes DKB spends on it: what its layout reserves, or where
-    /// that is no less than the exact A-buffer's bytes and [`Options::exact_when_cheaper`]
-    /// renders the A-buffer instead, the A-buffer's (no method gets more memory than DKB
-    /// spends).
+    /// slots or a share becomes the bytes DKB spends on it: what its layout reserves (with its
+    /// tints where the frame's glass is tinted), or where that is no less than the exact
+    /// A-buffer's bytes and [`Options::exact_when_cheaper`] renders the A-buffer instead, the
+    /// A-buffer's (no method gets more memory than DKB spends).
     pub fn budget(&self) -> Result<Budget> {
         let opts = &self.options;
         match (opts.equal, opts.budget) {
             (Equal::Bytes, b @ (Budget::SlotsPerPixel(_) | Budget::Share(_))) => {
                 let fl = self.fragments;
                 let pixels = fl.pixel_count() as u64;
-                let (bytes, _) = b.resolve_counted(
-                    &opts.layout(Method::Dkb),
-                    pixels,
-                    &Occupancy::of(&fl.counts()),
-                )?;
+                let dkb = opts.layout(Method::Dkb);
+                let (bytes, _) = b.resolve_counted(&dkb, pixels, &Occupancy::of(&fl.counts()))?;
+                let bytes = match fl.tinted() {
+                    true => dkb.with_tints(bytes, pixels),
+                    false => bytes,
+                };
                 let exact = budget::abuffer_bytes(pixels, fl.fragment_count() as u64, fl.tinted());
                 Ok(Budget::Bytes(match opts.exact_when_cheaper {
                     true => bytes.min(exact),
@@ -494,8 +495,11 @@ impl<'a> Renderer<'a> {
                 }
             }
             (_, Budget::Bytes(m)) if bytes_hold && method.is_kbuffer() => (m, total),
-            // A tinted k-buffer's slots and tails take what its tints leave of M.
-            (_, Budget::Bytes(m)) if fl.tinted() && method.is_kbuffer() => {
+            // A tinted k-buffer's slots and tails, and the list's nodes, take what their tints
+            // leave of M.
+            (_, Budget::Bytes(m))
+                if fl.tinted() && (method.is_kbuffer() || method == Method::LinkedList) =>
+            {
                 (m, layout.tinted_fragment_budget(m, pixels, &occ)?)
             }
             _ => budget.resolve_counted(&layout, pixels, &occ)?,
@@ -595,11 +599,7 @@ impl<'a> Renderer<'a> {
         // where the frame's glass is tinted).
         // A k-buffer's `bytes` with, where the frame's glass is tinted, its tint pass's words.
         let kbuffer_tinted = |layout: &budget::Layout, bytes: u64| match fl.tinted() {
-            true => {
-                let words = (bytes - layout.fixed_bytes(pixels)) / layout.slot_bytes;
-                let pooled = layout.tail_bytes > 0;
-                bytes + budget::TINT_BYTES * budget::kbuffer_tint_words(pixels, words, pooled)
-            }
+            true => layout.with_tints(bytes, pixels),
             false => bytes,
         };
         let allocated_bytes = match method {

@@ -958,10 +958,12 @@ fn tinted_glass_in_the_gpu_k_buffers_is_their_twins() {
     assert!(grey_differ > 0, "tinted glass renders as grey");
 }
 
-/// A byte budget holds a tinted k-buffer's tints too (`Layout::tinted_fragment_budget`): at
-/// budgets up to the tinted A-buffer's bytes, FKB's, VKB's, DKB's and the
-/// optimal allocation's tinted frames allocate no more than M, on fewer slots than the grey
-/// frame's where they truncate, and one too small for the tints is refused naming them.
+/// A byte budget holds a tinted k-buffer's tints too (`Layout::tinted_fragment_budget`), and
+/// the linked list's: at budgets up to the tinted A-buffer's bytes, FKB's, VKB's, DKB's, the
+/// optimal allocation's and the list's tinted frames allocate no more than M, on fewer slots
+/// than the grey frame's where they truncate, and one too small for the tints is refused
+/// naming them. At equal bytes DKB's tinted frame gets the F its grey frame gets: the bytes it
+/// spends count its tints.
 #[test]
 fn tinted_k_buffers_stay_within_a_byte_budget() {
     let s = coplanar_tints();
@@ -978,7 +980,14 @@ fn tinted_k_buffers_stay_within_a_byte_budget() {
             rasterize(&grey, &cam, SIZE.0, SIZE.1).unwrap(),
         );
         assert!(tinted_fl.tinted() && !grey_fl.tinted());
-        for m in [Method::Fkb, Method::Vkb, Method::Dkb, Method::Optimal] {
+        let methods = [
+            Method::Fkb,
+            Method::Vkb,
+            Method::Dkb,
+            Method::Optimal,
+            Method::LinkedList,
+        ];
+        for m in methods {
             // From a fortieth of the tinted A-buffer's bytes to all of them.
             let most = frame::render(
                 &tinted_fl,
@@ -1022,6 +1031,103 @@ fn tinted_k_buffers_stay_within_a_byte_budget() {
     }
     eprintln!("{held} truncated frames, {fewer} on fewer slots, {refused} refused for the tints");
     assert!(held >= 10 && fewer >= 5 && refused > 0);
+    let mut equal = 0;
+    // Twenty-four panes deep: truncated, DKB takes fewer bytes than the A-buffer.
+    let mut deep = coplanar_tints();
+    let panes = deep.triangle_count();
+    for i in 0..24 {
+        let z = -0.6 + 0.05 * i as f32;
+        let m = (i % 3) as u32;
+        let uv = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
+        quad(&mut deep, layer(z, 0.9, 0.02), uv, [[1.0; 4]; 4], m);
+    }
+    assert!(deep.triangle_count() > panes);
+    for ((s, view), ppm) in [(&s, 0), (&deep, 0), (&deep, 3)]
+        .into_iter()
+        .flat_map(|v| [50_000, 100_000, 250_000, 500_000].map(|p| (v, p)))
+    {
+        let fl = rasterize(s, &camera(s, view), SIZE.0, SIZE.1).unwrap();
+        let at = |e| Options {
+            weights: Some(&mlp),
+            equal: e,
+            ..Options::new(Budget::Share(ppm), BG).always_approximate()
+        };
+        let tinted = frame::render(&fl, Method::Dkb, at(frame::Equal::Bytes)).unwrap();
+        let g = Scene {
+            glass: Glass::Grey,
+            ..s.clone()
+        };
+        let grey_fl = rasterize(&g, &camera(&g, view), SIZE.0, SIZE.1).unwrap();
+        let grey = frame::render(&grey_fl, Method::Dkb, at(frame::Equal::Bytes)).unwrap();
+        if !tinted.exact {
+            assert_eq!(tinted.budget_fragments, grey.budget_fragments, "{ppm} ppm");
+            assert!(tinted.allocated_bytes <= tinted.budget_bytes);
+            assert!(
+                tinted.budget_bytes > grey.budget_bytes,
+                "{ppm} ppm: the tints' bytes"
+            );
+            equal += 1;
+        }
+    }
+    assert!(equal > 0);
+}
+
+/// A stream of tinted frames (as a renderer draws dhoit's own scene, `SceneStream`) holds a
+/// byte budget with its tints: FKB's, VKB's, DKB's and the list's frames report no more bytes
+/// than M, and no error.
+#[test]
+fn a_tinted_stream_holds_its_byte_budget() {
+    use dhoit_runtime::gpu::{SceneStream, wgpu};
+    let Some(g) = gpu() else { return };
+    let s = coplanar_tints();
+    let mlp = Mlp::random(6);
+    let cams: Vec<Camera> = (0..3).map(|v| camera(&s, v)).collect();
+    let fl = rasterize(&s, &cams[0], SIZE.0, SIZE.1).unwrap();
+    let most = frame::render(
+        &fl,
+        Method::Abuffer,
+        Options::new(Budget::Share(1_000_000), BG),
+    )
+    .unwrap()
+    .allocated_bytes;
+    let mut truncated = 0;
+    for m in [Method::Fkb, Method::Vkb, Method::Dkb, Method::LinkedList] {
+        for bytes in [most * 3 / 4, most * 9 / 10] {
+            let options = Options {
+                weights: Some(&mlp),
+                ..Options::new(Budget::Bytes(bytes), BG).always_approximate()
+            };
+            let mut stream = match SceneStream::new(g, &s, SIZE, m, &options) {
+                Ok(st) => st,
+                // A budget that leaves no slot beside the tints is refused naming them.
+                Err(e) => {
+                    let e = e.to_string();
+                    assert!(e.contains("budget"), "{m} {bytes}: {e}");
+                    continue;
+                }
+            };
+            let device = g.device();
+            let mut reports = Vec::new();
+            for cam in cams.iter().chain(&cams) {
+                let mut enc = device.create_command_encoder(&Default::default());
+                stream.record(&mut enc, cam).unwrap();
+                g.queue().submit([enc.finish()]);
+                device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+                reports.extend(stream.finished(true).unwrap());
+            }
+            for r in &reports {
+                assert!(r.error.is_none(), "{m} {bytes}: {:?}", r.error);
+                assert!(
+                    r.allocated_bytes <= bytes,
+                    "{m} frame {}: {} bytes over {bytes}",
+                    r.frame,
+                    r.allocated_bytes
+                );
+                truncated += !r.exact as usize;
+            }
+        }
+    }
+    assert!(truncated > 0, "no streamed frame truncated");
 }
 
 /// The sRGB decode, bilinear filtering and Schlick's Fresnel, held to numbers computed by hand

@@ -541,9 +541,14 @@ impl SceneStream {
                 )));
             }
         };
-        let mut stream = Stream::new(gpu, (w, h), app, budget)?;
+        let mut stream = Stream::new(gpu, (w, h), app, None)?;
         stream.exact_when_cheaper = options.exact_when_cheaper;
         let tinted = scene.tints() as u32;
+        // Its budget resolved once it knows the glass is tinted.
+        stream.tinted = scene.tints();
+        if let Some(b) = budget {
+            stream.set_budget(b)?;
+        }
         let params = Params {
             tinted,
             ..frame_params(None, w, h, options.background)

@@ -163,6 +163,10 @@ pub(super) struct Stream {
     pub(super) exact_when_cheaper: bool,
     /// How the k-buffers insert their fragments ([`FrameOptions::capture`]).
     pub(super) capture: Capture,
+    /// Whether its frames' glass is tinted (dhoit's own scenes, `SceneStream`): a byte budget
+    /// then holds the tints too (`Layout::tinted_budget`). An application's fragments are
+    /// untinted.
+    pub(super) tinted: bool,
     /// The occupancy the buffers made before a frame's count hold: the largest of the last
     /// frames', with [`HEADROOM`] (before any, [`FIRST_FRAGMENTS_PER_PIXEL`] a pixel).
     pub(super) expected: Occupancy,
@@ -192,6 +196,7 @@ impl Stream {
             budget: None,
             exact_when_cheaper: true,
             capture: gpu.capture_for(Capture::Wide),
+            tinted: false,
             expected: first_occupancy(size),
             frames: 0,
             last_bytes: 0,
@@ -227,8 +232,12 @@ impl Stream {
         let (pool_bytes, batches) = match (&self.method, self.budget) {
             (AppMethod::Dkb(_) | AppMethod::Vkb(_), Some(budget)) => {
                 let pool = match budget {
-                    // A byte budget is a fixed pool: what its bytes leave beside the fixed ones.
-                    Budget::Bytes(m) => m.saturating_sub(layout.fixed_bytes(px)),
+                    // A byte budget is a fixed pool: what its bytes (and tints) leave beside
+                    // the fixed ones.
+                    Budget::Bytes(m) => {
+                        let m = self.bytes_for_slots(&layout, m);
+                        m.saturating_sub(layout.fixed_bytes(px))
+                    }
                     b => {
                         let f = b.fragment_budget(&layout, px)?.of(occ.fragments);
                         match layout.pool_state {
@@ -392,10 +401,24 @@ impl Stream {
         }
     }
 
+    /// What a byte budget `m` leaves the slots of `layout`: all of it, or where the frames are
+    /// tinted, what the tints leave.
+    fn bytes_for_slots(&self, layout: &Layout, m: u64) -> u64 {
+        match self.tinted {
+            true => layout.tinted_budget(m, self.pixels()),
+            false => m,
+        }
+    }
+
     pub(super) fn set_budget(&mut self, budget: Budget) -> Result<()> {
         let px = self.pixels();
         let name = self.method.name();
         let refuse = |why: &str| Err(Error::Budget(budget.to_string(), format!("{name} {why}")));
+        let tinted = self.tinted;
+        let for_slots = |layout: &Layout, m: u64| match tinted {
+            true => layout.tinted_budget(m, px),
+            false => m,
+        };
         match &mut self.method {
             AppMethod::Dkb(_) | AppMethod::Vkb(_) => {
                 let layout = self.method.layout();
@@ -418,6 +441,10 @@ impl Stream {
                             "allocates its k slots a pixel before any count: give slots a pixel or bytes",
                         );
                     }
+                    Budget::Bytes(m) => {
+                        let m = for_slots(&budget::FKB, m);
+                        Budget::Bytes(m).resolve(&budget::FKB, px, 0)?.1
+                    }
                     b => b.resolve(&budget::FKB, px, 0)?.1,
                 };
                 *k = (f / px.max(1)).clamp(1, u32::MAX as u64) as u32;
@@ -428,6 +455,10 @@ impl Stream {
                         return refuse(
                             "allocates its pool before any count: give fragments a pixel or bytes",
                         );
+                    }
+                    Budget::Bytes(m) => {
+                        let m = for_slots(&budget::LINKED_LIST, m);
+                        Budget::Bytes(m).resolve(&budget::LINKED_LIST, px, 0)?.1
                     }
                     b => b.resolve(&budget::LINKED_LIST, px, 0)?.1,
                 };
