@@ -276,26 +276,28 @@ fn write_report(report: serde_json::Value, out: Option<&std::path::Path>) -> Res
 /// the default, every other option at its default (any other label: all defaults); steady-state
 /// frames read back their image only.
 fn configure(label: &str) -> dhoit_runtime::gpu::FrameOptions {
-    use dhoit_runtime::gpu::FrameOptions;
+    use dhoit_runtime::gpu::{FrameOptions, Tuning};
     FrameOptions {
-        skip_forced: label != "dkb_no_skip",
-        two_mode_capture: label != "dkb_insertion_only",
-        fits_pipelines: label != "dkb_two_mode_where_all_fit",
-        spread_search: label == "dkb_spread_search",
-        shared_weights: label == "dkb_shared_weights",
-        unrolled_network: label != "dkb_array_network",
-        features_preload: label != "dkb_features_no_preload",
-        layer_major_fkb: label == "fkb_layer_major",
+        tuning: Tuning {
+            skip_forced: label != "dkb_no_skip",
+            two_mode_capture: label != "dkb_insertion_only",
+            fits_pipelines: label != "dkb_two_mode_where_all_fit",
+            spread_search: label == "dkb_spread_search",
+            shared_weights: label == "dkb_shared_weights",
+            unrolled_network: label != "dkb_array_network",
+            features_preload: label != "dkb_features_no_preload",
+            layer_major_fkb: label == "fkb_layer_major",
+            // Every record in the pool at once: one features pass, where the records may
+            // outweigh the slots (a small budget on a deep frame).
+            record_batches: match label {
+                "dkb_records_whole" => 1,
+                _ => dhoit_runtime::budget::RECORD_BATCHES,
+            },
+        },
         // The methods themselves, at equal F (the runs are always approximate).
         exact_when_cheaper: false,
         counted_bytes: None,
         diagnostics: false,
-        // Every record in the pool at once: one features pass, where the records may outweigh
-        // the slots (a small budget on a deep frame).
-        record_batches: match label {
-            "dkb_records_whole" => 1,
-            _ => dhoit_runtime::budget::RECORD_BATCHES,
-        },
         // FKB, VKB and DKB once more with the capture of 32-bit atomics.
         capture: match label.ends_with("_portable") {
             true => dhoit_runtime::gpu::Capture::Portable,

@@ -130,8 +130,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
             // no dearer, as the CPU did (the two counts can differ by an edge's fragment).
             let opts = FrameOptions {
                 exact_when_cheaper: options.exact_when_cheaper,
-                record_batches: options.record_batches,
                 capture: a.capture,
+                tuning: dhoit_runtime::gpu::Tuning {
+                    record_batches: options.record_batches,
+                    ..Default::default()
+                },
                 ..FrameOptions::default()
             };
             let g = gpu.render_with(&opts, &scene, &cam, (w, h), a.common.background, slots)?;

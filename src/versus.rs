@@ -249,7 +249,10 @@ fn measure(
     let frame_opts = FrameOptions {
         diagnostics: false,
         // The GPU's frames are timed with the records' batches the CPU counts bytes for.
-        record_batches: a.params.record_batches,
+        tuning: dhoit_runtime::gpu::Tuning {
+            record_batches: a.params.record_batches,
+            ..Default::default()
+        },
         ..FrameOptions::default()
     };
     for s in loaded {

@@ -303,7 +303,7 @@ pub struct Options<'a> {
     pub exact_when_cheaper: bool,
     /// The most batches DKB gathers its network's records in ([`budget::PoolState::batches`],
     /// [`budget::RECORD_BATCHES`] by default; 1: all at once, one features pass, more memory
-    /// where the records outweigh the slots). The GPU frame's `FrameOptions::record_batches`
+    /// where the records outweigh the slots). The GPU frame's `Tuning::record_batches`
     /// must say the same for its buffers to be the ones counted here.
     pub record_batches: u64,
 }

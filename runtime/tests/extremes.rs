@@ -459,7 +459,7 @@ fn skipping_forced_pixels_leaves_the_frame_unchanged() {
     ] {
         let mut frames = Vec::new();
         for skip in [true, false] {
-            o.skip_forced = skip;
+            o.tuning.skip_forced = skip;
             let fr = g
                 .render_with(&o, &s, &identity(), (w, h), BG, Some(Slots::Dkb(&mlp, f)))
                 .unwrap();

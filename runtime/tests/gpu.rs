@@ -233,7 +233,7 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
     }
 }
 
-/// DKB's records gathered in batches (`FrameOptions::record_batches`, three at most by
+/// DKB's records gathered in batches (`Tuning::record_batches`, three at most by
 /// default) or all at once (1) give the same importance and image, bit for bit, and each frame
 /// allocates its layout's bytes for the batches it took: fewer, the more batches, where the
 /// records outweigh the slots and tails (particles at 0.05 fpp).
@@ -249,7 +249,7 @@ fn dkb_s_records_in_batches_or_at_once_give_the_same_frame_in_fewer_bytes() {
     let f = (w * h / 20) as u64;
     let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
     let frames = [1, 2, 3].map(|b| {
-        o.record_batches = b;
+        o.tuning.record_batches = b;
         let fr = g
             .render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Dkb(&mlp, f.into())))
             .unwrap();
@@ -337,7 +337,7 @@ fn a_truncated_frame_without_records_gathers_one_empty_batch() {
 }
 
 /// DKB's importance pass with the network's weights staged in workgroup memory
-/// (`FrameOptions::shared_weights`) gives the importance and image of the pass that reads them from the
+/// (`Tuning::shared_weights`) gives the importance and image of the pass that reads them from the
 /// uniform (held to the CPU twin by the other tests): the default network, one whose first
 /// layer leaves a tile part empty (20 units in tiles of 16), and one at f16; then the other
 /// layouts' frames ([`features_and_network_layouts_give_the_same_frame`]).
@@ -365,7 +365,7 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
     let f = (3 * w * h / 2) as u64;
     for (label, mlp) in &nets {
         let mut frames = [false, true].map(|shared| {
-            o.shared_weights = shared;
+            o.tuning.shared_weights = shared;
             g.render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Dkb(mlp, f.into())))
                 .unwrap()
         });
@@ -393,9 +393,9 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
     features_and_network_layouts_give_the_same_frame(&mut g, (&s, &cam), (w, h), &nets[0].1);
 }
 
-/// The two ways the features pass may take a pixel's nearest key (`FrameOptions::features_preload`)
+/// The two ways the features pass may take a pixel's nearest key (`Tuning::features_preload`)
 /// gather the same statistics, and the network written out for its shape
-/// (`FrameOptions::unrolled_network`) gives the importance of mlp.wgsl's loops: one frame per
+/// (`Tuning::unrolled_network`) gives the importance of mlp.wgsl's loops: one frame per
 /// setting, at a budget that truncates and at one that holds every fragment, the same
 /// statistics as the CPU twin's for every pixel of two fragments or more (the pixels with a
 /// record) where the features pass drew (only where the budget truncates: `Gpu::render` counts
@@ -424,8 +424,8 @@ fn features_and_network_layouts_give_the_same_frame(
         let holds = f >= total;
         let mut first: Option<dhoit_runtime::gpu::GpuFrame> = None;
         for (preload, unrolled) in [(true, true), (false, true), (true, false), (false, false)] {
-            o.features_preload = preload;
-            o.unrolled_network = unrolled;
+            o.tuning.features_preload = preload;
+            o.tuning.unrolled_network = unrolled;
             let frame = g
                 .render_with(&o, s, cam, (w, h), BG, Some(Slots::Dkb(mlp, f.into())))
                 .unwrap();
@@ -475,8 +475,8 @@ fn features_and_network_layouts_give_the_same_frame(
             }
         }
     }
-    o.features_preload = true;
-    o.unrolled_network = true;
+    o.tuning.features_preload = true;
+    o.tuning.unrolled_network = true;
     // DKB's, VKB's and uploaded importance's frames: the references of the frames below.
     let vkb = |f: u64| Slots::Vkb(Default::default(), f.into());
     let dkb = |f: u64| Slots::Dkb(mlp, f.into());
@@ -535,9 +535,9 @@ fn features_and_network_layouts_give_the_same_frame(
             }
         }
     }
-    // The allocation's search adding into 32 copies of its totals (`FrameOptions::spread_search`):
+    // The allocation's search adding into 32 copies of its totals (`Tuning::spread_search`):
     // the same slots and images where the budget truncates.
-    o.spread_search = true;
+    o.tuning.spread_search = true;
     for method in methods {
         let frame = g
             .render_with(&o, s, cam, (w, h), BG, Some(slots(method, truncates)))
@@ -561,7 +561,7 @@ fn features_and_network_layouts_give_the_same_frame(
     }
 }
 
-/// FKB's slots laid out layer-major (`FrameOptions::layer_major_fkb`) hold the same keys and tails,
+/// FKB's slots laid out layer-major (`Tuning::layer_major_fkb`) hold the same keys and tails,
 /// and draw the same image bits, as pixel-major ones and the CPU twin, in any submission order.
 #[test]
 fn layer_major_slots_capture_what_pixel_major_ones_do() {
@@ -576,7 +576,7 @@ fn layer_major_slots_capture_what_pixel_major_ones_do() {
         let gfl = gpu_fragments(&g, &s, &cam, w, h);
         for k in [1u32, 3] {
             let frames = [false, true].map(|layer_major| {
-                o.layer_major_fkb = layer_major;
+                o.tuning.layer_major_fkb = layer_major;
                 g.render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Uniform(k)))
                     .unwrap()
             });
@@ -612,7 +612,7 @@ fn layer_major_slots_capture_what_pixel_major_ones_do() {
                 )
                 .unwrap();
             assert!(image_bits(&shuffled.image) == image_bits(&frames[1].image));
-            o.layer_major_fkb = false;
+            o.tuning.layer_major_fkb = false;
         }
     }
 }
@@ -1250,7 +1250,7 @@ fn a_large_allocation_matches_its_twin() {
 /// CPU twin, bit for bit in the image whatever the submission order. A layered scene gives
 /// every case: pixels appended, pixels truncated, and pixels deeper than APPEND_MAX that insert
 /// although k >= n. Where the budget
-/// holds every fragment, the pipeline built for such frames (`FrameOptions::fits_pipelines`) gives the
+/// holds every fragment, the pipeline built for such frames (`Tuning::fits_pipelines`) gives the
 /// same slots, tails and image bits as the two-mode one.
 #[test]
 fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
@@ -1294,11 +1294,11 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
                 .render_with(&o, &s, &cam, (w, h), BG, Some(slots))
                 .unwrap();
             if f >= total {
-                o.fits_pipelines = false;
+                o.tuning.fits_pipelines = false;
                 let two_mode = g
                     .render_with(&o, &s, &cam, (w, h), BG, Some(slots))
                     .unwrap();
-                o.fits_pipelines = true;
+                o.tuning.fits_pipelines = true;
                 assert!(
                     !wide
                         || frame
@@ -2069,7 +2069,7 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
             "{name}: {decided} {recorded} {covered}"
         );
         for (skip, want) in [(true, decided), (false, recorded)] {
-            o.skip_forced = skip;
+            o.tuning.skip_forced = skip;
             let frame = g
                 .render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Dkb(&mlp, f.into())))
                 .unwrap();
@@ -2079,7 +2079,7 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
                 "{name}, skip_forced {skip}: pixels the network ran on"
             );
         }
-        o.skip_forced = true;
+        o.tuning.skip_forced = true;
         // Below a slot a covered pixel (lo = 0) no pixel with a record is forced, and the pool
         // holds a batch of the records at a time: the rows of every batch add up.
         let few = (covered as u64 / 8).max(1);

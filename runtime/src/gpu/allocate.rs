@@ -208,7 +208,7 @@ impl<'a> Passes<'a> {
         al: &Allocation,
     ) -> Result<&'static str> {
         let a = &self.gpu.pipelines.allocate;
-        let (search, variant) = a.search_for(&self.gpu.device, self.opts.spread_search);
+        let (search, variant) = a.search_for(&self.gpu.device, self.opts.tuning.spread_search);
         let (per_pixel, rounds, scan) = (
             dispatch_offset(DISPATCH_PER_PIXEL),
             dispatch_offset(DISPATCH_ROUNDS),
@@ -359,7 +359,7 @@ pub(super) struct Allocate {
     pub(super) weights: wgpu::ComputePipeline,
     pub(super) setup: wgpu::ComputePipeline,
     pub(super) search: wgpu::ComputePipeline,
-    /// The search adding into 32 copies of the workgroup's totals ([`FrameOptions::spread_search`],
+    /// The search adding into 32 copies of the workgroup's totals ([`super::Tuning::spread_search`],
     /// off by default): built on first use.
     search_spread: std::sync::OnceLock<wgpu::ComputePipeline>,
     pipeline_layout: wgpu::PipelineLayout,
@@ -417,7 +417,7 @@ impl Allocate {
         }
     }
 
-    /// The search as [`FrameOptions::spread_search`] asks for it, and its variant's name.
+    /// The search as [`super::Tuning::spread_search`] asks for it, and its variant's name.
     pub(super) fn search_for(
         &self,
         device: &wgpu::Device,

@@ -148,42 +148,9 @@ impl Recording<'_, '_, '_> {
     pub(super) fn capture_and_resolve(&mut self, s: Slots, kb: KBuffer) -> Result<()> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;
+        let b = self.slot_buffers(&kb)?;
         let fb = &mut self.fb;
         let status = fb.storage("status", FrameStatus::BYTES, true)?;
-        // The tail: sum c8 a8 for r, g, b and sum a8 (16 bytes a pixel), and its count, in
-        // buffers of their own; or, pooled, in the slots (cleared with them), and the tail
-        // buffers the shared layout binds are unused.
-        let (slots, tail, tail_count) = match (&kb.slots, kb.unused) {
-            (SlotsAt::Pooled(pool), Some((tail, tail_count))) => {
-                // The pool made before (and used for other state until now), cleared.
-                fb.enc.clear_buffer(pool, 0, None);
-                (pool.clone(), tail, tail_count)
-            }
-            (SlotsAt::Pooled(pool), None) => {
-                fb.enc.clear_buffer(pool, 0, None);
-                (
-                    pool.clone(),
-                    fb.storage("oit.unused_tail", 16, true)?,
-                    fb.storage("oit.unused_tail_count", 16, true)?,
-                )
-            }
-            (SlotsAt::PerPixel(n), _) => (
-                fb.storage("oit.slots", 8 * n, true)?,
-                fb.storage("oit.tail", 16 * px, true)?,
-                fb.storage("oit.tail_count", 4 * px, true)?,
-            ),
-        };
-        let pooled = matches!(kb.slots, SlotsAt::Pooled(_));
-        // Where the frame's glass is tinted, the tint pass's words (kbuffer_tint.wgsl).
-        let slot_words = match &kb.slots {
-            SlotsAt::Pooled(pool) => pool.size() / crate::budget::SLOT_BYTES,
-            SlotsAt::PerPixel(n) => *n,
-        };
-        let (tints, tinted) = fb.tints(
-            "oit",
-            crate::budget::kbuffer_tint_words(px, slot_words, pooled),
-            self.tinted,
-        )?;
         // One pass with 64-bit atomics, or on a device without them (or asked for it) the
         // portable capture's two with 32-bit ones: the same slots and tails.
         let wide = (gpu.capture_for(passes.opts.capture) == Capture::Wide)
@@ -191,11 +158,11 @@ impl Recording<'_, '_, '_> {
             .flatten();
         // Where the host knows k = n everywhere, the pipelines built for it (the same slots,
         // tail and image).
-        let fits = passes.opts.two_mode_capture
-            && passes.opts.fits_pipelines
+        let fits = passes.opts.tuning.two_mode_capture
+            && passes.opts.tuning.fits_pipelines
             && kb.all_fit
             && wide.is_some();
-        let group = [&kb.base, &slots, &tail, &tail_count, &kb.counts];
+        let group = [&kb.base, &b.slots, &b.tail, &b.tail_count, &kb.counts];
         match wide {
             Some(w) => {
                 let (phase, capture, variant) = match fits {
@@ -217,11 +184,11 @@ impl Recording<'_, '_, '_> {
                 passes.draw(fb.enc, c, colours, &group, "capture colours");
             }
         }
-        if tinted {
+        if b.tinted {
             // Its group: the bases, the slots, the counts and the tints (the tails' buffers
             // are the capture's alone).
-            let mut group = entries(&[&kb.base, &slots]);
-            group.extend(entries_from(4, &[&kb.counts, &tints]));
+            let mut group = entries(&[&kb.base, &b.slots]);
+            group.extend(entries_from(4, &[&kb.counts, &b.tints]));
             let tint = gpu.extras().capture_tints(fits);
             passes.draw_group(fb.enc, Phase::CaptureTints, tint, group, "capture tints");
         }
@@ -234,6 +201,7 @@ impl Recording<'_, '_, '_> {
         // tail counts (n where a pixel appended, what insertion pushed out where it inserted),
         // or with the tails pooled the counts (0 where a pixel appended, its cursor having
         // taken them down; n where it inserted).
+        let pooled = matches!(kb.slots, SlotsAt::Pooled(_));
         let captured = match (passes.opts.diagnostics, pooled) {
             (false, _) => None,
             (true, true) => {
@@ -245,21 +213,76 @@ impl Recording<'_, '_, '_> {
             (true, false) => {
                 let copy = fb.storage("oit.tail_count.captured", 4 * px, false)?;
                 fb.enc
-                    .copy_buffer_to_buffer(&tail_count, 0, &copy, 0, 4 * px);
+                    .copy_buffer_to_buffer(&b.tail_count, 0, &copy, 0, 4 * px);
                 Some(copy)
             }
         };
-        let mut group = entries(&[passes.params(), &kb.base, &slots, &tail, &tail_count]);
+        let mut group = entries(&[passes.params(), &kb.base, &b.slots, &b.tail, &b.tail_count]);
         group.extend(entries_from(6, &[&kb.counts, &status]));
-        group.extend(entries_from(10, &[&tints]));
+        group.extend(entries_from(10, &[&b.tints]));
         passes.resolve(fb.enc, resolve, own, group, 5, "resolve");
         self.out.status = Some(status);
-        if !passes.opts.diagnostics {
-            return Ok(());
+        if passes.opts.diagnostics {
+            self.read_slots_later(s, &kb, b, captured);
         }
+        Ok(())
+    }
+
+    /// The buffers `kb`'s capture fills beside its bases and counts: the slots and the tail (sum
+    /// c8 a8 for r, g, b and sum a8, 16 bytes a pixel, and its count) in buffers of their own,
+    /// or pooled, the tails in the slots (cleared with them) and the tail buffers the shared
+    /// layout binds unused; and where the frame's glass is tinted, the tint pass's words
+    /// (kbuffer_tint.wgsl).
+    fn slot_buffers(&mut self, kb: &KBuffer) -> Result<SlotBuffers> {
+        let (px, fb) = (self.px, &mut self.fb);
+        let (slots, tail, tail_count) = match (&kb.slots, &kb.unused) {
+            (SlotsAt::Pooled(pool), Some((tail, tail_count))) => {
+                // The pool made before (and used for other state until now), cleared.
+                fb.enc.clear_buffer(pool, 0, None);
+                (pool.clone(), tail.clone(), tail_count.clone())
+            }
+            (SlotsAt::Pooled(pool), None) => {
+                fb.enc.clear_buffer(pool, 0, None);
+                (
+                    pool.clone(),
+                    fb.storage("oit.unused_tail", 16, true)?,
+                    fb.storage("oit.unused_tail_count", 16, true)?,
+                )
+            }
+            (SlotsAt::PerPixel(n), _) => (
+                fb.storage("oit.slots", 8 * n, true)?,
+                fb.storage("oit.tail", 16 * px, true)?,
+                fb.storage("oit.tail_count", 4 * px, true)?,
+            ),
+        };
+        let (slot_words, pooled) = match &kb.slots {
+            SlotsAt::Pooled(pool) => (pool.size() / crate::budget::SLOT_BYTES, true),
+            SlotsAt::PerPixel(n) => (*n, false),
+        };
+        let words = crate::budget::kbuffer_tint_words(px, slot_words, pooled);
+        let (tints, tinted) = fb.tints("oit", words, self.tinted)?;
+        Ok(SlotBuffers {
+            slots,
+            tail,
+            tail_count,
+            tints,
+            tinted,
+        })
+    }
+
+    /// After the frame, `kb`'s slots, bases and tails read back as `composite::capture` gives
+    /// them ([`super::GpuFrame::slots`]), and the cursors `captured` copied.
+    fn read_slots_later(
+        &mut self,
+        s: Slots,
+        kb: &KBuffer,
+        b: SlotBuffers,
+        captured: Option<wgpu::Buffer>,
+    ) {
+        let px = self.px;
         let base = kb.base.clone();
         let counts = kb.counts.clone();
-        let layer_major = passes.opts.layer_major_fkb;
+        let layer_major = self.passes.opts.tuning.layer_major_fkb;
         let uniform = match s {
             Slots::Uniform(k) => Some(k.max(1)),
             _ => None,
@@ -268,6 +291,12 @@ impl Recording<'_, '_, '_> {
             SlotsAt::PerPixel(n) => Some(n),
             SlotsAt::Pooled(_) => None,
         };
+        let SlotBuffers {
+            slots,
+            tail,
+            tail_count,
+            ..
+        } = b;
         self.out.deferred.push(Box::new(move |gpu, out| {
             let Some(n) = per_pixel else {
                 // Each pixel's k slots and its tail out of the pool, as composite::capture
@@ -309,8 +338,17 @@ impl Recording<'_, '_, '_> {
             }
             Ok(())
         }));
-        Ok(())
     }
+}
+
+/// What a k-buffer's capture fills beside its bases and counts ([`Recording::slot_buffers`]).
+struct SlotBuffers {
+    slots: wgpu::Buffer,
+    tail: wgpu::Buffer,
+    tail_count: wgpu::Buffer,
+    /// The tint pass's words, or an unused binding where the glass is grey (`tinted` false).
+    tints: wgpu::Buffer,
+    tinted: bool,
 }
 
 /// A slot's key as [`crate::fragment::fragment_key`] gives it, from the slot as stored: the

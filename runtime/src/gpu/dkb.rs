@@ -101,10 +101,10 @@ impl Recording<'_, '_, '_> {
         self.out.features_drawn = planned.host.map(|_| drawn);
         if drawn {
             let variant = |entry| Variant {
-                shared_weights: self.passes.opts.shared_weights,
-                unrolled: self.passes.opts.unrolled_network,
+                shared_weights: self.passes.opts.tuning.shared_weights,
+                unrolled: self.passes.opts.tuning.unrolled_network,
                 entry,
-                ..Variant::for_network("importance_dkb", mlp, self.passes.opts.skip_forced)
+                ..Variant::for_network("importance_dkb", mlp, self.passes.opts.tuning.skip_forced)
             };
             self.out.variants.push(variant("network").form());
             let network = ["select_pixels", "args", "network", "gather"]
@@ -129,7 +129,7 @@ impl Recording<'_, '_, '_> {
             }
             self.out.record_batches = Some(batches);
         }
-        let variant = if self.passes.opts.features_preload {
+        let variant = if self.passes.opts.tuning.features_preload {
             "features: preload"
         } else {
             "features: no preload"
@@ -208,7 +208,7 @@ impl Recording<'_, '_, '_> {
             gpu.capture_for(self.passes.opts.capture),
         ) {
             (Some(w), super::Capture::Wide) => {
-                let features = match self.passes.opts.features_preload {
+                let features = match self.passes.opts.tuning.features_preload {
                     true => &w.features,
                     false => gpu.extras().features_no_preload(),
                 };

@@ -193,90 +193,80 @@ pub struct Gpu {
     created: std::sync::atomic::AtomicU64,
 }
 
-/// How a frame lays out its passes, and what it reads back: each switch picks one of two
-/// implementations with the same images (the bench measures both; the tests hold each to the
-/// other), and the defaults are the fastest measured. [`Gpu::render`] takes the defaults,
-/// [`Gpu::render_with`] the caller's.
+/// What a frame renders and reads back beyond its method and budget. [`Gpu::render`] takes the
+/// defaults, [`Gpu::render_with`] the caller's.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FrameOptions {
-    /// Whether DKB's importance pass skips the network where k does not depend on it (on by
-    /// default; the bench turns it off to show the time saved). The images are the same.
-    pub skip_forced: bool,
-    /// Whether the allocated k-buffers (DKB, VKB, uploaded importance), which know n(p) by the
-    /// capture, append the pixels that keep all their fragments
-    /// ([`crate::composite::appends`]) and insert the rest (capture.wgsl); off, every fragment
-    /// is inserted (the bench's comparison). The images are the same.
-    pub two_mode_capture: bool,
-    /// Whether, with the two-mode capture, a frame whose budget holds every fragment (so
-    /// k(p) = n(p) everywhere) captures and resolves with the pipelines of capture.wgsl and
-    /// resolve.wgsl built for it: k from the slot bases alone, every pixel of at most
-    /// [`crate::composite::APPEND_MAX`] fragments appended with no other load and sorted at
-    /// resolve, no tail read or summed. Off, such frames take the two-mode pipelines (the
-    /// bench's comparison). The slots, tails and images are the same.
-    pub fits_pipelines: bool,
-    /// Whether DKB's importance pass stages the network's first two layers in workgroup memory,
-    /// 16 first-layer units at a time, shared by the workgroup's 64 pixels, instead of reading
-    /// every weight from the uniform buffer (off by default: on lavapipe it is slower; the
-    /// bench measures both). The importance is the same.
-    pub shared_weights: bool,
-    /// Whether a network pass built for one network shape runs its forward written out for
-    /// that shape (the second layer's sums in named vectors, no array; on by default), rather
-    /// than mlp.wgsl's loops over an array (the bench measures both). The importance is the
-    /// same.
-    pub unrolled_network: bool,
-    /// Whether DKB's features pass loads a pixel's nearest key before its atomicMax, and skips
-    /// the atomic where the key cannot change it (fewer atomics), rather than issuing it
-    /// always (an atomic whose result is unused, which a GPU need not wait for). On by default:
-    /// faster on lavapipe, and within the run-to-run noise of the other on an NVIDIA H200
-    /// (1080p features pass 5.7 / 5.1 / 7.0 / 6.6 / 3.4 ms with the load, 5.9 / 4.4 / 7.3 /
-    /// 8.6 / 3.2 without: particles, plates, shells, foliage, glass). The bench measures both;
-    /// the features are the same.
-    pub features_preload: bool,
-    /// Whether the allocation's search adds each invocation's 16 candidate totals into one of
-    /// 32 copies in workgroup memory (by invocation index) rather than into one, so that
-    /// neighbouring invocations' atomics do not wait on the same address. Off by default: on
-    /// lavapipe it is slower (197 / 289 / 215 against 167 / 252 / 194 ms on particles, shells,
-    /// plates at 640x480); the bench measures both. The allocation is the same.
-    pub spread_search: bool,
-    /// Whether FKB lays its slots out layer-major (slot i of every pixel together, so the
-    /// fragments of neighbouring pixels touch neighbouring words) rather than pixel-major
-    /// (off by default; the bench measures both). The images are the same.
-    pub layer_major_fkb: bool,
-    /// Whether a DKB or VKB frame, once it has counted its fragments, renders the exact A-buffer
-    /// where that needs no more bytes than the method would reserve at its budget
-    /// ([`crate::frame::exact_is_no_dearer`], on the GPU's own count), and where the budget
-    /// holds every fragment: exact, with the A-buffer's memory, whatever slots the caller
-    /// asked for ([`GpuFrame::exact`]). Then the frame counts first, reads its fragment count
-    /// back and takes the method's buffers only where it runs the method (whose count and slot
-    /// bases are then that count's buffers; VKB counts once more, with its nearest fragment).
-    /// On by default, as [`crate::frame::Options::exact_when_cheaper`] is; off, the method
-    /// runs at any budget (the bench's and the twins' comparisons). FKB's, uploaded k's and
-    /// uploaded importance's frames render as asked either way.
+    /// Whether a DKB or VKB frame, once it has counted its fragments, renders the exact
+    /// A-buffer where that needs no more bytes than the method reserves at its budget
+    /// ([`crate::frame::exact_is_no_dearer`]) or its budget holds every fragment
+    /// ([`GpuFrame::exact`]); on by default, as [`crate::frame::Options::exact_when_cheaper`].
+    /// FKB's and uploaded k's frames render as asked either way.
     pub exact_when_cheaper: bool,
-    /// DKB and VKB only: the frame's budget in bytes, resolved once its count is read back
-    /// against the frame's own occupancy (`Layout::fragment_budget_counted`: the most slots
-    /// whose records, marks, slots and tails fit), in place of the slots' F (a VKB frame
-    /// counts first for it, where [`FrameOptions::exact_when_cheaper`] has not). Before the
-    /// count, a byte budget can only leave room for a tail (DKB: and a record) for every pixel
-    /// (`Budget::fragment_budget`); counted, it leaves room for what this frame needs. The
-    /// A-buffer renders where these bytes hold it (with [`FrameOptions::exact_when_cheaper`]).
-    /// None by default: F as the slots give it.
+    /// DKB and VKB only: a budget in bytes, resolved once the frame's count is read back
+    /// against its own occupancy (`Layout::fragment_budget_counted`), in place of the slots'
+    /// F. None by default.
     pub counted_bytes: Option<u64>,
-    /// Whether a frame reads back what the tests compare besides the image (the A-buffer's
-    /// fragments, the k-buffer's slots and tails, importance and statistics): on by default;
-    /// off, a frame reads back its image only (the bench's steady-state frames).
+    /// Whether a frame reads back what the tests compare besides the image (fragments, slots,
+    /// tails, importance, statistics): on by default; off, the image alone.
     pub diagnostics: bool,
-    /// The most batches a DKB frame gathers its network's records in
-    /// ([`crate::budget::PoolState::batches`]; [`crate::budget::RECORD_BATCHES`] by default):
-    /// where its pool holds fewer records than the frame has, each batch draws the features
-    /// pass once more. 1 makes the pool hold every record at once: one features pass, more
-    /// memory where the records outweigh the slots (the bench measures both; the CPU's
-    /// accounting, `frame::Options`, counts the default). The images are the same.
-    pub record_batches: u64,
-    /// How the k-buffers (FKB, DKB, VKB, uploaded k or importance) insert fragments into their
-    /// slots: with 64-bit atomics in one geometry pass, or with 32-bit atomics alone in two
-    /// ([`Capture`]). The slots, tails and images are the same, bit for bit.
+    /// How the k-buffers insert fragments: 64-bit atomics in one pass or 32-bit ones in two
+    /// ([`Capture`]); the same slots, tails and images, bit for bit.
     pub capture: Capture,
+    /// How the passes are laid out: each switch picks one of two implementations with the same
+    /// images, the bench measures both, the tests hold each to the other.
+    pub tuning: Tuning,
+}
+
+/// A frame's passes' implementation choices ([`FrameOptions::tuning`]): the images are the same
+/// whichever is chosen. The defaults are the fastest measured (`make bench`; docs/results.md
+/// gives the figures).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Tuning {
+    /// DKB's importance pass skips the network where k does not depend on it (on).
+    pub skip_forced: bool,
+    /// The allocated k-buffers (DKB, VKB, uploaded importance) append the pixels that keep all
+    /// their fragments ([`crate::composite::appends`]) and insert the rest (on); off, every
+    /// fragment is inserted.
+    pub two_mode_capture: bool,
+    /// With the two-mode capture, a frame whose budget holds every fragment uses the capture
+    /// and resolve built for k = n everywhere (on).
+    pub fits_pipelines: bool,
+    /// DKB's importance pass stages the network's first two layers in workgroup memory (off:
+    /// slower on lavapipe).
+    pub shared_weights: bool,
+    /// A network pass runs its forward written out for its shape rather than mlp.wgsl's loops
+    /// (on).
+    pub unrolled_network: bool,
+    /// DKB's features pass loads a pixel's nearest key and skips the atomicMax that cannot
+    /// change it (on).
+    pub features_preload: bool,
+    /// The allocation's search adds into 32 copies of its totals in workgroup memory rather than
+    /// one (off: slower on lavapipe).
+    pub spread_search: bool,
+    /// FKB lays its slots out layer-major rather than pixel-major (off).
+    pub layer_major_fkb: bool,
+    /// The most batches a DKB frame gathers its network's records in
+    /// ([`crate::budget::PoolState::batches`]; [`crate::budget::RECORD_BATCHES`]): fewer take
+    /// more memory where the records outweigh the slots, and fewer features passes. The CPU's
+    /// accounting (`frame::Options::record_batches`) counts the same.
+    pub record_batches: u64,
+}
+
+impl Default for Tuning {
+    fn default() -> Self {
+        Tuning {
+            skip_forced: true,
+            two_mode_capture: true,
+            fits_pipelines: true,
+            shared_weights: false,
+            unrolled_network: true,
+            features_preload: true,
+            spread_search: false,
+            layer_major_fkb: false,
+            record_batches: crate::budget::RECORD_BATCHES,
+        }
+    }
 }
 
 /// How a k-buffer's capture inserts a fragment's 64-bit key (its depth, then its colour) into
@@ -322,19 +312,11 @@ impl Capture {
 impl Default for FrameOptions {
     fn default() -> Self {
         FrameOptions {
-            skip_forced: true,
-            two_mode_capture: true,
-            fits_pipelines: true,
-            shared_weights: false,
-            unrolled_network: true,
-            features_preload: true,
-            spread_search: false,
-            layer_major_fkb: false,
             exact_when_cheaper: true,
             counted_bytes: None,
             diagnostics: true,
-            record_batches: crate::budget::RECORD_BATCHES,
             capture: Capture::Wide,
+            tuning: Tuning::default(),
         }
     }
 }
@@ -342,11 +324,11 @@ impl Default for FrameOptions {
 impl FrameOptions {
     /// DKB's buffers for `mlp` as these options' frames create them: the network's own bytes
     /// ([`budget::Layout::for_network`]) and its records in at most
-    /// [`FrameOptions::record_batches`] batches.
+    /// [`Tuning::record_batches`] batches.
     pub fn dkb_layout(&self, mlp: &crate::mlp::Mlp) -> budget::Layout {
         budget::DKB
             .for_network(mlp)
-            .with_record_batches(self.record_batches)
+            .with_record_batches(self.tuning.record_batches)
     }
 
     /// These options with [`FrameOptions::exact_when_cheaper`] off: a DKB or VKB frame runs its
@@ -997,10 +979,10 @@ impl Gpu {
         );
         // The allocated k-buffers know n(p) by the capture: two-mode capture (capture.wgsl),
         // and their tails in the slot pool.
-        params.append = (opts.two_mode_capture && allocated).into();
+        params.append = (opts.tuning.two_mode_capture && allocated).into();
         params.pooled_tail = allocated.into();
         params.layer_major =
-            (opts.layer_major_fkb && matches!(slots, Some(Slots::Uniform(_)))).into();
+            (opts.tuning.layer_major_fkb && matches!(slots, Some(Slots::Uniform(_)))).into();
         if let Some(Slots::LinkedList { sorted, .. }) = slots {
             params.list_sorted = sorted;
         }
@@ -1028,7 +1010,7 @@ impl Gpu {
             tinted: params.tinted != 0,
         };
         if matches!(slots, Some(Slots::Uniform(_))) {
-            rec.out.variants.push(if opts.layer_major_fkb {
+            rec.out.variants.push(if opts.tuning.layer_major_fkb {
                 "fkb slots: layer-major"
             } else {
                 "fkb slots: pixel-major"
