@@ -502,7 +502,17 @@ impl<'a> Renderer<'a> {
             {
                 (m, layout.tinted_fragment_budget(m, pixels, &occ)?)
             }
-            _ => budget.resolve_counted(&layout, pixels, &occ)?,
+            // F fixed by slots or a share: the bytes it reserves, with its tints where the
+            // frame's glass is tinted.
+            _ => {
+                let (bytes, f) = budget.resolve_counted(&layout, pixels, &occ)?;
+                let bytes = match (fl.tinted(), method) {
+                    (true, Method::LinkedList) => bytes + budget::TINT_BYTES * f,
+                    (true, m) if m.is_kbuffer() => layout.with_tints(bytes, pixels),
+                    _ => bytes,
+                };
+                (bytes, f)
+            }
         };
         // Exact where the budget holds every fragment, and (unless told otherwise) where the
         // A-buffer needs no more bytes than the method reserves for this budget: then the

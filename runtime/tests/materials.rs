@@ -963,7 +963,7 @@ fn tinted_glass_in_the_gpu_k_buffers_is_their_twins() {
 /// optimal allocation's and the list's tinted frames allocate no more than M, on fewer slots
 /// than the grey frame's where they truncate, and one too small for the tints is refused
 /// naming them. At equal bytes DKB's tinted frame gets the F its grey frame gets: the bytes it
-/// spends count its tints.
+/// spends count its tints, as the bytes a share reserves do.
 #[test]
 fn tinted_k_buffers_stay_within_a_byte_budget() {
     let s = coplanar_tints();
@@ -1053,6 +1053,16 @@ fn tinted_k_buffers_stay_within_a_byte_budget() {
             ..Options::new(Budget::Share(ppm), BG).always_approximate()
         };
         let tinted = frame::render(&fl, Method::Dkb, at(frame::Equal::Bytes)).unwrap();
+        // At equal F the bytes it reserves for the share count its tints too.
+        for m in [Method::Dkb, Method::Vkb, Method::LinkedList] {
+            let f = frame::render(&fl, m, at(frame::Equal::Slots)).unwrap();
+            assert!(
+                f.exact || f.allocated_bytes <= f.budget_bytes,
+                "{m} {ppm} ppm: {} of {}",
+                f.allocated_bytes,
+                f.budget_bytes
+            );
+        }
         let g = Scene {
             glass: Glass::Grey,
             ..s.clone()
