@@ -1,7 +1,8 @@
 //! Every pipeline dhoit's renderer builds for the methods WebGPU runs (all but MBOIT, which
 //! needs float32-blendable), written as JSON for a WebGPU implementation to create (`make
 //! webgpu` hands them to Dawn, Chrome's WebGPU: scripts/webgpu_pipelines.mjs). It renders each such method once on WebGPU's core device
-//! (`Gpu::portable`: no feature, wgpu's default limits) and records what it built.
+//! (`Gpu::portable`: no feature, wgpu's default limits), the k-buffers once more on tinted glass
+//! (their tint pass), and records what it built.
 //!
 //!     cargo run --release --example webgpu_pipelines -- OUT.json
 
@@ -15,26 +16,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let gpu = Gpu::portable()?;
     eprintln!("WebGPU core device on {}", gpu.adapter());
     let s = scene::load("particles", Opacity::default())?;
+    let glass = scene::Scene {
+        glass: scene::Glass::Tinted,
+        ..scene::load("windows", Opacity::Native)?
+    };
     let (w, h) = (64, 48);
     let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
     let k: Vec<u32> = (0..w * h).map(|p| p % 4).collect();
     let mlp = dhoit_runtime::mlp::Mlp::random(1);
-    let methods: [(&str, Option<Slots>); 9] = [
-        ("dkb", Some(Slots::Dkb(&mlp, 2000u64.into()))),
-        ("vkb", Some(Slots::Vkb(Default::default(), 2000u64.into()))),
-        ("abuffer", None),
-        ("mlab", Some(Slots::Mlab(4))),
-        ("fkb", Some(Slots::Uniform(2))),
-        ("uploaded k", Some(Slots::PerPixel(&k))),
+    let methods: [(&str, Slots); 11] = [
+        ("dkb", Slots::Dkb(&mlp, 2000u64.into())),
+        ("vkb", Slots::Vkb(Default::default(), 2000u64.into())),
+        ("abuffer", Slots::Exact),
+        ("mlab", Slots::Mlab(4)),
+        ("fkb", Slots::Uniform(2)),
+        ("uploaded k", Slots::PerPixel(&k)),
         (
             "linked list",
-            Some(Slots::LinkedList {
+            Slots::LinkedList {
                 nodes: 4096,
                 sorted: 4,
-            }),
+            },
         ),
-        ("wboit", Some(Slots::Wboit(Default::default()))),
-        ("predict", None),
+        ("wboit", Slots::Wboit(Default::default())),
+        ("predict", Slots::Exact),
+        // The k-buffers' tint pass, on a scene of tinted glass.
+        ("tinted fkb", Slots::Uniform(2)),
+        ("tinted dkb", Slots::Dkb(&mlp, 2000u64.into())),
     ];
     let (result, pipelines) = record_pipelines(|| -> dhoit_runtime::Result<Vec<String>> {
         // The renderer's own passes, built with the device.
@@ -47,7 +55,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             } else {
                 // Each method's own passes, even where the exact A-buffer would be no dearer.
                 let opts = FrameOptions::default().always_approximate();
-                g.render_with(&opts, &s, &cam, (w, h), [1.0; 3], slots)?;
+                match name.strip_prefix("tinted ") {
+                    Some(_) => {
+                        let cam = Camera::orbit(&glass, 0, scene::DEFAULT_VIEWS, w, h);
+                        g.render_with(&opts, &glass, &cam, (w, h), [1.0; 3], slots)?
+                    }
+                    None => g.render_with(&opts, &s, &cam, (w, h), [1.0; 3], slots)?,
+                };
             }
             ran.push(name.to_string());
         }

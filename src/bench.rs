@@ -403,7 +403,7 @@ fn time_run(
     opts: &dhoit_runtime::gpu::FrameOptions,
     (s, cam): (&scene::Scene, &Camera),
     (w, h): (u32, u32),
-    slots: Option<dhoit_runtime::gpu::Slots>,
+    slots: dhoit_runtime::gpu::Slots,
     repeat: usize,
 ) -> Result<serde_json::Value> {
     let timed = |gpu: &dhoit_runtime::gpu::Gpu| -> Result<(f64, f64, _)> {
@@ -526,7 +526,7 @@ fn scene_figures(
         },
         &options,
     )? {
-        Some(Slots::Dkb(_, f)) => Some(f),
+        Slots::Dkb(_, f) => Some(f),
         _ => None,
     };
     let holds_all = dkb_f.is_some_and(|f| f.holds(total));
@@ -736,12 +736,11 @@ fn gpu_bench(
                     ..frame.clone()
                 };
                 let slots = match Slots::for_method(method, &unrouted, &options)? {
-                    Some(Slots::Dkb(_, f)) if label == "dkb_16-8" => {
-                        Some(Slots::Dkb(&nets.small, f))
-                    }
-                    Some(Slots::Dkb(_, f)) if label == "dkb_f16_math" => {
-                        nets.half.as_ref().map(|m| Slots::Dkb(m, f))
-                    }
+                    Slots::Dkb(_, f) if label == "dkb_16-8" => Slots::Dkb(&nets.small, f),
+                    Slots::Dkb(_, f) if label == "dkb_f16_math" => nets
+                        .half
+                        .as_ref()
+                        .map_or(Slots::Exact, |m| Slots::Dkb(m, f)),
                     s => s,
                 };
                 let run = time_run(&gpu, &configure(label), (s, &cam), (w, h), slots, repeat)?;

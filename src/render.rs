@@ -162,8 +162,15 @@ pub fn run(a: RenderArgs) -> Result<()> {
             gpu_fragments = match g.fragments {
                 Some(fr) => Some(fr),
                 None if a.dump.is_some() => {
-                    gpu.render(&scene, &cam, w, h, a.common.background, None)?
-                        .fragments
+                    gpu.render(
+                        &scene,
+                        &cam,
+                        w,
+                        h,
+                        a.common.background,
+                        dhoit_runtime::gpu::Slots::Exact,
+                    )?
+                    .fragments
                 }
                 None => None,
             };

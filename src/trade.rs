@@ -477,7 +477,7 @@ impl Timer {
                         cam,
                         (*w, *h),
                         [1.0; 3],
-                        Some(dhoit_runtime::gpu::Slots::Dkb(mlp, *f)),
+                        dhoit_runtime::gpu::Slots::Dkb(mlp, *f),
                     )?
                     .pass_ms
                     .iter()

@@ -326,7 +326,7 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
     // exactly on the CPU, within float rounding on the GPU.
     let exact = frame::render(&fl, Method::Abuffer, opts(Budget::Share(1_000_000))).unwrap();
     let gpu_exact = g
-        .render_method(&s, &identity(), w, h, BG, None)
+        .render_method(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
         .unwrap()
         .image;
     for b in [
@@ -340,7 +340,7 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
         let fb = FragmentBudget::Slots(b.resolve(&budget::DKB, pixels, total).unwrap().1);
         for slots in [Slots::Dkb(&mlp, fb), Slots::Vkb(VkbParams::default(), fb)] {
             let img: Image = g
-                .render_method(&s, &identity(), w, h, BG, Some(slots))
+                .render_method(&s, &identity(), w, h, BG, slots)
                 .unwrap()
                 .image;
             let d = img.max_abs_diff(&gpu_exact);
@@ -396,7 +396,7 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
                 Method::Dkb => Slots::Dkb(&mlp, f),
                 _ => Slots::PerPixel(&cpu.k),
             };
-            match g.render_method(&s, &identity(), w, h, BG, Some(slots)) {
+            match g.render_method(&s, &identity(), w, h, BG, slots) {
                 Ok(frame) => {
                     let d = frame.image.max_abs_diff(&cpu.image);
                     assert!(d <= TOLERANCE, "{} at {b}: GPU differs by {d}", m.name());
@@ -461,7 +461,7 @@ fn skipping_forced_pixels_leaves_the_frame_unchanged() {
         for skip in [true, false] {
             o.tuning.skip_forced = skip;
             let fr = g
-                .render_with(&o, &s, &identity(), (w, h), BG, Some(Slots::Dkb(&mlp, f)))
+                .render_with(&o, &s, &identity(), (w, h), BG, Slots::Dkb(&mlp, f))
                 .unwrap();
             frames.push(fr);
         }

@@ -105,7 +105,7 @@ fn gpu_fragments(
     w: u32,
     h: u32,
 ) -> FragmentLists {
-    g.render_method(s, cam, w, h, BG, None)
+    g.render_method(s, cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
         .unwrap()
         .fragments
         .unwrap()
@@ -117,7 +117,9 @@ fn abuffer_matches_the_cpu_on_its_own_fragments() {
     for (name, view) in [("shells", 0), ("plates", 1), ("particles", 2), (REAL, 1)] {
         let (w, h) = (96, 72);
         let (s, cam) = frame(name, view, w, h);
-        let f = g.render_method(&s, &cam, w, h, BG, None).unwrap();
+        let f = g
+            .render_method(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+            .unwrap();
         let gfl = f.fragments.as_ref().unwrap();
         // Coverage against the CPU rasterizer.
         let cpu = rasterize(&s, &cam, w, h).unwrap();
@@ -172,7 +174,7 @@ fn kbuffers_match_the_cpu_slot_for_slot() {
             } else {
                 Slots::PerPixel(&k)
             };
-            let f = g.render_method(&s, &cam, w, h, BG, Some(slots)).unwrap();
+            let f = g.render_method(&s, &cam, w, h, BG, slots).unwrap();
             let (keys, bases, tails) = f.slots.clone().unwrap();
             let (twin_keys, twin_tails) = twin_capture(&gfl, &k);
             assert_eq!(
@@ -219,11 +221,11 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
     let vkb = dhoit_runtime::importance::VkbParams::default();
     let images = |sc: &Scene| {
         [
-            None,
-            Some(Slots::Uniform(2)),
-            Some(Slots::PerPixel(&k)),
-            Some(Slots::Vkb(vkb, f.into())),
-            Some(Slots::Dkb(&mlp, f.into())),
+            Slots::Exact,
+            Slots::Uniform(2),
+            Slots::PerPixel(&k),
+            Slots::Vkb(vkb, f.into()),
+            Slots::Dkb(&mlp, f.into()),
         ]
         .map(|slots| image_bits(&g.render_method(sc, &cam, w, h, BG, slots).unwrap().image))
     };
@@ -251,7 +253,7 @@ fn dkb_s_records_in_batches_or_at_once_give_the_same_frame_in_fewer_bytes() {
     let frames = [1, 2, 3].map(|b| {
         o.tuning.record_batches = b;
         let fr = g
-            .render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Dkb(&mlp, f.into())))
+            .render_with(&o, &s, &cam, (w, h), BG, Slots::Dkb(&mlp, f.into()))
             .unwrap();
         let layout = budget::DKB.for_network(&mlp).with_record_batches(b);
         let pool = layout.pool_bytes(gfl.pixel_count() as u64, f, &occ);
@@ -314,18 +316,11 @@ fn a_truncated_frame_without_records_gathers_one_empty_batch() {
     // pool hold its importance: nothing may be left of it.
     let (deep, deep_cam) = frame("particles", 1, w, h);
     let before = g
-        .render_method(
-            &deep,
-            &deep_cam,
-            w,
-            h,
-            BG,
-            Some(Slots::Dkb(&mlp, 200.into())),
-        )
+        .render_method(&deep, &deep_cam, w, h, BG, Slots::Dkb(&mlp, 200.into()))
         .unwrap();
     assert!(before.importance.unwrap().iter().any(|i| i.to_bits() != 0));
     let d = g
-        .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
+        .render_method(&s, &cam, w, h, BG, Slots::Dkb(&mlp, f.into()))
         .unwrap();
     assert_eq!(d.record_batches, Some(1));
     let imp = d.importance.clone().unwrap();
@@ -366,7 +361,7 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
     for (label, mlp) in &nets {
         let mut frames = [false, true].map(|shared| {
             o.tuning.shared_weights = shared;
-            g.render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Dkb(mlp, f.into())))
+            g.render_with(&o, &s, &cam, (w, h), BG, Slots::Dkb(mlp, f.into()))
                 .unwrap()
         });
         // Each frame ran the network it was asked for.
@@ -427,7 +422,7 @@ fn features_and_network_layouts_give_the_same_frame(
             o.tuning.features_preload = preload;
             o.tuning.unrolled_network = unrolled;
             let frame = g
-                .render_with(&o, s, cam, (w, h), BG, Some(Slots::Dkb(mlp, f.into())))
+                .render_with(&o, s, cam, (w, h), BG, Slots::Dkb(mlp, f.into()))
                 .unwrap();
             let label = format!("F {f} of {total}: preload {preload}, unrolled {unrolled}");
             assert!(counted_first(&frame), "{label}: count pass");
@@ -492,7 +487,7 @@ fn features_and_network_layouts_give_the_same_frame(
     let mut reference = std::collections::HashMap::new();
     for f in [truncates, holds_all] {
         for (method, slots) in methods.map(|m| (m, slots(m, f))) {
-            let frame = g.render_with(&o, s, cam, (w, h), BG, Some(slots)).unwrap();
+            let frame = g.render_with(&o, s, cam, (w, h), BG, slots).unwrap();
             let bits = frame.importance.as_deref().map(float_bits);
             assert!(method != "dkb" || image_bits(&frame.image) == images[&f]);
             reference.insert((method, f), (image_bits(&frame.image), frame.slots, bits));
@@ -508,7 +503,7 @@ fn features_and_network_layouts_give_the_same_frame(
             .enumerate()
         {
             let frame = g
-                .render_with(&o, s, cam, (w, h), BG, Some(slots(method, f)))
+                .render_with(&o, s, cam, (w, h), BG, slots(method, f))
                 .unwrap();
             let label = format!("{method}: frame {i}, F {f} of {total}");
             let passes = |name: &str| frame.passes.iter().filter(|&&p| p == name).count();
@@ -540,7 +535,7 @@ fn features_and_network_layouts_give_the_same_frame(
     o.tuning.spread_search = true;
     for method in methods {
         let frame = g
-            .render_with(&o, s, cam, (w, h), BG, Some(slots(method, truncates)))
+            .render_with(&o, s, cam, (w, h), BG, slots(method, truncates))
             .unwrap();
         let (image, keys, _) = &reference[&(method, truncates)];
         assert!(
@@ -577,7 +572,7 @@ fn layer_major_slots_capture_what_pixel_major_ones_do() {
         for k in [1u32, 3] {
             let frames = [false, true].map(|layer_major| {
                 o.tuning.layer_major_fkb = layer_major;
-                g.render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Uniform(k)))
+                g.render_with(&o, &s, &cam, (w, h), BG, Slots::Uniform(k))
                     .unwrap()
             });
             let (twin_keys, twin_tails) = twin_capture(&gfl, &vec![k; gfl.pixel_count()]);
@@ -602,14 +597,7 @@ fn layer_major_slots_capture_what_pixel_major_ones_do() {
             );
             // Layer-major, as the last frame.
             let shuffled = g
-                .render_with(
-                    &o,
-                    &s.shuffled(5),
-                    &cam,
-                    (w, h),
-                    BG,
-                    Some(Slots::Uniform(k)),
-                )
+                .render_with(&o, &s.shuffled(5), &cam, (w, h), BG, Slots::Uniform(k))
                 .unwrap();
             assert!(image_bits(&shuffled.image) == image_bits(&frames[1].image));
             o.tuning.layer_major_fkb = false;
@@ -641,14 +629,14 @@ fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
     let f = (2 * w * h) as u64;
     let vkb = dhoit_runtime::importance::VkbParams::default();
     let slots = [
-        None,
-        Some(Slots::Uniform(2)),
-        Some(Slots::PerPixel(&k)),
-        Some(Slots::Mlab(4)),
-        Some(Slots::Vkb(vkb, f.into())),
-        Some(Slots::Dkb(&mlp, f.into())),
+        Slots::Exact,
+        Slots::Uniform(2),
+        Slots::PerPixel(&k),
+        Slots::Mlab(4),
+        Slots::Vkb(vkb, f.into()),
+        Slots::Dkb(&mlp, f.into()),
     ];
-    let bits = |g: &dhoit_runtime::gpu::Gpu, s: &Scene, cam: &Camera, slots: Option<Slots>| {
+    let bits = |g: &dhoit_runtime::gpu::Gpu, s: &Scene, cam: &Camera, slots: Slots| {
         image_bits(&g.render_with(&o, s, cam, (w, h), BG, slots).unwrap().image)
     };
     for (i, &sl) in slots.iter().enumerate() {
@@ -700,7 +688,7 @@ fn allocated_bytes_never_exceed_the_budget() {
                 && f >= px
             {
                 let frame = g
-                    .render_method(&s, &cam, w, h, BG, Some(Slots::Uniform((f / px) as u32)))
+                    .render_method(&s, &cam, w, h, BG, Slots::Uniform((f / px) as u32))
                     .unwrap();
                 assert!(
                     frame.allocated_bytes <= m,
@@ -711,14 +699,7 @@ fn allocated_bytes_never_exceed_the_budget() {
             }
             if let Ok((m, f)) = budget.resolve(&budget::VKB, px, 0) {
                 let frame = g
-                    .render_method(
-                        &s,
-                        &cam,
-                        w,
-                        h,
-                        BG,
-                        Some(Slots::Vkb(Default::default(), f.into())),
-                    )
+                    .render_method(&s, &cam, w, h, BG, Slots::Vkb(Default::default(), f.into()))
                     .unwrap();
                 assert!(
                     frame.allocated_bytes <= m,
@@ -729,7 +710,7 @@ fn allocated_bytes_never_exceed_the_budget() {
             }
             if let Ok((m, f)) = budget.resolve(&budget::DKB, px, 0) {
                 let frame = g
-                    .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
+                    .render_method(&s, &cam, w, h, BG, Slots::Dkb(&mlp, f.into()))
                     .unwrap();
                 assert!(
                     frame.allocated_bytes <= m,
@@ -755,9 +736,7 @@ fn mlab_matches_the_cpu_in_submission_order() {
         let (w, h) = (64, 48);
         let (s, cam) = frame(name, 1, w, h);
         let gfl = gpu_fragments(g, &s, &cam, w, h);
-        let f = g
-            .render_method(&s, &cam, w, h, BG, Some(Slots::Mlab(m)))
-            .unwrap();
+        let f = g.render_method(&s, &cam, w, h, BG, Slots::Mlab(m)).unwrap();
         // The CPU twin takes each pixel's fragments in submission order.
         let twin: Vec<[f32; 3]> = (0..gfl.pixel_count())
             .map(|p| {
@@ -785,7 +764,7 @@ fn mlab_matches_the_cpu_in_submission_order() {
             8,
             8,
             BG,
-            Some(Slots::Mlab(40))
+            Slots::Mlab(40)
         )
         .is_err()
     );
@@ -893,14 +872,7 @@ fn the_allocation_pass_matches_its_cpu_twin() {
             total + 100,
         ] {
             let frame = g
-                .render_method(
-                    &s,
-                    &cam,
-                    w,
-                    h,
-                    BG,
-                    Some(Slots::Importance(imp, target, f.into())),
-                )
+                .render_method(&s, &cam, w, h, BG, Slots::Importance(imp, target, f.into()))
                 .unwrap();
             let (keys, bases, tails) = frame.slots.unwrap();
             let k_gpu: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
@@ -956,7 +928,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             // device drew it: where the budget truncates (DKB counts first and reads its count
             // back), for each pixel with a record (two fragments or more).
             let d = g
-                .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
+                .render_method(&s, &cam, w, h, BG, Slots::Dkb(&mlp, f.into()))
                 .unwrap();
             let twin = importance::pixel_stats(&gfl);
             let holds = f >= total;
@@ -1037,7 +1009,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             // VKB.
             let params = VkbParams::default();
             let v = g
-                .render_method(&s, &cam, w, h, BG, Some(Slots::Vkb(params, f.into())))
+                .render_method(&s, &cam, w, h, BG, Slots::Vkb(params, f.into()))
                 .unwrap();
             let (vc, facing) = v.vkb_nearest.clone().unwrap();
             assert_eq!(vc, gfl.counts(), "{name} vkb counts");
@@ -1132,7 +1104,7 @@ fn dkb_frames_run_the_f16_math_network_like_its_twin() {
             "{name}: the budget truncates"
         );
         let d = g
-            .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&half, f.into())))
+            .render_method(&s, &cam, w, h, BG, Slots::Dkb(&half, f.into()))
             .unwrap();
         let (feats, counts) = network_inputs(&importance::pixel_stats(&gfl), f);
         let twin = half.dkb_importance_pooled(&feats, &counts, f);
@@ -1201,7 +1173,7 @@ fn the_prefix_sum_is_exact_over_millions_of_pixels() {
         .map(|p| (p % 5 == 0) as u32 + (p % 7 == 0) as u32)
         .collect();
     let f = g
-        .render_method(&s, &cam, w, h, BG, Some(Slots::PerPixel(&k)))
+        .render_method(&s, &cam, w, h, BG, Slots::PerPixel(&k))
         .unwrap();
     let (_, bases, _) = f.slots.unwrap();
     let mut acc = 0u32;
@@ -1222,14 +1194,7 @@ fn a_large_allocation_matches_its_twin() {
     for fpp in [0.5, 1.0] {
         let f = (fpp * (w * h) as f64) as u64;
         let v = g
-            .render_method(
-                &s,
-                &cam,
-                w,
-                h,
-                BG,
-                Some(Slots::Vkb(Default::default(), f.into())),
-            )
+            .render_method(&s, &cam, w, h, BG, Slots::Vkb(Default::default(), f.into()))
             .unwrap();
         let imp = v.importance.clone().unwrap();
         let (_, bases, _) = v.slots.unwrap();
@@ -1290,14 +1255,10 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
             ("dkb", Slots::Dkb(&mlp, f.into())),
             ("vkb", Slots::Vkb(Default::default(), f.into())),
         ] {
-            let frame = g
-                .render_with(&o, &s, &cam, (w, h), BG, Some(slots))
-                .unwrap();
+            let frame = g.render_with(&o, &s, &cam, (w, h), BG, slots).unwrap();
             if f >= total {
                 o.tuning.fits_pipelines = false;
-                let two_mode = g
-                    .render_with(&o, &s, &cam, (w, h), BG, Some(slots))
-                    .unwrap();
+                let two_mode = g.render_with(&o, &s, &cam, (w, h), BG, slots).unwrap();
                 o.tuning.fits_pipelines = true;
                 assert!(
                     !wide
@@ -1378,7 +1339,7 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
             // Any submission order: the same image bits.
             for seed in 0..3 {
                 let shuffled = g
-                    .render_method(&s.shuffled(seed), &cam, w, h, BG, Some(slots))
+                    .render_method(&s.shuffled(seed), &cam, w, h, BG, slots)
                     .unwrap();
                 assert!(
                     image_bits(&shuffled.image) == image_bits(&frame.image),
@@ -1406,7 +1367,7 @@ fn a_pixel_too_deep_for_the_devices_loops_is_refused_not_wrong() {
         );
     }
     let cam = common::identity();
-    let r = g.render_method(&s, &cam, 4, 4, BG, None);
+    let r = g.render_method(&s, &cam, 4, 4, BG, dhoit_runtime::gpu::Slots::Exact);
     if g.bounded_loops() {
         let Err(e) = r else {
             panic!("lavapipe cannot sort 600 fragments a pixel, yet it returned a frame")
@@ -1486,9 +1447,7 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
     {
         let dkb = Slots::Dkb(&mlp, f.into());
         for (name, slots) in [("FKB", Slots::Uniform(2)), ("VKB", vkb), ("DKB", dkb)] {
-            let frame = g
-                .render_with(&o, &s, &cam, (w, h), BG, Some(slots))
-                .unwrap();
+            let frame = g.render_with(&o, &s, &cam, (w, h), BG, slots).unwrap();
             let bases = &frame.slots.as_ref().unwrap().1;
             let k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
             let twin = composite::composite(&fl, composite::Method::Hybrid(&k), BG);
@@ -1529,13 +1488,13 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
     let cpu = rasterize(&s, &cam, w, h).unwrap_err().to_string();
     assert!(cpu.contains(&format!("has {} fragments", max + 1)), "{cpu}");
     let k = vec![3u32; 4];
-    let methods: [(&str, Option<Slots>); 6] = [
-        ("A-buffer", None),
-        ("MLAB", Some(Slots::Mlab(4))),
-        ("FKB", Some(Slots::Uniform(2))),
-        ("uploaded k", Some(Slots::PerPixel(&k))),
-        ("VKB", Some(vkb)),
-        ("DKB", Some(Slots::Dkb(&mlp, f.into()))),
+    let methods: [(&str, Slots); 6] = [
+        ("A-buffer", Slots::Exact),
+        ("MLAB", Slots::Mlab(4)),
+        ("FKB", Slots::Uniform(2)),
+        ("uploaded k", Slots::PerPixel(&k)),
+        ("VKB", vkb),
+        ("DKB", Slots::Dkb(&mlp, f.into())),
     ];
     for (name, slots) in methods {
         let Err(e) = g.render_with(&o, &s, &cam, (w, h), BG, slots) else {
@@ -1585,10 +1544,10 @@ fn a_pixel_of_two_to_the_sixteen_fragments_leaves_its_neighbours_count_alone() {
     );
     let cam = common::identity();
     let f = 8u64;
-    let methods: [(&str, Option<Slots>); 3] = [
-        ("A-buffer", None),
-        ("VKB", Some(Slots::Vkb(Default::default(), f.into()))),
-        ("DKB", Some(Slots::Dkb(&mlp, f.into()))),
+    let methods: [(&str, Slots); 3] = [
+        ("A-buffer", Slots::Exact),
+        ("VKB", Slots::Vkb(Default::default(), f.into())),
+        ("DKB", Slots::Dkb(&mlp, f.into())),
     ];
     for (name, slots) in methods {
         let Err(e) = g.render_with(&o, &s, &cam, (2, 1), BG, slots) else {
@@ -1636,7 +1595,7 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
                     mlp.target,
                 ),
             ] {
-                let frame = g.render_method(&s, &cam, w, h, BG, Some(slots)).unwrap();
+                let frame = g.render_method(&s, &cam, w, h, BG, slots).unwrap();
                 let (_, bases, _) = frame.slots.clone().unwrap();
                 // The allocation of the frame's importance hands out exactly min(F, sum n)
                 // slots, and the frame stores it (shared::stored_k).
@@ -1734,7 +1693,7 @@ fn gpu_faults_are_typed_errors_not_hangs_or_wrong_images() {
     // A frame whose buffers exceed what the device binds: refused before allocating, with the
     // numbers.
     let (s, cam) = frame("shells", 0, 1024, 1024);
-    match g.render_method(&s, &cam, 1024, 1024, BG, Some(Slots::Uniform(20_000))) {
+    match g.render_method(&s, &cam, 1024, 1024, BG, Slots::Uniform(20_000)) {
         Err(Error::Gpu(GpuError::BufferTooLarge { label, need, max })) => {
             assert_eq!(label, "oit.slots");
             assert_eq!(need, 1024 * 1024 * 20_000 * 8);
@@ -1745,7 +1704,10 @@ fn gpu_faults_are_typed_errors_not_hangs_or_wrong_images() {
     }
     // The device still works after refusing.
     let (s, cam) = frame("shells", 0, 16, 12);
-    assert!(g.render_method(&s, &cam, 16, 12, BG, None).is_ok());
+    assert!(
+        g.render_method(&s, &cam, 16, 12, BG, dhoit_runtime::gpu::Slots::Exact)
+            .is_ok()
+    );
 }
 
 /// A sparse scene for large frames: eight overlapping triangles in a small cluster (a few
@@ -1799,7 +1761,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
         let px = w as u64 * h as u64;
         if 16 * px > limit {
-            match g.render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, 1000.into()))) {
+            match g.render_method(&s, &cam, w, h, BG, Slots::Dkb(&mlp, 1000.into())) {
                 Err(dhoit_runtime::Error::Gpu(dhoit_runtime::GpuError::BufferTooLarge {
                     label,
                     need,
@@ -1819,7 +1781,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         let f = total / 3;
         // DKB: features, importance, allocation and prefix sums over every pixel, as the twin.
         let d = g
-            .render_method(&s, &cam, w, h, BG, Some(Slots::Dkb(&mlp, f.into())))
+            .render_method(&s, &cam, w, h, BG, Slots::Dkb(&mlp, f.into()))
             .unwrap();
         let stats = d.stats.clone().unwrap();
         assert_eq!(stats, common::recorded_stats(&gfl), "{w}x{h}: statistics");
@@ -1835,7 +1797,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         let sfl = gpu_fragments(g, &stacked, &cam, w, h);
         let few = sfl.fragment_count() as u64 / 40;
         let d = g
-            .render_method(&stacked, &cam, w, h, BG, Some(Slots::Dkb(&mlp, few.into())))
+            .render_method(&stacked, &cam, w, h, BG, Slots::Dkb(&mlp, few.into()))
             .unwrap();
         assert!(
             d.record_batches.is_some_and(|b| b > 1),
@@ -1853,14 +1815,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         check_allocation_and_capture(&sfl, &d, &imp, few, mlp.target, &label);
         // VKB and FKB too.
         let v = g
-            .render_method(
-                &s,
-                &cam,
-                w,
-                h,
-                BG,
-                Some(Slots::Vkb(Default::default(), f.into())),
-            )
+            .render_method(&s, &cam, w, h, BG, Slots::Vkb(Default::default(), f.into()))
             .unwrap();
         check_allocation_and_capture(
             &gfl,
@@ -1871,7 +1826,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
             &format!("vkb {w}x{h}"),
         );
         let fk = g
-            .render_method(&s, &cam, w, h, BG, Some(Slots::Uniform(1)))
+            .render_method(&s, &cam, w, h, BG, Slots::Uniform(1))
             .unwrap();
         let twin = composite::composite(
             &gfl,
@@ -1880,12 +1835,12 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         );
         assert!(fk.image.max_abs_diff(&twin) <= 1e-5, "fkb {w}x{h}");
         // MLAB and the exact A-buffer's image.
-        let ml = g
-            .render_method(&s, &cam, w, h, BG, Some(Slots::Mlab(4)))
-            .unwrap();
+        let ml = g.render_method(&s, &cam, w, h, BG, Slots::Mlab(4)).unwrap();
         let twin = composite::composite(&gfl, composite::Method::Mlab(4), BG);
         assert!(ml.image.max_abs_diff(&twin) <= 1e-5, "mlab {w}x{h}");
-        let a = g.render_method(&s, &cam, w, h, BG, None).unwrap();
+        let a = g
+            .render_method(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+            .unwrap();
         let twin = composite::composite(&gfl, composite::Method::Exact, BG);
         assert!(a.image.max_abs_diff(&twin) <= 1e-5, "abuffer {w}x{h}");
         eprintln!(
@@ -2071,7 +2026,7 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
         for (skip, want) in [(true, decided), (false, recorded)] {
             o.tuning.skip_forced = skip;
             let frame = g
-                .render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Dkb(&mlp, f.into())))
+                .render_with(&o, &s, &cam, (w, h), BG, Slots::Dkb(&mlp, f.into()))
                 .unwrap();
             assert_eq!(
                 frame.network_rows,
@@ -2085,7 +2040,7 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
         let few = (covered as u64 / 8).max(1);
         assert_eq!(alloc::min_k(&counts, few), 0);
         let frame = g
-            .render_with(&o, &s, &cam, (w, h), BG, Some(Slots::Dkb(&mlp, few.into())))
+            .render_with(&o, &s, &cam, (w, h), BG, Slots::Dkb(&mlp, few.into()))
             .unwrap();
         assert!(
             frame.record_batches.is_some_and(|b| b > 1),
@@ -2135,19 +2090,17 @@ fn the_renderer_runs_on_the_applications_device() {
     let narrow = dhoit_runtime::gpu::Gpu::on_device(d, q, &info).unwrap();
     assert!(!narrow.is_wide());
     let on_narrow = narrow
-        .render_method(&s, &cam, 32, 24, [1.0; 3], Some(dkb))
+        .render_method(&s, &cam, 32, 24, [1.0; 3], dkb)
         .unwrap();
     assert!(on_narrow.variants.contains(&"capture: portable"));
-    let on_wide = g
-        .render_method(&s, &cam, 32, 24, [1.0; 3], Some(dkb))
-        .unwrap();
+    let on_wide = g.render_method(&s, &cam, 32, 24, [1.0; 3], dkb).unwrap();
     assert_eq!(on_narrow.image, on_wide.image);
     assert_eq!(on_narrow.importance, on_wide.importance);
     let fkb = narrow
-        .render(&s, &cam, 32, 24, [1.0; 3], Some(Slots::Uniform(2)))
+        .render(&s, &cam, 32, 24, [1.0; 3], Slots::Uniform(2))
         .unwrap();
     let wide = g
-        .render(&s, &cam, 32, 24, [1.0; 3], Some(Slots::Uniform(2)))
+        .render(&s, &cam, 32, 24, [1.0; 3], Slots::Uniform(2))
         .unwrap();
     assert!(fkb.variants.contains(&"capture: portable"));
     assert_eq!(fkb.image, wide.image);
@@ -2159,31 +2112,17 @@ fn the_renderer_runs_on_the_applications_device() {
         8
     );
     assert_eq!(
-        eight
-            .render(&s, &cam, 32, 24, [1.0; 3], Some(dkb))
-            .unwrap()
-            .image,
-        g.render(&s, &cam, 32, 24, [1.0; 3], Some(dkb))
-            .unwrap()
-            .image
+        eight.render(&s, &cam, 32, 24, [1.0; 3], dkb).unwrap().image,
+        g.render(&s, &cam, 32, 24, [1.0; 3], dkb).unwrap().image
     );
     // Without FLOAT32_BLENDABLE every pass builds but MBOIT's, whose frames are refused with
     // the feature named.
     let (d, q) = open(features, limits.clone());
     let plain = dhoit_runtime::gpu::Gpu::on_device(d, q, &info).unwrap();
     let mboit = Slots::Mboit(Default::default());
-    let e = plain
-        .render(&s, &cam, 32, 24, [1.0; 3], Some(mboit))
-        .unwrap_err();
+    let e = plain.render(&s, &cam, 32, 24, [1.0; 3], mboit).unwrap_err();
     assert!(e.to_string().contains("FLOAT32_BLENDABLE"), "{e}");
-    let wboit = plain.render(
-        &s,
-        &cam,
-        32,
-        24,
-        [1.0; 3],
-        Some(Slots::Wboit(Default::default())),
-    );
+    let wboit = plain.render(&s, &cam, 32, 24, [1.0; 3], Slots::Wboit(Default::default()));
     assert!(wboit.is_ok());
     let (d, q) = open(features | wgpu::Features::FLOAT32_BLENDABLE, limits);
     let app = dhoit_runtime::gpu::Gpu::on_device(d.clone(), q.clone(), &info).unwrap();
@@ -2193,7 +2132,7 @@ fn the_renderer_runs_on_the_applications_device() {
     let (s8, cam8) = frame("hair", 1, 32, 24);
     for moments in [4, 6, 8] {
         let p = dhoit_runtime::composite::MboitParams::with_moments(moments).unwrap();
-        let r = app.render(&s8, &cam8, 32, 24, [1.0; 3], Some(Slots::Mboit(p)));
+        let r = app.render(&s8, &cam8, 32, 24, [1.0; 3], Slots::Mboit(p));
         if moments == 8 && app.device().limits().max_color_attachment_bytes_per_sample < 36 {
             let e = r.unwrap_err().to_string();
             assert!(
@@ -2450,11 +2389,9 @@ fn the_portable_capture_leaves_the_wide_captures_slots_and_image() {
         return;
     }
     for (label, slots) in runs {
-        let a = g
-            .render_with(&wide, &s, &cam, (w, h), BG, Some(slots))
-            .unwrap();
+        let a = g.render_with(&wide, &s, &cam, (w, h), BG, slots).unwrap();
         let b = g
-            .render_with(&portable, &s, &cam, (w, h), BG, Some(slots))
+            .render_with(&portable, &s, &cam, (w, h), BG, slots)
             .unwrap();
         assert!(
             b.variants.contains(&"capture: portable") && !a.variants.contains(&"capture: portable"),
@@ -2489,7 +2426,7 @@ fn the_portable_capture_leaves_the_wide_captures_slots_and_image() {
             let shuffled = s.shuffled(seed);
             for (opts, name) in [(&wide, "wide"), (&portable, "portable")] {
                 let f = g
-                    .render_with(opts, &shuffled, &cam, (w, h), BG, Some(slots))
+                    .render_with(opts, &shuffled, &cam, (w, h), BG, slots)
                     .unwrap();
                 assert!(
                     image_bits(&f.image) == image_bits(&a.image),

@@ -141,19 +141,14 @@ fn the_gpu_list_keeps_what_its_pool_holds_and_is_its_twin() {
         cases.push((name.into(), s, cam, (64, 48)));
     }
     for (name, s, cam, (w, h)) in &cases {
-        let reference = g.render(s, cam, *w, *h, BG, None).unwrap();
+        let reference = g
+            .render(s, cam, *w, *h, BG, dhoit_runtime::gpu::Slots::Exact)
+            .unwrap();
         let all: &FragmentLists = reference.fragments.as_ref().unwrap();
         let total = all.fragment_count() as u64;
         for (nodes, sorted) in [(total, 8), (total / 2, 8), (total / 4, 3)] {
             let f = g
-                .render(
-                    s,
-                    cam,
-                    *w,
-                    *h,
-                    BG,
-                    Some(Slots::LinkedList { nodes, sorted }),
-                )
+                .render(s, cam, *w, *h, BG, Slots::LinkedList { nodes, sorted })
                 .unwrap();
             assert_eq!(
                 f.list_arrived,

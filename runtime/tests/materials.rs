@@ -451,7 +451,9 @@ fn materials_render_alike_on_cpu_and_gpu() {
         for view in 0..4 {
             let cam = camera(&s, view);
             let fl = rasterize(&s, &cam, w, h).unwrap();
-            let gpu_ab = g.render(&s, &cam, w, h, BG, None).unwrap();
+            let gpu_ab = g
+                .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+                .unwrap();
             let gfl = gpu_ab.fragments.clone().unwrap();
             // The GPU's own fragments (its opaque layer too) through the CPU twin: its image.
             let twin = composite::composite(&gfl, composite::Method::Exact, BG);
@@ -523,7 +525,9 @@ fn tinted_glass_renders_alike_on_cpu_and_gpu() {
             let fl = rasterize(&s, &cam, w, h).unwrap();
             assert!(fl.tinted() || fl.fragment_count() == 0);
             tinted_views += fl.tint.iter().any(|&g| g != CLEAR) as usize;
-            let gpu_ab = g.render(&s, &cam, w, h, BG, None).unwrap();
+            let gpu_ab = g
+                .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+                .unwrap();
             let gfl = gpu_ab.fragments.clone().unwrap();
             assert_eq!(
                 gfl.tint.len(),
@@ -541,7 +545,9 @@ fn tinted_glass_renders_alike_on_cpu_and_gpu() {
                 o as f64 <= CHANNELS_OFF_BY_ONE * c as f64,
                 "{name} view {view}: {o} of {c} channels one step apart"
             );
-            let grey_ab = g.render(&grey, &cam, w, h, BG, None).unwrap();
+            let grey_ab = g
+                .render(&grey, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+                .unwrap();
             // Its tints are 4 bytes a fragment beside the grey frame's, on the GPU and in the
             // CPU's count alike.
             let n = gfl.fragment_count() as u64;
@@ -672,7 +678,7 @@ fn no_fragment_behind_an_opaque_surface_is_counted() {
                 expected += visible as u64;
             }
             let gpu = g
-                .render(&s, &cam, w, h, BG, None)
+                .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
                 .unwrap()
                 .fragments
                 .unwrap();
@@ -745,7 +751,9 @@ fn real_scenes_with_their_materials_render_alike_on_cpu_and_gpu() {
         for view in [0, 3] {
             let cam = camera(&s, view);
             let fl = rasterize(&s, &cam, w, h).unwrap();
-            let gpu_ab = g.render(&s, &cam, w, h, BG, None).unwrap();
+            let gpu_ab = g
+                .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+                .unwrap();
             let gfl = gpu_ab.fragments.clone().unwrap();
             let what = format!("{rel} view {view}");
             let differ = |a: &[u32], b: &[u32]| a.iter().zip(b).filter(|(x, y)| x != y).count();
@@ -850,7 +858,9 @@ fn tinted_glass_in_the_gpu_k_buffers_is_their_twins() {
     ] {
         for view in [0, 3] {
             let cam = camera(&s, view);
-            let ab = g.render(&s, &cam, w, h, BG, None).unwrap();
+            let ab = g
+                .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+                .unwrap();
             let gfl = ab.fragments.clone().unwrap();
             let total = gfl.fragment_count() as u64;
             // Pixels where fragments of one key carry different tints.
@@ -902,7 +912,7 @@ fn tinted_glass_in_the_gpu_k_buffers_is_their_twins() {
             for (label, slots, cpu) in runs {
                 let what = format!("{name} view {view} {label}");
                 let frame = |opts: &FrameOptions, s: &Scene| {
-                    g.render_with(opts, s, &cam, (w, h), BG, Some(slots))
+                    g.render_with(opts, s, &cam, (w, h), BG, slots)
                         .unwrap_or_else(|e| panic!("{what}: {e}"))
                 };
                 let b = frame(&portable, &s);

@@ -206,10 +206,7 @@ fn mboit_on_the_gpu_is_its_twin_in_every_order_and_better_than_wboit_where_opaci
             } else {
                 (64, 48)
             };
-            let gpu = |scene: &Scene| {
-                g.render(scene, cam, w, h, BG, Some(Slots::Mboit(p)))
-                    .unwrap()
-            };
+            let gpu = |scene: &Scene| g.render(scene, cam, w, h, BG, Slots::Mboit(p)).unwrap();
             let twin = |scene: &Scene| {
                 let own = common::own_fragments(g, scene, cam, (w, h), BG);
                 composite::composite(&own, composite::Method::Mboit(p), BG)

@@ -32,7 +32,9 @@ fn a_budget_that_holds_every_fragment_allocates_and_renders_the_abuffer() {
         let blocks = (4 * px.div_ceil(budget::SCAN_BLOCK)).max(16);
         assert_eq!(px % 2, 0);
         assert_eq!(exact, 6 * px + 8 * n + 256 + 4 + 16 + 16 + blocks);
-        let reference = g.render(&s, &cam, w, h, BG, None).unwrap();
+        let reference = g
+            .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+            .unwrap();
         assert_eq!(reference.allocated_bytes, exact, "{name}: the GPU A-buffer");
         let holding = [
             Budget::Share(1_000_000),
@@ -50,7 +52,10 @@ fn a_budget_that_holds_every_fragment_allocates_and_renders_the_abuffer() {
                 let a = r.allocate(m).unwrap();
                 assert!(a.exact, "{name} {b} {m}: the budget holds every fragment");
                 let slots = Slots::for_method(m, &a, &opts).unwrap();
-                assert!(slots.is_none(), "{name} {b} {m}: the A-buffer's passes");
+                assert!(
+                    matches!(slots, dhoit_runtime::gpu::Slots::Exact),
+                    "{name} {b} {m}: the A-buffer's passes"
+                );
                 let cpu = r.composite(a.clone());
                 assert_eq!(cpu.allocated_bytes, exact, "{name} {b} {m}: CPU bytes");
                 assert_eq!(cpu.image, abuffer.image, "{name} {b} {m}: CPU image");
@@ -187,7 +192,9 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
         let fl = rasterize(s, &cam, w, h).unwrap();
         let (px, n) = (fl.pixel_count() as u64, fl.fragment_count() as u64);
         let exact = budget::ABUFFER.allocated_bytes(px, n);
-        let reference = g.render(s, &cam, w, h, BG, None).unwrap();
+        let reference = g
+            .render(s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+            .unwrap();
         let gpu_n = reference.fragments.as_ref().unwrap().fragment_count() as u64;
         let occ = budget::Occupancy::of(&fl.counts());
         let gpu_occ = budget::Occupancy::of(&reference.fragments.as_ref().unwrap().counts());
@@ -255,7 +262,7 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
                         Method::Dkb => Slots::Dkb(&mlp, a.fragment_budget),
                         _ => Slots::Vkb(opts.vkb, a.fragment_budget),
                     };
-                    let gd = g.render(s, &cam, w, h, BG, Some(direct)).unwrap();
+                    let gd = g.render(s, &cam, w, h, BG, direct).unwrap();
                     let f = a.fragment_budget.of(gpu_n);
                     let decide = f >= gpu_n
                         || frame::exact_is_no_dearer(m, &opts.layout(m), px, f, &gpu_occ);
@@ -267,7 +274,7 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
                     );
                     // The method's own frame, from the buffers it creates: dearer than the
                     // A-buffer only where the GPU took the A-buffer.
-                    let own = g.render_method(s, &cam, w, h, BG, Some(direct)).unwrap();
+                    let own = g.render_method(s, &cam, w, h, BG, direct).unwrap();
                     assert!(
                         !own.exact && own.slots.is_some(),
                         "{name} {b} {m}: the method"

@@ -580,7 +580,7 @@ fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
     let (w, h) = (64, 48);
     let s = layered_scene();
     let total = g
-        .render(&s, &identity(), w, h, BG, None)
+        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
         .unwrap()
         .fragments
         .unwrap()
@@ -590,7 +590,7 @@ fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
         // A pool that holds every fragment: which arrive first does not matter.
         let nodes = total + 5;
         let slots = Slots::LinkedList { nodes, sorted };
-        let harness = g.render(&s, &identity(), w, h, BG, Some(slots)).unwrap();
+        let harness = g.render(&s, &identity(), w, h, BG, slots).unwrap();
         let (app, report) = app_frame(&s, (w, h), false, |g| {
             Box::new(ListOit::new(g, (w, h), nodes, sorted, F32X4).unwrap())
         });
@@ -612,10 +612,12 @@ fn an_application_draws_through_dhoits_k_buffer_and_gets_dhoits_fkb_image_in_any
     let (w, h) = (64, 48);
     let px = (w * h) as u64;
     let s = layered_scene();
-    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
+    let exact = g
+        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .unwrap();
     for k in [1, 3, 8] {
         let harness = g
-            .render(&s, &identity(), w, h, BG, Some(Slots::Uniform(k)))
+            .render(&s, &identity(), w, h, BG, Slots::Uniform(k))
             .unwrap();
         // Either capture: the portable one draws two passes with 32-bit atomics alone, into the
         // same bytes.
@@ -677,7 +679,9 @@ fn an_application_draws_twice_through_dhoits_a_buffer_and_gets_the_exact_image_i
     let (w, h) = (64, 48);
     let px = (w * h) as u64;
     let s = layered_scene();
-    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
+    let exact = g
+        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .unwrap();
     let occ = occupancy_of(&exact);
     assert!(occ.fragments > px, "{} fragments", occ.fragments);
     for reversed in [false, true] {
@@ -730,11 +734,13 @@ fn an_application_draws_through_dhoits_mlab_and_gets_its_image_in_any_order() {
     // The layers in a shuffled submission order: front to back (as layered_scene submits
     // them) MLAB merges exactly.
     let s = layered_scene().shuffled(7);
-    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
+    let exact = g
+        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .unwrap();
     let occ = occupancy_of(&exact);
     for rows in [1, 2, 4] {
         let harness = g
-            .render(&s, &identity(), w, h, BG, Some(Slots::Mlab(rows)))
+            .render(&s, &identity(), w, h, BG, Slots::Mlab(rows))
             .unwrap();
         // Merged into one or two rows out of depth order, MLAB is not the exact image (at
         // four rows, these up to seven layers lose nothing).
@@ -780,7 +786,9 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
     let px = (w * h) as u64;
     let s = layered_scene();
     let weights = common::committed_weights();
-    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
+    let exact = g
+        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .unwrap();
     let occ = occupancy_of(&exact);
     let vkb = dhoit_runtime::importance::VkbParams::default();
     for name in ["dkb", "vkb"] {
@@ -804,7 +812,7 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
                 _ => Slots::Vkb(vkb, f),
             };
             let harness = g
-                .render_with(&opts, &s, &identity(), (w, h), BG, Some(slots))
+                .render_with(&opts, &s, &identity(), (w, h), BG, slots)
                 .unwrap();
             assert!(!harness.exact);
             let batches = harness.record_batches.unwrap_or(1);
@@ -920,7 +928,9 @@ fn a_byte_budget_is_resolved_against_each_frames_own_count() {
     let s = layered_scene();
     let weights = common::committed_weights();
     let vkb = dhoit_runtime::importance::VkbParams::default();
-    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
+    let exact = g
+        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .unwrap();
     let occ = occupancy_of(&exact);
     let quarter = occ.fragments / 4;
     for name in ["dkb", "vkb"] {
@@ -944,7 +954,7 @@ fn a_byte_budget_is_resolved_against_each_frames_own_count() {
             ..FrameOptions::default().always_approximate()
         };
         let given = g
-            .render_with(&counted, &s, &identity(), (w, h), BG, Some(slots_at(0)))
+            .render_with(&counted, &s, &identity(), (w, h), BG, slots_at(0))
             .unwrap();
         for reversed in [false, true] {
             let (app, report) = app_frame(&s, (w, h), reversed, |g| {
@@ -999,7 +1009,9 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
     }
     let cam = Camera::orbit(&s, 1, dhoit_runtime::scene::DEFAULT_VIEWS, w, h);
     let px = (w * h) as u64;
-    let exact = g.render(&s, &cam, w, h, BG, None).unwrap();
+    let exact = g
+        .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .unwrap();
     let occ = occupancy_of(&exact);
     assert!(occ.fragments > px / 2, "{} fragments", occ.fragments);
     let weights = common::committed_weights();
@@ -1012,15 +1024,15 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
     let vkb_f = b.fragment_budget(&budget::VKB, px).unwrap();
     let nodes = occ.fragments + 5;
     let mboit = MboitParams::default();
-    let cases: Vec<(&str, Option<Slots>)> = vec![
-        ("abuffer", None),
-        ("fkb", Some(Slots::Uniform(2))),
-        ("dkb", Some(Slots::Dkb(&weights, dkb_f))),
-        ("vkb", Some(Slots::Vkb(vkb, vkb_f))),
-        ("mlab", Some(Slots::Mlab(2))),
-        ("linked-list", Some(Slots::LinkedList { nodes, sorted: 8 })),
-        ("wboit", Some(Slots::Wboit(WboitParams::default()))),
-        ("mboit", Some(Slots::Mboit(mboit))),
+    let cases: Vec<(&str, Slots)> = vec![
+        ("abuffer", Slots::Exact),
+        ("fkb", Slots::Uniform(2)),
+        ("dkb", Slots::Dkb(&weights, dkb_f)),
+        ("vkb", Slots::Vkb(vkb, vkb_f)),
+        ("mlab", Slots::Mlab(2)),
+        ("linked-list", Slots::LinkedList { nodes, sorted: 8 }),
+        ("wboit", Slots::Wboit(WboitParams::default())),
+        ("mboit", Slots::Mboit(mboit)),
     ];
     for (name, slots) in cases {
         if name == "mboit"
@@ -1034,7 +1046,7 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
         }
         let harness = g.render_with(&opts, &s, &cam, (w, h), BG, slots).unwrap();
         // Every method but the list (whose pool holds every fragment) approximates here.
-        if slots.is_some() && name != "linked-list" {
+        if !matches!(slots, Slots::Exact) && name != "linked-list" {
             let off = worst_difference(&harness.image.data, &exact.image.data);
             assert!(off > 1e-3, "{name} is exact ({off}): nothing truncated");
         }
@@ -1089,7 +1101,9 @@ fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
     let (w, h) = (64, 48);
     let px = (w * h) as u64;
     let s = layered_scene();
-    let exact = g.render(&s, &identity(), w, h, BG, None).unwrap();
+    let exact = g
+        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .unwrap();
     let planes = |weight| WboitParams {
         weight,
         near: 0.5,
@@ -1126,7 +1140,7 @@ fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
     }
     assert!(cases.len() >= 3 || !blends, "{} cases", cases.len());
     for (name, slots, layout) in cases {
-        let harness = g.render(&s, &identity(), w, h, BG, Some(slots)).unwrap();
+        let harness = g.render(&s, &identity(), w, h, BG, slots).unwrap();
         let off = worst_difference(&harness.image.data, &exact.image.data);
         assert!(off > 1e-3, "{name} is the exact image ({off})");
         let make = |g: &Gpu| -> Box<dyn Oit> {

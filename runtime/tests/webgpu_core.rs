@@ -39,7 +39,9 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
     let (w, h) = (48, 32);
     let s = common::tied_layers(24);
     let cam = identity();
-    let exact = c.render_method(&s, &cam, w, h, BG, None).unwrap();
+    let exact = c
+        .render_method(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .unwrap();
     let fl = exact.fragments.clone().unwrap();
     let twin = composite::composite(&fl, composite::Method::Exact, BG);
     assert!(exact.image.max_abs_diff(&twin) <= 1e-5, "the A-buffer");
@@ -47,41 +49,35 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
     let k: Vec<u32> = (0..px).map(|p| (p % 6) as u32).collect();
     let total = fl.fragment_count() as u64;
     let weights = common::committed_weights();
-    let runs: [(&str, Option<Slots>); 13] = [
-        (
-            "dkb F = 1/4",
-            Some(Slots::Dkb(&weights, (total / 4).into())),
-        ),
-        (
-            "dkb F = 1/2",
-            Some(Slots::Dkb(&weights, (total / 2).into())),
-        ),
-        ("dkb 1 fpp", Some(Slots::Dkb(&weights, (px as u64).into()))),
+    let runs: [(&str, Slots); 13] = [
+        ("dkb F = 1/4", Slots::Dkb(&weights, (total / 4).into())),
+        ("dkb F = 1/2", Slots::Dkb(&weights, (total / 2).into())),
+        ("dkb 1 fpp", Slots::Dkb(&weights, (px as u64).into())),
         (
             "vkb F = 1/4",
-            Some(Slots::Vkb(Default::default(), (total / 4).into())),
+            Slots::Vkb(Default::default(), (total / 4).into()),
         ),
         (
             "vkb F = 1/2",
-            Some(Slots::Vkb(Default::default(), (total / 2).into())),
+            Slots::Vkb(Default::default(), (total / 2).into()),
         ),
         (
             "vkb 1 fpp",
-            Some(Slots::Vkb(Default::default(), (px as u64).into())),
+            Slots::Vkb(Default::default(), (px as u64).into()),
         ),
-        ("abuffer", None),
-        ("mlab", Some(Slots::Mlab(3))),
-        ("fkb k = 1", Some(Slots::Uniform(1))),
-        ("fkb k = 5", Some(Slots::Uniform(5))),
-        ("uploaded k", Some(Slots::PerPixel(&k))),
+        ("abuffer", Slots::Exact),
+        ("mlab", Slots::Mlab(3)),
+        ("fkb k = 1", Slots::Uniform(1)),
+        ("fkb k = 5", Slots::Uniform(5)),
+        ("uploaded k", Slots::PerPixel(&k)),
         (
             "linked list",
-            Some(Slots::LinkedList {
+            Slots::LinkedList {
                 nodes: fl.fragment_count() as u64,
                 sorted: 4,
-            }),
+            },
         ),
-        ("wboit", Some(Slots::Wboit(Default::default()))),
+        ("wboit", Slots::Wboit(Default::default())),
     ];
     for (label, slots) in runs {
         let a = g.render_method(&s, &cam, w, h, BG, slots).unwrap();
@@ -105,7 +101,7 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
                 b.variants
             );
         }
-        if let Some(Slots::Uniform(k)) = slots {
+        if let Slots::Uniform(k) = slots {
             let kk = vec![k; px];
             let t = composite::composite(&fl, composite::Method::Hybrid(&kk), BG);
             assert!(b.image.max_abs_diff(&t) <= 1e-5, "{label}: from its twin");
@@ -113,7 +109,7 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
         eprintln!("{label}: the core device's image is the wide device's");
     }
     let e = c
-        .render_method(&s, &cam, w, h, BG, Some(Slots::Mboit(Default::default())))
+        .render_method(&s, &cam, w, h, BG, Slots::Mboit(Default::default()))
         .unwrap_err()
         .to_string();
     assert!(e.contains("FLOAT32_BLENDABLE"), "{e}");
@@ -133,7 +129,7 @@ fn equal_depths_give_one_image_in_every_submission_order() {
         capture: Capture::Portable,
         ..wide
     };
-    for slots in [None, Some(Slots::Uniform(2)), Some(Slots::Uniform(7))] {
+    for slots in [Slots::Exact, Slots::Uniform(2), Slots::Uniform(7)] {
         let first = g.render_method(&s, &cam, w, h, BG, slots).unwrap();
         for seed in 0..4 {
             let shuffled = s.shuffled(seed);

@@ -84,8 +84,14 @@ impl Recording<'_, '_, '_> {
                 let i = self.dkb_importance(mlp, &planned)?;
                 self.allocated(i, &planned)
             }
-            Slots::Mlab(_) | Slots::Wboit(_) | Slots::Mboit(_) | Slots::LinkedList { .. } => {
-                unreachable!("MLAB, WBOIT, MBOIT and the linked list have passes of their own")
+            Slots::Exact
+            | Slots::Mlab(_)
+            | Slots::Wboit(_)
+            | Slots::Mboit(_)
+            | Slots::LinkedList { .. } => {
+                unreachable!(
+                    "the A-buffer, MLAB, WBOIT, MBOIT and the linked list have passes of their own"
+                )
             }
         }
     }

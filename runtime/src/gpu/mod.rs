@@ -659,9 +659,12 @@ impl Gpu {
     }
 }
 
-/// How the k-buffer gets its k.
+/// What a frame renders: the exact A-buffer, or a method of bounded memory and how it gets its
+/// k (or rows, or nodes).
 #[derive(Clone, Copy, Debug)]
 pub enum Slots<'a> {
+    /// The exact A-buffer: every fragment stored, sorted and blended (abuffer_*.wgsl).
+    Exact,
     /// One k for every pixel (FKB).
     Uniform(u32),
     /// k per pixel, computed elsewhere (the optimal allocation, or any CPU allocation).
@@ -699,41 +702,41 @@ impl<'a> Slots<'a> {
     /// from [`crate::frame::Renderer::allocate_for_gpu`] or `allocate`): FKB and MLAB with the
     /// CPU's k; VKB and DKB allocating on the device at the CPU's F (a share of the fragments
     /// at equal F stays a share, resolved from the GPU's own count); every allocation only the
-    /// CPU makes (optimal, the greedies) uploaded as per-pixel k; `None` for the A-buffer, and
-    /// for any k-buffer whose budget holds every fragment (`Allocation::exact`). The
+    /// CPU makes (optimal, the greedies) uploaded as per-pixel k; [`Slots::Exact`] for the
+    /// A-buffer, and for any k-buffer whose budget holds every fragment (`Allocation::exact`). The
     /// one method-to-slots mapping: render, bench and the tests use it, so a method gets the
     /// same k whichever command renders it.
     pub fn for_method(
         method: Method,
         cpu: &'a Allocation,
         options: &Options<'a>,
-    ) -> Result<Option<Slots<'a>>> {
+    ) -> Result<Slots<'a>> {
         let budget = cpu.fragment_budget;
         let first = || cpu.k.first().copied().unwrap_or(0);
         // Where the budget holds every fragment, the A-buffer (exact, with its memory).
         if cpu.exact {
-            return Ok(None);
+            return Ok(Slots::Exact);
         }
         Ok(match method {
-            Method::Abuffer => None,
-            Method::Fkb => Some(Slots::Uniform(first())),
+            Method::Abuffer => Slots::Exact,
+            Method::Fkb => Slots::Uniform(first()),
             // MLAB on the GPU blends from the A-buffer (exact memory, not the budget's rows).
-            Method::Mlab => Some(Slots::Mlab(first())),
-            Method::Wboit => Some(Slots::Wboit(options.wboit)),
-            Method::Mboit => Some(Slots::Mboit(options.mboit)),
-            Method::LinkedList => Some(Slots::LinkedList {
+            Method::Mlab => Slots::Mlab(first()),
+            Method::Wboit => Slots::Wboit(options.wboit),
+            Method::Mboit => Slots::Mboit(options.mboit),
+            Method::LinkedList => Slots::LinkedList {
                 nodes: cpu.budget_fragments,
                 sorted: options.list_sorted,
-            }),
-            Method::Vkb => Some(Slots::Vkb(options.vkb, budget)),
-            Method::Dkb => Some(Slots::Dkb(
+            },
+            Method::Vkb => Slots::Vkb(options.vkb, budget),
+            Method::Dkb => Slots::Dkb(
                 options.weights.ok_or_else(|| {
                     Error::Invalid("dkb needs network weights (--weights FILE)".into())
                 })?,
                 budget,
-            )),
+            ),
             Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => {
-                Some(Slots::PerPixel(&cpu.k))
+                Slots::PerPixel(&cpu.k)
             }
             Method::OptimalPooled => {
                 return Err(Error::Invalid(
@@ -906,7 +909,7 @@ struct FrameSpec<'s> {
     opts: FrameOptions,
     size: (u32, u32),
     params: Params,
-    slots: Option<Slots<'s>>,
+    slots: Slots<'s>,
     sizing: Sizing,
 }
 
@@ -953,10 +956,10 @@ impl Gpu {
         let mut params = spec.params;
         let mut fb = FrameBuffers::new(self, enc);
         let (budget, vkb, k_uniform) = match slots {
-            Some(Slots::Importance(_, _, f) | Slots::Dkb(_, f)) => (f, VkbParams::default(), 0),
-            Some(Slots::Vkb(v, f)) => (f, v, 0),
-            Some(Slots::Uniform(k)) => (0.into(), VkbParams::default(), k.max(1)),
-            Some(Slots::Mlab(m)) => {
+            Slots::Importance(_, _, f) | Slots::Dkb(_, f) => (f, VkbParams::default(), 0),
+            Slots::Vkb(v, f) => (f, v, 0),
+            Slots::Uniform(k) => (0.into(), VkbParams::default(), k.max(1)),
+            Slots::Mlab(m) => {
                 if m == 0 || m > MLAB_MAX_ROWS {
                     return Err(Error::Invalid(format!(
                         "MLAB on the GPU takes 1 to {MLAB_MAX_ROWS} rows, not {m}"
@@ -964,36 +967,35 @@ impl Gpu {
                 }
                 (0.into(), VkbParams::default(), m)
             }
-            Some(Slots::LinkedList { nodes, sorted }) => {
+            Slots::LinkedList { nodes, sorted } => {
                 crate::composite::check_list_sorted(sorted)?;
                 (nodes.into(), VkbParams::default(), 0)
             }
-            Some(Slots::PerPixel(_) | Slots::Wboit(_) | Slots::Mboit(_)) | None => {
+            Slots::PerPixel(_) | Slots::Wboit(_) | Slots::Mboit(_) | Slots::Exact => {
                 (0.into(), VkbParams::default(), 0)
             }
         };
         set_method_params(&mut params, k_uniform, budget, vkb);
         let allocated = matches!(
             slots,
-            Some(Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
+            Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..)
         );
         // The allocated k-buffers know n(p) by the capture: two-mode capture (capture.wgsl),
         // and their tails in the slot pool.
         params.append = (opts.tuning.two_mode_capture && allocated).into();
         params.pooled_tail = allocated.into();
         params.layer_major =
-            (opts.tuning.layer_major_fkb && matches!(slots, Some(Slots::Uniform(_)))).into();
-        if let Some(Slots::LinkedList { sorted, .. }) = slots {
+            (opts.tuning.layer_major_fkb && matches!(slots, Slots::Uniform(_))).into();
+        if let Slots::LinkedList { sorted, .. } = slots {
             params.list_sorted = sorted;
         }
-        if let Some(Slots::Mboit(m)) = slots {
+        if let Slots::Mboit(m) = slots {
             blend::set_mboit(&mut params, &m);
         }
-        if let Some(Slots::Wboit(w)) = slots {
+        if let Slots::Wboit(w) = slots {
             blend::set_wboit(&mut params, &w)?;
         }
-        params.store_primitives =
-            (matches!(slots, Some(Slots::Mlab(_))) || opts.diagnostics).into();
+        params.store_primitives = (matches!(slots, Slots::Mlab(_)) || opts.diagnostics).into();
         let params_buf = fb.init(
             "params",
             bytemuck::bytes_of(&params),
@@ -1009,7 +1011,7 @@ impl Gpu {
             sizing: spec.sizing,
             tinted: params.tinted != 0,
         };
-        if matches!(slots, Some(Slots::Uniform(_))) {
+        if matches!(slots, Slots::Uniform(_)) {
             rec.out.variants.push(if opts.tuning.layer_major_fkb {
                 "fkb slots: layer-major"
             } else {
@@ -1018,12 +1020,12 @@ impl Gpu {
         }
         let mut exact = false;
         match slots {
-            None => rec.abuffer(Blend::Exact, width, height)?,
-            Some(Slots::Mlab(_)) => rec.abuffer(Blend::Mlab, width, height)?,
-            Some(Slots::Wboit(_)) => rec.wboit((width, height))?,
-            Some(Slots::Mboit(m)) => rec.mboit((width, height), m.moments)?,
-            Some(Slots::LinkedList { nodes, .. }) => rec.linked_list(nodes, width, height)?,
-            Some(s) => match rec.planned(s, budget)? {
+            Slots::Exact => rec.abuffer(Blend::Exact, width, height)?,
+            Slots::Mlab(_) => rec.abuffer(Blend::Mlab, width, height)?,
+            Slots::Wboit(_) => rec.wboit((width, height))?,
+            Slots::Mboit(m) => rec.mboit((width, height), m.moments)?,
+            Slots::LinkedList { nodes, .. } => rec.linked_list(nodes, width, height)?,
+            s => match rec.planned(s, budget)? {
                 None => {
                     exact = true;
                     rec.abuffer(Blend::Exact, width, height)?

@@ -211,7 +211,7 @@ impl Gpu {
         width: u32,
         height: u32,
         background: [f32; 3],
-        slots: Option<Slots>,
+        slots: Slots,
     ) -> Result<GpuFrame> {
         let opts = FrameOptions::default();
         self.render_with(&opts, scene, cam, (width, height), background, slots)
@@ -225,7 +225,7 @@ impl Gpu {
         cam: &Camera,
         (width, height): (u32, u32),
         background: [f32; 3],
-        slots: Option<Slots>,
+        slots: Slots,
     ) -> Result<GpuFrame> {
         let scopes = self.begin_frame(width, height)?;
         let px = width as u64 * height as u64;
@@ -242,7 +242,7 @@ impl Gpu {
         // Where the method's memory follows the frame's count, the count first.
         let counted = matches!(
             slots,
-            None | Some(Slots::Mlab(_) | Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..))
+            Slots::Exact | Slots::Mlab(_) | Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..)
         );
         let sizing = match counted {
             true => Sizing::Own(self.count_first(&draws, &params)?),

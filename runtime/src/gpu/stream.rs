@@ -112,20 +112,20 @@ impl AppMethod {
 }
 
 /// What an application's frame for the method runs on, in dhoit's own terms.
-fn slots_of(method: &AppMethod, budget: FragmentBudget) -> Option<Slots<'_>> {
-    Some(match method {
+fn slots_of(method: &AppMethod, budget: FragmentBudget) -> Slots<'_> {
+    match method {
         AppMethod::List { nodes, sorted } => Slots::LinkedList {
             nodes: *nodes,
             sorted: *sorted,
         },
         AppMethod::Fkb { k } => Slots::Uniform(*k),
-        AppMethod::Abuffer => return None,
+        AppMethod::Abuffer => Slots::Exact,
         AppMethod::Mlab { rows } => Slots::Mlab(*rows),
         AppMethod::Dkb(m) => Slots::Dkb(m, budget),
         AppMethod::Vkb(v) => Slots::Vkb(*v, budget),
         AppMethod::Wboit(w) => Slots::Wboit(*w),
         AppMethod::Mboit(m) => Slots::Mboit(*m),
-    })
+    }
 }
 
 /// The growth a pool sized from earlier frames' counts keeps over them.

@@ -168,7 +168,7 @@ pub trait RenderMethod {
         width: u32,
         height: u32,
         background: [f32; 3],
-        slots: Option<dhoit_runtime::gpu::Slots>,
+        slots: dhoit_runtime::gpu::Slots,
     ) -> dhoit_runtime::Result<dhoit_runtime::gpu::GpuFrame>;
 }
 
@@ -180,7 +180,7 @@ impl RenderMethod for Gpu {
         width: u32,
         height: u32,
         background: [f32; 3],
-        slots: Option<dhoit_runtime::gpu::Slots>,
+        slots: dhoit_runtime::gpu::Slots,
     ) -> dhoit_runtime::Result<dhoit_runtime::gpu::GpuFrame> {
         let opts = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
         self.render_with(&opts, scene, cam, (width, height), background, slots)
@@ -267,7 +267,7 @@ pub fn own_fragments(
     (w, h): (u32, u32),
     background: [f32; 3],
 ) -> dhoit_runtime::fragment::FragmentLists {
-    g.render(s, cam, w, h, background, None)
+    g.render(s, cam, w, h, background, dhoit_runtime::gpu::Slots::Exact)
         .unwrap()
         .fragments
         .expect("diagnostics read the A-buffer's fragments back")
