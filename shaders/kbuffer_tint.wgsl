@@ -41,7 +41,6 @@ fn oit_slot_key(s: u32) -> vec2<u32> {
     return vec2<u32>(atomicLoad(&oit_slots[2u * s]), atomicLoad(&oit_slots[2u * s + 1u]));
 }
 
-
 // The complemented tint `cur` into the tint words of the slots [first, k) that hold `key`,
 // carried as the insertion carries keys; returns the tint carried past them, or 0 where it
 // ended in an empty word. With `run` the slots from `first` on hold the key until the first
@@ -89,6 +88,7 @@ fn oit_appended(p: u32, base: u32, k: u32, depth_word: u32, colour_word: u32) {
     oit_carry_tint(p, base, 0u, k, vec2<u32>(colour_word, depth_word), false);
 }
 
+// Never called: the tint pass appends nothing (OIT_APPENDS).
 fn oit_store_slot(at: u32, depth_word: u32, colour_word: u32) {
 }
 

@@ -135,11 +135,8 @@ fn blend_slots(p: u32, base: u32, k: u32, under: vec3<f32>) -> vec4<f32> {
         filled += 1u;
         let rgba = unpack_rgba8(slot_rgba8(s.x));
         c += t * rgba.a * rgba.rgb;
-        if (params.tinted != 0u) {
-            t *= tint_transmittance(rgba, tint_of(at));
-        } else {
-            t *= 1.0 - rgba.a;
-        }
+        // (1 - a) g: 1 - a exactly where the glass is grey (CLEAR's g is 1).
+        t *= tint_transmittance(rgba, tint_of(at));
     }
     return vec4<f32>(c + t * under, 1.0);
 }

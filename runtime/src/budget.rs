@@ -615,12 +615,15 @@ impl Layout {
             )),
         }
     }
-    /// Where a frame is tinted, the budget its slots (and tails) are resolved against so that
-    /// they and their tints stay within `bytes`: the linked list's nodes share it with a tint a
-    /// node ([`TINT_BYTES`]); a k-buffer's tint pass ([`kbuffer_tint_words`]) takes half of
-    /// what the fixed bytes leave where its tails are pooled (two tint words a pool word beside
-    /// its [`SLOT_BYTES`]), else three tint words a pixel and one a slot.
-    pub fn tinted_budget(&self, bytes: u64, pixels: u64) -> u64 {
+    /// The budget a frame's slots (and tails) are resolved against: all of `bytes`, or where
+    /// the frame is `tinted`, what its tints leave of it: the linked list's nodes share it with
+    /// a tint a node ([`TINT_BYTES`]); a k-buffer's tint pass ([`kbuffer_tint_words`]) takes
+    /// half of what the fixed bytes leave where its tails are pooled (two tint words a pool
+    /// word beside its [`SLOT_BYTES`]), else three tint words a pixel and one a slot.
+    pub fn tinted_budget(&self, bytes: u64, pixels: u64, tinted: bool) -> u64 {
+        if !tinted {
+            return bytes;
+        }
         let fixed = self.fixed_bytes(pixels);
         let Some(rest) = bytes.checked_sub(fixed) else {
             return bytes;
@@ -634,9 +637,12 @@ impl Layout {
         let slots = rest.saturating_sub(per_pixel) / (self.slot_bytes + TINT_BYTES);
         fixed + self.slot_bytes * slots
     }
-    /// A k-buffer's `bytes` (its fixed bytes, slots and tails) with its tint pass's words
-    /// ([`kbuffer_tint_words`]), where its frame is tinted.
-    pub fn with_tints(&self, bytes: u64, pixels: u64) -> u64 {
+    /// A k-buffer's `bytes` (its fixed bytes, slots and tails) with, where its frame is
+    /// `tinted`, its tint pass's words ([`kbuffer_tint_words`]).
+    pub fn with_tints(&self, bytes: u64, pixels: u64, tinted: bool) -> u64 {
+        if !tinted {
+            return bytes;
+        }
         let words = bytes.saturating_sub(self.fixed_bytes(pixels)) / self.slot_bytes;
         bytes + TINT_BYTES * kbuffer_tint_words(pixels, words, self.tail_bytes > 0)
     }
@@ -644,7 +650,7 @@ impl Layout {
     /// [`Layout::fragment_budget_counted`] at
     /// [`Layout::tinted_budget`], its error naming `bytes` and what the tints take.
     pub fn tinted_fragment_budget(&self, bytes: u64, pixels: u64, occ: &Occupancy) -> Result<u64> {
-        let slots = self.tinted_budget(bytes, pixels);
+        let slots = self.tinted_budget(bytes, pixels, true);
         self.fragment_budget_counted(slots, pixels, occ)
             .map_err(|e| match e {
                 Error::Budget(_, why) if slots < bytes => Error::Budget(

@@ -414,10 +414,7 @@ impl<'a> Renderer<'a> {
                 let pixels = fl.pixel_count() as u64;
                 let dkb = opts.layout(Method::Dkb);
                 let (bytes, _) = b.resolve_counted(&dkb, pixels, &Occupancy::of(&fl.counts()))?;
-                let bytes = match fl.tinted() {
-                    true => dkb.with_tints(bytes, pixels),
-                    false => bytes,
-                };
+                let bytes = dkb.with_tints(bytes, pixels, fl.tinted());
                 let exact = budget::abuffer_bytes(pixels, fl.fragment_count() as u64, fl.tinted());
                 Ok(Budget::Bytes(match opts.exact_when_cheaper {
                     true => bytes.min(exact),
@@ -508,7 +505,7 @@ impl<'a> Renderer<'a> {
                 let (bytes, f) = budget.resolve_counted(&layout, pixels, &occ)?;
                 let bytes = match (fl.tinted(), method) {
                     (true, Method::LinkedList) => bytes + budget::TINT_BYTES * f,
-                    (true, m) if m.is_kbuffer() => layout.with_tints(bytes, pixels),
+                    (true, m) if m.is_kbuffer() => layout.with_tints(bytes, pixels, true),
                     _ => bytes,
                 };
                 (bytes, f)
@@ -607,11 +604,6 @@ impl<'a> Renderer<'a> {
         // FKB and MLAB allocate their k for every pixel; the others exactly sum k; a frame
         // whose budget holds every fragment, what the A-buffer does (with each fragment's tint
         // where the frame's glass is tinted).
-        // A k-buffer's `bytes` with, where the frame's glass is tinted, its tint pass's words.
-        let kbuffer_tinted = |layout: &budget::Layout, bytes: u64| match fl.tinted() {
-            true => layout.with_tints(bytes, pixels),
-            false => bytes,
-        };
         let allocated_bytes = match method {
             _ if a.exact || method == Method::Abuffer => {
                 budget::abuffer_bytes(pixels, slots, fl.tinted())
@@ -631,10 +623,8 @@ impl<'a> Renderer<'a> {
                 .allocated_bytes(pixels, k[0] as u64 * pixels),
             Method::Fkb => {
                 let layout = method.layout();
-                kbuffer_tinted(
-                    &layout,
-                    layout.allocated_bytes(pixels, k[0] as u64 * pixels),
-                )
+                let bytes = layout.allocated_bytes(pixels, k[0] as u64 * pixels);
+                layout.with_tints(bytes, pixels, fl.tinted())
             }
             // Its slots, and the tails it keeps in their pool (none where they are per pixel);
             // a pool made before the allocation for state it holds first (DKB), the size it
@@ -647,7 +637,7 @@ impl<'a> Renderer<'a> {
                 } else {
                     layout.allocated_with_tails(pixels, slots, budget::tails_kept(&k, &counts))
                 };
-                kbuffer_tinted(&layout, bytes)
+                layout.with_tints(bytes, pixels, fl.tinted())
             }
         };
         Frame {

@@ -997,15 +997,13 @@ fn tinted_k_buffers_stay_within_a_byte_budget() {
             Method::Optimal,
             Method::LinkedList,
         ];
+        // From a fortieth of the tinted A-buffer's bytes to all of them.
+        let most = dhoit_runtime::budget::abuffer_bytes(
+            tinted_fl.pixel_count() as u64,
+            tinted_fl.fragment_count() as u64,
+            true,
+        );
         for m in methods {
-            // From a fortieth of the tinted A-buffer's bytes to all of them.
-            let most = frame::render(
-                &tinted_fl,
-                Method::Abuffer,
-                Options::new(Budget::Share(1_000_000), BG),
-            )
-            .unwrap()
-            .allocated_bytes;
             for step in 1..=40 {
                 let bytes = most * step / 40;
                 let kib = bytes as f64 / 1024.0;
@@ -1103,13 +1101,12 @@ fn a_tinted_stream_holds_its_byte_budget() {
     let mlp = Mlp::random(6);
     let cams: Vec<Camera> = (0..3).map(|v| camera(&s, v)).collect();
     let fl = rasterize(&s, &cams[0], SIZE.0, SIZE.1).unwrap();
-    let most = frame::render(
-        &fl,
-        Method::Abuffer,
-        Options::new(Budget::Share(1_000_000), BG),
-    )
-    .unwrap()
-    .allocated_bytes;
+    // The tinted A-buffer's bytes.
+    let most = dhoit_runtime::budget::abuffer_bytes(
+        fl.pixel_count() as u64,
+        fl.fragment_count() as u64,
+        true,
+    );
     let mut truncated = 0;
     for m in [Method::Fkb, Method::Vkb, Method::Dkb, Method::LinkedList] {
         for bytes in [most * 3 / 4, most * 9 / 10] {

@@ -1079,10 +1079,9 @@ impl Recording<'_, '_, '_> {
         };
         // Where the frame is tinted, its slots and tails take what the tints leave of M
         // (Layout::tinted_fragment_budget).
-        let counted_bytes = opts.counted_bytes.map(|m| match self.tinted {
-            true => layout.tinted_budget(m, px),
-            false => m,
-        });
+        let counted_bytes = opts
+            .counted_bytes
+            .map(|m| layout.tinted_budget(m, px, self.tinted));
         let plan_budget = match counted_bytes {
             Some(m) => PlanBudget::Bytes(m),
             None => PlanBudget::Fragments(budget),

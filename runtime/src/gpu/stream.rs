@@ -234,10 +234,9 @@ impl Stream {
                 let pool = match budget {
                     // A byte budget is a fixed pool: what its bytes (and tints) leave beside
                     // the fixed ones.
-                    Budget::Bytes(m) => {
-                        let m = self.bytes_for_slots(&layout, m);
-                        m.saturating_sub(layout.fixed_bytes(px))
-                    }
+                    Budget::Bytes(m) => layout
+                        .tinted_budget(m, px, self.tinted)
+                        .saturating_sub(layout.fixed_bytes(px)),
                     b => {
                         let f = b.fragment_budget(&layout, px)?.of(occ.fragments);
                         match layout.pool_state {
@@ -401,24 +400,11 @@ impl Stream {
         }
     }
 
-    /// What a byte budget `m` leaves the slots of `layout`: all of it, or where the frames are
-    /// tinted, what the tints leave.
-    fn bytes_for_slots(&self, layout: &Layout, m: u64) -> u64 {
-        match self.tinted {
-            true => layout.tinted_budget(m, self.pixels()),
-            false => m,
-        }
-    }
-
     pub(super) fn set_budget(&mut self, budget: Budget) -> Result<()> {
         let px = self.pixels();
         let name = self.method.name();
         let refuse = |why: &str| Err(Error::Budget(budget.to_string(), format!("{name} {why}")));
         let tinted = self.tinted;
-        let for_slots = |layout: &Layout, m: u64| match tinted {
-            true => layout.tinted_budget(m, px),
-            false => m,
-        };
         match &mut self.method {
             AppMethod::Dkb(_) | AppMethod::Vkb(_) => {
                 let layout = self.method.layout();
@@ -442,7 +428,7 @@ impl Stream {
                         );
                     }
                     Budget::Bytes(m) => {
-                        let m = for_slots(&budget::FKB, m);
+                        let m = budget::FKB.tinted_budget(m, px, tinted);
                         Budget::Bytes(m).resolve(&budget::FKB, px, 0)?.1
                     }
                     b => b.resolve(&budget::FKB, px, 0)?.1,
@@ -457,7 +443,7 @@ impl Stream {
                         );
                     }
                     Budget::Bytes(m) => {
-                        let m = for_slots(&budget::LINKED_LIST, m);
+                        let m = budget::LINKED_LIST.tinted_budget(m, px, tinted);
                         Budget::Bytes(m).resolve(&budget::LINKED_LIST, px, 0)?.1
                     }
                     b => b.resolve(&budget::LINKED_LIST, px, 0)?.1,
