@@ -12,9 +12,10 @@ fn list_color(list: Stored, bg: vec3<f32>) -> vec3<f32> {
     var t = vec3<f32>(1.0);
     for (var i = list.start; i < list.end; i++) {
         tick();
-        let rgba = unpack_rgba8(keys[i].x);
+        let word = tint_at(i);
+        let rgba = stored_colour(keys[i].x, word);
         c += t * rgba.a * rgba.rgb;
-        t *= tint_transmittance(rgba, tint_at(i));
+        t *= tint_transmittance(rgba, word);
     }
     return c + t * bg;
 }

@@ -1,8 +1,8 @@
 // A-buffer pass 2 (geometry): store every fragment in its pixel's slice of the fragment pool as
 // its 64-bit capture key (window depth bits high, RGBA8 low: the k-buffer's slot, 8 bytes a
 // fragment), where params.store_primitives is 1 (MLAB, which blends in submission order, and
-// the tests' readback) its submission index beside it, and where params.tinted is 1 (tinted
-// glass) its tint (RGB8).
+// the tests' readback) its submission index beside it, and where the frame stores them
+// (common.wgsl's stores_tints) its tint word.
 
 @group(1) @binding(0) var<storage, read> offsets: array<u32>;
 // The count pass's buffer, cleared after the prefix sum read it: each pixel's next place (two
@@ -36,7 +36,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     if (params.store_primitives != 0u) {
         primitives[i] = in.primitive;
     }
-    if (params.tinted != 0u) {
+    if (stores_tints()) {
         tints[i] = f.tint;
     }
     return vec4<f32>(0.0);

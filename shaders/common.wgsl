@@ -47,7 +47,16 @@ struct Params {
     // 1 when glass filters per channel (scene::Glass::Tinted): each fragment's tint is stored
     // beside its key (the A-buffer's `tints`).
     tinted: u32,
+    // 1 when the frame's colours keep their range above white (scene::Scene::hdr): a
+    // transparent fragment's RGB is stored over 2^e, e in the top byte of its tint word.
+    hdr: u32,
 };
+
+// Whether the methods that store fragments store each one's tint word beside its key: its
+// tint (tinted glass) and its colour's exponent (colours above white).
+fn stores_tints() -> bool {
+    return params.tinted != 0u || params.hdr != 0u;
+}
 
 // One of a material's textures (wgsl::GpuTexture): where its texels start in the texel buffer
 // (NO_TEXTURE: none), its size, its sampler (bits 0-1 and 2-3 the wrap modes along U and V,
@@ -123,6 +132,30 @@ fn unpack_rgba8(v: u32) -> vec4<f32> {
     ) / 255.0;
 }
 
+// The exponent a colour is stored with (fragment::hdr_exponent): the smallest e in [0, max]
+// whose 2^e is at least its brightest channel.
+fn hdr_exponent(rgb: vec3<f32>, max_e: u32) -> u32 {
+    let m = max(max(rgb.r, rgb.g), rgb.b);
+    var e = 0u;
+    while (e < max_e && m > f32(1u << e)) {
+        e++;
+    }
+    return e;
+}
+
+// A stored fragment's colour: its RGBA8 `rgba8`, RGB times 2^e, e the top byte of its tint
+// word `word` (CLEAR, or any word of exponent 0, where the colour is within white), as
+// fragment::quantize_hdr decodes it.
+fn stored_colour(rgba8: u32, word: u32) -> vec4<f32> {
+    let c = unpack_rgba8(rgba8);
+    return vec4<f32>(c.rgb * f32(1u << (word >> 24u)), c.a);
+}
+
+// Whether a tint word's tint filters anything (its RGB8 not CLEAR; the exponent aside).
+fn filters(word: u32) -> bool {
+    return (word & CLEAR) != CLEAR;
+}
+
 
 // A fragment's 64-bit capture key (fragment::fragment_key) as two 32-bit words, as a u64's
 // bytes lie: the low word (x) its RGBA8, the high (y) its window depth's bits (non-negative
@@ -164,6 +197,15 @@ fn slot_rgba8(colour_word: u32) -> u32 {
 fn tail_sums_of(rgba8: u32) -> vec4<u32> {
     let a = rgba8 >> 24u;
     return vec4<u32>((rgba8 & 0xffu) * a, ((rgba8 >> 8u) & 0xffu) * a, ((rgba8 >> 16u) & 0xffu) * a, a);
+}
+
+// A tail's sums (c8 a8 for r, g, b, and a8) with a fragment of RGBA8 `rgba8` and tint word
+// `word` added: c8 a8 2^e, e its colour's exponent, each colour sum saturating at 2^32 - 1
+// rather than wrapping (composite::Tail::add).
+fn add_tail_sums(sums: vec4<u32>, rgba8: u32, word: u32) -> vec4<u32> {
+    let s = tail_sums_of(rgba8);
+    let c = sums.xyz + (s.xyz << vec3<u32>(word >> 24u));
+    return vec4<u32>(select(c, vec3<u32>(0xffffffffu), c < sums.xyz), sums.w + s.w);
 }
 
 // What a slot's colour word adds to its pixel's tail.

@@ -1,8 +1,12 @@
-// The k-buffer's tint pass (tinted glass, params.tinted), as kbuffer_insert.wgsl's functions:
-// after the capture (either insertion) has left each pixel's slots holding its k smallest keys,
-// a third geometry pass over the same fragments puts each fragment's tint beside its key, so
-// the slots hold the k smallest (key, tint) pairs in order and the tail the others, as
-// composite::capture and fragment::sort_front_to_back order them:
+// The k-buffer's tint pass (where the frame stores tint words: tinted glass, colours above
+// white; common.wgsl's stores_tints), as kbuffer_insert.wgsl's functions: after the capture
+// (either insertion) has left each pixel's slots holding its k smallest keys, a third geometry
+// pass over the same fragments puts each fragment's tint word (its tint, its colour's exponent
+// in the top byte) beside its key, so the slots hold the k smallest (key, word) pairs in order
+// and the tail the others, as composite::capture and fragment::sort_front_to_back order them.
+// A word carried past its run is a fragment in the tail: besides its absorption, where its
+// colour is above white (exponent e), it adds the (2^e - 1) c8 a8 the capture's sums lack,
+// saturating:
 //
 // - where a pixel inserted (its slots sorted, nearest first), the run of slots holding the
 //   fragment's key (a binary search over the keys, which decrease) takes its tint the way the
@@ -33,8 +37,8 @@ const OIT_APPENDS: bool = false;
 
 @group(1) @binding(5) var<storage, read_write> oit_tints: array<atomic<u32>>;
 
-// The alpha of the fragment oit_insert placed, for its tail.
-var<private> tint_alpha: u32 = 0u;
+// The RGBA8 of the fragment oit_insert placed, for its tail.
+var<private> tint_rgba8: u32 = 0u;
 
 // Slot s's key as two words (colour, depth), as common.wgsl's key_of lays them out.
 fn oit_slot_key(s: u32) -> vec2<u32> {
@@ -67,7 +71,7 @@ fn oit_carry_tint(p: u32, base: u32, first: u32, k: u32, key: vec2<u32>, run: bo
 // The fragment's tint into the run of its key in pixel p's sorted slots: the complemented tint
 // pushed out (never 0: a complemented RGB8's high byte is 0xff), or 0.
 fn oit_insert(p: u32, base: u32, k: u32, depth_word: u32, colour_word: u32) -> u32 {
-    tint_alpha = slot_rgba8(colour_word) >> 24u;
+    tint_rgba8 = slot_rgba8(colour_word);
     let key = vec2<u32>(colour_word, depth_word);
     // The first slot whose key is at most the fragment's (the keys decrease).
     var lo = 0u;
@@ -96,10 +100,10 @@ fn oit_store_slot(at: u32, depth_word: u32, colour_word: u32) {
 // nothing away).
 fn oit_tint_to_tail(at: u32, out: u32) {
     let tint = ~out;
-    if (tint == CLEAR) {
+    if (!filters(tint)) {
         return;
     }
-    let through = 255u - tint_alpha;
+    let through = 255u - (tint_rgba8 >> 24u);
     for (var c = 0u; c < 3u; c++) {
         let taken = through * (255u - ((tint >> (8u * c)) & 0xffu));
         if (taken != 0u) {
@@ -108,10 +112,35 @@ fn oit_tint_to_tail(at: u32, out: u32) {
     }
 }
 
+// What a pushed-out fragment above white adds to its tail's colour sums beyond what the
+// capture added: the tail takes c8 a8 2^e (composite::Tail::add), the capture added c8 a8.
+fn hdr_extra(out: u32) -> vec3<u32> {
+    return tail_sums_of(tint_rgba8).xyz * ((1u << ((~out) >> 24u)) - 1u);
+}
+
+// 2^32 - 1: where a colour sum stops (composite::Tail::add saturates). An add that wraps
+// raises its word back to it, and any add after that wraps again and does the same, so the
+// sum ends there whatever the order.
+const SUM_MAX: u32 = 0xffffffffu;
+
 fn oit_to_tail(p: u32, out: u32) {
     oit_tint_to_tail(tail_tint_word(p, NO_TAIL), out);
+    let extra = hdr_extra(out);
+    for (var c = 0u; c < 3u; c++) {
+        let x = extra[c];
+        if (x != 0u && atomicAdd(&oit_tail[4u * p + c], x) > SUM_MAX - x) {
+            atomicMax(&oit_tail[4u * p + c], SUM_MAX);
+        }
+    }
 }
 
 fn pooled_to_tail(t: u32, out: u32) {
     oit_tint_to_tail(tail_tint_word(0u, t), out);
+    let extra = hdr_extra(out);
+    for (var c = 0u; c < 3u; c++) {
+        let x = extra[c];
+        if (x != 0u && atomicAdd(&oit_slots[2u * t + c], x) > SUM_MAX - x) {
+            atomicMax(&oit_slots[2u * t + c], SUM_MAX);
+        }
+    }
 }

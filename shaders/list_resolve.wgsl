@@ -16,7 +16,7 @@
 // Set to 1 when a pixel's walk came close to lavapipe's loop limit; the pixels over
 // MAX_FRAGMENTS_PER_PIXEL (common.wgsl's STATUS_WORDS).
 @group(0) @binding(5) var<storage, read_write> status: array<atomic<u32>, STATUS_WORDS>;
-// Per node, its tint (RGB8) where params.tinted.
+// Per node, its tint word where the frame stores them (common.wgsl's stores_tints).
 @group(0) @binding(8) var<storage, read> tints: array<u32>;
 
 // A node's key and tint.
@@ -61,7 +61,7 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
             return Resolved(false, bg);
         }
         var carry = Near(keys[node - 1u], CLEAR);
-        if (params.tinted != 0u) {
+        if (stores_tints()) {
             carry.tint = tints[node - 1u];
         }
         node = next[node - 1u];
@@ -88,10 +88,10 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
             near[j] = carry;
             carry = out;
         }
-        sums += tail_sums_of(carry.key.x);
+        sums = add_tail_sums(sums, carry.key.x, carry.tint);
         let g = vec3<u32>(carry.tint & 0xffu, (carry.tint >> 8u) & 0xffu, (carry.tint >> 16u) & 0xffu);
         through += (255u - (carry.key.x >> 24u)) * g;
-        tinted = tinted || carry.tint != CLEAR;
+        tinted = tinted || filters(carry.tint);
         tail_n++;
     }
     // composite::Tail::over, then the sorted places front to back.
@@ -113,7 +113,7 @@ fn list_color(p: u32, bg: vec3<f32>) -> Resolved {
     var c = vec3<f32>(0.0);
     var t = vec3<f32>(1.0);
     for (var i = 0u; i < held; i++) {
-        let rgba = unpack_rgba8(near[i].key.x);
+        let rgba = stored_colour(near[i].key.x, near[i].tint);
         c += t * rgba.a * rgba.rgb;
         t *= tint_transmittance(rgba, near[i].tint);
     }

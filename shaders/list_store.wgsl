@@ -13,7 +13,7 @@
 @group(1) @binding(2) var<storage, read_write> keys: array<vec2<u32>>;
 // Word 0: the fragments that arrived, kept or dropped.
 @group(1) @binding(3) var<storage, read_write> counter: array<atomic<u32>, 4>;
-// Per node, where the frame's glass is tinted (params.tinted): its fragment's tint (RGB8).
+// Per node, where the frame stores them (common.wgsl's stores_tints): its fragment's tint word.
 @group(1) @binding(4) var<storage, read_write> tints: array<u32>;
 
 @fragment
@@ -28,7 +28,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     }
     let p = pixel_index(in.clip, params.width);
     keys[node] = key_of(in.clip.z, f.rgba8);
-    if (params.tinted != 0u) {
+    if (stores_tints()) {
         tints[node] = f.tint;
     }
     next[node] = atomicExchange(&heads[p], node + 1u);

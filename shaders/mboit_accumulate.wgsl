@@ -19,7 +19,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         discard;
     }
     let m = textureLoad(moments_target, xy, 0) / b0;
-    let rgba = unpack_rgba8(f.rgba8);
+    let rgba = stored_colour(f.rgba8, f.tint);
     let t = transmittance(b0, m, mboit_depth(in.clip.z)) * rgba.a;
     return vec4<f32>(t * rgba.rgb, t);
 }
@@ -40,7 +40,7 @@ fn accumulate_n(in: VertexOut, front: bool, moments: u32) -> vec4<f32> {
     let lo = textureLoad(moments_target, xy, 0) / b0;
     let hi = textureLoad(extra_target, xy, 0) / b0;
     let m = array<f32, 8>(lo.x, lo.y, lo.z, lo.w, hi.x, hi.y, hi.z, hi.w);
-    let rgba = unpack_rgba8(f.rgba8);
+    let rgba = stored_colour(f.rgba8, f.tint);
     let t = transmittance_n(b0, m, mboit_depth(in.clip.z), moments) * rgba.a;
     return vec4<f32>(t * rgba.rgb, t);
 }

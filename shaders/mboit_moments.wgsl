@@ -43,7 +43,7 @@ fn moments4(in: VertexOut, f: Transparent) -> Targets {
 // g), and its A, cleared to 1, becomes 0 where a tinted fragment is drawn (source 1): the
 // pixels the composite filters per channel (composite::mboit_blended's).
 fn through(f: Transparent) -> vec4<f32> {
-    let tinted = select(0.0, 1.0, f.tint != CLEAR);
+    let tinted = select(0.0, 1.0, filters(f.tint));
     return vec4<f32>(1.0 - tint_transmittance(unpack_rgba8(f.rgba8), f.tint), tinted);
 }
 

@@ -28,8 +28,9 @@ fn list_color(list: Stored, bg: vec3<f32>) -> vec3<f32> {
     for (var i = start; i < end; i++) {
         tick();
         let key = keys[i];
-        let rgba = unpack_rgba8(key.x);
-        var cur = Row(rgba.rgb * rgba.a, tint_transmittance(rgba, tint_at(i)), key);
+        let word = tint_at(i);
+        let rgba = stored_colour(key.x, word);
+        var cur = Row(rgba.rgb * rgba.a, tint_transmittance(rgba, word), key);
         for (var r = 0u; r < m; r++) {
             tick();
             if (!key_less(rows[r].z, cur.z)) {

@@ -18,12 +18,13 @@ var<private> oit_color: vec4<f32>;
 struct Transparent {
     visible: bool,
     rgba8: u32,
-    // An application's fragments are untinted.
+    // An application's fragments are untinted: CLEAR, their colour's exponent in the top byte.
     tint: u32,
 };
 
-// As geometry.wgsl's: in front of the opaque depth (LESS), its colour clamped to 8 bits a
-// channel, and of non-zero 8-bit opacity.
+// As geometry.wgsl's: in front of the opaque depth (LESS), its colour 8 bits a channel
+// (clamped at white, or where the frame keeps colours above white, params.hdr, its RGB over
+// 2^e, e its exponent: geometry.wgsl's transparent_fragment), and of non-zero 8-bit opacity.
 fn transparent_fragment(in: VertexOut, front: bool) -> Transparent {
     var out: Transparent;
     out.visible = false;
@@ -33,8 +34,13 @@ fn transparent_fragment(in: VertexOut, front: bool) -> Transparent {
     if (in.clip.z >= d) {
         return out;
     }
-    let rgba8 = pack_rgba8(clamp(oit_color, vec4<f32>(0.0), vec4<f32>(1.0)));
+    let max_e = select(0u, HDR_MAX_EXPONENT, params.hdr != 0u);
+    let top = vec3<f32>(f32(1u << max_e));
+    let c = select(vec3<f32>(0.0), min(oit_color.rgb, top), oit_color.rgb > vec3<f32>(0.0));
+    let e = hdr_exponent(c, max_e);
+    let rgba8 = pack_rgba8(vec4<f32>(c / f32(1u << e), oit_color.a));
     out.visible = (rgba8 >> 24u) != 0u;
     out.rgba8 = rgba8;
+    out.tint = CLEAR | (e << 24u);
     return out;
 }

@@ -37,14 +37,15 @@ fn count_put(p: u32, c: u32, n: u32) {
 // the frame was given. The flags (loop limits) are not set here.
 @group(0) @binding(7) var<storage, read_write> status: array<atomic<u32>, STATUS_WORDS>;
 
-// Where the frame's glass is tinted (params.tinted), the tint pass's words (kbuffer_tint.wgsl:
-// each slot's complemented tint, and three sums a tail of what its tints take away, common.wgsl's
-// tint_word and tail_tint_word); else an unused buffer.
+// Where the frame stores tint words (common.wgsl's stores_tints), the tint pass's words
+// (kbuffer_tint.wgsl: each slot's complemented tint word, and three sums a tail of what its
+// tints take away, common.wgsl's tint_word and tail_tint_word); else an unused buffer.
 @group(0) @binding(10) var<storage, read_write> tints: array<u32>;
 
-// Slot s's tint (RGB8; CLEAR where the glass is grey).
+// Slot s's tint word (the tint RGB8, the colour's exponent above it; CLEAR where the frame
+// stores none).
 fn tint_of(s: u32) -> u32 {
-    if (params.tinted == 0u) {
+    if (!stores_tints()) {
         return CLEAR;
     }
     return ~tints[tint_word(s)];
@@ -100,7 +101,7 @@ const EVERY_FRAGMENT_FITS: bool = false;
 // is stable, and the tint pass left the tints of equal keys in their slots' order, smallest
 // first (kbuffer_tint.wgsl's oit_appended): they stay in order.
 fn sort_slots(base: u32, n: u32) {
-    let tinted = params.tinted != 0u;
+    let tinted = stores_tints();
     for (var i = 1u; i < n; i++) {
         let key = slots[base + i];
         var g = 0u;
@@ -133,10 +134,11 @@ fn blend_slots(p: u32, base: u32, k: u32, under: vec3<f32>) -> vec4<f32> {
             break;
         }
         filled += 1u;
-        let rgba = unpack_rgba8(slot_rgba8(s.x));
+        let word = tint_of(at);
+        let rgba = stored_colour(slot_rgba8(s.x), word);
         c += t * rgba.a * rgba.rgb;
         // (1 - a) g: 1 - a exactly where the glass is grey (CLEAR's g is 1).
-        t *= tint_transmittance(rgba, tint_of(at));
+        t *= tint_transmittance(rgba, word);
     }
     return vec4<f32>(c + t * under, 1.0);
 }
@@ -196,7 +198,7 @@ fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
     let sum_a = tl.sums.w;
     // What its tints take away per channel (composite::Tail::absorbed), where tinted.
     var absorbed = vec3<u32>(0u);
-    if (params.tinted != 0u && tail_n > 0u) {
+    if (stores_tints() && tail_n > 0u) {
         let at = tail_tint_word(p, pooled_at);
         absorbed = vec3<u32>(tints[at], tints[at + 1u], tints[at + 2u]);
     }

@@ -12,13 +12,14 @@
 @group(0) @binding(2) var<storage, read_write> keys: array<vec2<u32>>;
 // Submission indices, where the store kept them (params.store_primitives): sorted alongside.
 @group(0) @binding(5) var<storage, read_write> primitives: array<u32>;
-// Tints (RGB8), where the store kept them (params.tinted): sorted alongside, breaking ties
-// between equal keys before the submission index.
+// Tint words (common.wgsl's stores_tints: the tint RGB8, the colour's exponent in the top
+// byte), where the store kept them: sorted alongside, breaking ties between equal keys before
+// the submission index.
 @group(0) @binding(6) var<storage, read_write> tints: array<u32>;
 
-// Fragment i's tint (CLEAR where the frame stores none).
+// Fragment i's tint word (CLEAR where the frame stores none).
 fn tint_at(i: u32) -> u32 {
-    if (params.tinted != 0u) {
+    if (stores_tints()) {
         return tints[i];
     }
     return CLEAR;
@@ -98,7 +99,7 @@ fn write_onto(p: u32, c: vec3<f32>) {
 // alongside and break the remaining ties, as fragment::sort_front_to_back (the tests read them
 // back). The tints move alongside where the frame stores them.
 fn sort_keys(start: u32, end: u32, with_primitives: bool) {
-    let with_tints = params.tinted != 0u;
+    let with_tints = stores_tints();
     for (var i = start + 1u; i < end; i++) {
         tick();
         let k = keys[i];
@@ -152,14 +153,14 @@ fn sort_by_submission(start: u32, end: u32) {
             tick();
             keys[j] = keys[j - 1u];
             primitives[j] = primitives[j - 1u];
-            if (params.tinted != 0u) {
+            if (stores_tints()) {
                 tints[j] = tints[j - 1u];
             }
             j--;
         }
         keys[j] = k;
         primitives[j] = q;
-        if (params.tinted != 0u) {
+        if (stores_tints()) {
             tints[j] = g;
         }
     }

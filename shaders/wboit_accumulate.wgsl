@@ -50,7 +50,7 @@ fn accumulate(in: VertexOut, front: bool, tinted: bool) -> Targets {
     if (!f.visible) {
         discard;
     }
-    let rgba = unpack_rgba8(f.rgba8);
+    let rgba = stored_colour(f.rgba8, f.tint);
     // The depth a capture key holds (fragment_key): what the twin weighs.
     let w = weight(select(0.0, in.clip.z, in.clip.z > 0.0), rgba.a);
     var out: Targets;

@@ -860,10 +860,16 @@ pub struct Tail {
 }
 
 impl Tail {
+    /// Adds a fragment: `c8 a8 2^e` to each colour sum (`c8` its stored 8 bits, `e` its
+    /// exponent: [`crate::fragment::mantissa_rgba8`]), saturating, so a tail of colours far above
+    /// white stays the brightest a sum holds rather than wrapping (kbuffer_tint.wgsl adds
+    /// `2^e - 1` more of each the same way); `a8` to the alpha sum.
     pub fn add(&mut self, rgba: [f32; 4], tint: u32) {
         let a = to_unorm8(rgba[3]);
-        for (s, ch) in self.sum_ca.iter_mut().zip(rgba) {
-            *s = s.wrapping_add(to_unorm8(ch) * a);
+        let c8 = crate::fragment::mantissa_rgba8(rgba);
+        let e = crate::fragment::tint_word(rgba, 0) >> 24;
+        for (i, s) in self.sum_ca.iter_mut().enumerate() {
+            *s = s.saturating_add((((c8 >> (8 * i)) & 0xff) * a) << e);
         }
         for (i, s) in self.sum_t.iter_mut().enumerate() {
             *s = s.wrapping_add((255 - a) * ((tint >> (8 * i)) & 0xff));

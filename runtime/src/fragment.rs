@@ -2,12 +2,16 @@
 //!
 //! A fragment is a window depth in [0, 1], a non-premultiplied RGBA colour stored at 8 bits a
 //! channel (the precision of the GPU capture key), a tint and its triangle's submission index.
+//! Where a frame's colours keep their range (light above white: emission, [`quantize_hdr`]),
+//! RGB is stored as 8 bits times a shared power of two, its exponent in the top byte of the
+//! fragment's tint word ([`tint_word`]); a colour within white has exponent 0 and is stored as
+//! RGBA8 alone.
 //! What it lets through of what lies behind it is its transmittance `(1 - a) g`, per channel
 //! (`g` the tint, RGB8): white for every fragment but tinted glass
 //! ([`crate::scene::Glass::Tinted`]), whose tint is its base colour, so a red pane passes red.
 //! "Front to back" is the order of [`fragment_key`]: depth bits high, packed RGBA8 low, the key
-//! the GPU capture sorts by, with the tint, then the submission index breaking exact ties. It
-//! is a total order, so every result is independent of the order fragments arrive in.
+//! the GPU capture sorts by, with the tint word, then the submission index breaking exact
+//! ties. It is a total order, so every result is independent of the order fragments arrive in.
 
 /// A channel in [0, 1] as an 8-bit unorm, rounding half up (`floor(v 255 + 0.5)`, which WGSL
 /// computes identically; Rust's `round` and WGSL's `round` disagree on halves).
@@ -30,11 +34,65 @@ pub fn unpack_rgba8(v: u32) -> [f32; 4] {
     [0, 8, 16, 24].map(|s| ((v >> s) & 0xff) as f32 / 255.0)
 }
 
+/// The exponent a colour is stored with: the smallest `e` in `0..=max` whose `2^e` is at least
+/// its brightest channel (`max` where none is). Colours within white take 0 and are stored as
+/// they always were; the frames whose colours keep their range take
+/// [`crate::shared::HDR_MAX_EXPONENT`] as `max`, the others 0 (geometry.wgsl's `hdr_exponent`).
+pub fn hdr_exponent(rgb: [f32; 3], max: u32) -> u32 {
+    let m = rgb[0].max(rgb[1]).max(rgb[2]);
+    let mut e = 0;
+    while e < max && m > (1u32 << e) as f32 {
+        e += 1;
+    }
+    e
+}
+
+/// A colour as a fragment stores it: RGB rounded to 8 bits of `rgb / 2^e` (a shared exponent,
+/// [`hdr_exponent`]), alpha to 8 bits, each channel clamped to `[0, 2^e]` first. With `max` 0
+/// this is [`quantize`] of each channel.
+pub fn quantize_hdr(rgba: [f32; 4], max: u32) -> [f32; 4] {
+    let top = (1u32 << max) as f32;
+    let c = rgba.map(|v| if v > 0.0 { v.min(top) } else { 0.0 });
+    let e = hdr_exponent([c[0], c[1], c[2]], max);
+    let scale = (1u32 << e) as f32;
+    let mut q = c.map(|v| to_unorm8(v / scale) as f32 / 255.0 * scale);
+    q[3] = quantize(rgba[3]);
+    q
+}
+
+/// The RGBA8 a stored colour keeps beside its exponent (R in the low byte): its RGB over `2^e`.
+/// For colours within white it is [`pack_rgba8`].
+pub fn mantissa_rgba8(rgba: [f32; 4]) -> u32 {
+    let e = hdr_exponent([rgba[0], rgba[1], rgba[2]], crate::shared::HDR_MAX_EXPONENT);
+    let scale = (1u32 << e) as f32;
+    pack_rgba8([rgba[0] / scale, rgba[1] / scale, rgba[2] / scale, rgba[3]])
+}
+
+/// A fragment's tint word as the GPU stores it beside its key: the tint (RGB8) low, the
+/// exponent of its colour ([`hdr_exponent`]) in the top byte. It breaks ties between equal
+/// keys ([`sort_front_to_back`]).
+pub fn tint_word(rgba: [f32; 4], tint: u32) -> u32 {
+    let e = hdr_exponent([rgba[0], rgba[1], rgba[2]], crate::shared::HDR_MAX_EXPONENT);
+    (tint & CLEAR) | e << 24
+}
+
+/// A stored fragment's colour and tint from its key's RGBA8 and its tint word (common.wgsl's
+/// `stored_colour`): RGB times `2^e`, `e` the word's top byte, and the tint its RGB8.
+pub fn stored_fragment(rgba8: u32, word: u32) -> ([f32; 4], u32) {
+    let scale = (1u32 << (word >> 24).min(31)) as f32;
+    let c = unpack_rgba8(rgba8);
+    (
+        [c[0] * scale, c[1] * scale, c[2] * scale, c[3]],
+        word & CLEAR,
+    )
+}
+
 /// The 64-bit key fragments are ordered by: window depth bits high (non-negative floats order
-/// like their bit patterns; -0 and NaN count as 0), packed RGBA8 low.
+/// like their bit patterns; -0 and NaN count as 0), the colour's RGBA8 low
+/// ([`mantissa_rgba8`]: a colour above white keeps its exponent in its tint word).
 pub fn fragment_key(depth: f32, rgba: [f32; 4]) -> u64 {
     let d = if depth > 0.0 { depth } else { 0.0 };
-    ((d.to_bits() as u64) << 32) | pack_rgba8(rgba) as u64
+    ((d.to_bits() as u64) << 32) | mantissa_rgba8(rgba) as u64
 }
 
 /// The tint of a fragment that lets through every colour alike (RGB8, R in the low byte): its
@@ -85,9 +143,15 @@ impl Fragment {
     }
 }
 
-/// Sorts fragments front to back (by key, then tint, then submission index).
+/// Sorts fragments front to back (by key, then tint word, then submission index).
 pub fn sort_front_to_back(frags: &mut [Fragment]) {
-    frags.sort_unstable_by_key(|f| (fragment_key(f.depth, f.rgba), f.tint, f.primitive));
+    frags.sort_unstable_by_key(|f| {
+        (
+            fragment_key(f.depth, f.rgba),
+            tint_word(f.rgba, f.tint),
+            f.primitive,
+        )
+    });
 }
 
 /// Per-pixel fragment lists: pixel `p = y * width + x` owns `offsets[p]..offsets[p + 1]`.

@@ -2,7 +2,7 @@
 //! heuristic importance (paper 002). Written pass by pass as the GPU computes them, so the two
 //! can be compared line by line.
 
-use crate::fragment::{FragmentLists, fragment_key, pack_rgba8, unpack_rgba8};
+use crate::fragment::{FragmentLists, fragment_key, unpack_rgba8};
 
 /// Names of the network's inputs, in order (see [`pixel_features`]).
 pub const FEATURE_NAMES: [&str; 12] = [
@@ -86,9 +86,11 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
                 ..Default::default()
             };
             for i in fl.range(p) {
-                let rgba8 = pack_rgba8(fl.rgba[i]);
-                s.count += 1;
+                // The colour as the key stores it: RGBA8, over its exponent where it is
+                // brighter than white (fragment::mantissa_rgba8).
                 let key = fragment_key(fl.depth[i], fl.rgba[i]);
+                let rgba8 = key as u32;
+                s.count += 1;
                 s.nearest_key = s.nearest_key.min(key);
                 // The two largest keys of the multiset, as the insertion keeps them.
                 let key = key | OCCUPIED;

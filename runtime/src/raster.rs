@@ -42,7 +42,7 @@
 //! processed in parallel; the result does not depend on the number of threads.
 
 use crate::error::{Error, Result};
-use crate::fragment::{FragmentLists, pack_rgba8, quantize};
+use crate::fragment::{FragmentLists, pack_rgba8, quantize_hdr};
 use crate::scene::material::{self, Shaded};
 use crate::scene::{Camera, Scene};
 use glam::{Vec3, Vec4};
@@ -320,6 +320,8 @@ struct Shading<'a> {
     scene: &'a Scene,
     eye: Vec3,
     table: [f32; 256],
+    /// The largest exponent a colour is stored with ([`Scene::max_exponent`]).
+    max_exponent: u32,
 }
 
 impl Shading<'_> {
@@ -416,10 +418,7 @@ fn raster_band(
                             opaque[pixel] = pack_rgba8([c.x, c.y, c.z, 1.0]);
                         }
                         Shaded::Transparent(c, tint) => {
-                            let rgba = Vec4::from(c)
-                                .clamp(Vec4::ZERO, Vec4::ONE)
-                                .to_array()
-                                .map(quantize);
+                            let rgba = quantize_hdr(c, shading.max_exponent);
                             // Zero opacity adds nothing to any composite: no fragment.
                             if rgba[3] == 0.0 {
                                 continue;
@@ -638,6 +637,7 @@ pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result
         scene,
         eye: cam.eye,
         table: material::srgb_table(),
+        max_exponent: scene.max_exponent(),
     };
     let outs: Vec<BandOut> = bins
         .par_iter()
@@ -680,8 +680,9 @@ pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result
         ..Default::default()
     };
     let has_opaque = scene.has_opaque();
-    // Tints where the scene's glass is tinted (FragmentLists::tint), as the GPU stores them.
-    let tinted = scene.tints();
+    // Tints where the scene's glass is tinted or its colours keep their exponent
+    // (FragmentLists::tint), as the GPU stores them.
+    let tinted = scene.tint_words();
     if tinted {
         fl.tint.reserve(total);
     }

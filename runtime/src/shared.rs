@@ -66,6 +66,11 @@ pub const fn marks_words(pixels: u64) -> u64 {
 pub const fn mark_blocks(pixels: u64) -> u64 {
     pixels.div_ceil(MARK_BITS)
 }
+/// The largest exponent of a fragment colour kept above white (fragment::hdr_exponent): a
+/// colour is stored as RGB8 times `2^e`, `e` in the top byte of its tint word, so colours reach
+/// `2^15 = 32768` (an `Rgba16Float` target holds up to 65504). A tail adds `c8 a8 2^e` for
+/// each channel, at most `255^2 2^15`, which a 32-bit sum holds.
+pub const HDR_MAX_EXPONENT: u32 = 15;
 /// Ambient share of the headlight shading.
 pub const AMBIENT: f32 = 0.3;
 /// Most fragments one pixel may hold: a per-pixel count takes 16 bits (two to a word,

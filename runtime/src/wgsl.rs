@@ -423,6 +423,7 @@ pub mod shaders {
             ("MBOIT_MIN_B0", F32(crate::composite::MBOIT_MIN_B0)),
             ("LIST_MAX_SORTED", U32(crate::composite::LIST_MAX_SORTED)),
             ("TAIL_WORDS", U32(crate::shared::TAIL_WORDS)),
+            ("HDR_MAX_EXPONENT", U32(crate::shared::HDR_MAX_EXPONENT)),
             ("MARK_BITS", U32(crate::shared::MARK_BITS as u32)),
             ("RECORD_WORDS", U32(crate::shared::RECORD_WORDS)),
             ("NO_RECORD", U32(crate::shared::NO_RECORD)),
@@ -563,7 +564,11 @@ pub(crate) struct Params {
     /// 1 when glass filters per channel ([`crate::scene::Scene::tints`]): the A-buffer stores
     /// each fragment's tint beside its key and its resolves filter per channel.
     pub(crate) tinted: u32,
-    pub(crate) _pad: [u32; 14],
+    /// 1 when the frame's colours keep their range above white ([`crate::scene::Scene::hdr`]):
+    /// a transparent fragment's RGB is stored over a power of two, its exponent in the top
+    /// byte of its tint word, which the methods that store fragments then store.
+    pub(crate) hdr: u32,
+    pub(crate) _pad: [u32; 13],
 }
 
 /// `TextureRef.texels` where a material has no such texture.
@@ -913,7 +918,7 @@ mod tests {
             k_uniform, pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed,
             budget_ppm, append, layer_major, uniform_alpha, store_primitives, mboit_bias,
             mboit_overestimation, list_sorted, pooled_tail, wboit_weight, wboit_near, wboit_far,
-            tinted);
+            tinted, hdr);
         assert_eq!(
             wgsl, rust,
             "Params: WGSL (left) and Rust (right) members and offsets"

@@ -454,6 +454,9 @@ impl App {
             wgpu::TextureFormat::Rgba32Float => {
                 f32::from_le_bytes(data[at..at + 4].try_into().unwrap())
             }
+            wgpu::TextureFormat::Rgba16Float => {
+                half::f16::from_le_bytes(data[at..at + 2].try_into().unwrap()).to_f32()
+            }
             wgpu::TextureFormat::Rgba8Unorm => data[at] as f32 / 255.0,
             f => panic!("{f:?}"),
         };
@@ -1548,4 +1551,75 @@ fn every_method_refuses_textures_of_another_size_or_format() {
         app.queue.submit([enc.finish()]);
         assert!(other.finished(true).unwrap()[0].error.is_none(), "{name}");
     }
+}
+
+/// Colours above white in an application's renderer. With `set_hdr(true)` onto an
+/// `Rgba16Float` target, three full-frame layers whose colours pass white (a grey one of 0.4,
+/// alpha 0.4, in front of one of (8, 3.2, 1.6), alpha 0.4, in front of an opaque (16, 3.2, 6.4))
+/// composite to what a hand computation gives, 0.4 x 0.4 + 0.6 x 0.4 x 8 + 0.36 x 16 = 7.84
+/// in red (and 2.08, 2.848), within binary16's step, in every method that keeps all three (the
+/// A-buffer, the list, FKB with two slots and a tail of one, MLAB merging the last two); the
+/// others keep their light above white. The A-buffer's and FKB's frames hold a word more a
+/// fragment, slot and tail. Off, each colour clamps at white as it is stored (0.76), and onto
+/// `Rgba8Unorm` asking for it is refused, naming why.
+#[test]
+fn an_application_gets_light_above_white_onto_a_float_target() {
+    if gpu().is_none() {
+        return;
+    }
+    let (w, h) = (32, 24);
+    let mut s = Scene::default();
+    common::layer(&mut s, 0.2, [0.4, 0.4, 0.4, 0.4]);
+    common::layer(&mut s, 0.5, [8.0, 3.2, 1.6, 0.4]);
+    common::layer(&mut s, 0.8, [16.0, 3.2, 6.4, 1.0]);
+    let app = App::new(&s, (w, h), false);
+    let f16 = wgpu::TextureFormat::Rgba16Float;
+    let exact_methods = ["linked-list", "fkb", "abuffer", "mlab"];
+    let hdr = every_method(&app.gpu, (w, h), f16);
+    let ldr = every_method(&app.gpu, (w, h), f16);
+    let px = (w * h) as u64;
+    for (mut on, mut off) in hdr.into_iter().zip(ldr) {
+        let name = on.method();
+        on.set_hdr(true).unwrap();
+        // The second frames, whose buffers the first ones' counts sized.
+        app.frame(on.as_mut(), &s, &identity());
+        app.frame(off.as_mut(), &s, &identity());
+        let (bright, report) = app.frame(on.as_mut(), &s, &identity());
+        let (clamped, plain) = app.frame(off.as_mut(), &s, &identity());
+        for (p, (c, l)) in bright.iter().zip(&clamped).enumerate() {
+            if exact_methods.contains(&name) {
+                for (i, want) in [7.84f32, 2.08, 2.848].into_iter().enumerate() {
+                    assert!(
+                        (c[i] - want).abs() <= want * 2f32.powi(-10),
+                        "{name}: pixel {p} {c:?}"
+                    );
+                }
+                assert!(
+                    (0..3).all(|i| (l[i] - 0.76).abs() <= 1e-3),
+                    "{name} off: {l:?}"
+                );
+            } else {
+                assert!(c[0] > 1.5 && c[0] < 16.0, "{name}: pixel {p} {c:?}");
+                assert!(l[0] <= 1.0 + 1e-3, "{name} off: pixel {p} {l:?}");
+            }
+        }
+        // A word a node (four a pixel) or a slot (two) and three a tail; a word a fragment
+        // the A-buffer's pool holds (three a pixel here, and its headroom); DKB's and VKB's
+        // pool words pay two each.
+        let more = report.allocated_bytes - plain.allocated_bytes;
+        match name {
+            "linked-list" => assert_eq!(more, 4 * 4 * px, "{name}"),
+            "fkb" => assert_eq!(more, 4 * (3 * px + 2 * px), "{name}"),
+            "wboit" | "mboit" => assert_eq!(more, 0, "{name}"),
+            "abuffer" | "mlab" => assert!(more % 4 == 0 && more >= 4 * 3 * px, "{name}"),
+            _ => assert!(more > 0, "{name}"),
+        }
+    }
+    let mut eight = KBufferOit::new(&app.gpu, (w, h), 2, wgpu::TextureFormat::Rgba8Unorm).unwrap();
+    let e = eight.set_hdr(true).unwrap_err().to_string();
+    assert!(
+        e.contains("Rgba8Unorm") && e.contains("float target"),
+        "{e}"
+    );
+    eight.set_hdr(false).unwrap();
 }

@@ -64,7 +64,7 @@ impl Recording<'_, '_, '_> {
             none
         };
         // Each fragment's tint where the frame's glass is tinted.
-        let (tints, tinted) = fb.tints("abuf", total, self.tinted)?;
+        let (tints, tinted) = fb.tints("abuf", total, self.words)?;
         passes.draw(
             fb.enc,
             Phase::Store,
@@ -90,14 +90,20 @@ impl Recording<'_, '_, '_> {
                     offsets,
                     ..Default::default()
                 };
-                for key in read_u64s(gpu, &keys, stored)? {
+                let words = match tinted {
+                    true => u32s(&read_back(gpu, &tints, 4 * stored)?),
+                    false => Vec::new(),
+                };
+                for (i, key) in read_u64s(gpu, &keys, stored)?.into_iter().enumerate() {
+                    let word = words.get(i).copied().unwrap_or(crate::fragment::CLEAR);
+                    let (rgba, tint) = crate::fragment::stored_fragment(key as u32, word);
                     fl.depth.push(f32::from_bits((key >> 32) as u32));
-                    fl.rgba.push(crate::fragment::unpack_rgba8(key as u32));
+                    fl.rgba.push(rgba);
+                    if tinted {
+                        fl.tint.push(tint);
+                    }
                 }
                 fl.primitive = u32s(&read_back(gpu, &primitives, 4 * stored)?);
-                if tinted {
-                    fl.tint = u32s(&read_back(gpu, &tints, 4 * stored)?);
-                }
                 out.fragments = Some(fl);
                 Ok(())
             }));

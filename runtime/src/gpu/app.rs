@@ -169,6 +169,16 @@ pub trait Oit {
     /// its nodes; MLAB: its rows, as slots a pixel); the methods without a budget refuse it.
     fn set_budget(&mut self, budget: Budget) -> Result<()>;
 
+    /// Whether the frames to come keep colours above white (off when made). On, a fragment's
+    /// RGB is stored as 8 bits times a power of two up to 2^15 (its exponent in a word beside
+    /// its key: 4 bytes a stored fragment, slot or node more, and the k-buffers' tails 12 bytes
+    /// a pixel or two words a pool word; the k-buffers draw one more geometry pass,
+    /// [`Phase::CaptureTints`], so [`Oit::phases`] changes), and the resolve writes what
+    /// blends onto the float target: a fragment of colour 8.0 arrives as 8.0. Off, each
+    /// fragment's colour clamps at white as it is stored. A byte budget given before is
+    /// resolved again. Refused onto an `Rgba8Unorm` target, which holds nothing above white.
+    fn set_hdr(&mut self, on: bool) -> Result<()>;
+
     /// Sizes the buffers of the frames to come for frames of `occupancy` (what an application
     /// knows of its scene): until it has read a frame's count ([`Oit::finished`]), dhoit sizes
     /// them for two fragments a pixel, every pixel deep. The A-buffer's and MLAB's pool holds
@@ -206,8 +216,13 @@ impl AppFrame {
         check_target_format(format, method.name())?;
         let stream = Stream::new(gpu, size, method, budget)?;
         // Every phase's layout, with either capture.
-        let mut phases = stream.method.phases(Capture::Wide).to_vec();
-        phases.extend(stream.method.phases(Capture::Portable));
+        let mut phases = Vec::new();
+        for (capture, tints) in [Capture::Wide, Capture::Portable]
+            .into_iter()
+            .flat_map(|c| [(c, false), (c, true)])
+        {
+            phases.extend(stream.method.phases(capture, tints));
+        }
         phases.sort_by_key(|p| *p as u8);
         phases.dedup();
         let layouts = phases
@@ -304,8 +319,31 @@ impl AppFrame {
             frame,
             format: self.format,
         };
-        self.stream
-            .record(enc, &app, frame_params(None, w, h, [0.0; 3]))
+        let params = crate::wgsl::Params {
+            hdr: self.stream.hdr.into(),
+            ..frame_params(None, w, h, [0.0; 3])
+        };
+        self.stream.record(enc, &app, params)
+    }
+
+    fn set_hdr(&mut self, on: bool) -> Result<()> {
+        if on && self.format == wgpu::TextureFormat::Rgba8Unorm {
+            return Err(Error::Invalid(format!(
+                "{} resolves onto {:?}, which holds no colour above white: colours above white need a float target",
+                self.stream.method.name(),
+                self.format
+            )));
+        }
+        let s = &mut self.stream;
+        let was = (s.hdr, s.tinted);
+        (s.hdr, s.tinted) = (on, on);
+        if let Some(b) = s.asked
+            && let Err(e) = s.set_budget(b)
+        {
+            (s.hdr, s.tinted) = was;
+            return Err(e);
+        }
+        Ok(())
     }
 
     fn store_module(&self, phase: Phase, group: u32) -> String {
@@ -365,7 +403,7 @@ fn storing_pass(phase: Phase) -> (&'static str, &'static [(&'static str, &'stati
         Phase::CaptureDepths => ("capture_depths", &[]),
         Phase::CaptureColours => ("capture_colours", &[]),
         Phase::ListStore => ("list_store", &[]),
-        Phase::CaptureTints => unreachable!("{phase:?} is dhoit's own frames' alone"),
+        Phase::CaptureTints => ("capture_tints", &[]),
         Phase::WboitAccumulate | Phase::MboitMoments | Phase::MboitAccumulate => {
             unreachable!("{phase:?} blends into targets")
         }
@@ -396,6 +434,8 @@ enum Binding {
     Uniform,
     /// A float texture (one of MBOIT's targets the accumulation reads).
     Texture,
+    /// A binding the pass declares and does not read (absent from its group).
+    Unused,
 }
 
 /// A phase's group 1, binding by binding (as its WGSL declares it).
@@ -412,7 +452,8 @@ fn bindings_of(method: &AppMethod, phase: Phase) -> Vec<Binding> {
             vec![Read, ReadWrite, ReadWrite, ReadWrite, ReadWrite]
         }
         Phase::ListStore => vec![ReadWrite; 5],
-        Phase::CaptureTints => unreachable!("{phase:?} is dhoit's own frames' alone"),
+        // The bases, the slots, the per-pixel tails' sums, the counts (at 4) and the tints.
+        Phase::CaptureTints => vec![Read, ReadWrite, ReadWrite, Unused, ReadWrite, ReadWrite],
         Phase::WboitAccumulate => vec![],
         Phase::MboitMoments => vec![Uniform],
         Phase::MboitAccumulate => {
@@ -443,14 +484,15 @@ fn phase_layout(device: &wgpu::Device, method: &AppMethod, phase: Phase) -> wgpu
     let mut entries: Vec<_> = bindings_of(method, phase)
         .into_iter()
         .enumerate()
-        .map(|(i, b)| {
+        .filter_map(|(i, b)| {
             let ty = match b {
                 Binding::Read => buffer(wgpu::BufferBindingType::Storage { read_only: true }),
                 Binding::ReadWrite => buffer(wgpu::BufferBindingType::Storage { read_only: false }),
                 Binding::Uniform => buffer(wgpu::BufferBindingType::Uniform),
                 Binding::Texture => texture(wgpu::TextureSampleType::Float { filterable: false }),
+                Binding::Unused => return None,
             };
-            entry(i as u32, ty)
+            Some(entry(i as u32, ty))
         })
         .collect();
     entries.push(entry(14, buffer(wgpu::BufferBindingType::Uniform)));
@@ -655,6 +697,9 @@ macro_rules! oit_of_app_frame {
             }
             fn set_budget(&mut self, budget: Budget) -> Result<()> {
                 self.0.stream.set_budget(budget)
+            }
+            fn set_hdr(&mut self, on: bool) -> Result<()> {
+                self.0.set_hdr(on)
             }
             fn expect(&mut self, occupancy: Occupancy) {
                 self.0.stream.expected = occupancy;

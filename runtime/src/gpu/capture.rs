@@ -191,9 +191,9 @@ impl Recording<'_, '_, '_> {
             }
         }
         if b.tinted {
-            // Its group: the bases, the slots, the counts and the tints (the tails' buffers
-            // are the capture's alone).
-            let mut group = entries(&[&kb.base, &b.slots]);
+            // Its group: the bases, the slots (and the pooled tails), the per-pixel tails'
+            // sums (for colours above white), the counts and the tints.
+            let mut group = entries(&[&kb.base, &b.slots, &b.tail]);
             group.extend(entries_from(4, &[&kb.counts, &b.tints]));
             let tint = gpu.extras().capture_tints(fits);
             passes.draw_group(fb.enc, Phase::CaptureTints, tint, group, "capture tints");
@@ -266,7 +266,7 @@ impl Recording<'_, '_, '_> {
             SlotsAt::PerPixel(n) => (*n, false),
         };
         let words = crate::budget::kbuffer_tint_words(px, slot_words, pooled);
-        let (tints, tinted) = fb.tints("oit", words, self.tinted)?;
+        let (tints, tinted) = fb.tints("oit", words, self.words)?;
         Ok(SlotBuffers {
             slots,
             tail,

@@ -23,7 +23,7 @@ impl Recording<'_, '_, '_> {
         let keys = fb.storage("list.keys", 8 * nodes, true)?;
         let counter = fb.storage("list.counter", 16, true)?;
         // A tint a node where the frame's glass is tinted (4 bytes more).
-        let (tints, tinted) = fb.tints("list", nodes, self.tinted)?;
+        let (tints, tinted) = fb.tints("list", nodes, self.words)?;
         let (store, resolve) = gpu.extras().list();
         passes.draw(
             fb.enc,
@@ -66,10 +66,15 @@ impl Recording<'_, '_, '_> {
                 let mut left = stored;
                 while node != 0 && left > 0 {
                     let key = keys[node as usize - 1];
+                    let word = match tinted {
+                        true => tints[node as usize - 1],
+                        false => crate::fragment::CLEAR,
+                    };
+                    let (rgba, tint) = crate::fragment::stored_fragment(key as u32, word);
                     fl.depth.push(f32::from_bits((key >> 32) as u32));
-                    fl.rgba.push(crate::fragment::unpack_rgba8(key as u32));
+                    fl.rgba.push(rgba);
                     if tinted {
-                        fl.tint.push(tints[node as usize - 1]);
+                        fl.tint.push(tint);
                     }
                     fl.primitive.push(0);
                     node = next[node as usize - 1];

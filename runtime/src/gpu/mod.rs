@@ -934,8 +934,12 @@ struct Recording<'f, 'a, 'e> {
     /// Pixels.
     px: u64,
     sizing: Sizing,
-    /// Whether the frame's glass is tinted (`Params::tinted`): the A-buffer stores tints.
+    /// Whether the frame's glass is tinted (`Params::tinted`): the blended methods' passes
+    /// for tints.
     tinted: bool,
+    /// Whether the methods that store fragments store each one's tint word (`Params::tinted`
+    /// or `Params::hdr`): its tint and the exponent of its colour.
+    words: bool,
 }
 
 impl Gpu {
@@ -1010,6 +1014,7 @@ impl Gpu {
             px,
             sizing: spec.sizing,
             tinted: params.tinted != 0,
+            words: params.tinted != 0 || params.hdr != 0,
         };
         if matches!(slots, Slots::Uniform(_)) {
             rec.out.variants.push(if opts.tuning.layer_major_fkb {
@@ -1081,7 +1086,7 @@ impl Recording<'_, '_, '_> {
         // (Layout::tinted_fragment_budget).
         let counted_bytes = opts
             .counted_bytes
-            .map(|m| layout.tinted_budget(m, px, self.tinted));
+            .map(|m| layout.tinted_budget(m, px, self.words));
         let plan_budget = match counted_bytes {
             Some(m) => PlanBudget::Bytes(m),
             None => PlanBudget::Fragments(budget),
@@ -1094,12 +1099,12 @@ impl Recording<'_, '_, '_> {
                 // A byte budget resolved against this count: exact where it holds the A-buffer.
                 let holds_exact = opts
                     .counted_bytes
-                    .is_some_and(|m| budget::abuffer_bytes(px, n, self.tinted) <= m);
+                    .is_some_and(|m| budget::abuffer_bytes(px, n, self.words) <= m);
                 if exact_when_cheaper && holds_exact {
                     return Ok(None);
                 }
                 let f = match opts.counted_bytes {
-                    Some(m) if self.tinted => layout.tinted_fragment_budget(m, px, &occ)?,
+                    Some(m) if self.words => layout.tinted_fragment_budget(m, px, &occ)?,
                     Some(m) => layout.fragment_budget_counted(m, px, &occ)?,
                     None => budget.of(n),
                 };
@@ -1179,7 +1184,8 @@ fn frame_params(cam: Option<&Camera>, width: u32, height: u32, background: [f32;
         wboit_near: 0.0,
         wboit_far: 0.0,
         tinted: 0,
-        _pad: [0; 14],
+        hdr: 0,
+        _pad: [0; 13],
     }
 }
 

@@ -233,6 +233,7 @@ impl Gpu {
         let params = Params {
             uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
             tinted: scene.tints() as u32,
+            hdr: scene.hdr() as u32,
             ..frame_params(Some(cam), width, height, background)
         };
         let upload = std::time::Instant::now();
@@ -497,6 +498,8 @@ pub struct SceneStream {
     uniform_alpha: f32,
     /// `Params::tinted`: 1 where the scene's glass is tinted.
     tinted: u32,
+    /// `Params::hdr`: 1 where its colours keep their range above white.
+    hdr: u32,
 }
 
 impl SceneStream {
@@ -544,13 +547,15 @@ impl SceneStream {
         let mut stream = Stream::new(gpu, (w, h), app, None)?;
         stream.exact_when_cheaper = options.exact_when_cheaper;
         let tinted = scene.tints() as u32;
-        // Its budget resolved once it knows the glass is tinted.
-        stream.tinted = scene.tints();
+        let hdr = scene.hdr() as u32;
+        // Its budget resolved once it knows whether its fragments keep tint words.
+        stream.tinted = scene.tint_words();
         if let Some(b) = budget {
             stream.set_budget(b)?;
         }
         let params = Params {
             tinted,
+            hdr,
             ..frame_params(None, w, h, options.background)
         };
         let (inputs, taken) = stream.gpu.frame_inputs(scene, &params, true)?;
@@ -562,6 +567,7 @@ impl SceneStream {
             background: options.background,
             uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
             tinted,
+            hdr,
         })
     }
 
@@ -573,6 +579,7 @@ impl SceneStream {
         let params = Params {
             uniform_alpha: self.uniform_alpha,
             tinted: self.tinted,
+            hdr: self.hdr,
             ..frame_params(Some(cam), w, h, self.background)
         };
         // The opaque pass's camera, by the queue: a submission's frames share the last one

@@ -72,9 +72,33 @@ impl AppMethod {
     }
 
     /// The geometry passes a frame draws, in order, with the k-buffers' capture `capture`.
-    pub(super) fn phases(&self, capture: Capture) -> &'static [Phase] {
+    /// The geometry passes a frame draws with `capture`, and where its fragments keep tint words
+    /// (`tints`: colours above white), the k-buffers' tint pass after their capture.
+    pub(super) fn phases(&self, capture: Capture, tints: bool) -> &'static [Phase] {
+        use Phase::*;
+        let portable = capture == super::Capture::Portable;
+        let k_buffer = matches!(
+            self,
+            AppMethod::Fkb { .. } | AppMethod::Dkb(_) | AppMethod::Vkb(_)
+        );
+        if tints && k_buffer {
+            return match (self, portable) {
+                (AppMethod::Fkb { .. }, true) => &[CaptureDepths, CaptureColours, CaptureTints],
+                (AppMethod::Fkb { .. }, false) => &[Capture, CaptureTints],
+                (AppMethod::Dkb(_), true) => &[
+                    Count,
+                    FeaturesDepths,
+                    FeaturesColours,
+                    CaptureDepths,
+                    CaptureColours,
+                    CaptureTints,
+                ],
+                (AppMethod::Dkb(_), false) => &[Count, Features, Capture, CaptureTints],
+                (_, true) => &[VkbCount, CaptureDepths, CaptureColours, CaptureTints],
+                (_, false) => &[VkbCount, Capture, CaptureTints],
+            };
+        }
         const PORTABLE: [Phase; 2] = [Phase::CaptureDepths, Phase::CaptureColours];
-        let portable = capture == Capture::Portable;
         match self {
             AppMethod::List { .. } => &[Phase::ListStore],
             AppMethod::Fkb { .. } if portable => &PORTABLE,
@@ -163,10 +187,16 @@ pub(super) struct Stream {
     pub(super) exact_when_cheaper: bool,
     /// How the k-buffers insert their fragments ([`FrameOptions::capture`]).
     pub(super) capture: Capture,
-    /// Whether its frames' glass is tinted (dhoit's own scenes, `SceneStream`): a byte budget
-    /// then holds the tints too (`Layout::tinted_budget`). An application's fragments are
-    /// untinted.
+    /// Whether its frames store a tint word a fragment (dhoit's own scenes of tinted glass or
+    /// colours above white, `SceneStream`: [`crate::scene::Scene::tint_words`]): a byte budget
+    /// then holds them too (`Layout::tinted_budget`). An application's fragments are untinted.
     pub(super) tinted: bool,
+    /// Whether its frames keep colours above white (`Params::hdr`): an application's, where it
+    /// asked for it (`Oit::set_hdr`); a scene's, where its emission can pass white.
+    pub(super) hdr: bool,
+    /// The budget last given ([`Stream::set_budget`]), resolved again where what a fragment
+    /// keeps changes.
+    pub(super) asked: Option<Budget>,
     /// The occupancy the buffers made before a frame's count hold: the largest of the last
     /// frames', with [`HEADROOM`] (before any, [`FIRST_FRAGMENTS_PER_PIXEL`] a pixel).
     pub(super) expected: Occupancy,
@@ -197,6 +227,8 @@ impl Stream {
             exact_when_cheaper: true,
             capture: gpu.capture_for(Capture::Wide),
             tinted: false,
+            hdr: false,
+            asked: None,
             expected: first_occupancy(size),
             frames: 0,
             last_bytes: 0,
@@ -217,7 +249,7 @@ impl Stream {
 
     /// The geometry passes a frame of the method draws, in order.
     pub(super) fn phases(&self) -> &'static [Phase] {
-        self.method.phases(self.capture)
+        self.method.phases(self.capture, self.tinted)
     }
 
     pub(super) fn pixels(&self) -> u64 {
@@ -405,6 +437,7 @@ impl Stream {
         let name = self.method.name();
         let refuse = |why: &str| Err(Error::Budget(budget.to_string(), format!("{name} {why}")));
         let tinted = self.tinted;
+        self.asked = Some(budget);
         match &mut self.method {
             AppMethod::Dkb(_) | AppMethod::Vkb(_) => {
                 let layout = self.method.layout();

@@ -156,6 +156,39 @@ impl Scene {
             && self.materials.iter().any(|m| m.transmission > 0.0)
     }
 
+    /// Whether any of its transparent fragments can be brighter than white (a material's
+    /// emission added to its base colour exceeds 1 in a channel, or a vertex colour does): its
+    /// frames keep colours above white ([`crate::fragment::quantize_hdr`]), each fragment's
+    /// exponent in its tint word, which the methods that store fragments then store
+    /// ([`Scene::tint_words`]).
+    pub fn hdr(&self) -> bool {
+        let emits = self.materials.iter().any(|m| {
+            (self.uniform_opacity.is_some() || m.transparent())
+                && (0..3).any(|i| m.base_color[i] + m.emissive[i] > 1.0)
+        });
+        emits
+            || self
+                .colors
+                .iter()
+                .any(|c| c[0] > 1.0 || c[1] > 1.0 || c[2] > 1.0)
+    }
+
+    /// Whether its frames store a word beside each fragment's key: its tint ([`Scene::tints`])
+    /// and the exponent of its colour ([`Scene::hdr`]).
+    pub fn tint_words(&self) -> bool {
+        self.tints() || self.hdr()
+    }
+
+    /// The largest colour exponent its fragments are stored with
+    /// ([`crate::fragment::quantize_hdr`]): [`crate::shared::HDR_MAX_EXPONENT`] where it keeps
+    /// colours above white, else 0.
+    pub fn max_exponent(&self) -> u32 {
+        match self.hdr() {
+            true => crate::shared::HDR_MAX_EXPONENT,
+            false => 0,
+        }
+    }
+
     pub fn triangle_count(&self) -> usize {
         self.positions.len() / 3
     }
