@@ -289,7 +289,7 @@ fn main() -> Result<()> {
             println!("view {v}: short of its pool (sized before its count): drawn again");
         };
         let path = a.out.join(format!("view{v}.png"));
-        dhoit_runtime::image_io::write_png(&path, &img)?;
+        dhoit_runtime::image_io::write_image(&path, &img)?;
         let dkb = match ms[3] {
             0.0 => String::new(),
             c => format!(", dhoit's compute {c:.2} ms"),

@@ -17,8 +17,9 @@
 // The pass is built with one of two insertions: kbuffer_insert.wgsl's 64-bit atomics (one
 // pass), or kbuffer_portable.wgsl's 32-bit ones (the portable capture: a depth pass, then a
 // colour pass over the same fragments, CAPTURE_COLOURS), which leave the same slots and tails.
-// Where the frame's glass is tinted, a third build runs after either, kbuffer_tint.wgsl's tint
-// pass: each fragment's tint beside its key, the pushed-out tints into the tail.
+// Where the frame stores tint words (tinted glass, colours above white: common.wgsl's
+// stores_tints), a third build runs after either, kbuffer_tint.wgsl's tint pass: each
+// fragment's tint word beside its key, the pushed-out words' absorption and light into the tail.
 //
 // Built a second time with EVERY_FRAGMENT_FITS for the frames whose budget holds every fragment
 // (the pixels' modes then follow from the slot bases alone; see below).
@@ -57,7 +58,8 @@ fn oit_slot_at(base: u32, i: u32, p: u32) -> u32 {
 // No pooled tail (a pixel that holds all its n fragments: common.wgsl's has_tail).
 const NO_TAIL: u32 = 0xffffffffu;
 
-// The fragment's tint (RGB8), for the tint pass (kbuffer_tint.wgsl).
+// The fragment's tint word (its tint, RGB8, and its colour's exponent), for the tint pass
+// (kbuffer_tint.wgsl).
 var<private> oit_tint: u32 = CLEAR;
 
 // A pooled pixel of n = k fragments (no tail) that appends: the next of its k places, from its

@@ -97,9 +97,9 @@ fn too_deep(p: u32, n: u32) -> bool {
 const EVERY_FRAGMENT_FITS: bool = false;
 
 // The keys of slots [base, base + n) in decreasing order (nearest first), by insertion (at most
-// APPEND_MAX (APPEND_MAX - 1) / 2 steps); where tinted, their tints moved with them. The sort
-// is stable, and the tint pass left the tints of equal keys in their slots' order, smallest
-// first (kbuffer_tint.wgsl's oit_appended): they stay in order.
+// APPEND_MAX (APPEND_MAX - 1) / 2 steps); where the frame stores tint words, those moved with
+// them. The sort is stable, and the tint pass left the words of equal keys in their slots'
+// order, smallest first (kbuffer_tint.wgsl's oit_appended): they stay in order.
 fn sort_slots(base: u32, n: u32) {
     let tinted = stores_tints();
     for (var i = 1u; i < n; i++) {

@@ -972,7 +972,7 @@ fn write_images(
     let mut tiles = vec![Vec::new(), Vec::new(), Vec::new(), Vec::new()];
     let mut columns = Vec::new();
     for (col, f) in frames.iter().enumerate() {
-        image_io::write_png(
+        image_io::write_image(
             &PathBuf::from(format!("{}_{}.png", stem.display(), f.method.name())),
             &f.image,
         )?;

@@ -67,7 +67,8 @@ pub struct RenderArgs {
     /// a device without 64-bit atomics runs). The images are the same.
     #[arg(long, default_value = "wide", value_parser = parse_capture)]
     capture: Capture,
-    /// Output image, sRGB: .png, or .jpg (lossy, for sharing).
+    /// Output image: sRGB .png, or .jpg (lossy, for sharing), clamped at white; or .exr, linear
+    /// and unclamped (colours above white kept: emission).
     #[arg(long)]
     out: PathBuf,
     /// Also write the fragment dump (fragments.safetensors) into this directory.
@@ -190,7 +191,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             }
         }
     };
-    image_io::write_png(&a.out, &f.image)?;
+    image_io::write_image(&a.out, &f.image)?;
     println!(
         "{}: k up to {}, {:.1}% of {} fragments captured, F(M) = {}, budget {}, allocated {} -> {}",
         method.name(),

@@ -363,7 +363,7 @@ fn gltf_texture_coordinates_not_finite() {
     // A good image, so only the coordinates are wrong.
     let mut tex = dhoit_runtime::composite::Image::new(2, 2);
     tex.data.fill([1.0, 0.5, 0.25]);
-    dhoit_runtime::image_io::write_png(&dir.join("tex.png"), &tex).unwrap();
+    dhoit_runtime::image_io::write_image(&dir.join("tex.png"), &tex).unwrap();
     let path = dir.join("s.glb");
     let uv = [[0.0, 0.0], [f32::NAN, 0.0], [0.0, f32::INFINITY]];
     std::fs::write(&path, textured_glb(uv, "tex.png")).unwrap();

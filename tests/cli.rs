@@ -382,7 +382,7 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
             "--out",
             bmp.to_str().unwrap(),
         ],
-        "images are written as .png (or .jpg)",
+        "images are written as .png (or .jpg, or .exr",
         &bmp,
     );
     let kmap = ["--scene", "shells", "--kmap", "k.tiff", "--method", "vkb"];
@@ -1622,4 +1622,92 @@ fn tinted_glass_renders_on_the_cpu_and_the_gpu() {
         };
         assert_ne!(frame("tinted"), frame("grey"), "{method}");
     }
+}
+
+/// Light above white from the command line: a glTF file whose emissive panes pass white
+/// (`KHR_materials_emissive_strength`), rendered to `.exr`, keeps colours above 1, the same on
+/// the CPU and the GPU, for the A-buffer and VKB at 25% of the fragments (tails of light above
+/// white); its `.png` clamps them at white.
+#[test]
+fn light_above_white_renders_to_exr_on_the_cpu_and_the_gpu() {
+    use dhoit_runtime::scene::{Material, Scene};
+    use glam::Vec3;
+    let dir = temp_dir("cli-hdr");
+    let mut s = Scene {
+        materials: Vec::new(),
+        ..Scene::default()
+    };
+    let panes = [
+        (0.5, [6.0, 3.0, 1.5]),
+        (0.3, [0.5, 4.0, 9.0]),
+        (0.1, [2.0, 2.0, 2.0]),
+        (-0.1, [0.2, 0.1, 0.0]),
+        (-0.3, [12.0, 1.0, 0.5]),
+        (-0.5, [1.0, 1.0, 1.0]),
+    ];
+    for (i, (z, e)) in panes.into_iter().enumerate() {
+        let m = s.add_material(Material {
+            base_color: [0.3, 0.2, 0.1, 0.5],
+            emissive: e,
+            ..Material::default()
+        });
+        let h = 0.9 - 0.1 * i as f32;
+        let p = [
+            Vec3::new(-h, -h, z),
+            Vec3::new(h, -h, z),
+            Vec3::new(h, h, z),
+            Vec3::new(-h, h, z),
+        ];
+        let white = [[1.0; 4]; 3];
+        s.push_textured([p[0], p[1], p[2]], white, [[0.0; 2]; 3], m);
+        s.push_textured([p[0], p[2], p[3]], white, [[0.0; 2]; 3], m);
+    }
+    assert!(s.hdr());
+    let glb = dir.join("bright.glb");
+    scene::gltf::export(&s, &glb).unwrap();
+    let render = |device: &str, method: &str, out: &str| {
+        let out = dir.join(out);
+        let o = dhoit(&[
+            "render",
+            "--scene",
+            glb.to_str().unwrap(),
+            "--res",
+            "64x48",
+            "--method",
+            method,
+            "--budget",
+            "25%",
+            "--always-approximate",
+            "--device",
+            device,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        out
+    };
+    let read = |p: &Path| image::open(p).unwrap().to_rgb32f().into_raw();
+    let cpu = read(&render("cpu", "abuffer", "cpu.exr"));
+    let brightest = cpu.iter().copied().fold(0.0, f32::max);
+    assert!(brightest > 2.0, "nothing above white: {brightest}");
+    let png = image::open(render("cpu", "abuffer", "cpu.png"))
+        .unwrap()
+        .to_rgb8();
+    assert!(png.pixels().any(|p| p.0 == [255; 3]), "the PNG clamps");
+    if skip_gpu("light above white on the GPU") {
+        return;
+    }
+    let mut frames = Vec::new();
+    for method in ["abuffer", "vkb"] {
+        let cpu = read(&render("cpu", method, &format!("{method}-cpu.exr")));
+        let gpu = read(&render("gpu", method, &format!("{method}-gpu.exr")));
+        let worst = cpu
+            .iter()
+            .zip(&gpu)
+            .map(|(a, b)| (a - b).abs() / a.abs().max(1.0))
+            .fold(0.0, f32::max);
+        assert!(worst <= 1e-5, "{method}: CPU and GPU differ by {worst}");
+        frames.push(gpu);
+    }
+    assert_ne!(frames[0], frames[1], "VKB's tails left the image exact");
 }

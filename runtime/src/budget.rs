@@ -18,11 +18,11 @@ use crate::error::{Error, Result};
 /// Bytes of one fragment slot: a 64-bit key, window depth bits high and RGBA8 low.
 pub const SLOT_BYTES: u64 = 8;
 
-/// Bytes the A-buffer stores beside each fragment's key where the frame's glass is tinted
-/// (`abuf.tints`: its RGB8 tint, `fragment::FragmentLists::tint`).
+/// Bytes the A-buffer stores beside each fragment's key where the frame stores tint words
+/// (`abuf.tints`: its RGB8 tint and its colour's exponent, `fragment::tint_word`).
 pub const TINT_BYTES: u64 = 4;
 
-/// Words the k-buffers' tint pass keeps where the frame's glass is tinted (kbuffer_tint.wgsl),
+/// Words the k-buffers' tint pass keeps where the frame stores tint words (kbuffer_tint.wgsl),
 /// for `slot_words` words of slots, each [`TINT_BYTES`]: where the tails are `pooled`, two for
 /// each word of the pool (a slot's tint; a tail's three sums of what its tints take away, in
 /// its two words' four), else three a pixel (its tail's sums) and one a slot.
@@ -656,7 +656,7 @@ impl Layout {
                 Error::Budget(_, why) if slots < bytes => Error::Budget(
                     format_bytes(bytes),
                     format!(
-                        "its glass tinted, the tints' words take {} of it, leaving {}: {why}",
+                        "its fragments' tint words (tinted glass, colours above white) take {} of it, leaving {}: {why}",
                         format_bytes(bytes - slots),
                         format_bytes(slots)
                     ),

@@ -165,8 +165,9 @@ pub struct FragmentLists {
     /// Non-premultiplied linear RGBA.
     pub rgba: Vec<[f32; 4]>,
     /// Each fragment's tint (RGB8), or empty: every fragment is [`CLEAR`]. The frames of scenes
-    /// whose glass is tinted ([`crate::scene::Scene::tints`]) carry them, as the A-buffer stores
-    /// them.
+    /// that store tint words ([`crate::scene::Scene::tint_words`]: tinted glass, colours above
+    /// white) carry them, as the A-buffer stores them (the exponent of a colour above white is
+    /// read from the colour itself, [`tint_word`]).
     pub tint: Vec<u32>,
     /// Submission index of the fragment's triangle.
     pub primitive: Vec<u32>,
@@ -210,7 +211,7 @@ impl FragmentLists {
     pub fn tint(&self, i: usize) -> u32 {
         self.tint.get(i).copied().unwrap_or(CLEAR)
     }
-    /// Whether the lists carry tints (their scene's glass is tinted).
+    /// Whether the lists carry tints (their scene stores tint words: [`crate::scene::Scene::tint_words`]).
     pub fn tinted(&self) -> bool {
         !self.tint.is_empty()
     }

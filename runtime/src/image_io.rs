@@ -1,5 +1,6 @@
 //! Image output: linear images encoded to sRGB, and heat maps of per-pixel values, as PNG (or
-//! JPEG, where the path asks for it).
+//! JPEG, where the path asks for it); or linear and unclamped as OpenEXR, so colours above
+//! white survive.
 
 use crate::composite::Image;
 use crate::error::{Error, Result};
@@ -22,10 +23,13 @@ pub enum Encoding {
     Png,
     /// Lossy (quality 90): for sharing, not for measuring.
     Jpeg,
+    /// OpenEXR, 32-bit float RGB: an image linear and unclamped (light above white kept); a
+    /// heat map as its 8-bit colours over 255.
+    Exr,
 }
 
-/// The encoding `path` asks for (`.png`, or `.jpg` / `.jpeg`, any case); anything else is an
-/// error naming the path, which a command checks before it renders.
+/// The encoding `path` asks for (`.png`, `.jpg` / `.jpeg` or `.exr`, any case); anything else
+/// is an error naming the path, which a command checks before it renders.
 pub fn encoding(path: &Path) -> Result<Encoding> {
     let ext = path
         .extension()
@@ -34,9 +38,10 @@ pub fn encoding(path: &Path) -> Result<Encoding> {
     match ext.as_deref() {
         Some("png") => Ok(Encoding::Png),
         Some("jpg" | "jpeg") => Ok(Encoding::Jpeg),
+        Some("exr") => Ok(Encoding::Exr),
         _ => Err(Error::Image {
             path: path.to_path_buf(),
-            message: "images are written as .png (or .jpg); give a path ending in one".into(),
+            message: "images are written as .png (or .jpg, or .exr for linear colours above white); give a path ending in one".into(),
         }),
     }
 }
@@ -54,6 +59,10 @@ pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()
         ),
         Encoding::Jpeg => image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 90)
             .write_image(rgb, width, height, image::ExtendedColorType::Rgb8),
+        Encoding::Exr => {
+            let linear: Vec<f32> = rgb.iter().map(|&v| v as f32 / 255.0).collect();
+            return write_rgb32f(path, width, height, &linear);
+        }
     };
     encoded.map_err(|e| Error::Image {
         path: path.to_path_buf(),
@@ -62,9 +71,33 @@ pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()
     write_atomic(path, &bytes)
 }
 
-/// Writes a linear image as an sRGB PNG.
-pub fn write_png(path: &Path, img: &Image) -> Result<()> {
-    write_rgb8(path, img.width, img.height, &to_srgb8(img))
+/// Writes a linear image as its path asks ([`encoding`]): sRGB PNG or JPEG, clamped at white;
+/// or OpenEXR, linear, every value as it is.
+pub fn write_image(path: &Path, img: &Image) -> Result<()> {
+    match encoding(path)? {
+        Encoding::Exr => {
+            let rgb: Vec<f32> = img.data.iter().flatten().copied().collect();
+            write_rgb32f(path, img.width, img.height, &rgb)
+        }
+        _ => write_rgb8(path, img.width, img.height, &to_srgb8(img)),
+    }
+}
+
+/// Writes 32-bit float RGB pixels as OpenEXR, atomically.
+fn write_rgb32f(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<()> {
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image::codecs::openexr::OpenExrEncoder::new(&mut bytes)
+        .write_image(
+            bytemuck::cast_slice(rgb),
+            width,
+            height,
+            image::ExtendedColorType::Rgb32F,
+        )
+        .map_err(|e| Error::Image {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+    write_atomic(path, &bytes.into_inner())
 }
 
 /// A perceptual colour ramp (dark blue -> teal -> yellow) for t in [0, 1].

@@ -50,7 +50,7 @@ pub mod shaders {
     pub const KBUFFER_INSERT: &str = include_str!("../../shaders/kbuffer_insert.wgsl");
     /// The same with 32-bit atomics alone, in two passes (the portable capture).
     pub const KBUFFER_PORTABLE: &str = include_str!("../../shaders/kbuffer_portable.wgsl");
-    /// The tint pass after either, where the frame's glass is tinted (kbuffer_tint.wgsl).
+    /// The tint pass after either, where the frame stores tint words (kbuffer_tint.wgsl).
     pub const KBUFFER_TINT: &str = include_str!("../../shaders/kbuffer_tint.wgsl");
 
     /// The module an application's transparent fragment shader starts with: `parts` (what

@@ -104,7 +104,7 @@ mod native {
                 .flat_map(|c| c.to_le_bytes())
                 .collect();
             std::fs::write(dir.join(format!("{name}.f32")), linear)?;
-            dhoit_runtime::image_io::write_png(&dir.join(format!("{name}.png")), &v.image)?;
+            dhoit_runtime::image_io::write_image(&dir.join(format!("{name}.png")), &v.image)?;
             let error = v.image.mse(reference).sqrt();
             println!(
                 "{name:>8}: {} B, exact {}, {} frame(s), RMSE vs the A-buffer {error:.5}",

@@ -63,7 +63,8 @@ impl Recording<'_, '_, '_> {
         } else {
             none
         };
-        // Each fragment's tint where the frame's glass is tinted.
+        // Each fragment's tint word where the frame stores them (tinted glass, colours above
+        // white).
         let (tints, tinted) = fb.tints("abuf", total, self.words)?;
         passes.draw(
             fb.enc,

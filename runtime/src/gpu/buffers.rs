@@ -96,7 +96,8 @@ impl<'a, 'e> FrameBuffers<'a, 'e> {
         self.storage_with(label, size, counted, true)
     }
 
-    /// Where the frame's glass is `tinted`, a tint (RGB8) for each of `count` fragments,
+    /// Where the frame stores tint words (`tinted`: its glass tinted, or its colours above
+    /// white), a word (tint RGB8, colour exponent above it) for each of `count` fragments,
     /// counted (`{owner}.tints`); else an empty binding, uncounted. Returns it and whether it
     /// holds tints.
     pub(super) fn tints(

@@ -237,7 +237,7 @@ impl Recording<'_, '_, '_> {
     /// The buffers `kb`'s capture fills beside its bases and counts: the slots and the tail (sum
     /// c8 a8 for r, g, b and sum a8, 16 bytes a pixel, and its count) in buffers of their own,
     /// or pooled, the tails in the slots (cleared with them) and the tail buffers the shared
-    /// layout binds unused; and where the frame's glass is tinted, the tint pass's words
+    /// layout binds unused; and where the frame stores tint words, the tint pass's words
     /// (kbuffer_tint.wgsl).
     fn slot_buffers(&mut self, kb: &KBuffer) -> Result<SlotBuffers> {
         let (px, fb) = (self.px, &mut self.fb);
@@ -352,7 +352,8 @@ struct SlotBuffers {
     slots: wgpu::Buffer,
     tail: wgpu::Buffer,
     tail_count: wgpu::Buffer,
-    /// The tint pass's words, or an unused binding where the glass is grey (`tinted` false).
+    /// The tint pass's words, or an unused binding where the frame stores none (`tinted`
+    /// false: grey glass, colours within white).
     tints: wgpu::Buffer,
     tinted: bool,
 }

@@ -22,7 +22,7 @@ impl Recording<'_, '_, '_> {
         let next = fb.storage("list.next", 4 * nodes, true)?;
         let keys = fb.storage("list.keys", 8 * nodes, true)?;
         let counter = fb.storage("list.counter", 16, true)?;
-        // A tint a node where the frame's glass is tinted (4 bytes more).
+        // A tint word a node where the frame stores them (4 bytes more).
         let (tints, tinted) = fb.tints("list", nodes, self.words)?;
         let (store, resolve) = gpu.extras().list();
         passes.draw(

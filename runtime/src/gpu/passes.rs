@@ -35,9 +35,9 @@ pub enum Phase {
     /// The portable capture's second pass, over the same fragments: each one's colour into the
     /// slots holding its depth, or into the tail.
     CaptureColours,
-    /// Where the frame's glass is tinted, after either capture: each fragment's tint beside
-    /// its key (capture.wgsl with kbuffer_tint.wgsl). dhoit's own frames alone: an
-    /// application's fragments are untinted.
+    /// Where the frame stores tint words (tinted glass, colours above white), after either
+    /// capture: each fragment's tint word beside its key (capture.wgsl with kbuffer_tint.wgsl).
+    /// An application's frames draw it where it asked for colours above white (`Oit::set_hdr`).
     CaptureTints,
     /// The budgeted linked list's store (list_store.wgsl).
     ListStore,

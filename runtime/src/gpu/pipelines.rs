@@ -778,7 +778,7 @@ impl<'a> ExtraPipelines<'a> {
         })
     }
 
-    /// The k-buffers' tint pass where the frame's glass is tinted (capture.wgsl with
+    /// The k-buffers' tint pass where the frame stores tint words (capture.wgsl with
     /// kbuffer_tint.wgsl, 32-bit atomics alone, after either capture): in general, and built
     /// for frames whose budget holds every fragment (as the capture is).
     pub(super) fn capture_tints(self, fits: bool) -> &'a wgpu::RenderPipeline {

@@ -189,7 +189,8 @@ pub(super) struct Stream {
     pub(super) capture: Capture,
     /// Whether its frames store a tint word a fragment (dhoit's own scenes of tinted glass or
     /// colours above white, `SceneStream`: [`crate::scene::Scene::tint_words`]): a byte budget
-    /// then holds them too (`Layout::tinted_budget`). An application's fragments are untinted.
+    /// then holds them too (`Layout::tinted_budget`). An application's fragments are untinted:
+    /// its frames store the words where it asked for colours above white ([`Stream::hdr`]).
     pub(super) tinted: bool,
     /// Whether its frames keep colours above white (`Params::hdr`): an application's, where it
     /// asked for it (`Oit::set_hdr`); a scene's, where its emission can pass white.
