@@ -852,8 +852,12 @@ fn rows_of(
                 budget_fragments: f.budget_fragments,
                 budget_bytes: f.budget_bytes,
                 allocated_bytes: f.allocated_bytes,
-                abuffer_bytes: dhoit_runtime::budget::ABUFFER
-                    .allocated_bytes(fl.pixel_count() as u64, fl.fragment_count() as u64),
+                // The frame's own A-buffer, its tint words included.
+                abuffer_bytes: dhoit_runtime::budget::abuffer_bytes(
+                    fl.pixel_count() as u64,
+                    fl.fragment_count() as u64,
+                    fl.tinted(),
+                ),
                 budget_used: used,
                 exact: f.exact,
                 raster_ms: at.raster_ms,

@@ -175,11 +175,13 @@ pub fn sequence_bench(
             .map(|r| r.pass_ms.iter().map(|p| p.1).sum())
             .collect();
         let all: Vec<&FrameReport> = one.reports.iter().chain(&flight.reports).collect();
+        // The scene's own A-buffer stores its tint words too.
+        let words = scene.tint_words();
         let over_abuffer = all
             .iter()
             .filter(|r| {
                 r.fragments
-                    .is_some_and(|n| r.allocated_bytes > budget::ABUFFER.allocated_bytes(px, n))
+                    .is_some_and(|n| r.allocated_bytes > budget::abuffer_bytes(px, n, words))
             })
             .count();
         let counted = all.iter().filter(|r| r.fragments.is_some()).count();

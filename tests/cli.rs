@@ -458,6 +458,46 @@ fn compare_prints_a_table_and_writes_a_report() {
     assert!(stdout.contains("(exact)"), "{stdout}");
 }
 
+/// The A-buffer bytes every frame of `compare` is measured against are the A-buffer frame's own,
+/// tint words included, on tinted glass (the command line's default) as on grey; and there too
+/// no k-buffer allocates more.
+#[test]
+fn compare_measures_bytes_against_the_frames_own_abuffer() {
+    for glass in ["tinted", "grey"] {
+        let dir = temp_dir(&format!("cli-compare-{glass}"));
+        let o = dhoit(&[
+            "compare",
+            "--scene",
+            "windows",
+            "--res",
+            "64x48",
+            "--glass",
+            glass,
+            "--methods",
+            "abuffer,fkb,vkb,dkb",
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
+        let records = report.as_array().unwrap();
+        let bytes = |r: &serde_json::Value, k: &str| r[k].as_u64().unwrap();
+        let exact = records.iter().find(|r| r["method"] == "abuffer").unwrap();
+        assert_eq!(
+            bytes(exact, "allocated_bytes"),
+            bytes(exact, "abuffer_bytes"),
+            "{glass}"
+        );
+        for r in records {
+            assert!(
+                bytes(r, "allocated_bytes") <= bytes(r, "abuffer_bytes"),
+                "{glass}: {r}"
+            );
+        }
+    }
+}
+
 /// `render` takes the exact A-buffer where it needs no more bytes than the method at its budget,
 /// and says so; `--always-approximate` renders the method's own approximation.
 #[test]
