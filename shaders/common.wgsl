@@ -277,11 +277,15 @@ fn k_of_span(span: u32, n: u32) -> u32 {
     return select(span, span - TAIL_WORDS, span < n);
 }
 
-// Where the frame's glass is tinted, the k-buffers' tints (kbuffer_tint.wgsl): the word of
-// slot s's tint, and the first of the three sums of pixel p's tail (per-pixel tails: three
-// sums a pixel, then a word a slot) or of the tail at word t of the pool (pooled: two words a
-// pool word).
+// Where the frame stores tint words, the k-buffers' (kbuffer_tint.wgsl, budget::Words): the
+// word of slot s's tint word, and where the glass is tinted the first of the three sums of
+// pixel p's tail (per-pixel tails: three sums a pixel, then a word a slot) or of the tail at
+// word t of the pool (pooled: two words a pool word). Where the words hold exponents alone
+// (colours above white, grey glass), one a slot or pool word and no sums.
 fn tint_word(s: u32) -> u32 {
+    if (params.tinted == 0u) {
+        return s;
+    }
     if (params.pooled_tail != 0u) {
         return 2u * s;
     }

@@ -26,6 +26,8 @@
 // - where they are pooled (VKB, DKB), two words for each word of the pool, so that a tail's
 //   two pool words have four: slot s's tint at 2 s, the sums of the tail at pool word t at
 //   2 t, 2 t + 1, 2 t + 2. No pixel pays for a tail it does not keep.
+// - where the glass is grey (the words hold colours' exponents alone, params.tinted 0), no
+//   sums: a word for each slot, or each word of the pool (budget::Words::Exponents).
 //
 // The slots' words are read as the portable capture's 32-bit pairs (colour low, depth high),
 // which is how a 64-bit slot's bytes lie too.

@@ -198,7 +198,7 @@ fn resolve_pixel(p: u32, bg: vec3<f32>) -> Resolved {
     let sum_a = tl.sums.w;
     // What its tints take away per channel (composite::Tail::absorbed), where tinted.
     var absorbed = vec3<u32>(0u);
-    if (stores_tints() && tail_n > 0u) {
+    if (params.tinted != 0u && tail_n > 0u) {
         let at = tail_tint_word(p, pooled_at);
         absorbed = vec3<u32>(tints[at], tints[at + 1u], tints[at + 2u]);
     }

@@ -22,15 +22,54 @@ pub const SLOT_BYTES: u64 = 8;
 /// (`abuf.tints`: its RGB8 tint and its colour's exponent, `fragment::tint_word`).
 pub const TINT_BYTES: u64 = 4;
 
-/// Words the k-buffers' tint pass keeps where the frame stores tint words (kbuffer_tint.wgsl),
-/// for `slot_words` words of slots, each [`TINT_BYTES`]: where the tails are `pooled`, two for
-/// each word of the pool (a slot's tint; a tail's three sums of what its tints take away, in
-/// its two words' four), else three a pixel (its tail's sums) and one a slot.
-pub fn kbuffer_tint_words(pixels: u64, slot_words: u64, pooled: bool) -> u64 {
-    match pooled {
-        true => 2 * slot_words,
-        false => 3 * pixels + slot_words,
+/// What a frame stores beside each fragment's key ([`crate::fragment::tint_word`]) and its
+/// k-buffers beside their tails.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Words {
+    /// Nothing: grey glass, colours within white.
+    #[default]
+    None,
+    /// A word a fragment, node or slot, its tint clear: the exponents of colours above white.
+    Exponents,
+    /// A word a fragment, node or slot, and in each k-buffer tail three sums of what its tints
+    /// take away: tinted glass (with or without colours above white).
+    Tints,
+}
+
+impl Words {
+    /// The words of a frame whose glass is `tinted` and which stores `words` at all.
+    pub fn of(tinted: bool, words: bool) -> Words {
+        match (words, tinted) {
+            (false, _) => Words::None,
+            (true, false) => Words::Exponents,
+            (true, true) => Words::Tints,
+        }
     }
+    /// Whether the frame stores a word a fragment.
+    pub fn any(self) -> bool {
+        self != Words::None
+    }
+    /// Words of the tint pass a pool word (pooled tails) or a slot, and a pixel (per-pixel
+    /// tails: its tail's sums).
+    fn per_slot_and_pixel(self, pooled: bool) -> (u64, u64) {
+        match (self, pooled) {
+            (Words::None, _) => (0, 0),
+            (Words::Exponents, _) => (1, 0),
+            (Words::Tints, true) => (2, 0),
+            (Words::Tints, false) => (1, 3),
+        }
+    }
+}
+
+/// Words the k-buffers' tint pass keeps (kbuffer_tint.wgsl) for `slot_words` words of slots,
+/// each [`TINT_BYTES`]: a word a slot, where `words` are [`Words::Exponents`] (with pooled
+/// tails, a word for each word of the pool); for [`Words::Tints`], where the tails are
+/// `pooled`, two for each word of the pool (a slot's tint; a tail's three sums of what its
+/// tints take away, in its two words' four), else three a pixel (its tail's sums) and one a
+/// slot.
+pub fn kbuffer_tint_words(pixels: u64, slot_words: u64, pooled: bool, words: Words) -> u64 {
+    let (slot, pixel) = words.per_slot_and_pixel(pooled);
+    slot * slot_words + pixel * pixels
 }
 
 /// Bytes a pixel WBOIT adds where the frame's glass is tinted: an RGBA8 transmittance target in
@@ -616,41 +655,46 @@ impl Layout {
         }
     }
     /// The budget a frame's slots (and tails) are resolved against: all of `bytes`, or where
-    /// the frame is `tinted`, what its tints leave of it: the linked list's nodes share it with
-    /// a tint a node ([`TINT_BYTES`]); a k-buffer's tint pass ([`kbuffer_tint_words`]) takes
-    /// half of what the fixed bytes leave where its tails are pooled (two tint words a pool
-    /// word beside its [`SLOT_BYTES`]), else three tint words a pixel and one a slot.
-    pub fn tinted_budget(&self, bytes: u64, pixels: u64, tinted: bool) -> u64 {
-        if !tinted {
+    /// the frame stores `words`, what they leave of it: the linked list's nodes share it with
+    /// a word a node ([`TINT_BYTES`]); a k-buffer's tint pass ([`kbuffer_tint_words`]) takes a
+    /// word a slot or pool word, and for [`Words::Tints`] half of what the fixed bytes leave
+    /// where its tails are pooled (two words a pool word beside its [`SLOT_BYTES`]), else
+    /// three words a pixel and one a slot.
+    pub fn tinted_budget(&self, bytes: u64, pixels: u64, words: Words) -> u64 {
+        if !words.any() {
             return bytes;
         }
         let fixed = self.fixed_bytes(pixels);
         let Some(rest) = bytes.checked_sub(fixed) else {
             return bytes;
         };
-        let per_pixel = match self.method {
-            "linked-list" => 0,
-            // Half, in whole slots: the pool, and as many bytes of tints.
-            _ if self.tail_bytes > 0 => return fixed + rest / (2 * SLOT_BYTES) * SLOT_BYTES,
-            _ => 3 * TINT_BYTES * pixels,
+        // The list's nodes take a word each; a k-buffer's slots (or pool words) theirs, and
+        // per-pixel tails their sums.
+        let (per_slot, per_pixel) = match self.method {
+            "linked-list" => (1, 0),
+            _ => words.per_slot_and_pixel(self.tail_bytes > 0),
         };
-        let slots = rest.saturating_sub(per_pixel) / (self.slot_bytes + TINT_BYTES);
+        let slots = rest.saturating_sub(per_pixel * TINT_BYTES * pixels)
+            / (self.slot_bytes + per_slot * TINT_BYTES);
         fixed + self.slot_bytes * slots
     }
-    /// A k-buffer's `bytes` (its fixed bytes, slots and tails) with, where its frame is
-    /// `tinted`, its tint pass's words ([`kbuffer_tint_words`]).
-    pub fn with_tints(&self, bytes: u64, pixels: u64, tinted: bool) -> u64 {
-        if !tinted {
-            return bytes;
-        }
-        let words = bytes.saturating_sub(self.fixed_bytes(pixels)) / self.slot_bytes;
-        bytes + TINT_BYTES * kbuffer_tint_words(pixels, words, self.tail_bytes > 0)
+    /// A k-buffer's `bytes` (its fixed bytes, slots and tails) with the tint pass's `words`
+    /// ([`kbuffer_tint_words`]).
+    pub fn with_tints(&self, bytes: u64, pixels: u64, words: Words) -> u64 {
+        let slot_words = bytes.saturating_sub(self.fixed_bytes(pixels)) / self.slot_bytes;
+        bytes + TINT_BYTES * kbuffer_tint_words(pixels, slot_words, self.tail_bytes > 0, words)
     }
     /// F(M) for a tinted frame of occupancy `occ` (a k-buffer's or the linked list's):
     /// [`Layout::fragment_budget_counted`] at
     /// [`Layout::tinted_budget`], its error naming `bytes` and what the tints take.
-    pub fn tinted_fragment_budget(&self, bytes: u64, pixels: u64, occ: &Occupancy) -> Result<u64> {
-        let slots = self.tinted_budget(bytes, pixels, true);
+    pub fn tinted_fragment_budget(
+        &self,
+        bytes: u64,
+        pixels: u64,
+        occ: &Occupancy,
+        words: Words,
+    ) -> Result<u64> {
+        let slots = self.tinted_budget(bytes, pixels, words);
         self.fragment_budget_counted(slots, pixels, occ)
             .map_err(|e| match e {
                 Error::Budget(_, why) if slots < bytes => Error::Budget(

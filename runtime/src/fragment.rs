@@ -169,6 +169,10 @@ pub struct FragmentLists {
     /// white) carry them, as the A-buffer stores them (the exponent of a colour above white is
     /// read from the colour itself, [`tint_word`]).
     pub tint: Vec<u32>,
+    /// Whether its scene's glass is tinted, so that its k-buffers' tails keep what their tints
+    /// take away ([`crate::budget::Words::Tints`]); with `tint` but not this, the words hold
+    /// colours' exponents alone ([`crate::budget::Words::Exponents`]).
+    pub tinted_glass: bool,
     /// Submission index of the fragment's triangle.
     pub primitive: Vec<u32>,
     /// `|n . v|` of the fragment's triangle.
@@ -215,6 +219,10 @@ impl FragmentLists {
     pub fn tinted(&self) -> bool {
         !self.tint.is_empty()
     }
+    /// What its frames store beside each fragment's key (the k-buffers' tails' sums included).
+    pub fn words(&self) -> crate::budget::Words {
+        crate::budget::Words::of(self.tinted_glass, self.tinted())
+    }
     pub fn covered_pixels(&self) -> usize {
         self.offsets.windows(2).filter(|w| w[1] > w[0]).count()
     }
@@ -240,6 +248,7 @@ impl FragmentLists {
             offsets: Vec::with_capacity(self.offsets.len()),
             opaque: self.opaque.clone(),
             opaque_depth: self.opaque_depth.clone(),
+            tinted_glass: self.tinted_glass,
             ..Default::default()
         };
         out.offsets.push(0);

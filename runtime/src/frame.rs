@@ -414,7 +414,7 @@ impl<'a> Renderer<'a> {
                 let pixels = fl.pixel_count() as u64;
                 let dkb = opts.layout(Method::Dkb);
                 let (bytes, _) = b.resolve_counted(&dkb, pixels, &Occupancy::of(&fl.counts()))?;
-                let bytes = dkb.with_tints(bytes, pixels, fl.tinted());
+                let bytes = dkb.with_tints(bytes, pixels, fl.words());
                 let exact = budget::abuffer_bytes(pixels, fl.fragment_count() as u64, fl.tinted());
                 Ok(Budget::Bytes(match opts.exact_when_cheaper {
                     true => bytes.min(exact),
@@ -497,7 +497,10 @@ impl<'a> Renderer<'a> {
             (_, Budget::Bytes(m))
                 if fl.tinted() && (method.is_kbuffer() || method == Method::LinkedList) =>
             {
-                (m, layout.tinted_fragment_budget(m, pixels, &occ)?)
+                (
+                    m,
+                    layout.tinted_fragment_budget(m, pixels, &occ, fl.words())?,
+                )
             }
             // F fixed by slots or a share: the bytes it reserves, with its tints where the
             // frame's glass is tinted.
@@ -505,7 +508,7 @@ impl<'a> Renderer<'a> {
                 let (bytes, f) = budget.resolve_counted(&layout, pixels, &occ)?;
                 let bytes = match (fl.tinted(), method) {
                     (true, Method::LinkedList) => bytes + budget::TINT_BYTES * f,
-                    (true, m) if m.is_kbuffer() => layout.with_tints(bytes, pixels, true),
+                    (true, m) if m.is_kbuffer() => layout.with_tints(bytes, pixels, fl.words()),
                     _ => bytes,
                 };
                 (bytes, f)
@@ -624,7 +627,7 @@ impl<'a> Renderer<'a> {
             Method::Fkb => {
                 let layout = method.layout();
                 let bytes = layout.allocated_bytes(pixels, k[0] as u64 * pixels);
-                layout.with_tints(bytes, pixels, fl.tinted())
+                layout.with_tints(bytes, pixels, fl.words())
             }
             // Its slots, and the tails it keeps in their pool (none where they are per pixel);
             // a pool made before the allocation for state it holds first (DKB), the size it
@@ -637,7 +640,7 @@ impl<'a> Renderer<'a> {
                 } else {
                     layout.allocated_with_tails(pixels, slots, budget::tails_kept(&k, &counts))
                 };
-                layout.with_tints(bytes, pixels, fl.tinted())
+                layout.with_tints(bytes, pixels, fl.words())
             }
         };
         Frame {

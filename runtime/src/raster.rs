@@ -686,6 +686,7 @@ pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result
     if tinted {
         fl.tint.reserve(total);
     }
+    fl.tinted_glass = scene.tints();
     let mut acc = 0u32;
     fl.offsets.push(0);
     for o in outs {

@@ -242,7 +242,7 @@ fn light_above_white_on_the_gpu_is_its_twins() {
     for z in [0.2, 0.4, 0.6, 0.8] {
         layer(&mut blinding, z, [top, 1.0, top / 4.0, 1.0]);
     }
-    let (mut saturated, mut above) = (0, 0.0f32);
+    let (mut saturated, mut above, mut counted) = (0, 0.0f32, 0);
     for (name, s) in [("bright", &mut bright), ("blinding", &mut blinding)] {
         let fl = rasterize(s, &cam, w, h).unwrap();
         let ab = g.render(s, &cam, w, h, BLACK, Slots::Exact).unwrap();
@@ -282,24 +282,25 @@ fn light_above_white_on_the_gpu_is_its_twins() {
             assert_eq!(n, 0, "{name} {m}: {n} pixels (worst {worst})");
         }
         let total = gfl.fragment_count() as u64;
+        let px = gfl.pixel_count() as u64;
         let mut runs = vec![
-            ("fkb k = 1".to_string(), Slots::Uniform(1)),
-            ("fkb k = 2".to_string(), Slots::Uniform(2)),
+            ("fkb k = 1".to_string(), Slots::Uniform(1), None),
+            ("fkb k = 2".to_string(), Slots::Uniform(2), None),
         ];
         for ppm in [250_000, 500_000] {
             let f = total * ppm / 1_000_000;
-            runs.push((format!("dkb F = {f}"), Slots::Dkb(&weights, f.into())));
-            runs.push((
-                format!("vkb F = {f}"),
-                Slots::Vkb(Default::default(), f.into()),
-            ));
+            let share = Some(Budget::Share(ppm as u32));
+            let dkb = Slots::Dkb(&weights, f.into());
+            runs.push((format!("dkb F = {f}"), dkb, share.map(|b| (Method::Dkb, b))));
+            let vkb = Slots::Vkb(Default::default(), f.into());
+            runs.push((format!("vkb F = {f}"), vkb, share.map(|b| (Method::Vkb, b))));
         }
         let portable = FrameOptions {
             capture: Capture::Portable,
             ..FrameOptions::default().always_approximate()
         };
         let wide = FrameOptions::default().always_approximate();
-        for (label, slots) in runs {
+        for (label, slots, cpu) in runs {
             let what = format!("{name} {label}");
             let frame = |opts: &FrameOptions| {
                 g.render_with(opts, s, &cam, (w, h), BLACK, slots)
@@ -318,6 +319,24 @@ fn light_above_white_on_the_gpu_is_its_twins() {
             let twin = composite::composite(&gfl, composite::Method::Hybrid(&stored), BLACK);
             let (n, worst) = differing(&twin, &b.image, 1e-5);
             assert_eq!(n, 0, "{what}: {n} pixels off the twin (worst {worst})");
+            // The words: a word a slot (or pool word), no tail sums (grey glass), on the GPU
+            // and in the CPU's count alike.
+            if let Slots::Uniform(k) = slots {
+                let slots = k as u64 * px;
+                let grey = dhoit_runtime::budget::FKB.allocated_bytes(px, slots);
+                assert_eq!(b.allocated_bytes, grey + 4 * slots, "{what}: bytes by hand");
+            }
+            if let Some((m, budget)) = cpu {
+                let opts = Options {
+                    weights: Some(&weights),
+                    ..Options::new(budget, BLACK).always_approximate()
+                };
+                let f = dhoit_runtime::frame::render(&gfl, m, opts).unwrap();
+                if !f.exact {
+                    assert_eq!(f.allocated_bytes, b.allocated_bytes, "{what}: CPU's bytes");
+                    counted += 1;
+                }
+            }
             if wide_ok {
                 let a = frame(&wide);
                 assert!(a.slots == b.slots, "{what}: the captures' slots differ");
@@ -326,6 +345,7 @@ fn light_above_white_on_the_gpu_is_its_twins() {
         }
     }
     assert!(saturated > 0, "no tail held more light than its sums");
+    assert!(counted >= 4, "{counted} frames' bytes held to the CPU's");
     assert!(above > 4.0, "nothing above white: {above}");
     // A corner of the bright scene, where the opaque 8.0 layer is alone.
     let ab = g.render(&bright, &cam, w, h, BLACK, Slots::Exact).unwrap();
@@ -333,4 +353,60 @@ fn light_above_white_on_the_gpu_is_its_twins() {
         ab.image.data[(h as usize - 1) * w as usize + w as usize - 1],
         [8.0; 3]
     );
+}
+
+/// A byte budget holds the words of colours above white: at budgets from the fixed bytes to
+/// the frame's own A-buffer's (its words included), FKB, VKB, DKB and the list allocate no
+/// more than M; each truncating frame keeps fewer fragments than the same budget keeps of the
+/// scene clamped at white (which stores no words); and at equal F a k-buffer's bytes are its
+/// layout's and a word a slot (FKB) or pool word.
+#[test]
+fn a_byte_budget_holds_the_words_of_light_above_white() {
+    let (w, h) = SIZE;
+    let weights = common::committed_weights();
+    let s = bright_scene();
+    let fl = rasterize(&s, &identity(), w, h).unwrap();
+    let mut clamped = fl.clone();
+    clamped.tint.clear();
+    clamped
+        .rgba
+        .iter_mut()
+        .for_each(|c| *c = quantize_hdr(*c, 0));
+    assert_eq!(fl.words(), dhoit_runtime::budget::Words::Exponents);
+    let px = fl.pixel_count() as u64;
+    let exact = dhoit_runtime::budget::abuffer_bytes(px, fl.fragment_count() as u64, true);
+    let (mut held, mut fewer) = (0, 0);
+    for m in [Method::Fkb, Method::Vkb, Method::Dkb, Method::LinkedList] {
+        for i in 1..=10u64 {
+            let bytes = exact * i / 10;
+            let opts = Options {
+                weights: Some(&weights),
+                ..Options::new(Budget::Bytes(bytes), BLACK).always_approximate()
+            };
+            let (Ok(f), Ok(g)) = (
+                dhoit_runtime::frame::render(&fl, m, opts),
+                dhoit_runtime::frame::render(&clamped, m, opts),
+            ) else {
+                continue;
+            };
+            assert!(
+                f.allocated_bytes <= bytes,
+                "{m} at {bytes}: {}",
+                f.allocated_bytes
+            );
+            held += 1;
+            if f.fragments_captured < f.fragments_total {
+                fewer += (f.budget_fragments < g.budget_fragments) as usize;
+            }
+        }
+    }
+    assert!(
+        held >= 15 && fewer >= 5,
+        "{held} frames held, {fewer} on fewer slots"
+    );
+    // FKB at k = 2: its layout and a word a slot.
+    let opts = Options::new(Budget::SlotsPerPixel(2.0), BLACK).always_approximate();
+    let f = dhoit_runtime::frame::render(&fl, Method::Fkb, opts).unwrap();
+    let layout = dhoit_runtime::budget::FKB.allocated_bytes(px, 2 * px);
+    assert_eq!(f.allocated_bytes, layout + 4 * 2 * px);
 }

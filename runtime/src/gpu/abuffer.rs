@@ -65,7 +65,8 @@ impl Recording<'_, '_, '_> {
         };
         // Each fragment's tint word where the frame stores them (tinted glass, colours above
         // white).
-        let (tints, tinted) = fb.tints("abuf", total, self.words)?;
+        let (tints, tinted) = fb.tints("abuf", total, self.words.any())?;
+        let tinted_glass = self.words == crate::budget::Words::Tints;
         passes.draw(
             fb.enc,
             Phase::Store,
@@ -89,6 +90,7 @@ impl Recording<'_, '_, '_> {
                     width,
                     height,
                     offsets,
+                    tinted_glass,
                     ..Default::default()
                 };
                 let words = match tinted {

@@ -171,8 +171,8 @@ pub trait Oit {
 
     /// Whether the frames to come keep colours above white (off when made). On, a fragment's
     /// RGB is stored as 8 bits times a power of two up to 2^15 (its exponent in a word beside
-    /// its key: 4 bytes a stored fragment, slot or node more, and the k-buffers' tails 12 bytes
-    /// a pixel or two words a pool word; the k-buffers draw one more geometry pass,
+    /// its key: 4 bytes a stored fragment, node, slot or pool word more; the k-buffers draw one
+    /// more geometry pass,
     /// [`Phase::CaptureTints`], so [`Oit::phases`] changes), and the resolve writes what
     /// blends onto the float target: a fragment of colour 8.0 arrives as 8.0. Off, each
     /// fragment's colour clamps at white as it is stored. A byte budget given before is
@@ -335,12 +335,13 @@ impl AppFrame {
             )));
         }
         let s = &mut self.stream;
-        let was = (s.hdr, s.tinted);
-        (s.hdr, s.tinted) = (on, on);
+        let was = (s.hdr, s.words);
+        // An application's fragments are untinted: their words hold exponents alone.
+        (s.hdr, s.words) = (on, crate::budget::Words::of(false, on));
         if let Some(b) = s.asked
             && let Err(e) = s.set_budget(b)
         {
-            (s.hdr, s.tinted) = was;
+            (s.hdr, s.words) = was;
             return Err(e);
         }
         Ok(())

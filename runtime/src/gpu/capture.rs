@@ -265,8 +265,8 @@ impl Recording<'_, '_, '_> {
             SlotsAt::Pooled(pool) => (pool.size() / crate::budget::SLOT_BYTES, true),
             SlotsAt::PerPixel(n) => (*n, false),
         };
-        let words = crate::budget::kbuffer_tint_words(px, slot_words, pooled);
-        let (tints, tinted) = fb.tints("oit", words, self.words)?;
+        let words = crate::budget::kbuffer_tint_words(px, slot_words, pooled, self.words);
+        let (tints, tinted) = fb.tints("oit", words, self.words.any())?;
         Ok(SlotBuffers {
             slots,
             tail,

@@ -23,7 +23,8 @@ impl Recording<'_, '_, '_> {
         let keys = fb.storage("list.keys", 8 * nodes, true)?;
         let counter = fb.storage("list.counter", 16, true)?;
         // A tint word a node where the frame stores them (4 bytes more).
-        let (tints, tinted) = fb.tints("list", nodes, self.words)?;
+        let (tints, tinted) = fb.tints("list", nodes, self.words.any())?;
+        let tinted_glass = self.words == crate::budget::Words::Tints;
         let (store, resolve) = gpu.extras().list();
         passes.draw(
             fb.enc,
@@ -57,6 +58,7 @@ impl Recording<'_, '_, '_> {
             let mut fl = FragmentLists {
                 width,
                 height,
+                tinted_glass,
                 ..Default::default()
             };
             fl.offsets.push(0);

@@ -937,9 +937,10 @@ struct Recording<'f, 'a, 'e> {
     /// Whether the frame's glass is tinted (`Params::tinted`): the blended methods' passes
     /// for tints.
     tinted: bool,
-    /// Whether the methods that store fragments store each one's tint word (`Params::tinted`
-    /// or `Params::hdr`): its tint and the exponent of its colour.
-    words: bool,
+    /// What the methods that store fragments store beside each one's key (`Params::tinted` or
+    /// `Params::hdr`): its tint word (tint and colour exponent), and where the glass is tinted
+    /// the k-buffers' tails' sums of what the tints take away.
+    words: budget::Words,
 }
 
 impl Gpu {
@@ -1014,7 +1015,7 @@ impl Gpu {
             px,
             sizing: spec.sizing,
             tinted: params.tinted != 0,
-            words: params.tinted != 0 || params.hdr != 0,
+            words: budget::Words::of(params.tinted != 0, params.tinted != 0 || params.hdr != 0),
         };
         if matches!(slots, Slots::Uniform(_)) {
             rec.out.variants.push(if opts.tuning.layer_major_fkb {
@@ -1099,12 +1100,14 @@ impl Recording<'_, '_, '_> {
                 // A byte budget resolved against this count: exact where it holds the A-buffer.
                 let holds_exact = opts
                     .counted_bytes
-                    .is_some_and(|m| budget::abuffer_bytes(px, n, self.words) <= m);
+                    .is_some_and(|m| budget::abuffer_bytes(px, n, self.words.any()) <= m);
                 if exact_when_cheaper && holds_exact {
                     return Ok(None);
                 }
                 let f = match opts.counted_bytes {
-                    Some(m) if self.words => layout.tinted_fragment_budget(m, px, &occ)?,
+                    Some(m) if self.words.any() => {
+                        layout.tinted_fragment_budget(m, px, &occ, self.words)?
+                    }
                     Some(m) => layout.fragment_budget_counted(m, px, &occ)?,
                     None => budget.of(n),
                 };

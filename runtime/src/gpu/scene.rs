@@ -549,7 +549,7 @@ impl SceneStream {
         let tinted = scene.tints() as u32;
         let hdr = scene.hdr() as u32;
         // Its budget resolved once it knows whether its fragments keep tint words.
-        stream.tinted = scene.tint_words();
+        stream.words = scene.words();
         if let Some(b) = budget {
             stream.set_budget(b)?;
         }

@@ -187,11 +187,11 @@ pub(super) struct Stream {
     pub(super) exact_when_cheaper: bool,
     /// How the k-buffers insert their fragments ([`FrameOptions::capture`]).
     pub(super) capture: Capture,
-    /// Whether its frames store a tint word a fragment (dhoit's own scenes of tinted glass or
-    /// colours above white, `SceneStream`: [`crate::scene::Scene::tint_words`]): a byte budget
+    /// What its frames store beside each fragment's key (dhoit's own scenes of tinted glass or
+    /// colours above white, `SceneStream`: [`crate::scene::Scene::words`]): a byte budget
     /// then holds them too (`Layout::tinted_budget`). An application's fragments are untinted:
     /// its frames store the words where it asked for colours above white ([`Stream::hdr`]).
-    pub(super) tinted: bool,
+    pub(super) words: budget::Words,
     /// Whether its frames keep colours above white (`Params::hdr`): an application's, where it
     /// asked for it (`Oit::set_hdr`); a scene's, where its emission can pass white.
     pub(super) hdr: bool,
@@ -227,7 +227,7 @@ impl Stream {
             budget: None,
             exact_when_cheaper: true,
             capture: gpu.capture_for(Capture::Wide),
-            tinted: false,
+            words: budget::Words::None,
             hdr: false,
             asked: None,
             expected: first_occupancy(size),
@@ -250,7 +250,7 @@ impl Stream {
 
     /// The geometry passes a frame of the method draws, in order.
     pub(super) fn phases(&self) -> &'static [Phase] {
-        self.method.phases(self.capture, self.tinted)
+        self.method.phases(self.capture, self.words.any())
     }
 
     pub(super) fn pixels(&self) -> u64 {
@@ -268,7 +268,7 @@ impl Stream {
                     // A byte budget is a fixed pool: what its bytes (and tints) leave beside
                     // the fixed ones.
                     Budget::Bytes(m) => layout
-                        .tinted_budget(m, px, self.tinted)
+                        .tinted_budget(m, px, self.words)
                         .saturating_sub(layout.fixed_bytes(px)),
                     b => {
                         let f = b.fragment_budget(&layout, px)?.of(occ.fragments);
@@ -437,7 +437,7 @@ impl Stream {
         let px = self.pixels();
         let name = self.method.name();
         let refuse = |why: &str| Err(Error::Budget(budget.to_string(), format!("{name} {why}")));
-        let tinted = self.tinted;
+        let words = self.words;
         self.asked = Some(budget);
         match &mut self.method {
             AppMethod::Dkb(_) | AppMethod::Vkb(_) => {
@@ -462,7 +462,7 @@ impl Stream {
                         );
                     }
                     Budget::Bytes(m) => {
-                        let m = budget::FKB.tinted_budget(m, px, tinted);
+                        let m = budget::FKB.tinted_budget(m, px, words);
                         Budget::Bytes(m).resolve(&budget::FKB, px, 0)?.1
                     }
                     b => b.resolve(&budget::FKB, px, 0)?.1,
@@ -477,7 +477,7 @@ impl Stream {
                         );
                     }
                     Budget::Bytes(m) => {
-                        let m = budget::LINKED_LIST.tinted_budget(m, px, tinted);
+                        let m = budget::LINKED_LIST.tinted_budget(m, px, words);
                         Budget::Bytes(m).resolve(&budget::LINKED_LIST, px, 0)?.1
                     }
                     b => b.resolve(&budget::LINKED_LIST, px, 0)?.1,

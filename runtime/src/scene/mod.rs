@@ -179,6 +179,11 @@ impl Scene {
         self.tints() || self.hdr()
     }
 
+    /// What its frames store beside each fragment's key ([`crate::budget::Words`]).
+    pub fn words(&self) -> crate::budget::Words {
+        crate::budget::Words::of(self.tints(), self.tint_words())
+    }
+
     /// The largest colour exponent its fragments are stored with
     /// ([`crate::fragment::quantize_hdr`]): [`crate::shared::HDR_MAX_EXPONENT`] where it keeps
     /// colours above white, else 0.
