@@ -774,6 +774,7 @@ pub(crate) struct PlanParams {
 
 impl PlanParams {
     /// What plan.wgsl reads of `input`.
+    #[cfg(feature = "gpu")]
     pub(crate) fn of(input: &crate::plan::PlanInput) -> PlanParams {
         use crate::budget::FragmentBudget;
         use crate::plan::PlanBudget;
