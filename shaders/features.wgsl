@@ -20,7 +20,8 @@
 // past which the resolve refuses the frame (resolve.wgsl's too_deep). The second holds sum b
 // (low half, at most 255 n) and sum (r^2 + g^2 + b^2) (high half, wrapping as a 32-bit sum
 // does). The last holds the opacity statistics: the sum of the fragments' optical depths from
-// importance::optical_depth_table (low half) and of their 8-bit opacities (high).
+// importance::optical_depth_table (low half) and of their 8-bit opacities (high), each opacity
+// its tint's too (filtered_alpha8).
 
 // Per pixel: its record's index, or NO_RECORD (assign_records: a record for each pixel of more
 // than TAIL_WORDS fragments), in the frame's shared word until its batch's importance is
@@ -60,18 +61,27 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         return vec4<f32>(0.0);
     }
     let depth = select(0.0, in.clip.z, in.clip.z > 0.0);
-    record_fragment(RECORD_WORDS * r, bitcast<u32>(depth), f.rgba8);
+    record_fragment(RECORD_WORDS * r, bitcast<u32>(depth), f.rgba8, f.tint);
     return vec4<f32>(0.0);
 }
 
-// What a fragment of colour `rgba8` adds to its record's three sum words, each as two 32-bit
-// halves (low, high): sum r (bits 0-23) and g (24-47), n above them untouched; sum b and
-// r^2 + g^2 + b^2; its optical depth and 8-bit opacity.
-fn fragment_sums(rgba8: u32) -> array<vec2<u32>, 3> {
+// The 8-bit opacity the features read for a fragment of 8-bit opacity `a8` and tint word `tint`
+// (importance::filtered_alpha8): 255 minus what it lets through in its most transparent channel,
+// `(255 - a8) max(g) / 255` rounded to the nearest; `a8` itself for a CLEAR tint.
+fn filtered_alpha8(a8: u32, tint: u32) -> u32 {
+    let most = max(tint & 0xffu, max((tint >> 8u) & 0xffu, (tint >> 16u) & 0xffu));
+    return 255u - ((255u - a8) * most + 127u) / 255u;
+}
+
+// What a fragment of colour `rgba8` and tint word `tint` adds to its record's three sum words,
+// each as two 32-bit halves (low, high): sum r (bits 0-23) and g (24-47), n above them
+// untouched; sum b and r^2 + g^2 + b^2; its optical depth and 8-bit opacity, its tint included
+// (filtered_alpha8).
+fn fragment_sums(rgba8: u32, tint: u32) -> array<vec2<u32>, 3> {
     let cr = rgba8 & 0xffu;
     let cg = (rgba8 >> 8u) & 0xffu;
     let cb = (rgba8 >> 16u) & 0xffu;
-    let a = rgba8 >> 24u;
+    let a = filtered_alpha8(rgba8 >> 24u, tint);
     return array<vec2<u32>, 3>(
         vec2<u32>(cr | (cg << 24u), 0u),
         vec2<u32>(cb, cr * cr + cg * cg + cb * cb),

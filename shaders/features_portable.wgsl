@@ -22,7 +22,7 @@ fn record_add(i: u32, v: vec2<u32>) {
     }
 }
 
-fn record_fragment(at: u32, depth_bits: u32, rgba8: u32) {
+fn record_fragment(at: u32, depth_bits: u32, rgba8: u32, tint: u32) {
     let near = ~depth_bits;
     if (!FEATURES_COLOURS) {
         if (!PRELOAD_NEAREST || atomicLoad(&records[2u * at + 1u]) < near) {
@@ -33,7 +33,7 @@ fn record_fragment(at: u32, depth_bits: u32, rgba8: u32) {
     if (atomicLoad(&records[2u * at + 1u]) == near) {
         atomicMax(&records[2u * at], ~rgba8);
     }
-    let sums = fragment_sums(rgba8);
+    let sums = fragment_sums(rgba8, tint);
     for (var w = 0u; w < 3u; w++) {
         record_add(at + 1u + w, sums[w]);
     }

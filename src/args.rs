@@ -48,7 +48,8 @@ pub(crate) struct ViewArgs {
     /// How glass (KHR_materials_transmission) lets through what is behind it: `tinted`, per
     /// channel, its base colour filtering the light (a red pane passes red), its colour the
     /// Fresnel reflection; or `grey`, one opacity, so clear glass of any colour passes every
-    /// colour (what the network was trained on, and the library's default). Every method composites tinted glass, on the CPU and the GPU: the A-buffer,
+    /// colour (the library's default; the network is trained on tinted glass). Every method
+    /// composites tinted glass, on the CPU and the GPU: the A-buffer,
     /// MLAB and the linked list store a tint a fragment or node (4 bytes more), the k-buffers
     /// a tint a slot and their tails' per-channel sums (FKB 4 bytes a slot and 12 a pixel
     /// more, VKB and DKB 8 a word of their pool), WBOIT and MBOIT an RGBA8 transmittance (3

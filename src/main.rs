@@ -57,14 +57,16 @@ enum Command {
     /// pictures, report.json and report.md.
     #[command(alias = "eval")]
     Compare(compare::CompareArgs),
-    /// Generate a training dataset: features and optimal-allocation targets from scenes.
+    /// Generate a training dataset: features and optimal-allocation targets from scenes, their
+    /// glass tinted.
     Dataset(dhoit_train::cli::DatasetArgs),
     /// Train the importance network on the CPU (burn) and export safetensors weights.
     Train(dhoit_train::cli::TrainArgs),
     /// Predict importance for a features file with burn inference.
     Predict(dhoit_train::cli::PredictArgs),
     /// Score allocations from error curves, no images: optimal, VKB and the network(s) per scene
-    /// and budget, as DKB/VKB and DKB/optimal ratios (fast; `compare` renders the images).
+    /// and budget, as DKB/VKB and DKB/optimal ratios (fast; `compare` renders the images), the
+    /// glass tinted as `compare` renders it by default.
     Score(dhoit_train::cli::ScoreArgs),
     /// Export the 12 network features of one view's covered pixels (for predict).
     Features(features::FeaturesArgs),

@@ -2,7 +2,7 @@
 //! heuristic importance (paper 002). Written pass by pass as the GPU computes them, so the two
 //! can be compared line by line.
 
-use crate::fragment::{FragmentLists, fragment_key, unpack_rgba8};
+use crate::fragment::{CLEAR, FragmentLists, fragment_key, unpack_rgba8};
 
 /// Names of the network's inputs, in order (see [`pixel_features`]).
 pub const FEATURE_NAMES: [&str; 12] = [
@@ -45,6 +45,17 @@ pub fn optical_depth_table() -> [u32; 256] {
     })
 }
 
+/// The 8-bit opacity the features read for a fragment of 8-bit opacity `a8` and tint `tint`
+/// (RGB8, R in the low byte; higher bits ignored): 255 minus what it lets through in its most
+/// transparent channel, `(255 - a8) max(g) / 255` rounded to the nearest, so a red pane counts
+/// as transparent as it is to red light. An exact integer, as the features pass computes it;
+/// `a8` itself for a [`CLEAR`] fragment.
+pub fn filtered_alpha8(a8: u32, tint: u32) -> u32 {
+    let g = tint & CLEAR;
+    let most = (g & 0xff).max(g >> 8 & 0xff).max(g >> 16 & 0xff);
+    255 - ((255 - a8) * most + 127) / 255
+}
+
 /// Bit 63 of a key in [`PixelStats::farthest`]: the slot holds a fragment (window depths are
 /// non-negative, so a key's own bit 63 is clear).
 pub const OCCUPIED: u64 = 1 << 63;
@@ -64,10 +75,12 @@ pub struct PixelStats {
     /// Sum over fragments of `r^2 + g^2 + b^2` in 8-bit units (wrapping, see
     /// [`MAX_EXACT_COUNT`]).
     pub color_sq_sum: u32,
-    /// Sum of the fragments' optical depths ([`optical_depth_table`]): the pixel's
-    /// transmittance is `exp(-optical_depth OPTICAL_DEPTH_UNIT)`.
+    /// Sum of the fragments' optical depths ([`optical_depth_table`] of [`filtered_alpha8`]):
+    /// the pixel's transmittance in its most transparent channel is about
+    /// `exp(-optical_depth OPTICAL_DEPTH_UNIT)`.
     pub optical_depth: u32,
-    /// Sum of the fragments' 8-bit opacities.
+    /// Sum of the fragments' 8-bit opacities ([`filtered_alpha8`]: their tints included, as the
+    /// optical depths).
     pub alpha_sum: u32,
 }
 
@@ -104,7 +117,8 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
                     s.color_sum[c] = s.color_sum[c].wrapping_add(v);
                     s.color_sq_sum = s.color_sq_sum.wrapping_add(v * v);
                 }
-                let a8 = rgba8 >> 24;
+                // What the fragment hides of what is behind it, its tint included.
+                let a8 = filtered_alpha8(rgba8 >> 24, fl.tint(i));
                 s.optical_depth += tau[a8 as usize];
                 s.alpha_sum += a8;
             }

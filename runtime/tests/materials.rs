@@ -837,6 +837,77 @@ type KBufferRun<'a> = (
 /// frame stored, within float rounding. The portable capture leaves the same slots and image
 /// as the one-pass one; the grey frames differ; and the tints are counted
 /// (`budget::kbuffer_tint_words`), on the GPU as on the CPU.
+/// DKB's features pass reads what tinted glass lets through, as its twin does: its opacity sums
+/// on the GPU are `importance::pixel_stats`'s of the GPU's own fragments, tints and all
+/// (`importance::filtered_alpha8`), in both captures, and differ from grey glass's sums where
+/// the panes filter.
+#[test]
+fn dkb_s_features_read_tinted_glass_like_their_twin() {
+    use dhoit_runtime::gpu::{Capture, FrameOptions, Slots};
+    use dhoit_runtime::importance::{PixelStats, pixel_stats};
+    use dhoit_runtime::shared::TAIL_WORDS;
+    let Some(g) = gpu() else { return };
+    let wide_ok = common::is_wide(g, "the one-pass features of tinted glass");
+    let (w, h) = (192, 144);
+    let mlp = Mlp::random(6);
+    // The built-in windows: tinted and clear panes in front of one another and of vessels.
+    let mut s = dhoit_runtime::scene::load("windows", Default::default()).unwrap();
+    s.glass = Glass::Tinted;
+    let (mut compared, mut filtered, mut frames) = (0, 0, 0);
+    for view in [0, 3] {
+        let cam = Camera::orbit(&s, view, 8, w, h);
+        let ab = g.render(&s, &cam, w, h, BG, Slots::Exact).unwrap();
+        let gfl = ab.fragments.clone().unwrap();
+        assert!(
+            gfl.tinted_glass && gfl.tinted(),
+            "view {view}: tinted fragments"
+        );
+        let twin = pixel_stats(&gfl);
+        let grey = pixel_stats(&FragmentLists {
+            tint: Vec::new(),
+            ..gfl.clone()
+        });
+        let f = gfl.fragment_count() as u64 / 4;
+        let captures = [Capture::Portable]
+            .into_iter()
+            .chain(wide_ok.then_some(Capture::Wide));
+        for capture in captures {
+            let options = FrameOptions {
+                capture,
+                ..FrameOptions::default().always_approximate()
+            };
+            let d = g
+                .render_with(&options, &s, &cam, (w, h), BG, Slots::Dkb(&mlp, f.into()))
+                .unwrap();
+            let stats = d.stats.clone().expect("the features pass drew");
+            frames += 1;
+            for (p, (a, b)) in stats.iter().zip(&twin).enumerate() {
+                if b.count <= TAIL_WORDS {
+                    continue;
+                }
+                let b = PixelStats {
+                    farthest: [0; 2],
+                    ..*b
+                };
+                assert_eq!(a, &b, "view {view}, {capture:?}: pixel {p}");
+                compared += 1;
+                if a.alpha_sum != grey[p].alpha_sum {
+                    assert!(
+                        a.alpha_sum > grey[p].alpha_sum && a.optical_depth > grey[p].optical_depth
+                    );
+                    filtered += 1;
+                }
+            }
+        }
+    }
+    // Over both views, each capture the device has (the portable one alone on WebGPU's core
+    // device): 73 deep pixels a frame here, every one behind tinted glass.
+    assert!(
+        compared >= 50 * frames && filtered >= 50 * frames,
+        "{compared} pixels compared, {filtered} filtered, in {frames} frames"
+    );
+}
+
 #[test]
 fn tinted_glass_in_the_gpu_k_buffers_is_their_twins() {
     use dhoit_runtime::gpu::{Capture, FrameOptions, Slots};

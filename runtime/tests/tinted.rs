@@ -256,3 +256,60 @@ fn a_rasterized_red_window_is_red_over_white_only_when_tinted() {
         dhoit_runtime::composite::composite(&fl, dhoit_runtime::composite::Method::Exact, WHITE);
     assert!(img.data[centre][1] > 0.9, "{:?}", img.data[centre]);
 }
+
+/// What the network's opacity features read of a fragment (`importance::filtered_alpha8`): 255
+/// times one minus what it lets through in its most transparent channel, held over every 8-bit
+/// opacity and a sweep of tints to the compositing's own transmittance
+/// (`fragment::transmittance`, in floats) rounded by hand; a clear fragment's is its opacity.
+#[test]
+fn the_features_read_what_tinted_glass_lets_through() {
+    use dhoit_runtime::fragment::transmittance;
+    use dhoit_runtime::importance::filtered_alpha8;
+    let mut tinted_checked = 0;
+    for a8 in 0..=255u32 {
+        assert_eq!(filtered_alpha8(a8, CLEAR), a8);
+        // The top byte (a colour's exponent in the tint word) is not the tint.
+        assert_eq!(filtered_alpha8(a8, CLEAR | 7 << 24), a8);
+        for g in (0..=255u32).step_by(3) {
+            for (tint, most) in [
+                (g, g),
+                (g << 8 | 40, g.max(40)),
+                (g << 16 | 0x1000, g.max(16)),
+            ] {
+                let t = transmittance([0.0, 0.0, 0.0, a8 as f32 / 255.0], tint);
+                let want = 255 - (255.0 * t[0].max(t[1]).max(t[2])).round() as u32;
+                assert_eq!(filtered_alpha8(a8, tint), want, "a8 {a8}, tint {tint:06x}");
+                // By hand: (255 - a8) most / 255 let through.
+                let through = (255 - a8) * most;
+                assert!((255 - want) * 255 <= through + 127 && through <= (255 - want) * 255 + 127);
+                tinted_checked += 1;
+            }
+        }
+    }
+    assert_eq!(tinted_checked, 256 * 86 * 3);
+    // A red pane face-on (opacity 10 of 255, tint red): it lets through 245 of red, so the
+    // features see opacity 10; its tint blue instead, the same; a dark grey one (tint 64)
+    // lets through 245 x 64 / 255 = 61.5 of each, so they see 255 - 61 = 194.
+    assert_eq!(filtered_alpha8(10, RED), 10);
+    assert_eq!(filtered_alpha8(10, 0x00ff_0000), 10);
+    assert_eq!(filtered_alpha8(10, 0x0040_4040), 194);
+    // The rasterized red window: its features' opacity sums are its tint's, not grey glass's
+    // (tinted 194 for a grey-tinted pane, 10 for grey glass).
+    let mut dark = red_window(Glass::Tinted);
+    dark.materials[0].base_color = [0.25, 0.25, 0.25, 1.0];
+    let cam = Camera::asset(&dark, 32, 32);
+    let centre = (16 * 32 + 16) as usize;
+    let stats = |s: &Scene| {
+        let fl = rasterize(s, &cam, 32, 32).unwrap();
+        dhoit_runtime::importance::pixel_stats(&fl)[centre]
+    };
+    let tinted = stats(&dark);
+    let grey = stats(&Scene {
+        glass: Glass::Grey,
+        ..dark.clone()
+    });
+    assert_eq!(grey.alpha_sum, 10);
+    assert_eq!(tinted.alpha_sum, filtered_alpha8(10, pack_tint([0.25; 3])));
+    assert!(tinted.alpha_sum > 150);
+    assert!(tinted.optical_depth > grey.optical_depth);
+}

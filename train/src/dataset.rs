@@ -40,7 +40,7 @@ pub const FORMAT: &str = "dhoit-dataset-3";
 /// What produced a dataset: change it whenever the features, targets or fragments change, so a
 /// cached default dataset is regenerated rather than reused stale.
 pub const GENERATOR: &str =
-    "features-v3 rgba8-fragments regret-v1 families-v2 useful-cap tail-pair";
+    "features-v4 rgba8-fragments regret-v1 families-v3 useful-cap tail-pair tinted-glass";
 
 /// Half-width D of the regret window: R is stored at `k* - D ..= k* + D`.
 pub const REGRET_HALF: usize = 8;
@@ -393,11 +393,7 @@ pub fn generate(
     let start = Instant::now();
     // Every scene first: one that does not load leaves `out` (a dataset there included) as it
     // was.
-    let scenes: Vec<scene::Scene> = config
-        .scenes
-        .iter()
-        .map(|s| scene::load(s, crate::score::opacity_of(config.opacity)))
-        .collect::<std::result::Result<_, _>>()?;
+    let scenes = crate::score::load_scenes(&config.scenes, config.opacity)?;
     dhoit_runtime::tensors::create_folder(out)?;
     // A stale manifest must not describe shards about to be replaced.
     let manifest_path = out.join(MANIFEST);

@@ -25,6 +25,19 @@ pub fn opacity_of(uniform: Option<f32>) -> Opacity {
     uniform.map_or(Opacity::Native, Opacity::Uniform)
 }
 
+/// Loads scenes as training and scoring see them: at one opacity or their own, their glass
+/// tinted, as the command line renders it (`--glass tinted`).
+pub fn load_scenes(names: &[String], opacity: Option<f32>) -> Result<Vec<scene::Scene>> {
+    names
+        .iter()
+        .map(|name| {
+            let mut s = scene::load(name, opacity_of(opacity))?;
+            s.glass = scene::Glass::Tinted;
+            Ok(s)
+        })
+        .collect()
+}
+
 /// One frame at one budget.
 #[derive(Clone, Debug, Serialize)]
 pub struct FrameScore {
@@ -125,11 +138,7 @@ impl Prepared {
         for &view in spec.views {
             scene::check_view(view, spec.orbit_views).map_err(Error::Config)?;
         }
-        let scenes = spec
-            .scenes
-            .iter()
-            .map(|name| scene::load(name, opacity_of(spec.opacity)))
-            .collect::<std::result::Result<Vec<_>, _>>()?;
+        let scenes = load_scenes(spec.scenes, spec.opacity)?;
         let mut out = Vec::new();
         for (name, sc) in spec.scenes.iter().zip(scenes) {
             let frames: Vec<PreparedFrame> = spec

@@ -7,8 +7,9 @@
 //! Two kinds: the papers' families ([`BUILTIN`]'s first ten), seen at one uniform opacity
 //! (their vertex alpha, set per object, is what `--material-alpha` keeps), and the material
 //! families ([`MATERIAL_FAMILIES`]), whose own materials decide, as real scenes' do: opaque
-//! parts, glass in opaque frames, transparent covers, alpha-textured cards, soft particles and
-//! strands whose textures fade (procedural textures, sampled per fragment).
+//! parts, glass in opaque frames, transparent covers, alpha-textured cards, soft particles with
+//! embers emitting above white, and strands whose textures fade (procedural textures, sampled
+//! per fragment).
 
 use super::Scene;
 use super::material::{Coverage, Material, Texture, Wrap, pack_texel};
@@ -51,7 +52,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ),
     (
         "smoke",
-        "materials: soft particles with a radial alpha texture around opaque chimneys",
+        "materials: soft particles with a radial alpha texture around opaque chimneys, and embers glowing above white",
     ),
     (
         "strands",
@@ -1190,7 +1191,8 @@ fn cards(s: &mut Scene, rng: &mut Rng) {
 }
 
 /// Soft particles: billboards of a radial alpha texture (smoke and embers, blended) in
-/// plumes rising from opaque chimneys and around an opaque ball.
+/// plumes rising from opaque chimneys and around an opaque ball; the embers emit 2 to 6 times
+/// an orange, above white.
 fn smoke(s: &mut Scene, rng: &mut Rng) {
     floor(s, rng, -1.0, 1.1);
     let puff = texture(32, 32, Wrap::ClampToEdge, |u, v| {
@@ -1258,6 +1260,39 @@ fn smoke(s: &mut Scene, rng: &mut Rng) {
             billboard(centre, tt, b, r, r),
             UNIT_UV,
             [1.0, 1.0, 1.0, fade],
+            m,
+        );
+    }
+    // Embers: small glowing particles rising from the chimneys, emissive above white (2 to 6
+    // times an orange), so their frames keep light above white.
+    let mut embers = Vec::new();
+    for _ in 0..3 {
+        let strength = rng.range(2.0, 6.0);
+        let glow = [1.0, rng.range(0.3, 0.6), rng.range(0.02, 0.1)];
+        embers.push(s.add_material(Material {
+            texture: Some(t),
+            emissive: glow.map(|c| c * strength),
+            ..blend([0.2, 0.08, 0.02], rng.range(0.5, 0.95))
+        }));
+    }
+    for _ in 0..800 {
+        let c = chimneys[rng.below(chimneys.len())];
+        let h = rng.f32().powf(1.5) * 1.4;
+        let spread = 0.05 + 0.25 * h;
+        let centre = c + Vec3::new(
+            rng.normal() * spread + 0.2 * h * h,
+            0.6 + h,
+            rng.normal() * spread,
+        );
+        let n = rng.unit_vector();
+        let tt = n.any_orthonormal_vector();
+        let r = rng.range(0.01, 0.03);
+        let m = embers[rng.below(embers.len())];
+        tquad(
+            s,
+            billboard(centre, tt, n.cross(tt), r, r),
+            UNIT_UV,
+            [1.0; 4],
             m,
         );
     }
