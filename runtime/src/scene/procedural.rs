@@ -1190,6 +1190,22 @@ fn cards(s: &mut Scene, rng: &mut Rng) {
     }
 }
 
+/// A point of a plume rising from `chimney`, `h` above its top (which is 0.6 above its
+/// base): spread sideways by `spread` (two normal draws, x then z) and drifting `drift h^2`
+/// along x.
+fn plume_point(rng: &mut Rng, chimney: Vec3, h: f32, spread: f32, drift: f32) -> Vec3 {
+    let x = rng.normal() * spread + drift * h * h;
+    let z = rng.normal() * spread;
+    chimney + Vec3::new(x, 0.6 + h, z)
+}
+
+/// The tangent and bitangent of a billboard facing a random direction.
+fn random_facing(rng: &mut Rng) -> (Vec3, Vec3) {
+    let n = rng.unit_vector();
+    let t = n.any_orthonormal_vector();
+    (t, n.cross(t))
+}
+
 /// Soft particles: billboards of a radial alpha texture (smoke and embers, blended) in
 /// plumes rising from opaque chimneys and around an opaque ball; the embers emit 2 to 6 times
 /// an orange, above white.
@@ -1243,15 +1259,8 @@ fn smoke(s: &mut Scene, rng: &mut Rng) {
     for _ in 0..6000 {
         let c = chimneys[rng.below(chimneys.len())];
         let h = rng.f32().powf(0.7) * 1.8;
-        let spread = 0.08 + 0.35 * h;
-        let centre = c + Vec3::new(
-            rng.normal() * spread + 0.3 * h * h,
-            0.6 + h,
-            rng.normal() * spread,
-        );
-        let n = rng.unit_vector();
-        let tt = n.any_orthonormal_vector();
-        let b = n.cross(tt);
+        let centre = plume_point(rng, c, h, 0.08 + 0.35 * h, 0.3);
+        let (tt, b) = random_facing(rng);
         let r = rng.range(0.05, 0.12) * (1.0 + h);
         let m = mats[rng.below(mats.len())];
         let fade = (1.0 - h / 2.0).clamp(0.2, 1.0);
@@ -1278,23 +1287,11 @@ fn smoke(s: &mut Scene, rng: &mut Rng) {
     for _ in 0..800 {
         let c = chimneys[rng.below(chimneys.len())];
         let h = rng.f32().powf(1.5) * 1.4;
-        let spread = 0.05 + 0.25 * h;
-        let centre = c + Vec3::new(
-            rng.normal() * spread + 0.2 * h * h,
-            0.6 + h,
-            rng.normal() * spread,
-        );
-        let n = rng.unit_vector();
-        let tt = n.any_orthonormal_vector();
+        let centre = plume_point(rng, c, h, 0.05 + 0.25 * h, 0.2);
+        let (tt, b) = random_facing(rng);
         let r = rng.range(0.01, 0.03);
         let m = embers[rng.below(embers.len())];
-        tquad(
-            s,
-            billboard(centre, tt, n.cross(tt), r, r),
-            UNIT_UV,
-            [1.0; 4],
-            m,
-        );
+        tquad(s, billboard(centre, tt, b, r, r), UNIT_UV, [1.0; 4], m);
     }
 }
 
