@@ -474,7 +474,7 @@ impl Mlp {
     }
 
     pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Mlp, FormatError> {
-        use FormatError::{Contract, Metadata, Shape, Unsupported};
+        use FormatError::{Contract, Metadata};
         let file = tensors::File::parse(bytes)?;
         let format = file.meta("format")?;
         if format != FORMAT {
@@ -515,21 +515,7 @@ impl Mlp {
         };
         let mean = vec12("input_mean")?;
         let std = vec12("input_std")?;
-        if let Some(i) =
-            (0..FEATURES).find(|&i| !(mean[i].is_finite() && mean[i].abs() <= MAX_MEAN))
-        {
-            return Err(Contract(format!(
-                "input_mean[{i}] = {} is not a finite number of magnitude at most {MAX_MEAN:e}",
-                mean[i]
-            )));
-        }
-        let (lo, hi) = STD_RANGE;
-        if let Some(i) = (0..FEATURES).find(|&i| !(lo..=hi).contains(&std[i])) {
-            return Err(Contract(format!(
-                "input_std[{i}] = {} is not in [{lo:e}, {hi:e}]",
-                std[i]
-            )));
-        }
+        check_standardisation(&mean, &std)?;
         let get = |name: &str, shape: &[usize]| -> std::result::Result<Vec<f32>, FormatError> {
             let (_, v) = file.f32(name, Some(shape))?;
             if let Some(index) = v.iter().position(|x| !x.is_finite()) {
@@ -546,37 +532,7 @@ impl Mlp {
             }
             Ok(v)
         };
-        // Hidden sizes come from the first two weight matrices; every other shape must agree.
-        let s1 = file.tensor("fc1.weight")?.shape().to_vec();
-        let s2 = file.tensor("fc2.weight")?.shape().to_vec();
-        let (h1, h2) = match (&s1[..], &s2[..]) {
-            ([FEATURES, a], [b, c]) if a == b && *a > 0 && *c > 0 => (*a, *c),
-            ([FEATURES, _], _) => {
-                return Err(Shape {
-                    name: "fc2.weight".into(),
-                    found: s2,
-                    expected: format!("[{}, H2]", s1[1]),
-                });
-            }
-            _ => {
-                return Err(Shape {
-                    name: "fc1.weight".into(),
-                    found: s1,
-                    expected: format!("[{FEATURES}, {H1}]"),
-                });
-            }
-        };
-        if h2 > MAX_H2 {
-            return Err(Unsupported(format!(
-                "the second hidden layer has {h2} units; at most {MAX_H2} are supported"
-            )));
-        }
-        if uniform_parameter_count(h1, h2) > MAX_PARAMETERS {
-            return Err(Unsupported(format!(
-                "hidden sizes {h1},{h2} take {} parameters on the GPU (layers padded to multiples of 4 units); at most {MAX_PARAMETERS} fit its uniform buffer",
-                uniform_parameter_count(h1, h2)
-            )));
-        }
+        let (h1, h2) = hidden_sizes(&file)?;
         Mlp {
             h1,
             h2,
@@ -634,6 +590,65 @@ impl Mlp {
         );
         tensors::write(path, &entries, meta)
     }
+}
+
+/// The standardisation a weights file carries: every mean finite and at most [`MAX_MEAN`] in
+/// magnitude, every deviation within [`STD_RANGE`].
+fn check_standardisation(
+    mean: &[f32; FEATURES],
+    std: &[f32; FEATURES],
+) -> std::result::Result<(), FormatError> {
+    if let Some(i) = (0..FEATURES).find(|&i| !(mean[i].is_finite() && mean[i].abs() <= MAX_MEAN)) {
+        return Err(FormatError::Contract(format!(
+            "input_mean[{i}] = {} is not a finite number of magnitude at most {MAX_MEAN:e}",
+            mean[i]
+        )));
+    }
+    let (lo, hi) = STD_RANGE;
+    if let Some(i) = (0..FEATURES).find(|&i| !(lo..=hi).contains(&std[i])) {
+        return Err(FormatError::Contract(format!(
+            "input_std[{i}] = {} is not in [{lo:e}, {hi:e}]",
+            std[i]
+        )));
+    }
+    Ok(())
+}
+
+/// The hidden sizes of a weights file, from its first two weight matrices (every other shape
+/// must agree), refused where the GPU's uniform buffer cannot hold them.
+fn hidden_sizes(file: &tensors::File) -> std::result::Result<(usize, usize), FormatError> {
+    use FormatError::{Shape, Unsupported};
+    let s1 = file.tensor("fc1.weight")?.shape().to_vec();
+    let s2 = file.tensor("fc2.weight")?.shape().to_vec();
+    let (h1, h2) = match (&s1[..], &s2[..]) {
+        ([FEATURES, a], [b, c]) if a == b && *a > 0 && *c > 0 => (*a, *c),
+        ([FEATURES, _], _) => {
+            return Err(Shape {
+                name: "fc2.weight".into(),
+                found: s2,
+                expected: format!("[{}, H2]", s1[1]),
+            });
+        }
+        _ => {
+            return Err(Shape {
+                name: "fc1.weight".into(),
+                found: s1,
+                expected: format!("[{FEATURES}, {H1}]"),
+            });
+        }
+    };
+    if h2 > MAX_H2 {
+        return Err(Unsupported(format!(
+            "the second hidden layer has {h2} units; at most {MAX_H2} are supported"
+        )));
+    }
+    if uniform_parameter_count(h1, h2) > MAX_PARAMETERS {
+        return Err(Unsupported(format!(
+            "hidden sizes {h1},{h2} take {} parameters on the GPU (layers padded to multiples of 4 units); at most {MAX_PARAMETERS} fit its uniform buffer",
+            uniform_parameter_count(h1, h2)
+        )));
+    }
+    Ok((h1, h2))
 }
 
 #[cfg(test)]
