@@ -159,6 +159,88 @@ impl std::fmt::Display for Method {
     }
 }
 
+/// The bytes `method` reserves for `budget` on the frame `fl` and the F it gets (the frame's
+/// fragments for the A-buffer, 0 for the blended methods), or the budget's refusal.
+fn reserved(
+    fl: &FragmentLists,
+    method: Method,
+    budget: Budget,
+    layout: &budget::Layout,
+    occ: &Occupancy,
+    moments: u32,
+) -> Result<(u64, u64)> {
+    let pixels = fl.pixel_count() as u64;
+    let total = fl.fragment_count() as u64;
+    // A k-buffer whose budget holds every fragment (F slots for them, or the bytes of the
+    // exact A-buffer) renders the A-buffer: exact, and never more memory than it (a byte
+    // budget that holds the A-buffer may be below the method's own fixed cost).
+    let exact_bytes = budget::abuffer_bytes(pixels, total, fl.tinted());
+    let bytes_hold = matches!(budget, Budget::Bytes(m) if m >= exact_bytes);
+    let r = match (method, budget) {
+        (Method::Abuffer, _) => (exact_bytes, total),
+        // Fixed memory whatever the budget: its accumulation targets, no slot. A byte
+        // budget is a cap for them as for every method: targets above it do not run.
+        (Method::Wboit | Method::Mboit, b) => {
+            // Their transmittance targets where the frame's glass is tinted.
+            let need = layout.fixed_bytes(pixels) + tint_target_bytes(method, fl, pixels);
+            match b {
+                Budget::Bytes(m) if need > m => {
+                    return Err(Error::Budget(
+                        budget::format_bytes(m),
+                        format!(
+                            "{} needs {} for its targets on {} pixels ({} B a pixel{}), \
+                             whatever the frame's fragments",
+                            method.name(),
+                            budget::format_bytes(need),
+                            pixels,
+                            layout.per_pixel_bytes(),
+                            moments_note(method, moments, pixels)
+                        ),
+                    ));
+                }
+                _ => (need, 0),
+            }
+        }
+        (_, Budget::Bytes(m)) if bytes_hold && method.is_kbuffer() => (m, total),
+        // A tinted k-buffer's slots and tails, and the list's nodes, take what their tints
+        // leave of M.
+        (_, Budget::Bytes(m))
+            if fl.tinted() && (method.is_kbuffer() || method == Method::LinkedList) =>
+        {
+            (
+                m,
+                layout.tinted_fragment_budget(m, pixels, occ, fl.words())?,
+            )
+        }
+        // F fixed by slots or a share: the bytes it reserves, with its tints where the
+        // frame's glass is tinted.
+        _ => {
+            let (bytes, f) = budget.resolve_counted(layout, pixels, occ)?;
+            let bytes = match (fl.tinted(), method) {
+                (true, Method::LinkedList) => bytes + budget::TINT_BYTES * f,
+                (true, m) if m.is_kbuffer() => layout.with_tints(bytes, pixels, fl.words()),
+                _ => bytes,
+            };
+            (bytes, f)
+        }
+    };
+    Ok(r)
+}
+
+/// What `method`'s own options must be, whatever the frame: DKB's weights, the list's sorted
+/// mode, MBOIT's moments, WBOIT's weight.
+fn check_method_options(method: Method, opts: &Options) -> Result<()> {
+    match method {
+        Method::Dkb if opts.weights.is_none() => Err(Error::Invalid(
+            "dkb needs network weights (--weights FILE)".into(),
+        )),
+        Method::LinkedList => composite::check_list_sorted(opts.list_sorted),
+        Method::Mboit => composite::MboitParams::with_moments(opts.mboit.moments).map(|_| ()),
+        Method::Wboit => opts.wboit.check(),
+        _ => Ok(()),
+    }
+}
+
 /// FKB and MLAB give every pixel the same k (slots, rows): F must hold one for every pixel.
 fn check_slot_per_pixel(method: Method, given: Budget, f: u64, w: u32, h: u32) -> Result<()> {
     let pixels = w as u64 * h as u64;
@@ -448,72 +530,9 @@ impl<'a> Renderer<'a> {
         let t0 = Instant::now();
         let no_weights = || Error::Invalid("dkb needs network weights (--weights FILE)".into());
         // Refused whatever the frame: even one the A-buffer renders exactly.
-        if method == Method::Dkb && opts.weights.is_none() {
-            return Err(no_weights());
-        }
-        if method == Method::LinkedList {
-            composite::check_list_sorted(opts.list_sorted)?;
-        }
-        if method == Method::Mboit {
-            composite::MboitParams::with_moments(opts.mboit.moments)?;
-        }
-        if method == Method::Wboit {
-            opts.wboit.check()?;
-        }
+        check_method_options(method, opts)?;
         let budget = self.budget()?;
-        // A k-buffer whose budget holds every fragment (F slots for them, or the bytes of the
-        // exact A-buffer) renders the A-buffer: exact, and never more memory than it (a byte
-        // budget that holds the A-buffer may be below the method's own fixed cost).
-        let exact_bytes = budget::abuffer_bytes(pixels, total, fl.tinted());
-        let bytes_hold = matches!(budget, Budget::Bytes(m) if m >= exact_bytes);
-        let (budget_bytes, f) = match (method, budget) {
-            (Method::Abuffer, _) => (exact_bytes, total),
-            // Fixed memory whatever the budget: its accumulation targets, no slot. A byte
-            // budget is a cap for them as for every method: targets above it do not run.
-            (Method::Wboit | Method::Mboit, b) => {
-                // Their transmittance targets where the frame's glass is tinted.
-                let need = layout.fixed_bytes(pixels) + tint_target_bytes(method, fl, pixels);
-                match b {
-                    Budget::Bytes(m) if need > m => {
-                        return Err(Error::Budget(
-                            budget::format_bytes(m),
-                            format!(
-                                "{} needs {} for its targets on {} pixels ({} B a pixel{}), \
-                                 whatever the frame's fragments",
-                                method.name(),
-                                budget::format_bytes(need),
-                                pixels,
-                                layout.per_pixel_bytes(),
-                                moments_note(method, opts.mboit.moments, pixels)
-                            ),
-                        ));
-                    }
-                    _ => (need, 0),
-                }
-            }
-            (_, Budget::Bytes(m)) if bytes_hold && method.is_kbuffer() => (m, total),
-            // A tinted k-buffer's slots and tails, and the list's nodes, take what their tints
-            // leave of M.
-            (_, Budget::Bytes(m))
-                if fl.tinted() && (method.is_kbuffer() || method == Method::LinkedList) =>
-            {
-                (
-                    m,
-                    layout.tinted_fragment_budget(m, pixels, &occ, fl.words())?,
-                )
-            }
-            // F fixed by slots or a share: the bytes it reserves, with its tints where the
-            // frame's glass is tinted.
-            _ => {
-                let (bytes, f) = budget.resolve_counted(&layout, pixels, &occ)?;
-                let bytes = match (fl.tinted(), method) {
-                    (true, Method::LinkedList) => bytes + budget::TINT_BYTES * f,
-                    (true, m) if m.is_kbuffer() => layout.with_tints(bytes, pixels, fl.words()),
-                    _ => bytes,
-                };
-                (bytes, f)
-            }
-        };
+        let (budget_bytes, f) = reserved(fl, method, budget, &layout, &occ, opts.mboit.moments)?;
         // Exact where the budget holds every fragment, and (unless told otherwise) where the
         // A-buffer needs no more bytes than the method reserves for this budget: then the
         // exact answer is both better and no dearer.
