@@ -662,36 +662,8 @@ fn matrices(r: &[Ratio], axes: &Axes, out: &mut Summary) {
 pub fn run(a: CompareArgs) -> Result<()> {
     let budgets = a.budgets.clone();
     // The picture beside the methods, read before anything renders.
-    let beside = match &a.beside {
-        Some(path) => Some((
-            path.file_name()
-                .map_or("reference".into(), |n| n.to_string_lossy().into_owned()),
-            image::open(path)
-                .map_err(|e| anyhow::anyhow!("cannot read --beside {}: {e}", path.display()))?
-                .to_rgb8(),
-        )),
-        None => None,
-    };
-    let mut methods: Vec<Method> = if a.methods.is_empty() {
-        Method::ALL.to_vec()
-    } else {
-        a.methods.clone()
-    };
-    if !methods.contains(&Method::Abuffer) {
-        methods.insert(0, Method::Abuffer);
-    }
-    let weights = load_weights(
-        &a.common,
-        a.precision,
-        !a.methods.is_empty() && methods.contains(&Method::Dkb),
-    )?;
-    if weights.is_none() && methods.contains(&Method::Dkb) {
-        eprintln!(
-            "note: no weights found ({} or --weights), dkb left out",
-            dhoit_train::cli::DEFAULT_WEIGHTS
-        );
-        methods.retain(|&m| m != Method::Dkb);
-    }
+    let beside = a.beside.as_deref().map(read_beside).transpose()?;
+    let (methods, weights) = methods_and_weights(&a)?;
     // Every scene and view checked before the first frame.
     for &view in &a.view_list {
         check_view(view, a.common.views)?;
@@ -790,6 +762,43 @@ pub fn run(a: CompareArgs) -> Result<()> {
         a.out.display()
     );
     Ok(())
+}
+
+/// The picture `--beside` names (its file name as its label), as sRGB.
+fn read_beside(path: &std::path::Path) -> Result<(String, image::RgbImage)> {
+    let label = path
+        .file_name()
+        .map_or("reference".into(), |n| n.to_string_lossy().into_owned());
+    let img = image::open(path)
+        .map_err(|e| anyhow::anyhow!("cannot read --beside {}: {e}", path.display()))?;
+    Ok((label, img.to_rgb8()))
+}
+
+/// The methods to run, the A-buffer first, and the network DKB runs: asked for by name, DKB
+/// needs its weights; among every method by default it is left out, saying so, where none are
+/// found.
+fn methods_and_weights(a: &CompareArgs) -> Result<(Vec<Method>, Option<dhoit_runtime::mlp::Mlp>)> {
+    let mut methods: Vec<Method> = if a.methods.is_empty() {
+        Method::ALL.to_vec()
+    } else {
+        a.methods.clone()
+    };
+    if !methods.contains(&Method::Abuffer) {
+        methods.insert(0, Method::Abuffer);
+    }
+    let weights = load_weights(
+        &a.common,
+        a.precision,
+        !a.methods.is_empty() && methods.contains(&Method::Dkb),
+    )?;
+    if weights.is_none() && methods.contains(&Method::Dkb) {
+        eprintln!(
+            "note: no weights found ({} or --weights), dkb left out",
+            dhoit_train::cli::DEFAULT_WEIGHTS
+        );
+        methods.retain(|&m| m != Method::Dkb);
+    }
+    Ok((methods, weights))
 }
 
 /// Every method of one frame; a method the budget cannot hold (FKB and MLAB need a slot for

@@ -5,10 +5,12 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 use dhoit_runtime::budget::{Budget, format_bytes};
 use dhoit_runtime::dump;
+use dhoit_runtime::fragment::FragmentLists;
 use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
 use dhoit_runtime::gpu::{Capture, FrameOptions, Gpu, Slots};
 use dhoit_runtime::image_io;
 use dhoit_runtime::mlp::Precision;
+use dhoit_runtime::scene::Scene;
 use dhoit_runtime::tensors;
 use std::path::PathBuf;
 
@@ -97,7 +99,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         dhoit_runtime::frame::check_memory(&[method], &fl)?;
     }
     // Every output's folder before the frame: an output that cannot be written stops the
-    // command before any other is (the image used to be written before a dump folder failed).
+    // command before any other output is written.
     tensors::create_parent(&a.out)?;
     if let Some(path) = &a.kmap {
         tensors::create_parent(path)?;
@@ -119,76 +121,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let f = match a.device {
         Device::Cpu => renderer.render(method)?,
         Device::Gpu => {
-            // The CPU only decides what the GPU cannot (F, and k for FKB, MLAB and the CPU-only
-            // allocations); nothing is composited on the CPU.
-            let cpu = renderer.allocate_for_gpu(method)?;
-            let gpu = Gpu::new()?;
-            eprintln!("GPU: {}", gpu.adapter());
-            let (w, h) = (fl.width, fl.height);
-            let cam = crate::args::view_camera(&scene, a.view, &a.common);
-            let slots = Slots::for_method(method, &cpu, &options)?;
-            // The GPU counts first and decides on its own count whether the exact A-buffer is
-            // no dearer, as the CPU did (the two counts can differ by an edge's fragment).
-            let opts = FrameOptions {
-                exact_when_cheaper: options.exact_when_cheaper,
-                capture: a.capture,
-                tuning: dhoit_runtime::gpu::Tuning {
-                    record_batches: options.record_batches,
-                    ..Default::default()
-                },
-                ..FrameOptions::default()
-            };
-            let g = gpu.render_with(&opts, &scene, &cam, (w, h), a.common.background, slots)?;
-            match g.pass_ms.is_empty() {
-                true => println!(
-                    "GPU passes: {} (untimed: the device has no timestamps)",
-                    g.passes.join(", ")
-                ),
-                false => {
-                    let passes: Vec<String> = g
-                        .pass_ms
-                        .iter()
-                        .map(|(n, ms)| format!("{n} {ms:.2} ms"))
-                        .collect();
-                    println!("GPU passes: {}", passes.join(", "));
-                }
-            }
-            // The GPU's own k (VKB and DKB allocate on the device); what it captures follows.
-            let k: Vec<u32> = match &g.slots {
-                Some((_, bases, _)) => bases.windows(2).map(|b| b[1] - b[0]).collect(),
-                None if g.exact => fl.counts(),
-                None => cpu.k.clone(),
-            };
-            let captured = k.iter().zip(fl.counts()).map(|(&k, n)| k.min(n) as u64);
-            gpu_fragments = match g.fragments {
-                Some(fr) => Some(fr),
-                None if a.dump.is_some() => {
-                    gpu.render(
-                        &scene,
-                        &cam,
-                        w,
-                        h,
-                        a.common.background,
-                        dhoit_runtime::gpu::Slots::Exact,
-                    )?
-                    .fragments
-                }
-                None => None,
-            };
-            Frame {
-                method,
-                image: g.image,
-                fragments_captured: captured.sum(),
-                k,
-                budget_bytes: cpu.budget_bytes,
-                budget_fragments: cpu.budget_fragments,
-                allocated_bytes: g.allocated_bytes,
-                fragments_total: fl.fragment_count() as u64,
-                allocation_ms: cpu.allocation_ms,
-                composite_ms: 0.0,
-                optimal: cpu.optimal,
-                exact: cpu.exact || g.exact,
-            }
+            let (f, fragments) = render_on_gpu(&a, &scene, &fl, (&renderer, &options))?;
+            gpu_fragments = fragments;
+            f
         }
     };
     image_io::write_image(&a.out, &f.image)?;
@@ -243,4 +178,85 @@ pub fn run(a: RenderArgs) -> Result<()> {
         println!("dump -> {}", path.display());
     }
     Ok(())
+}
+
+/// `a`'s frame on the GPU: the CPU decides only what the GPU cannot (F, and k for FKB, MLAB
+/// and the CPU-only allocations), nothing is composited on the CPU. With it, the GPU's
+/// fragments where the frame read them back or a dump asks for them.
+fn render_on_gpu(
+    a: &RenderArgs,
+    scene: &Scene,
+    fl: &FragmentLists,
+    (renderer, options): (&Renderer, &Options),
+) -> Result<(Frame, Option<FragmentLists>)> {
+    let method = a.method;
+    let cpu = renderer.allocate_for_gpu(method)?;
+    let gpu = Gpu::new()?;
+    eprintln!("GPU: {}", gpu.adapter());
+    let (w, h) = (fl.width, fl.height);
+    let cam = crate::args::view_camera(scene, a.view, &a.common);
+    let slots = Slots::for_method(method, &cpu, options)?;
+    // The GPU counts first and decides on its own count whether the exact A-buffer is
+    // no dearer, as the CPU did (the two counts can differ by an edge's fragment).
+    let opts = FrameOptions {
+        exact_when_cheaper: options.exact_when_cheaper,
+        capture: a.capture,
+        tuning: dhoit_runtime::gpu::Tuning {
+            record_batches: options.record_batches,
+            ..Default::default()
+        },
+        ..FrameOptions::default()
+    };
+    let g = gpu.render_with(&opts, scene, &cam, (w, h), a.common.background, slots)?;
+    match g.pass_ms.is_empty() {
+        true => println!(
+            "GPU passes: {} (untimed: the device has no timestamps)",
+            g.passes.join(", ")
+        ),
+        false => {
+            let passes: Vec<String> = g
+                .pass_ms
+                .iter()
+                .map(|(n, ms)| format!("{n} {ms:.2} ms"))
+                .collect();
+            println!("GPU passes: {}", passes.join(", "));
+        }
+    }
+    // The GPU's own k (VKB and DKB allocate on the device); what it captures follows.
+    let k: Vec<u32> = match &g.slots {
+        Some((_, bases, _)) => bases.windows(2).map(|b| b[1] - b[0]).collect(),
+        None if g.exact => fl.counts(),
+        None => cpu.k.clone(),
+    };
+    let captured = k.iter().zip(fl.counts()).map(|(&k, n)| k.min(n) as u64);
+    let fragments = match g.fragments {
+        Some(fr) => Some(fr),
+        None if a.dump.is_some() => {
+            gpu.render(
+                scene,
+                &cam,
+                w,
+                h,
+                a.common.background,
+                dhoit_runtime::gpu::Slots::Exact,
+            )?
+            .fragments
+        }
+        None => None,
+    };
+    let frame = Frame {
+        method,
+        image: g.image,
+        fragments_captured: captured.sum(),
+        k,
+        budget_bytes: cpu.budget_bytes,
+        budget_fragments: cpu.budget_fragments,
+        allocated_bytes: g.allocated_bytes,
+        fragments_total: fl.fragment_count() as u64,
+        allocation_ms: cpu.allocation_ms,
+        composite_ms: 0.0,
+        optimal: cpu.optimal,
+        exact: cpu.exact || g.exact,
+    };
+    Ok((frame, fragments))
 }

@@ -110,6 +110,34 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// The mean absolute error of an orbit's frames against its exact ones, and how much that error
+/// changes from one frame to the next (the mean absolute difference of consecutive error
+/// images): flicker a viewer sees.
+fn error_and_change(images: &[Image], exact: &[Image]) -> (f64, f64) {
+    let errors: Vec<Vec<f32>> = images
+        .iter()
+        .zip(exact)
+        .map(|(a, e)| error_image(a, e))
+        .collect();
+    let mean_error = errors
+        .iter()
+        .map(|e| e.iter().map(|&v| v as f64).sum::<f64>() / e.len().max(1) as f64)
+        .sum::<f64>()
+        / errors.len().max(1) as f64;
+    let changes: Vec<f64> = errors
+        .windows(2)
+        .map(|p| {
+            p[0].iter()
+                .zip(&p[1])
+                .map(|(a, b)| (a - b).abs() as f64)
+                .sum::<f64>()
+                / p[0].len().max(1) as f64
+        })
+        .collect();
+    let temporal = changes.iter().sum::<f64>() / changes.len().max(1) as f64;
+    (mean_error, temporal)
+}
+
 /// The orbit of `frames` frames of `scene` at `(w, h)` for every streamed method at `budget`
 /// (DKB with `weights`), as JSON: one entry a method (an error entry where the method refuses
 /// the budget), and DKB's frame time against the A-buffer's and VKB's.
@@ -147,28 +175,7 @@ pub fn sequence_bench(
         if m == Method::Abuffer {
             exact = one.images.clone();
         }
-        let errors: Vec<Vec<f32>> = one
-            .images
-            .iter()
-            .zip(&exact)
-            .map(|(a, e)| error_image(a, e))
-            .collect();
-        let mean_error = errors
-            .iter()
-            .map(|e| e.iter().map(|&v| v as f64).sum::<f64>() / e.len().max(1) as f64)
-            .sum::<f64>()
-            / errors.len().max(1) as f64;
-        let changes: Vec<f64> = errors
-            .windows(2)
-            .map(|p| {
-                p[0].iter()
-                    .zip(&p[1])
-                    .map(|(a, b)| (a - b).abs() as f64)
-                    .sum::<f64>()
-                    / p[0].len().max(1) as f64
-            })
-            .collect();
-        let temporal = changes.iter().sum::<f64>() / changes.len().max(1) as f64;
+        let (mean_error, temporal) = error_and_change(&one.images, &exact);
         let gpu_ms: Vec<f64> = flight
             .reports
             .iter()
