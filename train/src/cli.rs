@@ -340,36 +340,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
     let out = out_path(&a, own);
     let default_weights = Path::new(DEFAULT_WEIGHTS);
     let init = initial_network(&a, own, [h1, h2])?;
-    let config = TrainConfig {
-        loss: a.loss,
-        clip: a.clip,
-        epochs: a.epochs.unwrap_or(if own {
-            OWN_EPOCHS
-        } else {
-            TrainConfig::default().epochs
-        }),
-        lr: a.lr.unwrap_or(if own {
-            OWN_LR
-        } else {
-            TrainConfig::default().lr
-        }),
-        batch: a.batch,
-        l1: a.l1,
-        l2: a.l2,
-        hidden: [h1, h2],
-        momentum: a.momentum,
-        cosine: !a.constant_lr,
-        seed: a.seed,
-        // Your own scenes are all trained on (the held-out views are scored after); the best
-        // epoch is then chosen on the training loss.
-        validation_scenes: if !a.validation.is_empty() {
-            a.validation.clone()
-        } else if own {
-            Vec::new()
-        } else {
-            dataset::default_validation()
-        },
-    };
+    let config = train_config(&a, own, [h1, h2]);
     // Before any dataset is generated or loaded.
     config.check()?;
     let dir = out
@@ -469,6 +440,42 @@ pub fn train(a: TrainArgs) -> Result<()> {
         held_out(c, start, &mlp, &out, &dir)?;
     }
     Ok(())
+}
+
+/// The training's configuration from the command line: the defaults of a training from the
+/// built-in scenes, or of fine-tuning on your own (`own`: a smaller learning rate, fewer
+/// epochs, no validation scenes unless given).
+fn train_config(a: &TrainArgs, own: bool, [h1, h2]: [usize; 2]) -> TrainConfig {
+    TrainConfig {
+        loss: a.loss,
+        clip: a.clip,
+        epochs: a.epochs.unwrap_or(if own {
+            OWN_EPOCHS
+        } else {
+            TrainConfig::default().epochs
+        }),
+        lr: a.lr.unwrap_or(if own {
+            OWN_LR
+        } else {
+            TrainConfig::default().lr
+        }),
+        batch: a.batch,
+        l1: a.l1,
+        l2: a.l2,
+        hidden: [h1, h2],
+        momentum: a.momentum,
+        cosine: !a.constant_lr,
+        seed: a.seed,
+        // Your own scenes are all trained on (the held-out views are scored after); the best
+        // epoch is then chosen on the training loss.
+        validation_scenes: if !a.validation.is_empty() {
+            a.validation.clone()
+        } else if own {
+            Vec::new()
+        } else {
+            dataset::default_validation()
+        },
+    }
 }
 
 /// What `train --scene` reports: the start network and the trained one scored on views of the
