@@ -500,20 +500,8 @@ pub fn export(scene: &Scene, path: &Path) -> Result<()> {
 /// The `.glb` bytes of a scene (see [`export`]).
 pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, SceneFault> {
     use serde_json::{Value, json};
+    check_exportable(scene)?;
     let n = scene.positions.len();
-    if n == 0 || !n.is_multiple_of(3) || scene.colors.len() != n {
-        return Err(SceneFault::Unpaired {
-            positions: n,
-            colors: scene.colors.len(),
-        });
-    }
-    if let Some(vertex) = scene.positions.iter().position(|p| !p.is_finite()) {
-        return Err(SceneFault::NonFinite {
-            vertex,
-            position: scene.positions[vertex],
-        });
-    }
-    scene.check_materials()?;
     let mut bin: Vec<u8> = Vec::with_capacity(n * 36);
     let mut views: Vec<Value> = Vec::new();
     let mut accessors: Vec<Value> = Vec::new();
@@ -624,7 +612,32 @@ pub fn to_glb(scene: &Scene) -> std::result::Result<Vec<u8>, SceneFault> {
     if !used.is_empty() {
         root["extensionsUsed"] = json!(used);
     }
-    let mut json = serde_json::to_vec(&root).expect("a serde_json::Value always serialises");
+    let json = serde_json::to_vec(&root).expect("a serde_json::Value always serialises");
+    glb_container(json, bin)
+}
+
+/// What a scene must be to be written as glTF: whole triangles with a colour a vertex, finite
+/// positions, materials whose references hold.
+fn check_exportable(scene: &Scene) -> std::result::Result<(), SceneFault> {
+    let n = scene.positions.len();
+    if n == 0 || !n.is_multiple_of(3) || scene.colors.len() != n {
+        return Err(SceneFault::Unpaired {
+            positions: n,
+            colors: scene.colors.len(),
+        });
+    }
+    if let Some(vertex) = scene.positions.iter().position(|p| !p.is_finite()) {
+        return Err(SceneFault::NonFinite {
+            vertex,
+            position: scene.positions[vertex],
+        });
+    }
+    scene.check_materials()
+}
+
+/// The GLB container of a glTF document: its 12-byte header, the JSON chunk (padded with
+/// spaces to 4 bytes) and the binary chunk (`bin`, already padded), refused past 4 GiB.
+fn glb_container(mut json: Vec<u8>, bin: Vec<u8>) -> std::result::Result<Vec<u8>, SceneFault> {
     while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
