@@ -143,49 +143,79 @@ pub fn run(a: BenchArgs) -> Result<()> {
         );
         return write_report(report(gpu), a.out.as_deref());
     }
-    let mut results = Vec::new();
-    for (name, s) in &scenes {
-        let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, w, h);
-        let (t_raster, fl) = best(a.repeat, || Ok(raster::rasterize(s, &cam, w, h)?))?;
-        let frags = fl.fragment_count() as f64;
-        let mut entry = serde_json::json!({
-            "scene": name, "triangles": s.triangle_count(), "width": w, "height": h,
-            "fragments": fl.fragment_count(), "max_depth_complexity": fl.max_depth_complexity(),
-            "raster_ms": t_raster * 1e3, "raster_fragments_per_s": frags / t_raster,
-        });
-        for m in [
-            Method::Abuffer,
-            Method::Fkb,
-            Method::Vkb,
-            Method::Mlab,
-            Method::Wboit,
-            Method::Mboit,
-        ] {
-            let (t, _) = best(a.repeat, || {
-                Ok(
-                    Renderer::new(&fl, Options::new(budget, [1.0; 3]).always_approximate())
-                        .render(m)?,
-                )
-            })?;
-            entry[format!("{}_ms", m.name())] = (t * 1e3).into();
-            entry[format!("{}_fragments_per_s", m.name())] = (frags / t).into();
-        }
-        eprintln!(
-            "{name}: {} fragments, raster {:.0} ms",
-            fl.fragment_count(),
-            t_raster * 1e3
-        );
-        results.push(entry);
-    }
+    let results = scenes
+        .iter()
+        .map(|(name, s)| cpu_scene_bench(name, s, (w, h), budget, a.repeat))
+        .collect::<Result<Vec<_>>>()?;
     // The optimal allocation on the deepest scene measured, at two resolutions.
     let deepest = results
         .iter()
         .max_by_key(|r| r["max_depth_complexity"].as_u64().unwrap_or(0))
         .map(|r| r["scene"].as_str().unwrap_or("particles").to_string())
         .unwrap_or_else(|| "particles".into());
+    let optimal = optimal_bench(&deepest, budget, a.repeat)?;
+    let network = network_bench(a.repeat)?;
+    let gpu = gpu_bench(&scenes, (w, h), budget, (a.repeat, a.sequence), &mut |_| {});
+    let report = serde_json::json!({
+        "threads": rayon::current_num_threads(),
+        "gpu": gpu,
+        "network": network,
+        "budget": budget.to_string(),
+        "repeat": a.repeat,
+        "cpu": results,
+        "optimal_allocation": optimal,
+    });
+    write_report(report, a.out.as_deref())
+}
+
+/// One scene's CPU figures at `(w, h)`, view 0: rasterization and every CPU method's frame at
+/// `budget` (always approximate), best of `repeat`.
+fn cpu_scene_bench(
+    name: &str,
+    s: &scene::Scene,
+    (w, h): (u32, u32),
+    budget: Budget,
+    repeat: usize,
+) -> Result<serde_json::Value> {
+    let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, w, h);
+    let (t_raster, fl) = best(repeat, || Ok(raster::rasterize(s, &cam, w, h)?))?;
+    let frags = fl.fragment_count() as f64;
+    let mut entry = serde_json::json!({
+        "scene": name, "triangles": s.triangle_count(), "width": w, "height": h,
+        "fragments": fl.fragment_count(), "max_depth_complexity": fl.max_depth_complexity(),
+        "raster_ms": t_raster * 1e3, "raster_fragments_per_s": frags / t_raster,
+    });
+    for m in [
+        Method::Abuffer,
+        Method::Fkb,
+        Method::Vkb,
+        Method::Mlab,
+        Method::Wboit,
+        Method::Mboit,
+    ] {
+        let (t, _) = best(repeat, || {
+            Ok(
+                Renderer::new(&fl, Options::new(budget, [1.0; 3]).always_approximate())
+                    .render(m)?,
+            )
+        })?;
+        entry[format!("{}_ms", m.name())] = (t * 1e3).into();
+        entry[format!("{}_fragments_per_s", m.name())] = (frags / t).into();
+    }
+    eprintln!(
+        "{name}: {} fragments, raster {:.0} ms",
+        fl.fragment_count(),
+        t_raster * 1e3
+    );
+    Ok(entry)
+}
+
+/// The optimal allocation's time on `deepest` at 640x480 and 1430x960 (error curves and the
+/// solve, best of `repeat`), or why a resolution was skipped.
+fn optimal_bench(deepest: &str, budget: Budget, repeat: usize) -> Result<Vec<serde_json::Value>> {
     let mut optimal = Vec::new();
     for (w, h) in [(640u32, 480u32), (1430, 960)] {
-        let s = scene::load(&deepest, Opacity::default())?;
+        let s = scene::load(deepest, Opacity::default())?;
         let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
         let fl = raster::rasterize(&s, &cam, w, h)?;
         let frags = fl.fragment_count() as f64;
@@ -204,8 +234,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 continue;
             }
         };
-        let (t_curves, curves) = best(a.repeat, || Ok(alloc::error_curves(&fl, [1.0; 3])))?;
-        let (t_opt, (_, rep)) = best(a.repeat, || Ok(alloc::optimal(&curves, f)))?;
+        let (t_curves, curves) = best(repeat, || Ok(alloc::error_curves(&fl, [1.0; 3])))?;
+        let (t_opt, (_, rep)) = best(repeat, || Ok(alloc::optimal(&curves, f)))?;
         eprintln!(
             "optimal allocation, {deepest} {w}x{h}: {} fragments, curves {:.0} ms + solve {:.0} ms",
             fl.fragment_count(),
@@ -221,18 +251,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
             "greedy_increase_total": rep.greedy_increase_total, "hull_total": rep.hull_total,
         }));
     }
-    let network = network_bench(a.repeat)?;
-    let gpu = gpu_bench(&scenes, (w, h), budget, (a.repeat, a.sequence), &mut |_| {});
-    let report = serde_json::json!({
-        "threads": rayon::current_num_threads(),
-        "gpu": gpu,
-        "network": network,
-        "budget": budget.to_string(),
-        "repeat": a.repeat,
-        "cpu": results,
-        "optimal_allocation": optimal,
-    });
-    write_report(report, a.out.as_deref())
+    Ok(optimal)
 }
 
 /// The network's throughput, in samples a second: training steps (the MSE step at batch 512
