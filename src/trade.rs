@@ -431,6 +431,22 @@ enum Timer {
 }
 
 impl Timer {
+    /// The timer `timing` asks for: the GPU's timestamps, the CPU twin, or (auto) the GPU where
+    /// there is one, saying so where there is none.
+    fn of(timing: Timing) -> Result<Timer> {
+        Ok(match timing {
+            Timing::Cpu => Timer::Cpu,
+            Timing::Gpu => Timer::Gpu(Box::new(dhoit_runtime::gpu::Gpu::new()?)),
+            Timing::Auto => match dhoit_runtime::gpu::Gpu::new() {
+                Ok(g) => Timer::Gpu(Box::new(g)),
+                Err(e) => {
+                    eprintln!("trade: no GPU ({e}): timing the CPU twin");
+                    Timer::Cpu
+                }
+            },
+        })
+    }
+
     fn name(&self) -> String {
         match self {
             Timer::Gpu(g) => format!("gpu timestamps: {}", g.adapter()),
@@ -522,17 +538,7 @@ pub fn trade(a: TradeArgs) -> Result<()> {
         .budgets
         .first()
         .context("give at least one budget")?;
-    let timer = match a.timing {
-        Timing::Cpu => Timer::Cpu,
-        Timing::Gpu => Timer::Gpu(Box::new(dhoit_runtime::gpu::Gpu::new()?)),
-        Timing::Auto => match dhoit_runtime::gpu::Gpu::new() {
-            Ok(g) => Timer::Gpu(Box::new(g)),
-            Err(e) => {
-                eprintln!("trade: no GPU ({e}): timing the CPU twin");
-                Timer::Cpu
-            }
-        },
-    };
+    let timer = Timer::of(a.timing)?;
     eprintln!(
         "trade: {} networks at {} precisions ({}) on {} scenes; importance pass timed by {}",
         nets.len() / a.precision.len().max(1),
@@ -570,32 +576,7 @@ pub fn trade(a: TradeArgs) -> Result<()> {
     pb.finish_and_clear();
     // Every scene together: geometric means of time and MSE, mean FLIP.
     if scenes.len() > 1 {
-        let mut points: Vec<Point> = scenes[0]
-            .points
-            .iter()
-            .enumerate()
-            .map(|(i, p0)| {
-                let all: Vec<&Point> = scenes.iter().map(|s| &s.points[i]).collect();
-                let frames: Vec<Measure> = all.iter().flat_map(|p| p.frames.clone()).collect();
-                let mut p = Point {
-                    time_ms: geomean(all.iter().map(|p| p.time_ms)),
-                    ..p0.clone()
-                };
-                p.mse = geomean(all.iter().map(|p| p.mse));
-                p.flip = all.iter().map(|p| p.flip).sum::<f64>() / all.len() as f64;
-                p.mse_over_optimal = over_optimal(&frames);
-                p.mse_over_vkb = over_vkb(&frames);
-                p.mse_over_vkb_equal_bytes = over_vkb_at_equal_bytes(&frames);
-                p.bytes_over_abuffer = bytes_over_abuffer(&frames);
-                p.frames = Vec::new();
-                p
-            })
-            .collect();
-        mark_front(&mut points);
-        scenes.push(SceneTrade {
-            scene: "all".into(),
-            points,
-        });
+        scenes.push(every_scene(&scenes));
     }
     let report = Report {
         timing: timer.name(),
@@ -612,7 +593,77 @@ pub fn trade(a: TradeArgs) -> Result<()> {
     let json = serde_json::to_string_pretty(&report)?;
     dhoit_runtime::tensors::write_atomic(&a.out.join("trade.json"), json.as_bytes())?;
     dhoit_runtime::tensors::write_atomic(&a.out.join("trade.md"), md.as_bytes())?;
-    let time_label = match &timer {
+    let plots = write_plots(&report, &timer, &a.out);
+    if let Some(dir) = &a.summary {
+        dhoit_runtime::tensors::create_folder(dir)?;
+        // The small form: per-frame measures left out.
+        let mut small = report.clone();
+        for s in &mut small.scenes {
+            for p in &mut s.points {
+                p.frames.clear();
+            }
+        }
+        dhoit_runtime::tensors::write_atomic(
+            &dir.join("trade.json"),
+            serde_json::to_string_pretty(&small)?.as_bytes(),
+        )?;
+        dhoit_runtime::tensors::write_atomic(&dir.join("trade.md"), md.as_bytes())?;
+        let last = &report.scenes.last().expect("a scene").scene;
+        for ext in ["svg", "png"] {
+            let from = a.out.join(format!("trade_{last}.{ext}"));
+            if from.is_file() {
+                std::fs::copy(&from, dir.join(format!("trade.{ext}")))
+                    .with_context(|| format!("cannot copy {}", from.display()))?;
+            }
+        }
+    }
+    println!(
+        "trade.json, trade.md{} -> {}",
+        if plots.is_empty() {
+            ""
+        } else {
+            " and the plots"
+        },
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// Every scene's trade together, as one scene named "all": geometric means of time and MSE,
+/// mean FLIP, the ratios over every frame, its own front.
+fn every_scene(scenes: &[SceneTrade]) -> SceneTrade {
+    let mut points: Vec<Point> = scenes[0]
+        .points
+        .iter()
+        .enumerate()
+        .map(|(i, p0)| {
+            let all: Vec<&Point> = scenes.iter().map(|s| &s.points[i]).collect();
+            let frames: Vec<Measure> = all.iter().flat_map(|p| p.frames.clone()).collect();
+            let mut p = Point {
+                time_ms: geomean(all.iter().map(|p| p.time_ms)),
+                ..p0.clone()
+            };
+            p.mse = geomean(all.iter().map(|p| p.mse));
+            p.flip = all.iter().map(|p| p.flip).sum::<f64>() / all.len() as f64;
+            p.mse_over_optimal = over_optimal(&frames);
+            p.mse_over_vkb = over_vkb(&frames);
+            p.mse_over_vkb_equal_bytes = over_vkb_at_equal_bytes(&frames);
+            p.bytes_over_abuffer = bytes_over_abuffer(&frames);
+            p.frames = Vec::new();
+            p
+        })
+        .collect();
+    mark_front(&mut points);
+    SceneTrade {
+        scene: "all".into(),
+        points,
+    }
+}
+
+/// The trade's plot of every scene of `report` into `out` (`trade_SCENE.svg` and `.png`):
+/// the files written.
+fn write_plots(report: &Report, timer: &Timer, out: &std::path::Path) -> Vec<PathBuf> {
+    let time_label = match timer {
         // The adapter's short name: "llvmpipe (LLVM ...)" -> "llvmpipe".
         Timer::Gpu(g) => format!(
             "importance pass, ms (GPU timestamps, {})",
@@ -647,45 +698,13 @@ pub fn trade(a: TradeArgs) -> Result<()> {
             report.views.len()
         );
         plots.extend(plot::trade(
-            &a.out.join(format!("trade_{}", s.scene)),
+            &out.join(format!("trade_{}", s.scene)),
             &title,
             &time_label,
             &pts,
         ));
     }
-    if let Some(dir) = &a.summary {
-        dhoit_runtime::tensors::create_folder(dir)?;
-        // The small form: per-frame measures left out.
-        let mut small = report.clone();
-        for s in &mut small.scenes {
-            for p in &mut s.points {
-                p.frames.clear();
-            }
-        }
-        dhoit_runtime::tensors::write_atomic(
-            &dir.join("trade.json"),
-            serde_json::to_string_pretty(&small)?.as_bytes(),
-        )?;
-        dhoit_runtime::tensors::write_atomic(&dir.join("trade.md"), md.as_bytes())?;
-        let last = &report.scenes.last().expect("a scene").scene;
-        for ext in ["svg", "png"] {
-            let from = a.out.join(format!("trade_{last}.{ext}"));
-            if from.is_file() {
-                std::fs::copy(&from, dir.join(format!("trade.{ext}")))
-                    .with_context(|| format!("cannot copy {}", from.display()))?;
-            }
-        }
-    }
-    println!(
-        "trade.json, trade.md{} -> {}",
-        if plots.is_empty() {
-            ""
-        } else {
-            " and the plots"
-        },
-        a.out.display()
-    );
-    Ok(())
+    plots
 }
 
 fn tables(r: &Report) -> (String, String) {
