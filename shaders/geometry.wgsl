@@ -264,8 +264,8 @@ struct Transparent {
 
 // The fragment as a transparent pass stores it: in front of the opaque depth, transparent,
 // and of non-zero 8-bit opacity (raster.rs's transparent pass); its colour 8 bits a channel
-// (fragment::quantize_hdr): clamped at white, or where the frame keeps colours above white
-// (params.hdr) at 2^HDR_MAX_EXPONENT, its RGB over 2^e.
+// (common.wgsl's stored_rgba8: clamped at white, or where the frame keeps colours above white,
+// its RGB over 2^e).
 fn transparent_fragment(in: VertexOut, front: bool) -> Transparent {
     var out: Transparent;
     out.visible = false;
@@ -279,13 +279,9 @@ fn transparent_fragment(in: VertexOut, front: bool) -> Transparent {
     if (s.kind != SHADED_TRANSPARENT) {
         return out;
     }
-    let max_e = select(0u, HDR_MAX_EXPONENT, params.hdr != 0u);
-    let top = vec3<f32>(f32(1u << max_e));
-    let c = select(vec3<f32>(0.0), min(s.color.rgb, top), s.color.rgb > vec3<f32>(0.0));
-    let e = hdr_exponent(c, max_e);
-    let rgba8 = pack_rgba8(vec4<f32>(c / f32(1u << e), s.color.a));
-    out.visible = (rgba8 >> 24u) != 0u;
-    out.rgba8 = rgba8;
-    out.tint = pack_rgba8(vec4<f32>(clamp(s.tint, vec3<f32>(0.0), vec3<f32>(1.0)), 0.0)) | (e << 24u);
+    let stored = stored_rgba8(s.color);
+    out.visible = (stored.x >> 24u) != 0u;
+    out.rgba8 = stored.x;
+    out.tint = pack_rgba8(vec4<f32>(clamp(s.tint, vec3<f32>(0.0), vec3<f32>(1.0)), 0.0)) | (stored.y << 24u);
     return out;
 }

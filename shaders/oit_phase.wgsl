@@ -23,8 +23,7 @@ struct Transparent {
 };
 
 // As geometry.wgsl's: in front of the opaque depth (LESS), its colour 8 bits a channel
-// (clamped at white, or where the frame keeps colours above white, params.hdr, its RGB over
-// 2^e, e its exponent: geometry.wgsl's transparent_fragment), and of non-zero 8-bit opacity.
+// (common.wgsl's stored_rgba8), and of non-zero 8-bit opacity.
 fn transparent_fragment(in: VertexOut, front: bool) -> Transparent {
     var out: Transparent;
     out.visible = false;
@@ -34,13 +33,9 @@ fn transparent_fragment(in: VertexOut, front: bool) -> Transparent {
     if (in.clip.z >= d) {
         return out;
     }
-    let max_e = select(0u, HDR_MAX_EXPONENT, params.hdr != 0u);
-    let top = vec3<f32>(f32(1u << max_e));
-    let c = select(vec3<f32>(0.0), min(oit_color.rgb, top), oit_color.rgb > vec3<f32>(0.0));
-    let e = hdr_exponent(c, max_e);
-    let rgba8 = pack_rgba8(vec4<f32>(c / f32(1u << e), oit_color.a));
-    out.visible = (rgba8 >> 24u) != 0u;
-    out.rgba8 = rgba8;
-    out.tint = CLEAR | (e << 24u);
+    let stored = stored_rgba8(oit_color);
+    out.visible = (stored.x >> 24u) != 0u;
+    out.rgba8 = stored.x;
+    out.tint = CLEAR | (stored.y << 24u);
     return out;
 }
