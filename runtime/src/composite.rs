@@ -866,8 +866,7 @@ impl Tail {
     /// `2^e - 1` more of each the same way); `a8` to the alpha sum.
     pub fn add(&mut self, rgba: [f32; 4], tint: u32) {
         let a = to_unorm8(rgba[3]);
-        let c8 = crate::fragment::mantissa_rgba8(rgba);
-        let e = crate::fragment::tint_word(rgba, 0) >> 24;
+        let (c8, e) = crate::fragment::mantissa_and_exponent(rgba);
         for (i, s) in self.sum_ca.iter_mut().enumerate() {
             *s = s.saturating_add((((c8 >> (8 * i)) & 0xff) * a) << e);
         }

@@ -63,9 +63,15 @@ pub fn quantize_hdr(rgba: [f32; 4], max: u32) -> [f32; 4] {
 /// The RGBA8 a stored colour keeps beside its exponent (R in the low byte): its RGB over `2^e`.
 /// For colours within white it is [`pack_rgba8`].
 pub fn mantissa_rgba8(rgba: [f32; 4]) -> u32 {
+    mantissa_and_exponent(rgba).0
+}
+
+/// [`mantissa_rgba8`] and the exponent `e` it is over ([`hdr_exponent`]).
+pub fn mantissa_and_exponent(rgba: [f32; 4]) -> (u32, u32) {
     let e = hdr_exponent([rgba[0], rgba[1], rgba[2]], crate::shared::HDR_MAX_EXPONENT);
     let scale = (1u32 << e) as f32;
-    pack_rgba8([rgba[0] / scale, rgba[1] / scale, rgba[2] / scale, rgba[3]])
+    let c8 = pack_rgba8([rgba[0] / scale, rgba[1] / scale, rgba[2] / scale, rgba[3]]);
+    (c8, e)
 }
 
 /// A fragment's tint word as the GPU stores it beside its key: the tint (RGB8) low, the
