@@ -227,13 +227,16 @@ fn reserved(
     Ok(r)
 }
 
+/// DKB without a network.
+fn no_weights() -> Error {
+    Error::Invalid("dkb needs network weights (--weights FILE)".into())
+}
+
 /// What `method`'s own options must be, whatever the frame: DKB's weights, the list's sorted
 /// mode, MBOIT's moments, WBOIT's weight.
 fn check_method_options(method: Method, opts: &Options) -> Result<()> {
     match method {
-        Method::Dkb if opts.weights.is_none() => Err(Error::Invalid(
-            "dkb needs network weights (--weights FILE)".into(),
-        )),
+        Method::Dkb if opts.weights.is_none() => Err(no_weights()),
         Method::LinkedList => composite::check_list_sorted(opts.list_sorted),
         Method::Mboit => composite::MboitParams::with_moments(opts.mboit.moments).map(|_| ()),
         Method::Wboit => opts.wboit.check(),
@@ -528,7 +531,6 @@ impl<'a> Renderer<'a> {
         let occ = Occupancy::of(&counts);
         let layout = opts.layout(method);
         let t0 = Instant::now();
-        let no_weights = || Error::Invalid("dkb needs network weights (--weights FILE)".into());
         // Refused whatever the frame: even one the A-buffer renders exactly.
         check_method_options(method, opts)?;
         let budget = self.budget()?;
