@@ -49,6 +49,10 @@ impl Words {
     pub fn any(self) -> bool {
         self != Words::None
     }
+    /// Whether the words hold tints (the frame's glass is tinted), not exponents alone.
+    pub fn tints(self) -> bool {
+        self == Words::Tints
+    }
     /// Words of the tint pass a pool word (pooled tails) or a slot, and a pixel (per-pixel
     /// tails: its tail's sums).
     fn per_slot_and_pixel(self, pooled: bool) -> (u64, u64) {

@@ -66,7 +66,7 @@ impl Recording<'_, '_, '_> {
         // Each fragment's tint word where the frame stores them (tinted glass, colours above
         // white).
         let (tints, tinted) = fb.tints("abuf", total, self.words.any())?;
-        let tinted_glass = self.words == crate::budget::Words::Tints;
+        let tinted_glass = self.words.tints();
         passes.draw(
             fb.enc,
             Phase::Store,

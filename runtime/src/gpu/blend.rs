@@ -265,7 +265,7 @@ impl Recording<'_, '_, '_> {
     /// WBOIT's accumulation and composite.
     pub(super) fn wboit(&mut self, size: (u32, u32)) -> Result<()> {
         let passes = self.passes;
-        let pass = match self.tinted {
+        let pass = match self.words.tints() {
             true => BlendPass::WBOIT_TINTED,
             false => BlendPass::WBOIT,
         };
@@ -277,7 +277,7 @@ impl Recording<'_, '_, '_> {
         let fb = &mut self.fb;
         let attachments: Vec<_> = targets.iter().map(|(v, c)| (v, *c)).collect();
         let (accumulate, composite) = passes.gpu.extras().wboit();
-        let accumulate = match self.tinted {
+        let accumulate = match self.words.tints() {
             true => passes.gpu.extras().wboit_tinted(),
             false => accumulate,
         };
@@ -306,7 +306,7 @@ impl Recording<'_, '_, '_> {
     pub(super) fn mboit(&mut self, size: (u32, u32), moments: u32) -> Result<()> {
         let passes = self.passes;
         let gpu = passes.gpu;
-        let tinted = self.tinted;
+        let tinted = self.words.tints();
         let [moments_blend, accumulate_blend] = BlendPass::mboit_for(moments, tinted)?;
         let at = (moments as usize - 4) / 2;
         let (mboit, composite) = gpu.extras().mboit();

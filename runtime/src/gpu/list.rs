@@ -24,7 +24,7 @@ impl Recording<'_, '_, '_> {
         let counter = fb.storage("list.counter", 16, true)?;
         // A tint word a node where the frame stores them (4 bytes more).
         let (tints, tinted) = fb.tints("list", nodes, self.words.any())?;
-        let tinted_glass = self.words == crate::budget::Words::Tints;
+        let tinted_glass = self.words.tints();
         let (store, resolve) = gpu.extras().list();
         passes.draw(
             fb.enc,

@@ -934,9 +934,6 @@ struct Recording<'f, 'a, 'e> {
     /// Pixels.
     px: u64,
     sizing: Sizing,
-    /// Whether the frame's glass is tinted (`Params::tinted`): the blended methods' passes
-    /// for tints.
-    tinted: bool,
     /// What the methods that store fragments store beside each one's key (`Params::tinted` or
     /// `Params::hdr`): its tint word (tint and colour exponent), and where the glass is tinted
     /// the k-buffers' tails' sums of what the tints take away.
@@ -1014,7 +1011,6 @@ impl Gpu {
             out: Readback::default(),
             px,
             sizing: spec.sizing,
-            tinted: params.tinted != 0,
             words: budget::Words::of(params.tinted != 0, params.tinted != 0 || params.hdr != 0),
         };
         if matches!(slots, Slots::Uniform(_)) {
