@@ -71,53 +71,35 @@ impl AppMethod {
         }
     }
 
-    /// The geometry passes a frame draws, in order, with the k-buffers' capture `capture`.
-    /// The geometry passes a frame draws with `capture`, and where its fragments keep tint words
-    /// (`tints`: colours above white), the k-buffers' tint pass after their capture.
+    /// The geometry passes a frame draws, in order, with the k-buffers' capture `capture`, and
+    /// where its fragments keep tint words (`tints`: colours above white) the k-buffers' tint
+    /// pass after their capture.
     pub(super) fn phases(&self, capture: Capture, tints: bool) -> &'static [Phase] {
         use Phase::*;
         let portable = capture == super::Capture::Portable;
-        let k_buffer = matches!(
-            self,
-            AppMethod::Fkb { .. } | AppMethod::Dkb(_) | AppMethod::Vkb(_)
-        );
-        if tints && k_buffer {
-            return match (self, portable) {
-                (AppMethod::Fkb { .. }, true) => &[CaptureDepths, CaptureColours, CaptureTints],
-                (AppMethod::Fkb { .. }, false) => &[Capture, CaptureTints],
-                (AppMethod::Dkb(_), true) => &[
-                    Count,
-                    FeaturesDepths,
-                    FeaturesColours,
-                    CaptureDepths,
-                    CaptureColours,
-                    CaptureTints,
-                ],
-                (AppMethod::Dkb(_), false) => &[Count, Features, Capture, CaptureTints],
-                (_, true) => &[VkbCount, CaptureDepths, CaptureColours, CaptureTints],
-                (_, false) => &[VkbCount, Capture, CaptureTints],
-            };
-        }
-        const PORTABLE: [Phase; 2] = [Phase::CaptureDepths, Phase::CaptureColours];
-        match self {
-            AppMethod::List { .. } => &[Phase::ListStore],
-            AppMethod::Fkb { .. } if portable => &PORTABLE,
-            AppMethod::Fkb { .. } => &[Phase::Capture],
-            AppMethod::Abuffer | AppMethod::Mlab { .. } => &[Phase::Count, Phase::Store],
-            AppMethod::Dkb(_) if portable => &[
-                Phase::Count,
-                Phase::FeaturesDepths,
-                Phase::FeaturesColours,
-                Phase::CaptureDepths,
-                Phase::CaptureColours,
+        // A k-buffer's passes, its tint pass last.
+        let k_buffer: &'static [Phase] = match (self, portable) {
+            (AppMethod::List { .. }, _) => return &[ListStore],
+            (AppMethod::Abuffer | AppMethod::Mlab { .. }, _) => return &[Count, Store],
+            (AppMethod::Wboit(_), _) => return &[WboitAccumulate],
+            (AppMethod::Mboit(_), _) => return &[MboitMoments, MboitAccumulate],
+            (AppMethod::Fkb { .. }, true) => &[CaptureDepths, CaptureColours, CaptureTints],
+            (AppMethod::Fkb { .. }, false) => &[Capture, CaptureTints],
+            (AppMethod::Dkb(_), true) => &[
+                Count,
+                FeaturesDepths,
+                FeaturesColours,
+                CaptureDepths,
+                CaptureColours,
+                CaptureTints,
             ],
-            AppMethod::Dkb(_) => &[Phase::Count, Phase::Features, Phase::Capture],
-            AppMethod::Vkb(_) if portable => {
-                &[Phase::VkbCount, Phase::CaptureDepths, Phase::CaptureColours]
-            }
-            AppMethod::Vkb(_) => &[Phase::VkbCount, Phase::Capture],
-            AppMethod::Wboit(_) => &[Phase::WboitAccumulate],
-            AppMethod::Mboit(_) => &[Phase::MboitMoments, Phase::MboitAccumulate],
+            (AppMethod::Dkb(_), false) => &[Count, Features, Capture, CaptureTints],
+            (AppMethod::Vkb(_), true) => &[VkbCount, CaptureDepths, CaptureColours, CaptureTints],
+            (AppMethod::Vkb(_), false) => &[VkbCount, Capture, CaptureTints],
+        };
+        match tints {
+            true => k_buffer,
+            false => &k_buffer[..k_buffer.len() - 1],
         }
     }
 
