@@ -4,8 +4,8 @@
 //! Tensors: `offsets` u32 `[W*H+1]` (pixel p's fragments are `offsets[p]..offsets[p+1]`, row-major
 //! from the top-left pixel), `depth` f32 `[F]`, `rgba` f32 `[F,4]` (non-premultiplied), `primitive`
 //! u32 `[F]` (submission index), `k` u32 `[W*H]`, `image` f32 `[H,W,3]` (linear); where the frame has
-//! opaque surfaces, `opaque` u32 `[W*H]` (each pixel's nearest opaque colour as RGBA8, A = 255;
-//! 0 where none) and `opaque_depth` f32 `[W*H]` (its depth; 1 where none); where a fragment is
+//! opaque surfaces, `opaque` u32 `[W*H]` (each pixel's nearest opaque colour as
+//! `fragment::pack_opaque` stores it; 0 where none) and `opaque_depth` f32 `[W*H]` (its depth; 1 where none); where a fragment is
 //! tinted, `tint` u32 `[F]` (each fragment's RGB8 tint, `fragment::CLEAR` untinted). Metadata: `width`,
 //! `height`, `method`, `budget_bytes`, `budget_fragments` (F(M)), `background` ("r,g,b"),
 //! `format` ("dhoit-dump-1").

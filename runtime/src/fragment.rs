@@ -74,6 +74,25 @@ pub fn mantissa_and_exponent(rgba: [f32; 4]) -> (u32, u32) {
     (c8, e)
 }
 
+/// An opaque surface's colour as the opaque pass stores it, one 32-bit word a pixel: RGB8 of
+/// `rgb / 2^e` low ([`hdr_exponent`] up to [`crate::shared::HDR_MAX_EXPONENT`], whatever the
+/// frame: the word has room for it), `255 - e` in the top byte, so the word is never 0 (0 marks
+/// a pixel no opaque surface covers). Within white it is RGBA8 with A = 255 (opaque.wgsl).
+pub fn pack_opaque(rgb: [f32; 3]) -> u32 {
+    let top = (1u32 << crate::shared::HDR_MAX_EXPONENT) as f32;
+    let c = rgb.map(|v| if v > 0.0 { v.min(top) } else { 0.0 });
+    let (c8, e) = mantissa_and_exponent([c[0], c[1], c[2], 0.0]);
+    (c8 & CLEAR) | (255 - e) << 24
+}
+
+/// The colour a [`pack_opaque`] word holds (behind.wgsl's `behind`).
+pub fn unpack_opaque(word: u32) -> [f32; 3] {
+    let e = (255 - (word >> 24)).min(31);
+    let c = unpack_rgba8(word);
+    let scale = (1u32 << e) as f32;
+    [c[0] * scale, c[1] * scale, c[2] * scale]
+}
+
 /// A fragment's tint word as the GPU stores it beside its key: the tint (RGB8) low, the
 /// exponent of its colour ([`hdr_exponent`]) in the top byte. It breaks ties between equal
 /// keys ([`sort_front_to_back`]).
@@ -183,9 +202,9 @@ pub struct FragmentLists {
     pub primitive: Vec<u32>,
     /// `|n . v|` of the fragment's triangle.
     pub facing: Vec<f32>,
-    /// Per pixel, the nearest opaque surface's colour as RGBA8 with A = 255 (0 where none
-    /// covers the pixel): what every method composites over instead of the background. Empty
-    /// where the frame has no opaque surface.
+    /// Per pixel, the nearest opaque surface's colour as [`pack_opaque`] stores it (0 where
+    /// none covers the pixel): what every method composites over instead of the background.
+    /// Empty where the frame has no opaque surface.
     pub opaque: Vec<u32>,
     /// Per pixel, the nearest opaque surface's window depth (1 where none; empty with
     /// `opaque`): transparent fragments at or behind it are not in the lists.
@@ -237,10 +256,7 @@ impl FragmentLists {
     #[inline]
     pub fn behind(&self, p: usize, bg: [f32; 3]) -> [f32; 3] {
         match self.opaque.get(p) {
-            Some(&c) if c >> 24 != 0 => {
-                let c = unpack_rgba8(c);
-                [c[0], c[1], c[2]]
-            }
+            Some(&c) if c >> 24 != 0 => unpack_opaque(c),
             _ => bg,
         }
     }

@@ -42,7 +42,7 @@
 //! processed in parallel; the result does not depend on the number of threads.
 
 use crate::error::{Error, Result};
-use crate::fragment::{FragmentLists, pack_rgba8, quantize_hdr};
+use crate::fragment::{FragmentLists, pack_opaque, quantize_hdr};
 use crate::scene::material::{self, Shaded};
 use crate::scene::{Camera, Scene};
 use glam::{Vec3, Vec4};
@@ -301,7 +301,8 @@ struct BandOut {
     tint: Vec<u32>,
     primitive: Vec<u32>,
     facing: Vec<f32>,
-    /// The nearest opaque fragment's RGBA8 (A = 255) and depth, per pixel of the band.
+    /// The nearest opaque fragment's colour ([`crate::fragment::pack_opaque`]) and depth, per
+    /// pixel of the band.
     opaque: Vec<u32>,
     opaque_depth: Vec<f32>,
 }
@@ -413,9 +414,8 @@ fn raster_band(
                     let l = homogeneous_weights(t.hclip, px, py);
                     match shading.shade(t, l) {
                         Shaded::Opaque(c) => {
-                            let c = Vec4::from(c).clamp(Vec4::ZERO, Vec4::ONE);
                             opaque_depth[pixel] = depth;
-                            opaque[pixel] = pack_rgba8([c.x, c.y, c.z, 1.0]);
+                            opaque[pixel] = pack_opaque([c[0], c[1], c[2]]);
                         }
                         Shaded::Transparent(c, tint) => {
                             let rgba = quantize_hdr(c, shading.max_exponent);

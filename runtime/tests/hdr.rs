@@ -410,3 +410,100 @@ fn a_byte_budget_holds_the_words_of_light_above_white() {
     let layout = dhoit_runtime::budget::FKB.allocated_bytes(px, 2 * px);
     assert_eq!(f.allocated_bytes, layout + 4 * 2 * px);
 }
+
+/// An opaque surface above white keeps its light: the opaque pass stores its colour as 8 bits
+/// over a power of two in its one word (by hand: 8, 1 and 0 as RGB8 255, 32, 0 over 2^3, top
+/// byte 255 - 3; within white the RGBA8 it always was; NaN, negative and beyond 2^15 as the
+/// transparent fragments' encoding takes them), every method composites over that light on the
+/// CPU (a pane of 8-bit opacity 128/255 over it lets 127/255 through), and the GPU's opaque
+/// pass and resolves are the twin's: a pixel of the surface alone reads back 8.0.
+#[test]
+fn an_opaque_surface_above_white_keeps_its_light() {
+    use dhoit_runtime::fragment::{pack_opaque, unpack_opaque};
+    use dhoit_runtime::scene::Coverage;
+    assert_eq!(
+        pack_opaque([8.0, 1.0, 0.0]),
+        0xff | 32 << 8 | (255 - 3) << 24
+    );
+    assert_eq!(
+        unpack_opaque(pack_opaque([8.0, 1.0, 0.0])),
+        [8.0, 32.0 * 8.0 / 255.0, 0.0]
+    );
+    for c in [[0.2, 0.4, 0.6], [0.0; 3], [1.0; 3]] {
+        assert_eq!(pack_opaque(c), pack_rgba8([c[0], c[1], c[2], 1.0]), "{c:?}");
+    }
+    let top = (1u32 << HDR_MAX_EXPONENT) as f32;
+    assert_eq!(
+        unpack_opaque(pack_opaque([1e9, f32::NAN, -1.0])),
+        [top, 0.0, 0.0]
+    );
+
+    let (w, h) = SIZE;
+    let mut s = Scene::default();
+    let wall = s.add_material(Material {
+        coverage: Coverage::Opaque,
+        base_color: [1.0; 4],
+        ..Material::default()
+    });
+    layer(&mut s, 0.8, [8.0, 1.0, 0.0, 1.0]);
+    for t in 0..s.triangle_count() {
+        s.triangle_material[t] = wall;
+    }
+    quad(
+        &mut s,
+        (-1.0, -1.0, 0.0, 1.0),
+        (0.3, 0.3),
+        [0.0, 0.0, 0.0, 0.5],
+    );
+    let cam = identity();
+    let fl = rasterize(&s, &cam, w, h).unwrap();
+    let lit = [8.0, 32.0 * 8.0 / 255.0, 0.0];
+    let through = lit.map(|c| c * 127.0 / 255.0);
+    let (left, right) = (w as usize / 4, 3 * w as usize / 4);
+    let row = (h as usize / 2) * w as usize;
+    let close =
+        |a: [f32; 3], b: [f32; 3]| (0..3).all(|i| (a[i] - b[i]).abs() <= 1e-5 * b[i].max(1.0));
+    let opts = Options::new(Budget::parse("1fpp").unwrap(), BLACK).always_approximate();
+    let weights = common::committed_weights();
+    let opts = Options {
+        weights: Some(&weights),
+        ..opts
+    };
+    for m in Method::ALL {
+        let f = dhoit_runtime::frame::render(&fl, m, opts).unwrap();
+        assert!(
+            close(f.image.data[row + right], lit),
+            "{m}: the surface alone"
+        );
+        let got = f.image.data[row + left];
+        // The blended methods' approximations of one fragment are exact but for rounding.
+        assert!(
+            (0..3).all(|i| (got[i] - through[i]).abs() <= 2e-3 * through[i].max(1.0)),
+            "{m}: through the pane {got:?}, {through:?}"
+        );
+    }
+    let Some(g) = gpu() else { return };
+    let ab = g
+        .render(&s, &cam, w, h, BLACK, dhoit_runtime::gpu::Slots::Exact)
+        .unwrap();
+    assert_eq!(ab.image.data[row + right], lit, "the GPU's surface alone");
+    assert!(
+        close(ab.image.data[row + left], through),
+        "{:?}",
+        ab.image.data[row + left]
+    );
+    let methods = [
+        Method::Abuffer,
+        Method::Fkb,
+        Method::Vkb,
+        Method::Dkb,
+        Method::Mlab,
+        Method::Wboit,
+        Method::Mboit,
+        Method::LinkedList,
+    ];
+    for (m, cpu, gpu) in common::cpu_and_gpu_frames(g, &s, &cam, &fl, opts, &methods) {
+        let (n, worst) = differing(&cpu.image, &gpu, common::twin_bound(m, 1e-5));
+        assert_eq!(n, 0, "{m}: {n} pixels (worst {worst})");
+    }
+}

@@ -728,8 +728,8 @@ fn transparent_layers_are_composited_over_the_opaque_image() {
     for m in [Method::Abuffer, Method::Fkb, Method::Vkb, Method::Mlab] {
         let f = frame::render(&fl, m, Options::new(Budget::parse("2fpp").unwrap(), BG)).unwrap();
         for &p in &covered {
-            let c = dhoit_runtime::fragment::unpack_rgba8(fl.opaque[p]);
-            assert_eq!(f.image.data[p], [c[0], c[1], c[2]], "{m} pixel {p}");
+            let c = dhoit_runtime::fragment::unpack_opaque(fl.opaque[p]);
+            assert_eq!(f.image.data[p], c, "{m} pixel {p}");
         }
     }
 }

@@ -84,8 +84,8 @@ pub(super) struct Wide {
 
 /// The opaque pass's depth attachment, which the transparent passes read as their occluder.
 pub(super) const OPAQUE_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// The opaque pass's colour: RGBA8 in one 32-bit word, A = 255 where an opaque surface covers
-/// the pixel (behind.wgsl reads it exactly).
+/// The opaque pass's colour in one 32-bit word, as `fragment::pack_opaque` stores it (0 where
+/// no opaque surface covers the pixel; behind.wgsl reads it exactly).
 pub(super) const OPAQUE_COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 
 pub(super) fn module(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {

@@ -36,8 +36,8 @@ pub(super) struct FrameInputs {
     /// Indices of the transparent triangles, and of the opaque ones after them.
     transparent: u32,
     opaque: u32,
-    /// The opaque pass's depth (the transparent passes' occluder) and colour (RGBA8 in an R32,
-    /// A = 255 where covered): the application's, counted for no method.
+    /// The opaque pass's depth (the transparent passes' occluder) and colour (`fragment::pack_opaque`'s
+    /// word in an R32, 0 where none): the application's, counted for no method.
     opaque_depth: wgpu::Texture,
     opaque_color: wgpu::Texture,
     depth_view: wgpu::TextureView,
