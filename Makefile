@@ -107,6 +107,7 @@ trade: build
 	  for f in $(EVAL_REAL); do scenes="$$scenes,$(DHOIT_SCENES)/$$f"; done; \
 	else echo "trade: no real scenes at $(DHOIT_SCENES): the built-in scenes only" >&2; fi; \
 	$(RUN) trade --scene "$$scenes" --view 1,3 --res 320x240 --budget $(TRADE_BUDGETS) --opacity 0.33 --precision f32,f16 --time-res 640x480 --out out/trade --summary docs
+	python3 scripts/results_table.py --write
 
 ## Every OIT method at equal bytes (the A-buffer, FKB, VKB, DKB, WBOIT, MBOIT, the budgeted
 ## linked list) on the evaluation scenes at one opacity, one memory M for all (0.25 to 1 times
@@ -122,6 +123,7 @@ versus: build
 	$(RUN) versus --scene "$$scenes" --view 1 --res 320x240 --memory 0.25,0.5,0.75,1 --opacity 0.33 \
 	  --networks $$(ls data/nets/*/weights.safetensors | paste -sd,) --precision f16 \
 	  --out out/versus --summary docs
+	python3 scripts/results_table.py --write
 
 ## Long structured fuzzing of every file parser (glTF/GLB, weights, features, dumps): the
 ## property tests of tests/fuzz.rs with FUZZ_CASES mutated inputs each (CI runs 128). Keep
@@ -152,15 +154,16 @@ bench: setup
 ## at 640x480, at 25% and at 1 fpp (DKB against the exact A-buffer and VKB), then an orbit of
 ## 120 frames at 320x240 at 1 fpp, a budget every method takes (frames a second one at a time
 ## and two in flight, dhoit's waits, temporal change, bytes against each frame's own A-buffer).
-## Markdown tables on stderr, JSON in out/frame/. About 30 minutes on lavapipe;
-## FRAME_RES=1920x1080 for the large frames.
+## The tables in docs/frame/ (and on stderr), JSON in out/frame/; docs/results.md copies them.
+## About 30 minutes on lavapipe; FRAME_RES=1920x1080 for the large frames.
 FRAME_SCENES ?= particles,shells,hair,foliage
 FRAME_RES ?= 640x480
 frame: setup
 	mkdir -p out/frame
-	$(RUN) bench --gpu-only --res $(FRAME_RES) --budget 25% --scenes $(FRAME_SCENES) --out out/frame/$(FRAME_RES)-25.json
-	$(RUN) bench --gpu-only --res $(FRAME_RES) --budget 1fpp --scenes $(FRAME_SCENES) --out out/frame/$(FRAME_RES)-1fpp.json
-	$(RUN) bench --gpu-only --res 320x240 --budget 1fpp --scenes $(FRAME_SCENES) --sequence 120 --out out/frame/orbit-320x240-1fpp.json
+	$(RUN) bench --gpu-only --res $(FRAME_RES) --budget 25% --scenes $(FRAME_SCENES) --out out/frame/$(FRAME_RES)-25.json --summary docs/frame/$(FRAME_RES)-25.md
+	$(RUN) bench --gpu-only --res $(FRAME_RES) --budget 1fpp --scenes $(FRAME_SCENES) --out out/frame/$(FRAME_RES)-1fpp.json --summary docs/frame/$(FRAME_RES)-1fpp.md
+	$(RUN) bench --gpu-only --res 320x240 --budget 1fpp --scenes $(FRAME_SCENES) --sequence 120 --out out/frame/orbit-320x240-1fpp.json --summary docs/frame/orbit-320x240-1fpp.md
+	python3 scripts/results_table.py --write
 
 ## WebGPU: dhoit-runtime built for wasm32 with wgpu's WebGPU backend, then every pipeline of the
 ## methods WebGPU runs (all but MBOIT, which needs float32-blendable) created on Dawn, Chrome's

@@ -46,6 +46,11 @@ pub struct BenchArgs {
     /// 0: none.
     #[arg(long, default_value_t = 0)]
     sequence: usize,
+    /// Also write the GPU tables (Markdown: each method's frame, the portable capture beside
+    /// the 64-bit one, the orbit) here, headed by the command and the adapter, written whole
+    /// once the run ends. `make frame` writes docs/frame/ so.
+    #[arg(long)]
+    summary: Option<PathBuf>,
 }
 
 /// The methods the GPU bench measures, in its order (its variants are of FKB and DKB).
@@ -108,7 +113,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     }
     // The report's folder too: a run on a lent GPU must not measure for minutes and then fail
     // to write what it measured.
-    if let Some(path) = &a.out {
+    for path in a.out.iter().chain(&a.summary) {
         dhoit_runtime::tensors::create_parent(path)?;
     }
     if a.gpu_only {
@@ -141,6 +146,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
             (a.repeat, a.sequence),
             &mut partial,
         );
+        write_summary(&gpu, a.summary.as_deref())?;
         return write_report(report(gpu), a.out.as_deref());
     }
     let results = scenes
@@ -156,6 +162,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let optimal = optimal_bench(&deepest, budget, a.repeat)?;
     let network = network_bench(a.repeat)?;
     let gpu = gpu_bench(&scenes, (w, h), budget, (a.repeat, a.sequence), &mut |_| {});
+    write_summary(&gpu, a.summary.as_deref())?;
     let report = serde_json::json!({
         "threads": rayon::current_num_threads(),
         "gpu": gpu,
@@ -492,6 +499,68 @@ fn time_run(
 
 /// What one scene's runs show side by side, printed and as the scene's JSON: DKB against VKB
 /// and the A-buffer, and what each option saves.
+/// What a bench frame's figures are read against, from the CPU's allocations: whether DKB's
+/// budget holds every fragment, and of its covered pixels those its capture appends and those
+/// whose k the network does not decide.
+struct Shape {
+    holds_all: bool,
+    appended: usize,
+    covered: usize,
+    forced: usize,
+}
+
+fn frame_shape(
+    name: &str,
+    fl: &dhoit_runtime::fragment::FragmentLists,
+    renderer: &Renderer,
+    cpu: &[Option<dhoit_runtime::frame::Allocation>],
+) -> Result<Shape> {
+    use dhoit_runtime::gpu::Slots;
+    let total = fl.fragment_count() as u64;
+    let dkb_f = match Slots::for_method(
+        Method::Dkb,
+        &dhoit_runtime::frame::Allocation {
+            exact: false,
+            ..cpu[4]
+                .clone()
+                .ok_or_else(|| anyhow::anyhow!("{name}: DKB has no allocation"))?
+        },
+        &renderer.options,
+    )? {
+        Slots::Dkb(_, f) => Some(f),
+        _ => None,
+    };
+    let holds_all = dkb_f.is_some_and(|f| f.holds(total));
+    // The frame's smallest k (1 where F covers every covered pixel).
+    let lo = dkb_f.map_or(0, |f| {
+        dhoit_runtime::alloc::min_k(&fl.counts(), f.of(total))
+    });
+    // Covered pixels DKB's capture appends (k from its CPU twin, which the GPU's equals).
+    let dkb_k = renderer.allocate(Method::Dkb)?.k;
+    let appended = dkb_k
+        .iter()
+        .zip(fl.counts())
+        .filter(|&(&k, n)| n > 0 && dhoit_runtime::composite::appends(k, n))
+        .count();
+    // Covered pixels whose k the network does not decide.
+    let stats = dhoit_runtime::importance::pixel_stats(fl);
+    let covered = stats.iter().filter(|st| st.count > 0).count();
+    let forced = stats
+        .iter()
+        .filter(|st| {
+            st.count > 0
+                // DKB's tails are pooled: every pixel is a pair (alloc::allocate_pooled).
+                && dhoit_runtime::mlp::forced(st.count, true, lo)
+        })
+        .count();
+    Ok(Shape {
+        holds_all,
+        appended,
+        covered,
+        forced,
+    })
+}
+
 fn scene_figures(
     name: &str,
     fl: &dhoit_runtime::fragment::FragmentLists,
@@ -499,8 +568,6 @@ fn scene_figures(
     cpu: &[Option<dhoit_runtime::frame::Allocation>],
     methods: serde_json::Map<String, serde_json::Value>,
 ) -> Result<serde_json::Value> {
-    use dhoit_runtime::gpu::Slots;
-    let options = renderer.options;
     let has_half = methods.contains_key("dkb_f16_math");
     // A run that did not happen (FKB's, where the budget refuses it) reads NaN.
     let of = |m: &str| methods.get(m).unwrap_or(&serde_json::Value::Null);
@@ -534,102 +601,15 @@ fn scene_figures(
         or_0(pass(m, "count")) + or_0(pass(m, "features"))
     };
     let count_first = geometry("dkb");
-    let total = fl.fragment_count() as u64;
-    let dkb_f = match Slots::for_method(
-        Method::Dkb,
-        &dhoit_runtime::frame::Allocation {
-            exact: false,
-            ..cpu[4]
-                .clone()
-                .ok_or_else(|| anyhow::anyhow!("{name}: DKB has no allocation"))?
-        },
-        &options,
-    )? {
-        Slots::Dkb(_, f) => Some(f),
-        _ => None,
-    };
-    let holds_all = dkb_f.is_some_and(|f| f.holds(total));
-    // The frame's smallest k (1 where F covers every covered pixel).
-    let lo = dkb_f.map_or(0, |f| {
-        dhoit_runtime::alloc::min_k(&fl.counts(), f.of(total))
-    });
     let fkb_slots = |m: &str| capture(m) + pass(m, "resolve");
     let (pixel_major, layer_major) = (fkb_slots("fkb"), fkb_slots("fkb_layer_major"));
-    // Covered pixels DKB's capture appends (k from its CPU twin, which the GPU's equals).
-    let dkb_k = renderer.allocate(Method::Dkb)?.k;
-    let appended = dkb_k
-        .iter()
-        .zip(fl.counts())
-        .filter(|&(&k, n)| n > 0 && dhoit_runtime::composite::appends(k, n))
-        .count();
-    // Covered pixels whose k the network does not decide.
-    let stats = dhoit_runtime::importance::pixel_stats(fl);
-    let covered = stats.iter().filter(|st| st.count > 0).count();
-    let forced = stats
-        .iter()
-        .filter(|st| {
-            st.count > 0
-                // DKB's tails are pooled: every pixel is a pair (alloc::allocate_pooled).
-                && dhoit_runtime::mlp::forced(st.count, true, lo)
-        })
-        .count();
-    let importance_note = if skip.is_nan() {
-        "importance pass not recorded (the budget holds every fragment)".to_string()
-    } else {
-        format!(
-            "importance pass {skip:.2} ms skipping {:.1}% forced pixels, {all:.2} ms without",
-            100.0 * forced as f64 / covered.max(1) as f64
-        )
-    };
-    eprintln!(
-        "GPU {name}: DKB/VKB frame time {ratio:.2}, DKB/A-buffer {over_abuffer:.2}; DKB wall/GPU {:.2} steady (first frame {:.0} ms wall); {importance_note}",
-        methods["dkb"]["wall_over_gpu"].as_f64().unwrap_or(f64::NAN),
-        methods["dkb"]["first_frame_wall_ms"]
-            .as_f64()
-            .unwrap_or(f64::NAN),
-    );
-    eprintln!(
-        "GPU {name}: DKB capture {two_mode:.2} ms appending {:.1}% of covered pixels, {inserted:.2} ms inserting every fragment",
-        100.0 * appended as f64 / covered.max(1) as f64
-    );
-    eprintln!(
-        "GPU {name}: DKB importance {skip:.2} ms reading the weights from the uniform, {staged:.2} ms staging them in workgroup memory, {looped:.2} ms with mlp.wgsl's loops over an array"
-    );
-    eprintln!("GPU {name}: DKB/VKB frame time with the 16-8 network {small_ratio:.2}");
-    let bytes = |m: &str| of(m)["allocated_bytes"].as_f64().unwrap_or(f64::NAN);
-    eprintln!(
-        "GPU {name}: DKB frame {:.2} ms in {:.0} bytes with its records in batches (features {features:.2} ms), {:.2} ms in {:.0} bytes with all of them in the pool at once (features {:.2} ms)",
-        ms("dkb"),
-        bytes("dkb"),
-        ms("dkb_records_whole"),
-        bytes("dkb_records_whole"),
-        pass("dkb_records_whole", "features"),
-    );
-    eprintln!(
-        "GPU {name}: DKB importance {half_ms:.2} ms with binary16 hidden layers (f16-math), {skip:.2} ms in f32"
-    );
-    eprintln!(
-        "GPU {name}: DKB features {features:.2} ms ({:.2}x VKB's count) with the nearest key's load, {no_preload:.2} ms without",
-        features / count_ms,
-    );
-    eprintln!(
-        "GPU {name}: DKB count and features {count_first:.2} ms ({})",
-        if holds_all {
-            "the budget holds every fragment: no features drawn"
-        } else {
-            "the budget truncates: features drawn"
-        },
-    );
-    if holds_all {
-        eprintln!(
-            "GPU {name}: DKB capture {two_mode:.2} ms with the pipeline built for frames whose fragments all fit, {two_mode_where_all_fit:.2} ms with the two-mode one (A-buffer store {:.2} ms)",
-            pass("abuffer", "store"),
-        );
-    }
-    eprintln!(
-        "GPU {name}: FKB capture and resolve {pixel_major:.2} ms pixel-major, {layer_major:.2} ms layer-major"
-    );
-    Ok(serde_json::json!({
+    let Shape {
+        holds_all,
+        appended,
+        covered,
+        forced,
+    } = frame_shape(name, fl, renderer, cpu)?;
+    let figures = serde_json::json!({
         "scene": name, "fragments": fl.fragment_count(), "dkb_over_vkb": ratio,
         "dkb_16_8_over_vkb": small_ratio,
         "dkb_over_abuffer": over_abuffer, "methods": methods,
@@ -666,7 +646,97 @@ fn scene_figures(
             "allocation_ms_spread": pass("dkb_spread_search", "allocation"),
         },
         "portable_capture": portable_capture(&ms, &pass),
-    }))
+    });
+    print_figures(name, &figures);
+    Ok(figures)
+}
+
+/// A bench scene's lines on stderr, from its figures ([`scene_figures`]'s JSON).
+fn print_figures(name: &str, v: &serde_json::Value) {
+    let f = |path: &[&str]| {
+        path.iter()
+            .fold(v, |v, k| &v[*k])
+            .as_f64()
+            .unwrap_or(f64::NAN)
+    };
+    let ms = |m: &str| f(&["methods", m, "frame_gpu_ms"]);
+    let pass = |m: &str, p: &str| f(&["methods", m, "passes_ms", p]);
+    let share = |x: f64| 100.0 * x;
+    let skip = f(&["importance_skip_forced", "importance_ms"]);
+    let importance_note = if skip.is_nan() {
+        "importance pass not recorded (the budget holds every fragment)".to_string()
+    } else {
+        format!(
+            "importance pass {skip:.2} ms skipping {:.1}% forced pixels, {:.2} ms without",
+            share(f(&["importance_skip_forced", "forced_share_of_covered"])),
+            f(&["importance_skip_forced", "importance_ms_no_skip"]),
+        )
+    };
+    eprintln!(
+        "GPU {name}: DKB/VKB frame time {:.2}, DKB/A-buffer {:.2}; DKB wall/GPU {:.2} steady (first frame {:.0} ms wall); {importance_note}",
+        f(&["dkb_over_vkb"]),
+        f(&["dkb_over_abuffer"]),
+        f(&["methods", "dkb", "wall_over_gpu"]),
+        f(&["methods", "dkb", "first_frame_wall_ms"]),
+    );
+    let capture = |k: &str| f(&["two_mode_capture", k]);
+    eprintln!(
+        "GPU {name}: DKB capture {:.2} ms appending {:.1}% of covered pixels, {:.2} ms inserting every fragment",
+        capture("capture_ms"),
+        share(capture("appended_share_of_covered")),
+        capture("capture_ms_insertion_only"),
+    );
+    eprintln!(
+        "GPU {name}: DKB importance {skip:.2} ms reading the weights from the uniform, {:.2} ms staging them in workgroup memory, {:.2} ms with mlp.wgsl's loops over an array",
+        f(&["shared_weights", "importance_ms"]),
+        f(&["unrolled_network", "importance_ms_array_loops"]),
+    );
+    eprintln!(
+        "GPU {name}: DKB/VKB frame time with the 16-8 network {:.2}",
+        f(&["dkb_16_8_over_vkb"])
+    );
+    let bytes = |m: &str| f(&["methods", m, "allocated_bytes"]);
+    let features = f(&["features_pass", "features_ms"]);
+    eprintln!(
+        "GPU {name}: DKB frame {:.2} ms in {:.0} bytes with its records in batches (features {features:.2} ms), {:.2} ms in {:.0} bytes with all of them in the pool at once (features {:.2} ms)",
+        ms("dkb"),
+        bytes("dkb"),
+        ms("dkb_records_whole"),
+        bytes("dkb_records_whole"),
+        pass("dkb_records_whole", "features"),
+    );
+    eprintln!(
+        "GPU {name}: DKB importance {:.2} ms with binary16 hidden layers (f16-math), {skip:.2} ms in f32",
+        f(&["f16_math", "importance_ms"]),
+    );
+    eprintln!(
+        "GPU {name}: DKB features {features:.2} ms ({:.2}x VKB's count) with the nearest key's load, {:.2} ms without",
+        f(&["features_pass", "over_vkb_count"]),
+        f(&["features_pass", "features_ms_no_preload"]),
+    );
+    let holds_all = v["dkb_geometry"]["budget_holds_every_fragment"] == true;
+    eprintln!(
+        "GPU {name}: DKB count and features {:.2} ms ({})",
+        f(&["dkb_geometry", "geometry_ms"]),
+        if holds_all {
+            "the budget holds every fragment: no features drawn"
+        } else {
+            "the budget truncates: features drawn"
+        },
+    );
+    if holds_all {
+        eprintln!(
+            "GPU {name}: DKB capture {:.2} ms with the pipeline built for frames whose fragments all fit, {:.2} ms with the two-mode one (A-buffer store {:.2} ms)",
+            capture("capture_ms"),
+            capture("capture_ms_two_mode_where_all_fit"),
+            capture("abuffer_store_ms"),
+        );
+    }
+    eprintln!(
+        "GPU {name}: FKB capture and resolve {:.2} ms pixel-major, {:.2} ms layer-major",
+        f(&["fkb_slot_layout", "capture_resolve_ms_pixel_major"]),
+        f(&["fkb_slot_layout", "capture_resolve_ms_layer_major"]),
+    );
 }
 
 /// The k-buffers' frames and captures with 64-bit atomics (one pass) and with 32-bit ones (two
@@ -788,6 +858,33 @@ fn gpu_bench(
     summary(&scenes)
 }
 
+/// `--summary`: the GPU bench's tables ([`frame_tables`]) under the command that ran and the
+/// adapter, written whole (nothing where the GPU bench did not run).
+fn write_summary(gpu: &serde_json::Value, path: Option<&std::path::Path>) -> Result<()> {
+    let Some(path) = path else { return Ok(()) };
+    let Some(scenes) = gpu["scenes"].as_array() else {
+        anyhow::bail!(
+            "no GPU tables for {}: {}",
+            path.display(),
+            gpu["error"].as_str().unwrap_or("the GPU bench did not run")
+        );
+    };
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let text = format!(
+        "# GPU frames at {}x{}, budget {}\n\nWritten by `dhoit {}` on {}. GPU ms a frame, \
+         medians of the steady frames (timestamps on that adapter: compare methods within a \
+         run, as ratios).\n\n{}",
+        gpu["width"],
+        gpu["height"],
+        gpu["budget"].as_str().unwrap_or("?"),
+        args.join(" "),
+        gpu["adapter"].as_str().unwrap_or("?"),
+        frame_tables(scenes)
+    );
+    dhoit_runtime::tensors::write_atomic(path, text.as_bytes())?;
+    Ok(())
+}
+
 /// The GPU bench's scenes as Markdown tables: each method's frame (GPU ms, median of the steady
 /// frames) and DKB's against the A-buffer's and VKB's; where the scenes ran `--sequence`, each
 /// method's orbit too.
@@ -887,7 +984,36 @@ fn frame_tables(scenes: &[serde_json::Value]) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::frame_tables;
+    use super::{frame_tables, write_summary};
+
+    /// `--summary` writes the adapter, the frame and the tables under one heading, and where
+    /// the GPU bench did not run it fails naming why, writing nothing.
+    #[test]
+    fn the_summary_is_the_tables_under_the_adapter() {
+        let dir = std::env::temp_dir().join(format!("dhoit-bench-summary-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("frame.md");
+        let gpu = serde_json::json!({"adapter": "a GPU", "width": 64, "height": 48,
+            "budget": "25%", "scenes": [{"scene": "shells", "methods": {
+                "abuffer": {"frame_gpu_ms": 10.0}, "vkb": {"frame_gpu_ms": 20.0},
+                "dkb": {"frame_gpu_ms": 30.0}}}]});
+        write_summary(&gpu, Some(&path)).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(
+            text.starts_with("# GPU frames at 64x48, budget 25%\n"),
+            "{text}"
+        );
+        assert!(text.contains(" on a GPU. "), "{text}");
+        assert!(
+            text.ends_with(&frame_tables(gpu["scenes"].as_array().unwrap())),
+            "{text}"
+        );
+        let none = dir.join("none.md");
+        let e = write_summary(&serde_json::json!({"error": "no adapter"}), Some(&none));
+        assert!(e.unwrap_err().to_string().contains("no adapter"));
+        assert!(!none.exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     /// The tables carry each scene's frame times and DKB's ratios as the JSON gives them, a
     /// dash where a method has no time, and a row per method of an orbit.

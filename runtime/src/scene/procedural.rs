@@ -801,6 +801,17 @@ fn windows(s: &mut Scene, rng: &mut Rng) {
     floor(s, rng, -0.9, 1.3);
     let wood = opaque([rng.range(0.35, 0.55), rng.range(0.22, 0.32), 0.12]);
     let frame = s.add_material(wood);
+    let panes = window_panes(s, rng);
+    // Three walls of windows at z = -0.8, 0.0 (a partition) and 0.8.
+    for (wall, z) in [-0.8f32, 0.0, 0.8].into_iter().enumerate() {
+        window_wall(s, rng, (frame, &panes), wall, z);
+    }
+    between_the_walls(s, rng);
+}
+
+/// The windows' pane materials: stained glass (Voronoi cells of colour, leading between them),
+/// broken glass (masked holes), frosted, and three tints of clear glass.
+fn window_panes(s: &mut Scene, rng: &mut Rng) -> Vec<u32> {
     let stained = {
         let cells: Vec<([f32; 2], [f32; 3])> = (0..14)
             .map(|_| {
@@ -857,67 +868,73 @@ fn windows(s: &mut Scene, rng: &mut Rng) {
         ];
         panes.push(s.add_material(glass_material(tint, rng.range(1.45, 1.7))));
     }
-    // Three walls of windows at z = -0.8, 0.0 (a partition) and 0.8.
-    for (wall, z) in [-0.8f32, 0.0, 0.8].into_iter().enumerate() {
-        let (cols, rows) = (2 + rng.below(3), 2 + rng.below(2));
-        let (x0, x1, y0, y1) = (-1.2, 1.2, -0.9, 0.9);
-        let bar = 0.05;
-        with_material(s, frame, |s| {
-            for i in 0..=cols {
-                let x = x0 + (x1 - x0) * i as f32 / cols as f32;
-                let c = [1.0; 4];
-                boxed(
-                    s,
-                    Vec3::new(x, 0.0, z),
-                    Vec3::new(bar, (y1 - y0) / 2.0, bar),
-                    glam::Quat::IDENTITY,
-                    c,
-                );
+    panes
+}
+
+/// One wall of windows at depth `z` (`wall` 1, the partition, leaves some openings empty): its
+/// frame's bars in `frame`, a pane of `panes` in each opening.
+fn window_wall(s: &mut Scene, rng: &mut Rng, (frame, panes): (u32, &[u32]), wall: usize, z: f32) {
+    let (cols, rows) = (2 + rng.below(3), 2 + rng.below(2));
+    let (x0, x1, y0, y1) = (-1.2, 1.2, -0.9, 0.9);
+    let bar = 0.05;
+    with_material(s, frame, |s| {
+        for i in 0..=cols {
+            let x = x0 + (x1 - x0) * i as f32 / cols as f32;
+            let c = [1.0; 4];
+            boxed(
+                s,
+                Vec3::new(x, 0.0, z),
+                Vec3::new(bar, (y1 - y0) / 2.0, bar),
+                glam::Quat::IDENTITY,
+                c,
+            );
+        }
+        for j in 0..=rows {
+            let y = y0 + (y1 - y0) * j as f32 / rows as f32;
+            boxed(
+                s,
+                Vec3::new(0.0, y, z),
+                Vec3::new((x1 - x0) / 2.0, bar, bar),
+                glam::Quat::IDENTITY,
+                [1.0; 4],
+            );
+        }
+    });
+    for i in 0..cols {
+        for j in 0..rows {
+            // The partition leaves some openings empty.
+            if wall == 1 && rng.f32() < 0.3 {
+                continue;
             }
-            for j in 0..=rows {
-                let y = y0 + (y1 - y0) * j as f32 / rows as f32;
-                boxed(
-                    s,
-                    Vec3::new(0.0, y, z),
-                    Vec3::new((x1 - x0) / 2.0, bar, bar),
-                    glam::Quat::IDENTITY,
-                    [1.0; 4],
-                );
-            }
-        });
-        for i in 0..cols {
-            for j in 0..rows {
-                // The partition leaves some openings empty.
-                if wall == 1 && rng.f32() < 0.3 {
-                    continue;
-                }
-                let xa = x0 + (x1 - x0) * i as f32 / cols as f32 + bar;
-                let xb = x0 + (x1 - x0) * (i + 1) as f32 / cols as f32 - bar;
-                let ya = y0 + (y1 - y0) * j as f32 / rows as f32 + bar;
-                let yb = y0 + (y1 - y0) * (j + 1) as f32 / rows as f32 - bar;
-                let m = panes[rng.below(panes.len())];
-                let scale = [rng.range(0.8, 1.6), rng.range(0.8, 1.6)];
-                tquad(
-                    s,
-                    [
-                        Vec3::new(xa, ya, z),
-                        Vec3::new(xb, ya, z),
-                        Vec3::new(xb, yb, z),
-                        Vec3::new(xa, yb, z),
-                    ],
-                    [
-                        [0.0, scale[1]],
-                        [scale[0], scale[1]],
-                        [scale[0], 0.0],
-                        [0.0, 0.0],
-                    ],
-                    [1.0; 4],
-                    m,
-                );
-            }
+            let xa = x0 + (x1 - x0) * i as f32 / cols as f32 + bar;
+            let xb = x0 + (x1 - x0) * (i + 1) as f32 / cols as f32 - bar;
+            let ya = y0 + (y1 - y0) * j as f32 / rows as f32 + bar;
+            let yb = y0 + (y1 - y0) * (j + 1) as f32 / rows as f32 - bar;
+            let m = panes[rng.below(panes.len())];
+            let scale = [rng.range(0.8, 1.6), rng.range(0.8, 1.6)];
+            tquad(
+                s,
+                [
+                    Vec3::new(xa, ya, z),
+                    Vec3::new(xb, ya, z),
+                    Vec3::new(xb, yb, z),
+                    Vec3::new(xa, yb, z),
+                ],
+                [
+                    [0.0, scale[1]],
+                    [scale[0], scale[1]],
+                    [scale[0], 0.0],
+                    [0.0, 0.0],
+                ],
+                [1.0; 4],
+                m,
+            );
         }
     }
-    // Between the walls: opaque objects, glass vessels on a glass shelf.
+}
+
+/// Between the windows' walls: opaque objects, glass vessels on a glass shelf.
+fn between_the_walls(s: &mut Scene, rng: &mut Rng) {
     for _ in 0..4 + rng.below(4) {
         let c = hue(rng, 1.0);
         let m = s.add_material(opaque([c[0], c[1], c[2]]));
