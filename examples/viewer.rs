@@ -170,6 +170,54 @@ fn fs_transparent(in: V) -> OitTargets {
 }
 "#;
 
+/// One frame from `cam` drawn, copied into `staging` (rows of `row` bytes) and read back: its
+/// image and its passes' times (waiting for it, as a headless run does).
+fn draw_and_read(
+    app: &App,
+    frame: &Frame,
+    cam: &Camera,
+    (staging, row): (&wgpu::Buffer, u32),
+    (w, h): (u32, u32),
+) -> Result<(Image, [f64; 4])> {
+    let mut enc = app.draw(frame, cam)?;
+    enc.copy_texture_to_buffer(
+        frame.target.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: staging,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(h),
+            },
+        },
+        frame.target.size(),
+    );
+    app.queue.submit([enc.finish()]);
+    staging.slice(..).map_async(wgpu::MapMode::Read, |r| {
+        r.expect("the readback maps");
+    });
+    let ms = app.pass_ms(frame, true)?;
+    let img = {
+        let data = staging.slice(..).get_mapped_range()?;
+        let floats: &[f32] = bytemuck::cast_slice(&data);
+        let pixels = (0..h as usize)
+            .flat_map(|y| {
+                (0..w as usize).map(move |x| {
+                    let i = y * row as usize / 4 + 4 * x;
+                    [floats[i], floats[i + 1], floats[i + 2]]
+                })
+            })
+            .collect();
+        Image {
+            width: w,
+            height: h,
+            data: pixels,
+        }
+    };
+    staging.unmap();
+    Ok((img, ms))
+}
+
 fn main() -> Result<()> {
     let a = Args::parse();
     let (w, h) = (a.res.width, a.res.height);
@@ -245,42 +293,7 @@ fn main() -> Result<()> {
         // of its pool. Its report says so; it is drawn again, sized from its own count.
         let mut again = 0;
         let (img, ms) = loop {
-            let mut enc = app.draw(&frame, &cam)?;
-            enc.copy_texture_to_buffer(
-                frame.target.as_image_copy(),
-                wgpu::TexelCopyBufferInfo {
-                    buffer: &staging,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(row),
-                        rows_per_image: Some(h),
-                    },
-                },
-                frame.target.size(),
-            );
-            app.queue.submit([enc.finish()]);
-            staging.slice(..).map_async(wgpu::MapMode::Read, |r| {
-                r.expect("the readback maps");
-            });
-            let ms = app.pass_ms(&frame, true)?;
-            let img = {
-                let data = staging.slice(..).get_mapped_range()?;
-                let floats: &[f32] = bytemuck::cast_slice(&data);
-                let pixels = (0..h as usize)
-                    .flat_map(|y| {
-                        (0..w as usize).map(move |x| {
-                            let i = y * row as usize / 4 + 4 * x;
-                            [floats[i], floats[i + 1], floats[i + 2]]
-                        })
-                    })
-                    .collect();
-                Image {
-                    width: w,
-                    height: h,
-                    data: pixels,
-                }
-            };
-            staging.unmap();
+            let (img, ms) = draw_and_read(&app, &frame, &cam, (&staging, row), (w, h))?;
             let short = frame.last.borrow().as_ref().is_some_and(|r| r.pool_short);
             if !short || again == 1 {
                 break (img, ms);
@@ -493,6 +506,199 @@ const RGBA: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 /// The format of its opaque depth.
 const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
+/// The application's vertices: position, colour (vertex x base colour; glass at its face-on
+/// opacity), texture coordinates, the alpha cutoff (MASK; 0 for OPAQUE) and the face's normal, 13
+/// floats each, by material, opaque and masked materials first: one draw a material.
+fn vertices_by_material(s: &scene::Scene) -> (Vec<f32>, Vec<Draw>) {
+    let triangles = s.positions.len() / 3;
+    let mut order: Vec<usize> = (0..triangles).collect();
+    let material = |t: usize| s.triangle_material[t] as usize;
+    order.sort_by_key(|&t| (s.materials[material(t)].transparent(), material(t)));
+    let mut all = Vec::<f32>::new();
+    let mut draws: Vec<Draw> = Vec::new();
+    for &t in &order {
+        let m = &s.materials[material(t)];
+        match draws.last_mut() {
+            Some(d) if d.material == material(t) => d.vertices += 3,
+            _ => draws.push(Draw {
+                material: material(t),
+                first: (all.len() / 13) as u32,
+                vertices: 3,
+                transparent: m.transparent(),
+            }),
+        }
+        // The triangle's geometric normal, for its facing.
+        let [p0, p1, p2] = [0, 1, 2].map(|i| s.positions[3 * t + i]);
+        let n = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+        for v in 3 * t..3 * t + 3 {
+            let p = s.positions[v];
+            let mut c: [f32; 4] = std::array::from_fn(|i| s.colors[v][i] * m.base_color[i]);
+            if m.transmission > 0.0 {
+                c[3] *= scene::material::glass_opacity(m.transmission, m.f0(), 1.0);
+            }
+            let cutoff = match m.coverage {
+                Coverage::Mask(cut) => cut,
+                _ => 0.0,
+            };
+            let uv = s.uvs[v];
+            all.extend_from_slice(&[
+                p.x, p.y, p.z, c[0], c[1], c[2], c[3], uv[0], uv[1], cutoff, n.x, n.y, n.z,
+            ]);
+        }
+    }
+    (all, draws)
+}
+
+/// Each material's base colour texture (white where it has none) and sampler, its own bind
+/// group of `layout`.
+fn material_groups(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    s: &scene::Scene,
+    layout: &wgpu::BindGroupLayout,
+) -> Vec<wgpu::BindGroup> {
+    let white = scene::Texture {
+        width: 1,
+        height: 1,
+        texels: vec![u32::MAX],
+        wrap: [scene::Wrap::Repeat; 2],
+        nearest: true,
+    };
+    let address = |w: scene::Wrap| match w {
+        scene::Wrap::Repeat => wgpu::AddressMode::Repeat,
+        scene::Wrap::MirroredRepeat => wgpu::AddressMode::MirrorRepeat,
+        scene::Wrap::ClampToEdge => wgpu::AddressMode::ClampToEdge,
+    };
+    s.materials
+        .iter()
+        .map(|m| {
+            let t = m.texture.map_or(&white, |i| &s.textures[i as usize]);
+            let size = wgpu::Extent3d {
+                width: t.width,
+                height: t.height,
+                depth_or_array_layers: 1,
+            };
+            let tex = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("base colour"),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba8UnormSrgb,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            });
+            queue.write_texture(
+                tex.as_image_copy(),
+                bytemuck::cast_slice(&t.texels),
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(4 * t.width),
+                    rows_per_image: Some(t.height),
+                },
+                size,
+            );
+            let filter = match t.nearest {
+                true => wgpu::FilterMode::Nearest,
+                false => wgpu::FilterMode::Linear,
+            };
+            let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+                address_mode_u: address(t.wrap[0]),
+                address_mode_v: address(t.wrap[1]),
+                mag_filter: filter,
+                min_filter: wgpu::FilterMode::Linear,
+                ..Default::default()
+            });
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("material"),
+                layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::TextureView(
+                            &tex.create_view(&Default::default()),
+                        ),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::Sampler(&sampler),
+                    },
+                ],
+            })
+        })
+        .collect()
+}
+
+/// The application's pipeline of `entry` in `module` (vertex entry `vs`), over the 13-float
+/// vertices of [`vertices_by_material`].
+fn render_pipeline(
+    device: &wgpu::Device,
+    (module, entry): (&wgpu::ShaderModule, &str),
+    layout: &wgpu::PipelineLayout,
+    targets: &[Option<wgpu::ColorTargetState>],
+    depth_stencil: wgpu::DepthStencilState,
+) -> wgpu::RenderPipeline {
+    let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4, 2 => Float32x2, 3 => Float32, 4 => Float32x3];
+    let buffers = [Some(wgpu::VertexBufferLayout {
+        array_stride: 52,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &attributes,
+    })];
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(entry),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs"),
+            compilation_options: Default::default(),
+            buffers: &buffers,
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: Some(depth_stencil),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// The opaque pass's timestamps (where the device has them), the buffer they resolve into and
+/// its readback.
+fn opaque_pass_timer(
+    device: &wgpu::Device,
+) -> (Option<wgpu::QuerySet>, wgpu::Buffer, wgpu::Buffer) {
+    let timed = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+    let queries = timed.then(|| {
+        device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("opaque pass time"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        })
+    });
+    let buffer = |label, usage| {
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: 16,
+            usage,
+            mapped_at_creation: false,
+        })
+    };
+    let resolved = buffer(
+        "opaque pass time",
+        wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+    );
+    let times = buffer(
+        "opaque pass time readback",
+        wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+    );
+    (queries, resolved, times)
+}
+
 impl App {
     fn new(
         device: wgpu::Device,
@@ -501,45 +707,7 @@ impl App {
         s: scene::Scene,
         networks: Vec<(String, Mlp)>,
     ) -> App {
-        // The application's vertices: position, colour (vertex x base colour; glass at its
-        // face-on opacity), texture coordinates and the alpha cutoff (MASK; 0 for OPAQUE), by
-        // material, opaque and masked materials first: one draw a material.
-        let triangles = s.positions.len() / 3;
-        let mut order: Vec<usize> = (0..triangles).collect();
-        let material = |t: usize| s.triangle_material[t] as usize;
-        order.sort_by_key(|&t| (s.materials[material(t)].transparent(), material(t)));
-        let mut all = Vec::<f32>::new();
-        let mut draws: Vec<Draw> = Vec::new();
-        for &t in &order {
-            let m = &s.materials[material(t)];
-            match draws.last_mut() {
-                Some(d) if d.material == material(t) => d.vertices += 3,
-                _ => draws.push(Draw {
-                    material: material(t),
-                    first: (all.len() / 13) as u32,
-                    vertices: 3,
-                    transparent: m.transparent(),
-                }),
-            }
-            // The triangle's geometric normal, for its facing.
-            let [p0, p1, p2] = [0, 1, 2].map(|i| s.positions[3 * t + i]);
-            let n = (p1 - p0).cross(p2 - p0).normalize_or_zero();
-            for v in 3 * t..3 * t + 3 {
-                let p = s.positions[v];
-                let mut c: [f32; 4] = std::array::from_fn(|i| s.colors[v][i] * m.base_color[i]);
-                if m.transmission > 0.0 {
-                    c[3] *= scene::material::glass_opacity(m.transmission, m.f0(), 1.0);
-                }
-                let cutoff = match m.coverage {
-                    Coverage::Mask(cut) => cut,
-                    _ => 0.0,
-                };
-                let uv = s.uvs[v];
-                all.extend_from_slice(&[
-                    p.x, p.y, p.z, c[0], c[1], c[2], c[3], uv[0], uv[1], cutoff, n.x, n.y, n.z,
-                ]);
-            }
-        }
+        let (all, draws) = vertices_by_material(&s);
         let vertices = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("vertices"),
             size: (4 * all.len()).max(16) as u64,
@@ -596,77 +764,7 @@ impl App {
                 },
             ],
         });
-        let white = scene::Texture {
-            width: 1,
-            height: 1,
-            texels: vec![u32::MAX],
-            wrap: [scene::Wrap::Repeat; 2],
-            nearest: true,
-        };
-        let address = |w: scene::Wrap| match w {
-            scene::Wrap::Repeat => wgpu::AddressMode::Repeat,
-            scene::Wrap::MirroredRepeat => wgpu::AddressMode::MirrorRepeat,
-            scene::Wrap::ClampToEdge => wgpu::AddressMode::ClampToEdge,
-        };
-        let material_groups: Vec<wgpu::BindGroup> = s
-            .materials
-            .iter()
-            .map(|m| {
-                let t = m.texture.map_or(&white, |i| &s.textures[i as usize]);
-                let size = wgpu::Extent3d {
-                    width: t.width,
-                    height: t.height,
-                    depth_or_array_layers: 1,
-                };
-                let tex = device.create_texture(&wgpu::TextureDescriptor {
-                    label: Some("base colour"),
-                    size,
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: wgpu::TextureFormat::Rgba8UnormSrgb,
-                    usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                    view_formats: &[],
-                });
-                queue.write_texture(
-                    tex.as_image_copy(),
-                    bytemuck::cast_slice(&t.texels),
-                    wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(4 * t.width),
-                        rows_per_image: Some(t.height),
-                    },
-                    size,
-                );
-                let filter = match t.nearest {
-                    true => wgpu::FilterMode::Nearest,
-                    false => wgpu::FilterMode::Linear,
-                };
-                let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
-                    address_mode_u: address(t.wrap[0]),
-                    address_mode_v: address(t.wrap[1]),
-                    mag_filter: filter,
-                    min_filter: wgpu::FilterMode::Linear,
-                    ..Default::default()
-                });
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("material"),
-                    layout: &material_layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: wgpu::BindingResource::TextureView(
-                                &tex.create_view(&Default::default()),
-                            ),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: wgpu::BindingResource::Sampler(&sampler),
-                        },
-                    ],
-                })
-            })
-            .collect();
+        let material_groups = material_groups(&device, &queue, &s, &material_layout);
         App {
             device,
             queue,
@@ -759,38 +857,12 @@ impl App {
             })
         };
         let opaque_layout = layout(&[Some(&self.own_layout), Some(&self.material_layout)]);
-        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4, 2 => Float32x2, 3 => Float32, 4 => Float32x3];
-        let buffers = [Some(wgpu::VertexBufferLayout {
-            array_stride: 52,
-            step_mode: wgpu::VertexStepMode::Vertex,
-            attributes: &attributes,
-        })];
         let pipeline = |module: &wgpu::ShaderModule,
                         layout: &wgpu::PipelineLayout,
                         entry: &str,
                         targets: &[Option<wgpu::ColorTargetState>],
                         depth_stencil: wgpu::DepthStencilState| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(entry),
-                layout: Some(layout),
-                vertex: wgpu::VertexState {
-                    module,
-                    entry_point: Some("vs"),
-                    compilation_options: Default::default(),
-                    buffers: &buffers,
-                },
-                primitive: wgpu::PrimitiveState::default(),
-                depth_stencil: Some(depth_stencil),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
+            render_pipeline(device, (module, entry), layout, targets, depth_stencil)
         };
         let opaque_pipeline = pipeline(
             &opaque_module,
@@ -830,30 +902,7 @@ impl App {
                 )
             })
             .collect();
-        let timed = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let queries = timed.then(|| {
-            device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("opaque pass time"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 2,
-            })
-        });
-        let buffer = |label, usage| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: 16,
-                usage,
-                mapped_at_creation: false,
-            })
-        };
-        let resolved = buffer(
-            "opaque pass time",
-            wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-        );
-        let times = buffer(
-            "opaque pass time readback",
-            wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-        );
+        let (queries, resolved, times) = opaque_pass_timer(device);
         Ok(Frame {
             oit: std::cell::RefCell::new(oit),
             opaque_pipeline,

@@ -1,10 +1,18 @@
 #!/usr/bin/env python3
-"""The documents' tables that `make eval` produces, from the tables it writes
-(docs/eval-slots.md and docs/eval-materials-slots.md): the README's results table (mean MSE
-against the A-buffer at equal F) and docs/results.md's accuracy targets, each between its
-file's markers. `make eval` writes them (--write); `make test` checks them (--check: exit 1,
-naming the first line that differs, where a document's table is not what the eval tables give;
-and where the README is over 120 lines or has a paragraph over 8)."""
+"""The documents' tables that the commands produce, from the files those commands write.
+
+- The README's results table (mean MSE against the A-buffer at equal F) and docs/results.md's
+  MSE table and accuracy targets, from `make eval`'s docs/eval-slots.md and
+  docs/eval-materials-slots.md.
+- docs/results.md's summary of `make versus` (docs/versus.md): each method's frames and MSE at
+  each memory.
+- Any table a document copies: between `<!-- table: FILE "HEADING" -->` (or `... "HEADING" N`
+  for the Nth table under it) and `<!-- /table -->`, the table under that heading in FILE (a
+  path from the repository root), in README.md and docs/*.md alike.
+
+`make eval` (and `make versus`, `make trade`, `make frame`) write them (--write); `make test`
+checks them (--check: exit 1, naming the first line that differs, where a document's table is
+not what its source gives; and where the README is over 120 lines or has a paragraph over 8)."""
 import re
 import sys
 from pathlib import Path
@@ -86,11 +94,151 @@ def targets():
     return "\n".join(out)
 
 
+VERSUS_BEGIN = "<!-- versus: written by `make versus` from docs/versus.md -->"
+
+
+def versus():
+    """Each method's frames of the run and geometric-mean MSE at each memory, from the table
+    at the head of each of docs/versus.md's `## M = ...` sections."""
+    path = ROOT / "docs/versus.md"
+    lines = path.read_text().splitlines()
+    memories = [l[len("## M = "):].split("x")[0] + "x" for l in lines if l.startswith("## M = ")]
+    runs, order = {}, []
+    for m in memories:
+        rows = section(path, next(l[3:] for l in lines if l.startswith(f"## M = {m[:-1]}x")))
+        header = [c.strip() for c in rows[0].strip("|").split("|")]
+        for row in rows[2:]:
+            cell = dict(zip(header, (c.strip() for c in row.strip("|").split("|"))))
+            name = cell["method"]
+            if name not in runs:
+                runs[name] = {}
+                order.append(name)
+            frames = cell["frames"].split(" of ")[0]
+            runs[name][m] = f"{frames}: {cell['MSE']}"
+    # "1 of 15": the frames of the run, the same at every memory.
+    first = section(path, next(l[3:] for l in lines if l.startswith("## M = ")))[2]
+    total = first.strip("|").split("|")[1].split(" of ")[1].strip()
+    head = ["method"] + [f"M = {m}: frames of {total}: MSE" for m in memories]
+    out = [VERSUS_BEGIN, "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for name in order:
+        out.append("| " + " | ".join([name] + [runs[name].get(m, "-") for m in memories]) + " |")
+    out.append(END)
+    return "\n".join(out)
+
+
 BLOCKS = [
     ("README.md", BEGIN, rendered),
     ("docs/results.md", RESULTS_BEGIN, results_mse),
     ("docs/results.md", TARGETS_BEGIN, targets),
+    ("docs/results.md", VERSUS_BEGIN, versus),
 ]
+
+COPY = re.compile(r'<!-- table: (\S+) "([^"]*)"(?: (\d+))? -->\n(.*?)<!-- /table -->', re.S)
+
+
+def copied(source, heading, n):
+    """The `n`th table (from 1) under the first heading of `source` whose text starts with
+    `heading`, as its lines; an error message where there is none."""
+    path = ROOT / source
+    if not path.is_file():
+        return f"{source} does not exist"
+    lines = path.read_text().splitlines()
+    start = next((i for i, l in enumerate(lines)
+                  if l.startswith("#") and l.lstrip("#").strip().startswith(heading)), None)
+    if start is None:
+        return f'{source} has no heading "{heading}"'
+    tables, current = [], None
+    for l in lines[start + 1:]:
+        if l.startswith("#") and tables:
+            break
+        if l.startswith("|"):
+            if current is None:
+                current = []
+                tables.append(current)
+            current.append(l)
+        else:
+            current = None
+    if len(tables) < n:
+        return f'{source} has {len(tables)} tables under "{heading}", not {n}'
+    return tables[n - 1]
+
+
+def copies(mode):
+    """Every `<!-- table: ... -->` block of README.md and docs/*.md held to (--check) or
+    rewritten from (--write) its source. The number of failures."""
+    failed = 0
+    for path in [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md")):
+        text = path.read_text()
+        name = path.relative_to(ROOT)
+        out, changed = [], False
+        last = 0
+        for m in COPY.finditer(text):
+            source, heading, n = m.group(1), m.group(2), int(m.group(3) or 1)
+            table = copied(source, heading, n)
+            if isinstance(table, str):
+                print(f"results_table: {name}: {table}", file=sys.stderr)
+                failed += 1
+                continue
+            body = "\n".join(table) + "\n"
+            if m.group(4) != body:
+                if mode == "--write":
+                    out.append(text[last:m.start(4)] + body)
+                    last = m.end(4)
+                    changed = True
+                    continue
+                got = m.group(4).splitlines() + [""]
+                first = next(i for i, (a, b) in enumerate(zip(got, table + [""])) if a != b)
+                print(f'results_table: {name} copies {source} "{heading}" but says\n  {got[first]}\n'
+                      f"where {source} gives\n  {(table + [''])[first]}\n(--write copies it)", file=sys.stderr)
+                failed += 1
+        if changed:
+            path.write_text("".join(out) + text[last:])
+            print(f"results_table: {name}'s copied tables written")
+    return failed
+
+
+def claims():
+    """The README's sentences on its results table, held to that table (the sentence must be
+    there, word for word, and true of every row). Error messages."""
+    text = (ROOT / "README.md").read_text()
+    found = re.search(re.escape(BEGIN) + "\n(.*?)" + re.escape(END), text, re.S)
+    if not found:
+        return ["README.md has no results table"]
+    rows = found.group(1).strip().splitlines()
+    header = [c.strip() for c in rows[0].strip("|").split("|")]
+    gap = header.index("")
+    sets = [("one opacity", 0, gap), ("materials", gap + 1, len(header))]
+    errors = []
+
+    def value(cells, names, set_, name):
+        lo, hi = set_[1], set_[2]
+        i = next(i for i in range(lo, hi) if names[i].replace("materials: ", "") == name)
+        return float(cells[i]) if cells[i] not in ("n/a", "-") else None
+
+    said = {
+        "below": "DKB's error is below VKB's (the hand-made allocation it learns to beat) and WBOIT's (what\n"
+                 "engines ship) at every budget here.",
+        "mboit": "MBOIT, at 28 bytes a pixel, is better only at the tightest;",
+    }
+    for key, sentence in said.items():
+        if sentence not in text:
+            errors.append(f"README.md no longer says {sentence!r}: update scripts/results_table.py's claims")
+    budgets = []
+    for row in rows[2:]:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        budgets.append(cells[0])
+        for set_ in sets:
+            dkb = value(cells, header, set_, "DKB")
+            for other in ["VKB", "WBOIT"]:
+                v = value(cells, header, set_, other)
+                if v is not None and not dkb < v:
+                    errors.append(f"README.md says DKB's error is below {other}'s at every budget; "
+                                  f"at {cells[0]} ({set_[0]}) DKB {dkb:.3e}, {other} {v:.3e}")
+            mboit = value(cells, header, set_, "MBOIT")
+            if mboit < dkb and cells[0] != rows[2].strip("|").split("|")[0].strip():
+                errors.append(f"README.md says MBOIT is better only at the tightest budget; "
+                              f"at {cells[0]} ({set_[0]}) MBOIT {mboit:.3e}, DKB {dkb:.3e}")
+    return errors
 
 
 def readme_shape():
@@ -119,6 +267,11 @@ def main():
     if mode == "--check" and (why := readme_shape()):
         print(f"results_table: {why}", file=sys.stderr)
         failed = 1
+    failed = min(1, failed + copies(mode))
+    if mode == "--check":
+        for why in claims():
+            print(f"results_table: {why}", file=sys.stderr)
+            failed = 1
     for name, begin, make in BLOCKS:
         path = ROOT / name
         text = path.read_text()
@@ -131,7 +284,7 @@ def main():
         table = make()
         if mode == "--write":
             path.write_text(pattern.sub(lambda _: table, text))
-            print(f"results_table: {name}'s table written from docs/eval-*.md")
+            print(f"results_table: {name}: {begin[5:begin.index(':')]} written")
             continue
         if found.group(0) != table:
             for got, want in zip(found.group(0).splitlines(), table.splitlines()):
@@ -141,7 +294,7 @@ def main():
                     break
             failed = 1
         else:
-            print(f"results_table: {name}'s table is the eval tables'")
+            print(f"results_table: {name}: {begin[5:begin.index(':')]} is its source's")
     return failed
 
 
