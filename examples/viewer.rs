@@ -699,6 +699,40 @@ fn opaque_pass_timer(
     (queries, resolved, times)
 }
 
+/// The application's frame textures at `(w, h)`: its opaque image and depth (drawn, then read
+/// by dhoit), and the target dhoit resolves onto (copied out headless, or drawn onto the
+/// window's surface).
+fn frame_textures(device: &wgpu::Device, (w, h): (u32, u32)) -> [wgpu::Texture; 3] {
+    let texture = |label, format, usage| {
+        device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    };
+    let use_both = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+    let image = texture("opaque image", RGBA, use_both);
+    let depth = texture("opaque depth", DEPTH, use_both);
+    // Copied out (headless) or drawn onto the window's surface.
+    let target = texture(
+        "target",
+        RGBA,
+        wgpu::TextureUsages::STORAGE_BINDING
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::TEXTURE_BINDING,
+    );
+    [image, depth, target]
+}
+
 impl App {
     fn new(
         device: wgpu::Device,
@@ -820,34 +854,7 @@ impl App {
             label: Some("viewer opaque"),
             source: wgpu::ShaderSource::Wgsl(SHADER.into()),
         });
-        let texture = |label, format, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
-        let use_both =
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
-        let image = texture("opaque image", RGBA, use_both);
-        let depth = texture("opaque depth", DEPTH, use_both);
-        // Copied out (headless) or drawn onto the window's surface.
-        let target = texture(
-            "target",
-            RGBA,
-            wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::COPY_SRC
-                | wgpu::TextureUsages::TEXTURE_BINDING,
-        );
+        let [image, depth, target] = frame_textures(device, (w, h));
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let layout = |groups: &[Option<&wgpu::BindGroupLayout>]| {
             device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
