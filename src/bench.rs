@@ -322,7 +322,6 @@ fn configure(label: &str) -> dhoit_runtime::gpu::FrameOptions {
         },
         // The methods themselves, at equal F (the runs are always approximate).
         exact_when_cheaper: false,
-        counted_bytes: None,
         diagnostics: false,
         // FKB, VKB and DKB once more with the capture of 32-bit atomics.
         capture: match label.ends_with("_portable") {
@@ -527,7 +526,7 @@ fn frame_shape(
         },
         &renderer.options,
     )? {
-        Slots::Dkb(_, f) => Some(f),
+        Slots::Dkb(_, f) => f.fragments(),
         _ => None,
     };
     let holds_all = dkb_f.is_some_and(|f| f.holds(total));

@@ -493,7 +493,7 @@ impl Timer {
                         cam,
                         (*w, *h),
                         [1.0; 3],
-                        dhoit_runtime::gpu::Slots::Dkb(mlp, *f),
+                        dhoit_runtime::gpu::Slots::Dkb(mlp, (*f).into()),
                     )?
                     .pass_ms
                     .iter()

@@ -33,6 +33,29 @@ pub enum PlanBudget {
     Bytes(u64),
 }
 
+impl From<FragmentBudget> for PlanBudget {
+    fn from(f: FragmentBudget) -> PlanBudget {
+        PlanBudget::Fragments(f)
+    }
+}
+
+/// F slots.
+impl From<u64> for PlanBudget {
+    fn from(f: u64) -> PlanBudget {
+        PlanBudget::Fragments(f.into())
+    }
+}
+
+impl PlanBudget {
+    /// The fragment budget, where F does not wait for the frame's occupancy (None for bytes).
+    pub fn fragments(self) -> Option<FragmentBudget> {
+        match self {
+            PlanBudget::Fragments(f) => Some(f),
+            PlanBudget::Bytes(_) => None,
+        }
+    }
+}
+
 /// What a frame's plan is given before the frame is counted.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PlanInput {

@@ -338,7 +338,10 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
             assert_eq!(f.image.data, exact.image.data, "{} at {b}: CPU", m.name());
         }
         let fb = FragmentBudget::Slots(b.resolve(&budget::DKB, pixels, total).unwrap().1);
-        for slots in [Slots::Dkb(&mlp, fb), Slots::Vkb(VkbParams::default(), fb)] {
+        for slots in [
+            Slots::Dkb(&mlp, fb.into()),
+            Slots::Vkb(VkbParams::default(), fb.into()),
+        ] {
             let img: Image = g
                 .render_method(&s, &identity(), w, h, BG, slots)
                 .unwrap()
@@ -392,8 +395,8 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
             .unwrap();
             let f = FragmentBudget::Slots(cpu.budget_fragments);
             let slots = match m {
-                Method::Vkb => Slots::Vkb(VkbParams::default(), f),
-                Method::Dkb => Slots::Dkb(&mlp, f),
+                Method::Vkb => Slots::Vkb(VkbParams::default(), f.into()),
+                Method::Dkb => Slots::Dkb(&mlp, f.into()),
                 _ => Slots::PerPixel(&cpu.k),
             };
             match g.render_method(&s, &identity(), w, h, BG, slots) {
@@ -461,7 +464,7 @@ fn skipping_forced_pixels_leaves_the_frame_unchanged() {
         for skip in [true, false] {
             o.tuning.skip_forced = skip;
             let fr = g
-                .render_with(&o, &s, &identity(), (w, h), BG, Slots::Dkb(&mlp, f))
+                .render_with(&o, &s, &identity(), (w, h), BG, Slots::Dkb(&mlp, f.into()))
                 .unwrap();
             frames.push(fr);
         }

@@ -1584,13 +1584,13 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
             for (label, slots, layout, target) in [
                 (
                     "vkb",
-                    Slots::Vkb(Default::default(), FragmentBudget::Share(ppm)),
+                    Slots::Vkb(Default::default(), FragmentBudget::Share(ppm).into()),
                     budget::VKB,
                     alloc::Target::RelativeK,
                 ),
                 (
                     "dkb",
-                    Slots::Dkb(&mlp, FragmentBudget::Share(ppm)),
+                    Slots::Dkb(&mlp, FragmentBudget::Share(ppm).into()),
                     budget::DKB,
                     mlp.target,
                 ),

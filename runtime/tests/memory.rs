@@ -259,8 +259,8 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
                     // Given its slots directly, as an application calls it (no CPU count or
                     // allocation), the GPU decides on its own count.
                     let direct = match m {
-                        Method::Dkb => Slots::Dkb(&mlp, a.fragment_budget),
-                        _ => Slots::Vkb(opts.vkb, a.fragment_budget),
+                        Method::Dkb => Slots::Dkb(&mlp, a.fragment_budget.into()),
+                        _ => Slots::Vkb(opts.vkb, a.fragment_budget.into()),
                     };
                     let gd = g.render(s, &cam, w, h, BG, direct).unwrap();
                     let f = a.fragment_budget.of(gpu_n);

@@ -811,8 +811,8 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
             let f = b.fragment_budget(&layout, px).unwrap();
             let opts = FrameOptions::default().always_approximate();
             let slots = match name {
-                "dkb" => Slots::Dkb(&weights, f),
-                _ => Slots::Vkb(vkb, f),
+                "dkb" => Slots::Dkb(&weights, f.into()),
+                _ => Slots::Vkb(vkb, f.into()),
             };
             let harness = g
                 .render_with(&opts, &s, &identity(), (w, h), BG, slots)
@@ -920,7 +920,8 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
 
 /// A byte budget for DKB or VKB in an application is a fixed pool: the bytes beside the
 /// method's fixed ones. A frame there runs at the most slots those bytes hold for its own
-/// occupancy (what `Gpu::render`, counting first, gives it: `FrameOptions::counted_bytes`),
+/// occupancy (what `Gpu::render`, counting first, gives it: a slots' budget of
+/// `PlanBudget::Bytes`),
 /// allocates exactly M, and gives dhoit's image; where M holds the A-buffer, the frame is
 /// exact. Bytes below what any frame needs are refused when the method is made.
 #[test]
@@ -945,19 +946,17 @@ fn a_byte_budget_is_resolved_against_each_frames_own_count() {
             "dkb" => AllocatedOit::dkb(g, (w, h), &weights, b, F32X4),
             _ => AllocatedOit::vkb(g, (w, h), vkb, b, F32X4),
         };
-        let slots_at = |f: u64| match name {
-            "dkb" => Slots::Dkb(&weights, f.into()),
-            _ => Slots::Vkb(vkb, f.into()),
-        };
         let m = layout.reserved_bytes(px, quarter, &occ);
         let f = layout.fragment_budget_counted(m, px, &occ).unwrap();
         assert!(f >= quarter && f < occ.fragments, "{name}: {f}");
-        let counted = FrameOptions {
-            counted_bytes: Some(m),
-            ..FrameOptions::default().always_approximate()
+        let bytes = dhoit_runtime::plan::PlanBudget::Bytes(m);
+        let counted = match name {
+            "dkb" => Slots::Dkb(&weights, bytes),
+            _ => Slots::Vkb(vkb, bytes),
         };
+        let opts = FrameOptions::default().always_approximate();
         let given = g
-            .render_with(&counted, &s, &identity(), (w, h), BG, slots_at(0))
+            .render_with(&opts, &s, &identity(), (w, h), BG, counted)
             .unwrap();
         for reversed in [false, true] {
             let (app, report) = app_frame(&s, (w, h), reversed, |g| {
@@ -1030,8 +1029,8 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
     let cases: Vec<(&str, Slots)> = vec![
         ("abuffer", Slots::Exact),
         ("fkb", Slots::Uniform(2)),
-        ("dkb", Slots::Dkb(&weights, dkb_f)),
-        ("vkb", Slots::Vkb(vkb, vkb_f)),
+        ("dkb", Slots::Dkb(&weights, dkb_f.into())),
+        ("vkb", Slots::Vkb(vkb, vkb_f.into())),
         ("mlab", Slots::Mlab(2)),
         ("linked-list", Slots::LinkedList { nodes, sorted: 8 }),
         ("wboit", Slots::Wboit(WboitParams::default())),

@@ -203,10 +203,6 @@ pub struct FrameOptions {
     /// ([`GpuFrame::exact`]); on by default, as [`crate::frame::Options::exact_when_cheaper`].
     /// FKB's and uploaded k's frames render as asked either way.
     pub exact_when_cheaper: bool,
-    /// DKB and VKB only: a budget in bytes, resolved once the frame's count is read back
-    /// against its own occupancy (`Layout::fragment_budget_counted`), in place of the slots'
-    /// F. None by default.
-    pub counted_bytes: Option<u64>,
     /// Whether a frame reads back what the tests compare besides the image (fragments, slots,
     /// tails, importance, statistics): on by default; off, the image alone.
     pub diagnostics: bool,
@@ -313,7 +309,6 @@ impl Default for FrameOptions {
     fn default() -> Self {
         FrameOptions {
             exact_when_cheaper: true,
-            counted_bytes: None,
             diagnostics: true,
             capture: Capture::Wide,
             tuning: Tuning::default(),
@@ -690,11 +685,13 @@ pub enum Slots<'a> {
     /// and resolves.
     Importance(&'a [f32], Target, FragmentBudget),
     /// The variable k-buffer, every pass on the GPU: count and nearest fragment, totals, paper
-    /// 002's importance, allocation, capture, resolve.
-    Vkb(VkbParams, FragmentBudget),
+    /// 002's importance, allocation, capture, resolve. Its budget: F (slots or a share of the
+    /// frame's fragments), or bytes, resolved once the frame's count is known against its own
+    /// occupancy (`Layout::fragment_budget_counted`).
+    Vkb(VkbParams, PlanBudget),
     /// The deep k-buffer, every pass on the GPU: features, totals, the network's importance,
-    /// allocation, capture, resolve.
-    Dkb(&'a Mlp, FragmentBudget),
+    /// allocation, capture, resolve. Its budget as [`Slots::Vkb`]'s.
+    Dkb(&'a Mlp, PlanBudget),
 }
 
 impl<'a> Slots<'a> {
@@ -728,12 +725,12 @@ impl<'a> Slots<'a> {
                 nodes: cpu.budget_fragments,
                 sorted: options.list_sorted,
             },
-            Method::Vkb => Slots::Vkb(options.vkb, budget),
+            Method::Vkb => Slots::Vkb(options.vkb, budget.into()),
             Method::Dkb => Slots::Dkb(
                 options.weights.ok_or_else(|| {
                     Error::Invalid("dkb needs network weights (--weights FILE)".into())
                 })?,
-                budget,
+                budget.into(),
             ),
             Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => {
                 Slots::PerPixel(&cpu.k)
@@ -958,8 +955,10 @@ impl Gpu {
         let mut params = spec.params;
         let mut fb = FrameBuffers::new(self, enc);
         let (budget, vkb, k_uniform) = match slots {
-            Slots::Importance(_, _, f) | Slots::Dkb(_, f) => (f, VkbParams::default(), 0),
-            Slots::Vkb(v, f) => (f, v, 0),
+            // A byte budget's F waits for the frame's count: the plan's (Recording::planned).
+            Slots::Importance(_, _, f) => (f, VkbParams::default(), 0),
+            Slots::Dkb(_, f) => (f.fragments().unwrap_or(0.into()), VkbParams::default(), 0),
+            Slots::Vkb(v, f) => (f.fragments().unwrap_or(0.into()), v, 0),
             Slots::Uniform(k) => (0.into(), VkbParams::default(), k.max(1)),
             Slots::Mlab(m) => {
                 if m == 0 || m > MLAB_MAX_ROWS {
@@ -1027,7 +1026,7 @@ impl Gpu {
             Slots::Wboit(_) => rec.wboit((width, height))?,
             Slots::Mboit(m) => rec.mboit((width, height), m.moments)?,
             Slots::LinkedList { nodes, .. } => rec.linked_list(nodes, width, height)?,
-            s => match rec.planned(s, budget)? {
+            s => match rec.planned(s)? {
                 None => {
                     exact = true;
                     rec.abuffer(Blend::Exact, width, height)?
@@ -1071,22 +1070,21 @@ impl Recording<'_, '_, '_> {
     /// ([`FrameOptions::exact_when_cheaper`]; then the frame is the A-buffer's), else its
     /// plan's input (the pool sized for the occupancy its client expects) and, counted first,
     /// the plan the device will make.
-    fn planned(&mut self, s: Slots, budget: FragmentBudget) -> Result<Option<Planned>> {
+    fn planned(&mut self, s: Slots) -> Result<Option<Planned>> {
         let px = self.px;
         let opts = self.passes.opts;
-        let (method, layout) = match s {
-            Slots::Dkb(mlp, _) => (Method::Dkb, opts.dkb_layout(mlp)),
-            Slots::Vkb(..) => (Method::Vkb, budget::VKB),
-            _ => (Method::Vkb, budget::VKB),
+        let (method, layout, asked) = match s {
+            Slots::Dkb(mlp, b) => (Method::Dkb, opts.dkb_layout(mlp), b),
+            Slots::Vkb(_, b) => (Method::Vkb, budget::VKB, b),
+            Slots::Importance(_, _, f) => (Method::Vkb, budget::VKB, f.into()),
+            // FKB's and an uploaded k's frames: their k is given, no F to plan.
+            _ => (Method::Vkb, budget::VKB, 0.into()),
         };
         // Where the frame is tinted, its slots and tails take what the tints leave of M
         // (Layout::tinted_fragment_budget).
-        let counted_bytes = opts
-            .counted_bytes
-            .map(|m| layout.tinted_budget(m, px, self.words));
-        let plan_budget = match counted_bytes {
-            Some(m) => PlanBudget::Bytes(m),
-            None => PlanBudget::Fragments(budget),
+        let plan_budget = match asked {
+            PlanBudget::Bytes(m) => PlanBudget::Bytes(layout.tinted_budget(m, px, self.words)),
+            b => b,
         };
         let exact_when_cheaper =
             opts.exact_when_cheaper && matches!(s, Slots::Dkb(..) | Slots::Vkb(..));
@@ -1094,18 +1092,17 @@ impl Recording<'_, '_, '_> {
             Sizing::Own(occ) => {
                 let n = occ.fragments;
                 // A byte budget resolved against this count: exact where it holds the A-buffer.
-                let holds_exact = opts
-                    .counted_bytes
-                    .is_some_and(|m| budget::abuffer_bytes(px, n, self.words.any()) <= m);
+                let holds_exact = matches!(asked,
+                    PlanBudget::Bytes(m) if budget::abuffer_bytes(px, n, self.words.any()) <= m);
                 if exact_when_cheaper && holds_exact {
                     return Ok(None);
                 }
-                let f = match opts.counted_bytes {
-                    Some(m) if self.words.any() => {
+                let f = match asked {
+                    PlanBudget::Bytes(m) if self.words.any() => {
                         layout.tinted_fragment_budget(m, px, &occ, self.words)?
                     }
-                    Some(m) => layout.fragment_budget_counted(m, px, &occ)?,
-                    None => budget.of(n),
+                    PlanBudget::Bytes(m) => layout.fragment_budget_counted(m, px, &occ)?,
+                    PlanBudget::Fragments(budget) => budget.of(n),
                 };
                 if exact_when_cheaper
                     && (f >= n || exact_is_no_dearer(method, &layout, px, f, &occ))

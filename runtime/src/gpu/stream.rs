@@ -14,6 +14,7 @@ use crate::error::{Error, GpuError, Result};
 use crate::importance::VkbParams;
 use crate::mlp::Mlp;
 use crate::plan::Plan;
+use crate::plan::PlanBudget;
 use crate::wgsl::{MLAB_MAX_ROWS, Params};
 
 /// What a frame did, read back once it has run (`Oit::finished`,
@@ -118,7 +119,7 @@ impl AppMethod {
 }
 
 /// What an application's frame for the method runs on, in dhoit's own terms.
-fn slots_of(method: &AppMethod, budget: FragmentBudget) -> Slots<'_> {
+fn slots_of(method: &AppMethod, budget: PlanBudget) -> Slots<'_> {
     match method {
         AppMethod::List { nodes, sorted } => Slots::LinkedList {
             nodes: *nodes,
@@ -291,13 +292,15 @@ impl Stream {
         })
     }
 
-    fn budget_slots(&self) -> FragmentBudget {
+    /// The budget DKB's and VKB's frames plan with: F (a share, or slots a pixel times the
+    /// pixels), or bytes, which the plan resolves against each frame's own count. No budget
+    /// (the other methods) is no slot.
+    fn plan_budget(&self) -> PlanBudget {
         match self.budget {
-            Some(Budget::Share(ppm)) => FragmentBudget::Share(ppm),
-            Some(Budget::SlotsPerPixel(f)) => {
-                FragmentBudget::Slots((f * self.pixels() as f64).floor() as u64)
-            }
-            _ => FragmentBudget::Slots(0),
+            Some(Budget::Share(ppm)) => FragmentBudget::Share(ppm).into(),
+            Some(Budget::SlotsPerPixel(f)) => ((f * self.pixels() as f64).floor() as u64).into(),
+            Some(Budget::Bytes(m)) => PlanBudget::Bytes(m),
+            None => 0.into(),
         }
     }
 
@@ -424,16 +427,16 @@ impl Stream {
         match &mut self.method {
             AppMethod::Dkb(_) | AppMethod::Vkb(_) => {
                 let layout = self.method.layout();
-                // Refused now where no frame can hold a slot: the fixed bytes and the marks.
-                if let Budget::Bytes(m) = budget {
-                    layout.fragment_budget_counted(m, px, &Occupancy::default())?;
+                // Refused now where no frame can hold a slot: bytes below the fixed bytes and
+                // the marks, or no fragment budget for the layout.
+                match budget {
+                    Budget::Bytes(m) => {
+                        layout.fragment_budget_counted(m, px, &Occupancy::default())?;
+                    }
+                    _ => {
+                        budget.fragment_budget(&layout, px)?;
+                    }
                 }
-                budget
-                    .fragment_budget(&layout, px)
-                    .or_else(|e| match budget {
-                        Budget::Bytes(_) => Ok(FragmentBudget::Slots(0)),
-                        _ => Err(e),
-                    })?;
                 self.budget = Some(budget);
             }
             AppMethod::Fkb { k } => {
@@ -515,17 +518,13 @@ impl Stream {
             diagnostics: false,
             exact_when_cheaper: self.exact_when_cheaper,
             capture: self.capture,
-            counted_bytes: match self.budget {
-                Some(Budget::Bytes(m)) => Some(m),
-                _ => None,
-            },
             ..FrameOptions::default()
         };
         let spec = FrameSpec {
             opts,
             size: self.size,
             params,
-            slots: slots_of(&self.method, self.budget_slots()),
+            slots: slots_of(&self.method, self.plan_budget()),
             sizing: self.sizing()?,
         };
         let timer = Timer::new(&self.gpu);
