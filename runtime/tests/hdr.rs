@@ -416,7 +416,8 @@ fn a_byte_budget_holds_the_words_of_light_above_white() {
 /// byte 255 - 3; within white the RGBA8 it always was; NaN, negative and beyond 2^15 as the
 /// transparent fragments' encoding takes them), every method composites over that light on the
 /// CPU (a pane of 8-bit opacity 128/255 over it lets 127/255 through), and the GPU's opaque
-/// pass and resolves are the twin's: a pixel of the surface alone reads back 8.0.
+/// pass and resolves are the twin's (every method both run): a pixel of the surface alone reads
+/// back 8.0.
 #[test]
 fn an_opaque_surface_above_white_keeps_its_light() {
     use dhoit_runtime::fragment::{pack_opaque, unpack_opaque};
@@ -492,17 +493,7 @@ fn an_opaque_surface_above_white_keeps_its_light() {
         "{:?}",
         ab.image.data[row + left]
     );
-    let methods = [
-        Method::Abuffer,
-        Method::Fkb,
-        Method::Vkb,
-        Method::Dkb,
-        Method::Mlab,
-        Method::Wboit,
-        Method::Mboit,
-        Method::LinkedList,
-    ];
-    for (m, cpu, gpu) in common::cpu_and_gpu_frames(g, &s, &cam, &fl, opts, &methods) {
+    for (m, cpu, gpu) in common::cpu_and_gpu_frames(g, &s, &cam, &fl, opts, &common::CPU_AND_GPU) {
         let (n, worst) = differing(&cpu.image, &gpu, common::twin_bound(m, 1e-5));
         assert_eq!(n, 0, "{m}: {n} pixels (worst {worst})");
     }
