@@ -143,15 +143,19 @@ fn hdr_exponent(rgb: vec3<f32>, max_e: u32) -> u32 {
     return e;
 }
 
-// A transparent fragment's colour as it is stored (fragment::quantize_hdr): x its RGBA8, its RGB
-// clamped at white, or where the frame keeps colours above white (params.hdr) at
-// 2^HDR_MAX_EXPONENT and over 2^e; y that exponent e (0 within white).
-fn stored_rgba8(color: vec4<f32>) -> vec2<u32> {
-    let max_e = select(0u, HDR_MAX_EXPONENT, params.hdr != 0u);
+// A colour stored with exponents up to `max_e` (fragment::quantize_hdr): x its RGBA8, its RGB
+// clamped to [0, 2^max_e] and over 2^e; y that exponent e (0 within white).
+fn stored_rgba8_up_to(color: vec4<f32>, max_e: u32) -> vec2<u32> {
     let top = vec3<f32>(f32(1u << max_e));
     let c = select(vec3<f32>(0.0), min(color.rgb, top), color.rgb > vec3<f32>(0.0));
     let e = hdr_exponent(c, max_e);
     return vec2<u32>(pack_rgba8(vec4<f32>(c / f32(1u << e), color.a)), e);
+}
+
+// A transparent fragment's colour as it is stored: clamped at white, or where the frame keeps
+// colours above white (params.hdr) up to 2^HDR_MAX_EXPONENT (stored_rgba8_up_to).
+fn stored_rgba8(color: vec4<f32>) -> vec2<u32> {
+    return stored_rgba8_up_to(color, select(0u, HDR_MAX_EXPONENT, params.hdr != 0u));
 }
 
 // A stored fragment's colour: its RGBA8 `rgba8`, RGB times 2^e, e the top byte of its tint

@@ -11,8 +11,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) u3
     if (s.kind != SHADED_OPAQUE) {
         discard;
     }
-    let top = vec3<f32>(f32(1u << HDR_MAX_EXPONENT));
-    let c = select(vec3<f32>(0.0), min(s.color.rgb, top), s.color.rgb > vec3<f32>(0.0));
-    let e = hdr_exponent(c, HDR_MAX_EXPONENT);
-    return (pack_rgba8(vec4<f32>(c / f32(1u << e), 0.0)) & CLEAR) | ((255u - e) << 24u);
+    // Every frame keeps an opaque colour's range: the word has room for its exponent.
+    let stored = stored_rgba8_up_to(vec4<f32>(s.color.rgb, 0.0), HDR_MAX_EXPONENT);
+    return (stored.x & CLEAR) | ((255u - stored.y) << 24u);
 }

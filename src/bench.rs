@@ -496,8 +496,6 @@ fn time_run(
     }))
 }
 
-/// What one scene's runs show side by side, printed and as the scene's JSON: DKB against VKB
-/// and the A-buffer, and what each option saves.
 /// What a bench frame's figures are read against, from the CPU's allocations: whether DKB's
 /// budget holds every fragment, and of its covered pixels those its capture appends and those
 /// whose k the network does not decide.
@@ -560,6 +558,8 @@ fn frame_shape(
     })
 }
 
+/// What one scene's runs show side by side, printed and as the scene's JSON: DKB against VKB
+/// and the A-buffer, and what each option saves.
 fn scene_figures(
     name: &str,
     fl: &dhoit_runtime::fragment::FragmentLists,
@@ -583,7 +583,7 @@ fn scene_figures(
     let two_mode_where_all_fit = capture("dkb_two_mode_where_all_fit");
     let staged = imp("dkb_shared_weights");
     let looped = imp("dkb_array_network");
-    let half_ms = if methods.contains_key("dkb_f16_math") {
+    let half_ms = if has_half {
         imp("dkb_f16_math")
     } else {
         f64::NAN

@@ -228,7 +228,7 @@ fn reserved(
 }
 
 /// DKB without a network.
-fn no_weights() -> Error {
+pub(crate) fn no_weights() -> Error {
     Error::Invalid("dkb needs network weights (--weights FILE)".into())
 }
 

@@ -727,9 +727,7 @@ impl<'a> Slots<'a> {
             },
             Method::Vkb => Slots::Vkb(options.vkb, budget.into()),
             Method::Dkb => Slots::Dkb(
-                options.weights.ok_or_else(|| {
-                    Error::Invalid("dkb needs network weights (--weights FILE)".into())
-                })?,
+                options.weights.ok_or_else(crate::frame::no_weights)?,
                 budget.into(),
             ),
             Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => {

@@ -520,9 +520,7 @@ impl SceneStream {
             M::Fkb => (AppMethod::Fkb { k: 1 }, Some(options.budget)),
             M::Mlab => (AppMethod::Mlab { rows: 1 }, Some(options.budget)),
             M::Dkb => {
-                let weights = options.weights.ok_or_else(|| {
-                    Error::Invalid("dkb needs network weights (--weights FILE)".into())
-                })?;
+                let weights = options.weights.ok_or_else(crate::frame::no_weights)?;
                 (
                     AppMethod::Dkb(Box::new(weights.clone())),
                     Some(options.budget),

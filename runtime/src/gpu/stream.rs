@@ -13,8 +13,7 @@ use crate::composite::{MboitParams, WboitParams};
 use crate::error::{Error, GpuError, Result};
 use crate::importance::VkbParams;
 use crate::mlp::Mlp;
-use crate::plan::Plan;
-use crate::plan::PlanBudget;
+use crate::plan::{Plan, PlanBudget};
 use crate::wgsl::{MLAB_MAX_ROWS, Params};
 
 /// What a frame did, read back once it has run (`Oit::finished`,
