@@ -27,7 +27,7 @@ END = "<!-- /results -->"
 
 def mse_table(path):
     """{budget: {method: text}} from the file's first table (mean MSE)."""
-    rows = section(path, next(l[3:] for l in path.read_text().splitlines() if l.startswith("## Mean MSE")))
+    rows = section(path, "Mean MSE")
     header = [c.strip() for c in rows[0].strip("|").split("|")]
     table = {}
     for row in rows[2:]:
@@ -69,17 +69,31 @@ def results_mse():
                     ["vkb", "dkb", "optimal-pooled", "optimal", "wboit"])
 
 
-def section(path, title):
-    """The lines of the Markdown table under `## title` in `path`."""
-    lines = path.read_text().splitlines()
-    start = lines.index(f"## {title}")
-    first = next(i for i in range(start, len(lines)) if lines[i].startswith("|"))
-    out = []
-    for l in lines[first:]:
-        if not l.startswith("|"):
+def tables_under(lines, heading):
+    """The Markdown tables (each its lines) under the first heading of `lines` whose text starts
+    with `heading`, up to the next heading after them; None where no heading starts so."""
+    start = next((i for i, l in enumerate(lines)
+                  if l.startswith("#") and l.lstrip("#").strip().startswith(heading)), None)
+    if start is None:
+        return None
+    tables, current = [], None
+    for l in lines[start + 1:]:
+        if l.startswith("#") and tables:
             break
-        out.append(l)
-    return out
+        if l.startswith("|"):
+            if current is None:
+                current = []
+                tables.append(current)
+            current.append(l)
+        else:
+            current = None
+    return tables
+
+
+def section(path, heading):
+    """The lines of the first Markdown table under the heading of `path` that starts with
+    `heading`."""
+    return tables_under(path.read_text().splitlines(), heading)[0]
 
 
 TARGETS_BEGIN = "<!-- targets: written by `make eval` from docs/eval-slots.md and docs/eval-materials-slots.md -->"
@@ -100,12 +114,11 @@ VERSUS_BEGIN = "<!-- versus: written by `make versus` from docs/versus.md -->"
 def versus():
     """Each method's frames of the run and geometric-mean MSE at each memory, from the table
     at the head of each of docs/versus.md's `## M = ...` sections."""
-    path = ROOT / "docs/versus.md"
-    lines = path.read_text().splitlines()
+    lines = (ROOT / "docs/versus.md").read_text().splitlines()
     memories = [l[len("## M = "):].split("x")[0] + "x" for l in lines if l.startswith("## M = ")]
-    runs, order = {}, []
+    runs, order, total = {}, [], None
     for m in memories:
-        rows = section(path, next(l[3:] for l in lines if l.startswith(f"## M = {m[:-1]}x")))
+        rows = tables_under(lines, f"M = {m}")[0]
         header = [c.strip() for c in rows[0].strip("|").split("|")]
         for row in rows[2:]:
             cell = dict(zip(header, (c.strip() for c in row.strip("|").split("|"))))
@@ -113,11 +126,9 @@ def versus():
             if name not in runs:
                 runs[name] = {}
                 order.append(name)
-            frames = cell["frames"].split(" of ")[0]
+            # "1 of 15": the frames it ran of the run's, the same at every memory.
+            frames, total = cell["frames"].split(" of ")
             runs[name][m] = f"{frames}: {cell['MSE']}"
-    # "1 of 15": the frames of the run, the same at every memory.
-    first = section(path, next(l[3:] for l in lines if l.startswith("## M = ")))[2]
-    total = first.strip("|").split("|")[1].split(" of ")[1].strip()
     head = ["method"] + [f"M = {m}: frames of {total}: MSE" for m in memories]
     out = [VERSUS_BEGIN, "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for name in order:
@@ -142,22 +153,9 @@ def copied(source, heading, n):
     path = ROOT / source
     if not path.is_file():
         return f"{source} does not exist"
-    lines = path.read_text().splitlines()
-    start = next((i for i, l in enumerate(lines)
-                  if l.startswith("#") and l.lstrip("#").strip().startswith(heading)), None)
-    if start is None:
+    tables = tables_under(path.read_text().splitlines(), heading)
+    if tables is None:
         return f'{source} has no heading "{heading}"'
-    tables, current = [], None
-    for l in lines[start + 1:]:
-        if l.startswith("#") and tables:
-            break
-        if l.startswith("|"):
-            if current is None:
-                current = []
-                tables.append(current)
-            current.append(l)
-        else:
-            current = None
     if len(tables) < n:
         return f'{source} has {len(tables)} tables under "{heading}", not {n}'
     return tables[n - 1]
@@ -210,32 +208,31 @@ def claims():
     sets = [("one opacity", 0, gap), ("materials", gap + 1, len(header))]
     errors = []
 
-    def value(cells, names, set_, name):
-        lo, hi = set_[1], set_[2]
-        i = next(i for i in range(lo, hi) if names[i].replace("materials: ", "") == name)
+    def value(cells, set_, name):
+        _, lo, hi = set_
+        i = next(i for i in range(lo, hi) if header[i].replace("materials: ", "") == name)
         return float(cells[i]) if cells[i] not in ("n/a", "-") else None
 
-    said = {
-        "below": "DKB's error is below VKB's (the hand-made allocation it learns to beat) and WBOIT's (what\n"
-                 "engines ship) at every budget here.",
-        "mboit": "MBOIT, at 28 bytes a pixel, is better only at the tightest;",
-    }
-    for key, sentence in said.items():
+    said = [
+        "DKB's error is below VKB's (the hand-made allocation it learns to beat) and WBOIT's (what\n"
+        "engines ship) at every budget here.",
+        "MBOIT, at 28 bytes a pixel, is better only at the tightest;",
+    ]
+    for sentence in said:
         if sentence not in text:
             errors.append(f"README.md no longer says {sentence!r}: update scripts/results_table.py's claims")
-    budgets = []
-    for row in rows[2:]:
-        cells = [c.strip() for c in row.strip("|").split("|")]
-        budgets.append(cells[0])
+    rows = [[c.strip() for c in row.strip("|").split("|")] for row in rows[2:]]
+    tightest = rows[0][0]
+    for cells in rows:
         for set_ in sets:
-            dkb = value(cells, header, set_, "DKB")
+            dkb = value(cells, set_, "DKB")
             for other in ["VKB", "WBOIT"]:
-                v = value(cells, header, set_, other)
+                v = value(cells, set_, other)
                 if v is not None and not dkb < v:
                     errors.append(f"README.md says DKB's error is below {other}'s at every budget; "
                                   f"at {cells[0]} ({set_[0]}) DKB {dkb:.3e}, {other} {v:.3e}")
-            mboit = value(cells, header, set_, "MBOIT")
-            if mboit < dkb and cells[0] != rows[2].strip("|").split("|")[0].strip():
+            mboit = value(cells, set_, "MBOIT")
+            if mboit is not None and mboit < dkb and cells[0] != tightest:
                 errors.append(f"README.md says MBOIT is better only at the tightest budget; "
                               f"at {cells[0]} ({set_[0]}) MBOIT {mboit:.3e}, DKB {dkb:.3e}")
     return errors
@@ -289,8 +286,9 @@ def main():
         if found.group(0) != table:
             for got, want in zip(found.group(0).splitlines(), table.splitlines()):
                 if got != want:
-                    print(f"results_table: {name} says\n  {got}\nwhere the eval tables give\n  {want}\n"
-                          "(`make eval` writes it)", file=sys.stderr)
+                    command = re.search(r"written by (`make \w+`)", begin).group(1)
+                    print(f"results_table: {name} says\n  {got}\nwhere its source gives\n  {want}\n"
+                          f"({command} writes it)", file=sys.stderr)
                     break
             failed = 1
         else:
