@@ -14,6 +14,7 @@
 //! GPU.
 
 use crate::error::{Error, Result};
+use crate::plan::PlanBudget;
 
 /// Bytes of one fragment slot: a 64-bit key, window depth bits high and RGBA8 low.
 pub const SLOT_BYTES: u64 = 8;
@@ -599,6 +600,14 @@ impl Layout {
         }
         self.allocated_bytes(pixels, f.min(occ.fragments))
     }
+    /// The bytes a budget of F slots comes to: what the layout reserves for them on a frame of
+    /// occupancy `occ` where it keeps tails ([`Layout::reserved_bytes`]), else F slots.
+    pub fn bytes_for(&self, pixels: u64, f: u64, occ: &Occupancy) -> u64 {
+        match self.tail_bytes {
+            0 => self.allocated_bytes(pixels, f),
+            _ => self.reserved_bytes(pixels, f, occ),
+        }
+    }
     /// F(M) for a frame of occupancy `occ`: the most slots whose bytes, with the tails they
     /// may keep (and the state the pool holds first), stay within `bytes`
     /// ([`Layout::fragment_budget`] where the tails are not pooled). Where F covers every
@@ -908,35 +917,11 @@ impl Budget {
         pixels: u64,
         occ: &Occupancy,
     ) -> Result<(u64, u64)> {
-        let fragments = occ.fragments;
-        let bytes_of = |slots: u64| {
-            if layout.tail_bytes > 0 {
-                return layout.reserved_bytes(pixels, slots, occ);
-            }
-            layout.allocated_bytes(pixels, slots)
-        };
-        match *self {
-            Budget::Bytes(b) => Ok((b, layout.fragment_budget_counted(b, pixels, occ)?)),
-            Budget::Share(ppm) => {
-                let slots = share_of(fragments, ppm);
-                // A frame with nothing transparent in view (all hidden, or none) needs no slot.
-                if slots == 0 && fragments > 0 {
-                    return Err(Error::Budget(
-                        self.to_string(),
-                        format!("leaves no fragment slot of the frame's {fragments} fragments"),
-                    ));
-                }
-                Ok((bytes_of(slots), slots))
-            }
-            Budget::SlotsPerPixel(f) => {
-                let slots = (f * pixels as f64).floor() as u64;
-                if slots == 0 {
-                    return Err(Error::Budget(
-                        format!("{f}fpp"),
-                        format!("leaves no fragment slot for {pixels} pixels"),
-                    ));
-                }
-                Ok((bytes_of(slots), slots))
+        match PlanBudget::of(*self, pixels, occ.fragments)? {
+            PlanBudget::Bytes(b) => Ok((b, layout.fragment_budget_counted(b, pixels, occ)?)),
+            PlanBudget::Fragments(f) => {
+                let slots = f.of(occ.fragments);
+                Ok((layout.bytes_for(pixels, slots, occ), slots))
             }
         }
     }

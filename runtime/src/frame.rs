@@ -8,6 +8,7 @@ use crate::error::{Error, Result};
 use crate::fragment::FragmentLists;
 use crate::importance::{self, VkbParams};
 use crate::mlp::Mlp;
+use crate::plan::{self, Counted, PlanBudget};
 use std::sync::OnceLock;
 use std::time::Instant;
 
@@ -159,8 +160,10 @@ impl std::fmt::Display for Method {
     }
 }
 
-/// The bytes `method` reserves for `budget` on the frame `fl` and the F it gets (the frame's
-/// fragments for the A-buffer, 0 for the blended methods), or the budget's refusal.
+/// What `budget` comes to for `method` on the frame `fl`: a k-buffer's as [`plan::counted`]
+/// decides it (whether it renders the exact A-buffer included); the A-buffer's bytes and every
+/// fragment; the blended methods' targets and no slot; the list's nodes. Or the budget's
+/// refusal.
 fn reserved(
     fl: &FragmentLists,
     method: Method,
@@ -168,16 +171,15 @@ fn reserved(
     layout: &budget::Layout,
     occ: &Occupancy,
     moments: u32,
-) -> Result<(u64, u64)> {
+) -> Result<Counted> {
     let pixels = fl.pixel_count() as u64;
     let total = fl.fragment_count() as u64;
-    // A k-buffer whose budget holds every fragment (F slots for them, or the bytes of the
-    // exact A-buffer) renders the A-buffer: exact, and never more memory than it (a byte
-    // budget that holds the A-buffer may be below the method's own fixed cost).
-    let exact_bytes = budget::abuffer_bytes(pixels, total, fl.tinted());
-    let bytes_hold = matches!(budget, Budget::Bytes(m) if m >= exact_bytes);
-    let r = match (method, budget) {
-        (Method::Abuffer, _) => (exact_bytes, total),
+    if method.is_kbuffer() {
+        let b = PlanBudget::of(budget, pixels, total)?;
+        return plan::counted(method, layout, b, pixels, occ, fl.words());
+    }
+    let (bytes, f) = match (method, budget) {
+        (Method::Abuffer, _) => (budget::abuffer_bytes(pixels, total, fl.tinted()), total),
         // Fixed memory whatever the budget: its accumulation targets, no slot. A byte
         // budget is a cap for them as for every method: targets above it do not run.
         (Method::Wboit | Method::Mboit, b) => {
@@ -201,30 +203,25 @@ fn reserved(
                 _ => (need, 0),
             }
         }
-        (_, Budget::Bytes(m)) if bytes_hold && method.is_kbuffer() => (m, total),
-        // A tinted k-buffer's slots and tails, and the list's nodes, take what their tints
-        // leave of M.
-        (_, Budget::Bytes(m))
-            if fl.tinted() && (method.is_kbuffer() || method == Method::LinkedList) =>
-        {
-            (
-                m,
-                layout.tinted_fragment_budget(m, pixels, occ, fl.words())?,
-            )
-        }
-        // F fixed by slots or a share: the bytes it reserves, with its tints where the
-        // frame's glass is tinted.
+        // The list's nodes take what their tints leave of M.
+        (Method::LinkedList, Budget::Bytes(m)) if fl.tinted() => (
+            m,
+            layout.tinted_fragment_budget(m, pixels, occ, fl.words())?,
+        ),
+        // F fixed by slots or a share (MLAB's rows, the list's nodes): the bytes it reserves,
+        // with a tint a node where the frame's glass is tinted.
         _ => {
             let (bytes, f) = budget.resolve_counted(layout, pixels, occ)?;
-            let bytes = match (fl.tinted(), method) {
-                (true, Method::LinkedList) => bytes + budget::TINT_BYTES * f,
-                (true, m) if m.is_kbuffer() => layout.with_tints(bytes, pixels, fl.words()),
-                _ => bytes,
-            };
-            (bytes, f)
+            let tints = (method == Method::LinkedList && fl.tinted()) as u64;
+            (bytes + tints * budget::TINT_BYTES * f, f)
         }
     };
-    Ok(r)
+    Ok(Counted {
+        bytes,
+        f,
+        holds_all: false,
+        no_dearer: false,
+    })
 }
 
 /// DKB without a network.
@@ -496,11 +493,12 @@ impl<'a> Renderer<'a> {
         match (opts.equal, opts.budget) {
             (Equal::Bytes, b @ (Budget::SlotsPerPixel(_) | Budget::Share(_))) => {
                 let fl = self.fragments;
-                let pixels = fl.pixel_count() as u64;
+                let (pixels, n) = (fl.pixel_count() as u64, fl.fragment_count() as u64);
                 let dkb = opts.layout(Method::Dkb);
-                let (bytes, _) = b.resolve_counted(&dkb, pixels, &Occupancy::of(&fl.counts()))?;
-                let bytes = dkb.with_tints(bytes, pixels, fl.words());
-                let exact = budget::abuffer_bytes(pixels, fl.fragment_count() as u64, fl.tinted());
+                let b = PlanBudget::of(b, pixels, n)?;
+                let occ = Occupancy::of(&fl.counts());
+                let bytes = plan::counted(Method::Dkb, &dkb, b, pixels, &occ, fl.words())?.bytes;
+                let exact = budget::abuffer_bytes(pixels, n, fl.tinted());
                 Ok(Budget::Bytes(match opts.exact_when_cheaper {
                     true => bytes.min(exact),
                     false => bytes,
@@ -527,21 +525,18 @@ impl<'a> Renderer<'a> {
         let opts = &self.options;
         let pixels = fl.pixel_count() as u64;
         let counts = fl.counts();
-        let total = fl.fragment_count() as u64;
         let occ = Occupancy::of(&counts);
         let layout = opts.layout(method);
         let t0 = Instant::now();
         // Refused whatever the frame: even one the A-buffer renders exactly.
         check_method_options(method, opts)?;
         let budget = self.budget()?;
-        let (budget_bytes, f) = reserved(fl, method, budget, &layout, &occ, opts.mboit.moments)?;
+        let counted = reserved(fl, method, budget, &layout, &occ, opts.mboit.moments)?;
+        let (budget_bytes, f) = (counted.bytes, counted.f);
         // Exact where the budget holds every fragment, and (unless told otherwise) where the
         // A-buffer needs no more bytes than the method reserves for this budget: then the
         // exact answer is both better and no dearer.
-        let exact = method.is_kbuffer()
-            && (f >= total
-                || (opts.exact_when_cheaper
-                    && exact_is_no_dearer(method, &layout, pixels, f, &occ)));
+        let exact = counted.exact(opts.exact_when_cheaper);
         let mut optimal = None;
         let k = match method {
             Method::Abuffer => counts,

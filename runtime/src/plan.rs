@@ -20,8 +20,14 @@
 //!   and how many batches the frame's records need; the client records `batches` features
 //!   passes, and records past them get no importance of their own (the allocation's least
 //!   weight), which [`Plan::short`] reports.
+//!
+//! Where the host knows the frame's count (the CPU renderer, `Gpu::render`), what its budget
+//! comes to is decided once, by [`counted`]: the bytes, F, and whether the frame renders the
+//! exact A-buffer instead ([`Counted`]).
 
-use crate::budget::{FragmentBudget, Layout, Occupancy, SLOT_BYTES};
+use crate::budget::{self, Budget, FragmentBudget, Layout, Occupancy, SLOT_BYTES, Words};
+use crate::error::{Error, Result};
+use crate::frame::{Method, exact_is_no_dearer};
 
 /// How a frame's F follows from its count.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -54,6 +60,103 @@ impl PlanBudget {
             PlanBudget::Bytes(_) => None,
         }
     }
+}
+
+impl PlanBudget {
+    /// A user's budget on a frame of `pixels` and `fragments`: bytes stay bytes, a share stays a
+    /// share, slots per pixel become `floor(fpp pixels)` slots; refused where it leaves no slot
+    /// (a share of a frame with fragments, or slots per pixel).
+    pub fn of(budget: Budget, pixels: u64, fragments: u64) -> Result<PlanBudget> {
+        match budget {
+            Budget::Bytes(m) => Ok(PlanBudget::Bytes(m)),
+            Budget::Share(ppm) => {
+                // A frame with nothing transparent in view (all hidden, or none) needs no slot.
+                if budget::share_of(fragments, ppm) == 0 && fragments > 0 {
+                    return Err(Error::Budget(
+                        budget.to_string(),
+                        format!("leaves no fragment slot of the frame's {fragments} fragments"),
+                    ));
+                }
+                Ok(FragmentBudget::Share(ppm).into())
+            }
+            Budget::SlotsPerPixel(f) => match (f * pixels as f64).floor() as u64 {
+                0 => Err(Error::Budget(
+                    format!("{f}fpp"),
+                    format!("leaves no fragment slot for {pixels} pixels"),
+                )),
+                slots => Ok(slots.into()),
+            },
+        }
+    }
+}
+
+/// What a k-buffer's budget comes to on a frame whose fragments are counted: decided by
+/// [`counted`] for the CPU renderer (`frame::Renderer`, the equal-bytes budget included) and for
+/// the GPU engine's frames that count first (`Gpu::render`). A frame sized before its count
+/// (an application's) is decided on the device instead ([`plan`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Counted {
+    /// M: a byte budget's bytes, or what the method reserves for F, with the words its frame
+    /// stores beside the slots ([`Layout::with_tints`]).
+    pub bytes: u64,
+    /// F(M); the frame's fragments n where the budget holds them all.
+    pub f: u64,
+    /// Whether the budget holds every fragment: F of at least n, or bytes that hold the exact
+    /// A-buffer (a budget is a cap, not a quantity to spend).
+    pub holds_all: bool,
+    /// Whether the exact A-buffer needs no more bytes than the method reserves at F
+    /// ([`exact_is_no_dearer`]).
+    pub no_dearer: bool,
+}
+
+impl Counted {
+    /// Whether the frame renders the exact A-buffer (k = n): where its budget holds every
+    /// fragment, and with `exact_when_cheaper` where the A-buffer is no dearer.
+    pub fn exact(&self, exact_when_cheaper: bool) -> bool {
+        self.holds_all || (exact_when_cheaper && self.no_dearer)
+    }
+}
+
+/// What `budget` comes to for the k-buffer `method` in `layout` on a frame of `pixels` and
+/// occupancy `occ` that stores `words` beside its fragments: a byte budget that holds the exact
+/// A-buffer keeps every fragment; other bytes hold the most slots their layout leaves after
+/// the words ([`Layout::tinted_fragment_budget`]); F (slots or a share) reserves what the
+/// layout takes for it ([`Layout::reserved_bytes`]) and its words.
+pub fn counted(
+    method: Method,
+    layout: &Layout,
+    budget: PlanBudget,
+    pixels: u64,
+    occ: &Occupancy,
+    words: Words,
+) -> Result<Counted> {
+    let n = occ.fragments;
+    if let PlanBudget::Bytes(m) = budget
+        && m >= budget::abuffer_bytes(pixels, n, words.any())
+    {
+        return Ok(Counted {
+            bytes: m,
+            f: n,
+            holds_all: true,
+            no_dearer: true,
+        });
+    }
+    let (bytes, f) = match budget {
+        PlanBudget::Bytes(m) => (m, layout.tinted_fragment_budget(m, pixels, occ, words)?),
+        PlanBudget::Fragments(b) => {
+            let f = b.of(n);
+            (
+                layout.with_tints(layout.bytes_for(pixels, f, occ), pixels, words),
+                f,
+            )
+        }
+    };
+    Ok(Counted {
+        bytes,
+        f,
+        holds_all: f >= n,
+        no_dearer: exact_is_no_dearer(method, layout, pixels, f, occ),
+    })
 }
 
 /// What a frame's plan is given before the frame is counted.
@@ -197,6 +300,77 @@ mod tests {
             deep,
             deeper,
         }
+    }
+
+    /// A byte budget's F is the largest F whose reservation fits in it, found by trying every
+    /// F (F = 0 is no slot: refused); bytes that hold the exact A-buffer keep every fragment;
+    /// and the bytes a budget of F slots reserves hold those F again, with the frame's words
+    /// or without.
+    #[test]
+    fn a_counted_budget_is_the_largest_f_its_bytes_hold() {
+        let mut searched = 0;
+        let px = 24;
+        // Deep enough that bytes below the A-buffer's hold DKB's weights and some slots.
+        for o in [
+            occ(60_000, 24, 24, 24),
+            occ(20_000, 16, 10, 8),
+            occ(400, 24, 20, 18),
+            occ(100, 24, 3, 2),
+            occ(24, 24, 0, 0),
+        ] {
+            for (method, layout) in [(Method::Dkb, DKB), (Method::Vkb, VKB)] {
+                let abuffer = budget::abuffer_bytes(px, o.fragments, false);
+                let fixed = layout.fixed_bytes(px);
+                let (lo, hi) = (fixed.saturating_sub(64), abuffer + 64);
+                let step = (hi.saturating_sub(lo) / 400).max(1) as usize;
+                for m in (lo..hi).step_by(step) {
+                    let got = counted(method, &layout, PlanBudget::Bytes(m), px, &o, Words::None);
+                    let label = format!("{} {o:?} {m} B", layout.method);
+                    if m >= abuffer {
+                        let c = got.unwrap();
+                        assert!(
+                            c.holds_all && c.exact(false) && c.f == o.fragments,
+                            "{label}"
+                        );
+                        continue;
+                    }
+                    let search = (0..=m / SLOT_BYTES)
+                        .rev()
+                        .find(|&f| layout.reserved_bytes(px, f, &o) <= m);
+                    searched += 1;
+                    match (got, search) {
+                        (Ok(c), Some(f)) => assert_eq!(c.f, f, "{label}"),
+                        (Err(_), None | Some(0)) => {}
+                        (got, search) => panic!("{label}: {got:?}, the search {search:?}"),
+                    }
+                }
+                let step = (o.fragments / 300).max(1) as usize;
+                for f in (1..=o.fragments + 4).step_by(step) {
+                    for words in [Words::None, Words::Exponents, Words::Tints] {
+                        let by_f = counted(method, &layout, f.into(), px, &o, words).unwrap();
+                        assert_eq!(by_f.holds_all, f >= o.fragments);
+                        let by_bytes = counted(
+                            method,
+                            &layout,
+                            PlanBudget::Bytes(by_f.bytes),
+                            px,
+                            &o,
+                            words,
+                        )
+                        .unwrap();
+                        assert!(
+                            by_bytes.f >= f.min(o.fragments),
+                            "{} {o:?} {words:?}: F {f} reserves {} B, which hold F {}",
+                            layout.method,
+                            by_f.bytes,
+                            by_bytes.f
+                        );
+                    }
+                }
+            }
+        }
+        // Bytes below the A-buffer's were searched, not only refused or held exact.
+        assert!(searched > 1000, "{searched} budgets searched");
     }
 
     /// Every F from 0 to n, its words counted by `pool_words_at`: the largest that fits is

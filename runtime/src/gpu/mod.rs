@@ -75,7 +75,7 @@ use crate::budget::{FragmentBudget, Occupancy};
 use crate::composite::{Image, MboitParams, WboitParams};
 use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
-use crate::frame::{Allocation, Method, Options, exact_is_no_dearer};
+use crate::frame::{Allocation, Method, Options};
 use crate::importance::{PixelStats, VkbParams};
 use crate::mlp::{Mlp, Precision};
 use crate::plan::{Plan, PlanBudget, PlanInput};
@@ -1064,8 +1064,8 @@ impl Planned {
 
 impl Recording<'_, '_, '_> {
     /// How a DKB, VKB or uploaded importance frame runs: None where its client counted first
-    /// and the exact A-buffer is no dearer than the method at its budget
-    /// ([`FrameOptions::exact_when_cheaper`]; then the frame is the A-buffer's), else its
+    /// and, with [`FrameOptions::exact_when_cheaper`], the frame renders the exact A-buffer as
+    /// the CPU's would ([`crate::plan::Counted::exact`]; then the frame is the A-buffer's), else its
     /// plan's input (the pool sized for the occupancy its client expects) and, counted first,
     /// the plan the device will make.
     fn planned(&mut self, s: Slots) -> Result<Option<Planned>> {
@@ -1088,25 +1088,12 @@ impl Recording<'_, '_, '_> {
             opts.exact_when_cheaper && matches!(s, Slots::Dkb(..) | Slots::Vkb(..));
         let (pool_bytes, batches, host) = match self.sizing {
             Sizing::Own(occ) => {
-                let n = occ.fragments;
-                // A byte budget resolved against this count: exact where it holds the A-buffer.
-                let holds_exact = matches!(asked,
-                    PlanBudget::Bytes(m) if budget::abuffer_bytes(px, n, self.words.any()) <= m);
-                if exact_when_cheaper && holds_exact {
+                // What the budget comes to on this count, decided as the CPU decides it.
+                let counted = crate::plan::counted(method, &layout, asked, px, &occ, self.words)?;
+                if exact_when_cheaper && counted.exact(true) {
                     return Ok(None);
                 }
-                let f = match asked {
-                    PlanBudget::Bytes(m) if self.words.any() => {
-                        layout.tinted_fragment_budget(m, px, &occ, self.words)?
-                    }
-                    PlanBudget::Bytes(m) => layout.fragment_budget_counted(m, px, &occ)?,
-                    PlanBudget::Fragments(budget) => budget.of(n),
-                };
-                if exact_when_cheaper
-                    && (f >= n || exact_is_no_dearer(method, &layout, px, f, &occ))
-                {
-                    return Ok(None);
-                }
+                let f = counted.f;
                 let pool_bytes = match layout.pool_state {
                     Some(_) => layout.pool_bytes(px, f, &occ),
                     None => (budget::SLOT_BYTES * occ.pool_words_at(f)).max(16),
