@@ -10,6 +10,14 @@ pub use crate::shared::{
 };
 
 /// WGSL sources, embedded at build time.
+/// Every binding the shaders declare, by shader and variable name (`runtime/build.rs` reads
+/// them from `shaders/*.wgsl`): the host binds by these names, so an index is written once, in
+/// its shader. Bound by position (`Gpu::bind`) where a shader's bindings run 0, 1, 2, ...
+#[allow(dead_code)]
+pub mod bindings {
+    include!(concat!(env!("OUT_DIR"), "/bindings.rs"));
+}
+
 pub mod shaders {
     /// Code every pass starts with (after the prelude), the per-pixel counts' packing
     /// (counts.wgsl) with it.
@@ -886,6 +894,55 @@ mod tests {
                 ref e => panic!("{src}: {e:?}"),
             }
         }
+    }
+
+    /// Every binding `runtime/build.rs` names from a shader's text is the one naga reads from
+    /// each module built with that shader (dhoit's passes, and the modules an application's
+    /// fragment shader starts with), and every named binding is in such a module.
+    #[test]
+    fn the_named_bindings_are_the_ones_naga_reads() {
+        let mut modules: Vec<(String, naga::Module, Vec<&str>)> = Vec::new();
+        for p in shaders::PASSES {
+            let mut parts = vec![p.source];
+            parts.extend(p.includes);
+            modules.push((p.name.to_string(), parse(p.name), parts));
+            if let Some(app) = shaders::application_pass(p.name, &[], 1) {
+                let m = naga::front::wgsl::parse_str(&app).unwrap_or_else(|e| panic!("{e}"));
+                modules.push((
+                    format!("application {}", p.name),
+                    m,
+                    vec![shaders::OIT_PHASE],
+                ));
+            }
+        }
+        let mut unchecked = Vec::new();
+        for &(file, name, binding) in bindings::ALL {
+            let path = format!("{}/../shaders/{file}.wgsl", env!("CARGO_MANIFEST_DIR"));
+            let text = std::fs::read_to_string(&path).unwrap();
+            let var = name.to_ascii_lowercase();
+            let mut checked = 0;
+            for (label, m, _) in modules
+                .iter()
+                .filter(|(_, _, parts)| parts.contains(&text.as_str()))
+            {
+                let read = m
+                    .global_variables
+                    .iter()
+                    .find(|(_, g)| g.name.as_deref() == Some(var.as_str()))
+                    .and_then(|(_, g)| g.binding.as_ref())
+                    .map(|b| b.binding);
+                assert_eq!(
+                    read,
+                    Some(binding),
+                    "{file}.wgsl's `{var}` in the {label} module"
+                );
+                checked += 1;
+            }
+            if checked == 0 {
+                unchecked.push(format!("{file}.{name}"));
+            }
+        }
+        assert!(unchecked.is_empty(), "in no module: {unchecked:?}");
     }
 
     #[test]

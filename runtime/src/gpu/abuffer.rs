@@ -11,8 +11,9 @@
 //! whose fragments the pool does not hold whole stores none and the frame's status says so
 //! (`STATUS_POOL_SHORT`).
 
+use super::bindings::sort;
 use super::buffers::{FrameStatus, read_back, read_u64s, u32s};
-use super::passes::{Phase, Resolve, entries, entries_from};
+use super::passes::{Phase, Resolve, at, entries};
 use super::{Recording, Sizing};
 use crate::error::Result;
 use crate::fragment::FragmentLists;
@@ -79,8 +80,12 @@ impl Recording<'_, '_, '_> {
             Blend::Exact => (Resolve::Abuffer, &p.abuffer_resolve, "sort and blend"),
         };
         let mut group = entries(&[passes.params(), &offsets, &keys]);
-        group.extend(entries_from(4, &[&status, &primitives, &tints]));
-        passes.resolve(fb.enc, resolve, own, group, 3, name);
+        group.extend([
+            at(sort::STATUS, &status),
+            at(sort::PRIMITIVES, &primitives),
+            at(sort::TINTS, &tints),
+        ]);
+        passes.resolve(fb.enc, resolve, own, group, name);
         self.out.counted = Some((offsets.clone(), 4 * px));
         if passes.opts.diagnostics {
             self.out.deferred.push(Box::new(move |gpu, out| {

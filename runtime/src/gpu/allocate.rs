@@ -4,6 +4,7 @@
 //! a frame computes (`dkb.rs`, `vkb.rs`) or is given (the count pass and `totals.wgsl` first).
 //! [`Gpu::allocate`] runs it alone.
 
+use super::bindings::{allocate, plan};
 use super::buffers::{FrameBuffers, read_back, read_counts, read_u64s, read_words, u32s};
 use super::passes::{Passes, Phase};
 use super::pipelines::{compute_buffer_entry, module, module_from, redeclare};
@@ -176,14 +177,14 @@ impl<'a> Passes<'a> {
             gpu.bind_at(
                 &a.layout,
                 &[
-                    (0, self.params()),
-                    (1, &params),
-                    (2, b.counts),
-                    (3, b.weights),
-                    (5, &state),
-                    (6, &flags),
-                    (7, b.totals),
-                    (8, args),
+                    (allocate::PARAMS, self.params()),
+                    (allocate::ALLOC, &params),
+                    (allocate::COUNTS, b.counts),
+                    (allocate::W, b.weights),
+                    (allocate::STATE, &state),
+                    (allocate::FLAGS, &flags),
+                    (allocate::TOTALS, b.totals),
+                    (allocate::DISPATCHES, args),
                 ],
             )
         };
@@ -387,14 +388,20 @@ impl Allocate {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("allocate"),
             entries: &[
-                entry(0, wgpu::BufferBindingType::Uniform),
-                entry(1, wgpu::BufferBindingType::Uniform),
-                entry(2, wgpu::BufferBindingType::Storage { read_only: true }),
-                entry(3, rw),
-                entry(5, rw),
-                entry(6, rw),
-                entry(7, wgpu::BufferBindingType::Storage { read_only: true }),
-                entry(8, rw),
+                entry(allocate::PARAMS, wgpu::BufferBindingType::Uniform),
+                entry(allocate::ALLOC, wgpu::BufferBindingType::Uniform),
+                entry(
+                    allocate::COUNTS,
+                    wgpu::BufferBindingType::Storage { read_only: true },
+                ),
+                entry(allocate::W, rw),
+                entry(allocate::STATE, rw),
+                entry(allocate::FLAGS, rw),
+                entry(
+                    allocate::TOTALS,
+                    wgpu::BufferBindingType::Storage { read_only: true },
+                ),
+                entry(allocate::DISPATCHES, rw),
             ],
         });
         let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -526,7 +533,11 @@ impl Gpu {
                     .write_buffer(&params, 0, bytemuck::bytes_of(&PlanParams::of(input)));
                 let g = self.bind_at(
                     &p.get_bind_group_layout(0),
-                    &[(2, &totals), (8, &batch), (9, &params)],
+                    &[
+                        (plan::TOTALS, &totals),
+                        (plan::BATCH, &batch),
+                        (plan::PLAN, &params),
+                    ],
                 );
                 pass.set_bind_group(0, &g, &[]);
                 pass.dispatch_workgroups(1, 1, 1);

@@ -16,7 +16,8 @@
 
 use std::cell::RefCell;
 
-use super::passes::{Geometry, GeometryPass, Phase, Resolve};
+use super::bindings::{self, oit_phase};
+use super::passes::{Geometry, GeometryPass, Phase, Resolve, at};
 use super::pipelines::{compute_pipeline, module_from, redeclare};
 use super::stream::{AppMethod, FrameReport, Stream};
 use super::{Capture, Gpu, frame_params};
@@ -464,7 +465,8 @@ fn bindings_of(method: &AppMethod, phase: Phase) -> Vec<Binding> {
     }
 }
 
-/// A phase's group layout: the pass's bindings, the parameters (14), the opaque depth (15).
+/// A phase's group layout: the pass's bindings, the parameters and the opaque depth
+/// (oit_phase.wgsl's).
 fn phase_layout(device: &wgpu::Device, method: &AppMethod, phase: Phase) -> wgpu::BindGroupLayout {
     let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
         binding,
@@ -496,8 +498,9 @@ fn phase_layout(device: &wgpu::Device, method: &AppMethod, phase: Phase) -> wgpu
             Some(entry(i as u32, ty))
         })
         .collect();
-    entries.push(entry(14, buffer(wgpu::BufferBindingType::Uniform)));
-    entries.push(entry(15, texture(wgpu::TextureSampleType::Depth)));
+    let (params, depth) = (oit_phase::PARAMS, oit_phase::OIT_OPAQUE_DEPTH);
+    entries.push(entry(params, buffer(wgpu::BufferBindingType::Uniform)));
+    entries.push(entry(depth, texture(wgpu::TextureSampleType::Depth)));
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some(&format!("dhoit {} {phase:?}", method.name())),
         entries: &entries,
@@ -586,12 +589,9 @@ impl Geometry for AppDraws<'_, '_> {
             .group
             .into_iter()
             .chain([
+                at(bindings::oit_phase::PARAMS, params),
                 wgpu::BindGroupEntry {
-                    binding: 14,
-                    resource: params.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 15,
+                    binding: bindings::oit_phase::OIT_OPAQUE_DEPTH,
                     resource: wgpu::BindingResource::TextureView(self.frame.depth),
                 },
             ])
@@ -631,10 +631,9 @@ impl Geometry for AppDraws<'_, '_> {
         resolve: Resolve,
         _own: &wgpu::ComputePipeline,
         group: Vec<wgpu::BindGroupEntry<'_>>,
-        _image_at: u32,
     ) {
         let onto = onto_pipeline(gpu, resolve, self.format);
-        let (_, _, under_at) = resolve.onto();
+        let (_, _, [under_at, target_at]) = resolve.onto();
         let entries: Vec<wgpu::BindGroupEntry> = group
             .into_iter()
             .chain([
@@ -643,7 +642,7 @@ impl Geometry for AppDraws<'_, '_> {
                     resource: wgpu::BindingResource::TextureView(self.frame.under),
                 },
                 wgpu::BindGroupEntry {
-                    binding: under_at + 1,
+                    binding: target_at,
                     resource: wgpu::BindingResource::TextureView(self.frame.target),
                 },
             ])

@@ -13,7 +13,8 @@
 //! depends on the submission order by that rounding, as an engine's does.
 
 use super::Recording;
-use super::passes::{Phase, Resolve};
+use super::bindings::blend_composite;
+use super::passes::{Phase, Resolve, at};
 use crate::composite::{MboitParams, WboitParams};
 use crate::error::{GpuError, Result};
 use crate::wgsl::Params;
@@ -290,14 +291,7 @@ impl Recording<'_, '_, '_> {
             "accumulate",
         );
         let group = composite_group(passes.params(), [&targets[0].0, &targets[1].0]);
-        passes.resolve(
-            fb.enc,
-            Resolve::Wboit,
-            composite,
-            group,
-            1,
-            "wboit composite",
-        );
+        passes.resolve(fb.enc, Resolve::Wboit, composite, group, "wboit composite");
         Ok(())
     }
 
@@ -375,23 +369,16 @@ impl Recording<'_, '_, '_> {
         // What the background is seen through per channel where tinted (else b_0 again,
         // unread).
         group.push(wgpu::BindGroupEntry {
-            binding: 4,
+            binding: blend_composite::THIRD_TARGET,
             resource: wgpu::BindingResource::TextureView(through),
         });
-        passes.resolve(
-            fb.enc,
-            Resolve::Mboit,
-            composite,
-            group,
-            1,
-            "mboit composite",
-        );
+        passes.resolve(fb.enc, Resolve::Mboit, composite, group, "mboit composite");
         Ok(())
     }
 }
 
 /// A blended method's composite's group (blend_composite.wgsl) without its image: the
-/// parameters, `targets` at bindings 2 and 3.
+/// parameters, `targets` as its first and second.
 fn composite_group<'b>(
     params: &'b wgpu::Buffer,
     targets: [&'b wgpu::TextureView; 2],
@@ -401,12 +388,9 @@ fn composite_group<'b>(
         resource: wgpu::BindingResource::TextureView(view),
     };
     vec![
-        wgpu::BindGroupEntry {
-            binding: 0,
-            resource: params.as_entire_binding(),
-        },
-        view(2, targets[0]),
-        view(3, targets[1]),
+        at(blend_composite::PARAMS, params),
+        view(blend_composite::FIRST_TARGET, targets[0]),
+        view(blend_composite::SECOND_TARGET, targets[1]),
     ]
 }
 

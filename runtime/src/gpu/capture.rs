@@ -4,8 +4,9 @@
 //! slots front to back over the tail's approximation; twin `composite::hybrid_sorted`).
 
 use super::allocate::{AllocBuffers, Importance, Word};
+use super::bindings;
 use super::buffers::{FrameStatus, read_back, read_counts, read_u64s, u32s};
-use super::passes::{Phase, Resolve, entries, entries_from};
+use super::passes::{Phase, Resolve, at, entries};
 use super::scan::Scan;
 use super::{Capture, Planned, Recording, Slots};
 use crate::error::{Error, Result};
@@ -194,7 +195,10 @@ impl Recording<'_, '_, '_> {
             // Its group: the bases, the slots (and the pooled tails), the per-pixel tails'
             // sums (for colours above white), the counts and the tints.
             let mut group = entries(&[&kb.base, &b.slots, &b.tail]);
-            group.extend(entries_from(4, &[&kb.counts, &b.tints]));
+            group.extend([
+                at(bindings::capture::COUNT, &kb.counts),
+                at(bindings::kbuffer_tint::OIT_TINTS, &b.tints),
+            ]);
             let tint = gpu.extras().capture_tints(fits);
             passes.draw_group(fb.enc, Phase::CaptureTints, tint, group, "capture tints");
         }
@@ -224,9 +228,12 @@ impl Recording<'_, '_, '_> {
             }
         };
         let mut group = entries(&[passes.params(), &kb.base, &b.slots, &b.tail, &b.tail_count]);
-        group.extend(entries_from(6, &[&kb.counts, &status]));
-        group.extend(entries_from(10, &[&b.tints]));
-        passes.resolve(fb.enc, resolve, own, group, 5, "resolve");
+        group.extend([
+            at(bindings::resolve::COUNT, &kb.counts),
+            at(bindings::resolve::STATUS, &status),
+            at(bindings::resolve::TINTS, &b.tints),
+        ]);
+        passes.resolve(fb.enc, resolve, own, group, "resolve");
         self.out.status = Some(status);
         if passes.opts.diagnostics {
             self.read_slots_later(s, &kb, b, captured);

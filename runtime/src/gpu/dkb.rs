@@ -18,7 +18,9 @@
 //! fits the frame into it.
 
 use super::allocate::{Importance, Reuse, Word};
+use super::bindings::{importance_dkb, mlp, totals};
 use super::passes::Phase;
+use super::pipelines;
 use super::pipelines::Variant;
 use super::{Planned, Recording, weight_kind};
 use crate::error::Result;
@@ -168,21 +170,23 @@ impl Recording<'_, '_, '_> {
         let (gx, gy) = grid(px as u32, PIXEL_GROUP);
         // The first batch assigns every record; each after it empties its own and moves the
         // batch on (totals.wgsl).
+        // The records' index a pixel in the importance buffer, the records in the pool, the
+        // batch in the list's length.
         let mut bound = vec![
-            (0, passes.params()),
-            (1, &b.counts),
-            (6, &b.importance),
-            (7, &b.pool),
-            (8, &b.list_len),
+            (totals::PARAMS, passes.params()),
+            (totals::COUNT, &b.counts),
+            (totals::RECORD_OF, &b.importance),
+            (totals::RECORDS, &b.pool),
+            (totals::BATCH, &b.list_len),
         ];
         let steps = match batch {
             0 => {
-                bound.push((2, &b.totals));
+                bound.push((totals::TOTALS, &b.totals));
                 vec![(&p.assign_records, bound, (gx, gy))]
             }
             _ => vec![
                 (&p.init_records, bound, (gx, gy)),
-                (&p.next_batch, vec![(8, &b.list_len)], (1, 1)),
+                (&p.next_batch, vec![(totals::BATCH, &b.list_len)], (1, 1)),
             ],
         };
         let steps: Vec<_> = steps
@@ -264,15 +268,15 @@ impl Recording<'_, '_, '_> {
             gpu.bind_at(
                 &p.network_layout.group,
                 &[
-                    (0, passes.params()),
-                    (1, &b.weights),
+                    (importance_dkb::PARAMS, passes.params()),
+                    (mlp::WEIGHTS, &b.weights),
                     // The records, and the list after them.
-                    (3, &b.pool),
-                    (6, &b.totals),
-                    (8, &b.importance),
-                    (9, &b.list_len),
-                    (10, dispatch_or_not),
-                    (11, &b.weights),
+                    (importance_dkb::RECORDS, &b.pool),
+                    (importance_dkb::TOTALS, &b.totals),
+                    (importance_dkb::SHARED_WORD, &b.importance),
+                    (importance_dkb::LIST_LEN, &b.list_len),
+                    (importance_dkb::DISPATCH, dispatch_or_not),
+                    (pipelines::WEIGHTS_H, &b.weights),
                 ],
             )
         };

@@ -6,8 +6,9 @@
 //! fragments that arrived.
 
 use super::Recording;
+use super::bindings::list_resolve;
 use super::buffers::{FrameStatus, read_back, read_u64s, read_words, u32s};
-use super::passes::{Phase, Resolve, entries};
+use super::passes::{Phase, Resolve, at, entries};
 use crate::error::Result;
 use crate::fragment::FragmentLists;
 
@@ -34,13 +35,11 @@ impl Recording<'_, '_, '_> {
             "store",
         );
         let mut group = entries(&[passes.params(), &heads, &next, &keys]);
-        for (binding, buffer) in [(5, &status), (8, &tints)] {
-            group.push(wgpu::BindGroupEntry {
-                binding,
-                resource: buffer.as_entire_binding(),
-            });
-        }
-        passes.resolve(fb.enc, Resolve::List, resolve, group, 4, "sort and blend");
+        group.extend([
+            at(list_resolve::STATUS, &status),
+            at(list_resolve::TINTS, &tints),
+        ]);
+        passes.resolve(fb.enc, Resolve::List, resolve, group, "sort and blend");
         self.out.status = Some(status);
         if !passes.opts.diagnostics {
             return Ok(());

@@ -80,6 +80,7 @@ use crate::importance::{PixelStats, VkbParams};
 use crate::mlp::{Mlp, Precision};
 use crate::plan::{Plan, PlanBudget, PlanInput};
 use crate::scene::Camera;
+use crate::wgsl::bindings;
 use crate::wgsl::{MLAB_MAX_ROWS, Params};
 
 /// The WGSL of network pass `pass` ("predict", "importance_dkb") as built for `m`: for the

@@ -3,6 +3,7 @@
 //! draws geometry only through [`Geometry`]: `Gpu::render` draws its scene there
 //! (`scene.rs`), an application its own transparent geometry (`app.rs`).
 
+use super::bindings;
 use super::timer::Timer;
 use super::{FrameOptions, Gpu};
 use crate::wgsl::{PIXEL_GROUP, grid};
@@ -68,16 +69,35 @@ pub(super) enum Resolve {
 }
 
 impl Resolve {
-    /// The pass and entry that resolve onto an application's target, and the binding of its
-    /// image there (the target at the next): each resolve's `onto` entry.
-    pub(super) fn onto(self) -> (&'static str, &'static str, u32) {
+    /// The pass and entry that resolve onto an application's target, and the bindings there of
+    /// the image under the transparent surfaces and of the target: each resolve's `onto` entry.
+    pub(super) fn onto(self) -> (&'static str, &'static str, [u32; 2]) {
+        use bindings::{blend_composite as blend, list_resolve as list, resolve, sort};
         match self {
-            Resolve::KBuffer { .. } => ("resolve", "onto", 8),
-            Resolve::Abuffer => ("abuffer_resolve", "onto", 8),
-            Resolve::Mlab => ("mlab_resolve", "onto", 8),
-            Resolve::List => ("list_resolve", "onto", 6),
-            Resolve::Wboit => ("blend_composite", "wboit_onto", 8),
-            Resolve::Mboit => ("blend_composite", "mboit_onto", 8),
+            Resolve::KBuffer { .. } => ("resolve", "onto", [resolve::UNDER, resolve::ONTO_TARGET]),
+            Resolve::Abuffer => ("abuffer_resolve", "onto", [sort::UNDER, sort::ONTO_TARGET]),
+            Resolve::Mlab => ("mlab_resolve", "onto", [sort::UNDER, sort::ONTO_TARGET]),
+            Resolve::List => ("list_resolve", "onto", [list::UNDER, list::ONTO_TARGET]),
+            Resolve::Wboit => (
+                "blend_composite",
+                "wboit_onto",
+                [blend::UNDER, blend::ONTO_TARGET],
+            ),
+            Resolve::Mboit => (
+                "blend_composite",
+                "mboit_onto",
+                [blend::UNDER, blend::ONTO_TARGET],
+            ),
+        }
+    }
+
+    /// The binding of the image dhoit's own frame resolves into (`main`).
+    pub(super) fn image_at(self) -> u32 {
+        match self {
+            Resolve::KBuffer { .. } => bindings::resolve::IMAGE,
+            Resolve::Abuffer | Resolve::Mlab => bindings::sort::IMAGE,
+            Resolve::List => bindings::list_resolve::IMAGE,
+            Resolve::Wboit | Resolve::Mboit => bindings::blend_composite::IMAGE,
         }
     }
 
@@ -145,7 +165,6 @@ pub(super) trait Geometry {
         resolve: Resolve,
         own: &wgpu::ComputePipeline,
         group: Vec<wgpu::BindGroupEntry<'_>>,
-        image_at: u32,
     );
 }
 
@@ -166,18 +185,16 @@ pub(super) fn entries<'b>(buffers: &[&'b wgpu::Buffer]) -> Vec<wgpu::BindGroupEn
 }
 
 /// `buffers` at bindings `first`, `first + 1`, ...
-pub(super) fn entries_from<'b>(
-    first: u32,
-    buffers: &[&'b wgpu::Buffer],
-) -> Vec<wgpu::BindGroupEntry<'b>> {
-    buffers
-        .iter()
-        .zip(first..)
-        .map(|(b, binding)| wgpu::BindGroupEntry {
-            binding,
-            resource: b.as_entire_binding(),
-        })
-        .collect()
+fn entries_from<'b>(first: u32, buffers: &[&'b wgpu::Buffer]) -> Vec<wgpu::BindGroupEntry<'b>> {
+    buffers.iter().zip(first..).map(|(b, i)| at(i, b)).collect()
+}
+
+/// `buffer` at `binding` (a name from [`bindings`]).
+pub(super) fn at(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: buffer.as_entire_binding(),
+    }
 }
 
 impl<'a> Passes<'a> {
@@ -269,12 +286,11 @@ impl<'a> Passes<'a> {
         resolve: Resolve,
         pipeline: &wgpu::ComputePipeline,
         group: Vec<wgpu::BindGroupEntry<'_>>,
-        image_at: u32,
         name: &'static str,
     ) {
         self.compute(enc, name, |pass| {
             self.geometry
-                .resolve(self.gpu, pass, resolve, pipeline, group, image_at)
+                .resolve(self.gpu, pass, resolve, pipeline, group)
         });
     }
 
@@ -331,7 +347,11 @@ impl<'a> Passes<'a> {
                 &plan_pipeline
                     .expect("with the plan")
                     .get_bind_group_layout(0),
-                &[(2, totals), (8, batch), (9, uniform)],
+                &[
+                    (bindings::plan::TOTALS, totals),
+                    (bindings::plan::BATCH, batch),
+                    (bindings::plan::PLAN, uniform),
+                ],
             )
         });
         let (gx, gy) = grid(self.pixels, PIXEL_GROUP);

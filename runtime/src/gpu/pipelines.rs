@@ -4,6 +4,7 @@
 
 use super::Gpu;
 use super::allocate::Allocate;
+use super::bindings;
 use super::blend::{BlendPass, mboit_fits};
 use crate::budget;
 use crate::error::{GpuError, Result};
@@ -270,6 +271,7 @@ pub(super) struct NetworkLayout {
 
 impl NetworkLayout {
     pub(super) fn new(device: &wgpu::Device) -> NetworkLayout {
+        use bindings::importance_dkb;
         let entry = compute_buffer_entry;
         let read = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
@@ -277,18 +279,18 @@ impl NetworkLayout {
         let group = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("importance_dkb"),
             entries: &[
-                entry(0, uniform),
-                entry(1, uniform),
+                entry(importance_dkb::PARAMS, uniform),
+                entry(bindings::mlp::WEIGHTS, uniform),
                 // The records (in the slot pool), then each record's importance in its
                 // nearest key's place; after them the list of records the network decides.
-                entry(3, rw),
-                entry(6, read),
+                entry(importance_dkb::RECORDS, rw),
+                entry(importance_dkb::TOTALS, read),
                 // The record indices, then the importance: the frame's shared word.
-                entry(8, rw),
-                entry(9, rw),
-                entry(10, rw),
+                entry(importance_dkb::SHARED_WORD, rw),
+                entry(importance_dkb::LIST_LEN, rw),
+                entry(importance_dkb::DISPATCH, rw),
                 // The weights again, read as binary16 by the f16-math pass (mlp::Precision).
-                entry(11, uniform),
+                entry(WEIGHTS_H, uniform),
             ],
         });
         let pipeline = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -432,6 +434,10 @@ impl Variant {
     }
 }
 
+/// The binding of the weights' binary16 view, which [`unrolled_forward`] declares beside
+/// mlp.wgsl's `weights` (the same buffer).
+pub(super) const WEIGHTS_H: u32 = 11;
+
 /// `mlp_forward` for one network shape (padded sizes p1, p2), written out: the second layer's
 /// sums in p2 / 4 named vec4s instead of an array (which a GPU compiler may keep in local
 /// memory when its loops are not unrolled), every weight's offset within a row a constant.
@@ -468,7 +474,7 @@ struct HalfWords {{
     lo: vec4<f16>,
     hi: vec4<f16>,
 }};
-@group(0) @binding(11) var<uniform> weights_h: array<HalfWords, MLP_VEC4S>;
+@group(0) @binding({WEIGHTS_H}) var<uniform> weights_h: array<HalfWords, MLP_VEC4S>;
 
 // Four binary16 parameters from index `i` (where param4 reads them at F16_WEIGHTS), as they are.
 fn param4h(i: u32) -> vec4<f16> {{

@@ -2,8 +2,9 @@
 //! pass does) on rows of 12 features; the twins are `Mlp::forward` and the trainer's burn model.
 
 use super::Gpu;
+use super::bindings::{mlp, predict};
 use super::buffers::{read_back, u32s};
-use super::pipelines::Variant;
+use super::pipelines::{self, Variant};
 use crate::error::Result;
 use crate::mlp::{Mlp, Precision};
 use crate::wgsl::{PIXEL_GROUP, Params, grid, mlp_uniform};
@@ -58,10 +59,15 @@ impl Gpu {
                 mapped_at_creation: false,
             });
             let pl = &self.network_pass(Variant::for_network("predict", mlp, true));
-            let mut entries = vec![(0, &params_buf), (1, &weights), (2, &input), (3, &output)];
+            let mut entries = vec![
+                (predict::PARAMS, &params_buf),
+                (mlp::WEIGHTS, &weights),
+                (predict::ROWS, &input),
+                (predict::PREDICTIONS, &output),
+            ];
             if mlp.precision == Precision::F16Math {
                 // The weights' binary16 view (pipelines::unrolled_forward).
-                entries.push((11, &weights));
+                entries.push((pipelines::WEIGHTS_H, &weights));
             }
             let group = self.bind_at(&pl.get_bind_group_layout(0), &entries);
             let mut enc = self.device.create_command_encoder(&Default::default());

@@ -2,6 +2,7 @@
 //! for the A-buffer's offsets and the k-buffer's slot bases; the twin is a running sum
 //! (`FragmentLists::offsets`, `alloc` tests).
 
+use super::bindings::scan;
 use super::buffers::FrameBuffers;
 use super::passes::Passes;
 use crate::budget;
@@ -69,9 +70,13 @@ impl<'a> Passes<'a> {
         // Auto layouts keep only the bindings an entry point uses: `values` only the first
         // entry's, where it reads another buffer.
         let bind = |pl: &wgpu::ComputePipeline, first: bool| {
-            let mut entries = vec![(0, params), (2, offsets), (3, &blocks)];
+            let mut entries = vec![
+                (scan::PARAMS, params),
+                (scan::OFFSETS, offsets),
+                (scan::BLOCKS, &blocks),
+            ];
             if let (true, Some(v)) = (first, values) {
-                entries.push((1, v));
+                entries.push((scan::VALUES, v));
             }
             self.gpu.bind_at(&pl.get_bind_group_layout(0), &entries)
         };

@@ -8,10 +8,11 @@
 //! read back, so every buffer of the frame is sized for its own occupancy (`Sizing::Own`, the
 //! memory the tables count). An application's frame never waits (`app.rs`).
 
+use super::bindings;
 use super::buffers::{
     FrameBuffers, Readback, Statistics, read_back_with_async, read_frame, read_texture, read_words,
 };
-use super::passes::{Geometry, GeometryPass, Resolve};
+use super::passes::{Geometry, GeometryPass, Resolve, at};
 use super::pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT};
 use super::stream::{AppMethod, FrameReport, Stream};
 use super::timer::Timer;
@@ -70,7 +71,7 @@ impl<'i> SceneDraws<'i> {
         let i = self.inputs;
         let buffers: Vec<&wgpu::Buffer> = std::iter::once(params).chain(&i.scene).collect();
         let depth = wgpu::BindGroupEntry {
-            binding: 8,
+            binding: bindings::geometry::OPAQUE_DEPTH,
             resource: wgpu::BindingResource::TextureView(&i.depth_view),
         };
         let extra = if transparent { vec![depth] } else { Vec::new() };
@@ -164,22 +165,18 @@ impl Geometry for SceneDraws<'_> {
         &self,
         gpu: &Gpu,
         cpass: &mut wgpu::ComputePass,
-        _resolve: Resolve,
+        resolve: Resolve,
         own: &wgpu::ComputePipeline,
         group: Vec<wgpu::BindGroupEntry<'_>>,
-        image_at: u32,
     ) {
         let i = self.inputs;
         // The image, and what the resolve composites over (behind.wgsl).
         let entries: Vec<wgpu::BindGroupEntry> = group
             .into_iter()
             .chain([
+                at(resolve.image_at(), &i.image),
                 wgpu::BindGroupEntry {
-                    binding: image_at,
-                    resource: i.image.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 15,
+                    binding: bindings::behind::OPAQUE_COLOR,
                     resource: wgpu::BindingResource::TextureView(&i.color_view),
                 },
             ])
