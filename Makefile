@@ -6,7 +6,7 @@ RUN := $(CARGO) run --release --quiet --
 # Real glTF scenes for tests and evaluation, read in place (never copied into the repository).
 export DHOIT_SCENES ?= $(abspath ../shared/scenes)
 
-.PHONY: all setup demo test fmt lint check bench frame devbin build train nets golden eval trade versus fuzz pictures webgpu web web-picture
+.PHONY: all setup demo test fmt lint check bench frame devbin build train nets golden eval trade versus fuzz pictures webgpu web web-picture web-record
 
 all: demo
 
@@ -181,6 +181,11 @@ web:
 ## The page's picture, docs/web.png: a screenshot of it in a headless Chromium.
 web-picture:
 	./scripts/web.sh picture
+
+## The web build's figures, docs/web-measured.md (which docs/web.md copies): its test's frames
+## against the native ones, and its times on Dawn and in Chromium.
+web-record: setup
+	./scripts/web.sh record
 
 ## For a machine lent with a real GPU: the release binary and the GPU test binaries (stripped)
 ## into .devbin/ and the Vulkan loader package into .gl/ (both ignored by git), which

@@ -7,6 +7,8 @@
 #                  and hold them to each other; then load the page in a headless Chromium (Debian's
 #                  chromium-headless-shell, its WebGPU on SwiftShader) and drive it
 #                  (scripts/web_page.mjs)
+#   web.sh record  test, then keep what it measured (target/web/measured.md, scripts/web_summary.py)
+#                  as docs/web-measured.md, which docs/web.md copies
 #   web.sh picture as test's last step, keeping its screenshot as docs/web.png
 #   web.sh serve   build, then serve the page on http://localhost:8000 (python3)
 set -euo pipefail
@@ -60,6 +62,29 @@ serve_page() {
   url=http://127.0.0.1:$port/
 }
 
+# The native frames, the wasm ones on Dawn held to them, the page in Chromium; what they measured
+# into target/web/measured.md.
+run_test() {
+  build
+  ./scripts/dawn.sh setup
+  # The page's three methods at its first budget, then every method a page runs at one slot a
+  # pixel (FKB, MLAB and the list take no share of the fragments).
+  for run in "page --budget 25%" "all --methods all --budget 1fpp"; do
+    set -- $run
+    name=$1
+    native=$target/web/native-$name
+    shift
+    cargo run --release --quiet -p dhoit-web -- "$native" "$@"
+    WEB_SUMMARY=$target/web/summary-$name.json \
+      ./scripts/dawn.sh run scripts/web_test.mjs "$pkg" "$native" 2> >(grep -v "^Warning: max" >&2)
+  done
+  browser_setup
+  serve_page
+  WEB_PAGE_SUMMARY=$target/web/page.json node scripts/web_page.mjs "$url"
+  python3 scripts/web_summary.py "$target/web" > "$target/web/measured.md"
+  echo "web: what it measured in $target/web/measured.md (web.sh record keeps it in docs/)"
+}
+
 case "${1:-}" in
   build) build ;;
   picture)
@@ -68,26 +93,16 @@ case "${1:-}" in
     serve_page
     node scripts/web_page.mjs "$url" docs/web.png
     ;;
-  test)
-    build
-    ./scripts/dawn.sh setup
-    # The page's three methods at its first budget, then every method a page runs at one slot a
-    # pixel (FKB, MLAB and the list take no share of the fragments).
-    for run in "page --budget 25%" "all --methods all --budget 1fpp"; do
-      set -- $run
-      native=$target/web/native-$1
-      shift
-      cargo run --release --quiet -p dhoit-web -- "$native" "$@"
-      ./scripts/dawn.sh run scripts/web_test.mjs "$pkg" "$native" 2> >(grep -v "^Warning: max" >&2)
-    done
-    browser_setup
-    serve_page
-    node scripts/web_page.mjs "$url"
+  test) run_test ;;
+  record)
+    run_test
+    cp "$target/web/measured.md" docs/web-measured.md
+    python3 scripts/results_table.py --write
     ;;
   serve)
     build
     echo "web: open http://localhost:8000 in a browser with WebGPU (Ctrl-C stops)"
     exec python3 -m http.server --directory examples/web 8000
     ;;
-  *) echo "usage: web.sh build | test | serve" >&2; exit 2 ;;
+  *) echo "usage: web.sh build | test | record | picture | serve" >&2; exit 2 ;;
 esac

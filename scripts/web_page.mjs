@@ -3,6 +3,8 @@
 // canvases, and draws again when its budget slider and its scene change. Run by
 // scripts/web.sh test (and `web.sh picture`, which keeps its screenshot).
 //   node scripts/web_page.mjs URL [SCREENSHOT.png]
+// With WEB_PAGE_SUMMARY=FILE, what it measured as JSON there (scripts/web_summary.py).
+import { writeFileSync } from 'node:fs';
 import { createRequire } from 'node:module';
 
 const [url, screenshot] = process.argv.slice(2);
@@ -66,7 +68,8 @@ for (const f of first) {
   if (f.blank) await fail(`${f.caption}: a blank canvas`);
   if (!(kib(f.caption) > 0)) await fail(`a caption names no bytes: ${f.caption}`);
 }
-console.log(`page: ${await page.$eval('#status', (e) => e.textContent)}`);
+const firstStatus = await page.$eval('#status', (e) => e.textContent);
+console.log(`page: ${firstStatus}`);
 for (const f of first) console.log(`page:   ${f.caption}`);
 if (screenshot) {
   await page.screenshot({ path: screenshot });
@@ -96,7 +99,15 @@ const scene = await page.$eval('#scene', (e) => {
 await settled(`the scene ${scene}`);
 const other = await figures();
 if (other[2].sum === first[2].sum) await fail(`the scene ${scene} looks like the first one`);
-console.log(`page: ${scene}: ${await page.$eval('#status', (e) => e.textContent)}`);
+const otherStatus = await page.$eval('#status', (e) => e.textContent);
+console.log(`page: ${scene}: ${otherStatus}`);
+if (process.env.WEB_PAGE_SUMMARY) {
+  const ms = (status) => Number(/ methods in (\d+) ms/.exec(status)?.[1]);
+  writeFileSync(process.env.WEB_PAGE_SUMMARY, JSON.stringify({
+    size: first[0].size, first_ms: ms(firstStatus), scene, scene_ms: ms(otherStatus),
+    captions: first.map((f) => f.caption), wider: wider.slice(0, 2).map((f) => f.caption),
+  }, null, 1));
+}
 if (problems.length) await fail('the page logged errors');
 await browser.close();
 console.log('page: the page draws in a headless Chromium on its WebGPU, and follows its slider and scene');

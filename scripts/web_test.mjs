@@ -2,7 +2,8 @@
 // optional feature, WebGPU's default limits), its frames held to the native build's on
 // WebGPU's core device (`dhoit-web DIR`): run by scripts/web.sh test.
 //   dawn.sh run scripts/web_test.mjs PKG_DIR NATIVE_DIR
-import { readFileSync } from 'node:fs';
+// With WEB_SUMMARY=FILE, what it measured as JSON there (scripts/web_summary.py tabulates it).
+import { readFileSync, writeFileSync } from 'node:fs';
 import { join, resolve } from 'node:path';
 import { pathToFileURL } from 'node:url';
 
@@ -31,13 +32,18 @@ console.log(`web: wasm on ${app.demo.adapter()}: ${native.methods.join(', ')}; $
 const words = (file) => new Uint32Array(new Uint8Array(readFileSync(join(nativeDir, file))).buffer);
 const nativeGeometry = words('geometry.u32');
 const differing = (a, b) => a.length === b.length ? a.filter((w, i) => w !== b[i]).length : `all ${b.length}`;
-console.log(`web: the page's host computed ${differing(app.demo.camera_bits(), native.camera)} of 24 camera words ` +
-  `and ${differing(app.demo.geometry_bits(), nativeGeometry)} of ${nativeGeometry.length} vertex words ` +
+const host = {
+  camera_differ: differing(app.demo.camera_bits(), native.camera), camera_words: native.camera.length,
+  vertex_differ: differing(app.demo.geometry_bits(), nativeGeometry), vertex_words: nativeGeometry.length,
+};
+console.log(`web: the page's host computed ${host.camera_differ} of ${host.camera_words} camera words ` +
+  `and ${host.vertex_differ} of ${host.vertex_words} vertex words ` +
   'otherwise than the native host; it renders the native ones');
 app.demo.set_camera_bits(Uint32Array.from(native.camera));
 app.demo.set_geometry_bits(nativeGeometry);
 const { views, ms } = await demoJs.render(app);
 let failed = false;
+const summary = { adapter: app.demo.adapter(), host, scene: native.scene, size: [width, height], budget: native.budget, ms, views: [] };
 for (const v of views) {
   const want = native.views.find((n) => n.method === v.method);
   const ref = readFileSync(join(nativeDir, `${v.method}.rgba`));
@@ -68,6 +74,11 @@ for (const v of views) {
     `${v.frames} frame(s), RMSE vs the A-buffer ${v.rmse.toFixed(5)} (native ${want.rmse.toFixed(5)}); ` +
     `linear values differing from the native frame: ${floats} of ${refLinear.length} (by at most ${worst}); ` +
     `sRGB8 channels: ${differ} of ${ref.length}, by at most ${most}`);
+  summary.views.push({
+    method: v.method, frames: v.frames, bytes: v.bytes, native_bytes: want.bytes, exact: v.exact,
+    linear_differ: floats, linear_values: refLinear.length, srgb_differ: differ, srgb_channels: ref.length,
+    srgb_most: most, order_independent: want.order_independent, rmse_ratio: v.rmse / want.rmse,
+  });
   if (!want.order_independent) {
     // Past its pool, the list keeps the fragments the GPU ran first (which differ run to run,
     // natively too): held to the same bytes and an error against the A-buffer between 2/3 and
@@ -79,6 +90,7 @@ for (const v of views) {
   } else if (!same || floats !== 0 || most > 1) failed = true;
 }
 console.log(`web: ${views.length} methods rendered in ${ms.toFixed(0)} ms`);
+if (process.env.WEB_SUMMARY) writeFileSync(process.env.WEB_SUMMARY, JSON.stringify(summary, null, 1));
 if (failed) {
   console.error('web: the wasm frames differ from the native ones');
   process.exit(1);
