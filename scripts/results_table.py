@@ -10,9 +10,13 @@
   for the Nth table under it) and `<!-- /table -->`, the table under that heading in FILE (a
   path from the repository root), in README.md and docs/*.md alike.
 
+- docs/training.md's figures of the default training (its samples, epochs and the training
+  machine's float fingerprint), held to the data/config.json that `make train` writes.
+
 `make eval` (and `make versus`, `make trade`, `make frame`) write them (--write); `make test`
 checks them (--check: exit 1, naming the first line that differs, where a document's table is
 not what its source gives; and where the README is over 120 lines or has a paragraph over 8)."""
+import json
 import re
 import sys
 from pathlib import Path
@@ -238,6 +242,29 @@ def claims():
     return errors
 
 
+def training_claims():
+    """docs/training.md's figures of the default training held to data/config.json (what `make
+    train` writes beside the weights). Error messages."""
+    text = (ROOT / "docs/training.md").read_text()
+    config = json.loads((ROOT / "data/config.json").read_text())
+    samples, epochs = config["dataset"]["samples"], config["train"]["epochs"]
+    figures = [
+        (r"\((\d+\.\d) million\s+samples\)", f"{samples / 1e6:.1f}", f"{samples:,} samples"),
+        (r"then trains (\d+) epochs", str(epochs), f"{epochs} epochs"),
+        (r"records the training machine's \(`([0-9a-f]+)`", config["float_fingerprint"],
+         "the training machine's float fingerprint"),
+    ]
+    errors = []
+    for pattern, want, recorded in figures:
+        found = re.search(pattern, text)
+        if not found:
+            errors.append(f"docs/training.md has no {pattern!r}: update scripts/results_table.py")
+        elif found.group(1) != want:
+            errors.append(f"docs/training.md says {found.group(0)!r}; data/config.json records "
+                          f"{recorded} ({want})")
+    return errors
+
+
 def readme_shape():
     """The README reads in five minutes: at most 120 lines, no paragraph over 8 (code blocks and
     tables aside). An error message, or None."""
@@ -266,7 +293,7 @@ def main():
         failed = 1
     failed = min(1, failed + copies(mode))
     if mode == "--check":
-        for why in claims():
+        for why in claims() + training_claims():
             print(f"results_table: {why}", file=sys.stderr)
             failed = 1
     for name, begin, make in BLOCKS:
