@@ -1,7 +1,7 @@
 // DKB features pass (geometry): per pixel of more than TAIL_WORDS fragments (its record:
 // totals.wgsl's assign_records), with integer atomics only (so any order gives the same
 // result), the statistics importance::pixel_stats gathers beside the count: the nearest
-// fragment's capture key, and the sums of the fragments' 8-bit R, G, B and of r^2 + g^2 + b^2.
+// fragment's capture key (its opacity what its tint lets through: filtered_rgba8), and the sums of the fragments' 8-bit R, G, B and of r^2 + g^2 + b^2.
 // A pixel of fewer has no record: it keeps all its fragments whatever its k (shared::stored_k),
 // its k is forced (mlp::forced), so nothing is gathered for it. The nearest key is kept
 // complemented so a cleared (zero) word means "none yet" and atomicMax finds the minimum.
@@ -71,6 +71,12 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
 fn filtered_alpha8(a8: u32, tint: u32) -> u32 {
     let most = max(tint & 0xffu, max((tint >> 8u) & 0xffu, (tint >> 16u) & 0xffu));
     return 255u - ((255u - a8) * most + 127u) / 255u;
+}
+
+// A fragment's RGBA8 with its opacity as the features read it (filtered_alpha8): the low word
+// of the nearest key a record keeps (importance::filtered_rgba8).
+fn filtered_rgba8(rgba8: u32, tint: u32) -> u32 {
+    return (rgba8 & 0xffffffu) | (filtered_alpha8(rgba8 >> 24u, tint) << 24u);
 }
 
 // What a fragment of colour `rgba8` and tint word `tint` adds to its record's three sum words,

@@ -31,7 +31,7 @@ fn record_fragment(at: u32, depth_bits: u32, rgba8: u32, tint: u32) {
         return;
     }
     if (atomicLoad(&records[2u * at + 1u]) == near) {
-        atomicMax(&records[2u * at], ~rgba8);
+        atomicMax(&records[2u * at], ~filtered_rgba8(rgba8, tint));
     }
     let sums = fragment_sums(rgba8, tint);
     for (var w = 0u; w < 3u; w++) {

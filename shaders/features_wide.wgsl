@@ -4,7 +4,7 @@
 alias RecordWord = atomic<u64>;
 
 fn record_fragment(at: u32, depth_bits: u32, rgba8: u32, tint: u32) {
-    let key = (u64(depth_bits) << 32u) | u64(rgba8);
+    let key = (u64(depth_bits) << 32u) | u64(filtered_rgba8(rgba8, tint));
     if (!PRELOAD_NEAREST || atomicLoad(&records[at]) < ~key) {
         atomicMax(&records[at], ~key);
     }

@@ -56,6 +56,12 @@ pub fn filtered_alpha8(a8: u32, tint: u32) -> u32 {
     255 - ((255 - a8) * most + 127) / 255
 }
 
+/// A fragment's RGBA8 with its opacity as the features read it ([`filtered_alpha8`] of its
+/// tint): the low word of the nearest key the features pass keeps (features.wgsl's twin).
+pub fn filtered_rgba8(rgba8: u32, tint: u32) -> u32 {
+    rgba8 & 0x00ff_ffff | filtered_alpha8(rgba8 >> 24, tint) << 24
+}
+
 /// Bit 63 of a key in [`PixelStats::farthest`]: the slot holds a fragment (window depths are
 /// non-negative, so a key's own bit 63 is clear).
 pub const OCCUPIED: u64 = 1 << 63;
@@ -65,7 +71,8 @@ pub const OCCUPIED: u64 = 1 << 63;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PixelStats {
     pub count: u32,
-    /// The smallest fragment key (window depth bits high, RGBA8 low): the nearest fragment.
+    /// The smallest fragment key (window depth bits high, RGBA8 low), its opacity what its tint
+    /// lets through ([`filtered_rgba8`]): the nearest fragment.
     pub nearest_key: u64,
     /// The two largest fragment keys, farthest first, each with [`OCCUPIED`] set (0: none), as
     /// the pass's two-slot insertion with `atomicMax` leaves them in any order.
@@ -103,8 +110,11 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
                 // brighter than white (fragment::mantissa_rgba8).
                 let key = fragment_key(fl.depth[i], fl.rgba[i]);
                 let rgba8 = key as u32;
+                let tint = fl.tint(i);
                 s.count += 1;
-                s.nearest_key = s.nearest_key.min(key);
+                // The nearest by the key, its opacity what its tint lets through.
+                let near = key & !0xffff_ffff | filtered_rgba8(rgba8, tint) as u64;
+                s.nearest_key = s.nearest_key.min(near);
                 // The two largest keys of the multiset, as the insertion keeps them.
                 let key = key | OCCUPIED;
                 if key > s.farthest[0] {
@@ -118,7 +128,7 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
                     s.color_sq_sum = s.color_sq_sum.wrapping_add(v * v);
                 }
                 // What the fragment hides of what is behind it, its tint included.
-                let a8 = filtered_alpha8(rgba8 >> 24, fl.tint(i));
+                let a8 = filtered_alpha8(rgba8 >> 24, tint);
                 s.optical_depth += tau[a8 as usize];
                 s.alpha_sum += a8;
             }
@@ -161,7 +171,8 @@ pub fn totals(stats: &[PixelStats]) -> Totals {
 }
 
 /// The 12 features of one covered pixel, in order ([`FEATURE_NAMES`]); colours in [0, 1],
-/// `C_near` and `a_near` the nearest fragment's colour and opacity, `mean` and `var` the mean
+/// `C_near` and `a_near` the nearest fragment's colour and opacity (what its tint lets through:
+/// [`filtered_rgba8`]), `mean` and `var` the mean
 /// and the variance (summed over R, G, B) of the pixel's fragment colours,
 /// `dev = |C_near - mean|^2`, `tau` the sum of the fragments' optical depths `-ln(1 - a)`:
 /// 0 `log2 n`; 1 `n / mean n` over covered pixels; 2 `F / sum n`, the budget's share of the

@@ -261,6 +261,7 @@ fn a_rasterized_red_window_is_red_over_white_only_when_tinted() {
 /// times one minus what it lets through in its most transparent channel, held over every 8-bit
 /// opacity and a sweep of tints to the compositing's own transmittance
 /// (`fragment::transmittance`, in floats) rounded by hand; a clear fragment's is its opacity.
+/// The nearest fragment's opacity feature reads it too.
 #[test]
 fn the_features_read_what_tinted_glass_lets_through() {
     use dhoit_runtime::fragment::transmittance;
@@ -312,4 +313,17 @@ fn the_features_read_what_tinted_glass_lets_through() {
     assert_eq!(tinted.alpha_sum, filtered_alpha8(10, pack_tint([0.25; 3])));
     assert!(tinted.alpha_sum > 150);
     assert!(tinted.optical_depth > grey.optical_depth);
+    // The nearest fragment's opacity (the network's a_near) is the same filtered opacity: the
+    // key the features pass keeps holds it in place of the 8-bit opacity, at the same depth.
+    assert_eq!(grey.nearest_key >> 24 & 0xff, 10);
+    assert_eq!(tinted.nearest_key >> 24 & 0xff, tinted.alpha_sum as u64);
+    assert_eq!(tinted.nearest_key >> 32, grey.nearest_key >> 32);
+    let t = dhoit_runtime::importance::Totals {
+        fragments: 1,
+        covered: 1,
+        max_count: 1,
+    };
+    let a_near = |s| dhoit_runtime::importance::pixel_features(s, &t, 1)[5];
+    assert_eq!(a_near(&grey), 10.0 / 255.0);
+    assert_eq!(a_near(&tinted), tinted.alpha_sum as f32 / 255.0);
 }
