@@ -834,8 +834,8 @@ fn budget_below_the_fixed_cost() {
 
 /// `bench` measures FKB, the optimal allocation, VKB and DKB at one budget: one too small for
 /// any of them is refused before the first measurement, as `render` refuses it (with
-/// `--gpu-only` it used to become every scene's recorded error, and the run exited 0); so is
-/// a report it could not write (it used to fail after measuring).
+/// `--gpu-only` too, not recorded as every scene's error with the run exiting 0); so is a
+/// report it could not write (refused before measuring, not after).
 #[test]
 fn bench_refuses_a_budget_or_report_it_cannot_use_before_measuring() {
     let dir = case_dir("bench-budget");
@@ -1033,7 +1033,8 @@ fn training_settings_that_cannot_work_are_refused_before_the_dataset_is_read() {
         let args = ["train", "--data", data, setting, value, "--out", "{out}"];
         fails(&dir, &args, needle);
     }
-    // So is a weights file whose folder cannot be made (it used to fail after the last epoch).
+    // So is a weights file whose folder cannot be made (before the first epoch, not after the
+    // last).
     std::fs::write(dir.join("file"), b"x").unwrap();
     let weights = dir.join("file/w.safetensors");
     let args = ["train", "--data", data, "--out", weights.to_str().unwrap()];

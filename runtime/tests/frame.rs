@@ -257,7 +257,7 @@ fn at_equal_bytes_no_method_gets_more_than_dkb_spends() {
 
 /// WBOIT's and MBOIT's memory is their targets whatever the frame's fragments, so a byte budget
 /// (one memory for every method) holds them or they do not run: targets above it are refused,
-/// naming what they need, where they used to run at their own bytes beside methods held to M.
+/// naming what they need, rather than running at their own bytes beside methods held to M.
 /// By hand, for 80x60 pixels: WBOIT 9 B a pixel (RGBA16F + R8), MBOIT 28, 36, 44 at 4, 6, 8
 /// power moments, each with its parameters and MBOIT its 1 KiB absorbance table.
 #[test]

@@ -1917,10 +1917,10 @@ fn an_8k_allocation_matches_its_twin_exactly() {
 fn cpu_and_gpu_rasterizers_agree_on_depth_and_coverage() {
     // The CPU interpolates depth on the plane through the unsnapped window positions, as
     // lavapipe does; coverage is decided on 1/256-pixel snapped positions by both, which can
-    // round a vertex differently. Measured here (lavapipe): depth within 2.1e-5 of the GPU's,
-    // a median of one ulp (it was 9.2e-4 when the CPU interpolated on the snapped positions;
-    // what remains is the rounding of steep planes' gradients), the same fragments in all but
-    // a pixel or so where an edge passes through a pixel centre. The bound held: 5e-5.
+    // round a vertex differently. On lavapipe depth agrees within 5e-5 (a median of one ulp;
+    // interpolating on the snapped positions instead differs by up to 9.2e-4; what remains is
+    // the rounding of steep planes' gradients), the same fragments in all but a pixel or so
+    // where an edge passes through a pixel centre.
     // Vulkan lets a device interpolate depth from its snapped vertices instead: an NVIDIA H200
     // (driver 580) does, and differs by up to 9.2e-4 on shells and 3.9e-3 on spheres (steep
     // planes at their silhouettes; medians 7.2e-6 and 5.0e-6), what the CPU gave when it
