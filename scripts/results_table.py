@@ -9,7 +9,6 @@
 - Any table a document copies: between `<!-- table: FILE "HEADING" -->` (or `... "HEADING" N`
   for the Nth table under it) and `<!-- /table -->`, the table under that heading in FILE (a
   path from the repository root), in README.md and docs/*.md alike.
-
 - docs/training.md's figures of the default training (its samples, epochs and the training
   machine's float fingerprint), held to the data/config.json that `make train` writes.
 

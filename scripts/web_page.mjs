@@ -105,7 +105,6 @@ if (process.env.WEB_PAGE_SUMMARY) {
   const ms = (status) => Number(/ methods in (\d+) ms/.exec(status)?.[1]);
   writeFileSync(process.env.WEB_PAGE_SUMMARY, JSON.stringify({
     size: first[0].size, first_ms: ms(firstStatus), scene, scene_ms: ms(otherStatus),
-    captions: first.map((f) => f.caption), wider: wider.slice(0, 2).map((f) => f.caption),
   }, null, 1));
 }
 if (problems.length) await fail('the page logged errors');

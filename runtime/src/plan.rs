@@ -60,32 +60,38 @@ impl PlanBudget {
             PlanBudget::Bytes(_) => None,
         }
     }
-}
 
-impl PlanBudget {
-    /// A user's budget on a frame of `pixels` and `fragments`: bytes stay bytes, a share stays a
-    /// share, slots per pixel become `floor(fpp pixels)` slots; refused where it leaves no slot
+    /// A user's budget on a frame of `pixels`: bytes stay bytes, a share stays a share, slots
+    /// per pixel become `floor(fpp pixels)` slots.
+    pub fn from_budget(budget: Budget, pixels: u64) -> PlanBudget {
+        match budget {
+            Budget::Bytes(m) => PlanBudget::Bytes(m),
+            Budget::Share(ppm) => FragmentBudget::Share(ppm).into(),
+            Budget::SlotsPerPixel(f) => ((f * pixels as f64).floor() as u64).into(),
+        }
+    }
+
+    /// [`PlanBudget::from_budget`] on a frame of `fragments`, refused where it leaves no slot
     /// (a share of a frame with fragments, or slots per pixel).
     pub fn of(budget: Budget, pixels: u64, fragments: u64) -> Result<PlanBudget> {
-        match budget {
-            Budget::Bytes(m) => Ok(PlanBudget::Bytes(m)),
-            Budget::Share(ppm) => {
-                // A frame with nothing transparent in view (all hidden, or none) needs no slot.
-                if budget::share_of(fragments, ppm) == 0 && fragments > 0 {
-                    return Err(Error::Budget(
-                        budget.to_string(),
-                        format!("leaves no fragment slot of the frame's {fragments} fragments"),
-                    ));
-                }
-                Ok(FragmentBudget::Share(ppm).into())
+        let b = PlanBudget::from_budget(budget, pixels);
+        match (budget, b) {
+            // A frame with nothing transparent in view (all hidden, or none) needs no slot.
+            (Budget::Share(_), PlanBudget::Fragments(f))
+                if f.of(fragments) == 0 && fragments > 0 =>
+            {
+                Err(Error::Budget(
+                    budget.to_string(),
+                    format!("leaves no fragment slot of the frame's {fragments} fragments"),
+                ))
             }
-            Budget::SlotsPerPixel(f) => match (f * pixels as f64).floor() as u64 {
-                0 => Err(Error::Budget(
+            (Budget::SlotsPerPixel(f), PlanBudget::Fragments(FragmentBudget::Slots(0))) => {
+                Err(Error::Budget(
                     format!("{f}fpp"),
                     format!("leaves no fragment slot for {pixels} pixels"),
-                )),
-                slots => Ok(slots.into()),
-            },
+                ))
+            }
+            _ => Ok(b),
         }
     }
 }

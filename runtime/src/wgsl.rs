@@ -13,7 +13,6 @@ pub use crate::shared::{
 /// Every binding the shaders declare, by shader and variable name (`runtime/build.rs` reads
 /// them from `shaders/*.wgsl`): the host binds by these names, so an index is written once, in
 /// its shader. Bound by position (`Gpu::bind`) where a shader's bindings run 0, 1, 2, ...
-#[allow(dead_code)]
 pub mod bindings {
     include!(concat!(env!("OUT_DIR"), "/bindings.rs"));
 }
@@ -916,9 +915,12 @@ mod tests {
             }
         }
         let mut unchecked = Vec::new();
+        let mut texts = std::collections::HashMap::new();
         for &(file, name, binding) in bindings::ALL {
-            let path = format!("{}/../shaders/{file}.wgsl", env!("CARGO_MANIFEST_DIR"));
-            let text = std::fs::read_to_string(&path).unwrap();
+            let text = texts.entry(file).or_insert_with(|| {
+                let path = format!("{}/../shaders/{file}.wgsl", env!("CARGO_MANIFEST_DIR"));
+                std::fs::read_to_string(path).unwrap()
+            });
             let var = name.to_ascii_lowercase();
             let mut checked = 0;
             for (label, m, _) in modules

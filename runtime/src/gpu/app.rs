@@ -17,7 +17,7 @@
 use std::cell::RefCell;
 
 use super::bindings::{self, oit_phase};
-use super::passes::{Geometry, GeometryPass, Phase, Resolve, at};
+use super::passes::{Geometry, GeometryPass, Phase, Resolve, at, view_at};
 use super::pipelines::{compute_pipeline, module_from, redeclare};
 use super::stream::{AppMethod, FrameReport, Stream};
 use super::{Capture, Gpu, frame_params};
@@ -590,10 +590,7 @@ impl Geometry for AppDraws<'_, '_> {
             .into_iter()
             .chain([
                 at(bindings::oit_phase::PARAMS, params),
-                wgpu::BindGroupEntry {
-                    binding: bindings::oit_phase::OIT_OPAQUE_DEPTH,
-                    resource: wgpu::BindingResource::TextureView(self.frame.depth),
-                },
+                view_at(bindings::oit_phase::OIT_OPAQUE_DEPTH, self.frame.depth),
             ])
             .collect();
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -637,14 +634,8 @@ impl Geometry for AppDraws<'_, '_> {
         let entries: Vec<wgpu::BindGroupEntry> = group
             .into_iter()
             .chain([
-                wgpu::BindGroupEntry {
-                    binding: under_at,
-                    resource: wgpu::BindingResource::TextureView(self.frame.under),
-                },
-                wgpu::BindGroupEntry {
-                    binding: target_at,
-                    resource: wgpu::BindingResource::TextureView(self.frame.target),
-                },
+                view_at(under_at, self.frame.under),
+                view_at(target_at, self.frame.target),
             ])
             .collect();
         let g = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -14,7 +14,7 @@
 
 use super::Recording;
 use super::bindings::blend_composite;
-use super::passes::{Phase, Resolve, at};
+use super::passes::{Phase, Resolve, at, view_at};
 use crate::composite::{MboitParams, WboitParams};
 use crate::error::{GpuError, Result};
 use crate::wgsl::Params;
@@ -351,10 +351,7 @@ impl Recording<'_, '_, '_> {
         let views = moments_read
             .iter()
             .enumerate()
-            .map(|(binding, (view, _))| wgpu::BindGroupEntry {
-                binding: binding as u32,
-                resource: wgpu::BindingResource::TextureView(view),
-            })
+            .map(|(binding, (view, _))| view_at(binding as u32, view))
             .collect();
         let attachments = [(&accumulation.0, accumulation.1)];
         passes.blend(
@@ -368,10 +365,7 @@ impl Recording<'_, '_, '_> {
         let mut group = composite_group(passes.params(), [&accumulation.0, b0]);
         // What the background is seen through per channel where tinted (else b_0 again,
         // unread).
-        group.push(wgpu::BindGroupEntry {
-            binding: blend_composite::THIRD_TARGET,
-            resource: wgpu::BindingResource::TextureView(through),
-        });
+        group.push(view_at(blend_composite::THIRD_TARGET, through));
         passes.resolve(fb.enc, Resolve::Mboit, composite, group, "mboit composite");
         Ok(())
     }
@@ -383,14 +377,10 @@ fn composite_group<'b>(
     params: &'b wgpu::Buffer,
     targets: [&'b wgpu::TextureView; 2],
 ) -> Vec<wgpu::BindGroupEntry<'b>> {
-    let view = |binding, view| wgpu::BindGroupEntry {
-        binding,
-        resource: wgpu::BindingResource::TextureView(view),
-    };
     vec![
         at(blend_composite::PARAMS, params),
-        view(blend_composite::FIRST_TARGET, targets[0]),
-        view(blend_composite::SECOND_TARGET, targets[1]),
+        view_at(blend_composite::FIRST_TARGET, targets[0]),
+        view_at(blend_composite::SECOND_TARGET, targets[1]),
     ]
 }
 

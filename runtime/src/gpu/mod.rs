@@ -864,13 +864,8 @@ impl Gpu {
         layout: &wgpu::BindGroupLayout,
         buffers: &[(u32, &wgpu::Buffer)],
     ) -> wgpu::BindGroup {
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: *i,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
+        let entries: Vec<wgpu::BindGroupEntry> =
+            buffers.iter().map(|&(i, b)| passes::at(i, b)).collect();
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: None,
             layout,

@@ -197,6 +197,14 @@ pub(super) fn at(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_
     }
 }
 
+/// Texture `view` at `binding` (a name from [`bindings`]).
+pub(super) fn view_at(binding: u32, view: &wgpu::TextureView) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::TextureView(view),
+    }
+}
+
 impl<'a> Passes<'a> {
     pub(super) fn new(
         gpu: &'a Gpu,

@@ -12,7 +12,7 @@ use super::bindings;
 use super::buffers::{
     FrameBuffers, Readback, Statistics, read_back_with_async, read_frame, read_texture, read_words,
 };
-use super::passes::{Geometry, GeometryPass, Resolve, at};
+use super::passes::{Geometry, GeometryPass, Resolve, at, view_at};
 use super::pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT};
 use super::stream::{AppMethod, FrameReport, Stream};
 use super::timer::Timer;
@@ -70,10 +70,7 @@ impl<'i> SceneDraws<'i> {
     ) -> wgpu::BindGroup {
         let i = self.inputs;
         let buffers: Vec<&wgpu::Buffer> = std::iter::once(params).chain(&i.scene).collect();
-        let depth = wgpu::BindGroupEntry {
-            binding: bindings::geometry::OPAQUE_DEPTH,
-            resource: wgpu::BindingResource::TextureView(&i.depth_view),
-        };
+        let depth = view_at(bindings::geometry::OPAQUE_DEPTH, &i.depth_view);
         let extra = if transparent { vec![depth] } else { Vec::new() };
         gpu.bind_with(layout, &buffers, extra)
     }
@@ -175,10 +172,7 @@ impl Geometry for SceneDraws<'_> {
             .into_iter()
             .chain([
                 at(resolve.image_at(), &i.image),
-                wgpu::BindGroupEntry {
-                    binding: bindings::behind::OPAQUE_COLOR,
-                    resource: wgpu::BindingResource::TextureView(&i.color_view),
-                },
+                view_at(bindings::behind::OPAQUE_COLOR, &i.color_view),
             ])
             .collect();
         let g = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -8,7 +8,7 @@ use super::buffers::FrameStatus;
 use super::passes::{Geometry, Phase};
 use super::timer::Timer;
 use super::{Capture, FrameOptions, FrameSpec, Gpu, Sizing, Slots};
-use crate::budget::{self, Budget, FragmentBudget, Layout, Occupancy};
+use crate::budget::{self, Budget, Layout, Occupancy};
 use crate::composite::{MboitParams, WboitParams};
 use crate::error::{Error, GpuError, Result};
 use crate::importance::VkbParams;
@@ -295,12 +295,8 @@ impl Stream {
     /// pixels), or bytes, which the plan resolves against each frame's own count. No budget
     /// (the other methods) is no slot.
     fn plan_budget(&self) -> PlanBudget {
-        match self.budget {
-            Some(Budget::Share(ppm)) => FragmentBudget::Share(ppm).into(),
-            Some(Budget::SlotsPerPixel(f)) => ((f * self.pixels() as f64).floor() as u64).into(),
-            Some(Budget::Bytes(m)) => PlanBudget::Bytes(m),
-            None => 0.into(),
-        }
+        self.budget
+            .map_or(0.into(), |b| PlanBudget::from_budget(b, self.pixels()))
     }
 
     pub(super) fn finished(&mut self, wait: bool) -> Result<Vec<FrameReport>> {
