@@ -287,7 +287,7 @@ fn main() -> Result<()> {
         mapped_at_creation: false,
     });
     for v in 0..a.views {
-        let cam = Camera::orbit(&app.scene, v, a.views, w, h);
+        let cam = Camera::orbit(&app.scene, v, a.views, (w, h));
         // A frame's buffers are sized from the counts of the frames before (dhoit reads them
         // back without waiting): the first, or one after a view of fewer fragments, may be short
         // of its pool. Its report says so; it is drawn again, sized from its own count.
@@ -829,7 +829,7 @@ impl App {
     /// dhoit's method at `(w, h)`, the pipelines with its modules and the frame's textures.
     fn frame(&self, method: Method, (w, h): (u32, u32)) -> Result<Frame> {
         let device = &self.device;
-        let cam = Camera::orbit(&self.scene, 0, 4, w, h);
+        let cam = Camera::orbit(&self.scene, 0, 4, (w, h));
         let oit = method.build(&self.gpu, (w, h), &cam, &self.networks)?;
         // dhoit: the module a phase gives (its bindings at group 2, its store function), then
         // the application's shaders and its transparent entry.
@@ -1247,7 +1247,7 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
                 _ => return Ok(()),
             };
             let (w, h) = self.size;
-            let cam = Camera::orbit_at(&self.app.scene, self.azimuth, self.elevation, w, h);
+            let cam = Camera::orbit_at(&self.app.scene, self.azimuth, self.elevation, (w, h));
             let mut enc = self.app.draw(&shown.frame, &cam)?;
             {
                 let view = texture.texture.create_view(&Default::default());

@@ -21,7 +21,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..scene::load("windows", Opacity::Native)?
     };
     let (w, h) = (64, 48);
-    let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
+    let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, (w, h));
     let k: Vec<u32> = (0..w * h).map(|p| p % 4).collect();
     let mlp = dhoit_runtime::mlp::Mlp::random(1);
     let methods: [(&str, Slots); 11] = [
@@ -57,7 +57,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let opts = FrameOptions::default().always_approximate();
                 match name.strip_prefix("tinted ") {
                     Some(_) => {
-                        let cam = Camera::orbit(&glass, 0, scene::DEFAULT_VIEWS, w, h);
+                        let cam = Camera::orbit(&glass, 0, scene::DEFAULT_VIEWS, (w, h));
                         g.render_with(&opts, &glass, &cam, (w, h), [1.0; 3], slots)?
                     }
                     None => g.render_with(&opts, &s, &cam, (w, h), [1.0; 3], slots)?,

@@ -246,8 +246,8 @@ pub(crate) fn check_view(view: usize, views: usize) -> Result<()> {
 /// rasterizes through).
 pub(crate) fn view_camera(scene: &Scene, view: usize, a: &ViewArgs) -> Camera {
     match a.camera.as_str() {
-        "asset" => Camera::asset(scene, a.res.width, a.res.height),
-        _ => Camera::orbit(scene, view, a.views, a.res.width, a.res.height),
+        "asset" => Camera::asset(scene, (a.res.width, a.res.height)),
+        _ => Camera::orbit(scene, view, a.views, (a.res.width, a.res.height)),
     }
 }
 
@@ -263,7 +263,7 @@ pub(crate) fn rasterize_view(
     check_view(view, a.views)?;
     let cam = view_camera(scene, view, a);
     let t = Instant::now();
-    let fl = raster::rasterize(scene, &cam, w, h)?;
+    let fl = raster::rasterize(scene, &cam, (w, h))?;
     let ms = t.elapsed().as_secs_f64() * 1e3;
     eprintln!(
         "{}: {} triangles, view {view}/{}, {w}x{h}: {} fragments, max depth complexity {} ({ms:.0} ms)",

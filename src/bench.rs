@@ -109,7 +109,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     // the GPU it would be recorded as every scene's error). MLAB, measured on the CPU only,
     // needs less than FKB.
     for m in GPU_METHODS {
-        dhoit_runtime::frame::check_budget(budget, m, w, h)?;
+        dhoit_runtime::frame::check_budget(budget, m, (w, h))?;
     }
     // The report's folder too: a run on a lent GPU must not measure for minutes and then fail
     // to write what it measured.
@@ -184,8 +184,8 @@ fn cpu_scene_bench(
     budget: Budget,
     repeat: usize,
 ) -> Result<serde_json::Value> {
-    let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, w, h);
-    let (t_raster, fl) = best(repeat, || Ok(raster::rasterize(s, &cam, w, h)?))?;
+    let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, (w, h));
+    let (t_raster, fl) = best(repeat, || Ok(raster::rasterize(s, &cam, (w, h))?))?;
     let frags = fl.fragment_count() as f64;
     let mut entry = serde_json::json!({
         "scene": name, "triangles": s.triangle_count(), "width": w, "height": h,
@@ -223,8 +223,8 @@ fn optimal_bench(deepest: &str, budget: Budget, repeat: usize) -> Result<Vec<ser
     let mut optimal = Vec::new();
     for (w, h) in [(640u32, 480u32), (1430, 960)] {
         let s = scene::load(deepest, Opacity::default())?;
-        let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
-        let fl = raster::rasterize(&s, &cam, w, h)?;
+        let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, (w, h));
+        let fl = raster::rasterize(&s, &cam, (w, h))?;
         let frags = fl.fragment_count() as f64;
         // A byte budget sized for --res may not hold this frame: said, and the rest measured.
         let f = match budget.resolve(
@@ -787,8 +787,8 @@ fn gpu_bench(
     let mut scenes = Vec::new();
     for (name, s) in loaded {
         let run = || -> Result<serde_json::Value> {
-            let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, w, h);
-            let fl = raster::rasterize(s, &cam, w, h)?;
+            let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, (w, h));
+            let fl = raster::rasterize(s, &cam, (w, h))?;
             // Each method's k and F as `render --device gpu` gives them (Slots::for_method on
             // the CPU's allocation), so a byte budget benches the k render uses.
             let options = Options {

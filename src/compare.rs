@@ -712,7 +712,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
                     .iter()
                     .map(|f| {
                         let test = image_io::to_srgb8(&f.image);
-                        image_io::flip(&reference8, &test, fl.width, fl.height)
+                        image_io::flip(&reference8, &test, fl.size())
                     })
                     .collect();
                 let at = FrameAt {
@@ -992,7 +992,7 @@ fn write_images(
         tiles[0].push(image_io::to_srgb8(&f.image));
         tiles[1].push(image_io::heat_rgb8(&used[col], &covered, k_max));
         tiles[2].push(image_io::heat_rgb8(&errors[col], &covered, err_max));
-        tiles[3].push(image_io::flip_rgb8(&flips[col].1, fl.width, fl.height));
+        tiles[3].push(image_io::flip_rgb8(&flips[col].1, fl.size()));
         let r = &rows[col];
         columns.push(vec![
             f.method.name().to_string(),
@@ -1010,8 +1010,8 @@ fn write_images(
         c.insert(0, String::new());
     }
     if let Some((name, picture)) = beside {
-        let (w, h) = (fl.width, fl.height);
-        tiles[0].insert(0, fitted(picture, w, h));
+        let (w, h) = fl.size();
+        tiles[0].insert(0, fitted(picture, (w, h)));
         for row in tiles.iter_mut().skip(1) {
             row.insert(0, vec![255; (3 * w * h) as usize]);
         }
@@ -1054,8 +1054,9 @@ fn write_images(
     Ok(())
 }
 
-/// `picture` scaled to fit `w` x `h` (its aspect kept), centred on white: RGB8, a montage tile.
-fn fitted(picture: &image::RgbImage, w: u32, h: u32) -> Vec<u8> {
+/// `picture` scaled to fit `size` (width, height) (its aspect kept), centred on white: RGB8, a montage tile.
+fn fitted(picture: &image::RgbImage, size: (u32, u32)) -> Vec<u8> {
+    let (w, h) = size;
     let scale = (w as f32 / picture.width() as f32).min(h as f32 / picture.height() as f32);
     let (pw, ph) = (
         ((picture.width() as f32 * scale).round() as u32).clamp(1, w),

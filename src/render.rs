@@ -161,7 +161,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     if let Some(path) = &a.kmap {
         let (rgb, max) = kmap_rgb8(&fl, &f.k);
-        image_io::write_rgb8(path, fl.width, fl.height, &rgb)?;
+        image_io::write_rgb8(path, fl.size(), &rgb)?;
         println!("k map (0..{max}) -> {}", path.display());
     }
     if let Some(dir) = &a.dump {
@@ -193,7 +193,7 @@ fn render_on_gpu(
     let cpu = renderer.allocate_for_gpu(method)?;
     let gpu = Gpu::new()?;
     eprintln!("GPU: {}", gpu.adapter());
-    let (w, h) = (fl.width, fl.height);
+    let (w, h) = fl.size();
     let cam = crate::args::view_camera(scene, a.view, &a.common);
     let slots = Slots::for_method(method, &cpu, options)?;
     // The GPU counts first and decides on its own count whether the exact A-buffer is
@@ -235,8 +235,7 @@ fn render_on_gpu(
             gpu.render(
                 scene,
                 &cam,
-                w,
-                h,
+                (w, h),
                 a.common.background,
                 dhoit_runtime::gpu::Slots::Exact,
             )?

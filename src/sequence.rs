@@ -150,7 +150,7 @@ pub fn sequence_bench(
     weights: &dhoit_runtime::mlp::Mlp,
 ) -> Result<serde_json::Value> {
     let cams: Vec<Camera> = (0..frames)
-        .map(|v| Camera::orbit(scene, v, frames, w, h))
+        .map(|v| Camera::orbit(scene, v, frames, (w, h)))
         .collect();
     let options = Options {
         weights: Some(weights),

@@ -239,8 +239,7 @@ fn quality(
                     ..Options::new(*b, q.common.background).always_approximate()
                 };
                 let f = Renderer::new(&fl, opts).render(Method::Dkb)?;
-                let (flip, _) =
-                    image_io::flip(&exact8, &image_io::to_srgb8(&f.image), fl.width, fl.height);
+                let (flip, _) = image_io::flip(&exact8, &image_io::to_srgb8(&f.image), fl.size());
                 let (bytes, bytes_mse, bytes_vkb_mse) = match equal_bytes {
                     true => at_equal_bytes(&fl, *b, q.common.background, &n.mlp, &exact.image)?,
                     false => (None, None, None),
@@ -457,7 +456,7 @@ impl Timer {
     /// What timing `s`'s view 0 at `budget` needs, computed once for every network: the
     /// camera and F on the GPU; the rasterized frame's features on the CPU.
     fn frame(&self, s: &scene::Scene, (w, h): (u32, u32), budget: Budget) -> Result<TimedFrame> {
-        let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, w, h);
+        let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, (w, h));
         let pixels = (w * h) as u64;
         Ok(match self {
             Timer::Gpu(_) => {
@@ -465,7 +464,7 @@ impl Timer {
                 TimedFrame::Gpu { cam, f, w, h }
             }
             Timer::Cpu => {
-                let fl = dhoit_runtime::raster::rasterize(s, &cam, w, h)?;
+                let fl = dhoit_runtime::raster::rasterize(s, &cam, (w, h))?;
                 let total = fl.fragment_count() as u64;
                 let (_, f) = budget.resolve(&dhoit_runtime::budget::DKB, pixels, total)?;
                 let (feats, _) = dhoit_runtime::importance::features_and_pairs(&fl, f);

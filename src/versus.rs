@@ -258,8 +258,8 @@ fn measure(
     for s in loaded {
         for &view in &a.view_list {
             let (fl, _) = rasterize_view(s, view, &a.common)?;
-            let (w, h) = (fl.width, fl.height);
-            let cam = dhoit_runtime::scene::Camera::orbit(s, view, a.common.views, w, h);
+            let (w, h) = fl.size();
+            let cam = dhoit_runtime::scene::Camera::orbit(s, view, a.common.views, (w, h));
             let px = fl.pixel_count() as f64;
             let exact_bytes = budget::ABUFFER
                 .allocated_bytes(fl.pixel_count() as u64, fl.fragment_count() as u64);
@@ -315,7 +315,7 @@ fn measure(
                             gpu.render_with(&frame_opts, s, &cam, (w, h), opts.background, slots)?;
                         best = best.min(g.pass_ms.iter().map(|p| p.1).sum());
                     }
-                    let (flip, _) = image_io::flip(&exact8, &image_io::to_srgb8(&f.image), w, h);
+                    let (flip, _) = image_io::flip(&exact8, &image_io::to_srgb8(&f.image), (w, h));
                     measures[bi][mi].push(Measure {
                         scene: s.name.clone(),
                         view,

@@ -361,7 +361,7 @@ fn gltf_texture_file_missing() {
 fn gltf_texture_coordinates_not_finite() {
     let dir = case_dir("gltf-texture-nan");
     // A good image, so only the coordinates are wrong.
-    let mut tex = dhoit_runtime::composite::Image::new(2, 2);
+    let mut tex = dhoit_runtime::composite::Image::new((2, 2));
     tex.data.fill([1.0, 0.5, 0.25]);
     dhoit_runtime::image_io::write_image(&dir.join("tex.png"), &tex).unwrap();
     let path = dir.join("s.glb");

@@ -35,8 +35,8 @@ fn the_dump_round_trips() {
     let d = dhoit_runtime::dump::read(&dir).unwrap();
     // The same frame computed here.
     let s = scene::load("spheres", Opacity::default()).unwrap();
-    let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, 96, 64);
-    let fl = rasterize(&s, &cam, 96, 64).unwrap();
+    let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, (96, 64));
+    let fl = rasterize(&s, &cam, (96, 64)).unwrap();
     let f = frame::render(
         &fl,
         Method::Fkb,
@@ -73,10 +73,10 @@ fn shuffled_submission_gives_bit_identical_images_but_for_blended_targets_roundi
     let mlp = Mlp::random(8);
     for name in ["spheres", "particles", "plates"] {
         let s = scene::load(name, Opacity::default()).unwrap();
-        let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, 80, 60);
+        let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, (80, 60));
         let images = |seed: Option<u64>| {
             let sc = seed.map_or_else(|| s.clone(), |x| s.shuffled(x));
-            let fl = rasterize(&sc, &cam, 80, 60).unwrap();
+            let fl = rasterize(&sc, &cam, (80, 60)).unwrap();
             [
                 Method::Abuffer,
                 Method::Fkb,
@@ -103,7 +103,7 @@ fn shuffled_submission_gives_bit_identical_images_but_for_blended_targets_roundi
         // as their targets do on a device: the order moves them by that rounding only.
         let blended = |seed: Option<u64>, m| {
             let sc = seed.map_or_else(|| s.clone(), |x| s.shuffled(x));
-            let fl = rasterize(&sc, &cam, 80, 60).unwrap();
+            let fl = rasterize(&sc, &cam, (80, 60)).unwrap();
             frame::render(&fl, m, opts(Budget::SlotsPerPixel(1.5), [1.0; 3], &mlp))
                 .unwrap()
                 .image
@@ -1009,8 +1009,8 @@ fn fine_tuning_on_a_scene_beats_the_default_on_its_held_out_views() {
     let mut log_ratio = 0.0;
     let mut frames = 0;
     for view in [1, 5, 7, 11] {
-        let cam = Camera::orbit(&s, view, 12, 160, 120);
-        let fl = rasterize(&s, &cam, 160, 120).unwrap();
+        let cam = Camera::orbit(&s, view, 12, (160, 120));
+        let fl = rasterize(&s, &cam, (160, 120)).unwrap();
         for share in ["10%", "25%", "50%", "75%", "90%"] {
             let b = Budget::parse(share).unwrap();
             let exact = frame::render(&fl, Method::Abuffer, Options::new(b, [1.0; 3])).unwrap();

@@ -105,8 +105,8 @@ fn extreme_rows(m: &Mlp) -> Rows {
 fn frame_rows(name: &str) -> Rows {
     use dhoit_runtime::scene::{self, Camera, Opacity};
     let s = scene::load(name, Opacity::default()).unwrap();
-    let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, 96, 72);
-    let fl = dhoit_runtime::raster::rasterize(&s, &cam, 96, 72).unwrap();
+    let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, (96, 72));
+    let fl = dhoit_runtime::raster::rasterize(&s, &cam, (96, 72)).unwrap();
     let counts = fl.counts();
     dhoit_runtime::importance::features(&fl, fl.fragment_count() as u64 / 3)
         .into_iter()

@@ -124,8 +124,8 @@ fn seeds() -> &'static Seeds {
         let features = std::fs::read(root().join("data/golden/features.safetensors")).unwrap();
         let dir = std::env::temp_dir().join(format!("dhoit-fuzz-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let cam = scene::Camera::orbit(&s, 0, 8, 12, 9);
-        let fl = dhoit_runtime::raster::rasterize(&s, &cam, 12, 9).unwrap();
+        let cam = scene::Camera::orbit(&s, 0, 8, (12, 9));
+        let fl = dhoit_runtime::raster::rasterize(&s, &cam, (12, 9)).unwrap();
         let frame = dhoit_runtime::frame::render(
             &fl,
             dhoit_runtime::frame::Method::Fkb,

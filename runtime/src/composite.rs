@@ -47,12 +47,19 @@ pub struct Image {
 }
 
 impl Image {
-    pub fn new(width: u32, height: u32) -> Self {
+    /// A black image of `size` (width, height), the size convention of every function here.
+    pub fn new(size: (u32, u32)) -> Self {
+        let (width, height) = size;
         Image {
             width,
             height,
             data: vec![[0.0; 3]; (width * height) as usize],
         }
+    }
+
+    /// (width, height).
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
     }
 
     /// Mean over pixels and channels of the squared difference.
@@ -1007,8 +1014,8 @@ pub enum Method<'a> {
 /// Composites every pixel of `fl` over what is behind it: its opaque surface where one covers
 /// it, else the background `bg` ([`FragmentLists::behind`]).
 pub fn composite(fl: &FragmentLists, method: Method, bg: [f32; 3]) -> Image {
-    let (w, h) = (fl.width, fl.height);
-    let mut img = Image::new(w, h);
+    let (w, h) = fl.size();
+    let mut img = Image::new((w, h));
     img.data
         .par_chunks_mut(w as usize)
         .enumerate()

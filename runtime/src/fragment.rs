@@ -212,6 +212,10 @@ pub struct FragmentLists {
 }
 
 impl FragmentLists {
+    /// (width, height).
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
     pub fn pixel_count(&self) -> usize {
         (self.width * self.height) as usize
     }

@@ -242,7 +242,8 @@ fn check_method_options(method: Method, opts: &Options) -> Result<()> {
 }
 
 /// FKB and MLAB give every pixel the same k (slots, rows): F must hold one for every pixel.
-fn check_slot_per_pixel(method: Method, given: Budget, f: u64, w: u32, h: u32) -> Result<()> {
+fn check_slot_per_pixel(method: Method, given: Budget, f: u64, size: (u32, u32)) -> Result<()> {
+    let (w, h) = size;
     let pixels = w as u64 * h as u64;
     if matches!(method, Method::Fkb | Method::Mlab) && f < pixels {
         return Err(Error::Budget(
@@ -256,11 +257,12 @@ fn check_slot_per_pixel(method: Method, given: Budget, f: u64, w: u32, h: u32) -
     Ok(())
 }
 
-/// Refuses, before any frame is rendered, a budget that cannot hold `method` at `w`x`h`: its
+/// Refuses, before any frame is rendered, a budget that cannot hold `method` at `size` (width, height): its
 /// fixed cost, and a slot for every pixel where the method needs one. A budget in bytes or in
 /// slots per pixel depends on the resolution alone; a share of the frame's fragments (and the
 /// exact A-buffer) passes here and is checked with each frame.
-pub fn check_budget(given: Budget, method: Method, w: u32, h: u32) -> Result<()> {
+pub fn check_budget(given: Budget, method: Method, size: (u32, u32)) -> Result<()> {
+    let (w, h) = size;
     // The A-buffer, WBOIT and MBOIT take no budget: exact memory, fixed memory.
     if matches!(method, Method::Abuffer | Method::Wboit | Method::Mboit)
         || matches!(given, Budget::Share(_))
@@ -268,7 +270,7 @@ pub fn check_budget(given: Budget, method: Method, w: u32, h: u32) -> Result<()>
         return Ok(());
     }
     let (_, f) = given.resolve(&method.layout(), w as u64 * h as u64, 0)?;
-    check_slot_per_pixel(method, given, f, w, h)
+    check_slot_per_pixel(method, given, f, size)
 }
 
 /// What rendering one frame with one method produced.
@@ -451,8 +453,8 @@ fn moments_note(method: Method, moments: u32, pixels: u64) -> String {
 /// use dhoit_runtime::{raster, scene};
 ///
 /// let s = scene::load("plates", scene::Opacity::default())?;
-/// let cam = scene::Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, 96, 72);
-/// let fragments = raster::rasterize(&s, &cam, 96, 72)?;
+/// let cam = scene::Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, (96, 72));
+/// let fragments = raster::rasterize(&s, &cam, (96, 72))?;
 /// // The methods' own approximations at one fragment slot a pixel.
 /// let r = Renderer::new(&fragments, Options::new(Budget::parse("1fpp")?, [1.0; 3]).always_approximate());
 /// let exact = r.render(Method::Abuffer)?;
@@ -545,7 +547,7 @@ impl<'a> Renderer<'a> {
             // The fragments the list kept, by pixel.
             Method::LinkedList => fl.retain(&composite::linked_list_kept(fl, f)).counts(),
             Method::Fkb | Method::Mlab => {
-                check_slot_per_pixel(method, opts.budget, f, fl.width, fl.height)?;
+                check_slot_per_pixel(method, opts.budget, f, fl.size())?;
                 alloc::fixed(pixels as usize, f)
             }
             Method::Vkb | Method::Dkb if !cpu_k => Vec::new(),
@@ -737,7 +739,7 @@ pub fn check_memory(methods: &[Method], fl: &FragmentLists) -> Result<()> {
         return Ok(());
     };
     let (a, b) = m.frame_bytes();
-    crate::raster::check_fits(fl.width, fl.height, need(m), |bytes| {
+    crate::raster::check_fits(fl.size(), need(m), |bytes| {
         format!(
             "{m} needs about {bytes} beside the view's {n} fragments ({a} a fragment, {b} a pixel)"
         )

@@ -48,7 +48,8 @@ pub fn encoding(path: &Path) -> Result<Encoding> {
 
 /// Encodes 8-bit RGB pixels as the path's extension asks ([`encoding`]) and writes them
 /// atomically.
-pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
+pub fn write_rgb8(path: &Path, size: (u32, u32), rgb: &[u8]) -> Result<()> {
+    let (width, height) = size;
     let mut bytes = Vec::new();
     let encoded = match encoding(path)? {
         Encoding::Png => image::codecs::png::PngEncoder::new(&mut bytes).write_image(
@@ -61,7 +62,7 @@ pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()
             .write_image(rgb, width, height, image::ExtendedColorType::Rgb8),
         Encoding::Exr => {
             let linear: Vec<f32> = rgb.iter().map(|&v| v as f32 / 255.0).collect();
-            return write_rgb32f(path, width, height, &linear);
+            return write_rgb32f(path, size, &linear);
         }
     };
     encoded.map_err(|e| Error::Image {
@@ -77,14 +78,15 @@ pub fn write_image(path: &Path, img: &Image) -> Result<()> {
     match encoding(path)? {
         Encoding::Exr => {
             let rgb: Vec<f32> = img.data.iter().flatten().copied().collect();
-            write_rgb32f(path, img.width, img.height, &rgb)
+            write_rgb32f(path, img.size(), &rgb)
         }
-        _ => write_rgb8(path, img.width, img.height, &to_srgb8(img)),
+        _ => write_rgb8(path, img.size(), &to_srgb8(img)),
     }
 }
 
 /// Writes 32-bit float RGB pixels as OpenEXR, atomically.
-fn write_rgb32f(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<()> {
+fn write_rgb32f(path: &Path, size: (u32, u32), rgb: &[f32]) -> Result<()> {
+    let (width, height) = size;
     let mut bytes = std::io::Cursor::new(Vec::new());
     image::codecs::openexr::OpenExrEncoder::new(&mut bytes)
         .write_image(
@@ -122,13 +124,12 @@ pub fn ramp(t: f32) -> [u8; 3] {
 /// Writes a heat map of per-pixel values scaled by `max` (pixels with no fragments black).
 pub fn write_heatmap(
     path: &Path,
-    width: u32,
-    height: u32,
+    size: (u32, u32),
     values: &[f32],
     covered: &[bool],
     max: f32,
 ) -> Result<()> {
-    write_rgb8(path, width, height, &heat_rgb8(values, covered, max))
+    write_rgb8(path, size, &heat_rgb8(values, covered, max))
 }
 
 /// An image as sRGB8 pixels.
@@ -153,7 +154,8 @@ pub fn heat_rgb8(values: &[f32], covered: &[bool], max: f32) -> Vec<u8> {
 /// images of `width * height` pixels viewed at FLIP's default 67 pixels per degree: the mean
 /// error in [0, 1] (0: indistinguishable) and the per-pixel error map.
 #[cfg(feature = "flip")]
-pub fn flip(reference: &[u8], test: &[u8], width: u32, height: u32) -> (f64, Vec<f32>) {
+pub fn flip(reference: &[u8], test: &[u8], size: (u32, u32)) -> (f64, Vec<f32>) {
+    let (width, height) = size;
     let n = (width * height * 3) as usize;
     assert!(
         reference.len() == n && test.len() == n,
@@ -168,7 +170,8 @@ pub fn flip(reference: &[u8], test: &[u8], width: u32, height: u32) -> (f64, Vec
 
 /// A FLIP error map as RGB8 with FLIP's own magma colour scale (black 0 to pale yellow 1).
 #[cfg(feature = "flip")]
-pub fn flip_rgb8(map: &[f32], width: u32, height: u32) -> Vec<u8> {
+pub fn flip_rgb8(map: &[f32], size: (u32, u32)) -> Vec<u8> {
+    let (width, height) = size;
     let m = nv_flip::FlipImageFloat::with_data(width, height, map);
     m.apply_color_lut(&nv_flip::magma_lut()).to_vec()
 }

@@ -307,7 +307,7 @@ pub fn vkb_importance(fl: &FragmentLists, params: &VkbParams) -> Vec<f32> {
     let facing: Vec<f32> = (0..fl.pixel_count())
         .map(|p| nearest_facing(fl, p))
         .collect();
-    vkb_importance_from(&counts, &facing, fl.width, fl.height, params)
+    vkb_importance_from(&counts, &facing, fl.size(), params)
 }
 
 /// VKB importance from per-pixel counts and nearest-fragment `|n . e|` (the twin of
@@ -315,10 +315,10 @@ pub fn vkb_importance(fl: &FragmentLists, params: &VkbParams) -> Vec<f32> {
 pub fn vkb_importance_from(
     counts: &[u32],
     facing: &[f32],
-    width: u32,
-    height: u32,
+    size: (u32, u32),
     params: &VkbParams,
 ) -> Vec<f32> {
+    let (width, height) = size;
     let (w, h) = (width as f32, height as f32);
     let half_diag = 0.5 * (w * w + h * h).sqrt();
     let limit = counts.iter().copied().max().unwrap_or(0).max(1) as f32;

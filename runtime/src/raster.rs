@@ -90,11 +90,12 @@ pub fn parse_resolution(s: &str) -> Result<(u32, u32)> {
         .trim()
         .parse()
         .map_err(|_| bad("height is not a whole number"))?;
-    check_resolution(w, h)?;
+    check_resolution((w, h))?;
     Ok((w, h))
 }
 
-pub fn check_resolution(w: u32, h: u32) -> Result<()> {
+pub fn check_resolution(size: (u32, u32)) -> Result<()> {
+    let (w, h) = size;
     if w == 0 || h == 0 || w > MAX_DIM || h > MAX_DIM {
         return Err(Error::Resolution(
             format!("{w}x{h}"),
@@ -165,8 +166,9 @@ pub fn homogeneous_weights(v: [[f32; 3]; 3], px: f32, py: f32) -> [f32; 3] {
     [e[0] * inv, e[1] * inv, e[2] * inv]
 }
 
-/// NDC of pixel (x, y)'s centre in a `w` x `h` frame (x right, y up).
-pub fn pixel_ndc(x: u32, y: u32, w: u32, h: u32) -> (f32, f32) {
+/// NDC of pixel (x, y)'s centre in a frame of `size` (width, height; x right, y up).
+pub fn pixel_ndc(x: u32, y: u32, size: (u32, u32)) -> (f32, f32) {
+    let (w, h) = size;
     (
         ((x as f32 + 0.5) / w as f32) * 2.0 - 1.0,
         1.0 - ((y as f32 + 0.5) / h as f32) * 2.0,
@@ -211,7 +213,8 @@ fn top_left(a: [i64; 2], b: [i64; 2]) -> bool {
     dy < 0 || (dy == 0 && dx > 0)
 }
 
-fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Vec<ScreenTri> {
+fn setup(scene: &Scene, cam: &Camera, size: (u32, u32)) -> Vec<ScreenTri> {
+    let (width, height) = size;
     let (w, h) = (width as f32, height as f32);
     let limit = (1i64 << 24) * SUB;
     (0..scene.triangle_count())
@@ -410,7 +413,7 @@ fn raster_band(
                     if depth >= opaque_depth[pixel] {
                         continue;
                     }
-                    let (px, py) = pixel_ndc(x as u32, y, width, height);
+                    let (px, py) = pixel_ndc(x as u32, y, (width, height));
                     let l = homogeneous_weights(t.hclip, px, py);
                     match shading.shade(t, l) {
                         Shaded::Opaque(c) => {
@@ -561,15 +564,11 @@ pub fn available_memory() -> Result<Option<u64>> {
     })
 }
 
-/// Refuses work on a `width` x `height` frame that needs `need` bytes where less is available
+/// Refuses work on a frame of `size` (width, height) that needs `need` bytes where less is available
 /// ([`available_memory`]), where the allocation would fail or the system stop the process
 /// without a word: `what` says what needs them; the error adds what is available.
-pub fn check_fits(
-    width: u32,
-    height: u32,
-    need: u64,
-    what: impl FnOnce(&str) -> String,
-) -> Result<()> {
+pub fn check_fits(size: (u32, u32), need: u64, what: impl FnOnce(&str) -> String) -> Result<()> {
+    let (width, height) = size;
     let Some(available) = available_memory()? else {
         return Ok(());
     };
@@ -592,11 +591,12 @@ pub fn check_fits(
 }
 
 /// Refuses a view whose fragments would not fit in memory, before rasterizing it.
-fn check_memory(width: u32, height: u32, fragments: f64) -> Result<()> {
+fn check_memory(size: (u32, u32), fragments: f64) -> Result<()> {
+    let (width, height) = size;
     let pixels = width as u64 * height as u64;
     let need = fragments * PEAK_BYTES_PER_FRAGMENT as f64;
     let need = need as u64 + pixels * PEAK_BYTES_PER_PIXEL;
-    check_fits(width, height, need, |need| {
+    check_fits((width, height), need, |need| {
         format!(
             "the view covers about {:.0} fragments; rasterizing them on the CPU takes about \
              {need} at its peak ({PEAK_BYTES_PER_FRAGMENT} bytes a fragment, \
@@ -606,15 +606,16 @@ fn check_memory(width: u32, height: u32, fragments: f64) -> Result<()> {
     })
 }
 
-/// About how many fragments a view of `scene` at `width` x `height` holds (the area of its
+/// About how many fragments a view of `scene` at `size` (width, height) holds (the area of its
 /// triangles inside the window), without rasterizing it.
-pub fn estimate_fragments(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result<f64> {
-    check_resolution(width, height)?;
-    let tris = setup(scene, cam, width, height);
-    Ok(covered_area(&tris, width, height))
+pub fn estimate_fragments(scene: &Scene, cam: &Camera, size: (u32, u32)) -> Result<f64> {
+    check_resolution(size)?;
+    let tris = setup(scene, cam, size);
+    Ok(covered_area(&tris, size))
 }
 
-fn covered_area(tris: &[ScreenTri], width: u32, height: u32) -> f64 {
+fn covered_area(tris: &[ScreenTri], size: (u32, u32)) -> f64 {
+    let (width, height) = size;
     tris.par_iter()
         .map(|t| window_area(t, width as f64, height as f64))
         .sum()
@@ -622,10 +623,11 @@ fn covered_area(tris: &[ScreenTri], width: u32, height: u32) -> f64 {
 
 /// Rasterizes every triangle of `scene` seen by `cam` into per-pixel fragment lists, after
 /// checking that they fit in memory ([`available_memory`]).
-pub fn rasterize(scene: &Scene, cam: &Camera, width: u32, height: u32) -> Result<FragmentLists> {
-    check_resolution(width, height)?;
-    let tris = setup(scene, cam, width, height);
-    check_memory(width, height, covered_area(&tris, width, height))?;
+pub fn rasterize(scene: &Scene, cam: &Camera, size: (u32, u32)) -> Result<FragmentLists> {
+    let (width, height) = size;
+    check_resolution(size)?;
+    let tris = setup(scene, cam, size);
+    check_memory((width, height), covered_area(&tris, size))?;
     let bands = height.div_ceil(BAND_ROWS);
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); bands as usize];
     for (i, t) in tris.iter().enumerate() {

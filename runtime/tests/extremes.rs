@@ -24,7 +24,7 @@ const TOLERANCE: f32 = 1e-5;
 /// FLOAT32_BLENDABLE): the largest difference over every pixel of every method.
 fn cpu_and_gpu_agree(g: &Gpu, s: &Scene, (w, h): (u32, u32), budget: Budget, what: &str) -> f32 {
     let cam = identity();
-    let fl = rasterize(s, &cam, w, h).unwrap();
+    let fl = rasterize(s, &cam, (w, h)).unwrap();
     let mlp = Mlp::random(9);
     let opts = Options {
         weights: Some(&mlp),
@@ -159,7 +159,7 @@ fn extreme_opacities_and_depths_render_alike_on_cpu_and_gpu() {
         [0.7, 0.2, 0.9, 0.6],
     );
     let cam = identity();
-    let fl = rasterize(&s, &cam, 80, 60).unwrap();
+    let fl = rasterize(&s, &cam, (80, 60)).unwrap();
     let depths = &fl.depth;
     assert!(depths.contains(&0.0), "a fragment at depth 0");
     // At the far plane a fragment lies at the depth the opaque pass clears to: as under any
@@ -199,7 +199,7 @@ fn extreme_opacities_and_depths_render_alike_on_cpu_and_gpu() {
         (0.6, 0.6),
         [0.3, 0.5, 0.7, 0.5],
     );
-    let fb = rasterize(&backdrop_only, &cam, 80, 60).unwrap();
+    let fb = rasterize(&backdrop_only, &cam, (80, 60)).unwrap();
     let plain = frame::render(
         &fb,
         Method::Abuffer,
@@ -223,7 +223,7 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
         (0.5, 0.5),
         [0.4, 0.7, 0.2, 0.6],
     );
-    let fl = rasterize(&one, &identity(), w, h).unwrap();
+    let fl = rasterize(&one, &identity(), (w, h)).unwrap();
     assert!(fl.counts().iter().all(|&n| n == 1));
     for budget in ["1fpp", "0.5fpp", "100%"] {
         cpu_and_gpu_agree(
@@ -248,7 +248,7 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
             c,
         );
     }
-    let fl = rasterize(&s, &identity(), w, h).unwrap();
+    let fl = rasterize(&s, &identity(), (w, h)).unwrap();
     let covered = fl.counts().iter().filter(|&&n| n > 0).count() as u64;
     let total = fl.fragment_count() as u64;
     // A budget of exactly the fixed cost leaves no slot: refused, saying what is needed.
@@ -326,7 +326,13 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
     // exactly on the CPU, within float rounding on the GPU.
     let exact = frame::render(&fl, Method::Abuffer, opts(Budget::Share(1_000_000))).unwrap();
     let gpu_exact = g
-        .render_method(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .render_method(
+            &s,
+            &identity(),
+            (w, h),
+            BG,
+            dhoit_runtime::gpu::Slots::Exact,
+        )
         .unwrap()
         .image;
     for b in [
@@ -343,7 +349,7 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
             Slots::Vkb(VkbParams::default(), fb.into()),
         ] {
             let img: Image = g
-                .render_method(&s, &identity(), w, h, BG, slots)
+                .render_method(&s, &identity(), (w, h), BG, slots)
                 .unwrap()
                 .image;
             let d = img.max_abs_diff(&gpu_exact);
@@ -378,7 +384,7 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
         );
     }
     let (w, h) = (4u32, 4u32);
-    let fl = rasterize(&s, &identity(), w, h).unwrap();
+    let fl = rasterize(&s, &identity(), (w, h)).unwrap();
     assert!(fl.counts().iter().all(|&n| n == 3000));
     let mlp = Mlp::random(2);
     for b in ["4fpp", "64fpp", "25%"] {
@@ -399,7 +405,7 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
                 Method::Dkb => Slots::Dkb(&mlp, f.into()),
                 _ => Slots::PerPixel(&cpu.k),
             };
-            match g.render_method(&s, &identity(), w, h, BG, slots) {
+            match g.render_method(&s, &identity(), (w, h), BG, slots) {
                 Ok(frame) => {
                     let d = frame.image.max_abs_diff(&cpu.image);
                     assert!(d <= TOLERANCE, "{} at {b}: GPU differs by {d}", m.name());

@@ -10,16 +10,22 @@ use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::{self, Camera, Opacity};
 
-fn frame(name: &str, w: u32, h: u32) -> FragmentLists {
+fn frame(name: &str, size: (u32, u32)) -> FragmentLists {
+    let (w, h) = size;
     let s = scene::load(name, Opacity::default()).unwrap();
-    rasterize(&s, &Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h), w, h).unwrap()
+    rasterize(
+        &s,
+        &Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, (w, h)),
+        (w, h),
+    )
+    .unwrap()
 }
 
 #[test]
 fn with_every_fragment_in_budget_the_allocations_are_exact() {
     let mlp = Mlp::random(3);
     for name in ["spheres", "plates"] {
-        let fl = frame(name, 64, 48);
+        let fl = frame(name, (64, 48));
         let total = fl.fragment_count() as f64;
         let pixels = fl.pixel_count() as f64;
         let opts = Options {
@@ -59,7 +65,7 @@ fn with_every_fragment_in_budget_the_allocations_are_exact() {
 #[test]
 fn allocations_spend_exactly_the_budget_and_never_more_bytes() {
     let mlp = Mlp::random(9);
-    let fl = frame("foliage", 80, 60);
+    let fl = frame("foliage", (80, 60));
     let counts = fl.counts();
     for budget in ["0.05fpp", "1fpp", "2fpp", "3.7fpp", "100fpp", "60KB", "2MB"] {
         let b = Budget::parse(budget).unwrap();
@@ -107,9 +113,9 @@ fn equal_bytes_give_every_method_one_memory_budget() {
     // A shallow scene, where equal bytes hold the exact A-buffer, and 100 stacked layers, deep
     // enough (N / P above 10) that DKB's layout truncates within them.
     let deep = common::layers(100);
-    let cam = Camera::orbit(&deep, 0, scene::DEFAULT_VIEWS, 80, 60);
-    let layered = rasterize(&deep, &cam, 80, 60).unwrap();
-    for (name, fl) in [("cad", frame("cad", 80, 60)), ("layers", layered)] {
+    let cam = Camera::orbit(&deep, 0, scene::DEFAULT_VIEWS, (80, 60));
+    let layered = rasterize(&deep, &cam, (80, 60)).unwrap();
+    for (name, fl) in [("cad", frame("cad", (80, 60))), ("layers", layered)] {
         let (px, total) = (fl.pixel_count() as u64, fl.fragment_count() as u64);
         let exact = dhoit_runtime::budget::ABUFFER.allocated_bytes(px, total);
         for budget in ["25%", "90%", "0.5fpp", "3fpp"] {
@@ -207,7 +213,7 @@ fn equal_bytes_give_every_method_one_memory_budget() {
 #[test]
 fn at_equal_bytes_no_method_gets_more_than_dkb_spends() {
     let mlp = Mlp::random(4);
-    let fl = frame("cad", 80, 60);
+    let fl = frame("cad", (80, 60));
     let (px, total) = (fl.pixel_count() as u64, fl.fragment_count() as u64);
     let exact = dhoit_runtime::budget::ABUFFER.allocated_bytes(px, total);
     let mut above = 0;
@@ -263,7 +269,7 @@ fn at_equal_bytes_no_method_gets_more_than_dkb_spends() {
 #[test]
 fn a_byte_budget_below_the_blended_targets_is_refused() {
     use dhoit_runtime::budget::{PARAMS_BYTES, mboit_moments_within};
-    let fl = frame("spheres", 80, 60);
+    let fl = frame("spheres", (80, 60));
     let px = fl.pixel_count() as u64;
     let wboit = 9 * px + PARAMS_BYTES;
     let mboit = |per_pixel: u64| per_pixel * px + PARAMS_BYTES + 1024;
@@ -320,7 +326,7 @@ fn a_byte_budget_below_the_blended_targets_is_refused() {
 #[test]
 fn features_match_their_definitions() {
     for (name, w, h) in [("shells", 40, 30), ("strands", 48, 36)] {
-        features_match_on(name, &frame(name, w, h));
+        features_match_on(name, &frame(name, (w, h)));
     }
 }
 
@@ -417,7 +423,7 @@ fn importance_key(fl: &FragmentLists, i: usize) -> u32 {
 
 #[test]
 fn vkb_importance_follows_its_factors() {
-    let fl = frame("particles", 64, 48);
+    let fl = frame("particles", (64, 48));
     let quiet = VkbParams {
         noise: 0.0,
         ..VkbParams::default()
@@ -433,7 +439,7 @@ fn vkb_importance_follows_its_factors() {
     counts[0] = 8; // (0, 0): r = 0.75
     facing[0] = 0.0;
     counts[15] = 0; // empty
-    let by_hand = importance::vkb_importance_from(&counts, &facing, 4, 4, &quiet);
+    let by_hand = importance::vkb_importance_from(&counts, &facing, (4, 4), &quiet);
     let expect = [
         (5, 0.984375 * 0.984375 * 0.5125),
         (6, 0.984375),
@@ -479,7 +485,7 @@ fn vkb_importance_follows_its_factors() {
 
 #[test]
 fn dkb_without_weights_is_a_clear_error() {
-    let fl = frame("shells", 16, 12);
+    let fl = frame("shells", (16, 12));
     let e = Renderer::new(&fl, Options::new(Budget::SlotsPerPixel(2.0), [1.0; 3]))
         .render(Method::Dkb)
         .unwrap_err();
@@ -490,7 +496,7 @@ fn dkb_without_weights_is_a_clear_error() {
 /// budget and F, with k left to the device for VKB and DKB and computed for everything else.
 #[test]
 fn the_gpu_path_gets_the_cpus_budget_without_its_composite() {
-    let fl = frame("foliage", 64, 48);
+    let fl = frame("foliage", (64, 48));
     let mlp = Mlp::random(3);
     for budget in ["1.5fpp", "30%", "40KiB"] {
         let options = Options {
@@ -560,7 +566,12 @@ fn on_held_out_frames_the_allocations_keep_their_quality_order() {
     ] {
         let s = scene::load(name, Opacity::default()).unwrap();
         let (w, h) = (96, 72);
-        let fl = rasterize(&s, &Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, w, h), w, h).unwrap();
+        let fl = rasterize(
+            &s,
+            &Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, (w, h)),
+            (w, h),
+        )
+        .unwrap();
         let opts = Options {
             weights: Some(&mlp),
             ..Options::new(budget, [0.2, 0.3, 0.4]).always_approximate()

@@ -347,7 +347,7 @@ fn each_alpha_mode_loads_and_renders_as_the_specification_says() {
                 }
             }
             // Move every other triangle out of view (behind the camera's far plane).
-            let cam = Camera::orbit(&s, 0, 8, w, h);
+            let cam = Camera::orbit(&s, 0, 8, (w, h));
             for (t, k) in keep.iter().enumerate() {
                 if !k {
                     for v in 0..3 {
@@ -355,7 +355,7 @@ fn each_alpha_mode_loads_and_renders_as_the_specification_says() {
                     }
                 }
             }
-            let fl = rasterize(&one, &cam, w, h).unwrap();
+            let fl = rasterize(&one, &cam, (w, h)).unwrap();
             fl.opaque.iter().filter(|&&o| o >> 24 != 0).count()
         };
         let (all, masked) = (alone(Coverage::Opaque), alone(Coverage::Mask(*c)));
@@ -585,7 +585,7 @@ fn a_gltf_camera_is_the_asset_viewpoint_and_the_front_view_frames_the_rest() {
         v.forward
     );
     assert!((v.yfov - 0.7).abs() < 1e-7);
-    let cam = scene::Camera::asset(&s, 200, 100);
+    let cam = scene::Camera::asset(&s, (200, 100));
     let ndc = |p: Vec3| {
         let c = cam.view_proj * Vec4::new(p.x, p.y, p.z, 1.0);
         (c.x / c.w, c.y / c.w)
@@ -606,7 +606,7 @@ fn a_gltf_camera_is_the_asset_viewpoint_and_the_front_view_frames_the_rest() {
     // Without one: the front view.
     let mut front = s.clone();
     front.viewpoint = None;
-    let cam = scene::Camera::asset(&front, 200, 100);
+    let cam = scene::Camera::asset(&front, (200, 100));
     assert_eq!(cam.forward, Vec3::NEG_Z);
     let ndc = |p: Vec3| {
         let c = cam.view_proj * Vec4::new(p.x, p.y, p.z, 1.0);

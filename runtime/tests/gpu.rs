@@ -80,7 +80,8 @@ fn every_shader_validates_and_translates_without_a_gpu() {
 /// $DHOIT_SCENES; see `common::real_or_exported` when there are none).
 const REAL: &str = "real:FlightHelmet/glTF/FlightHelmet.gltf";
 
-fn frame(name: &str, view: usize, w: u32, h: u32) -> (Scene, Camera) {
+fn frame(name: &str, view: usize, size: (u32, u32)) -> (Scene, Camera) {
+    let (w, h) = size;
     let s = match name.strip_prefix("real:") {
         Some(rel) => {
             // On a clone with nothing beside it, a textured-looking built-in written as glTF
@@ -91,7 +92,7 @@ fn frame(name: &str, view: usize, w: u32, h: u32) -> (Scene, Camera) {
         }
         None => scene::load(name, Opacity::default()).unwrap(),
     };
-    let cam = Camera::orbit(&s, view, scene::DEFAULT_VIEWS, w, h);
+    let cam = Camera::orbit(&s, view, scene::DEFAULT_VIEWS, (w, h));
     (s, cam)
 }
 
@@ -102,10 +103,10 @@ fn gpu_fragments(
     g: &dhoit_runtime::gpu::Gpu,
     s: &Scene,
     cam: &Camera,
-    w: u32,
-    h: u32,
+    size: (u32, u32),
 ) -> FragmentLists {
-    g.render_method(s, cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+    let (w, h) = size;
+    g.render_method(s, cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
         .unwrap()
         .fragments
         .unwrap()
@@ -116,13 +117,13 @@ fn abuffer_matches_the_cpu_on_its_own_fragments() {
     let Some(g) = gpu() else { return };
     for (name, view) in [("shells", 0), ("plates", 1), ("particles", 2), (REAL, 1)] {
         let (w, h) = (96, 72);
-        let (s, cam) = frame(name, view, w, h);
+        let (s, cam) = frame(name, view, (w, h));
         let f = g
-            .render_method(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+            .render_method(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
             .unwrap();
         let gfl = f.fragments.as_ref().unwrap();
         // Coverage against the CPU rasterizer.
-        let cpu = rasterize(&s, &cam, w, h).unwrap();
+        let cpu = rasterize(&s, &cam, (w, h)).unwrap();
         let differ = (0..cpu.pixel_count())
             .filter(|&p| cpu.count(p) != gfl.count(p))
             .count();
@@ -162,8 +163,8 @@ fn kbuffers_match_the_cpu_slot_for_slot() {
     let Some(g) = gpu() else { return };
     for (name, view) in [("hair", 0), ("particles", 1), (REAL, 2)] {
         let (w, h) = (80, 60);
-        let (s, cam) = frame(name, view, w, h);
-        let gfl = gpu_fragments(g, &s, &cam, w, h);
+        let (s, cam) = frame(name, view, (w, h));
+        let gfl = gpu_fragments(g, &s, &cam, (w, h));
         let pixels = gfl.pixel_count();
         // FKB with k = 2, and the optimal allocation at 1.5 slots per pixel uploaded as k.
         let curves = alloc::error_curves(&gfl, BG);
@@ -174,7 +175,7 @@ fn kbuffers_match_the_cpu_slot_for_slot() {
             } else {
                 Slots::PerPixel(&k)
             };
-            let f = g.render_method(&s, &cam, w, h, BG, slots).unwrap();
+            let f = g.render_method(&s, &cam, (w, h), BG, slots).unwrap();
             let (keys, bases, tails) = f.slots.clone().unwrap();
             let (twin_keys, twin_tails) = twin_capture(&gfl, &k);
             assert_eq!(
@@ -214,7 +215,7 @@ fn float_bits<'a>(v: impl IntoIterator<Item = &'a f32>) -> Vec<u32> {
 fn shuffled_submission_gives_bit_identical_gpu_images() {
     let Some(g) = gpu() else { return };
     let (w, h) = (64, 48);
-    let (s, cam) = frame("spheres", 1, w, h);
+    let (s, cam) = frame("spheres", 1, (w, h));
     let k: Vec<u32> = (0..w * h).map(|p| 1 + p % 3).collect();
     let mlp = dhoit_runtime::mlp::Mlp::random(4);
     let f = (1.5 * (w * h) as f64) as u64;
@@ -227,7 +228,7 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
             Slots::Vkb(vkb, f.into()),
             Slots::Dkb(&mlp, f.into()),
         ]
-        .map(|slots| image_bits(&g.render_method(sc, &cam, w, h, BG, slots).unwrap().image))
+        .map(|slots| image_bits(&g.render_method(sc, &cam, (w, h), BG, slots).unwrap().image))
     };
     let base = images(&s);
     for seed in 0..10 {
@@ -244,8 +245,8 @@ fn dkb_s_records_in_batches_or_at_once_give_the_same_frame_in_fewer_bytes() {
     let Some(g) = gpu() else { return };
     let mlp = common::committed_weights();
     let (w, h) = (64, 48);
-    let (s, cam) = frame("particles", 1, w, h);
-    let gfl = gpu_fragments(g, &s, &cam, w, h);
+    let (s, cam) = frame("particles", 1, (w, h));
+    let gfl = gpu_fragments(g, &s, &cam, (w, h));
     let counts = gfl.counts();
     let occ = budget::Occupancy::of(&counts);
     let f = (w * h / 20) as u64;
@@ -307,20 +308,20 @@ fn a_truncated_frame_without_records_gathers_one_empty_batch() {
     let mlp = common::committed_weights();
     let (w, h) = (48, 36);
     let s = common::layers(2);
-    let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
-    let gfl = gpu_fragments(g, &s, &cam, w, h);
+    let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, (w, h));
+    let gfl = gpu_fragments(g, &s, &cam, (w, h));
     let counts = gfl.counts();
     assert!(counts.iter().all(|&n| n <= 2) && counts.contains(&2));
     let f = gfl.fragment_count() as u64 / 4;
     // A deep frame of the same size first, so the buffers this frame takes from the device's
     // pool hold its importance: nothing may be left of it.
-    let (deep, deep_cam) = frame("particles", 1, w, h);
+    let (deep, deep_cam) = frame("particles", 1, (w, h));
     let before = g
-        .render_method(&deep, &deep_cam, w, h, BG, Slots::Dkb(&mlp, 200.into()))
+        .render_method(&deep, &deep_cam, (w, h), BG, Slots::Dkb(&mlp, 200.into()))
         .unwrap();
     assert!(before.importance.unwrap().iter().any(|i| i.to_bits() != 0));
     let d = g
-        .render_method(&s, &cam, w, h, BG, Slots::Dkb(&mlp, f.into()))
+        .render_method(&s, &cam, (w, h), BG, Slots::Dkb(&mlp, f.into()))
         .unwrap();
     assert_eq!(d.record_batches, Some(1));
     let imp = d.importance.clone().unwrap();
@@ -345,7 +346,7 @@ fn weights_staged_in_workgroup_memory_and_the_other_layouts_give_the_same_frames
     // A device of its own: which passes a frame records follows the device's last frame.
     let mut g = dhoit_runtime::gpu::Gpu::new().unwrap();
     let (w, h) = (64, 48);
-    let (s, cam) = frame("particles", 1, w, h);
+    let (s, cam) = frame("particles", 1, (w, h));
     let default = common::committed_weights();
     let nets = [
         ("default", default),
@@ -406,7 +407,7 @@ fn features_and_network_layouts_give_the_same_frame(
     mlp: &dhoit_runtime::mlp::Mlp,
 ) {
     let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
-    let gfl = gpu_fragments(g, s, cam, w, h);
+    let gfl = gpu_fragments(g, s, cam, (w, h));
     // The GPU gathers statistics for the pixels that have a record (two fragments or more).
     let stats = common::recorded_stats(&gfl);
     assert!(stats.iter().any(|st| st.count == 1) && stats.iter().any(|st| st.count >= 2));
@@ -567,8 +568,8 @@ fn layer_major_slots_capture_what_pixel_major_ones_do() {
     let g = dhoit_runtime::gpu::Gpu::new().unwrap();
     let (w, h) = (80, 60);
     for (name, view) in [("particles", 1), ("hair", 0)] {
-        let (s, cam) = frame(name, view, w, h);
-        let gfl = gpu_fragments(&g, &s, &cam, w, h);
+        let (s, cam) = frame(name, view, (w, h));
+        let gfl = gpu_fragments(&g, &s, &cam, (w, h));
         for k in [1u32, 3] {
             let frames = [false, true].map(|layer_major| {
                 o.tuning.layer_major_fkb = layer_major;
@@ -622,8 +623,8 @@ fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
     }
     .always_approximate();
     let (w, h) = (96, 72);
-    let (a, cam_a) = frame("particles", 0, w, h);
-    let (b, cam_b) = frame("shells", 1, w, h);
+    let (a, cam_a) = frame("particles", 0, (w, h));
+    let (b, cam_b) = frame("shells", 1, (w, h));
     let k: Vec<u32> = (0..w * h).map(|p| 1 + p % 4).collect();
     let mlp = dhoit_runtime::mlp::Mlp::random(7);
     let f = (2 * w * h) as u64;
@@ -667,7 +668,7 @@ fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
         );
     }
     // With the readbacks the tests use on (the defaults), the same image again.
-    let with = g.render_method(&a, &cam_a, w, h, BG, slots[5]).unwrap();
+    let with = g.render_method(&a, &cam_a, (w, h), BG, slots[5]).unwrap();
     assert!(with.slots.is_some() && with.stats.is_some());
     let bits_with = image_bits(&with.image);
     assert!(bits(&g, &a, &cam_a, slots[5]) == bits_with);
@@ -676,11 +677,11 @@ fn frames_reuse_the_buffers_of_earlier_frames_and_draw_the_same_images() {
 #[test]
 fn allocated_bytes_never_exceed_the_budget() {
     let Some(g) = gpu() else { return };
-    let (s, _) = frame("foliage", 0, 8, 8);
+    let (s, _) = frame("foliage", 0, (8, 8));
     let mlp = dhoit_runtime::mlp::Mlp::random(2);
     let mut checked = [0usize; 3];
     for (w, h) in [(32u32, 24u32), (50, 37), (64, 48)] {
-        let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
+        let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, (w, h));
         let px = (w * h) as u64;
         for b in ["30KB", "100KB", "200KB", "1MB", "1fpp", "2.5fpp"] {
             let budget = Budget::parse(b).unwrap();
@@ -688,7 +689,7 @@ fn allocated_bytes_never_exceed_the_budget() {
                 && f >= px
             {
                 let frame = g
-                    .render_method(&s, &cam, w, h, BG, Slots::Uniform((f / px) as u32))
+                    .render_method(&s, &cam, (w, h), BG, Slots::Uniform((f / px) as u32))
                     .unwrap();
                 assert!(
                     frame.allocated_bytes <= m,
@@ -699,7 +700,13 @@ fn allocated_bytes_never_exceed_the_budget() {
             }
             if let Ok((m, f)) = budget.resolve(&budget::VKB, px, 0) {
                 let frame = g
-                    .render_method(&s, &cam, w, h, BG, Slots::Vkb(Default::default(), f.into()))
+                    .render_method(
+                        &s,
+                        &cam,
+                        (w, h),
+                        BG,
+                        Slots::Vkb(Default::default(), f.into()),
+                    )
                     .unwrap();
                 assert!(
                     frame.allocated_bytes <= m,
@@ -710,7 +717,7 @@ fn allocated_bytes_never_exceed_the_budget() {
             }
             if let Ok((m, f)) = budget.resolve(&budget::DKB, px, 0) {
                 let frame = g
-                    .render_method(&s, &cam, w, h, BG, Slots::Dkb(&mlp, f.into()))
+                    .render_method(&s, &cam, (w, h), BG, Slots::Dkb(&mlp, f.into()))
                     .unwrap();
                 assert!(
                     frame.allocated_bytes <= m,
@@ -734,9 +741,11 @@ fn mlab_matches_the_cpu_in_submission_order() {
     let Some(g) = gpu() else { return };
     for (name, m) in [("particles", 2u32), ("foliage", 4)] {
         let (w, h) = (64, 48);
-        let (s, cam) = frame(name, 1, w, h);
-        let gfl = gpu_fragments(g, &s, &cam, w, h);
-        let f = g.render_method(&s, &cam, w, h, BG, Slots::Mlab(m)).unwrap();
+        let (s, cam) = frame(name, 1, (w, h));
+        let gfl = gpu_fragments(g, &s, &cam, (w, h));
+        let f = g
+            .render_method(&s, &cam, (w, h), BG, Slots::Mlab(m))
+            .unwrap();
         // The CPU twin takes each pixel's fragments in submission order.
         let twin: Vec<[f32; 3]> = (0..gfl.pixel_count())
             .map(|p| {
@@ -759,10 +768,9 @@ fn mlab_matches_the_cpu_in_submission_order() {
     }
     assert!(
         g.render_method(
-            &frame("shells", 0, 8, 8).0,
-            &frame("shells", 0, 8, 8).1,
-            8,
-            8,
+            &frame("shells", 0, (8, 8)).0,
+            &frame("shells", 0, (8, 8)).1,
+            (8, 8),
             BG,
             Slots::Mlab(40)
         )
@@ -784,8 +792,8 @@ fn the_search_brackets_the_last_answer_of_its_kind() {
     // on the shared one meanwhile.
     let g = &dhoit_runtime::gpu::Gpu::new().unwrap();
     let (w, h) = (96, 72);
-    let (s, cam) = frame("particles", 1, w, h);
-    let counts = gpu_fragments(g, &s, &cam, w, h).counts();
+    let (s, cam) = frame("particles", 1, (w, h));
+    let counts = gpu_fragments(g, &s, &cam, (w, h)).counts();
     let total: u64 = counts.iter().map(|&n| n as u64).sum();
     let mut rng = dhoit_runtime::rng::Rng::new(8);
     let imp: Vec<f32> = (0..counts.len()).map(|_| rng.f32()).collect();
@@ -822,8 +830,8 @@ fn the_search_brackets_the_last_answer_of_its_kind() {
 fn the_allocation_pass_matches_its_cpu_twin() {
     let Some(g) = gpu() else { return };
     let (w, h) = (64, 48);
-    let (s, cam) = frame("hair", 2, w, h);
-    let gfl = gpu_fragments(g, &s, &cam, w, h);
+    let (s, cam) = frame("hair", 2, (w, h));
+    let gfl = gpu_fragments(g, &s, &cam, (w, h));
     let counts = gfl.counts();
     let pixels = counts.len();
     let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
@@ -872,7 +880,13 @@ fn the_allocation_pass_matches_its_cpu_twin() {
             total + 100,
         ] {
             let frame = g
-                .render_method(&s, &cam, w, h, BG, Slots::Importance(imp, target, f.into()))
+                .render_method(
+                    &s,
+                    &cam,
+                    (w, h),
+                    BG,
+                    Slots::Importance(imp, target, f.into()),
+                )
                 .unwrap();
             let (keys, bases, tails) = frame.slots.unwrap();
             let k_gpu: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
@@ -907,11 +921,11 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
     let mlp = common::committed_weights();
     for (name, view) in [("particles", 0), ("plates", 3)] {
         let (w, h) = (72, 54);
-        let (s, cam) = frame(name, view, w, h);
-        let gfl = gpu_fragments(g, &s, &cam, w, h);
+        let (s, cam) = frame(name, view, (w, h));
+        let gfl = gpu_fragments(g, &s, &cam, (w, h));
         let pixels = gfl.pixel_count();
         let total = gfl.fragment_count() as u64;
-        let cfl = rasterize(&s, &cam, w, h).unwrap();
+        let cfl = rasterize(&s, &cam, (w, h)).unwrap();
         let ccounts = cfl.counts();
         // 0.05 (DKB's pool then the size of a batch of its records and the network's list
         // after them: smaller than the records, so they are gathered in batches), 0.5, 1 and 2
@@ -928,7 +942,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             // device drew it: where the budget truncates (DKB counts first and reads its count
             // back), for each pixel with a record (two fragments or more).
             let d = g
-                .render_method(&s, &cam, w, h, BG, Slots::Dkb(&mlp, f.into()))
+                .render_method(&s, &cam, (w, h), BG, Slots::Dkb(&mlp, f.into()))
                 .unwrap();
             let twin = importance::pixel_stats(&gfl);
             let holds = f >= total;
@@ -1009,7 +1023,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             // VKB.
             let params = VkbParams::default();
             let v = g
-                .render_method(&s, &cam, w, h, BG, Slots::Vkb(params, f.into()))
+                .render_method(&s, &cam, (w, h), BG, Slots::Vkb(params, f.into()))
                 .unwrap();
             let (vc, facing) = v.vkb_nearest.clone().unwrap();
             assert_eq!(vc, gfl.counts(), "{name} vkb counts");
@@ -1028,7 +1042,7 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
                 let twin = importance::nearest_facing(&cfl, p);
                 assert_eq!(facing[p], twin, "{name}: pixel {p}'s nearest facing");
             }
-            let mut imp_twin = importance::vkb_importance_from(&vc, &facing, w, h, &params);
+            let mut imp_twin = importance::vkb_importance_from(&vc, &facing, (w, h), &params);
             let imp = v.importance.clone().unwrap();
             // A frame expected to fit computes no importance (k = n needs none): only where the
             // budget holds every fragment, and then the buffer stays zero.
@@ -1096,15 +1110,15 @@ fn dkb_frames_run_the_f16_math_network_like_its_twin() {
     let half = f32_net.at_precision(Precision::F16Math).unwrap();
     for (name, view) in [("particles", 0), ("shells", 2)] {
         let (w, h) = (72, 54);
-        let (s, cam) = frame(name, view, w, h);
-        let gfl = gpu_fragments(g, &s, &cam, w, h);
+        let (s, cam) = frame(name, view, (w, h));
+        let gfl = gpu_fragments(g, &s, &cam, (w, h));
         let f = gfl.pixel_count() as u64;
         assert!(
             f < gfl.fragment_count() as u64,
             "{name}: the budget truncates"
         );
         let d = g
-            .render_method(&s, &cam, w, h, BG, Slots::Dkb(&half, f.into()))
+            .render_method(&s, &cam, (w, h), BG, Slots::Dkb(&half, f.into()))
             .unwrap();
         let (feats, counts) = network_inputs(&importance::pixel_stats(&gfl), f);
         let twin = half.dkb_importance_pooled(&feats, &counts, f);
@@ -1168,12 +1182,12 @@ fn the_prefix_sum_is_exact_over_millions_of_pixels() {
     // more blocks (2,154 of 2,048 pixels) than the block totals' scan takes at once, so it
     // carries between rounds.
     let (w, h) = (2100u32, 2100u32);
-    let (s, cam) = frame("shells", 0, 64, 64);
+    let (s, cam) = frame("shells", 0, (64, 64));
     let k: Vec<u32> = (0..w * h)
         .map(|p| (p % 5 == 0) as u32 + (p % 7 == 0) as u32)
         .collect();
     let f = g
-        .render_method(&s, &cam, w, h, BG, Slots::PerPixel(&k))
+        .render_method(&s, &cam, (w, h), BG, Slots::PerPixel(&k))
         .unwrap();
     let (_, bases, _) = f.slots.unwrap();
     let mut acc = 0u32;
@@ -1189,12 +1203,18 @@ fn a_large_allocation_matches_its_twin() {
     // 1024x768: hundreds of workgroups add each candidate's total; it must still be exact.
     let Some(g) = gpu() else { return };
     let (w, h) = (1024u32, 768u32);
-    let (s, cam) = frame("particles", 0, w, h);
-    let gfl = gpu_fragments(g, &s, &cam, w, h);
+    let (s, cam) = frame("particles", 0, (w, h));
+    let gfl = gpu_fragments(g, &s, &cam, (w, h));
     for fpp in [0.5, 1.0] {
         let f = (fpp * (w * h) as f64) as u64;
         let v = g
-            .render_method(&s, &cam, w, h, BG, Slots::Vkb(Default::default(), f.into()))
+            .render_method(
+                &s,
+                &cam,
+                (w, h),
+                BG,
+                Slots::Vkb(Default::default(), f.into()),
+            )
             .unwrap();
         let imp = v.importance.clone().unwrap();
         let (_, bases, _) = v.slots.unwrap();
@@ -1245,7 +1265,7 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
     }
     let cam = common::identity();
     let (w, h) = (48, 32);
-    let gfl = gpu_fragments(&g, &s, &cam, w, h);
+    let gfl = gpu_fragments(&g, &s, &cam, (w, h));
     let counts = gfl.counts();
     let total = gfl.fragment_count() as u64;
     let mlp = dhoit_runtime::mlp::Mlp::random(6);
@@ -1339,7 +1359,7 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
             // Any submission order: the same image bits.
             for seed in 0..3 {
                 let shuffled = g
-                    .render_method(&s.shuffled(seed), &cam, w, h, BG, slots)
+                    .render_method(&s.shuffled(seed), &cam, (w, h), BG, slots)
                     .unwrap();
                 assert!(
                     image_bits(&shuffled.image) == image_bits(&frame.image),
@@ -1367,7 +1387,7 @@ fn a_pixel_too_deep_for_the_devices_loops_is_refused_not_wrong() {
         );
     }
     let cam = common::identity();
-    let r = g.render_method(&s, &cam, 4, 4, BG, dhoit_runtime::gpu::Slots::Exact);
+    let r = g.render_method(&s, &cam, (4, 4), BG, dhoit_runtime::gpu::Slots::Exact);
     if g.bounded_loops() {
         let Err(e) = r else {
             panic!("lavapipe cannot sort 600 fragments a pixel, yet it returned a frame")
@@ -1440,7 +1460,7 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
     let (w, h) = (2, 2);
     // At the limit both rasterizers take the frame and the tails' sums are exact.
     let (s, cam) = deep_pixels(max);
-    let fl = rasterize(&s, &cam, w, h).unwrap();
+    let fl = rasterize(&s, &cam, (w, h)).unwrap();
     assert_eq!(fl.count(0) as usize, max);
     let twin_stats = importance::pixel_stats(&fl);
     let (f, vkb) = (8u64, Slots::Vkb(Default::default(), 8u64.into()));
@@ -1485,7 +1505,7 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
     // One more: the CPU refuses it, and so does every GPU method (not an image whose tail
     // is wrong, or a sort of that length), naming the pixel and its count.
     let (s, cam) = deep_pixels(max + 1);
-    let cpu = rasterize(&s, &cam, w, h).unwrap_err().to_string();
+    let cpu = rasterize(&s, &cam, (w, h)).unwrap_err().to_string();
     assert!(cpu.contains(&format!("has {} fragments", max + 1)), "{cpu}");
     let k = vec![3u32; 4];
     let methods: [(&str, Slots); 6] = [
@@ -1569,8 +1589,8 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
     let mlp = dhoit_runtime::mlp::Mlp::random(4);
     let (w, h) = (80, 60);
     for name in ["spheres", "cad"] {
-        let (s, cam) = frame(name, 1, w, h);
-        let gfl = gpu_fragments(g, &s, &cam, w, h);
+        let (s, cam) = frame(name, 1, (w, h));
+        let gfl = gpu_fragments(g, &s, &cam, (w, h));
         let total = gfl.fragment_count() as u64;
         let px = gfl.pixel_count() as u64;
         let sum_n: u64 = gfl.counts().iter().map(|&n| n as u64).sum();
@@ -1595,7 +1615,7 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
                     mlp.target,
                 ),
             ] {
-                let frame = g.render_method(&s, &cam, w, h, BG, slots).unwrap();
+                let frame = g.render_method(&s, &cam, (w, h), BG, slots).unwrap();
                 let (_, bases, _) = frame.slots.clone().unwrap();
                 // The allocation of the frame's importance hands out exactly min(F, sum n)
                 // slots, and the frame stores it (shared::stored_k).
@@ -1630,7 +1650,7 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
                 );
             }
             // The CPU: the same F from the same count, and memory for exactly that.
-            let fl = dhoit_runtime::raster::rasterize(&s, &cam, w, h).unwrap();
+            let fl = dhoit_runtime::raster::rasterize(&s, &cam, (w, h)).unwrap();
             assert_eq!(
                 fl.fragment_count() as u64,
                 total,
@@ -1692,8 +1712,8 @@ fn gpu_faults_are_typed_errors_not_hangs_or_wrong_images() {
     );
     // A frame whose buffers exceed what the device binds: refused before allocating, with the
     // numbers.
-    let (s, cam) = frame("shells", 0, 1024, 1024);
-    match g.render_method(&s, &cam, 1024, 1024, BG, Slots::Uniform(20_000)) {
+    let (s, cam) = frame("shells", 0, (1024, 1024));
+    match g.render_method(&s, &cam, (1024, 1024), BG, Slots::Uniform(20_000)) {
         Err(Error::Gpu(GpuError::BufferTooLarge { label, need, max })) => {
             assert_eq!(label, "oit.slots");
             assert_eq!(need, 1024 * 1024 * 20_000 * 8);
@@ -1703,9 +1723,9 @@ fn gpu_faults_are_typed_errors_not_hangs_or_wrong_images() {
         Ok(_) => panic!("a 160 GiB slot buffer was accepted"),
     }
     // The device still works after refusing.
-    let (s, cam) = frame("shells", 0, 16, 12);
+    let (s, cam) = frame("shells", 0, (16, 12));
     assert!(
-        g.render_method(&s, &cam, 16, 12, BG, dhoit_runtime::gpu::Slots::Exact)
+        g.render_method(&s, &cam, (16, 12), BG, dhoit_runtime::gpu::Slots::Exact)
             .is_ok()
     );
 }
@@ -1758,10 +1778,10 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
     // a device with larger bindings it is checked like the others.
     let limit = g.device().limits().max_storage_buffer_binding_size;
     for (w, h) in [(2400u32, 2300u32), (3840, 2160), (7680, 4320)] {
-        let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
+        let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, (w, h));
         let px = w as u64 * h as u64;
         if 16 * px > limit {
-            match g.render_method(&s, &cam, w, h, BG, Slots::Dkb(&mlp, 1000.into())) {
+            match g.render_method(&s, &cam, (w, h), BG, Slots::Dkb(&mlp, 1000.into())) {
                 Err(dhoit_runtime::Error::Gpu(dhoit_runtime::GpuError::BufferTooLarge {
                     label,
                     need,
@@ -1775,13 +1795,13 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
             }
             continue;
         }
-        let gfl = gpu_fragments(g, &s, &cam, w, h);
+        let gfl = gpu_fragments(g, &s, &cam, (w, h));
         let total = gfl.fragment_count() as u64;
         assert!(total > 1000, "{w}x{h}: {total} fragments");
         let f = total / 3;
         // DKB: features, importance, allocation and prefix sums over every pixel, as the twin.
         let d = g
-            .render_method(&s, &cam, w, h, BG, Slots::Dkb(&mlp, f.into()))
+            .render_method(&s, &cam, (w, h), BG, Slots::Dkb(&mlp, f.into()))
             .unwrap();
         let stats = d.stats.clone().unwrap();
         assert_eq!(stats, common::recorded_stats(&gfl), "{w}x{h}: statistics");
@@ -1794,10 +1814,10 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         // allocation's marks, a bit every frame pixel, and the slots and tails): every batch's
         // statistics and the allocation as the twin's, on hundreds of thousands of records.
         let stacked = sparse_scene_shifted(0.0, 8.0);
-        let sfl = gpu_fragments(g, &stacked, &cam, w, h);
+        let sfl = gpu_fragments(g, &stacked, &cam, (w, h));
         let few = sfl.fragment_count() as u64 / 40;
         let d = g
-            .render_method(&stacked, &cam, w, h, BG, Slots::Dkb(&mlp, few.into()))
+            .render_method(&stacked, &cam, (w, h), BG, Slots::Dkb(&mlp, few.into()))
             .unwrap();
         assert!(
             d.record_batches.is_some_and(|b| b > 1),
@@ -1815,7 +1835,13 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         check_allocation_and_capture(&sfl, &d, &imp, few, mlp.target, &label);
         // VKB and FKB too.
         let v = g
-            .render_method(&s, &cam, w, h, BG, Slots::Vkb(Default::default(), f.into()))
+            .render_method(
+                &s,
+                &cam,
+                (w, h),
+                BG,
+                Slots::Vkb(Default::default(), f.into()),
+            )
             .unwrap();
         check_allocation_and_capture(
             &gfl,
@@ -1826,7 +1852,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
             &format!("vkb {w}x{h}"),
         );
         let fk = g
-            .render_method(&s, &cam, w, h, BG, Slots::Uniform(1))
+            .render_method(&s, &cam, (w, h), BG, Slots::Uniform(1))
             .unwrap();
         let twin = composite::composite(
             &gfl,
@@ -1835,11 +1861,13 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         );
         assert!(fk.image.max_abs_diff(&twin) <= 1e-5, "fkb {w}x{h}");
         // MLAB and the exact A-buffer's image.
-        let ml = g.render_method(&s, &cam, w, h, BG, Slots::Mlab(4)).unwrap();
+        let ml = g
+            .render_method(&s, &cam, (w, h), BG, Slots::Mlab(4))
+            .unwrap();
         let twin = composite::composite(&gfl, composite::Method::Mlab(4), BG);
         assert!(ml.image.max_abs_diff(&twin) <= 1e-5, "mlab {w}x{h}");
         let a = g
-            .render_method(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+            .render_method(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
             .unwrap();
         let twin = composite::composite(&gfl, composite::Method::Exact, BG);
         assert!(a.image.max_abs_diff(&twin) <= 1e-5, "abuffer {w}x{h}");
@@ -1858,7 +1886,7 @@ fn an_8k_allocation_matches_its_twin_exactly() {
     let Some(g) = gpu() else { return };
     let s = sparse_scene();
     let (w, h) = (7680u32, 4320u32);
-    let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
+    let cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, (w, h));
     let px = (w * h) as usize;
     // Importance of every kind of value the passes meet: spread, tied, tiny, pair-marked.
     let mut rng = dhoit_runtime::rng::Rng::new(8);
@@ -1938,9 +1966,9 @@ fn cpu_and_gpu_rasterizers_agree_on_depth_and_coverage() {
         ("spheres", 3, 128, 96),
         ("plates", 2, 128, 96),
     ] {
-        let (s, cam) = frame(name, view, w, h);
-        let gfl = gpu_fragments(g, &s, &cam, w, h);
-        let cfl = rasterize(&s, &cam, w, h).unwrap();
+        let (s, cam) = frame(name, view, (w, h));
+        let gfl = gpu_fragments(g, &s, &cam, (w, h));
+        let cfl = rasterize(&s, &cam, (w, h)).unwrap();
         let (mut diffs, mut other_pixels) = (Vec::new(), 0usize);
         for p in 0..cfl.pixel_count() {
             let mut a: Vec<(u32, f32)> = cfl
@@ -2002,8 +2030,8 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
     let mlp = dhoit_runtime::mlp::Mlp::random(8);
     let (w, h) = (64, 48);
     for (name, view) in [("particles", 1), ("cad", 0)] {
-        let (s, cam) = frame(name, view, w, h);
-        let gfl = gpu_fragments(&g, &s, &cam, w, h);
+        let (s, cam) = frame(name, view, (w, h));
+        let gfl = gpu_fragments(&g, &s, &cam, (w, h));
         let counts = gfl.counts();
         let covered = counts.iter().filter(|&&n| n > 0).count() as u32;
         // A slot for every covered pixel (lo = 1): a pixel of three fragments has a record and
@@ -2080,7 +2108,7 @@ fn the_renderer_runs_on_the_applications_device() {
     // Without 64-bit atomics the device runs every method, FKB and DKB with the portable
     // passes, to the images of dhoit's own device; with them, at wgpu's default limits (8
     // storage buffers a stage, what `required_limits` asks), DKB runs as on dhoit's own device.
-    let (s, cam) = frame("hair", 1, 32, 24);
+    let (s, cam) = frame("hair", 1, (32, 24));
     let mlp = dhoit_runtime::mlp::Mlp::random(4);
     let dkb = Slots::Dkb(&mlp, 300u64.into());
     let (d, q) = open(
@@ -2090,17 +2118,17 @@ fn the_renderer_runs_on_the_applications_device() {
     let narrow = dhoit_runtime::gpu::Gpu::on_device(d, q, &info).unwrap();
     assert!(!narrow.is_wide());
     let on_narrow = narrow
-        .render_method(&s, &cam, 32, 24, [1.0; 3], dkb)
+        .render_method(&s, &cam, (32, 24), [1.0; 3], dkb)
         .unwrap();
     assert!(on_narrow.variants.contains(&"capture: portable"));
-    let on_wide = g.render_method(&s, &cam, 32, 24, [1.0; 3], dkb).unwrap();
+    let on_wide = g.render_method(&s, &cam, (32, 24), [1.0; 3], dkb).unwrap();
     assert_eq!(on_narrow.image, on_wide.image);
     assert_eq!(on_narrow.importance, on_wide.importance);
     let fkb = narrow
-        .render(&s, &cam, 32, 24, [1.0; 3], Slots::Uniform(2))
+        .render(&s, &cam, (32, 24), [1.0; 3], Slots::Uniform(2))
         .unwrap();
     let wide = g
-        .render(&s, &cam, 32, 24, [1.0; 3], Slots::Uniform(2))
+        .render(&s, &cam, (32, 24), [1.0; 3], Slots::Uniform(2))
         .unwrap();
     assert!(fkb.variants.contains(&"capture: portable"));
     assert_eq!(fkb.image, wide.image);
@@ -2112,27 +2140,38 @@ fn the_renderer_runs_on_the_applications_device() {
         8
     );
     assert_eq!(
-        eight.render(&s, &cam, 32, 24, [1.0; 3], dkb).unwrap().image,
-        g.render(&s, &cam, 32, 24, [1.0; 3], dkb).unwrap().image
+        eight
+            .render(&s, &cam, (32, 24), [1.0; 3], dkb)
+            .unwrap()
+            .image,
+        g.render(&s, &cam, (32, 24), [1.0; 3], dkb).unwrap().image
     );
     // Without FLOAT32_BLENDABLE every pass builds but MBOIT's, whose frames are refused with
     // the feature named.
     let (d, q) = open(features, limits.clone());
     let plain = dhoit_runtime::gpu::Gpu::on_device(d, q, &info).unwrap();
     let mboit = Slots::Mboit(Default::default());
-    let e = plain.render(&s, &cam, 32, 24, [1.0; 3], mboit).unwrap_err();
+    let e = plain
+        .render(&s, &cam, (32, 24), [1.0; 3], mboit)
+        .unwrap_err();
     assert!(e.to_string().contains("FLOAT32_BLENDABLE"), "{e}");
-    let wboit = plain.render(&s, &cam, 32, 24, [1.0; 3], Slots::Wboit(Default::default()));
+    let wboit = plain.render(
+        &s,
+        &cam,
+        (32, 24),
+        [1.0; 3],
+        Slots::Wboit(Default::default()),
+    );
     assert!(wboit.is_ok());
     let (d, q) = open(features | wgpu::Features::FLOAT32_BLENDABLE, limits);
     let app = dhoit_runtime::gpu::Gpu::on_device(d.clone(), q.clone(), &info).unwrap();
     assert!(*app.device() == d);
     // wgpu's default 32 bytes of colour attachments a sample hold MBOIT's four and six power
     // moments (20 and 28) but not eight (36): those frames are refused, the limit named.
-    let (s8, cam8) = frame("hair", 1, 32, 24);
+    let (s8, cam8) = frame("hair", 1, (32, 24));
     for moments in [4, 6, 8] {
         let p = dhoit_runtime::composite::MboitParams::with_moments(moments).unwrap();
-        let r = app.render(&s8, &cam8, 32, 24, [1.0; 3], Slots::Mboit(p));
+        let r = app.render(&s8, &cam8, (32, 24), [1.0; 3], Slots::Mboit(p));
         if moments == 8 && app.device().limits().max_color_attachment_bytes_per_sample < 36 {
             let e = r.unwrap_err().to_string();
             assert!(
@@ -2143,8 +2182,8 @@ fn the_renderer_runs_on_the_applications_device() {
             assert!(r.is_ok(), "{moments} moments: {:?}", r.err());
         }
     }
-    let (s, cam) = frame("particles", 1, 96, 72);
-    let fl = rasterize(&s, &cam, 96, 72).unwrap();
+    let (s, cam) = frame("particles", 1, (96, 72));
+    let fl = rasterize(&s, &cam, (96, 72)).unwrap();
     let mlp = dhoit_runtime::mlp::Mlp::random(4);
     let opts = dhoit_runtime::frame::Options {
         weights: Some(&mlp),
@@ -2176,10 +2215,10 @@ fn the_renderer_runs_on_the_applications_device() {
         let Ok(a) = r.allocate(m) else { continue };
         let slots = || Slots::for_method(m, &a, &opts).unwrap();
         let ours = g
-            .render_method(&s, &cam, 96, 72, opts.background, slots())
+            .render_method(&s, &cam, (96, 72), opts.background, slots())
             .unwrap();
         let theirs = app
-            .render_method(&s, &cam, 96, 72, opts.background, slots())
+            .render_method(&s, &cam, (96, 72), opts.background, slots())
             .unwrap();
         assert_eq!(theirs.image, ours.image, "{m}");
         assert_eq!(theirs.allocated_bytes, ours.allocated_bytes, "{m}");
@@ -2353,7 +2392,7 @@ fn the_portable_capture_leaves_the_wide_captures_slots_and_image() {
     let s = common::tied_layers(composite::APPEND_MAX as usize + 9);
     let cam = common::identity();
     let (w, h) = (24, 16);
-    let gfl = gpu_fragments(g, &s, &cam, w, h);
+    let gfl = gpu_fragments(g, &s, &cam, (w, h));
     // Ties: pixels whose fragments share a depth.
     let ties = (0..gfl.pixel_count())
         .filter(|&p| {

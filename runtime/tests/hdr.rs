@@ -244,8 +244,8 @@ fn light_above_white_on_the_gpu_is_its_twins() {
     }
     let (mut saturated, mut above, mut counted) = (0, 0.0f32, 0);
     for (name, s) in [("bright", &mut bright), ("blinding", &mut blinding)] {
-        let fl = rasterize(s, &cam, w, h).unwrap();
-        let ab = g.render(s, &cam, w, h, BLACK, Slots::Exact).unwrap();
+        let fl = rasterize(s, &cam, (w, h)).unwrap();
+        let ab = g.render(s, &cam, (w, h), BLACK, Slots::Exact).unwrap();
         let gfl = ab.fragments.clone().unwrap();
         assert_eq!(gfl.rgba.len(), fl.rgba.len(), "{name}");
         for p in 0..fl.pixel_count() {
@@ -348,7 +348,9 @@ fn light_above_white_on_the_gpu_is_its_twins() {
     assert!(counted >= 4, "{counted} frames' bytes held to the CPU's");
     assert!(above > 4.0, "nothing above white: {above}");
     // A corner of the bright scene, where the opaque 8.0 layer is alone.
-    let ab = g.render(&bright, &cam, w, h, BLACK, Slots::Exact).unwrap();
+    let ab = g
+        .render(&bright, &cam, (w, h), BLACK, Slots::Exact)
+        .unwrap();
     assert_eq!(
         ab.image.data[(h as usize - 1) * w as usize + w as usize - 1],
         [8.0; 3]
@@ -365,7 +367,7 @@ fn a_byte_budget_holds_the_words_of_light_above_white() {
     let (w, h) = SIZE;
     let weights = common::committed_weights();
     let s = bright_scene();
-    let fl = rasterize(&s, &identity(), w, h).unwrap();
+    let fl = rasterize(&s, &identity(), (w, h)).unwrap();
     let mut clamped = fl.clone();
     clamped.tint.clear();
     clamped
@@ -457,7 +459,7 @@ fn an_opaque_surface_above_white_keeps_its_light() {
         [0.0, 0.0, 0.0, 0.5],
     );
     let cam = identity();
-    let fl = rasterize(&s, &cam, w, h).unwrap();
+    let fl = rasterize(&s, &cam, (w, h)).unwrap();
     let lit = [8.0, 32.0 * 8.0 / 255.0, 0.0];
     let through = lit.map(|c| c * 127.0 / 255.0);
     let (left, right) = (w as usize / 4, 3 * w as usize / 4);
@@ -485,7 +487,7 @@ fn an_opaque_surface_above_white_keeps_its_light() {
     }
     let Some(g) = gpu() else { return };
     let ab = g
-        .render(&s, &cam, w, h, BLACK, dhoit_runtime::gpu::Slots::Exact)
+        .render(&s, &cam, (w, h), BLACK, dhoit_runtime::gpu::Slots::Exact)
         .unwrap();
     assert_eq!(ab.image.data[row + right], lit, "the GPU's surface alone");
     assert!(

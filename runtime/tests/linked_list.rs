@@ -38,7 +38,7 @@ fn the_list_keeps_the_first_f_fragments_and_drops_the_rest() {
     // 120 nodes: the first two layers (four triangles, 96 fragments), then the third layer's
     // first triangle (primitive 4) in raster order until the 24 nodes left are spent.
     let s = layers(6);
-    let fl = rasterize(&s, &identity(), 8, 6).unwrap();
+    let fl = rasterize(&s, &identity(), (8, 6)).unwrap();
     assert_eq!(fl.fragment_count(), 288);
     let keep = composite::linked_list_kept(&fl, 120);
     assert_eq!(keep.iter().filter(|&&k| k).count(), 120);
@@ -104,7 +104,7 @@ fn where_f_truncates_the_list_depends_on_submission_order() {
     let s = layers(6);
     let cam = identity();
     let render = |sc: &Scene, b: &str| {
-        let fl = rasterize(sc, &cam, 16, 12).unwrap();
+        let fl = rasterize(sc, &cam, (16, 12)).unwrap();
         Renderer::new(&fl, opts(b))
             .render(Method::LinkedList)
             .unwrap()
@@ -137,18 +137,18 @@ fn the_gpu_list_keeps_what_its_pool_holds_and_is_its_twin() {
         vec![("six layers".into(), layers(6), identity(), (40, 30))];
     for name in ["particles", "hair"] {
         let s = scene::load(name, Default::default()).unwrap();
-        let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, 64, 48);
+        let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, (64, 48));
         cases.push((name.into(), s, cam, (64, 48)));
     }
     for (name, s, cam, (w, h)) in &cases {
         let reference = g
-            .render(s, cam, *w, *h, BG, dhoit_runtime::gpu::Slots::Exact)
+            .render(s, cam, (*w, *h), BG, dhoit_runtime::gpu::Slots::Exact)
             .unwrap();
         let all: &FragmentLists = reference.fragments.as_ref().unwrap();
         let total = all.fragment_count() as u64;
         for (nodes, sorted) in [(total, 8), (total / 2, 8), (total / 4, 3)] {
             let f = g
-                .render(s, cam, *w, *h, BG, Slots::LinkedList { nodes, sorted })
+                .render(s, cam, (*w, *h), BG, Slots::LinkedList { nodes, sorted })
                 .unwrap();
             assert_eq!(
                 f.list_arrived,

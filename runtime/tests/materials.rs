@@ -409,7 +409,7 @@ fn transmission_textures_and_emission_shade_as_computed_by_hand() {
 
 /// The camera of view `view` of an orbit around `s`.
 fn camera(s: &Scene, view: usize) -> Camera {
-    Camera::orbit(s, view, 8, SIZE.0, SIZE.1)
+    Camera::orbit(s, view, 8, (SIZE.0, SIZE.1))
 }
 
 /// Pixels where two images differ by more than `eps`, and the largest difference.
@@ -450,9 +450,9 @@ fn materials_render_alike_on_cpu_and_gpu() {
         s.check().unwrap();
         for view in 0..4 {
             let cam = camera(&s, view);
-            let fl = rasterize(&s, &cam, w, h).unwrap();
+            let fl = rasterize(&s, &cam, (w, h)).unwrap();
             let gpu_ab = g
-                .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+                .render(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
                 .unwrap();
             let gfl = gpu_ab.fragments.clone().unwrap();
             // The GPU's own fragments (its opaque layer too) through the CPU twin: its image.
@@ -522,11 +522,11 @@ fn tinted_glass_renders_alike_on_cpu_and_gpu() {
         let (mut tinted_views, mut grey_differ) = (0, 0);
         for view in 0..4 {
             let cam = camera(&s, view);
-            let fl = rasterize(&s, &cam, w, h).unwrap();
+            let fl = rasterize(&s, &cam, (w, h)).unwrap();
             assert!(fl.tinted() || fl.fragment_count() == 0);
             tinted_views += fl.tint.iter().any(|&g| g != CLEAR) as usize;
             let gpu_ab = g
-                .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+                .render(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
                 .unwrap();
             let gfl = gpu_ab.fragments.clone().unwrap();
             assert_eq!(
@@ -546,7 +546,7 @@ fn tinted_glass_renders_alike_on_cpu_and_gpu() {
                 "{name} view {view}: {o} of {c} channels one step apart"
             );
             let grey_ab = g
-                .render(&grey, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+                .render(&grey, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
                 .unwrap();
             // Its tints are 4 bytes a fragment beside the grey frame's, on the GPU and in the
             // CPU's count alike (where the grey frame's colours keep their exponent, it stores
@@ -557,7 +557,7 @@ fn tinted_glass_renders_alike_on_cpu_and_gpu() {
             };
             assert_eq!(gpu_ab.allocated_bytes, grey_ab.allocated_bytes + 4 * n);
             let cpu_bytes = |s: &Scene| {
-                let fl = rasterize(s, &cam, w, h).unwrap();
+                let fl = rasterize(s, &cam, (w, h)).unwrap();
                 let opts = Options::new(Budget::parse("2fpp").unwrap(), BG);
                 frame::render(&fl, Method::Abuffer, opts)
                     .unwrap()
@@ -655,8 +655,8 @@ fn no_fragment_behind_an_opaque_surface_is_counted() {
         }
         for view in 0..4 {
             let cam = camera(&s, view);
-            let fl = rasterize(&s, &cam, w, h).unwrap();
-            let every = rasterize(&all, &cam, w, h).unwrap();
+            let fl = rasterize(&s, &cam, (w, h)).unwrap();
+            let every = rasterize(&all, &cam, (w, h)).unwrap();
             let opaque = |prim: u32| !s.transparent(prim as usize);
             let masked = |prim: u32| s.material_of(prim as usize).cutoff().is_some();
             let mut expected = 0u64;
@@ -682,7 +682,7 @@ fn no_fragment_behind_an_opaque_surface_is_counted() {
                 expected += visible as u64;
             }
             let gpu = g
-                .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+                .render(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
                 .unwrap()
                 .fragments
                 .unwrap();
@@ -708,13 +708,13 @@ fn transparent_layers_are_composited_over_the_opaque_image() {
     let s = occluded();
     let cam = camera(&s, 2);
     let (w, h) = SIZE;
-    let fl = rasterize(&s, &cam, w, h).unwrap();
+    let fl = rasterize(&s, &cam, (w, h)).unwrap();
     let mut all = s.clone();
     for m in &mut all.materials {
         m.coverage = Coverage::Blend;
         m.transmission = 0.0;
     }
-    let every = rasterize(&all, &cam, w, h).unwrap();
+    let every = rasterize(&all, &cam, (w, h)).unwrap();
     assert!(
         every.fragment_count() > 2 * fl.fragment_count(),
         "the occluders hide most fragments: {} of {}",
@@ -754,9 +754,9 @@ fn real_scenes_with_their_materials_render_alike_on_cpu_and_gpu() {
         let s = dhoit_runtime::scene::load(path.to_str().unwrap(), Default::default()).unwrap();
         for view in [0, 3] {
             let cam = camera(&s, view);
-            let fl = rasterize(&s, &cam, w, h).unwrap();
+            let fl = rasterize(&s, &cam, (w, h)).unwrap();
             let gpu_ab = g
-                .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+                .render(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
                 .unwrap();
             let gfl = gpu_ab.fragments.clone().unwrap();
             let what = format!("{rel} view {view}");
@@ -855,8 +855,8 @@ fn dkb_s_features_read_tinted_glass_like_their_twin() {
     s.glass = Glass::Tinted;
     let (mut compared, mut filtered, mut frames) = (0, 0, 0);
     for view in [0, 3] {
-        let cam = Camera::orbit(&s, view, 8, w, h);
-        let ab = g.render(&s, &cam, w, h, BG, Slots::Exact).unwrap();
+        let cam = Camera::orbit(&s, view, 8, (w, h));
+        let ab = g.render(&s, &cam, (w, h), BG, Slots::Exact).unwrap();
         let gfl = ab.fragments.clone().unwrap();
         assert!(
             gfl.tinted_glass && gfl.tinted(),
@@ -934,7 +934,7 @@ fn tinted_glass_in_the_gpu_k_buffers_is_their_twins() {
         for view in [0, 3] {
             let cam = camera(&s, view);
             let ab = g
-                .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+                .render(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
                 .unwrap();
             let gfl = ab.fragments.clone().unwrap();
             let total = gfl.fragment_count() as u64;
@@ -1063,8 +1063,8 @@ fn tinted_k_buffers_stay_within_a_byte_budget() {
     for view in [0, 2] {
         let cam = camera(&s, view);
         let (tinted_fl, grey_fl) = (
-            rasterize(&s, &cam, SIZE.0, SIZE.1).unwrap(),
-            rasterize(&grey, &cam, SIZE.0, SIZE.1).unwrap(),
+            rasterize(&s, &cam, (SIZE.0, SIZE.1)).unwrap(),
+            rasterize(&grey, &cam, (SIZE.0, SIZE.1)).unwrap(),
         );
         assert!(tinted_fl.tinted() && !grey_fl.tinted());
         let methods = [
@@ -1134,7 +1134,7 @@ fn tinted_k_buffers_stay_within_a_byte_budget() {
         .into_iter()
         .flat_map(|v| [50_000, 100_000, 250_000, 500_000].map(|p| (v, p)))
     {
-        let fl = rasterize(s, &camera(s, view), SIZE.0, SIZE.1).unwrap();
+        let fl = rasterize(s, &camera(s, view), (SIZE.0, SIZE.1)).unwrap();
         let at = |e| Options {
             weights: Some(&mlp),
             equal: e,
@@ -1155,7 +1155,7 @@ fn tinted_k_buffers_stay_within_a_byte_budget() {
             glass: Glass::Grey,
             ..s.clone()
         };
-        let grey_fl = rasterize(&g, &camera(&g, view), SIZE.0, SIZE.1).unwrap();
+        let grey_fl = rasterize(&g, &camera(&g, view), (SIZE.0, SIZE.1)).unwrap();
         let grey = frame::render(&grey_fl, Method::Dkb, at(frame::Equal::Bytes)).unwrap();
         if !tinted.exact {
             assert_eq!(tinted.budget_fragments, grey.budget_fragments, "{ppm} ppm");
@@ -1180,7 +1180,7 @@ fn a_tinted_stream_holds_its_byte_budget() {
     let s = coplanar_tints();
     let mlp = Mlp::random(6);
     let cams: Vec<Camera> = (0..3).map(|v| camera(&s, v)).collect();
-    let fl = rasterize(&s, &cams[0], SIZE.0, SIZE.1).unwrap();
+    let fl = rasterize(&s, &cams[0], (SIZE.0, SIZE.1)).unwrap();
     // The tinted A-buffer's bytes.
     let most = dhoit_runtime::budget::abuffer_bytes(
         fl.pixel_count() as u64,

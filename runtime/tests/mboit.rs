@@ -195,7 +195,7 @@ fn mboit_on_the_gpu_is_its_twin_in_every_order_and_better_than_wboit_where_opaci
     let mut scenes = vec![("three layers".to_string(), s, cam)];
     for name in ["particles", "hair"] {
         let s = scene::load(name, Default::default()).unwrap();
-        let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, 64, 48);
+        let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, (64, 48));
         scenes.push((name.to_string(), s, cam));
     }
     for moments in [4, 6, 8] {
@@ -206,12 +206,12 @@ fn mboit_on_the_gpu_is_its_twin_in_every_order_and_better_than_wboit_where_opaci
             } else {
                 (64, 48)
             };
-            let gpu = |scene: &Scene| g.render(scene, cam, w, h, BG, Slots::Mboit(p)).unwrap();
+            let gpu = |scene: &Scene| g.render(scene, cam, (w, h), BG, Slots::Mboit(p)).unwrap();
             let twin = |scene: &Scene| {
                 let own = common::own_fragments(g, scene, cam, (w, h), BG);
                 composite::composite(&own, composite::Method::Mboit(p), BG)
             };
-            let fl = rasterize(s, cam, w, h).unwrap();
+            let fl = rasterize(s, cam, (w, h)).unwrap();
             let bound = common::BLENDED_BOUND;
             let frame = gpu(s);
             // Its memory is its own targets', as its layout table counts them, on both sides.

@@ -583,7 +583,13 @@ fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
     let (w, h) = (64, 48);
     let s = layered_scene();
     let total = g
-        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .render(
+            &s,
+            &identity(),
+            (w, h),
+            BG,
+            dhoit_runtime::gpu::Slots::Exact,
+        )
         .unwrap()
         .fragments
         .unwrap()
@@ -593,7 +599,7 @@ fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
         // A pool that holds every fragment: which arrive first does not matter.
         let nodes = total + 5;
         let slots = Slots::LinkedList { nodes, sorted };
-        let harness = g.render(&s, &identity(), w, h, BG, slots).unwrap();
+        let harness = g.render(&s, &identity(), (w, h), BG, slots).unwrap();
         let (app, report) = app_frame(&s, (w, h), false, |g| {
             Box::new(ListOit::new(g, (w, h), nodes, sorted, F32X4).unwrap())
         });
@@ -616,11 +622,17 @@ fn an_application_draws_through_dhoits_k_buffer_and_gets_dhoits_fkb_image_in_any
     let px = (w * h) as u64;
     let s = layered_scene();
     let exact = g
-        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .render(
+            &s,
+            &identity(),
+            (w, h),
+            BG,
+            dhoit_runtime::gpu::Slots::Exact,
+        )
         .unwrap();
     for k in [1, 3, 8] {
         let harness = g
-            .render(&s, &identity(), w, h, BG, Slots::Uniform(k))
+            .render(&s, &identity(), (w, h), BG, Slots::Uniform(k))
             .unwrap();
         // Either capture: the portable one draws two passes with 32-bit atomics alone, into the
         // same bytes.
@@ -683,7 +695,13 @@ fn an_application_draws_twice_through_dhoits_a_buffer_and_gets_the_exact_image_i
     let px = (w * h) as u64;
     let s = layered_scene();
     let exact = g
-        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .render(
+            &s,
+            &identity(),
+            (w, h),
+            BG,
+            dhoit_runtime::gpu::Slots::Exact,
+        )
         .unwrap();
     let occ = occupancy_of(&exact);
     assert!(occ.fragments > px, "{} fragments", occ.fragments);
@@ -738,12 +756,18 @@ fn an_application_draws_through_dhoits_mlab_and_gets_its_image_in_any_order() {
     // them) MLAB merges exactly.
     let s = layered_scene().shuffled(7);
     let exact = g
-        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .render(
+            &s,
+            &identity(),
+            (w, h),
+            BG,
+            dhoit_runtime::gpu::Slots::Exact,
+        )
         .unwrap();
     let occ = occupancy_of(&exact);
     for rows in [1, 2, 4] {
         let harness = g
-            .render(&s, &identity(), w, h, BG, Slots::Mlab(rows))
+            .render(&s, &identity(), (w, h), BG, Slots::Mlab(rows))
             .unwrap();
         // Merged into one or two rows out of depth order, MLAB is not the exact image (at
         // four rows, these up to seven layers lose nothing).
@@ -790,7 +814,13 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
     let s = layered_scene();
     let weights = common::committed_weights();
     let exact = g
-        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .render(
+            &s,
+            &identity(),
+            (w, h),
+            BG,
+            dhoit_runtime::gpu::Slots::Exact,
+        )
         .unwrap();
     let occ = occupancy_of(&exact);
     let vkb = dhoit_runtime::importance::VkbParams::default();
@@ -933,7 +963,13 @@ fn a_byte_budget_is_resolved_against_each_frames_own_count() {
     let weights = common::committed_weights();
     let vkb = dhoit_runtime::importance::VkbParams::default();
     let exact = g
-        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .render(
+            &s,
+            &identity(),
+            (w, h),
+            BG,
+            dhoit_runtime::gpu::Slots::Exact,
+        )
         .unwrap();
     let occ = occupancy_of(&exact);
     let quarter = occ.fragments / 4;
@@ -1009,10 +1045,10 @@ fn an_application_draws_a_gltf_file_and_gets_dhoits_images() {
         s.colors[3 * t + 1] = c;
         s.colors[3 * t + 2] = c;
     }
-    let cam = Camera::orbit(&s, 1, dhoit_runtime::scene::DEFAULT_VIEWS, w, h);
+    let cam = Camera::orbit(&s, 1, dhoit_runtime::scene::DEFAULT_VIEWS, (w, h));
     let px = (w * h) as u64;
     let exact = g
-        .render(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .render(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
         .unwrap();
     let occ = occupancy_of(&exact);
     assert!(occ.fragments > px / 2, "{} fragments", occ.fragments);
@@ -1104,7 +1140,13 @@ fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
     let px = (w * h) as u64;
     let s = layered_scene();
     let exact = g
-        .render(&s, &identity(), w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .render(
+            &s,
+            &identity(),
+            (w, h),
+            BG,
+            dhoit_runtime::gpu::Slots::Exact,
+        )
         .unwrap();
     let planes = |weight| WboitParams {
         weight,
@@ -1142,7 +1184,7 @@ fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
     }
     assert!(cases.len() >= 3 || !blends, "{} cases", cases.len());
     for (name, slots, layout) in cases {
-        let harness = g.render(&s, &identity(), w, h, BG, slots).unwrap();
+        let harness = g.render(&s, &identity(), (w, h), BG, slots).unwrap();
         let off = worst_difference(&harness.image.data, &exact.image.data);
         assert!(off > 1e-3, "{name} is the exact image ({off})");
         let make = |g: &Gpu| -> Box<dyn Oit> {
@@ -1359,7 +1401,7 @@ fn frames_recorded_into_one_submission_are_the_frames_rendered_one_at_a_time() {
     let (w, h) = (48, 36);
     let s =
         dhoit_runtime::scene::load("shells", dhoit_runtime::scene::Opacity::Uniform(0.4)).unwrap();
-    let cams: Vec<Camera> = (0..4).map(|v| Camera::orbit(&s, v, 24, w, h)).collect();
+    let cams: Vec<Camera> = (0..4).map(|v| Camera::orbit(&s, v, 24, (w, h))).collect();
     for m in 0..every_method(g, (w, h), F32X4).len() {
         let app = App::new(&s, (w, h), false);
         // One frame at a time, a new method each (sized as the first frame of a stream is).

@@ -19,8 +19,9 @@ fn ndc_camera() -> Camera {
     }
 }
 
-/// NDC point for window coordinates (x right, y down) on a `w` x `h` target.
-fn ndc(x: f32, y: f32, w: u32, h: u32, z: f32) -> Vec3 {
+/// NDC point for window coordinates (x right, y down) on a target of `size` (width, height).
+fn ndc(x: f32, y: f32, size: (u32, u32), z: f32) -> Vec3 {
+    let (w, h) = size;
     Vec3::new(2.0 * x / w as f32 - 1.0, 1.0 - 2.0 * y / h as f32, z)
 }
 
@@ -36,12 +37,12 @@ fn a_screen_filling_quad_covers_every_pixel_once_per_face() {
         let mut s = Scene::default();
         s.push_triangle([c[0], c[1], c[2]], [WHITE; 3]);
         s.push_triangle([c[0], c[2], c[3]], [WHITE; 3]);
-        let fl = rasterize(&s, &ndc_camera(), w, h).unwrap();
+        let fl = rasterize(&s, &ndc_camera(), (w, h)).unwrap();
         assert!(fl.counts().iter().all(|&n| n == 1), "{w}x{h}: one face");
         // The same quad wound the other way is its back face: both are rasterized.
         s.push_triangle([c[0], c[2], c[1]], [WHITE; 3]);
         s.push_triangle([c[0], c[3], c[2]], [WHITE; 3]);
-        let fl = rasterize(&s, &ndc_camera(), w, h).unwrap();
+        let fl = rasterize(&s, &ndc_camera(), (w, h)).unwrap();
         assert!(fl.counts().iter().all(|&n| n == 2), "{w}x{h}: two faces");
         assert!(fl.depth.iter().all(|&d| (d - 0.5).abs() < 1e-7));
     }
@@ -102,14 +103,14 @@ fn a_triangulated_grid_is_covered_exactly_once_inside() {
                 tris.extend(t);
             }
         }
-        let to_ndc = |q: (i64, i64)| ndc(q.0 as f32 / 256.0, q.1 as f32 / 256.0, w, h, 0.25);
+        let to_ndc = |q: (i64, i64)| ndc(q.0 as f32 / 256.0, q.1 as f32 / 256.0, (w, h), 0.25);
         for t in &tris {
             s.push_triangle(
                 [to_ndc(v[t[0]]), to_ndc(v[t[1]]), to_ndc(v[t[2]])],
                 [WHITE; 3],
             );
         }
-        let fl = rasterize(&s, &ndc_camera(), w, h).unwrap();
+        let fl = rasterize(&s, &ndc_camera(), (w, h)).unwrap();
         let (x0, y0) = (v[0].0, v[0].1);
         let (x1, y1) = (v[nx * ny - 1].0, v[nx * ny - 1].1);
         for py in 0..h {
@@ -164,7 +165,7 @@ fn depths_of_a_tilted_plane_match_the_projection() {
     ];
     s.push_triangle([q[0], q[1], q[2]], [WHITE; 3]);
     s.push_triangle([q[0], q[2], q[3]], [WHITE; 3]);
-    let fl: FragmentLists = rasterize(&s, &cam, w, h).unwrap();
+    let fl: FragmentLists = rasterize(&s, &cam, (w, h)).unwrap();
     let inv = proj.inverse();
     let mut checked = 0;
     for py in 0..h {
@@ -210,7 +211,7 @@ fn fragments_keep_submission_order_within_a_pixel() {
             [WHITE; 3],
         );
     }
-    let fl = rasterize(&s, &ndc_camera(), 8, 8).unwrap();
+    let fl = rasterize(&s, &ndc_camera(), (8, 8)).unwrap();
     for p in 0..64 {
         let prims: Vec<u32> = fl.range(p).map(|i| fl.primitive[i]).collect();
         assert_eq!(prims, vec![0, 1, 2, 3, 4]);
@@ -237,7 +238,7 @@ fn geometry_behind_the_near_plane_is_clipped() {
         ],
         [WHITE; 3],
     );
-    let fl = rasterize(&s, &cam, 32, 32).unwrap();
+    let fl = rasterize(&s, &cam, (32, 32)).unwrap();
     assert_eq!(fl.fragment_count(), 0);
     s.push_triangle(
         [
@@ -247,7 +248,7 @@ fn geometry_behind_the_near_plane_is_clipped() {
         ],
         [WHITE; 3],
     );
-    let fl = rasterize(&s, &cam, 32, 32).unwrap();
+    let fl = rasterize(&s, &cam, (32, 32)).unwrap();
     assert!(fl.fragment_count() > 0);
     assert!(fl.depth.iter().all(|d| (0.0..=1.0).contains(d)));
 }
@@ -255,8 +256,8 @@ fn geometry_behind_the_near_plane_is_clipped() {
 #[test]
 fn impossible_resolutions_are_errors() {
     let s = Scene::default();
-    assert!(rasterize(&s, &ndc_camera(), 0, 10).is_err());
-    assert!(rasterize(&s, &ndc_camera(), 10, 100_000).is_err());
+    assert!(rasterize(&s, &ndc_camera(), (0, 10)).is_err());
+    assert!(rasterize(&s, &ndc_camera(), (10, 100_000)).is_err());
     for bad in ["0x10", "640", "axb", "-1x5", "100000x10", ""] {
         assert!(
             dhoit_runtime::raster::parse_resolution(bad).is_err(),
@@ -277,27 +278,29 @@ fn the_fragment_estimate_clips_to_the_window_and_follows_the_count() {
     use dhoit_runtime::raster::estimate_fragments;
     let (w, h) = (64u32, 48u32);
     let c = [
-        ndc(-20.0, -9.0, w, h, 0.5),
-        ndc(90.0, -9.0, w, h, 0.5),
-        ndc(90.0, 70.0, w, h, 0.5),
-        ndc(-20.0, 70.0, w, h, 0.5),
+        ndc(-20.0, -9.0, (w, h), 0.5),
+        ndc(90.0, -9.0, (w, h), 0.5),
+        ndc(90.0, 70.0, (w, h), 0.5),
+        ndc(-20.0, 70.0, (w, h), 0.5),
     ];
     let mut s = Scene::default();
     s.push_triangle([c[0], c[1], c[2]], [WHITE; 3]);
     s.push_triangle([c[0], c[2], c[3]], [WHITE; 3]);
-    let e = estimate_fragments(&s, &ndc_camera(), w, h).unwrap();
+    let e = estimate_fragments(&s, &ndc_camera(), (w, h)).unwrap();
     assert!((e - (w * h) as f64).abs() < 1e-6, "{e}");
     assert_eq!(
-        rasterize(&s, &ndc_camera(), w, h).unwrap().fragment_count(),
+        rasterize(&s, &ndc_camera(), (w, h))
+            .unwrap()
+            .fragment_count(),
         (w * h) as usize
     );
     let (w, h) = (320, 240);
     for (name, _) in dhoit_runtime::scene::procedural::BUILTIN {
         let s = dhoit_runtime::scene::load(name, Default::default()).unwrap();
         for view in [0, 3] {
-            let cam = Camera::orbit(&s, view, 8, w, h);
-            let e = estimate_fragments(&s, &cam, w, h).unwrap();
-            let n = rasterize(&s, &cam, w, h).unwrap().fragment_count() as f64;
+            let cam = Camera::orbit(&s, view, 8, (w, h));
+            let e = estimate_fragments(&s, &cam, (w, h)).unwrap();
+            let n = rasterize(&s, &cam, (w, h)).unwrap().fragment_count() as f64;
             if s.uniform_opacity.is_some() {
                 assert!(
                     (e / n - 1.0).abs() < 0.02,

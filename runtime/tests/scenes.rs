@@ -18,8 +18,8 @@ fn built_in_scenes_span_shallow_to_very_deep() {
             "{name}: its own opacity"
         );
         for view in 0..2 {
-            let cam = Camera::orbit(&s, view, scene::DEFAULT_VIEWS, 320, 240);
-            let fl = rasterize(&s, &cam, 320, 240).unwrap();
+            let cam = Camera::orbit(&s, view, scene::DEFAULT_VIEWS, (320, 240));
+            let fl = rasterize(&s, &cam, (320, 240)).unwrap();
             let shown = (0..fl.pixel_count())
                 .filter(|&p| fl.count(p) > 0 || fl.opaque.get(p).is_some_and(|&o| o >> 24 != 0))
                 .count();

@@ -231,8 +231,8 @@ fn a_rasterized_red_window_is_red_over_white_only_when_tinted() {
     let centre = (h / 2 * w + w / 2) as usize;
     let tinted = red_window(Glass::Tinted);
     assert!(tinted.tints() && !red_window(Glass::Grey).tints());
-    let cam = Camera::asset(&tinted, w, h);
-    let fl = rasterize(&tinted, &cam, w, h).unwrap();
+    let cam = Camera::asset(&tinted, (w, h));
+    let fl = rasterize(&tinted, &cam, (w, h)).unwrap();
     let i = fl.range(centre).start;
     assert_eq!(fl.count(centre), 1);
     assert_eq!(fl.tint(i), pack_tint([1.0, 0.0, 0.0]));
@@ -250,7 +250,7 @@ fn a_rasterized_red_window_is_red_over_white_only_when_tinted() {
     assert!(img.data[centre][1] < 0.1, "red glass over white is red");
     // Grey glass stores no tints and passes the white: the centre is nearly white.
     let grey = red_window(Glass::Grey);
-    let fl = rasterize(&grey, &cam, w, h).unwrap();
+    let fl = rasterize(&grey, &cam, (w, h)).unwrap();
     assert!(fl.tint.is_empty());
     let img =
         dhoit_runtime::composite::composite(&fl, dhoit_runtime::composite::Method::Exact, WHITE);
@@ -298,10 +298,10 @@ fn the_features_read_what_tinted_glass_lets_through() {
     // (tinted 194 for a grey-tinted pane, 10 for grey glass).
     let mut dark = red_window(Glass::Tinted);
     dark.materials[0].base_color = [0.25, 0.25, 0.25, 1.0];
-    let cam = Camera::asset(&dark, 32, 32);
+    let cam = Camera::asset(&dark, (32, 32));
     let centre = (16 * 32 + 16) as usize;
     let stats = |s: &Scene| {
-        let fl = rasterize(s, &cam, 32, 32).unwrap();
+        let fl = rasterize(s, &cam, (32, 32)).unwrap();
         dhoit_runtime::importance::pixel_stats(&fl)[centre]
     };
     let tinted = stats(&dark);

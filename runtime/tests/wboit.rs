@@ -85,7 +85,7 @@ fn wboit_on_the_gpu_is_its_twin_in_every_order_and_wrong_where_opacity_is_high()
     let (w, h) = (32, 24);
     let mut one = Scene::default();
     layer(&mut one, 0.4, [0.2, 0.6, 0.9, 0.7]);
-    let fl = rasterize(&one, &cam, w, h).unwrap();
+    let fl = rasterize(&one, &cam, (w, h)).unwrap();
     // Exact but for the binary16 accumulation's rounding of C a w and a w (2^-11 each).
     let d = render(&fl, Method::Wboit).max_abs_diff(&render(&fl, Method::Abuffer));
     assert!(d < 1e-3, "one fragment: {d}");
@@ -98,12 +98,15 @@ fn wboit_on_the_gpu_is_its_twin_in_every_order_and_wrong_where_opacity_is_high()
         layer(&mut s, 0.5, [1.0, 0.0, 0.0, near_alpha]);
         layer(&mut s, 0.52, [0.0, 0.3, 1.0, near_alpha]);
         layer(&mut s, 0.7, [0.1, 0.9, 0.2, 0.2]);
-        let gpu = |scene: &Scene| g.render(scene, &cam, w, h, BG, Slots::Wboit(EQ10)).unwrap();
+        let gpu = |scene: &Scene| {
+            g.render(scene, &cam, (w, h), BG, Slots::Wboit(EQ10))
+                .unwrap()
+        };
         let twin = |scene: &Scene| {
             let own = common::own_fragments(g, scene, &cam, (w, h), BG);
             composite::composite(&own, composite::Method::Wboit(EQ10), BG)
         };
-        let fl = rasterize(&s, &cam, w, h).unwrap();
+        let fl = rasterize(&s, &cam, (w, h)).unwrap();
         let bound = common::BLENDED_BOUND;
         let frame = gpu(&s);
         // Its memory is its own targets', as its layout table counts them, on both sides.
@@ -261,7 +264,7 @@ fn every_wboit_weight_function_renders_its_twin_on_the_gpu() {
             near: 1.0,
             far: 1000.0,
         };
-        let frame = g.render(&s, &cam, w, h, BG, Slots::Wboit(p)).unwrap();
+        let frame = g.render(&s, &cam, (w, h), BG, Slots::Wboit(p)).unwrap();
         let twin = composite::composite(&own, composite::Method::Wboit(p), BG);
         let diff = frame.image.max_abs_diff(&twin);
         eprintln!("{}: GPU and twin differ by {diff:e}", weight.name());
@@ -275,8 +278,8 @@ fn every_wboit_weight_function_renders_its_twin_on_the_gpu() {
         near: 0.0,
         far: 0.0,
     };
-    assert!(g.render(&s, &cam, w, h, BG, Slots::Wboit(bad)).is_err());
-    let fl = rasterize(&s, &cam, w, h).unwrap();
+    assert!(g.render(&s, &cam, (w, h), BG, Slots::Wboit(bad)).is_err());
+    let fl = rasterize(&s, &cam, (w, h)).unwrap();
     let opts = Options {
         wboit: bad,
         ..Options::new(Budget::SlotsPerPixel(1.0), BG)

@@ -40,7 +40,7 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
     let s = common::tied_layers(24);
     let cam = identity();
     let exact = c
-        .render_method(&s, &cam, w, h, BG, dhoit_runtime::gpu::Slots::Exact)
+        .render_method(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
         .unwrap();
     let fl = exact.fragments.clone().unwrap();
     let twin = composite::composite(&fl, composite::Method::Exact, BG);
@@ -80,8 +80,8 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
         ("wboit", Slots::Wboit(Default::default())),
     ];
     for (label, slots) in runs {
-        let a = g.render_method(&s, &cam, w, h, BG, slots).unwrap();
-        let b = c.render_method(&s, &cam, w, h, BG, slots).unwrap();
+        let a = g.render_method(&s, &cam, (w, h), BG, slots).unwrap();
+        let b = c.render_method(&s, &cam, (w, h), BG, slots).unwrap();
         assert!(
             bits(&a.image) == bits(&b.image),
             "{label}: the images differ"
@@ -109,7 +109,7 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
         eprintln!("{label}: the core device's image is the wide device's");
     }
     let e = c
-        .render_method(&s, &cam, w, h, BG, Slots::Mboit(Default::default()))
+        .render_method(&s, &cam, (w, h), BG, Slots::Mboit(Default::default()))
         .unwrap_err()
         .to_string();
     assert!(e.contains("FLOAT32_BLENDABLE"), "{e}");
@@ -130,7 +130,7 @@ fn equal_depths_give_one_image_in_every_submission_order() {
         ..wide
     };
     for slots in [Slots::Exact, Slots::Uniform(2), Slots::Uniform(7)] {
-        let first = g.render_method(&s, &cam, w, h, BG, slots).unwrap();
+        let first = g.render_method(&s, &cam, (w, h), BG, slots).unwrap();
         for seed in 0..4 {
             let shuffled = s.shuffled(seed);
             for (name, dev, opts) in [

@@ -389,7 +389,7 @@ pub fn generate(
             config.sample
         )));
     }
-    raster::check_resolution(config.width, config.height)?;
+    raster::check_resolution((config.width, config.height))?;
     let start = Instant::now();
     // Every scene first: one that does not load leaves `out` (a dataset there included) as it
     // was.
@@ -409,8 +409,8 @@ pub fn generate(
         .par_iter()
         .map(|&(si, view)| -> Result<Vec<Shard>> {
             let sc = &scenes[si];
-            let cam = Camera::orbit(sc, view, config.views, config.width, config.height);
-            let fl = raster::rasterize(sc, &cam, config.width, config.height)?;
+            let cam = Camera::orbit(sc, view, config.views, (config.width, config.height));
+            let fl = raster::rasterize(sc, &cam, (config.width, config.height))?;
             let curves = alloc::error_curves(&fl, [1.0; 3]);
             let mut shards = Vec::new();
             for (li, level) in config.levels.iter().enumerate() {

@@ -138,7 +138,7 @@ fn write_chart(
         chart.draw(&root)?;
         root.present().map_err(err)?;
     }
-    image_io::write_rgb8(&png_path, w, h, &rgb)?;
+    image_io::write_rgb8(&png_path, (w, h), &rgb)?;
     Ok(vec![svg_path, png_path])
 }
 
@@ -464,7 +464,7 @@ impl Montage {
                 path: path.to_path_buf(),
                 message: e.to_string(),
             })?;
-        image_io::write_rgb8(path, w, h, &rgb)
+        image_io::write_rgb8(path, (w, h), &rgb)
     }
 }
 

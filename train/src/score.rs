@@ -145,8 +145,8 @@ impl Prepared {
                 .views
                 .par_iter()
                 .map(|&view| -> Result<PreparedFrame> {
-                    let cam = Camera::orbit(&sc, view, spec.orbit_views, spec.width, spec.height);
-                    let fl = raster::rasterize(&sc, &cam, spec.width, spec.height)?;
+                    let cam = Camera::orbit(&sc, view, spec.orbit_views, (spec.width, spec.height));
+                    let fl = raster::rasterize(&sc, &cam, (spec.width, spec.height))?;
                     let curves = alloc::error_curves(&fl, [1.0; 3]);
                     let pooled = curves.pooled();
                     let counts = fl.counts();

@@ -102,7 +102,7 @@ impl Demo {
             weights,
             size,
             budget: Budget::parse(budget)?,
-            cam: Camera::orbit(&Scene::default(), 0, 1, 1, 1),
+            cam: Camera::orbit(&Scene::default(), 0, 1, (1, 1)),
             scene: Scene::default(),
             methods: methods.to_vec(),
             streams: Vec::new(),
@@ -121,7 +121,7 @@ impl Demo {
     pub fn set_scene(&mut self, name: &str) -> Result<()> {
         let s = scene::load(name, Opacity::default())?;
         let (w, h) = self.size;
-        self.cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, w, h);
+        self.cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, (w, h));
         self.show(s)
     }
 

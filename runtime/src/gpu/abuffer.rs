@@ -39,7 +39,8 @@ impl Recording<'_, '_, '_> {
 
     /// The A-buffer's passes, blended as `blend` says. With diagnostics, the GPU's fragments
     /// are read back after the frame (front to back within a pixel).
-    pub(super) fn abuffer(&mut self, blend: Blend, width: u32, height: u32) -> Result<()> {
+    pub(super) fn abuffer(&mut self, blend: Blend, size: (u32, u32)) -> Result<()> {
+        let (width, height) = size;
         let mlab = blend == Blend::Mlab;
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let p = &gpu.pipelines;

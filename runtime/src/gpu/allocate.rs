@@ -281,7 +281,7 @@ impl Gpu {
         target: Target,
         budget: FragmentBudget,
     ) -> Result<GpuAllocation> {
-        let scopes = self.begin_frame(width, height)?;
+        let scopes = self.begin_frame((width, height))?;
         let pixels = width * height;
         let px = pixels as u64;
         if importance.len() != pixels as usize {
@@ -292,7 +292,7 @@ impl Gpu {
         }
         let params = Params {
             uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
-            ..frame_params(Some(cam), width, height, [1.0; 3])
+            ..frame_params(Some(cam), (width, height), [1.0; 3])
         };
         let (inputs, scene_buffers) = self.frame_inputs(scene, &params, false)?;
         let draws = SceneDraws::new(&inputs);
@@ -488,7 +488,7 @@ impl Gpu {
         &self,
         cases: &[(PlanInput, crate::budget::Occupancy)],
     ) -> Result<Vec<crate::plan::Plan>> {
-        let scopes = self.begin_frame(1, 1)?;
+        let scopes = self.begin_frame((1, 1))?;
         let storage = |label: &str, words: &[u32]| {
             let b = self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -590,7 +590,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                 "u64_words takes cases with divisors above 0".into(),
             ));
         }
-        let scopes = self.begin_frame(1, 1)?;
+        let scopes = self.begin_frame((1, 1))?;
         let src = format!("{}\n{ENTRY}", crate::wgsl::shaders::U64);
         let m = module_from(&self.device, "u64 words", src);
         let p = super::pipelines::compute_pipeline(&self.device, "u64 words", &m, "main");

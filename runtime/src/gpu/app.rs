@@ -322,7 +322,7 @@ impl AppFrame {
         };
         let params = crate::wgsl::Params {
             hdr: self.stream.hdr.into(),
-            ..frame_params(None, w, h, [0.0; 3])
+            ..frame_params(None, (w, h), [0.0; 3])
         };
         self.stream.record(enc, &app, params)
     }

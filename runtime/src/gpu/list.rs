@@ -14,7 +14,8 @@ use crate::fragment::FragmentLists;
 
 impl Recording<'_, '_, '_> {
     /// The list's store of at most `nodes` fragments and its resolve.
-    pub(super) fn linked_list(&mut self, nodes: u64, width: u32, height: u32) -> Result<()> {
+    pub(super) fn linked_list(&mut self, nodes: u64, size: (u32, u32)) -> Result<()> {
+        let (width, height) = size;
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         let fb = &mut self.fb;
         let status = fb.storage("status", FrameStatus::BYTES, true)?;

@@ -142,9 +142,9 @@ fn is_wide(features: wgpu::Features) -> bool {
 /// use dhoit_runtime::{mlp::Mlp, raster, scene};
 ///
 /// let s = scene::load("hair", scene::Opacity::default())?;
-/// let (w, h) = (128, 96);
-/// let cam = scene::Camera::orbit(&s, 2, scene::DEFAULT_VIEWS, w, h);
-/// let fragments = raster::rasterize(&s, &cam, w, h)?;
+/// let size = (128, 96); // (width, height), as every size in dhoit
+/// let cam = scene::Camera::orbit(&s, 2, scene::DEFAULT_VIEWS, size);
+/// let fragments = raster::rasterize(&s, &cam, size)?;
 /// let weights = Mlp::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/weights.safetensors").as_ref())?;
 /// let options = Options {
 ///     weights: Some(&weights),
@@ -155,7 +155,7 @@ fn is_wide(features: wgpu::Features) -> bool {
 /// let gpu = Gpu::new()?; // an adapter with 64-bit atomics, or a typed error naming what lacks
 /// let slots = Slots::for_method(Method::Dkb, &cpu, &options)?;
 /// let approximate = FrameOptions::default().always_approximate();
-/// let frame = gpu.render_with(&approximate, &s, &cam, (w, h), options.background, slots)?;
+/// let frame = gpu.render_with(&approximate, &s, &cam, size, options.background, slots)?;
 /// let twin = renderer.render(Method::Dkb)?;
 /// // The GPU rasterizes its own fragments, which can differ from the CPU's by one where an
 /// // edge passes through a pixel centre (here one pixel moves by 9.4e-4; the tests hold each
@@ -943,7 +943,8 @@ impl Gpu {
         spec: &FrameSpec,
     ) -> Result<Recorded<'a>> {
         let opts = spec.opts;
-        let (width, height) = spec.size;
+        let size = spec.size;
+        let (width, height) = size;
         let px = width as u64 * height as u64;
         let slots = spec.slots;
         let mut params = spec.params;
@@ -1015,15 +1016,15 @@ impl Gpu {
         }
         let mut exact = false;
         match slots {
-            Slots::Exact => rec.abuffer(Blend::Exact, width, height)?,
-            Slots::Mlab(_) => rec.abuffer(Blend::Mlab, width, height)?,
-            Slots::Wboit(_) => rec.wboit((width, height))?,
-            Slots::Mboit(m) => rec.mboit((width, height), m.moments)?,
-            Slots::LinkedList { nodes, .. } => rec.linked_list(nodes, width, height)?,
+            Slots::Exact => rec.abuffer(Blend::Exact, size)?,
+            Slots::Mlab(_) => rec.abuffer(Blend::Mlab, size)?,
+            Slots::Wboit(_) => rec.wboit(size)?,
+            Slots::Mboit(m) => rec.mboit(size, m.moments)?,
+            Slots::LinkedList { nodes, .. } => rec.linked_list(nodes, size)?,
             s => match rec.planned(s)? {
                 None => {
                     exact = true;
-                    rec.abuffer(Blend::Exact, width, height)?
+                    rec.abuffer(Blend::Exact, size)?
                 }
                 Some(planned) => {
                     let k = rec.k_for(s, planned)?;
@@ -1121,7 +1122,8 @@ impl Recording<'_, '_, '_> {
 /// The per-frame uniform, as a client gives it: the camera (`cam`, None for an application's
 /// frame: its own vertex stage projects), the frame's size and the background; the method's
 /// fields are the engine's ([`Gpu::record_frame`]).
-fn frame_params(cam: Option<&Camera>, width: u32, height: u32, background: [f32; 3]) -> Params {
+fn frame_params(cam: Option<&Camera>, size: (u32, u32), background: [f32; 3]) -> Params {
+    let (width, height) = size;
     let (view_proj, forward, eye) = match cam {
         Some(c) => (
             c.view_proj.to_cols_array_2d(),
@@ -1205,8 +1207,9 @@ impl Scopes {
 impl Gpu {
     /// Checks the frame's size before anything is allocated (an error with the numbers), and
     /// starts catching the validation and out-of-memory errors its commands raise.
-    fn begin_frame(&self, width: u32, height: u32) -> Result<Scopes> {
-        crate::raster::check_resolution(width, height)?;
+    fn begin_frame(&self, size: (u32, u32)) -> Result<Scopes> {
+        let (width, height) = size;
+        crate::raster::check_resolution(size)?;
         let max = self.device.limits().max_texture_dimension_2d;
         if width > max || height > max {
             return Err(GpuError::FrameTooLarge { width, height, max }.into());

@@ -199,13 +199,12 @@ impl Gpu {
         &self,
         scene: &Scene,
         cam: &Camera,
-        width: u32,
-        height: u32,
+        size: (u32, u32),
         background: [f32; 3],
         slots: Slots,
     ) -> Result<GpuFrame> {
         let opts = FrameOptions::default();
-        self.render_with(&opts, scene, cam, (width, height), background, slots)
+        self.render_with(&opts, scene, cam, size, background, slots)
     }
 
     /// [`Gpu::render`] with the passes laid out and read back as `opts` says.
@@ -214,18 +213,19 @@ impl Gpu {
         opts: &FrameOptions,
         scene: &Scene,
         cam: &Camera,
-        (width, height): (u32, u32),
+        size: (u32, u32),
         background: [f32; 3],
         slots: Slots,
     ) -> Result<GpuFrame> {
-        let scopes = self.begin_frame(width, height)?;
+        let (width, height) = size;
+        let scopes = self.begin_frame(size)?;
         let px = width as u64 * height as u64;
         // Tinted glass: every method keeps each fragment's tint or the product of them.
         let params = Params {
             uniform_alpha: scene.uniform_opacity.unwrap_or(-1.0),
             tinted: scene.tints() as u32,
             hdr: scene.hdr() as u32,
-            ..frame_params(Some(cam), width, height, background)
+            ..frame_params(Some(cam), size, background)
         };
         let upload = std::time::Instant::now();
         let (inputs, scene_buffers) = self.frame_inputs(scene, &params, true)?;
@@ -545,7 +545,7 @@ impl SceneStream {
         let params = Params {
             tinted,
             hdr,
-            ..frame_params(None, w, h, options.background)
+            ..frame_params(None, (w, h), options.background)
         };
         let (inputs, taken) = stream.gpu.frame_inputs(scene, &params, true)?;
         // The scene's buffers are the stream's for its life, never the pool's.
@@ -569,7 +569,7 @@ impl SceneStream {
             uniform_alpha: self.uniform_alpha,
             tinted: self.tinted,
             hdr: self.hdr,
-            ..frame_params(Some(cam), w, h, self.background)
+            ..frame_params(Some(cam), (w, h), self.background)
         };
         // The opaque pass's camera, by the queue: a submission's frames share the last one
         // written, so each frame goes in a submission of its own.

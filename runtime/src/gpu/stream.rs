@@ -626,7 +626,7 @@ fn first_occupancy((w, h): (u32, u32)) -> Occupancy {
 }
 
 pub(super) fn check_size(gpu: &Gpu, (w, h): (u32, u32)) -> Result<()> {
-    crate::raster::check_resolution(w, h)?;
+    crate::raster::check_resolution((w, h))?;
     let max = gpu.device.limits().max_texture_dimension_2d;
     if w > max || h > max {
         return Err(GpuError::FrameTooLarge {

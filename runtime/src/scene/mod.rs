@@ -512,7 +512,7 @@ impl Camera {
     /// View `view` of `views` evenly spaced around the bounding sphere, alternating between
     /// looking down (25 degrees) and up (-15 degrees), framing the whole sphere with a 45 degree
     /// vertical field of view. Near and far planes hug the sphere, so no geometry is clipped.
-    pub fn orbit(scene: &Scene, view: usize, views: usize, width: u32, height: u32) -> Camera {
+    pub fn orbit(scene: &Scene, view: usize, views: usize, size: (u32, u32)) -> Camera {
         let views = views.max(1);
         let azimuth = std::f32::consts::TAU * (view % views) as f32 / views as f32 + 0.5;
         let elevation = if view.is_multiple_of(2) {
@@ -521,14 +521,15 @@ impl Camera {
             -15f32
         }
         .to_radians();
-        Camera::orbit_at(scene, azimuth, elevation, width, height)
+        Camera::orbit_at(scene, azimuth, elevation, size)
     }
 
     /// The camera a scene's file gives ([`Scene::viewpoint`], its aspect the frame's), else
     /// the front view: looking along -Z, level, from where the bounding box's front face just
     /// fills a 45 degree vertical field of view (where glTF viewers start). Near and far hug
     /// the bounding sphere, or the box.
-    pub fn asset(scene: &Scene, width: u32, height: u32) -> Camera {
+    pub fn asset(scene: &Scene, size: (u32, u32)) -> Camera {
+        let (width, height) = size;
         let aspect = width as f32 / height as f32;
         let Some(v) = scene.viewpoint else {
             let (lo, hi) = scene.bounds();
@@ -568,13 +569,8 @@ impl Camera {
     /// The camera on the bounding sphere's orbit at `azimuth` and `elevation` (radians), framed
     /// as [`Camera::orbit`] frames its views (which are this at their angles): what an
     /// interactive viewer turns with the mouse.
-    pub fn orbit_at(
-        scene: &Scene,
-        azimuth: f32,
-        elevation: f32,
-        width: u32,
-        height: u32,
-    ) -> Camera {
+    pub fn orbit_at(scene: &Scene, azimuth: f32, elevation: f32, size: (u32, u32)) -> Camera {
+        let (width, height) = size;
         let (centre, radius) = scene.bounding_sphere();
         let dir = Vec3::new(
             elevation.cos() * azimuth.cos(),

@@ -722,9 +722,10 @@ fn glass_material(tint: [f32; 3], ior: f32) -> Material {
     }
 }
 
-/// A texture of `w` x `h` texels from a function of the texel centre's (u, v) in [0, 1] to
+/// A texture of `size` (width, height) texels from a function of the texel centre's (u, v) in [0, 1] to
 /// linear RGBA.
-fn texture(w: u32, h: u32, wrap: Wrap, f: impl Fn(f32, f32) -> [f32; 4]) -> Texture {
+fn texture(size: (u32, u32), wrap: Wrap, f: impl Fn(f32, f32) -> [f32; 4]) -> Texture {
+    let (w, h) = size;
     let texels = (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
         .map(|(x, y)| pack_texel(f((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32)))
@@ -768,7 +769,7 @@ fn floor(s: &mut Scene, rng: &mut Rng, y: f32, half: f32) {
         rng.range(0.25, 0.45),
     ];
     let b = a.map(|c| c * 0.6);
-    let tiles = texture(32, 32, Wrap::Repeat, |u, v| {
+    let tiles = texture((32, 32), Wrap::Repeat, |u, v| {
         let odd = ((u * 4.0) as u32 + (v * 4.0) as u32) % 2 == 1;
         let c = if odd { a } else { b };
         [c[0], c[1], c[2], 1.0]
@@ -819,7 +820,7 @@ fn window_panes(s: &mut Scene, rng: &mut Rng) -> Vec<u32> {
                 ([rng.f32(), rng.f32()], [c[0], c[1], c[2]])
             })
             .collect();
-        let tex = texture(64, 64, Wrap::Repeat, |u, v| {
+        let tex = texture((64, 64), Wrap::Repeat, |u, v| {
             // Voronoi cells of colour, leading (near-opaque dark lines) where two meet.
             let mut d: Vec<(f32, usize)> = cells
                 .iter()
@@ -847,7 +848,7 @@ fn window_panes(s: &mut Scene, rng: &mut Rng) -> Vec<u32> {
     };
     let broken = {
         let noise = value_noise(rng.next_u64(), 6);
-        let tex = texture(64, 64, Wrap::Repeat, |u, v| {
+        let tex = texture((64, 64), Wrap::Repeat, |u, v| {
             let a = if noise(u, v) > 0.62 { 0.0 } else { 1.0 };
             [1.0, 1.0, 1.0, a]
         });
@@ -1103,7 +1104,7 @@ fn leaf_texture(rng: &mut Rng, leaves: u32, soft: bool) -> Texture {
         rng.range(0.4, 0.75),
         rng.range(0.08, 0.25),
     ];
-    texture(64, 64, Wrap::ClampToEdge, |u, v| {
+    texture((64, 64), Wrap::ClampToEdge, |u, v| {
         let mut best = [0.0f32; 4];
         for (c, angle, size) in &spots {
             let (dx, dy) = ((u - c[0]) / scale, (v - c[1]) / scale);
@@ -1141,7 +1142,7 @@ fn cards(s: &mut Scene, rng: &mut Rng) {
     floor(s, rng, -1.2, 1.0);
     let bark = {
         let noise = value_noise(rng.next_u64(), 8);
-        let tex = texture(32, 32, Wrap::Repeat, |u, v| {
+        let tex = texture((32, 32), Wrap::Repeat, |u, v| {
             let n = noise(u * 0.5, v);
             [0.25 + 0.2 * n, 0.16 + 0.12 * n, 0.08 + 0.06 * n, 1.0]
         });
@@ -1228,7 +1229,7 @@ fn random_facing(rng: &mut Rng) -> (Vec3, Vec3) {
 /// an orange, above white.
 fn smoke(s: &mut Scene, rng: &mut Rng) {
     floor(s, rng, -1.0, 1.1);
-    let puff = texture(32, 32, Wrap::ClampToEdge, |u, v| {
+    let puff = texture((32, 32), Wrap::ClampToEdge, |u, v| {
         let (x, y) = (2.0 * u - 1.0, 2.0 * v - 1.0);
         let r2 = x * x + y * y;
         let a = (-(r2 * 3.5)).exp() * (1.0 - r2).max(0.0);
@@ -1323,7 +1324,7 @@ fn strands(s: &mut Scene, rng: &mut Rng) {
     ]));
     with_material(s, skin, |s| sphere(s, Vec3::ZERO, 0.48, 32, 16, [1.0; 4]));
     let falloff = rng.range(0.5, 1.2);
-    let strand = texture(8, 64, Wrap::ClampToEdge, |u, v| {
+    let strand = texture((8, 64), Wrap::ClampToEdge, |u, v| {
         let across = 1.0 - (2.0 * u - 1.0).powi(2);
         let along = (1.0 - v).powf(falloff);
         [1.0, 1.0, 1.0, (across * along).clamp(0.0, 1.0)]

@@ -165,8 +165,7 @@ pub trait RenderMethod {
         &self,
         scene: &dhoit_runtime::scene::Scene,
         cam: &dhoit_runtime::scene::Camera,
-        width: u32,
-        height: u32,
+        size: (u32, u32),
         background: [f32; 3],
         slots: dhoit_runtime::gpu::Slots,
     ) -> dhoit_runtime::Result<dhoit_runtime::gpu::GpuFrame>;
@@ -177,13 +176,12 @@ impl RenderMethod for Gpu {
         &self,
         scene: &dhoit_runtime::scene::Scene,
         cam: &dhoit_runtime::scene::Camera,
-        width: u32,
-        height: u32,
+        size: (u32, u32),
         background: [f32; 3],
         slots: dhoit_runtime::gpu::Slots,
     ) -> dhoit_runtime::Result<dhoit_runtime::gpu::GpuFrame> {
         let opts = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
-        self.render_with(&opts, scene, cam, (width, height), background, slots)
+        self.render_with(&opts, scene, cam, size, background, slots)
     }
 }
 
@@ -225,7 +223,7 @@ pub fn cpu_and_gpu_frames(
         let slots = Slots::for_method(m, &allocation, &options).unwrap();
         let mut cpu = renderer.composite(allocation.clone());
         let gpu = g
-            .render_method(s, cam, fl.width, fl.height, options.background, slots)
+            .render_method(s, cam, fl.size(), options.background, slots)
             .unwrap();
         // The blended methods' twins on the GPU's own fragments (the A-buffer's, which the
         // same vertex stage rasterizes): where surfaces are coplanar or one 8-bit step apart, a
@@ -237,7 +235,7 @@ pub fn cpu_and_gpu_frames(
             Method::Mboit => Some(dhoit_runtime::composite::Method::Mboit(options.mboit)),
             _ => None,
         } {
-            let own = own_fragments(g, s, cam, (fl.width, fl.height), options.background);
+            let own = own_fragments(g, s, cam, fl.size(), options.background);
             cpu.image = dhoit_runtime::composite::composite(&own, blend, options.background);
         }
         // The linked list's twin on the fragments the GPU kept: where F truncates, which
@@ -267,7 +265,7 @@ pub fn own_fragments(
     (w, h): (u32, u32),
     background: [f32; 3],
 ) -> dhoit_runtime::fragment::FragmentLists {
-    g.render(s, cam, w, h, background, dhoit_runtime::gpu::Slots::Exact)
+    g.render(s, cam, (w, h), background, dhoit_runtime::gpu::Slots::Exact)
         .unwrap()
         .fragments
         .expect("diagnostics read the A-buffer's fragments back")
