@@ -590,15 +590,20 @@ impl Layout {
     /// pool holds state first, the pool it makes ([`Layout::pool_bytes`]: what such a frame
     /// allocates whatever its k).
     pub fn reserved_bytes(&self, pixels: u64, f: u64, occ: &Occupancy) -> u64 {
-        if self.pool_state.is_some() {
-            return self.fixed_bytes(pixels) + self.pool_bytes(pixels, f, occ);
+        match self.pool_state.is_some() || self.tail_bytes > 0 {
+            true => self.fixed_bytes(pixels) + self.pool_for(pixels, f, occ),
+            false => self.allocated_bytes(pixels, f.min(occ.fragments)),
         }
-        if self.tail_bytes > 0 {
-            // The pool the frame makes for them (16 bytes at least, as every buffer).
-            let pool = (self.slot_bytes * occ.pool_words_at(f)).max(16);
-            return self.fixed_bytes(pixels) + pool;
+    }
+    /// The slot pool a layout with pooled tails (DKB's, VKB's) makes for F = `f` on a frame of
+    /// occupancy `occ`: the pool that holds state first ([`Layout::pool_bytes`]), else its
+    /// slots' and tails' words ([`Occupancy::pool_words_at`]; 16 bytes at least, as every
+    /// buffer).
+    pub fn pool_for(&self, pixels: u64, f: u64, occ: &Occupancy) -> u64 {
+        match self.pool_state {
+            Some(_) => self.pool_bytes(pixels, f, occ),
+            None => (self.slot_bytes * occ.pool_words_at(f)).max(16),
         }
-        self.allocated_bytes(pixels, f.min(occ.fragments))
     }
     /// The bytes a budget of F slots comes to: what the layout reserves for them on a frame of
     /// occupancy `occ` where it keeps tails ([`Layout::reserved_bytes`]), else F slots.

@@ -23,7 +23,9 @@
 //!
 //! Where the host knows the frame's count (the CPU renderer, `Gpu::render`), what its budget
 //! comes to is decided once, by [`counted`]: the bytes, F, and whether the frame renders the
-//! exact A-buffer instead ([`Counted`]).
+//! exact A-buffer instead ([`Counted`]). An application's frame, sized before its count, makes
+//! the pool [`ahead`] gives for the occupancy it expects: for that occupancy, the bytes and F
+//! `counted` decides.
 
 use crate::budget::{self, Budget, FragmentBudget, Layout, Occupancy, SLOT_BYTES, Words};
 use crate::error::{Error, Result};
@@ -163,6 +165,56 @@ pub fn counted(
         holds_all: f >= n,
         no_dearer: exact_is_no_dearer(method, layout, pixels, f, occ),
     })
+}
+
+/// The slot pool an application's frame is sized with before its count ([`ahead`]), and the
+/// features passes DKB records for it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Ahead {
+    pub pool_bytes: u64,
+    pub batches: u64,
+}
+
+/// The pool a DKB or VKB frame sized before its count makes (an application's, read back
+/// without waiting) for the occupancy `occ` its client expects: F's pool in the layout
+/// ([`Layout::pool_for`], what [`counted`] reserves for F beyond the fixed bytes and words), or
+/// what a byte budget's bytes leave beside the fixed bytes and the words (a fixed pool,
+/// whatever the count). With `exact_when_cheaper` it is never more than the exact A-buffer of
+/// that occupancy takes, so a frame that fits keeps every fragment ([`plan`]). DKB records the
+/// batches of records that pool holds, up to its [`crate::budget::PoolState::batches`].
+pub fn ahead(
+    layout: &Layout,
+    budget: PlanBudget,
+    pixels: u64,
+    occ: &Occupancy,
+    words: Words,
+    exact_when_cheaper: bool,
+) -> Ahead {
+    let pool = match budget {
+        PlanBudget::Bytes(m) => layout
+            .tinted_budget(m, pixels, words)
+            .saturating_sub(layout.fixed_bytes(pixels)),
+        PlanBudget::Fragments(b) => layout.pool_for(pixels, b.of(occ.fragments), occ),
+    };
+    let pool = match exact_when_cheaper {
+        // The least pool whatever F: the state DKB's holds first.
+        true => pool.min((SLOT_BYTES * occ.fragments).max(layout.pool_for(
+            pixels,
+            0,
+            &Occupancy {
+                fragments: 0,
+                ..*occ
+            },
+        ))),
+        false => pool,
+    };
+    let pool_bytes = pool.max(16);
+    Ahead {
+        pool_bytes,
+        batches: layout
+            .pool_state
+            .map_or(1, |ps| ps.batch(pool_bytes, occ.deeper).1.min(ps.batches)),
+    }
 }
 
 /// What a frame's plan is given before the frame is counted.
@@ -418,13 +470,10 @@ mod tests {
                 for ppm in [50_000, 250_000, 500_000, 900_000, 1_000_000] {
                     let budget = FragmentBudget::Share(ppm);
                     let f = budget.of(o.fragments);
-                    let pool_bytes = match layout.pool_state {
-                        Some(_) => layout.pool_bytes(px, f, &o),
-                        None => SLOT_BYTES * o.pool_words_at(f),
-                    };
-                    let batches = layout
-                        .pool_state
-                        .map_or(1, |ps| ps.batch(pool_bytes, o.deeper).1);
+                    let Ahead {
+                        pool_bytes,
+                        batches,
+                    } = ahead(&layout, budget.into(), px, &o, Words::None, false);
                     let input = PlanInput {
                         layout,
                         pixels: px,
@@ -443,6 +492,85 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// An application's frame sized ahead ([`ahead`]) for the occupancy it then counts is
+    /// what [`counted`] decides on that count: F's pool is what `counted` reserves beyond the
+    /// fixed bytes, and the plan of a byte budget's pool takes `counted`'s F (the exhaustive
+    /// search of `a_counted_budget_is_the_largest_f_its_bytes_hold`) within those bytes, over
+    /// budgets from the fixed bytes to the A-buffer's, in both layouts, with and without tint
+    /// words. With
+    /// `exact_when_cheaper` the pool never holds more than the frame's fragments (or the state
+    /// DKB's holds first), and a frame it fits keeps every fragment.
+    #[test]
+    fn a_pool_sized_ahead_is_what_the_count_decides() {
+        let px = 400;
+        let mut bytes_checked = 0;
+        for o in [
+            occ(900, 300, 200, 120),
+            occ(2000, 400, 400, 380),
+            occ(350, 300, 40, 10),
+        ] {
+            for (method, layout) in [(Method::Dkb, DKB), (Method::Vkb, VKB)] {
+                for words in [Words::None, Words::Tints] {
+                    let fixed = layout.fixed_bytes(px);
+                    for ppm in [50_000, 250_000, 500_000, 900_000] {
+                        let b = PlanBudget::Fragments(FragmentBudget::Share(ppm));
+                        let a = ahead(&layout, b, px, &o, words, false);
+                        let c = counted(method, &layout, b, px, &o, Words::None).unwrap();
+                        assert_eq!(fixed + a.pool_bytes, c.bytes, "{o:?} {ppm}");
+                    }
+                    let abuffer = budget::abuffer_bytes(px, o.fragments, words.any());
+                    for m in (fixed..abuffer).step_by(97) {
+                        let b = PlanBudget::Bytes(m);
+                        let Ok(c) = counted(method, &layout, b, px, &o, words) else {
+                            continue;
+                        };
+                        let a = ahead(&layout, b, px, &o, words, false);
+                        // The pool and the words beside it stay within the bytes.
+                        let taken = layout.with_tints(fixed + a.pool_bytes, px, words);
+                        assert!(taken <= m, "{method:?} {o:?} {words:?}: {taken} > {m} B");
+                        let input = PlanInput {
+                            layout,
+                            pixels: px,
+                            budget: PlanBudget::Bytes(layout.tinted_budget(m, px, words)),
+                            pool_bytes: a.pool_bytes,
+                            batches: a.batches,
+                            exact_when_cheaper: false,
+                        };
+                        let p = plan(&input, &o);
+                        assert_eq!(p.short & SHORT_SLOTS, 0, "{o:?} {m} B");
+                        assert_eq!(p.f, c.f.min(o.fragments), "{method:?} {o:?} {m} B");
+                        bytes_checked += 1;
+                    }
+                    let shares = [250_000, 900_000, 1_000_000]
+                        .map(|ppm| PlanBudget::Fragments(FragmentBudget::Share(ppm)));
+                    let bytes = [abuffer / 2, abuffer, 3 * abuffer].map(PlanBudget::Bytes);
+                    for b in shares.into_iter().chain(bytes) {
+                        let a = ahead(&layout, b, px, &o, words, true);
+                        let least = layout.pool_for(px, 0, &occ(0, o.covered, o.deep, o.deeper));
+                        assert!(a.pool_bytes <= (SLOT_BYTES * o.fragments).max(least));
+                        let input = PlanInput {
+                            layout,
+                            pixels: px,
+                            budget: match b {
+                                PlanBudget::Bytes(m) => {
+                                    PlanBudget::Bytes(layout.tinted_budget(m, px, words))
+                                }
+                                b => b,
+                            },
+                            pool_bytes: a.pool_bytes,
+                            batches: a.batches,
+                            exact_when_cheaper: true,
+                        };
+                        let p = plan(&input, &o);
+                        let fits = a.pool_bytes / SLOT_BYTES >= o.fragments;
+                        assert_eq!(p.exact, fits || p.f >= o.fragments, "{b:?}");
+                    }
+                }
+            }
+        }
+        assert!(bytes_checked > 100, "{bytes_checked} byte budgets");
     }
 
     /// Worked by hand: DKB at 25% of 900 fragments (F = 225) in a pool of 1,000 bytes (125

@@ -1090,11 +1090,7 @@ impl Recording<'_, '_, '_> {
                 if exact_when_cheaper && counted.exact(true) {
                     return Ok(None);
                 }
-                let f = counted.f;
-                let pool_bytes = match layout.pool_state {
-                    Some(_) => layout.pool_bytes(px, f, &occ),
-                    None => (budget::SLOT_BYTES * occ.pool_words_at(f)).max(16),
-                };
+                let pool_bytes = layout.pool_for(px, counted.f, &occ);
                 let batches = layout
                     .pool_state
                     .map_or(1, |ps| ps.batch(pool_bytes, occ.deeper).1);

@@ -239,56 +239,29 @@ impl Stream {
         self.size.0 as u64 * self.size.1 as u64
     }
 
-    /// What the buffers a frame makes before its count are sized for.
-    fn sizing(&self) -> Result<Sizing> {
-        let px = self.pixels();
+    /// What the buffers a frame makes before its count are sized for: for DKB and VKB, the
+    /// pool their budget takes at the occupancy this stream expects ([`crate::plan::ahead`]).
+    fn sizing(&self) -> Sizing {
         let occ = self.expected;
-        let layout = self.method.layout();
-        let (pool_bytes, batches) = match (&self.method, self.budget) {
-            (AppMethod::Dkb(_) | AppMethod::Vkb(_), Some(budget)) => {
-                let pool = match budget {
-                    // A byte budget is a fixed pool: what its bytes (and tints) leave beside
-                    // the fixed ones.
-                    Budget::Bytes(m) => layout
-                        .tinted_budget(m, px, self.words)
-                        .saturating_sub(layout.fixed_bytes(px)),
-                    b => {
-                        let f = b.fragment_budget(&layout, px)?.of(occ.fragments);
-                        match layout.pool_state {
-                            Some(_) => layout.pool_bytes(px, f, &occ),
-                            None => budget::SLOT_BYTES * occ.pool_words_at(f),
-                        }
-                    }
-                };
-                // Never more than the exact A-buffer of the frames it was sized for would
-                // take (with exact_when_cheaper): a frame that fits it keeps every fragment.
-                let least = layout.pool_state.map_or(16, |_| {
-                    layout.pool_bytes(
-                        px,
-                        0,
-                        &Occupancy {
-                            fragments: 0,
-                            ..occ
-                        },
-                    )
-                });
-                let pool = match self.exact_when_cheaper {
-                    true => pool.min((budget::SLOT_BYTES * occ.fragments).max(least)),
-                    false => pool,
-                };
-                let pool = pool.max(16);
-                let batches = layout
-                    .pool_state
-                    .map_or(1, |ps| ps.batch(pool, occ.deeper).1.min(ps.batches));
-                (pool, batches)
-            }
-            _ => (0, 1),
+        let ahead = match (&self.method, self.budget) {
+            (AppMethod::Dkb(_) | AppMethod::Vkb(_), Some(_)) => crate::plan::ahead(
+                &self.method.layout(),
+                self.plan_budget(),
+                self.pixels(),
+                &occ,
+                self.words,
+                self.exact_when_cheaper,
+            ),
+            _ => crate::plan::Ahead {
+                pool_bytes: 0,
+                batches: 1,
+            },
         };
-        Ok(Sizing::Ahead {
+        Sizing::Ahead {
             fragments: occ.fragments,
-            pool_bytes,
-            batches,
-        })
+            pool_bytes: ahead.pool_bytes,
+            batches: ahead.batches,
+        }
     }
 
     /// The budget DKB's and VKB's frames plan with: F (a share, or slots a pixel times the
@@ -520,7 +493,7 @@ impl Stream {
             size: self.size,
             params,
             slots: slots_of(&self.method, self.plan_budget()),
-            sizing: self.sizing()?,
+            sizing: self.sizing(),
         };
         let timer = Timer::new(&self.gpu);
         let recorded = self.gpu.record_frame(enc, &timer, geometry, &spec)?;
