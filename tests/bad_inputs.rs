@@ -5,10 +5,10 @@ mod common;
 
 use dhoit_runtime::mlp::Mlp;
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A folder of its own for each case.
-fn case_dir(name: &str) -> PathBuf {
+fn case_dir(name: &str) -> common::TempDir {
     common::temp_dir(&format!("bad-{name}"))
 }
 

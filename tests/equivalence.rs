@@ -186,8 +186,7 @@ fn they_agree_at_the_limits_of_the_network() {
 fn every_loader_refuses_weights_at_the_limits() {
     let good = std::fs::read(root().join("data/weights.safetensors")).unwrap();
     let m = Mlp::from_bytes(&good).unwrap();
-    let dir = std::env::temp_dir().join(format!("dhoit-equiv-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::temp_dir("equiv");
     for (what, edit, needle) in [
         (
             "NaN",
@@ -433,8 +432,8 @@ fn the_f16_math_network_stays_within_its_bounds_of_f32_and_its_twin() {
         worst_f32.push((name.clone(), worst));
     }
     // burn computes in f32: `predict` refuses f16-math there, writing nothing.
-    let out =
-        std::env::temp_dir().join(format!("dhoit-f16-math-{}.safetensors", std::process::id()));
+    let folder = common::temp_dir("f16-math");
+    let out = folder.join("weights.safetensors");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_dhoit"))
         .args(["predict", "--precision", "f16-math", "--weights"])
         .arg(root().join("data/weights.safetensors"))

@@ -122,8 +122,7 @@ fn seeds() -> &'static Seeds {
         let glb = scene::gltf::to_glb(&s).unwrap();
         let weights = std::fs::read(root().join("data/weights.safetensors")).unwrap();
         let features = std::fs::read(root().join("data/golden/features.safetensors")).unwrap();
-        let dir = std::env::temp_dir().join(format!("dhoit-fuzz-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = common::temp_dir("fuzz");
         let cam = scene::Camera::orbit(&s, 0, 8, (12, 9));
         let fl = dhoit_runtime::raster::rasterize(&s, &cam, (12, 9)).unwrap();
         let frame = dhoit_runtime::frame::render(

@@ -303,9 +303,10 @@ fn alpha_modes_file(dir: &Path) -> PathBuf {
 fn each_alpha_mode_loads_and_renders_as_the_specification_says() {
     use dhoit_runtime::raster::rasterize;
     use scene::Coverage;
+    let dir = temp_dir("alpha-modes");
     let (path, real) = match scenes_dir() {
         Some(d) => (d.join("AlphaBlendModeTest/AlphaBlendModeTest.glb"), true),
-        None => (alpha_modes_file(&temp_dir("alpha-modes")), false),
+        None => (alpha_modes_file(&dir), false),
     };
     let s = load(&path).unwrap();
     let coverages: Vec<Coverage> = s.materials.iter().map(|m| m.coverage).collect();

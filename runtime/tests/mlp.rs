@@ -6,10 +6,11 @@ use dhoit_runtime::mlp::{H1, H2, Mlp};
 use std::collections::HashMap;
 use std::path::PathBuf;
 
-/// A file in this binary's temporary folder (made once).
+/// A file in this binary's temporary folder (made once, shared by its tests: it stays).
 fn temp(name: &str) -> PathBuf {
     static DIR: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
-    DIR.get_or_init(|| common::temp_dir("mlp")).join(name)
+    DIR.get_or_init(|| common::temp_dir("mlp").keep())
+        .join(name)
 }
 
 /// The same network as matrix products in f64: an independent implementation.

@@ -2,7 +2,7 @@
 #![allow(dead_code)] // each test binary uses its own subset
 
 use dhoit_runtime::gpu::Gpu;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 /// The workspace root (committed data, weights, golden files).
@@ -10,13 +10,10 @@ pub fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// A fresh, empty temporary directory for one test (`prefix` names it).
-pub fn temp_dir(prefix: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("dhoit-{prefix}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+#[path = "../../runtime/tests/common/temp.rs"]
+mod temp;
+#[allow(unused_imports)] // each test binary uses its own subset
+pub use temp::{TempDir, temp_dir};
 
 /// Runs the `dhoit` binary.
 pub fn dhoit(args: &[&str]) -> Output {

@@ -10,11 +10,12 @@ use dhoit_train::model::{self, ImportanceNet, cpu_device};
 use dhoit_train::trainer::{self, TrainConfig};
 use std::path::PathBuf;
 
-fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("dhoit-train-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh temporary folder, removed when the test drops it.
+fn temp(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("dhoit-train-{name}-"))
+        .tempdir()
+        .unwrap()
 }
 
 fn small_config() -> DatasetConfig {
@@ -36,10 +37,11 @@ fn small_config() -> DatasetConfig {
 
 #[test]
 fn datasets_are_deterministic_and_complete() {
-    let (a, b) = (temp("ds-a"), temp("ds-b"));
+    let (da, db) = (temp("ds-a"), temp("ds-b"));
+    let (a, b) = (da.path(), db.path());
     let cfg = small_config();
-    let ma = dataset::generate(&cfg, &a, &|_, _| {}).unwrap();
-    let mb = dataset::generate(&cfg, &b, &|_, _| {}).unwrap();
+    let ma = dataset::generate(&cfg, a, &|_, _| {}).unwrap();
+    let mb = dataset::generate(&cfg, b, &|_, _| {}).unwrap();
     assert_eq!(ma.shards, mb.shards);
     assert_eq!(ma.shards.len(), 3 * 2 * 3);
     for s in &ma.shards {
@@ -67,7 +69,7 @@ fn datasets_are_deterministic_and_complete() {
         let share = s.samples as f64 / s.covered_pixels as f64;
         assert!((0.3..0.7).contains(&share), "{share}");
     }
-    let (_, samples) = dataset::load(&a).unwrap();
+    let (_, samples) = dataset::load(a).unwrap();
     assert_eq!(samples.len(), ma.samples);
     assert!(samples.target.iter().all(|t| (0.0..=1.0).contains(t)));
     // With every fragment in budget the target is n / max n.
@@ -75,7 +77,7 @@ fn datasets_are_deterministic_and_complete() {
     assert_eq!(all.budget_fragments, all.fragments);
     // A directory without a manifest is refused.
     std::fs::remove_file(a.join(dataset::MANIFEST)).unwrap();
-    let e = dataset::load(&a).unwrap_err().to_string();
+    let e = dataset::load(a).unwrap_err().to_string();
     assert!(e.contains("manifest.json"), "{e}");
 }
 
@@ -167,6 +169,7 @@ fn trained_weights_load_in_the_runtime_and_agree_with_burn() {
     let data = tiny_data(2, 1500);
     let t = trainer::train(&quick(1, 3), &data, &mut |_, _| {}).unwrap();
     let dir = temp("export");
+    let dir = dir.path();
     let path = dir.join("w.safetensors");
     t.mlp.save(&path, &Default::default()).unwrap();
     let loaded = Mlp::load(&path).unwrap();
@@ -220,7 +223,8 @@ fn trained_weights_load_in_the_runtime_and_agree_with_burn() {
 #[test]
 fn the_committed_weights_are_what_make_train_writes() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let dir = temp("make-train");
+    let folder = temp("make-train");
+    let dir = folder.path();
     let out = dir.join("weights.safetensors");
     // The default dataset, as `make train` generates it where data/generated has none.
     dataset::generate(&DatasetConfig::default(), &dir.join("dataset"), &|_, _| {}).unwrap();
@@ -268,7 +272,6 @@ fn the_committed_weights_are_what_make_train_writes() {
             "a fresh `make train` reaches validation loss {got}, the committed weights {want}"
         );
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Each parameter's gradient from a set of burn `GradientsParams`, in the module's order.

@@ -893,6 +893,16 @@ enum Sizing {
     },
 }
 
+impl Sizing {
+    /// No pool: the methods whose memory does not follow the frame's count (FKB, WBOIT, MBOIT,
+    /// the linked list, an uploaded allocation).
+    const NOTHING: Sizing = Sizing::Ahead {
+        fragments: 0,
+        pool_bytes: 0,
+        batches: 1,
+    };
+}
+
 /// A frame for the engine to record: how, at what size, its parameters (the client's camera,
 /// background and opacity), which method ([`Slots`]; the A-buffer where None) and what its
 /// buffers are sized for.

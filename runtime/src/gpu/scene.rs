@@ -238,11 +238,7 @@ impl Gpu {
         );
         let sizing = match counted {
             true => Sizing::Own(self.count_first(&draws, &params)?),
-            false => Sizing::Ahead {
-                fragments: 0,
-                pool_bytes: 0,
-                batches: 1,
-            },
+            false => Sizing::NOTHING,
         };
         let spec = FrameSpec {
             opts: *opts,

@@ -6,13 +6,10 @@ use dhoit_runtime::gpu::Gpu;
 use dhoit_runtime::scene::{self, Opacity};
 use std::path::{Path, PathBuf};
 
-/// A fresh, empty temporary directory for one test (`prefix` names it).
-pub fn temp_dir(prefix: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("dhoit-{prefix}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+#[path = "temp.rs"]
+mod temp;
+#[allow(unused_imports)] // each test binary uses its own subset
+pub use temp::{TempDir, temp_dir};
 
 /// The folder of real glTF scenes: $DHOIT_SCENES, else ../shared/scenes beside the workspace;
 /// None when it does not exist (a fresh clone with nothing beside it).
@@ -25,7 +22,7 @@ pub fn scenes_dir() -> Option<PathBuf> {
 
 /// A glTF scene file for a test: the real scene `rel` under [`scenes_dir`] when there is one,
 /// else the built-in `stand_in` written as `.glb` by the exporter (which the loader then reads
-/// like any file). Says which on stderr.
+/// like any file, from a folder that stays: the binary's tests share it). Says which on stderr.
 pub fn real_or_exported(rel: &str, stand_in: &str) -> PathBuf {
     if let Some(dir) = scenes_dir() {
         let path = dir.join(rel);
@@ -38,6 +35,7 @@ pub fn real_or_exported(rel: &str, stand_in: &str) -> PathBuf {
         return path;
     }
     let path = temp_dir(&format!("standin-{}", scene::file_label(stand_in)))
+        .keep()
         .join(format!("{}.glb", scene::file_label(stand_in)));
     let s = scene::load(stand_in, Opacity::Material).unwrap();
     scene::gltf::export(&s, &path).unwrap();
