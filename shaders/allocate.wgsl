@@ -80,7 +80,7 @@ fn st_add(i: u32, v: u32) {
 // The marks (shared::marks_words): the popcounts of their words (mark), then those counts'
 // exclusive prefix sums and their total (apply), and the words of bits after them.
 @group(0) @binding(6) var<storage, read_write> flags: array<u32>;
-// fragments, covered, max count (totals.wgsl), and the plan's F (plan.wgsl: PLAN_F_WORD).
+// The TOTAL_* words (totals.wgsl) and the plan's F (plan.wgsl: PLAN_F_WORD).
 @group(0) @binding(7) var<storage, read> totals: array<u32>;
 // Three indirect dispatches (workgroups x, y, z, unused; setup writes the frame's grids, so a
 // frame never reads what the one before left, however many share a submission): the per-pixel
@@ -210,9 +210,9 @@ fn weights(
 @compute @workgroup_size(1)
 fn setup() {
     let f = totals[PLAN_F_WORD];
-    let all = totals[0];
+    let all = totals[TOTAL_FRAGMENTS];
     st_set(0u, w_of(min(f, all)));
-    st_set(3u, w_of(select(0u, 1u, f >= totals[1])));
+    st_set(3u, w_of(select(0u, 1u, f >= totals[TOTAL_COVERED])));
     // The grids (wgsl::grid, as the host computes them): the per-pixel entry points, the
     // search's invocations of SEARCH_PIXELS pixels, the marks' blocks.
     let pixels = params.pixels;

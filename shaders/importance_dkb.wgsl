@@ -26,8 +26,8 @@
 // The records the network decides, and how many (list_len[0]), lie in the same pool after a
 // batch's records, a 32-bit word each (list_get, list_set): WebGPU binds a buffer writable once
 // in a dispatch.
-// fragments, covered, max count, deep, the records handed out, deeper (the records: totals.wgsl),
-// then the frame's plan (plan.wgsl): its F.
+// The TOTAL_* words (totals.wgsl; a record for each of TOTAL_DEEPER's pixels), then the frame's
+// plan (plan.wgsl): its F.
 @group(0) @binding(6) var<storage, read> totals: array<u32>;
 
 // F as the frame's plan found it (the budget's, within what its pool holds; at most n).
@@ -80,7 +80,7 @@ fn network_inputs(r: u32) -> Net {
     var net: Net;
     let at = RECORD_WORDS * r;
     let c = records[at + 1u].y >> 16u;
-    if (planned_f() >= totals[0]) {
+    if (planned_f() >= totals[TOTAL_FRAGMENTS]) {
         set_importance(r, 0.0);
         return net;
     }
@@ -91,14 +91,14 @@ fn network_inputs(r: u32) -> Net {
     let pair = true;
     let mark = select(0u, PAIR_BIT, pair);
     // alloc::min_k, as the allocation's setup finds it.
-    let lo = select(0u, 1u, planned_f() >= totals[1]);
+    let lo = select(0u, 1u, planned_f() >= totals[TOTAL_COVERED]);
     if (SKIP_FORCED && c <= lo + 1u + select(0u, 1u, pair)) {
         set_importance(r, bitcast<f32>(mark));
         return net;
     }
     // importance::pixel_features, operation for operation.
-    let total = f32(max(totals[0], 1u));
-    let covered = f32(max(totals[1], 1u));
+    let total = f32(max(totals[TOTAL_FRAGMENTS], 1u));
+    let covered = f32(max(totals[TOTAL_COVERED], 1u));
     let nf = f32(c);
     let key = ~records[at];
     let near8 = key.x;
@@ -167,11 +167,11 @@ fn select_pixels(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    // The batch's records: a batch's worth, or what is left of the frame's (totals[5]; none
-    // in a batch past them, which a frame sized ahead of its count may record).
+    // The batch's records: a batch's worth, or what is left of the frame's (TOTAL_DEEPER; none in
+    // a batch past them, which a frame sized ahead of its count may record).
     let r = grid_index(wid, nwg, lid, PIXEL_GROUP);
     let lo = atomicLoad(&list_len[1]);
-    let left = select(0u, totals[5] - lo, totals[5] > lo);
+    let left = select(0u, totals[TOTAL_DEEPER] - lo, totals[TOTAL_DEEPER] > lo);
     if (r >= min(atomicLoad(&list_len[2]), left)) {
         return;
     }

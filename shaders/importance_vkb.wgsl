@@ -31,7 +31,7 @@ fn main(
         word[p] = bitcast<u32>(0.0);
         return;
     }
-    let limit = f32(max(totals[2], 1u));
+    let limit = f32(max(totals[TOTAL_MAX_COUNT], 1u));
     let alpha = params.vkb_alpha;
     let i_d = alpha + (1.0 - alpha) * min(f32(c) / limit, 1.0);
     let w = f32(params.width);

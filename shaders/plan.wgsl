@@ -116,15 +116,15 @@ fn budget_counted(pool: Maybe, covered: W, deep: W, deeper: W) -> Maybe {
 
 @compute @workgroup_size(1)
 fn main() {
-    let n = w_of(totals[0]);
-    let covered = w_of(totals[1]);
-    let deep = w_of(totals[3]);
-    let deeper = w_of(totals[5]);
+    let n = w_of(totals[TOTAL_FRAGMENTS]);
+    let covered = w_of(totals[TOTAL_COVERED]);
+    let deep = w_of(totals[TOTAL_DEEP]);
+    let deeper = w_of(totals[TOTAL_DEEPER]);
     var short = 0u;
     // The budget's F.
     var budget_f = w_of(plan.budget);
     if (plan.kind == 1u) {
-        budget_f = w_div_u32(w_mul(totals[0], plan.budget), PPM);
+        budget_f = w_div_u32(w_mul(totals[TOTAL_FRAGMENTS], plan.budget), PPM);
     } else if (plan.kind == 2u) {
         var bytes = none();
         if (plan.bytes_lo != 0xffffffffu || plan.bytes_hi != 0xffffffffu) {

@@ -6,7 +6,8 @@
 @group(0) @binding(0) var<uniform> params: Params;
 // Two counts to a word (counts.wgsl).
 @group(0) @binding(1) var<storage, read> count: array<u32>;
-// fragments, covered, max count, deep, the records handed out (assign_records), deeper
+// The TOTAL_* words (shared.rs): fragments, covered, max count, deep, the records handed out
+// (assign_records), deeper; then the plan's (plan.wgsl).
 @group(0) @binding(2) var<storage, read_write> totals: array<atomic<u32>>;
 
 // A workgroup's sums, added to the frame's totals by one invocation: three atomics on the
@@ -52,12 +53,12 @@ fn add_group(lid: u32) {
     if (lid == 0u) {
         let covered = atomicLoad(&group_covered);
         if (covered > 0u) {
-            atomicAdd(&totals[0], atomicLoad(&group_fragments));
-            atomicAdd(&totals[1], covered);
-            atomicMax(&totals[2], atomicLoad(&group_max));
-            atomicAdd(&totals[3], atomicLoad(&group_deep));
-            if (arrayLength(&totals) > 5u) {
-                atomicAdd(&totals[5], atomicLoad(&group_deeper));
+            atomicAdd(&totals[TOTAL_FRAGMENTS], atomicLoad(&group_fragments));
+            atomicAdd(&totals[TOTAL_COVERED], covered);
+            atomicMax(&totals[TOTAL_MAX_COUNT], atomicLoad(&group_max));
+            atomicAdd(&totals[TOTAL_DEEP], atomicLoad(&group_deep));
+            if (arrayLength(&totals) > TOTAL_DEEPER) {
+                atomicAdd(&totals[TOTAL_DEEPER], atomicLoad(&group_deeper));
             }
         }
     }
@@ -101,7 +102,7 @@ fn assign_records(
     }
     workgroupBarrier();
     if (lid == 0u) {
-        group_first = atomicAdd(&totals[4], atomicLoad(&group_records));
+        group_first = atomicAdd(&totals[TOTAL_RECORDS], atomicLoad(&group_records));
     }
     workgroupBarrier();
     if (p < params.pixels) {

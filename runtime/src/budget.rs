@@ -193,6 +193,19 @@ impl Occupancy {
         })
     }
 
+    /// The occupancy a frame's totals hold (totals.wgsl's words, read back: at least
+    /// [`crate::shared::TOTAL_DEEPER`] + 1 of them).
+    pub fn from_totals(totals: &[u32]) -> Occupancy {
+        use crate::shared::{TOTAL_COVERED, TOTAL_DEEP, TOTAL_DEEPER, TOTAL_FRAGMENTS};
+        let word = |i: u32| totals[i as usize] as u64;
+        Occupancy {
+            fragments: word(TOTAL_FRAGMENTS),
+            covered: word(TOTAL_COVERED),
+            deep: word(TOTAL_DEEP),
+            deeper: word(TOTAL_DEEPER),
+        }
+    }
+
     /// Each count times `by`, rounded up, the pixel counts at most `pixels` (an occupancy
     /// expected of a frame of `pixels` pixels).
     pub fn scaled(&self, by: f64, pixels: u64) -> Occupancy {

@@ -36,6 +36,19 @@ pub const ALLOC_DISPATCHES: u32 = 3;
 /// [`TAIL_WORDS`]), then the frame's plan (plan.wgsl): F as the allocation reads it, and its
 /// flags.
 pub const TOTALS_WORDS: u32 = 8;
+/// The totals' words that totals.wgsl adds up (the plan, the allocation, the importance passes
+/// and the host read them by these names): the frame's fragments, ...
+pub const TOTAL_FRAGMENTS: u32 = 0;
+/// ... its covered pixels, ...
+pub const TOTAL_COVERED: u32 = 1;
+/// ... the largest count of a pixel, ...
+pub const TOTAL_MAX_COUNT: u32 = 2;
+/// ... its deep pixels (two fragments or more), ...
+pub const TOTAL_DEEP: u32 = 3;
+/// ... DKB's records handed out (totals.wgsl's `assign_records`), ...
+pub const TOTAL_RECORDS: u32 = 4;
+/// ... and its deeper pixels (more than [`TAIL_WORDS`]).
+pub const TOTAL_DEEPER: u32 = 5;
 /// Bytes of the frame's plan's parameters (`wgsl::PlanParams`, whose size a test holds to it).
 pub const PLAN_PARAMS_BYTES: u64 = 64;
 /// The totals' word holding the plan's F ([`crate::plan::Plan::words`]).

@@ -1003,6 +1003,9 @@ fn a_byte_budget_is_resolved_against_each_frames_own_count() {
             assert!(worst <= 1e-5, "{name}, reversed {reversed}: {worst}");
             assert!(!report.exact, "{name}");
             assert_eq!(report.plan.map(|p| p.f), Some(f), "{name}");
+            // The totals the device added up, read back by name: the CPU's count of the
+            // A-buffer's fragments.
+            assert_eq!(report.occupancy, Some(occ), "{name}: the device's totals");
             assert_eq!(report.allocated_bytes, m, "{name}: the fixed pool");
         }
         // Bytes that hold the A-buffer beside the method's fixed ones: its image, exact.

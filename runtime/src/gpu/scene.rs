@@ -363,17 +363,10 @@ impl Gpu {
             pass.dispatch_workgroups(gx, gy, 1);
         }
         self.submit(enc.finish());
-        let w = read_words(
-            self,
-            &[(&totals, 0), (&totals, 4), (&totals, 12), (&totals, 20)],
-        )?;
+        let words = (0..=crate::shared::TOTAL_DEEPER).map(|i| (&totals, 4 * i as u64));
+        let w = read_words(self, &words.collect::<Vec<_>>())?;
         drop(taken);
-        Ok(Occupancy {
-            fragments: w[0] as u64,
-            covered: w[1] as u64,
-            deep: w[2] as u64,
-            deeper: w[3] as u64,
-        })
+        Ok(Occupancy::from_totals(&w))
     }
 
     /// The scene's buffers (uploaded), its opaque pass's targets and the image, and the pooled

@@ -141,9 +141,13 @@ const FIRST_FRAGMENTS_PER_PIXEL: u64 = 2;
 /// Frames whose reports a renderer keeps waiting to be read at once (past them a new frame's
 /// report takes the oldest's place).
 const REPORTS_IN_FLIGHT: usize = 16;
-/// Bytes of a report's words before its timestamps: the status (16), the totals and plan
-/// (32), the A-buffer's fragments (4), padding.
-const REPORT_WORDS: u64 = 56;
+/// Where a report's words lie in its staging buffer: the resolve's status first, then the
+/// totals with the plan, ...
+const REPORT_TOTALS_AT: u64 = FrameStatus::BYTES;
+/// ... the A-buffer's fragments, ...
+const REPORT_COUNTED_AT: u64 = REPORT_TOTALS_AT + 4 * crate::shared::TOTALS_WORDS as u64;
+/// ... and from here (8-byte aligned), the timestamps: two u64 a timed pass.
+const REPORT_WORDS: u64 = (REPORT_COUNTED_AT + 4).next_multiple_of(8);
 
 /// A frame's report, recorded and not yet read.
 struct PendingReport {
@@ -310,20 +314,17 @@ impl Stream {
                 message: e.to_string(),
             })?;
         let word = |at: usize| u32::from_le_bytes(data[at..at + 4].try_into().expect("4"));
-        let status = FrameStatus::parse(&data[..16]);
-        let totals: Vec<u32> = (0..8).map(|i| word(16 + 4 * i)).collect();
-        let occupancy = p.totals.then(|| Occupancy {
-            fragments: totals[0] as u64,
-            covered: totals[1] as u64,
-            deep: totals[3] as u64,
-            deeper: totals[5] as u64,
-        });
+        let status = FrameStatus::parse(&data[..REPORT_TOTALS_AT as usize]);
+        let totals: Vec<u32> = (0..crate::shared::TOTALS_WORDS as usize)
+            .map(|i| word(REPORT_TOTALS_AT as usize + 4 * i))
+            .collect();
+        let occupancy = p.totals.then(|| Occupancy::from_totals(&totals));
         let plan = p.totals.then(|| {
             let f = crate::shared::PLAN_F_WORD as usize;
             Plan::from_words([totals[f], totals[f + 1], 0], 0)
         });
         let fragments = match (p.counted, occupancy) {
-            (true, _) => Some(word(48) as u64),
+            (true, _) => Some(word(REPORT_COUNTED_AT as usize) as u64),
             (_, Some(o)) => Some(o.fragments),
             _ => None,
         };
@@ -521,10 +522,11 @@ impl Stream {
                 enc.copy_buffer_to_buffer(status, 0, &staging, 0, FrameStatus::BYTES);
             }
             if let Some((totals, _)) = &out.plan_buf {
-                enc.copy_buffer_to_buffer(totals, 0, &staging, 16, 32);
+                let bytes = 4 * crate::shared::TOTALS_WORDS as u64;
+                enc.copy_buffer_to_buffer(totals, 0, &staging, REPORT_TOTALS_AT, bytes);
             }
             if let Some((offsets, at)) = &out.counted {
-                enc.copy_buffer_to_buffer(offsets, *at, &staging, 48, 4);
+                enc.copy_buffer_to_buffer(offsets, *at, &staging, REPORT_COUNTED_AT, 4);
             }
             if let Some(resolved) = &timed {
                 enc.copy_buffer_to_buffer(
