@@ -37,8 +37,8 @@
 // A fragment's optical depth by its 8-bit opacity (importance::optical_depth_table), four to a
 // vec4.
 @group(1) @binding(2) var<uniform> optical_depth: array<vec4<u32>, 64>;
-// The batch of records this draw gathers (totals.wgsl): [1] its first record lo, [2] how many
-// a batch holds; its records lie from the pool's start. A pixel outside it (an earlier batch's,
+// The batch of records this draw gathers (totals.wgsl): BATCH_LO its first record, BATCH_SIZE
+// how many a batch holds; its records lie from the pool's start. A pixel outside it (an earlier batch's,
 // its importance gathered; a later one's; none) is skipped.
 @group(1) @binding(3) var<storage, read> batch: array<u32>;
 
@@ -56,7 +56,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     let p = pixel_index(in.clip, params.width);
     // A pixel of at most TAIL_WORDS fragments (NO_RECORD): forced, whatever its statistics
     // (mlp::forced); or one of another batch.
-    let r = batch_record(record_of[p], batch[1], batch[2]);
+    let r = batch_record(record_of[p], batch[BATCH_LO], batch[BATCH_SIZE]);
     if (r == NO_RECORD) {
         return vec4<f32>(0.0);
     }

@@ -23,7 +23,7 @@
 // record's features are read, its importance takes its nearest key's place (set_importance).
 // Each record word a 64-bit word's two halves (low x, high y: u64.wgsl's W).
 @group(0) @binding(3) var<storage, read_write> records: array<W>;
-// The records the network decides, and how many (list_len[0]), lie in the same pool after a
+// The records the network decides, and how many (BATCH_LISTED), lie in the same pool after a
 // batch's records, a 32-bit word each (list_get, list_set): WebGPU binds a buffer writable once
 // in a dispatch.
 // The TOTAL_* words (totals.wgsl; a record for each of TOTAL_DEEPER's pixels), then the frame's
@@ -37,9 +37,10 @@ fn planned_f() -> u32 {
 // Per pixel: its record's index (NO_RECORD for none), then, after `gather`, its importance:
 // the frame's shared word.
 @group(0) @binding(8) var<storage, read_write> shared_word: array<u32>;
-// The list's length, then the batch (totals.wgsl): its first record lo, the records a batch
-// holds (its records from the pool's start, `r` below a batch's own index), the rows before.
-@group(0) @binding(9) var<storage, read_write> list_len: array<atomic<u32>, 4>;
+// The batch (totals.wgsl, the BATCH_* words): the list's length, its first record lo, the
+// records a batch holds (its records from the pool's start, `r` below a batch's own index), the
+// rows before.
+@group(0) @binding(9) var<storage, read_write> list_len: array<atomic<u32>, BATCH_WORDS>;
 // The network entry's indirect dispatch: workgroups x, y, z.
 @group(0) @binding(10) var<storage, read_write> dispatch: array<u32, DISPATCH_WORDS>;
 
@@ -147,7 +148,7 @@ fn network_inputs(r: u32) -> Net {
 // The list's entry i: the pool's 32-bit word i after a batch's records (RECORD_WORDS 64-bit
 // words each; budget::PoolState::list_bytes), the low or high half of a W.
 fn list_word(i: u32) -> u32 {
-    return RECORD_WORDS * atomicLoad(&list_len[2]) + i / 2u;
+    return RECORD_WORDS * atomicLoad(&list_len[BATCH_SIZE]) + i / 2u;
 }
 fn list_get(i: u32) -> u32 {
     let w = records[list_word(i)];
@@ -170,19 +171,19 @@ fn select_pixels(
     // The batch's records: a batch's worth, or what is left of the frame's (TOTAL_DEEPER; none in
     // a batch past them, which a frame sized ahead of its count may record).
     let r = grid_index(wid, nwg, lid, PIXEL_GROUP);
-    let lo = atomicLoad(&list_len[1]);
+    let lo = atomicLoad(&list_len[BATCH_LO]);
     let left = select(0u, totals[TOTAL_DEEPER] - lo, totals[TOTAL_DEEPER] > lo);
-    if (r >= min(atomicLoad(&list_len[2]), left)) {
+    if (r >= min(atomicLoad(&list_len[BATCH_SIZE]), left)) {
         return;
     }
     if (network_inputs(r).runs) {
-        list_set(atomicAdd(&list_len[0], 1u), r);
+        list_set(atomicAdd(&list_len[BATCH_LISTED], 1u), r);
     }
 }
 
 @compute @workgroup_size(1)
 fn args() {
-    let groups = (atomicLoad(&list_len[0]) + PIXEL_GROUP - 1u) / PIXEL_GROUP;
+    let groups = (atomicLoad(&list_len[BATCH_LISTED]) + PIXEL_GROUP - 1u) / PIXEL_GROUP;
     // Rows of at most 65,535 workgroups (gpu::grid).
     let rows = max((groups + 65534u) / 65535u, 1u);
     dispatch[0] = (groups + rows - 1u) / rows;
@@ -197,7 +198,7 @@ fn network(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let i = grid_index(wid, nwg, lid, PIXEL_GROUP);
-    let listed = i < atomicLoad(&list_len[0]);
+    let listed = i < atomicLoad(&list_len[BATCH_LISTED]);
     var r = 0u;
     var net: Net;
     if (listed) {
@@ -227,7 +228,7 @@ fn gather(
 ) {
     let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
     if (p < params.pixels) {
-        let r = batch_record(shared_word[p], atomicLoad(&list_len[1]), atomicLoad(&list_len[2]));
+        let r = batch_record(shared_word[p], atomicLoad(&list_len[BATCH_LO]), atomicLoad(&list_len[BATCH_SIZE]));
         if (shared_word[p] == NO_RECORD) {
             shared_word[p] = 0u;
         } else if (r != NO_RECORD) {

@@ -37,11 +37,9 @@ struct PlanParams {
 // The frame's parameters (common.wgsl's helpers read them; the plan does not).
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(9) var<uniform> plan: PlanParams;
-// fragments, covered, max count, deep, records handed out, deeper, then the plan's F and flags
-// (totals.wgsl).
+// The TOTAL_* words (totals.wgsl), then the plan's F and flags (PLAN_F_WORD, PLAN_FLAGS_WORD).
 @group(0) @binding(2) var<storage, read_write> totals: array<u32>;
-// DKB's batch words: the network's list length, the batch's first record, the records a batch
-// holds, the rows run (totals.wgsl's `batch`); an unused buffer of four words for the others.
+// DKB's BATCH_* words (totals.wgsl's `batch`); an unused buffer of BATCH_WORDS for the others.
 @group(0) @binding(8) var<storage, read_write> batch: array<u32>;
 
 // A value and whether there is one (u64.wgsl's W: 64 bits in two 32-bit words).
@@ -164,5 +162,5 @@ fn main() {
     }
     totals[PLAN_F_WORD] = w_min(f, n).x;
     totals[PLAN_FLAGS_WORD] = select(0u, 1u, exact) | (short << 1u);
-    batch[2] = per_batch;
+    batch[BATCH_SIZE] = per_batch;
 }

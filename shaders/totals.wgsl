@@ -78,8 +78,9 @@ fn add_group(lid: u32) {
 @group(0) @binding(6) var<storage, read_write> record_of: array<u32>;
 // Each record word a 64-bit word's two halves (low x, high y), as features.wgsl adds to them.
 @group(0) @binding(7) var<storage, read_write> records: array<vec2<u32>>;
-// The network's list length, the batch's first record lo, the records a batch holds, and the
-// rows the network ran on in the batches before (importance_dkb.wgsl's list_len).
+// The BATCH_* words: the network's list length, the batch's first record lo, the records a
+// batch holds, and the rows the network ran on in the batches before (importance_dkb.wgsl's
+// list_len).
 @group(0) @binding(8) var<storage, read_write> batch: array<u32>;
 
 var<workgroup> group_records: atomic<u32>;
@@ -110,7 +111,7 @@ fn assign_records(
             let r = group_first + local;
             record_of[p] = r;
             // The first batch's records (the pool is zero until then).
-            if (r < batch[2]) {
+            if (r < batch[BATCH_SIZE]) {
                 records[RECORD_WORDS * r + 1u] = vec2<u32>(0u, n << 16u);
             }
         } else {
@@ -134,7 +135,7 @@ fn init_records(
     if (p >= params.pixels) {
         return;
     }
-    let r = batch_record(record_of[p], batch[1] + batch[2], batch[2]);
+    let r = batch_record(record_of[p], batch[BATCH_LO] + batch[BATCH_SIZE], batch[BATCH_SIZE]);
     if (r != NO_RECORD) {
         let at = RECORD_WORDS * r;
         records[at] = vec2<u32>(0u);
@@ -149,7 +150,7 @@ fn init_records(
 // and emptied (one invocation, after init_records).
 @compute @workgroup_size(1)
 fn next_batch() {
-    batch[3] += batch[0];
-    batch[0] = 0u;
-    batch[1] += batch[2];
+    batch[BATCH_ROWS_BEFORE] += batch[BATCH_LISTED];
+    batch[BATCH_LISTED] = 0u;
+    batch[BATCH_LO] += batch[BATCH_SIZE];
 }

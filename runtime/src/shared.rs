@@ -49,6 +49,17 @@ pub const TOTAL_DEEP: u32 = 3;
 pub const TOTAL_RECORDS: u32 = 4;
 /// ... and its deeper pixels (more than [`TAIL_WORDS`]).
 pub const TOTAL_DEEPER: u32 = 5;
+/// Words of DKB's batch buffer (its records gathered a batch at a time: totals.wgsl, plan.wgsl,
+/// the features and importance passes), by name: the records the network listed in this
+/// batch, ...
+pub const BATCH_LISTED: u32 = 0;
+/// ... the batch's first record, ...
+pub const BATCH_LO: u32 = 1;
+/// ... the records a batch holds (the frame's plan's), ...
+pub const BATCH_SIZE: u32 = 2;
+/// ... and the rows the network ran in the batches before.
+pub const BATCH_ROWS_BEFORE: u32 = 3;
+pub const BATCH_WORDS: u32 = 4;
 /// Bytes of the frame's plan's parameters (`wgsl::PlanParams`, whose size a test holds to it).
 pub const PLAN_PARAMS_BYTES: u64 = 64;
 /// The totals' word holding the plan's F ([`crate::plan::Plan::words`]).

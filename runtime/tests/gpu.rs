@@ -237,7 +237,8 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
 }
 
 /// DKB's records gathered in batches (`Tuning::record_batches`, three at most by
-/// default) or all at once (1) give the same importance and image, bit for bit, and each frame
+/// default) or all at once (1) give the same importance and image, bit for bit, from the
+/// network run on as many rows, and each frame
 /// allocates its layout's bytes for the batches it took: fewer, the more batches, where the
 /// records outweigh the slots and tails (particles at 0.05 fpp).
 #[test]
@@ -295,6 +296,10 @@ fn dkb_s_records_in_batches_or_at_once_give_the_same_frame_in_fewer_bytes() {
             "{} batches: image",
             b + 1
         );
+        // The network ran on the same records, whatever the batches (the rows of the batches
+        // before the last, BATCH_ROWS_BEFORE, and the last's list).
+        assert!(frames[0].network_rows.is_some_and(|r| r > 0));
+        assert_eq!(fr.network_rows, frames[0].network_rows, "{} batches", b + 1);
     }
 }
 
@@ -2018,7 +2023,8 @@ fn cpu_and_gpu_rasterizers_agree_on_depth_and_coverage() {
 /// covered pixel with the forced ones zeroed: the list's length is the CPU's count of covered
 /// pixels that `mlp::forced` leaves to the network (their n, the frame's smallest k and their
 /// two farthest fragments' colours, from the GPU's own fragments), fewer than the covered
-/// pixels; with `skip_forced` off it is every covered pixel.
+/// pixels, in one batch of records or several; with `skip_forced` off it is every pixel with a
+/// record.
 #[test]
 fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
     let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
@@ -2063,6 +2069,20 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
             );
         }
         o.tuning.skip_forced = true;
+        // At a slot a covered pixel (lo = 1, some records forced) the pool holds the records
+        // in batches: the rows of each batch's list add up to the pixels left to the network.
+        let frame = g
+            .render_with(
+                &o,
+                &s,
+                &cam,
+                (w, h),
+                BG,
+                Slots::Dkb(&mlp, (covered as u64).into()),
+            )
+            .unwrap();
+        assert!(frame.record_batches.is_some_and(|b| b > 1), "{name}");
+        assert_eq!(frame.network_rows, Some(decided), "{name}, F {covered}");
         // Below a slot a covered pixel (lo = 0) no pixel with a record is forced, and the pool
         // holds a batch of the records at a time: the rows of every batch add up.
         let few = (covered as u64 / 8).max(1);

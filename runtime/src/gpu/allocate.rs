@@ -5,7 +5,9 @@
 //! [`Gpu::allocate`] runs it alone.
 
 use super::bindings::{allocate, plan};
-use super::buffers::{FrameBuffers, read_back, read_counts, read_u64s, read_words, u32s};
+use super::buffers::{
+    FrameBuffers, read_back, read_counts, read_plan, read_u64s, read_words, u32s,
+};
 use super::passes::{Passes, Phase};
 use super::pipelines::{compute_buffer_entry, module, module_from, redeclare};
 use super::scan::Scan;
@@ -522,7 +524,7 @@ impl Gpu {
                         0,
                     ],
                 );
-                let batch = storage("plan.batch", &[0; 4]);
+                let batch = storage("plan.batch", &[0; crate::shared::BATCH_WORDS as usize]);
                 let params = self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("plan.params"),
                     size: std::mem::size_of::<PlanParams>() as u64,
@@ -545,11 +547,9 @@ impl Gpu {
             }
         }
         self.submit(enc.finish());
-        let f = crate::shared::PLAN_F_WORD as u64;
         let mut plans = Vec::with_capacity(cases.len());
         for (totals, batch) in &outputs {
-            let w = read_words(self, &[(totals, 4 * f), (totals, 4 * f + 4), (batch, 8)])?;
-            plans.push(crate::plan::Plan::from_words([w[0], w[1], w[2]], 0));
+            plans.push(read_plan(self, totals, batch, 0)?);
         }
         scopes.end()?;
         Ok(plans)

@@ -6,7 +6,7 @@ use super::Gpu;
 use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
 use crate::importance::PixelStats;
-use crate::shared::count_bytes;
+use crate::shared::{BATCH_LISTED, BATCH_ROWS_BEFORE, BATCH_SIZE, BATCH_WORDS, count_bytes};
 
 pub(super) struct FrameBuffers<'a, 'e> {
     pub(super) gpu: &'a Gpu,
@@ -388,6 +388,27 @@ pub(super) fn read_frame<T>(
 
 /// Single words of device buffers (each a buffer and a byte offset, a multiple of 4), read in
 /// one copy and one map: a frame's sizes without reading back the buffers they end.
+/// The plan plan.wgsl wrote: its F and flags in `totals`, the records a batch holds in `batch`;
+/// `batches` are the host's to know ([`crate::plan::Plan::from_words`]).
+pub(super) fn read_plan(
+    gpu: &Gpu,
+    totals: &wgpu::Buffer,
+    batch: &wgpu::Buffer,
+    batches: u64,
+) -> Result<crate::plan::Plan> {
+    use crate::shared::{PLAN_F_WORD, PLAN_FLAGS_WORD};
+    let at = |word: u32| 4 * word as u64;
+    let w = read_words(
+        gpu,
+        &[
+            (totals, at(PLAN_F_WORD)),
+            (totals, at(PLAN_FLAGS_WORD)),
+            (batch, at(BATCH_SIZE)),
+        ],
+    )?;
+    Ok(crate::plan::Plan::from_words([w[0], w[1], w[2]], batches))
+}
+
 pub(super) fn read_words(gpu: &Gpu, words: &[(&wgpu::Buffer, u64)]) -> Result<Vec<u32>> {
     let size = 4 * words.len().max(1) as u64;
     let copy = |enc: &mut wgpu::CommandEncoder, staging: &wgpu::Buffer| {
@@ -591,18 +612,16 @@ impl Readback {
         let features_drawn = self.features_drawn;
         let plan = match &self.plan_buf {
             Some((totals, batch)) => {
-                let f = crate::shared::PLAN_F_WORD as u64;
-                let w = read_words(gpu, &[(totals, 4 * f), (totals, 4 * f + 4), (batch, 8)])?;
                 let batches = self.record_batches.unwrap_or(1);
-                Some(crate::plan::Plan::from_words([w[0], w[1], w[2]], batches))
+                Some(read_plan(gpu, totals, batch, batches)?)
             }
             None => None,
         };
         let network_rows = match &self.network_rows_buf {
             // This batch's list and the batches' before it (totals.wgsl's next_batch).
             Some(b) => {
-                let w = u32s(&read_back(gpu, b, 16)?);
-                Some(w[0] + w[3])
+                let w = u32s(&read_back(gpu, b, 4 * BATCH_WORDS as u64)?);
+                Some(w[BATCH_LISTED as usize] + w[BATCH_ROWS_BEFORE as usize])
             }
             None => None,
         };

@@ -25,7 +25,7 @@ use super::pipelines::Variant;
 use super::{Planned, Recording, weight_kind};
 use crate::error::Result;
 use crate::mlp::Mlp;
-use crate::shared::{TOTALS_WORDS, count_bytes};
+use crate::shared::{BATCH_WORDS, TOTALS_WORDS, count_bytes};
 use crate::wgsl::{DISPATCH_WORDS, PIXEL_GROUP, grid, mlp_uniform};
 
 /// DKB's per-frame buffers.
@@ -62,7 +62,7 @@ impl Recording<'_, '_, '_> {
         let fb = &mut self.fb;
         let totals = fb.storage("features.totals", 4 * TOTALS_WORDS as u64, true)?;
         let counts = fb.storage("features.count", count_bytes(px), true)?;
-        let list_len = fb.storage("importance.list_len", 16, true)?;
+        let list_len = fb.storage("importance.list_len", 4 * BATCH_WORDS as u64, true)?;
         let plan = fb.plan_params(&planned.input);
         passes.draw(fb.enc, Phase::Count, &p.count, &[&counts], "count");
         passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &list_len)))?;
@@ -297,8 +297,10 @@ impl Recording<'_, '_, '_> {
         });
         if self.passes.opts.diagnostics {
             let fb = &mut self.fb;
-            let copy = fb.storage("importance.list_len.readback", 16, false)?;
-            fb.enc.copy_buffer_to_buffer(&b.list_len, 0, &copy, 0, 16);
+            let bytes = 4 * BATCH_WORDS as u64;
+            let copy = fb.storage("importance.list_len.readback", bytes, false)?;
+            fb.enc
+                .copy_buffer_to_buffer(&b.list_len, 0, &copy, 0, bytes);
             self.out.network_rows_buf = Some(copy);
         }
         Ok(())
