@@ -571,6 +571,11 @@ fn worst_difference(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
         .fold(0.0f32, f32::max)
 }
 
+/// dhoit's own exact A-buffer of `s` through the identity camera, its fragments read back.
+fn exact_frame(g: &Gpu, s: &Scene, size: (u32, u32)) -> dhoit_runtime::gpu::GpuFrame {
+    g.render(s, &identity(), size, BG, Slots::Exact).unwrap()
+}
+
 /// The frame's occupancy as dhoit's own A-buffer counted it: what an application that knows
 /// its scene tells its method to expect.
 fn occupancy_of(exact: &dhoit_runtime::gpu::GpuFrame) -> Occupancy {
@@ -582,15 +587,7 @@ fn an_application_draws_through_dhoits_linked_list_and_gets_dhoits_image() {
     let Some(g) = gpu() else { return };
     let (w, h) = (64, 48);
     let s = layered_scene();
-    let total = g
-        .render(
-            &s,
-            &identity(),
-            (w, h),
-            BG,
-            dhoit_runtime::gpu::Slots::Exact,
-        )
-        .unwrap()
+    let total = exact_frame(g, &s, (w, h))
         .fragments
         .unwrap()
         .fragment_count() as u64;
@@ -621,15 +618,7 @@ fn an_application_draws_through_dhoits_k_buffer_and_gets_dhoits_fkb_image_in_any
     let (w, h) = (64, 48);
     let px = (w * h) as u64;
     let s = layered_scene();
-    let exact = g
-        .render(
-            &s,
-            &identity(),
-            (w, h),
-            BG,
-            dhoit_runtime::gpu::Slots::Exact,
-        )
-        .unwrap();
+    let exact = exact_frame(g, &s, (w, h));
     for k in [1, 3, 8] {
         let harness = g
             .render(&s, &identity(), (w, h), BG, Slots::Uniform(k))
@@ -694,15 +683,7 @@ fn an_application_draws_twice_through_dhoits_a_buffer_and_gets_the_exact_image_i
     let (w, h) = (64, 48);
     let px = (w * h) as u64;
     let s = layered_scene();
-    let exact = g
-        .render(
-            &s,
-            &identity(),
-            (w, h),
-            BG,
-            dhoit_runtime::gpu::Slots::Exact,
-        )
-        .unwrap();
+    let exact = exact_frame(g, &s, (w, h));
     let occ = occupancy_of(&exact);
     assert!(occ.fragments > px, "{} fragments", occ.fragments);
     for reversed in [false, true] {
@@ -755,15 +736,7 @@ fn an_application_draws_through_dhoits_mlab_and_gets_its_image_in_any_order() {
     // The layers in a shuffled submission order: front to back (as layered_scene submits
     // them) MLAB merges exactly.
     let s = layered_scene().shuffled(7);
-    let exact = g
-        .render(
-            &s,
-            &identity(),
-            (w, h),
-            BG,
-            dhoit_runtime::gpu::Slots::Exact,
-        )
-        .unwrap();
+    let exact = exact_frame(g, &s, (w, h));
     let occ = occupancy_of(&exact);
     for rows in [1, 2, 4] {
         let harness = g
@@ -813,15 +786,7 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
     let px = (w * h) as u64;
     let s = layered_scene();
     let weights = common::committed_weights();
-    let exact = g
-        .render(
-            &s,
-            &identity(),
-            (w, h),
-            BG,
-            dhoit_runtime::gpu::Slots::Exact,
-        )
-        .unwrap();
+    let exact = exact_frame(g, &s, (w, h));
     let occ = occupancy_of(&exact);
     let vkb = dhoit_runtime::importance::VkbParams::default();
     for name in ["dkb", "vkb"] {
@@ -962,15 +927,7 @@ fn a_byte_budget_is_resolved_against_each_frames_own_count() {
     let s = layered_scene();
     let weights = common::committed_weights();
     let vkb = dhoit_runtime::importance::VkbParams::default();
-    let exact = g
-        .render(
-            &s,
-            &identity(),
-            (w, h),
-            BG,
-            dhoit_runtime::gpu::Slots::Exact,
-        )
-        .unwrap();
+    let exact = exact_frame(g, &s, (w, h));
     let occ = occupancy_of(&exact);
     let quarter = occ.fragments / 4;
     for name in ["dkb", "vkb"] {
@@ -1142,15 +1099,7 @@ fn an_application_draws_through_dhoits_wboit_and_mboit_and_gets_their_images() {
     let (w, h) = (64, 48);
     let px = (w * h) as u64;
     let s = layered_scene();
-    let exact = g
-        .render(
-            &s,
-            &identity(),
-            (w, h),
-            BG,
-            dhoit_runtime::gpu::Slots::Exact,
-        )
-        .unwrap();
+    let exact = exact_frame(g, &s, (w, h));
     let planes = |weight| WboitParams {
         weight,
         near: 0.5,
