@@ -165,7 +165,7 @@ pub const POOLED_TAIL: u64 = 8 * crate::shared::TAIL_WORDS as u64;
 /// Bytes of the allocation's marks for a frame of `pixels` pixels ([`crate::shared::marks_words`]:
 /// a bit a pixel and its word's prefix count, 0.25 bytes a pixel), at least 16 as every buffer.
 pub fn marks_bytes(pixels: u64) -> u64 {
-    (4 * crate::shared::marks_words(pixels)).max(16)
+    (4 * crate::shared::marks_words(pixels)).max(crate::shared::LEAST_BUFFER_BYTES)
 }
 
 /// What a frame's count says about its pixels, which the pooled tails are bounded by: its
@@ -555,7 +555,7 @@ impl Layout {
     pub fn fixed_bytes(&self, pixels: u64) -> u64 {
         // The block totals; like every GPU buffer, at least 16 bytes.
         let scan = if self.scan {
-            (4 * pixels.div_ceil(SCAN_BLOCK)).max(16)
+            (4 * pixels.div_ceil(SCAN_BLOCK)).max(crate::shared::LEAST_BUFFER_BYTES)
         } else {
             0
         };
@@ -595,7 +595,7 @@ impl Layout {
                 ((ps.record_bytes + ps.list_bytes) * records.div_ceil(ps.batches))
                     .max(marks_bytes(pixels))
             })
-            .max(16)
+            .max(crate::shared::LEAST_BUFFER_BYTES)
     }
     /// The most bytes a frame of occupancy `occ` can allocate at F = `f`: its fixed bytes,
     /// `min(F, n)` slots (the most an allocation hands out) and, pooled, the words its pixels'
@@ -615,7 +615,7 @@ impl Layout {
     pub fn pool_for(&self, pixels: u64, f: u64, occ: &Occupancy) -> u64 {
         match self.pool_state {
             Some(_) => self.pool_bytes(pixels, f, occ),
-            None => (self.slot_bytes * occ.pool_words_at(f)).max(16),
+            None => (self.slot_bytes * occ.pool_words_at(f)).max(crate::shared::LEAST_BUFFER_BYTES),
         }
     }
     /// The bytes a budget of F slots comes to: what the layout reserves for them on a frame of

@@ -208,7 +208,7 @@ pub fn ahead(
         ))),
         false => pool,
     };
-    let pool_bytes = pool.max(16);
+    let pool_bytes = pool.max(crate::shared::LEAST_BUFFER_BYTES);
     Ahead {
         pool_bytes,
         batches: layout

@@ -12,6 +12,9 @@ pub const SCAN_GROUP: u64 = 256;
 /// Bytes of the per-frame parameter uniform (resolution, budget, background, totals:
 /// `wgsl::Params`, whose size a test holds to it).
 pub const PARAMS_BYTES: u64 = 256;
+/// The least bytes of any GPU buffer dhoit makes (an unused binding's, an empty pool's), as the
+/// budget counts them.
+pub const LEAST_BUFFER_BYTES: u64 = 16;
 /// Parts per million of a whole share.
 pub const PPM: u64 = 1_000_000;
 /// Candidates the allocation's search tries per round (a 16-way search).

@@ -59,7 +59,11 @@ impl Recording<'_, '_, '_> {
         let keys = fb.storage("abuf.keys", 8 * total, true)?;
         // Submission indices for MLAB's order (counted: its pipeline's), and for the tests'
         // readback (not counted, like the readback copies); else an empty binding.
-        let none = fb.storage("abuf.no_primitives", 16, true)?;
+        let none = fb.storage(
+            "abuf.no_primitives",
+            crate::shared::LEAST_BUFFER_BYTES,
+            true,
+        )?;
         let primitives = if mlab || passes.opts.diagnostics {
             fb.storage("abuf.primitives", 4 * total, mlab)?
         } else {

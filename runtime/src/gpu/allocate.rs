@@ -101,7 +101,7 @@ impl Recording<'_, '_, '_> {
         let fb = &mut self.fb;
         let counts = fb.storage("count", count_bytes(px), true)?;
         let totals = fb.storage("totals", 4 * TOTALS_WORDS as u64, true)?;
-        let unused = fb.storage("oit.unused_tail", 16, true)?;
+        let unused = fb.storage("oit.unused_tail", crate::shared::LEAST_BUFFER_BYTES, true)?;
         let plan = fb.plan_params(&planned.input);
         passes.draw(fb.enc, Phase::Count, &p.count, &[&counts], "count");
         passes.totals_and_plan(fb.enc, &counts, &totals, Some((&plan, &unused)))?;
@@ -314,7 +314,7 @@ impl Gpu {
         let counts = fb.storage("count", count_bytes(px), true)?;
         let base = word_holding(&mut fb, bytemuck::cast_slice(importance));
         let totals = fb.storage("totals", 4 * TOTALS_WORDS as u64, true)?;
-        let unused = fb.storage("oit.unused_tail", 16, true)?;
+        let unused = fb.storage("oit.unused_tail", crate::shared::LEAST_BUFFER_BYTES, true)?;
         // The plan with a pool that holds every fragment: F is the budget's.
         let input = PlanInput {
             layout: budget::VKB,

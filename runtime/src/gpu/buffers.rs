@@ -113,7 +113,11 @@ impl<'a, 'e> FrameBuffers<'a, 'e> {
                 true,
             ),
             false => (
-                self.storage(&format!("{owner}.no_tints"), 16, false)?,
+                self.storage(
+                    &format!("{owner}.no_tints"),
+                    crate::shared::LEAST_BUFFER_BYTES,
+                    false,
+                )?,
                 false,
             ),
         })
@@ -137,7 +141,9 @@ impl<'a, 'e> FrameBuffers<'a, 'e> {
         counted: bool,
         clear: bool,
     ) -> Result<wgpu::Buffer> {
-        let size = size.max(16).next_multiple_of(4);
+        let size = size
+            .max(crate::shared::LEAST_BUFFER_BYTES)
+            .next_multiple_of(4);
         let limits = self.gpu.device.limits();
         let max = limits
             .max_storage_buffer_binding_size
@@ -180,7 +186,9 @@ impl<'a, 'e> FrameBuffers<'a, 'e> {
         if counted {
             self.allocated += bytes.len() as u64;
         }
-        let size = (bytes.len() as u64).max(16).next_multiple_of(4);
+        let size = (bytes.len() as u64)
+            .max(crate::shared::LEAST_BUFFER_BYTES)
+            .next_multiple_of(4);
         let usage = usage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         let b = self.take(label, size, usage, false);
         if bytes.len() as u64 == size {

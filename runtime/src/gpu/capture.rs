@@ -47,9 +47,17 @@ impl Recording<'_, '_, '_> {
                 // FKB reads none of these, but the shared capture layout binds them.
                 let fb = &mut self.fb;
                 Ok(KBuffer {
-                    base: fb.storage("fkb.unused_offsets", 16, true)?,
+                    base: fb.storage(
+                        "fkb.unused_offsets",
+                        crate::shared::LEAST_BUFFER_BYTES,
+                        true,
+                    )?,
                     slots: SlotsAt::PerPixel(k.max(1) as u64 * px),
-                    counts: fb.storage("fkb.unused_counts", 16, true)?,
+                    counts: fb.storage(
+                        "fkb.unused_counts",
+                        crate::shared::LEAST_BUFFER_BYTES,
+                        true,
+                    )?,
                     unused: None,
                     all_fit: false,
                 })
@@ -68,7 +76,11 @@ impl Recording<'_, '_, '_> {
                 Ok(KBuffer {
                     base,
                     slots: SlotsAt::PerPixel(k.iter().map(|&x| x as u64).sum()),
-                    counts: fb.storage("oit.unused_counts", 16, true)?,
+                    counts: fb.storage(
+                        "oit.unused_counts",
+                        crate::shared::LEAST_BUFFER_BYTES,
+                        true,
+                    )?,
                     unused: None,
                     all_fit: false,
                 })
@@ -258,8 +270,12 @@ impl Recording<'_, '_, '_> {
                 fb.enc.clear_buffer(pool, 0, None);
                 (
                     pool.clone(),
-                    fb.storage("oit.unused_tail", 16, true)?,
-                    fb.storage("oit.unused_tail_count", 16, true)?,
+                    fb.storage("oit.unused_tail", crate::shared::LEAST_BUFFER_BYTES, true)?,
+                    fb.storage(
+                        "oit.unused_tail_count",
+                        crate::shared::LEAST_BUFFER_BYTES,
+                        true,
+                    )?,
                 )
             }
             (SlotsAt::PerPixel(n), _) => (

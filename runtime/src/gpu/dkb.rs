@@ -235,7 +235,7 @@ impl Recording<'_, '_, '_> {
                 let record_of = fb.storage("features.record_of.readback", 4 * px, false)?;
                 fb.enc
                     .copy_buffer_to_buffer(&b.importance, 0, &record_of, 0, 4 * px);
-                let bytes = (record_bytes * records).max(16);
+                let bytes = (record_bytes * records).max(crate::shared::LEAST_BUFFER_BYTES);
                 let all = fb.storage("features.records.readback", bytes, false)?;
                 self.out.stats_bufs = Some([record_of, all]);
             }

@@ -23,7 +23,7 @@ impl Recording<'_, '_, '_> {
         // The pool, allocated whole: 12 bytes a node.
         let next = fb.storage("list.next", 4 * nodes, true)?;
         let keys = fb.storage("list.keys", 8 * nodes, true)?;
-        let counter = fb.storage("list.counter", 16, true)?;
+        let counter = fb.storage("list.counter", crate::shared::LEAST_BUFFER_BYTES, true)?;
         // A tint word a node where the frame stores them (4 bytes more).
         let (tints, tinted) = fb.tints("list", nodes, self.words.any())?;
         let tinted_glass = self.words.tints();

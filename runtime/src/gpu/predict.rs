@@ -51,7 +51,7 @@ impl Gpu {
                     contents: bytemuck::cast_slice(part),
                     usage: wgpu::BufferUsages::STORAGE,
                 });
-            let size = (4 * n as u64).max(16);
+            let size = (4 * n as u64).max(crate::shared::LEAST_BUFFER_BYTES);
             let output = self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("predict.out"),
                 size,

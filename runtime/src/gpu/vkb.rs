@@ -28,7 +28,7 @@ impl Recording<'_, '_, '_> {
         // "None yet" in every pixel's word.
         fb.enc.clear_buffer(&importance, 0, None);
         let marks = fb.storage("vkb.marks", crate::budget::marks_bytes(px), true)?;
-        let unused_tail = fb.storage("vkb.unused_tail", 16, true)?;
+        let unused_tail = fb.storage("vkb.unused_tail", crate::shared::LEAST_BUFFER_BYTES, true)?;
         let totals = fb.storage("vkb.totals", 4 * TOTALS_WORDS as u64, true)?;
         let plan = fb.plan_params(&planned.input);
         passes.draw(
