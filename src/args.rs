@@ -23,6 +23,18 @@ pub(crate) fn default_weights() -> Option<PathBuf> {
     .find(|p| p.is_file())
 }
 
+/// The network's precision, for the commands that render DKB.
+#[derive(Args, Clone, Copy)]
+pub(crate) struct NetworkPrecision {
+    /// Precision of the network for dkb: f32; f16 (binary16 weights, f32 arithmetic; the CPU
+    /// twin computes with the same rounded weights); or f16-math (binary16 weights and
+    /// hidden-layer arithmetic, for GPUs with fast half precision; the device needs
+    /// SHADER_F16). Default: the precision the weights file names (`dhoit fit` writes it),
+    /// else f32.
+    #[arg(long)]
+    pub(crate) precision: Option<Precision>,
+}
+
 #[derive(Args, Clone)]
 pub(crate) struct ViewArgs {
     /// Resolution WIDTHxHEIGHT.

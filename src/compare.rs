@@ -2,13 +2,14 @@
 //! one typed row per frame and method, written as a terminal table, Markdown and JSON from the
 //! same rows; a summary of the ratios that decide whether the network earns its place.
 
-use crate::args::{ViewArgs, check_view, k_used, load_scenes, load_weights, rasterize_view};
+use crate::args::{
+    NetworkPrecision, ViewArgs, check_view, k_used, load_scenes, load_weights, rasterize_view,
+};
 use anyhow::Result;
 use clap::Args;
 use dhoit_runtime::budget::{Budget, format_bytes};
 use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
 use dhoit_runtime::image_io;
-use dhoit_runtime::mlp::Precision;
 use dhoit_runtime::scene;
 use dhoit_train::plot::{Montage, Scale};
 use serde::Serialize;
@@ -58,13 +59,8 @@ pub struct CompareArgs {
     /// approximation itself). Without it such a frame renders the A-buffer, marked "(exact)".
     #[arg(long)]
     always_approximate: bool,
-    /// Precision of the network for dkb: f32; f16 (binary16 weights, f32 arithmetic; the CPU
-    /// twin computes with the same rounded weights); or f16-math (binary16 weights and
-    /// hidden-layer arithmetic, for GPUs with fast half precision; the device needs
-    /// SHADER_F16). Default: the precision the weights file names (`dhoit fit` writes it),
-    /// else f32.
-    #[arg(long)]
-    precision: Option<Precision>,
+    #[command(flatten)]
+    network: NetworkPrecision,
     #[command(flatten)]
     common: ViewArgs,
     #[command(flatten)]
@@ -788,7 +784,7 @@ fn methods_and_weights(a: &CompareArgs) -> Result<(Vec<Method>, Option<dhoit_run
     }
     let weights = load_weights(
         &a.common,
-        a.precision,
+        a.network.precision,
         !a.methods.is_empty() && methods.contains(&Method::Dkb),
     )?;
     if weights.is_none() && methods.contains(&Method::Dkb) {

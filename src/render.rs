@@ -1,6 +1,8 @@
 //! `dhoit render`: one view of a scene with one method, on the CPU reference or the GPU.
 
-use crate::args::{ViewArgs, kmap_rgb8, load_scene, load_weights, rasterize_view};
+use crate::args::{
+    NetworkPrecision, ViewArgs, kmap_rgb8, load_scene, load_weights, rasterize_view,
+};
 use anyhow::Result;
 use clap::{Args, ValueEnum};
 use dhoit_runtime::budget::{Budget, format_bytes};
@@ -9,7 +11,6 @@ use dhoit_runtime::fragment::FragmentLists;
 use dhoit_runtime::frame::{Equal, Frame, Method, Options, Renderer};
 use dhoit_runtime::gpu::{Capture, FrameOptions, Gpu, Slots};
 use dhoit_runtime::image_io;
-use dhoit_runtime::mlp::Precision;
 use dhoit_runtime::scene::Scene;
 use dhoit_runtime::tensors;
 use std::path::PathBuf;
@@ -57,13 +58,8 @@ pub struct RenderArgs {
     /// exact answer: such a frame renders the A-buffer, exact, with its memory.
     #[arg(long)]
     always_approximate: bool,
-    /// Precision of the network for dkb: f32; f16 (binary16 weights, f32 arithmetic; the CPU
-    /// twin computes with the same rounded weights); or f16-math (binary16 weights and
-    /// hidden-layer arithmetic, for GPUs with fast half precision; the device needs
-    /// SHADER_F16). Default: the precision the weights file names (`dhoit fit` writes it),
-    /// else f32.
-    #[arg(long)]
-    precision: Option<Precision>,
+    #[command(flatten)]
+    network: NetworkPrecision,
     /// How the k-buffers (fkb, vkb, dkb, optimal, greedy) capture on the GPU: wide (64-bit
     /// atomics, one geometry pass) or portable (32-bit atomics alone, two passes: the capture
     /// a device without 64-bit atomics runs). The images are the same.
@@ -92,7 +88,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(k) = &a.kmap {
         image_io::encoding(k)?;
     }
-    let weights = load_weights(&a.common, a.precision, method == Method::Dkb)?;
+    let weights = load_weights(&a.common, a.network.precision, method == Method::Dkb)?;
     let scene = load_scene(&a.scene, &a.common)?;
     let (fl, _) = rasterize_view(&scene, a.view, &a.common)?;
     if a.device == Device::Cpu {

@@ -94,7 +94,7 @@ pub fn abuffer_bytes(pixels: u64, fragments: u64, tinted: bool) -> u64 {
 /// ([`Layout::for_network`]).
 pub const MLP_UNIFORM_BYTES: u64 =
     crate::mlp::uniform_bytes(crate::mlp::H1, crate::mlp::H2, crate::mlp::Precision::F32);
-pub use crate::shared::{PARAMS_BYTES, PPM, SCAN_BLOCK, SCAN_GROUP};
+pub use crate::shared::{LEAST_BUFFER_BYTES, PARAMS_BYTES, PPM, SCAN_BLOCK, SCAN_GROUP};
 
 /// The buffers one method allocates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -165,7 +165,7 @@ pub const POOLED_TAIL: u64 = 8 * crate::shared::TAIL_WORDS as u64;
 /// Bytes of the allocation's marks for a frame of `pixels` pixels ([`crate::shared::marks_words`]:
 /// a bit a pixel and its word's prefix count, 0.25 bytes a pixel), at least 16 as every buffer.
 pub fn marks_bytes(pixels: u64) -> u64 {
-    (4 * crate::shared::marks_words(pixels)).max(crate::shared::LEAST_BUFFER_BYTES)
+    (4 * crate::shared::marks_words(pixels)).max(LEAST_BUFFER_BYTES)
 }
 
 /// What a frame's count says about its pixels, which the pooled tails are bounded by: its
@@ -306,7 +306,7 @@ pub const DKB: Layout = Layout {
         ("features.optical_depth", 1024),
         // The network's list's length and indirect dispatch (then the capture's unused
         // per-pixel tail).
-        ("importance.list_len", 16),
+        ("importance.list_len", 4 * crate::shared::BATCH_WORDS as u64),
         (
             "importance.dispatch",
             4 * crate::shared::DISPATCH_WORDS as u64,
@@ -338,7 +338,7 @@ pub const OPT: Layout = Layout {
     fixed: &[
         ("params", PARAMS_BYTES),
         OFFSETS_END,
-        ("oit.unused_counts", 16),
+        ("oit.unused_counts", LEAST_BUFFER_BYTES),
         STATUS,
     ],
     scan: true,
@@ -361,7 +361,7 @@ pub const VKB: Layout = Layout {
         ("vkb.totals", TOTALS),
         PLAN_PARAMS,
         // Bound in the capture's per-pixel tail's place, unused (the tails are pooled).
-        ("vkb.unused_tail", 16),
+        ("vkb.unused_tail", LEAST_BUFFER_BYTES),
         OFFSETS_END,
         ALLOC_PARAMS,
         ALLOC_STATE,
@@ -384,8 +384,8 @@ pub const FKB: Layout = Layout {
     // The capture and resolve passes bind per-pixel slot bases and counts that FKB never reads.
     fixed: &[
         ("params", PARAMS_BYTES),
-        ("fkb.unused_offsets", 16),
-        ("fkb.unused_counts", 16),
+        ("fkb.unused_offsets", LEAST_BUFFER_BYTES),
+        ("fkb.unused_counts", LEAST_BUFFER_BYTES),
         STATUS,
     ],
     scan: false,
@@ -491,7 +491,11 @@ pub const LINKED_LIST: Layout = Layout {
     method: "linked-list",
     slot_bytes: 12,
     per_pixel: &[("list.heads", 4)],
-    fixed: &[("params", PARAMS_BYTES), ("list.counter", 16), STATUS],
+    fixed: &[
+        ("params", PARAMS_BYTES),
+        ("list.counter", LEAST_BUFFER_BYTES),
+        STATUS,
+    ],
     scan: false,
     weights: 0,
     tail_bytes: 0,
@@ -511,7 +515,7 @@ pub const ABUFFER: Layout = Layout {
         OFFSETS_END,
         STATUS,
         // The submission indices MLAB alone stores, bound empty.
-        ("abuf.no_primitives", 16),
+        ("abuf.no_primitives", LEAST_BUFFER_BYTES),
     ],
     scan: true,
     weights: 0,
@@ -555,7 +559,7 @@ impl Layout {
     pub fn fixed_bytes(&self, pixels: u64) -> u64 {
         // The block totals; like every GPU buffer, at least 16 bytes.
         let scan = if self.scan {
-            (4 * pixels.div_ceil(SCAN_BLOCK)).max(crate::shared::LEAST_BUFFER_BYTES)
+            (4 * pixels.div_ceil(SCAN_BLOCK)).max(LEAST_BUFFER_BYTES)
         } else {
             0
         };
@@ -595,7 +599,7 @@ impl Layout {
                 ((ps.record_bytes + ps.list_bytes) * records.div_ceil(ps.batches))
                     .max(marks_bytes(pixels))
             })
-            .max(crate::shared::LEAST_BUFFER_BYTES)
+            .max(LEAST_BUFFER_BYTES)
     }
     /// The most bytes a frame of occupancy `occ` can allocate at F = `f`: its fixed bytes,
     /// `min(F, n)` slots (the most an allocation hands out) and, pooled, the words its pixels'
@@ -615,7 +619,7 @@ impl Layout {
     pub fn pool_for(&self, pixels: u64, f: u64, occ: &Occupancy) -> u64 {
         match self.pool_state {
             Some(_) => self.pool_bytes(pixels, f, occ),
-            None => (self.slot_bytes * occ.pool_words_at(f)).max(crate::shared::LEAST_BUFFER_BYTES),
+            None => (self.slot_bytes * occ.pool_words_at(f)).max(LEAST_BUFFER_BYTES),
         }
     }
     /// The bytes a budget of F slots comes to: what the layout reserves for them on a frame of
