@@ -258,8 +258,8 @@ pub(crate) fn check_view(view: usize, views: usize) -> Result<()> {
 /// rasterizes through).
 pub(crate) fn view_camera(scene: &Scene, view: usize, a: &ViewArgs) -> Camera {
     match a.camera.as_str() {
-        "asset" => Camera::asset(scene, (a.res.width, a.res.height)),
-        _ => Camera::orbit(scene, view, a.views, (a.res.width, a.res.height)),
+        "asset" => Camera::asset(scene, a.res.size()),
+        _ => Camera::orbit(scene, view, a.views, a.res.size()),
     }
 }
 
@@ -268,20 +268,17 @@ pub(crate) fn rasterize_view(
     view: usize,
     a: &ViewArgs,
 ) -> Result<(FragmentLists, f64)> {
-    let Resolution {
-        width: w,
-        height: h,
-    } = a.res;
     check_view(view, a.views)?;
     let cam = view_camera(scene, view, a);
     let t = Instant::now();
-    let fl = raster::rasterize(scene, &cam, (w, h))?;
+    let fl = raster::rasterize(scene, &cam, a.res.size())?;
     let ms = t.elapsed().as_secs_f64() * 1e3;
     eprintln!(
-        "{}: {} triangles, view {view}/{}, {w}x{h}: {} fragments, max depth complexity {} ({ms:.0} ms)",
+        "{}: {} triangles, view {view}/{}, {}: {} fragments, max depth complexity {} ({ms:.0} ms)",
         scene.name,
         scene.triangle_count(),
         a.views,
+        a.res,
         fl.fragment_count(),
         fl.max_depth_complexity(),
     );

@@ -89,7 +89,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         });
         return write_report(report, a.out.as_deref());
     }
-    let (w, h) = (a.res.width, a.res.height);
+    let size = a.res.size();
     let budget = a.budget;
     let names: Vec<String> = if a.scenes.is_empty() {
         scene::procedural::BUILTIN
@@ -109,7 +109,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     // the GPU it would be recorded as every scene's error). MLAB, measured on the CPU only,
     // needs less than FKB.
     for m in GPU_METHODS {
-        dhoit_runtime::frame::check_budget(budget, m, (w, h))?;
+        dhoit_runtime::frame::check_budget(budget, m, size)?;
     }
     // The report's folder too: a run on a lent GPU must not measure for minutes and then fail
     // to write what it measured.
@@ -139,19 +139,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 }
             }
         };
-        let gpu = gpu_bench(
-            &scenes,
-            (w, h),
-            budget,
-            (a.repeat, a.sequence),
-            &mut partial,
-        );
+        let gpu = gpu_bench(&scenes, size, budget, (a.repeat, a.sequence), &mut partial);
         write_summary(&gpu, a.summary.as_deref())?;
         return write_report(report(gpu), a.out.as_deref());
     }
     let results = scenes
         .iter()
-        .map(|(name, s)| cpu_scene_bench(name, s, (w, h), budget, a.repeat))
+        .map(|(name, s)| cpu_scene_bench(name, s, size, budget, a.repeat))
         .collect::<Result<Vec<_>>>()?;
     // The optimal allocation on the deepest scene measured, at two resolutions.
     let deepest = results
@@ -161,7 +155,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         .unwrap_or_else(|| "particles".into());
     let optimal = optimal_bench(&deepest, budget, a.repeat)?;
     let network = network_bench(a.repeat)?;
-    let gpu = gpu_bench(&scenes, (w, h), budget, (a.repeat, a.sequence), &mut |_| {});
+    let gpu = gpu_bench(&scenes, size, budget, (a.repeat, a.sequence), &mut |_| {});
     write_summary(&gpu, a.summary.as_deref())?;
     let report = serde_json::json!({
         "threads": rayon::current_num_threads(),

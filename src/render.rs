@@ -189,7 +189,7 @@ fn render_on_gpu(
     let cpu = renderer.allocate_for_gpu(method)?;
     let gpu = Gpu::new()?;
     eprintln!("GPU: {}", gpu.adapter());
-    let (w, h) = fl.size();
+    let size = fl.size();
     let cam = crate::args::view_camera(scene, a.view, &a.common);
     let slots = Slots::for_method(method, &cpu, options)?;
     // The GPU counts first and decides on its own count whether the exact A-buffer is
@@ -203,7 +203,7 @@ fn render_on_gpu(
         },
         ..FrameOptions::default()
     };
-    let g = gpu.render_with(&opts, scene, &cam, (w, h), a.common.background, slots)?;
+    let g = gpu.render_with(&opts, scene, &cam, size, a.common.background, slots)?;
     match g.pass_ms.is_empty() {
         true => println!(
             "GPU passes: {} (untimed: the device has no timestamps)",
@@ -231,7 +231,7 @@ fn render_on_gpu(
             gpu.render(
                 scene,
                 &cam,
-                (w, h),
+                size,
                 a.common.background,
                 dhoit_runtime::gpu::Slots::Exact,
             )?

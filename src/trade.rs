@@ -531,7 +531,7 @@ enum TimedFrame {
 pub fn trade(a: TradeArgs) -> Result<()> {
     // Every network at every precision: quality and time of each.
     let nets: Vec<Net> = networks_at(&a.quality, &a.precision)?;
-    let time_res = (a.time_res.width, a.time_res.height);
+    let time_res = a.time_res.size();
     let first_budget = *a
         .quality
         .budgets

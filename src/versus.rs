@@ -200,7 +200,7 @@ pub fn run(a: VersusArgs) -> Result<()> {
     let frames = a.scenes.len() * a.view_list.len();
     let report = Report {
         adapter: gpu.adapter().to_string(),
-        resolution: format!("{}x{}", a.common.res.width, a.common.res.height),
+        resolution: a.common.res.to_string(),
         views: a.view_list.clone(),
         scenes: loaded.iter().map(|s| s.name.clone()).collect(),
         budgets: a
@@ -258,8 +258,8 @@ fn measure(
     for s in loaded {
         for &view in &a.view_list {
             let (fl, _) = rasterize_view(s, view, &a.common)?;
-            let (w, h) = fl.size();
-            let cam = dhoit_runtime::scene::Camera::orbit(s, view, a.common.views, (w, h));
+            let size = fl.size();
+            let cam = dhoit_runtime::scene::Camera::orbit(s, view, a.common.views, size);
             let px = fl.pixel_count() as f64;
             let exact_bytes = budget::ABUFFER
                 .allocated_bytes(fl.pixel_count() as u64, fl.fragment_count() as u64);
@@ -312,10 +312,10 @@ fn measure(
                     let mut best = f64::INFINITY;
                     for _ in 0..a.repeat {
                         let g =
-                            gpu.render_with(&frame_opts, s, &cam, (w, h), opts.background, slots)?;
+                            gpu.render_with(&frame_opts, s, &cam, size, opts.background, slots)?;
                         best = best.min(g.pass_ms.iter().map(|p| p.1).sum());
                     }
-                    let (flip, _) = image_io::flip(&exact8, &image_io::to_srgb8(&f.image), (w, h));
+                    let (flip, _) = image_io::flip(&exact8, &image_io::to_srgb8(&f.image), size);
                     measures[bi][mi].push(Measure {
                         scene: s.name.clone(),
                         view,

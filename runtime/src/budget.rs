@@ -592,8 +592,9 @@ impl Layout {
     }
     /// The pool's least size whatever F: the state it holds first for `records` pixels with a
     /// record, a batch of the records and the network's list ([`PoolState::batches`] of them
-    /// at most), then the marks (16 bytes at least, as every buffer).
-    fn pool_least(&self, pixels: u64, records: u64) -> u64 {
+    /// at most), then the marks; [`LEAST_BUFFER_BYTES`] at least, as every buffer (all of it
+    /// where the layout's pool holds no state).
+    pub fn pool_least(&self, pixels: u64, records: u64) -> u64 {
         self.pool_state
             .map_or(0, |ps| {
                 ((ps.record_bytes + ps.list_bytes) * records.div_ceil(ps.batches))
@@ -639,13 +640,7 @@ impl Layout {
             return self.slots_after_fixed(bytes, pixels);
         }
         let fixed = self.fixed_bytes(pixels);
-        // The pool's least size whatever F: the state it holds first, and 16 bytes at least
-        // (as every buffer).
-        let least = if self.pool_state.is_some() {
-            self.pool_least(pixels, occ.deeper)
-        } else {
-            16
-        };
+        let least = self.pool_least(pixels, occ.deeper);
         let pool = bytes.checked_sub(fixed).filter(|&p| p >= least);
         // The slots left beside the words the pixels may take past them where k is at least
         // lo ([`Occupancy::extra_words_at`]): F at or above the covered pixels (lo 1), or

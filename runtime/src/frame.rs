@@ -257,10 +257,10 @@ fn check_slot_per_pixel(method: Method, given: Budget, f: u64, size: (u32, u32))
     Ok(())
 }
 
-/// Refuses, before any frame is rendered, a budget that cannot hold `method` at `size` (width, height): its
-/// fixed cost, and a slot for every pixel where the method needs one. A budget in bytes or in
-/// slots per pixel depends on the resolution alone; a share of the frame's fragments (and the
-/// exact A-buffer) passes here and is checked with each frame.
+/// Refuses, before any frame is rendered, a budget that cannot hold `method` at `size` (width,
+/// height): its fixed cost, and a slot for every pixel where the method needs one. A budget in
+/// bytes or in slots per pixel depends on the resolution alone; a share of the frame's
+/// fragments (and the exact A-buffer) passes here and is checked with each frame.
 pub fn check_budget(given: Budget, method: Method, size: (u32, u32)) -> Result<()> {
     let (w, h) = size;
     // The A-buffer, WBOIT and MBOIT take no budget: exact memory, fixed memory.

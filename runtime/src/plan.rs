@@ -197,15 +197,7 @@ pub fn ahead(
         PlanBudget::Fragments(b) => layout.pool_for(pixels, b.of(occ.fragments), occ),
     };
     let pool = match exact_when_cheaper {
-        // The least pool whatever F: the state DKB's holds first.
-        true => pool.min((SLOT_BYTES * occ.fragments).max(layout.pool_for(
-            pixels,
-            0,
-            &Occupancy {
-                fragments: 0,
-                ..*occ
-            },
-        ))),
+        true => pool.min((SLOT_BYTES * occ.fragments).max(layout.pool_least(pixels, occ.deeper))),
         false => pool,
     };
     let pool_bytes = pool.max(crate::shared::LEAST_BUFFER_BYTES);
@@ -548,7 +540,7 @@ mod tests {
                     let bytes = [abuffer / 2, abuffer, 3 * abuffer].map(PlanBudget::Bytes);
                     for b in shares.into_iter().chain(bytes) {
                         let a = ahead(&layout, b, px, &o, words, true);
-                        let least = layout.pool_for(px, 0, &occ(0, o.covered, o.deep, o.deeper));
+                        let least = layout.pool_least(px, o.deeper);
                         assert!(a.pool_bytes <= (SLOT_BYTES * o.fragments).max(least));
                         let input = PlanInput {
                             layout,

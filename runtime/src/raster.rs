@@ -62,6 +62,13 @@ pub struct Resolution {
     pub height: u32,
 }
 
+impl Resolution {
+    /// (width, height), the size every function takes.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+}
+
 impl std::str::FromStr for Resolution {
     type Err = Error;
     fn from_str(s: &str) -> Result<Resolution> {

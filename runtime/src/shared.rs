@@ -62,6 +62,7 @@ pub const BATCH_LO: u32 = 1;
 pub const BATCH_SIZE: u32 = 2;
 /// ... and the rows the network ran in the batches before.
 pub const BATCH_ROWS_BEFORE: u32 = 3;
+/// Words of the batch buffer.
 pub const BATCH_WORDS: u32 = 4;
 /// Bytes of the frame's plan's parameters (`wgsl::PlanParams`, whose size a test holds to it).
 pub const PLAN_PARAMS_BYTES: u64 = 64;

@@ -383,8 +383,8 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
             [c; 3],
         );
     }
-    let (w, h) = (4u32, 4u32);
-    let fl = rasterize(&s, &identity(), (w, h)).unwrap();
+    let size = (4u32, 4u32);
+    let fl = rasterize(&s, &identity(), size).unwrap();
     assert!(fl.counts().iter().all(|&n| n == 3000));
     let mlp = Mlp::random(2);
     for b in ["4fpp", "64fpp", "25%"] {
@@ -405,7 +405,7 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
                 Method::Dkb => Slots::Dkb(&mlp, f.into()),
                 _ => Slots::PerPixel(&cpu.k),
             };
-            match g.render_method(&s, &identity(), (w, h), BG, slots) {
+            match g.render_method(&s, &identity(), size, BG, slots) {
                 Ok(frame) => {
                     let d = frame.image.max_abs_diff(&cpu.image);
                     assert!(d <= TOLERANCE, "{} at {b}: GPU differs by {d}", m.name());
@@ -459,7 +459,7 @@ fn skipping_forced_pixels_leaves_the_frame_unchanged() {
         [0.9, 0.9, 0.2, 0.4],
     );
     let mlp = Mlp::random(6);
-    let (w, h) = (64u32, 48u32);
+    let size = (64u32, 48u32);
     // 75% holds a slot for every covered pixel (lo = 1): a pixel of three fragments has a
     // record and its k is forced (a pooled pixel keeps all three from k = 1).
     for f in [
@@ -470,7 +470,7 @@ fn skipping_forced_pixels_leaves_the_frame_unchanged() {
         for skip in [true, false] {
             o.tuning.skip_forced = skip;
             let fr = g
-                .render_with(&o, &s, &identity(), (w, h), BG, Slots::Dkb(&mlp, f.into()))
+                .render_with(&o, &s, &identity(), size, BG, Slots::Dkb(&mlp, f.into()))
                 .unwrap();
             frames.push(fr);
         }

@@ -11,14 +11,8 @@ use dhoit_runtime::raster::rasterize;
 use dhoit_runtime::scene::{self, Camera, Opacity};
 
 fn frame(name: &str, size: (u32, u32)) -> FragmentLists {
-    let (w, h) = size;
     let s = scene::load(name, Opacity::default()).unwrap();
-    rasterize(
-        &s,
-        &Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, (w, h)),
-        (w, h),
-    )
-    .unwrap()
+    rasterize(&s, &Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, size), size).unwrap()
 }
 
 #[test]
@@ -565,13 +559,8 @@ fn on_held_out_frames_the_allocations_keep_their_quality_order() {
         ("particles", Budget::SlotsPerPixel(2.0), 2.46, 1.0),
     ] {
         let s = scene::load(name, Opacity::default()).unwrap();
-        let (w, h) = (96, 72);
-        let fl = rasterize(
-            &s,
-            &Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, (w, h)),
-            (w, h),
-        )
-        .unwrap();
+        let size = (96, 72);
+        let fl = rasterize(&s, &Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, size), size).unwrap();
         let opts = Options {
             weights: Some(&mlp),
             ..Options::new(budget, [0.2, 0.3, 0.4]).always_approximate()

@@ -334,7 +334,7 @@ fn each_alpha_mode_loads_and_renders_as_the_specification_says() {
     }
     // Each masked material alone: the share of its pixels the cutoff keeps falls as the
     // cutoff rises, between all (alpha ignored) and none.
-    let (w, h) = (256, 192);
+    let size = (256, 192);
     let mut kept = Vec::new();
     for c in &cutoffs {
         let alone = |coverage: Coverage| {
@@ -348,7 +348,7 @@ fn each_alpha_mode_loads_and_renders_as_the_specification_says() {
                 }
             }
             // Move every other triangle out of view (behind the camera's far plane).
-            let cam = Camera::orbit(&s, 0, 8, (w, h));
+            let cam = Camera::orbit(&s, 0, 8, size);
             for (t, k) in keep.iter().enumerate() {
                 if !k {
                     for v in 0..3 {
@@ -356,7 +356,7 @@ fn each_alpha_mode_loads_and_renders_as_the_specification_says() {
                     }
                 }
             }
-            let fl = rasterize(&one, &cam, (w, h)).unwrap();
+            let fl = rasterize(&one, &cam, size).unwrap();
             fl.opaque.iter().filter(|&&o| o >> 24 != 0).count()
         };
         let (all, masked) = (alone(Coverage::Opaque), alone(Coverage::Mask(*c)));

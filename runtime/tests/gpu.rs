@@ -81,7 +81,6 @@ fn every_shader_validates_and_translates_without_a_gpu() {
 const REAL: &str = "real:FlightHelmet/glTF/FlightHelmet.gltf";
 
 fn frame(name: &str, view: usize, size: (u32, u32)) -> (Scene, Camera) {
-    let (w, h) = size;
     let s = match name.strip_prefix("real:") {
         Some(rel) => {
             // On a clone with nothing beside it, a textured-looking built-in written as glTF
@@ -92,11 +91,16 @@ fn frame(name: &str, view: usize, size: (u32, u32)) -> (Scene, Camera) {
         }
         None => scene::load(name, Opacity::default()).unwrap(),
     };
-    let cam = Camera::orbit(&s, view, scene::DEFAULT_VIEWS, (w, h));
+    let cam = Camera::orbit(&s, view, scene::DEFAULT_VIEWS, size);
     (s, cam)
 }
 
 const BG: [f32; 3] = [0.9, 0.8, 1.0];
+
+/// VKB at F slots with the paper's parameters.
+fn vkb_at(f: u64) -> Slots<'static> {
+    Slots::Vkb(Default::default(), f.into())
+}
 
 /// The GPU's own fragments of a frame (its A-buffer, read back), which the twins take.
 fn gpu_fragments(
@@ -105,8 +109,7 @@ fn gpu_fragments(
     cam: &Camera,
     size: (u32, u32),
 ) -> FragmentLists {
-    let (w, h) = size;
-    g.render_method(s, cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
+    g.render_method(s, cam, size, BG, dhoit_runtime::gpu::Slots::Exact)
         .unwrap()
         .fragments
         .unwrap()
@@ -116,14 +119,14 @@ fn gpu_fragments(
 fn abuffer_matches_the_cpu_on_its_own_fragments() {
     let Some(g) = gpu() else { return };
     for (name, view) in [("shells", 0), ("plates", 1), ("particles", 2), (REAL, 1)] {
-        let (w, h) = (96, 72);
-        let (s, cam) = frame(name, view, (w, h));
+        let size = (96, 72);
+        let (s, cam) = frame(name, view, size);
         let f = g
-            .render_method(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
+            .render_method(&s, &cam, size, BG, dhoit_runtime::gpu::Slots::Exact)
             .unwrap();
         let gfl = f.fragments.as_ref().unwrap();
         // Coverage against the CPU rasterizer.
-        let cpu = rasterize(&s, &cam, (w, h)).unwrap();
+        let cpu = rasterize(&s, &cam, size).unwrap();
         let differ = (0..cpu.pixel_count())
             .filter(|&p| cpu.count(p) != gfl.count(p))
             .count();
@@ -162,9 +165,9 @@ fn twin_capture(fl: &FragmentLists, k: &[u32]) -> (Vec<u64>, Vec<u32>) {
 fn kbuffers_match_the_cpu_slot_for_slot() {
     let Some(g) = gpu() else { return };
     for (name, view) in [("hair", 0), ("particles", 1), (REAL, 2)] {
-        let (w, h) = (80, 60);
-        let (s, cam) = frame(name, view, (w, h));
-        let gfl = gpu_fragments(g, &s, &cam, (w, h));
+        let size = (80, 60);
+        let (s, cam) = frame(name, view, size);
+        let gfl = gpu_fragments(g, &s, &cam, size);
         let pixels = gfl.pixel_count();
         // FKB with k = 2, and the optimal allocation at 1.5 slots per pixel uploaded as k.
         let curves = alloc::error_curves(&gfl, BG);
@@ -175,7 +178,7 @@ fn kbuffers_match_the_cpu_slot_for_slot() {
             } else {
                 Slots::PerPixel(&k)
             };
-            let f = g.render_method(&s, &cam, (w, h), BG, slots).unwrap();
+            let f = g.render_method(&s, &cam, size, BG, slots).unwrap();
             let (keys, bases, tails) = f.slots.clone().unwrap();
             let (twin_keys, twin_tails) = twin_capture(&gfl, &k);
             assert_eq!(
@@ -479,14 +482,13 @@ fn features_and_network_layouts_give_the_same_frame(
     o.tuning.features_preload = true;
     o.tuning.unrolled_network = true;
     // DKB's, VKB's and uploaded importance's frames: the references of the frames below.
-    let vkb = |f: u64| Slots::Vkb(Default::default(), f.into());
     let dkb = |f: u64| Slots::Dkb(mlp, f.into());
     let mut rng = dhoit_runtime::rng::Rng::new(11);
     let uploaded: Vec<f32> = (0..w * h).map(|_| rng.f32()).collect();
     let upload = |f: u64| Slots::Importance(&uploaded, alloc::Target::RelativeK, f.into());
     let slots = |method: &str, f: u64| match method {
         "dkb" => dkb(f),
-        "vkb" => vkb(f),
+        "vkb" => vkb_at(f),
         _ => upload(f),
     };
     let methods = ["dkb", "vkb", "uploaded"];
@@ -571,14 +573,14 @@ fn layer_major_slots_capture_what_pixel_major_ones_do() {
         return;
     }
     let g = dhoit_runtime::gpu::Gpu::new().unwrap();
-    let (w, h) = (80, 60);
+    let size = (80, 60);
     for (name, view) in [("particles", 1), ("hair", 0)] {
-        let (s, cam) = frame(name, view, (w, h));
-        let gfl = gpu_fragments(&g, &s, &cam, (w, h));
+        let (s, cam) = frame(name, view, size);
+        let gfl = gpu_fragments(&g, &s, &cam, size);
         for k in [1u32, 3] {
             let frames = [false, true].map(|layer_major| {
                 o.tuning.layer_major_fkb = layer_major;
-                g.render_with(&o, &s, &cam, (w, h), BG, Slots::Uniform(k))
+                g.render_with(&o, &s, &cam, size, BG, Slots::Uniform(k))
                     .unwrap()
             });
             let (twin_keys, twin_tails) = twin_capture(&gfl, &vec![k; gfl.pixel_count()]);
@@ -603,7 +605,7 @@ fn layer_major_slots_capture_what_pixel_major_ones_do() {
             );
             // Layer-major, as the last frame.
             let shuffled = g
-                .render_with(&o, &s.shuffled(5), &cam, (w, h), BG, Slots::Uniform(k))
+                .render_with(&o, &s.shuffled(5), &cam, size, BG, Slots::Uniform(k))
                 .unwrap();
             assert!(image_bits(&shuffled.image) == image_bits(&frames[1].image));
             o.tuning.layer_major_fkb = false;
@@ -704,15 +706,7 @@ fn allocated_bytes_never_exceed_the_budget() {
                 checked[0] += 1;
             }
             if let Ok((m, f)) = budget.resolve(&budget::VKB, px, 0) {
-                let frame = g
-                    .render_method(
-                        &s,
-                        &cam,
-                        (w, h),
-                        BG,
-                        Slots::Vkb(Default::default(), f.into()),
-                    )
-                    .unwrap();
+                let frame = g.render_method(&s, &cam, (w, h), BG, vkb_at(f)).unwrap();
                 assert!(
                     frame.allocated_bytes <= m,
                     "{w}x{h} {b} vkb: {} > {m}",
@@ -745,12 +739,10 @@ fn allocated_bytes_never_exceed_the_budget() {
 fn mlab_matches_the_cpu_in_submission_order() {
     let Some(g) = gpu() else { return };
     for (name, m) in [("particles", 2u32), ("foliage", 4)] {
-        let (w, h) = (64, 48);
-        let (s, cam) = frame(name, 1, (w, h));
-        let gfl = gpu_fragments(g, &s, &cam, (w, h));
-        let f = g
-            .render_method(&s, &cam, (w, h), BG, Slots::Mlab(m))
-            .unwrap();
+        let size = (64, 48);
+        let (s, cam) = frame(name, 1, size);
+        let gfl = gpu_fragments(g, &s, &cam, size);
+        let f = g.render_method(&s, &cam, size, BG, Slots::Mlab(m)).unwrap();
         // The CPU twin takes each pixel's fragments in submission order.
         let twin: Vec<[f32; 3]> = (0..gfl.pixel_count())
             .map(|p| {
@@ -796,16 +788,14 @@ fn the_search_brackets_the_last_answer_of_its_kind() {
     // A device of its own: the last answers are the device's, and the other tests' frames run
     // on the shared one meanwhile.
     let g = &dhoit_runtime::gpu::Gpu::new().unwrap();
-    let (w, h) = (96, 72);
-    let (s, cam) = frame("particles", 1, (w, h));
-    let counts = gpu_fragments(g, &s, &cam, (w, h)).counts();
+    let size = (96, 72);
+    let (s, cam) = frame("particles", 1, size);
+    let counts = gpu_fragments(g, &s, &cam, size).counts();
     let total: u64 = counts.iter().map(|&n| n as u64).sum();
     let mut rng = dhoit_runtime::rng::Rng::new(8);
     let imp: Vec<f32> = (0..counts.len()).map(|_| rng.f32()).collect();
     let run = |target: alloc::Target, f: u64| {
-        let a = g
-            .allocate(&s, &cam, (w, h), &imp, target, f.into())
-            .unwrap();
+        let a = g.allocate(&s, &cam, size, &imp, target, f.into()).unwrap();
         assert!(
             a.k == alloc::allocate(&imp, &counts, target, f),
             "{target:?} F {f}: k differs from the twin's"
@@ -834,9 +824,9 @@ fn the_search_brackets_the_last_answer_of_its_kind() {
 #[test]
 fn the_allocation_pass_matches_its_cpu_twin() {
     let Some(g) = gpu() else { return };
-    let (w, h) = (64, 48);
-    let (s, cam) = frame("hair", 2, (w, h));
-    let gfl = gpu_fragments(g, &s, &cam, (w, h));
+    let size = (64, 48);
+    let (s, cam) = frame("hair", 2, size);
+    let gfl = gpu_fragments(g, &s, &cam, size);
     let counts = gfl.counts();
     let pixels = counts.len();
     let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
@@ -885,13 +875,7 @@ fn the_allocation_pass_matches_its_cpu_twin() {
             total + 100,
         ] {
             let frame = g
-                .render_method(
-                    &s,
-                    &cam,
-                    (w, h),
-                    BG,
-                    Slots::Importance(imp, target, f.into()),
-                )
+                .render_method(&s, &cam, size, BG, Slots::Importance(imp, target, f.into()))
                 .unwrap();
             let (keys, bases, tails) = frame.slots.unwrap();
             let k_gpu: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
@@ -1114,16 +1098,16 @@ fn dkb_frames_run_the_f16_math_network_like_its_twin() {
     .unwrap();
     let half = f32_net.at_precision(Precision::F16Math).unwrap();
     for (name, view) in [("particles", 0), ("shells", 2)] {
-        let (w, h) = (72, 54);
-        let (s, cam) = frame(name, view, (w, h));
-        let gfl = gpu_fragments(g, &s, &cam, (w, h));
+        let size = (72, 54);
+        let (s, cam) = frame(name, view, size);
+        let gfl = gpu_fragments(g, &s, &cam, size);
         let f = gfl.pixel_count() as u64;
         assert!(
             f < gfl.fragment_count() as u64,
             "{name}: the budget truncates"
         );
         let d = g
-            .render_method(&s, &cam, (w, h), BG, Slots::Dkb(&half, f.into()))
+            .render_method(&s, &cam, size, BG, Slots::Dkb(&half, f.into()))
             .unwrap();
         let (feats, counts) = network_inputs(&importance::pixel_stats(&gfl), f);
         let twin = half.dkb_importance_pooled(&feats, &counts, f);
@@ -1212,15 +1196,7 @@ fn a_large_allocation_matches_its_twin() {
     let gfl = gpu_fragments(g, &s, &cam, (w, h));
     for fpp in [0.5, 1.0] {
         let f = (fpp * (w * h) as f64) as u64;
-        let v = g
-            .render_method(
-                &s,
-                &cam,
-                (w, h),
-                BG,
-                Slots::Vkb(Default::default(), f.into()),
-            )
-            .unwrap();
+        let v = g.render_method(&s, &cam, (w, h), BG, vkb_at(f)).unwrap();
         let imp = v.importance.clone().unwrap();
         let (_, bases, _) = v.slots.unwrap();
         let k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
@@ -1269,21 +1245,18 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
         s.push_triangle([v(x1, -1.0, z), v(x1, y1, z), v(x0, y1, z)], [c; 3]);
     }
     let cam = common::identity();
-    let (w, h) = (48, 32);
-    let gfl = gpu_fragments(&g, &s, &cam, (w, h));
+    let size = (48, 32);
+    let gfl = gpu_fragments(&g, &s, &cam, size);
     let counts = gfl.counts();
     let total = gfl.fragment_count() as u64;
     let mlp = dhoit_runtime::mlp::Mlp::random(6);
     let wide = common::is_wide(&g, "which capture a frame that fits ran (its own pipeline)");
     for f in [total / 4, total / 2, total - 40, total, total + 100] {
-        for (label, slots) in [
-            ("dkb", Slots::Dkb(&mlp, f.into())),
-            ("vkb", Slots::Vkb(Default::default(), f.into())),
-        ] {
-            let frame = g.render_with(&o, &s, &cam, (w, h), BG, slots).unwrap();
+        for (label, slots) in [("dkb", Slots::Dkb(&mlp, f.into())), ("vkb", vkb_at(f))] {
+            let frame = g.render_with(&o, &s, &cam, size, BG, slots).unwrap();
             if f >= total {
                 o.tuning.fits_pipelines = false;
-                let two_mode = g.render_with(&o, &s, &cam, (w, h), BG, slots).unwrap();
+                let two_mode = g.render_with(&o, &s, &cam, size, BG, slots).unwrap();
                 o.tuning.fits_pipelines = true;
                 assert!(
                     !wide
@@ -1364,7 +1337,7 @@ fn the_two_mode_capture_appends_what_fits_and_inserts_the_rest_like_its_twin() {
             // Any submission order: the same image bits.
             for seed in 0..3 {
                 let shuffled = g
-                    .render_method(&s.shuffled(seed), &cam, (w, h), BG, slots)
+                    .render_method(&s.shuffled(seed), &cam, size, BG, slots)
                     .unwrap();
                 assert!(
                     image_bits(&shuffled.image) == image_bits(&frame.image),
@@ -1462,17 +1435,17 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
     let Some((o, g, max, mlp)) = deep_pixel_setup() else {
         return;
     };
-    let (w, h) = (2, 2);
+    let size = (2, 2);
     // At the limit both rasterizers take the frame and the tails' sums are exact.
     let (s, cam) = deep_pixels(max);
-    let fl = rasterize(&s, &cam, (w, h)).unwrap();
+    let fl = rasterize(&s, &cam, size).unwrap();
     assert_eq!(fl.count(0) as usize, max);
     let twin_stats = importance::pixel_stats(&fl);
     let (f, vkb) = (8u64, Slots::Vkb(Default::default(), 8u64.into()));
     {
         let dkb = Slots::Dkb(&mlp, f.into());
         for (name, slots) in [("FKB", Slots::Uniform(2)), ("VKB", vkb), ("DKB", dkb)] {
-            let frame = g.render_with(&o, &s, &cam, (w, h), BG, slots).unwrap();
+            let frame = g.render_with(&o, &s, &cam, size, BG, slots).unwrap();
             let bases = &frame.slots.as_ref().unwrap().1;
             let k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
             let twin = composite::composite(&fl, composite::Method::Hybrid(&k), BG);
@@ -1510,7 +1483,7 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
     // One more: the CPU refuses it, and so does every GPU method (not an image whose tail
     // is wrong, or a sort of that length), naming the pixel and its count.
     let (s, cam) = deep_pixels(max + 1);
-    let cpu = rasterize(&s, &cam, (w, h)).unwrap_err().to_string();
+    let cpu = rasterize(&s, &cam, size).unwrap_err().to_string();
     assert!(cpu.contains(&format!("has {} fragments", max + 1)), "{cpu}");
     let k = vec![3u32; 4];
     let methods: [(&str, Slots); 6] = [
@@ -1522,7 +1495,7 @@ fn a_pixel_deeper_than_the_tails_sums_hold_is_refused_by_every_method() {
         ("DKB", Slots::Dkb(&mlp, f.into())),
     ];
     for (name, slots) in methods {
-        let Err(e) = g.render_with(&o, &s, &cam, (w, h), BG, slots) else {
+        let Err(e) = g.render_with(&o, &s, &cam, size, BG, slots) else {
             panic!("{name}: a pixel of {} fragments gave a frame", max + 1)
         };
         let e = e.to_string();
@@ -1571,7 +1544,7 @@ fn a_pixel_of_two_to_the_sixteen_fragments_leaves_its_neighbours_count_alone() {
     let f = 8u64;
     let methods: [(&str, Slots); 3] = [
         ("A-buffer", Slots::Exact),
-        ("VKB", Slots::Vkb(Default::default(), f.into())),
+        ("VKB", vkb_at(f)),
         ("DKB", Slots::Dkb(&mlp, f.into())),
     ];
     for (name, slots) in methods {
@@ -1592,10 +1565,10 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
     use dhoit_runtime::frame::{Method, Options, Renderer};
     let Some(g) = gpu() else { return };
     let mlp = dhoit_runtime::mlp::Mlp::random(4);
-    let (w, h) = (80, 60);
+    let size = (80, 60);
     for name in ["spheres", "cad"] {
-        let (s, cam) = frame(name, 1, (w, h));
-        let gfl = gpu_fragments(g, &s, &cam, (w, h));
+        let (s, cam) = frame(name, 1, size);
+        let gfl = gpu_fragments(g, &s, &cam, size);
         let total = gfl.fragment_count() as u64;
         let px = gfl.pixel_count() as u64;
         let sum_n: u64 = gfl.counts().iter().map(|&n| n as u64).sum();
@@ -1620,7 +1593,7 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
                     mlp.target,
                 ),
             ] {
-                let frame = g.render_method(&s, &cam, (w, h), BG, slots).unwrap();
+                let frame = g.render_method(&s, &cam, size, BG, slots).unwrap();
                 let (_, bases, _) = frame.slots.clone().unwrap();
                 // The allocation of the frame's importance hands out exactly min(F, sum n)
                 // slots, and the frame stores it (shared::stored_k).
@@ -1655,7 +1628,7 @@ fn relative_budgets_allocate_a_share_of_the_frames_own_fragments() {
                 );
             }
             // The CPU: the same F from the same count, and memory for exactly that.
-            let fl = dhoit_runtime::raster::rasterize(&s, &cam, (w, h)).unwrap();
+            let fl = dhoit_runtime::raster::rasterize(&s, &cam, size).unwrap();
             assert_eq!(
                 fl.fragment_count() as u64,
                 total,
@@ -1839,15 +1812,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         let label = format!("dkb {w}x{h} batched");
         check_allocation_and_capture(&sfl, &d, &imp, few, mlp.target, &label);
         // VKB and FKB too.
-        let v = g
-            .render_method(
-                &s,
-                &cam,
-                (w, h),
-                BG,
-                Slots::Vkb(Default::default(), f.into()),
-            )
-            .unwrap();
+        let v = g.render_method(&s, &cam, (w, h), BG, vkb_at(f)).unwrap();
         check_allocation_and_capture(
             &gfl,
             &v,
@@ -2034,10 +1999,10 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
     // A device of its own: which passes a frame records follows the device's last frame.
     let g = dhoit_runtime::gpu::Gpu::new().unwrap();
     let mlp = dhoit_runtime::mlp::Mlp::random(8);
-    let (w, h) = (64, 48);
+    let size = (64, 48);
     for (name, view) in [("particles", 1), ("cad", 0)] {
-        let (s, cam) = frame(name, view, (w, h));
-        let gfl = gpu_fragments(&g, &s, &cam, (w, h));
+        let (s, cam) = frame(name, view, size);
+        let gfl = gpu_fragments(&g, &s, &cam, size);
         let counts = gfl.counts();
         let covered = counts.iter().filter(|&&n| n > 0).count() as u32;
         // A slot for every covered pixel (lo = 1): a pixel of three fragments has a record and
@@ -2060,7 +2025,7 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
         for (skip, want) in [(true, decided), (false, recorded)] {
             o.tuning.skip_forced = skip;
             let frame = g
-                .render_with(&o, &s, &cam, (w, h), BG, Slots::Dkb(&mlp, f.into()))
+                .render_with(&o, &s, &cam, size, BG, Slots::Dkb(&mlp, f.into()))
                 .unwrap();
             assert_eq!(
                 frame.network_rows,
@@ -2076,7 +2041,7 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
                 &o,
                 &s,
                 &cam,
-                (w, h),
+                size,
                 BG,
                 Slots::Dkb(&mlp, (covered as u64).into()),
             )
@@ -2088,7 +2053,7 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
         let few = (covered as u64 / 8).max(1);
         assert_eq!(alloc::min_k(&counts, few), 0);
         let frame = g
-            .render_with(&o, &s, &cam, (w, h), BG, Slots::Dkb(&mlp, few.into()))
+            .render_with(&o, &s, &cam, size, BG, Slots::Dkb(&mlp, few.into()))
             .unwrap();
         assert!(
             frame.record_batches.is_some_and(|b| b > 1),
@@ -2411,8 +2376,8 @@ fn the_portable_capture_leaves_the_wide_captures_slots_and_image() {
     let Some(g) = gpu() else { return };
     let s = common::tied_layers(composite::APPEND_MAX as usize + 9);
     let cam = common::identity();
-    let (w, h) = (24, 16);
-    let gfl = gpu_fragments(g, &s, &cam, (w, h));
+    let size = (24, 16);
+    let gfl = gpu_fragments(g, &s, &cam, size);
     // Ties: pixels whose fragments share a depth.
     let ties = (0..gfl.pixel_count())
         .filter(|&p| {
@@ -2434,10 +2399,7 @@ fn the_portable_capture_leaves_the_wide_captures_slots_and_image() {
     ];
     for f in [total / 4, total / 2, total] {
         runs.push((format!("dkb F = {f}"), Slots::Dkb(&mlp, f.into())));
-        runs.push((
-            format!("vkb F = {f}"),
-            Slots::Vkb(Default::default(), f.into()),
-        ));
+        runs.push((format!("vkb F = {f}"), vkb_at(f)));
     }
     let wide = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
     let portable = dhoit_runtime::gpu::FrameOptions {
@@ -2448,10 +2410,8 @@ fn the_portable_capture_leaves_the_wide_captures_slots_and_image() {
         return;
     }
     for (label, slots) in runs {
-        let a = g.render_with(&wide, &s, &cam, (w, h), BG, slots).unwrap();
-        let b = g
-            .render_with(&portable, &s, &cam, (w, h), BG, slots)
-            .unwrap();
+        let a = g.render_with(&wide, &s, &cam, size, BG, slots).unwrap();
+        let b = g.render_with(&portable, &s, &cam, size, BG, slots).unwrap();
         assert!(
             b.variants.contains(&"capture: portable") && !a.variants.contains(&"capture: portable"),
             "{label}: ran {:?} / {:?}",
@@ -2485,7 +2445,7 @@ fn the_portable_capture_leaves_the_wide_captures_slots_and_image() {
             let shuffled = s.shuffled(seed);
             for (opts, name) in [(&wide, "wide"), (&portable, "portable")] {
                 let f = g
-                    .render_with(opts, &shuffled, &cam, (w, h), BG, slots)
+                    .render_with(opts, &shuffled, &cam, size, BG, slots)
                     .unwrap();
                 assert!(
                     image_bits(&f.image) == image_bits(&a.image),

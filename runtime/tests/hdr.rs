@@ -364,10 +364,10 @@ fn light_above_white_on_the_gpu_is_its_twins() {
 /// layout's and a word a slot (FKB) or pool word.
 #[test]
 fn a_byte_budget_holds_the_words_of_light_above_white() {
-    let (w, h) = SIZE;
+    let size = SIZE;
     let weights = common::committed_weights();
     let s = bright_scene();
-    let fl = rasterize(&s, &identity(), (w, h)).unwrap();
+    let fl = rasterize(&s, &identity(), size).unwrap();
     let mut clamped = fl.clone();
     clamped.tint.clear();
     clamped

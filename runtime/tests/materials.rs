@@ -443,16 +443,16 @@ const STEP: f32 = 1.0 / 255.0;
 #[test]
 fn materials_render_alike_on_cpu_and_gpu() {
     let Some(g) = gpu() else { return };
-    let (w, h) = SIZE;
+    let size = SIZE;
     let mlp = Mlp::random(9);
     let (mut channels, mut off) = (0usize, 0usize);
     for (name, s) in scenes() {
         s.check().unwrap();
         for view in 0..4 {
             let cam = camera(&s, view);
-            let fl = rasterize(&s, &cam, (w, h)).unwrap();
+            let fl = rasterize(&s, &cam, size).unwrap();
             let gpu_ab = g
-                .render(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
+                .render(&s, &cam, size, BG, dhoit_runtime::gpu::Slots::Exact)
                 .unwrap();
             let gfl = gpu_ab.fragments.clone().unwrap();
             // The GPU's own fragments (its opaque layer too) through the CPU twin: its image.
@@ -509,7 +509,7 @@ fn materials_render_alike_on_cpu_and_gpu() {
 #[test]
 fn tinted_glass_renders_alike_on_cpu_and_gpu() {
     let Some(g) = gpu() else { return };
-    let (w, h) = SIZE;
+    let size = SIZE;
     for (name, grey) in [
         ("occluders and glass", occluded()),
         ("stained glass and emission", stained_glass_and_emission()),
@@ -522,11 +522,11 @@ fn tinted_glass_renders_alike_on_cpu_and_gpu() {
         let (mut tinted_views, mut grey_differ) = (0, 0);
         for view in 0..4 {
             let cam = camera(&s, view);
-            let fl = rasterize(&s, &cam, (w, h)).unwrap();
+            let fl = rasterize(&s, &cam, size).unwrap();
             assert!(fl.tinted() || fl.fragment_count() == 0);
             tinted_views += fl.tint.iter().any(|&g| g != CLEAR) as usize;
             let gpu_ab = g
-                .render(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
+                .render(&s, &cam, size, BG, dhoit_runtime::gpu::Slots::Exact)
                 .unwrap();
             let gfl = gpu_ab.fragments.clone().unwrap();
             assert_eq!(
@@ -546,7 +546,7 @@ fn tinted_glass_renders_alike_on_cpu_and_gpu() {
                 "{name} view {view}: {o} of {c} channels one step apart"
             );
             let grey_ab = g
-                .render(&grey, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
+                .render(&grey, &cam, size, BG, dhoit_runtime::gpu::Slots::Exact)
                 .unwrap();
             // Its tints are 4 bytes a fragment beside the grey frame's, on the GPU and in the
             // CPU's count alike (where the grey frame's colours keep their exponent, it stores
@@ -557,7 +557,7 @@ fn tinted_glass_renders_alike_on_cpu_and_gpu() {
             };
             assert_eq!(gpu_ab.allocated_bytes, grey_ab.allocated_bytes + 4 * n);
             let cpu_bytes = |s: &Scene| {
-                let fl = rasterize(s, &cam, (w, h)).unwrap();
+                let fl = rasterize(s, &cam, size).unwrap();
                 let opts = Options::new(Budget::parse("2fpp").unwrap(), BG);
                 frame::render(&fl, Method::Abuffer, opts)
                     .unwrap()
@@ -638,7 +638,7 @@ fn colours_agree(cpu: &FragmentLists, gpu: &FragmentLists, what: &str) -> (usize
 #[test]
 fn no_fragment_behind_an_opaque_surface_is_counted() {
     let Some(g) = gpu() else { return };
-    let (w, h) = SIZE;
+    let size = SIZE;
     for (name, s) in scenes() {
         let mut all = s.clone();
         for m in &mut all.materials {
@@ -655,8 +655,8 @@ fn no_fragment_behind_an_opaque_surface_is_counted() {
         }
         for view in 0..4 {
             let cam = camera(&s, view);
-            let fl = rasterize(&s, &cam, (w, h)).unwrap();
-            let every = rasterize(&all, &cam, (w, h)).unwrap();
+            let fl = rasterize(&s, &cam, size).unwrap();
+            let every = rasterize(&all, &cam, size).unwrap();
             let opaque = |prim: u32| !s.transparent(prim as usize);
             let masked = |prim: u32| s.material_of(prim as usize).cutoff().is_some();
             let mut expected = 0u64;
@@ -682,7 +682,7 @@ fn no_fragment_behind_an_opaque_surface_is_counted() {
                 expected += visible as u64;
             }
             let gpu = g
-                .render(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
+                .render(&s, &cam, size, BG, dhoit_runtime::gpu::Slots::Exact)
                 .unwrap()
                 .fragments
                 .unwrap();
@@ -707,14 +707,14 @@ fn no_fragment_behind_an_opaque_surface_is_counted() {
 fn transparent_layers_are_composited_over_the_opaque_image() {
     let s = occluded();
     let cam = camera(&s, 2);
-    let (w, h) = SIZE;
-    let fl = rasterize(&s, &cam, (w, h)).unwrap();
+    let size = SIZE;
+    let fl = rasterize(&s, &cam, size).unwrap();
     let mut all = s.clone();
     for m in &mut all.materials {
         m.coverage = Coverage::Blend;
         m.transmission = 0.0;
     }
-    let every = rasterize(&all, &cam, (w, h)).unwrap();
+    let every = rasterize(&all, &cam, size).unwrap();
     assert!(
         every.fragment_count() > 2 * fl.fragment_count(),
         "the occluders hide most fragments: {} of {}",
@@ -742,7 +742,7 @@ fn transparent_layers_are_composited_over_the_opaque_image() {
 #[test]
 fn real_scenes_with_their_materials_render_alike_on_cpu_and_gpu() {
     let Some(g) = gpu() else { return };
-    let (w, h) = SIZE;
+    let size = SIZE;
     let mlp = Mlp::random(9);
     let (mut channels, mut off) = (0usize, 0usize);
     for (rel, stand_in) in [
@@ -754,9 +754,9 @@ fn real_scenes_with_their_materials_render_alike_on_cpu_and_gpu() {
         let s = dhoit_runtime::scene::load(path.to_str().unwrap(), Default::default()).unwrap();
         for view in [0, 3] {
             let cam = camera(&s, view);
-            let fl = rasterize(&s, &cam, (w, h)).unwrap();
+            let fl = rasterize(&s, &cam, size).unwrap();
             let gpu_ab = g
-                .render(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
+                .render(&s, &cam, size, BG, dhoit_runtime::gpu::Slots::Exact)
                 .unwrap();
             let gfl = gpu_ab.fragments.clone().unwrap();
             let what = format!("{rel} view {view}");
@@ -848,15 +848,15 @@ fn dkb_s_features_read_tinted_glass_like_their_twin() {
     use dhoit_runtime::shared::TAIL_WORDS;
     let Some(g) = gpu() else { return };
     let wide_ok = common::is_wide(g, "the one-pass features of tinted glass");
-    let (w, h) = (192, 144);
+    let size = (192, 144);
     let mlp = Mlp::random(6);
     // The built-in windows: tinted and clear panes in front of one another and of vessels.
     let mut s = dhoit_runtime::scene::load("windows", Default::default()).unwrap();
     s.glass = Glass::Tinted;
     let (mut compared, mut filtered, mut frames) = (0, 0, 0);
     for view in [0, 3] {
-        let cam = Camera::orbit(&s, view, 8, (w, h));
-        let ab = g.render(&s, &cam, (w, h), BG, Slots::Exact).unwrap();
+        let cam = Camera::orbit(&s, view, 8, size);
+        let ab = g.render(&s, &cam, size, BG, Slots::Exact).unwrap();
         let gfl = ab.fragments.clone().unwrap();
         assert!(
             gfl.tinted_glass && gfl.tinted(),
@@ -877,7 +877,7 @@ fn dkb_s_features_read_tinted_glass_like_their_twin() {
                 ..FrameOptions::default().always_approximate()
             };
             let d = g
-                .render_with(&options, &s, &cam, (w, h), BG, Slots::Dkb(&mlp, f.into()))
+                .render_with(&options, &s, &cam, size, BG, Slots::Dkb(&mlp, f.into()))
                 .unwrap();
             let stats = d.stats.clone().expect("the features pass drew");
             frames += 1;

@@ -187,7 +187,7 @@ fn mboit_on_the_gpu_is_its_twin_in_every_order_and_better_than_wboit_where_opaci
         return;
     }
     let cam = identity();
-    let (w, h) = (32, 24);
+    let size = (32, 24);
     let mut s = Scene::default();
     layer(&mut s, 0.5, [1.0, 0.0, 0.0, 0.95]);
     layer(&mut s, 0.52, [0.0, 0.3, 1.0, 0.95]);
@@ -201,17 +201,17 @@ fn mboit_on_the_gpu_is_its_twin_in_every_order_and_better_than_wboit_where_opaci
     for moments in [4, 6, 8] {
         let p = MboitParams::with_moments(moments).unwrap();
         for (name, s, cam) in &scenes {
-            let (w, h) = if name == "three layers" {
-                (w, h)
+            let size = if name == "three layers" {
+                size
             } else {
                 (64, 48)
             };
-            let gpu = |scene: &Scene| g.render(scene, cam, (w, h), BG, Slots::Mboit(p)).unwrap();
+            let gpu = |scene: &Scene| g.render(scene, cam, size, BG, Slots::Mboit(p)).unwrap();
             let twin = |scene: &Scene| {
-                let own = common::own_fragments(g, scene, cam, (w, h), BG);
+                let own = common::own_fragments(g, scene, cam, size, BG);
                 composite::composite(&own, composite::Method::Mboit(p), BG)
             };
-            let fl = rasterize(s, cam, (w, h)).unwrap();
+            let fl = rasterize(s, cam, size).unwrap();
             let bound = common::BLENDED_BOUND;
             let frame = gpu(s);
             // Its memory is its own targets', as its layout table counts them, on both sides.

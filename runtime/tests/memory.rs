@@ -19,12 +19,12 @@ const BG: [f32; 3] = [0.9, 0.85, 0.8];
 fn a_budget_that_holds_every_fragment_allocates_and_renders_the_abuffer() {
     let Some(g) = gpu() else { return };
     let mlp = Mlp::random(2);
-    let (w, h) = (96, 72);
+    let size = (96, 72);
     let mut truncated = 0;
     for name in ["cad", "covers", "particles"] {
         let s = scene::load(name, Default::default()).unwrap();
-        let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, (w, h));
-        let fl = rasterize(&s, &cam, (w, h)).unwrap();
+        let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, size);
+        let fl = rasterize(&s, &cam, size).unwrap();
         let (px, n) = (fl.pixel_count() as u64, fl.fragment_count() as u64);
         let exact = budget::ABUFFER.allocated_bytes(px, n);
         // By hand: 6 bytes a pixel (a 16-bit count, two to a word; a 32-bit offset), 8 a
@@ -33,7 +33,7 @@ fn a_budget_that_holds_every_fragment_allocates_and_renders_the_abuffer() {
         assert_eq!(px % 2, 0);
         assert_eq!(exact, 6 * px + 8 * n + 256 + 4 + 16 + 16 + blocks);
         let reference = g
-            .render(&s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
+            .render(&s, &cam, size, BG, dhoit_runtime::gpu::Slots::Exact)
             .unwrap();
         assert_eq!(reference.allocated_bytes, exact, "{name}: the GPU A-buffer");
         let holding = [
@@ -59,7 +59,7 @@ fn a_budget_that_holds_every_fragment_allocates_and_renders_the_abuffer() {
                 let cpu = r.composite(a.clone());
                 assert_eq!(cpu.allocated_bytes, exact, "{name} {b} {m}: CPU bytes");
                 assert_eq!(cpu.image, abuffer.image, "{name} {b} {m}: CPU image");
-                let gpu = g.render(&s, &cam, (w, h), BG, slots).unwrap();
+                let gpu = g.render(&s, &cam, size, BG, slots).unwrap();
                 assert_eq!(gpu.allocated_bytes, exact, "{name} {b} {m}: GPU bytes");
                 assert_eq!(gpu.image, reference.image, "{name} {b} {m}: GPU image");
             }
@@ -96,7 +96,7 @@ fn a_budget_that_holds_every_fragment_allocates_and_renders_the_abuffer() {
                 "{name} {m}: {}",
                 cpu.allocated_bytes
             );
-            let gpu = g.render(&s, &cam, (w, h), BG, slots).unwrap();
+            let gpu = g.render(&s, &cam, size, BG, slots).unwrap();
             assert!(
                 gpu.allocated_bytes < exact,
                 "{name} {m}: GPU {}",
@@ -114,9 +114,9 @@ fn a_budget_that_holds_every_fragment_allocates_and_renders_the_abuffer() {
 fn dkb_counts_the_bytes_of_the_network_it_runs_on_the_cpu_and_the_gpu() {
     let Some(g) = gpu() else { return };
     let s = scene::load("particles", Default::default()).unwrap();
-    let (w, h) = (96, 72);
-    let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, (w, h));
-    let fl = rasterize(&s, &cam, (w, h)).unwrap();
+    let size = (96, 72);
+    let cam = Camera::orbit(&s, 1, scene::DEFAULT_VIEWS, size);
+    let fl = rasterize(&s, &cam, size).unwrap();
     let px = fl.pixel_count() as u64;
     // (network, precision, its weights' bytes by hand: 28 header words, then the padded
     // parameters, 9,988 or 356, one a word at f32 and two at f16, in whole vec4s).
@@ -149,7 +149,7 @@ fn dkb_counts_the_bytes_of_the_network_it_runs_on_the_cpu_and_the_gpu() {
         let want = common::kbuffer_bytes(&layout, &cpu.k, &fl.counts(), a.budget_fragments);
         assert_eq!(cpu.allocated_bytes, want, "{label}: CPU bytes");
         // The GPU counts the buffers it creates: the weights uniform among them.
-        let gpu = g.render_method(&s, &cam, (w, h), BG, slots).unwrap();
+        let gpu = g.render_method(&s, &cam, size, BG, slots).unwrap();
         let bases = &gpu.slots.as_ref().unwrap().1;
         let gpu_k: Vec<u32> = bases.windows(2).map(|b| b[1] - b[0]).collect();
         // n(p) as the CPU counts it (this frame's rasterizers agree on every pixel's count).
@@ -177,7 +177,7 @@ fn dkb_counts_the_bytes_of_the_network_it_runs_on_the_cpu_and_the_gpu() {
 fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
     let Some(g) = gpu() else { return };
     let mlp = Mlp::random(5);
-    let (w, h) = (96, 72);
+    let size = (96, 72);
     let budgets = ["10%", "25%", "50%", "75%", "1fpp", "2fpp", "200KB"];
     let kbuffers = [Method::Fkb, Method::Vkb, Method::Dkb, Method::Optimal];
     let (mut capped, mut dearer_uncapped, mut cheaper) = (0, 0, 0);
@@ -188,12 +188,12 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
         .collect();
     scenes.push(("100 layers".into(), common::layers(100)));
     for (name, s) in &scenes {
-        let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, (w, h));
-        let fl = rasterize(s, &cam, (w, h)).unwrap();
+        let cam = Camera::orbit(s, 0, scene::DEFAULT_VIEWS, size);
+        let fl = rasterize(s, &cam, size).unwrap();
         let (px, n) = (fl.pixel_count() as u64, fl.fragment_count() as u64);
         let exact = budget::ABUFFER.allocated_bytes(px, n);
         let reference = g
-            .render(s, &cam, (w, h), BG, dhoit_runtime::gpu::Slots::Exact)
+            .render(s, &cam, size, BG, dhoit_runtime::gpu::Slots::Exact)
             .unwrap();
         let gpu_n = reference.fragments.as_ref().unwrap().fragment_count() as u64;
         let occ = budget::Occupancy::of(&fl.counts());
@@ -245,7 +245,7 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
                 if m == Method::Dkb || (m == Method::Vkb && b == "25%") {
                     let gpu_exact = reference.allocated_bytes;
                     let slots = Slots::for_method(m, &a, &opts).unwrap();
-                    let gf = g.render(s, &cam, (w, h), BG, slots).unwrap();
+                    let gf = g.render(s, &cam, size, BG, slots).unwrap();
                     assert!(
                         gf.allocated_bytes <= gpu_exact,
                         "{name} {b} {m}: GPU bytes {} (CPU {}), its A-buffer {gpu_exact}",
@@ -262,7 +262,7 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
                         Method::Dkb => Slots::Dkb(&mlp, a.fragment_budget.into()),
                         _ => Slots::Vkb(opts.vkb, a.fragment_budget.into()),
                     };
-                    let gd = g.render(s, &cam, (w, h), BG, direct).unwrap();
+                    let gd = g.render(s, &cam, size, BG, direct).unwrap();
                     let f = a.fragment_budget.of(gpu_n);
                     let decide = f >= gpu_n
                         || frame::exact_is_no_dearer(m, &opts.layout(m), px, f, &gpu_occ);
@@ -274,7 +274,7 @@ fn a_kbuffer_never_allocates_more_than_the_exact_abuffer() {
                     );
                     // The method's own frame, from the buffers it creates: dearer than the
                     // A-buffer only where the GPU took the A-buffer.
-                    let own = g.render_method(s, &cam, (w, h), BG, direct).unwrap();
+                    let own = g.render_method(s, &cam, size, BG, direct).unwrap();
                     assert!(
                         !own.exact && own.slots.is_some(),
                         "{name} {b} {m}: the method"

@@ -732,23 +732,23 @@ fn an_application_draws_twice_through_dhoits_a_buffer_and_gets_the_exact_image_i
 #[test]
 fn an_application_draws_through_dhoits_mlab_and_gets_its_image_in_any_order() {
     let Some(g) = gpu() else { return };
-    let (w, h) = (64, 48);
+    let size = (64, 48);
     // The layers in a shuffled submission order: front to back (as layered_scene submits
     // them) MLAB merges exactly.
     let s = layered_scene().shuffled(7);
-    let exact = exact_frame(g, &s, (w, h));
+    let exact = exact_frame(g, &s, size);
     let occ = occupancy_of(&exact);
     for rows in [1, 2, 4] {
         let harness = g
-            .render(&s, &identity(), (w, h), BG, Slots::Mlab(rows))
+            .render(&s, &identity(), size, BG, Slots::Mlab(rows))
             .unwrap();
         // Merged into one or two rows out of depth order, MLAB is not the exact image (at
         // four rows, these up to seven layers lose nothing).
         let off = worst_difference(&harness.image.data, &exact.image.data);
         assert!(rows > 2 || off > 1e-3, "{rows} rows: MLAB is exact ({off})");
         for reversed in [false, true] {
-            let (app, report) = app_frame(&s, (w, h), reversed, |g| {
-                let mut oit = ExactOit::mlab(g, (w, h), rows, F32X4).unwrap();
+            let (app, report) = app_frame(&s, size, reversed, |g| {
+                let mut oit = ExactOit::mlab(g, size, rows, F32X4).unwrap();
                 assert_eq!(oit.mlab_rows(), Some(rows));
                 oit.expect(occ);
                 Box::new(oit)
@@ -765,7 +765,7 @@ fn an_application_draws_through_dhoits_mlab_and_gets_its_image_in_any_order() {
     // Rows outside 1..=8 refused.
     let (_, _, g) = app_device(false);
     for rows in [0, dhoit_runtime::wgsl::MLAB_MAX_ROWS + 1] {
-        let e = ExactOit::mlab(&g, (w, h), rows, F32X4)
+        let e = ExactOit::mlab(&g, size, rows, F32X4)
             .err()
             .expect("refused")
             .to_string();
@@ -1350,22 +1350,22 @@ fn every_method(g: &Gpu, size: (u32, u32), format: wgpu::TextureFormat) -> Vec<B
 #[test]
 fn frames_recorded_into_one_submission_are_the_frames_rendered_one_at_a_time() {
     let Some(g) = gpu() else { return };
-    let (w, h) = (48, 36);
+    let size = (48, 36);
     let s =
         dhoit_runtime::scene::load("shells", dhoit_runtime::scene::Opacity::Uniform(0.4)).unwrap();
-    let cams: Vec<Camera> = (0..4).map(|v| Camera::orbit(&s, v, 24, (w, h))).collect();
-    for m in 0..every_method(g, (w, h), F32X4).len() {
-        let app = App::new(&s, (w, h), false);
+    let cams: Vec<Camera> = (0..4).map(|v| Camera::orbit(&s, v, 24, size)).collect();
+    for m in 0..every_method(g, size, F32X4).len() {
+        let app = App::new(&s, size, false);
         // One frame at a time, a new method each (sized as the first frame of a stream is).
         let alone: Vec<Vec<[f32; 3]>> = cams
             .iter()
             .map(|cam| {
-                let mut oit = every_method(&app.gpu, (w, h), F32X4).swap_remove(m);
+                let mut oit = every_method(&app.gpu, size, F32X4).swap_remove(m);
                 app.frame(oit.as_mut(), &s, cam).0
             })
             .collect();
         // Every frame into one encoder, one submission.
-        let mut oit = every_method(&app.gpu, (w, h), F32X4).swap_remove(m);
+        let mut oit = every_method(&app.gpu, size, F32X4).swap_remove(m);
         let name = oit.method();
         let pipelines = app.pipelines(oit.as_ref());
         let targets: Vec<wgpu::Texture> = cams.iter().map(|_| app.target(F32X4)).collect();
@@ -1411,17 +1411,17 @@ fn a_second_method_builds_nothing_and_resized_ones_render_as_fresh_ones() {
     if gpu().is_none() {
         return;
     }
-    let (w, h) = (48, 36);
+    let size = (48, 36);
     let s = layered_scene();
     let weights = common::committed_weights();
-    let app = App::new(&s, (w, h), false);
+    let app = App::new(&s, size, false);
     let b = Budget::parse("25%").unwrap();
     // The first DKB on the device, and a frame of it: its network's passes and the resolve
     // onto this target format are built on first use.
-    let mut first = AllocatedOit::dkb(&app.gpu, (w, h), &weights, b, F32X4).unwrap();
+    let mut first = AllocatedOit::dkb(&app.gpu, size, &weights, b, F32X4).unwrap();
     app.frame(&mut first, &s, &identity());
     let before = gpu::pipelines_built();
-    let mut second = AllocatedOit::dkb(&app.gpu, (w, h), &weights, b, F32X4).unwrap();
+    let mut second = AllocatedOit::dkb(&app.gpu, size, &weights, b, F32X4).unwrap();
     let (image, _) = app.frame(&mut second, &s, &identity());
     assert_eq!(
         gpu::pipelines_built(),
@@ -1440,14 +1440,14 @@ fn a_second_method_builds_nothing_and_resized_ones_render_as_fresh_ones() {
     let app2 = App::new(&s, (w2, h2), false);
     for budget in ["25%", "1fpp"] {
         let b2 = Budget::parse(budget).unwrap();
-        let mut moved = AllocatedOit::dkb(&app2.gpu, (w, h), &weights, b, F32X4).unwrap();
+        let mut moved = AllocatedOit::dkb(&app2.gpu, size, &weights, b, F32X4).unwrap();
         moved.resize((w2, h2)).unwrap();
         moved.set_budget(b2).unwrap();
         let mut fresh = AllocatedOit::dkb(&app2.gpu, (w2, h2), &weights, b2, F32X4).unwrap();
         let (a, _) = app2.frame(&mut moved, &s, &identity());
         let (f, _) = app2.frame(&mut fresh, &s, &identity());
         assert_eq!(a, f, "{budget}: resized and rebudgeted");
-        let mut fkb = KBufferOit::new(&app2.gpu, (w, h), 1, F32X4).unwrap();
+        let mut fkb = KBufferOit::new(&app2.gpu, size, 1, F32X4).unwrap();
         fkb.resize((w2, h2)).unwrap();
         fkb.set_budget(Budget::parse("3fpp").unwrap()).unwrap();
         let mut fresh = KBufferOit::new(&app2.gpu, (w2, h2), 3, F32X4).unwrap();
@@ -1465,19 +1465,19 @@ fn every_method_renders_without_timestamps() {
     if gpu().is_none() {
         return;
     }
-    let (w, h) = (48, 36);
+    let size = (48, 36);
     let s = layered_scene();
-    let timed = App::new(&s, (w, h), false);
-    let untimed = App::on(app_device(false), &s, (w, h), false);
+    let timed = App::new(&s, size, false);
+    let untimed = App::on(app_device(false), &s, size, false);
     assert!(
         !untimed
             .device
             .features()
             .contains(wgpu::Features::TIMESTAMP_QUERY)
     );
-    let pairs = every_method(&timed.gpu, (w, h), F32X4)
+    let pairs = every_method(&timed.gpu, size, F32X4)
         .into_iter()
-        .zip(every_method(&untimed.gpu, (w, h), F32X4));
+        .zip(every_method(&untimed.gpu, size, F32X4));
     for (mut a, mut b) in pairs {
         let (ia, ra) = timed.frame(a.as_mut(), &s, &identity());
         let (ib, rb) = untimed.frame(b.as_mut(), &s, &identity());

@@ -294,13 +294,13 @@ fn the_fragment_estimate_clips_to_the_window_and_follows_the_count() {
             .fragment_count(),
         (w * h) as usize
     );
-    let (w, h) = (320, 240);
+    let size = (320, 240);
     for (name, _) in dhoit_runtime::scene::procedural::BUILTIN {
         let s = dhoit_runtime::scene::load(name, Default::default()).unwrap();
         for view in [0, 3] {
-            let cam = Camera::orbit(&s, view, 8, (w, h));
-            let e = estimate_fragments(&s, &cam, (w, h)).unwrap();
-            let n = rasterize(&s, &cam, (w, h)).unwrap().fragment_count() as f64;
+            let cam = Camera::orbit(&s, view, 8, size);
+            let e = estimate_fragments(&s, &cam, size).unwrap();
+            let n = rasterize(&s, &cam, size).unwrap().fragment_count() as f64;
             if s.uniform_opacity.is_some() {
                 assert!(
                     (e / n - 1.0).abs() < 0.02,

@@ -249,12 +249,12 @@ fn wboit_weights_are_the_papers_equations_of_the_distance_or_the_depth() {
 fn every_wboit_weight_function_renders_its_twin_on_the_gpu() {
     let Some(g) = gpu() else { return };
     let cam = identity();
-    let (w, h) = (32, 24);
+    let size = (32, 24);
     let mut s = Scene::default();
     layer(&mut s, 0.3, [1.0, 0.0, 0.0, 0.6]);
     layer(&mut s, 0.5, [0.0, 0.3, 1.0, 0.6]);
     layer(&mut s, 0.9, [0.1, 0.9, 0.2, 0.5]);
-    let own = common::own_fragments(g, &s, &cam, (w, h), BG);
+    let own = common::own_fragments(g, &s, &cam, size, BG);
     let mut images = Vec::new();
     for weight in WboitWeight::ALL {
         // The identity camera has no planes: these stand for a camera's (window depths 0.3 to
@@ -264,7 +264,7 @@ fn every_wboit_weight_function_renders_its_twin_on_the_gpu() {
             near: 1.0,
             far: 1000.0,
         };
-        let frame = g.render(&s, &cam, (w, h), BG, Slots::Wboit(p)).unwrap();
+        let frame = g.render(&s, &cam, size, BG, Slots::Wboit(p)).unwrap();
         let twin = composite::composite(&own, composite::Method::Wboit(p), BG);
         let diff = frame.image.max_abs_diff(&twin);
         eprintln!("{}: GPU and twin differ by {diff:e}", weight.name());
@@ -278,8 +278,8 @@ fn every_wboit_weight_function_renders_its_twin_on_the_gpu() {
         near: 0.0,
         far: 0.0,
     };
-    assert!(g.render(&s, &cam, (w, h), BG, Slots::Wboit(bad)).is_err());
-    let fl = rasterize(&s, &cam, (w, h)).unwrap();
+    assert!(g.render(&s, &cam, size, BG, Slots::Wboit(bad)).is_err());
+    let fl = rasterize(&s, &cam, size).unwrap();
     let opts = Options {
         wboit: bad,
         ..Options::new(Budget::SlotsPerPixel(1.0), BG)

@@ -121,7 +121,7 @@ fn every_portable_method_renders_on_the_core_device_as_on_the_wide_one() {
 fn equal_depths_give_one_image_in_every_submission_order() {
     let Some(c) = core() else { return };
     let g = wide().unwrap();
-    let (w, h) = (24, 16);
+    let size = (24, 16);
     let s = common::tied_layers(30);
     let cam: Camera = identity();
     let wide = FrameOptions::default().always_approximate();
@@ -130,7 +130,7 @@ fn equal_depths_give_one_image_in_every_submission_order() {
         ..wide
     };
     for slots in [Slots::Exact, Slots::Uniform(2), Slots::Uniform(7)] {
-        let first = g.render_method(&s, &cam, (w, h), BG, slots).unwrap();
+        let first = g.render_method(&s, &cam, size, BG, slots).unwrap();
         for seed in 0..4 {
             let shuffled = s.shuffled(seed);
             for (name, dev, opts) in [
@@ -139,7 +139,7 @@ fn equal_depths_give_one_image_in_every_submission_order() {
                 ("core device", c, &wide),
             ] {
                 let f = dev
-                    .render_with(opts, &shuffled, &cam, (w, h), BG, slots)
+                    .render_with(opts, &shuffled, &cam, size, BG, slots)
                     .unwrap();
                 assert!(
                     bits(&f.image) == bits(&first.image),

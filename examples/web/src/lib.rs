@@ -120,8 +120,7 @@ impl Demo {
     /// again for it.
     pub fn set_scene(&mut self, name: &str) -> Result<()> {
         let s = scene::load(name, Opacity::default())?;
-        let (w, h) = self.size;
-        self.cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, (w, h));
+        self.cam = Camera::orbit(&s, 0, scene::DEFAULT_VIEWS, self.size);
         self.show(s)
     }
 

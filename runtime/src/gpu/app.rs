@@ -313,7 +313,6 @@ impl AppFrame {
         draw: &mut DrawFn<'_>,
     ) -> Result<()> {
         self.check_targets(frame)?;
-        let (w, h) = self.stream.size;
         let app = AppDraws {
             draw: RefCell::new(draw),
             layouts: &self.layouts,
@@ -322,7 +321,7 @@ impl AppFrame {
         };
         let params = crate::wgsl::Params {
             hdr: self.stream.hdr.into(),
-            ..frame_params(None, (w, h), [0.0; 3])
+            ..frame_params(None, self.stream.size, [0.0; 3])
         };
         self.stream.record(enc, &app, params)
     }

@@ -6,7 +6,9 @@ use super::Gpu;
 use crate::error::{Error, GpuError, Result};
 use crate::fragment::FragmentLists;
 use crate::importance::PixelStats;
-use crate::shared::{BATCH_LISTED, BATCH_ROWS_BEFORE, BATCH_SIZE, BATCH_WORDS, count_bytes};
+use crate::shared::{
+    BATCH_LISTED, BATCH_ROWS_BEFORE, BATCH_SIZE, BATCH_WORDS, LEAST_BUFFER_BYTES, count_bytes,
+};
 
 pub(super) struct FrameBuffers<'a, 'e> {
     pub(super) gpu: &'a Gpu,
@@ -113,11 +115,7 @@ impl<'a, 'e> FrameBuffers<'a, 'e> {
                 true,
             ),
             false => (
-                self.storage(
-                    &format!("{owner}.no_tints"),
-                    crate::shared::LEAST_BUFFER_BYTES,
-                    false,
-                )?,
+                self.storage(&format!("{owner}.no_tints"), LEAST_BUFFER_BYTES, false)?,
                 false,
             ),
         })
@@ -141,9 +139,7 @@ impl<'a, 'e> FrameBuffers<'a, 'e> {
         counted: bool,
         clear: bool,
     ) -> Result<wgpu::Buffer> {
-        let size = size
-            .max(crate::shared::LEAST_BUFFER_BYTES)
-            .next_multiple_of(4);
+        let size = size.max(LEAST_BUFFER_BYTES).next_multiple_of(4);
         let limits = self.gpu.device.limits();
         let max = limits
             .max_storage_buffer_binding_size
@@ -187,7 +183,7 @@ impl<'a, 'e> FrameBuffers<'a, 'e> {
             self.allocated += bytes.len() as u64;
         }
         let size = (bytes.len() as u64)
-            .max(crate::shared::LEAST_BUFFER_BYTES)
+            .max(LEAST_BUFFER_BYTES)
             .next_multiple_of(4);
         let usage = usage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         let b = self.take(label, size, usage, false);
@@ -394,8 +390,6 @@ pub(super) fn read_frame<T>(
     })?
 }
 
-/// Single words of device buffers (each a buffer and a byte offset, a multiple of 4), read in
-/// one copy and one map: a frame's sizes without reading back the buffers they end.
 /// The plan plan.wgsl wrote: its F and flags in `totals`, the records a batch holds in `batch`;
 /// `batches` are the host's to know ([`crate::plan::Plan::from_words`]).
 pub(super) fn read_plan(
@@ -417,6 +411,8 @@ pub(super) fn read_plan(
     Ok(crate::plan::Plan::from_words([w[0], w[1], w[2]], batches))
 }
 
+/// Single words of device buffers (each a buffer and a byte offset, a multiple of 4), read in
+/// one copy and one map: a frame's sizes without reading back the buffers they end.
 pub(super) fn read_words(gpu: &Gpu, words: &[(&wgpu::Buffer, u64)]) -> Result<Vec<u32>> {
     let size = 4 * words.len().max(1) as u64;
     let copy = |enc: &mut wgpu::CommandEncoder, staging: &wgpu::Buffer| {

@@ -553,12 +553,11 @@ impl SceneStream {
     /// Nothing is submitted or waited for; the frame's image is in the stream's image once
     /// its submission has run.
     pub fn record(&mut self, enc: &mut wgpu::CommandEncoder, cam: &Camera) -> Result<()> {
-        let (w, h) = self.stream.size;
         let params = Params {
             uniform_alpha: self.uniform_alpha,
             tinted: self.tinted,
             hdr: self.hdr,
-            ..frame_params(Some(cam), (w, h), self.background)
+            ..frame_params(Some(cam), self.stream.size, self.background)
         };
         // The opaque pass's camera, by the queue: a submission's frames share the last one
         // written, so each frame goes in a submission of its own.

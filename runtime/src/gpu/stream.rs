@@ -320,8 +320,9 @@ impl Stream {
             .collect();
         let occupancy = p.totals.then(|| Occupancy::from_totals(&totals));
         let plan = p.totals.then(|| {
-            let f = crate::shared::PLAN_F_WORD as usize;
-            Plan::from_words([totals[f], totals[f + 1], 0], 0)
+            let word = |i: u32| totals[i as usize];
+            let (f, flags) = (crate::shared::PLAN_F_WORD, crate::shared::PLAN_FLAGS_WORD);
+            Plan::from_words([word(f), word(flags), 0], 0)
         });
         let fragments = match (p.counted, occupancy) {
             (true, _) => Some(word(REPORT_COUNTED_AT as usize) as u64),
