@@ -827,10 +827,10 @@ impl App {
     }
 
     /// dhoit's method at `(w, h)`, the pipelines with its modules and the frame's textures.
-    fn frame(&self, method: Method, (w, h): (u32, u32)) -> Result<Frame> {
+    fn frame(&self, method: Method, size: (u32, u32)) -> Result<Frame> {
         let device = &self.device;
-        let cam = Camera::orbit(&self.scene, 0, 4, (w, h));
-        let oit = method.build(&self.gpu, (w, h), &cam, &self.networks)?;
+        let cam = Camera::orbit(&self.scene, 0, 4, size);
+        let oit = method.build(&self.gpu, size, &cam, &self.networks)?;
         // dhoit: the module a phase gives (its bindings at group 2, its store function), then
         // the application's shaders and its transparent entry.
         let entry = match oit.method() {
@@ -854,7 +854,7 @@ impl App {
             label: Some("viewer opaque"),
             source: wgpu::ShaderSource::Wgsl(SHADER.into()),
         });
-        let [image, depth, target] = frame_textures(device, (w, h));
+        let [image, depth, target] = frame_textures(device, size);
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let layout = |groups: &[Option<&wgpu::BindGroupLayout>]| {
             device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {

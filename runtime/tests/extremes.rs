@@ -22,9 +22,9 @@ const TOLERANCE: f32 = 1e-5;
 /// Every method that runs on both sides, CPU frame against GPU frame, on one scene and budget,
 /// on `g` and on WebGPU's core device (the portable passes; every method but MBOIT, which needs
 /// FLOAT32_BLENDABLE): the largest difference over every pixel of every method.
-fn cpu_and_gpu_agree(g: &Gpu, s: &Scene, (w, h): (u32, u32), budget: Budget, what: &str) -> f32 {
+fn cpu_and_gpu_agree(g: &Gpu, s: &Scene, size: (u32, u32), budget: Budget, what: &str) -> f32 {
     let cam = identity();
-    let fl = rasterize(s, &cam, (w, h)).unwrap();
+    let fl = rasterize(s, &cam, size).unwrap();
     let mlp = Mlp::random(9);
     let opts = Options {
         weights: Some(&mlp),

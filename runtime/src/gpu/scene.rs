@@ -490,7 +490,7 @@ impl SceneStream {
     pub fn new(
         gpu: &Gpu,
         scene: &Scene,
-        (w, h): (u32, u32),
+        size: (u32, u32),
         method: crate::frame::Method,
         options: &crate::frame::Options,
     ) -> Result<SceneStream> {
@@ -522,7 +522,7 @@ impl SceneStream {
                 )));
             }
         };
-        let mut stream = Stream::new(gpu, (w, h), app, None)?;
+        let mut stream = Stream::new(gpu, size, app, None)?;
         stream.exact_when_cheaper = options.exact_when_cheaper;
         let tinted = scene.tints() as u32;
         let hdr = scene.hdr() as u32;
@@ -534,7 +534,7 @@ impl SceneStream {
         let params = Params {
             tinted,
             hdr,
-            ..frame_params(None, (w, h), options.background)
+            ..frame_params(None, size, options.background)
         };
         let (inputs, taken) = stream.gpu.frame_inputs(scene, &params, true)?;
         // The scene's buffers are the stream's for its life, never the pool's.

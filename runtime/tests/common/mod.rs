@@ -260,10 +260,10 @@ pub fn own_fragments(
     g: &Gpu,
     s: &dhoit_runtime::scene::Scene,
     cam: &dhoit_runtime::scene::Camera,
-    (w, h): (u32, u32),
+    size: (u32, u32),
     background: [f32; 3],
 ) -> dhoit_runtime::fragment::FragmentLists {
-    g.render(s, cam, (w, h), background, dhoit_runtime::gpu::Slots::Exact)
+    g.render(s, cam, size, background, dhoit_runtime::gpu::Slots::Exact)
         .unwrap()
         .fragments
         .expect("diagnostics read the A-buffer's fragments back")
