@@ -50,6 +50,9 @@ struct Params {
     // 1 when the frame's colours keep their range above white (scene::Scene::hdr): a
     // transparent fragment's RGB is stored over 2^e, e in the top byte of its tint word.
     hdr: u32,
+    // DKB's records whose statistics its count pass gathers (features_count.wgsl;
+    // wgsl::Params::dkb_records); 0 where the frame draws a features pass of its own.
+    dkb_records: u32,
 };
 
 // Whether the methods that store fragments store each one's tint word beside its key: its
@@ -242,13 +245,12 @@ fn grid_of(n: u32, size: u32) -> vec2<u32> {
     return vec2<u32>(x, (groups + x - 1u) / x);
 }
 
-// A pixel's word as a record of the batch [lo, lo + size) of DKB's records (totals.wgsl's
-// assign_records, init_records): its place in the batch, or NO_RECORD where the word names no
-// record of it (NO_RECORD itself; an earlier batch's importance, 0 or with the pair mark at or
-// above 2^31, past any index; another batch's index).
-fn batch_record(word: u32, lo: u32, size: u32) -> u32 {
-    if (word >= lo && word - lo < size) {
-        return word - lo;
+// Record `index` as a record of the batch [lo, lo + size) of DKB's records (records.wgsl's
+// record_index; totals.wgsl's record_counts, init_records): its place in the batch, or
+// NO_RECORD where it is none of it (NO_RECORD itself; another batch's).
+fn batch_record(index: u32, lo: u32, size: u32) -> u32 {
+    if (index >= lo && index - lo < size) {
+        return index - lo;
     }
     return NO_RECORD;
 }

@@ -1,35 +1,39 @@
 // DKB features pass (geometry): per pixel of more than TAIL_WORDS fragments (its record:
-// totals.wgsl's assign_records), with integer atomics only (so any order gives the same
-// result), the statistics importance::pixel_stats gathers beside the count: the nearest
-// fragment's capture key (its opacity what its tint lets through: filtered_rgba8), and the sums of the fragments' 8-bit R, G, B and of r^2 + g^2 + b^2.
+// records.wgsl, the marks of totals.wgsl's mark_records), with integer atomics only (so any
+// order gives the same result), the statistics importance::pixel_stats gathers beside the
+// count: the nearest fragment's capture key (its opacity what its tint lets through:
+// filtered_rgba8), and the sums of the fragments' 8-bit R, G, B and of r^2 + g^2 + b^2.
 // A pixel of fewer has no record: it keeps all its fragments whatever its k (shared::stored_k),
 // its k is forced (mlp::forced), so nothing is gathered for it. The nearest key is kept
 // complemented so a cleared (zero) word means "none yet" and atomicMax finds the minimum.
 // RECORD_WORDS (4) 64-bit words a record, in the slot pool, which the capture clears and fills
 // once the importance pass has read them.
 //
-// The frame counts its fragments first (abuffer_count.wgsl), reads back how many pixels hold two
-// or more (totals.wgsl), and sizes the records from that; it draws this pass only where the budget
-// truncates, since otherwise k = n whatever the network says.
+// Built twice. As a pass of its own (with features_batch.wgsl: gpu::Phase::Features), after the
+// frame's count, for the records its own count marks (a frame's first, one after a cut, a frame
+// whose records take batches). And as the count (with features_count.wgsl: gpu::Phase::
+// CountFeatures, every DKB frame's count pass), for the records the frame before marked: a frame of a
+// stream of frames gathers its statistics there and draws no features pass (its geometry is drawn
+// twice, the count and the capture). A pixel the frame before did not mark has no statistics
+// then, and the network does not decide it (importance_dkb.wgsl's gather: the least weight).
 //
 // Three atomic adds a fragment, and atomicMax only where it can change the key: the colour sums
 // and the opacity statistics go in three 64-bit adds, and the key only grows, so a key that the
 // stored one already beats is skipped after a plain atomic load, as Loop64's early test does.
 // The colour sums' first word holds sum r (bits 0-23), sum g (24-47) and n (48-63, written by
-// assign_records): exact up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (255 x 32,767 < 2^24),
+// totals.wgsl's record_counts): exact up to raster::MAX_FRAGMENTS_PER_PIXEL fragments (255 x 32,767 < 2^24),
 // past which the resolve refuses the frame (resolve.wgsl's too_deep). The second holds sum b
 // (low half, at most 255 n) and sum (r^2 + g^2 + b^2) (high half, wrapping as a 32-bit sum
 // does). The last holds the opacity statistics: the sum of the fragments' optical depths from
 // importance::optical_depth_table (low half) and of their 8-bit opacities (high), each opacity
 // its tint's too (filtered_alpha8).
 
-// Per pixel: its record's index, or NO_RECORD (assign_records: a record for each pixel of more
-// than TAIL_WORDS fragments), in the frame's shared word until its batch's importance is
-// gathered.
-@group(1) @binding(0) var<storage, read> record_of: array<u32>;
+// The marks that give each pixel its record (records.wgsl's record_index: RECORD_WORDS words in
+// the slot pool for each pixel of more than TAIL_WORDS fragments, in pixel order).
+@group(1) @binding(0) var<storage, read> record_marks: array<u32>;
 // RECORD_WORDS words a record (importance::pixel_stats of its pixel), in the slot pool until the
 // capture: the nearest key (complemented), the colour sums (sum r, sum g and n, which
-// assign_records wrote; sum b and sum (r^2 + g^2 + b^2)) and the opacity sums.
+// totals.wgsl's record_counts writes; sum b and sum (r^2 + g^2 + b^2)) and the opacity sums.
 // Built with one of two ways of adding to them: features_wide.wgsl's 64-bit atomics (one pass),
 // or features_portable.wgsl's 32-bit ones (two passes, FEATURES_COLOURS), which leave the same
 // bytes.
@@ -37,11 +41,6 @@
 // A fragment's optical depth by its 8-bit opacity (importance::optical_depth_table), four to a
 // vec4.
 @group(1) @binding(2) var<uniform> optical_depth: array<vec4<u32>, 64>;
-// The batch of records this draw gathers (totals.wgsl): BATCH_LO its first record, BATCH_SIZE
-// how many a batch holds; its records lie from the pool's start. A pixel outside it (an earlier batch's,
-// its importance gathered; a later one's; none) is skipped.
-@group(1) @binding(3) var<storage, read> batch: array<u32>;
-
 // Whether the nearest key is loaded first, and atomicMax issued only where it can change it
 // (gpu::Gpu::features_preload): fewer atomics, but the load waits for its value, where a GPU
 // issues an atomicMax whose result is unused without waiting.
@@ -54,9 +53,9 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         return vec4<f32>(0.0);
     }
     let p = pixel_index(in.clip, params.width);
-    // A pixel of at most TAIL_WORDS fragments (NO_RECORD): forced, whatever its statistics
-    // (mlp::forced); or one of another batch.
-    let r = batch_record(record_of[p], batch[BATCH_LO], batch[BATCH_SIZE]);
+    // The fragment counted and its pixel's record where this is the count (features_count.wgsl),
+    // its pixel's record of the batch where it is a features pass (features_batch.wgsl).
+    let r = fragment_record(p);
     if (r == NO_RECORD) {
         return vec4<f32>(0.0);
     }

@@ -2,15 +2,16 @@
 // pass's records and the totals, computed here and never stored, standardised, through the MLP
 // of mlp.wgsl (the same source `dhoit predict --device gpu` runs). Four entry points in one
 // compute pass, sharing one explicit layout (gpu::Pipelines::network_layout):
-//   select:  one invocation a record (a pixel of more than TAIL_WORDS fragments;
-//            totals.wgsl's assign_records): a record the network decides is appended to a list
+//   select:  one invocation a record (a pixel of more than TAIL_WORDS fragments the record
+//            marks mark: records.wgsl): a record the network decides is appended to a list
 //            (its index), every other gets its importance here (0 with the pair mark where
 //            forced);
 //   args:    the list's length -> the workgroups of an indirect dispatch (a 2-D grid);
 //   network: one invocation a listed record: its features again, the network, its importance;
-//   gather:  one invocation a pixel: its record's importance (0 for a pixel without one: at
-//            most TAIL_WORDS fragments, forced) into the shared word, in its record index's
-//            place.
+//   gather:  one invocation a pixel: its record's importance into the shared word; a pixel
+//            without one the least weight (0: at most TAIL_WORDS fragments, forced whatever
+//            its importance; with the pair mark: more, unmarked by the frame before, or past the
+//            records the pool held, which the network does not decide).
 // Once for each batch of records (totals.wgsl), which are a batch's own indices here (`r`): the
 // batch's first record is at the pool's start.
 // A record's importance waits in its nearest key's place (read by then).
@@ -34,9 +35,12 @@
 fn planned_f() -> u32 {
     return totals[PLAN_F_WORD];
 }
-// Per pixel: its record's index (NO_RECORD for none), then, after `gather`, its importance:
-// the frame's shared word.
+// Per pixel, after `gather`: its importance (the frame's shared word).
 @group(0) @binding(8) var<storage, read_write> shared_word: array<u32>;
+// The marks that give each pixel its record (records.wgsl), and the counts, two to a word
+// (counts.wgsl): `gather` reads them.
+@group(0) @binding(4) var<storage, read> record_marks: array<u32>;
+@group(0) @binding(5) var<storage, read> count: array<u32>;
 // The batch (totals.wgsl, the BATCH_* words): the list's length, its first record lo, the
 // records a batch holds (its records from the pool's start, `r` below a batch's own index), the
 // rows before.
@@ -81,7 +85,10 @@ fn network_inputs(r: u32) -> Net {
     var net: Net;
     let at = RECORD_WORDS * r;
     let c = records[at + 1u].y >> 16u;
-    if (planned_f() >= totals[TOTAL_FRAGMENTS]) {
+    // Every fragment kept (k = n whatever the importance), or a pixel the frame before marked
+    // that has no more than TAIL_WORDS now (it keeps them all: 0 unmarked, as a pixel without
+    // a record).
+    if (planned_f() >= totals[TOTAL_FRAGMENTS] || c <= TAIL_WORDS) {
         set_importance(r, 0.0);
         return net;
     }
@@ -168,11 +175,12 @@ fn select_pixels(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    // The batch's records: a batch's worth, or what is left of the frame's (TOTAL_DEEPER; none in
-    // a batch past them, which a frame sized ahead of its count may record).
+    // The batch's records: a batch's worth, or what is left of the frame's (TOTAL_RECORDS, the
+    // marks'; none in a batch past them, which a frame sized ahead of its count may record).
     let r = grid_index(wid, nwg, lid, PIXEL_GROUP);
     let lo = atomicLoad(&list_len[BATCH_LO]);
-    let left = select(0u, totals[TOTAL_DEEPER] - lo, totals[TOTAL_DEEPER] > lo);
+    let marked = totals[TOTAL_RECORDS];
+    let left = select(0u, marked - lo, marked > lo);
     if (r >= min(atomicLoad(&list_len[BATCH_SIZE]), left)) {
         return;
     }
@@ -217,9 +225,10 @@ fn network(
 }
 
 // Every pixel's importance from its record's nearest key's place into the shared word, where
-// the allocation reads it, in place of its record's index (0 for a pixel without a record):
-// the batch's pixels (the others keep theirs: an earlier batch's importance, a later one's
-// index).
+// the allocation reads it: the batch's pixels; and in the first batch every pixel of no
+// other batch the least weight (a later batch's pixel gets its own in its batch). The least
+// weight is 0, with the pair mark where the pixel has more than TAIL_WORDS fragments (as a
+// forced pixel's) and the frame truncates (Mlp::dkb_importance_recorded's twin).
 @compute @workgroup_size(PIXEL_GROUP)
 fn gather(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -227,12 +236,19 @@ fn gather(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
-    if (p < params.pixels) {
-        let r = batch_record(shared_word[p], atomicLoad(&list_len[BATCH_LO]), atomicLoad(&list_len[BATCH_SIZE]));
-        if (shared_word[p] == NO_RECORD) {
-            shared_word[p] = 0u;
-        } else if (r != NO_RECORD) {
-            shared_word[p] = records[RECORD_WORDS * r].x;
-        }
+    if (p >= params.pixels) {
+        return;
+    }
+    let lo = atomicLoad(&list_len[BATCH_LO]);
+    let size = atomicLoad(&list_len[BATCH_SIZE]);
+    let index = record_index(p);
+    let r = batch_record(index, lo, size);
+    if (r != NO_RECORD) {
+        shared_word[p] = records[RECORD_WORDS * r].x;
+    } else if (lo == 0u) {
+        // 0 unmarked where the frame keeps every fragment, as network_inputs gives a record.
+        let kept = planned_f() >= totals[TOTAL_FRAGMENTS];
+        let deeper = count_in(count[count_word(p)], p) > TAIL_WORDS;
+        shared_word[p] = select(0u, PAIR_BIT, deeper && !kept);
     }
 }

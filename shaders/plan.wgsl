@@ -6,7 +6,7 @@
 // every fragment (F holds them all, or with exact_when_cheaper the pool does), and DKB's
 // records a batch, and writes them where the passes after it read them: F and the flags into
 // the totals (PLAN_F_WORD, PLAN_FLAGS_WORD; the allocation and the network read F there), the
-// records a batch into the batch words (totals.wgsl's assign_records, importance_dkb.wgsl).
+// records a batch into the batch words (totals.wgsl's record_counts, importance_dkb.wgsl).
 
 struct PlanParams {
     // How F follows from the count: 0 F slots (`budget`), 1 a share in parts per million
@@ -87,13 +87,23 @@ fn largest_fitting(words: W, n: W, covered: W, deep: W, deeper: W, cap: W) -> Ma
 }
 
 // budget::Layout::fragment_budget_counted for a layout with pooled tails, the fixed bytes
-// already taken off (`pool`).
+// already taken off (`pool`): with DKB's records in the layout's batches, else (no slot beside
+// them) in up to MOST_RECORD_BATCHES.
 fn budget_counted(pool: Maybe, covered: W, deep: W, deeper: W) -> Maybe {
-    // What the pool holds first whatever F (DKB's records and marks), and 16 bytes at least,
-    // as every buffer.
+    let f = slots_beside(pool, covered, deep, deeper, plan.layout_batches);
+    if (f.some || plan.record_bytes == 0u || plan.layout_batches >= MOST_RECORD_BATCHES) {
+        return f;
+    }
+    return slots_beside(pool, covered, deep, deeper, MOST_RECORD_BATCHES);
+}
+
+// budget::Layout::slots_beside: the most slots `pool` holds beside what it holds first whatever
+// F (DKB's records in `batches` batches and the marks; 16 bytes at least, as every buffer) and
+// the tails.
+fn slots_beside(pool: Maybe, covered: W, deep: W, deeper: W, batches: u32) -> Maybe {
     var least = w_of(16u);
     if (plan.record_bytes > 0u) {
-        let records = ceil_div(deeper, plan.layout_batches);
+        let records = ceil_div(deeper, max(batches, 1u));
         let marks = W(plan.marks_lo, plan.marks_hi);
         least = w_max(w_max(w_mul_u32(records, plan.record_bytes), marks), w_of(16u));
     }
@@ -146,13 +156,16 @@ fn main() {
         short |= PLAN_SHORT_SLOTS;
     }
     let exact = w_le(n, f) || (plan.exact_when_cheaper != 0u && w_le(n, words));
-    // DKB's records, in batches of what the pool holds (budget::PoolState::batch).
+    // DKB's records, in batches of what the pool holds (budget::PoolState::batch): the pixels
+    // the record marks mark (TOTAL_RECORDS: this frame's deeper ones, or the frame before's
+    // where it gathers its statistics with its count).
     var per_batch = 0u;
     if (plan.record_bytes > 0u && !exact) {
-        let records = w_max(deeper, w_of(1u));
+        let marked = w_of(totals[TOTAL_RECORDS]);
+        let records = w_max(marked, w_of(1u));
         // At most the records (a u32 count).
         per_batch = w_min(w_max(w_div_u32(pool, plan.record_bytes), w_of(1u)), records).x;
-        let batches = w_max(ceil_div(deeper, per_batch), w_of(1u));
+        let batches = w_max(ceil_div(marked, per_batch), w_of(1u));
         if (w_lt(w_of(max(plan.batches, 1u)), batches)) {
             short |= PLAN_SHORT_RECORDS;
         }

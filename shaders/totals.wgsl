@@ -6,8 +6,8 @@
 @group(0) @binding(0) var<uniform> params: Params;
 // Two counts to a word (counts.wgsl).
 @group(0) @binding(1) var<storage, read> count: array<u32>;
-// The TOTAL_* words (shared.rs): fragments, covered, max count, deep, the records handed out
-// (assign_records), deeper; then the plan's (plan.wgsl).
+// The TOTAL_* words (shared.rs): fragments, covered, max count, deep, the records marked (the
+// host copies the marks' total there), deeper; then the plan's (plan.wgsl).
 @group(0) @binding(2) var<storage, read_write> totals: array<atomic<u32>>;
 
 // A workgroup's sums, added to the frame's totals by one invocation: three atomics on the
@@ -65,17 +65,22 @@ fn add_group(lid: u32) {
 }
 
 // DKB's records (features.wgsl): one for each pixel of more than TAIL_WORDS fragments (any
-// fewer are all kept whatever k: shared::stored_k), RECORD_WORDS words in the slot pool, its
-// index in the frame's shared word (NO_RECORD for the others), n in its colour sums' first
-// word (bits 48-63). Indices from one atomic a workgroup, in any
-// order: a record is its pixel's alone, so the order changes no result.
+// fewer are all kept whatever k: shared::stored_k), RECORD_WORDS words in the slot pool, in
+// pixel order (records.wgsl's record_index), n in its colour sums' first word (bits 48-63).
+// mark_records marks those pixels of a frame's count: for its own features pass (a frame's
+// first, or one after a cut), or for the frame after, which gathers its statistics with its
+// count (features_count.wgsl). A pixel's record is the same whatever the order of
+// the fragments or the invocations.
 //
 // The records are gathered in batches where the pool holds fewer than all of them
 // (budget::PoolState::batch): a batch is the records [lo, lo + per_batch), at the pool's start
 // while the features pass fills them and the network reads them; its importance is gathered
 // into the shared word before the next batch takes the pool (init_records, next_batch). One
-// batch is the whole frame's records.
-@group(0) @binding(6) var<storage, read_write> record_of: array<u32>;
+// batch is the whole frame's records, and the one a frame that gathers with its count has.
+// The marks (shared::marks_words): the exclusive prefix sums of their words' popcounts (scan.wgsl
+// built for marks makes them from the popcounts mark_records writes) and their total, then the
+// bits.
+@group(0) @binding(6) var<storage, read_write> record_marks: array<u32>;
 // Each record word a 64-bit word's two halves (low x, high y), as features.wgsl adds to them.
 @group(0) @binding(7) var<storage, read_write> records: array<vec2<u32>>;
 // The BATCH_* words: the network's list length, the batch's first record lo, the records a
@@ -83,48 +88,60 @@ fn add_group(lid: u32) {
 // list_len).
 @group(0) @binding(8) var<storage, read_write> batch: array<u32>;
 
-var<workgroup> group_records: atomic<u32>;
-var<workgroup> group_first: u32;
+// A workgroup's marks, a bit a pixel: PIXEL_GROUP consecutive pixels, whole words of them.
+var<workgroup> record_bits: array<atomic<u32>, PIXEL_GROUP / MARK_BITS>;
 
+// The pixels of more than TAIL_WORDS fragments marked: a bit a pixel, and each word's popcount
+// where the marks' scan makes its prefix (as allocate.wgsl's mark).
 @compute @workgroup_size(PIXEL_GROUP)
-fn assign_records(
+fn mark_records(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
     let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
-    var n = 0u;
-    if (p < params.pixels) {
-        n = count_in(count[count_word(p)], p);
-    }
-    var local = 0u;
-    if (n > TAIL_WORDS) {
-        local = atomicAdd(&group_records, 1u);
+    let words = PIXEL_GROUP / MARK_BITS;
+    if (lid < words) {
+        atomicStore(&record_bits[lid], 0u);
     }
     workgroupBarrier();
-    if (lid == 0u) {
-        group_first = atomicAdd(&totals[TOTAL_RECORDS], atomicLoad(&group_records));
+    if (p < params.pixels && count_in(count[count_word(p)], p) > TAIL_WORDS) {
+        atomicOr(&record_bits[lid / MARK_BITS], 1u << (lid % MARK_BITS));
     }
     workgroupBarrier();
-    if (p < params.pixels) {
-        if (n > TAIL_WORDS) {
-            let r = group_first + local;
-            record_of[p] = r;
-            // The first batch's records (the pool is zero until then).
-            if (r < batch[BATCH_SIZE]) {
-                records[RECORD_WORDS * r + 1u] = vec2<u32>(0u, n << 16u);
-            }
-        } else {
-            record_of[p] = NO_RECORD;
-        }
+    let blocks = mark_blocks(params.pixels);
+    let word = (p - lid) / MARK_BITS + lid;
+    if (lid < words && word < blocks) {
+        let bits = atomicLoad(&record_bits[lid]);
+        record_marks[blocks + 1u + word] = bits;
+        record_marks[word] = countOneBits(bits);
+    }
+}
+
+// n into the records of the first batch, in its colour sums' first word (bits 48-63), beside
+// the sums there: none yet, where the frame draws a features pass after; the count's, where it
+// gathered them with its count (features.wgsl's adds never carry past bit 47).
+@compute @workgroup_size(PIXEL_GROUP)
+fn record_counts(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
+    if (p >= params.pixels) {
+        return;
+    }
+    let r = batch_record(record_index(p), 0u, batch[BATCH_SIZE]);
+    if (r != NO_RECORD) {
+        let at = RECORD_WORDS * r + 1u;
+        let n = count_in(count[count_word(p)], p);
+        records[at].y = (records[at].y & 0xffffu) | (n << 16u);
     }
 }
 
 // A batch after the first: its records emptied (the batch before them left its statistics and
 // importance there), n written. The batch starts where the one before ends (next_batch moves
-// lo there after this). A pixel of an earlier batch holds its importance by now, and one
-// without a record 0 (the first batch's gather wrote it): neither is a record of the batch
-// (common.wgsl's batch_record).
+// lo there after this).
 @compute @workgroup_size(PIXEL_GROUP)
 fn init_records(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -135,7 +152,7 @@ fn init_records(
     if (p >= params.pixels) {
         return;
     }
-    let r = batch_record(record_of[p], batch[BATCH_LO] + batch[BATCH_SIZE], batch[BATCH_SIZE]);
+    let r = batch_record(record_index(p), batch[BATCH_LO] + batch[BATCH_SIZE], batch[BATCH_SIZE]);
     if (r != NO_RECORD) {
         let at = RECORD_WORDS * r;
         records[at] = vec2<u32>(0u);

@@ -105,10 +105,11 @@ pub(crate) struct MethodParams {
     /// give it from the depth), or eq10 of the window depth alone.
     #[arg(long, default_value = "eq10", value_parser = parse_wboit_weight)]
     pub(crate) wboit_weight: dhoit_runtime::composite::WboitWeight,
-    /// The most batches DKB gathers its network's records in (1 to 3): where its slot pool
-    /// holds fewer than every record (a small budget on a deep frame), each batch draws the
-    /// features pass once more, so more batches take less memory and more time; 1 holds them
-    /// all at once. The image is the same.
+    /// The most batches DKB gathers its network's records in (1 to 3): 1 holds them all at
+    /// once in its slot pool, so a frame after the first gathers them with its count (two
+    /// geometry passes); more take less memory where the records outweigh the slots (a small
+    /// budget on a deep frame), and draw a features pass for each batch (a geometry pass
+    /// more each). The image is the same.
     #[arg(long, default_value_t = dhoit_runtime::budget::RECORD_BATCHES, value_parser = parse_record_batches)]
     pub(crate) record_batches: u64,
 }
@@ -171,7 +172,7 @@ fn parse_mboit_moments(s: &str) -> std::result::Result<u32, String> {
 }
 
 fn parse_record_batches(s: &str) -> std::result::Result<u64, String> {
-    let most = dhoit_runtime::budget::RECORD_BATCHES;
+    let most = dhoit_runtime::budget::MOST_RECORD_BATCHES;
     match s.parse::<u64>() {
         Ok(n) if (1..=most).contains(&n) => Ok(n),
         _ => Err(format!(

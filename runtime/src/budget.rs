@@ -120,8 +120,9 @@ pub struct Layout {
     /// What the layout keeps in its slot pool before the slots (DKB), or None: the pool is
     /// the slots and tails alone, made for what the allocation hands out.
     pub pool_state: Option<PoolState>,
-    /// The allocation's marks in a buffer of their own, by its label (VKB's, [`marks_bytes`]
-    /// of them), or None: no allocation on the device, or its marks in the pool (DKB's).
+    /// A buffer of marks of its own (a bit a pixel and their prefix counts, [`marks_bytes`]), by
+    /// its label, or None: VKB's allocation's marks; DKB's record marks, which a frame leaves
+    /// for the frame after (its allocation's marks are in its pool).
     pub marks: Option<&'static str>,
 }
 
@@ -156,8 +157,16 @@ impl PoolState {
     }
 }
 
-/// The most batches DKB gathers its records in ([`PoolState::batches`]).
-pub const RECORD_BATCHES: u64 = 3;
+/// The most batches DKB gathers its records in ([`PoolState::batches`]): one, so its pool holds
+/// every record at once and a frame gathers its statistics with its count
+/// (`gpu::Tuning::two_pass_dkb`), at the cost of a larger pool where the records outweigh the
+/// slots and tails (a small budget on a deep frame). Up to three take a third of the records'
+/// bytes and a features pass a batch.
+pub const RECORD_BATCHES: u64 = 1;
+
+/// The most batches DKB may be given to gather its records in: past three the tails already
+/// take more of a truncated frame's pool than a batch of records ([`PoolState::batches`]).
+pub const MOST_RECORD_BATCHES: u64 = 3;
 
 /// Bytes of a tail in the slot pool: [`crate::shared::TAIL_WORDS`] words.
 pub const POOLED_TAIL: u64 = 8 * crate::shared::TAIL_WORDS as u64;
@@ -284,16 +293,16 @@ const OFFSETS_END: (&str, u64) = ("offsets.end", 4);
 /// The resolve's status words: loops cut short, a pixel too deep (gpu's FrameStatus).
 const STATUS: (&str, u64) = ("status", 16);
 
-/// Deep k-buffer: the count and the shared word a pixel; the rest in the slot
-/// pool before the slots fill it ([`PoolState`]): a record of the network's statistics for each
+/// Deep k-buffer: the count and the shared word a pixel, and its record marks (a bit a pixel:
+/// which pixels have a record, kept from one frame for the next, whose count gathers their
+/// statistics); the rest in the slot pool before the slots fill it ([`PoolState`]): a record of the network's statistics for each
 /// pixel of three fragments or more (32 bytes: the nearest key, the colour and opacity sums; a
 /// pixel of fewer keeps them all whatever its k, `shared::stored_k`, so its k is forced) and,
 /// after the records, the network's list of those it decides (4 bytes a record), then
 /// the allocation's marks ([`marks_bytes`]: a bit a pixel, 0.25 bytes with their prefix
 /// counts), then the slots and the pooled tails (two words, where a pixel leaves out more than
 /// two fragments). The shared word (`oit.offsets`) holds a
-/// pixel's record index, its importance, the allocation's weights, k and the slot bases in
-/// turn.
+/// pixel's importance, the allocation's weights, k and the slot bases in turn.
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,
@@ -325,7 +334,7 @@ pub const DKB: Layout = Layout {
         list_bytes: 4,
         batches: RECORD_BATCHES,
     }),
-    marks: None,
+    marks: Some("dkb.record_marks"),
 };
 
 /// Optimal allocation uploaded as k: the same capture and resolve as DKB, no network (and no
@@ -595,9 +604,13 @@ impl Layout {
     /// at most), then the marks; [`LEAST_BUFFER_BYTES`] at least, as every buffer (all of it
     /// where the layout's pool holds no state).
     pub fn pool_least(&self, pixels: u64, records: u64) -> u64 {
+        self.pool_least_in(pixels, records, self.pool_state.map_or(1, |ps| ps.batches))
+    }
+    /// [`Layout::pool_least`] with the records in `batches` batches at most.
+    fn pool_least_in(&self, pixels: u64, records: u64, batches: u64) -> u64 {
         self.pool_state
             .map_or(0, |ps| {
-                ((ps.record_bytes + ps.list_bytes) * records.div_ceil(ps.batches))
+                ((ps.record_bytes + ps.list_bytes) * records.div_ceil(batches.max(1)))
                     .max(marks_bytes(pixels))
             })
             .max(LEAST_BUFFER_BYTES)
@@ -634,13 +647,51 @@ impl Layout {
     /// F(M) for a frame of occupancy `occ`: the most slots whose bytes, with the tails they
     /// may keep (and the state the pool holds first), stay within `bytes`
     /// ([`Layout::fragment_budget`] where the tails are not pooled). Where F covers every
-    /// covered pixel only the deep ones keep a tail.
+    /// covered pixel only the deep ones keep a tail. Where the bytes leave no slot beside
+    /// DKB's records in the batches its layout takes ([`PoolState::batches`]: one), they are
+    /// held in up to [`MOST_RECORD_BATCHES`] (a features pass a batch).
     pub fn fragment_budget_counted(&self, bytes: u64, pixels: u64, occ: &Occupancy) -> Result<u64> {
         if self.tail_bytes == 0 {
             return self.slots_after_fixed(bytes, pixels);
         }
-        let fixed = self.fixed_bytes(pixels);
         let least = self.pool_least(pixels, occ.deeper);
+        match (
+            self.pool_state,
+            self.slots_beside(bytes, pixels, occ, least),
+        ) {
+            (_, Some(f)) => Ok(f),
+            (Some(ps), None) if ps.batches < MOST_RECORD_BATCHES => {
+                let least = self.pool_least_in(pixels, occ.deeper, MOST_RECORD_BATCHES);
+                self.slots_beside(bytes, pixels, occ, least)
+                    .ok_or_else(|| self.no_slot(bytes, pixels, occ, least, MOST_RECORD_BATCHES))
+            }
+            (ps, None) => Err(self.no_slot(bytes, pixels, occ, least, ps.map_or(1, |p| p.batches))),
+        }
+    }
+    /// The layout a frame of occupancy `occ` takes at a byte budget of `bytes` for its slots
+    /// and tails (what the words it stores leave: [`Layout::tinted_budget`]): this one, or
+    /// where those bytes leave no slot beside DKB's records all at once, this one with its
+    /// records in up to [`MOST_RECORD_BATCHES`] batches, as
+    /// [`Layout::fragment_budget_counted`] resolves it (its pool then the bytes', a batch of
+    /// records at a time).
+    pub fn for_bytes(self, bytes: u64, pixels: u64, occ: &Occupancy) -> Layout {
+        match self.pool_state {
+            Some(ps)
+                if ps.batches < MOST_RECORD_BATCHES
+                    && self.tail_bytes > 0
+                    && self
+                        .slots_beside(bytes, pixels, occ, self.pool_least(pixels, occ.deeper))
+                        .is_none() =>
+            {
+                self.with_record_batches(MOST_RECORD_BATCHES)
+            }
+            _ => self,
+        }
+    }
+    /// The most slots `bytes` hold beside the fixed bytes, a pool of at least `least` and the
+    /// tails (None: none; [`Layout::fragment_budget_counted`]).
+    fn slots_beside(&self, bytes: u64, pixels: u64, occ: &Occupancy, least: u64) -> Option<u64> {
+        let fixed = self.fixed_bytes(pixels);
         let pool = bytes.checked_sub(fixed).filter(|&p| p >= least);
         // The slots left beside the words the pixels may take past them where k is at least
         // lo ([`Occupancy::extra_words_at`]): F at or above the covered pixels (lo 1), or
@@ -653,36 +704,42 @@ impl Layout {
             slots_after(occ.extra_words_at(occ.covered)),
             slots_after(occ.extra_words_at(0)),
         ) {
-            (Some(f), _) if f >= occ.covered => Ok(f),
-            (_, Some(f)) if f > 0 => Ok(f),
-            _ => Err(Error::Budget(
-                format_bytes(bytes),
-                format!(
-                    "{} needs {} for one slot in this frame: {} for {} pixels before any \
+            (Some(f), _) if f >= occ.covered => Some(f),
+            (_, Some(f)) if f > 0 => Some(f),
+            _ => None,
+        }
+    }
+    /// Why `bytes` hold no slot for a frame of occupancy `occ`, its pool at least `least`
+    /// with its records in `batches` batches.
+    fn no_slot(&self, bytes: u64, pixels: u64, occ: &Occupancy, least: u64, batches: u64) -> Error {
+        let fixed = self.fixed_bytes(pixels);
+        Error::Budget(
+            format_bytes(bytes),
+            format!(
+                "{} needs {} for one slot in this frame: {} for {} pixels before any \
                      fragment slot ({} B per pixel + {} fixed{}), and {} B for the tail (or \
                      the fragments, where a tail would hold no more) of each of the frame's {} \
                      covered pixels",
-                    self.method,
-                    format_bytes(fixed + least.max(self.slot_bytes * occ.pool_words_at(1))),
-                    format_bytes(fixed + least),
-                    pixels,
-                    self.per_pixel_bytes(),
-                    format_bytes(fixed - pixels * self.per_pixel_bytes()),
-                    match self.pool_state {
-                        Some(ps) => format!(
-                            ", a pool of {} for the {} pixels of three fragments or more \
+                self.method,
+                format_bytes(fixed + least.max(self.slot_bytes * occ.pool_words_at(1))),
+                format_bytes(fixed + least),
+                pixels,
+                self.per_pixel_bytes(),
+                format_bytes(fixed - pixels * self.per_pixel_bytes()),
+                match self.pool_state {
+                    Some(_) => format!(
+                        ", a pool of {} for the {} pixels of three fragments or more \
                              in {} batches",
-                            format_bytes(least),
-                            occ.deeper,
-                            ps.batches
-                        ),
-                        None => String::new(),
-                    },
-                    self.tail_bytes,
-                    occ.covered
-                ),
-            )),
-        }
+                        format_bytes(least),
+                        occ.deeper,
+                        batches
+                    ),
+                    None => String::new(),
+                },
+                self.tail_bytes,
+                occ.covered
+            ),
+        )
     }
     /// The budget a frame's slots (and tails) are resolved against: all of `bytes`, or where
     /// the frame stores `words`, what they leave of it: the linked list's nodes share it with

@@ -654,6 +654,15 @@ impl<'a> Renderer<'a> {
                 let layout = self.options.layout(method);
                 let bytes = if layout.pool_state.is_some() {
                     let occ = Occupancy::of(&counts);
+                    // A byte budget that holds DKB's records only in batches reserves a pool
+                    // of a batch of them.
+                    let layout = match self.budget() {
+                        Ok(Budget::Bytes(m)) => {
+                            let m = layout.tinted_budget(m, pixels, fl.words());
+                            layout.for_bytes(m, pixels, &occ)
+                        }
+                        _ => layout,
+                    };
                     layout.reserved_bytes(pixels, a.budget_fragments, &occ)
                 } else {
                     layout.allocated_with_tails(pixels, slots, budget::tails_kept(&k, &counts))

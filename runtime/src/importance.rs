@@ -255,6 +255,44 @@ pub fn features_and_pairs(
     (features, stats.iter().map(tail_pair).collect())
 }
 
+/// DKB's record marks of a frame whose pixels hold `counts` fragments (totals.wgsl's
+/// mark_records, then the marks' scan): a bit for each pixel of more than
+/// [`crate::shared::TAIL_WORDS`] fragments, laid out as the allocation's marks
+/// ([`crate::shared::marks_words`]): the exclusive prefix sums of their words' popcounts and
+/// their total, then the words of bits. The frame that gathers its statistics with its count
+/// reads the frame before's.
+pub fn record_marks(counts: &[u32]) -> Vec<u32> {
+    let bits = crate::shared::MARK_BITS as usize;
+    let blocks = counts.len().div_ceil(bits);
+    let mut marks = vec![0u32; 2 * blocks + 1];
+    for (p, &n) in counts.iter().enumerate() {
+        if n > crate::shared::TAIL_WORDS {
+            marks[blocks + 1 + p / bits] |= 1 << (p % bits);
+        }
+    }
+    let mut before = 0;
+    for w in 0..blocks {
+        marks[w] = before;
+        before += marks[blocks + 1 + w].count_ones();
+    }
+    marks[blocks] = before;
+    marks
+}
+
+/// Each of `pixels` pixels' record under `marks` ([`record_marks`]; records.wgsl's
+/// record_index): the marked pixels before it, None where it is not marked.
+pub fn record_indices(marks: &[u32], pixels: u64) -> Vec<Option<u32>> {
+    let bits = crate::shared::MARK_BITS as usize;
+    let blocks = crate::shared::mark_blocks(pixels) as usize;
+    (0..pixels as usize)
+        .map(|p| {
+            let word = marks[blocks + 1 + p / bits];
+            let bit = 1u32 << (p % bits);
+            (word & bit != 0).then(|| marks[p / bits] + (word & (bit - 1)).count_ones())
+        })
+        .collect()
+}
+
 /// Variable k-buffer parameters (paper 002).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VkbParams {

@@ -417,6 +417,30 @@ impl Mlp {
         imp
     }
 
+    /// [`Mlp::dkb_importance_pooled`] for a frame that gathers its statistics with its count
+    /// (`gpu::Tuning::two_pass_dkb`), for the pixels the frame before marked
+    /// ([`crate::importance::record_marks`] of its counts: `recorded` says which of this frame's
+    /// pixels have a record, as many as its pool held), the others the least weight: 0,
+    /// with the pair mark where the pixel has more than `shared::TAIL_WORDS` fragments
+    /// (importance_dkb.wgsl's gather). Where every deeper pixel has a record, it is
+    /// [`Mlp::dkb_importance_pooled`] itself.
+    pub fn dkb_importance_recorded(
+        &self,
+        features: &[[f32; FEATURES]],
+        counts: &[u32],
+        f: u64,
+        recorded: &[bool],
+    ) -> Vec<f32> {
+        let mut imp = self.dkb_importance_pooled(features, counts, f);
+        let all_fit = f >= counts.iter().map(|&n| n as u64).sum::<u64>();
+        for ((i, &n), &r) in imp.iter_mut().zip(counts).zip(recorded) {
+            if !r && !all_fit && n > crate::shared::TAIL_WORDS {
+                *i = crate::alloc::mark_pair(0.0, true);
+            }
+        }
+        imp
+    }
+
     /// DKB's importance map, as the GPU's importance pass writes it: the network's output with
     /// the pair mark, and 0 wherever k does not depend on it, without running the network
     /// there: with the mark at a pixel whose useful cap is the frame's lo ([`forced`]);

@@ -203,9 +203,10 @@ pub fn ahead(
     let pool_bytes = pool.max(crate::shared::LEAST_BUFFER_BYTES);
     Ahead {
         pool_bytes,
-        batches: layout
-            .pool_state
-            .map_or(1, |ps| ps.batch(pool_bytes, occ.deeper).1.min(ps.batches)),
+        batches: layout.pool_state.map_or(1, |ps| {
+            let most = ps.batches.max(budget::MOST_RECORD_BATCHES);
+            ps.batch(pool_bytes, occ.deeper).1.min(most)
+        }),
     }
 }
 
@@ -293,8 +294,15 @@ pub fn largest_fitting(words: u64, occ: &Occupancy, cap: u64) -> Option<u64> {
         .map(|f0| cap.min(f0))
 }
 
-/// The frame's plan for its occupancy `occ` (plan.wgsl's `main`, step for step).
+/// The frame's plan for its occupancy `occ` (plan.wgsl's `main`, step for step), its DKB
+/// records its deeper pixels (a frame that marks its own records: [`plan_with_records`]).
 pub fn plan(input: &PlanInput, occ: &Occupancy) -> Plan {
+    plan_with_records(input, occ, occ.deeper)
+}
+
+/// [`plan`] of a DKB frame with `records` records (the pixels the frame before marked, where
+/// the frame gathers its statistics with its count: the totals' `TOTAL_RECORDS`).
+pub fn plan_with_records(input: &PlanInput, occ: &Occupancy, records: u64) -> Plan {
     let n = occ.fragments;
     let mut short = 0;
     // The budget's F.
@@ -323,7 +331,7 @@ pub fn plan(input: &PlanInput, occ: &Occupancy) -> Plan {
     let exact = f >= n || (input.exact_when_cheaper && words >= n);
     // DKB's records, in batches of what the pool holds (none where every fragment is kept).
     let (per_batch, batches) = match input.layout.pool_state {
-        Some(ps) if !exact => ps.batch(input.pool_bytes, occ.deeper),
+        Some(ps) if !exact => ps.batch(input.pool_bytes, records),
         _ => (0, 0),
     };
     if batches > input.batches.max(1) {
@@ -352,8 +360,9 @@ mod tests {
         }
     }
 
-    /// A byte budget's F is the largest F whose reservation fits in it, found by trying every
-    /// F (F = 0 is no slot: refused); bytes that hold the exact A-buffer keep every fragment;
+    /// A byte budget's F is the largest F whose reservation fits in it (DKB's records whole,
+    /// or where that leaves no slot in up to three batches), found by trying every F (F = 0 is
+    /// no slot: refused); bytes that hold the exact A-buffer keep every fragment;
     /// and the bytes a budget of F slots reserves hold those F again, with the frame's words
     /// or without.
     #[test]
@@ -384,9 +393,16 @@ mod tests {
                         );
                         continue;
                     }
-                    let search = (0..=m / SLOT_BYTES)
-                        .rev()
-                        .find(|&f| layout.reserved_bytes(px, f, &o) <= m);
+                    // The records whole where the bytes hold a slot beside them, else in up to
+                    // three batches.
+                    let search_in = |l: Layout| {
+                        (0..=m / SLOT_BYTES)
+                            .rev()
+                            .find(|&f| l.reserved_bytes(px, f, &o) <= m)
+                            .filter(|&f| f > 0)
+                    };
+                    let batched = layout.with_record_batches(budget::MOST_RECORD_BATCHES);
+                    let search = search_in(layout).or_else(|| search_in(batched));
                     searched += 1;
                     match (got, search) {
                         (Ok(c), Some(f)) => assert_eq!(c.f, f, "{label}"),

@@ -48,7 +48,8 @@ pub const TOTAL_COVERED: u32 = 1;
 pub const TOTAL_MAX_COUNT: u32 = 2;
 /// ... its deep pixels (two fragments or more), ...
 pub const TOTAL_DEEP: u32 = 3;
-/// ... DKB's records handed out (totals.wgsl's `assign_records`), ...
+/// ... DKB's records: the pixels its record marks mark (records.wgsl; this frame's deeper ones,
+/// or where it gathers its statistics with its count the frame before's), ...
 pub const TOTAL_RECORDS: u32 = 4;
 /// ... and its deeper pixels (more than [`TAIL_WORDS`]).
 pub const TOTAL_DEEPER: u32 = 5;
@@ -193,7 +194,8 @@ pub const fn k_of_span(span: u32, n: u32) -> u32 {
 
 /// 64-bit words of DKB's per-pixel record (features.wgsl): the nearest key, two of colour sums,
 /// one of opacity sums. Only a pixel of more than [`TAIL_WORDS`] fragments has one (any fewer
-/// are all kept whatever k: [`stored_k`]), in the slot pool until the capture.
+/// are all kept whatever k: [`stored_k`]), in the slot pool until the capture, in pixel order
+/// (records.wgsl, `importance::record_index`).
 pub const RECORD_WORDS: u32 = 4;
 
 /// A pixel without a record (records.wgsl).

@@ -48,6 +48,15 @@ pub mod shaders {
     /// Unsigned 64-bit arithmetic in two 32-bit words, for the passes that run without u64.
     pub const U64: &str = include_str!("../../shaders/u64.wgsl");
 
+    /// Which pixel has which of DKB's records, from their marks (records.wgsl): the passes that
+    /// read or write the records include it.
+    pub const RECORDS: &str = include_str!("../../shaders/records.wgsl");
+
+    /// Which records DKB's features pass gathers: a batch of its own (features_batch.wgsl), or
+    /// with the count, those the frame before marked (features_count.wgsl).
+    pub const FEATURES_BATCH: &str = include_str!("../../shaders/features_batch.wgsl");
+    pub const FEATURES_COUNT: &str = include_str!("../../shaders/features_count.wgsl");
+
     /// DKB's features pass's additions with 64-bit atomics (features.wgsl).
     pub const FEATURES_WIDE: &str = include_str!("../../shaders/features_wide.wgsl");
     /// The same with 32-bit atomics alone, in two passes.
@@ -116,7 +125,11 @@ pub mod shaders {
             .copied()
             .filter(|i| *i != GEOMETRY)
             .collect();
-        Some((src, includes.join("\n")))
+        // The includes' group 1 bindings (the tint pass's, DKB's features') move with the pass's.
+        let includes = includes
+            .join("\n")
+            .replace("@group(1)", "@group(OIT_GROUP)");
+        Some((src, includes))
     }
 
     /// Geometry pass `name`'s source, with each (from, to) of `redeclare` replaced (a variant of
@@ -197,9 +210,10 @@ pub mod shaders {
         "importance_dkb",
         "features_depths",
         "features_colours",
+        "count_features_depths",
     ];
 
-    pub const PASSES: [Pass; 27] = [
+    pub const PASSES: [Pass; 29] = [
         Pass {
             name: "opaque",
             source: include_str!("../../shaders/opaque.wgsl"),
@@ -301,15 +315,17 @@ pub mod shaders {
         Pass {
             name: "features",
             source: include_str!("../../shaders/features.wgsl"),
-            includes: &[GEOMETRY, FEATURES_WIDE],
+            includes: &[GEOMETRY, RECORDS, FEATURES_WIDE, FEATURES_BATCH],
         },
         Pass {
             name: "features_depths",
             source: include_str!("../../shaders/features.wgsl"),
             includes: &[
                 GEOMETRY,
+                RECORDS,
                 FEATURES_PORTABLE,
                 "const FEATURES_COLOURS: bool = false;",
+                FEATURES_BATCH,
             ],
         },
         Pass {
@@ -317,14 +333,32 @@ pub mod shaders {
             source: include_str!("../../shaders/features.wgsl"),
             includes: &[
                 GEOMETRY,
+                RECORDS,
                 FEATURES_PORTABLE,
                 "const FEATURES_COLOURS: bool = true;",
+                FEATURES_BATCH,
+            ],
+        },
+        Pass {
+            name: "count_features",
+            source: include_str!("../../shaders/features.wgsl"),
+            includes: &[GEOMETRY, RECORDS, FEATURES_WIDE, FEATURES_COUNT],
+        },
+        Pass {
+            name: "count_features_depths",
+            source: include_str!("../../shaders/features.wgsl"),
+            includes: &[
+                GEOMETRY,
+                RECORDS,
+                FEATURES_PORTABLE,
+                "const FEATURES_COLOURS: bool = false;",
+                FEATURES_COUNT,
             ],
         },
         Pass {
             name: "totals",
             source: include_str!("../../shaders/totals.wgsl"),
-            includes: &[],
+            includes: &[RECORDS],
         },
         Pass {
             name: "plan",
@@ -334,7 +368,7 @@ pub mod shaders {
         Pass {
             name: "importance_dkb",
             source: include_str!("../../shaders/importance_dkb.wgsl"),
-            includes: &[U64, MLP],
+            includes: &[U64, MLP, RECORDS],
         },
         Pass {
             name: "vkb_count",
@@ -440,6 +474,10 @@ pub mod shaders {
             ("TOTAL_MAX_COUNT", U32(crate::shared::TOTAL_MAX_COUNT)),
             ("TOTAL_DEEP", U32(crate::shared::TOTAL_DEEP)),
             ("TOTAL_RECORDS", U32(crate::shared::TOTAL_RECORDS)),
+            (
+                "MOST_RECORD_BATCHES",
+                U32(crate::budget::MOST_RECORD_BATCHES as u32),
+            ),
             ("TOTAL_DEEPER", U32(crate::shared::TOTAL_DEEPER)),
             ("BATCH_LISTED", U32(crate::shared::BATCH_LISTED)),
             ("BATCH_LO", U32(crate::shared::BATCH_LO)),
@@ -586,7 +624,11 @@ pub(crate) struct Params {
     /// a transparent fragment's RGB is stored over a power of two, its exponent in the top
     /// byte of its tint word, which the methods that store fragments then store.
     pub(crate) hdr: u32,
-    pub(crate) _pad: [u32; 13],
+    /// DKB's records whose statistics its count pass gathers (features_count.wgsl:
+    /// those the frame before marked, as many as the slot pool holds); 0 where the frame draws
+    /// a features pass of its own (a frame's first, one after a cut, batches).
+    pub(crate) dkb_records: u32,
+    pub(crate) _pad: [u32; 12],
 }
 
 /// `TextureRef.texels` where a material has no such texture.
@@ -989,7 +1031,7 @@ mod tests {
             k_uniform, pixels, budget_fragments, vkb_alpha, vkb_exponent, vkb_noise, vkb_seed,
             budget_ppm, append, layer_major, uniform_alpha, store_primitives, mboit_bias,
             mboit_overestimation, list_sorted, pooled_tail, wboit_weight, wboit_near, wboit_far,
-            tinted, hdr);
+            tinted, hdr, dkb_records);
         assert_eq!(
             wgsl, rust,
             "Params: WGSL (left) and Rust (right) members and offsets"

@@ -69,8 +69,9 @@ fn fragment_budget_follows_the_layout_and_never_overspends() {
         .unwrap();
     assert_eq!(f, 200);
     // Before a frame is counted: every pixel deeper, with a record (32 bytes) and a list entry
-    // (4), 3,600 bytes, gathered in batches of what a pool of the slots and the tails every
-    // pixel may keep holds (200 slots and two words a pixel: 3,200 bytes, 88 records a batch).
+    // (4), 3,600 bytes, more than the slots and the tails every pixel may keep take (200
+    // slots and two words a pixel: 3,200 bytes): the pool holds every record, one batch. In
+    // up to three batches, the slots' and tails' pool holds 88 records a batch.
     let most = budget::Occupancy {
         fragments: u64::MAX,
         covered: 100,
@@ -78,9 +79,13 @@ fn fragment_budget_follows_the_layout_and_never_overspends() {
         deeper: 100,
     };
     assert_eq!(m, budget::DKB.reserved_bytes(100, 200, &most));
-    assert_eq!(m, budget::DKB.fixed_bytes(100) + 8 * (200 + 2 * 100));
+    assert_eq!(m, budget::DKB.fixed_bytes(100) + 3_600);
     let ps = budget::DKB.pool_state.unwrap();
-    assert_eq!(ps.batch(m - budget::DKB.fixed_bytes(100), 100), (88, 2));
+    assert_eq!(ps.batch(m - budget::DKB.fixed_bytes(100), 100), (100, 1));
+    let batched = budget::DKB.with_record_batches(3);
+    let m3 = batched.reserved_bytes(100, 200, &most);
+    assert_eq!(m3, batched.fixed_bytes(100) + 8 * (200 + 2 * 100));
+    assert_eq!(ps.batch(m3 - batched.fixed_bytes(100), 100), (88, 2));
     // A pool that holds every record gathers them in one batch; the least pool, a third of
     // them a batch (34 records, 1,224 bytes), in three.
     assert_eq!(ps.batch(3_600, 100), (100, 1));
@@ -92,7 +97,8 @@ fn fragment_budget_follows_the_layout_and_never_overspends() {
 /// A counted frame's F(M) with pooled tails is the largest F whose fixed bytes, slots and the
 /// words its pixels may take past them (a tail of two words, or the fragments it would hold:
 /// up to two a covered pixel below one slot each, one a deep pixel and one a deeper above)
-/// fit M: held to an exhaustive search over F.
+/// fit M, DKB's records whole in its pool, or where that leaves no slot, in up to three
+/// batches: held to an exhaustive search over F.
 #[test]
 fn pooled_tails_leave_the_largest_budget_that_fits() {
     let pixels = 64u64;
@@ -114,8 +120,14 @@ fn pooled_tails_leave_the_largest_budget_that_fits() {
             };
             let fixed = layout.fixed_bytes(pixels);
             for m in (fixed..fixed + 2_400).step_by(3) {
-                let fits = |f: u64| layout.reserved_bytes(pixels, f, &occ) <= m;
-                let best = (0..=400u64).rev().find(|&f| fits(f));
+                let search = |l: budget::Layout| {
+                    (0..=400u64)
+                        .rev()
+                        .find(|&f| l.reserved_bytes(pixels, f, &occ) <= m)
+                        .filter(|&f| f > 0)
+                };
+                let batched = layout.with_record_batches(budget::MOST_RECORD_BATCHES);
+                let best = search(layout).or_else(|| search(batched));
                 match (layout.fragment_budget_counted(m, pixels, &occ), best) {
                     (Ok(f), Some(b)) => {
                         assert_eq!(

@@ -265,18 +265,27 @@ fn one_fragment_a_pixel_and_budgets_at_the_edges() {
         "{err}"
     );
     // The least bytes that run: the fixed cost and a pool of the most it holds: a batch of the
-    // records (32 bytes for each pixel of three fragments or more, in up to three batches) and
-    // the network's list after them (4 bytes a record), the marks (a bit a pixel in words of 32, each word's prefix count, and their total), or
+    // records (32 bytes for each pixel of three fragments or more, in up to three batches where
+    // the bytes do not hold them whole) and the network's list after them (4 bytes a record),
+    // the marks (a bit a pixel in words of 32, each word's prefix count, and their total), or
     // one slot and, for each covered pixel (with fewer slots than those, any may have k = 0),
     // the two words of a tail or of the two fragments it would hold, one word for a pixel of
-    // one. What the pool holds beyond them is slots: F by hand.
+    // one. What the pool holds beyond them is slots: F by hand. A budget of one slot reserves
+    // the records whole (one batch, so a frame after it gathers them with its count).
     let occ = budget::Occupancy::of(&fl.counts());
     let (deep, deeper) = (occ.deep, occ.deeper);
     let pool = (36 * deeper.div_ceil(3))
         .max(4 * (2 * pixels.div_ceil(32) + 1))
         .max(8 * (1 + covered + deep).min(total));
     let one = fixed + pool;
-    assert_eq!(one, budget::DKB.reserved_bytes(pixels, 1, &occ));
+    let whole = (36 * deeper).max(pool);
+    assert_eq!(fixed + whole, budget::DKB.reserved_bytes(pixels, 1, &occ));
+    assert_eq!(
+        one,
+        budget::DKB
+            .with_record_batches(3)
+            .reserved_bytes(pixels, 1, &occ)
+    );
     let f1 = frame::render(&fl, Method::Dkb, opts(Budget::Bytes(one))).unwrap();
     assert!(frame::render(&fl, Method::Dkb, opts(Budget::Bytes(one - 1))).is_err());
     let by_hand = match (pool / 8).saturating_sub(deep + deeper) {

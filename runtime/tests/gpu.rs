@@ -239,8 +239,8 @@ fn shuffled_submission_gives_bit_identical_gpu_images() {
     }
 }
 
-/// DKB's records gathered in batches (`Tuning::record_batches`, three at most by
-/// default) or all at once (1) give the same importance and image, bit for bit, from the
+/// DKB's records gathered in batches (`Tuning::record_batches`, up to three) or all at once
+/// (1, the default) give the same importance and image, bit for bit, from the
 /// network run on as many rows, and each frame
 /// allocates its layout's bytes for the batches it took: fewer, the more batches, where the
 /// records outweigh the slots and tails (particles at 0.05 fpp).
@@ -916,9 +916,9 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
         let total = gfl.fragment_count() as u64;
         let cfl = rasterize(&s, &cam, (w, h)).unwrap();
         let ccounts = cfl.counts();
-        // 0.05 (DKB's pool then the size of a batch of its records and the network's list
-        // after them: smaller than the records, so they are gathered in batches), 0.5, 1 and 2
-        // fragments a pixel, one slot short of every fragment, and every one.
+        // 0.05 (DKB's pool then the size of its records and the network's list after them:
+        // larger than its slots and tails would take), 0.5, 1 and 2 fragments a pixel, one
+        // slot short of every fragment, and every one.
         let occ = budget::Occupancy::of(&gfl.counts());
         let layout = budget::DKB.for_network(&mlp);
         let budgets = [0.05, 0.5, 1.0, 2.0]
@@ -938,8 +938,8 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
             assert!(d.passes.contains(&"count"), "{name}: count pass");
             let drawn = !holds;
             assert_eq!(d.features_drawn, Some(drawn), "{name} F {f} of {total}");
-            // The batches its pool holds the records in: several at 0.05, where 36 bytes a
-            // record are more than the pool of its slots and tails.
+            // The batches its pool holds the records in: one, the pool holding every record
+            // (at 0.05 that pool is larger than its slots and tails would take).
             let pool = layout.pool_bytes(pixels as u64, f, &occ);
             let (per_batch, batches) = layout.pool_state.unwrap().batch(pool, occ.deeper);
             assert_eq!(
@@ -947,11 +947,23 @@ fn dkb_and_vkb_run_every_pass_on_the_gpu_like_their_twins() {
                 drawn.then_some(batches),
                 "{name} {fpp}fpp"
             );
+            assert_eq!(batches, 1, "{name} {fpp}fpp");
             if fpp == "0.05" {
+                let slots_and_tails = 8 * occ.pool_words_at(f);
                 assert!(
-                    batches > 1 && 36 * occ.deeper > pool && 36 * per_batch <= pool,
-                    "{name}: {batches} batches of {per_batch} of {} records in {pool} bytes",
+                    36 * occ.deeper > slots_and_tails && 36 * per_batch <= pool,
+                    "{name}: {per_batch} of {} records in {pool} bytes",
                     occ.deeper
+                );
+            }
+            // Gathered with the count (its marks made with the count first, as a frame after
+            // one of the same count has them), the features pass never drawn.
+            if drawn {
+                assert!(
+                    d.variants.contains(&"dkb statistics: with the count")
+                        && !d.passes.contains(&"features"),
+                    "{name} {fpp}fpp: {:?}",
+                    d.passes
                 );
             }
             let stats = if !drawn {
@@ -1794,8 +1806,17 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         let stacked = sparse_scene_shifted(0.0, 8.0);
         let sfl = gpu_fragments(g, &stacked, &cam, (w, h));
         let few = sfl.fragment_count() as u64 / 40;
+        let mut batched = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
+        batched.tuning.record_batches = 3;
         let d = g
-            .render_method(&stacked, &cam, (w, h), BG, Slots::Dkb(&mlp, few.into()))
+            .render_with(
+                &batched,
+                &stacked,
+                &cam,
+                (w, h),
+                BG,
+                Slots::Dkb(&mlp, few.into()),
+            )
             .unwrap();
         assert!(
             d.record_batches.is_some_and(|b| b > 1),
@@ -2034,8 +2055,10 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
             );
         }
         o.tuning.skip_forced = true;
-        // At a slot a covered pixel (lo = 1, some records forced) the pool holds the records
-        // in batches: the rows of each batch's list add up to the pixels left to the network.
+        // At a slot a covered pixel (lo = 1, some records forced), in up to three batches, the
+        // pool holds the records in batches: the rows of each batch's list add up to the
+        // pixels left to the network.
+        o.tuning.record_batches = 3;
         let frame = g
             .render_with(
                 &o,
@@ -2061,6 +2084,7 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
             frame.record_batches
         );
         assert_eq!(frame.network_rows, Some(recorded), "{name}, F {few}");
+        o.tuning.record_batches = dhoit_runtime::budget::RECORD_BATCHES;
     }
 }
 

@@ -360,10 +360,11 @@ fn the_device_page_lists_the_buffers_the_layouts_count() {
             l.tail_bytes,
             match l.pool_state {
                 Some(ps) => format!(
-                    "a record of {} B a pixel of 3 fragments or more and the network's list, {} B a record, in up to {} batches, then the marks 4 B every {} pixels (a bit a pixel, a count every 32)",
+                    "a record of {} B a pixel of 3 fragments or more and the network's list, {} B a record, all at once ({} batch; up to {} where a byte budget does not hold them), then the marks 4 B every {} pixels (a bit a pixel, a count every 32)",
                     ps.record_bytes,
                     ps.list_bytes,
                     ps.batches,
+                    dhoit_runtime::budget::MOST_RECORD_BATCHES,
                     dhoit_runtime::shared::MARK_BITS / 2,
                 ),
                 None => "-".into(),

@@ -511,19 +511,19 @@ impl Gpu {
             pass.set_pipeline(p);
             for (input, occ) in cases {
                 let w = |v: u64| v.min(u32::MAX as u64) as u32;
-                let totals = storage(
-                    "plan.totals",
-                    &[
-                        w(occ.fragments),
-                        w(occ.covered),
-                        0,
-                        w(occ.deep),
-                        0,
-                        w(occ.deeper),
-                        0,
-                        0,
-                    ],
-                );
+                // The count's totals, and as many records marked as deeper pixels (a frame that
+                // marks its own).
+                let mut words = [0; crate::shared::TOTALS_WORDS as usize];
+                for (at, v) in [
+                    (crate::shared::TOTAL_FRAGMENTS, occ.fragments),
+                    (crate::shared::TOTAL_COVERED, occ.covered),
+                    (crate::shared::TOTAL_DEEP, occ.deep),
+                    (crate::shared::TOTAL_DEEPER, occ.deeper),
+                    (crate::shared::TOTAL_RECORDS, occ.deeper),
+                ] {
+                    words[at as usize] = w(v);
+                }
+                let totals = storage("plan.totals", &words);
                 let batch = storage("plan.batch", &[0; crate::shared::BATCH_WORDS as usize]);
                 let params = self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("plan.params"),

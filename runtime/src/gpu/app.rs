@@ -187,6 +187,14 @@ pub trait Oit {
     /// its exact A-buffer, with `exact_when_cheaper`).
     fn expect(&mut self, occupancy: Occupancy);
 
+    /// The next frame starts a new shot (the camera jumped, the scene changed): DKB's frame
+    /// then marks its own records and draws its features pass (three geometry passes: the
+    /// count, [`Phase::Features`], the capture) rather than gather its statistics with its
+    /// count for the pixels the frame before marked, as every frame after a frame of its size
+    /// does. A resize is a cut of its own; a budget change is none. The other methods keep
+    /// nothing from one frame for the next: for them it changes nothing.
+    fn cut(&mut self);
+
     /// Bytes of the buffers the last frame recorded held (0 before the first).
     fn allocated_bytes(&self) -> u64;
 
@@ -399,6 +407,8 @@ fn storing_pass(phase: Phase) -> (&'static str, &'static [(&'static str, &'stati
                 "const EVERY_FRAGMENT_FITS: bool = true;",
             )],
         ),
+        Phase::CountFeatures => ("count_features", &[]),
+        Phase::CountFeaturesDepths => ("count_features_depths", &[]),
         Phase::FeaturesDepths => ("features_depths", &[]),
         Phase::FeaturesColours => ("features_colours", &[]),
         Phase::CaptureDepths => ("capture_depths", &[]),
@@ -445,8 +455,12 @@ fn bindings_of(method: &AppMethod, phase: Phase) -> Vec<Binding> {
     match phase {
         Phase::Count => vec![ReadWrite],
         Phase::Store => vec![Read, ReadWrite, ReadWrite, ReadWrite, ReadWrite],
+        // The record marks, the records, the optical depths, the batch; the counts.
         Phase::Features | Phase::FeaturesDepths | Phase::FeaturesColours => {
             vec![Read, ReadWrite, Uniform, Read]
+        }
+        Phase::CountFeatures | Phase::CountFeaturesDepths => {
+            vec![Read, ReadWrite, Uniform, Unused, ReadWrite]
         }
         Phase::VkbCount => vec![ReadWrite, ReadWrite],
         Phase::Capture | Phase::CaptureFits | Phase::CaptureDepths | Phase::CaptureColours => {
@@ -693,6 +707,9 @@ macro_rules! oit_of_app_frame {
             }
             fn expect(&mut self, occupancy: Occupancy) {
                 self.0.stream.expected = occupancy;
+            }
+            fn cut(&mut self) {
+                self.0.stream.cut();
             }
             fn allocated_bytes(&self) -> u64 {
                 self.0.stream.last_bytes

@@ -59,6 +59,16 @@ impl<'a, 'e> FrameBuffers<'a, 'e> {
         }
     }
 
+    /// The prefix sums' block totals for a frame of `px` pixels, made on first use and shared
+    /// by every scan of the frame.
+    pub(super) fn scan_blocks(&mut self, px: u64) -> Result<wgpu::Buffer> {
+        if self.scan_blocks.is_none() {
+            let groups = px.div_ceil(crate::budget::SCAN_BLOCK);
+            self.scan_blocks = Some(self.storage("scan.blocks", 4 * groups, true)?);
+        }
+        Ok(self.scan_blocks.clone().expect("made above"))
+    }
+
     /// The buffers taken, held until dropped; the encoder is the client's again.
     pub(super) fn into_taken(self) -> Taken<'a> {
         self.taken
@@ -571,7 +581,8 @@ pub(super) struct Readback {
     pub(super) slots: Option<(Vec<u64>, Vec<u32>, Vec<u32>)>,
     pub(super) counts_buf: Option<wgpu::Buffer>,
     pub(super) importance_buf: Option<wgpu::Buffer>,
-    /// DKB: each pixel's record index, and the records (features.wgsl).
+    /// DKB: the record marks that place its records (records.wgsl), and the records
+    /// (features.wgsl).
     pub(super) stats_bufs: Option<[wgpu::Buffer; 2]>,
     /// DKB: whether its features pass drew, where the host knows it (not recorded: false).
     pub(super) features_drawn: Option<bool>,
@@ -640,23 +651,25 @@ impl Readback {
         };
         let counts = read_counts(gpu, counts, px)?;
         let stats = match &self.stats_bufs {
-            Some([record_of, records]) if features_drawn != Some(false) => {
-                let record_of = u32s(&read_back(gpu, record_of, 4 * px)?);
-                let tail = crate::shared::TAIL_WORDS;
-                let deeper = counts.iter().filter(|&&n| n > tail).count() as u64;
+            Some([marks, records]) if features_drawn != Some(false) => {
+                let marks = u32s(&read_back(gpu, marks, crate::budget::marks_bytes(px))?);
+                let record = crate::importance::record_indices(&marks, px);
                 let words = crate::shared::RECORD_WORDS as usize;
-                let records = read_u64s(gpu, records, words as u64 * deeper)?;
+                let held = records.size() / (8 * words as u64);
+                let marked = record.iter().flatten().count() as u64;
+                let records = read_u64s(gpu, records, words as u64 * marked.min(held))?;
                 Some(
                     (0..px as usize)
                         .map(|q| {
-                            let r = record_of[q];
-                            if r == crate::shared::NO_RECORD {
-                                // No record (TAIL_WORDS fragments or fewer): nothing gathered.
+                            let Some(r) = record[q].filter(|&r| (r as u64) < marked.min(held))
+                            else {
+                                // No record (TAIL_WORDS fragments or fewer, or past those the
+                                // pool held): nothing gathered.
                                 return PixelStats {
                                     count: counts[q],
                                     ..Default::default()
                                 };
-                            }
+                            };
                             let w = &records[words * r as usize..words * (r as usize + 1)];
                             let lo = |v: u64| (v & 0xffff_ffff) as u32;
                             PixelStats {

@@ -248,6 +248,11 @@ pub struct Tuning {
     /// more memory where the records outweigh the slots, and fewer features passes. The CPU's
     /// accounting (`frame::Options::record_batches`) counts the same.
     pub record_batches: u64,
+    /// A DKB frame that follows one of its size gathers its network's statistics with its
+    /// count, for the pixels the frame before marked (its geometry drawn twice: the count and
+    /// the capture), where its records take one batch (on); off, every frame marks its own and
+    /// draws a features pass of its own (three geometry passes, the frame of a cut).
+    pub two_pass_dkb: bool,
 }
 
 impl Default for Tuning {
@@ -262,6 +267,7 @@ impl Default for Tuning {
             spread_search: false,
             layer_major_fkb: false,
             record_batches: crate::budget::RECORD_BATCHES,
+            two_pass_dkb: true,
         }
     }
 }
@@ -912,6 +918,21 @@ struct FrameSpec<'s> {
     params: Params,
     slots: Slots<'s>,
     sizing: Sizing,
+    /// DKB's record marks from the frame before, where its client keeps them ([`Carried`]).
+    carried: Option<Carried>,
+}
+
+/// DKB's record marks a frame's client keeps from one frame for the next (an application's
+/// stream, `Gpu::render`'s count first): the pixels of more than TAIL_WORDS fragments of the
+/// frame that marked them (totals.wgsl's mark_records, records.wgsl), `marks_bytes` of the
+/// frame's pixels. Where they are `valid` (the last frame of this size marked them), a DKB frame
+/// gathers its network's statistics for those pixels with its count
+/// ([`Tuning::two_pass_dkb`]) and draws no features pass; every DKB frame leaves its own
+/// marks there for the frame after.
+#[derive(Clone, Debug)]
+pub(super) struct Carried {
+    pub(super) marks: wgpu::Buffer,
+    pub(super) valid: bool,
 }
 
 /// A frame recorded into its client's encoder, not yet run: what the client reads back once
@@ -924,6 +945,9 @@ struct Recorded<'a> {
     /// Whether a DKB or VKB frame rendered the exact A-buffer in its place (its client counted
     /// first, and the A-buffer was no dearer).
     exact: bool,
+    /// Whether the frame left its own record marks in its client's [`Carried`] marks (a DKB
+    /// frame that recorded its statistics' passes): the next frame may gather with its count.
+    marked: bool,
 }
 
 /// One frame being recorded: its passes, the buffers it takes (and the encoder it records
@@ -939,6 +963,10 @@ struct Recording<'f, 'a, 'e> {
     /// `Params::hdr`): its tint word (tint and colour exponent), and where the glass is tinted
     /// the k-buffers' tails' sums of what the tints take away.
     words: budget::Words,
+    /// DKB's record marks from the frame before ([`FrameSpec::carried`]).
+    carried: Option<Carried>,
+    /// Whether DKB's passes left this frame's record marks in the carried ones.
+    marked: bool,
 }
 
 impl Gpu {
@@ -982,6 +1010,20 @@ impl Gpu {
             }
         };
         set_method_params(&mut params, k_uniform, budget, vkb);
+        let words = budget::Words::of(params.tinted != 0, params.tinted != 0 || params.hdr != 0);
+        // The allocated k-buffers' plan (None: the exact A-buffer in their place), made before
+        // the parameters: a DKB frame gathers its statistics with its count where it can.
+        let planned = match slots {
+            Slots::Importance(..)
+            | Slots::Vkb(..)
+            | Slots::Dkb(..)
+            | Slots::PerPixel(_)
+            | Slots::Uniform(_) => Some(planned(slots, &opts, px, spec.sizing, words)?),
+            _ => None,
+        };
+        if let (Slots::Dkb(..), Some(Some(planned))) = (slots, &planned) {
+            params.dkb_records = planned.gathered_with_count(&opts, spec.carried.as_ref()) as u32;
+        }
         let allocated = matches!(
             slots,
             Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..)
@@ -1015,7 +1057,9 @@ impl Gpu {
             out: Readback::default(),
             px,
             sizing: spec.sizing,
-            words: budget::Words::of(params.tinted != 0, params.tinted != 0 || params.hdr != 0),
+            words,
+            carried: spec.carried.clone(),
+            marked: false,
         };
         if matches!(slots, Slots::Uniform(_)) {
             rec.out.variants.push(if opts.tuning.layer_major_fkb {
@@ -1031,7 +1075,7 @@ impl Gpu {
             Slots::Wboit(_) => rec.wboit(size)?,
             Slots::Mboit(m) => rec.mboit(size, m.moments)?,
             Slots::LinkedList { nodes, .. } => rec.linked_list(nodes, size)?,
-            s => match rec.planned(s)? {
+            s => match planned.expect("planned above") {
                 None => {
                     exact = true;
                     rec.abuffer(Blend::Exact, size)?
@@ -1049,6 +1093,7 @@ impl Gpu {
             taken: rec.fb.into_taken(),
             allocated,
             exact,
+            marked: rec.marked,
         })
     }
 }
@@ -1067,62 +1112,97 @@ impl Planned {
     fn known_exact(&self) -> bool {
         self.host.is_some_and(|p| p.exact)
     }
+
+    /// DKB's records a batch holds where the host does not know the plan: as many as the pool
+    /// holds ([`budget::PoolState`]: a record and its entry in the network's list each), at
+    /// least one, at most a pixel each (`plan.wgsl` takes the smaller of that and the records).
+    fn records_held(&self, px: u64) -> u64 {
+        let ps = self
+            .input
+            .layout
+            .pool_state
+            .expect("DKB keeps its records in its pool");
+        (self.input.pool_bytes / (ps.record_bytes + ps.list_bytes)).clamp(1, px)
+    }
+
+    /// The records whose statistics a DKB frame gathers with its count
+    /// ([`Tuning::two_pass_dkb`]): as many as its pool holds at once, where it gathers any
+    /// (the host does not know it keeps every fragment), its records take one batch, and
+    /// `carried` holds valid marks from the frame before; else 0: it marks its own records and
+    /// draws a features pass for them.
+    fn gathered_with_count(&self, opts: &FrameOptions, carried: Option<&Carried>) -> u64 {
+        let px = self.input.pixels;
+        match opts.tuning.two_pass_dkb
+            && !self.known_exact()
+            && self.input.batches <= 1
+            && carried.is_some_and(|c| c.valid)
+        {
+            true => self.records_held(px),
+            false => 0,
+        }
+    }
 }
 
-impl Recording<'_, '_, '_> {
-    /// How a DKB, VKB or uploaded importance frame runs: None where its client counted first
-    /// and, with [`FrameOptions::exact_when_cheaper`], the frame renders the exact A-buffer as
-    /// the CPU's would ([`crate::plan::Counted::exact`]; then the frame is the A-buffer's), else its
-    /// plan's input (the pool sized for the occupancy its client expects) and, counted first,
-    /// the plan the device will make.
-    fn planned(&mut self, s: Slots) -> Result<Option<Planned>> {
-        let px = self.px;
-        let opts = self.passes.opts;
-        let (method, layout, asked) = match s {
-            Slots::Dkb(mlp, b) => (Method::Dkb, opts.dkb_layout(mlp), b),
-            Slots::Vkb(_, b) => (Method::Vkb, budget::VKB, b),
-            Slots::Importance(_, _, f) => (Method::Vkb, budget::VKB, f.into()),
-            // FKB's and an uploaded k's frames: their k is given, no F to plan.
-            _ => (Method::Vkb, budget::VKB, 0.into()),
-        };
-        // Where the frame is tinted, its slots and tails take what the tints leave of M
-        // (Layout::tinted_fragment_budget).
-        let plan_budget = match asked {
-            PlanBudget::Bytes(m) => PlanBudget::Bytes(layout.tinted_budget(m, px, self.words)),
-            b => b,
-        };
-        let exact_when_cheaper =
-            opts.exact_when_cheaper && matches!(s, Slots::Dkb(..) | Slots::Vkb(..));
-        let (pool_bytes, batches, host) = match self.sizing {
-            Sizing::Own(occ) => {
-                // What the budget comes to on this count, decided as the CPU decides it.
-                let counted = crate::plan::counted(method, &layout, asked, px, &occ, self.words)?;
-                if exact_when_cheaper && counted.exact(true) {
-                    return Ok(None);
-                }
-                let pool_bytes = layout.pool_for(px, counted.f, &occ);
-                let batches = layout
-                    .pool_state
-                    .map_or(1, |ps| ps.batch(pool_bytes, occ.deeper).1);
-                (pool_bytes, batches, Some(occ))
+/// How a DKB, VKB or uploaded importance frame runs: None where its client counted first and,
+/// with [`FrameOptions::exact_when_cheaper`], the frame renders the exact A-buffer as the CPU's
+/// would ([`crate::plan::Counted::exact`]; then the frame is the A-buffer's), else its plan's
+/// input (the pool sized for the occupancy its client expects, `sizing`) and, counted first,
+/// the plan the device will make. `words` are what its fragments store beside their keys.
+fn planned(
+    s: Slots,
+    opts: &FrameOptions,
+    px: u64,
+    sizing: Sizing,
+    words: budget::Words,
+) -> Result<Option<Planned>> {
+    let (method, mut layout, asked) = match s {
+        Slots::Dkb(mlp, b) => (Method::Dkb, opts.dkb_layout(mlp), b),
+        Slots::Vkb(_, b) => (Method::Vkb, budget::VKB, b),
+        Slots::Importance(_, _, f) => (Method::Vkb, budget::VKB, f.into()),
+        // FKB's and an uploaded k's frames: their k is given, no F to plan.
+        _ => (Method::Vkb, budget::VKB, 0.into()),
+    };
+    // Where the frame is tinted, its slots and tails take what the tints leave of M
+    // (Layout::tinted_fragment_budget).
+    let plan_budget = match asked {
+        PlanBudget::Bytes(m) => PlanBudget::Bytes(layout.tinted_budget(m, px, words)),
+        b => b,
+    };
+    let exact_when_cheaper =
+        opts.exact_when_cheaper && matches!(s, Slots::Dkb(..) | Slots::Vkb(..));
+    let (pool_bytes, batches, host) = match sizing {
+        Sizing::Own(occ) => {
+            // What the budget comes to on this count, decided as the CPU decides it: a byte
+            // budget that holds DKB's records only in batches takes a pool of a batch.
+            let counted = crate::plan::counted(method, &layout, asked, px, &occ, words)?;
+            if let PlanBudget::Bytes(m) = plan_budget {
+                layout = layout.for_bytes(m, px, &occ);
             }
-            Sizing::Ahead {
-                pool_bytes,
-                batches,
-                ..
-            } => (pool_bytes, batches, None),
-        };
-        let input = PlanInput {
-            layout,
-            pixels: px,
-            budget: plan_budget,
+            if exact_when_cheaper && counted.exact(true) {
+                return Ok(None);
+            }
+            let pool_bytes = layout.pool_for(px, counted.f, &occ);
+            let batches = layout
+                .pool_state
+                .map_or(1, |ps| ps.batch(pool_bytes, occ.deeper).1);
+            (pool_bytes, batches, Some(occ))
+        }
+        Sizing::Ahead {
             pool_bytes,
             batches,
-            exact_when_cheaper,
-        };
-        let host = host.map(|occ| crate::plan::plan(&input, &occ));
-        Ok(Some(Planned { input, host }))
-    }
+            ..
+        } => (pool_bytes, batches, None),
+    };
+    let input = PlanInput {
+        layout,
+        pixels: px,
+        budget: plan_budget,
+        pool_bytes,
+        batches,
+        exact_when_cheaper,
+    };
+    let host = host.map(|occ| crate::plan::plan(&input, &occ));
+    Ok(Some(Planned { input, host }))
 }
 
 /// The per-frame uniform, as a client gives it: the camera (`cam`, None for an application's
@@ -1170,7 +1250,8 @@ fn frame_params(cam: Option<&Camera>, size: (u32, u32), background: [f32; 3]) ->
         wboit_far: 0.0,
         tinted: 0,
         hdr: 0,
-        _pad: [0; 13],
+        dkb_records: 0,
+        _pad: [0; 12],
     }
 }
 

@@ -17,18 +17,28 @@ pub enum Phase {
     Count,
     /// The exact A-buffer's store (abuffer_store.wgsl).
     Store,
-    /// DKB's network's statistics (features.wgsl): once a batch of its records.
+    /// DKB's network's statistics (features.wgsl), in a pass of their own: in a frame that
+    /// marks its own records (its first, one after a cut), once a batch of them.
     Features,
+    /// DKB's count (features.wgsl with features_count.wgsl): each pixel's fragments counted,
+    /// as [`Phase::Count`] counts them, and the network's statistics of the pixels the frame
+    /// before marked, gathered with them (64-bit atomics): a frame after the first draws no
+    /// [`Phase::Features`].
+    CountFeatures,
+    /// The same with 32-bit atomics alone: the count, and the nearest depth and the sums of the
+    /// pixels the frame before marked (the nearest key's colour follows in
+    /// [`Phase::FeaturesColours`]; [`super::Capture::Portable`]).
+    CountFeaturesDepths,
     /// VKB's count with each pixel's nearest fragment's depth and facing (vkb_count.wgsl).
     VkbCount,
     /// The k-buffer's capture into each pixel's slots and its tail (capture.wgsl).
     Capture,
     /// The capture built for frames whose budget holds every fragment (k = n).
     CaptureFits,
-    /// DKB's features pass with 32-bit atomics alone, first: each record's nearest depth
-    /// (features.wgsl with features_portable.wgsl; [`super::Capture::Portable`]).
+    /// DKB's features pass with 32-bit atomics alone, first: each record's nearest depth and
+    /// its sums (features.wgsl with features_portable.wgsl; [`super::Capture::Portable`]).
     FeaturesDepths,
-    /// ... then the nearest key's colour and the sums, over the same fragments.
+    /// ... then the nearest key's colour, over the same fragments.
     FeaturesColours,
     /// The portable capture's first pass: each fragment's depth into the slots
     /// ([`super::Capture::Portable`]; capture.wgsl with kbuffer_portable.wgsl).
@@ -336,7 +346,7 @@ impl<'a> Passes<'a> {
     /// The totals pass (totals.wgsl) and the frame's plan after it (plan.wgsl): the frame's
     /// fragments, covered pixels and largest count from `counts` into `totals`, then its F and
     /// flags there and DKB's records a batch into `batch`, from `plan` (a [`crate::plan`]
-    /// input's uniform).
+    /// input's uniform), in one compute pass.
     pub(super) fn totals_and_plan(
         &self,
         enc: &mut wgpu::CommandEncoder,
@@ -345,34 +355,75 @@ impl<'a> Passes<'a> {
         plan: Option<(&wgpu::Buffer, &wgpu::Buffer)>,
     ) -> crate::error::Result<()> {
         let p = &self.gpu.pipelines;
-        let plan_pipeline = plan.map(|_| &p.plan);
-        let g = self.gpu.bind(
-            &p.totals.get_bind_group_layout(0),
-            &[&self.params, counts, totals],
-        );
-        let planned = plan.map(|(uniform, batch)| {
-            self.gpu.bind_at(
-                &plan_pipeline
-                    .expect("with the plan")
-                    .get_bind_group_layout(0),
-                &[
-                    (bindings::plan::TOTALS, totals),
-                    (bindings::plan::BATCH, batch),
-                    (bindings::plan::PLAN, uniform),
-                ],
-            )
-        });
+        let totals_group = self.totals_group(counts, totals);
+        let planned = plan.map(|(uniform, batch)| self.plan_group(totals, uniform, batch));
         let (gx, gy) = grid(self.pixels, PIXEL_GROUP);
         self.compute(enc, "totals", |pass| {
             pass.set_pipeline(&p.totals);
-            pass.set_bind_group(0, &g, &[]);
+            pass.set_bind_group(0, &totals_group, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
-            if let (Some(g), Some(plan)) = (&planned, plan_pipeline) {
-                pass.set_pipeline(plan);
+            if let Some(g) = &planned {
+                pass.set_pipeline(&p.plan);
                 pass.set_bind_group(0, g, &[]);
                 pass.dispatch_workgroups(1, 1, 1);
             }
         });
         Ok(())
+    }
+
+    /// The totals pass alone (its plan recorded later: [`Passes::plan`]).
+    pub(super) fn totals(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        counts: &wgpu::Buffer,
+        totals: &wgpu::Buffer,
+    ) {
+        let p = &self.gpu.pipelines;
+        let g = self.totals_group(counts, totals);
+        let (gx, gy) = grid(self.pixels, PIXEL_GROUP);
+        self.compute(enc, "totals", |pass| {
+            pass.set_pipeline(&p.totals);
+            pass.set_bind_group(0, &g, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        });
+    }
+
+    /// The frame's plan (plan.wgsl) from its totals, in a pass of its own.
+    pub(super) fn plan(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        totals: &wgpu::Buffer,
+        plan: &wgpu::Buffer,
+        batch: &wgpu::Buffer,
+    ) {
+        let g = self.plan_group(totals, plan, batch);
+        self.compute(enc, "plan", |pass| {
+            pass.set_pipeline(&self.gpu.pipelines.plan);
+            pass.set_bind_group(0, &g, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+        });
+    }
+
+    fn totals_group(&self, counts: &wgpu::Buffer, totals: &wgpu::Buffer) -> wgpu::BindGroup {
+        self.gpu.bind(
+            &self.gpu.pipelines.totals.get_bind_group_layout(0),
+            &[&self.params, counts, totals],
+        )
+    }
+
+    fn plan_group(
+        &self,
+        totals: &wgpu::Buffer,
+        plan: &wgpu::Buffer,
+        batch: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        self.gpu.bind_at(
+            &self.gpu.pipelines.plan.get_bind_group_layout(0),
+            &[
+                (bindings::plan::TOTALS, totals),
+                (bindings::plan::BATCH, batch),
+                (bindings::plan::PLAN, plan),
+            ],
+        )
     }
 }

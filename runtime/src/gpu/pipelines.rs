@@ -46,8 +46,11 @@ pub(super) struct Pipelines {
     pub(super) allocate: Allocate,
     /// The frame's plan (plan.wgsl), after the totals.
     pub(super) plan: wgpu::ComputePipeline,
-    /// DKB's records: an index for each pixel of two fragments or more (totals.wgsl).
-    pub(super) assign_records: wgpu::ComputePipeline,
+    /// DKB's record marks: a bit for each pixel of more than TAIL_WORDS fragments
+    /// (totals.wgsl's mark_records; their prefix sums by [`Pipelines::scan_marks`]).
+    pub(super) mark_records: wgpu::ComputePipeline,
+    /// n into the first batch of DKB's records (totals.wgsl's record_counts).
+    pub(super) record_counts: wgpu::ComputePipeline,
     /// A batch of DKB's records after the first emptied, and the batch moved on (totals.wgsl).
     pub(super) init_records: wgpu::ComputePipeline,
     pub(super) next_batch: wgpu::ComputePipeline,
@@ -75,12 +78,13 @@ const _: () = assert!(
 );
 
 /// The passes that use 64-bit integers and atomics: the one-pass capture and DKB's one-pass
-/// features.
+/// features, in a pass of their own and with the count.
 pub(super) struct Wide {
     pub(super) capture: wgpu::RenderPipeline,
     /// capture.wgsl built for frames whose budget holds every fragment (k = n).
     pub(super) capture_fits: wgpu::RenderPipeline,
     pub(super) features: wgpu::RenderPipeline,
+    pub(super) count_features: wgpu::RenderPipeline,
 }
 
 /// The opaque pass's depth attachment, which the transparent passes read as their occluder.
@@ -261,8 +265,8 @@ pub(super) fn compute_buffer_entry(
 }
 
 /// The explicit layout importance_dkb's four entry points share (each uses some of it):
-/// params, weights, the records, the list, totals (read), the shared word, the list's length,
-/// the indirect dispatch (written), and the weights again (their binary16 view, which only the
+/// params, weights, the records, the list, totals (read), the shared word, the record marks
+/// and the counts (read), the list's length, the indirect dispatch (written), and the weights again (their binary16 view, which only the
 /// f16-math pass reads).
 pub(super) struct NetworkLayout {
     pub(super) group: wgpu::BindGroupLayout,
@@ -285,8 +289,11 @@ impl NetworkLayout {
                 // nearest key's place; after them the list of records the network decides.
                 entry(importance_dkb::RECORDS, rw),
                 entry(importance_dkb::TOTALS, read),
-                // The record indices, then the importance: the frame's shared word.
+                // The importance: the frame's shared word.
                 entry(importance_dkb::SHARED_WORD, rw),
+                // Which pixel has which record, and the counts (gather reads them).
+                entry(importance_dkb::RECORD_MARKS, read),
+                entry(importance_dkb::COUNT, read),
                 entry(importance_dkb::LIST_LEN, rw),
                 entry(importance_dkb::DISPATCH, rw),
                 // The weights again, read as binary16 by the f16-math pass (mlp::Precision).
@@ -695,7 +702,7 @@ struct Extras {
     features_no_preload: OnceLock<wgpu::RenderPipeline>,
     portable_capture: OnceLock<[wgpu::RenderPipeline; 2]>,
     capture_tints: OnceLock<[wgpu::RenderPipeline; 2]>,
-    portable_features: OnceLock<[wgpu::RenderPipeline; 2]>,
+    portable_features: OnceLock<[wgpu::RenderPipeline; 3]>,
 }
 
 /// The extras' pipelines, as [`Gpu::extras`] hands them out.
@@ -807,12 +814,17 @@ impl<'a> ExtraPipelines<'a> {
         if fits { all_fit } else { general }
     }
 
-    /// DKB's features pass in two passes with 32-bit atomics (depths, colours).
-    pub(super) fn portable_features(self) -> &'a [wgpu::RenderPipeline; 2] {
+    /// DKB's features pass in two passes with 32-bit atomics (depths and sums, colours), and
+    /// its count with the depths and sums of the records the frame before marked.
+    pub(super) fn portable_features(self) -> &'a [wgpu::RenderPipeline; 3] {
         self.extras().portable_features.get_or_init(|| {
             let device = self.device();
-            ["features_depths", "features_colours"]
-                .map(|name| transparent_pipeline(device, name, &module(device, name)))
+            [
+                "features_depths",
+                "features_colours",
+                "count_features_depths",
+            ]
+            .map(|name| transparent_pipeline(device, name, &module(device, name)))
         })
     }
 
@@ -902,6 +914,7 @@ impl Pipelines {
                 capture: geometry("capture"),
                 capture_fits: geometry_from("capture", fits("capture")),
                 features: geometry("features"),
+                count_features: geometry("count_features"),
             }),
             scan_blocks: compute_entry("scan", "scan_blocks"),
             scan_blocks_in_place: compute_entry("scan", "scan_blocks_in_place"),
@@ -916,7 +929,8 @@ impl Pipelines {
             totals: compute("totals"),
             allocate: Allocate::new(device),
             plan: compute("plan"),
-            assign_records: compute_entry("totals", "assign_records"),
+            mark_records: compute_entry("totals", "mark_records"),
+            record_counts: compute_entry("totals", "record_counts"),
             init_records: compute_entry("totals", "init_records"),
             next_batch: compute_entry("totals", "next_batch"),
             variants: std::sync::Mutex::new(

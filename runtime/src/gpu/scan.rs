@@ -45,11 +45,7 @@ impl<'a> Passes<'a> {
     ) -> Result<()> {
         let p = &self.gpu.pipelines;
         let px = self.pixels;
-        let groups = px.div_ceil(budget::SCAN_BLOCK as u32);
-        if fb.scan_blocks.is_none() {
-            fb.scan_blocks = Some(fb.storage("scan.blocks", 4 * groups as u64, true)?);
-        }
-        let blocks = fb.scan_blocks.clone().expect("created above");
+        let blocks = fb.scan_blocks(px as u64)?;
         let params = self.params();
         let [marks_first, marks_sums, marks_add] = &p.scan_marks;
         let (values, offsets, [first, sums, add], len) = match scan {

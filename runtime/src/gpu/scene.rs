@@ -16,7 +16,9 @@ use super::passes::{Geometry, GeometryPass, Resolve, at, view_at};
 use super::pipelines::{OPAQUE_COLOR_FORMAT, OPAQUE_DEPTH_FORMAT};
 use super::stream::{AppMethod, FrameReport, Stream};
 use super::timer::Timer;
-use super::{FrameOptions, FrameSpec, Gpu, GpuFrame, Sizing, Slots, buffers, frame_params};
+use super::{
+    Carried, FrameOptions, FrameSpec, Gpu, GpuFrame, Sizing, Slots, buffers, frame_params,
+};
 use crate::budget::{Budget, Occupancy};
 use crate::composite::Image;
 use crate::error::{Error, Result};
@@ -236,9 +238,16 @@ impl Gpu {
             slots,
             Slots::Exact | Slots::Mlab(_) | Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..)
         );
-        let sizing = match counted {
-            true => Sizing::Own(self.count_first(&draws, &params)?),
-            false => Sizing::NOTHING,
+        // DKB's record marks of this frame, made with the count first, so the frame gathers its
+        // statistics with its count as a frame of a stream does (the twin of a frame that
+        // follows one of the same count; Tuning::two_pass_dkb).
+        let marked = matches!(slots, Slots::Dkb(..)) && opts.tuning.two_pass_dkb;
+        let (sizing, carried, _held) = match counted {
+            true => {
+                let (occ, carried, held) = self.count_first(&draws, &params, marked)?;
+                (Sizing::Own(occ), carried, Some(held))
+            }
+            false => (Sizing::NOTHING, None, None),
         };
         let spec = FrameSpec {
             opts: *opts,
@@ -246,6 +255,7 @@ impl Gpu {
             params,
             slots,
             sizing,
+            carried,
         };
         let timer = Timer::new(self);
         let mut enc = self.device.create_command_encoder(&Default::default());
@@ -327,8 +337,15 @@ impl Gpu {
     }
 
     /// The frame's occupancy, counted first: its opaque pass, the count and the totals in a
-    /// submission of their own, read back (buffers of their own, counted for no method).
-    fn count_first(&self, draws: &SceneDraws, params: &Params) -> Result<Occupancy> {
+    /// submission of their own, read back (buffers of their own, counted for no method); with
+    /// `marked`, DKB's record marks of that count too, valid for the frame (the frame counts
+    /// them as its memory), and the buffers held for it.
+    fn count_first(
+        &self,
+        draws: &SceneDraws,
+        params: &Params,
+        marked: bool,
+    ) -> Result<(Occupancy, Option<Carried>, buffers::Taken<'_>)> {
         let px = params.pixels as u64;
         let mut enc = self.device.create_command_encoder(&Default::default());
         let mut fb = FrameBuffers::new(self, &mut enc);
@@ -340,7 +357,18 @@ impl Gpu {
         );
         let counts = fb.storage("count first.count", count_bytes(px), false)?;
         let totals = fb.storage("count first.totals", 4 * TOTALS_WORDS as u64, false)?;
-        let taken = fb.into_taken();
+        let marks = match marked {
+            true => {
+                let bytes = crate::budget::marks_bytes(px);
+                let marks = fb.storage("dkb.record_marks", bytes, false)?;
+                // Block totals of its own: the frame's scans take theirs while these are held.
+                let groups = px.div_ceil(crate::budget::SCAN_BLOCK);
+                let blocks = fb.storage("count first.scan_blocks", 4 * groups, false)?;
+                Some((marks, blocks))
+            }
+            false => None,
+        };
+        let held = fb.into_taken();
         draws.opaque(self, &mut enc, None);
         let p = &self.pipelines;
         let pass = GeometryPass {
@@ -361,12 +389,15 @@ impl Gpu {
             pass.set_pipeline(&p.totals);
             pass.set_bind_group(0, &g, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
+            if let Some((marks, blocks)) = &marks {
+                self.mark_records(&uniform, &counts, marks, blocks, px)(&mut pass);
+            }
         }
         self.submit(enc.finish());
         let words = (0..=crate::shared::TOTAL_DEEPER).map(|i| (&totals, 4 * i as u64));
         let w = read_words(self, &words.collect::<Vec<_>>())?;
-        drop(taken);
-        Ok(Occupancy::from_totals(&w))
+        let carried = marks.map(|(marks, _)| Carried { marks, valid: true });
+        Ok((Occupancy::from_totals(&w), carried, held))
     }
 
     /// The scene's buffers (uploaded), its opaque pass's targets and the image, and the pooled
@@ -572,6 +603,12 @@ impl SceneStream {
     /// Reports of the frames that have run (as `Oit::finished`).
     pub fn finished(&mut self, wait: bool) -> Result<Vec<FrameReport>> {
         self.stream.finished(wait)
+    }
+
+    /// The next frame starts a new shot (as `Oit::cut`): DKB's marks its own records and draws
+    /// its features pass.
+    pub fn cut(&mut self) {
+        self.stream.cut();
     }
 
     /// Sizes the buffers of the frames to come for frames of `occupancy` (as `Oit::expect`).

@@ -85,15 +85,17 @@ impl AppMethod {
             (AppMethod::Mboit(_), _) => return &[MboitMoments, MboitAccumulate],
             (AppMethod::Fkb { .. }, true) => &[CaptureDepths, CaptureColours, CaptureTints],
             (AppMethod::Fkb { .. }, false) => &[Capture, CaptureTints],
+            // DKB's features pass is drawn where a frame marks its own records (its first,
+            // one after a cut, batches); else the count gathers them.
             (AppMethod::Dkb(_), true) => &[
-                Count,
+                CountFeaturesDepths,
                 FeaturesDepths,
                 FeaturesColours,
                 CaptureDepths,
                 CaptureColours,
                 CaptureTints,
             ],
-            (AppMethod::Dkb(_), false) => &[Count, Features, Capture, CaptureTints],
+            (AppMethod::Dkb(_), false) => &[CountFeatures, Features, Capture, CaptureTints],
             (AppMethod::Vkb(_), true) => &[VkbCount, CaptureDepths, CaptureColours, CaptureTints],
             (AppMethod::Vkb(_), false) => &[VkbCount, Capture, CaptureTints],
         };
@@ -192,6 +194,10 @@ pub(super) struct Stream {
     pending: Vec<PendingReport>,
     /// Staging buffers of reports read, for the next.
     spare: Vec<wgpu::Buffer>,
+    /// DKB's record marks from frame to frame ([`super::Carried`]): made with the first frame
+    /// of a size, valid once a frame has left its own there, made invalid by a cut
+    /// ([`Stream::cut`]), after which the next frame marks its own and draws a features pass.
+    carried: Option<super::Carried>,
 }
 
 impl Stream {
@@ -221,6 +227,7 @@ impl Stream {
             last_bytes: 0,
             pending: Vec::new(),
             spare: Vec::new(),
+            carried: None,
         };
         if let Some(b) = budget {
             f.set_budget(b)?;
@@ -455,10 +462,21 @@ impl Stream {
         check_fixed_buffers(&self.gpu, self.size, &self.method)
     }
 
+    /// The next frame starts a new shot (the camera jumped, the scene changed): DKB's frame
+    /// marks its own records and draws a features pass rather than gather its statistics with
+    /// its count for the pixels the frame before marked.
+    pub(super) fn cut(&mut self) {
+        if let Some(c) = &mut self.carried {
+            c.valid = false;
+        }
+    }
+
     pub(super) fn resize(&mut self, size: (u32, u32)) -> Result<()> {
         check_size(&self.gpu, size)?;
         let old = self.pixels();
         self.size = size;
+        // The marks are of the old size: a cut.
+        self.carried = None;
         // The counts so far, for a frame as many times larger.
         let px = self.pixels();
         self.expected = self.expected.scaled(px as f64 / old.max(1) as f64, px);
@@ -490,15 +508,43 @@ impl Stream {
             capture: self.capture,
             ..FrameOptions::default()
         };
+        // DKB's record marks, made with its first frame of a size.
+        if matches!(self.method, AppMethod::Dkb(_)) && self.carried.is_none() {
+            let bytes = budget::marks_bytes(self.pixels());
+            self.carried = Some(super::Carried {
+                marks: self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("dkb.record_marks"),
+                    size: bytes,
+                    usage: wgpu::BufferUsages::STORAGE
+                        | wgpu::BufferUsages::COPY_SRC
+                        | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }),
+                valid: false,
+            });
+        }
         let spec = FrameSpec {
             opts,
             size: self.size,
             params,
             slots: slots_of(&self.method, self.plan_budget()),
             sizing: self.sizing(),
+            carried: self.carried.clone(),
         };
         let timer = Timer::new(&self.gpu);
-        let recorded = self.gpu.record_frame(enc, &timer, geometry, &spec)?;
+        let recorded = match self.gpu.record_frame(enc, &timer, geometry, &spec) {
+            Ok(r) => r,
+            Err(e) => {
+                // What the frame recorded of its marks is not to be read.
+                if let Some(c) = &mut self.carried {
+                    c.valid = false;
+                }
+                return Err(e);
+            }
+        };
+        if let Some(c) = &mut self.carried {
+            c.valid = recorded.marked;
+        }
         // The frame's report, copied where a later call reads it without waiting.
         let passes = timer.names();
         let timed = timer.resolved();
