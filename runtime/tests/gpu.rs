@@ -2479,3 +2479,97 @@ fn the_portable_capture_leaves_the_wide_captures_slots_and_image() {
         }
     }
 }
+
+/// One frame of `stream` seen by `cam`, submitted and waited for: its image and report.
+fn streamed(
+    g: &dhoit_runtime::gpu::Gpu,
+    stream: &mut dhoit_runtime::gpu::SceneStream,
+    cam: &Camera,
+) -> (composite::Image, dhoit_runtime::gpu::FrameReport) {
+    let device = stream.gpu().device();
+    let mut enc = device.create_command_encoder(&Default::default());
+    stream.record(&mut enc, cam).unwrap();
+    g.queue().submit([enc.finish()]);
+    let image = stream.image().unwrap();
+    let mut reports = stream.finished(true).unwrap();
+    assert_eq!(reports.len(), 1);
+    let report = reports.remove(0);
+    assert!(report.error.is_none() && !report.pool_short, "{report:?}");
+    (image, report)
+}
+
+/// A stream's DKB frame after the first gathers its network's statistics with its count, for
+/// the pixels the frame before marked, and draws no features pass (two geometry passes); its
+/// first, and the frame after a cut, mark their own records and draw it (three). With the
+/// camera still, the two give the same image, bit for bit; with it moved, the frame is its
+/// twin's: this frame's fragments' statistics for the pixels the last frame's count marked, the
+/// least weight for those deeper now and unmarked then (`Mlp::dkb_importance_recorded`).
+#[test]
+fn a_dkb_stream_gathers_its_statistics_with_its_count_for_the_pixels_the_frame_before_marked() {
+    let Some(g) = gpu() else { return };
+    let mlp = common::committed_weights();
+    let size = (64, 48);
+    let s = scene::load("particles", Opacity::default()).unwrap();
+    let [a, b] = [0, 1].map(|v| Camera::orbit(&s, v, 24, size));
+    let (fa, fb) = (gpu_fragments(g, &s, &a, size), gpu_fragments(g, &s, &b, size));
+    let (ca, cb) = (fa.counts(), fb.counts());
+    let tail = dhoit_runtime::shared::TAIL_WORDS;
+    // The camera moved enough that some pixels are deeper now than then.
+    let newly = (0..ca.len()).filter(|&p| cb[p] > tail && ca[p] <= tail).count();
+    let gone = (0..ca.len()).filter(|&p| ca[p] > tail && cb[p] <= tail).count();
+    assert!(newly > 20 && gone > 20, "{newly} newly deeper, {gone} no longer");
+    let budget = Budget::Share(250_000);
+    let options = dhoit_runtime::frame::Options {
+        weights: Some(&mlp),
+        ..dhoit_runtime::frame::Options::new(budget, BG).always_approximate()
+    };
+    let method = dhoit_runtime::frame::Method::Dkb;
+    let mut stream = dhoit_runtime::gpu::SceneStream::new(g, &s, size, method, &options).unwrap();
+    // A pool for both frames' records and slots.
+    let (oa, ob) = (budget::Occupancy::of(&ca), budget::Occupancy::of(&cb));
+    let most = budget::Occupancy {
+        fragments: oa.fragments.max(ob.fragments),
+        covered: oa.covered.max(ob.covered),
+        deep: oa.deep.max(ob.deep),
+        deeper: oa.deeper.max(ob.deeper),
+    };
+    stream.expect(most.scaled(1.5, fa.pixel_count() as u64));
+    let features = |r: &dhoit_runtime::gpu::FrameReport| r.passes.contains(&"features");
+    let (first, r1) = streamed(g, &mut stream, &a);
+    assert!(features(&r1), "the first frame: {:?}", r1.passes);
+    // Still: no features pass, the same image.
+    let (still, r2) = streamed(g, &mut stream, &a);
+    assert!(!features(&r2), "a frame after the first: {:?}", r2.passes);
+    assert!(image_bits(&still) == image_bits(&first), "still: the image differs");
+    // Moved: the statistics of frame b for the pixels frame a marked.
+    let (moved, r3) = streamed(g, &mut stream, &b);
+    assert!(!features(&r3), "{:?}", r3.passes);
+    let f = FragmentBudget::Share(250_000).of(fb.fragment_count() as u64);
+    let (feats, counts) = network_inputs(&common::recorded_stats(&fb), f);
+    let recorded: Vec<bool> = ca.iter().map(|&n| n > tail).collect();
+    let imp = mlp.dkb_importance_recorded(&feats, &counts, f, &recorded);
+    let k = dhoit_runtime::shared::stored(&alloc::allocate_pooled(&imp, &cb, mlp.target, f), &cb);
+    let twin = composite::composite(&fb, composite::Method::Hybrid(&k), BG);
+    let d = moved.max_abs_diff(&twin);
+    assert!(d <= 1e-5, "moved: {d} from its twin");
+    // Its own marks the frame after: the frame b gives alone (its marks made with its count
+    // first), and not the moved frame's.
+    let (again, _) = streamed(g, &mut stream, &b);
+    let alone = g
+        .render_with(
+            &dhoit_runtime::gpu::FrameOptions::default().always_approximate(),
+            &s,
+            &b,
+            size,
+            BG,
+            Slots::Dkb(&mlp, FragmentBudget::Share(250_000).into()),
+        )
+        .unwrap();
+    assert!(image_bits(&again) == image_bits(&alone.image), "b again");
+    assert!(image_bits(&again) != image_bits(&moved), "the marks of frame a changed nothing");
+    // A cut: the frame marks its own records and draws the features pass.
+    stream.cut();
+    let (cut, r5) = streamed(g, &mut stream, &b);
+    assert!(features(&r5), "after a cut: {:?}", r5.passes);
+    assert!(image_bits(&cut) == image_bits(&again), "after a cut");
+}

@@ -910,6 +910,83 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
     }
 }
 
+
+/// An application's DKB frame after the first draws no features phase: its count phase
+/// gathers the network's statistics for the pixels the frame before marked, so it draws its
+/// geometry twice (the count, the capture), or with the portable capture four times (the count
+/// with the nearest depths and the sums, the nearest keys' colours, the capture's two passes);
+/// with the camera still it gives the first frame's image, which is dhoit's own. The first
+/// frame and one after a cut mark their own records and draw the features phase.
+#[test]
+fn an_application_s_dkb_frames_after_the_first_gather_their_statistics_with_their_count() {
+    let Some(g) = gpu() else { return };
+    let weights = common::committed_weights();
+    let s = layered_scene();
+    let size = (64, 48);
+    let exact = exact_frame(g, &s, size);
+    let occ = occupancy_of(&exact);
+    let b = Budget::parse("25%").unwrap();
+    let f = b
+        .fragment_budget(&budget::DKB.for_network(&weights), (size.0 * size.1) as u64)
+        .unwrap();
+    let opts = FrameOptions::default().always_approximate();
+    let harness = g
+        .render_with(&opts, &s, &identity(), size, BG, Slots::Dkb(&weights, f.into()))
+        .unwrap();
+    assert!(worst_difference(&harness.image.data, &exact.image.data) > 1e-3);
+    let geometry = |r: &FrameReport| -> Vec<&str> {
+        let drawn = [
+            "count",
+            "features",
+            "features depths",
+            "features colours",
+            "capture",
+            "capture depths",
+            "capture colours",
+        ];
+        r.passes
+            .iter()
+            .copied()
+            .filter(|p| drawn.contains(p))
+            .collect()
+    };
+    for (capture, first, after) in [
+        (
+            Capture::Wide,
+            &["count", "features", "capture"][..],
+            &["count", "capture"][..],
+        ),
+        (
+            Capture::Portable,
+            &[
+                "count",
+                "features depths",
+                "features colours",
+                "capture depths",
+                "capture colours",
+            ][..],
+            &["count", "features colours", "capture depths", "capture colours"][..],
+        ),
+    ] {
+        let app = App::new(&s, size, false);
+        let mut oit = AllocatedOit::dkb(&app.gpu, size, &weights, b, F32X4)
+            .unwrap()
+            .exact_when_cheaper(false)
+            .with_capture(capture);
+        oit.expect(occ);
+        let (one, r1) = app.frame(&mut oit, &s, &identity());
+        let (two, r2) = app.frame(&mut oit, &s, &identity());
+        assert_eq!(geometry(&r1), first, "{capture:?}: the first frame");
+        assert_eq!(geometry(&r2), after, "{capture:?}: the frame after");
+        assert!(one == two, "{capture:?}: the second frame differs");
+        let worst = worst_difference(&two, &harness.image.data);
+        assert!(worst <= 1e-5, "{capture:?}: {worst} from dhoit's own frame");
+        oit.cut();
+        let (three, r3) = app.frame(&mut oit, &s, &identity());
+        assert_eq!(geometry(&r3), first, "{capture:?}: after a cut");
+        assert!(three == two, "{capture:?}: after a cut");
+    }
+}
 /// A byte budget for DKB or VKB in an application is a fixed pool: the bytes beside the
 /// method's fixed ones. A frame there runs at the most slots those bytes hold for its own
 /// occupancy (what `Gpu::render`, counting first, gives it: a slots' budget of

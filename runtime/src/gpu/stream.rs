@@ -25,6 +25,9 @@ pub struct FrameReport {
     /// GPU time of each pass, in ms, in the order recorded (none where the device has no
     /// timestamps).
     pub pass_ms: Vec<(&'static str, f64)>,
+    /// Every pass the frame recorded, in order, on any device (DKB's features pass only in a
+    /// frame that marked its own records: its first, one after a cut).
+    pub passes: Vec<&'static str>,
     /// The frame's fragments, where it counted them (the A-buffer, MLAB, DKB, VKB).
     pub fragments: Option<u64>,
     /// DKB and VKB: the frame's occupancy and the plan it made from it on the device.
@@ -155,7 +158,10 @@ const REPORT_WORDS: u64 = (REPORT_COUNTED_AT + 4).next_multiple_of(8);
 struct PendingReport {
     frame: u64,
     staging: wgpu::Buffer,
+    /// The passes timed, in the order of their timestamps in `staging`.
     passes: Vec<&'static str>,
+    /// Every pass recorded.
+    ran: Vec<&'static str>,
     allocated: u64,
     /// Whether it holds totals (an allocated k-buffer's), an A-buffer's fragments.
     totals: bool,
@@ -361,6 +367,7 @@ impl Stream {
         Ok(FrameReport {
             frame: p.frame,
             pass_ms,
+            passes: p.ran.clone(),
             fragments,
             occupancy,
             plan,
@@ -595,6 +602,7 @@ impl Stream {
                 frame: self.frames,
                 staging,
                 passes,
+                ran: timer.ran(),
                 allocated: recorded.allocated,
                 totals: out.plan_buf.is_some(),
                 counted: out.counted.is_some(),
