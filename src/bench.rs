@@ -905,28 +905,36 @@ fn frame_tables(scenes: &[serde_json::Value]) -> String {
     let ms = |v: &serde_json::Value, m: &str| v["methods"][m]["frame_gpu_ms"].as_f64();
     let cell = |x: Option<f64>, digits: usize| x.map_or("-".into(), |x| format!("{x:.digits$}"));
     let mut t = String::from(
-        "| scene | A-buffer | VKB | DKB | DKB 16-8 | WBOIT | DKB/A-buffer | DKB/VKB |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| scene | A-buffer | VKB | DKB | DKB, 3 passes | DKB 16-8 | WBOIT | DKB/A-buffer | DKB/VKB | DKB 16-8/A-buffer | DKB 16-8/VKB |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for v in scenes {
         let Some(name) = v["scene"].as_str() else {
             continue;
         };
         if let Some(err) = v["error"].as_str() {
-            let _ = writeln!(t, "| {name} | {err} | | | | | | |");
+            let _ = writeln!(t, "| {name} | {err} | | | | | | | | | |");
             continue;
         }
-        let (a, k, d) = (ms(v, "abuffer"), ms(v, "vkb"), ms(v, "dkb"));
-        let ratio = |x: Option<f64>| d.zip(x).map(|(d, x)| d / x);
+        let (a, k, d, small) = (
+            ms(v, "abuffer"),
+            ms(v, "vkb"),
+            ms(v, "dkb"),
+            ms(v, "dkb_16-8"),
+        );
+        let ratio = |d: Option<f64>, x: Option<f64>| d.zip(x).map(|(d, x)| d / x);
         let _ = writeln!(
             t,
-            "| {name} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {name} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             cell(a, 0),
             cell(k, 0),
             cell(d, 0),
-            cell(ms(v, "dkb_16-8"), 0),
+            cell(ms(v, "dkb_three_pass"), 0),
+            cell(small, 0),
             cell(ms(v, "wboit"), 0),
-            cell(ratio(a), 2),
-            cell(ratio(k), 2),
+            cell(ratio(d, a), 2),
+            cell(ratio(d, k), 2),
+            cell(ratio(small, a), 2),
+            cell(ratio(small, k), 2),
         );
     }
     let portable: Vec<_> = scenes
@@ -960,7 +968,7 @@ fn frame_tables(scenes: &[serde_json::Value]) -> String {
         .collect();
     if !orbits.is_empty() {
         t.push_str(
-            "\n| scene | method | fps, 2 in flight | fps, 1 at a time | GPU ms | waits/frame | error | temporal change | over own A-buffer | exact |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+            "\n| scene | method | fps, 2 in flight | fps, 1 at a time | GPU ms | waits/frame | KiB | error | temporal change | error, fast camera | change, fast camera | over own A-buffer | exact |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         );
         for v in orbits {
             let name = v["scene"].as_str().unwrap_or("?");
@@ -969,20 +977,24 @@ fn frame_tables(scenes: &[serde_json::Value]) -> String {
             };
             for (m, e) in methods {
                 if let Some(err) = e["error"].as_str() {
-                    let _ = writeln!(t, "| {name} | {m} | {err} | | | | | | | |");
+                    let _ = writeln!(t, "| {name} | {m} | {err} | | | | | | | | | | |");
                     continue;
                 }
                 let f = |k: &str| e[k].as_f64();
                 let n = |k: &str| e[k].as_u64().unwrap_or(0);
+                let sci = |x: Option<f64>| x.map_or("-".into(), |x| format!("{x:.2e}"));
                 let _ = writeln!(
                     t,
-                    "| {name} | {m} | {} | {} | {} | {} | {} | {} | {}/{} | {}/{} |",
+                    "| {name} | {m} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {}/{} | {}/{} |",
                     cell(f("fps_two_in_flight"), 2),
                     cell(f("fps_one_at_a_time"), 2),
                     cell(f("frame_gpu_ms"), 1),
                     cell(f("sync_waits_per_frame"), 0),
-                    f("mean_abs_error").map_or("-".into(), |x| format!("{x:.2e}")),
-                    f("temporal_change").map_or("-".into(), |x| format!("{x:.2e}")),
+                    cell(f("allocated_bytes_median").map(|b| b / 1024.0), 0),
+                    sci(f("mean_abs_error")),
+                    sci(f("temporal_change")),
+                    sci(e["fast"]["mean_abs_error"].as_f64()),
+                    sci(e["fast"]["temporal_change"].as_f64()),
                     n("frames_over_own_abuffer_bytes"),
                     n("frames_counted"),
                     n("frames_exact"),
@@ -1034,7 +1046,8 @@ mod tests {
         let scenes = [
             serde_json::json!({"scene": "shells", "methods": {
                 "abuffer": {"frame_gpu_ms": 200.0}, "vkb": {"frame_gpu_ms": 250.0},
-                "dkb": {"frame_gpu_ms": 300.0}, "wboit": {"frame_gpu_ms": 50.0}},
+                "dkb": {"frame_gpu_ms": 300.0}, "dkb_three_pass": {"frame_gpu_ms": 420.0},
+                "dkb_16-8": {"frame_gpu_ms": 240.0}, "wboit": {"frame_gpu_ms": 50.0}},
                 "portable_capture": {"fkb": {"frame_gpu_ms_wide": 100.0,
                     "frame_gpu_ms_portable": 130.0, "frame_portable_over_wide": 1.3,
                     "capture_ms_wide": 40.0, "capture_ms_portable": 70.0}},
@@ -1042,13 +1055,15 @@ mod tests {
                     "fps_one_at_a_time": 3.25, "frame_gpu_ms": 280.0,
                     "sync_waits_per_frame": 0.0, "mean_abs_error": 0.001,
                     "temporal_change": 0.0002, "frames_over_own_abuffer_bytes": 3,
-                    "frames_counted": 240, "frames_exact": 0, "frames": 120},
+                    "frames_counted": 240, "frames_exact": 0, "frames": 120,
+                    "allocated_bytes_median": 2048.0,
+                    "fast": {"mean_abs_error": 0.002, "temporal_change": 0.0005}},
                     "mboit": {"error": "no FLOAT32_BLENDABLE"}}}}),
             serde_json::json!({"scene": "hair", "error": "refused"}),
         ];
         let t = frame_tables(&scenes);
         assert!(
-            t.contains("| shells | 200 | 250 | 300 | - | 50 | 1.50 | 1.20 |"),
+            t.contains("| shells | 200 | 250 | 300 | 420 | 240 | 50 | 1.50 | 1.20 | 1.20 | 0.96 |"),
             "{t}"
         );
         assert!(t.contains("| hair | refused |"), "{t}");
@@ -1059,7 +1074,7 @@ mod tests {
         );
         assert!(
             t.contains(
-                "| shells | dkb | 3.50 | 3.25 | 280.0 | 0 | 1.00e-3 | 2.00e-4 | 3/240 | 0/240 |"
+                "| shells | dkb | 3.50 | 3.25 | 280.0 | 0 | 2 | 1.00e-3 | 2.00e-4 | 2.00e-3 | 5.00e-4 | 3/240 | 0/240 |"
             ),
             "{t}"
         );

@@ -5,8 +5,12 @@
 //! with two frames in flight (a frame waits only for the one two before it). Reported per
 //! method: frames a second both ways, the GPU time of a frame, the submissions and waits
 //! dhoit's recording made (none), how often a frame held more bytes than its own exact
-//! A-buffer would, and temporal stability: the mean change of the method's error image
-//! (against the exact A-buffer's frame) between consecutive frames.
+//! A-buffer would, its bytes, and temporal stability: the mean change of the method's error
+//! image (against the exact A-buffer's frame) between consecutive frames. DKB runs twice: as a
+//! stream does (each frame gathers its statistics with its count, for the pixels the frame
+//! before marked: two geometry passes), and as the frame after a cut (a features pass of its
+//! own: three). The A-buffer, VKB and both DKBs also turn [`FAST`] times as fast (an orbit of
+//! N / 4 frames), one frame at a time: what a fast camera costs the frame-to-frame marks.
 
 use anyhow::Result;
 use dhoit_runtime::budget::{self, Budget};
@@ -27,6 +31,18 @@ pub const STREAMED: [Method; 7] = [
     Method::LinkedList,
 ];
 
+/// How many times faster the fast camera turns than the orbit's.
+pub const FAST: usize = 4;
+
+/// A method's run of the orbit: its report name, the method, and whether every frame is a cut
+/// (DKB's three-pass frame: it marks its own records and draws its features pass).
+fn runs() -> Vec<(&'static str, Method, bool)> {
+    let mut runs: Vec<_> = STREAMED.iter().map(|&m| (m.name(), m, false)).collect();
+    let at = runs.iter().position(|r| r.1 == Method::Dkb).expect("DKB") + 1;
+    runs.insert(at, ("dkb_three_pass", Method::Dkb, true));
+    runs
+}
+
 /// What one lap of the orbit measured.
 struct Lap {
     seconds: f64,
@@ -37,13 +53,13 @@ struct Lap {
 }
 
 /// One lap of `cams`: one frame at a time (`in_flight` 1: each submitted and waited for, its
-/// image read back after the clock stops where `images`), or `in_flight` frames in flight.
+/// image read back after the clock stops where `images`), or `in_flight` frames in flight;
+/// with `cuts`, every frame a cut ([`SceneStream::cut`]).
 fn lap(
     gpu: &Gpu,
     stream: &mut SceneStream,
     cams: &[Camera],
-    in_flight: usize,
-    images: bool,
+    (in_flight, images, cuts): (usize, bool, bool),
 ) -> Result<Lap> {
     let mut reports = Vec::new();
     let mut syncs = 0;
@@ -63,6 +79,9 @@ fn lap(
         }
         let mut enc = device.create_command_encoder(&Default::default());
         let before = host_syncs();
+        if cuts {
+            stream.cut();
+        }
         stream.record(&mut enc, cam)?;
         syncs += host_syncs() - before;
         submitted.push_back(gpu.queue().submit([enc.finish()]));
@@ -139,8 +158,9 @@ fn error_and_change(images: &[Image], exact: &[Image]) -> (f64, f64) {
 }
 
 /// The orbit of `frames` frames of `scene` at `(w, h)` for every streamed method at `budget`
-/// (DKB with `weights`), as JSON: one entry a method (an error entry where the method refuses
-/// the budget), and DKB's frame time against the A-buffer's and VKB's.
+/// (DKB with `weights`, as a stream draws it and as cuts), as JSON: one entry a method (an
+/// error entry where the method refuses the budget), a fast camera's error and change for the
+/// A-buffer, VKB and DKB, and DKB's frame time against the A-buffer's and VKB's.
 pub fn sequence_bench(
     gpu: &Gpu,
     (name, scene): (&str, &Scene),
@@ -149,33 +169,45 @@ pub fn sequence_bench(
     budget: Budget,
     weights: &dhoit_runtime::mlp::Mlp,
 ) -> Result<serde_json::Value> {
-    let cams: Vec<Camera> = (0..frames)
-        .map(|v| Camera::orbit(scene, v, frames, (w, h)))
-        .collect();
+    let orbit =
+        |n: usize| -> Vec<Camera> { (0..n).map(|v| Camera::orbit(scene, v, n, (w, h))).collect() };
+    let (cams, fast_cams) = (orbit(frames), orbit((frames / FAST).max(2)));
     let options = Options {
         weights: Some(weights),
         ..Options::new(budget, [1.0; 3])
     };
     let px = w as u64 * h as u64;
-    let mut exact: Vec<Image> = Vec::new();
+    let (mut exact, mut exact_fast): (Vec<Image>, Vec<Image>) = (Vec::new(), Vec::new());
     let mut methods = serde_json::Map::new();
-    for m in STREAMED {
+    for (label, m, cuts) in runs() {
         let mut stream = match SceneStream::new(gpu, scene, (w, h), m, &options) {
             Ok(s) => s,
             Err(e) => {
-                methods.insert(m.name().into(), serde_json::json!({"error": e.to_string()}));
+                methods.insert(label.into(), serde_json::json!({"error": e.to_string()}));
                 continue;
             }
         };
         // One frame first, so the pools are sized from a count (the first frame of a stream is
         // sized for two fragments a pixel), and the exact reference holds every fragment.
-        lap(gpu, &mut stream, &cams[..1], 1, false)?;
-        let one = lap(gpu, &mut stream, &cams, 1, true)?;
-        let flight = lap(gpu, &mut stream, &cams, 2, false)?;
+        lap(gpu, &mut stream, &cams[..1], (1, false, cuts))?;
+        let one = lap(gpu, &mut stream, &cams, (1, true, cuts))?;
+        let flight = lap(gpu, &mut stream, &cams, (2, false, cuts))?;
         if m == Method::Abuffer {
             exact = one.images.clone();
         }
         let (mean_error, temporal) = error_and_change(&one.images, &exact);
+        let fast = match m {
+            Method::Abuffer | Method::Vkb | Method::Dkb => {
+                lap(gpu, &mut stream, &fast_cams[..1], (1, false, cuts))?;
+                let l = lap(gpu, &mut stream, &fast_cams, (1, true, cuts))?;
+                if m == Method::Abuffer {
+                    exact_fast = l.images.clone();
+                }
+                let (e, t) = error_and_change(&l.images, &exact_fast);
+                serde_json::json!({"frames": fast_cams.len(), "mean_abs_error": e, "temporal_change": t})
+            }
+            _ => serde_json::Value::Null,
+        };
         let gpu_ms: Vec<f64> = flight
             .reports
             .iter()
@@ -195,7 +227,7 @@ pub fn sequence_bench(
         let short = all.iter().filter(|r| r.pool_short).count();
         let exact_frames = all.iter().filter(|r| r.exact).count();
         if let Some(e) = all.iter().find_map(|r| r.error.as_ref()) {
-            anyhow::bail!("{name} {m}: {e}");
+            anyhow::bail!("{name} {label}: {e}");
         }
         let fps = |l: &Lap| frames as f64 / l.seconds;
         let entry = serde_json::json!({
@@ -213,15 +245,16 @@ pub fn sequence_bench(
             "frames_pool_short": short,
             "frames_exact": exact_frames,
             "allocated_bytes_median": median(all.iter().map(|r| r.allocated_bytes as f64).collect()),
+            "fast": fast,
         });
         eprintln!(
-            "GPU {name} sequence, {m}: {:.2} fps in flight, {:.2} one at a time, {:.2} ms a frame, {} syncs, temporal change {temporal:.2e} (error {mean_error:.2e}), {over_abuffer} of {counted} frames above their A-buffer's bytes, {short} short, {exact_frames} exact",
+            "GPU {name} sequence, {label}: {:.2} fps in flight, {:.2} one at a time, {:.2} ms a frame, {} syncs, temporal change {temporal:.2e} (error {mean_error:.2e}), {over_abuffer} of {counted} frames above their A-buffer's bytes, {short} short, {exact_frames} exact",
             fps(&flight),
             fps(&one),
             entry["frame_gpu_ms"].as_f64().unwrap_or(f64::NAN),
             one.syncs + flight.syncs,
         );
-        methods.insert(m.name().into(), entry);
+        methods.insert(label.into(), entry);
     }
     let ms = |m: &str| {
         methods
@@ -235,11 +268,19 @@ pub fn sequence_bench(
             .and_then(|v| v["temporal_change"].as_f64())
             .unwrap_or(f64::NAN)
     };
+    let error = |m: &str| {
+        methods
+            .get(m)
+            .and_then(|v| v["mean_abs_error"].as_f64())
+            .unwrap_or(f64::NAN)
+    };
     Ok(serde_json::json!({
         "frames": frames,
         "methods": methods,
         "dkb_over_abuffer": ms("dkb") / ms("abuffer"),
         "dkb_over_vkb": ms("dkb") / ms("vkb"),
         "dkb_temporal_over_vkb": temporal("dkb") / temporal("vkb"),
+        "dkb_error_over_vkb": error("dkb") / error("vkb"),
+        "three_pass_over_two_pass": ms("dkb_three_pass") / ms("dkb"),
     }))
 }

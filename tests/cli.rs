@@ -882,6 +882,7 @@ fn the_gpu_bench_reports_every_method_and_option() {
         "fkb",
         "vkb",
         "dkb",
+        "dkb_three_pass",
         "wboit",
         "mboit",
         "linked-list",
@@ -901,11 +902,19 @@ fn the_gpu_bench_reports_every_method_and_option() {
             "{m}: {e}"
         );
     }
-    // The exact A-buffer against itself: no error, none changing.
+    // The exact A-buffer against itself: no error, none changing; the fast camera's figures
+    // for the A-buffer, VKB and both DKBs.
     assert_eq!(
         sequence["methods"]["abuffer"]["mean_abs_error"].as_f64(),
         Some(0.0)
     );
+    for m in ["abuffer", "vkb", "dkb", "dkb_three_pass"] {
+        let fast = &sequence["methods"][m]["fast"];
+        assert!(
+            fast["temporal_change"].as_f64().is_some_and(|t| t >= 0.0),
+            "{m}: {fast}"
+        );
+    }
     // The reports written after each scene are marked partial; the last one is not.
     assert!(
         report.get("partial").is_none(),

@@ -2511,13 +2511,23 @@ fn a_dkb_stream_gathers_its_statistics_with_its_count_for_the_pixels_the_frame_b
     let size = (64, 48);
     let s = scene::load("particles", Opacity::default()).unwrap();
     let [a, b] = [0, 1].map(|v| Camera::orbit(&s, v, 24, size));
-    let (fa, fb) = (gpu_fragments(g, &s, &a, size), gpu_fragments(g, &s, &b, size));
+    let (fa, fb) = (
+        gpu_fragments(g, &s, &a, size),
+        gpu_fragments(g, &s, &b, size),
+    );
     let (ca, cb) = (fa.counts(), fb.counts());
     let tail = dhoit_runtime::shared::TAIL_WORDS;
     // The camera moved enough that some pixels are deeper now than then.
-    let newly = (0..ca.len()).filter(|&p| cb[p] > tail && ca[p] <= tail).count();
-    let gone = (0..ca.len()).filter(|&p| ca[p] > tail && cb[p] <= tail).count();
-    assert!(newly > 20 && gone > 20, "{newly} newly deeper, {gone} no longer");
+    let newly = (0..ca.len())
+        .filter(|&p| cb[p] > tail && ca[p] <= tail)
+        .count();
+    let gone = (0..ca.len())
+        .filter(|&p| ca[p] > tail && cb[p] <= tail)
+        .count();
+    assert!(
+        newly > 20 && gone > 20,
+        "{newly} newly deeper, {gone} no longer"
+    );
     let budget = Budget::Share(250_000);
     let options = dhoit_runtime::frame::Options {
         weights: Some(&mlp),
@@ -2540,7 +2550,10 @@ fn a_dkb_stream_gathers_its_statistics_with_its_count_for_the_pixels_the_frame_b
     // Still: no features pass, the same image.
     let (still, r2) = streamed(g, &mut stream, &a);
     assert!(!features(&r2), "a frame after the first: {:?}", r2.passes);
-    assert!(image_bits(&still) == image_bits(&first), "still: the image differs");
+    assert!(
+        image_bits(&still) == image_bits(&first),
+        "still: the image differs"
+    );
     // Moved: the statistics of frame b for the pixels frame a marked.
     let (moved, r3) = streamed(g, &mut stream, &b);
     assert!(!features(&r3), "{:?}", r3.passes);
@@ -2566,7 +2579,10 @@ fn a_dkb_stream_gathers_its_statistics_with_its_count_for_the_pixels_the_frame_b
         )
         .unwrap();
     assert!(image_bits(&again) == image_bits(&alone.image), "b again");
-    assert!(image_bits(&again) != image_bits(&moved), "the marks of frame a changed nothing");
+    assert!(
+        image_bits(&again) != image_bits(&moved),
+        "the marks of frame a changed nothing"
+    );
     // A cut: the frame marks its own records and draws the features pass.
     stream.cut();
     let (cut, r5) = streamed(g, &mut stream, &b);

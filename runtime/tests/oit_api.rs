@@ -910,7 +910,6 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
     }
 }
 
-
 /// An application's DKB frame after the first draws no features phase: its count phase
 /// gathers the network's statistics for the pixels the frame before marked, so it draws its
 /// geometry twice (the count, the capture), or with the portable capture four times (the count
@@ -931,7 +930,14 @@ fn an_application_s_dkb_frames_after_the_first_gather_their_statistics_with_thei
         .unwrap();
     let opts = FrameOptions::default().always_approximate();
     let harness = g
-        .render_with(&opts, &s, &identity(), size, BG, Slots::Dkb(&weights, f.into()))
+        .render_with(
+            &opts,
+            &s,
+            &identity(),
+            size,
+            BG,
+            Slots::Dkb(&weights, f.into()),
+        )
         .unwrap();
     assert!(worst_difference(&harness.image.data, &exact.image.data) > 1e-3);
     let geometry = |r: &FrameReport| -> Vec<&str> {
@@ -965,7 +971,12 @@ fn an_application_s_dkb_frames_after_the_first_gather_their_statistics_with_thei
                 "capture depths",
                 "capture colours",
             ][..],
-            &["count", "features colours", "capture depths", "capture colours"][..],
+            &[
+                "count",
+                "features colours",
+                "capture depths",
+                "capture colours",
+            ][..],
         ),
     ] {
         let app = App::new(&s, size, false);
@@ -1419,8 +1430,9 @@ fn every_method(g: &Gpu, size: (u32, u32), format: wgpu::TextureFormat) -> Vec<B
 
 /// Several frames of a moving camera recorded into one encoder and submitted once give the
 /// images the same method gives them one frame at a time, each submitted and read on its own,
-/// for every method: no frame waits within a submission, and none reads what the next one
-/// writes. Each frame's report comes back once, in order.
+/// for every method: no frame waits within a submission (the first of a method whose memory
+/// follows the count counts first, once), and none reads what the next one writes. Each
+/// frame's report comes back once, in order.
 #[test]
 fn frames_recorded_into_one_submission_are_the_frames_rendered_one_at_a_time() {
     let Some(g) = gpu() else { return };
@@ -1445,13 +1457,21 @@ fn frames_recorded_into_one_submission_are_the_frames_rendered_one_at_a_time() {
         let targets: Vec<wgpu::Texture> = cams.iter().map(|_| app.target(F32X4)).collect();
         let cameras: Vec<wgpu::BindGroup> = cams.iter().map(|c| app.camera(&s, c)).collect();
         let mut enc = app.device.create_command_encoder(&Default::default());
-        let syncs = gpu::host_syncs();
+        let mut syncs = Vec::new();
         for (camera, target) in cameras.iter().zip(&targets) {
+            let before = gpu::host_syncs();
             app.record(&mut enc, oit.as_mut(), &pipelines, camera, target)
                 .unwrap();
+            syncs.push(gpu::host_syncs() - before);
         }
-        // Recording made no submission and no wait of its own.
-        assert_eq!(gpu::host_syncs(), syncs, "{name}: recording waited");
+        // Recording made no submission and no wait of its own, but where the method's first
+        // frame counted its fragments first (the methods whose memory follows the count: its
+        // submissions and waits).
+        let counts = matches!(name, "abuffer" | "mlab" | "dkb" | "vkb");
+        assert!(
+            syncs[1..] == [0, 0, 0] && (syncs[0] > 0) == counts,
+            "{name}: recording waited {syncs:?}"
+        );
         // Recorded, not submitted: no report yet.
         assert!(oit.finished(false).unwrap().is_empty(), "{name}");
         app.queue.submit([enc.finish()]);
@@ -1618,6 +1638,184 @@ fn every_method_refuses_textures_of_another_size_or_format() {
         app.queue.submit([enc.finish()]);
         assert!(other.finished(true).unwrap()[0].error.is_none(), "{name}");
     }
+}
+
+/// Every method's first frame (no count read back, no `expect`), and the first after a resize,
+/// counts its fragments first and is sized for them: at 3 and at 30 fragments a pixel no frame
+/// is short, the A-buffer's is exact, DKB's and VKB's keep the F their budget asks for (a
+/// quarter of the frame's fragments, or all of them where their pool holds them).
+#[test]
+fn every_method_s_first_frame_holds_what_its_budget_asks_for_at_3_and_30_fragments_a_pixel() {
+    let Some(g) = gpu() else { return };
+    let size = (48, 36);
+    for n in [3, 30] {
+        let mut s = Scene::default();
+        for i in 0..n {
+            let z = 0.05 + 0.9 * i as f32 / n as f32;
+            let c = [(i % 3) as f32 / 2.0, (i % 5) as f32 / 4.0, 0.8, 0.3];
+            quad(&mut s, (-1.0, -1.0, 1.0, 1.0), (z, z), c);
+        }
+        let exact = exact_frame(g, &s, size);
+        let total = occupancy_of(&exact).fragments;
+        assert_eq!(total, n * (size.0 * size.1) as u64);
+        let app = App::new(&s, size, false);
+        let on = (app.device.clone(), app.queue.clone(), app.gpu.fork());
+        let app_small = App::on(on, &s, (32, 24), false);
+        let small = every_method(&app.gpu, (32, 24), F32X4);
+        for (mut oit, mut resized) in every_method(&app.gpu, size, F32X4).into_iter().zip(small) {
+            let name = oit.method();
+            // Resized after a frame of its first size: the first frame of the new size.
+            app_small.frame(resized.as_mut(), &s, &identity());
+            resized.resize(size).unwrap();
+            for (oit, label) in [(&mut oit, "first"), (&mut resized, "resized")] {
+                let (image, r) = app.frame(oit.as_mut(), &s, &identity());
+                assert!(!r.pool_short, "{name} at {n} fpp, {label}: {r:?}");
+                match name {
+                    "abuffer" => {
+                        assert!(r.exact, "{name} at {n} fpp, {label}");
+                        let worst = worst_difference(&image, &exact.image.data);
+                        assert!(worst <= 1e-5, "{name} at {n} fpp, {label}: {worst}");
+                    }
+                    "dkb" | "vkb" => {
+                        let plan = r.plan.unwrap();
+                        let f = if plan.exact { total } else { total / 4 };
+                        assert_eq!(plan.f, f, "{name} at {n} fpp, {label}: {plan:?}");
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+}
+
+/// A depth texture of another format than the one the application built its pipelines for
+/// (`Oit::depth_stencil`) is refused with a typed error before anything is recorded (wgpu
+/// would reject the whole encoder at submission): the encoder stays valid, and no report comes
+/// of it.
+#[test]
+fn a_depth_of_another_format_than_the_pipelines_is_refused_before_recording() {
+    if gpu().is_none() {
+        return;
+    }
+    let s = layered_scene();
+    let size = (48, 36);
+    let app = App::new(&s, size, false);
+    let camera = app.camera(&s, &identity());
+    for mut oit in every_method(&app.gpu, size, F32X4) {
+        let name = oit.method();
+        // Built for the application's Depth32Float.
+        let pipelines = app.pipelines(oit.as_ref());
+        let other = texture(
+            &app.device,
+            size,
+            "app depth 24",
+            wgpu::TextureFormat::Depth24Plus,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let (depth, under) = (
+            other.create_view(&Default::default()),
+            app.under.create_view(&Default::default()),
+        );
+        let target = app.target(F32X4);
+        let target_view = target.create_view(&Default::default());
+        let frame = FrameTargets {
+            depth: &depth,
+            under: &under,
+            target: &target_view,
+        };
+        let mut enc = app.device.create_command_encoder(&Default::default());
+        let mut drawn = 0;
+        let e = oit
+            .record(&mut enc, &frame, &mut |_, _| drawn += 1)
+            .expect_err("refused");
+        let text = e.to_string();
+        assert!(
+            matches!(
+                e,
+                dhoit_runtime::Error::Gpu(dhoit_runtime::error::GpuError::FrameTexture { .. })
+            ) && text.contains("Depth24Plus")
+                && text.contains("Depth32Float"),
+            "{name}: {text}"
+        );
+        assert_eq!(drawn, 0, "{name}: drew before refusing");
+        // Nothing was recorded: the encoder submits, and no frame reports.
+        app.queue.submit([enc.finish()]);
+        assert!(oit.finished(true).unwrap().is_empty(), "{name}");
+        // The right depth records and runs.
+        app.record(
+            &mut app.device.create_command_encoder(&Default::default()),
+            oit.as_mut(),
+            &pipelines,
+            &camera,
+            &target,
+        )
+        .unwrap();
+    }
+}
+
+/// Reports come only of frames that ran: a frame recorded into an encoder the application
+/// drops, and one whose submission fails (the application's own command after it is invalid,
+/// so wgpu rejects the whole encoder), report nothing, and the next frames are sized from the
+/// frames that ran.
+#[test]
+fn reports_come_only_of_frames_that_ran() {
+    if gpu().is_none() {
+        return;
+    }
+    let weights = common::committed_weights();
+    let s = layered_scene();
+    let size = (48, 36);
+    let app = App::new(&s, size, false);
+    let camera = app.camera(&s, &identity());
+    let b = Budget::parse("25%").unwrap();
+    let mut oit: Box<dyn Oit> =
+        Box::new(AllocatedOit::dkb(&app.gpu, size, &weights, b, F32X4).unwrap());
+    let pipelines = app.pipelines(oit.as_ref());
+    let target = app.target(F32X4);
+    // Frame 0 runs.
+    let mut enc = app.device.create_command_encoder(&Default::default());
+    app.record(&mut enc, oit.as_mut(), &pipelines, &camera, &target)
+        .unwrap();
+    app.queue.submit([enc.finish()]);
+    let first = oit.finished(true).unwrap();
+    assert_eq!(first.iter().map(|r| r.frame).collect::<Vec<_>>(), [0]);
+    let bytes = first[0].allocated_bytes;
+    // Frame 1 into an encoder never submitted.
+    let mut dropped = app.device.create_command_encoder(&Default::default());
+    app.record(&mut dropped, oit.as_mut(), &pipelines, &camera, &target)
+        .unwrap();
+    drop(dropped);
+    // Frame 2 into an encoder with an invalid command of the application's after it.
+    let mut bad = app.device.create_command_encoder(&Default::default());
+    app.record(&mut bad, oit.as_mut(), &pipelines, &camera, &target)
+        .unwrap();
+    let small = app.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("app small"),
+        size: 16,
+        usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    bad.copy_buffer_to_buffer(&small, 0, &small, 8, 64);
+    let scope = app.device.push_error_scope(wgpu::ErrorFilter::Validation);
+    app.queue.submit([bad.finish()]);
+    assert!(
+        pollster::block_on(scope.pop()).is_some(),
+        "the application's invalid copy"
+    );
+    // Frame 3 runs.
+    let mut enc = app.device.create_command_encoder(&Default::default());
+    app.record(&mut enc, oit.as_mut(), &pipelines, &camera, &target)
+        .unwrap();
+    app.queue.submit([enc.finish()]);
+    let reports = oit.finished(true).unwrap();
+    assert_eq!(
+        reports.iter().map(|r| r.frame).collect::<Vec<_>>(),
+        [3],
+        "{reports:?}"
+    );
+    let r = &reports[0];
+    assert!(!r.pool_short && r.error.is_none(), "{r:?}");
+    assert_eq!(r.allocated_bytes, bytes);
 }
 
 /// Colours above white in an application's renderer. With `set_hdr(true)` onto an

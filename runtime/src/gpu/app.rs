@@ -138,16 +138,11 @@ pub trait Oit {
 
     /// The depth-stencil state of every phase's pipeline, for the application's depth format:
     /// dhoit attaches the opaque depth read-only (no test in the fixed function: the pass tests
-    /// it in the shader, as dhoit's own passes do).
-    fn depth_stencil(&self, depth_format: wgpu::TextureFormat) -> wgpu::DepthStencilState {
-        wgpu::DepthStencilState {
-            format: depth_format,
-            depth_write_enabled: Some(false),
-            depth_compare: Some(wgpu::CompareFunction::Always),
-            stencil: Default::default(),
-            bias: Default::default(),
-        }
-    }
+    /// it in the shader, as dhoit's own passes do). The method remembers the formats it was
+    /// asked for: a frame whose depth texture is of none of them is refused before anything is
+    /// recorded ([`GpuError::FrameTexture`]), where wgpu would reject the whole encoder at
+    /// submission.
+    fn depth_stencil(&self, depth_format: wgpu::TextureFormat) -> wgpu::DepthStencilState;
 
     /// Records one frame into `enc`: every pass of it, each geometry pass through `draw` in a
     /// render pass dhoit opens (the opaque depth its read-only attachment, WBOIT's and MBOIT's
@@ -180,11 +175,16 @@ pub trait Oit {
     /// resolved again. Refused onto an `Rgba8Unorm` target, which holds nothing above white.
     fn set_hdr(&mut self, on: bool) -> Result<()>;
 
-    /// Sizes the buffers of the frames to come for frames of `occupancy` (what an application
-    /// knows of its scene): until it has read a frame's count ([`Oit::finished`]), dhoit sizes
-    /// them for two fragments a pixel, every pixel deep. The A-buffer's and MLAB's pool holds
-    /// its fragments; DKB's and VKB's holds what their budget reserves for it (no more than
-    /// its exact A-buffer, with `exact_when_cheaper`).
+    /// Sizes the buffers of the frames to come for frames of exactly `occupancy` (what an
+    /// application knows of its scene: give it an upper bound): the A-buffer's and MLAB's pool
+    /// holds its fragments, DKB's and VKB's what their budget reserves for it (no more than its
+    /// exact A-buffer, with `exact_when_cheaper`). A frame with more fragments than that is
+    /// short ([`FrameReport::pool_short`]: the A-buffer and MLAB leave out the pixels past the
+    /// pool's end, DKB and VKB keep fewer fragments in slots and more in the tails), and the
+    /// frames after it are sized from its count. Without it, the method's first frame (and
+    /// the first after a resize) counts its fragments first, in a submission of its own that
+    /// it waits for, and is sized from that count; the frames after it from the counts the
+    /// reports read back, with a quarter of headroom, and never wait.
     fn expect(&mut self, occupancy: Occupancy);
 
     /// The next frame starts a new shot (the camera jumped, the scene changed): DKB's frame
@@ -212,6 +212,8 @@ struct AppFrame {
     stream: Stream,
     format: wgpu::TextureFormat,
     layouts: Vec<(Phase, wgpu::BindGroupLayout)>,
+    /// The depth formats the application's pipelines were built for (`Oit::depth_stencil`).
+    depth_formats: std::sync::Mutex<Vec<wgpu::TextureFormat>>,
 }
 
 impl AppFrame {
@@ -247,7 +249,24 @@ impl AppFrame {
             stream,
             format,
             layouts,
+            depth_formats: Default::default(),
         })
+    }
+
+    /// The depth-stencil state of every phase's pipeline for `format`, which frames then expect
+    /// their depth texture in.
+    fn depth_stencil(&self, format: wgpu::TextureFormat) -> wgpu::DepthStencilState {
+        let mut formats = self.depth_formats.lock().unwrap_or_else(|e| e.into_inner());
+        if !formats.contains(&format) {
+            formats.push(format);
+        }
+        wgpu::DepthStencilState {
+            format,
+            depth_write_enabled: Some(false),
+            depth_compare: Some(wgpu::CompareFunction::Always),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }
     }
 
     /// Refuses textures of another size or format than the frame's, naming both.
@@ -287,6 +306,22 @@ impl AppFrame {
                 format!("{:?} with {:?}", depth.format(), depth.usage()),
             );
         }
+        // Its pipelines' depth format (the attachment's must be the pipeline's, or wgpu rejects
+        // the submission).
+        let formats = self
+            .depth_formats
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        if !formats.is_empty() && !formats.contains(&depth.format()) {
+            return bad(
+                "opaque depth",
+                format!(
+                    "a depth texture of {formats:?}, the format its pipelines were built for (Oit::depth_stencil)"
+                ),
+                format!("{:?}", depth.format()),
+            );
+        }
         let under = t.under.texture();
         let float = matches!(
             under.format().sample_type(None, None),
@@ -321,15 +356,55 @@ impl AppFrame {
         draw: &mut DrawFn<'_>,
     ) -> Result<()> {
         self.check_targets(frame)?;
+        let params = crate::wgsl::Params {
+            hdr: self.stream.hdr.into(),
+            ..frame_params(None, self.stream.size, [0.0; 3])
+        };
+        if self.stream.uncounted() {
+            // The first frame of a size counts first: its geometry drawn once more, in a
+            // submission of dhoit's own, over an occluder at the far plane of the application's
+            // depth format (its opaque pass has not run yet): every fragment in view counts.
+            let depth = frame.depth.texture();
+            let far = super::buffers::frame_texture(
+                &self.stream.gpu.device,
+                "count first.depth",
+                self.stream.size,
+                depth.format(),
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            );
+            let far_view = far.create_view(&Default::default());
+            let counting = FrameTargets {
+                depth: &far_view,
+                ..*frame
+            };
+            let app = AppDraws {
+                draw: RefCell::new(&mut *draw),
+                layouts: &self.layouts,
+                frame: &counting,
+                format: self.format,
+            };
+            let clear = |_: &Gpu, enc: &mut wgpu::CommandEncoder| {
+                enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("count first: the far plane"),
+                    color_attachments: &[],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &far_view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Store,
+                        }),
+                        stencil_ops: None,
+                    }),
+                    ..Default::default()
+                });
+            };
+            self.stream.count_first(&app, &clear, params)?;
+        }
         let app = AppDraws {
             draw: RefCell::new(draw),
             layouts: &self.layouts,
             frame,
             format: self.format,
-        };
-        let params = crate::wgsl::Params {
-            hdr: self.stream.hdr.into(),
-            ..frame_params(None, self.stream.size, [0.0; 3])
         };
         self.stream.record(enc, &app, params)
     }
@@ -688,6 +763,9 @@ macro_rules! oit_of_app_frame {
             fn color_targets(&self, phase: Phase) -> Vec<Option<wgpu::ColorTargetState>> {
                 self.0.color_targets(phase)
             }
+            fn depth_stencil(&self, depth_format: wgpu::TextureFormat) -> wgpu::DepthStencilState {
+                self.0.depth_stencil(depth_format)
+            }
             fn record(
                 &mut self,
                 enc: &mut wgpu::CommandEncoder,
@@ -706,7 +784,7 @@ macro_rules! oit_of_app_frame {
                 self.0.set_hdr(on)
             }
             fn expect(&mut self, occupancy: Occupancy) {
-                self.0.stream.expected = occupancy;
+                self.0.stream.expect(occupancy);
             }
             fn cut(&mut self) {
                 self.0.stream.cut();

@@ -596,6 +596,12 @@ impl SceneStream {
         gpu.queue
             .write_buffer(&self.inputs.params, 0, bytemuck::bytes_of(&params));
         let draws = SceneDraws::new(&self.inputs);
+        if self.stream.uncounted() {
+            // The first frame of a size counts first, behind its opaque pass.
+            let opaque = |gpu: &Gpu, enc: &mut wgpu::CommandEncoder| draws.opaque(gpu, enc, None);
+            self.stream.count_first(&draws, &opaque, params)?;
+        }
+        let gpu = &self.stream.gpu;
         draws.opaque(gpu, enc, None);
         self.stream.record(enc, &draws, params)
     }
@@ -613,7 +619,7 @@ impl SceneStream {
 
     /// Sizes the buffers of the frames to come for frames of `occupancy` (as `Oit::expect`).
     pub fn expect(&mut self, occupancy: Occupancy) {
-        self.stream.expected = occupancy;
+        self.stream.expect(occupancy);
     }
 
     /// The last frame's image, once its submission has run (this waits for it).

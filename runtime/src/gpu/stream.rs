@@ -151,8 +151,24 @@ const REPORTS_IN_FLIGHT: usize = 16;
 const REPORT_TOTALS_AT: u64 = FrameStatus::BYTES;
 /// ... the A-buffer's fragments, ...
 const REPORT_COUNTED_AT: u64 = REPORT_TOTALS_AT + 4 * crate::shared::TOTALS_WORDS as u64;
+/// ... the frame's stamp, two words the frame's own commands copy there ([`stamp`]), ...
+const REPORT_STAMP_AT: u64 = REPORT_COUNTED_AT + 4;
 /// ... and from here (8-byte aligned), the timestamps: two u64 a timed pass.
-const REPORT_WORDS: u64 = (REPORT_COUNTED_AT + 4).next_multiple_of(8);
+const REPORT_WORDS: u64 = (REPORT_STAMP_AT + 8).next_multiple_of(8);
+/// Values of the stamps' words: 1 to 256 (never 0, what a new staging buffer holds).
+const STAMP_VALUES: u64 = 256;
+
+/// Frame `frame`'s stamp: the words [`Stream::stamps`] holds at these indices, copied into
+/// its report by its own commands, so a report whose staging buffer holds another stamp (its
+/// encoder was never submitted, or its submission failed) is of a frame that never ran. 1 + the
+/// frame's number's low and second bytes: two reports share a staging buffer's stamp only 65,536
+/// frames apart.
+fn stamp(frame: u64) -> [u32; 2] {
+    [
+        1 + (frame % STAMP_VALUES) as u32,
+        1 + (frame / STAMP_VALUES % STAMP_VALUES) as u32,
+    ]
+}
 
 /// A frame's report, recorded and not yet read.
 struct PendingReport {
@@ -204,6 +220,11 @@ pub(super) struct Stream {
     /// of a size, valid once a frame has left its own there, made invalid by a cut
     /// ([`Stream::cut`]), after which the next frame marks its own and draws a features pass.
     carried: Option<super::Carried>,
+    /// The words 0 to [`STAMP_VALUES`], each its index, that frames copy their [`stamp`] from.
+    stamps: Option<wgpu::Buffer>,
+    /// Whether the frames' sizes follow a count (one read back, or the application's
+    /// [`Stream::expect`]): until then the next frame counts first ([`Stream::count_first`]).
+    counted: bool,
 }
 
 impl Stream {
@@ -234,6 +255,8 @@ impl Stream {
             pending: Vec::new(),
             spare: Vec::new(),
             carried: None,
+            stamps: None,
+            counted: false,
         };
         if let Some(b) = budget {
             f.set_budget(b)?;
@@ -302,22 +325,35 @@ impl Stream {
                     })?;
             }
         }
+        let mapped = |p: &PendingReport| p.mapped.load(std::sync::atomic::Ordering::Acquire);
         let mut reports = Vec::new();
         while let Some(p) = self.pending.first() {
-            if !p.mapped.load(std::sync::atomic::Ordering::Acquire) {
+            if !mapped(p) {
+                // Submissions run in order: where a later frame's report is mapped (or, waited
+                // for, every submitted one), this one's encoder was never submitted.
+                let later = self.pending[1..].iter().any(mapped);
+                if later || wait {
+                    self.pending.remove(0);
+                    continue;
+                }
                 break;
             }
             let p = self.pending.remove(0);
             let report = self.read_report(&p)?;
             p.staging.unmap();
             self.spare.push(p.staging);
-            self.learn(&report);
-            reports.push(report);
+            // Only the frames that ran report (and size the frames to come).
+            if let Some(report) = report {
+                self.learn(&report);
+                reports.push(report);
+            }
         }
         Ok(reports)
     }
 
-    fn read_report(&self, p: &PendingReport) -> Result<FrameReport> {
+    /// The report of the frame `p` staged, or None where it never ran: its staging buffer does
+    /// not hold its [`stamp`] (its submission failed, and the buffer holds what it held).
+    fn read_report(&self, p: &PendingReport) -> Result<Option<FrameReport>> {
         let data = p
             .staging
             .slice(..)
@@ -327,6 +363,10 @@ impl Stream {
                 message: e.to_string(),
             })?;
         let word = |at: usize| u32::from_le_bytes(data[at..at + 4].try_into().expect("4"));
+        let at = REPORT_STAMP_AT as usize;
+        if [word(at), word(at + 4)] != stamp(p.frame) {
+            return Ok(None);
+        }
         let status = FrameStatus::parse(&data[..REPORT_TOTALS_AT as usize]);
         let totals: Vec<u32> = (0..crate::shared::TOTALS_WORDS as usize)
             .map(|i| word(REPORT_TOTALS_AT as usize + 4 * i))
@@ -364,7 +404,7 @@ impl Stream {
             (AppMethod::Abuffer | AppMethod::Mlab { .. }, None) => !status.pool_short,
             _ => false,
         };
-        Ok(FrameReport {
+        Ok(Some(FrameReport {
             frame: p.frame,
             pass_ms,
             passes: p.ran.clone(),
@@ -375,7 +415,120 @@ impl Stream {
             allocated_bytes: p.allocated,
             pool_short: status.pool_short || plan_short,
             error: status.check(&self.gpu, self.size.0).err(),
-        })
+        }))
+    }
+
+    /// Whether the next frame's buffers wait for a count of it ([`Stream::count_first`]): a
+    /// method whose memory follows the frame's count, no count read or expected since it was
+    /// made or resized, on a device it may wait for (not a page's).
+    pub(super) fn uncounted(&self) -> bool {
+        let follows = matches!(
+            self.method,
+            AppMethod::Abuffer | AppMethod::Mlab { .. } | AppMethod::Dkb(_) | AppMethod::Vkb(_)
+        );
+        follows && !self.counted && !cfg!(target_arch = "wasm32")
+    }
+
+    /// The next frame's fragments counted first (the method's first frame, the first after a
+    /// resize, where the application expected no occupancy): its count phase drawn by
+    /// `geometry` in a submission of its own, after what `before` records (the opaque pass, or
+    /// an occluder cleared to the far plane: then every fragment in view counts, the most the
+    /// frame can have), which it waits for; the totals read back size the frames to come (with
+    /// [`HEADROOM`]), so the frame holds every fragment its budget asks for.
+    pub(super) fn count_first(
+        &mut self,
+        geometry: &dyn Geometry,
+        before: &dyn Fn(&Gpu, &mut wgpu::CommandEncoder),
+        params: Params,
+    ) -> Result<()> {
+        use super::bindings::{features, features_count, vkb_count};
+        use super::buffers::FrameBuffers;
+        use super::passes::{GeometryPass, at};
+        let gpu = &self.gpu;
+        let px = self.pixels();
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        let mut fb = FrameBuffers::new(gpu, &mut enc);
+        let uniform = fb.init(
+            "count first.params",
+            bytemuck::bytes_of(&Params {
+                dkb_records: 0,
+                ..params
+            }),
+            wgpu::BufferUsages::UNIFORM,
+            false,
+        );
+        let counts = fb.storage("count first.count", crate::shared::count_bytes(px), false)?;
+        let totals = fb.storage(
+            "count first.totals",
+            4 * crate::shared::TOTALS_WORDS as u64,
+            false,
+        )?;
+        let p = &gpu.pipelines;
+        // The method's own count phase (the one its frames draw first), its group's other
+        // buffers unread (DKB gathers no record: Params::dkb_records 0) or written and dropped.
+        let (phase, pipeline, extra) = match &self.method {
+            AppMethod::Dkb(_) => {
+                let marks = fb.storage("count first.marks", budget::marks_bytes(px), false)?;
+                let none = fb.storage("count first.records", 16, false)?;
+                let depths = fb.init(
+                    "count first.optical_depth",
+                    bytemuck::cast_slice(&crate::importance::optical_depth_table()),
+                    wgpu::BufferUsages::UNIFORM,
+                    false,
+                );
+                let (phase, pipeline) = match (&p.wide, self.capture) {
+                    (Some(w), Capture::Wide) => (Phase::CountFeatures, &w.count_features),
+                    _ => (
+                        Phase::CountFeaturesDepths,
+                        &gpu.extras().portable_features()[2],
+                    ),
+                };
+                let bound = vec![
+                    (features::RECORD_MARKS, marks),
+                    (features::RECORDS, none),
+                    (features::OPTICAL_DEPTH, depths),
+                    (features_count::COUNTS, counts.clone()),
+                ];
+                (phase, pipeline, bound)
+            }
+            AppMethod::Vkb(_) => {
+                let nearest = fb.storage("count first.nearest", 4 * px, false)?;
+                let bound = vec![
+                    (vkb_count::COUNT, counts.clone()),
+                    (vkb_count::NEAREST_INV, nearest),
+                ];
+                (Phase::VkbCount, &p.vkb_count, bound)
+            }
+            _ => (Phase::Count, &p.count, vec![(0, counts.clone())]),
+        };
+        let held = fb.into_taken();
+        before(gpu, &mut enc);
+        let pass = GeometryPass {
+            phase,
+            pipeline,
+            group: extra.iter().map(|(i, b)| at(*i, b)).collect(),
+            targets: &[],
+            name: "count first",
+        };
+        geometry.draw(gpu, &mut enc, pass, &uniform, None);
+        let g = gpu.bind(
+            &p.totals.get_bind_group_layout(0),
+            &[&uniform, &counts, &totals],
+        );
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            let (gx, gy) = crate::wgsl::grid(px as u32, crate::wgsl::PIXEL_GROUP);
+            pass.set_pipeline(&p.totals);
+            pass.set_bind_group(0, &g, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        gpu.submit(enc.finish());
+        let words = (0..=crate::shared::TOTAL_DEEPER).map(|i| (&totals, 4 * i as u64));
+        let w = super::buffers::read_words(gpu, &words.collect::<Vec<_>>())?;
+        drop(held);
+        self.expected = Occupancy::from_totals(&w).scaled(HEADROOM, px);
+        self.counted = true;
+        Ok(())
     }
 
     /// A frame's count, for the frames to come: the pool follows the largest recent count with
@@ -391,6 +544,7 @@ impl Stream {
             _ => return,
         };
         let next = seen.scaled(HEADROOM, px);
+        self.counted = true;
         let e = self.expected;
         let needs_more = seen.fragments > e.fragments
             || seen.covered > e.covered
@@ -400,6 +554,13 @@ impl Stream {
         if needs_more || far_less {
             self.expected = next;
         }
+    }
+
+    /// The buffers of the frames to come sized for frames of `occupancy`, as given (no first
+    /// count: [`Stream::counted`]).
+    pub(super) fn expect(&mut self, occupancy: Occupancy) {
+        self.expected = occupancy;
+        self.counted = true;
     }
 
     pub(super) fn set_budget(&mut self, budget: Budget) -> Result<()> {
@@ -482,8 +643,9 @@ impl Stream {
         check_size(&self.gpu, size)?;
         let old = self.pixels();
         self.size = size;
-        // The marks are of the old size: a cut.
+        // The marks are of the old size: a cut; and the first frame of the size counts first.
         self.carried = None;
+        self.counted = false;
         // The counts so far, for a frame as many times larger.
         let px = self.pixels();
         self.expected = self.expected.scaled(px as f64 / old.max(1) as f64, px);
@@ -571,6 +733,24 @@ impl Stream {
                 }),
             };
             enc.clear_buffer(&staging, 0, Some(REPORT_WORDS));
+            let stamps = self.stamps.get_or_insert_with(|| {
+                let words: Vec<u32> = (0..=STAMP_VALUES as u32).collect();
+                let b = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("dhoit frame stamps"),
+                    size: 4 * words.len() as u64,
+                    usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                // Written before the first submission's commands, never again.
+                self.gpu
+                    .queue
+                    .write_buffer(&b, 0, bytemuck::cast_slice(&words));
+                b
+            });
+            for (i, s) in stamp(self.frames).into_iter().enumerate() {
+                let to = REPORT_STAMP_AT + 4 * i as u64;
+                enc.copy_buffer_to_buffer(stamps, 4 * s as u64, &staging, to, 4);
+            }
             let out = &recorded.out;
             if let Some(status) = &out.status {
                 enc.copy_buffer_to_buffer(status, 0, &staging, 0, FrameStatus::BYTES);
