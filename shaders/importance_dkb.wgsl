@@ -226,9 +226,12 @@ fn network(
 
 // Every pixel's importance from its record's nearest key's place into the shared word, where
 // the allocation reads it: the batch's pixels; and in the first batch every pixel of no
-// other batch the least weight (a later batch's pixel gets its own in its batch). The least
-// weight is 0, with the pair mark where the pixel has more than TAIL_WORDS fragments (as a
-// forced pixel's) and the frame truncates (Mlp::dkb_importance_recorded's twin).
+// other batch its fallback (a later batch's pixel gets its own in its batch). A pixel of more
+// than TAIL_WORDS fragments without a record (the frame before did not mark it, or it is past
+// the records the pool held) takes the mean request of its four neighbours that the network
+// decided in this batch, with its pair mark; where none did, and for every other pixel, the
+// least weight: 0, with the pair mark where the pixel has more than TAIL_WORDS fragments and
+// the frame truncates (Mlp::dkb_importance_recorded's twin).
 @compute @workgroup_size(PIXEL_GROUP)
 fn gather(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -241,14 +244,54 @@ fn gather(
     }
     let lo = atomicLoad(&list_len[BATCH_LO]);
     let size = atomicLoad(&list_len[BATCH_SIZE]);
-    let index = record_index(p);
-    let r = batch_record(index, lo, size);
+    let r = batch_record(record_index(p), lo, size);
     if (r != NO_RECORD) {
         shared_word[p] = records[RECORD_WORDS * r].x;
     } else if (lo == 0u) {
         // 0 unmarked where the frame keeps every fragment, as network_inputs gives a record.
         let kept = planned_f() >= totals[TOTAL_FRAGMENTS];
         let deeper = count_in(count[count_word(p)], p) > TAIL_WORDS;
-        shared_word[p] = select(0u, PAIR_BIT, deeper && !kept);
+        var word = select(0u, PAIR_BIT, deeper && !kept);
+        if (deeper && !kept) {
+            let near = neighbours_request(p, size);
+            if (near > 0.0) {
+                word = bitcast<u32>(near) | PAIR_BIT;
+            }
+        }
+        shared_word[p] = word;
     }
+}
+
+// The mean request of pixel p's four neighbours (left, right, up, down, in that order) whose
+// record the first batch holds and the network decided (a request above 0; a forced record
+// holds 0), or 0 where none did.
+fn neighbours_request(p: u32, size: u32) -> f32 {
+    let w = params.width;
+    let x = p % w;
+    let y = p / w;
+    var sum = 0.0;
+    var n = 0u;
+    for (var i = 0u; i < 4u; i++) {
+        var q = p;
+        var inside = false;
+        switch i {
+            case 0u: { inside = x > 0u; q = p - 1u; }
+            case 1u: { inside = x + 1u < w; q = p + 1u; }
+            case 2u: { inside = y > 0u; q = p - w; }
+            default: { inside = y + 1u < params.height; q = p + w; }
+        }
+        if (!inside) {
+            continue;
+        }
+        let r = batch_record(record_index(q), 0u, size);
+        if (r == NO_RECORD) {
+            continue;
+        }
+        let v = bitcast<f32>(records[RECORD_WORDS * r].x & ~PAIR_BIT);
+        if (v > 0.0) {
+            sum += v;
+            n += 1u;
+        }
+    }
+    return select(0.0, sum / f32(max(n, 1u)), n > 0u);
 }

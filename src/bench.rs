@@ -328,9 +328,9 @@ fn configure(label: &str) -> dhoit_runtime::gpu::FrameOptions {
     }
 }
 
-/// The networks the GPU bench runs: the committed default weights and the smallest shipped
-/// network (or seeded random ones of their sizes, which cost the same), where they came from,
-/// and the default at f16-math where the device computes in binary16.
+/// The networks the GPU bench runs: the shipped default (the 128-64) and the smallest shipped
+/// network (`mlp::SHIPPED`, built into the binary), and the default at f16-math where the
+/// device computes in binary16.
 struct BenchNets {
     mlp: dhoit_runtime::mlp::Mlp,
     weights: String,
@@ -339,28 +339,11 @@ struct BenchNets {
     half: Option<dhoit_runtime::mlp::Mlp>,
 }
 
-fn bench_nets(gpu: &dhoit_runtime::gpu::Gpu) -> BenchNets {
-    // The committed weights when found (under the working directory's data/, as on a machine
-    // the binary was carried to, else the source tree's), else seeded random ones of the same
-    // size (same cost).
-    let load = |rel: &str, seed: u64, (h1, h2): (usize, usize)| {
-        let local = std::path::PathBuf::from(rel);
-        let built = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(rel);
-        match [local, built].iter().find_map(|p| {
-            dhoit_runtime::mlp::Mlp::load(p)
-                .ok()
-                .map(|m| (m, p.clone()))
-        }) {
-            Some((m, p)) => (m, p.display().to_string()),
-            None => (
-                dhoit_runtime::mlp::Mlp::random_sized(seed, h1, h2),
-                format!("random ({rel} not found)"),
-            ),
-        }
-    };
-    let (mlp, weights) = load("data/weights.safetensors", 1, (128, 64));
-    // The smallest shipped network, which the trade finds as accurate (docs/trade.md).
-    let (small, small_weights) = load("data/nets/16-8/weights.safetensors", 2, (16, 8));
+fn bench_nets(gpu: &dhoit_runtime::gpu::Gpu) -> Result<BenchNets> {
+    let mlp = dhoit_runtime::mlp::Mlp::shipped("128-64")?;
+    // The smallest shipped network, which the trade finds as accurate at one opacity
+    // (docs/trade.md).
+    let small = dhoit_runtime::mlp::Mlp::shipped("16-8")?;
     // The default network with binary16 hidden layers (mlp::Precision::F16Math), where the
     // device computes in binary16 and the weights fit it.
     let half = mlp
@@ -370,13 +353,13 @@ fn bench_nets(gpu: &dhoit_runtime::gpu::Gpu) -> BenchNets {
     if half.is_none() {
         eprintln!("GPU: no f16-math run (the device lacks SHADER_F16 or a weight exceeds f16)");
     }
-    BenchNets {
+    Ok(BenchNets {
         mlp,
-        weights,
+        weights: "the shipped 128-64 (data/weights.safetensors)".into(),
         small,
-        small_weights,
+        small_weights: "the shipped 16-8 (data/nets/16-8/weights.safetensors)".into(),
         half,
-    }
+    })
 }
 
 /// The runs of one scene: every method as `render --device gpu` runs it, then each one option
@@ -795,7 +778,10 @@ fn gpu_bench(
         }
     };
     eprintln!("GPU: {}", gpu.adapter());
-    let nets = bench_nets(&gpu);
+    let nets = match bench_nets(&gpu) {
+        Ok(n) => n,
+        Err(e) => return serde_json::json!({ "error": e.to_string() }),
+    };
     let summary = |scenes: &[serde_json::Value]| serde_json::json!({"adapter": gpu.adapter(), "width": w, "height": h, "budget": budget.to_string(), "weights": nets.weights, "weights_16_8": nets.small_weights, "scenes": scenes});
     let mut scenes = Vec::new();
     for (name, s) in loaded {

@@ -444,4 +444,39 @@ mod tests {
             assert_eq!(vkb_key_facing(key(0.75, f)), q as f32 / 255.0, "{f}");
         }
     }
+
+    /// DKB's record marks by hand: pixels of three fragments or more marked, a word of 32 a
+    /// block, each block's marked pixels before it, and their total; a pixel's record is the
+    /// marked pixels before it, in pixel order (what records.wgsl's record_index reads).
+    #[test]
+    fn record_marks_number_the_pixels_of_more_than_two_fragments_in_order_by_hand() {
+        use super::{record_indices, record_marks};
+        // 40 pixels: two words. Marked: 1, 3, 31 in the first word, 32, 39 in the second.
+        let mut counts = vec![0u32; 40];
+        for (p, n) in [
+            (0, 2),
+            (1, 3),
+            (2, 1),
+            (3, 7),
+            (31, 3),
+            (32, 9),
+            (38, 2),
+            (39, 3),
+        ] {
+            counts[p] = n;
+        }
+        let marks = record_marks(&counts);
+        let bits0 = 1 << 1 | 1 << 3 | 1 << 31;
+        let bits1 = 1 << 0 | 1 << 7;
+        assert_eq!(marks, vec![0, 3, 5, bits0, bits1]);
+        let r = record_indices(&marks, 40);
+        let recorded: Vec<(usize, u32)> = r
+            .iter()
+            .enumerate()
+            .filter_map(|(p, i)| i.map(|i| (p, i)))
+            .collect();
+        assert_eq!(recorded, vec![(1, 0), (3, 1), (31, 2), (32, 3), (39, 4)]);
+        // No pixel of two or fewer has one.
+        assert!(r[0].is_none() && r[38].is_none() && r[2].is_none());
+    }
 }

@@ -120,6 +120,28 @@ pub fn forced(n: u32, pair: bool, lo: u32) -> bool {
     crate::alloc::useful_cap(n, lo, pair) <= lo
 }
 
+/// The networks dhoit ships, by their hidden layers' sizes, their weights built into the
+/// library (`make train` writes the 128-64, the reference; `make nets` the others, on the same
+/// data): an application deploys one with [`Mlp::shipped`], no file of its own. The smaller
+/// ones cost a fraction of the 128-64's importance pass (the 16-8 about a tenth: `make trade`,
+/// `make frame`) for about its accuracy at one opacity and less with materials
+/// (docs/experiments.md); `dhoit fit --scene FILE` says which is good enough on a scene.
+pub const SHIPPED: [(&str, &[u8]); 4] = [
+    ("128-64", include_bytes!("../../data/weights.safetensors")),
+    (
+        "64-32",
+        include_bytes!("../../data/nets/64-32/weights.safetensors"),
+    ),
+    (
+        "32-16",
+        include_bytes!("../../data/nets/32-16/weights.safetensors"),
+    ),
+    (
+        "16-8",
+        include_bytes!("../../data/nets/16-8/weights.safetensors"),
+    ),
+];
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mlp {
     pub h1: usize,
@@ -417,26 +439,48 @@ impl Mlp {
         imp
     }
 
-    /// [`Mlp::dkb_importance_pooled`] for a frame that gathers its statistics with its count
-    /// (`gpu::Tuning::two_pass_dkb`), for the pixels the frame before marked
-    /// ([`crate::importance::record_marks`] of its counts: `recorded` says which of this frame's
-    /// pixels have a record, as many as its pool held), the others the least weight: 0,
-    /// with the pair mark where the pixel has more than `shared::TAIL_WORDS` fragments
-    /// (importance_dkb.wgsl's gather). Where every deeper pixel has a record, it is
-    /// [`Mlp::dkb_importance_pooled`] itself.
+    /// [`Mlp::dkb_importance_pooled`] for a frame of `width` pixels a row that gathers its
+    /// statistics with its count (`gpu::Tuning::two_pass_dkb`), for the pixels the frame before
+    /// marked ([`crate::importance::record_marks`] of its counts: `recorded` says which of this
+    /// frame's pixels have a record, as many as its pool held). A pixel of more than
+    /// `shared::TAIL_WORDS` fragments without one takes the mean request of its four
+    /// neighbours (left, right, up, down) that have one and that the network decided (a request
+    /// above 0), with the pair mark, where the frame truncates; where none did, the least weight,
+    /// 0 with the pair mark (importance_dkb.wgsl's gather). Where every deeper pixel has a
+    /// record, it is [`Mlp::dkb_importance_pooled`] itself.
     pub fn dkb_importance_recorded(
         &self,
         features: &[[f32; FEATURES]],
         counts: &[u32],
         f: u64,
-        recorded: &[bool],
+        (recorded, width): (&[bool], usize),
     ) -> Vec<f32> {
-        let mut imp = self.dkb_importance_pooled(features, counts, f);
+        let pooled = self.dkb_importance_pooled(features, counts, f);
         let all_fit = f >= counts.iter().map(|&n| n as u64).sum::<u64>();
-        for ((i, &n), &r) in imp.iter_mut().zip(counts).zip(recorded) {
-            if !r && !all_fit && n > crate::shared::TAIL_WORDS {
-                *i = crate::alloc::mark_pair(0.0, true);
+        let height = counts.len() / width.max(1);
+        let pair = crate::alloc::PAIR_BIT;
+        let request = |q: usize| f32::from_bits(pooled[q].to_bits() & !pair);
+        let mut imp = pooled.clone();
+        for (p, i) in imp.iter_mut().enumerate() {
+            if recorded[p] || all_fit || counts[p] <= crate::shared::TAIL_WORDS {
+                continue;
             }
+            let (x, y) = (p % width, p / width);
+            let near = [
+                (x > 0).then(|| p - 1),
+                (x + 1 < width).then(|| p + 1),
+                (y > 0).then(|| p - width),
+                (y + 1 < height).then(|| p + width),
+            ];
+            let (mut sum, mut n) = (0.0f32, 0u32);
+            for q in near.into_iter().flatten() {
+                if recorded[q] && request(q) > 0.0 {
+                    sum += request(q);
+                    n += 1;
+                }
+            }
+            let v = if n > 0 { sum / n as f32 } else { 0.0 };
+            *i = crate::alloc::mark_pair(v, true);
         }
         imp
     }
@@ -493,6 +537,32 @@ impl Mlp {
         let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
         Self::from_bytes(&bytes).map_err(|fault| Error::Weights {
             path: path.to_path_buf(),
+            fault,
+        })
+    }
+
+    /// The shipped network `name` ([`SHIPPED`]: "128-64", the reference, "64-32", "32-16" or
+    /// "16-8"), or an error naming the shipped ones.
+    ///
+    /// ```
+    /// use dhoit_runtime::mlp::Mlp;
+    /// let small = Mlp::shipped("16-8")?;
+    /// assert_eq!((small.h1, small.h2), (16, 8));
+    /// let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/weights.safetensors");
+    /// assert_eq!(Mlp::shipped("128-64")?, Mlp::load(file.as_ref())?);
+    /// assert!(Mlp::shipped("8-4").unwrap_err().to_string().contains("16-8"));
+    /// # Ok::<(), dhoit_runtime::Error>(())
+    /// ```
+    pub fn shipped(name: &str) -> Result<Mlp> {
+        let Some((_, bytes)) = SHIPPED.iter().find(|(n, _)| *n == name) else {
+            let names: Vec<&str> = SHIPPED.iter().map(|(n, _)| *n).collect();
+            return Err(Error::Invalid(format!(
+                "no shipped network '{name}': {}",
+                names.join(", ")
+            )));
+        };
+        Self::from_bytes(bytes).map_err(|fault| Error::Weights {
+            path: std::path::PathBuf::from(format!("the shipped {name} network")),
             fault,
         })
     }
@@ -741,6 +811,59 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A frame that gathers its statistics with its count: every deeper pixel recorded, its
+    /// importance is the pooled one's; one the frame before left unmarked takes, by hand, the
+    /// mean request of its recorded neighbours the network decided, with the pair mark, or
+    /// where there is none the least weight (0 with the pair mark) where the frame truncates,
+    /// 0 where it keeps every fragment; a pixel of two or fewer gets 0 whether marked or not.
+    #[test]
+    fn unrecorded_deeper_pixels_take_their_neighbours_request_or_the_least_weight() {
+        let m = Mlp::random(3);
+        let counts = [0u32, 1, 2, 3, 5, 9, 4, 7];
+        let mut rng = Rng::new(5);
+        let features: Vec<[f32; FEATURES]> = counts
+            .iter()
+            .map(|_| std::array::from_fn(|_| rng.f32()))
+            .collect();
+        let f = 10;
+        let pooled = m.dkb_importance_pooled(&features, &counts, f);
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
+        // Two rows of four pixels.
+        let all = m.dkb_importance_recorded(&features, &counts, f, (&[true; 8], 4));
+        assert_eq!(bits(&all), bits(&pooled));
+        let some = [false, false, true, false, true, false, true, true];
+        let got = m.dkb_importance_recorded(&features, &counts, f, (&some, 4));
+        let least = alloc::mark_pair(0.0, true).to_bits();
+        let request = |q: usize| f32::from_bits(pooled[q].to_bits() & !alloc::PAIR_BIT);
+        // Pixel 3 (n 3, forced here: lo is 1) and 5 (n 9) are deeper and unrecorded: 3's
+        // neighbours 2 (n 2) and 7 (n 7, recorded), 5's neighbours 4 (n 5), 6 (n 4) and 1 (n 1).
+        assert!(request(7) > 0.0 && request(4) > 0.0 && request(6) > 0.0);
+        let mean = |qs: &[usize]| qs.iter().map(|&q| request(q)).sum::<f32>() / qs.len() as f32;
+        for (p, &n) in counts.iter().enumerate() {
+            let want = match (p, some[p], n > crate::shared::TAIL_WORDS) {
+                (_, _, false) => 0,
+                (_, true, true) => pooled[p].to_bits(),
+                (3, false, true) => alloc::mark_pair(mean(&[7]), true).to_bits(),
+                (5, false, true) => alloc::mark_pair(mean(&[4, 6]), true).to_bits(),
+                _ => least,
+            };
+            assert_eq!(got[p].to_bits(), want, "pixel {p} of {n}");
+        }
+        // With no neighbour the network decided: the least weight.
+        let lone = [false, false, false, false, false, false, false, false];
+        let got = m.dkb_importance_recorded(&features, &counts, f, (&lone, 4));
+        assert!(got.iter().zip(&counts).all(|(i, &n)| i.to_bits()
+            == if n > crate::shared::TAIL_WORDS {
+                least
+            } else {
+                0
+            }));
+        // Every fragment kept: 0 unmarked, recorded or not.
+        let total: u64 = counts.iter().map(|&n| n as u64).sum();
+        let kept = m.dkb_importance_recorded(&features, &counts, total, (&some, 4));
+        assert!(kept.iter().all(|i| i.to_bits() == 0));
     }
 
     #[test]

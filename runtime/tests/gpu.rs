@@ -2560,7 +2560,7 @@ fn a_dkb_stream_gathers_its_statistics_with_its_count_for_the_pixels_the_frame_b
     let f = FragmentBudget::Share(250_000).of(fb.fragment_count() as u64);
     let (feats, counts) = network_inputs(&common::recorded_stats(&fb), f);
     let recorded: Vec<bool> = ca.iter().map(|&n| n > tail).collect();
-    let imp = mlp.dkb_importance_recorded(&feats, &counts, f, &recorded);
+    let imp = mlp.dkb_importance_recorded(&feats, &counts, f, (&recorded, size.0 as usize));
     let k = dhoit_runtime::shared::stored(&alloc::allocate_pooled(&imp, &cb, mlp.target, f), &cb);
     let twin = composite::composite(&fb, composite::Method::Hybrid(&k), BG);
     let d = moved.max_abs_diff(&twin);
