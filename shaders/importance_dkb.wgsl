@@ -9,9 +9,9 @@
 //   args:    the list's length -> the workgroups of an indirect dispatch (a 2-D grid);
 //   network: one invocation a listed record: its features again, the network, its importance;
 //   gather:  one invocation a pixel: its record's importance into the shared word; a pixel
-//            without one the least weight (0: at most TAIL_WORDS fragments, forced whatever
-//            its importance; with the pair mark: more, unmarked by the frame before, or past the
-//            records the pool held, which the network does not decide).
+//            without one of more than TAIL_WORDS fragments (unmarked by the frame before, or
+//            past the records the pool held) the mean request the network gave, a pixel of
+//            fewer 0 (forced whatever its importance).
 // Once for each batch of records (totals.wgsl), which are a batch's own indices here (`r`): the
 // batch's first record is at the pool's start.
 // A record's importance waits in its nearest key's place (read by then).
@@ -218,9 +218,12 @@ fn network(
         let out = mlp_forward_shared(net.x, net.runs, lid);
         if (net.runs) {
             set_importance(r, bitcast<f32>(bitcast<u32>(out) | net.mark));
+            add_request(out);
         }
     } else if (net.runs) {
-        set_importance(r, bitcast<f32>(bitcast<u32>(mlp_forward(net.x)) | net.mark));
+        let out = mlp_forward(net.x);
+        set_importance(r, bitcast<f32>(bitcast<u32>(out) | net.mark));
+        add_request(out);
     }
 }
 
@@ -228,10 +231,10 @@ fn network(
 // the allocation reads it: the batch's pixels; and in the first batch every pixel of no
 // other batch its fallback (a later batch's pixel gets its own in its batch). A pixel of more
 // than TAIL_WORDS fragments without a record (the frame before did not mark it, or it is past
-// the records the pool held) takes the mean request of its four neighbours that the network
-// decided in this batch, with its pair mark; where none did, and for every other pixel, the
-// least weight: 0, with the pair mark where the pixel has more than TAIL_WORDS fragments and
-// the frame truncates (Mlp::dkb_importance_recorded's twin).
+// the records the pool held) takes the mean request the network gave the first batch, with
+// its pair mark; where the network decided none, and for every other pixel, the least weight:
+// 0, with the pair mark where the pixel has more than TAIL_WORDS fragments and the frame
+// truncates (Mlp::dkb_importance_recorded's twin).
 @compute @workgroup_size(PIXEL_GROUP)
 fn gather(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -252,46 +255,22 @@ fn gather(
         let kept = planned_f() >= totals[TOTAL_FRAGMENTS];
         let deeper = count_in(count[count_word(p)], p) > TAIL_WORDS;
         var word = select(0u, PAIR_BIT, deeper && !kept);
-        if (deeper && !kept) {
-            let near = neighbours_request(p, size);
-            if (near > 0.0) {
-                word = bitcast<u32>(near) | PAIR_BIT;
-            }
+        let decided = atomicLoad(&list_len[BATCH_LISTED]);
+        if (deeper && !kept && decided > 0u) {
+            let sum = W(atomicLoad(&list_len[BATCH_REQUESTS]), atomicLoad(&list_len[BATCH_REQUESTS + 1u]));
+            let mean = w_to_f32(sum) / f32(decided) / exp2(f32(REQUEST_SUM_BITS));
+            word = bitcast<u32>(mean) | PAIR_BIT;
         }
         shared_word[p] = word;
     }
 }
 
-// The mean request of pixel p's four neighbours (left, right, up, down, in that order) whose
-// record the first batch holds and the network decided (a request above 0; a forced record
-// holds 0), or 0 where none did.
-fn neighbours_request(p: u32, size: u32) -> f32 {
-    let w = params.width;
-    let x = p % w;
-    let y = p / w;
-    var sum = 0.0;
-    var n = 0u;
-    for (var i = 0u; i < 4u; i++) {
-        var q = p;
-        var inside = false;
-        switch i {
-            case 0u: { inside = x > 0u; q = p - 1u; }
-            case 1u: { inside = x + 1u < w; q = p + 1u; }
-            case 2u: { inside = y > 0u; q = p - w; }
-            default: { inside = y + 1u < params.height; q = p + w; }
-        }
-        if (!inside) {
-            continue;
-        }
-        let r = batch_record(record_index(q), 0u, size);
-        if (r == NO_RECORD) {
-            continue;
-        }
-        let v = bitcast<f32>(records[RECORD_WORDS * r].x & ~PAIR_BIT);
-        if (v > 0.0) {
-            sum += v;
-            n += 1u;
-        }
+// A request the network gave, into the sum of the batch's (BATCH_REQUESTS: a 64-bit sum in
+// units of 2^-REQUEST_SUM_BITS, the low word's carry into the high one; shared::request_units).
+fn add_request(v: f32) {
+    let q = u32(v * exp2(f32(REQUEST_SUM_BITS)) + 0.5);
+    let old = atomicAdd(&list_len[BATCH_REQUESTS], q);
+    if (old + q < old) {
+        atomicAdd(&list_len[BATCH_REQUESTS + 1u], 1u);
     }
-    return select(0.0, sum / f32(max(n, 1u)), n > 0u);
 }

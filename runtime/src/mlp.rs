@@ -439,48 +439,44 @@ impl Mlp {
         imp
     }
 
-    /// [`Mlp::dkb_importance_pooled`] for a frame of `width` pixels a row that gathers its
-    /// statistics with its count (`gpu::Tuning::two_pass_dkb`), for the pixels the frame before
-    /// marked ([`crate::importance::record_marks`] of its counts: `recorded` says which of this
-    /// frame's pixels have a record, as many as its pool held). A pixel of more than
-    /// `shared::TAIL_WORDS` fragments without one takes the mean request of its four
-    /// neighbours (left, right, up, down) that have one and that the network decided (a request
-    /// above 0), with the pair mark, where the frame truncates; where none did, the least weight,
-    /// 0 with the pair mark (importance_dkb.wgsl's gather). Where every deeper pixel has a
-    /// record, it is [`Mlp::dkb_importance_pooled`] itself.
+    /// [`Mlp::dkb_importance_pooled`] for a frame that gathers its statistics with its count
+    /// (`gpu::Tuning::two_pass_dkb`), for the pixels the frame before marked
+    /// ([`crate::importance::record_marks`] of its counts: `recorded` says which of this frame's
+    /// pixels have a record, as many as its pool held). A pixel of more than
+    /// `shared::TAIL_WORDS` fragments without one takes, where the frame truncates, the mean of
+    /// the requests the network gave the recorded pixels it decided (summed in the fixed point
+    /// of `shared::request_units`, as importance_dkb.wgsl's gather takes it), with the pair
+    /// mark; where it decided none, the least weight, 0 with the pair mark. Where every
+    /// deeper pixel has a record, it is [`Mlp::dkb_importance_pooled`] itself.
     pub fn dkb_importance_recorded(
         &self,
         features: &[[f32; FEATURES]],
         counts: &[u32],
         f: u64,
-        (recorded, width): (&[bool], usize),
+        recorded: &[bool],
     ) -> Vec<f32> {
         let pooled = self.dkb_importance_pooled(features, counts, f);
         let all_fit = f >= counts.iter().map(|&n| n as u64).sum::<u64>();
-        let height = counts.len() / width.max(1);
-        let pair = crate::alloc::PAIR_BIT;
-        let request = |q: usize| f32::from_bits(pooled[q].to_bits() & !pair);
-        let mut imp = pooled.clone();
-        for (p, i) in imp.iter_mut().enumerate() {
-            if recorded[p] || all_fit || counts[p] <= crate::shared::TAIL_WORDS {
-                continue;
+        let lo = crate::alloc::min_k(counts, f);
+        // The requests the network gave (the recorded pixels it decided: not forced).
+        let (mut sum, mut decided) = (0u64, 0u32);
+        for (p, &n) in counts.iter().enumerate() {
+            if recorded[p] && !all_fit && n > crate::shared::TAIL_WORDS && !forced(n, true, lo) {
+                let v = f32::from_bits(pooled[p].to_bits() & !crate::alloc::PAIR_BIT);
+                sum += crate::shared::request_units(v) as u64;
+                decided += 1;
             }
-            let (x, y) = (p % width, p / width);
-            let near = [
-                (x > 0).then(|| p - 1),
-                (x + 1 < width).then(|| p + 1),
-                (y > 0).then(|| p - width),
-                (y + 1 < height).then(|| p + width),
-            ];
-            let (mut sum, mut n) = (0.0f32, 0u32);
-            for q in near.into_iter().flatten() {
-                if recorded[q] && request(q) > 0.0 {
-                    sum += request(q);
-                    n += 1;
-                }
+        }
+        let unit = (1u32 << crate::shared::REQUEST_SUM_BITS) as f32;
+        let mean = match decided {
+            0 => 0.0,
+            d => sum as f32 / d as f32 / unit,
+        };
+        let mut imp = pooled;
+        for ((i, &n), &r) in imp.iter_mut().zip(counts).zip(recorded) {
+            if !r && !all_fit && n > crate::shared::TAIL_WORDS {
+                *i = crate::alloc::mark_pair(mean, true);
             }
-            let v = if n > 0 { sum / n as f32 } else { 0.0 };
-            *i = crate::alloc::mark_pair(v, true);
         }
         imp
     }
@@ -815,11 +811,12 @@ mod tests {
 
     /// A frame that gathers its statistics with its count: every deeper pixel recorded, its
     /// importance is the pooled one's; one the frame before left unmarked takes, by hand, the
-    /// mean request of its recorded neighbours the network decided, with the pair mark, or
-    /// where there is none the least weight (0 with the pair mark) where the frame truncates,
-    /// 0 where it keeps every fragment; a pixel of two or fewer gets 0 whether marked or not.
+    /// mean of the requests the network gave the recorded pixels it decided, with the pair
+    /// mark, or where it decided none the least weight (0 with the pair mark) where the frame
+    /// truncates, 0 where it keeps every fragment; a pixel of two or fewer gets 0 whether
+    /// marked or not.
     #[test]
-    fn unrecorded_deeper_pixels_take_their_neighbours_request_or_the_least_weight() {
+    fn unrecorded_deeper_pixels_take_the_mean_request_or_the_least_weight() {
         let m = Mlp::random(3);
         let counts = [0u32, 1, 2, 3, 5, 9, 4, 7];
         let mut rng = Rng::new(5);
@@ -830,30 +827,30 @@ mod tests {
         let f = 10;
         let pooled = m.dkb_importance_pooled(&features, &counts, f);
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
-        // Two rows of four pixels.
-        let all = m.dkb_importance_recorded(&features, &counts, f, (&[true; 8], 4));
+        let all = m.dkb_importance_recorded(&features, &counts, f, &[true; 8]);
         assert_eq!(bits(&all), bits(&pooled));
         let some = [false, false, true, false, true, false, true, true];
-        let got = m.dkb_importance_recorded(&features, &counts, f, (&some, 4));
+        let got = m.dkb_importance_recorded(&features, &counts, f, &some);
         let least = alloc::mark_pair(0.0, true).to_bits();
+        // lo is 1 (F covers the 7 covered pixels): pixel 3 (n 3) is forced, so the network
+        // decides the recorded 4 (n 5), 6 (n 4) and 7 (n 7); their requests in 2^-20 units.
         let request = |q: usize| f32::from_bits(pooled[q].to_bits() & !alloc::PAIR_BIT);
-        // Pixel 3 (n 3, forced here: lo is 1) and 5 (n 9) are deeper and unrecorded: 3's
-        // neighbours 2 (n 2) and 7 (n 7, recorded), 5's neighbours 4 (n 5), 6 (n 4) and 1 (n 1).
-        assert!(request(7) > 0.0 && request(4) > 0.0 && request(6) > 0.0);
-        let mean = |qs: &[usize]| qs.iter().map(|&q| request(q)).sum::<f32>() / qs.len() as f32;
+        let units: u64 = [4, 6, 7]
+            .iter()
+            .map(|&q| (request(q) as f64 * 1048576.0).round() as u64)
+            .sum();
+        let mean = units as f32 / 3.0 / 1048576.0;
+        assert!(mean > 0.0);
         for (p, &n) in counts.iter().enumerate() {
-            let want = match (p, some[p], n > crate::shared::TAIL_WORDS) {
-                (_, _, false) => 0,
-                (_, true, true) => pooled[p].to_bits(),
-                (3, false, true) => alloc::mark_pair(mean(&[7]), true).to_bits(),
-                (5, false, true) => alloc::mark_pair(mean(&[4, 6]), true).to_bits(),
-                _ => least,
+            let want = match (some[p], n > crate::shared::TAIL_WORDS) {
+                (_, false) => 0,
+                (true, true) => pooled[p].to_bits(),
+                (false, true) => alloc::mark_pair(mean, true).to_bits(),
             };
             assert_eq!(got[p].to_bits(), want, "pixel {p} of {n}");
         }
-        // With no neighbour the network decided: the least weight.
-        let lone = [false, false, false, false, false, false, false, false];
-        let got = m.dkb_importance_recorded(&features, &counts, f, (&lone, 4));
+        // Nothing recorded, nothing decided: the least weight.
+        let got = m.dkb_importance_recorded(&features, &counts, f, &[false; 8]);
         assert!(got.iter().zip(&counts).all(|(i, &n)| i.to_bits()
             == if n > crate::shared::TAIL_WORDS {
                 least
@@ -862,7 +859,7 @@ mod tests {
             }));
         // Every fragment kept: 0 unmarked, recorded or not.
         let total: u64 = counts.iter().map(|&n| n as u64).sum();
-        let kept = m.dkb_importance_recorded(&features, &counts, total, (&some, 4));
+        let kept = m.dkb_importance_recorded(&features, &counts, total, &some);
         assert!(kept.iter().all(|i| i.to_bits() == 0));
     }
 

@@ -61,10 +61,23 @@ pub const BATCH_LISTED: u32 = 0;
 pub const BATCH_LO: u32 = 1;
 /// ... the records a batch holds (the frame's plan's), ...
 pub const BATCH_SIZE: u32 = 2;
-/// ... and the rows the network ran in the batches before.
+/// ... the rows the network ran in the batches before, ...
 pub const BATCH_ROWS_BEFORE: u32 = 3;
+/// ... and the sum of the requests the network gave the frame's first batch, in units of
+/// 2^-[`REQUEST_SUM_BITS`] rounded to the nearest, a 64-bit sum in two words (low, high): a
+/// pixel deeper than the frame before marked takes their mean (importance_dkb.wgsl's gather,
+/// `Mlp::dkb_importance_recorded`).
+pub const BATCH_REQUESTS: u32 = 4;
 /// Words of the batch buffer.
-pub const BATCH_WORDS: u32 = 4;
+pub const BATCH_WORDS: u32 = 6;
+/// The fixed point the requests are summed in ([`BATCH_REQUESTS`]): a request is in (0, 1),
+/// so each adds less than 2^20, and the sum of up to 2^44 of them fits 64 bits.
+pub const REQUEST_SUM_BITS: u32 = 20;
+
+/// A request as the sum of a batch's requests adds it ([`BATCH_REQUESTS`]).
+pub fn request_units(v: f32) -> u32 {
+    (v * (1u32 << REQUEST_SUM_BITS) as f32 + 0.5) as u32
+}
 /// Bytes of the frame's plan's parameters (`wgsl::PlanParams`, whose size a test holds to it).
 pub const PLAN_PARAMS_BYTES: u64 = 64;
 /// The totals' word holding the plan's F ([`crate::plan::Plan::words`]).
