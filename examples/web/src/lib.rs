@@ -223,8 +223,8 @@ impl Demo {
     }
 
     /// Every method's frame, in the demo's order. Each frame is recorded, submitted and its
-    /// image awaited; a frame whose report is not yet read or says it was short of its pool
-    /// (the first, sized before any count of the scene) is drawn again, at most
+    /// image awaited; a frame whose report is not yet read, says it was sized before any count
+    /// of the scene (a page's first) or was short of its pool is drawn again, at most
     /// [`MAX_FRAMES`] times, so the image shown is the budget's.
     pub async fn render(&mut self) -> Result<Vec<View>> {
         let mut views = Vec::new();
@@ -246,9 +246,10 @@ impl Demo {
                     return Err(e);
                 }
                 let report = reports.into_iter().find(|r| r.frame == number);
-                // Shown once a frame's report says its buffers held it (a frame sized before any count
-                // may be short of its pool; then the next is sized from this one's count).
-                let settled = report.as_ref().is_some_and(|r| !r.pool_short);
+                // Shown once a frame's report says its buffers were sized from a count and held it
+                // (a page's first frame is sized before any: short of its pool, or holding more
+                // than the budget's frames; the next is sized from this one's count).
+                let settled = report.as_ref().is_some_and(|r| !r.pool_short && !r.guessed);
                 if settled || frames == MAX_FRAMES {
                     break (image, report);
                 }

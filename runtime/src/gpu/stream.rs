@@ -42,6 +42,10 @@ pub struct FrameReport {
     /// needed: the A-buffer's and MLAB's drop the pixels past its end, DKB's and VKB's keep
     /// fewer fragments in slots and more in the tails ([`crate::plan::Plan::short`]).
     pub pool_short: bool,
+    /// Whether its buffers were sized before any count of the scene: a page's first frame (which
+    /// cannot wait for one) of a method whose memory follows the count. One that fits may hold
+    /// more bytes than the frames after it, sized from its count.
+    pub guessed: bool,
     /// What made the frame wrong, where something did: a pixel too deep for any method, or a
     /// device that cut a pass's loops short.
     pub error: Option<Error>,
@@ -182,6 +186,8 @@ struct PendingReport {
     /// Whether it holds totals (an allocated k-buffer's), an A-buffer's fragments.
     totals: bool,
     counted: bool,
+    /// [`FrameReport::guessed`].
+    guessed: bool,
     /// True once mapped (after the submission that ran the frame).
     mapped: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
@@ -414,6 +420,7 @@ impl Stream {
             exact,
             allocated_bytes: p.allocated,
             pool_short: status.pool_short || plan_short,
+            guessed: p.guessed,
             error: status.check(&self.gpu, self.size.0).err(),
         }))
     }
@@ -422,11 +429,17 @@ impl Stream {
     /// method whose memory follows the frame's count, no count read or expected since it was
     /// made or resized, on a device it may wait for (not a page's).
     pub(super) fn uncounted(&self) -> bool {
+        self.guesses() && !cfg!(target_arch = "wasm32")
+    }
+
+    /// Whether the next frame's buffers are sized before any count of it: a method whose memory
+    /// follows the frame's count, no count read or expected since it was made or resized.
+    fn guesses(&self) -> bool {
         let follows = matches!(
             self.method,
             AppMethod::Abuffer | AppMethod::Mlab { .. } | AppMethod::Dkb(_) | AppMethod::Vkb(_)
         );
-        follows && !self.counted && !cfg!(target_arch = "wasm32")
+        follows && !self.counted
     }
 
     /// The next frame's fragments counted first (the method's first frame, the first after a
@@ -786,6 +799,7 @@ impl Stream {
                 allocated: recorded.allocated,
                 totals: out.plan_buf.is_some(),
                 counted: out.counted.is_some(),
+                guessed: self.guesses(),
                 mapped,
             });
         }
