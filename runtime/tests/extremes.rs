@@ -396,6 +396,9 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
     let fl = rasterize(&s, &identity(), size).unwrap();
     assert!(fl.counts().iter().all(|&n| n == 3000));
     let mlp = Mlp::random(2);
+    // Which frames were compared, and which refused: a test that refused every frame would
+    // hold nothing.
+    let (mut compared, mut refused) = (Vec::new(), Vec::new());
     for b in ["4fpp", "64fpp", "25%"] {
         let b = Budget::parse(b).unwrap();
         for m in [Method::Fkb, Method::Vkb, Method::Dkb] {
@@ -418,13 +421,23 @@ fn thousands_of_fragments_in_one_pixel_are_captured_or_refused_never_wrong() {
                 Ok(frame) => {
                     let d = frame.image.max_abs_diff(&cpu.image);
                     assert!(d <= TOLERANCE, "{} at {b}: GPU differs by {d}", m.name());
+                    compared.push(format!("{} at {b}", m.name()));
                 }
                 Err(e) => {
                     let msg = e.to_string();
                     assert!(msg.contains("loops early"), "{} at {b}: {msg}", m.name());
+                    refused.push(format!("{} at {b}", m.name()));
                 }
             }
         }
+    }
+    eprintln!("3000 deep: compared {compared:?}; refused {refused:?}");
+    // FKB's loops are bounded by its k: its frame is compared at every budget.
+    for b in ["4fpp", "64fpp", "25%"] {
+        assert!(
+            compared.contains(&format!("fkb at {b}")),
+            "compared {compared:?}; refused {refused:?}"
+        );
     }
 }
 

@@ -1498,8 +1498,8 @@ fn frames_recorded_into_one_submission_are_the_frames_rendered_one_at_a_time() {
 }
 
 /// Dhoit's passes are built once a device: a second method of a kind made from the same `Gpu`
-/// builds no shader or pipeline, nor do its frames; a method resized or given another budget
-/// renders what a method made at that size or budget renders.
+/// builds no shader or pipeline, nor do its frames; every method resized, and given another
+/// budget where it takes one, renders what a method made at that size and budget renders.
 #[test]
 fn a_second_method_builds_nothing_and_resized_ones_render_as_fresh_ones() {
     if gpu().is_none() {
@@ -1529,27 +1529,71 @@ fn a_second_method_builds_nothing_and_resized_ones_render_as_fresh_ones() {
         gpu::pipelines_built() > before,
         "a new device's passes are counted"
     );
-    // Resized and given another budget: as fresh methods.
+    // Every method resized, and given another budget where it takes one: as a fresh method
+    // made at that size and budget; the methods without a budget refuse one.
     let (w2, h2) = (64, 48);
     let app2 = App::new(&s, (w2, h2), false);
+    // The same device's application at the first size.
+    let on = (app2.device.clone(), app2.queue.clone(), app2.gpu.fork());
+    let app1 = App::on(on, &s, size, false);
+    let px = (w2 * h2) as u64;
+    let vkb = dhoit_runtime::importance::VkbParams::default();
+    let mut compared = Vec::new();
     for budget in ["25%", "1fpp"] {
         let b2 = Budget::parse(budget).unwrap();
-        let mut moved = AllocatedOit::dkb(&app2.gpu, size, &weights, b, F32X4).unwrap();
-        moved.resize((w2, h2)).unwrap();
-        moved.set_budget(b2).unwrap();
-        let mut fresh = AllocatedOit::dkb(&app2.gpu, (w2, h2), &weights, b2, F32X4).unwrap();
-        let (a, _) = app2.frame(&mut moved, &s, &identity());
-        let (f, _) = app2.frame(&mut fresh, &s, &identity());
-        assert_eq!(a, f, "{budget}: resized and rebudgeted");
-        let mut fkb = KBufferOit::new(&app2.gpu, size, 1, F32X4).unwrap();
-        fkb.resize((w2, h2)).unwrap();
-        fkb.set_budget(Budget::parse("3fpp").unwrap()).unwrap();
-        let mut fresh = KBufferOit::new(&app2.gpu, (w2, h2), 3, F32X4).unwrap();
-        assert_eq!(
-            app2.frame(&mut fkb, &s, &identity()).0,
-            app2.frame(&mut fresh, &s, &identity()).0
-        );
+        // Each method's budget after the change, and a fresh method made with it.
+        let fresh: Vec<(Option<&str>, Box<dyn Oit>)> = vec![
+            (
+                Some("8fpp"),
+                Box::new(ListOit::new(&app2.gpu, (w2, h2), 8 * px, 8, F32X4).unwrap()),
+            ),
+            (
+                Some("3fpp"),
+                Box::new(KBufferOit::new(&app2.gpu, (w2, h2), 3, F32X4).unwrap()),
+            ),
+            (
+                None,
+                Box::new(ExactOit::new(&app2.gpu, (w2, h2), F32X4).unwrap()),
+            ),
+            (
+                Some("3fpp"),
+                Box::new(ExactOit::mlab(&app2.gpu, (w2, h2), 3, F32X4).unwrap()),
+            ),
+            (
+                Some(budget),
+                Box::new(AllocatedOit::dkb(&app2.gpu, (w2, h2), &weights, b2, F32X4).unwrap()),
+            ),
+            (
+                Some(budget),
+                Box::new(AllocatedOit::vkb(&app2.gpu, (w2, h2), vkb, b2, F32X4).unwrap()),
+            ),
+            (
+                None,
+                Box::new(
+                    BlendedOit::wboit(&app2.gpu, (w2, h2), WboitParams::default(), F32X4).unwrap(),
+                ),
+            ),
+        ];
+        let moved = every_method(&app2.gpu, size, F32X4);
+        for ((given, mut fresh), mut moved) in fresh.into_iter().zip(moved) {
+            let name = moved.method();
+            assert_eq!(name, fresh.method());
+            // A frame at the first size, then the change.
+            app1.frame(moved.as_mut(), &s, &identity());
+            moved.resize((w2, h2)).unwrap();
+            match given {
+                Some(g) => moved.set_budget(Budget::parse(g).unwrap()).unwrap(),
+                None => assert!(moved.set_budget(b2).is_err(), "{name} took a budget"),
+            }
+            let (a, _) = app2.frame(moved.as_mut(), &s, &identity());
+            let (f, _) = app2.frame(fresh.as_mut(), &s, &identity());
+            assert_eq!(a.len(), (w2 * h2) as usize, "{name}");
+            assert!(a == f, "{name} at {budget}: resized and rebudgeted");
+            compared.push(name);
+        }
     }
+    // Every method of `every_method` but MBOIT (its blending is optional) was compared.
+    assert!(compared.len() >= 14, "{compared:?}");
 }
 
 /// Every method renders on a device opened without timestamps (`TIMESTAMP_QUERY` is
@@ -1584,7 +1628,8 @@ fn every_method_renders_without_timestamps() {
 
 /// A frame given textures of another size or format than the method's is refused before
 /// anything is recorded, with a typed error naming the texture and both sizes, by every
-/// method; a texture of the right size records.
+/// method: each of the three textures of another size alone (the others right), and a target
+/// of another format; the right ones record.
 #[test]
 fn every_method_refuses_textures_of_another_size_or_format() {
     if gpu().is_none() {
@@ -1592,34 +1637,66 @@ fn every_method_refuses_textures_of_another_size_or_format() {
     }
     let s = layered_scene();
     let (small, big) = ((32, 24), (64, 48));
-    // The application renders at 64x48; each method was made for 32x24, or for 64x48 onto
-    // 8-bit targets.
+    // The application renders at 64x48; each method was made for 64x48, onto f32 targets or
+    // 8-bit ones.
     let app = App::new(&s, big, false);
     let camera = app.camera(&s, &identity());
-    let made = every_method(&app.gpu, small, F32X4)
+    let at = |size, label, format, usage| texture(&app.device, size, label, format, usage);
+    let sampled = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT;
+    let storage = wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC;
+    let textures = |size| {
+        [
+            at(size, "depth", wgpu::TextureFormat::Depth32Float, sampled),
+            at(size, "image", F32X4, sampled),
+            at(size, "target", F32X4, storage),
+        ]
+    };
+    let (right, wrong) = (textures(big), textures(small));
+    let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+    let made = every_method(&app.gpu, big, F32X4)
         .into_iter()
         .zip(every_method(&app.gpu, big, wgpu::TextureFormat::Rgba8Unorm));
     for (mut oit, mut other) in made {
         let name = oit.method();
-        let pipelines = app.pipelines(oit.as_ref());
+        for (i, texture) in ["opaque depth", "opaque image", "target"]
+            .into_iter()
+            .enumerate()
+        {
+            let views: Vec<wgpu::TextureView> = (0..3)
+                .map(|j| view(if j == i { &wrong[j] } else { &right[j] }))
+                .collect();
+            let frame = FrameTargets {
+                depth: &views[0],
+                under: &views[1],
+                target: &views[2],
+            };
+            let mut enc = app.device.create_command_encoder(&Default::default());
+            let e = oit
+                .record(&mut enc, &frame, &mut |_, _| {
+                    panic!("{name}: a draw recorded for a frame refused")
+                })
+                .expect_err("refused");
+            match &e {
+                dhoit_runtime::Error::Gpu(dhoit_runtime::error::GpuError::FrameTexture {
+                    texture: t,
+                    ..
+                }) => assert_eq!(*t, texture, "{name}: {e}"),
+                _ => panic!("{name}, {texture}: {e}"),
+            }
+            let text = e.to_string();
+            assert!(
+                text.contains("64x48") && text.contains("32x24"),
+                "{name}: {text}"
+            );
+        }
         let target = app.target(F32X4);
+        // The right size: it records.
+        let pipelines = app.pipelines(oit.as_ref());
         let mut enc = app.device.create_command_encoder(&Default::default());
-        let e = app
-            .record(&mut enc, oit.as_mut(), &pipelines, &camera, &target)
-            .expect_err("refused");
-        assert!(
-            matches!(
-                e,
-                dhoit_runtime::Error::Gpu(dhoit_runtime::error::GpuError::FrameTexture { .. })
-            ),
-            "{name}: {e}"
-        );
-        let text = e.to_string();
-        assert!(
-            text.contains("64x48") && text.contains("32x24"),
-            "{name}: {text}"
-        );
-        drop(enc);
+        app.record(&mut enc, oit.as_mut(), &pipelines, &camera, &target)
+            .unwrap();
+        app.queue.submit([enc.finish()]);
+        assert!(oit.finished(true).unwrap()[0].error.is_none(), "{name}");
         // The right size, another target format.
         let pipelines = app.pipelines(other.as_ref());
         let mut enc = app.device.create_command_encoder(&Default::default());
