@@ -216,7 +216,9 @@ fn parse_views(s: &str) -> std::result::Result<usize, String> {
     let n = s
         .parse::<usize>()
         .map_err(|e| format!("'{s}' is not a number of views: {e}"))?;
-    scene::check_view(0, n).map(|()| n)
+    scene::check_view(0, n)
+        .map(|()| n)
+        .map_err(|e| e.to_string())
 }
 
 /// `--repeat`: a whole number of at least one (timed repetitions).
@@ -252,7 +254,7 @@ pub(crate) fn load_scenes(names: &[String], a: &ViewArgs) -> Result<Vec<Scene>> 
 
 /// That `view` is one of the orbit's `views` ([`scene::check_view`]).
 pub(crate) fn check_view(view: usize, views: usize) -> Result<()> {
-    scene::check_view(view, views).map_err(anyhow::Error::msg)
+    Ok(scene::check_view(view, views)?)
 }
 
 /// The camera of `view` of the orbit at the resolution `a` gives (what [`rasterize_view`]

@@ -25,9 +25,21 @@ const FONT_PATHS: &[&str] = &[
     "C:\\Windows\\Fonts\\arial.ttf",
 ];
 
+/// Why pictures have no font to draw their text with.
+#[derive(Debug, thiserror::Error)]
+pub enum NoFont {
+    #[error("DHOIT_FONT={} is not a readable TrueType font", .0.display())]
+    Unreadable(PathBuf),
+    #[error(
+        "no TrueType font found: install one (Debian: fonts-dejavu-core) or set DHOIT_FONT to a \
+         .ttf file"
+    )]
+    NoneFound,
+}
+
 /// The font text is drawn with (registered once), or why there is none.
-pub fn font() -> std::result::Result<&'static Path, &'static str> {
-    static FONT: OnceLock<std::result::Result<PathBuf, String>> = OnceLock::new();
+pub fn font() -> std::result::Result<&'static Path, &'static NoFont> {
+    static FONT: OnceLock<std::result::Result<PathBuf, NoFont>> = OnceLock::new();
     FONT.get_or_init(|| {
         let env = std::env::var_os("DHOIT_FONT").map(PathBuf::from);
         let candidates: Vec<PathBuf> = env
@@ -54,19 +66,16 @@ pub fn font() -> std::result::Result<&'static Path, &'static str> {
             }
         }
         Err(match env {
-            Some(p) => format!("DHOIT_FONT={} is not a readable TrueType font", p.display()),
-            None => "no TrueType font found: install one (Debian: fonts-dejavu-core) or set \
-                     DHOIT_FONT to a .ttf file"
-                .to_string(),
+            Some(p) => NoFont::Unreadable(p),
+            None => NoFont::NoneFound,
         })
     })
     .as_ref()
     .map(|p| p.as_path())
-    .map_err(|e| e.as_str())
 }
 
 /// Says once per process that pictures lack their words, and why.
-fn warn_no_font(why: &str) {
+fn warn_no_font(why: &NoFont) {
     static SAID: OnceLock<()> = OnceLock::new();
     SAID.get_or_init(|| eprintln!("warning: pictures drawn without text: {why}"));
 }
@@ -104,8 +113,8 @@ fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
 /// Why a chart was not made (charts only warn: they never fail the work).
 #[derive(Debug, thiserror::Error)]
 pub enum PlotError {
-    #[error("{0}")]
-    NoFont(&'static str),
+    #[error(transparent)]
+    NoFont(&'static NoFont),
     #[error("drawing failed: {0}")]
     Draw(String),
     #[error(transparent)]

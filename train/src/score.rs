@@ -10,8 +10,8 @@
 //! channel, float rounding) are raised to it before ratios are taken, so frames that every
 //! method renders as good as exactly do not decide a geometric mean.
 
+use crate::Result;
 use crate::dataset::{Level, error_floor};
-use crate::{Error, Result};
 use dhoit_runtime::alloc;
 use dhoit_runtime::importance::{self, VkbParams};
 use dhoit_runtime::mlp::Mlp;
@@ -136,7 +136,7 @@ impl Prepared {
     pub fn new(spec: &ScoreSpec, progress: &(dyn Fn() + Sync)) -> Result<Prepared> {
         // Every view and scene checked before the first frame.
         for &view in spec.views {
-            scene::check_view(view, spec.orbit_views).map_err(Error::Config)?;
+            scene::check_view(view, spec.orbit_views)?;
         }
         let scenes = load_scenes(spec.scenes, spec.opacity)?;
         let mut out = Vec::new();

@@ -494,16 +494,15 @@ pub struct Camera {
 /// Number of orbit views a scene is seen from by default.
 pub const DEFAULT_VIEWS: usize = 8;
 
-/// Whether `view` is one of an orbit of `views` ([`Camera::orbit`]); otherwise the message,
-/// for the caller's error.
-pub fn check_view(view: usize, views: usize) -> std::result::Result<(), String> {
+/// That `view` is one of an orbit of `views` ([`Camera::orbit`]): [`Error::Invalid`] otherwise.
+pub fn check_view(view: usize, views: usize) -> Result<()> {
     if views == 0 {
-        return Err("an orbit needs at least one view".into());
+        return Err(Error::Invalid("an orbit needs at least one view".into()));
     }
     if view >= views {
-        return Err(format!(
+        return Err(Error::Invalid(format!(
             "view {view} does not exist: there are {views} views (0..{views})"
-        ));
+        )));
     }
     Ok(())
 }
