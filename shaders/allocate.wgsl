@@ -94,7 +94,7 @@ fn st_add(i: u32, v: u32) {
 
 // The workgroup's totals in SEARCH_COPIES copies: invocation lid adds to copy lid %
 // SEARCH_COPIES, so with more than one, neighbouring invocations' atomics do not wait on one
-// address (gpu::Gpu::spread_search builds it with 32; on lavapipe one is faster).
+// address (Tuning::spread_search builds it with 32; on lavapipe one is faster).
 const SEARCH_COPIES: u32 = 1u;
 var<workgroup> partial: array<atomic<u32>, ALLOC_CANDIDATES * SEARCH_COPIES>;
 

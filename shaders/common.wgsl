@@ -232,7 +232,7 @@ fn tail_sums(colour_word: u32) -> vec4<u32> {
 }
 
 // The index of an invocation of a pass dispatched as a 2-D grid of workgroups of `size`
-// invocations (gpu::grid): rows of at most 65,535 workgroups, so frames up to 8K fit.
+// invocations (wgsl::grid): rows of at most 65,535 workgroups, so frames up to 8K fit.
 fn grid_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32, size: u32) -> u32 {
     return (wid.y * nwg.x + wid.x) * size + lid;
 }

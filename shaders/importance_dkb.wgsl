@@ -52,7 +52,7 @@ fn planned_f() -> u32 {
 // cap is the frame's smallest k, lo (mlp::forced: n <= lo + 2, the pair mark on every pixel as
 // the tails are pooled; lo is 1 where F covers every covered pixel, as at 2 fpp) gets
 // importance 0 with its pair mark. The bench builds this pass once more with it false
-// (Gpu::skip_forced) to show the time saved. Every pixel of a frame whose budget holds all its fragments gets 0, unmarked,
+// (Tuning::skip_forced off) to show the time saved. Every pixel of a frame whose budget holds all its fragments gets 0, unmarked,
 // either way: its features pass drew nothing (features.wgsl), and k = n whatever it gets.
 const SKIP_FORCED: bool = true;
 
@@ -192,7 +192,7 @@ fn select_pixels(
 @compute @workgroup_size(1)
 fn args() {
     let groups = (atomicLoad(&list_len[BATCH_LISTED]) + PIXEL_GROUP - 1u) / PIXEL_GROUP;
-    // Rows of at most 65,535 workgroups (gpu::grid).
+    // Rows of at most 65,535 workgroups (wgsl::grid).
     let rows = max((groups + 65534u) / 65535u, 1u);
     dispatch[0] = (groups + rows - 1u) / rows;
     dispatch[1] = select(0u, rows, groups > 0u);

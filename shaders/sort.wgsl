@@ -42,7 +42,7 @@ struct Stored {
     ok: bool,
 }
 
-// The pixel of an invocation of a resolve (dispatched as gpu::grid's 2-D grid) and its stored
+// The pixel of an invocation of a resolve (dispatched as wgsl::grid's 2-D grid) and its stored
 // range.
 fn stored(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> Stored {
     let p = grid_index(wid, nwg, lid, PIXEL_GROUP);
