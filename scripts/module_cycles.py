@@ -8,12 +8,28 @@ them is not counted, what they name of it is. A circle is a set of modules each 
 other through imports (a strongly connected component of more than one).
 
     scripts/module_cycles.py [--graph]   # exit 1 and each circle where there is one
+    scripts/module_cycles.py --known     # exit 1 only where a circle is not within KNOWN
+
+`make test` runs it with --known: the circles below are the ones the house had when this check
+came (issue 68 is to break them); a circle may shrink or go, and any other fails the tests.
+Remove a circle from KNOWN once it is broken.
 """
 import re
 import sys
 from pathlib import Path
 
 CRATES = {"dhoit_runtime": "runtime/src", "dhoit_train": "train/src", "dhoit": "src"}
+KNOWN = {
+    "dhoit_runtime": [
+        {"error", "tensors"},
+        {"alloc", "budget", "composite", "fragment", "frame", "importance", "mlp", "plan",
+         "raster", "scene", "scene::material", "wgsl"},
+        {"gpu::blend", "gpu::buffers", "gpu::passes", "gpu::timer"},
+        {"gpu::allocate", "gpu::pipelines", "gpu::scene"},
+    ],
+    "dhoit_train": [{"dataset", "score"}],
+    "dhoit": [],
+}
 ROOTS = ("lib.rs", "main.rs")
 
 
@@ -135,7 +151,8 @@ def circles(edges):
 
 def main():
     root = Path(__file__).resolve().parent.parent
-    found = 0
+    known_only = "--known" in sys.argv
+    found, new = 0, 0
     for crate, src in CRATES.items():
         edges = graph(root / src)
         if "--graph" in sys.argv:
@@ -144,7 +161,17 @@ def main():
         for c in circles(edges):
             found += 1
             inner = [f"{a} -> {b}" for a in c for b in sorted(edges[a]) if b in c]
-            print(f"{crate}: an import circle among {', '.join(c)} ({'; '.join(inner)})")
+            within = any(set(c) <= k for k in KNOWN[crate])
+            new += not within
+            if not (known_only and within):
+                what = "an import circle" if within else "a new import circle"
+                print(f"{crate}: {what} among {', '.join(c)} ({'; '.join(inner)})")
+    if known_only:
+        if new:
+            print(f"modules: {new} import circle(s) beyond the known ones (scripts/module_cycles.py KNOWN)")
+            sys.exit(1)
+        print(f"modules: {found} import circle(s), each within a known one; none new")
+        return
     if found:
         print(f"modules: {found} import circle(s)")
         sys.exit(1)
