@@ -1403,15 +1403,46 @@ fn the_k_buffer_and_the_list_refuse_what_they_cannot_hold() {
 /// four fragments a pixel), FKB (2 slots), the A-buffer, MLAB (2 rows), DKB and VKB at 25%,
 /// WBOIT and MBOIT.
 fn every_method(g: &Gpu, size: (u32, u32), format: wgpu::TextureFormat) -> Vec<Box<dyn Oit>> {
+    every_method_at(g, size, format, Budgets::default())
+}
+
+/// The budgets [`every_method_at`] makes the methods with: the list's nodes a pixel, FKB's k,
+/// MLAB's rows, DKB's and VKB's budget.
+#[derive(Clone, Copy)]
+struct Budgets {
+    nodes_per_pixel: u64,
+    k: u32,
+    rows: u32,
+    allocated: Budget,
+}
+
+impl Default for Budgets {
+    fn default() -> Budgets {
+        Budgets {
+            nodes_per_pixel: 4,
+            k: 2,
+            rows: 2,
+            allocated: Budget::parse("25%").unwrap(),
+        }
+    }
+}
+
+/// [`every_method`] with the budgets `at`.
+fn every_method_at(
+    g: &Gpu,
+    size: (u32, u32),
+    format: wgpu::TextureFormat,
+    at: Budgets,
+) -> Vec<Box<dyn Oit>> {
     let weights = common::committed_weights();
     let vkb = dhoit_runtime::importance::VkbParams::default();
-    let b = Budget::parse("25%").unwrap();
-    let nodes = 4 * (size.0 * size.1) as u64;
+    let b = at.allocated;
+    let nodes = at.nodes_per_pixel * (size.0 * size.1) as u64;
     let mut methods: Vec<Box<dyn Oit>> = vec![
         Box::new(ListOit::new(g, size, nodes, 8, format).unwrap()),
-        Box::new(KBufferOit::new(g, size, 2, format).unwrap()),
+        Box::new(KBufferOit::new(g, size, at.k, format).unwrap()),
         Box::new(ExactOit::new(g, size, format).unwrap()),
-        Box::new(ExactOit::mlab(g, size, 2, format).unwrap()),
+        Box::new(ExactOit::mlab(g, size, at.rows, format).unwrap()),
         Box::new(AllocatedOit::dkb(g, size, &weights, b, format).unwrap()),
         Box::new(AllocatedOit::vkb(g, size, vkb, b, format).unwrap()),
         Box::new(BlendedOit::wboit(g, size, WboitParams::default(), format).unwrap()),
@@ -1536,48 +1567,27 @@ fn a_second_method_builds_nothing_and_resized_ones_render_as_fresh_ones() {
     // The same device's application at the first size.
     let on = (app2.device.clone(), app2.queue.clone(), app2.gpu.fork());
     let app1 = App::on(on, &s, size, false);
-    let px = (w2 * h2) as u64;
-    let vkb = dhoit_runtime::importance::VkbParams::default();
     let mut compared = Vec::new();
     for budget in ["25%", "1fpp"] {
         let b2 = Budget::parse(budget).unwrap();
-        // Each method's budget after the change, and a fresh method made with it.
-        let fresh: Vec<(Option<&str>, Box<dyn Oit>)> = vec![
-            (
-                Some("8fpp"),
-                Box::new(ListOit::new(&app2.gpu, (w2, h2), 8 * px, 8, F32X4).unwrap()),
-            ),
-            (
-                Some("3fpp"),
-                Box::new(KBufferOit::new(&app2.gpu, (w2, h2), 3, F32X4).unwrap()),
-            ),
-            (
-                None,
-                Box::new(ExactOit::new(&app2.gpu, (w2, h2), F32X4).unwrap()),
-            ),
-            (
-                Some("3fpp"),
-                Box::new(ExactOit::mlab(&app2.gpu, (w2, h2), 3, F32X4).unwrap()),
-            ),
-            (
-                Some(budget),
-                Box::new(AllocatedOit::dkb(&app2.gpu, (w2, h2), &weights, b2, F32X4).unwrap()),
-            ),
-            (
-                Some(budget),
-                Box::new(AllocatedOit::vkb(&app2.gpu, (w2, h2), vkb, b2, F32X4).unwrap()),
-            ),
-            (
-                None,
-                Box::new(
-                    BlendedOit::wboit(&app2.gpu, (w2, h2), WboitParams::default(), F32X4).unwrap(),
-                ),
-            ),
-        ];
+        // Fresh methods made with the budgets the moved ones are given.
+        let at = Budgets {
+            nodes_per_pixel: 8,
+            k: 3,
+            rows: 3,
+            allocated: b2,
+        };
+        let fresh = every_method_at(&app2.gpu, (w2, h2), F32X4, at);
         let moved = every_method(&app2.gpu, size, F32X4);
-        for ((given, mut fresh), mut moved) in fresh.into_iter().zip(moved) {
+        for (mut fresh, mut moved) in fresh.into_iter().zip(moved) {
             let name = moved.method();
             assert_eq!(name, fresh.method());
+            let given = match name {
+                "linked-list" => Some("8fpp"),
+                "fkb" | "mlab" => Some("3fpp"),
+                "dkb" | "vkb" => Some(budget),
+                _ => None,
+            };
             // A frame at the first size, then the change.
             app1.frame(moved.as_mut(), &s, &identity());
             moved.resize((w2, h2)).unwrap();
@@ -1592,7 +1602,7 @@ fn a_second_method_builds_nothing_and_resized_ones_render_as_fresh_ones() {
             compared.push(name);
         }
     }
-    // Every method of `every_method` but MBOIT (its blending is optional) was compared.
+    // Every method of `every_method` was compared at both budgets (MBOIT where it blends).
     assert!(compared.len() >= 14, "{compared:?}");
 }
 
