@@ -7,29 +7,19 @@ inside a folder. A folder's `mod.rs` declares and re-exports its children; what 
 them is not counted, what they name of it is. A circle is a set of modules each reaching every
 other through imports (a strongly connected component of more than one).
 
-    scripts/module_cycles.py [--graph]   # exit 1 and each circle where there is one
-    scripts/module_cycles.py --known     # exit 1 only where a circle is not within KNOWN
+    scripts/module_cycles.py [--graph]   # each circle, exit 1 where there is one; --graph
+                                         # prints every module's imports too
 
-`make test` runs it with --known: the circles below are the ones the house had when this check
-came (issue 68 is to break them); a circle may shrink or go, and any other fails the tests.
-Remove a circle from KNOWN once it is broken.
+`make test` runs it: a change that closes a circle fails the tests. The layering it keeps in
+the runtime, lowest first: shared, error, fragment, alloc, importance, mlp, budget, method,
+plan, scene, raster, composite, frame, wgsl; in `gpu/`, shader and buffers below passes and
+timer, the methods' passes above them, the clients (scene, app, stream, hooks) on top.
 """
 import re
 import sys
 from pathlib import Path
 
 CRATES = {"dhoit_runtime": "runtime/src", "dhoit_train": "train/src", "dhoit": "src"}
-KNOWN = {
-    "dhoit_runtime": [
-        {"error", "tensors"},
-        {"alloc", "budget", "composite", "fragment", "frame", "importance", "mlp", "plan",
-         "raster", "scene", "scene::material", "wgsl"},
-        {"gpu::blend", "gpu::buffers", "gpu::passes", "gpu::timer"},
-        {"gpu::allocate", "gpu::pipelines", "gpu::scene"},
-    ],
-    "dhoit_train": [{"dataset", "score"}],
-    "dhoit": [],
-}
 ROOTS = ("lib.rs", "main.rs")
 
 
@@ -151,8 +141,7 @@ def circles(edges):
 
 def main():
     root = Path(__file__).resolve().parent.parent
-    known_only = "--known" in sys.argv
-    found, new = 0, 0
+    found = 0
     for crate, src in CRATES.items():
         edges = graph(root / src)
         if "--graph" in sys.argv:
@@ -161,17 +150,7 @@ def main():
         for c in circles(edges):
             found += 1
             inner = [f"{a} -> {b}" for a in c for b in sorted(edges[a]) if b in c]
-            within = any(set(c) <= k for k in KNOWN[crate])
-            new += not within
-            if not (known_only and within):
-                what = "an import circle" if within else "a new import circle"
-                print(f"{crate}: {what} among {', '.join(c)} ({'; '.join(inner)})")
-    if known_only:
-        if new:
-            print(f"modules: {new} import circle(s) beyond the known ones (scripts/module_cycles.py KNOWN)")
-            sys.exit(1)
-        print(f"modules: {found} import circle(s), each within a known one; none new")
-        return
+            print(f"{crate}: an import circle among {', '.join(c)} ({'; '.join(inner)})")
     if found:
         print(f"modules: {found} import circle(s)")
         sys.exit(1)

@@ -138,7 +138,10 @@ impl MethodParams {
             mboit: self.mboit(self.mboit_moments.unwrap_or(4)),
             list_sorted: self.list_sorted,
             wboit: dhoit_runtime::composite::WboitParams::for_camera(self.wboit_weight, cam),
-            record_batches: self.record_batches,
+            decision: dhoit_runtime::budget::Decision {
+                record_batches: self.record_batches,
+                ..o.decision
+            },
             ..o
         }
     }

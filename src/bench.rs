@@ -307,18 +307,20 @@ fn configure(label: &str) -> dhoit_runtime::gpu::FrameOptions {
             unrolled_network: label != "dkb_array_network",
             features_preload: label != "dkb_features_no_preload",
             layer_major_fkb: label == "fkb_layer_major",
-            // Every record in the pool at once: one features pass, where the records may
-            // outweigh the slots (a small budget on a deep frame).
-            record_batches: match label {
-                "dkb_records_in_batches" => 3,
-                _ => dhoit_runtime::budget::RECORD_BATCHES,
-            },
             // The features pass's own options measured where it is drawn: a frame of three
             // geometry passes.
             two_pass_dkb: !matches!(label, "dkb_three_pass" | "dkb_features_no_preload"),
         },
-        // The methods themselves, at equal F (the runs are always approximate).
-        exact_when_cheaper: false,
+        // The methods themselves, at equal F (the runs are always approximate); every record
+        // in the pool at once (one features pass, where the records may outweigh the slots: a
+        // small budget on a deep frame) but where the variant batches them.
+        decision: dhoit_runtime::budget::Decision {
+            exact_when_cheaper: false,
+            record_batches: match label {
+                "dkb_records_in_batches" => 3,
+                _ => dhoit_runtime::budget::RECORD_BATCHES,
+            },
+        },
         diagnostics: false,
         // FKB, VKB and DKB once more with the capture of 32-bit atomics.
         capture: match label.ends_with("_portable") {

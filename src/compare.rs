@@ -681,7 +681,10 @@ pub fn run(a: CompareArgs) -> Result<()> {
                     Options {
                         weights: weights.as_ref(),
                         equal: a.equal,
-                        exact_when_cheaper: !a.always_approximate,
+                        decision: dhoit_runtime::budget::Decision {
+                            exact_when_cheaper: !a.always_approximate,
+                            ..Default::default()
+                        },
                         ..Options::new(*budget, a.common.background)
                     },
                     &crate::args::view_camera(&scene, view, &a.common),

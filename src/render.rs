@@ -107,7 +107,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
         Options {
             weights: weights.as_ref(),
             equal: a.equal,
-            exact_when_cheaper: !a.always_approximate,
+            decision: dhoit_runtime::budget::Decision {
+                exact_when_cheaper: !a.always_approximate,
+                ..Default::default()
+            },
             ..Options::new(budget, a.common.background)
         },
         &crate::args::view_camera(&scene, a.view, &a.common),
@@ -195,12 +198,8 @@ fn render_on_gpu(
     // The GPU counts first and decides on its own count whether the exact A-buffer is
     // no dearer, as the CPU did (the two counts can differ by an edge's fragment).
     let opts = FrameOptions {
-        exact_when_cheaper: options.exact_when_cheaper,
+        decision: options.decision,
         capture: a.capture,
-        tuning: dhoit_runtime::gpu::Tuning {
-            record_batches: options.record_batches,
-            ..Default::default()
-        },
         ..FrameOptions::default()
     };
     let g = gpu.render_with(&opts, scene, &cam, size, a.common.background, slots)?;

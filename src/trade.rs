@@ -484,10 +484,7 @@ impl Timer {
                 (Timer::Gpu(g), TimedFrame::Gpu { cam, f, w, h }) => g
                     .render_with(
                         // The network's own pass, whatever the exact A-buffer would cost.
-                        &dhoit_runtime::gpu::FrameOptions {
-                            exact_when_cheaper: false,
-                            ..Default::default()
-                        },
+                        &dhoit_runtime::gpu::FrameOptions::default().always_approximate(),
                         s,
                         cam,
                         (*w, *h),

@@ -249,7 +249,7 @@ fn measure(
     let frame_opts = FrameOptions {
         diagnostics: false,
         // The GPU's frames are timed with the records' batches the CPU counts bytes for.
-        tuning: dhoit_runtime::gpu::Tuning {
+        decision: dhoit_runtime::budget::Decision {
             record_batches: a.params.record_batches,
             ..Default::default()
         },

@@ -14,7 +14,7 @@
 //! GPU.
 
 use crate::error::{Error, Result};
-use crate::plan::PlanBudget;
+pub use crate::fragment::Words;
 
 /// Bytes of one fragment slot: a 64-bit key, window depth bits high and RGBA8 low.
 pub const SLOT_BYTES: u64 = 8;
@@ -23,46 +23,14 @@ pub const SLOT_BYTES: u64 = 8;
 /// (`abuf.tints`: its RGB8 tint and its colour's exponent, `fragment::tint_word`).
 pub const TINT_BYTES: u64 = 4;
 
-/// What a frame stores beside each fragment's key ([`crate::fragment::tint_word`]) and its
-/// k-buffers beside their tails.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Words {
-    /// Nothing: grey glass, colours within white.
-    #[default]
-    None,
-    /// A word a fragment, node or slot, its tint clear: the exponents of colours above white.
-    Exponents,
-    /// A word a fragment, node or slot, and in each k-buffer tail three sums of what its tints
-    /// take away: tinted glass (with or without colours above white).
-    Tints,
-}
-
-impl Words {
-    /// The words of a frame whose glass is `tinted` and which stores `words` at all.
-    pub fn of(tinted: bool, words: bool) -> Words {
-        match (words, tinted) {
-            (false, _) => Words::None,
-            (true, false) => Words::Exponents,
-            (true, true) => Words::Tints,
-        }
-    }
-    /// Whether the frame stores a word a fragment.
-    pub fn any(self) -> bool {
-        self != Words::None
-    }
-    /// Whether the words hold tints (the frame's glass is tinted), not exponents alone.
-    pub fn tints(self) -> bool {
-        self == Words::Tints
-    }
-    /// Words of the tint pass a pool word (pooled tails) or a slot, and a pixel (per-pixel
-    /// tails: its tail's sums).
-    fn per_slot_and_pixel(self, pooled: bool) -> (u64, u64) {
-        match (self, pooled) {
-            (Words::None, _) => (0, 0),
-            (Words::Exponents, _) => (1, 0),
-            (Words::Tints, true) => (2, 0),
-            (Words::Tints, false) => (1, 3),
-        }
+/// Words of the tint pass a pool word (pooled tails) or a slot, and a pixel (per-pixel
+/// tails: its tail's sums).
+fn per_slot_and_pixel(words: Words, pooled: bool) -> (u64, u64) {
+    match (words, pooled) {
+        (Words::None, _) => (0, 0),
+        (Words::Exponents, _) => (1, 0),
+        (Words::Tints, true) => (2, 0),
+        (Words::Tints, false) => (1, 3),
     }
 }
 
@@ -73,7 +41,7 @@ impl Words {
 /// tints take away, in its two words' four), else three a pixel (its tail's sums) and one a
 /// slot.
 pub fn kbuffer_tint_words(pixels: u64, slot_words: u64, pooled: bool, words: Words) -> u64 {
-    let (slot, pixel) = words.per_slot_and_pixel(pooled);
+    let (slot, pixel) = per_slot_and_pixel(words, pooled);
     slot * slot_words + pixel * pixels
 }
 
@@ -163,6 +131,50 @@ impl PoolState {
 /// slots and tails (a small budget on a deep frame). Up to three take a third of the records'
 /// bytes and a features pass a batch.
 pub const RECORD_BATCHES: u64 = 1;
+
+/// How a k-buffer frame's budget is decided, the one option set the CPU's frame
+/// (`frame::Options::decision`), the GPU's (`gpu::FrameOptions::decision`) and an
+/// application's renderer share, so the bytes each counts are the same.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Decision {
+    /// Render the exact A-buffer wherever it needs no more bytes than the k-buffer method
+    /// would for its budget (`method::exact_is_no_dearer`), or its budget holds every
+    /// fragment: on by default. Off, DKB and VKB render their approximation whatever it costs
+    /// (the papers' equal-F protocol, what measures the approximation itself). FKB's and
+    /// uploaded k's frames render as asked either way.
+    pub exact_when_cheaper: bool,
+    /// The most batches DKB gathers its network's records in ([`PoolState::batches`],
+    /// [`RECORD_BATCHES`] by default; 1 to [`MOST_RECORD_BATCHES`]): fewer take more memory
+    /// where the records outweigh the slots, and fewer features passes.
+    pub record_batches: u64,
+}
+
+impl Default for Decision {
+    fn default() -> Self {
+        Decision {
+            exact_when_cheaper: true,
+            record_batches: RECORD_BATCHES,
+        }
+    }
+}
+
+impl Decision {
+    /// This decision with the approximation rendered at any budget
+    /// ([`Decision::exact_when_cheaper`] off).
+    pub fn always_approximate(self) -> Decision {
+        Decision {
+            exact_when_cheaper: false,
+            ..self
+        }
+    }
+
+    /// DKB's buffers for `m` as this decision's frames create them: the network's own bytes
+    /// ([`Layout::for_network`]) and its records in at most [`Decision::record_batches`]
+    /// batches.
+    pub fn dkb_layout(&self, m: &crate::mlp::Mlp) -> Layout {
+        DKB.for_network(m).with_record_batches(self.record_batches)
+    }
+}
 
 /// The most batches DKB may be given to gather its records in: past three the tails already
 /// take more of a truncated frame's pool than a batch of records ([`PoolState::batches`]).
@@ -759,7 +771,7 @@ impl Layout {
         // per-pixel tails their sums.
         let (per_slot, per_pixel) = match self.method {
             "linked-list" => (1, 0),
-            _ => words.per_slot_and_pixel(self.tail_bytes > 0),
+            _ => per_slot_and_pixel(words, self.tail_bytes > 0),
         };
         let slots = rest.saturating_sub(per_pixel * TINT_BYTES * pixels)
             / (self.slot_bytes + per_slot * TINT_BYTES);
@@ -1031,5 +1043,72 @@ pub fn format_bytes(b: u64) -> String {
         format!("{b} B")
     } else {
         format!("{v:.2} {}", UNITS[u])
+    }
+}
+
+/// How a frame's F follows from its count.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlanBudget {
+    /// F slots, or a share of the frame's fragments.
+    Fragments(FragmentBudget),
+    /// The most slots these bytes hold for the frame's own occupancy in the method's layout
+    /// ([`Layout::fragment_budget_counted`]).
+    Bytes(u64),
+}
+
+impl From<FragmentBudget> for PlanBudget {
+    fn from(f: FragmentBudget) -> PlanBudget {
+        PlanBudget::Fragments(f)
+    }
+}
+
+/// F slots.
+impl From<u64> for PlanBudget {
+    fn from(f: u64) -> PlanBudget {
+        PlanBudget::Fragments(f.into())
+    }
+}
+
+impl PlanBudget {
+    /// The fragment budget, where F does not wait for the frame's occupancy (None for bytes).
+    pub fn fragments(self) -> Option<FragmentBudget> {
+        match self {
+            PlanBudget::Fragments(f) => Some(f),
+            PlanBudget::Bytes(_) => None,
+        }
+    }
+
+    /// A user's budget on a frame of `pixels`: bytes stay bytes, a share stays a share, slots
+    /// per pixel become `floor(fpp pixels)` slots.
+    pub fn from_budget(budget: Budget, pixels: u64) -> PlanBudget {
+        match budget {
+            Budget::Bytes(m) => PlanBudget::Bytes(m),
+            Budget::Share(ppm) => FragmentBudget::Share(ppm).into(),
+            Budget::SlotsPerPixel(f) => ((f * pixels as f64).floor() as u64).into(),
+        }
+    }
+
+    /// [`PlanBudget::from_budget`] on a frame of `fragments`, refused where it leaves no slot
+    /// (a share of a frame with fragments, or slots per pixel).
+    pub fn of(budget: Budget, pixels: u64, fragments: u64) -> Result<PlanBudget> {
+        let b = PlanBudget::from_budget(budget, pixels);
+        match (budget, b) {
+            // A frame with nothing transparent in view (all hidden, or none) needs no slot.
+            (Budget::Share(_), PlanBudget::Fragments(f))
+                if f.of(fragments) == 0 && fragments > 0 =>
+            {
+                Err(Error::Budget(
+                    budget.to_string(),
+                    format!("leaves no fragment slot of the frame's {fragments} fragments"),
+                ))
+            }
+            (Budget::SlotsPerPixel(f), PlanBudget::Fragments(FragmentBudget::Slots(0))) => {
+                Err(Error::Budget(
+                    format!("{f}fpp"),
+                    format!("leaves no fragment slot for {pixels} pixels"),
+                ))
+            }
+            _ => Ok(b),
+        }
     }
 }

@@ -1,6 +1,5 @@
 //! The runtime's one error type.
 
-pub use crate::tensors::FormatError;
 use std::path::PathBuf;
 
 /// Everything that can go wrong in the runtime, each variant naming the thing at fault.
@@ -163,4 +162,39 @@ impl Error {
             message: message.into(),
         }
     }
+}
+
+/// What is wrong with the contents of a safetensors file (weights, features, dumps, dataset
+/// shards): the loaders wrap it with the file's path.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum FormatError {
+    #[error("not a safetensors file: {0}")]
+    NotSafetensors(String),
+    #[error("missing tensor '{0}'")]
+    MissingTensor(String),
+    #[error("tensor '{name}' is {found}, expected {expected}")]
+    Dtype {
+        name: String,
+        found: String,
+        expected: String,
+    },
+    #[error("tensor '{name}' has shape {found:?}, expected {expected}")]
+    Shape {
+        name: String,
+        found: Vec<usize>,
+        expected: String,
+    },
+    #[error("tensor '{name}' has a non-finite value at {index}")]
+    NonFinite { name: String, index: usize },
+    #[error("metadata has no '{0}'")]
+    MissingMetadata(String),
+    #[error("metadata '{key}': {message}")]
+    Metadata { key: String, message: String },
+    /// Well-formed, but beyond what this build holds (such as a hidden layer wider than the GPU
+    /// pass's arrays).
+    #[error("{0}")]
+    Unsupported(String),
+    /// Any other rule of the file's contract (values out of range, inconsistent tensors).
+    #[error("{0}")]
+    Contract(String),
 }

@@ -249,8 +249,8 @@ impl FragmentLists {
         !self.tint.is_empty()
     }
     /// What its frames store beside each fragment's key (the k-buffers' tails' sums included).
-    pub fn words(&self) -> crate::budget::Words {
-        crate::budget::Words::of(self.tinted_glass, self.tinted())
+    pub fn words(&self) -> Words {
+        Words::of(self.tinted_glass, self.tinted())
     }
     pub fn covered_pixels(&self) -> usize {
         self.offsets.windows(2).filter(|w| w[1] > w[0]).count()
@@ -316,5 +316,38 @@ impl FragmentLists {
         let mut v = Vec::with_capacity(self.count(p) as usize);
         self.sorted_into(p, &mut v);
         v
+    }
+}
+
+/// What a frame stores beside each fragment's key ([`crate::fragment::tint_word`]) and its
+/// k-buffers beside their tails.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Words {
+    /// Nothing: grey glass, colours within white.
+    #[default]
+    None,
+    /// A word a fragment, node or slot, its tint clear: the exponents of colours above white.
+    Exponents,
+    /// A word a fragment, node or slot, and in each k-buffer tail three sums of what its tints
+    /// take away: tinted glass (with or without colours above white).
+    Tints,
+}
+
+impl Words {
+    /// The words of a frame whose glass is `tinted` and which stores `words` at all.
+    pub fn of(tinted: bool, words: bool) -> Words {
+        match (words, tinted) {
+            (false, _) => Words::None,
+            (true, false) => Words::Exponents,
+            (true, true) => Words::Tints,
+        }
+    }
+    /// Whether the frame stores a word a fragment.
+    pub fn any(self) -> bool {
+        self != Words::None
+    }
+    /// Whether the words hold tints (the frame's glass is tinted), not exponents alone.
+    pub fn tints(self) -> bool {
+        self == Words::Tints
     }
 }

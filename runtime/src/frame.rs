@@ -7,158 +7,11 @@ use crate::composite::{self, Image, MboitParams, Method as Composite, WboitParam
 use crate::error::{Error, Result};
 use crate::fragment::FragmentLists;
 use crate::importance::{self, VkbParams};
+pub use crate::method::{Method, exact_is_no_dearer, reserved_bytes};
 use crate::mlp::Mlp;
 use crate::plan::{self, Counted, PlanBudget};
 use std::sync::OnceLock;
 use std::time::Instant;
-
-/// Rendering methods.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Method {
-    /// Exact A-buffer: every fragment sorted and blended (the reference image).
-    Abuffer,
-    /// Fixed k-buffer: one k for every pixel.
-    Fkb,
-    /// Variable k-buffer with the importance maps of paper 002.
-    Vkb,
-    /// Deep k-buffer: k from the network's importance.
-    Dkb,
-    /// The optimal allocation (quality ceiling of any k-buffer allocation with a tail a pixel).
-    Optimal,
-    /// The optimal allocation of a k-buffer whose tails share its slots' pool, VKB's and DKB's
-    /// layout ([`crate::alloc::ErrorCurves::pooled`]): the least error they can reach with F
-    /// slots. Its memory is DKB's, so at equal bytes it gets DKB's F. Computed on the CPU only
-    /// (the GPU's uploaded k keeps a tail a pixel).
-    OptimalPooled,
-    /// The paper's backward greedy as printed (heap keyed by the new error).
-    GreedyPaper,
-    /// The backward greedy keyed by the error increase.
-    GreedyIncrease,
-    /// Multi-layer alpha blending with as many rows per pixel as FKB has slots.
-    Mlab,
-    /// Weighted blended OIT (McGuire and Bavoil 2013): no slots, no order, fixed memory.
-    Wboit,
-    /// Moment-based OIT (Munstermann et al. 2018), 4, 6 or 8 power moments
-    /// ([`crate::composite::MboitParams`]): no slots, no order, fixed memory.
-    Mboit,
-    /// A budgeted per-pixel linked list, as Bevy ships it: fragments appended first come, first
-    /// served until the frame's F nodes are spent (the rest dropped), each pixel's nearest
-    /// [`Options::list_sorted`] sorted and blended at resolve, the rest as a hybrid tail.
-    /// Order-dependent where F truncates.
-    LinkedList,
-}
-
-impl Method {
-    pub const ALL: [Method; 12] = [
-        Method::Abuffer,
-        Method::Fkb,
-        Method::Vkb,
-        Method::Dkb,
-        Method::Optimal,
-        Method::OptimalPooled,
-        Method::GreedyPaper,
-        Method::GreedyIncrease,
-        Method::Mlab,
-        Method::Wboit,
-        Method::Mboit,
-        Method::LinkedList,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Abuffer => "abuffer",
-            Method::Fkb => "fkb",
-            Method::Vkb => "vkb",
-            Method::Dkb => "dkb",
-            Method::Optimal => "optimal",
-            Method::OptimalPooled => "optimal-pooled",
-            Method::GreedyPaper => "greedy-paper",
-            Method::GreedyIncrease => "greedy-increase",
-            Method::Mlab => "mlab",
-            Method::Wboit => "wboit",
-            Method::Mboit => "mboit",
-            Method::LinkedList => "linked-list",
-        }
-    }
-
-    pub fn parse(s: &str) -> Result<Method> {
-        Method::ALL
-            .into_iter()
-            .find(|m| m.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<_> = Method::ALL.iter().map(|m| m.name()).collect();
-                Error::Invalid(format!(
-                    "unknown method '{s}': expected one of {}",
-                    names.join(", ")
-                ))
-            })
-    }
-
-    /// The most memory the method's CPU frame adds to its fragment lists, as bytes a fragment
-    /// and a pixel: its allocation's state, the image and its encoding. Fitted to the peak
-    /// resident size of `dhoit render` on `cad` at 4096x4096 (1.3 fragments a pixel) and
-    /// `particles` at 2048x2048 (9.7), less the lists' 28 bytes a fragment and 4 a pixel, and
-    /// rounded up (bounds, not measurements: where the rasterizer's peak hid the frame's, the
-    /// larger share is assumed): the sorted copies the composite takes, the image and its
-    /// encoding; the features and importance of DKB; the error curves and the allocation's
-    /// hulls or heaps of the optimal and the greedy ones.
-    pub fn frame_bytes(self) -> (u64, u64) {
-        match self {
-            Method::Abuffer
-            | Method::Fkb
-            | Method::Vkb
-            | Method::Mlab
-            | Method::Wboit
-            | Method::Mboit
-            | Method::LinkedList => (28, 40),
-            Method::Dkb => (24, 120),
-            Method::Optimal
-            | Method::OptimalPooled
-            | Method::GreedyPaper
-            | Method::GreedyIncrease => (70, 40),
-        }
-    }
-
-    /// Whether the method is a k-buffer (FKB, VKB, DKB and the allocations the CPU makes): it
-    /// renders exactly, with the A-buffer's memory, where its budget holds every fragment
-    /// ([`Renderer::allocate`]).
-    pub fn is_kbuffer(self) -> bool {
-        !matches!(
-            self,
-            Method::Abuffer | Method::Mlab | Method::Wboit | Method::Mboit | Method::LinkedList
-        )
-    }
-
-    /// The buffers the method's GPU pipeline creates.
-    pub fn layout(self) -> Layout {
-        match self {
-            Method::Abuffer => budget::ABUFFER,
-            Method::Fkb => budget::FKB,
-            Method::Vkb => budget::VKB,
-            Method::Dkb => budget::DKB,
-            Method::Optimal | Method::GreedyPaper | Method::GreedyIncrease => budget::OPT,
-            // DKB's own layout: at equal bytes the optimum gets DKB's F.
-            Method::OptimalPooled => budget::DKB,
-            Method::Mlab => budget::MLAB,
-            Method::Wboit => budget::WBOIT,
-            Method::Mboit => budget::MBOIT,
-            Method::LinkedList => budget::LINKED_LIST,
-        }
-    }
-}
-
-impl std::str::FromStr for Method {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Method> {
-        Method::parse(s)
-    }
-}
-
-impl std::fmt::Display for Method {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
 
 /// What `budget` comes to for `method` on the frame `fl`: a k-buffer's as [`plan::counted`]
 /// decides it (whether it renders the exact A-buffer included); the A-buffer's bytes and every
@@ -317,7 +170,7 @@ pub struct Allocation {
     pub optimal: Option<OptimalReport>,
     /// Whether the k-buffer method renders the exact A-buffer (k = n) with its memory: where
     /// the budget holds every fragment (a budget is a cap, not a quantity to spend), or where
-    /// the A-buffer needs no more bytes than the method would ([`Options::exact_when_cheaper`]).
+    /// the A-buffer needs no more bytes than the method would ([`budget::Decision::exact_when_cheaper`]).
     pub exact: bool,
 }
 
@@ -380,16 +233,10 @@ pub struct Options<'a> {
     /// The linked list's fragments a pixel sorted at resolve, 1 to
     /// [`composite::LIST_MAX_SORTED`] ([`composite::LIST_SORTED`], Bevy's 8, by default).
     pub list_sorted: u32,
-    /// Render the exact A-buffer wherever it needs no more bytes than the k-buffer method
-    /// would for its budget (a memory-bounded method never costs more than the exact answer):
-    /// on by default. Off, the method renders its approximation whatever it costs (the
-    /// papers' equal-F protocol, what measures the approximation itself).
-    pub exact_when_cheaper: bool,
-    /// The most batches DKB gathers its network's records in ([`budget::PoolState::batches`],
-    /// [`budget::RECORD_BATCHES`] by default; 1: all at once, one features pass, more memory
-    /// where the records outweigh the slots). The GPU frame's `Tuning::record_batches`
-    /// must say the same for its buffers to be the ones counted here.
-    pub record_batches: u64,
+    /// How a k-buffer method's budget is decided: the exact A-buffer where it is no dearer
+    /// (on by default: a memory-bounded method never costs more than the exact answer), and
+    /// DKB's record batches. The GPU frame takes the same ([`crate::gpu::FrameOptions`]).
+    pub decision: budget::Decision,
 }
 
 impl Options<'_> {
@@ -403,16 +250,15 @@ impl Options<'_> {
             mboit: MboitParams::default(),
             wboit: WboitParams::default(),
             list_sorted: composite::LIST_SORTED,
-            exact_when_cheaper: true,
-            record_batches: budget::RECORD_BATCHES,
+            decision: budget::Decision::default(),
         }
     }
 
     /// These options with the k-buffer methods rendering their approximation even where the
-    /// exact A-buffer would need fewer bytes ([`Options::exact_when_cheaper`] off).
+    /// exact A-buffer would need fewer bytes ([`budget::Decision::exact_when_cheaper`] off).
     pub fn always_approximate(self) -> Self {
         Options {
-            exact_when_cheaper: false,
+            decision: self.decision.always_approximate(),
             ..self
         }
     }
@@ -422,10 +268,7 @@ impl Options<'_> {
     /// [`Method::layout`].
     pub fn layout(&self, method: Method) -> Layout {
         match (method, self.weights) {
-            (Method::Dkb | Method::OptimalPooled, Some(m)) => method
-                .layout()
-                .for_network(m)
-                .with_record_batches(self.record_batches),
+            (Method::Dkb | Method::OptimalPooled, Some(m)) => self.decision.dkb_layout(m),
             (Method::Mboit, _) => budget::mboit(self.mboit.moments),
             _ => method.layout(),
         }
@@ -488,7 +331,7 @@ impl<'a> Renderer<'a> {
     /// The budget every method of this frame gets, after [`Equal`]: at equal bytes, a budget in
     /// slots or a share becomes the bytes DKB spends on it: what its layout reserves (with its
     /// tints where the frame's glass is tinted), or where that is no less than the exact
-    /// A-buffer's bytes and [`Options::exact_when_cheaper`] renders the A-buffer instead, the
+    /// A-buffer's bytes and [`budget::Decision::exact_when_cheaper`] renders the A-buffer instead, the
     /// A-buffer's (no method gets more memory than DKB spends).
     pub fn budget(&self) -> Result<Budget> {
         let opts = &self.options;
@@ -501,7 +344,7 @@ impl<'a> Renderer<'a> {
                 let occ = Occupancy::of(&fl.counts());
                 let bytes = plan::counted(Method::Dkb, &dkb, b, pixels, &occ, fl.words())?.bytes;
                 let exact = budget::abuffer_bytes(pixels, n, fl.tinted());
-                Ok(Budget::Bytes(match opts.exact_when_cheaper {
+                Ok(Budget::Bytes(match opts.decision.exact_when_cheaper {
                     true => bytes.min(exact),
                     false => bytes,
                 }))
@@ -538,7 +381,7 @@ impl<'a> Renderer<'a> {
         // Exact where the budget holds every fragment, and (unless told otherwise) where the
         // A-buffer needs no more bytes than the method reserves for this budget: then the
         // exact answer is both better and no dearer.
-        let exact = counted.exact(opts.exact_when_cheaper);
+        let exact = counted.exact(opts.decision.exact_when_cheaper);
         let mut optimal = None;
         let k = match method {
             Method::Abuffer => counts,
@@ -700,38 +543,6 @@ fn tint_target_bytes(method: Method, fl: &FragmentLists, pixels: u64) -> u64 {
         _ => 0,
     };
     fl.tinted() as u64 * bytes * pixels
-}
-
-/// The most bytes a k-buffer method's frame of occupancy `occ` can allocate at F: its fixed
-/// bytes, `min(F, n)` slots (the slots an allocation hands out at most; the GPU sizes its slots
-/// buffer from what it hands out) and the pooled tails its pixels may keep
-/// ([`Layout::reserved_bytes`]), FKB and MLAB their uniform k for every pixel.
-pub fn reserved_bytes(
-    method: Method,
-    layout: &Layout,
-    pixels: u64,
-    f: u64,
-    occ: &Occupancy,
-) -> u64 {
-    match method {
-        Method::Fkb | Method::Mlab => layout.allocated_bytes(pixels, f / pixels.max(1) * pixels),
-        _ => layout.reserved_bytes(pixels, f, occ),
-    }
-}
-
-/// Whether the exact A-buffer of a frame of occupancy `occ` needs no more bytes than a
-/// k-buffer method reserves for it at F ([`reserved_bytes`]): then the A-buffer is both better
-/// and no dearer, and [`Options::exact_when_cheaper`] (on the CPU) and
-/// `gpu::FrameOptions::exact_when_cheaper` (on the GPU, from its own count) render it instead.
-pub fn exact_is_no_dearer(
-    method: Method,
-    layout: &Layout,
-    pixels: u64,
-    f: u64,
-    occ: &Occupancy,
-) -> bool {
-    reserved_bytes(method, layout, pixels, f, occ)
-        >= budget::ABUFFER.allocated_bytes(pixels, occ.fragments)
 }
 
 /// Refuses a frame whose methods' CPU work ([`Method::frame_bytes`], the most of them) would

@@ -50,6 +50,7 @@ pub mod frame;
 pub mod gpu;
 pub mod image_io;
 pub mod importance;
+pub mod method;
 pub mod mlp;
 pub mod plan;
 pub mod raster;

@@ -77,6 +77,12 @@ pub const MAX_H2: usize = 128;
 
 pub use crate::alloc::Target;
 
+/// Where the network's uniform holds the standardisation means, deviations and the first
+/// weight matrix, in floats (after a header of h1, h2 and two unused).
+pub const MLP_MEAN_AT: usize = 4;
+pub const MLP_STD_AT: usize = MLP_MEAN_AT + FEATURES;
+pub const MLP_W1_AT: usize = MLP_STD_AT + FEATURES;
+
 pub const fn parameter_count(h1: usize, h2: usize) -> usize {
     FEATURES * h1 + h1 + h1 * h2 + h2 + h2 + 1
 }
@@ -108,7 +114,7 @@ pub const fn uniform_bytes(h1: usize, h2: usize, p: Precision) -> u64 {
         // A multiple of four parameters: whole words.
         Precision::F16 | Precision::F16Math => params / 2,
     };
-    ((crate::wgsl::MLP_W1_AT + words).div_ceil(4) * 16) as u64
+    ((MLP_W1_AT + words).div_ceil(4) * 16) as u64
 }
 
 /// Whether a covered pixel's k is forced whatever its importance, in a frame whose smallest k

@@ -27,76 +27,10 @@
 //! the pool [`ahead`] gives for the occupancy it expects: for that occupancy, the bytes and F
 //! `counted` decides.
 
-use crate::budget::{self, Budget, FragmentBudget, Layout, Occupancy, SLOT_BYTES, Words};
-use crate::error::{Error, Result};
-use crate::frame::{Method, exact_is_no_dearer};
-
-/// How a frame's F follows from its count.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PlanBudget {
-    /// F slots, or a share of the frame's fragments.
-    Fragments(FragmentBudget),
-    /// The most slots these bytes hold for the frame's own occupancy in the method's layout
-    /// ([`Layout::fragment_budget_counted`]).
-    Bytes(u64),
-}
-
-impl From<FragmentBudget> for PlanBudget {
-    fn from(f: FragmentBudget) -> PlanBudget {
-        PlanBudget::Fragments(f)
-    }
-}
-
-/// F slots.
-impl From<u64> for PlanBudget {
-    fn from(f: u64) -> PlanBudget {
-        PlanBudget::Fragments(f.into())
-    }
-}
-
-impl PlanBudget {
-    /// The fragment budget, where F does not wait for the frame's occupancy (None for bytes).
-    pub fn fragments(self) -> Option<FragmentBudget> {
-        match self {
-            PlanBudget::Fragments(f) => Some(f),
-            PlanBudget::Bytes(_) => None,
-        }
-    }
-
-    /// A user's budget on a frame of `pixels`: bytes stay bytes, a share stays a share, slots
-    /// per pixel become `floor(fpp pixels)` slots.
-    pub fn from_budget(budget: Budget, pixels: u64) -> PlanBudget {
-        match budget {
-            Budget::Bytes(m) => PlanBudget::Bytes(m),
-            Budget::Share(ppm) => FragmentBudget::Share(ppm).into(),
-            Budget::SlotsPerPixel(f) => ((f * pixels as f64).floor() as u64).into(),
-        }
-    }
-
-    /// [`PlanBudget::from_budget`] on a frame of `fragments`, refused where it leaves no slot
-    /// (a share of a frame with fragments, or slots per pixel).
-    pub fn of(budget: Budget, pixels: u64, fragments: u64) -> Result<PlanBudget> {
-        let b = PlanBudget::from_budget(budget, pixels);
-        match (budget, b) {
-            // A frame with nothing transparent in view (all hidden, or none) needs no slot.
-            (Budget::Share(_), PlanBudget::Fragments(f))
-                if f.of(fragments) == 0 && fragments > 0 =>
-            {
-                Err(Error::Budget(
-                    budget.to_string(),
-                    format!("leaves no fragment slot of the frame's {fragments} fragments"),
-                ))
-            }
-            (Budget::SlotsPerPixel(f), PlanBudget::Fragments(FragmentBudget::Slots(0))) => {
-                Err(Error::Budget(
-                    format!("{f}fpp"),
-                    format!("leaves no fragment slot for {pixels} pixels"),
-                ))
-            }
-            _ => Ok(b),
-        }
-    }
-}
+pub use crate::budget::PlanBudget;
+use crate::budget::{self, Layout, Occupancy, SLOT_BYTES, Words};
+use crate::error::Result;
+use crate::method::{Method, exact_is_no_dearer};
 
 /// What a k-buffer's budget comes to on a frame whose fragments are counted: decided by
 /// [`counted`] for the CPU renderer (`frame::Renderer`, the equal-bytes budget included) and for
@@ -349,7 +283,7 @@ pub fn plan_with_records(input: &PlanInput, occ: &Occupancy, records: u64) -> Pl
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::budget::{DKB, VKB};
+    use crate::budget::{DKB, FragmentBudget, VKB};
 
     fn occ(fragments: u64, covered: u64, deep: u64, deeper: u64) -> Occupancy {
         Occupancy {

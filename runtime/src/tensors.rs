@@ -1,6 +1,7 @@
 //! Small helpers over the `safetensors` crate: typed reads with shape checks, and atomic writes
 //! (a temporary file renamed into place, so a failed write never leaves half a file).
 
+pub use crate::error::FormatError;
 use crate::error::{Error, IoOp, Result};
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 use std::collections::HashMap;
@@ -97,41 +98,6 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         let _ = std::fs::remove_file(&tmp);
         Error::io_op(IoOp::Rename, path, e)
     })
-}
-
-/// What is wrong with the contents of a safetensors file (weights, features, dumps, dataset
-/// shards): the loaders wrap it with the file's path.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum FormatError {
-    #[error("not a safetensors file: {0}")]
-    NotSafetensors(String),
-    #[error("missing tensor '{0}'")]
-    MissingTensor(String),
-    #[error("tensor '{name}' is {found}, expected {expected}")]
-    Dtype {
-        name: String,
-        found: String,
-        expected: String,
-    },
-    #[error("tensor '{name}' has shape {found:?}, expected {expected}")]
-    Shape {
-        name: String,
-        found: Vec<usize>,
-        expected: String,
-    },
-    #[error("tensor '{name}' has a non-finite value at {index}")]
-    NonFinite { name: String, index: usize },
-    #[error("metadata has no '{0}'")]
-    MissingMetadata(String),
-    #[error("metadata '{key}': {message}")]
-    Metadata { key: String, message: String },
-    /// Well-formed, but beyond what this build holds (such as a hidden layer wider than the GPU
-    /// pass's arrays).
-    #[error("{0}")]
-    Unsupported(String),
-    /// Any other rule of the file's contract (values out of range, inconsistent tensors).
-    #[error("{0}")]
-    Contract(String),
 }
 
 type FormatResult<T> = std::result::Result<T, FormatError>;

@@ -570,11 +570,7 @@ pub const fn dispatch_offset(which: u32) -> u64 {
     (which * DISPATCH_WORDS * 4) as u64
 }
 
-/// Where the network's uniform holds the standardisation means, deviations and the first
-/// weight matrix, in floats (after a header of h1, h2 and two unused).
-pub const MLP_MEAN_AT: usize = 4;
-pub const MLP_STD_AT: usize = MLP_MEAN_AT + crate::importance::FEATURES;
-pub const MLP_W1_AT: usize = MLP_STD_AT + crate::importance::FEATURES;
+pub use crate::mlp::{MLP_MEAN_AT, MLP_STD_AT, MLP_W1_AT};
 
 /// The per-frame uniform (matches `Params` in common.wgsl; padded to 256 bytes).
 #[repr(C)]

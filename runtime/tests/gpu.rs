@@ -256,7 +256,7 @@ fn dkb_s_records_in_batches_or_at_once_give_the_same_frame_in_fewer_bytes() {
     let f = (w * h / 20) as u64;
     let mut o = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
     let frames = [1, 2, 3].map(|b| {
-        o.tuning.record_batches = b;
+        o.decision.record_batches = b;
         let fr = g
             .render_with(&o, &s, &cam, (w, h), BG, Slots::Dkb(&mlp, f.into()))
             .unwrap();
@@ -1807,7 +1807,7 @@ fn frames_up_to_8k_render_and_allocate_like_their_twins() {
         let sfl = gpu_fragments(g, &stacked, &cam, (w, h));
         let few = sfl.fragment_count() as u64 / 40;
         let mut batched = dhoit_runtime::gpu::FrameOptions::default().always_approximate();
-        batched.tuning.record_batches = 3;
+        batched.decision.record_batches = 3;
         let d = g
             .render_with(
                 &batched,
@@ -2058,7 +2058,7 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
         // At a slot a covered pixel (lo = 1, some records forced), in up to three batches, the
         // pool holds the records in batches: the rows of each batch's list add up to the
         // pixels left to the network.
-        o.tuning.record_batches = 3;
+        o.decision.record_batches = 3;
         let frame = g
             .render_with(
                 &o,
@@ -2084,7 +2084,7 @@ fn the_network_runs_on_the_pixels_whose_k_is_not_forced_and_no_others() {
             frame.record_batches
         );
         assert_eq!(frame.network_rows, Some(recorded), "{name}, F {few}");
-        o.tuning.record_batches = dhoit_runtime::budget::RECORD_BATCHES;
+        o.decision.record_batches = dhoit_runtime::budget::RECORD_BATCHES;
     }
 }
 

@@ -26,7 +26,7 @@ use dhoit_runtime::budget::{self, Budget};
 use dhoit_runtime::importance::{self, FEATURES};
 use dhoit_runtime::raster;
 use dhoit_runtime::rng::Rng;
-use dhoit_runtime::scene::{self, Camera};
+use dhoit_runtime::scene::{self, Camera, Opacity};
 use dhoit_runtime::tensors::{self, Entry, FormatError};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -34,6 +34,24 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
+
+/// A scene's opacity: one for every surface, or (`None`) the scene's own.
+pub fn opacity_of(uniform: Option<f32>) -> Opacity {
+    uniform.map_or(Opacity::Native, Opacity::Uniform)
+}
+
+/// Loads scenes as training and scoring see them: at one opacity or their own, their glass
+/// tinted, as the command line renders it (`--glass tinted`).
+pub fn load_scenes(names: &[String], opacity: Option<f32>) -> Result<Vec<scene::Scene>> {
+    names
+        .iter()
+        .map(|name| {
+            let mut s = scene::load(name, opacity_of(opacity))?;
+            s.glass = scene::Glass::Tinted;
+            Ok(s)
+        })
+        .collect()
+}
 
 pub const MANIFEST: &str = "manifest.json";
 pub const FORMAT: &str = "dhoit-dataset-3";
@@ -393,7 +411,7 @@ pub fn generate(
     let start = Instant::now();
     // Every scene first: one that does not load leaves `out` (a dataset there included) as it
     // was.
-    let scenes = crate::score::load_scenes(&config.scenes, config.opacity)?;
+    let scenes = load_scenes(&config.scenes, config.opacity)?;
     dhoit_runtime::tensors::create_folder(out)?;
     // A stale manifest must not describe shards about to be replaced.
     let manifest_path = out.join(MANIFEST);

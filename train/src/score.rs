@@ -11,32 +11,14 @@
 //! method renders as good as exactly do not decide a geometric mean.
 
 use crate::Result;
-use crate::dataset::{Level, error_floor};
+use crate::dataset::{Level, error_floor, load_scenes};
 use dhoit_runtime::alloc;
 use dhoit_runtime::importance::{self, VkbParams};
 use dhoit_runtime::mlp::Mlp;
 use dhoit_runtime::raster;
-use dhoit_runtime::scene::{self, Camera, Opacity};
+use dhoit_runtime::scene::{self, Camera};
 use rayon::prelude::*;
 use serde::Serialize;
-
-/// A scene's opacity: one for every surface, or (`None`) the scene's own.
-pub fn opacity_of(uniform: Option<f32>) -> Opacity {
-    uniform.map_or(Opacity::Native, Opacity::Uniform)
-}
-
-/// Loads scenes as training and scoring see them: at one opacity or their own, their glass
-/// tinted, as the command line renders it (`--glass tinted`).
-pub fn load_scenes(names: &[String], opacity: Option<f32>) -> Result<Vec<scene::Scene>> {
-    names
-        .iter()
-        .map(|name| {
-            let mut s = scene::load(name, opacity_of(opacity))?;
-            s.glass = scene::Glass::Tinted;
-            Ok(s)
-        })
-        .collect()
-}
 
 /// One frame at one budget.
 #[derive(Clone, Debug, Serialize)]

@@ -18,7 +18,7 @@ use std::cell::RefCell;
 
 use super::bindings::{self, oit_phase};
 use super::passes::{Geometry, GeometryPass, Phase, Resolve, at, view_at};
-use super::pipelines::{compute_pipeline, module_from, redeclare};
+use super::shader::{compute_pipeline, module_from, redeclare};
 use super::stream::{AppMethod, FrameReport, Stream};
 use super::{Capture, Gpu, frame_params};
 use crate::budget::{Budget, Occupancy};
@@ -976,7 +976,7 @@ impl AllocatedOit {
     /// holds every fragment (on by default: a k-buffer never costs more than the exact
     /// answer, and where the memory it holds has room for it, the frame is exact).
     pub fn exact_when_cheaper(mut self, exact: bool) -> AllocatedOit {
-        self.0.stream.exact_when_cheaper = exact;
+        self.0.stream.decision.exact_when_cheaper = exact;
         self
     }
 

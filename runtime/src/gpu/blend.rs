@@ -273,7 +273,12 @@ impl Recording<'_, '_, '_> {
         let targets: Vec<_> = pass
             .targets
             .iter()
-            .map(|&(t, _, clear)| (self.fb.target(t, size), clear))
+            .map(|&(t, _, clear)| {
+                (
+                    self.fb.target((t.label, t.format, t.texel_bytes()), size),
+                    clear,
+                )
+            })
             .collect();
         let fb = &mut self.fb;
         let attachments: Vec<_> = targets.iter().map(|(v, c)| (v, *c)).collect();
@@ -321,7 +326,12 @@ impl Recording<'_, '_, '_> {
             .targets
             .iter()
             .chain(accumulate_blend.targets)
-            .map(|&(t, _, clear)| (self.fb.target(t, size), clear))
+            .map(|&(t, _, clear)| {
+                (
+                    self.fb.target((t.label, t.format, t.texel_bytes()), size),
+                    clear,
+                )
+            })
             .collect();
         let (read, accumulation) = written.split_at(moments_blend.targets.len());
         let (b0, accumulation) = (&read[0].0, &accumulation[0]);

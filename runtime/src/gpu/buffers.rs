@@ -207,16 +207,17 @@ impl<'a, 'e> FrameBuffers<'a, 'e> {
         b
     }
 
-    /// A render target of the frame's size that later passes read, counted in the frame's
-    /// allocation (its texels' bytes); a view of it.
+    /// A render target `label` of format `format` (a colour format, `texel_bytes` a texel)
+    /// and the frame's size that later passes read, counted in the frame's allocation (its
+    /// texels' bytes); a view of it.
     pub(super) fn target(
         &mut self,
-        t: super::blend::Target,
+        (label, format, texel_bytes): (&str, wgpu::TextureFormat, u64),
         (width, height): (u32, u32),
     ) -> wgpu::TextureView {
-        self.allocated += width as u64 * height as u64 * t.texel_bytes();
+        self.allocated += width as u64 * height as u64 * texel_bytes;
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
-        let texture = frame_texture(&self.gpu.device, t.label, (width, height), t.format, usage);
+        let texture = frame_texture(&self.gpu.device, label, (width, height), format, usage);
         texture.create_view(&Default::default())
     }
 }

@@ -24,9 +24,12 @@
 //! - `list.rs`, `blend.rs`: the linked list; WBOIT and MBOIT.
 //! - `predict.rs`: the network on rows of features (`predict.wgsl`).
 //!
-//! And the frame's machinery: `pipelines.rs` (built once a device and shared by every method
-//! forked from it: [`Gpu::fork`](crate::gpu::Gpu::fork); the network's per shape), `passes.rs` (recording a pass),
-//! `buffers.rs` (pooled buffers, readback), `timer.rs`.
+//! And the frame's machinery: `shader.rs` (modules and pipelines built, counted and recorded
+//! for WebGPU), `pipelines.rs` (built once a device and shared by every method forked from
+//! it: [`Gpu::fork`](crate::gpu::Gpu::fork); the network's per shape), `passes.rs` (recording
+//! a pass), `buffers.rs` (pooled buffers, readback), `timer.rs`. `hooks.rs` runs one stage
+//! alone for the tests (`Gpu::allocate`, `Gpu::plan`, `Gpu::u64_words`: hidden from the
+//! documentation).
 //!
 //! Every buffer a method's frame allocates is labelled after the [`crate::budget::Layout`] entry
 //! it realises and counted, so [`GpuFrame::allocated_bytes`](crate::gpu::GpuFrame::allocated_bytes) is what the device really holds.
@@ -41,29 +44,32 @@ mod blend;
 mod buffers;
 mod capture;
 mod dkb;
+mod hooks;
 mod list;
 mod passes;
 mod pipelines;
 mod predict;
 mod scan;
 mod scene;
+mod shader;
 mod stream;
 mod timer;
 mod vkb;
 
 use abuffer::Blend;
-pub use allocate::GpuAllocation;
 pub use app::{
     AllocatedOit, BlendedOit, DrawFn, ExactOit, FrameTargets, KBufferOit, ListOit, Oit, PhaseDraw,
     TARGET_FORMATS,
 };
 pub use buffers::host_syncs;
 use buffers::{FrameBuffers, Readback};
+#[doc(hidden)]
+pub use hooks::GpuAllocation;
 use passes::Passes;
 pub use passes::Phase;
 use pipelines::Pipelines;
-pub use pipelines::{pipelines_built, record_pipelines};
 pub use scene::SceneStream;
+pub use shader::{pipelines_built, record_pipelines};
 pub use stream::FrameReport;
 use timer::Timer;
 /// The wgpu the renderer is built on (an application's device and encoder are its types).
@@ -132,7 +138,7 @@ fn is_wide(features: wgpu::Features) -> bool {
 /// allocation: F, and k where only the CPU computes it) and runs every other pass on the
 /// device; [`GpuFrame`] says what it allocated and how long each pass took. A DKB or VKB frame
 /// counts first and renders the exact A-buffer where that needs no more bytes than the method
-/// would ([`FrameOptions::exact_when_cheaper`], [`GpuFrame::exact`]); the example asks for the
+/// would ([`budget::Decision::exact_when_cheaper`], [`GpuFrame::exact`]); the example asks for the
 /// approximation itself, as its CPU options do.
 ///
 /// ```
@@ -198,12 +204,12 @@ pub struct Gpu {
 /// defaults, [`Gpu::render_with`] the caller's.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FrameOptions {
-    /// Whether a DKB or VKB frame, once it has counted its fragments, renders the exact
-    /// A-buffer where that needs no more bytes than the method reserves at its budget
-    /// ([`crate::frame::exact_is_no_dearer`]) or its budget holds every fragment
-    /// ([`GpuFrame::exact`]); on by default, as [`crate::frame::Options::exact_when_cheaper`].
-    /// FKB's and uploaded k's frames render as asked either way.
-    pub exact_when_cheaper: bool,
+    /// How a k-buffer frame's budget is decided, as on the CPU
+    /// ([`crate::frame::Options::decision`]): a DKB or VKB frame, once it has counted its
+    /// fragments, renders the exact A-buffer where that needs no more bytes than the method
+    /// reserves at its budget or its budget holds every fragment ([`GpuFrame::exact`]); DKB's
+    /// records in at most its record batches.
+    pub decision: budget::Decision,
     /// Whether a frame reads back what the tests compare besides the image (fragments, slots,
     /// tails, importance, statistics): on by default; off, the image alone.
     pub diagnostics: bool,
@@ -243,11 +249,6 @@ pub struct Tuning {
     pub spread_search: bool,
     /// FKB lays its slots out layer-major rather than pixel-major (off).
     pub layer_major_fkb: bool,
-    /// The most batches a DKB frame gathers its network's records in
-    /// ([`crate::budget::PoolState::batches`]; [`crate::budget::RECORD_BATCHES`]): fewer take
-    /// more memory where the records outweigh the slots, and fewer features passes. The CPU's
-    /// accounting (`frame::Options::record_batches`) counts the same.
-    pub record_batches: u64,
     /// A DKB frame that follows one of its size gathers its network's statistics with its
     /// count, for the pixels the frame before marked (its geometry drawn twice: the count and
     /// the capture), where its records take one batch (on); off, every frame marks its own and
@@ -266,7 +267,6 @@ impl Default for Tuning {
             features_preload: true,
             spread_search: false,
             layer_major_fkb: false,
-            record_batches: crate::budget::RECORD_BATCHES,
             two_pass_dkb: true,
         }
     }
@@ -315,7 +315,7 @@ impl Capture {
 impl Default for FrameOptions {
     fn default() -> Self {
         FrameOptions {
-            exact_when_cheaper: true,
+            decision: budget::Decision::default(),
             diagnostics: true,
             capture: Capture::Wide,
             tuning: Tuning::default(),
@@ -324,20 +324,18 @@ impl Default for FrameOptions {
 }
 
 impl FrameOptions {
-    /// DKB's buffers for `mlp` as these options' frames create them: the network's own bytes
-    /// ([`budget::Layout::for_network`]) and its records in at most
-    /// [`Tuning::record_batches`] batches.
+    /// DKB's buffers for `mlp` as these options' frames create them
+    /// ([`budget::Decision::dkb_layout`]).
     pub fn dkb_layout(&self, mlp: &crate::mlp::Mlp) -> budget::Layout {
-        budget::DKB
-            .for_network(mlp)
-            .with_record_batches(self.tuning.record_batches)
+        self.decision.dkb_layout(mlp)
     }
 
-    /// These options with [`FrameOptions::exact_when_cheaper`] off: a DKB or VKB frame runs its
-    /// method at any budget (as [`crate::frame::Options::always_approximate`] on the CPU).
+    /// These options with [`budget::Decision::exact_when_cheaper`] off: a DKB or VKB frame
+    /// runs its method at any budget (as [`crate::frame::Options::always_approximate`] on the
+    /// CPU).
     pub fn always_approximate(self) -> FrameOptions {
         FrameOptions {
-            exact_when_cheaper: false,
+            decision: self.decision.always_approximate(),
             ..self
         }
     }
@@ -793,7 +791,7 @@ pub struct GpuFrame {
     /// Bytes of every buffer and target the method allocated for this frame.
     pub allocated_bytes: u64,
     /// Whether a DKB or VKB frame rendered the exact A-buffer in its place
-    /// ([`FrameOptions::exact_when_cheaper`]): its image, bytes and fragments are the A-buffer's.
+    /// ([`budget::Decision::exact_when_cheaper`]): its image, bytes and fragments are the A-buffer's.
     pub exact: bool,
     /// A-buffer: the GPU's own fragments (sorted front to back within each pixel).
     pub fragments: Option<FragmentLists>,
@@ -1144,7 +1142,7 @@ impl Planned {
 }
 
 /// How a DKB, VKB or uploaded importance frame runs: None where its client counted first and,
-/// with [`FrameOptions::exact_when_cheaper`], the frame renders the exact A-buffer as the CPU's
+/// with [`budget::Decision::exact_when_cheaper`], the frame renders the exact A-buffer as the CPU's
 /// would ([`crate::plan::Counted::exact`]; then the frame is the A-buffer's), else its plan's
 /// input (the pool sized for the occupancy its client expects, `sizing`) and, counted first,
 /// the plan the device will make. `words` are what its fragments store beside their keys.
@@ -1169,7 +1167,7 @@ fn planned(
         b => b,
     };
     let exact_when_cheaper =
-        opts.exact_when_cheaper && matches!(s, Slots::Dkb(..) | Slots::Vkb(..));
+        opts.decision.exact_when_cheaper && matches!(s, Slots::Dkb(..) | Slots::Vkb(..));
     let (pool_bytes, batches, host) = match sizing {
         Sizing::Own(occ) => {
             // What the budget comes to on this count, decided as the CPU decides it: a byte

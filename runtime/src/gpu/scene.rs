@@ -554,7 +554,7 @@ impl SceneStream {
             }
         };
         let mut stream = Stream::new(gpu, size, app, None)?;
-        stream.exact_when_cheaper = options.exact_when_cheaper;
+        stream.decision = options.decision;
         let tinted = scene.tints() as u32;
         let hdr = scene.hdr() as u32;
         // Its budget resolved once it knows whether its fragments keep tint words.

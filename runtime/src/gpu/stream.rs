@@ -113,12 +113,13 @@ impl AppMethod {
     }
 
     /// The layout its memory follows ([`budget::Layout`]).
-    pub(super) fn layout(&self) -> Layout {
+    /// Its buffers, DKB's records in `decision`'s batches.
+    pub(super) fn layout(&self, decision: &budget::Decision) -> Layout {
         match self {
             AppMethod::List { .. } => budget::LINKED_LIST,
             AppMethod::Fkb { .. } => budget::FKB,
             AppMethod::Abuffer | AppMethod::Mlab { .. } => budget::ABUFFER,
-            AppMethod::Dkb(m) => FrameOptions::default().dkb_layout(m),
+            AppMethod::Dkb(m) => decision.dkb_layout(m),
             AppMethod::Vkb(_) => budget::VKB,
             AppMethod::Wboit(_) => budget::WBOIT,
             AppMethod::Mboit(m) => budget::mboit(m.moments),
@@ -200,7 +201,8 @@ pub(super) struct Stream {
     pub(super) method: AppMethod,
     /// DKB's and VKB's budget (the others' is in their method).
     pub(super) budget: Option<Budget>,
-    pub(super) exact_when_cheaper: bool,
+    /// How its k-buffer frames' budget is decided ([`FrameOptions::decision`]).
+    pub(super) decision: budget::Decision,
     /// How the k-buffers insert their fragments ([`FrameOptions::capture`]).
     pub(super) capture: Capture,
     /// What its frames store beside each fragment's key (dhoit's own scenes of tinted glass or
@@ -250,7 +252,7 @@ impl Stream {
             size,
             method,
             budget: None,
-            exact_when_cheaper: true,
+            decision: budget::Decision::default(),
             capture: gpu.capture_for(Capture::Wide),
             words: budget::Words::None,
             hdr: false,
@@ -291,12 +293,12 @@ impl Stream {
         let occ = self.expected;
         let ahead = match (&self.method, self.budget) {
             (AppMethod::Dkb(_) | AppMethod::Vkb(_), Some(_)) => crate::plan::ahead(
-                &self.method.layout(),
+                &self.method.layout(&self.decision),
                 self.plan_budget(),
                 self.pixels(),
                 &occ,
                 self.words,
-                self.exact_when_cheaper,
+                self.decision.exact_when_cheaper,
             ),
             _ => crate::plan::Ahead {
                 pool_bytes: 0,
@@ -584,7 +586,7 @@ impl Stream {
         self.asked = Some(budget);
         match &mut self.method {
             AppMethod::Dkb(_) | AppMethod::Vkb(_) => {
-                let layout = self.method.layout();
+                let layout = self.method.layout(&self.decision);
                 // Refused now where no frame can hold a slot: bytes below the fixed bytes and
                 // the marks, or no fragment budget for the layout.
                 match budget {
@@ -686,7 +688,7 @@ impl Stream {
         }
         let opts = FrameOptions {
             diagnostics: false,
-            exact_when_cheaper: self.exact_when_cheaper,
+            decision: self.decision,
             capture: self.capture,
             ..FrameOptions::default()
         };

@@ -179,9 +179,9 @@ impl Scene {
         self.tints() || self.hdr()
     }
 
-    /// What its frames store beside each fragment's key ([`crate::budget::Words`]).
-    pub fn words(&self) -> crate::budget::Words {
-        crate::budget::Words::of(self.tints(), self.tint_words())
+    /// What its frames store beside each fragment's key ([`crate::fragment::Words`]).
+    pub fn words(&self) -> crate::fragment::Words {
+        crate::fragment::Words::of(self.tints(), self.tint_words())
     }
 
     /// The largest colour exponent its fragments are stored with
