@@ -218,6 +218,39 @@ fn glb_json_chunk_beyond_the_file() {
     bad_scene("glb-chunk", "s.glb", &g, "not a valid gltf");
 }
 
+/// `train --scene` on a scene whose own materials are all opaque (glTF triangles with no
+/// material: glTF's default is opaque) says so, names the scene and --opacity, and writes no
+/// weights; with --opacity it trains.
+#[test]
+fn fine_tuning_on_an_opaque_scene_names_the_problem_and_takes_an_opacity() {
+    let dir = case_dir("train-opaque");
+    let path = dir.join("opaque.glb");
+    // Six triangles, one behind the other: six fragments deep where they overlap (a k the
+    // network decides: up to 3 deep it is forced).
+    let quads: Vec<[f32; 3]> = (0..6)
+        .flat_map(|layer| TRI.map(|p| [p[0], p[1], -0.1 * layer as f32]))
+        .collect();
+    let (j, b) = gltf_json(&quads, None, serde_json::json!({}));
+    std::fs::write(&path, glb(&j, &b)).unwrap();
+    let scene = path.to_str().unwrap();
+    let weights = dir.join("w.safetensors");
+    let w = weights.to_str().unwrap();
+    let args = [
+        "train", "--scene", scene, "--res", "32x24", "--epochs", "1", "--out", w,
+    ];
+    fails(&dir, &args, "no transparent surface");
+    fails(&dir, &args, "--opacity");
+    assert!(!weights.exists(), "weights written for an opaque scene");
+    let mut with = args.to_vec();
+    with.extend(["--opacity", "0.33"]);
+    let o = common::dhoit(&with);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(weights.is_file(), "no weights with --opacity");
+    let mut bad = args.to_vec();
+    bad.extend(["--opacity", "1.5"]);
+    fails(&dir, &bad, "--opacity 1.5");
+}
+
 #[test]
 fn gltf_not_json() {
     bad_scene(

@@ -133,6 +133,11 @@ pub struct TrainArgs {
     /// With --scene: resolution of the views trained on and scored.
     #[arg(long, default_value = "320x240", requires = "scenes")]
     pub res: Resolution,
+    /// With --scene: one uniform opacity for every surface (the papers' protocol, as `score`
+    /// and `compare` take it), for a scene whose own materials are opaque or to train as the
+    /// eval measures. Default: each scene's own materials.
+    #[arg(long, requires = "scenes")]
+    pub opacity: Option<f32>,
     /// Weights file to write; config.json and the loss plot (loss.svg, loss.png) go beside it.
     /// Default: data/weights.safetensors, or out/finetune/SCENE/weights.safetensors with
     /// --scene.
@@ -358,11 +363,16 @@ pub fn train(a: TrainArgs) -> Result<()> {
             height,
             views: OWN_TRAIN_VIEWS,
             seed: a.seed,
+            opacity: a.opacity,
             ..DatasetConfig::default()
         })
     } else {
         None
     };
+    if let Some(c) = &own_config {
+        // Before any dataset is generated: a scene with nothing transparent gives no sample.
+        check_transparent(&c.scenes, c.opacity)?;
+    }
     let data_dir = data_dir(&a, own_config.as_ref(), &dir)?;
     let (manifest, samples) = dataset::load(&data_dir)?;
     eprintln!(
@@ -445,6 +455,29 @@ pub fn train(a: TrainArgs) -> Result<()> {
 /// The training's configuration from the command line: the defaults of a training from the
 /// built-in scenes, or of fine-tuning on your own (`own`: a smaller learning rate, fewer
 /// epochs, no validation scenes unless given).
+/// Refuses, naming it, a scene of `scenes` (at `opacity`) with no transparent surface: its
+/// frames have no fragment to allocate a slot to, so nothing to train on.
+fn check_transparent(scenes: &[String], opacity: Option<f32>) -> Result<()> {
+    if let Some(o) = opacity
+        && !(o > 0.0 && o <= 1.0)
+    {
+        return Err(Error::Config(format!(
+            "--opacity {o}: an opacity is above 0 and at most 1"
+        )));
+    }
+    for (name, s) in scenes.iter().zip(dataset::load_scenes(scenes, opacity)?) {
+        if !(0..s.triangle_count()).any(|t| s.transparent(t)) {
+            return Err(Error::Config(format!(
+                "scene {name} has no transparent surface with its own materials ({} \
+                 triangles, all opaque): no fragment to allocate, nothing to train on; give \
+                 every surface one opacity with --opacity (0.33, as the eval's protocol)",
+                s.triangle_count()
+            )));
+        }
+    }
+    Ok(())
+}
+
 fn train_config(a: &TrainArgs, own: bool, [h1, h2]: [usize; 2]) -> TrainConfig {
     TrainConfig {
         loss: a.loss,

@@ -738,10 +738,20 @@ pub fn train_from(
     let held = |s: &str| config.validation_scenes.iter().any(|v| v == s);
     let train_set = data.filter_scenes(|s| !held(s));
     let val_set = data.filter_scenes(held);
-    if train_set.is_empty() {
+    if data.is_empty() {
         return Err(Error::Config(
-            "no training samples left after holding out the validation scenes".into(),
+            "the dataset holds no sample: no pixel of its scenes' views has a k the network \
+             decides (no transparent fragment, or none deeper than 2 or 3 fragments, whose k \
+             is forced); for opaque materials `train --scene` takes --opacity"
+                .into(),
         ));
+    }
+    if train_set.is_empty() {
+        return Err(Error::Config(format!(
+            "no training samples left after holding out the validation scenes ({}): every \
+             sample is from them",
+            config.validation_scenes.join(", ")
+        )));
     }
     // The network lives on the autodiff device, as burn's optimiser steps it; each step runs on
     // its plain copy (`valid`: the same tensors, no graph).
