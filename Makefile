@@ -6,7 +6,7 @@ RUN := $(CARGO) run --release --quiet --
 # Real glTF scenes for tests and evaluation, read in place (never copied into the repository).
 export DHOIT_SCENES ?= $(abspath ../shared/scenes)
 
-.PHONY: all setup demo test fmt lint check bench frame devbin build train nets golden eval trade versus fuzz pictures webgpu web web-picture web-record
+.PHONY: all setup demo test fmt lint check bench frame devbin build train nets golden eval generalise trade versus fuzz pictures webgpu web web-picture web-record
 
 all: demo
 
@@ -29,6 +29,12 @@ demo: setup build
 ## data/loss.svg, data/loss.png (the dataset is generated into data/generated/, which git ignores).
 train: build
 	$(CARGO) run --release --quiet -p dhoit-train
+
+## Leave one family out: a network trained without each built-in family in turn, scored on
+## that family's held-out scene against the optimal allocation, beside one trained on every
+## family: docs/generalise.md, out/generalise/generalise.json (about 15 minutes on 2 cores).
+generalise: build
+	$(RUN) generalise --opacity 0.33
 
 ## The networks of other sizes shipped beside the default, trained on the same data:
 ## data/nets/H1-H2/weights.safetensors (+ config.json, loss plot). `dhoit trade` and `dhoit fit`

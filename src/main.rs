@@ -68,6 +68,10 @@ enum Command {
     /// and budget, as DKB/VKB and DKB/optimal ratios (fast; `compare` renders the images), the
     /// glass tinted as `compare` renders it by default.
     Score(dhoit_train::cli::ScoreArgs),
+    /// Leave one family out: for each built-in scene family, a network trained without it
+    /// scored against the optimal allocation on its held-out scene, beside one trained on every
+    /// family; how DKB does on a kind of scene it has never seen (docs/generalise.md).
+    Generalise(dhoit_train::generalise::GeneraliseArgs),
     /// Export the 12 network features of one view's covered pixels (for predict).
     Features(features::FeaturesArgs),
     /// Measure every method's GPU frame (steady frames of a persistent renderer: GPU and wall
@@ -103,6 +107,7 @@ fn main() {
         Command::Train(a) => dhoit_train::cli::train(a).map_err(Into::into),
         Command::Predict(a) => predict::run(a),
         Command::Score(a) => dhoit_train::cli::score(a).map_err(Into::into),
+        Command::Generalise(a) => dhoit_train::generalise::run(a).map_err(Into::into),
         Command::Features(a) => features::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Trade(a) => trade::trade(a),

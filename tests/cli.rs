@@ -1774,3 +1774,92 @@ fn light_above_white_renders_to_exr_on_the_cpu_and_the_gpu() {
     }
     assert_ne!(frames[0], frames[1], "VKB's tails left the image exact");
 }
+
+/// `generalise` leaves each family out in turn: no fold's network trains or validates on a
+/// scene of the family it is scored on, each is scored on that family's seed-1 scene, and no
+/// allocation beats the optimal one; the table and the JSON are written; an unknown family is
+/// refused by name.
+#[test]
+fn generalise_leaves_each_family_out_of_its_fold_s_training() {
+    let dir = temp_dir("cli-generalise");
+    let data = dir.join("data");
+    let o = dhoit(&[
+        "dataset",
+        "--out",
+        data.to_str().unwrap(),
+        "--scenes",
+        "shells:2,spheres:2,plates:2,shells:4,spheres:4,plates:4",
+        "--res",
+        "64x48",
+        "--views",
+        "2",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (md, json) = (dir.join("g.md"), dir.join("g.json"));
+    let run = |families: &str| {
+        dhoit(&[
+            "generalise",
+            "--data",
+            data.to_str().unwrap(),
+            "--families",
+            families,
+            "--epochs",
+            "1",
+            "--res",
+            "64x48",
+            "--opacity",
+            "0.33",
+            "--out",
+            md.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ])
+    };
+    let o = run("shells,spheres");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let folds = r["folds"].as_array().unwrap();
+    assert_eq!(folds.len(), 2);
+    for f in folds {
+        let family = f["family"].as_str().unwrap();
+        let prefix = format!("{family}:");
+        let scenes = |k: &str| -> Vec<String> {
+            f[k].as_array()
+                .unwrap()
+                .iter()
+                .map(|s| s.as_str().unwrap().to_string())
+                .collect()
+        };
+        let (train, validation) = (scenes("train_scenes"), scenes("validation_scenes"));
+        assert!(!train.is_empty(), "{family}: trained on nothing");
+        assert!(
+            !train
+                .iter()
+                .chain(&validation)
+                .any(|s| s.starts_with(&prefix)),
+            "{family}'s fold saw its own family: {train:?} {validation:?}"
+        );
+        assert_eq!(f["scored"], format!("{family}:1"));
+        assert!(
+            f["frames"].as_u64().unwrap() > 0,
+            "{family}: no frame counted"
+        );
+        for k in [
+            "left_out_over_optimal",
+            "in_distribution_over_optimal",
+            "vkb_over_optimal",
+        ] {
+            let v = f[k].as_f64().unwrap();
+            assert!(v.is_finite() && v >= 0.999, "{family} {k}: {v}");
+        }
+    }
+    let table = std::fs::read_to_string(&md).unwrap();
+    assert!(
+        table.contains("| shells |") && table.contains("| spheres |"),
+        "{table}"
+    );
+    let o = run("shells,nosuch");
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("'nosuch'"), "{err}");
+}

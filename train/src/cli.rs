@@ -252,18 +252,22 @@ fn data_dir(a: &TrainArgs, own: Option<&DatasetConfig>, dir: &Path) -> Result<Pa
             generate(c, &d)?;
             d
         }
-        (None, None) => {
-            let d = PathBuf::from(DEFAULT_DATA);
-            let default = DatasetConfig::default();
-            let fresh = dataset::load(&d)
-                .map(|(m, _)| m.config == default && m.generator == dataset::GENERATOR)
-                .unwrap_or(false);
-            if !fresh {
-                generate(&default, &d)?;
-            }
-            d
-        }
+        (None, None) => default_dataset()?,
     })
+}
+
+/// The default dataset's folder ([`DEFAULT_DATA`]), generated first where it is missing or
+/// was made by another configuration or generator.
+pub fn default_dataset() -> Result<PathBuf> {
+    let d = PathBuf::from(DEFAULT_DATA);
+    let default = DatasetConfig::default();
+    let fresh = dataset::load(&d)
+        .map(|(m, _)| m.config == default && m.generator == dataset::GENERATOR)
+        .unwrap_or(false);
+    if !fresh {
+        generate(&default, &d)?;
+    }
+    Ok(d)
 }
 
 /// The trained network as it deploys (at `precision`) saved to `out`, beside it config.json

@@ -9,6 +9,7 @@
 
 pub mod cli;
 pub mod dataset;
+pub mod generalise;
 pub mod model;
 pub mod plot;
 pub mod score;

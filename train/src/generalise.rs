@@ -1,0 +1,425 @@
+//! `dhoit generalise`: how DKB allocates on a kind of scene it has never seen, measured by the
+//! project itself. Leave one family out: for each built-in generator family, a network is
+//! trained on the dataset with every scene of that family removed (its training and its
+//! validation seeds), and scored against the per-pixel optimal allocation on the family's
+//! held-out scene (seed 1, which no dataset holds) beside a network trained the same way on
+//! every family (in distribution). The figure to improve is the left-out one: the mean over
+//! the folds and the worst fold.
+
+use crate::cli::bar;
+use crate::dataset::{self, DatasetConfig, Level, Samples};
+use crate::score::{self, FrameScore, ScoreSpec, counted_geomean};
+use crate::trainer::{self, TrainConfig};
+use crate::{Error, Result};
+use clap::Args;
+use dhoit_runtime::mlp::{Mlp, Precision};
+use dhoit_runtime::raster::Resolution;
+use dhoit_runtime::scene::procedural::BUILTIN;
+use dhoit_runtime::tensors;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+#[derive(Args, Clone, Debug)]
+pub struct GeneraliseArgs {
+    /// Dataset to train the folds on (each fold drops its family's scenes from it). Default:
+    /// the default dataset (data/generated/dataset, generated where missing or stale, as
+    /// `dhoit train` does).
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    /// Families left out in turn, comma separated (default: every built-in generator the
+    /// dataset holds).
+    #[arg(long, value_delimiter = ',')]
+    pub families: Vec<String>,
+    /// Training epochs of each fold (and of the in-distribution network).
+    #[arg(long, default_value_t = TrainConfig::default().epochs)]
+    pub epochs: usize,
+    /// Hidden layer sizes of the folds' networks, H1,H2.
+    #[arg(long, value_delimiter = ',', default_value = "128,64")]
+    pub hidden: Vec<usize>,
+    /// Orbit views of each left-out scene scored, comma separated.
+    #[arg(long = "view", value_delimiter = ',', default_value = "1,3")]
+    pub views: Vec<usize>,
+    /// Resolution the left-out scenes are scored at, WIDTHxHEIGHT.
+    #[arg(long, default_value = "320x240")]
+    pub res: Resolution,
+    /// Budgets scored, comma separated: shares of each frame's fragments (25%) or slots per
+    /// pixel.
+    #[arg(
+        long = "budget",
+        value_delimiter = ',',
+        default_value = "10%,25%,50%,75%,90%,0.25fpp,0.5fpp,1fpp,2fpp,4fpp"
+    )]
+    pub budgets: Vec<Level>,
+    /// One uniform opacity for every surface of the scored scenes (the papers' protocol, as
+    /// `score` takes it). Default: each scene's own, as the default dataset renders them.
+    #[arg(long)]
+    pub opacity: Option<f32>,
+    /// The table (markdown) to write.
+    #[arg(long, default_value = "docs/generalise.md")]
+    pub out: PathBuf,
+    /// Every fold's figures and every frame's score as JSON.
+    #[arg(long, default_value = "out/generalise/generalise.json")]
+    pub json: PathBuf,
+}
+
+/// One family left out.
+#[derive(Clone, Debug, Serialize)]
+pub struct Fold {
+    pub family: String,
+    /// The scenes the fold's network trained on (none of the family's) and validated on.
+    pub train_scenes: Vec<String>,
+    pub validation_scenes: Vec<String>,
+    pub train_samples: usize,
+    /// The scene scored: the family's seed-1 scene, in no dataset.
+    pub scored: String,
+    /// Counted frames (those that truncate).
+    pub frames: usize,
+    /// Geometric means over the counted frames of error / optimal error: the fold's network
+    /// (which never saw the family), the network trained on every family, VKB.
+    pub left_out_over_optimal: f64,
+    pub in_distribution_over_optimal: f64,
+    pub vkb_over_optimal: f64,
+    pub seconds: f64,
+    pub scores: Vec<FrameScore>,
+}
+
+/// What the run wrote.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub data: PathBuf,
+    pub epochs: usize,
+    pub hidden: [usize; 2],
+    pub opacity: Option<f32>,
+    pub folds: Vec<Fold>,
+    /// Over every fold's counted frames together.
+    pub left_out_over_optimal: f64,
+    pub in_distribution_over_optimal: f64,
+    pub vkb_over_optimal: f64,
+    /// The fold whose left-out figure is the highest.
+    pub worst: String,
+    pub worst_over_optimal: f64,
+}
+
+/// The family of a built-in scene name (`hair:3`: `hair`), or None for a file.
+fn family_of(scene: &str) -> Option<&str> {
+    let name = scene.split(':').next()?;
+    BUILTIN.iter().any(|(b, _)| *b == name).then_some(name)
+}
+
+/// `dhoit generalise`.
+pub fn run(a: GeneraliseArgs) -> Result<()> {
+    let [h1, h2] = a.hidden[..] else {
+        return Err(Error::Config(format!(
+            "--hidden takes two sizes, such as 128,64 (got {:?})",
+            a.hidden
+        )));
+    };
+    if a.epochs == 0 {
+        return Err(Error::Config("--epochs: at least 1".into()));
+    }
+    if let Some(o) = a.opacity
+        && !(o > 0.0 && o <= 1.0)
+    {
+        return Err(Error::Config(format!(
+            "--opacity {o}: an opacity is above 0 and at most 1"
+        )));
+    }
+    let data_dir = match &a.data {
+        Some(d) => d.clone(),
+        None => crate::cli::default_dataset()?,
+    };
+    let (manifest, samples) = dataset::load(&data_dir)?;
+    let present = scenes_in(&samples);
+    let held: Vec<&str> = present.iter().filter_map(|s| family_of(s)).collect();
+    let families: Vec<String> = if a.families.is_empty() {
+        BUILTIN
+            .iter()
+            .map(|(b, _)| b.to_string())
+            .filter(|f| held.contains(&f.as_str()))
+            .collect()
+    } else {
+        a.families.clone()
+    };
+    for f in &families {
+        if !held.contains(&f.as_str()) {
+            return Err(Error::Config(format!(
+                "family '{f}' has no scene in the dataset {} (its families: {})",
+                data_dir.display(),
+                dedup(&held).join(", ")
+            )));
+        }
+    }
+    if families.is_empty() {
+        return Err(Error::Config(format!(
+            "the dataset {} holds no built-in family to leave out",
+            data_dir.display()
+        )));
+    }
+    // The report's folders before the long work: a run must not end unable to write.
+    for p in [&a.out, &a.json] {
+        if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            tensors::create_folder(d)?;
+        }
+    }
+    let config = TrainConfig {
+        epochs: a.epochs,
+        hidden: [h1, h2],
+        validation_scenes: validation_in(&manifest.config, &samples, None),
+        ..TrainConfig::default()
+    };
+    config.check()?;
+    let levels = a.budgets.clone();
+    let Resolution { width, height } = a.res;
+    let score_with = |scene: &str, networks: &[Mlp]| -> Result<Vec<FrameScore>> {
+        let scenes = [scene.to_string()];
+        let spec = ScoreSpec {
+            scenes: &scenes,
+            views: &a.views,
+            orbit_views: dhoit_runtime::scene::DEFAULT_VIEWS,
+            width,
+            height,
+            levels: &levels,
+            opacity: a.opacity,
+            networks,
+        };
+        score::score(&spec, &|| {})
+    };
+    eprintln!(
+        "generalise: {} families left out in turn, {} epochs each, {h1}-{h2}, from {} ({} samples)",
+        families.len(),
+        a.epochs,
+        data_dir.display(),
+        samples.len()
+    );
+    let pb = bar(families.len() as u64 + 1, "folds");
+    let all = pb.suspend(|| train_quietly(&config, &samples))?;
+    pb.inc(1);
+    let mut folds = Vec::new();
+    for f in &families {
+        let start = std::time::Instant::now();
+        let keep = |s: &str| family_of(s) != Some(f.as_str());
+        let train = samples.filter_scenes(keep);
+        let fold_config = TrainConfig {
+            validation_scenes: validation_in(&manifest.config, &train, Some(f)),
+            ..config.clone()
+        };
+        let net = pb.suspend(|| train_quietly(&fold_config, &train))?;
+        let scored = format!("{f}:1");
+        let scores = score_with(&scored, &[net, all.clone()])?;
+        let frames = scores.iter().filter(|s| s.counts()).count();
+        let fold = Fold {
+            family: f.clone(),
+            train_scenes: scenes_in(&train),
+            validation_scenes: fold_config.validation_scenes.clone(),
+            train_samples: train.len(),
+            scored,
+            frames,
+            left_out_over_optimal: counted_geomean(&scores, |s| s.dkb_over_optimal(0)),
+            in_distribution_over_optimal: counted_geomean(&scores, |s| s.dkb_over_optimal(1)),
+            vkb_over_optimal: counted_geomean(&scores, FrameScore::vkb_over_optimal),
+            seconds: start.elapsed().as_secs_f64(),
+            scores,
+        };
+        pb.suspend(|| {
+            eprintln!(
+                "fold {:<10} DKB/optimal left out {:.3}, in distribution {:.3}, VKB {:.3} ({} frames, {:.0} s)",
+                fold.family,
+                fold.left_out_over_optimal,
+                fold.in_distribution_over_optimal,
+                fold.vkb_over_optimal,
+                fold.frames,
+                fold.seconds
+            )
+        });
+        folds.push(fold);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let report = summarise(&data_dir, &a, [h1, h2], folds);
+    let text = serde_json::to_string_pretty(&report).expect("json");
+    tensors::write_atomic(&a.json, text.as_bytes())?;
+    let md = markdown(&report, &command_line(&a));
+    tensors::write_atomic(&a.out, md.as_bytes())?;
+    print!("{md}");
+    eprintln!("generalise: -> {}, {}", a.out.display(), a.json.display());
+    Ok(())
+}
+
+/// The scenes `samples` has rows of (its table of names may hold more: a selection keeps it).
+fn scenes_in(samples: &Samples) -> Vec<String> {
+    let mut used = vec![false; samples.scenes.len()];
+    for &i in &samples.scene {
+        used[i as usize] = true;
+    }
+    samples
+        .scenes
+        .iter()
+        .zip(used)
+        .filter(|&(_, u)| u)
+        .map(|(s, _)| s.clone())
+        .collect()
+}
+
+fn dedup(v: &[&str]) -> Vec<String> {
+    let mut out: Vec<String> = v.iter().map(|s| s.to_string()).collect();
+    out.sort();
+    out.dedup();
+    out
+}
+
+/// The validation scenes of a dataset generated by `config` that `samples` still holds, less
+/// those of family `out`: the default's (every family at the validation seed) where the
+/// dataset is the default one, else none (the best epoch by the training loss).
+fn validation_in(config: &DatasetConfig, samples: &Samples, out: Option<&str>) -> Vec<String> {
+    let present = scenes_in(samples);
+    let wanted = match config.scenes == dataset::default_scenes() {
+        true => dataset::default_validation(),
+        false => config
+            .scenes
+            .iter()
+            .filter(|s| s.ends_with(&format!(":{}", dataset::VALIDATION_SEED)))
+            .cloned()
+            .collect(),
+    };
+    wanted
+        .into_iter()
+        .filter(|s| present.contains(s))
+        .filter(|s| out.is_none_or(|f| family_of(s) != Some(f)))
+        .collect()
+}
+
+/// A network trained on `samples` (no output but errors), at the precision `train` deploys.
+fn train_quietly(config: &TrainConfig, samples: &Samples) -> Result<Mlp> {
+    let trained = trainer::train_from(config, samples, None, None, &mut |_, _| {})?;
+    Ok(trained.mlp.at_precision(Precision::F16)?)
+}
+
+fn summarise(data: &Path, a: &GeneraliseArgs, hidden: [usize; 2], folds: Vec<Fold>) -> Report {
+    let every: Vec<FrameScore> = folds.iter().flat_map(|f| f.scores.clone()).collect();
+    let worst = folds
+        .iter()
+        .max_by(|x, y| x.left_out_over_optimal.total_cmp(&y.left_out_over_optimal))
+        .map(|f| (f.family.clone(), f.left_out_over_optimal))
+        .unwrap_or_default();
+    Report {
+        data: data.to_path_buf(),
+        epochs: a.epochs,
+        hidden,
+        opacity: a.opacity,
+        left_out_over_optimal: counted_geomean(&every, |s| s.dkb_over_optimal(0)),
+        in_distribution_over_optimal: counted_geomean(&every, |s| s.dkb_over_optimal(1)),
+        vkb_over_optimal: counted_geomean(&every, FrameScore::vkb_over_optimal),
+        worst: worst.0,
+        worst_over_optimal: worst.1,
+        folds,
+    }
+}
+
+/// The command that reproduces the run (its options as given).
+fn command_line(a: &GeneraliseArgs) -> String {
+    let mut c = String::from("dhoit generalise");
+    if let Some(d) = &a.data {
+        c += &format!(" --data {}", d.display());
+    }
+    if !a.families.is_empty() {
+        c += &format!(" --families {}", a.families.join(","));
+    }
+    c += &format!(" --epochs {} --hidden {}", a.epochs, join(&a.hidden));
+    c += &format!(
+        " --view {} --res {}x{}",
+        join(&a.views),
+        a.res.width,
+        a.res.height
+    );
+    if let Some(o) = a.opacity {
+        c += &format!(" --opacity {o}");
+    }
+    c += &format!(" --out {}", a.out.display());
+    c
+}
+
+fn join<T: ToString>(v: &[T]) -> String {
+    v.iter()
+        .map(|x| x.to_string())
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// The `log` share of VKB's distance to the optimum that DKB closes: 1 at the optimum, 0 at
+/// VKB's error.
+fn closed(dkb: f64, vkb: f64) -> f64 {
+    if vkb <= 1.0 {
+        return 1.0;
+    }
+    1.0 - dkb.max(1.0).ln() / vkb.ln()
+}
+
+fn markdown(r: &Report, command: &str) -> String {
+    let mut s = String::from("# DKB on families it has never seen (leave one out)\n\n");
+    s += &format!(
+        "Written by `{command}`. Each fold trains a {}-{} network for {} epochs on the dataset \
+         ({}) with every scene of one built-in family removed, then scores it with `score`'s \
+         measure (error against the per-pixel optimal allocation, geometric mean over the frames \
+         that truncate) on that family's seed-1 scene, which no dataset holds; beside it the \
+         network trained the same way on every family (in distribution) and VKB. {}.\n\n",
+        r.hidden[0],
+        r.hidden[1],
+        r.epochs,
+        r.data.display(),
+        match r.opacity {
+            Some(o) => format!("Every surface at opacity {o}"),
+            None => "Each scene's own opacity".into(),
+        }
+    );
+    s += "| family left out | frames | DKB/optimal, left out | DKB/optimal, in distribution | VKB/optimal | gap to the optimum closed, left out | in distribution |\n";
+    s += "|---|---:|---:|---:|---:|---:|---:|\n";
+    for f in &r.folds {
+        s += &format!(
+            "| {} | {} | {:.3} | {:.3} | {:.3} | {:.0}% | {:.0}% |\n",
+            f.family,
+            f.frames,
+            f.left_out_over_optimal,
+            f.in_distribution_over_optimal,
+            f.vkb_over_optimal,
+            100.0 * closed(f.left_out_over_optimal, f.vkb_over_optimal),
+            100.0 * closed(f.in_distribution_over_optimal, f.vkb_over_optimal),
+        );
+    }
+    let frames: usize = r.folds.iter().map(|f| f.frames).sum();
+    s += &format!(
+        "| **every fold** | {frames} | **{:.3}** | {:.3} | {:.3} | {:.0}% | {:.0}% |\n\n",
+        r.left_out_over_optimal,
+        r.in_distribution_over_optimal,
+        r.vkb_over_optimal,
+        100.0 * closed(r.left_out_over_optimal, r.vkb_over_optimal),
+        100.0 * closed(r.in_distribution_over_optimal, r.vkb_over_optimal),
+    );
+    s += &format!(
+        "Left out, DKB/optimal {:.3} over every fold (in distribution {:.3}); the worst fold \
+         {} at {:.3}. The gap closed is the share of VKB's log distance to the optimum that \
+         DKB removes.\n",
+        r.left_out_over_optimal, r.in_distribution_over_optimal, r.worst, r.worst_over_optimal
+    );
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_family_is_the_name_of_a_built_in_before_its_seed() {
+        assert_eq!(family_of("hair:3"), Some("hair"));
+        assert_eq!(family_of("hair"), Some("hair"));
+        assert_eq!(family_of("scene.glb"), None);
+        assert_eq!(family_of("hairy:3"), None);
+    }
+
+    #[test]
+    fn the_gap_closed_is_one_at_the_optimum_and_none_at_vkb() {
+        assert_eq!(closed(1.0, 8.0), 1.0);
+        assert_eq!(closed(8.0, 8.0), 0.0);
+        // Half VKB's log distance: sqrt(8) is half of 8's log.
+        assert!((closed(8f64.sqrt(), 8.0) - 0.5).abs() < 1e-12);
+    }
+}
