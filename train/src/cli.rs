@@ -88,7 +88,7 @@ pub fn dataset(a: DatasetArgs) -> Result<()> {
     Ok(())
 }
 
-fn generate(config: &DatasetConfig, out: &Path) -> Result<dataset::Manifest> {
+pub(crate) fn generate(config: &DatasetConfig, out: &Path) -> Result<dataset::Manifest> {
     let frames = config.scenes.len() * config.views;
     eprintln!(
         "dataset: {} scenes x {} views x {} budgets at {}x{} -> {}",
@@ -359,20 +359,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         .to_path_buf();
     // The weights' folder before the data: a training run must not end unable to write them.
     tensors::create_folder(&dir)?;
-    let own_config = if own {
-        let Resolution { width, height } = a.res;
-        Some(DatasetConfig {
-            scenes: a.scenes.clone(),
-            width,
-            height,
-            views: OWN_TRAIN_VIEWS,
-            seed: a.seed,
-            opacity: a.opacity,
-            ..DatasetConfig::default()
-        })
-    } else {
-        None
-    };
+    let own_config = own.then(|| own_dataset(&a.scenes, a.res, a.opacity, a.seed));
     if let Some(c) = &own_config {
         // Before any dataset is generated: a scene with nothing transparent gives no sample.
         check_transparent(&c.scenes, c.opacity)?;
@@ -389,37 +376,9 @@ pub fn train(a: TrainArgs) -> Result<()> {
     if let Some((p, _)) = &init {
         eprintln!("train: fine-tuning {}", p.display());
     }
-    // With your own scenes, the best epoch is the one whose allocations come closest to the
-    // optimal one on the training views (the held-out views stay unseen).
-    let levels: Vec<Level> = HELD_OUT_BUDGETS
-        .split(',')
-        .map(Level::parse)
-        .collect::<Result<_>>()?;
-    // Every other training view: half the cost of judging an epoch.
-    let train_views: Vec<usize> = (0..OWN_TRAIN_VIEWS).step_by(2).collect();
-    let prepared = match &own_config {
-        Some(c) => Some(crate::score::Prepared::new(
-            &crate::score::ScoreSpec {
-                scenes: &c.scenes,
-                views: &train_views,
-                orbit_views: OWN_TRAIN_VIEWS,
-                width: c.width,
-                height: c.height,
-                levels: &levels,
-                opacity: c.opacity,
-                networks: &[],
-            },
-            &|| {},
-        )?),
-        None => None,
-    };
-    let select = |m: &Mlp| -> Result<f64> {
-        let scores = prepared
-            .as_ref()
-            .expect("own scenes")
-            .score(std::slice::from_ref(m));
-        Ok(crate::score::counted_geomean(&scores, |s| s.dkb_over_optimal(0)).ln())
-    };
+    let prepared = own_config.as_ref().map(own_selection).transpose()?;
+    let select =
+        |m: &Mlp| -> Result<f64> { Ok(own_select(prepared.as_ref().expect("own scenes"), m)) };
     if own {
         eprintln!(
             "train: the best epoch is chosen by ln(error / optimal) on the training views (the validation loss below)"
@@ -454,6 +413,56 @@ pub fn train(a: TrainArgs) -> Result<()> {
         held_out(c, start, &mlp, &out, &dir)?;
     }
     Ok(())
+}
+
+/// The dataset `train --scene` fine-tunes on: `scenes`' training views ([`OWN_TRAIN_VIEWS`]
+/// at `res`), at `opacity` (None: their own materials).
+pub fn own_dataset(
+    scenes: &[String],
+    res: Resolution,
+    opacity: Option<f32>,
+    seed: u64,
+) -> DatasetConfig {
+    DatasetConfig {
+        scenes: scenes.to_vec(),
+        width: res.width,
+        height: res.height,
+        views: OWN_TRAIN_VIEWS,
+        seed,
+        opacity,
+        ..DatasetConfig::default()
+    }
+}
+
+/// What fine-tuning judges an epoch by: the frames of every other training view of `c`
+/// (half the cost), at [`HELD_OUT_BUDGETS`], prepared once ([`own_select`]); the held-out
+/// views stay unseen.
+pub fn own_selection(c: &DatasetConfig) -> Result<crate::score::Prepared> {
+    let levels: Vec<Level> = HELD_OUT_BUDGETS
+        .split(',')
+        .map(Level::parse)
+        .collect::<Result<_>>()?;
+    let train_views: Vec<usize> = (0..OWN_TRAIN_VIEWS).step_by(2).collect();
+    crate::score::Prepared::new(
+        &crate::score::ScoreSpec {
+            scenes: &c.scenes,
+            views: &train_views,
+            orbit_views: OWN_TRAIN_VIEWS,
+            width: c.width,
+            height: c.height,
+            levels: &levels,
+            opacity: c.opacity,
+            networks: &[],
+        },
+        &|| {},
+    )
+}
+
+/// An epoch's network judged as fine-tuning judges it: `ln` of its error over the optimal
+/// allocation's on `prepared`'s frames (lower is better).
+pub fn own_select(prepared: &crate::score::Prepared, m: &Mlp) -> f64 {
+    let scores = prepared.score(std::slice::from_ref(m));
+    crate::score::counted_geomean(&scores, |s| s.dkb_over_optimal(0)).ln()
 }
 
 /// The training's configuration from the command line: the defaults of a training from the
