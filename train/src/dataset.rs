@@ -41,16 +41,36 @@ pub fn opacity_of(uniform: Option<f32>) -> Opacity {
 }
 
 /// Loads scenes as training and scoring see them: at one opacity or their own, their glass
-/// tinted, as the command line renders it (`--glass tinted`).
+/// tinted, as the command line renders it (`--glass tinted`). A name `NAME@A` is NAME with
+/// every surface at opacity A whatever `opacity` says, so one set can hold a scene with its
+/// own materials and at one opacity side by side ([`scene_and_opacity`]).
 pub fn load_scenes(names: &[String], opacity: Option<f32>) -> Result<Vec<scene::Scene>> {
     names
         .iter()
         .map(|name| {
+            let (name, opacity) = scene_and_opacity(name, opacity)?;
             let mut s = scene::load(name, opacity_of(opacity))?;
             s.glass = scene::Glass::Tinted;
             Ok(s)
         })
         .collect()
+}
+
+/// The scene a set's `name` loads and its opacity: `NAME@A` (A a number) is NAME at opacity A,
+/// which must be above 0 and at most 1; any other name is itself at the set's `opacity`.
+pub fn scene_and_opacity(name: &str, opacity: Option<f32>) -> Result<(&str, Option<f32>)> {
+    let Some((scene, a)) = name
+        .rsplit_once('@')
+        .and_then(|(n, a)| a.parse::<f32>().ok().map(|a| (n, a)))
+    else {
+        return Ok((name, opacity));
+    };
+    if !(a > 0.0 && a <= 1.0) {
+        return Err(Error::Config(format!(
+            "scene {name}: opacity {a} after '@' is not above 0 and at most 1"
+        )));
+    }
+    Ok((scene, Some(a)))
 }
 
 pub const MANIFEST: &str = "manifest.json";
@@ -590,4 +610,23 @@ pub fn load(dir: &Path) -> Result<(Manifest, Samples)> {
             .push(u32::from(shard.budget_fragments >= shard.covered_pixels));
     }
     Ok((manifest, samples))
+}
+
+#[cfg(test)]
+mod scene_name_tests {
+    #[test]
+    fn a_scene_name_may_carry_its_own_opacity() {
+        use super::scene_and_opacity as of;
+        assert_eq!(of("hair:3", None).unwrap(), ("hair:3", None));
+        assert_eq!(of("hair:3", Some(0.5)).unwrap(), ("hair:3", Some(0.5)));
+        assert_eq!(of("a/b.glb@0.33", None).unwrap(), ("a/b.glb", Some(0.33)));
+        assert_eq!(
+            of("a/b.glb@0.33", Some(0.9)).unwrap(),
+            ("a/b.glb", Some(0.33))
+        );
+        // Not a number after '@': part of the name.
+        assert_eq!(of("a@b/c.glb", None).unwrap(), ("a@b/c.glb", None));
+        assert!(of("c.glb@1.5", None).is_err());
+        assert!(of("c.glb@0", None).is_err());
+    }
 }
