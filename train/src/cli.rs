@@ -17,6 +17,8 @@ use std::path::{Path, PathBuf};
 /// Where the default dataset is generated (ignored by git).
 pub const DEFAULT_DATA: &str = "data/generated/dataset";
 pub const DEFAULT_WEIGHTS: &str = "data/weights.safetensors";
+/// The budgets `score` and `generalise` score at by default: the eval's ten.
+pub const SCORE_BUDGETS: &str = "10%,25%,50%,75%,90%,0.25fpp,0.5fpp,1fpp,2fpp,4fpp";
 
 #[derive(Args, Clone, Debug)]
 pub struct DatasetArgs {
@@ -280,10 +282,7 @@ fn write_trained(
     precision: Precision,
     out: &Path,
 ) -> Result<Mlp> {
-    let dir = out
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    let dir = folder_of(out);
     let best = &trained.history[trained.best_epoch];
     let summary = serde_json::json!({
         "train": config,
@@ -339,12 +338,7 @@ fn write_trained(
 
 /// `dhoit train`.
 pub fn train(a: TrainArgs) -> Result<()> {
-    let [h1, h2] = a.hidden[..] else {
-        return Err(Error::Config(format!(
-            "--hidden takes two sizes, such as 128,64 (got {:?})",
-            a.hidden
-        )));
-    };
+    let [h1, h2] = hidden_sizes(&a.hidden)?;
     let own = !a.scenes.is_empty();
     let out = out_path(&a, own);
     let default_weights = Path::new(DEFAULT_WEIGHTS);
@@ -352,11 +346,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
     let config = train_config(&a, own, [h1, h2]);
     // Before any dataset is generated or loaded.
     config.check()?;
-    let dir = out
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."))
-        .to_path_buf();
+    let dir = folder_of(&out).to_path_buf();
     // The weights' folder before the data: a training run must not end unable to write them.
     tensors::create_folder(&dir)?;
     let own_config = own.then(|| own_dataset(&a.scenes, a.res, a.opacity, a.seed));
@@ -415,6 +405,23 @@ pub fn train(a: TrainArgs) -> Result<()> {
     Ok(())
 }
 
+/// The two hidden layers' sizes of `--hidden`.
+pub(crate) fn hidden_sizes(hidden: &[usize]) -> Result<[usize; 2]> {
+    match hidden {
+        &[h1, h2] => Ok([h1, h2]),
+        _ => Err(Error::Config(format!(
+            "--hidden takes two sizes, such as 128,64 (got {hidden:?})"
+        ))),
+    }
+}
+
+/// The folder an output file goes in (`.` for a bare file name).
+pub(crate) fn folder_of(path: &Path) -> &Path {
+    path.parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+}
+
 /// The dataset `train --scene` fine-tunes on: `scenes`' training views ([`OWN_TRAIN_VIEWS`]
 /// at `res`), at `opacity` (None: their own materials).
 pub fn own_dataset(
@@ -471,12 +478,8 @@ pub fn own_select(prepared: &crate::score::Prepared, m: &Mlp) -> f64 {
 /// Refuses, naming it, a scene of `scenes` (at `opacity`) with no transparent surface: its
 /// frames have no fragment to allocate a slot to, so nothing to train on.
 fn check_transparent(scenes: &[String], opacity: Option<f32>) -> Result<()> {
-    if let Some(o) = opacity
-        && !(o > 0.0 && o <= 1.0)
-    {
-        return Err(Error::Config(format!(
-            "--opacity {o}: an opacity is above 0 and at most 1"
-        )));
+    if let Some(o) = opacity {
+        dataset::check_opacity(o, format!("--opacity {o}"))?;
     }
     for (name, s) in scenes.iter().zip(dataset::load_scenes(scenes, opacity)?) {
         if !(0..s.triangle_count()).any(|t| s.transparent(t)) {
@@ -772,7 +775,7 @@ pub struct ScoreArgs {
     #[arg(
         long = "budget",
         value_delimiter = ',',
-        default_value = "10%,25%,50%,75%,90%,0.25fpp,0.5fpp,1fpp,2fpp,4fpp"
+        default_value = SCORE_BUDGETS
     )]
     pub budgets: Vec<Level>,
     /// One uniform opacity for every surface (the papers' protocol). Default: each scene's

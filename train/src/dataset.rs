@@ -65,12 +65,20 @@ pub fn scene_and_opacity(name: &str, opacity: Option<f32>) -> Result<(&str, Opti
     else {
         return Ok((name, opacity));
     };
-    if !(a > 0.0 && a <= 1.0) {
-        return Err(Error::Config(format!(
-            "scene {name}: opacity {a} after '@' is not above 0 and at most 1"
-        )));
-    }
+    check_opacity(a, format!("scene {name}"))?;
     Ok((scene, Some(a)))
+}
+
+/// Refuses a uniform opacity that is not above 0 and at most 1, the message starting with
+/// `what` (where it was given: `--opacity 1.5`, `scene s.glb@1.5`). Commands check it before
+/// their work; the scene loader would refuse it only when it loads.
+pub fn check_opacity(a: f32, what: impl std::fmt::Display) -> Result<()> {
+    if a > 0.0 && a <= 1.0 {
+        return Ok(());
+    }
+    Err(Error::Config(format!(
+        "{what}: an opacity is above 0 and at most 1"
+    )))
 }
 
 pub const MANIFEST: &str = "manifest.json";

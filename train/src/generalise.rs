@@ -8,7 +8,7 @@
 //! kind the network never saw). Every network is scored on the views fine-tuning holds out.
 //! The figure to improve is the left-out one: the mean over the folds and the worst fold.
 
-use crate::cli::{OWN_EPOCHS, OWN_HELD_OUT, OWN_LR, bar};
+use crate::cli::{OWN_EPOCHS, OWN_HELD_OUT, OWN_LR, SCORE_BUDGETS, bar, folder_of};
 use crate::dataset::{self, DatasetConfig, Level, Samples};
 use crate::score::{self, FrameScore, ScoreSpec, counted_geomean};
 use crate::trainer::{self, TrainConfig};
@@ -58,7 +58,7 @@ pub struct GeneraliseArgs {
     #[arg(
         long = "budget",
         value_delimiter = ',',
-        default_value = "10%,25%,50%,75%,90%,0.25fpp,0.5fpp,1fpp,2fpp,4fpp"
+        default_value = SCORE_BUDGETS
     )]
     pub budgets: Vec<Level>,
     /// One uniform opacity for every surface of the scored scenes (the papers' protocol, as
@@ -122,21 +122,12 @@ fn family_of(scene: &str) -> Option<&str> {
 
 /// `dhoit generalise`.
 pub fn run(a: GeneraliseArgs) -> Result<()> {
-    let [h1, h2] = a.hidden[..] else {
-        return Err(Error::Config(format!(
-            "--hidden takes two sizes, such as 128,64 (got {:?})",
-            a.hidden
-        )));
-    };
+    let [h1, h2] = crate::cli::hidden_sizes(&a.hidden)?;
     if a.epochs == 0 {
         return Err(Error::Config("--epochs: at least 1".into()));
     }
-    if let Some(o) = a.opacity
-        && !(o > 0.0 && o <= 1.0)
-    {
-        return Err(Error::Config(format!(
-            "--opacity {o}: an opacity is above 0 and at most 1"
-        )));
+    if let Some(o) = a.opacity {
+        dataset::check_opacity(o, format!("--opacity {o}"))?;
     }
     let data_dir = match &a.data {
         Some(d) => d.clone(),
@@ -171,9 +162,7 @@ pub fn run(a: GeneraliseArgs) -> Result<()> {
     }
     // The report's folders before the long work: a run must not end unable to write.
     for p in [&a.out, &a.json] {
-        if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-            tensors::create_folder(d)?;
-        }
+        tensors::create_folder(folder_of(p))?;
     }
     let config = TrainConfig {
         epochs: a.epochs,
@@ -318,11 +307,7 @@ fn train_quietly(config: &TrainConfig, samples: &Samples) -> Result<Mlp> {
 
 /// Where a fold's fine-tuning dataset goes: beside the JSON report.
 fn fold_dir(json: &Path, family: &str) -> PathBuf {
-    let base = json
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    base.join(format!("fold-{family}"))
+    folder_of(json).join(format!("fold-{family}"))
 }
 
 /// `net` fine-tuned on `scene` as `dhoit train --scene` does it: its training views' dataset
