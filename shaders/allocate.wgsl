@@ -92,10 +92,9 @@ fn st_add(i: u32, v: u32) {
 @group(0) @binding(8) var<storage, read_write> dispatches: array<u32, ALLOC_DISPATCHES * DISPATCH_WORDS>;
 
 
-// The workgroup's totals in SEARCH_COPIES copies: invocation lid adds to copy lid %
+// The workgroup's totals in SEARCH_COPIES copies (a definition the pass composes in): invocation lid adds to copy lid %
 // SEARCH_COPIES, so with more than one, neighbouring invocations' atomics do not wait on one
 // address (Tuning::spread_search builds it with 32; on lavapipe one is faster).
-const SEARCH_COPIES: u32 = 1u;
 var<workgroup> partial: array<atomic<u32>, ALLOC_CANDIDATES * SEARCH_COPIES>;
 
 // The span setup leaves for the first round: the bracket's candidates (bracket_at) instead of

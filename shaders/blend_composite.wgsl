@@ -86,7 +86,7 @@ fn mboit(
 // An application's frame (gpu::BlendedOit::resolve): over its own image `under`, onto its
 // target. Its targets are cleared by its next frame's first pass (their load operation).
 @group(0) @binding(8) var under: texture_2d<f32>;
-@group(0) @binding(9) var onto_target: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(9) var onto_target: OntoTexture;
 
 @compute @workgroup_size(PIXEL_GROUP)
 fn wboit_onto(

@@ -44,11 +44,10 @@
 @group(1) @binding(4) var<storage, read_write> count: array<atomic<u32>>;
 
 // Whether the frame's budget holds every fragment, so k(p) = n(p) for every pixel (a pipeline
-// of its own, built with this set true, for the allocated k-buffers alone: their tails
+// of its own, defined true (wgsl::shaders::Pass::defines), for the allocated k-buffers alone: their tails
 // pooled, such a frame keeps none): each pixel's k is its slot bases' difference, and a pixel
 // of at most APPEND_MAX fragments appends with no other load; the deeper ones insert as above
-// (nothing is pushed out).
-const EVERY_FRAGMENT_FITS: bool = false;
+// (nothing is pushed out). EVERY_FRAGMENT_FITS is a definition the pass composes in.
 
 // Where slot i of pixel p lies (kbuffer_insert.wgsl's oit_insert and oit_to_tail run here).
 fn oit_slot_at(base: u32, i: u32, p: u32) -> u32 {

@@ -41,10 +41,9 @@
 // A fragment's optical depth by its 8-bit opacity (importance::optical_depth_table), four to a
 // vec4.
 @group(1) @binding(2) var<uniform> optical_depth: array<vec4<u32>, 64>;
-// Whether the nearest key is loaded first, and atomicMax issued only where it can change it
+// PRELOAD_NEAREST (a definition the pass composes in): whether the nearest key is loaded first, and atomicMax issued only where it can change it
 // (gpu::Gpu::features_preload): fewer atomics, but the load waits for its value, where a GPU
 // issues an atomicMax whose result is unused without waiting.
-const PRELOAD_NEAREST: bool = true;
 
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {

@@ -48,13 +48,12 @@ fn planned_f() -> u32 {
 // The network entry's indirect dispatch: workgroups x, y, z.
 @group(0) @binding(10) var<storage, read_write> dispatch: array<u32, DISPATCH_WORDS>;
 
-// Skip the network where k does not depend on it (Mlp::dkb_importance): a pixel whose useful
+// SKIP_FORCED (a definition the pass composes in): skip the network where k does not depend on it (Mlp::dkb_importance): a pixel whose useful
 // cap is the frame's smallest k, lo (mlp::forced: n <= lo + 2, the pair mark on every pixel as
 // the tails are pooled; lo is 1 where F covers every covered pixel, as at 2 fpp) gets
 // importance 0 with its pair mark. The bench builds this pass once more with it false
 // (Tuning::skip_forced off) to show the time saved. Every pixel of a frame whose budget holds all its fragments gets 0, unmarked,
 // either way: its features pass drew nothing (features.wgsl), and k = n whatever it gets.
-const SKIP_FORCED: bool = true;
 
 // Sum r, g, b of record r's fragments (features.wgsl's packing: r and g 24 bits each in the
 // first colour-sum word, then n; b in the second's low half).

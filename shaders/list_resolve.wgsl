@@ -142,7 +142,7 @@ fn main(
 
 // An application's frame (gpu::ListOit's resolve): over its own image `under`, onto its target.
 @group(0) @binding(6) var under: texture_2d<f32>;
-@group(0) @binding(7) var onto_target: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(7) var onto_target: OntoTexture;
 
 @compute @workgroup_size(PIXEL_GROUP)
 fn onto(

@@ -9,18 +9,22 @@
 // (f16) of the uniform, so no inner loop indexes into a vector: the uniform is read at
 // addresses every invocation shares, a broadcast on GPUs.
 
-@group(0) @binding(1) var<uniform> weights: array<vec4<u32>, MLP_VEC4S>;
+@group(0) @binding(1) var<uniform> weights: array<vec4<u32>, NET_VEC4S>;
 
 // Standardised inputs are clamped to MAX_STANDARDISED, so no sum overflows; the pass holds a
 // second hidden layer of at most MAX_H2 units (both from the prelude).
 
-// The weights' precision (mlp::Precision): the f16 variant of a pass is built with this true.
-const F16_WEIGHTS: bool = false;
-
-// Whether the DKB importance pass stages the first two layers' weights in workgroup memory,
-// TILE_UNITS first-layer units at a time, shared by the workgroup's pixels
-// (mlp_forward_shared), instead of reading them from the uniform (gpu::Gpu::shared_weights).
-const SHARED_WEIGHTS: bool = false;
+// The definitions a network pass composes in (wgsl::shaders::Pass::defines; gpu::Variant
+// gives a variant's): F16_WEIGHTS, the weights' precision (mlp::Precision: true for binary16);
+// SHARED_WEIGHTS, whether the DKB importance pass stages the first two layers' weights in
+// workgroup memory, TILE_UNITS first-layer units at a time, shared by the workgroup's pixels
+// (mlp_forward_shared), instead of reading them from the uniform (gpu::Gpu::shared_weights);
+// NET_P1 and NET_P2, the padded sizes (p1, p2) where the pass is built for one network shape:
+// loops of known length (0: read from the uniform); ACC2_VEC4S, the second layer's sums (p2
+// floats where the shape is known, else the largest network's); NET_VEC4S, the weights
+// uniform's vec4s, as large as the network's (mlp::uniform_bytes): the buffer bound is sized
+// to it. The forward the pass calls, mlp_forward, is composed in too: the loops below
+// (wgsl::shaders::MLP_LOOP), or one written out for the network's shape.
 const TILE_UNITS: u32 = 16u;
 // A tile: fc1's 12 x TILE_UNITS weights (input-major), TILE_UNITS biases, then TILE_UNITS rows
 // of fc2 (p2 weights each), in vec4s.
@@ -29,11 +33,6 @@ const TILE_B1: u32 = FEATURES * TILE_UNITS / 4u;
 const TILE_W2: u32 = TILE_B1 + TILE_UNITS / 4u;
 var<workgroup> tile: array<vec4<f32>, TILE_W2 + TILE_UNITS * MAX_H2 / 4u>;
 
-// The padded sizes (p1, p2) when the pass is built for one network shape (gpu::Variant): loops
-// of known length, and the second layer's sums in exactly p2 floats. 0: read from the uniform.
-const NET_P1: u32 = 0u;
-const NET_P2: u32 = 0u;
-const ACC2_VEC4S: u32 = MAX_H2 / 4u;
 
 // Four parameters from index `i` of the unpadded-header f32 layout (a multiple of four past
 // MLP_W1_AT); at f16 unpacked exactly from binary16.
@@ -187,7 +186,7 @@ fn add_tile_row(acc2: ptr<function, array<vec4<f32>, ACC2_VEC4S>>, a: f32, row: 
     }
 }
 
-fn mlp_forward(f: array<f32, FEATURES>) -> f32 {
+fn mlp_forward_loop(f: array<f32, FEATURES>) -> f32 {
     let shape = net_shape();
     let p1 = shape.x;
     let p2 = shape.y;

@@ -91,10 +91,10 @@ fn too_deep(p: u32, n: u32) -> bool {
 }
 
 // Whether the frame's budget holds every fragment, so k(p) = n(p) for every pixel (a pipeline
-// of its own, built with this set true, beside capture.wgsl's, for the allocated k-buffers
+// of its own, defined true (wgsl::shaders::Pass::defines), beside capture.wgsl's, for the allocated k-buffers
 // alone): k is the slot bases' difference, no pixel keeps a tail, and only the appended pixels
-// (at most APPEND_MAX fragments) are sorted, their counts put back.
-const EVERY_FRAGMENT_FITS: bool = false;
+// (at most APPEND_MAX fragments) are sorted, their counts put back: EVERY_FRAGMENT_FITS, a
+// definition the pass composes in.
 
 // The keys of slots [base, base + n) in decreasing order (nearest first), by insertion (at most
 // APPEND_MAX (APPEND_MAX - 1) / 2 steps); where the frame stores tint words, those moved with
@@ -247,7 +247,7 @@ fn main(
 // target; the slots and the tail are left as the capture filled them, and cleared by the
 // application's next frame (KBufferOit::clear).
 @group(0) @binding(8) var under: texture_2d<f32>;
-@group(0) @binding(9) var onto_target: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(9) var onto_target: OntoTexture;
 
 @compute @workgroup_size(PIXEL_GROUP)
 fn onto(

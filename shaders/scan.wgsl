@@ -28,9 +28,9 @@
 
 const SCAN_ITEMS: u32 = SCAN_BLOCK / SCAN_GROUP;
 
-// Whether this build scans the allocation's marks (the popcounts of their words, one a
-// MARK_BITS pixels: gpu::scan's Scan::Marks) rather than a value a pixel.
-const SCAN_OF_MARKS: bool = false;
+// SCAN_OF_MARKS (a definition the pass composes in): whether this build scans the allocation's
+// marks (the popcounts of their words, one a MARK_BITS pixels: gpu::scan's Scan::Marks) rather
+// than a value a pixel.
 
 // The values scanned: one a pixel, or a word of marks' popcount every MARK_BITS pixels.
 fn scan_length() -> u32 {

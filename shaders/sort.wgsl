@@ -82,7 +82,7 @@ fn write_pixel(p: u32, c: vec3<f32>) {
 // An application's frame (gpu::ExactOit::resolve, the `onto` entries): over its own image
 // `under`, onto its target.
 @group(0) @binding(8) var under: texture_2d<f32>;
-@group(0) @binding(9) var onto_target: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(9) var onto_target: OntoTexture;
 
 // What the application's image holds at pixel p.
 fn under_pixel(p: u32) -> vec3<f32> {

@@ -43,7 +43,41 @@ pub mod shaders {
         pub name: &'static str,
         pub source: &'static str,
         pub includes: &'static [&'static str],
+        /// The definitions its code reads and no shader file declares: each a WGSL `const` (a
+        /// storage texture's type an `alias`) composed in after the prelude, with the value
+        /// the pass is built with unless a variant of it gives another ([`source_with`]). A
+        /// variant of a pass is its definitions, never an edit of its text.
+        pub defines: &'static [(&'static str, Value)],
     }
+
+    /// The network passes' forward where the pass runs mlp.wgsl's loops over any shape; a
+    /// pass built for one shape composes the forward written out for it in its place
+    /// ([`compose`]).
+    pub const MLP_LOOP: &str =
+        "fn mlp_forward(f: array<f32, FEATURES>) -> f32 {\n    return mlp_forward_loop(f);\n}\n";
+
+    /// The definitions of the passes that run the network (mlp.wgsl): its weights in f32
+    /// words, read from the uniform, its sizes read from the uniform's header (NET_P1 and
+    /// NET_P2 0), the second layer's sums as many as the largest network's, the uniform the
+    /// default network's size.
+    const NETWORK_DEFINES: [(&str, Value); 6] = [
+        ("F16_WEIGHTS", Value::Bool(false)),
+        ("SHARED_WEIGHTS", Value::Bool(false)),
+        ("NET_P1", Value::U32(0)),
+        ("NET_P2", Value::U32(0)),
+        ("ACC2_VEC4S", Value::U32(crate::mlp::MAX_H2 as u32 / 4)),
+        (
+            "NET_VEC4S",
+            Value::U32((crate::budget::MLP_UNIFORM_BYTES / 16) as u32),
+        ),
+    ];
+
+    /// What a resolve writes onto (an application's target; dhoit's own is rgba32float).
+    const ONTO: (&str, Value) = ("OntoTexture", Value::StorageTexture("rgba32float"));
+    /// A capture built for frames whose budget holds every fragment, or in general.
+    const FITS: (&str, Value) = ("EVERY_FRAGMENT_FITS", Value::Bool(false));
+    /// DKB's features pass loads a pixel's nearest key before its atomicMax.
+    const PRELOAD: (&str, Value) = ("PRELOAD_NEAREST", Value::Bool(true));
 
     /// Unsigned 64-bit arithmetic in two 32-bit words, for the passes that run without u64.
     pub const U64: &str = include_str!("../../shaders/u64.wgsl");
@@ -89,28 +123,24 @@ pub mod shaders {
         format!("@fragment\nfn {entry}(in: VertexOut, @builtin(front_facing) front: bool) -> ")
     }
 
-    /// Geometry pass `name` with each (from, to) of `redeclare` replaced and its fragment
-    /// entry `entry` (returning `ret`) made `fn oit_phase(in, front) -> ret`, its group 1 at
-    /// `OIT_GROUP`, and the includes it needs beside the vertex stage. None for a pass that is
-    /// not a geometry pass, an entry it lacks, or a declaration the pass lacks.
+    /// Geometry pass `name` with its fragment entry `entry` (returning `ret`) made `fn
+    /// oit_phase(in, front) -> ret`, its group 1 at `OIT_GROUP`, and its definitions (`given`
+    /// where given, [`Pass::defines`]) with the includes it needs beside the vertex stage. None
+    /// for a pass that is not a geometry pass, an entry it lacks, or a definition it does not
+    /// have.
     fn phase_of(
         name: &str,
         entry: &str,
         ret: &str,
-        redeclare: &[(&str, &str)],
+        given: &[(&str, Value)],
     ) -> Option<(String, String)> {
         let p = PASSES.iter().find(|p| p.name == name)?;
         let header = format!("{}{ret} {{", entry_header(entry));
         if !p.includes.contains(&GEOMETRY) || !p.source.contains(&header) {
             return None;
         }
-        let mut src = p.source.to_string();
-        for (from, to) in redeclare {
-            if !src.contains(from) {
-                return None;
-            }
-            src = src.replace(from, to);
-        }
+        let definitions = definitions(p, given)?;
+        let src = p.source;
         let own = ret.strip_prefix("@location(0) ").unwrap_or(ret);
         let src = src
             .replacen(
@@ -126,20 +156,19 @@ pub mod shaders {
             .filter(|i| *i != GEOMETRY)
             .collect();
         // The includes' group 1 bindings (the tint pass's, DKB's features') move with the pass's.
-        let includes = includes
-            .join("\n")
+        let includes = format!("{definitions}\n{}", includes.join("\n"))
             .replace("@group(1)", "@group(OIT_GROUP)");
         Some((src, includes))
     }
 
-    /// Geometry pass `name`'s source, with each (from, to) of `redeclare` replaced (a variant of
-    /// the pass), as the module an application's transparent fragment shader starts with. Its
-    /// group 1 moves to `group`, the parameters and the opaque depth join it at bindings 14
-    /// and 15 (oit_phase.wgsl), and its fragment entry becomes the function that
-    /// `oit_store(frag_coord, color)` calls. None for a pass that is not a geometry pass, or
-    /// a declaration the pass lacks.
-    pub fn application_pass(name: &str, redeclare: &[(&str, &str)], group: u32) -> Option<String> {
-        let (src, includes) = phase_of(name, "fs_main", "@location(0) vec4<f32>", redeclare)?;
+    /// Geometry pass `name`'s source with the definitions `given` (a variant of the pass), as
+    /// the module an application's transparent fragment shader starts with. Its group 1 moves
+    /// to `group`, the parameters and the opaque depth join it at bindings 14 and 15
+    /// (oit_phase.wgsl), and its fragment entry becomes the function that
+    /// `oit_store(frag_coord, color)` calls. None for a pass that is not a geometry pass, or a
+    /// definition the pass does not have.
+    pub fn application_pass(name: &str, given: &[(&str, Value)], group: u32) -> Option<String> {
+        let (src, includes) = phase_of(name, "fs_main", "@location(0) vec4<f32>", given)?;
         Some(application_module(
             &[
                 &prelude(),
@@ -218,191 +247,265 @@ pub mod shaders {
             name: "opaque",
             source: include_str!("../../shaders/opaque.wgsl"),
             includes: &[GEOMETRY],
+            defines: &[],
         },
         Pass {
             name: "abuffer_count",
             source: include_str!("../../shaders/abuffer_count.wgsl"),
             includes: &[GEOMETRY],
+            defines: &[],
         },
         Pass {
             name: "scan",
             source: include_str!("../../shaders/scan.wgsl"),
             includes: &[],
+            defines: &[("SCAN_OF_MARKS", Value::Bool(false))],
         },
         Pass {
             name: "abuffer_store",
             source: include_str!("../../shaders/abuffer_store.wgsl"),
             includes: &[GEOMETRY],
+            defines: &[],
         },
         Pass {
             name: "abuffer_resolve",
             source: include_str!("../../shaders/abuffer_resolve.wgsl"),
             includes: &[SORT, BEHIND],
+            defines: &[ONTO],
         },
         Pass {
             name: "capture",
             source: include_str!("../../shaders/capture.wgsl"),
             includes: &[GEOMETRY, KBUFFER_INSERT],
+            defines: &[FITS],
         },
         Pass {
             name: "capture_depths",
             source: include_str!("../../shaders/capture.wgsl"),
-            includes: &[
-                GEOMETRY,
-                KBUFFER_PORTABLE,
-                "const CAPTURE_COLOURS: bool = false;",
-            ],
+            includes: &[GEOMETRY, KBUFFER_PORTABLE],
+            defines: &[FITS, ("CAPTURE_COLOURS", Value::Bool(false))],
         },
         Pass {
             name: "capture_colours",
             source: include_str!("../../shaders/capture.wgsl"),
-            includes: &[
-                GEOMETRY,
-                KBUFFER_PORTABLE,
-                "const CAPTURE_COLOURS: bool = true;",
-            ],
+            includes: &[GEOMETRY, KBUFFER_PORTABLE],
+            defines: &[FITS, ("CAPTURE_COLOURS", Value::Bool(true))],
         },
         Pass {
             name: "capture_tints",
             source: include_str!("../../shaders/capture.wgsl"),
             includes: &[GEOMETRY, KBUFFER_TINT],
+            defines: &[FITS],
         },
         Pass {
             name: "resolve",
             source: include_str!("../../shaders/resolve.wgsl"),
             includes: &[BEHIND],
+            defines: &[FITS, ONTO],
         },
         Pass {
             name: "mlab_resolve",
             source: include_str!("../../shaders/mlab_resolve.wgsl"),
             includes: &[SORT, BEHIND],
+            defines: &[ONTO],
         },
         Pass {
             name: "wboit_accumulate",
             source: include_str!("../../shaders/wboit_accumulate.wgsl"),
             includes: &[GEOMETRY],
+            defines: &[],
         },
         Pass {
             name: "mboit_moments",
             source: include_str!("../../shaders/mboit_moments.wgsl"),
             includes: &[GEOMETRY, MBOIT],
+            defines: &[],
         },
         Pass {
             name: "mboit_accumulate",
             source: include_str!("../../shaders/mboit_accumulate.wgsl"),
             includes: &[GEOMETRY, MBOIT],
+            defines: &[],
         },
         Pass {
             name: "blend_composite",
             source: include_str!("../../shaders/blend_composite.wgsl"),
             includes: &[BEHIND],
+            defines: &[ONTO],
         },
         Pass {
             name: "list_store",
             source: include_str!("../../shaders/list_store.wgsl"),
             includes: &[GEOMETRY],
+            defines: &[],
         },
         Pass {
             name: "list_resolve",
             source: include_str!("../../shaders/list_resolve.wgsl"),
             includes: &[BEHIND],
+            defines: &[ONTO],
         },
         Pass {
             name: "allocate",
             source: include_str!("../../shaders/allocate.wgsl"),
             includes: &[U64],
+            defines: &[("SEARCH_COPIES", Value::U32(1))],
         },
         Pass {
             name: "features",
             source: include_str!("../../shaders/features.wgsl"),
             includes: &[GEOMETRY, RECORDS, FEATURES_WIDE, FEATURES_BATCH],
+            defines: &[PRELOAD],
         },
         Pass {
             name: "features_depths",
             source: include_str!("../../shaders/features.wgsl"),
-            includes: &[
-                GEOMETRY,
-                RECORDS,
-                FEATURES_PORTABLE,
-                "const FEATURES_COLOURS: bool = false;",
-                FEATURES_BATCH,
-            ],
+            includes: &[GEOMETRY, RECORDS, FEATURES_PORTABLE, FEATURES_BATCH],
+            defines: &[PRELOAD, ("FEATURES_COLOURS", Value::Bool(false))],
         },
         Pass {
             name: "features_colours",
             source: include_str!("../../shaders/features.wgsl"),
-            includes: &[
-                GEOMETRY,
-                RECORDS,
-                FEATURES_PORTABLE,
-                "const FEATURES_COLOURS: bool = true;",
-                FEATURES_BATCH,
-            ],
+            includes: &[GEOMETRY, RECORDS, FEATURES_PORTABLE, FEATURES_BATCH],
+            defines: &[PRELOAD, ("FEATURES_COLOURS", Value::Bool(true))],
         },
         Pass {
             name: "count_features",
             source: include_str!("../../shaders/features.wgsl"),
             includes: &[GEOMETRY, RECORDS, FEATURES_WIDE, FEATURES_COUNT],
+            defines: &[PRELOAD],
         },
         Pass {
             name: "count_features_depths",
             source: include_str!("../../shaders/features.wgsl"),
-            includes: &[
-                GEOMETRY,
-                RECORDS,
-                FEATURES_PORTABLE,
-                "const FEATURES_COLOURS: bool = false;",
-                FEATURES_COUNT,
-            ],
+            includes: &[GEOMETRY, RECORDS, FEATURES_PORTABLE, FEATURES_COUNT],
+            defines: &[PRELOAD, ("FEATURES_COLOURS", Value::Bool(false))],
         },
         Pass {
             name: "totals",
             source: include_str!("../../shaders/totals.wgsl"),
             includes: &[RECORDS],
+            defines: &[],
         },
         Pass {
             name: "plan",
             source: include_str!("../../shaders/plan.wgsl"),
             includes: &[U64],
+            defines: &[],
         },
         Pass {
             name: "importance_dkb",
             source: include_str!("../../shaders/importance_dkb.wgsl"),
-            includes: &[U64, MLP, RECORDS],
+            includes: &[U64, MLP, MLP_LOOP, RECORDS],
+            defines: &[
+                ("SKIP_FORCED", Value::Bool(true)),
+                NETWORK_DEFINES[0],
+                NETWORK_DEFINES[1],
+                NETWORK_DEFINES[2],
+                NETWORK_DEFINES[3],
+                NETWORK_DEFINES[4],
+                NETWORK_DEFINES[5],
+            ],
         },
         Pass {
             name: "vkb_count",
             source: include_str!("../../shaders/vkb_count.wgsl"),
             includes: &[GEOMETRY],
+            defines: &[],
         },
         Pass {
             name: "importance_vkb",
             source: include_str!("../../shaders/importance_vkb.wgsl"),
             includes: &[],
+            defines: &[],
         },
         Pass {
             name: "predict",
             source: include_str!("../../shaders/predict.wgsl"),
-            includes: &[MLP],
+            includes: &[MLP, MLP_LOOP],
+            defines: &NETWORK_DEFINES,
         },
     ];
 
-    /// The full source of a pass: the generated prelude, common code, its includes, the pass.
+    /// The full source of a pass as it is built by default: the generated prelude, its
+    /// definitions, common code, its includes, the pass.
     pub fn source(name: &str) -> Option<String> {
+        source_with(name, &[])
+    }
+
+    /// The full source of a variant of pass `name`: its definitions with the values `given`
+    /// (the others at their defaults). None for an unknown pass, or a definition it does not
+    /// have or of another kind.
+    pub fn source_with(name: &str, given: &[(&str, Value)]) -> Option<String> {
+        compose(name, given, None)
+    }
+
+    /// [`source_with`], and where `forward` is given, it in place of the network's loops over
+    /// any shape ([`MLP_LOOP`]: a pass built for one network shape composes the forward written
+    /// out for it). None also where `forward` is given to a pass that runs no network.
+    pub fn compose(name: &str, given: &[(&str, Value)], forward: Option<&str>) -> Option<String> {
         let p = PASSES.iter().find(|p| p.name == name)?;
+        if forward.is_some() && !p.includes.contains(&MLP_LOOP) {
+            return None;
+        }
+        let includes: Vec<&str> = p
+            .includes
+            .iter()
+            .map(|&i| match forward {
+                Some(f) if i == MLP_LOOP => f,
+                _ => i,
+            })
+            .collect();
         Some(format!(
-            "{}\n{COMMON}\n{}\n{}",
+            "{}\n{}\n{COMMON}\n{}\n{}",
             prelude(),
-            p.includes.join("\n"),
+            definitions(p, given)?,
+            includes.join("\n"),
             p.source
         ))
     }
 
-    /// A constant the WGSL passes share with Rust.
+    /// Pass `p`'s definitions, `given` where given: None where one given is not the pass's or
+    /// not of its kind.
+    fn definitions(p: &Pass, given: &[(&str, Value)]) -> Option<String> {
+        for (name, v) in given {
+            let (_, d) = p.defines.iter().find(|(n, _)| n == name)?;
+            if std::mem::discriminant(d) != std::mem::discriminant(v) {
+                return None;
+            }
+        }
+        let mut s = String::new();
+        for &(name, default) in p.defines {
+            let v = given
+                .iter()
+                .rev()
+                .find(|(n, _)| *n == name)
+                .map_or(default, |g| g.1);
+            s += &declaration(name, v);
+        }
+        Some(s)
+    }
+
+    /// The WGSL declaration of constant `name` of value `v`.
+    fn declaration(name: &str, v: Value) -> String {
+        match v {
+            Value::F32(x) => format!("const {name}: f32 = {};\n", f32_literal(x)),
+            Value::U32(x) => format!("const {name}: u32 = {x}u;\n"),
+            Value::Bool(b) => format!("const {name}: bool = {b};\n"),
+            Value::StorageTexture(format) => {
+                format!("alias {name} = texture_storage_2d<{format}, write>;\n")
+            }
+        }
+    }
+
+    /// A constant the WGSL passes share with Rust, or a pass's definition ([`Pass::defines`]).
     #[derive(Clone, Copy, Debug, PartialEq)]
     pub enum Value {
         U32(u32),
         F32(f32),
+        Bool(bool),
+        /// A write-only storage texture of this WGSL format (a type: declared as an alias).
+        StorageTexture(&'static str),
     }
 
     /// Every constant Rust and WGSL must agree on, taken from the Rust definitions: the
@@ -446,10 +549,6 @@ pub mod shaders {
             ("OPTICAL_DEPTH_UNIT", F32(importance::OPTICAL_DEPTH_UNIT)),
             ("MAX_STANDARDISED", F32(mlp::MAX_STANDARDISED)),
             ("MAX_H2", U32(mlp::MAX_H2 as u32)),
-            (
-                "MLP_VEC4S",
-                U32((mlp::uniform_bytes(mlp::H1, mlp::H2, mlp::Precision::F32) / 16) as u32),
-            ),
             ("MLP_MEAN_AT", U32(MLP_MEAN_AT as u32)),
             ("MLP_STD_AT", U32(MLP_STD_AT as u32)),
             ("MLP_W1_AT", U32(MLP_W1_AT as u32)),
@@ -532,11 +631,7 @@ pub mod shaders {
              there.\n",
         );
         for (name, v) in shared_constants() {
-            let (ty, value) = match v {
-                Value::F32(x) => ("f32", f32_literal(x)),
-                Value::U32(x) => ("u32", format!("{x}u")),
-            };
-            s.push_str(&format!("const {name}: {ty} = {value};\n"));
+            s += &declaration(name, v);
         }
         s
     }
@@ -1176,6 +1271,73 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn a_variant_of_a_pass_is_its_definitions_declared_once_and_never_in_a_shader_file() {
+        let mut defined = 0;
+        for p in shaders::PASSES.iter() {
+            for &(name, default) in p.defines {
+                let declared = [format!("const {name}:"), format!("alias {name} =")];
+                // No shader file declares it: the composition does, once.
+                for src in p.includes.iter().chain([&p.source]) {
+                    for d in &declared {
+                        assert!(
+                            !src.contains(d.as_str()),
+                            "{}: a file declares {name}",
+                            p.name
+                        );
+                    }
+                }
+                let full = shaders::source(p.name).unwrap();
+                let count: usize = declared
+                    .iter()
+                    .map(|d| full.matches(d.as_str()).count())
+                    .sum();
+                assert_eq!(count, 1, "{}: {name} declared {count} times", p.name);
+                // A variant's value is the one declared; another kind is refused.
+                let other = match default {
+                    shaders::Value::Bool(b) => shaders::Value::Bool(!b),
+                    shaders::Value::U32(x) => shaders::Value::U32(x + 1),
+                    shaders::Value::F32(x) => shaders::Value::F32(x + 1.0),
+                    shaders::Value::StorageTexture(_) => {
+                        shaders::Value::StorageTexture("rgba8unorm")
+                    }
+                };
+                let variant = shaders::source_with(p.name, &[(name, other)]).unwrap();
+                let expected = match other {
+                    shaders::Value::Bool(b) => format!("const {name}: bool = {b};"),
+                    shaders::Value::U32(x) => format!("const {name}: u32 = {x}u;"),
+                    shaders::Value::F32(_) => format!("const {name}: f32 ="),
+                    shaders::Value::StorageTexture(f) => {
+                        format!("alias {name} = texture_storage_2d<{f}, write>;")
+                    }
+                };
+                assert!(variant.contains(&expected), "{}: {expected}", p.name);
+                let wrong = match default {
+                    shaders::Value::Bool(_) => shaders::Value::U32(1),
+                    _ => shaders::Value::Bool(true),
+                };
+                assert!(shaders::source_with(p.name, &[(name, wrong)]).is_none());
+                defined += 1;
+            }
+            assert!(
+                shaders::source_with(p.name, &[("NO_SUCH", shaders::Value::Bool(true))]).is_none(),
+                "{}: a definition it does not have",
+                p.name
+            );
+        }
+        assert!(defined >= 20, "{defined} definitions");
+        // The network's forward: composed in place of the loops, only where a pass runs one.
+        let written = "fn mlp_forward(f: array<f32, FEATURES>) -> f32 { return 0.0; }\n";
+        let src = shaders::compose("predict", &[], Some(written)).unwrap();
+        assert!(src.contains(written) && !src.contains(shaders::MLP_LOOP));
+        assert!(
+            shaders::source("predict")
+                .unwrap()
+                .contains(shaders::MLP_LOOP)
+        );
+        assert!(shaders::compose("resolve", &[], Some(written)).is_none());
     }
 
     #[test]

@@ -19,10 +19,26 @@ use dhoit_runtime::wgsl::shaders;
 fn every_shader_validates_and_translates_without_a_gpu() {
     use naga::valid::{Capabilities, ValidationFlags, Validator};
     let mut accepted = Vec::new();
-    for shaders::Pass { name, .. } in shaders::PASSES {
-        let src = shaders::source(name).unwrap();
+    // Every pass as built by default, and each variant of it: each of its switches the other
+    // way, its storage target another format.
+    let variants = shaders::PASSES.iter().flat_map(|p| {
+        let flipped = p.defines.iter().filter_map(|&(d, v)| match v {
+            shaders::Value::Bool(b) => Some((d, shaders::Value::Bool(!b))),
+            shaders::Value::StorageTexture(_) => {
+                Some((d, shaders::Value::StorageTexture("rgba8unorm")))
+            }
+            _ => None,
+        });
+        std::iter::once((p.name, None)).chain(flipped.map(move |f| (p.name, Some(f))))
+    });
+    for (name, variant) in variants {
+        let src = shaders::source_with(name, variant.as_slice()).unwrap();
+        let label = match variant {
+            Some((d, v)) => format!("{name} ({d} {v:?})"),
+            None => name.to_string(),
+        };
         let module = naga::front::wgsl::parse_str(&src)
-            .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
+            .unwrap_or_else(|e| panic!("{label}: {}", e.emit_to_string(&src)));
         // pack/unpack2x16float (the f16 weights) need SHADER_FLOAT16_IN_FLOAT32, which any
         // device wgpu grants the downlevel flag SHADER_F16_IN_F32 to (every Vulkan one).
         let caps = Capabilities::SHADER_INT64
@@ -42,7 +58,7 @@ fn every_shader_validates_and_translates_without_a_gpu() {
         let caps = if portable { narrow } else { caps };
         let info = Validator::new(ValidationFlags::all(), caps)
             .validate(&module)
-            .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
+            .unwrap_or_else(|e| panic!("{label}: {}", e.emit_to_string(&src)));
         let spv = naga::back::spv::write_vec(&module, &info, &Default::default(), None)
             .unwrap_or_else(|e| panic!("{name}: SPIR-V: {e}"));
         assert!(spv.len() > 100, "{name}");
@@ -68,7 +84,7 @@ fn every_shader_validates_and_translates_without_a_gpu() {
                 .write(&module, &info, None)
                 .unwrap_or_else(|e| panic!("{name}::{}: HLSL: {e:?}", ep.name));
         }
-        accepted.push(name.to_string());
+        accepted.push(label);
     }
     eprintln!(
         "SPIR-V, MSL and HLSL accept every entry point of {accepted:?}; {:?} without 64-bit integers",

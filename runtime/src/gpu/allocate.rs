@@ -8,7 +8,7 @@ use super::bindings::allocate;
 use super::buffers::FrameBuffers;
 use super::passes::{Passes, Phase};
 use super::scan::Scan;
-use super::shader::{compute_buffer_entry, module, module_from, redeclare};
+use super::shader::{compute_buffer_entry, module, module_from};
 use super::{Planned, Recording, weight_kind};
 use crate::alloc::Target;
 use crate::budget;
@@ -322,13 +322,8 @@ impl Allocate {
             return (&self.search, "allocation search: one copy of the totals");
         }
         let p = self.search_spread.get_or_init(|| {
-            let mut src = shaders::source("allocate").expect("known pass");
-            redeclare(
-                &mut src,
-                "allocate",
-                "const SEARCH_COPIES: u32 = 1u;",
-                "const SEARCH_COPIES: u32 = 32u;",
-            );
+            let copies = [("SEARCH_COPIES", shaders::Value::U32(32))];
+            let src = shaders::source_with("allocate", &copies).expect("allocate's definition");
             let m = module_from(device, "allocate (spread search)", src);
             pipeline(device, &self.pipeline_layout, &m, "search")
         });

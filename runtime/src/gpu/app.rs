@@ -18,7 +18,7 @@ use std::cell::RefCell;
 
 use super::bindings::{self, oit_phase};
 use super::passes::{Geometry, GeometryPass, Phase, Resolve, at, view_at};
-use super::shader::{compute_pipeline, module_from, redeclare};
+use super::shader::{compute_pipeline, module_from};
 use super::stream::{AppMethod, FrameReport, Stream};
 use super::{Capture, Gpu, frame_params};
 use crate::budget::{Budget, Occupancy};
@@ -436,8 +436,8 @@ impl AppFrame {
             Some(pass) => shaders::application_blend_pass(pass.pass, pass.entry, group)
                 .expect("a blended pass"),
             None => {
-                let (pass, redeclare) = storing_pass(phase);
-                shaders::application_pass(pass, redeclare, group).expect("a geometry pass")
+                let (pass, defs) = storing_pass(phase);
+                shaders::application_pass(pass, defs, group).expect("a geometry pass")
             }
         }
     }
@@ -467,8 +467,8 @@ impl AppFrame {
     }
 }
 
-/// A storing phase's pass (`wgsl::shaders::PASSES`) and the declarations its variant changes.
-fn storing_pass(phase: Phase) -> (&'static str, &'static [(&'static str, &'static str)]) {
+/// A storing phase's pass (`wgsl::shaders::PASSES`) and the definitions its variant gives.
+fn storing_pass(phase: Phase) -> (&'static str, &'static [(&'static str, shaders::Value)]) {
     match phase {
         Phase::Count => ("abuffer_count", &[]),
         Phase::Store => ("abuffer_store", &[]),
@@ -477,10 +477,7 @@ fn storing_pass(phase: Phase) -> (&'static str, &'static [(&'static str, &'stati
         Phase::Capture => ("capture", &[]),
         Phase::CaptureFits => (
             "capture",
-            &[(
-                "const EVERY_FRAGMENT_FITS: bool = false;",
-                "const EVERY_FRAGMENT_FITS: bool = true;",
-            )],
+            &[("EVERY_FRAGMENT_FITS", shaders::Value::Bool(true))],
         ),
         Phase::CountFeatures => ("count_features", &[]),
         Phase::CountFeaturesDepths => ("count_features_depths", &[]),
@@ -621,21 +618,11 @@ fn onto_pipeline(
     }
     let (pass, entry, _) = resolve.onto();
     let name = check_target_format(format, "dhoit").expect("checked when made");
-    let mut src = shaders::source(pass).expect("known pass");
-    redeclare(
-        &mut src,
-        pass,
-        "texture_storage_2d<rgba32float, write>",
-        &format!("texture_storage_2d<{name}, write>"),
-    );
+    let mut defs = vec![("OntoTexture", shaders::Value::StorageTexture(name))];
     if resolve.fits() {
-        redeclare(
-            &mut src,
-            pass,
-            "const EVERY_FRAGMENT_FITS: bool = false;",
-            "const EVERY_FRAGMENT_FITS: bool = true;",
-        );
+        defs.push(("EVERY_FRAGMENT_FITS", shaders::Value::Bool(true)));
     }
+    let src = shaders::source_with(pass, &defs).expect("a resolve and its definitions");
     let label = format!("{pass} ({entry}, {format:?})");
     let m = module_from(&gpu.device, &label, src);
     let p = compute_pipeline(&gpu.device, &label, &m, entry);

@@ -8,9 +8,8 @@ use super::bindings;
 use super::blend::{BlendPass, mboit_fits};
 use super::shader::{
     blend_json, compute_buffer_entry, compute_pipeline, module, module_from, note_built,
-    record_pipeline, redeclare, webgpu_name,
+    record_pipeline, webgpu_name,
 };
-use crate::budget;
 use crate::error::{GpuError, Result};
 use crate::mlp::{Mlp, Precision};
 use crate::wgsl::shaders;
@@ -227,70 +226,47 @@ impl Variant {
         }
     }
 
-    /// Its source: the pass's, with the constants it changes replaced.
+    /// Its source: the pass composed with this variant's definitions and, where it is
+    /// written out for its shape, that forward in place of mlp.wgsl's loops.
     pub(super) fn source(self) -> String {
-        let mut src = shaders::source(self.pass).expect("known pass");
-        let mut set = |from: &str, to: &str| redeclare(&mut src, self.pass, from, to);
-        if !self.skip_forced {
-            set(
-                "const SKIP_FORCED: bool = true;",
-                "const SKIP_FORCED: bool = false;",
-            );
-        }
-        let half_math = self.precision == Precision::F16Math;
-        if self.precision.half_weights() {
-            set(
-                "const F16_WEIGHTS: bool = false;",
-                "const F16_WEIGHTS: bool = true;",
-            );
-        }
+        use shaders::Value::{Bool, U32};
         let form = self.form();
-        if form == "network: weights in workgroup memory" {
-            set(
-                "const SHARED_WEIGHTS: bool = false;",
-                "const SHARED_WEIGHTS: bool = true;",
-            );
-        }
+        let half_math = self.precision == Precision::F16Math;
         let (p1, p2) = self.shape;
-        // The weights uniform as large as this network's (mlp::uniform_bytes), not the
-        // largest network's: the buffer bound is sized to it.
-        set(
-            &format!(
-                "const MLP_VEC4S: u32 = {}u;",
-                budget::MLP_UNIFORM_BYTES / 16
-            ),
-            &format!("const MLP_VEC4S: u32 = {}u;", self.weight_vec4s),
-        );
-        // Known sizes: the private sums hold exactly p2 floats.
-        if p1 != 0 {
-            set(
-                "const NET_P1: u32 = 0u;",
-                &format!("const NET_P1: u32 = {p1}u;"),
-            );
-            set(
-                "const NET_P2: u32 = 0u;",
-                &format!("const NET_P2: u32 = {p2}u;"),
-            );
-            set(
-                "const ACC2_VEC4S: u32 = MAX_H2 / 4u;",
-                &format!("const ACC2_VEC4S: u32 = {}u;", p2 / 4),
-            );
-            // f16-math has one form: written out (the twin's order of sums, at binary16).
-            if form == "network: written out at binary16" || form == "network: written out" {
-                set(
-                    "fn mlp_forward(f: array<f32, FEATURES>) -> f32 {",
-                    "fn mlp_forward_any_shape(f: array<f32, FEATURES>) -> f32 {",
-                );
-                src.push_str(&unrolled_forward(p1, p2, half_math));
-            }
-        }
         assert!(
             !half_math || p1 != 0,
             "the f16-math network pass is built for its network's shape"
         );
+        let mut defs = vec![
+            ("F16_WEIGHTS", Bool(self.precision.half_weights())),
+            (
+                "SHARED_WEIGHTS",
+                Bool(form == "network: weights in workgroup memory"),
+            ),
+            // The weights uniform as large as this network's (mlp::uniform_bytes), not the
+            // largest network's: the buffer bound is sized to it.
+            ("NET_VEC4S", U32(self.weight_vec4s)),
+        ];
+        if self.pass == "importance_dkb" {
+            defs.push(("SKIP_FORCED", Bool(self.skip_forced)));
+        }
+        if p1 != 0 {
+            // Known sizes: the private sums hold exactly p2 floats.
+            defs.extend([
+                ("NET_P1", U32(p1)),
+                ("NET_P2", U32(p2)),
+                ("ACC2_VEC4S", U32(p2 / 4)),
+            ]);
+        }
+        // f16-math has one form: written out (the twin's order of sums, at binary16).
+        let written = (form == "network: written out at binary16"
+            || form == "network: written out")
+            .then(|| unrolled_forward(p1, p2, half_math));
+        let src = shaders::compose(self.pass, &defs, written.as_deref())
+            .expect("a network pass and its definitions");
         if half_math {
             // The directive comes before every declaration, the prelude's included.
-            src.insert_str(0, "enable f16;\n");
+            return format!("enable f16;\n{src}");
         }
         src
     }
@@ -300,10 +276,11 @@ impl Variant {
 /// mlp.wgsl's `weights` (the same buffer).
 pub(super) const WEIGHTS_H: u32 = 11;
 
-/// `mlp_forward` for one network shape (padded sizes p1, p2), written out: the second layer's
+/// `mlp_forward` for one network shape (padded sizes p1, p2), written out (composed in place
+/// of [`shaders::MLP_LOOP`]): the second layer's
 /// sums in p2 / 4 named vec4s instead of an array (which a GPU compiler may keep in local
 /// memory when its loops are not unrolled), every weight's offset within a row a constant.
-/// The same sums in the same order as mlp.wgsl's `mlp_forward` and the CPU twin; a first-layer
+/// The same sums in the same order as mlp.wgsl's `mlp_forward_loop` and the CPU twin; a first-layer
 /// unit at 0 adds its zero products instead of being skipped (no branch that diverges across
 /// pixels), which changes no sum (x + 0 = x; a zero's sign is lost by the ReLU and the sigmoid).
 ///
@@ -336,7 +313,7 @@ struct HalfWords {{
     lo: vec4<f16>,
     hi: vec4<f16>,
 }};
-@group(0) @binding({WEIGHTS_H}) var<uniform> weights_h: array<HalfWords, MLP_VEC4S>;
+@group(0) @binding({WEIGHTS_H}) var<uniform> weights_h: array<HalfWords, NET_VEC4S>;
 
 // Four binary16 parameters from index `i` (where param4 reads them at F16_WEIGHTS), as they are.
 fn param4h(i: u32) -> vec4<f16> {{
@@ -521,18 +498,20 @@ fn blend_pipeline(device: &wgpu::Device, b: &BlendPass) -> wgpu::RenderPipeline 
     )
 }
 
-/// Pass `pass`'s module with `from` redeclared as `to` (a variant of the pass), labelled
-/// `label`.
-fn module_redeclared(
+/// The module of a variant of pass `pass`: its definitions `defs` ([`shaders::source_with`]),
+/// labelled `label`.
+fn module_defining(
     device: &wgpu::Device,
     pass: &str,
     label: &str,
-    (from, to): (&str, &str),
+    defs: &[(&str, shaders::Value)],
 ) -> wgpu::ShaderModule {
-    let mut src = shaders::source(pass).expect("known pass");
-    redeclare(&mut src, pass, from, to);
+    let src = shaders::source_with(pass, defs).expect("a pass and its definitions");
     module_from(device, label, src)
 }
+
+/// A pass built for frames whose budget holds every fragment.
+const FITS: (&str, shaders::Value) = ("EVERY_FRAGMENT_FITS", shaders::Value::Bool(true));
 
 /// Pass `name`'s entry `entry`, compute.
 fn compute_of(device: &wgpu::Device, name: &str, entry: &str) -> wgpu::ComputePipeline {
@@ -652,14 +631,11 @@ impl<'a> ExtraPipelines<'a> {
     pub(super) fn capture_tints(self, fits: bool) -> &'a wgpu::RenderPipeline {
         let [general, all_fit] = self.extras().capture_tints.get_or_init(|| {
             let device = self.device();
-            let fits = module_redeclared(
+            let fits = module_defining(
                 device,
                 "capture_tints",
                 "capture_tints (every fragment fits)",
-                (
-                    "const EVERY_FRAGMENT_FITS: bool = false;",
-                    "const EVERY_FRAGMENT_FITS: bool = true;",
-                ),
+                &[FITS],
             );
             [
                 transparent_pipeline(device, "capture_tints", &module(device, "capture_tints")),
@@ -687,14 +663,11 @@ impl<'a> ExtraPipelines<'a> {
     pub(super) fn features_no_preload(self) -> &'a wgpu::RenderPipeline {
         self.extras().features_no_preload.get_or_init(|| {
             let device = self.device();
-            let m = module_redeclared(
+            let m = module_defining(
                 device,
                 "features",
                 "features (no preload)",
-                (
-                    "const PRELOAD_NEAREST: bool = true;",
-                    "const PRELOAD_NEAREST: bool = false;",
-                ),
+                &[("PRELOAD_NEAREST", shaders::Value::Bool(false))],
             );
             transparent_pipeline(device, "features", &m)
         })
@@ -738,24 +711,21 @@ impl Pipelines {
                 write_mask: wgpu::ColorWrites::ALL,
             })],
         );
-        let module_with = |pass: &str, label: &str, from: &str, to: &str| {
-            module_redeclared(device, pass, label, (from, to))
-        };
         // capture.wgsl and resolve.wgsl for frames whose budget holds every fragment.
         let fits = |pass: &str| {
-            module_with(
+            module_defining(
+                device,
                 pass,
                 &format!("{pass} (every fragment fits)"),
-                "const EVERY_FRAGMENT_FITS: bool = false;",
-                "const EVERY_FRAGMENT_FITS: bool = true;",
+                &[FITS],
             )
         };
         let compute_entry = |name: &str, entry: &str| compute_of(device, name, entry);
-        let marks = module_with(
+        let marks = module_defining(
+            device,
             "scan",
             "scan (the allocation's marks)",
-            "const SCAN_OF_MARKS: bool = false;",
-            "const SCAN_OF_MARKS: bool = true;",
+            &[("SCAN_OF_MARKS", shaders::Value::Bool(true))],
         );
         let scan_marks = ["scan_blocks_in_place", "scan_sums", "scan_add"]
             .map(|entry| compute_pipeline(device, "scan (the allocation's marks)", &marks, entry));

@@ -111,13 +111,6 @@ pub(super) fn blend_json(b: &wgpu::BlendComponent) -> serde_json::Value {
     })
 }
 
-/// Replaces declaration `from` of pass `pass`'s source `src` by `to` (a constant a variant of
-/// the pass changes); a declaration the source lacks is a bug, not a silent no-op.
-pub(super) fn redeclare(src: &mut String, pass: &str, from: &str, to: &str) {
-    assert!(src.contains(from), "{pass} declares {from}");
-    *src = src.replace(from, to);
-}
-
 pub(super) fn compute_pipeline(
     device: &wgpu::Device,
     label: &str,
