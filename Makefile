@@ -32,9 +32,11 @@ train: build
 
 ## Leave one family out: a network trained without each built-in family in turn, scored on
 ## that family's held-out scene against the optimal allocation, beside one trained on every
-## family: docs/generalise.md, out/generalise/generalise.json (about 15 minutes on 2 cores).
+## family: docs/generalise.md, out/generalise/generalise.json. Every network at GENERALISE_SEEDS
+## training seeds, each figure beside its seeds' range (about 15 minutes a seed on 2 cores).
+GENERALISE_SEEDS ?= 3
 generalise: build
-	$(RUN) generalise --opacity 0.33
+	$(RUN) generalise --opacity 0.33 --seeds $(GENERALISE_SEEDS)
 
 ## The networks of other sizes shipped beside the default, trained on the same data:
 ## data/nets/H1-H2/weights.safetensors (+ config.json, loss plot). `dhoit trade` and `dhoit fit`

@@ -1777,7 +1777,8 @@ fn light_above_white_renders_to_exr_on_the_cpu_and_the_gpu() {
 
 /// `generalise` leaves each family out in turn: no fold's network trains or validates on a
 /// scene of the family it is scored on, each is scored on that family's seed-1 scene (fine-tuned
-/// on it too), and no allocation beats the optimal one; the table and the JSON are written; an unknown family is
+/// on it too), and no allocation beats the optimal one; with two seeds each figure is the mean
+/// of two different networks'; the table and the JSON are written; an unknown family is
 /// refused by name.
 #[test]
 fn generalise_leaves_each_family_out_of_its_fold_s_training() {
@@ -1809,6 +1810,8 @@ fn generalise_leaves_each_family_out_of_its_fold_s_training() {
             "64x48",
             "--opacity",
             "0.33",
+            "--seeds",
+            "2",
             "--out",
             md.to_str().unwrap(),
             "--json",
@@ -1853,7 +1856,35 @@ fn generalise_leaves_each_family_out_of_its_fold_s_training() {
             let v = f[k].as_f64().unwrap();
             assert!(v.is_finite() && v >= 0.999, "{family} {k}: {v}");
         }
+        // Two seeds a network: each seed's figure, and the fold's their geometric mean (the
+        // same frames counted for each).
+        for (k, mean) in [
+            ("left_out_by_seed", "left_out_over_optimal"),
+            ("in_distribution_by_seed", "in_distribution_over_optimal"),
+        ] {
+            let v: Vec<f64> = f[k]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect();
+            assert_eq!(v.len(), 2, "{family} {k}: {v:?}");
+            let m = f[mean].as_f64().unwrap();
+            assert!(
+                (m - (v[0] * v[1]).sqrt()).abs() < 1e-9,
+                "{family} {mean}: {m} from {v:?}"
+            );
+        }
     }
+    // The seeds train different networks: over both folds and both kinds, some seed's figure
+    // differs from seed 0's.
+    let differ = folds.iter().any(|f| {
+        ["left_out_by_seed", "in_distribution_by_seed"]
+            .iter()
+            .any(|k| f[*k][0] != f[*k][1])
+    });
+    assert!(differ, "both seeds scored alike everywhere: {folds:?}");
+    assert_eq!(r["seeds"], 2);
     let table = std::fs::read_to_string(&md).unwrap();
     assert!(
         table.contains("| shells |") && table.contains("| spheres |"),

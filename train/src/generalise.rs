@@ -7,6 +7,9 @@
 //! training views as `train --scene` does (what a user gains by fine-tuning on a scene of a
 //! kind the network never saw). Every network is scored on the views fine-tuning holds out.
 //! The figure to improve is the left-out one: the mean over the folds and the worst fold.
+//! With `--seeds N` every network is trained at N seeds (0 to N-1) and each figure is the
+//! geometric mean over them beside its range, so a change to the training set or the features
+//! can be told from the spread of training alone.
 
 use crate::cli::{OWN_EPOCHS, OWN_HELD_OUT, OWN_LR, SCORE_BUDGETS, bar, folder_of};
 use crate::dataset::{self, DatasetConfig, Level, Samples};
@@ -32,6 +35,12 @@ pub struct GeneraliseArgs {
     /// dataset holds).
     #[arg(long, value_delimiter = ',')]
     pub families: Vec<String>,
+    /// Training seeds of each network (0 to N-1): every fold's network and the
+    /// in-distribution one are trained at each, and each figure is the geometric mean over
+    /// the seeds beside its range (the fine-tuned column fine-tunes seed 0's fold network).
+    /// Each seed adds a training of every fold: about 40 s each at the defaults on 2 cores.
+    #[arg(long, default_value_t = 1)]
+    pub seeds: u64,
     /// Training epochs of each fold (and of the in-distribution network).
     #[arg(long, default_value_t = TrainConfig::default().epochs)]
     pub epochs: usize,
@@ -85,11 +94,14 @@ pub struct Fold {
     pub scored: String,
     /// Counted frames (those that truncate).
     pub frames: usize,
-    /// Geometric means over the counted frames of error / optimal error: the fold's network
-    /// (which never saw the family), the network trained on every family, the fold's network
-    /// fine-tuned on the scene's training views (where it ran), VKB.
+    /// Geometric means over the counted frames (and the seeds) of error / optimal error: the
+    /// fold's network (which never saw the family), the network trained on every family, the
+    /// fold's network of seed 0 fine-tuned on the scene's training views (where it ran), VKB.
     pub left_out_over_optimal: f64,
     pub in_distribution_over_optimal: f64,
+    /// The left-out and in-distribution figures of each seed's networks, seed 0 first.
+    pub left_out_by_seed: Vec<f64>,
+    pub in_distribution_by_seed: Vec<f64>,
     pub fine_tuned_over_optimal: Option<f64>,
     pub vkb_over_optimal: f64,
     pub seconds: f64,
@@ -103,10 +115,15 @@ pub struct Report {
     pub epochs: usize,
     pub hidden: [usize; 2],
     pub opacity: Option<f32>,
+    pub seeds: u64,
     pub folds: Vec<Fold>,
-    /// Over every fold's counted frames together.
+    /// Over every fold's counted frames together (and the seeds).
     pub left_out_over_optimal: f64,
     pub in_distribution_over_optimal: f64,
+    /// The every-fold figures of each seed's networks, seed 0 first: their range is the
+    /// spread training alone gives the table's bottom line.
+    pub left_out_by_seed: Vec<f64>,
+    pub in_distribution_by_seed: Vec<f64>,
     pub fine_tuned_over_optimal: Option<f64>,
     pub vkb_over_optimal: f64,
     /// The fold whose left-out figure is the highest.
@@ -125,6 +142,9 @@ pub fn run(a: GeneraliseArgs) -> Result<()> {
     let [h1, h2] = crate::cli::hidden_sizes(&a.hidden)?;
     if a.epochs == 0 {
         return Err(Error::Config("--epochs: at least 1".into()));
+    }
+    if a.seeds == 0 {
+        return Err(Error::Config("--seeds: at least 1".into()));
     }
     if let Some(o) = a.opacity {
         dataset::check_opacity(o, format!("--opacity {o}"))?;
@@ -188,15 +208,24 @@ pub fn run(a: GeneraliseArgs) -> Result<()> {
         score::score(&spec, &|| {})
     };
     eprintln!(
-        "generalise: {} families left out in turn, {} epochs each, {h1}-{h2}, from {} ({} samples)",
+        "generalise: {} families left out in turn, {} epochs each, {h1}-{h2}, {} seed(s), from {} ({} samples)",
         families.len(),
         a.epochs,
+        a.seeds,
         data_dir.display(),
         samples.len()
     );
-    let pb = bar(families.len() as u64 + 1, "folds");
-    let all = pb.suspend(|| train_quietly(&config, &samples))?;
-    pb.inc(1);
+    let seeds = a.seeds as usize;
+    let pb = bar((families.len() as u64 + 1) * a.seeds, "trainings");
+    let mut all = Vec::new();
+    for seed in 0..a.seeds {
+        let seeded = TrainConfig {
+            seed,
+            ..config.clone()
+        };
+        all.push(pb.suspend(|| train_quietly(&seeded, &samples))?);
+        pb.inc(1);
+    }
     let mut folds = Vec::new();
     for f in &families {
         let start = std::time::Instant::now();
@@ -206,15 +235,27 @@ pub fn run(a: GeneraliseArgs) -> Result<()> {
             validation_scenes: validation_in(&manifest.config, &train, Some(f)),
             ..config.clone()
         };
-        let net = pb.suspend(|| train_quietly(&fold_config, &train))?;
+        // Scored together: the fold's network at each seed, then the in-distribution ones,
+        // then seed 0's fine-tuned.
+        let mut networks = Vec::new();
+        for seed in 0..a.seeds {
+            let seeded = TrainConfig {
+                seed,
+                ..fold_config.clone()
+            };
+            networks.push(pb.suspend(|| train_quietly(&seeded, &train))?);
+            pb.inc(1);
+        }
         let scored = format!("{f}:1");
-        let mut networks = vec![net.clone(), all.clone()];
+        networks.extend(all.iter().cloned());
         if !a.no_fine_tune {
             let dir = fold_dir(&a.json, f);
-            networks.push(pb.suspend(|| fine_tune(&scored, &net, &a, [h1, h2], &dir))?);
+            let tuned = pb.suspend(|| fine_tune(&scored, &networks[0], &a, [h1, h2], &dir))?;
+            networks.push(tuned);
         }
         let scores = score_with(&scored, &networks)?;
         let frames = scores.iter().filter(|s| s.counts()).count();
+        let (left_out_by_seed, in_distribution_by_seed) = by_seed(&scores, seeds);
         let fold = Fold {
             family: f.clone(),
             train_scenes: scenes_in(&train),
@@ -222,10 +263,12 @@ pub fn run(a: GeneraliseArgs) -> Result<()> {
             train_samples: train.len(),
             scored,
             frames,
-            left_out_over_optimal: counted_geomean(&scores, |s| s.dkb_over_optimal(0)),
-            in_distribution_over_optimal: counted_geomean(&scores, |s| s.dkb_over_optimal(1)),
+            left_out_over_optimal: over_seeds(&scores, 0..seeds),
+            in_distribution_over_optimal: over_seeds(&scores, seeds..2 * seeds),
+            left_out_by_seed,
+            in_distribution_by_seed,
             fine_tuned_over_optimal: (!a.no_fine_tune)
-                .then(|| counted_geomean(&scores, |s| s.dkb_over_optimal(2))),
+                .then(|| counted_geomean(&scores, |s| s.dkb_over_optimal(2 * seeds))),
             vkb_over_optimal: counted_geomean(&scores, FrameScore::vkb_over_optimal),
             seconds: start.elapsed().as_secs_f64(),
             scores,
@@ -243,7 +286,6 @@ pub fn run(a: GeneraliseArgs) -> Result<()> {
             )
         });
         folds.push(fold);
-        pb.inc(1);
     }
     pb.finish_and_clear();
     let report = summarise(&data_dir, &a, [h1, h2], folds);
@@ -254,6 +296,27 @@ pub fn run(a: GeneraliseArgs) -> Result<()> {
     print!("{md}");
     eprintln!("generalise: -> {}, {}", a.out.display(), a.json.display());
     Ok(())
+}
+
+/// The geometric mean over the counted frames of `scores` and the networks `nets` (their
+/// indices in the frames' scores) of DKB's error over the optimum.
+fn over_seeds(scores: &[FrameScore], nets: std::ops::Range<usize>) -> f64 {
+    score::geomean(
+        scores
+            .iter()
+            .filter(|s| s.counts())
+            .flat_map(|s| nets.clone().map(move |i| s.dkb_over_optimal(i))),
+    )
+}
+
+/// Each seed's left-out and in-distribution figures (networks `0..seeds` and
+/// `seeds..2 seeds` of the frames' scores).
+fn by_seed(scores: &[FrameScore], seeds: usize) -> (Vec<f64>, Vec<f64>) {
+    let of = |i: usize| counted_geomean(scores, |s| s.dkb_over_optimal(i));
+    (
+        (0..seeds).map(of).collect(),
+        (seeds..2 * seeds).map(of).collect(),
+    )
 }
 
 /// The scenes `samples` has rows of (its table of names may hold more: a selection keeps it).
@@ -339,6 +402,8 @@ fn fine_tune(
 
 fn summarise(data: &Path, a: &GeneraliseArgs, hidden: [usize; 2], folds: Vec<Fold>) -> Report {
     let every: Vec<FrameScore> = folds.iter().flat_map(|f| f.scores.clone()).collect();
+    let seeds = a.seeds as usize;
+    let (left_out_by_seed, in_distribution_by_seed) = by_seed(&every, seeds);
     let worst = folds
         .iter()
         .max_by(|x, y| x.left_out_over_optimal.total_cmp(&y.left_out_over_optimal))
@@ -349,10 +414,13 @@ fn summarise(data: &Path, a: &GeneraliseArgs, hidden: [usize; 2], folds: Vec<Fol
         epochs: a.epochs,
         hidden,
         opacity: a.opacity,
-        left_out_over_optimal: counted_geomean(&every, |s| s.dkb_over_optimal(0)),
-        in_distribution_over_optimal: counted_geomean(&every, |s| s.dkb_over_optimal(1)),
+        seeds: a.seeds,
+        left_out_over_optimal: over_seeds(&every, 0..seeds),
+        in_distribution_over_optimal: over_seeds(&every, seeds..2 * seeds),
+        left_out_by_seed,
+        in_distribution_by_seed,
         fine_tuned_over_optimal: (!a.no_fine_tune)
-            .then(|| counted_geomean(&every, |s| s.dkb_over_optimal(2))),
+            .then(|| counted_geomean(&every, |s| s.dkb_over_optimal(2 * seeds))),
         vkb_over_optimal: counted_geomean(&every, FrameScore::vkb_over_optimal),
         worst: worst.0,
         worst_over_optimal: worst.1,
@@ -370,6 +438,9 @@ fn command_line(a: &GeneraliseArgs) -> String {
         c += &format!(" --families {}", a.families.join(","));
     }
     c += &format!(" --epochs {} --hidden {}", a.epochs, join(&a.hidden));
+    if a.seeds != 1 {
+        c += &format!(" --seeds {}", a.seeds);
+    }
     c += &format!(
         " --view {} --orbit-views {} --res {}x{}",
         join(&a.views),
@@ -413,7 +484,7 @@ fn markdown(r: &Report, command: &str) -> String {
          that truncate) on that family's seed-1 scene, which no dataset holds, from the views \
          `train --scene` holds out; beside it the network trained the same way on every family \
          (in distribution: the default training), the fold's network fine-tuned on the scene's \
-         own training views as `train --scene` does, and VKB. {}.\n\n",
+         own training views as `train --scene` does, and VKB. {}. {}\n\n",
         r.hidden[0],
         r.hidden[1],
         r.epochs,
@@ -421,13 +492,38 @@ fn markdown(r: &Report, command: &str) -> String {
         match r.opacity {
             Some(o) => format!("Every surface at opacity {o}"),
             None => "Each scene's own opacity".into(),
+        },
+        match r.seeds {
+            1 => "One training seed (0) a network.".to_string(),
+            n => format!(
+                "Every network trained at {n} seeds (0 to {}): the left-out and \
+                 in-distribution figures are geometric means over them, the range in \
+                 brackets that of the seeds' own figures (the fine-tuned column starts from \
+                 seed 0's fold network).",
+                n - 1
+            ),
         }
     );
     s += "| family left out | frames | DKB/optimal, left out | in distribution | left out, fine-tuned on the scene | VKB/optimal | gap to the optimum closed: left out | in distribution | fine-tuned |\n";
     s += "|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
-    let row = |name: &str, frames: usize, l: f64, i: f64, t: Option<f64>, v: f64| {
+    let ranged = |v: f64, seeds: &[f64]| match seeds.len() {
+        0 | 1 => format!("{v:.3}"),
+        _ => {
+            let lo = seeds.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = seeds.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            format!("{v:.3} ({lo:.3}-{hi:.3})")
+        }
+    };
+    let row = |name: &str,
+               frames: usize,
+               (l, ls): (f64, &[f64]),
+               (i, is): (f64, &[f64]),
+               t: Option<f64>,
+               v: f64| {
         format!(
-            "| {name} | {frames} | {l:.3} | {i:.3} | {} | {v:.3} | {:.0}% | {:.0}% | {} |\n",
+            "| {name} | {frames} | {} | {} | {} | {v:.3} | {:.0}% | {:.0}% | {} |\n",
+            ranged(l, ls),
+            ranged(i, is),
             opt(t),
             100.0 * closed(l, v),
             100.0 * closed(i, v),
@@ -438,8 +534,8 @@ fn markdown(r: &Report, command: &str) -> String {
         s += &row(
             &f.family,
             f.frames,
-            f.left_out_over_optimal,
-            f.in_distribution_over_optimal,
+            (f.left_out_over_optimal, &f.left_out_by_seed),
+            (f.in_distribution_over_optimal, &f.in_distribution_by_seed),
             f.fine_tuned_over_optimal,
             f.vkb_over_optimal,
         );
@@ -448,8 +544,8 @@ fn markdown(r: &Report, command: &str) -> String {
     s += &row(
         "**every fold**",
         frames,
-        r.left_out_over_optimal,
-        r.in_distribution_over_optimal,
+        (r.left_out_over_optimal, &r.left_out_by_seed),
+        (r.in_distribution_over_optimal, &r.in_distribution_by_seed),
         r.fine_tuned_over_optimal,
         r.vkb_over_optimal,
     );
