@@ -154,16 +154,112 @@ pub fn run(a: GeneraliseArgs) -> Result<()> {
         None => crate::cli::default_dataset()?,
     };
     let (manifest, samples) = dataset::load(&data_dir)?;
-    let present = scenes_in(&samples);
+    let families = families_left_out(&a.families, &samples, &data_dir)?;
+    // The report's folders before the long work: a run must not end unable to write.
+    for p in [&a.out, &a.json] {
+        tensors::create_folder(folder_of(p))?;
+    }
+    let config = TrainConfig {
+        epochs: a.epochs,
+        hidden: [h1, h2],
+        validation_scenes: validation_in(&manifest.config, &samples, None),
+        ..TrainConfig::default()
+    };
+    config.check()?;
+    eprintln!(
+        "generalise: {} families left out in turn, {} epochs each, {h1}-{h2}, {} seed(s), from {} ({} samples)",
+        families.len(),
+        a.epochs,
+        a.seeds,
+        data_dir.display(),
+        samples.len()
+    );
+    let pb = bar((families.len() as u64 + 1) * a.seeds, "trainings");
+    let all = train_seeds(&config, &samples, a.seeds, &pb)?;
+    let mut folds = Vec::new();
+    for f in &families {
+        let start = std::time::Instant::now();
+        let train = samples.filter_scenes(|s| family_of(s) != Some(f.as_str()));
+        let fold_config = TrainConfig {
+            validation_scenes: validation_in(&manifest.config, &train, Some(f)),
+            ..config.clone()
+        };
+        // Scored together: the fold's network at each seed, then the in-distribution ones,
+        // then seed 0's fine-tuned.
+        let mut networks = train_seeds(&fold_config, &train, a.seeds, &pb)?;
+        networks.extend(all.iter().cloned());
+        let scored = format!("{f}:1");
+        if !a.no_fine_tune {
+            let dir = fold_dir(&a.json, f);
+            let tuned = pb.suspend(|| fine_tune(&scored, &networks[0], &a, [h1, h2], &dir))?;
+            networks.push(tuned);
+        }
+        let scores = score_fold(&a, &scored, &networks)?;
+        let fold = fold_of(f, &a, (&train, &fold_config), scored, scores, start);
+        pb.suspend(|| eprintln!("{}", fold.line()));
+        folds.push(fold);
+    }
+    pb.finish_and_clear();
+    let report = summarise(&data_dir, &a, [h1, h2], folds);
+    let text = serde_json::to_string_pretty(&report).expect("json");
+    tensors::write_atomic(&a.json, text.as_bytes())?;
+    let md = markdown(&report, &command_line(&a));
+    tensors::write_atomic(&a.out, md.as_bytes())?;
+    print!("{md}");
+    eprintln!("generalise: -> {}, {}", a.out.display(), a.json.display());
+    Ok(())
+}
+
+/// A network trained on `samples` as `config` says at each seed 0..`seeds`.
+fn train_seeds(
+    config: &TrainConfig,
+    samples: &Samples,
+    seeds: u64,
+    pb: &indicatif::ProgressBar,
+) -> Result<Vec<Mlp>> {
+    (0..seeds)
+        .map(|seed| {
+            let seeded = TrainConfig {
+                seed,
+                ..config.clone()
+            };
+            let net = pb.suspend(|| train_quietly(&seeded, samples));
+            pb.inc(1);
+            net
+        })
+        .collect()
+}
+
+impl Fold {
+    /// The fold's figures in a line, as the run prints each fold.
+    fn line(&self) -> String {
+        format!(
+            "fold {:<10} DKB/optimal left out {:.3}, in distribution {:.3}, fine-tuned {}, VKB {:.3} ({} frames, {:.0} s)",
+            self.family,
+            self.left_out_over_optimal,
+            self.in_distribution_over_optimal,
+            self.fine_tuned_over_optimal
+                .map_or("-".into(), |v| format!("{v:.3}")),
+            self.vkb_over_optimal,
+            self.frames,
+            self.seconds
+        )
+    }
+}
+
+/// The families to leave out in turn: those `asked` (each must have a scene in the dataset),
+/// or every built-in generator the dataset holds.
+fn families_left_out(asked: &[String], samples: &Samples, data_dir: &Path) -> Result<Vec<String>> {
+    let present = scenes_in(samples);
     let held: Vec<&str> = present.iter().filter_map(|s| family_of(s)).collect();
-    let families: Vec<String> = if a.families.is_empty() {
+    let families: Vec<String> = if asked.is_empty() {
         BUILTIN
             .iter()
             .map(|(b, _)| b.to_string())
             .filter(|f| held.contains(&f.as_str()))
             .collect()
     } else {
-        a.families.clone()
+        asked.to_vec()
     };
     for f in &families {
         if !held.contains(&f.as_str()) {
@@ -180,122 +276,54 @@ pub fn run(a: GeneraliseArgs) -> Result<()> {
             data_dir.display()
         )));
     }
-    // The report's folders before the long work: a run must not end unable to write.
-    for p in [&a.out, &a.json] {
-        tensors::create_folder(folder_of(p))?;
-    }
-    let config = TrainConfig {
-        epochs: a.epochs,
-        hidden: [h1, h2],
-        validation_scenes: validation_in(&manifest.config, &samples, None),
-        ..TrainConfig::default()
+    Ok(families)
+}
+
+/// Every frame's score of `scene` (its held-out views, the budgets) for `networks`.
+fn score_fold(a: &GeneraliseArgs, scene: &str, networks: &[Mlp]) -> Result<Vec<FrameScore>> {
+    let scenes = [scene.to_string()];
+    let spec = ScoreSpec {
+        scenes: &scenes,
+        views: &a.views,
+        orbit_views: a.orbit_views,
+        width: a.res.width,
+        height: a.res.height,
+        levels: &a.budgets,
+        opacity: a.opacity,
+        networks,
     };
-    config.check()?;
-    let levels = a.budgets.clone();
-    let Resolution { width, height } = a.res;
-    let score_with = |scene: &str, networks: &[Mlp]| -> Result<Vec<FrameScore>> {
-        let scenes = [scene.to_string()];
-        let spec = ScoreSpec {
-            scenes: &scenes,
-            views: &a.views,
-            orbit_views: a.orbit_views,
-            width,
-            height,
-            levels: &levels,
-            opacity: a.opacity,
-            networks,
-        };
-        score::score(&spec, &|| {})
-    };
-    eprintln!(
-        "generalise: {} families left out in turn, {} epochs each, {h1}-{h2}, {} seed(s), from {} ({} samples)",
-        families.len(),
-        a.epochs,
-        a.seeds,
-        data_dir.display(),
-        samples.len()
-    );
+    score::score(&spec, &|| {})
+}
+
+/// Fold `family`'s figures from its frames' scores (networks: the fold's at each seed, the
+/// in-distribution ones, then the fine-tuned one where it ran).
+fn fold_of(
+    family: &str,
+    a: &GeneraliseArgs,
+    (train, config): (&Samples, &TrainConfig),
+    scored: String,
+    scores: Vec<FrameScore>,
+    start: std::time::Instant,
+) -> Fold {
     let seeds = a.seeds as usize;
-    let pb = bar((families.len() as u64 + 1) * a.seeds, "trainings");
-    let mut all = Vec::new();
-    for seed in 0..a.seeds {
-        let seeded = TrainConfig {
-            seed,
-            ..config.clone()
-        };
-        all.push(pb.suspend(|| train_quietly(&seeded, &samples))?);
-        pb.inc(1);
+    let (left_out_by_seed, in_distribution_by_seed) = by_seed(&scores, seeds);
+    Fold {
+        family: family.to_string(),
+        train_scenes: scenes_in(train),
+        validation_scenes: config.validation_scenes.clone(),
+        train_samples: train.len(),
+        scored,
+        frames: scores.iter().filter(|s| s.counts()).count(),
+        left_out_over_optimal: over_seeds(&scores, 0..seeds),
+        in_distribution_over_optimal: over_seeds(&scores, seeds..2 * seeds),
+        left_out_by_seed,
+        in_distribution_by_seed,
+        fine_tuned_over_optimal: (!a.no_fine_tune)
+            .then(|| counted_geomean(&scores, |s| s.dkb_over_optimal(2 * seeds))),
+        vkb_over_optimal: counted_geomean(&scores, FrameScore::vkb_over_optimal),
+        seconds: start.elapsed().as_secs_f64(),
+        scores,
     }
-    let mut folds = Vec::new();
-    for f in &families {
-        let start = std::time::Instant::now();
-        let keep = |s: &str| family_of(s) != Some(f.as_str());
-        let train = samples.filter_scenes(keep);
-        let fold_config = TrainConfig {
-            validation_scenes: validation_in(&manifest.config, &train, Some(f)),
-            ..config.clone()
-        };
-        // Scored together: the fold's network at each seed, then the in-distribution ones,
-        // then seed 0's fine-tuned.
-        let mut networks = Vec::new();
-        for seed in 0..a.seeds {
-            let seeded = TrainConfig {
-                seed,
-                ..fold_config.clone()
-            };
-            networks.push(pb.suspend(|| train_quietly(&seeded, &train))?);
-            pb.inc(1);
-        }
-        let scored = format!("{f}:1");
-        networks.extend(all.iter().cloned());
-        if !a.no_fine_tune {
-            let dir = fold_dir(&a.json, f);
-            let tuned = pb.suspend(|| fine_tune(&scored, &networks[0], &a, [h1, h2], &dir))?;
-            networks.push(tuned);
-        }
-        let scores = score_with(&scored, &networks)?;
-        let frames = scores.iter().filter(|s| s.counts()).count();
-        let (left_out_by_seed, in_distribution_by_seed) = by_seed(&scores, seeds);
-        let fold = Fold {
-            family: f.clone(),
-            train_scenes: scenes_in(&train),
-            validation_scenes: fold_config.validation_scenes.clone(),
-            train_samples: train.len(),
-            scored,
-            frames,
-            left_out_over_optimal: over_seeds(&scores, 0..seeds),
-            in_distribution_over_optimal: over_seeds(&scores, seeds..2 * seeds),
-            left_out_by_seed,
-            in_distribution_by_seed,
-            fine_tuned_over_optimal: (!a.no_fine_tune)
-                .then(|| counted_geomean(&scores, |s| s.dkb_over_optimal(2 * seeds))),
-            vkb_over_optimal: counted_geomean(&scores, FrameScore::vkb_over_optimal),
-            seconds: start.elapsed().as_secs_f64(),
-            scores,
-        };
-        pb.suspend(|| {
-            eprintln!(
-                "fold {:<10} DKB/optimal left out {:.3}, in distribution {:.3}, fine-tuned {}, VKB {:.3} ({} frames, {:.0} s)",
-                fold.family,
-                fold.left_out_over_optimal,
-                fold.in_distribution_over_optimal,
-                fold.fine_tuned_over_optimal.map_or("-".into(), |v| format!("{v:.3}")),
-                fold.vkb_over_optimal,
-                fold.frames,
-                fold.seconds
-            )
-        });
-        folds.push(fold);
-    }
-    pb.finish_and_clear();
-    let report = summarise(&data_dir, &a, [h1, h2], folds);
-    let text = serde_json::to_string_pretty(&report).expect("json");
-    tensors::write_atomic(&a.json, text.as_bytes())?;
-    let md = markdown(&report, &command_line(&a));
-    tensors::write_atomic(&a.out, md.as_bytes())?;
-    print!("{md}");
-    eprintln!("generalise: -> {}, {}", a.out.display(), a.json.display());
-    Ok(())
 }
 
 /// The geometric mean over the counted frames of `scores` and the networks `nets` (their
@@ -474,8 +502,8 @@ fn closed(dkb: f64, vkb: f64) -> f64 {
     1.0 - dkb.max(1.0).ln() / vkb.ln()
 }
 
-fn markdown(r: &Report, command: &str) -> String {
-    let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
+/// The table's title and what it measures, how.
+fn preamble(r: &Report, command: &str) -> String {
     let mut s = String::from("# DKB on families it has never seen (leave one out)\n\n");
     s += &format!(
         "Written by `{command}`. Each fold trains a {}-{} network for {} epochs on the dataset \
@@ -504,6 +532,12 @@ fn markdown(r: &Report, command: &str) -> String {
             ),
         }
     );
+    s
+}
+
+fn markdown(r: &Report, command: &str) -> String {
+    let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
+    let mut s = preamble(r, command);
     s += "| family left out | frames | DKB/optimal, left out | in distribution | left out, fine-tuned on the scene | VKB/optimal | gap to the optimum closed: left out | in distribution | fine-tuned |\n";
     s += "|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     let ranged = |v: f64, seeds: &[f64]| match seeds.len() {
