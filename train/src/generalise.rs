@@ -94,18 +94,51 @@ pub struct Fold {
     pub scored: String,
     /// Counted frames (those that truncate).
     pub frames: usize,
-    /// Geometric means over the counted frames (and the seeds) of error / optimal error: the
-    /// fold's network (which never saw the family), the network trained on every family, the
-    /// fold's network of seed 0 fine-tuned on the scene's training views (where it ran), VKB.
-    pub left_out_over_optimal: f64,
-    pub in_distribution_over_optimal: f64,
-    /// The left-out and in-distribution figures of each seed's networks, seed 0 first.
-    pub left_out_by_seed: Vec<f64>,
-    pub in_distribution_by_seed: Vec<f64>,
-    pub fine_tuned_over_optimal: Option<f64>,
-    pub vkb_over_optimal: f64,
+    #[serde(flatten)]
+    pub figures: Figures,
     pub seconds: f64,
     pub scores: Vec<FrameScore>,
+}
+
+/// A fold's figures, or every fold's together: geometric means over the counted frames (and
+/// the seeds) of error / optimal error.
+#[derive(Clone, Debug, Serialize)]
+pub struct Figures {
+    /// The fold's network (which never saw the family), and the network trained on every
+    /// family.
+    pub left_out_over_optimal: f64,
+    pub in_distribution_over_optimal: f64,
+    /// The left-out and in-distribution figures of each seed's networks, seed 0 first: their
+    /// range is the spread training alone gives.
+    pub left_out_by_seed: Vec<f64>,
+    pub in_distribution_by_seed: Vec<f64>,
+    /// The fold's network of seed 0 fine-tuned on the scene's training views (where it ran).
+    pub fine_tuned_over_optimal: Option<f64>,
+    pub vkb_over_optimal: f64,
+}
+
+impl Figures {
+    /// The figures of frames scored for the networks a fold scores (the fold's at each of
+    /// `seeds` seeds, the in-distribution ones, then the fine-tuned one where `fine_tuned`).
+    fn of(scores: &[FrameScore], seeds: usize, fine_tuned: bool) -> Figures {
+        let over = |nets: std::ops::Range<usize>| {
+            score::geomean(
+                scores
+                    .iter()
+                    .filter(|s| s.counts())
+                    .flat_map(|s| nets.clone().map(move |i| s.dkb_over_optimal(i))),
+            )
+        };
+        let each = |i: usize| counted_geomean(scores, |s| s.dkb_over_optimal(i));
+        Figures {
+            left_out_over_optimal: over(0..seeds),
+            in_distribution_over_optimal: over(seeds..2 * seeds),
+            left_out_by_seed: (0..seeds).map(each).collect(),
+            in_distribution_by_seed: (seeds..2 * seeds).map(each).collect(),
+            fine_tuned_over_optimal: fine_tuned.then(|| each(2 * seeds)),
+            vkb_over_optimal: counted_geomean(scores, FrameScore::vkb_over_optimal),
+        }
+    }
 }
 
 /// What the run wrote.
@@ -118,14 +151,8 @@ pub struct Report {
     pub seeds: u64,
     pub folds: Vec<Fold>,
     /// Over every fold's counted frames together (and the seeds).
-    pub left_out_over_optimal: f64,
-    pub in_distribution_over_optimal: f64,
-    /// The every-fold figures of each seed's networks, seed 0 first: their range is the
-    /// spread training alone gives the table's bottom line.
-    pub left_out_by_seed: Vec<f64>,
-    pub in_distribution_by_seed: Vec<f64>,
-    pub fine_tuned_over_optimal: Option<f64>,
-    pub vkb_over_optimal: f64,
+    #[serde(flatten)]
+    pub figures: Figures,
     /// The fold whose left-out figure is the highest.
     pub worst: String,
     pub worst_over_optimal: f64,
@@ -236,11 +263,12 @@ impl Fold {
         format!(
             "fold {:<10} DKB/optimal left out {:.3}, in distribution {:.3}, fine-tuned {}, VKB {:.3} ({} frames, {:.0} s)",
             self.family,
-            self.left_out_over_optimal,
-            self.in_distribution_over_optimal,
-            self.fine_tuned_over_optimal
+            self.figures.left_out_over_optimal,
+            self.figures.in_distribution_over_optimal,
+            self.figures
+                .fine_tuned_over_optimal
                 .map_or("-".into(), |v| format!("{v:.3}")),
-            self.vkb_over_optimal,
+            self.figures.vkb_over_optimal,
             self.frames,
             self.seconds
         )
@@ -305,8 +333,6 @@ fn fold_of(
     scores: Vec<FrameScore>,
     start: std::time::Instant,
 ) -> Fold {
-    let seeds = a.seeds as usize;
-    let (left_out_by_seed, in_distribution_by_seed) = by_seed(&scores, seeds);
     Fold {
         family: family.to_string(),
         train_scenes: scenes_in(train),
@@ -314,37 +340,10 @@ fn fold_of(
         train_samples: train.len(),
         scored,
         frames: scores.iter().filter(|s| s.counts()).count(),
-        left_out_over_optimal: over_seeds(&scores, 0..seeds),
-        in_distribution_over_optimal: over_seeds(&scores, seeds..2 * seeds),
-        left_out_by_seed,
-        in_distribution_by_seed,
-        fine_tuned_over_optimal: (!a.no_fine_tune)
-            .then(|| counted_geomean(&scores, |s| s.dkb_over_optimal(2 * seeds))),
-        vkb_over_optimal: counted_geomean(&scores, FrameScore::vkb_over_optimal),
+        figures: Figures::of(&scores, a.seeds as usize, !a.no_fine_tune),
         seconds: start.elapsed().as_secs_f64(),
         scores,
     }
-}
-
-/// The geometric mean over the counted frames of `scores` and the networks `nets` (their
-/// indices in the frames' scores) of DKB's error over the optimum.
-fn over_seeds(scores: &[FrameScore], nets: std::ops::Range<usize>) -> f64 {
-    score::geomean(
-        scores
-            .iter()
-            .filter(|s| s.counts())
-            .flat_map(|s| nets.clone().map(move |i| s.dkb_over_optimal(i))),
-    )
-}
-
-/// Each seed's left-out and in-distribution figures (networks `0..seeds` and
-/// `seeds..2 seeds` of the frames' scores).
-fn by_seed(scores: &[FrameScore], seeds: usize) -> (Vec<f64>, Vec<f64>) {
-    let of = |i: usize| counted_geomean(scores, |s| s.dkb_over_optimal(i));
-    (
-        (0..seeds).map(of).collect(),
-        (seeds..2 * seeds).map(of).collect(),
-    )
 }
 
 /// The scenes `samples` has rows of (its table of names may hold more: a selection keeps it).
@@ -430,12 +429,10 @@ fn fine_tune(
 
 fn summarise(data: &Path, a: &GeneraliseArgs, hidden: [usize; 2], folds: Vec<Fold>) -> Report {
     let every: Vec<FrameScore> = folds.iter().flat_map(|f| f.scores.clone()).collect();
-    let seeds = a.seeds as usize;
-    let (left_out_by_seed, in_distribution_by_seed) = by_seed(&every, seeds);
     let worst = folds
         .iter()
-        .max_by(|x, y| x.left_out_over_optimal.total_cmp(&y.left_out_over_optimal))
-        .map(|f| (f.family.clone(), f.left_out_over_optimal))
+        .map(|f| (f.family.clone(), f.figures.left_out_over_optimal))
+        .max_by(|x, y| x.1.total_cmp(&y.1))
         .unwrap_or_default();
     Report {
         data: data.to_path_buf(),
@@ -443,13 +440,7 @@ fn summarise(data: &Path, a: &GeneraliseArgs, hidden: [usize; 2], folds: Vec<Fol
         hidden,
         opacity: a.opacity,
         seeds: a.seeds,
-        left_out_over_optimal: over_seeds(&every, 0..seeds),
-        in_distribution_over_optimal: over_seeds(&every, seeds..2 * seeds),
-        left_out_by_seed,
-        in_distribution_by_seed,
-        fine_tuned_over_optimal: (!a.no_fine_tune)
-            .then(|| counted_geomean(&every, |s| s.dkb_over_optimal(2 * seeds))),
-        vkb_over_optimal: counted_geomean(&every, FrameScore::vkb_over_optimal),
+        figures: Figures::of(&every, a.seeds as usize, !a.no_fine_tune),
         worst: worst.0,
         worst_over_optimal: worst.1,
         folds,
@@ -548,16 +539,13 @@ fn markdown(r: &Report, command: &str) -> String {
             format!("{v:.3} ({lo:.3}-{hi:.3})")
         }
     };
-    let row = |name: &str,
-               frames: usize,
-               (l, ls): (f64, &[f64]),
-               (i, is): (f64, &[f64]),
-               t: Option<f64>,
-               v: f64| {
+    let row = |name: &str, frames: usize, f: &Figures| {
+        let (l, i) = (f.left_out_over_optimal, f.in_distribution_over_optimal);
+        let (t, v) = (f.fine_tuned_over_optimal, f.vkb_over_optimal);
         format!(
             "| {name} | {frames} | {} | {} | {} | {v:.3} | {:.0}% | {:.0}% | {} |\n",
-            ranged(l, ls),
-            ranged(i, is),
+            ranged(l, &f.left_out_by_seed),
+            ranged(i, &f.in_distribution_by_seed),
             opt(t),
             100.0 * closed(l, v),
             100.0 * closed(i, v),
@@ -565,31 +553,17 @@ fn markdown(r: &Report, command: &str) -> String {
         )
     };
     for f in &r.folds {
-        s += &row(
-            &f.family,
-            f.frames,
-            (f.left_out_over_optimal, &f.left_out_by_seed),
-            (f.in_distribution_over_optimal, &f.in_distribution_by_seed),
-            f.fine_tuned_over_optimal,
-            f.vkb_over_optimal,
-        );
+        s += &row(&f.family, f.frames, &f.figures);
     }
     let frames: usize = r.folds.iter().map(|f| f.frames).sum();
-    s += &row(
-        "**every fold**",
-        frames,
-        (r.left_out_over_optimal, &r.left_out_by_seed),
-        (r.in_distribution_over_optimal, &r.in_distribution_by_seed),
-        r.fine_tuned_over_optimal,
-        r.vkb_over_optimal,
-    );
+    s += &row("**every fold**", frames, &r.figures);
     s += &format!(
         "\nLeft out, DKB/optimal {:.3} over every fold (in distribution {:.3}, fine-tuned on \
          the scene {}); the worst fold {} at {:.3}. The gap closed is the share of VKB's log \
          distance to the optimum that DKB removes.\n",
-        r.left_out_over_optimal,
-        r.in_distribution_over_optimal,
-        opt(r.fine_tuned_over_optimal),
+        r.figures.left_out_over_optimal,
+        r.figures.in_distribution_over_optimal,
+        opt(r.figures.fine_tuned_over_optimal),
         r.worst,
         r.worst_over_optimal
     );
