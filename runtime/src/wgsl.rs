@@ -74,8 +74,11 @@ pub mod shaders {
 
     /// What a resolve writes onto (an application's target; dhoit's own is rgba32float).
     const ONTO: (&str, Value) = ("OntoTexture", Value::StorageTexture("rgba32float"));
-    /// A capture built for frames whose budget holds every fragment, or in general.
+    /// A capture or resolve in general (the default), or
     const FITS: (&str, Value) = ("EVERY_FRAGMENT_FITS", Value::Bool(false));
+    /// the variant built for frames whose budget holds every fragment (dhoit's own pipelines
+    /// and an application's capture alike).
+    pub const EVERY_FRAGMENT_FITS: (&str, Value) = ("EVERY_FRAGMENT_FITS", Value::Bool(true));
     /// DKB's features pass loads a pixel's nearest key before its atomicMax.
     const PRELOAD: (&str, Value) = ("PRELOAD_NEAREST", Value::Bool(true));
 

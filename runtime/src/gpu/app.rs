@@ -475,10 +475,7 @@ fn storing_pass(phase: Phase) -> (&'static str, &'static [(&'static str, shaders
         Phase::Features => ("features", &[]),
         Phase::VkbCount => ("vkb_count", &[]),
         Phase::Capture => ("capture", &[]),
-        Phase::CaptureFits => (
-            "capture",
-            &[("EVERY_FRAGMENT_FITS", shaders::Value::Bool(true))],
-        ),
+        Phase::CaptureFits => ("capture", &[shaders::EVERY_FRAGMENT_FITS]),
         Phase::CountFeatures => ("count_features", &[]),
         Phase::CountFeaturesDepths => ("count_features_depths", &[]),
         Phase::FeaturesDepths => ("features_depths", &[]),
@@ -620,7 +617,7 @@ fn onto_pipeline(
     let name = check_target_format(format, "dhoit").expect("checked when made");
     let mut defs = vec![("OntoTexture", shaders::Value::StorageTexture(name))];
     if resolve.fits() {
-        defs.push(("EVERY_FRAGMENT_FITS", shaders::Value::Bool(true)));
+        defs.push(shaders::EVERY_FRAGMENT_FITS);
     }
     let src = shaders::source_with(pass, &defs).expect("a resolve and its definitions");
     let label = format!("{pass} ({entry}, {format:?})");

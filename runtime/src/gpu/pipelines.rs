@@ -510,9 +510,6 @@ fn module_defining(
     module_from(device, label, src)
 }
 
-/// A pass built for frames whose budget holds every fragment.
-const FITS: (&str, shaders::Value) = ("EVERY_FRAGMENT_FITS", shaders::Value::Bool(true));
-
 /// Pass `name`'s entry `entry`, compute.
 fn compute_of(device: &wgpu::Device, name: &str, entry: &str) -> wgpu::ComputePipeline {
     compute_pipeline(device, name, &module(device, name), entry)
@@ -635,7 +632,7 @@ impl<'a> ExtraPipelines<'a> {
                 device,
                 "capture_tints",
                 "capture_tints (every fragment fits)",
-                &[FITS],
+                &[shaders::EVERY_FRAGMENT_FITS],
             );
             [
                 transparent_pipeline(device, "capture_tints", &module(device, "capture_tints")),
@@ -717,7 +714,7 @@ impl Pipelines {
                 device,
                 pass,
                 &format!("{pass} (every fragment fits)"),
-                &[FITS],
+                &[shaders::EVERY_FRAGMENT_FITS],
             )
         };
         let compute_entry = |name: &str, entry: &str| compute_of(device, name, entry);
