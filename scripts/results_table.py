@@ -250,7 +250,7 @@ def training_claims():
     figures = [
         (r"\((\d+\.\d) million\s+samples\)", f"{samples / 1e6:.1f}", f"{samples:,} samples"),
         (r"then trains (\d+) epochs", str(epochs), f"{epochs} epochs"),
-        (r"records the training machine's \(`([0-9a-f]+)`", config["float_fingerprint"],
+        (r"records the training machine's \(`([0-9a-z-]+)`", config["float_fingerprint"],
          "the training machine's float fingerprint"),
     ]
     errors = []

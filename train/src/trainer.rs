@@ -760,14 +760,7 @@ pub fn train_from(
     let init = initial_network(config, init, &train_set)?;
     let (mean, std) = (init.mean, init.std);
     let mut net = ImportanceNet::from_mlp(&init, &device);
-    let mut sgd = SgdConfig::new();
-    if config.momentum > 0.0 {
-        sgd = sgd.with_momentum(Some(MomentumConfig::new().with_momentum(config.momentum)));
-    }
-    if config.clip > 0.0 {
-        sgd = sgd.with_gradient_clipping(Some(GradientClippingConfig::Norm(config.clip as f32)));
-    }
-    let mut optim = sgd.init();
+    let mut optim = optimiser(config);
     let mut history = Vec::new();
     let mut best: Option<(f64, usize, Mlp)> = None;
     let start = Instant::now();
@@ -932,6 +925,20 @@ fn epoch_batches(
     }
 }
 
+/// The optimiser a training configuration steps with: SGD, its momentum, and its gradient
+/// clipping by norm (whose norms are burn's sums, the one part of a step whose floats depend on
+/// the CPU's SIMD width: [`float_fingerprint`]).
+fn optimiser(config: &TrainConfig) -> burn::optim::ModuleOptimizer {
+    let mut sgd = SgdConfig::new();
+    if config.momentum > 0.0 {
+        sgd = sgd.with_momentum(Some(MomentumConfig::new().with_momentum(config.momentum)));
+    }
+    if config.clip > 0.0 {
+        sgd = sgd.with_gradient_clipping(Some(GradientClippingConfig::Norm(config.clip as f32)));
+    }
+    sgd.init()
+}
+
 /// What a training benchmark steps: the network, its optimiser (SGD, momentum 0.9, as
 /// `make train`), random features and targets.
 struct Bench {
@@ -1011,16 +1018,28 @@ pub fn bench_regret_step(rows: usize, steps: usize) -> f64 {
     })
 }
 
-/// How this machine computes training's floats, as a hex digest: the parameters' bits after four
-/// regret-loss steps (the step `make train` runs: burn's kernels on this CPU, whose SIMD paths
-/// differ between machines) on a synthetic frame, from a fixed network. Training records it
-/// (config.json, the weights' metadata), so a test can tell "this machine computes floats as the
+/// The scheme of [`float_fingerprint`]'s digests, their prefix: a digest of another scheme
+/// (an earlier one recorded no prefix) never equals one of this.
+pub const FINGERPRINT_SCHEME: &str = "v2";
+
+/// How this machine computes training's floats, as a digest: four regret-loss steps (the step
+/// `make train` runs, with its optimiser: momentum and clipping by norm) on a synthetic frame from
+/// a fixed network, then the parameters' bits and their squared norms as burn sums them. burn's
+/// sums take the widest SIMD the CPU has (8 lanes with AVX2, 16 with AVX-512), so their bits,
+/// and a clipped step's, differ between such CPUs where the step's matrix products do not.
+/// Training records it (config.json), so a test can tell "this machine computes floats as the
 /// one that trained the committed weights did" (then a fresh training must give them bit for
 /// bit) from "it does not" (then no run can, and it is held to their validation loss). About a
 /// millisecond.
 pub fn float_fingerprint() -> String {
+    float_fingerprint_of(&TrainConfig::default())
+}
+
+/// [`float_fingerprint`] for the optimiser of `config` (its momentum and clipping).
+pub fn float_fingerprint_of(config: &TrainConfig) -> String {
     let rows = 256;
     let mut b = bench_setup(rows, false);
+    b.optim = optimiser(config);
     let frame = FrameSamples::synthetic(rows, 30.0, 3);
     for _ in 0..4 {
         let valid = b.net.valid();
@@ -1029,20 +1048,29 @@ pub fn float_fingerprint() -> String {
         let grads = step::gradients(&valid, pass, &d_out, 1e-6, 1e-5, &b.device);
         b.net = b.optim.step(1e-3, b.net.clone(), grads);
     }
-    let m = b
-        .net
-        .valid()
-        .to_mlp([0.0; FEATURES], [1.0; FEATURES], Target::RelativeK);
-    // FNV-1a over every parameter's bits.
+    let valid = b.net.valid();
+    // Each parameter's squared norm as the clipping computes it (burn's square and sum).
+    let norm = |t: Tensor<2>| t.square().sum().into_scalar::<f32>();
+    let bias = |l: &burn::nn::Linear| l.bias.as_ref().expect("a bias").val().unsqueeze::<2>();
+    let norms = vec![
+        norm(valid.fc1.weight.val()),
+        norm(bias(&valid.fc1)),
+        norm(valid.fc2.weight.val()),
+        norm(bias(&valid.fc2)),
+        norm(valid.out.weight.val()),
+        norm(bias(&valid.out)),
+    ];
+    let m = valid.to_mlp([0.0; FEATURES], [1.0; FEATURES], Target::RelativeK);
+    // FNV-1a over every parameter's bits, then the norms'.
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for v in [&m.w1, &m.b1, &m.w2, &m.b2, &m.w3, &vec![m.b3]] {
+    for v in [&m.w1, &m.b1, &m.w2, &m.b2, &m.w3, &vec![m.b3], &norms] {
         for x in v.iter() {
             for byte in x.to_bits().to_le_bytes() {
                 h = (h ^ byte as u64).wrapping_mul(0x0100_0000_01b3);
             }
         }
     }
-    format!("{h:016x}")
+    format!("{FINGERPRINT_SCHEME}-{h:016x}")
 }
 
 /// burn inference throughput: samples per second of [`predict`] over `n` random rows.
