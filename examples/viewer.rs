@@ -53,7 +53,7 @@ struct Args {
     /// needs a device that blends 32-bit floats).
     /// Or `mlab` (--rows blending rows, each pixel's fragments merged in their submission order:
     /// the A-buffer's two draws, each fragment with its triangle's index).
-    #[arg(long, default_value = "linked-list", value_parser = ["linked-list", "fkb", "abuffer", "dkb", "vkb", "wboit", "mboit", "mlab"])]
+    #[arg(long, default_value = "linked-list", value_parser = clap::builder::PossibleValuesParser::new(dhoit_runtime::method::Method::those(dhoit_runtime::method::Method::in_application).iter().map(|m| m.name())))]
     method: String,
     /// MLAB's blending rows: 1 to 8.
     #[arg(long, default_value_t = 4)]

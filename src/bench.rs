@@ -53,17 +53,21 @@ pub struct BenchArgs {
     summary: Option<PathBuf>,
 }
 
-/// The methods the GPU bench measures, in its order (its variants are of FKB and DKB).
-const GPU_METHODS: [Method; 8] = [
-    Method::Abuffer,
-    Method::Fkb,
-    Method::Optimal,
-    Method::Vkb,
-    Method::Dkb,
-    Method::Wboit,
-    Method::Mboit,
-    Method::LinkedList,
-];
+/// The methods the GPU bench measures, in the registry's order ([`Method::gpu_timed`]; its
+/// variants are of FKB, VKB and DKB).
+fn gpu_methods() -> Vec<Method> {
+    Method::those(Method::gpu_timed)
+}
+
+/// The CPU's allocation for method `m` among `cpu`, one per [`gpu_methods`] in its order (None
+/// where the budget refused it).
+fn allocation_of(
+    cpu: &[Option<dhoit_runtime::frame::Allocation>],
+    m: Method,
+) -> &Option<dhoit_runtime::frame::Allocation> {
+    let i = gpu_methods().iter().position(|&x| x == m);
+    &cpu[i.expect("a method the GPU bench times")]
+}
 
 /// Fastest of `n` runs of `f`, in seconds, with the last result.
 fn best<T>(n: usize, mut f: impl FnMut() -> Result<T>) -> Result<(f64, T)> {
@@ -108,7 +112,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     // A budget too small for a method measured is refused before the first measurement (on
     // the GPU it would be recorded as every scene's error). MLAB, measured on the CPU only,
     // needs less than FKB.
-    for m in GPU_METHODS {
+    for m in gpu_methods() {
         dhoit_runtime::frame::check_budget(budget, m, size)?;
     }
     // The report's folder too: a run on a lent GPU must not measure for minutes and then fail
@@ -373,31 +377,32 @@ fn bench_nets(gpu: &dhoit_runtime::gpu::Gpu) -> Result<BenchNets> {
 /// laid out layer-major; DKB with its records in one batch (the pool sized for all of them);
 /// and DKB with the 16-8 network, and with the default one at f16-math
 /// (binary16 hidden layers) where the device has them; FKB, VKB and DKB with the portable
-/// capture (32-bit atomics, two passes). `cpu` is in [`GPU_METHODS`]' order.
+/// capture (32-bit atomics, two passes). `cpu` is in [`gpu_methods`]' order.
 /// A method whose allocation the budget refuses (`None`: FKB below a slot a pixel) has no runs.
 fn bench_runs(
     cpu: &[Option<dhoit_runtime::frame::Allocation>],
 ) -> Vec<(&'static str, Method, &dhoit_runtime::frame::Allocation)> {
-    GPU_METHODS
+    let of = |m| allocation_of(cpu, m);
+    gpu_methods()
         .iter()
         .zip(cpu)
         .map(|(m, f)| (m.name(), *m, f))
         .chain([
-            ("dkb_no_skip", Method::Dkb, &cpu[4]),
-            ("dkb_insertion_only", Method::Dkb, &cpu[4]),
-            ("dkb_two_mode_where_all_fit", Method::Dkb, &cpu[4]),
-            ("dkb_spread_search", Method::Dkb, &cpu[4]),
-            ("dkb_shared_weights", Method::Dkb, &cpu[4]),
-            ("dkb_array_network", Method::Dkb, &cpu[4]),
-            ("dkb_features_no_preload", Method::Dkb, &cpu[4]),
-            ("dkb_records_in_batches", Method::Dkb, &cpu[4]),
-            ("dkb_three_pass", Method::Dkb, &cpu[4]),
-            ("fkb_layer_major", Method::Fkb, &cpu[1]),
-            ("dkb_16-8", Method::Dkb, &cpu[4]),
-            ("dkb_f16_math", Method::Dkb, &cpu[4]),
-            ("fkb_portable", Method::Fkb, &cpu[1]),
-            ("vkb_portable", Method::Vkb, &cpu[3]),
-            ("dkb_portable", Method::Dkb, &cpu[4]),
+            ("dkb_no_skip", Method::Dkb, of(Method::Dkb)),
+            ("dkb_insertion_only", Method::Dkb, of(Method::Dkb)),
+            ("dkb_two_mode_where_all_fit", Method::Dkb, of(Method::Dkb)),
+            ("dkb_spread_search", Method::Dkb, of(Method::Dkb)),
+            ("dkb_shared_weights", Method::Dkb, of(Method::Dkb)),
+            ("dkb_array_network", Method::Dkb, of(Method::Dkb)),
+            ("dkb_features_no_preload", Method::Dkb, of(Method::Dkb)),
+            ("dkb_records_in_batches", Method::Dkb, of(Method::Dkb)),
+            ("dkb_three_pass", Method::Dkb, of(Method::Dkb)),
+            ("fkb_layer_major", Method::Fkb, of(Method::Fkb)),
+            ("dkb_16-8", Method::Dkb, of(Method::Dkb)),
+            ("dkb_f16_math", Method::Dkb, of(Method::Dkb)),
+            ("fkb_portable", Method::Fkb, of(Method::Fkb)),
+            ("vkb_portable", Method::Vkb, of(Method::Vkb)),
+            ("dkb_portable", Method::Dkb, of(Method::Dkb)),
         ])
         .filter_map(|(label, m, f)| f.as_ref().map(|f| (label, m, f)))
         .collect()
@@ -501,7 +506,7 @@ fn frame_shape(
         Method::Dkb,
         &dhoit_runtime::frame::Allocation {
             exact: false,
-            ..cpu[4]
+            ..allocation_of(cpu, Method::Dkb)
                 .clone()
                 .ok_or_else(|| anyhow::anyhow!("{name}: DKB has no allocation"))?
         },
@@ -803,7 +808,7 @@ fn gpu_bench(
             // and the other methods are measured. DKB and VKB must run.
             let mut methods = serde_json::Map::new();
             let mut cpu = Vec::new();
-            for m in GPU_METHODS {
+            for m in gpu_methods() {
                 match renderer.allocate_for_gpu(m) {
                     Ok(a) => cpu.push(Some(a)),
                     Err(e) if m == Method::Fkb => {

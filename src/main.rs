@@ -15,24 +15,14 @@ mod sequence;
 mod trade;
 mod versus;
 
-#[derive(Parser)]
-#[command(
-    name = "dhoit",
-    version,
-    about = "Deep hybrid order-independent transparency",
-    long_about = "Deep hybrid order-independent transparency.\n\n\
+/// `dhoit --help`'s description, its methods listed from the registry
+/// ([`dhoit_runtime::method::help`]).
+fn long_about() -> String {
+    format!(
+        "Deep hybrid order-independent transparency.\n\n\
         Renders many overlapping transparent surfaces with a k-buffer whose per-pixel k is \
         decided within a fixed memory budget, beside the exact A-buffer and the baselines.\n\n\
-        Methods: abuffer (exact reference), fkb (fixed k-buffer), vkb (importance-map variable \
-        k-buffer), dkb (deep k-buffer: the network's importance), optimal (the optimal \
-        allocation), optimal-pooled (the optimal allocation in VKB's and DKB's layout, their \
-        tails pooled; CPU only), greedy-paper and greedy-increase (the paper's backward greedy, two heap \
-        keys), mlab (multi-layer alpha blending), wboit (weighted blended OIT, McGuire and \
-        Bavoil 2013: one pass into an RGBA16F and an R8 target, no sorting), mboit (moment-based \
-        OIT, Munstermann et al. 2018: 4, 6 or 8 power moments in 32-bit targets, two passes), \
-        linked-list (a budgeted per-pixel linked \
-        list, as Bevy ships it: fragments kept first come, first served until the budget's nodes \
-        are spent, the rest dropped; the nearest 8 of a pixel sorted).\n\n\
+        Methods: {}.\n\n\
         Budgets are bytes with units (20MB, 40MiB), average fragment slots per pixel (2fpp), or \
         a share of the frame's own visible transparent fragments (25%). A budget is a cap: \
         where the exact A-buffer needs no more bytes than a k-buffer method would at its \
@@ -40,7 +30,17 @@ mod versus;
         (--always-approximate renders the method's own approximation).\n\
         Scenes are built-in names (see `dhoit scenes`) or paths to .gltf/.glb files, each with \
         its own materials (opaque, masked, blended, glass; the papers' built-in families at one \
-        opacity of 0.33); --opacity A gives every surface one opacity."
+        opacity of 0.33); --opacity A gives every surface one opacity.",
+        dhoit_runtime::method::help()
+    )
+}
+
+#[derive(Parser)]
+#[command(
+    name = "dhoit",
+    version,
+    about = "Deep hybrid order-independent transparency",
+    long_about = long_about()
 )]
 struct Cli {
     #[command(subcommand)]

@@ -16,6 +16,15 @@ use dhoit_train::plot::{self, TradePoint};
 use serde::Serialize;
 use std::path::PathBuf;
 
+/// `--methods`' default: every method at equal bytes, comma separated.
+static DEFAULT_METHODS: std::sync::LazyLock<String> = std::sync::LazyLock::new(|| {
+    let names: Vec<&str> = Method::those(Method::at_equal_bytes)
+        .iter()
+        .map(|m| m.name())
+        .collect();
+    names.join(",")
+});
+
 #[derive(Args)]
 pub struct VersusArgs {
     /// Scenes, comma separated: built-in names or .gltf/.glb paths.
@@ -38,11 +47,12 @@ pub struct VersusArgs {
         default_value = "0.25,0.5,0.75,1"
     )]
     memories: Vec<f64>,
-    /// Methods, comma separated.
+    /// Methods, comma separated; by default every method whose GPU frame keeps to its budget's
+    /// bytes (`Method::at_equal_bytes`).
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "abuffer,fkb,vkb,dkb,wboit,mboit,linked-list"
+        default_value = DEFAULT_METHODS.as_str()
     )]
     methods: Vec<String>,
     /// More networks for DKB beside its weights (--weights, or the default ones), comma

@@ -877,16 +877,12 @@ fn the_gpu_bench_reports_every_method_and_option() {
     // The orbit as a real-time renderer draws it: every streamed method, its frames a second
     // both ways, and no submission or wait of dhoit's own while recording a frame.
     let sequence = &report["gpu"]["scenes"][0]["sequence"];
-    for m in [
-        "abuffer",
-        "fkb",
-        "vkb",
-        "dkb",
-        "dkb_three_pass",
-        "wboit",
-        "mboit",
-        "linked-list",
-    ] {
+    let streamed: Vec<String> = Method::those(Method::at_equal_bytes)
+        .iter()
+        .map(|m| m.to_string())
+        .chain(["dkb_three_pass".to_string()])
+        .collect();
+    for m in &streamed {
         let e = &sequence["methods"][m];
         for key in ["fps_two_in_flight", "fps_one_at_a_time", "frame_gpu_ms"] {
             let v = e[key].as_f64();
@@ -922,15 +918,24 @@ fn the_gpu_bench_reports_every_method_and_option() {
     );
     let scene = &report["gpu"]["scenes"][0];
     assert_eq!(scene["scene"], "cad", "{scene}");
-    for m in [
-        "abuffer",
-        "fkb",
-        "optimal",
-        "vkb",
-        "dkb",
-        "wboit",
-        "mboit",
-        "linked-list",
+    // The methods it times are the registry's (`Method::gpu_timed`), each once, and no other
+    // method's name; the rest of its entries are named variants of them.
+    let timed = Method::those(Method::gpu_timed);
+    let named: Vec<Method> = scene["methods"]
+        .as_object()
+        .unwrap()
+        .keys()
+        .filter_map(|k| Method::parse(k).ok())
+        .collect();
+    assert_eq!(
+        named
+            .iter()
+            .copied()
+            .collect::<std::collections::HashSet<_>>(),
+        timed.iter().copied().collect(),
+        "the methods the GPU bench timed"
+    );
+    for m in timed.iter().map(|m| m.name()).chain([
         "dkb_no_skip",
         "dkb_insertion_only",
         "dkb_two_mode_where_all_fit",
@@ -944,7 +949,7 @@ fn the_gpu_bench_reports_every_method_and_option() {
         "dkb_16-8",
         // lavapipe computes in binary16 (SHADER_F16); a device without it has no such run.
         "dkb_f16_math",
-    ] {
+    ]) {
         let ms = scene["methods"][m]["frame_gpu_ms"].as_f64();
         assert!(ms.is_some_and(|t| t > 0.0 && t.is_finite()), "{m}: {ms:?}");
         assert_eq!(
@@ -1549,6 +1554,17 @@ fn versus_puts_every_method_at_one_memory_and_marks_the_front() {
         assert!(full.iter().any(|p| p["front"] == true));
     }
     assert!(held >= 20, "{held} frames held to M");
+    // By default, every method at equal bytes of the registry (`Method::at_equal_bytes`).
+    let ran: std::collections::HashSet<&str> = budgets
+        .iter()
+        .flat_map(|b| b["points"].as_array().unwrap())
+        .map(|p| p["method"].as_str().unwrap())
+        .collect();
+    let registry: std::collections::HashSet<&str> = Method::those(Method::at_equal_bytes)
+        .iter()
+        .map(|m| m.name())
+        .collect();
+    assert_eq!(ran, registry, "the methods versus put at equal bytes");
     assert!(out.join("versus_0p5x.svg").is_file() && out.join("versus_1x.png").is_file());
     assert!(
         std::fs::read_to_string(out.join("versus.md"))
@@ -1894,4 +1910,32 @@ fn generalise_leaves_each_family_out_of_its_fold_s_training() {
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("'nosuch'"), "{err}");
+}
+
+/// `dhoit --help` lists every method of the registry (`Method::ALL`) with what it is, and a
+/// method it does not know is refused naming every one.
+#[test]
+fn the_help_lists_every_method_of_the_registry() {
+    let o = dhoit(&["--help"]);
+    assert!(o.status.success());
+    let help = String::from_utf8_lossy(&o.stdout);
+    let listed = help
+        .lines()
+        .find(|l| l.trim_start().starts_with("Methods: "))
+        .unwrap_or_else(|| panic!("no list of methods in\n{help}"));
+    for m in Method::ALL {
+        assert!(
+            listed.contains(&format!("{m} ({})", m.summary())),
+            "{m} is not listed with its summary: {listed}"
+        );
+    }
+    // Every item of the list is a method of the registry.
+    let items = listed.matches(" (").count();
+    assert_eq!(items, Method::ALL.len(), "{listed}");
+    let o = dhoit(&["render", "--scene", "cad", "--method", "kbuffer"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    for m in Method::ALL {
+        assert!(err.contains(m.name()), "{m} not named in: {err}");
+    }
 }

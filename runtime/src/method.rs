@@ -86,6 +86,67 @@ impl Method {
             })
     }
 
+    /// What the method is, in a line: `dhoit --help` lists every method with it
+    /// ([`help`]).
+    pub fn summary(self) -> &'static str {
+        match self {
+            Method::Abuffer => "exact reference",
+            Method::Fkb => "fixed k-buffer",
+            Method::Vkb => "importance-map variable k-buffer",
+            Method::Dkb => "deep k-buffer: the network's importance",
+            Method::Optimal => "the optimal allocation",
+            Method::OptimalPooled => {
+                "the optimal allocation in VKB's and DKB's layout, their tails pooled; CPU only"
+            }
+            Method::GreedyPaper => "the paper's backward greedy, its heap keyed by the new error",
+            Method::GreedyIncrease => "the backward greedy, its heap keyed by the error's increase",
+            Method::Mlab => "multi-layer alpha blending",
+            Method::Wboit => {
+                "weighted blended OIT, McGuire and Bavoil 2013: one pass into an RGBA16F and an \
+                 R8 target, no sorting"
+            }
+            Method::Mboit => {
+                "moment-based OIT, Munstermann et al. 2018: 4, 6 or 8 power moments in 32-bit \
+                 targets, two passes"
+            }
+            Method::LinkedList => {
+                "a budgeted per-pixel linked list, as Bevy ships it: fragments kept first come, \
+                 first served until the budget's nodes are spent, the rest dropped; the nearest 8 \
+                 of a pixel sorted"
+            }
+        }
+    }
+
+    /// Whether an application renders the method with dhoit's `Oit` types, in its own encoder
+    /// ([`crate::gpu::Oit`]): the methods a renderer ships, which the viewer example offers.
+    /// The CPU's allocations (the optimum, the greedy ones) are ceilings to measure against.
+    pub fn in_application(self) -> bool {
+        !matches!(
+            self,
+            Method::Optimal | Method::OptimalPooled | Method::GreedyPaper | Method::GreedyIncrease
+        )
+    }
+
+    /// Whether the method's GPU frame keeps to its budget's bytes, so that it is compared with
+    /// the others at equal memory: `versus`'s methods, and those the GPU bench streams along an
+    /// orbit. The application's methods but MLAB, whose GPU frame blends from the A-buffer's
+    /// fragments, with the A-buffer's memory.
+    pub fn at_equal_bytes(self) -> bool {
+        self.in_application() && self != Method::Mlab
+    }
+
+    /// Whether the GPU bench times the method's frames: those at equal bytes, and the optimal
+    /// allocation (its k uploaded: the ceiling of the k-buffers' passes; the greedy ones and
+    /// the pooled optimum take the same passes, or none).
+    pub fn gpu_timed(self) -> bool {
+        self.at_equal_bytes() || self == Method::Optimal
+    }
+
+    /// The methods `keep` selects, in the registry's order ([`Method::ALL`]).
+    pub fn those(keep: impl Fn(Method) -> bool) -> Vec<Method> {
+        Method::ALL.into_iter().filter(|&m| keep(m)).collect()
+    }
+
     /// The most memory the method's CPU frame adds to its fragment lists, as bytes a fragment
     /// and a pixel: its allocation's state, the image and its encoding. Fitted to the peak
     /// resident size of `dhoit render` on `cad` at 4096x4096 (1.3 fragments a pixel) and
@@ -137,6 +198,16 @@ impl Method {
             Method::LinkedList => budget::LINKED_LIST,
         }
     }
+}
+
+/// Every method with what it is, as `dhoit --help` lists them: "abuffer (exact reference),
+/// fkb (fixed k-buffer), ...".
+pub fn help() -> String {
+    let items: Vec<String> = Method::ALL
+        .iter()
+        .map(|m| format!("{m} ({})", m.summary()))
+        .collect();
+    items.join(", ")
 }
 
 impl std::str::FromStr for Method {

@@ -1606,6 +1606,31 @@ fn a_second_method_builds_nothing_and_resized_ones_render_as_fresh_ones() {
     assert!(compared.len() >= 14, "{compared:?}");
 }
 
+/// The `Oit` types make every method the registry says an application ships
+/// (`Method::in_application`), each once, and none other: what [`every_method`] holds the
+/// protocol's tests to (MBOIT where the device blends 32-bit floats).
+#[test]
+fn every_method_an_application_ships_has_an_oit_type() {
+    let Some(g) = gpu() else { return };
+    let made: Vec<&str> = every_method(g, (16, 12), F32X4)
+        .iter()
+        .map(|m| m.method())
+        .collect();
+    let blends_f32 = g
+        .device()
+        .features()
+        .contains(wgpu::Features::FLOAT32_BLENDABLE);
+    let mut want: Vec<&str> = dhoit_runtime::method::Method::those(|m| m.in_application())
+        .iter()
+        .map(|m| m.name())
+        .filter(|&m| blends_f32 || m != "mboit")
+        .collect();
+    let mut got = made;
+    want.sort_unstable();
+    got.sort_unstable();
+    assert_eq!(got, want, "the application's methods");
+}
+
 /// Every method renders on a device opened without timestamps (`TIMESTAMP_QUERY` is
 /// optional): the same image, no pass times.
 #[test]
