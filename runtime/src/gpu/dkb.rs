@@ -73,55 +73,9 @@ impl Recording<'_, '_, '_> {
     pub(super) fn dkb_importance(&mut self, mlp: &Mlp, planned: &Planned) -> Result<Importance> {
         let (gpu, passes, px) = (self.passes.gpu, self.passes, self.px);
         gpu.can_run(mlp)?;
-        let importance = self.pixel_word(Word::Written)?;
         let carried = self.carried.clone();
-        let fb = &mut self.fb;
-        let totals = fb.storage("features.totals", 4 * TOTALS_WORDS as u64, true)?;
-        let counts = fb.storage("features.count", count_bytes(px), true)?;
-        let list_len = fb.storage("importance.list_len", 4 * BATCH_WORDS as u64, true)?;
-        let plan = fb.plan_params(&planned.input);
-        // The record marks: the client's, carried from the frame before (and left for the frame
-        // after), or the frame's own; DKB's memory either way.
-        let marks_bytes = crate::budget::marks_bytes(px);
-        let marks = match &carried {
-            Some(c) => {
-                fb.allocated += marks_bytes;
-                c.marks.clone()
-            }
-            None => fb.storage("dkb.record_marks", marks_bytes, true)?,
-        };
-        let pool = fb.storage("oit.slots", planned.input.pool_bytes, true)?;
-        let args = 4 * DISPATCH_WORDS as u64;
-        let dispatch = fb.take(
-            "importance.dispatch",
-            args,
-            wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::INDIRECT
-                | wgpu::BufferUsages::COPY_DST,
-            true,
-        );
-        fb.allocated += args;
-        let b = DkbBuffers {
-            weights: fb.init(
-                "mlp.weights",
-                bytemuck::cast_slice(&mlp_uniform(mlp)),
-                wgpu::BufferUsages::UNIFORM,
-                true,
-            ),
-            counts,
-            pool,
-            optical_depth: fb.init(
-                "features.optical_depth",
-                bytemuck::cast_slice(&crate::importance::optical_depth_table()),
-                wgpu::BufferUsages::UNIFORM,
-                true,
-            ),
-            totals,
-            importance,
-            marks,
-            list_len,
-            dispatch,
-        };
+        let b = self.dkb_buffers(mlp, planned, carried.as_ref())?;
+        let plan = self.fb.plan_params(&planned.input);
         // The records whose statistics the count gathers (the frame's parameters hold the
         // same: Gpu::record_frame), or none: the frame marks its own and draws a features pass.
         let with_count = planned.gathered_with_count(&passes.opts, carried.as_ref());
@@ -145,36 +99,7 @@ impl Recording<'_, '_, '_> {
         passes.plan(self.fb.enc, &b.totals, &plan, &b.list_len);
         self.out.features_drawn = planned.host.map(|_| drawn);
         if drawn {
-            let variant = |entry| Variant {
-                shared_weights: self.passes.opts.tuning.shared_weights,
-                unrolled: self.passes.opts.tuning.unrolled_network,
-                entry,
-                ..Variant::for_network("importance_dkb", mlp, self.passes.opts.tuning.skip_forced)
-            };
-            self.out.variants.push(variant("network").form());
-            self.out.variants.push(match with_count {
-                0 => "dkb statistics: a features pass",
-                _ => "dkb statistics: with the count",
-            });
-            let network = ["select_pixels", "args", "network", "gather"]
-                .map(|e| gpu.network_pass(variant(e)));
-            let batches = planned.input.batches.max(1);
-            // The records a batch holds: the plan's, where the host knows it; else the most the
-            // pool can hold (the network's selection is dispatched over that many).
-            let per_batch = planned
-                .host
-                .map_or(planned.records_held(px), |h| h.per_batch);
-            for batch in 0..batches {
-                self.dkb_records_and_features(&b, (batch, per_batch, batches), with_count > 0)?;
-                self.dkb_network(&b, per_batch, &network)?;
-            }
-            // The marks the frame after gathers with its count: this frame's, where it gathered
-            // with the frame before's.
-            if with_count > 0 {
-                self.mark_records(&b)?;
-            }
-            self.marked = carried.is_some();
-            self.out.record_batches = Some(batches);
+            self.dkb_batches(&b, mlp, planned, with_count, carried.is_some())?;
         }
         let variant = if self.passes.opts.tuning.features_preload {
             "features: preload"
@@ -198,6 +123,110 @@ impl Recording<'_, '_, '_> {
                 pool: Some(b.pool),
             }),
         })
+    }
+
+    /// DKB's buffers for a frame: the count, totals, batch list and dispatch, the record marks
+    /// (the client's `carried` from the frame before, or the frame's own: DKB's memory either
+    /// way), the pool, the network's weights and the optical depths' table.
+    fn dkb_buffers(
+        &mut self,
+        mlp: &Mlp,
+        planned: &Planned,
+        carried: Option<&super::Carried>,
+    ) -> Result<DkbBuffers> {
+        let px = self.px;
+        let importance = self.pixel_word(Word::Written)?;
+        let fb = &mut self.fb;
+        let totals = fb.storage("features.totals", 4 * TOTALS_WORDS as u64, true)?;
+        let counts = fb.storage("features.count", count_bytes(px), true)?;
+        let list_len = fb.storage("importance.list_len", 4 * BATCH_WORDS as u64, true)?;
+        // The record marks: the client's, carried from the frame before (and left for the frame
+        // after), or the frame's own; DKB's memory either way.
+        let marks_bytes = crate::budget::marks_bytes(px);
+        let marks = match carried {
+            Some(c) => {
+                fb.allocated += marks_bytes;
+                c.marks.clone()
+            }
+            None => fb.storage("dkb.record_marks", marks_bytes, true)?,
+        };
+        let pool = fb.storage("oit.slots", planned.input.pool_bytes, true)?;
+        let args = 4 * DISPATCH_WORDS as u64;
+        let dispatch = fb.take(
+            "importance.dispatch",
+            args,
+            wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::INDIRECT
+                | wgpu::BufferUsages::COPY_DST,
+            true,
+        );
+        fb.allocated += args;
+        Ok(DkbBuffers {
+            weights: fb.init(
+                "mlp.weights",
+                bytemuck::cast_slice(&mlp_uniform(mlp)),
+                wgpu::BufferUsages::UNIFORM,
+                true,
+            ),
+            counts,
+            pool,
+            optical_depth: fb.init(
+                "features.optical_depth",
+                bytemuck::cast_slice(&crate::importance::optical_depth_table()),
+                wgpu::BufferUsages::UNIFORM,
+                true,
+            ),
+            totals,
+            importance,
+            marks,
+            list_len,
+            dispatch,
+        })
+    }
+
+    /// DKB's records, features and network, batch after batch (as many as the frame's pool
+    /// needs), then the marks the frame after gathers with its count where this frame gathered
+    /// `with_count` records with its own (`carried`: the client keeps its marks).
+    fn dkb_batches(
+        &mut self,
+        b: &DkbBuffers,
+        mlp: &Mlp,
+        planned: &Planned,
+        with_count: u64,
+        carried: bool,
+    ) -> Result<()> {
+        let (gpu, px) = (self.passes.gpu, self.px);
+        let variant = |entry| Variant {
+            shared_weights: self.passes.opts.tuning.shared_weights,
+            unrolled: self.passes.opts.tuning.unrolled_network,
+            entry,
+            ..Variant::for_network("importance_dkb", mlp, self.passes.opts.tuning.skip_forced)
+        };
+        self.out.variants.push(variant("network").form());
+        self.out.variants.push(match with_count {
+            0 => "dkb statistics: a features pass",
+            _ => "dkb statistics: with the count",
+        });
+        let network =
+            ["select_pixels", "args", "network", "gather"].map(|e| gpu.network_pass(variant(e)));
+        let batches = planned.input.batches.max(1);
+        // The records a batch holds: the plan's, where the host knows it; else the most the
+        // pool can hold (the network's selection is dispatched over that many).
+        let per_batch = planned
+            .host
+            .map_or(planned.records_held(px), |h| h.per_batch);
+        for batch in 0..batches {
+            self.dkb_records_and_features(b, (batch, per_batch, batches), with_count > 0)?;
+            self.dkb_network(b, per_batch, &network)?;
+        }
+        // The marks the frame after gathers with its count: this frame's, where it gathered
+        // with the frame before's.
+        if with_count > 0 {
+            self.mark_records(b)?;
+        }
+        self.marked = carried;
+        self.out.record_batches = Some(batches);
+        Ok(())
     }
 
     /// DKB's count pass: each pixel's fragments counted, and the statistics of the records the

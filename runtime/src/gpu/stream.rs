@@ -221,15 +221,12 @@ pub(super) struct Stream {
     pub(super) expected: Occupancy,
     frames: u64,
     pub(super) last_bytes: u64,
-    pending: Vec<PendingReport>,
-    /// Staging buffers of reports read, for the next.
-    spare: Vec<wgpu::Buffer>,
+    /// The frames' reports, copied and waiting to be read.
+    reports: Reports,
     /// DKB's record marks from frame to frame ([`super::Carried`]): made with the first frame
     /// of a size, valid once a frame has left its own there, made invalid by a cut
     /// ([`Stream::cut`]), after which the next frame marks its own and draws a features pass.
     carried: Option<super::Carried>,
-    /// The words 0 to [`STAMP_VALUES`], each its index, that frames copy their [`stamp`] from.
-    stamps: Option<wgpu::Buffer>,
     /// Whether the frames' sizes follow a count (one read back, or the application's
     /// [`Stream::expect`]): until then the next frame counts first ([`Stream::count_first`]).
     counted: bool,
@@ -260,10 +257,8 @@ impl Stream {
             expected: first_occupancy(size),
             frames: 0,
             last_bytes: 0,
-            pending: Vec::new(),
-            spare: Vec::new(),
+            reports: Reports::default(),
             carried: None,
-            stamps: None,
             counted: false,
         };
         if let Some(b) = budget {
@@ -321,7 +316,7 @@ impl Stream {
     }
 
     pub(super) fn finished(&mut self, wait: bool) -> Result<Vec<FrameReport>> {
-        match wait && !self.pending.is_empty() {
+        match wait && !self.reports.pending.is_empty() {
             true => self.gpu.wait("reading a frame's report")?,
             false => {
                 self.gpu
@@ -335,21 +330,21 @@ impl Stream {
         }
         let mapped = |p: &PendingReport| p.mapped.load(std::sync::atomic::Ordering::Acquire);
         let mut reports = Vec::new();
-        while let Some(p) = self.pending.first() {
+        while let Some(p) = self.reports.pending.first() {
             if !mapped(p) {
                 // Submissions run in order: where a later frame's report is mapped (or, waited
                 // for, every submitted one), this one's encoder was never submitted.
-                let later = self.pending[1..].iter().any(mapped);
+                let later = self.reports.pending[1..].iter().any(mapped);
                 if later || wait {
-                    self.pending.remove(0);
+                    self.reports.pending.remove(0);
                     continue;
                 }
                 break;
             }
-            let p = self.pending.remove(0);
+            let p = self.reports.pending.remove(0);
             let report = self.read_report(&p)?;
             p.staging.unmap();
-            self.spare.push(p.staging);
+            self.reports.spare.push(p.staging);
             // Only the frames that ran report (and size the frames to come).
             if let Some(report) = report {
                 self.learn(&report);
@@ -692,21 +687,7 @@ impl Stream {
             capture: self.capture,
             ..FrameOptions::default()
         };
-        // DKB's record marks, made with its first frame of a size.
-        if matches!(self.method, AppMethod::Dkb(_)) && self.carried.is_none() {
-            let bytes = budget::marks_bytes(self.pixels());
-            self.carried = Some(super::Carried {
-                marks: self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("dkb.record_marks"),
-                    size: bytes,
-                    usage: wgpu::BufferUsages::STORAGE
-                        | wgpu::BufferUsages::COPY_SRC
-                        | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                }),
-                valid: false,
-            });
-        }
+        self.make_marks();
         let spec = FrameSpec {
             opts,
             size: self.size,
@@ -729,85 +710,129 @@ impl Stream {
         if let Some(c) = &mut self.carried {
             c.valid = recorded.marked;
         }
-        // The frame's report, copied where a later call reads it without waiting.
-        let passes = timer.names();
-        let timed = timer.resolved();
-        let bytes = REPORT_WORDS + 16 * passes.len() as u64;
-        {
-            // Reports never read (an application that never asks) make room for new ones.
-            if self.pending.len() >= REPORTS_IN_FLIGHT {
-                self.pending.remove(0);
-            }
-            let staging = match self.spare.iter().position(|b| b.size() >= bytes) {
-                Some(i) => self.spare.swap_remove(i),
-                None => self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("dhoit frame report"),
-                    size: (REPORT_WORDS + 16 * super::TIMED_PASSES as u64).max(bytes),
-                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                }),
-            };
-            enc.clear_buffer(&staging, 0, Some(REPORT_WORDS));
-            let stamps = self.stamps.get_or_insert_with(|| {
-                let words: Vec<u32> = (0..=STAMP_VALUES as u32).collect();
-                let b = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("dhoit frame stamps"),
-                    size: 4 * words.len() as u64,
-                    usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                });
-                // Written before the first submission's commands, never again.
-                self.gpu
-                    .queue
-                    .write_buffer(&b, 0, bytemuck::cast_slice(&words));
-                b
-            });
-            for (i, s) in stamp(self.frames).into_iter().enumerate() {
-                let to = REPORT_STAMP_AT + 4 * i as u64;
-                enc.copy_buffer_to_buffer(stamps, 4 * s as u64, &staging, to, 4);
-            }
-            let out = &recorded.out;
-            if let Some(status) = &out.status {
-                enc.copy_buffer_to_buffer(status, 0, &staging, 0, FrameStatus::BYTES);
-            }
-            if let Some((totals, _)) = &out.plan_buf {
-                let bytes = 4 * crate::shared::TOTALS_WORDS as u64;
-                enc.copy_buffer_to_buffer(totals, 0, &staging, REPORT_TOTALS_AT, bytes);
-            }
-            if let Some((offsets, at)) = &out.counted {
-                enc.copy_buffer_to_buffer(offsets, *at, &staging, REPORT_COUNTED_AT, 4);
-            }
-            if let Some(resolved) = &timed {
-                enc.copy_buffer_to_buffer(
-                    resolved,
-                    0,
-                    &staging,
-                    REPORT_WORDS,
-                    16 * passes.len() as u64,
-                );
-            }
-            // Mapped once the application's submission of this encoder has run: never before
-            // it is submitted, so reading reports cannot hold up or break a submission.
-            let mapped = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-            let flag = mapped.clone();
-            enc.map_buffer_on_submit(&staging, wgpu::MapMode::Read, .., move |r| {
-                flag.store(r.is_ok(), std::sync::atomic::Ordering::Release)
-            });
-            self.pending.push(PendingReport {
-                frame: self.frames,
-                staging,
-                passes,
-                ran: timer.ran(),
-                allocated: recorded.allocated,
-                totals: out.plan_buf.is_some(),
-                counted: out.counted.is_some(),
-                guessed: self.guesses(),
-                mapped,
-            });
-        }
+        let numbered = (self.frames, self.guesses());
+        self.reports
+            .copy(&self.gpu, enc, numbered, &timer, &recorded);
         self.frames += 1;
         self.last_bytes = recorded.allocated;
         Ok(())
+    }
+
+    /// DKB's record marks, made with its first frame of a size (the frame before's marks are
+    /// what a frame that gathers its statistics with its count reads).
+    fn make_marks(&mut self) {
+        if matches!(self.method, AppMethod::Dkb(_)) && self.carried.is_none() {
+            let bytes = budget::marks_bytes(self.pixels());
+            self.carried = Some(super::Carried {
+                marks: self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("dkb.record_marks"),
+                    size: bytes,
+                    usage: wgpu::BufferUsages::STORAGE
+                        | wgpu::BufferUsages::COPY_SRC
+                        | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }),
+                valid: false,
+            });
+        }
+    }
+}
+
+/// A stream's frame reports: those copied and not yet read, the staging buffers of those read
+/// (for the next), and the stamps they are numbered from.
+#[derive(Default)]
+struct Reports {
+    pending: Vec<PendingReport>,
+    /// Staging buffers of reports read, for the next.
+    spare: Vec<wgpu::Buffer>,
+    /// The words 0 to [`STAMP_VALUES`], each its index, that frames copy their [`stamp`] from.
+    stamps: Option<wgpu::Buffer>,
+}
+
+impl Reports {
+    /// The frame's report (its status, totals, count, pass times and stamps) copied into a
+    /// staging buffer mapped once the encoder's submission has run, where
+    /// [`Stream::finished`] reads it without waiting: frame number `frame`, sized from a guess
+    /// where `guessed`.
+    fn copy(
+        &mut self,
+        gpu: &Gpu,
+        enc: &mut wgpu::CommandEncoder,
+        (frame, guessed): (u64, bool),
+        timer: &Timer,
+        recorded: &super::Recorded,
+    ) {
+        let passes = timer.names();
+        let timed = timer.resolved();
+        let bytes = REPORT_WORDS + 16 * passes.len() as u64;
+        // Reports never read (an application that never asks) make room for new ones.
+        if self.pending.len() >= REPORTS_IN_FLIGHT {
+            self.pending.remove(0);
+        }
+        let staging = match self.spare.iter().position(|b| b.size() >= bytes) {
+            Some(i) => self.spare.swap_remove(i),
+            None => gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("dhoit frame report"),
+                size: (REPORT_WORDS + 16 * super::TIMED_PASSES as u64).max(bytes),
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        };
+        enc.clear_buffer(&staging, 0, Some(REPORT_WORDS));
+        let stamps = self.stamps.get_or_insert_with(|| {
+            let words: Vec<u32> = (0..=STAMP_VALUES as u32).collect();
+            let b = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("dhoit frame stamps"),
+                size: 4 * words.len() as u64,
+                usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            // Written before the first submission's commands, never again.
+            gpu.queue.write_buffer(&b, 0, bytemuck::cast_slice(&words));
+            b
+        });
+        for (i, s) in stamp(frame).into_iter().enumerate() {
+            let to = REPORT_STAMP_AT + 4 * i as u64;
+            enc.copy_buffer_to_buffer(stamps, 4 * s as u64, &staging, to, 4);
+        }
+        let out = &recorded.out;
+        if let Some(status) = &out.status {
+            enc.copy_buffer_to_buffer(status, 0, &staging, 0, FrameStatus::BYTES);
+        }
+        if let Some((totals, _)) = &out.plan_buf {
+            let bytes = 4 * crate::shared::TOTALS_WORDS as u64;
+            enc.copy_buffer_to_buffer(totals, 0, &staging, REPORT_TOTALS_AT, bytes);
+        }
+        if let Some((offsets, at)) = &out.counted {
+            enc.copy_buffer_to_buffer(offsets, *at, &staging, REPORT_COUNTED_AT, 4);
+        }
+        if let Some(resolved) = &timed {
+            enc.copy_buffer_to_buffer(
+                resolved,
+                0,
+                &staging,
+                REPORT_WORDS,
+                16 * passes.len() as u64,
+            );
+        }
+        // Mapped once the application's submission of this encoder has run: never before
+        // it is submitted, so reading reports cannot hold up or break a submission.
+        let mapped = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let flag = mapped.clone();
+        enc.map_buffer_on_submit(&staging, wgpu::MapMode::Read, .., move |r| {
+            flag.store(r.is_ok(), std::sync::atomic::Ordering::Release)
+        });
+        self.pending.push(PendingReport {
+            frame,
+            staging,
+            passes,
+            ran: timer.ran(),
+            allocated: recorded.allocated,
+            totals: out.plan_buf.is_some(),
+            counted: out.counted.is_some(),
+            guessed,
+            mapped,
+        });
     }
 }
 
