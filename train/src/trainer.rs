@@ -735,24 +735,7 @@ pub fn train_from(
 ) -> Result<Trained> {
     config.check()?;
     check_data(config, data)?;
-    let held = |s: &str| config.validation_scenes.iter().any(|v| v == s);
-    let train_set = data.filter_scenes(|s| !held(s));
-    let val_set = data.filter_scenes(held);
-    if data.is_empty() {
-        return Err(Error::Config(
-            "the dataset holds no sample: no pixel of its scenes' views has a k the network \
-             decides (no transparent fragment, or none deeper than 2 or 3 fragments, whose k \
-             is forced); for opaque materials `train --scene` takes --opacity"
-                .into(),
-        ));
-    }
-    if train_set.is_empty() {
-        return Err(Error::Config(format!(
-            "no training samples left after holding out the validation scenes ({}): every \
-             sample is from them",
-            config.validation_scenes.join(", ")
-        )));
-    }
+    let (train_set, val_set) = held_out(config, data)?;
     // The network lives on the autodiff device, as burn's optimiser steps it; each step runs on
     // its plain copy (`valid`: the same tensors, no graph).
     let device = cpu_device(true);
@@ -767,8 +750,6 @@ pub fn train_from(
     // The features standardised once, in the row-major layout the step's tensors take; a
     // batch gathers its rows from here.
     let xs = standardised(&train_set.features, &mean, &std);
-    let mut rows = Vec::with_capacity(config.batch * FEATURES);
-    let mut ys = Vec::with_capacity(config.batch);
     // The regret losses take one frame (scene, view, budget) a batch, as the budget is fitted
     // per frame; the MSE losses shuffled mini-batches of `batch` samples.
     let frames = if config.loss.regret() {
@@ -778,38 +759,15 @@ pub fn train_from(
     };
     for epoch in 0..config.epochs {
         let t = Instant::now();
-        let mut rng = Rng::new(config.seed ^ (epoch as u64 + 1).wrapping_mul(0x9E37_79B9));
-        let batches_of = epoch_batches(config, &mut rng, &frames, train_set.len());
-        let (mut sum_mse, mut sum_reg, mut batches) = (0.0, 0.0, 0usize);
-        for chunk in &batches_of {
-            rows.clear();
-            for &i in chunk {
-                rows.extend_from_slice(&xs[i * FEATURES..(i + 1) * FEATURES]);
-            }
-            let valid = net.valid();
-            let (value, grads) = match config.loss {
-                l @ (Loss::Regret | Loss::RegretLevel) => {
-                    // The frame's fit needs every output: the forward pass, the loss's
-                    // gradient on plain numbers, then the backward pass.
-                    let pass = step::forward(&valid, &rows, &plain);
-                    let frame = FrameSamples::of(&train_set, chunk);
-                    let (value, d_out) = regret_gradient(l, &pass.out, &frame);
-                    let grads = step::gradients(&valid, pass, &d_out, config.l1, config.l2, &plain);
-                    (value, grads)
-                }
-                l => {
-                    ys.clear();
-                    ys.extend(chunk.iter().map(|&i| mse_target(l, &train_set, i)));
-                    step::mse_step(&valid, &rows, &ys, config.l1, config.l2, &plain)
-                }
-            };
-            sum_reg += scalar(regularisation(&valid, config.l1, config.l2));
-            let done = (epoch * batches_of.len() + batches) as f64
-                / (config.epochs * batches_of.len()) as f64;
-            net = optim.step(config.learning_rate(done), net, grads);
-            sum_mse += value;
-            batches += 1;
-        }
+        let (stepped, sum_mse, sum_reg, batches) = train_epoch(
+            config,
+            epoch,
+            (&train_set, &xs, &frames),
+            net,
+            &mut optim,
+            &plain,
+        );
+        net = stepped;
         let current = net.to_mlp(mean, std, config.loss.target());
         let validation_loss = if let Some(select) = select {
             select(&current)?
@@ -848,6 +806,79 @@ pub fn train_from(
         seconds,
         samples_per_second: (train_set.len() * config.epochs) as f64 / seconds,
     })
+}
+
+/// The training and validation samples: the validation scenes held out, each set refused
+/// with what is wrong where it is empty.
+fn held_out(config: &TrainConfig, data: &Samples) -> Result<(Samples, Samples)> {
+    let held = |s: &str| config.validation_scenes.iter().any(|v| v == s);
+    let train_set = data.filter_scenes(|s| !held(s));
+    let val_set = data.filter_scenes(held);
+    if data.is_empty() {
+        return Err(Error::Config(
+            "the dataset holds no sample: no pixel of its scenes' views has a k the network \
+             decides (no transparent fragment, or none deeper than 2 or 3 fragments, whose k \
+             is forced); for opaque materials `train --scene` takes --opacity"
+                .into(),
+        ));
+    }
+    if train_set.is_empty() {
+        return Err(Error::Config(format!(
+            "no training samples left after holding out the validation scenes ({}): every \
+             sample is from them",
+            config.validation_scenes.join(", ")
+        )));
+    }
+    Ok((train_set, val_set))
+}
+
+/// One epoch's steps of `optim` on `net`: its batches in the order the epoch's seed draws them
+/// (one frame each for the regret losses, from `frames`; shuffled samples for the MSE ones),
+/// their rows gathered from `xs` (the standardised features). The stepped network, the sums of
+/// the batches' losses and regularisations, and the number of batches.
+fn train_epoch(
+    config: &TrainConfig,
+    epoch: usize,
+    (train_set, xs, frames): (&Samples, &[f32], &[Vec<usize>]),
+    mut net: ImportanceNet,
+    optim: &mut burn::optim::ModuleOptimizer,
+    plain: &Device,
+) -> (ImportanceNet, f64, f64, usize) {
+    let mut rows = Vec::with_capacity(config.batch * FEATURES);
+    let mut ys = Vec::with_capacity(config.batch);
+    let mut rng = Rng::new(config.seed ^ (epoch as u64 + 1).wrapping_mul(0x9E37_79B9));
+    let batches_of = epoch_batches(config, &mut rng, frames, train_set.len());
+    let (mut sum_mse, mut sum_reg, mut batches) = (0.0, 0.0, 0usize);
+    for chunk in &batches_of {
+        rows.clear();
+        for &i in chunk {
+            rows.extend_from_slice(&xs[i * FEATURES..(i + 1) * FEATURES]);
+        }
+        let valid = net.valid();
+        let (value, grads) = match config.loss {
+            l @ (Loss::Regret | Loss::RegretLevel) => {
+                // The frame's fit needs every output: the forward pass, the loss's
+                // gradient on plain numbers, then the backward pass.
+                let pass = step::forward(&valid, &rows, plain);
+                let frame = FrameSamples::of(train_set, chunk);
+                let (value, d_out) = regret_gradient(l, &pass.out, &frame);
+                let grads = step::gradients(&valid, pass, &d_out, config.l1, config.l2, plain);
+                (value, grads)
+            }
+            l => {
+                ys.clear();
+                ys.extend(chunk.iter().map(|&i| mse_target(l, train_set, i)));
+                step::mse_step(&valid, &rows, &ys, config.l1, config.l2, plain)
+            }
+        };
+        sum_reg += scalar(regularisation(&valid, config.l1, config.l2));
+        let done =
+            (epoch * batches_of.len() + batches) as f64 / (config.epochs * batches_of.len()) as f64;
+        net = optim.step(config.learning_rate(done), net, grads);
+        sum_mse += value;
+        batches += 1;
+    }
+    (net, sum_mse, sum_reg, batches)
 }
 
 /// What training needs of its data: each sample's n, k* and regret for the regret losses, and
