@@ -933,6 +933,77 @@ pub(super) struct Carried {
     pub(super) valid: bool,
 }
 
+/// A frame's parameters for its method (`spec.slots`: its k, budget, importance map's
+/// parameters, blending and list settings, what its capture does), the words its fragments
+/// keep, and, for the allocated k-buffers, its plan (None where the exact A-buffer renders in
+/// their place; the outer None for the other methods): made before the parameters, as a DKB
+/// frame gathers its statistics with its count where its plan lets it.
+fn method_params(
+    spec: &FrameSpec,
+    px: u64,
+) -> Result<(Params, budget::Words, Option<Option<Planned>>)> {
+    let slots = spec.slots;
+    let opts = spec.opts;
+    let mut params = spec.params;
+    let (budget, vkb, k_uniform) = match slots {
+        // A byte budget's F waits for the frame's count: the plan's (Recording::planned).
+        Slots::Importance(_, _, f) => (f, VkbParams::default(), 0),
+        Slots::Dkb(_, f) => (f.fragments().unwrap_or(0.into()), VkbParams::default(), 0),
+        Slots::Vkb(v, f) => (f.fragments().unwrap_or(0.into()), v, 0),
+        Slots::Uniform(k) => (0.into(), VkbParams::default(), k.max(1)),
+        Slots::Mlab(m) => {
+            if m == 0 || m > MLAB_MAX_ROWS {
+                return Err(Error::Invalid(format!(
+                    "MLAB on the GPU takes 1 to {MLAB_MAX_ROWS} rows, not {m}"
+                )));
+            }
+            (0.into(), VkbParams::default(), m)
+        }
+        Slots::LinkedList { nodes, sorted } => {
+            crate::composite::check_list_sorted(sorted)?;
+            (nodes.into(), VkbParams::default(), 0)
+        }
+        Slots::PerPixel(_) | Slots::Wboit(_) | Slots::Mboit(_) | Slots::Exact => {
+            (0.into(), VkbParams::default(), 0)
+        }
+    };
+    set_method_params(&mut params, k_uniform, budget, vkb);
+    let words = budget::Words::of(params.tinted != 0, params.tinted != 0 || params.hdr != 0);
+    // The allocated k-buffers' plan (None: the exact A-buffer in their place), made before
+    // the parameters: a DKB frame gathers its statistics with its count where it can.
+    let planned = match slots {
+        Slots::Importance(..)
+        | Slots::Vkb(..)
+        | Slots::Dkb(..)
+        | Slots::PerPixel(_)
+        | Slots::Uniform(_) => Some(planned(slots, &opts, px, spec.sizing, words)?),
+        _ => None,
+    };
+    if let (Slots::Dkb(..), Some(Some(planned))) = (slots, &planned) {
+        params.dkb_records = planned.gathered_with_count(&opts, spec.carried.as_ref()) as u32;
+    }
+    let allocated = matches!(
+        slots,
+        Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..)
+    );
+    // The allocated k-buffers know n(p) by the capture: two-mode capture (capture.wgsl),
+    // and their tails in the slot pool.
+    params.append = (opts.tuning.two_mode_capture && allocated).into();
+    params.pooled_tail = allocated.into();
+    params.layer_major = (opts.tuning.layer_major_fkb && matches!(slots, Slots::Uniform(_))).into();
+    if let Slots::LinkedList { sorted, .. } = slots {
+        params.list_sorted = sorted;
+    }
+    if let Slots::Mboit(m) = slots {
+        blend::set_mboit(&mut params, &m);
+    }
+    if let Slots::Wboit(w) = slots {
+        blend::set_wboit(&mut params, &w)?;
+    }
+    params.store_primitives = (matches!(slots, Slots::Mlab(_)) || opts.diagnostics).into();
+    Ok((params, words, planned))
+}
+
 /// A frame recorded into its client's encoder, not yet run: what the client reads back once
 /// its submission has run, and the buffers it holds until then.
 struct Recorded<'a> {
@@ -983,65 +1054,8 @@ impl Gpu {
         let (width, height) = size;
         let px = width as u64 * height as u64;
         let slots = spec.slots;
-        let mut params = spec.params;
+        let (params, words, planned) = method_params(spec, px)?;
         let mut fb = FrameBuffers::new(self, enc);
-        let (budget, vkb, k_uniform) = match slots {
-            // A byte budget's F waits for the frame's count: the plan's (Recording::planned).
-            Slots::Importance(_, _, f) => (f, VkbParams::default(), 0),
-            Slots::Dkb(_, f) => (f.fragments().unwrap_or(0.into()), VkbParams::default(), 0),
-            Slots::Vkb(v, f) => (f.fragments().unwrap_or(0.into()), v, 0),
-            Slots::Uniform(k) => (0.into(), VkbParams::default(), k.max(1)),
-            Slots::Mlab(m) => {
-                if m == 0 || m > MLAB_MAX_ROWS {
-                    return Err(Error::Invalid(format!(
-                        "MLAB on the GPU takes 1 to {MLAB_MAX_ROWS} rows, not {m}"
-                    )));
-                }
-                (0.into(), VkbParams::default(), m)
-            }
-            Slots::LinkedList { nodes, sorted } => {
-                crate::composite::check_list_sorted(sorted)?;
-                (nodes.into(), VkbParams::default(), 0)
-            }
-            Slots::PerPixel(_) | Slots::Wboit(_) | Slots::Mboit(_) | Slots::Exact => {
-                (0.into(), VkbParams::default(), 0)
-            }
-        };
-        set_method_params(&mut params, k_uniform, budget, vkb);
-        let words = budget::Words::of(params.tinted != 0, params.tinted != 0 || params.hdr != 0);
-        // The allocated k-buffers' plan (None: the exact A-buffer in their place), made before
-        // the parameters: a DKB frame gathers its statistics with its count where it can.
-        let planned = match slots {
-            Slots::Importance(..)
-            | Slots::Vkb(..)
-            | Slots::Dkb(..)
-            | Slots::PerPixel(_)
-            | Slots::Uniform(_) => Some(planned(slots, &opts, px, spec.sizing, words)?),
-            _ => None,
-        };
-        if let (Slots::Dkb(..), Some(Some(planned))) = (slots, &planned) {
-            params.dkb_records = planned.gathered_with_count(&opts, spec.carried.as_ref()) as u32;
-        }
-        let allocated = matches!(
-            slots,
-            Slots::Importance(..) | Slots::Vkb(..) | Slots::Dkb(..)
-        );
-        // The allocated k-buffers know n(p) by the capture: two-mode capture (capture.wgsl),
-        // and their tails in the slot pool.
-        params.append = (opts.tuning.two_mode_capture && allocated).into();
-        params.pooled_tail = allocated.into();
-        params.layer_major =
-            (opts.tuning.layer_major_fkb && matches!(slots, Slots::Uniform(_))).into();
-        if let Slots::LinkedList { sorted, .. } = slots {
-            params.list_sorted = sorted;
-        }
-        if let Slots::Mboit(m) = slots {
-            blend::set_mboit(&mut params, &m);
-        }
-        if let Slots::Wboit(w) = slots {
-            blend::set_wboit(&mut params, &w)?;
-        }
-        params.store_primitives = (matches!(slots, Slots::Mlab(_)) || opts.diagnostics).into();
         let params_buf = fb.init(
             "params",
             bytemuck::bytes_of(&params),
