@@ -970,8 +970,8 @@ fn optimiser(config: &TrainConfig) -> burn::optim::ModuleOptimizer {
     sgd.init()
 }
 
-/// What a training benchmark steps: the network, its optimiser (SGD, momentum 0.9, as
-/// `make train`), random features and targets.
+/// What a training benchmark steps: the network, its optimiser ([`optimiser`] of a training
+/// configuration), random features and targets.
 struct Bench {
     /// The device the step's inputs are on: the plain one for the fused step, the autodiff one
     /// for burn's graph (the network is on the autodiff device either way, as the optimiser
@@ -983,15 +983,22 @@ struct Bench {
     y: Vec<f32>,
 }
 
-fn bench_setup(rows: usize, autodiff: bool) -> Bench {
+/// The throughput benchmarks' configuration: `make train`'s optimiser without its clipping
+/// (SGD, momentum 0.9), so they time the step alone.
+fn unclipped() -> TrainConfig {
+    TrainConfig {
+        clip: 0.0,
+        ..TrainConfig::default()
+    }
+}
+
+fn bench_setup(rows: usize, autodiff: bool, config: &TrainConfig) -> Bench {
     let mut rng = Rng::new(1);
     let m = Mlp::random(1);
     Bench {
         net: ImportanceNet::from_mlp(&m, &cpu_device(true)),
         device: cpu_device(autodiff),
-        optim: SgdConfig::new()
-            .with_momentum(Some(MomentumConfig::new().with_momentum(0.9)))
-            .init(),
+        optim: optimiser(config),
         x: (0..rows * FEATURES)
             .map(|_| rng.f32() * 2.0 - 1.0)
             .collect(),
@@ -1013,7 +1020,7 @@ fn per_second(rows: usize, steps: usize, mut step: impl FnMut()) -> f64 {
 /// (forward, loss, backward, optimiser step: the fused step training runs), on random
 /// features.
 pub fn bench_training(batch: usize, steps: usize) -> f64 {
-    let mut b = bench_setup(batch, false);
+    let mut b = bench_setup(batch, false, &unclipped());
     per_second(batch, steps, || {
         let valid = b.net.valid();
         let (_, grads) = step::mse_step(&valid, &b.x, &b.y, 1e-6, 1e-5, &b.device);
@@ -1024,7 +1031,7 @@ pub fn bench_training(batch: usize, steps: usize) -> f64 {
 /// [`bench_training`] through burn's autodiff graph instead of the fused step (what training
 /// ran before it, kept as the reference).
 pub fn bench_training_autodiff(batch: usize, steps: usize) -> f64 {
-    let mut b = bench_setup(batch, true);
+    let mut b = bench_setup(batch, true, &unclipped());
     per_second(batch, steps, || {
         let x = Tensor::from_data(TensorData::new(b.x.clone(), [batch, FEATURES]), &b.device);
         let y = Tensor::from_data(TensorData::new(b.y.clone(), [batch, 1]), &b.device);
@@ -1038,7 +1045,7 @@ pub fn bench_training_autodiff(batch: usize, steps: usize) -> f64 {
 /// The regret-loss step's throughput (what `make train` runs): samples per second of `steps`
 /// steps on a [`FrameSamples::synthetic`] frame of `rows` pixels, the frame's fit included.
 pub fn bench_regret_step(rows: usize, steps: usize) -> f64 {
-    let mut b = bench_setup(rows, false);
+    let mut b = bench_setup(rows, false, &unclipped());
     let frame = FrameSamples::synthetic(rows, 30.0, 3);
     per_second(rows, steps, || {
         let valid = b.net.valid();
@@ -1069,8 +1076,7 @@ pub fn float_fingerprint() -> String {
 /// [`float_fingerprint`] for the optimiser of `config` (its momentum and clipping).
 pub fn float_fingerprint_of(config: &TrainConfig) -> String {
     let rows = 256;
-    let mut b = bench_setup(rows, false);
-    b.optim = optimiser(config);
+    let mut b = bench_setup(rows, false, config);
     let frame = FrameSamples::synthetic(rows, 30.0, 3);
     for _ in 0..4 {
         let valid = b.net.valid();
