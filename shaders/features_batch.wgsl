@@ -1,5 +1,5 @@
-// DKB's features pass of its own (features.wgsl built with this: gpu::Phase::Features,
-// FeaturesDepths, FeaturesColours): the records of the batch this draw gathers.
+// DKB's features pass of its own (features.wgsl built with this: gpu::Phase::Features): the
+// records of the batch this draw gathers.
 
 // The batch (totals.wgsl): BATCH_LO its first record, BATCH_SIZE how many a batch holds; its
 // records lie from the pool's start.

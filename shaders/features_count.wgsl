@@ -1,7 +1,7 @@
-// DKB's count with its statistics (features.wgsl built with this: gpu::Phase::CountFeatures and
-// CountFeaturesDepths): each fragment counted, as abuffer_count.wgsl counts it, two to a word
-// (counts.wgsl); then its pixel's record, where it is among the first params.dkb_records (the
-// marks the frame before left: none where the frame draws a features pass after its count).
+// DKB's count with its statistics (features.wgsl built with this: gpu::Phase::CountFeatures):
+// each fragment counted, as abuffer_count.wgsl counts it, two to a word (counts.wgsl); then its
+// pixel's record, where it is among the first params.dkb_records (the marks the frame before
+// left: none where the frame draws a features pass after its count).
 
 @group(1) @binding(4) var<storage, read_write> counts: array<atomic<u32>>;
 

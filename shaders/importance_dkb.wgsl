@@ -14,14 +14,14 @@
 //            fewer 0 (forced whatever its importance).
 // Once for each batch of records (totals.wgsl), which are a batch's own indices here (`r`): the
 // batch's first record is at the pool's start.
-// A record's importance waits in its nearest key's place (read by then).
+// A record's importance waits in its nearest words' place (read by then).
 // So the network's invocations all run it (no forced record idles a SIMD lane), and a frame whose
 // pixels are all forced never enters the network's code.
 
 @group(0) @binding(0) var<uniform> params: Params;
-// RECORD_WORDS words a record (features.wgsl): the nearest key (complemented), the colour sums
-// (n in bits 48-63 of the first), the opacity sums. Read_write: once a
-// record's features are read, its importance takes its nearest key's place (set_importance).
+// RECORD_WORDS words a record (features.wgsl): the two nearest words (complemented), the colour
+// sums (n in bits 48-63 of the first), the opacity sums. Read_write: once a record's features
+// are read, its importance takes its nearest words' place (set_importance).
 // Each record word a 64-bit word's two halves (low x, high y: u64.wgsl's W).
 @group(0) @binding(3) var<storage, read_write> records: array<W>;
 // The records the network decides, and how many (BATCH_LISTED), lie in the same pool after a
@@ -74,8 +74,8 @@ struct Net {
     runs: bool,
 }
 
-// Record r's importance, in its nearest key's place: only r's own invocation reads that key,
-// and it has read it by now.
+// Record r's importance, in its nearest words' place: only r's own invocation reads them, and
+// it has read them by now.
 fn set_importance(r: u32, v: f32) {
     records[RECORD_WORDS * r] = W(bitcast<u32>(v), 0u);
 }
@@ -107,8 +107,10 @@ fn network_inputs(r: u32) -> Net {
     let total = f32(max(totals[TOTAL_FRAGMENTS], 1u));
     let covered = f32(max(totals[TOTAL_COVERED], 1u));
     let nf = f32(c);
-    let key = ~records[at];
-    let near8 = key.x;
+    // importance::near_rgba8 and near_depth of the two nearest words.
+    let near_words = ~records[at];
+    let near8 = (near_words.x & 0xffu) | (((near_words.y >> 8u) & 0xffu) << 8u)
+        | ((near_words.y & 0xffu) << 16u) | (((near_words.x >> 8u) & 0xffu) << 24u);
     let near = unpack_rgba8(near8).rgb;
     let sum = color_sums(at);
     let mean = vec3<f32>(f32(sum.r) / 255.0 / nf, f32(sum.g) / 255.0 / nf, f32(sum.b) / 255.0 / nf);
@@ -137,7 +139,7 @@ fn network_inputs(r: u32) -> Net {
         nf / (total / covered),
         f32(planned_f()) / total,
         log2(f32(max(planned_f(), 1u)) / covered),
-        bitcast<f32>(key.y),
+        f32(near_words.x >> 16u) * (1.0 / 65536.0),
         f32(near8 >> 24u) / 255.0,
         log2(variance + LOG_FLOOR),
         log2(dev + LOG_FLOOR),
@@ -226,7 +228,7 @@ fn network(
     }
 }
 
-// Every pixel's importance from its record's nearest key's place into the shared word, where
+// Every pixel's importance from its record's nearest words' place into the shared word, where
 // the allocation reads it: the batch's pixels; and in the first batch every pixel of no
 // other batch its fallback (a later batch's pixel gets its own in its batch). A pixel of more
 // than TAIL_WORDS fragments without a record (the frame before did not mark it, or it is past

@@ -711,7 +711,7 @@ fn print_figures(name: &str, v: &serde_json::Value) {
         f(&["f16_math", "importance_ms"]),
     );
     eprintln!(
-        "GPU {name}: DKB features {features:.2} ms ({:.2}x VKB's count) with the nearest key's load, {:.2} ms without",
+        "GPU {name}: DKB features {features:.2} ms ({:.2}x VKB's count) with the nearest words' load, {:.2} ms without",
         f(&["features_pass", "over_vkb_count"]),
         f(&["features_pass", "features_ms_no_preload"]),
     );

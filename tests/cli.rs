@@ -670,12 +670,10 @@ fn the_gpu_renders_from_the_command_line() {
         if method == "dkb" {
             // Its frame counts first and reads its count back (its slot pool is sized from it,
             // its record marks made from it), gathers its statistics with its frame's count
-            // (no features pass of their own; on a device without 64-bit atomics the nearest
-            // keys' colours in a pass after it) and runs its network only where the budget
-            // truncates: at 2 fpp plates truncates, at 100% nothing does.
+            // (no features pass of their own, on any device) and runs its network only where the
+            // budget truncates: at 2 fpp plates truncates, at 100% nothing does.
             let passes = |o: &std::process::Output, pass: &str| names(o).iter().any(|p| p == pass);
-            let features =
-                |o: &std::process::Output| passes(o, "features") || passes(o, "features depths");
+            let features = |o: &std::process::Output| passes(o, "features");
             assert!(d.fragments.fragment_count() > 2 * 64 * 48);
             assert!(
                 passes(&o, "count") && !features(&o) && passes(&o, "importance"),
@@ -755,10 +753,8 @@ fn record_batches_trade_dkb_s_memory_for_passes_from_the_command_line() {
             .find(|l| l.starts_with("GPU passes:"))
             .unwrap()
             .to_string();
-        // A batch's features pass: one, or two on a device without 64-bit atomics (depths,
-        // then colours).
-        let features =
-            passes.matches("features ").count() - passes.matches("features colours").count();
+        // A batch's features pass: one.
+        let features = passes.matches("features ").count();
         let allocated: f64 = text
             .split("allocated ")
             .nth(1)

@@ -57,23 +57,59 @@ pub fn filtered_alpha8(a8: u32, tint: u32) -> u32 {
 }
 
 /// A fragment's RGBA8 with its opacity as the features read it ([`filtered_alpha8`] of its
-/// tint): the low word of the nearest key the features pass keeps (features.wgsl's twin).
+/// tint): what the nearest words hold of it ([`near_words`]; features.wgsl's twin).
 pub fn filtered_rgba8(rgba8: u32, tint: u32) -> u32 {
     rgba8 & 0x00ff_ffff | filtered_alpha8(rgba8 >> 24, tint) << 24
+}
+
+/// Steps of the window depth [0, 1] in the nearest words' 16 bits ([`near_depth16`]).
+pub const NEAR_DEPTH_STEPS: f32 = 65535.0;
+
+/// A window depth in [0, 1] as the nearest words order it: `depth 65535` truncated, a step of
+/// 1.5e-5 everywhere (as fine as the f32's own spacing just below 1, where a perspective puts
+/// most depths).
+pub fn near_depth16(depth: f32) -> u32 {
+    (depth.max(0.0) * NEAR_DEPTH_STEPS) as u32
+}
+
+/// A fragment's two nearest words, each its 16-bit depth ([`near_depth16`]) above two 8-bit
+/// channels of its RGBA8 `rgba8` (as [`filtered_rgba8`] gives it): opacity and red, then green
+/// and blue. The features pass keeps each word's minimum over the pixel's fragments with a
+/// 32-bit atomic of its own, so on any device, in one pass and in any order, the nearest
+/// fragment's colour; where fragments share the nearest 16-bit depth each word takes the least
+/// of them (the opacity and red of one, the green and blue of another).
+pub fn near_words(depth: f32, rgba8: u32) -> [u32; 2] {
+    let d = near_depth16(depth) << 16;
+    let c = |i: u32| rgba8 >> (8 * i) & 0xff;
+    [d | c(3) << 8 | c(0), d | c(1) << 8 | c(2)]
+}
+
+/// The nearest fragment's RGBA8 the two nearest words hold ([`near_words`]).
+pub fn near_rgba8(near: [u32; 2]) -> u32 {
+    near[0] & 0xff
+        | (near[1] >> 8 & 0xff) << 8
+        | (near[1] & 0xff) << 16
+        | (near[0] >> 8 & 0xff) << 24
+}
+
+/// The nearest fragment's window depth the nearest words hold, in steps of 2^-16 (exact in
+/// f32 on the CPU and the GPU).
+pub fn near_depth(near: [u32; 2]) -> f32 {
+    (near[0] >> 16) as f32 * (1.0 / 65536.0)
 }
 
 /// Bit 63 of a key in [`PixelStats::farthest`]: the slot holds a fragment (window depths are
 /// non-negative, so a key's own bit 63 is clear).
 pub const OCCUPIED: u64 = 1 << 63;
 
-/// What the features pass accumulates per pixel, with integer atomics only, so any submission
-/// order gives the same result: 52 bytes a pixel, VKB's count and nearest key plus 40.
+/// What the features pass accumulates per pixel, with 32-bit integer atomics only, so any
+/// submission order gives the same result on any device.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PixelStats {
     pub count: u32,
-    /// The smallest fragment key (window depth bits high, RGBA8 low), its opacity what its tint
-    /// lets through ([`filtered_rgba8`]): the nearest fragment.
-    pub nearest_key: u64,
+    /// The least of each of the fragments' [`near_words`] (their opacities what their tints let
+    /// through, [`filtered_rgba8`]): the nearest fragment's 16-bit depth and colour.
+    pub nearest: [u32; 2],
     /// The two largest fragment keys, farthest first, each with [`OCCUPIED`] set (0: none), as
     /// the pass's two-slot insertion with `atomicMax` leaves them in any order.
     pub farthest: [u64; 2],
@@ -102,7 +138,7 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
     (0..fl.pixel_count())
         .map(|p| {
             let mut s = PixelStats {
-                nearest_key: u64::MAX,
+                nearest: [u32::MAX; 2],
                 ..Default::default()
             };
             for i in fl.range(p) {
@@ -112,9 +148,10 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
                 let rgba8 = key as u32;
                 let tint = fl.tint(i);
                 s.count += 1;
-                // The nearest by the key, its opacity what its tint lets through.
-                let near = key & !0xffff_ffff | filtered_rgba8(rgba8, tint) as u64;
-                s.nearest_key = s.nearest_key.min(near);
+                // The nearest, its opacity what its tint lets through.
+                let depth = f32::from_bits((key >> 32) as u32);
+                let near = near_words(depth, filtered_rgba8(rgba8, tint));
+                s.nearest = [s.nearest[0].min(near[0]), s.nearest[1].min(near[1])];
                 // The two largest keys of the multiset, as the insertion keeps them.
                 let key = key | OCCUPIED;
                 if key > s.farthest[0] {
@@ -133,7 +170,7 @@ pub fn pixel_stats(fl: &FragmentLists) -> Vec<PixelStats> {
                 s.alpha_sum += a8;
             }
             if s.count == 0 {
-                s.nearest_key = 0;
+                s.nearest = [0; 2];
             }
             s
         })
@@ -172,11 +209,11 @@ pub fn totals(stats: &[PixelStats]) -> Totals {
 
 /// The 12 features of one covered pixel, in order ([`FEATURE_NAMES`]); colours in [0, 1],
 /// `C_near` and `a_near` the nearest fragment's colour and opacity (what its tint lets through:
-/// [`filtered_rgba8`]), `mean` and `var` the mean and the variance (summed over R, G, B) of
+/// [`filtered_rgba8`]; [`near_words`]), `mean` and `var` the mean and the variance (summed over R, G, B) of
 /// the pixel's fragment colours, `dev = |C_near - mean|^2`, `tau` the sum of the fragments'
 /// optical depths `-ln(1 - a)`: 0 `log2 n`; 1 `n / mean n` over covered pixels; 2 `F / sum n`,
 /// the budget's share of the frame's fragments; 3 `log2(F / covered pixels)`; 4 the nearest
-/// window depth; 5 `a_near`; 6 `log2(var + LOG_FLOOR)`; 7 `log2(dev + LOG_FLOOR)`; 8 the mean
+/// window depth (in 2^-16 steps: [`near_depth`]); 5 `a_near`; 6 `log2(var + LOG_FLOOR)`; 7 `log2(dev + LOG_FLOOR)`; 8 the mean
 /// opacity; 9 `luma(mean)`; 10 `luma(C_near)`; 11 `log2(tau + OPTICAL_DEPTH_UNIT)`.
 ///
 /// Why these: with opacity a, truncating a pixel after k fragments costs about
@@ -194,7 +231,7 @@ pub fn pixel_features(s: &PixelStats, t: &Totals, budget_fragments: u64) -> [f32
     let covered = t.covered.max(1) as f32;
     let n = s.count.max(1);
     let nf = n as f32;
-    let near8 = s.nearest_key as u32;
+    let near8 = near_rgba8(s.nearest);
     let near = unpack_rgba8(near8);
     let mean: [f32; 3] = std::array::from_fn(|c| s.color_sum[c] as f32 / 255.0 / nf);
     // n^2 var and n^2 dev in 8-bit units, exact integers.
@@ -218,7 +255,7 @@ pub fn pixel_features(s: &PixelStats, t: &Totals, budget_fragments: u64) -> [f32
         nf / (total / covered),
         budget_fragments as f32 / total,
         (budget_fragments.max(1) as f32 / covered).log2(),
-        f32::from_bits((s.nearest_key >> 32) as u32),
+        near_depth(s.nearest),
         near[3],
         (var + LOG_FLOOR).log2(),
         (dev + LOG_FLOOR).log2(),
@@ -410,7 +447,46 @@ pub fn vkb_key_facing(key: u32) -> f32 {
 
 #[cfg(test)]
 mod tests {
-    use super::{vkb_key_facing, vkb_nearest_key};
+    use super::{near_depth, near_rgba8, near_words, pixel_stats, vkb_key_facing, vkb_nearest_key};
+    use crate::fragment::FragmentLists;
+
+    #[test]
+    fn the_nearest_words_hold_the_nearest_fragment_by_hand() {
+        // Depth 0.5 is 32767 steps (0.5 x 65535 = 32767.5, truncated); RGBA8 0xAABBGGRR.
+        let w = near_words(0.5, 0x8040_2010);
+        assert_eq!(w, [0x7fff_8010, 0x7fff_2040]);
+        assert_eq!(near_rgba8(w), 0x8040_2010);
+        assert_eq!(near_depth(w), 32767.0 / 65536.0);
+        assert_eq!(near_words(1.0, 0)[0] >> 16, 65535);
+        // A pixel of three fragments: the nearest (depth 0.25) wins every channel, in any order;
+        // two at one 16-bit depth (0.75 and the next f32 above) give each word's least, the
+        // opacity and red of one and the green and blue of the other.
+        let lists = |frags: &[(f32, [f32; 4])]| {
+            let fl = FragmentLists {
+                width: 1,
+                height: 1,
+                offsets: vec![0, frags.len() as u32],
+                depth: frags.iter().map(|f| f.0).collect(),
+                rgba: frags.iter().map(|f| f.1).collect(),
+                primitive: vec![0; frags.len()],
+                ..Default::default()
+            };
+            pixel_stats(&fl)[0]
+        };
+        let (a, b, c) = (
+            (0.75, [1.0, 0.0, 1.0, 0.5]),
+            (0.25, [0.0, 1.0, 0.0, 1.0]),
+            (0.5, [0.2, 0.2, 0.2, 0.2]),
+        );
+        for order in [[a, b, c], [c, b, a], [b, a, c]] {
+            let s = lists(&order);
+            assert_eq!(near_rgba8(s.nearest), 0xff00_ff00);
+            assert_eq!(near_depth(s.nearest), 16383.0 / 65536.0);
+        }
+        let next = f32::from_bits(0.75f32.to_bits() + 1);
+        let s = lists(&[(0.75, [1.0, 1.0, 0.0, 0.0]), (next, [0.0, 0.0, 1.0, 1.0])]);
+        assert_eq!(near_rgba8(s.nearest), 0x00ff_00ff);
+    }
 
     #[test]
     fn vkb_s_nearest_key_orders_by_depth_then_facing_by_hand() {

@@ -79,7 +79,7 @@ pub mod shaders {
     /// the variant built for frames whose budget holds every fragment (dhoit's own pipelines
     /// and an application's capture alike).
     pub const EVERY_FRAGMENT_FITS: (&str, Value) = ("EVERY_FRAGMENT_FITS", Value::Bool(true));
-    /// DKB's features pass loads a pixel's nearest key before its atomicMax.
+    /// DKB's features pass loads a pixel's nearest words before their atomicMax.
     const PRELOAD: (&str, Value) = ("PRELOAD_NEAREST", Value::Bool(true));
 
     /// Unsigned 64-bit arithmetic in two 32-bit words, for the passes that run without u64.
@@ -93,11 +93,6 @@ pub mod shaders {
     /// with the count, those the frame before marked (features_count.wgsl).
     pub const FEATURES_BATCH: &str = include_str!("../../shaders/features_batch.wgsl");
     pub const FEATURES_COUNT: &str = include_str!("../../shaders/features_count.wgsl");
-
-    /// DKB's features pass's additions with 64-bit atomics (features.wgsl).
-    pub const FEATURES_WIDE: &str = include_str!("../../shaders/features_wide.wgsl");
-    /// The same with 32-bit atomics alone, in two passes.
-    pub const FEATURES_PORTABLE: &str = include_str!("../../shaders/features_portable.wgsl");
 
     /// The k-buffer's Loop64 insertion and tail, which the capture runs (capture.wgsl).
     pub const KBUFFER_INSERT: &str = include_str!("../../shaders/kbuffer_insert.wgsl");
@@ -240,12 +235,11 @@ pub mod shaders {
         "plan",
         "allocate",
         "importance_dkb",
-        "features_depths",
-        "features_colours",
-        "count_features_depths",
+        "features",
+        "count_features",
     ];
 
-    pub const PASSES: [Pass; 29] = [
+    pub const PASSES: [Pass; 26] = [
         Pass {
             name: "opaque",
             source: include_str!("../../shaders/opaque.wgsl"),
@@ -357,32 +351,14 @@ pub mod shaders {
         Pass {
             name: "features",
             source: include_str!("../../shaders/features.wgsl"),
-            includes: &[GEOMETRY, RECORDS, FEATURES_WIDE, FEATURES_BATCH],
+            includes: &[GEOMETRY, RECORDS, FEATURES_BATCH],
             defines: &[PRELOAD],
-        },
-        Pass {
-            name: "features_depths",
-            source: include_str!("../../shaders/features.wgsl"),
-            includes: &[GEOMETRY, RECORDS, FEATURES_PORTABLE, FEATURES_BATCH],
-            defines: &[PRELOAD, ("FEATURES_COLOURS", Value::Bool(false))],
-        },
-        Pass {
-            name: "features_colours",
-            source: include_str!("../../shaders/features.wgsl"),
-            includes: &[GEOMETRY, RECORDS, FEATURES_PORTABLE, FEATURES_BATCH],
-            defines: &[PRELOAD, ("FEATURES_COLOURS", Value::Bool(true))],
         },
         Pass {
             name: "count_features",
             source: include_str!("../../shaders/features.wgsl"),
-            includes: &[GEOMETRY, RECORDS, FEATURES_WIDE, FEATURES_COUNT],
+            includes: &[GEOMETRY, RECORDS, FEATURES_COUNT],
             defines: &[PRELOAD],
-        },
-        Pass {
-            name: "count_features_depths",
-            source: include_str!("../../shaders/features.wgsl"),
-            includes: &[GEOMETRY, RECORDS, FEATURES_PORTABLE, FEATURES_COUNT],
-            defines: &[PRELOAD, ("FEATURES_COLOURS", Value::Bool(false))],
         },
         Pass {
             name: "totals",
@@ -550,6 +526,7 @@ pub mod shaders {
             ("MAX_IMPORTANCE", F32(alloc::MAX_IMPORTANCE)),
             ("LOG_FLOOR", F32(importance::LOG_FLOOR)),
             ("OPTICAL_DEPTH_UNIT", F32(importance::OPTICAL_DEPTH_UNIT)),
+            ("NEAR_DEPTH_STEPS", F32(importance::NEAR_DEPTH_STEPS)),
             ("MAX_STANDARDISED", F32(mlp::MAX_STANDARDISED)),
             ("MAX_H2", U32(mlp::MAX_H2 as u32)),
             ("MLP_MEAN_AT", U32(MLP_MEAN_AT as u32)),

@@ -354,24 +354,33 @@ fn features_match_on(name: &str, fl: &FragmentLists) {
         let q = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5).floor() as f64 / 255.0;
         let rgb = |i: usize| -> [f64; 3] { std::array::from_fn(|c| q(fl.rgba[i][c])) };
         let alpha = |i: usize| q(fl.rgba[i][3]);
-        let nearest = r
-            .clone()
-            .min_by(|&a, &b| {
-                fl.depth[a]
-                    .total_cmp(&fl.depth[b])
-                    .then(importance_key(fl, a).cmp(&importance_key(fl, b)))
-            })
+        // The nearest fragments: those of the least depth in steps of 1 / 65535 (truncated);
+        // their least opacity, the least red of those of that opacity, and their least green,
+        // the least blue of those of that green (the two 32-bit words the pass keeps).
+        let step = |i: usize| (fl.depth[i].max(0.0) * 65535.0) as u32;
+        let front = r.clone().map(step).min().unwrap();
+        let tied: Vec<usize> = r.clone().filter(|&i| step(i) == front).collect();
+        let q8 = |v: f64| (v * 255.0).round() as u32;
+        let (a8, r8) = tied
+            .iter()
+            .map(|&i| (q8(alpha(i)), q8(rgb(i)[0])))
+            .min()
             .unwrap();
-        assert_eq!(x[4], fl.depth[nearest], "{name} near depth");
+        let (g8, b8) = tied
+            .iter()
+            .map(|&i| (q8(rgb(i)[1]), q8(rgb(i)[2])))
+            .min()
+            .unwrap();
+        assert_eq!(x[4] as f64, front as f64 / 65536.0, "{name} near depth");
+        let near = [r8, g8, b8].map(|c| c as f64 / 255.0);
         let mean: [f64; 3] = std::array::from_fn(|c| r.clone().map(|i| rgb(i)[c]).sum::<f64>() / n);
         let var: f64 = r
             .clone()
             .map(|i| (0..3).map(|c| (rgb(i)[c] - mean[c]).powi(2)).sum::<f64>())
             .sum::<f64>()
             / n;
-        let near = rgb(nearest);
         let dev: f64 = (0..3).map(|c| (near[c] - mean[c]).powi(2)).sum();
-        close(x[5], alpha(nearest), "nearest opacity");
+        close(x[5], a8 as f64 / 255.0, "nearest opacity");
         close(
             x[6],
             (var + importance::LOG_FLOOR as f64).log2(),
@@ -408,11 +417,6 @@ fn features_match_on(name: &str, fl: &FragmentLists) {
             alphas.len()
         );
     }
-}
-
-/// The low 32 bits of a fragment's capture key (its RGBA8), which break depth ties.
-fn importance_key(fl: &FragmentLists, i: usize) -> u32 {
-    dhoit_runtime::fragment::fragment_key(fl.depth[i], fl.rgba[i]) as u32
 }
 
 #[test]

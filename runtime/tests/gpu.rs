@@ -2569,13 +2569,8 @@ fn a_dkb_stream_gathers_its_statistics_with_its_count_for_the_pixels_the_frame_b
         deeper: oa.deeper.max(ob.deeper),
     };
     stream.expect(most.scaled(1.5, fa.pixel_count() as u64));
-    // The pass that gathers the statistics apart from the count: "features" on a 64-bit device,
-    // "features depths" on a portable one (whose colours take a pass of their own either way).
-    let features = |r: &dhoit_runtime::gpu::FrameReport| {
-        r.passes
-            .iter()
-            .any(|p| *p == "features" || *p == "features depths")
-    };
+    // The pass that gathers the statistics apart from the count.
+    let features = |r: &dhoit_runtime::gpu::FrameReport| r.passes.contains(&"features");
     let (first, r1) = streamed(g, &mut stream, &a);
     assert!(features(&r1), "the first frame: {:?}", r1.passes);
     // Still: no features pass, the same image.

@@ -847,11 +847,6 @@ fn an_application_draws_through_dhoits_dkb_and_vkb_and_gets_their_images_in_any_
                     })
                 );
                 assert_eq!(report.allocated_bytes, harness.allocated_bytes);
-                // DKB's statistics in two passes a batch with the portable capture.
-                let statistics = match (name, capture) {
-                    ("dkb", Capture::Portable) => "features colours",
-                    _ => statistics,
-                };
                 let drawn = report
                     .pass_ms
                     .iter()
@@ -944,8 +939,6 @@ fn an_application_s_dkb_frames_after_the_first_gather_their_statistics_with_thei
         let drawn = [
             "count",
             "features",
-            "features depths",
-            "features colours",
             "capture",
             "capture depths",
             "capture colours",
@@ -964,19 +957,8 @@ fn an_application_s_dkb_frames_after_the_first_gather_their_statistics_with_thei
         ),
         (
             Capture::Portable,
-            &[
-                "count",
-                "features depths",
-                "features colours",
-                "capture depths",
-                "capture colours",
-            ][..],
-            &[
-                "count",
-                "features colours",
-                "capture depths",
-                "capture colours",
-            ][..],
+            &["count", "features", "capture depths", "capture colours"][..],
+            &["count", "capture depths", "capture colours"][..],
         ),
     ] {
         let app = App::new(&s, size, false);
@@ -1345,17 +1327,16 @@ fn the_allocated_k_buffers_refuse_what_they_cannot_do() {
     let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
     let (plain, plain_queue) =
         pollster::block_on(adapter.request_device(&Default::default())).unwrap();
-    // A device opened with nothing (a page's WebGPU): every method runs, the k-buffers and
-    // DKB's features in the portable passes.
+    // A device opened with nothing (a page's WebGPU): every method runs, the k-buffers in the
+    // portable passes (DKB's features need no 64-bit atomic).
     let plain = Gpu::on_device(plain, plain_queue, &adapter.get_info()).unwrap();
     assert!(!plain.is_wide());
     let d = AllocatedOit::dkb(&plain, (64, 48), &weights, b, F32X4).unwrap();
     assert_eq!(
         d.phases(),
         [
-            Phase::CountFeaturesDepths,
-            Phase::FeaturesDepths,
-            Phase::FeaturesColours,
+            Phase::CountFeatures,
+            Phase::Features,
             Phase::CaptureDepths,
             Phase::CaptureColours
         ]

@@ -314,10 +314,14 @@ fn the_features_read_what_tinted_glass_lets_through() {
     assert!(tinted.alpha_sum > 150);
     assert!(tinted.optical_depth > grey.optical_depth);
     // The nearest fragment's opacity (the network's a_near) is the same filtered opacity: the
-    // key the features pass keeps holds it in place of the 8-bit opacity, at the same depth.
-    assert_eq!(grey.nearest_key >> 24 & 0xff, 10);
-    assert_eq!(tinted.nearest_key >> 24 & 0xff, tinted.alpha_sum as u64);
-    assert_eq!(tinted.nearest_key >> 32, grey.nearest_key >> 32);
+    // nearest words the features pass keeps hold it in place of the 8-bit opacity, at the same
+    // depth.
+    let near_alpha = |s: &dhoit_runtime::importance::PixelStats| {
+        dhoit_runtime::importance::near_rgba8(s.nearest) >> 24
+    };
+    assert_eq!(near_alpha(&grey), 10);
+    assert_eq!(near_alpha(&tinted), tinted.alpha_sum);
+    assert_eq!(tinted.nearest[0] >> 16, grey.nearest[0] >> 16);
     let t = dhoit_runtime::importance::Totals {
         fragments: 1,
         covered: 1,

@@ -477,9 +477,6 @@ fn storing_pass(phase: Phase) -> (&'static str, &'static [(&'static str, shaders
         Phase::Capture => ("capture", &[]),
         Phase::CaptureFits => ("capture", &[shaders::EVERY_FRAGMENT_FITS]),
         Phase::CountFeatures => ("count_features", &[]),
-        Phase::CountFeaturesDepths => ("count_features_depths", &[]),
-        Phase::FeaturesDepths => ("features_depths", &[]),
-        Phase::FeaturesColours => ("features_colours", &[]),
         Phase::CaptureDepths => ("capture_depths", &[]),
         Phase::CaptureColours => ("capture_colours", &[]),
         Phase::ListStore => ("list_store", &[]),
@@ -525,10 +522,10 @@ fn bindings_of(method: &AppMethod, phase: Phase) -> Vec<Binding> {
         Phase::Count => vec![ReadWrite],
         Phase::Store => vec![Read, ReadWrite, ReadWrite, ReadWrite, ReadWrite],
         // The record marks, the records, the optical depths, the batch; the counts.
-        Phase::Features | Phase::FeaturesDepths | Phase::FeaturesColours => {
+        Phase::Features => {
             vec![Read, ReadWrite, Uniform, Read]
         }
-        Phase::CountFeatures | Phase::CountFeaturesDepths => {
+        Phase::CountFeatures => {
             vec![Read, ReadWrite, Uniform, Unused, ReadWrite]
         }
         Phase::VkbCount => vec![ReadWrite, ReadWrite],

@@ -675,7 +675,8 @@ impl Readback {
                             let lo = |v: u64| (v & 0xffff_ffff) as u32;
                             PixelStats {
                                 count: counts[q],
-                                nearest_key: !w[0],
+                                // features.wgsl's nearest words, complemented.
+                                nearest: [!lo(w[0]), !((w[0] >> 32) as u32)],
                                 // features.wgsl's packing: r and g 24 bits each, then n; b and
                                 // the squares; the optical depth and the opacity.
                                 color_sum: [

@@ -230,21 +230,10 @@ impl Recording<'_, '_, '_> {
     }
 
     /// DKB's count pass: each pixel's fragments counted, and the statistics of the records the
-    /// frame's parameters say (`Params::dkb_records`: those the frame before marked, or none),
-    /// with 64-bit atomics or, portable, their nearest depth and sums (their colour follows in
-    /// a features colours pass).
+    /// frame's parameters say (`Params::dkb_records`: those the frame before marked, or none).
     fn dkb_count(&mut self, b: &DkbBuffers) {
-        let gpu = self.passes.gpu;
-        let (phase, pipeline) = match (
-            &gpu.pipelines.wide,
-            gpu.capture_for(self.passes.opts.capture),
-        ) {
-            (Some(w), super::Capture::Wide) => (Phase::CountFeatures, &w.count_features),
-            _ => (
-                Phase::CountFeaturesDepths,
-                &gpu.extras().portable_features()[2],
-            ),
-        };
+        let pipeline = &self.passes.gpu.pipelines.count_features;
+        let phase = Phase::CountFeatures;
         let group = vec![
             super::passes::at(features::RECORD_MARKS, &b.marks),
             super::passes::at(features::RECORDS, &b.pool),
@@ -312,41 +301,18 @@ impl Recording<'_, '_, '_> {
             }
         });
         let fb = &mut self.fb;
-        // The features pass's group (each draw takes its own).
-        let group = || {
-            vec![
+        if !with_count {
+            let group = vec![
                 super::passes::at(features::RECORD_MARKS, &b.marks),
                 super::passes::at(features::RECORDS, &b.pool),
                 super::passes::at(features::OPTICAL_DEPTH, &b.optical_depth),
                 super::passes::at(features_batch::BATCH, &b.list_len),
-            ]
-        };
-        if !with_count {
-            // With the portable capture, or on a device without 64-bit atomics, in two passes
-            // with 32-bit atomics alone (the same records).
-            match (
-                &gpu.pipelines.wide,
-                gpu.capture_for(self.passes.opts.capture),
-            ) {
-                (Some(w), super::Capture::Wide) => {
-                    let features = match self.passes.opts.tuning.features_preload {
-                        true => &w.features,
-                        false => gpu.extras().features_no_preload(),
-                    };
-                    passes.draw_group(fb.enc, Phase::Features, features, group(), "features");
-                }
-                _ => {
-                    let [depths, colours, _] = gpu.extras().portable_features();
-                    let (d, c) = (Phase::FeaturesDepths, Phase::FeaturesColours);
-                    passes.draw_group(fb.enc, d, depths, group(), "features depths");
-                    passes.draw_group(fb.enc, c, colours, group(), "features colours");
-                }
-            }
-        } else if gpu.capture_for(self.passes.opts.capture) == super::Capture::Portable {
-            // The count gathered the nearest depths and the sums: the nearest keys' colours.
-            let [_, colours, _] = gpu.extras().portable_features();
-            let c = Phase::FeaturesColours;
-            passes.draw_group(fb.enc, c, colours, group(), "features colours");
+            ];
+            let features = match self.passes.opts.tuning.features_preload {
+                true => &p.features,
+                false => gpu.extras().features_no_preload(),
+            };
+            passes.draw_group(fb.enc, Phase::Features, features, group, "features");
         }
         if self.passes.opts.diagnostics {
             // Every batch's records into one copy, where they would lie unbatched; the marks

@@ -241,8 +241,8 @@ pub struct Tuning {
     /// A network pass runs its forward written out for its shape rather than mlp.wgsl's loops
     /// (on).
     pub unrolled_network: bool,
-    /// DKB's features pass loads a pixel's nearest key and skips the atomicMax that cannot
-    /// change it (on).
+    /// DKB's features pass loads a pixel's nearest words and skips the atomicMax that cannot
+    /// change them (on).
     pub features_preload: bool,
     /// The allocation's search adds into 32 copies of its totals in workgroup memory rather than
     /// one (off: slower on lavapipe).
@@ -285,9 +285,8 @@ pub enum Capture {
     /// words, the second its colour into the colour words of the slots holding its depth, the
     /// colours of equal depths in the order of their RGBA8 words (as the 64-bit key orders
     /// them); a fragment left out of the slots goes to the tail. The same bytes a slot and a
-    /// pixel as [`Capture::Wide`], one more geometry pass. DKB's features pass is drawn twice
-    /// too (the nearest depth, then the nearest key's colour and the sums), into the same
-    /// records.
+    /// pixel as [`Capture::Wide`], one more geometry pass (DKB's features need no 64-bit atomic:
+    /// its count and features pass are the same on either).
     Portable,
 }
 

@@ -22,24 +22,15 @@ pub enum Phase {
     Features,
     /// DKB's count (features.wgsl with features_count.wgsl): each pixel's fragments counted,
     /// as [`Phase::Count`] counts them, and the network's statistics of the pixels the frame
-    /// before marked, gathered with them (64-bit atomics): a frame after the first draws no
+    /// before marked, gathered with them: a frame after the first draws no
     /// [`Phase::Features`].
     CountFeatures,
-    /// The same with 32-bit atomics alone: the count, and the nearest depth and the sums of the
-    /// pixels the frame before marked (the nearest key's colour follows in
-    /// [`Phase::FeaturesColours`]; [`super::Capture::Portable`]).
-    CountFeaturesDepths,
     /// VKB's count with each pixel's nearest fragment's depth and facing (vkb_count.wgsl).
     VkbCount,
     /// The k-buffer's capture into each pixel's slots and its tail (capture.wgsl).
     Capture,
     /// The capture built for frames whose budget holds every fragment (k = n).
     CaptureFits,
-    /// DKB's features pass with 32-bit atomics alone, first: each record's nearest depth and
-    /// its sums (features.wgsl with features_portable.wgsl; [`super::Capture::Portable`]).
-    FeaturesDepths,
-    /// ... then the nearest key's colour, over the same fragments.
-    FeaturesColours,
     /// The portable capture's first pass: each fragment's depth into the slots
     /// ([`super::Capture::Portable`]; capture.wgsl with kbuffer_portable.wgsl).
     CaptureDepths,

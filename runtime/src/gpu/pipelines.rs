@@ -20,6 +20,9 @@ pub(super) struct Pipelines {
     pub(super) opaque: wgpu::RenderPipeline,
     pub(super) count: wgpu::RenderPipeline,
     pub(super) store: wgpu::RenderPipeline,
+    /// DKB's features pass (features.wgsl), in a pass of its own and with the count.
+    pub(super) features: wgpu::RenderPipeline,
+    pub(super) count_features: wgpu::RenderPipeline,
     /// The passes that use 64-bit integers, built where the device has them
     /// ([`super::wide_features`]).
     pub(super) wide: Option<Wide>,
@@ -80,14 +83,11 @@ const _: () = assert!(
         <= PLACEHOLDER_BYTES
 );
 
-/// The passes that use 64-bit integers and atomics: the one-pass capture and DKB's one-pass
-/// features, in a pass of their own and with the count.
+/// The passes that use 64-bit integers and atomics: the one-pass capture.
 pub(super) struct Wide {
     pub(super) capture: wgpu::RenderPipeline,
     /// capture.wgsl built for frames whose budget holds every fragment (k = n).
     pub(super) capture_fits: wgpu::RenderPipeline,
-    pub(super) features: wgpu::RenderPipeline,
-    pub(super) count_features: wgpu::RenderPipeline,
 }
 
 /// The opaque pass's depth attachment, which the transparent passes read as their occluder.
@@ -140,7 +140,7 @@ impl NetworkLayout {
                 entry(importance_dkb::PARAMS, uniform),
                 entry(bindings::mlp::WEIGHTS, uniform),
                 // The records (in the slot pool), then each record's importance in its
-                // nearest key's place; after them the list of records the network decides.
+                // nearest words' place; after them the list of records the network decides.
                 entry(importance_dkb::RECORDS, rw),
                 entry(importance_dkb::TOTALS, read),
                 // The importance: the frame's shared word.
@@ -533,7 +533,6 @@ struct Extras {
     features_no_preload: OnceLock<wgpu::RenderPipeline>,
     portable_capture: OnceLock<[wgpu::RenderPipeline; 2]>,
     capture_tints: OnceLock<[wgpu::RenderPipeline; 2]>,
-    portable_features: OnceLock<[wgpu::RenderPipeline; 3]>,
 }
 
 /// The extras' pipelines, as [`Gpu::extras`] hands them out.
@@ -642,21 +641,7 @@ impl<'a> ExtraPipelines<'a> {
         if fits { all_fit } else { general }
     }
 
-    /// DKB's features pass in two passes with 32-bit atomics (depths and sums, colours), and
-    /// its count with the depths and sums of the records the frame before marked.
-    pub(super) fn portable_features(self) -> &'a [wgpu::RenderPipeline; 3] {
-        self.extras().portable_features.get_or_init(|| {
-            let device = self.device();
-            [
-                "features_depths",
-                "features_colours",
-                "count_features_depths",
-            ]
-            .map(|name| transparent_pipeline(device, name, &module(device, name)))
-        })
-    }
-
-    /// The features pass without the nearest key's load first (PRELOAD_NEAREST false).
+    /// The features pass without the nearest words' load first (PRELOAD_NEAREST false).
     pub(super) fn features_no_preload(self) -> &'a wgpu::RenderPipeline {
         self.extras().features_no_preload.get_or_init(|| {
             let device = self.device();
@@ -732,11 +717,11 @@ impl Pipelines {
             opaque,
             count: geometry("abuffer_count"),
             store: geometry("abuffer_store"),
+            features: geometry("features"),
+            count_features: geometry("count_features"),
             wide: wide.then(|| Wide {
                 capture: geometry("capture"),
                 capture_fits: geometry_from("capture", fits("capture")),
-                features: geometry("features"),
-                count_features: geometry("count_features"),
             }),
             scan_blocks: compute_entry("scan", "scan_blocks"),
             scan_blocks_in_place: compute_entry("scan", "scan_blocks_in_place"),

@@ -95,9 +95,8 @@ impl AppMethod {
             // DKB's features pass is drawn where a frame marks its own records (its first,
             // one after a cut, batches); else the count gathers them.
             (AppMethod::Dkb(_), true) => &[
-                CountFeaturesDepths,
-                FeaturesDepths,
-                FeaturesColours,
+                CountFeatures,
+                Features,
                 CaptureDepths,
                 CaptureColours,
                 CaptureTints,
@@ -486,13 +485,7 @@ impl Stream {
                     wgpu::BufferUsages::UNIFORM,
                     false,
                 );
-                let (phase, pipeline) = match (&p.wide, self.capture) {
-                    (Some(w), Capture::Wide) => (Phase::CountFeatures, &w.count_features),
-                    _ => (
-                        Phase::CountFeaturesDepths,
-                        &gpu.extras().portable_features()[2],
-                    ),
-                };
+                let (phase, pipeline) = (Phase::CountFeatures, &p.count_features);
                 let bound = vec![
                     (features::RECORD_MARKS, marks),
                     (features::RECORDS, none),
