@@ -86,7 +86,7 @@ pub const FORMAT: &str = "dhoit-dataset-3";
 /// What produced a dataset: change it whenever the features, targets or fragments change, so a
 /// cached default dataset is regenerated rather than reused stale.
 pub const GENERATOR: &str =
-    "features-v5 rgba8-fragments regret-v1 families-v3 useful-cap tail-pair tinted-glass";
+    "features-v6 rgba8-fragments regret-v1 families-v3 useful-cap tail-pair tinted-glass";
 
 /// Half-width D of the regret window: R is stored at `k* - D ..= k* + D`.
 pub const REGRET_HALF: usize = 8;
