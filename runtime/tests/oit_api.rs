@@ -1441,10 +1441,13 @@ fn every_method_at(
 }
 
 /// Several frames of a moving camera recorded into one encoder and submitted once give the
-/// images the same method gives them one frame at a time, each submitted and read on its own,
-/// for every method: no frame waits within a submission (the first of a method whose memory
-/// follows the count counts first, once), and none reads what the next one writes. Each
-/// frame's report comes back once, in order.
+/// images the same method gives them one frame at a time, each submitted and read on its own
+/// before the next is recorded, for every method: no frame waits within a submission (the first
+/// of a method whose memory follows the count counts first, once), and none reads what the next
+/// one writes. Each frame's report comes back once, in order. (One instance renders the frames
+/// one at a time, as the one records them together: DKB's frame after the first gathers its
+/// statistics for the pixels the frame before marked, so a new instance's first frame of the
+/// same view, which marks its own, may differ from it.)
 #[test]
 fn frames_recorded_into_one_submission_are_the_frames_rendered_one_at_a_time() {
     let Some(g) = gpu() else { return };
@@ -1454,13 +1457,11 @@ fn frames_recorded_into_one_submission_are_the_frames_rendered_one_at_a_time() {
     let cams: Vec<Camera> = (0..4).map(|v| Camera::orbit(&s, v, 24, size)).collect();
     for m in 0..every_method(g, size, F32X4).len() {
         let app = App::new(&s, size, false);
-        // One frame at a time, a new method each (sized as the first frame of a stream is).
+        // One frame at a time, each submitted and read before the next is recorded.
+        let mut one = every_method(&app.gpu, size, F32X4).swap_remove(m);
         let alone: Vec<Vec<[f32; 3]>> = cams
             .iter()
-            .map(|cam| {
-                let mut oit = every_method(&app.gpu, size, F32X4).swap_remove(m);
-                app.frame(oit.as_mut(), &s, cam).0
-            })
+            .map(|cam| app.frame(one.as_mut(), &s, cam).0)
             .collect();
         // Every frame into one encoder, one submission.
         let mut oit = every_method(&app.gpu, size, F32X4).swap_remove(m);
