@@ -839,7 +839,7 @@ type KBufferRun<'a> = (
 /// (`budget::kbuffer_tint_words`), on the GPU as on the CPU.
 /// DKB's features pass reads what tinted glass lets through, as its twin does: its opacity sums
 /// on the GPU are `importance::pixel_stats`'s of the GPU's own fragments, tints and all
-/// (`importance::filtered_alpha8`), in both captures, and differ from grey glass's sums where
+/// (`importance::filtered_alpha8`), with either capture, and differ from grey glass's sums where
 /// the panes filter.
 #[test]
 fn dkb_s_features_read_tinted_glass_like_their_twin() {
@@ -847,7 +847,10 @@ fn dkb_s_features_read_tinted_glass_like_their_twin() {
     use dhoit_runtime::importance::{PixelStats, pixel_stats};
     use dhoit_runtime::shared::TAIL_WORDS;
     let Some(g) = gpu() else { return };
-    let wide_ok = common::is_wide(g, "the one-pass features of tinted glass");
+    let wide_ok = common::is_wide(
+        g,
+        "DKB's features of tinted glass with the one-pass capture",
+    );
     let size = (192, 144);
     let mlp = Mlp::random(6);
     // The built-in windows: tinted and clear panes in front of one another and of vessels.
