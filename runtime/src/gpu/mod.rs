@@ -96,10 +96,10 @@ pub(crate) fn network_pass_source(pass: &'static str, m: &Mlp) -> String {
     pipelines::Variant::for_network(pass, m, true).source()
 }
 
-/// Features that let the k-buffers capture in one geometry pass (and DKB gather its statistics
-/// in one): 64-bit integers and their atomics ([`Capture::Wide`]). A device without them
-/// (WebGPU, Metal, many phones) runs every method all the same, the k-buffers and DKB's
-/// statistics in two passes with 32-bit atomics ([`Capture::Portable`]). Timestamps
+/// Features that let the k-buffers capture in one geometry pass: 64-bit integers and their
+/// atomics ([`Capture::Wide`]). A device without them (WebGPU, Metal, many phones) runs every
+/// method all the same, the k-buffers' capture in two passes with 32-bit atomics
+/// ([`Capture::Portable`]; DKB's statistics take 32-bit atomics on every device). Timestamps
 /// (`TIMESTAMP_QUERY`) are optional: with them a frame reports each pass's GPU time, without
 /// them none.
 pub fn required_features() -> wgpu::Features {
