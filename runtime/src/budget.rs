@@ -307,14 +307,14 @@ const STATUS: (&str, u64) = ("status", 16);
 
 /// Deep k-buffer: the count and the shared word a pixel, and its record marks (a bit a pixel:
 /// which pixels have a record, kept from one frame for the next, whose count gathers their
-/// statistics); the rest in the slot pool before the slots fill it ([`PoolState`]): a record of the network's statistics for each
-/// pixel of three fragments or more (32 bytes: the two nearest words, the colour and opacity sums; a
-/// pixel of fewer keeps them all whatever its k, `shared::stored_k`, so its k is forced) and,
-/// after the records, the network's list of those it decides (4 bytes a record), then
-/// the allocation's marks ([`marks_bytes`]: a bit a pixel, 0.25 bytes with their prefix
-/// counts), then the slots and the pooled tails (two words, where a pixel leaves out more than
-/// two fragments). The shared word (`oit.offsets`) holds a
-/// pixel's importance, the allocation's weights, k and the slot bases in turn.
+/// statistics); the rest in the slot pool before the slots fill it ([`PoolState`]): a record of
+/// the network's statistics for each pixel of three fragments or more (32 bytes: the two
+/// nearest words, the colour and opacity sums; a pixel of fewer keeps them all whatever its k,
+/// `shared::stored_k`, so its k is forced) and, after the records, the network's list of those
+/// it decides (4 bytes a record), then the allocation's marks ([`marks_bytes`]: a bit a pixel,
+/// 0.25 bytes with their prefix counts), then the slots and the pooled tails (two words, where a
+/// pixel leaves out more than two fragments). The shared word (`oit.offsets`) holds a pixel's
+/// importance, the allocation's weights, k and the slot bases in turn.
 pub const DKB: Layout = Layout {
     method: "dkb",
     slot_bytes: SLOT_BYTES,

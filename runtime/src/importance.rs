@@ -209,12 +209,13 @@ pub fn totals(stats: &[PixelStats]) -> Totals {
 
 /// The 12 features of one covered pixel, in order ([`FEATURE_NAMES`]); colours in [0, 1],
 /// `C_near` and `a_near` the nearest fragment's colour and opacity (what its tint lets through:
-/// [`filtered_rgba8`]; [`near_words`]), `mean` and `var` the mean and the variance (summed over R, G, B) of
-/// the pixel's fragment colours, `dev = |C_near - mean|^2`, `tau` the sum of the fragments'
-/// optical depths `-ln(1 - a)`: 0 `log2 n`; 1 `n / mean n` over covered pixels; 2 `F / sum n`,
-/// the budget's share of the frame's fragments; 3 `log2(F / covered pixels)`; 4 the nearest
-/// window depth (in 2^-16 steps: [`near_depth`]); 5 `a_near`; 6 `log2(var + LOG_FLOOR)`; 7 `log2(dev + LOG_FLOOR)`; 8 the mean
-/// opacity; 9 `luma(mean)`; 10 `luma(C_near)`; 11 `log2(tau + OPTICAL_DEPTH_UNIT)`.
+/// [`filtered_rgba8`]; [`near_words`]), `mean` and `var` the mean and the variance (summed over
+/// R, G, B) of the pixel's fragment colours, `dev = |C_near - mean|^2`, `tau` the sum of the
+/// fragments' optical depths `-ln(1 - a)`: 0 `log2 n`; 1 `n / mean n` over covered pixels;
+/// 2 `F / sum n`, the budget's share of the frame's fragments; 3 `log2(F / covered pixels)`;
+/// 4 the nearest window depth (in 2^-16 steps: [`near_depth`]); 5 `a_near`;
+/// 6 `log2(var + LOG_FLOOR)`; 7 `log2(dev + LOG_FLOOR)`; 8 the mean opacity; 9 `luma(mean)`;
+/// 10 `luma(C_near)`; 11 `log2(tau + OPTICAL_DEPTH_UNIT)`.
 ///
 /// Why these: with opacity a, truncating a pixel after k fragments costs about
 /// `(1 - a)^(2k)` times how far the tail's front fragments stray from the tail's mean, so the

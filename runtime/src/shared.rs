@@ -206,9 +206,9 @@ pub const fn k_of_span(span: u32, n: u32) -> u32 {
 }
 
 /// 64-bit words of DKB's per-pixel record (features.wgsl): the two 32-bit nearest words
-/// (`importance::near_words`), two of colour sums, one of opacity sums. Only a pixel of more than [`TAIL_WORDS`] fragments has one (any fewer
-/// are all kept whatever k: [`stored_k`]), in the slot pool until the capture, in pixel order
-/// (records.wgsl, `importance::record_index`).
+/// (`importance::near_words`), two of colour sums, one of opacity sums. Only a pixel of more
+/// than [`TAIL_WORDS`] fragments has one (any fewer are all kept whatever k: [`stored_k`]), in
+/// the slot pool until the capture, in pixel order (records.wgsl, `importance::record_index`).
 pub const RECORD_WORDS: u32 = 4;
 
 /// A pixel without a record (records.wgsl).
